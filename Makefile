@@ -1,0 +1,63 @@
+# ctdrill: make demo | make test | make bench | make fuzz
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed-dev
+STAMP_RUN := $(VENV)/.installed
+SYSTEM_PKGS := xvfb xauth libegl1 libgl1 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 \
+	libxcb-keysyms1 libxcb-shape0 libxcb-xinerama0 libxcb-randr0 libxcb-render-util0 \
+	libxcb-image0 libxrender1 libfontconfig1 libdbus-1-3
+DEMO_OUT ?= demo-out
+
+.PHONY: demo test bench fuzz lint typecheck sysdeps venv venv-dev clean
+
+$(VENV)/bin/python:
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+
+$(STAMP_RUN): pyproject.toml | $(VENV)/bin/python
+	$(PY) -m pip install -q -q -e .
+	touch $@
+
+$(STAMP): pyproject.toml | $(VENV)/bin/python
+	$(PY) -m pip install -q -q -e '.[dev]'
+	touch $@ $(STAMP_RUN)
+
+venv: $(STAMP_RUN)
+venv-dev: $(STAMP)
+
+## System packages the GUI tests need (Xvfb and the Qt/VTK X11 libraries); installed when root.
+sysdeps:
+	@missing=$$(for p in $(SYSTEM_PKGS); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ]; then \
+	    echo "installing system packages: $$missing"; \
+	    DEBIAN_FRONTEND=noninteractive apt-get update -qq && \
+	    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing >/dev/null; \
+	  else \
+	    echo "error: missing system packages: $$missing (install them with apt-get as root)"; exit 2; \
+	  fi; \
+	fi
+
+demo: $(STAMP_RUN)
+	$(VENV)/bin/ctdrill demo --out $(DEMO_OUT)
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff format --check .
+	$(VENV)/bin/ruff check .
+
+typecheck: $(STAMP)
+	$(VENV)/bin/mypy
+
+test: sysdeps $(STAMP) lint typecheck
+	QT_QPA_PLATFORM=xcb xvfb-run -a -s "-screen 0 1600x1000x24" $(PY) -m pytest -q -p no:cacheprovider
+
+bench: sysdeps $(STAMP)
+	MALLOC_TRIM_THRESHOLD_=17179869184 MALLOC_MMAP_THRESHOLD_=33554432 xvfb-run -a -s "-screen 0 1600x1000x24" $(PY) -m bench
+
+fuzz: $(STAMP)
+	CTDRILL_FUZZ_EXAMPLES=20000 $(PY) -m pytest -q -p no:cacheprovider tests -m fuzz
+
+clean:
+	rm -rf $(VENV) build *.egg-info $(DEMO_OUT)

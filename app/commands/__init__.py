@@ -1,0 +1,1 @@
+"""ctdrill subcommands: one module each, exposing ``register(subparsers)``."""

@@ -1,0 +1,1 @@
+"""ctdrill haptics package."""

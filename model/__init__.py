@@ -1,0 +1,1 @@
+"""ctdrill model package."""

@@ -1,0 +1,80 @@
+"""The import direction of DESIGN.md section 3, checked statically and at run time."""
+
+from __future__ import annotations
+
+import ast
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("app", "imaging", "model", "haptics")
+GUI_MODULES = ("PySide6", "vtk", "vtkmodules", "pyvista", "pyvistaqt", "matplotlib")
+
+#: package -> first-party packages it must not import
+FORBIDDEN_FIRST_PARTY = {
+    "imaging": {"model", "haptics", "app"},
+    "model": {"imaging", "haptics", "app"},
+    "haptics": {"imaging", "app"},
+    "app": set(),
+}
+
+
+def _imported_roots(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    roots: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            roots.update(alias.name.split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            roots.add(node.module.split(".")[0])
+    return roots
+
+
+def _sources(package: str) -> list[Path]:
+    return sorted((ROOT / package).rglob("*.py"))
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_first_party_import_direction(package: str) -> None:
+    offenders = {
+        str(path.relative_to(ROOT)): sorted(_imported_roots(path) & FORBIDDEN_FIRST_PARTY[package])
+        for path in _sources(package)
+    }
+    assert {k: v for k, v in offenders.items() if v} == {}
+
+
+@pytest.mark.parametrize("package", ["imaging", "model", "haptics"])
+def test_only_app_imports_gui_and_render_modules(package: str) -> None:
+    offenders = {
+        str(path.relative_to(ROOT)): sorted(_imported_roots(path) & set(GUI_MODULES))
+        for path in _sources(package)
+    }
+    assert {k: v for k, v in offenders.items() if v} == {}
+
+
+def test_importing_core_packages_loads_no_gui_module() -> None:
+    code = (
+        "import json, sys, importlib, pkgutil\n"
+        "for pkg in ('imaging', 'model', 'haptics'):\n"
+        "    mod = importlib.import_module(pkg)\n"
+        "    for info in pkgutil.walk_packages(mod.__path__, pkg + '.'):\n"
+        "        importlib.import_module(info.name)\n"
+        "print(json.dumps(sorted(m for m in sys.modules)))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
+    )
+    loaded = json.loads(out.stdout)
+    bad = [m for m in loaded if m.split(".")[0] in GUI_MODULES]
+    assert bad == []
+    assert "imaging" in loaded and "model" in loaded and "haptics" in loaded
+
+
+def test_the_check_itself_sees_a_forbidden_import(tmp_path: Path) -> None:
+    sample = tmp_path / "bad.py"
+    sample.write_text("import numpy\nfrom model.force import x\nimport vtkmodules.all\n")
+    assert _imported_roots(sample) == {"numpy", "model", "vtkmodules"}
