@@ -1,0 +1,30 @@
+"""Shared fixtures: where the real data lives, and the hypothesis profile."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+ROOT = Path(__file__).resolve().parents[1]
+#: ``../shared`` beside the repository (DESIGN.md, real CT series, the paper).
+SHARED = ROOT.parent / "shared"
+SHARED_DATA = SHARED / "data"
+ASSETS = ROOT / "assets"
+
+settings.register_profile(
+    "ctdrill",
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+    max_examples=int(os.environ.get("CTDRILL_HYPOTHESIS_EXAMPLES", "100")),
+)
+settings.load_profile("ctdrill")
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    """``../shared/data``; its absence is a failure, not a skip."""
+    assert SHARED_DATA.is_dir(), f"real test data missing: {SHARED_DATA} (clone beside ../shared)"
+    return SHARED_DATA
