@@ -1,0 +1,301 @@
+"""The CT volume value: HU voxels, their LPS geometry, validity, provenance and load warnings.
+
+Frames: ``affine_lps`` maps voxel indices ``(i=col, j=row, k=slice, 1)`` to DICOM patient LPS
+millimetres. ``hu`` is indexed ``hu[k, j, i]`` (slices, rows, cols).
+
+Sampling policy (:meth:`CTVolume.sample`): trilinear interpolation on the voxel centres.
+A point is *inside* when its index coordinates lie in ``[0, n - 1]`` on every axis (the hull of
+the voxel centres, no extrapolation); outside points get ``outside_hu``. Padding voxels
+(``valid`` False) are **substituted by ``outside_hu``** before interpolation, so the stored
+padding value (e.g. -2000 or -3024) never bleeds into a sample: next to padding a sample blends
+towards ``outside_hu`` exactly as it would next to air. :meth:`CTVolume.inside` tells which
+samples have a support entirely on valid voxels inside the grid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from imaging.errors import ImagingInputError
+
+#: Warning codes a load may report (DESIGN.md section 4, plus ``single_slice``).
+WARNING_CODES: tuple[str, ...] = (
+    "slice_gap",
+    "nonuniform_spacing",
+    "gantry_tilt",
+    "localizer_dropped",
+    "multiple_series",
+    "duplicate_slice",
+    "padding",
+    "not_hu",
+    "lossy_compression",
+    "files_skipped",
+    "single_slice",
+)
+
+#: Tolerance, in voxels, for a point on the boundary of the voxel-centre hull.
+_EDGE_TOL_VOX = 1e-6
+
+
+@dataclass(frozen=True)
+class LoadWarning:
+    """Something a careful reader of the series must know.
+
+    Attributes
+    ----------
+    code : str
+        One of :data:`WARNING_CODES`.
+    message : str
+        Human-readable detail (positions, counts, UIDs).
+    """
+
+    code: str
+    message: str
+
+
+@dataclass(frozen=True)
+class SeriesInfo:
+    """Provenance of a loaded series; holds no patient identifiers.
+
+    Attributes
+    ----------
+    series_uid : str
+        SeriesInstanceUID.
+    modality : str
+        DICOM Modality (``CT`` ...).
+    is_hu : bool
+        True when the voxel values are Hounsfield units (RescaleType HU or absent on a CT image
+        with a rescale); False means calibrate first (:func:`calibrate_grey_to_hu`).
+    slice_thickness_mm : float | None
+        Nominal SliceThickness: metadata only, never used for geometry.
+    n_files : int
+        Files that contributed slices to the volume.
+    """
+
+    series_uid: str
+    modality: str = "CT"
+    is_hu: bool = True
+    study_description: str = ""
+    series_description: str = ""
+    manufacturer: str = ""
+    model: str = ""
+    kvp: float | None = None
+    kernel: str = ""
+    slice_thickness_mm: float | None = None
+    transfer_syntax: str = ""
+    sop_class_uid: str = ""
+    rescale_type: str = ""
+    n_files: int = 0
+    gantry_tilt_deg: float = 0.0
+
+
+def _readonly(arr: np.ndarray) -> np.ndarray:
+    view = arr.view()
+    view.flags.writeable = False
+    return view
+
+
+@dataclass(frozen=True, eq=False)
+class CTVolume:
+    """A CT volume in LPS millimetres.
+
+    Attributes
+    ----------
+    hu : np.ndarray
+        (slices, rows, cols) HU, int16 where exact else float32; read-only.
+    affine_lps : np.ndarray
+        (4, 4) float64: ``(i=col, j=row, k=slice, 1)`` -> LPS mm. May be sheared (gantry tilt).
+    valid : np.ndarray | None
+        (slices, rows, cols) bool, False on padding; None means every voxel is valid.
+    info : SeriesInfo
+        Provenance (no patient identifiers).
+    warnings : tuple[LoadWarning, ...]
+        What the loader noticed.
+    slice_positions_mm : np.ndarray
+        (slices,) true slice positions along the slice normal (IPP projected on the IOP
+        normal), mm. For a non-uniform stack the affine uses the median step and these carry
+        the truth. Left empty, it is derived from the affine.
+    """
+
+    hu: np.ndarray
+    affine_lps: np.ndarray
+    valid: np.ndarray | None
+    info: SeriesInfo
+    warnings: tuple[LoadWarning, ...] = ()
+    slice_positions_mm: np.ndarray = field(default_factory=lambda: np.empty(0))
+    _inv_lin: np.ndarray = field(init=False, repr=False)
+    _inv_off: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        hu = np.asarray(self.hu)
+        if hu.ndim != 3 or min(hu.shape) < 1:
+            raise ImagingInputError(f"CTVolume.hu: expected (slices, rows, cols), got {hu.shape}")
+        if hu.dtype not in (np.int16, np.float32):
+            hu = hu.astype(np.float32)
+        affine = np.array(self.affine_lps, dtype=np.float64)
+        if affine.shape != (4, 4) or not np.all(np.isfinite(affine)):
+            raise ImagingInputError("CTVolume.affine_lps: expected a finite (4, 4) matrix")
+        if not np.allclose(affine[3], [0.0, 0.0, 0.0, 1.0]):
+            raise ImagingInputError("CTVolume.affine_lps: last row must be [0, 0, 0, 1]")
+        if abs(np.linalg.det(affine[:3, :3])) < 1e-12:
+            raise ImagingInputError(
+                "CTVolume.affine_lps: singular (zero spacing or collinear axes)"
+            )
+        valid = self.valid
+        if valid is not None:
+            valid = np.asarray(valid, dtype=bool)
+            if valid.shape != hu.shape:
+                raise ImagingInputError(
+                    f"CTVolume.valid: shape {valid.shape} differs from hu {hu.shape}"
+                )
+            valid = None if bool(valid.all()) else _readonly(valid)
+        positions = np.asarray(self.slice_positions_mm, dtype=np.float64).reshape(-1)
+        if positions.size == 0:
+            normal = _unit_normal(affine)
+            k = np.arange(hu.shape[0], dtype=np.float64)
+            origins = affine[:3, 3][None, :] + k[:, None] * affine[:3, 2][None, :]
+            positions = origins @ normal
+        elif positions.shape != (hu.shape[0],):
+            raise ImagingInputError(
+                f"CTVolume.slice_positions_mm: expected {hu.shape[0]} values, got {positions.size}"
+            )
+        object.__setattr__(self, "hu", _readonly(hu))
+        object.__setattr__(self, "affine_lps", _readonly(affine))
+        object.__setattr__(self, "valid", valid)
+        object.__setattr__(self, "slice_positions_mm", _readonly(positions))
+        object.__setattr__(self, "warnings", tuple(self.warnings))
+        inv = np.linalg.inv(affine)
+        object.__setattr__(self, "_inv_lin", inv[:3, :3].copy())
+        object.__setattr__(self, "_inv_off", inv[:3, 3].copy())
+
+    # ------------------------------------------------------------------ geometry
+    @property
+    def dims(self) -> tuple[int, int, int]:
+        """(cols, rows, slices)."""
+        s, r, c = self.hu.shape
+        return (int(c), int(r), int(s))
+
+    @property
+    def spacing_mm(self) -> tuple[float, float, float]:
+        """(col, row, slice) distances in mm: the column norms of the affine."""
+        norms = np.linalg.norm(self.affine_lps[:3, :3], axis=0)
+        return (float(norms[0]), float(norms[1]), float(norms[2]))
+
+    @property
+    def is_volume(self) -> bool:
+        """False for a single slice: not a volume for the force path."""
+        return self.hu.shape[0] >= 2
+
+    @property
+    def warning_codes(self) -> tuple[str, ...]:
+        """The codes of :attr:`warnings`, in order."""
+        return tuple(w.code for w in self.warnings)
+
+    def uniform_slices(self, *, rtol: float = 0.01) -> bool:
+        """True when every slice step is within ``rtol`` of the median step."""
+        steps = np.diff(self.slice_positions_mm)
+        if steps.size == 0:
+            return True
+        med = float(np.median(steps))
+        return bool(np.all(np.abs(steps - med) <= rtol * abs(med)))
+
+    def index_to_lps(self, index_ijk: np.ndarray) -> np.ndarray:
+        """Voxel index coordinates (..., 3) as (i=col, j=row, k=slice) -> LPS mm (..., 3)."""
+        ijk = np.asarray(index_ijk, dtype=np.float64)
+        a = self.affine_lps
+        return np.asarray(ijk @ a[:3, :3].T + a[:3, 3])
+
+    def lps_to_index(self, points_lps: np.ndarray) -> np.ndarray:
+        """LPS mm (..., 3) -> continuous voxel index coordinates (i, j, k) (..., 3)."""
+        pts = np.asarray(points_lps, dtype=np.float64)
+        return np.asarray(pts @ self._inv_lin.T + self._inv_off)
+
+    # ------------------------------------------------------------------ sampling
+    def _support(
+        self, points_lps: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[int, ...]]:
+        """Flat corner indices (8, N), weights (8, N), in-grid mask (N,), and the batch shape."""
+        pts = np.asarray(points_lps, dtype=np.float64)
+        if pts.shape[-1:] != (3,):
+            raise ImagingInputError(f"points_lps: expected shape (..., 3), got {pts.shape}")
+        batch = pts.shape[:-1]
+        idx = self.lps_to_index(pts.reshape(-1, 3))
+        n_s, n_r, n_c = self.hu.shape
+        sizes = np.array([n_c, n_r, n_s], dtype=np.float64)
+        with np.errstate(invalid="ignore"):
+            inside = np.all((idx >= -_EDGE_TOL_VOX) & (idx <= sizes - 1.0 + _EDGE_TOL_VOX), axis=1)
+        idx = np.where(inside[:, None], idx, 0.0)
+        idx = np.clip(idx, 0.0, sizes - 1.0)
+        lo = np.minimum(np.floor(idx), np.maximum(sizes - 2.0, 0.0))
+        frac = np.clip(idx - lo, 0.0, 1.0)
+        lo_i = lo.astype(np.intp)
+        hi_i = np.minimum(lo_i + 1, (sizes - 1.0).astype(np.intp))
+        stride_k, stride_j = n_r * n_c, n_c
+        flats = []
+        weights = []
+        fi, fj, fk = frac[:, 0], frac[:, 1], frac[:, 2]
+        for dk in (0, 1):
+            kk = (hi_i if dk else lo_i)[:, 2] * stride_k
+            wk = fk if dk else 1.0 - fk
+            for dj in (0, 1):
+                jj = (hi_i if dj else lo_i)[:, 1] * stride_j
+                wj = fj if dj else 1.0 - fj
+                for di in (0, 1):
+                    ii = (hi_i if di else lo_i)[:, 0]
+                    wi = fi if di else 1.0 - fi
+                    flats.append(kk + jj + ii)
+                    weights.append(wk * wj * wi)
+        return np.stack(flats), np.stack(weights), inside, batch
+
+    def sample(
+        self, points_lps: np.ndarray, *, order: int = 1, outside_hu: float = -1000.0
+    ) -> np.ndarray:
+        """Trilinear HU at LPS points.
+
+        Parameters
+        ----------
+        points_lps : np.ndarray
+            (..., 3) LPS mm. Non-finite points count as outside.
+        order : int
+            Interpolation order: 1 (trilinear) or 0 (nearest voxel).
+        outside_hu : float
+            Value outside the voxel-centre hull and substituted for padding voxels.
+
+        Returns
+        -------
+        np.ndarray
+            (...) float64 HU; never NaN.
+        """
+        if order not in (0, 1):
+            raise ImagingInputError(f"sample: order must be 0 or 1, got {order}")
+        flats, weights, inside, batch = self._support(points_lps)
+        if order == 0:
+            best = np.argmax(weights, axis=0)
+            flats = np.take_along_axis(flats, best[None, :], axis=0)
+            weights = np.ones_like(flats, dtype=np.float64)
+        flat_hu = self.hu.reshape(-1)
+        vals = flat_hu[flats].astype(np.float64)
+        if self.valid is not None:
+            vals = np.where(self.valid.reshape(-1)[flats], vals, float(outside_hu))
+        out = np.einsum("cn,cn->n", weights, vals)
+        out = np.where(inside, out, float(outside_hu))
+        return out.reshape(batch)
+
+    def inside(self, points_lps: np.ndarray) -> np.ndarray:
+        """(...) bool: the point is inside the grid and its trilinear support is all valid.
+
+        Corners with zero weight (a point exactly on a voxel plane) do not count.
+        """
+        flats, weights, inside, batch = self._support(points_lps)
+        if self.valid is not None:
+            ok = self.valid.reshape(-1)[flats] | (weights == 0.0)
+            inside = inside & np.all(ok, axis=0)
+        return inside.reshape(batch)
+
+
+def _unit_normal(affine_lps: np.ndarray) -> np.ndarray:
+    """Unit slice normal: row direction x column direction of the affine (IOP normal)."""
+    n = np.cross(affine_lps[:3, 0], affine_lps[:3, 1])
+    return np.asarray(n / np.linalg.norm(n))
