@@ -1,0 +1,285 @@
+"""Calibration sets: the power-law coefficients of Eq. 13/19-22 for one material.
+
+A set is a JSON file (schema in DESIGN.md section 1)::
+
+    {"name": ..., "material": ..., "source": ...,
+     "c_prime_range": [lo, hi], "gate_hu": ..., "gate_width_hu": ...,
+     "a0": {"b0": ..., "n": ..., "ke": ...},
+     "harmonics": [{"order": 1, "b0": ..., "n": ...}, ...]}
+
+``ke`` is per (mm/s). An optional ``"fit"`` object (written by ``ctdrill calibrate``) carries the
+fit's standard errors and is kept as read, not interpreted.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import model
+from model.errors import ModelInputError
+
+#: Where named calibration sets live: ``<repo>/assets/calibration/``.
+CALIBRATION_DIR: Path = Path(model.__file__).resolve().parents[1] / "assets" / "calibration"
+
+
+class CalibrationError(ModelInputError):
+    """A calibration set is missing, unreadable or has an invalid field."""
+
+
+@dataclass(frozen=True)
+class PowerLaw:
+    """``10**b0 * C'**n`` (N), with ``C' = HU + 1000``."""
+
+    b0: float
+    n: float
+
+
+@dataclass(frozen=True)
+class Harmonic:
+    """Amplitude ``10**b0 * C'**n`` (N) of the harmonic at ``order * blades * rpm / 60`` Hz."""
+
+    order: int
+    b0: float
+    n: float
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """One material's force-law coefficients (DESIGN.md section 1).
+
+    Attributes
+    ----------
+    name, material, source : str
+        Identification; ``source`` says where the numbers come from.
+    c_prime_range : tuple of float
+        ``(lo, hi)`` of ``C' = HU + 1000`` over which the power laws are valid; every law is
+        evaluated at ``C'`` clipped to it. ``0 < lo < hi``.
+    gate_hu, gate_width_hu : float
+        Centre and width (HU) of the ramp below which nothing is cut.
+    a0 : PowerLaw
+        DC term at zero feed, N.
+    ke_per_mm_s : float
+        Feed sensitivity ``Ke`` of ``A0 (1 + Ke v)``, per (mm/s), ``>= 0``.
+    harmonics : tuple of Harmonic
+        Vibration terms, orders distinct and ascending.
+    """
+
+    name: str
+    material: str
+    source: str
+    c_prime_range: tuple[float, float]
+    gate_hu: float
+    gate_width_hu: float
+    a0: PowerLaw
+    ke_per_mm_s: float
+    harmonics: tuple[Harmonic, ...]
+
+    @property
+    def illustrative(self) -> bool:
+        """True when the set is not a measured calibration (its name or source says so)."""
+        return "illustrative" in self.name.lower() or "illustrative" in self.source.lower()
+
+
+def available_calibrations() -> tuple[str, ...]:
+    """Names of the bundled sets in :data:`CALIBRATION_DIR`, sorted."""
+    if not CALIBRATION_DIR.is_dir():
+        return ()
+    return tuple(sorted(p.stem for p in CALIBRATION_DIR.glob("*.json")))
+
+
+def resolve_calibration_path(name_or_path: str | Path) -> Path:
+    """Path of a set given by bundled name (``"pine-wood-paper"``) or by file path."""
+    text = str(name_or_path)
+    if not text.strip():
+        raise CalibrationError(
+            "calibration: empty name; give a set name "
+            f"({', '.join(available_calibrations())}) or a path to a .json file"
+        )
+    as_path = Path(text)
+    looks_like_path = as_path.suffix.lower() == ".json" or len(as_path.parts) > 1
+    if looks_like_path:
+        if not as_path.is_file():
+            raise CalibrationError(f"calibration file {as_path}: not found; check the path")
+        return as_path
+    named = CALIBRATION_DIR / f"{text}.json"
+    if named.is_file():
+        return named
+    if as_path.is_file():
+        return as_path
+    raise CalibrationError(
+        f"calibration {text!r}: no such set in {CALIBRATION_DIR}; "
+        f"use one of {', '.join(available_calibrations()) or '(none)'} or a path to a .json file"
+    )
+
+
+def _number(obj: Mapping[str, Any], key: str, where: str, src: Path) -> float:
+    if key not in obj:
+        raise CalibrationError(f"calibration file {src}: missing field {where}{key}; add it")
+    value = obj[key]
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise CalibrationError(
+            f"calibration file {src}: field {where}{key} must be a number, got {value!r}"
+        )
+    out = float(value)
+    if not math.isfinite(out):
+        raise CalibrationError(f"calibration file {src}: field {where}{key} must be finite")
+    return out
+
+
+def _text(obj: Mapping[str, Any], key: str, src: Path, default: str | None = None) -> str:
+    value = obj.get(key, default)
+    if not isinstance(value, str) or not value.strip():
+        raise CalibrationError(
+            f"calibration file {src}: field {key} must be a non-empty string; set it"
+        )
+    return value
+
+
+def calibration_from_dict(data: Any, *, source_path: Path | str = "<dict>") -> Calibration:
+    """Validate a parsed calibration document and return the :class:`Calibration`.
+
+    Raises
+    ------
+    CalibrationError
+        Naming the file and the field at fault.
+    """
+    src = Path(source_path)
+    if not isinstance(data, Mapping):
+        raise CalibrationError(f"calibration file {src}: top level must be a JSON object")
+    name = _text(data, "name", src, default=src.stem)
+    material = _text(data, "material", src)
+    source = _text(data, "source", src)
+
+    rng = data.get("c_prime_range")
+    if not isinstance(rng, list | tuple) or len(rng) != 2:
+        raise CalibrationError(
+            f"calibration file {src}: field c_prime_range must be [lo, hi] with 0 < lo < hi"
+        )
+    lo = _number({"c_prime_range[0]": rng[0]}, "c_prime_range[0]", "", src)
+    hi = _number({"c_prime_range[1]": rng[1]}, "c_prime_range[1]", "", src)
+    if not 0.0 < lo < hi:
+        raise CalibrationError(
+            f"calibration file {src}: field c_prime_range must satisfy 0 < lo < hi, "
+            f"got [{lo}, {hi}] (C' = HU + 1000 must stay positive)"
+        )
+    gate_hu = _number(data, "gate_hu", "", src)
+    gate_width_hu = _number(data, "gate_width_hu", "", src)
+    if gate_width_hu <= 0.0:
+        raise CalibrationError(
+            f"calibration file {src}: field gate_width_hu must be > 0 HU, got {gate_width_hu}"
+        )
+
+    a0 = data.get("a0")
+    if not isinstance(a0, Mapping):
+        raise CalibrationError(
+            f"calibration file {src}: field a0 must be an object {{b0, n, ke}}; add it"
+        )
+    a0_law = PowerLaw(b0=_number(a0, "b0", "a0.", src), n=_number(a0, "n", "a0.", src))
+    ke = _number(a0, "ke", "a0.", src)
+    if ke < 0.0:
+        raise CalibrationError(
+            f"calibration file {src}: field a0.ke must be >= 0 per (mm/s), got {ke}"
+        )
+
+    raw_harmonics = data.get("harmonics", [])
+    if not isinstance(raw_harmonics, list):
+        raise CalibrationError(f"calibration file {src}: field harmonics must be a list")
+    harmonics: list[Harmonic] = []
+    for i, h in enumerate(raw_harmonics):
+        where = f"harmonics[{i}]."
+        if not isinstance(h, Mapping):
+            raise CalibrationError(
+                f"calibration file {src}: field harmonics[{i}] must be an object {{order, b0, n}}"
+            )
+        order = h.get("order")
+        if isinstance(order, bool) or not isinstance(order, int) or order < 1:
+            raise CalibrationError(
+                f"calibration file {src}: field {where}order must be an integer >= 1, got {order!r}"
+            )
+        harmonics.append(
+            Harmonic(order=order, b0=_number(h, "b0", where, src), n=_number(h, "n", where, src))
+        )
+    orders = [h.order for h in harmonics]
+    if len(set(orders)) != len(orders):
+        raise CalibrationError(
+            f"calibration file {src}: field harmonics has repeated orders {orders}; "
+            "give each order once"
+        )
+    return Calibration(
+        name=name,
+        material=material,
+        source=source,
+        c_prime_range=(lo, hi),
+        gate_hu=gate_hu,
+        gate_width_hu=gate_width_hu,
+        a0=a0_law,
+        ke_per_mm_s=ke,
+        harmonics=tuple(sorted(harmonics, key=lambda h: h.order)),
+    )
+
+
+def load_calibration(name_or_path: str | Path) -> Calibration:
+    """Load a calibration set by bundled name or by path.
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        A name in ``assets/calibration/`` (``"pine-wood-paper"``, ``"bone-illustrative"``) or a
+        path to a ``.json`` file.
+
+    Raises
+    ------
+    CalibrationError
+        The set is missing, not JSON, or a field is invalid (the message names file and field).
+    """
+    path = resolve_calibration_path(name_or_path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CalibrationError(f"calibration file {path}: cannot read it ({exc})") from exc
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise CalibrationError(
+            f"calibration file {path}: not valid JSON (line {exc.lineno}: {exc.msg}); fix it"
+        ) from exc
+    return calibration_from_dict(data, source_path=path)
+
+
+def calibration_to_dict(calibration: Calibration) -> dict[str, Any]:
+    """The JSON document of a set (inverse of :func:`calibration_from_dict`)."""
+    return {
+        "name": calibration.name,
+        "material": calibration.material,
+        "source": calibration.source,
+        "c_prime_range": [calibration.c_prime_range[0], calibration.c_prime_range[1]],
+        "gate_hu": calibration.gate_hu,
+        "gate_width_hu": calibration.gate_width_hu,
+        "a0": {
+            "b0": calibration.a0.b0,
+            "n": calibration.a0.n,
+            "ke": calibration.ke_per_mm_s,
+        },
+        "harmonics": [{"order": h.order, "b0": h.b0, "n": h.n} for h in calibration.harmonics],
+    }
+
+
+def harmonic_freqs_hz(calibration: Calibration, *, blades: int, rpm: float) -> np.ndarray:
+    """Frequencies of the harmonics, ``order * blades * rpm / 60`` (Hz), shape (K,).
+
+    The paper's drill (2 blades, 900 rpm) gives 30 and 60 Hz.
+    """
+    if isinstance(blades, bool) or not isinstance(blades, int | np.integer) or blades < 1:
+        raise ModelInputError(f"drill.blades must be an integer >= 1, got {blades!r}")
+    rpm_f = float(rpm)
+    if not math.isfinite(rpm_f) or rpm_f <= 0.0:
+        raise ModelInputError(f"drill.rpm must be a finite number > 0, got {rpm!r}")
+    orders = np.array([h.order for h in calibration.harmonics], dtype=np.float64)
+    return orders * (int(blades) * rpm_f / 60.0)
