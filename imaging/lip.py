@@ -1,0 +1,250 @@
+"""Samples of the CT on the drill's conical cutting lip (DESIGN.md 1.4).
+
+The lip runs from the tip point (radius 0, depth ``x``) to the outer corner (radius ``R`` =
+diameter / 2, depth ``x - l_t``), ``l_t`` the tip length. Its radial extent is cut into
+``n_rings`` equal bins; ring ``i`` sits at the bin midpoint ``r_i = (i + 1/2) R / n_rings``, at
+depth ``xi_i = x - l_t r_i / R`` along the drill axis, and is sampled at ``n_angles`` equally
+spaced angles around the axis. The midpoint rule gives each ring the weight ``1 / n_rings`` in
+``(1/R) integral_0^R ... dr``.
+
+Depth is measured from the entry point along the unit axis ``(target - entry) / |target - entry|``;
+all points are LPS millimetres.
+
+Defaults (``n_rings=4``, ``n_angles=12``) were chosen from the accuracy-vs-cost measurements
+of ``bench/bench_sampling.py`` (see docs/benchmarks.md, section "Lip sampling").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from imaging.errors import ImagingInputError
+from imaging.volume import CTVolume
+
+#: Default number of rings on the lip (measured, bench/bench_sampling.py).
+DEFAULT_N_RINGS = 4
+#: Default number of angles per ring (measured, bench/bench_sampling.py).
+DEFAULT_N_ANGLES = 12
+
+
+class LipInputError(ImagingInputError):
+    """Bad trajectory or drill geometry given to the lip sampler."""
+
+
+@dataclass(frozen=True, eq=False)
+class LipSamples:
+    """HU on the cutting lip at each tip depth.
+
+    Attributes
+    ----------
+    depth_mm : np.ndarray
+        (D,) tip depth along the axis from the entry point, mm.
+    radii_mm : np.ndarray
+        (R,) ring radii, mm (midpoints of equal radial bins).
+    ring_weights : np.ndarray
+        (R,) quadrature weights of ``(1/R) integral dr``; each ``1 / R``, they sum to 1.
+    hu : np.ndarray
+        (D, R, A) float32 HU at ring point (radius r, angle a), at depth ``x - l_t r / R``.
+    outside : np.ndarray
+        (D,) int64: ring samples outside the volume or touching padding, per depth.
+    axis_hu : np.ndarray
+        (D,) float64 HU on the axis at the tip point.
+    """
+
+    depth_mm: np.ndarray
+    radii_mm: np.ndarray
+    ring_weights: np.ndarray
+    hu: np.ndarray
+    outside: np.ndarray
+    axis_hu: np.ndarray
+
+    @property
+    def lip_mean_hu(self) -> np.ndarray:
+        """(D,) lip-mean HU: ring means over angles, weighted by ``ring_weights``."""
+        return np.asarray(self.hu.mean(axis=2, dtype=np.float64) @ self.ring_weights)
+
+
+def axis_basis(entry_lps: np.ndarray, target_lps: np.ndarray) -> np.ndarray:
+    """Orthonormal right-handed frame of the drill axis.
+
+    Parameters
+    ----------
+    entry_lps, target_lps : np.ndarray
+        (3,) LPS mm; they must differ.
+
+    Returns
+    -------
+    np.ndarray
+        (3, 3) rows ``(axis, e1, e2)``: ``axis`` the unit vector entry -> target, ``e1`` the
+        coordinate axis least aligned with it (first one on ties) made orthogonal and
+        normalised, ``e2 = axis x e1``. Deterministic for a given axis.
+    """
+    entry = _point(entry_lps, "entry_lps")
+    target = _point(target_lps, "target_lps")
+    d = target - entry
+    norm = float(np.linalg.norm(d))
+    if not norm > 1e-9:
+        raise LipInputError(
+            "trajectory: entry and target are the same point; plan a target away from the entry"
+        )
+    axis = d / norm
+    helper = np.zeros(3)
+    helper[int(np.argmin(np.abs(axis)))] = 1.0
+    e1 = helper - float(helper @ axis) * axis
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(axis, e1)
+    return np.stack([axis, e1, e2])
+
+
+def ring_radii_mm(diameter_mm: float, n_rings: int) -> np.ndarray:
+    """(n_rings,) midpoints of ``n_rings`` equal radial bins on ``[0, diameter / 2]``, mm."""
+    radius = _positive(diameter_mm, "drill.diameter_mm") / 2.0
+    n = _count(n_rings, "n_rings")
+    return (np.arange(n, dtype=np.float64) + 0.5) * (radius / n)
+
+
+def lip_ring_points(
+    entry_lps: np.ndarray,
+    target_lps: np.ndarray,
+    depth_mm: np.ndarray,
+    *,
+    diameter_mm: float,
+    tip_length_mm: float,
+    n_rings: int = DEFAULT_N_RINGS,
+    n_angles: int = DEFAULT_N_ANGLES,
+) -> np.ndarray:
+    """LPS positions of the lip's ring samples.
+
+    Parameters
+    ----------
+    entry_lps, target_lps : np.ndarray
+        (3,) LPS mm; depth 0 is the entry, the axis points to the target.
+    depth_mm : np.ndarray
+        (D,) tip depths, mm (any finite values).
+    diameter_mm : float
+        Drill diameter, mm (> 0).
+    tip_length_mm : float
+        Axial length of the conical tip, mm (>= 0; 0 is a flat lip).
+    n_rings, n_angles : int
+        Rings on the lip and samples per ring (>= 1).
+
+    Returns
+    -------
+    np.ndarray
+        (D, n_rings, n_angles, 3) LPS mm. Point ``[d, i, a]`` lies at distance ``r_i`` from the
+        axis, at depth ``depth_mm[d] - tip_length_mm * r_i / R`` along it, at angle
+        ``2 pi a / n_angles`` from ``e1`` towards ``e2`` (:func:`axis_basis`).
+    """
+    depth = _depths(depth_mm)
+    tip_len = float(tip_length_mm)
+    if not (np.isfinite(tip_len) and tip_len >= 0.0):
+        raise LipInputError(
+            f"drill.tip_length_mm: must be a finite length >= 0 mm, got {tip_length_mm!r}"
+        )
+    radii = ring_radii_mm(diameter_mm, n_rings)
+    n_a = _count(n_angles, "n_angles")
+    axis, e1, e2 = axis_basis(entry_lps, target_lps)
+    entry = np.asarray(entry_lps, dtype=np.float64)
+    radius = float(diameter_mm) / 2.0
+    xi = depth[:, None] - tip_len * radii[None, :] / radius  # (D, R)
+    theta = 2.0 * np.pi * np.arange(n_a, dtype=np.float64) / n_a
+    ring_unit = np.cos(theta)[:, None] * e1 + np.sin(theta)[:, None] * e2  # (A, 3)
+    offsets = radii[:, None, None] * ring_unit[None, :, :]  # (R, A, 3)
+    centres = entry + xi[:, :, None] * axis  # (D, R, 3)
+    return np.asarray(centres[:, :, None, :] + offsets[None, :, :, :])
+
+
+def sample_lip_rings(
+    volume: CTVolume,
+    entry_lps: np.ndarray,
+    target_lps: np.ndarray,
+    depth_mm: np.ndarray,
+    *,
+    diameter_mm: float,
+    tip_length_mm: float,
+    n_rings: int = DEFAULT_N_RINGS,
+    n_angles: int = DEFAULT_N_ANGLES,
+    outside_hu: float = -1000.0,
+    order: int = 1,
+) -> LipSamples:
+    """HU on the cutting lip at each tip depth, in one vectorised volume lookup.
+
+    Parameters
+    ----------
+    volume : CTVolume
+        The CT.
+    entry_lps, target_lps : np.ndarray
+        (3,) LPS mm.
+    depth_mm : np.ndarray
+        (D,) tip depths from the entry along the axis, mm.
+    diameter_mm, tip_length_mm : float
+        Drill geometry, mm.
+    n_rings, n_angles : int
+        Lip discretisation (defaults measured in bench/bench_sampling.py).
+    outside_hu : float
+        HU given to samples outside the volume or on padding (also counted in ``outside``).
+    order : int
+        Interpolation order passed to :meth:`CTVolume.sample` (1 trilinear, 0 nearest).
+
+    Returns
+    -------
+    LipSamples
+        ``hu`` (D, n_rings, n_angles) float32, ``axis_hu`` (D,), ``outside`` (D,) counts.
+    """
+    points = lip_ring_points(
+        entry_lps,
+        target_lps,
+        depth_mm,
+        diameter_mm=diameter_mm,
+        tip_length_mm=tip_length_mm,
+        n_rings=n_rings,
+        n_angles=n_angles,
+    )
+    depth = _depths(depth_mm)
+    axis = axis_basis(entry_lps, target_lps)[0]
+    tips = np.asarray(entry_lps, dtype=np.float64) + depth[:, None] * axis  # (D, 3)
+    n_d, n_r, n_a = points.shape[:3]
+    flat = points.reshape(-1, 3)
+    everything = np.concatenate([flat, tips])
+    values = volume.sample(everything, order=order, outside_hu=float(outside_hu))
+    ring_hu = values[: flat.shape[0]].reshape(n_d, n_r, n_a).astype(np.float32)
+    inside = volume.inside(flat).reshape(n_d, n_r * n_a)
+    outside = (n_r * n_a - inside.sum(axis=1)).astype(np.int64)
+    return LipSamples(
+        depth_mm=depth,
+        radii_mm=ring_radii_mm(diameter_mm, n_rings),
+        ring_weights=np.full(n_r, 1.0 / n_r),
+        hu=ring_hu,
+        outside=outside,
+        axis_hu=np.asarray(values[flat.shape[0] :], dtype=np.float64),
+    )
+
+
+def _point(value: np.ndarray, name: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise LipInputError(f"{name}: expected 3 finite LPS coordinates in mm, got {value!r}")
+    return arr
+
+
+def _depths(depth_mm: np.ndarray) -> np.ndarray:
+    depth = np.asarray(depth_mm, dtype=np.float64).reshape(-1)
+    if not np.all(np.isfinite(depth)):
+        raise LipInputError("depth_mm: every tip depth must be finite (mm)")
+    return depth
+
+
+def _positive(value: float, name: str) -> float:
+    v = float(value)
+    if not (np.isfinite(v) and v > 0.0):
+        raise LipInputError(f"{name}: must be a finite length > 0 mm, got {value!r}")
+    return v
+
+
+def _count(value: int, name: str) -> int:
+    n = int(value)
+    if n < 1 or n != value:
+        raise LipInputError(f"{name}: must be a whole number >= 1, got {value!r}")
+    return n
