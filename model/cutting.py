@@ -1,0 +1,142 @@
+"""Interactive cutting along one axis: material removal and the yielding cut front (DESIGN 1.7-1.8).
+
+The hole is the set of depths the drill has already reached: with ``front_mm`` the deepest drill
+depth so far (``x_max``), nothing is cut while the master is at ``master_mm <= front_mm``.
+Beyond the front, the master is coupled to the front by a stiff spring ``k`` (the penetration
+``e = master_mm - front_mm`` is what the hand feels) and the material yields:
+
+* at rest it holds up to ``S0``: while ``k e <= S0`` the front does not move;
+* pushed harder, the front advances with ``v = (k e / S0 - 1) / Ke`` (Eq. 19's
+  ``A0 (1 + Ke v)`` solved for ``v``), so a constant hand force ``F = k e`` gives the steady feed
+  ``v = (F / S0 - 1) / Ke``;
+* ``Ke = 0`` is rigid-plastic (the front moves at once so that the force is ``S0``), ``S0 = 0``
+  is nothing to cut (the front follows the master);
+* an advance never overshoots the equilibrium penetration ``S0 / k`` within a tick (explicit
+  Euler with that clamp: stable at any step, exact for a constant penetration);
+* the vibration terms are added while the front advances; the resistance is never negative
+  (material resists, it never pushes the hand back beyond the spring it compresses) and
+  retraction is free.
+
+Everything here is a pure function of floats (no arrays, no allocation beyond the result) so the
+device renderer can call it 10 000 times a second. Depth and positions in mm, force in N, feed in
+mm/s, time in s. The default stiffness and damping are the paper's position gains on the nominal
+master mass (Table 4): ``k = Mn Kp = 0.5 kg * 6400 /s^2 = 3.2 N/mm`` and
+``b = Mn Kv = 0.5 kg * 160 /s = 0.08 N s/mm``.
+"""
+
+from __future__ import annotations
+
+import math
+
+#: Nominal master mass (paper, Table 4), kg.
+MASTER_MASS_KG = 0.5
+#: Coupling stiffness master-front, ``Mn * Kp``, N/mm.
+DEFAULT_STIFFNESS_N_PER_MM = MASTER_MASS_KG * 6400.0 / 1000.0
+#: Coupling damping master-front, ``Mn * Kv``, N s/mm.
+DEFAULT_DAMPING_N_S_PER_MM = MASTER_MASS_KG * 160.0 / 1000.0
+
+
+def equilibrium_penetration_mm(
+    s0_n: float, *, stiffness_n_per_mm: float = DEFAULT_STIFFNESS_N_PER_MM
+) -> float:
+    """Penetration at which the coupling force equals ``S0``: ``S0 / k``, mm (0 if ``S0 <= 0``)."""
+    if s0_n <= 0.0:
+        return 0.0
+    return s0_n / stiffness_n_per_mm
+
+
+def steady_feed_mm_s(force_n: float, s0_n: float, ke_per_mm_s: float) -> float:
+    """Steady feed under a constant hand force: ``(F / S0 - 1) / Ke``, mm/s, 0 if ``F <= S0``.
+
+    ``inf`` when the material cannot resist (``S0 <= 0`` with ``F > 0``, or ``Ke <= 0`` with
+    ``F > S0``).
+    """
+    if force_n <= max(s0_n, 0.0):
+        return 0.0
+    if s0_n <= 0.0 or ke_per_mm_s <= 0.0:
+        return math.inf
+    return (force_n / s0_n - 1.0) / ke_per_mm_s
+
+
+def advance_front_mm(
+    front_mm: float,
+    master_mm: float,
+    s0_n: float,
+    ke_per_mm_s: float,
+    dt_s: float,
+    *,
+    stiffness_n_per_mm: float = DEFAULT_STIFFNESS_N_PER_MM,
+    limit_mm: float = math.inf,
+) -> float:
+    """The cut front after one step of ``dt_s`` with the master held at ``master_mm``.
+
+    Parameters
+    ----------
+    front_mm : float
+        Cut front (deepest drill depth so far, ``x_max``), mm.
+    master_mm : float
+        Master (hand) depth, mm.
+    s0_n : float
+        Cutting force at zero feed at the front, N (``<= 0``: nothing to cut).
+    ke_per_mm_s : float
+        Feed sensitivity ``Ke``, per (mm/s) (``<= 0``: rigid-plastic).
+    dt_s : float
+        Step, s (> 0).
+    stiffness_n_per_mm : float
+        Coupling stiffness ``k``, N/mm (> 0).
+    limit_mm : float
+        The front never passes this depth (the device's stop depth), mm.
+
+    Returns
+    -------
+    float
+        New front, mm: never behind ``front_mm``, never beyond ``max(front_mm, limit_mm)`` nor
+        ``max(front_mm, master_mm)``.
+    """
+    e_mm = master_mm - front_mm
+    if e_mm <= 0.0 or front_mm >= limit_mm:
+        return front_mm
+    e_star = equilibrium_penetration_mm(s0_n, stiffness_n_per_mm=stiffness_n_per_mm)
+    if e_mm <= e_star:
+        return front_mm
+    room_mm = e_mm - e_star
+    if s0_n <= 0.0 or ke_per_mm_s <= 0.0:
+        step_mm = room_mm
+    else:
+        feed = (stiffness_n_per_mm * e_mm / s0_n - 1.0) / ke_per_mm_s
+        step_mm = min(feed * dt_s, room_mm)
+    return min(front_mm + step_mm, limit_mm)
+
+
+def resistance_n(
+    front_mm: float,
+    master_mm: float,
+    master_feed_mm_s: float,
+    front_feed_mm_s: float,
+    vibration_n: float,
+    *,
+    stiffness_n_per_mm: float = DEFAULT_STIFFNESS_N_PER_MM,
+    damping_n_s_per_mm: float = DEFAULT_DAMPING_N_S_PER_MM,
+) -> float:
+    """Force the material puts on the hand, against the advance, N (``>= 0``).
+
+    ``k e + b (v_master - v_front) + vibration`` while the master is beyond the front
+    (``e = master_mm - front_mm > 0``), else 0 (in the hole; retraction is free). Pass
+    ``vibration_n = 0`` when the front is not advancing.
+    """
+    e_mm = master_mm - front_mm
+    if e_mm <= 0.0:
+        return 0.0
+    force = (
+        stiffness_n_per_mm * e_mm
+        + damping_n_s_per_mm * (master_feed_mm_s - front_feed_mm_s)
+        + vibration_n
+    )
+    return force if force > 0.0 else 0.0
+
+
+def vibration_n(s1_n: float, s2_n: float, f1_hz: float, f2_hz: float, t_s: float) -> float:
+    """Cutting vibration ``S1 sin(2 pi f1 t) + S2 sin(2 pi f2 t)``, N (Eq. 19)."""
+    return s1_n * math.sin(2.0 * math.pi * f1_hz * t_s) + s2_n * math.sin(
+        2.0 * math.pi * f2_hz * t_s
+    )
