@@ -104,18 +104,20 @@ def force_density_n(
     This is ``f(HU)`` of DESIGN.md 1.4 (N). ``freqs_hz`` (K,) comes from
     :func:`model.calibration.harmonic_freqs_hz`. Broadcasts ``hu``, feed and ``t``.
     """
-    g = gate(hu, calibration)
-    dc = a0_n(hu, feed_mm_s, calibration)
-    bk = bk_n(hu, calibration)
-    t = np.asarray(t_s, dtype=np.float64)
+    hu_b, feed_b, t_b = np.broadcast_arrays(
+        np.asarray(hu, dtype=np.float64),
+        np.asarray(feed_mm_s, dtype=np.float64),
+        np.asarray(t_s, dtype=np.float64),
+    )
+    g = gate(hu_b, calibration)
+    dc = a0_n(hu_b, feed_b, calibration)
+    bk = bk_n(hu_b, calibration)
     f = np.asarray(freqs_hz, dtype=np.float64)
     if f.shape != (bk.shape[0],):
         raise ValueError(f"freqs_hz must have shape ({bk.shape[0]},), one per harmonic")
     out = dc
     if bk.shape[0]:
-        t_b = np.broadcast_to(t, np.broadcast_shapes(t.shape, bk.shape[1:]))
-        vib = np.sum(bk * np.sin(phase_rad(f, t_b)), axis=0)
-        out = dc + vib
+        out = dc + np.sum(bk * np.sin(phase_rad(f, t_b)), axis=0)
     return np.asarray(g * out)
 
 

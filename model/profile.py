@@ -120,7 +120,7 @@ class Profile:
         return 1.0 / self._inv_step
 
 
-def _check_depths(depth_mm: ArrayLike) -> np.ndarray:
+def check_depths(depth_mm: ArrayLike) -> np.ndarray:
     depth = np.asarray(depth_mm, dtype=np.float64)
     if depth.ndim != 1 or depth.shape[0] < 2:
         raise ProfileInputError(
@@ -171,7 +171,7 @@ def build_profile(
     hu = np.asarray(lip_hu)
     if hu.ndim != 3 or min(hu.shape) < 1:
         raise ProfileInputError(f"lip_hu must have shape (D, R, A), got {hu.shape}")
-    depth = _check_depths(depth_mm)
+    depth = check_depths(depth_mm)
     if hu.shape[0] != depth.shape[0]:
         raise ProfileInputError(
             f"lip_hu has {hu.shape[0]} depths but depth_mm has {depth.shape[0]}; they must match"
