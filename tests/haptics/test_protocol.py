@@ -1,0 +1,222 @@
+"""Framing against hand-checked byte tables, round trips, and fuzzing (only typed errors escape)."""
+
+from __future__ import annotations
+
+import contextlib
+import struct
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from haptics.protocol import (
+    MAX_CHUNK_ROWS,
+    Ack,
+    Arm,
+    ChecksumError,
+    FaultReport,
+    FrameReader,
+    FramingError,
+    Heartbeat,
+    Hello,
+    Limits,
+    MessageError,
+    Nak,
+    Packet,
+    ProfileBegin,
+    ProfileChunk,
+    ProfileEnd,
+    ProtocolError,
+    SimOperator,
+    Telemetry,
+    Version,
+    cobs_decode,
+    cobs_encode,
+    crc16_ccitt_false,
+    crc32,
+    decode,
+    encode,
+    profile_crc32,
+)
+
+
+def _crc16_bitwise(data: bytes) -> int:
+    """Independent bit-by-bit CRC-16/CCITT-FALSE (no table) to check the table version."""
+    crc = 0xFFFF
+    for byte in data:
+        crc ^= byte << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
+    return crc
+
+
+def h(text: str) -> bytes:
+    return bytes.fromhex(text)
+
+
+def test_check_values() -> None:
+    assert crc16_ccitt_false(b"123456789") == 0x29B1
+    assert _crc16_bitwise(b"123456789") == 0x29B1
+    assert crc32(b"123456789") == 0xCBF43926
+
+
+# COBS examples of the original paper (Cheshire & Baker) / Wikipedia table.
+COBS_TABLE = [
+    ("00", "01 01"),
+    ("00 00", "01 01 01"),
+    ("11 22 00 33", "03 11 22 02 33"),
+    ("11 22 33 44", "05 11 22 33 44"),
+    ("11 00 00 00", "02 11 01 01 01"),
+]
+
+
+@pytest.mark.parametrize(("raw", "enc"), COBS_TABLE)
+def test_cobs_table(raw: str, enc: str) -> None:
+    assert cobs_encode(h(raw)) == h(enc)
+    assert cobs_decode(h(enc)) == h(raw)
+
+
+def test_cobs_254_run() -> None:
+    data = bytes(range(1, 255))  # 254 non-zero bytes: one 0xFF block, then an empty last block
+    assert cobs_encode(data) == b"\xff" + data + b"\x01"
+    assert cobs_decode(cobs_encode(data)) == data
+
+
+# Frames: header (version 01, type, seq u16 LE, time_us u64 LE) + body + CRC-16 LE, COBS, 00.
+FRAME_TABLE = [
+    # HEARTBEAT seq 5: raw 01 22 05 00 | 8x 00 | crc 0x4F35 -> 35 4F
+    (Heartbeat(), 5, 0, "04 01 22 05 01 01 01 01 01 01 01 01 03 35 4f 00"),
+    # HELLO seq 1, body 01 (version): raw 01 01 01 00 | 8x 00 | 01 | crc 0xA672
+    (Hello(), 1, 0, "04 01 01 01 01 01 01 01 01 01 01 01 04 01 72 a6 00"),
+    # ACK of (HEARTBEAT, seq 5), seq 7, t = 1000 us = e8 03: raw 01 40 07 00 e8 03 00.. | 22 05 00
+    (Ack(0x22, 5), 7, 1000, "04 01 40 07 03 e8 03 01 01 01 01 01 03 22 05 03 9f 62 00"),
+    # NAK (ARM, seq 9, NOT_READY=5), seq 2, t = 16 us
+    (Nak(0x20, 9, 5), 2, 16, "04 01 41 02 02 10 01 01 01 01 01 01 03 20 09 04 05 33 7e 00"),
+    # TELEMETRY seq 0x1234, t = 0x0102030405 us; tick 10, master 1.5 (00 00 c0 3f),
+    # drill 1.0 (00 00 80 3f), velocity -2.0 (00 00 00 c0), force_cmd 3.25 (00 00 50 40),
+    # force_est 0.0, state 1 (cutting), faults 0, overruns 0
+    (
+        Telemetry(10, 1.5, 1.0, -2.0, 3.25, 0.0, 1, 0, 0),
+        0x1234,
+        0x0102030405,
+        "0a 01 30 34 12 05 04 03 02 01 01 01 02 0a 01 01 01 01 03 c0 3f 01 03 80 3f 01 01 02 c0"
+        " 01 03 50 40 01 01 01 02 01 01 01 01 03 73 d9 00",
+    ),
+    # PROFILE_CHUNK seq 3, first 0, 1 row (1.0, 0.5, 0.25) = 00 00 80 3f, 00 00 00 3f, 00 00 80 3e
+    (
+        ProfileChunk(0, ((1.0, 0.5, 0.25),)),
+        3,
+        0,
+        "04 01 11 03 01 01 01 01 01 01 01 01 01 01 02 01 01 03 80 3f 01 01 02 3f 01 04 80 3e c1"
+        " 01 00",
+    ),
+]
+
+
+@pytest.mark.parametrize(("message", "seq", "time_us", "wire"), FRAME_TABLE)
+def test_frame_table(message: object, seq: int, time_us: int, wire: str) -> None:
+    frame = h(wire)
+    assert encode(message, seq=seq, time_us=time_us) == frame  # type: ignore[arg-type]
+    raw = cobs_decode(frame[:-1])
+    assert raw[-2:] == struct.pack("<H", _crc16_bitwise(raw[:-2]))
+    assert decode(frame[:-1]) == Packet(seq=seq, time_us=time_us, message=message)  # type: ignore[arg-type]
+
+
+ALL_MESSAGES = [
+    Hello(),
+    Version(1, 0, 1, 0, 10000),
+    Limits(78.0, 20.0, 5684.0, 50, 4096, -20.0, 60.0),
+    ProfileBegin(800, 0.0625, 0.25, 30.0, 60.0, 12.5),  # float32-exact values
+    ProfileChunk(16, tuple((float(i), 0.5, 0.25) for i in range(MAX_CHUNK_ROWS))),
+    ProfileEnd(800, 0xDEADBEEF),
+    Arm(),
+    Heartbeat(),
+    SimOperator(1, 10.0),
+    Telemetry(2**32 - 1, 1.5, 1.0, -2.0, 3.25, 0.0, 3, 0xFFFF, 7),
+    FaultReport(1, 3),
+]
+
+
+@pytest.mark.parametrize("message", ALL_MESSAGES)
+def test_round_trip(message: object) -> None:
+    frame = encode(message, seq=70000, time_us=2**40)  # type: ignore[arg-type]
+    assert frame.count(0) == 1 and frame[-1] == 0
+    packet = decode(frame[:-1])
+    assert packet == Packet(seq=70000 & 0xFFFF, time_us=2**40, message=message)  # type: ignore[arg-type]
+
+
+def test_profile_crc32_covers_header_and_rows() -> None:
+    begin = ProfileBegin(2, 0.05, 0.25, 30.0, 60.0, 12.5)
+    rows = [(1.0, 0.5, 0.25), (2.0, 0.0, 0.0)]
+    body = struct.pack("<Hfffff", 2, 0.05, 0.25, 30.0, 60.0, 12.5)
+    expected = crc32(body + struct.pack("<ffffff", 1.0, 0.5, 0.25, 2.0, 0.0, 0.0))
+    assert profile_crc32(begin, rows) == expected
+    assert profile_crc32(ProfileBegin(2, 0.05, 0.25, 30.0, 60.0, 12.0), rows) != expected
+
+
+def test_typed_errors() -> None:
+    good = encode(Heartbeat(), seq=1)[:-1]
+    bad_crc = bytearray(cobs_decode(good))
+    bad_crc[-1] ^= 0x01
+    with pytest.raises(ChecksumError):
+        decode(cobs_encode(bytes(bad_crc)))
+    with pytest.raises(FramingError):
+        decode(b"\x05\x01")  # block runs past the end
+    with pytest.raises(FramingError):
+        decode(b"")
+    raw = bytearray(cobs_decode(good))
+    raw[1] = 0x7F  # unknown type, valid CRC
+    raw[-2:] = struct.pack("<H", crc16_ccitt_false(bytes(raw[:-2])))
+    with pytest.raises(MessageError, match="unknown message type 0x7f"):
+        decode(cobs_encode(bytes(raw)))
+    raw[0] = 2  # version 2
+    raw[-2:] = struct.pack("<H", crc16_ccitt_false(bytes(raw[:-2])))
+    with pytest.raises(MessageError, match="version 2"):
+        decode(cobs_encode(bytes(raw)))
+    with pytest.raises(MessageError):
+        encode(ProfileChunk(0, ()), seq=0)
+    with pytest.raises(MessageError):
+        encode(Ack(300, 0), seq=0)
+    assert issubclass(ProtocolError, ValueError)
+
+
+def test_reader_splits_a_stream_and_survives_garbage() -> None:
+    stream = encode(Hello(), seq=1) + b"\x13\x37" * 300 + b"\x00" + encode(Heartbeat(), seq=2)
+    reader = FrameReader()
+    items = []
+    for i in range(0, len(stream), 7):  # arbitrary chunking
+        items += reader.feed(stream[i : i + 7])
+    packets = [x for x in items if isinstance(x, Packet)]
+    errors = [x for x in items if isinstance(x, ProtocolError)]
+    assert [p.message for p in packets] == [Hello(), Heartbeat()]
+    assert len(errors) == 1 and isinstance(errors[0], FramingError)
+
+
+@given(st.binary(max_size=600))
+def test_fuzz_random_bytes(data: bytes) -> None:
+    reader = FrameReader()
+    for item in reader.feed(data):
+        assert isinstance(item, Packet | ProtocolError)
+    with contextlib.suppress(ProtocolError):
+        decode(data)
+
+
+@given(
+    st.sampled_from(ALL_MESSAGES),
+    st.lists(st.tuples(st.integers(0, 300), st.integers(0, 255)), min_size=1, max_size=6),
+)
+def test_fuzz_mutated_valid_frames(message: object, edits: list[tuple[int, int]]) -> None:
+    frame = bytearray(encode(message, seq=9)[:-1])  # type: ignore[arg-type]
+    for pos, value in edits:
+        if pos < len(frame):
+            frame[pos] = value
+        else:
+            frame.append(value)
+    reader = FrameReader()
+    for item in reader.feed(bytes(frame) + b"\x00" + encode(Heartbeat(), seq=10)):
+        assert isinstance(item, Packet | ProtocolError)
+    # Whatever came before, the reader resynchronises on the next delimiter.
+    last = reader.feed(b"")
+    assert last == []
+    tail = FrameReader().feed(bytes(frame) + b"\x00" + encode(Heartbeat(), seq=10))
+    assert isinstance(tail[-1], Packet) and tail[-1].message == Heartbeat()
