@@ -1,12 +1,24 @@
 """ctdrill imaging: DICOM CT series -> :class:`CTVolume` (LPS mm), sampling, plans, safety."""
 
 from imaging.errors import ImagingInputError
+from imaging.series import (
+    DEFAULT_MAX_BYTES,
+    SeriesSummary,
+    calibrate_grey_to_hu,
+    list_series,
+    load_series,
+)
 from imaging.volume import WARNING_CODES, CTVolume, LoadWarning, SeriesInfo
 
 __all__ = [
+    "DEFAULT_MAX_BYTES",
     "WARNING_CODES",
     "CTVolume",
     "ImagingInputError",
     "LoadWarning",
     "SeriesInfo",
+    "SeriesSummary",
+    "calibrate_grey_to_hu",
+    "list_series",
+    "load_series",
 ]

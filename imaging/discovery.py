@@ -1,0 +1,366 @@
+"""Find the DICOM image files under a path and read their headers (never the pixels).
+
+A file is DICOM when it has the 128-byte preamble followed by ``DICM``. A file without a
+preamble is accepted only when it starts like a DICOM dataset (a group 0x0002 or 0x0008 tag) and
+then parses with the tags an image needs; anything else is ignored as not DICOM. Headers are read
+with ``stop_before_pixels``; the byte offset of uncompressed pixel data is recorded so that the
+pixels can later be read straight into the volume.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pydicom import dcmread
+from pydicom.dataset import Dataset
+from pydicom.errors import InvalidDicomError
+from pydicom.uid import ExplicitVRLittleEndian, ImplicitVRLittleEndian
+
+from imaging.errors import ImagingInputError
+
+#: SOP classes that hold CT volumes: CT Image Storage, Enhanced CT, Legacy Converted Enhanced CT.
+CT_IMAGE_STORAGE = "1.2.840.10008.5.1.4.1.1.2"
+ENHANCED_CT_STORAGE = "1.2.840.10008.5.1.4.1.1.2.1"
+LEGACY_ENHANCED_CT_STORAGE = "1.2.840.10008.5.1.4.1.1.2.2"
+CT_SOP_CLASSES = (CT_IMAGE_STORAGE, ENHANCED_CT_STORAGE, LEGACY_ENHANCED_CT_STORAGE)
+MULTIFRAME_CT_SOP_CLASSES = (ENHANCED_CT_STORAGE, LEGACY_ENHANCED_CT_STORAGE)
+
+#: Transfer syntaxes whose compression loses information.
+LOSSY_SYNTAXES = frozenset(
+    {
+        "1.2.840.10008.1.2.4.50",  # JPEG Baseline
+        "1.2.840.10008.1.2.4.51",  # JPEG Extended
+        "1.2.840.10008.1.2.4.81",  # JPEG-LS near-lossless
+        "1.2.840.10008.1.2.4.91",  # JPEG 2000 (lossy allowed)
+        "1.2.840.10008.1.2.4.93",  # JPEG 2000 Part 2 multi-component
+        "1.2.840.10008.1.2.4.203",  # HTJ2K (lossy allowed)
+    }
+)
+
+_FAST_SYNTAXES = (ExplicitVRLittleEndian, ImplicitVRLittleEndian)
+_PIXEL_TAG = b"\xe0\x7f\x10\x00"
+_LONG_VRS = {b"OB", b"OW", b"OF", b"OD", b"OL", b"OV", b"UN", b"SQ", b"UC", b"UR", b"UT", b"SV"}
+
+
+class DiscoveryInputError(ImagingInputError):
+    """The path holds no readable DICOM image."""
+
+
+@dataclass(frozen=True)
+class SliceHeader:
+    """One image plane (a single-frame file, or one frame of a multi-frame file).
+
+    Geometry is exactly what the header says: ``ipp`` / ``iop`` in LPS mm,
+    ``pixel_spacing`` = (row spacing, column spacing) in mm.
+    """
+
+    path: Path
+    frame: int
+    n_frames: int
+    series_uid: str
+    sop_class_uid: str
+    modality: str
+    image_type: tuple[str, ...]
+    rows: int
+    cols: int
+    samples_per_pixel: int
+    photometric: str
+    bits_allocated: int
+    bits_stored: int
+    pixel_representation: int
+    slope: float | None
+    intercept: float | None
+    rescale_type: str
+    ipp: tuple[float, float, float] | None
+    iop: tuple[float, float, float, float, float, float] | None
+    pixel_spacing: tuple[float, float] | None
+    padding_value: int | None
+    padding_limit: int | None
+    transfer_syntax: str
+    lossy: bool
+    #: Byte offset of uncompressed little-endian native pixel data (None: decode with pydicom).
+    pixel_offset: int | None
+    has_pixels: bool
+    meta: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
+
+    @property
+    def frame_bytes(self) -> int:
+        """Bytes of one frame of native pixel data."""
+        return self.rows * self.cols * self.samples_per_pixel * (self.bits_allocated // 8)
+
+
+@dataclass(frozen=True)
+class Skipped:
+    """A DICOM file that holds no CT image plane, and why."""
+
+    path: Path
+    reason: str
+
+
+@dataclass(frozen=True)
+class ScanResult:
+    """Everything found under a path."""
+
+    headers: tuple[SliceHeader, ...]
+    skipped: tuple[Skipped, ...]
+    not_dicom: tuple[Path, ...]
+
+
+def iter_files(path: Path) -> Iterator[Path]:
+    """Every regular file under ``path`` (or ``path`` itself), in a stable order."""
+    if path.is_file():
+        yield path
+        return
+    for root, dirs, files in os.walk(path):
+        dirs.sort()
+        for name in sorted(files):
+            yield Path(root) / name
+
+
+def _looks_like_dicom(path: Path) -> bool | None:
+    """True: preamble + DICM; None: maybe a preamble-less dataset; False: not DICOM."""
+    try:
+        with path.open("rb") as fh:
+            head = fh.read(132)
+    except OSError:
+        return False
+    if len(head) == 132 and head[128:132] == b"DICM":
+        return True
+    if len(head) >= 8 and head[:2] in (b"\x02\x00", b"\x08\x00") and head[2:4] < b"\x00\x10":
+        return None
+    return False
+
+
+def _num(ds: Dataset, keyword: str) -> float | None:
+    value = ds.get(keyword)
+    if value is None or value == "":
+        return None
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return None
+
+
+def _int(ds: Dataset, keyword: str, default: int | None = None) -> int | None:
+    value = ds.get(keyword)
+    if value is None or value == "":
+        return default
+    if isinstance(value, bytes):
+        # US-or-SS element read without PixelRepresentation context.
+        return int.from_bytes(value[:2], "little", signed=bool(ds.get("PixelRepresentation", 0)))
+    try:
+        return int(value)
+    except (TypeError, ValueError):
+        return default
+
+
+def _floats(value: Any, n: int) -> tuple[float, ...] | None:
+    if value is None:
+        return None
+    try:
+        out = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        return None
+    return out if len(out) == n else None
+
+
+def _fg_item(ds: Dataset, frame: int, seq_keyword: str) -> Dataset | None:
+    """The functional-group item ``seq_keyword`` for ``frame`` (per-frame first, then shared)."""
+    for fg_keyword, index in (
+        ("PerFrameFunctionalGroupsSequence", frame),
+        ("SharedFunctionalGroupsSequence", 0),
+    ):
+        groups = ds.get(fg_keyword)
+        if groups is None or len(groups) <= index:
+            continue
+        seq = groups[index].get(seq_keyword)
+        if seq is not None and len(seq) > 0:
+            item: Dataset = seq[0]
+            return item
+    return None
+
+
+def _pixel_offset(fh: Any, implicit: bool) -> tuple[int | None, bool]:
+    """Offset of native pixel data at the file position, and whether pixel data is present."""
+    pos = fh.tell()
+    head = fh.read(12)
+    if len(head) < 8 or head[:4] != _PIXEL_TAG:
+        return None, False
+    if implicit:
+        length = struct.unpack("<I", head[4:8])[0]
+        start = pos + 8
+    elif head[4:6] in _LONG_VRS:
+        length = struct.unpack("<I", head[8:12])[0]
+        start = pos + 12
+    else:
+        length = struct.unpack("<H", head[6:8])[0]
+        start = pos + 8
+    if length == 0xFFFFFFFF:
+        return None, True  # encapsulated
+    return start, length > 0
+
+
+def read_headers(path: Path) -> list[SliceHeader] | Skipped | None:
+    """Header(s) of one file: a list of planes, a :class:`Skipped`, or None when not DICOM."""
+    kind = _looks_like_dicom(path)
+    if kind is False:
+        return None
+    try:
+        with path.open("rb") as fh:
+            ds = dcmread(fh, stop_before_pixels=True, force=kind is None)
+            implicit, little = ds.original_encoding
+            offset, has_pixels = _pixel_offset(fh, bool(implicit))
+    except (InvalidDicomError, OSError, ValueError, EOFError, struct.error, TypeError):
+        return None if kind is None else Skipped(path, "unreadable DICOM header")
+    if kind is None and not ("SOPClassUID" in ds and "Rows" in ds and "Columns" in ds):
+        return None
+    meta = getattr(ds, "file_meta", None)
+    ts = str(meta.get("TransferSyntaxUID", "")) if meta is not None else ""
+    if not ts:
+        ts = str(ImplicitVRLittleEndian if implicit else ExplicitVRLittleEndian)
+    if not little:
+        offset = None
+    sop = str(ds.get("SOPClassUID", ""))
+    if sop == "1.2.840.10008.1.3.10" or "DirectoryRecordSequence" in ds:
+        return Skipped(path, "directory file (DICOMDIR)")
+    if not has_pixels:
+        return Skipped(path, "no pixel data")
+    if sop not in CT_SOP_CLASSES:
+        return Skipped(path, f"not a CT image ({_sop_name(sop)})")
+    if ts not in _FAST_SYNTAXES:
+        offset = None
+    return _planes(path, ds, sop, ts, offset)
+
+
+def _sop_name(sop: str) -> str:
+    from pydicom.uid import UID
+
+    name = UID(sop).name if sop else "no SOP class"
+    return name or sop
+
+
+def _planes(path: Path, ds: Dataset, sop: str, ts: str, offset: int | None) -> list[SliceHeader]:
+    n_frames = _int(ds, "NumberOfFrames", 1) or 1
+    lossy_tag = str(ds.get("LossyImageCompression", "")).strip() == "01"
+    meta = {
+        "study_description": str(ds.get("StudyDescription", "")),
+        "series_description": str(ds.get("SeriesDescription", "")),
+        "manufacturer": str(ds.get("Manufacturer", "")),
+        "model": str(ds.get("ManufacturerModelName", "")),
+        "kvp": _num(ds, "KVP"),
+        "kernel": _kernel(ds),
+        "slice_thickness_mm": _num(ds, "SliceThickness"),
+        "spacing_between_slices_mm": _num(ds, "SpacingBetweenSlices"),
+        "gantry_tilt_deg": _num(ds, "GantryDetectorTilt"),
+    }
+    common: dict[str, Any] = {
+        "path": path,
+        "n_frames": n_frames,
+        "series_uid": str(ds.get("SeriesInstanceUID", "")),
+        "sop_class_uid": sop,
+        "modality": str(ds.get("Modality", "")),
+        "image_type": tuple(str(v).upper() for v in _multi(ds.get("ImageType"))),
+        "rows": _int(ds, "Rows", 0),
+        "cols": _int(ds, "Columns", 0),
+        "samples_per_pixel": _int(ds, "SamplesPerPixel", 1),
+        "photometric": str(ds.get("PhotometricInterpretation", "")).strip().upper(),
+        "bits_allocated": _int(ds, "BitsAllocated", 0),
+        "bits_stored": _int(ds, "BitsStored", _int(ds, "BitsAllocated", 0)),
+        "pixel_representation": _int(ds, "PixelRepresentation", 0),
+        "padding_value": _int(ds, "PixelPaddingValue"),
+        "padding_limit": _int(ds, "PixelPaddingRangeLimit"),
+        "transfer_syntax": ts,
+        "lossy": lossy_tag or ts in LOSSY_SYNTAXES,
+        "has_pixels": True,
+        "meta": meta,
+    }
+    if sop not in MULTIFRAME_CT_SOP_CLASSES:
+        return [
+            SliceHeader(
+                frame=0,
+                slope=_num(ds, "RescaleSlope"),
+                intercept=_num(ds, "RescaleIntercept"),
+                rescale_type=str(ds.get("RescaleType", "")).strip(),
+                ipp=_floats(ds.get("ImagePositionPatient"), 3),  # type: ignore[arg-type]
+                iop=_floats(ds.get("ImageOrientationPatient"), 6),  # type: ignore[arg-type]
+                pixel_spacing=_floats(ds.get("PixelSpacing"), 2),  # type: ignore[arg-type]
+                pixel_offset=offset,
+                **common,
+            )
+        ]
+    planes = []
+    frame_bytes = common["rows"] * common["cols"] * common["samples_per_pixel"]
+    frame_bytes *= common["bits_allocated"] // 8
+    for f in range(n_frames):
+        pos = _fg_item(ds, f, "PlanePositionSequence")
+        ori = _fg_item(ds, f, "PlaneOrientationSequence")
+        meas = _fg_item(ds, f, "PixelMeasuresSequence")
+        pvt = _fg_item(ds, f, "PixelValueTransformationSequence")
+        ipp = _floats(pos.get("ImagePositionPatient") if pos else ds.get("ImagePositionPatient"), 3)
+        iop = _floats(
+            ori.get("ImageOrientationPatient") if ori else ds.get("ImageOrientationPatient"), 6
+        )
+        spacing = _floats(meas.get("PixelSpacing") if meas else ds.get("PixelSpacing"), 2)
+        src = pvt if pvt is not None else ds
+        frame_meta = dict(meta)
+        if meas is not None and _num(meas, "SliceThickness") is not None:
+            frame_meta["slice_thickness_mm"] = _num(meas, "SliceThickness")
+        planes.append(
+            SliceHeader(
+                frame=f,
+                slope=_num(src, "RescaleSlope"),
+                intercept=_num(src, "RescaleIntercept"),
+                rescale_type=str(src.get("RescaleType", "")).strip(),
+                ipp=ipp,  # type: ignore[arg-type]
+                iop=iop,  # type: ignore[arg-type]
+                pixel_spacing=spacing,  # type: ignore[arg-type]
+                pixel_offset=None if offset is None else offset + f * frame_bytes,
+                **{**common, "meta": frame_meta},
+            )
+        )
+    return planes
+
+
+def _multi(value: Any) -> list[Any]:
+    if value is None:
+        return []
+    if isinstance(value, str | bytes):
+        return [value]
+    try:
+        return list(value)
+    except TypeError:
+        return [value]
+
+
+def _kernel(ds: Dataset) -> str:
+    return "\\".join(str(v) for v in _multi(ds.get("ConvolutionKernel")))
+
+
+def scan(path: str | Path) -> ScanResult:
+    """Read the headers of every DICOM file under ``path``.
+
+    Raises
+    ------
+    DiscoveryInputError
+        ``path`` does not exist.
+    """
+    root = Path(path)
+    if not root.exists():
+        raise DiscoveryInputError(f"{root}: no such file or folder; give a DICOM series folder")
+    headers: list[SliceHeader] = []
+    skipped: list[Skipped] = []
+    not_dicom: list[Path] = []
+    for file in iter_files(root):
+        got = read_headers(file)
+        if got is None:
+            not_dicom.append(file)
+        elif isinstance(got, Skipped):
+            skipped.append(got)
+        else:
+            headers.extend(got)
+    return ScanResult(tuple(headers), tuple(skipped), tuple(not_dicom))

@@ -1,0 +1,194 @@
+"""Stored pixel values of one plane, and their conversion to HU.
+
+Uncompressed little-endian planes are read straight from the file at the recorded byte offset.
+Everything else goes through pydicom's decoders with an explicitly chosen plugin
+(:func:`decoder_plugin_for`), so that it is always known which library decoded a syntax (Pillow,
+pulled in by vtk, is never used). Bits above BitsStored are masked (unsigned) or sign-extended
+(signed) here, whatever the decoder did.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+from pydicom import dcmread
+from pydicom.dataset import Dataset, FileMetaDataset
+from pydicom.pixels import get_decoder
+from pydicom.uid import UID, ExplicitVRLittleEndian, ImplicitVRLittleEndian
+
+from imaging.discovery import SliceHeader
+from imaging.errors import ImagingInputError
+
+_NATIVE = (ExplicitVRLittleEndian, ImplicitVRLittleEndian)
+
+
+class PixelInputError(ImagingInputError):
+    """Pixel data that cannot be read or decoded."""
+
+
+def decoder_plugin_for(transfer_syntax: str) -> str:
+    """The pydicom decoding plugin used for ``transfer_syntax`` ("" for native syntaxes).
+
+    JPEG (lossless, baseline, extended), JPEG-LS, JPEG 2000 and RLE go to ``pylibjpeg``
+    (pylibjpeg-libjpeg, pylibjpeg-openjpeg, pylibjpeg-rle); RLE falls back to pydicom's own
+    decoder when pylibjpeg is missing.
+    """
+    uid = UID(transfer_syntax)
+    if not uid.is_compressed:
+        return ""
+    try:
+        decoder = get_decoder(uid)
+    except NotImplementedError as exc:
+        raise PixelInputError(
+            f"transfer syntax {uid.name or uid}: no decoder in pydicom; convert the series "
+            "to an uncompressed syntax (e.g. with dcmdjpeg/gdcmconv)"
+        ) from exc
+    plugins = decoder.available_plugins
+    for name in ("pylibjpeg", "pydicom"):
+        if name in plugins:
+            return name
+    raise PixelInputError(
+        f"transfer syntax {uid.name or uid}: no pinned decoder plugin is installed "
+        "(install the pylibjpeg plugins listed in pyproject.toml)"
+    )
+
+
+def stored_dtype(h: SliceHeader) -> np.dtype:
+    """Little-endian container dtype of the stored values."""
+    kinds = {8: "1", 16: "2", 32: "4"}
+    if h.bits_allocated not in kinds:
+        raise PixelInputError(
+            f"{h.path}: BitsAllocated {h.bits_allocated} is not supported for CT (8, 16 or 32)"
+        )
+    return np.dtype(("<i" if h.pixel_representation else "<u") + kinds[h.bits_allocated])
+
+
+def stored_range(h: SliceHeader) -> tuple[int, int]:
+    """The range of stored values that BitsStored and PixelRepresentation allow."""
+    bits = h.bits_stored
+    if h.pixel_representation:
+        return -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
+    return 0, 2**bits - 1
+
+
+def fix_high_bits(arr: np.ndarray, h: SliceHeader) -> None:
+    """In place: mask (unsigned) or sign-extend (signed) the bits above BitsStored."""
+    width = arr.dtype.itemsize * 8
+    if h.bits_stored >= width:
+        return
+    if h.pixel_representation:
+        shift = width - h.bits_stored
+        np.left_shift(arr, shift, out=arr)
+        np.right_shift(arr, shift, out=arr)
+    else:
+        np.bitwise_and(arr, (1 << h.bits_stored) - 1, out=arr)
+
+
+@lru_cache(maxsize=2)
+def _dataset(path: Path, transfer_syntax: str) -> Dataset:
+    ds = dcmread(path, force=True)
+    if getattr(ds, "file_meta", None) is None or "TransferSyntaxUID" not in ds.file_meta:
+        meta = FileMetaDataset()
+        meta.TransferSyntaxUID = UID(transfer_syntax)
+        ds.file_meta = meta
+    return ds
+
+
+def read_stored(h: SliceHeader, out: np.ndarray | None = None) -> np.ndarray:
+    """Stored values of one plane, (rows, cols), high bits fixed.
+
+    Parameters
+    ----------
+    h : SliceHeader
+        The plane.
+    out : np.ndarray | None
+        Optional (rows, cols) C-contiguous array of :func:`stored_dtype` to read into.
+    """
+    dtype = stored_dtype(h)
+    shape = (h.rows, h.cols)
+    if out is None:
+        out = np.empty(shape, dtype=dtype)
+    if h.pixel_offset is not None:
+        try:
+            with h.path.open("rb") as fh:
+                fh.seek(h.pixel_offset)
+                got = fh.readinto(out.data.cast("B"))
+        except OSError as exc:
+            raise PixelInputError(f"{h.path}: cannot read pixel data ({exc})") from exc
+        if got != out.nbytes:
+            raise PixelInputError(
+                f"{h.path}: pixel data truncated ({got} of {out.nbytes} bytes); "
+                "the file is incomplete, copy it again"
+            )
+    else:
+        plugin = decoder_plugin_for(h.transfer_syntax)
+        try:
+            ds = _dataset(h.path, h.transfer_syntax)
+            arr, _ = get_decoder(UID(h.transfer_syntax)).as_array(
+                ds, index=h.frame if h.n_frames > 1 else None, decoding_plugin=plugin
+            )
+        except (ValueError, RuntimeError, AttributeError, KeyError, NotImplementedError) as exc:
+            raise PixelInputError(
+                f"{h.path}: cannot decode pixel data "
+                f"({UID(h.transfer_syntax).name or h.transfer_syntax}): {exc}"
+            ) from exc
+        arr = np.asarray(arr).reshape(shape)
+        out[...] = arr.astype(dtype, copy=False)
+    fix_high_bits(out, h)
+    return out
+
+
+def padding_mask(stored: np.ndarray, h: SliceHeader) -> np.ndarray | None:
+    """(rows, cols) True on padding (PixelPaddingValue, or its range with the range limit)."""
+    if h.padding_value is None:
+        return None
+    lo, hi = stored_range(h)
+    pad = h.padding_value
+    if h.padding_limit is None:
+        if not lo <= pad <= hi:
+            # e.g. a signed padding value stored as unsigned: compare the bit pattern.
+            pad &= (1 << h.bits_stored) - 1
+        return np.asarray(stored == pad)
+    a, b = sorted((pad, h.padding_limit))
+    return np.asarray((stored >= a) & (stored <= b))
+
+
+def rescale(h: SliceHeader) -> tuple[float, float]:
+    """(slope, intercept), 1 and 0 when absent."""
+    slope = 1.0 if h.slope is None else float(h.slope)
+    intercept = 0.0 if h.intercept is None else float(h.intercept)
+    return slope, intercept
+
+
+def int16_exact(h: SliceHeader) -> bool:
+    """True when every value the stored range allows maps to an integer HU within int16."""
+    slope, intercept = rescale(h)
+    if slope != round(slope) or intercept != round(intercept):
+        return False
+    lo, hi = stored_range(h)
+    ends = (slope * lo + intercept, slope * hi + intercept)
+    return min(ends) >= -32768 and max(ends) <= 32767
+
+
+def to_hu(stored: np.ndarray, h: SliceHeader, out: np.ndarray) -> bool:
+    """Write HU of ``stored`` into ``out`` (int16 or float32); False if int16 cannot hold it."""
+    slope, intercept = rescale(h)
+    if out.dtype == np.float32:
+        out[...] = stored.astype(np.float64) * slope + intercept
+        return True
+    if int16_exact(h):
+        if slope == 1.0:
+            np.add(stored, np.int32(intercept), out=out, casting="unsafe")
+        else:
+            np.multiply(stored, np.int32(slope), out=out, casting="unsafe")
+            np.add(out, np.int32(intercept), out=out, casting="unsafe")
+        return True
+    if slope != round(slope) or intercept != round(intercept):
+        return False
+    hu32 = stored.astype(np.int64) * int(slope) + int(intercept)
+    if hu32.size and (hu32.min() < -32768 or hu32.max() > 32767):
+        return False
+    out[...] = hu32
+    return True

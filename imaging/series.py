@@ -1,0 +1,430 @@
+"""Load a DICOM CT series into a :class:`~imaging.volume.CTVolume`.
+
+Discovery (:mod:`imaging.discovery`) reads headers only; this module picks the series and its
+spatial stack, orders and de-duplicates the slices, builds the geometry
+(:mod:`imaging.geometry`), checks the memory needed, then decodes the pixels into one
+preallocated array (:mod:`imaging.pixels`). Every oddity becomes a :class:`LoadWarning`; what
+cannot be a trustworthy volume raises an :class:`ImagingInputError` subclass.
+"""
+
+from __future__ import annotations
+
+from collections import Counter, defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from imaging.discovery import Skipped, SliceHeader, scan
+from imaging.errors import ImagingInputError
+from imaging.geometry import (
+    frame_axes,
+    group_positions,
+    orientation_key,
+    require_geometry,
+    stack_geometry,
+)
+from imaging.pixels import padding_mask, read_stored, rescale, stored_dtype, to_hu
+from imaging.volume import CTVolume, LoadWarning, SeriesInfo
+
+DEFAULT_MAX_BYTES = 2 * 1024**3
+
+
+class SeriesInputError(ImagingInputError):
+    """No usable CT series, or an ambiguous / inconsistent one."""
+
+
+class MemoryCapError(SeriesInputError):
+    """The volume would need more memory than allowed."""
+
+
+class DuplicateSliceError(SeriesInputError):
+    """Two different images claim the same slice position."""
+
+
+@dataclass(frozen=True)
+class SeriesSummary:
+    """One candidate CT stack found under a path (for listing and selection)."""
+
+    series_uid: str
+    n_slices: int
+    n_positions: int
+    rows: int
+    cols: int
+    description: str
+
+
+@dataclass(frozen=True)
+class _Selection:
+    planes: tuple[SliceHeader, ...]
+    others: tuple[SeriesSummary, ...]
+    warnings: tuple[LoadWarning, ...]
+
+
+def _is_greyscale(h: SliceHeader) -> bool:
+    return h.samples_per_pixel == 1 and h.photometric in ("MONOCHROME1", "MONOCHROME2")
+
+
+def _summary(planes: Sequence[SliceHeader]) -> SeriesSummary:
+    h = planes[0]
+    if h.iop is not None and all(p.ipp is not None for p in planes):
+        _, _, normal = frame_axes(h)
+        n_positions = len({round(float(np.asarray(p.ipp) @ normal), 2) for p in planes})
+    else:
+        n_positions = len(planes)
+    return SeriesSummary(
+        h.series_uid,
+        len(planes),
+        n_positions,
+        h.rows,
+        h.cols,
+        str(h.meta.get("series_description", "")),
+    )
+
+
+def _rank(summary: SeriesSummary) -> tuple[int, int, str]:
+    return (-summary.n_positions, -summary.n_slices, summary.series_uid)
+
+
+def _stacks(
+    headers: Sequence[SliceHeader],
+) -> tuple[dict[str, list[SliceHeader]], list[SliceHeader], list[Skipped]]:
+    """Main stack per series, the localizer planes dropped, and colour planes skipped."""
+    by_series: dict[str, list[SliceHeader]] = defaultdict(list)
+    localizers: list[SliceHeader] = []
+    colour: list[Skipped] = []
+    for h in headers:
+        if not _is_greyscale(h):
+            colour.append(
+                Skipped(h.path, f"colour/non-greyscale image ({h.photometric}): not a CT volume")
+            )
+        elif "LOCALIZER" in h.image_type:
+            localizers.append(h)
+        else:
+            by_series[h.series_uid].append(h)
+    stacks: dict[str, list[SliceHeader]] = {}
+    for uid, planes in by_series.items():
+        groups: dict[object, list[SliceHeader]] = defaultdict(list)
+        for h in planes:
+            key = None if h.iop is None else (orientation_key(h), h.rows, h.cols)
+            groups[key].append(h)
+        if None in groups and len(groups) > 1:
+            # Planes without IOP in a series that has oriented planes: refuse that plane.
+            require_geometry(groups[None][0])
+        ranked = sorted(groups.values(), key=len, reverse=True)
+        stacks[uid] = ranked[0]
+        for other in ranked[1:]:
+            localizers.extend(other)
+    return stacks, localizers, colour
+
+
+def _select(path: Path, series_uid: str | None) -> _Selection:
+    found = scan(path)
+    stacks, localizers, colour = _stacks(found.headers)
+    skipped = list(found.skipped) + colour
+    summaries = sorted((_summary(p) for p in stacks.values()), key=_rank)
+    if not summaries:
+        reasons = Counter(s.reason for s in skipped)
+        detail = "; ".join(f"{n} x {r}" for r, n in reasons.most_common())
+        n_loc = len({h.path for h in localizers})
+        extra = f"; {n_loc} localizer file(s)" if n_loc else ""
+        raise SeriesInputError(
+            f"{path}: no CT image series (not a CT volume): {len(skipped)} DICOM file(s) "
+            f"skipped ({detail or 'none'}){extra}, {len(found.not_dicom)} non-DICOM file(s); "
+            "point to a folder holding a CT series"
+        )
+    if series_uid is None:
+        chosen = summaries[0]
+    else:
+        match = [s for s in summaries if s.series_uid == series_uid]
+        if not match:
+            listing = ", ".join(f"{s.series_uid} ({s.n_slices} slices)" for s in summaries)
+            raise SeriesInputError(
+                f"{path}: series {series_uid} not found; available CT series: {listing}"
+            )
+        chosen = match[0]
+    others = tuple(s for s in summaries if s.series_uid != chosen.series_uid)
+    warnings: list[LoadWarning] = []
+    if others:
+        listing = ", ".join(f"{s.series_uid} ({s.n_slices} slices)" for s in others)
+        warnings.append(
+            LoadWarning(
+                "multiple_series",
+                f"loaded {chosen.series_uid} ({chosen.n_slices} slices); also present: "
+                f"{listing}; select one with --series UID",
+            )
+        )
+    if localizers:
+        n_files = len({h.path for h in localizers})
+        warnings.append(
+            LoadWarning(
+                "localizer_dropped",
+                f"{n_files} localizer / differently oriented image file(s) left out",
+            )
+        )
+    if skipped:
+        reasons = Counter(s.reason for s in skipped)
+        detail = "; ".join(f"{n} x {r}" for r, n in reasons.most_common())
+        warnings.append(
+            LoadWarning("files_skipped", f"{len(skipped)} non-volume DICOM file(s): {detail}")
+        )
+    return _Selection(tuple(stacks[chosen.series_uid]), others, tuple(warnings))
+
+
+def list_series(path: str | Path) -> tuple[SeriesSummary, ...]:
+    """The CT stacks under ``path``, largest first (headers only)."""
+    stacks, _, _ = _stacks(scan(Path(path)).headers)
+    return tuple(sorted((_summary(p) for p in stacks.values()), key=_rank))
+
+
+def _where(h: SliceHeader) -> str:
+    return f"{h.path.name}" + (f"[frame {h.frame + 1}]" if h.n_frames > 1 else "")
+
+
+def _dedupe(
+    groups: list[list[SliceHeader]], normal: np.ndarray
+) -> tuple[list[SliceHeader], list[LoadWarning]]:
+    """One plane per position; identical duplicates dropped, conflicting ones refused."""
+    kept: list[SliceHeader] = []
+    n_dropped = 0
+    for group in groups:
+        first = group[0]
+        if len(group) > 1:
+            ref = read_stored(first)
+            for other in group[1:]:
+                same_ipp = np.allclose(first.ipp, other.ipp, atol=0.01)  # type: ignore[arg-type]
+                same_pix = (
+                    (other.rows, other.cols) == (first.rows, first.cols)
+                    and bool(np.array_equal(read_stored(other), ref))
+                    and rescale(other) == rescale(first)
+                )
+                if not (same_ipp and same_pix):
+                    pos = float(np.asarray(first.ipp) @ normal)
+                    raise DuplicateSliceError(
+                        f"{first.path.parent}: {len(group)} different images at slice "
+                        f"position {pos:.3f} mm ({', '.join(_where(h) for h in group)}); "
+                        "not a volume - remove the extra images or select one series"
+                    )
+                n_dropped += 1
+        kept.append(first)
+    warnings = []
+    if n_dropped:
+        warnings.append(
+            LoadWarning("duplicate_slice", f"{n_dropped} identical duplicate slice(s) left out")
+        )
+    return kept, warnings
+
+
+def _check_consistent(planes: Sequence[SliceHeader]) -> None:
+    first = planes[0]
+    assert first.pixel_spacing is not None
+    for h in planes[1:]:
+        assert h.pixel_spacing is not None
+        if not np.allclose(h.pixel_spacing, first.pixel_spacing, rtol=1e-4, atol=1e-6):
+            raise SeriesInputError(
+                f"{h.path}: PixelSpacing {h.pixel_spacing} differs from {first.path.name} "
+                f"{first.pixel_spacing} in the same stack; the series is not one volume"
+            )
+
+
+def _info(planes: Sequence[SliceHeader], n_files: int, is_hu: bool, tilt: float) -> SeriesInfo:
+    h = planes[0]
+    m = h.meta
+    return SeriesInfo(
+        series_uid=h.series_uid,
+        modality=h.modality,
+        is_hu=is_hu,
+        study_description=str(m.get("study_description", "")),
+        series_description=str(m.get("series_description", "")),
+        manufacturer=str(m.get("manufacturer", "")),
+        model=str(m.get("model", "")),
+        kvp=m.get("kvp"),
+        kernel=str(m.get("kernel", "")),
+        slice_thickness_mm=m.get("slice_thickness_mm"),
+        transfer_syntax=h.transfer_syntax,
+        sop_class_uid=h.sop_class_uid,
+        rescale_type=h.rescale_type,
+        n_files=n_files,
+        gantry_tilt_deg=tilt,
+    )
+
+
+def load_series(
+    path: str | Path, *, series_uid: str | None = None, max_bytes: int = DEFAULT_MAX_BYTES
+) -> CTVolume:
+    """Load the CT series under ``path`` (a folder tree or one file).
+
+    Parameters
+    ----------
+    path : str | Path
+        Folder (searched recursively) or a single DICOM file.
+    series_uid : str | None
+        SeriesInstanceUID to load; default the CT stack with the most slices.
+    max_bytes : int
+        Refuse when the decoded volume (HU plus validity mask) would exceed this, bytes.
+
+    Returns
+    -------
+    CTVolume
+        ``hu`` (slices, rows, cols) int16 where exact else float32, ordered along the normal.
+
+    Raises
+    ------
+    ImagingInputError
+        No CT series, missing geometry, conflicting duplicates, memory cap, undecodable pixels.
+    """
+    src = Path(path)
+    sel = _select(src, series_uid)
+    planes = list(sel.planes)
+    for h in planes:
+        require_geometry(h)
+    _check_consistent(planes)
+    _, _, normal = frame_axes(planes[0])
+    ordered, dup_warnings = _dedupe(group_positions(planes, normal), normal)
+    geom = stack_geometry(ordered)
+    n, rows, cols = len(ordered), ordered[0].rows, ordered[0].cols
+    for h in ordered:
+        stored_dtype(h)  # refuses unsupported BitsAllocated before any decoding
+    integral = all(float(v).is_integer() for h in ordered for v in rescale(h))
+    dtype = np.dtype(np.int16 if integral else np.float32)
+    has_padding = any(h.padding_value is not None for h in ordered)
+    need = n * rows * cols * (dtype.itemsize + (1 if has_padding else 0))
+    if need > max_bytes:
+        raise MemoryCapError(
+            f"{src}: the volume {cols}x{rows}x{n} needs {need / 2**20:.0f} MiB, above the "
+            f"limit of {max_bytes / 2**20:.0f} MiB; raise max_bytes or crop the series"
+        )
+    hu = np.empty((n, rows, cols), dtype=dtype)
+    valid = np.ones((n, rows, cols), dtype=bool) if has_padding else None
+    scratch: dict[np.dtype, np.ndarray] = {}
+    for k, h in enumerate(ordered):
+        sdt = stored_dtype(h)
+        buf = scratch.setdefault(sdt, np.empty((rows, cols), dtype=sdt))
+        stored = read_stored(h, buf)
+        if valid is not None:
+            pad = padding_mask(stored, h)
+            if pad is not None:
+                np.logical_not(pad, out=valid[k])
+        if not to_hu(stored, h, hu[k]):
+            # Integer HU outside int16: promote once and continue in float32.
+            hu = hu.astype(np.float32)
+            to_hu(stored, h, hu[k])
+    warnings = list(sel.warnings) + dup_warnings + list(geom.warnings)
+    if valid is not None:
+        n_pad = int(valid.size - np.count_nonzero(valid))
+        if n_pad:
+            pads = sorted({h.padding_value for h in ordered if h.padding_value is not None})
+            warnings.append(
+                LoadWarning(
+                    "padding",
+                    f"{n_pad} padding voxels (PixelPaddingValue {pads}) masked invalid",
+                )
+            )
+        else:
+            valid = None
+    not_hu = [h for h in ordered if h.rescale_type.upper() not in ("", "HU")]
+    no_rescale = [h for h in ordered if h.slope is None and h.intercept is None]
+    if not_hu:
+        warnings.append(
+            LoadWarning(
+                "not_hu",
+                f"RescaleType {not_hu[0].rescale_type!r}: values are not Hounsfield units; "
+                "calibrate with calibrate_grey_to_hu before using them as HU",
+            )
+        )
+    elif no_rescale:
+        warnings.append(
+            LoadWarning(
+                "not_hu",
+                "no RescaleSlope/RescaleIntercept (typical of CBCT): grey values, not HU; "
+                "calibrate with calibrate_grey_to_hu",
+            )
+        )
+    if any(h.lossy for h in ordered):
+        warnings.append(
+            LoadWarning(
+                "lossy_compression",
+                "lossy compression (LossyImageCompression or a lossy transfer syntax): "
+                "HU values are approximate",
+            )
+        )
+    n_files = len({h.path for h in ordered})
+    info = _info(ordered, n_files, not (not_hu or no_rescale), geom.tilt_deg)
+    return CTVolume(
+        hu=hu,
+        affine_lps=geom.affine_lps,
+        valid=valid,
+        info=info,
+        warnings=tuple(warnings),
+        slice_positions_mm=geom.positions_mm,
+    )
+
+
+def _region_mean(volume: CTVolume, region: np.ndarray | tuple[slice, ...], name: str) -> float:
+    mask = np.zeros(volume.hu.shape, dtype=bool)
+    if isinstance(region, np.ndarray) and region.dtype == bool:
+        if region.shape != volume.hu.shape:
+            raise ImagingInputError(
+                f"{name}: mask shape {region.shape} differs from the volume {volume.hu.shape}"
+            )
+        mask |= region
+    else:
+        mask[region] = True
+    if volume.valid is not None:
+        mask &= volume.valid
+    if not mask.any():
+        raise ImagingInputError(f"{name}: the region holds no valid voxel; choose another one")
+    return float(volume.hu[mask].astype(np.float64).mean())
+
+
+def calibrate_grey_to_hu(
+    volume: CTVolume,
+    *,
+    air_region: np.ndarray | tuple[slice, ...],
+    bone_or_water_region: np.ndarray | tuple[slice, ...],
+    air_hu: float = -1000.0,
+    reference_hu: float = 0.0,
+) -> CTVolume:
+    """Linear grey -> HU calibration from two regions of known HU.
+
+    Parameters
+    ----------
+    volume : CTVolume
+        Grey values (e.g. CBCT without rescale).
+    air_region, bone_or_water_region : np.ndarray | tuple[slice, ...]
+        Boolean masks (slices, rows, cols) or index expressions (``np.s_[...]``) over ``hu``.
+    air_hu : float
+        HU of the first region (air, -1000).
+    reference_hu : float
+        HU of the second region (water 0, or a known bone/insert value).
+
+    Returns
+    -------
+    CTVolume
+        float32 HU = slope * grey + intercept through both region means; ``info.is_hu`` True,
+        the ``not_hu`` warning removed.
+    """
+    g_air = _region_mean(volume, air_region, "air_region")
+    g_ref = _region_mean(volume, bone_or_water_region, "bone_or_water_region")
+    if abs(g_ref - g_air) < 1e-9:
+        raise ImagingInputError(
+            f"bone_or_water_region: mean grey {g_ref:g} equals the air region's; "
+            "choose regions of different material"
+        )
+    slope = (reference_hu - air_hu) / (g_ref - g_air)
+    intercept = air_hu - slope * g_air
+    hu = (volume.hu.astype(np.float64) * slope + intercept).astype(np.float32)
+    info = replace(
+        volume.info,
+        is_hu=True,
+        rescale_type=f"HU (calibrated: {slope:.6g} x grey + {intercept:.6g})",
+    )
+    return CTVolume(
+        hu=hu,
+        affine_lps=volume.affine_lps,
+        valid=volume.valid,
+        info=info,
+        warnings=tuple(w for w in volume.warnings if w.code != "not_hu"),
+        slice_positions_mm=volume.slice_positions_mm,
+    )
