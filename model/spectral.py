@@ -114,14 +114,14 @@ def spectrogram(
     """
     x = _signal(force_n)
     fs = _rate(sample_rate_hz)
-    n_seg = int(round(segment_s * fs))
+    n_seg = round(segment_s * fs)
     if n_seg < 4 or n_seg > x.shape[0]:
         raise SpectralInputError(
             f"segment_s={segment_s} gives {n_seg} samples; need 4..{x.shape[0]} (signal length)"
         )
     if not 0.0 <= overlap < 1.0:
         raise SpectralInputError(f"overlap must be in [0, 1), got {overlap}")
-    hop = max(1, int(round(n_seg * (1.0 - overlap))))
+    hop = max(1, round(n_seg * (1.0 - overlap)))
     starts = np.arange(0, x.shape[0] - n_seg + 1, hop)
     segments = np.lib.stride_tricks.sliding_window_view(x, n_seg)[starts]
     w = hann_window(n_seg)
