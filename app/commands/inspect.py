@@ -1,0 +1,36 @@
+"""``ctdrill inspect DIR``: load a DICOM CT series and describe its geometry, HU and warnings."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from imaging import list_series, load_series
+from imaging._load_report import format_report, volume_report
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``inspect`` subcommand."""
+    p = subparsers.add_parser(
+        "inspect",
+        help="describe a DICOM CT series (geometry, HU range, warnings)",
+        description="Load a DICOM CT series and print its geometry, HU range and load warnings.",
+    )
+    p.add_argument("dicom", type=Path, metavar="DIR", help="DICOM folder (or one file)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of text")
+    p.add_argument("--series", default=None, metavar="UID", help="SeriesInstanceUID to load")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Load, describe, print."""
+    volume = load_series(args.dicom, series_uid=args.series)
+    report = volume_report(volume, series=list_series(args.dicom))
+    if args.json:
+        sys.stdout.write(json.dumps(report, indent=1) + "\n")
+    else:
+        sys.stdout.write(format_report(report) + "\n")
+    return 0
