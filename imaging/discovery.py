@@ -205,8 +205,11 @@ def _pixel_offset(fh: Any, implicit: bool) -> tuple[int | None, bool]:
     return start, length > 0
 
 
-def read_headers(path: Path) -> list[SliceHeader] | Skipped | None:
-    """Header(s) of one file: a list of planes, a :class:`Skipped`, or None when not DICOM."""
+def read_headers(path: Path, *, ct_only: bool = True) -> list[SliceHeader] | Skipped | None:
+    """Header(s) of one file: a list of planes, a :class:`Skipped`, or None when not DICOM.
+
+    ``ct_only=False`` also returns the planes of non-CT images (used to test decoding).
+    """
     kind = _looks_like_dicom(path)
     if kind is False:
         return None
@@ -230,7 +233,7 @@ def read_headers(path: Path) -> list[SliceHeader] | Skipped | None:
         return Skipped(path, "directory file (DICOMDIR)")
     if not has_pixels:
         return Skipped(path, "no pixel data")
-    if sop not in CT_SOP_CLASSES:
+    if ct_only and sop not in CT_SOP_CLASSES:
         return Skipped(path, f"not a CT image ({_sop_name(sop)})")
     if ts not in _FAST_SYNTAXES:
         offset = None
