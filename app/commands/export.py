@@ -1,0 +1,75 @@
+"""``ctdrill export``: force/HU/clearance tables, summary and plot for planned trajectories."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from app.export import DEFAULT_RATE_HZ, text_progress
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``export`` subcommand."""
+    p = subparsers.add_parser(
+        "export",
+        help="export force, HU and clearance along planned trajectories (headless)",
+        description=(
+            "Load a DICOM CT series once, sample it along each planned drill trajectory and "
+            "write force.csv, profile.csv, summary.json and force.png. Several plans (or a "
+            "folder of plans) write into OUT/<plan name>/. No patient identifiers are written "
+            "unless --include-phi."
+        ),
+    )
+    p.add_argument("--dicom", type=Path, required=True, metavar="DIR", help="DICOM CT folder")
+    p.add_argument(
+        "--plan",
+        type=Path,
+        required=True,
+        nargs="+",
+        action="extend",
+        metavar="PLAN",
+        help="ctdrill-plan/1 JSON or 3D Slicer .mrk.json (repeatable; a folder of plans)",
+    )
+    p.add_argument("--out", type=Path, required=True, metavar="OUT", help="output folder")
+    p.add_argument(
+        "--calibration",
+        default=None,
+        metavar="NAME|PATH",
+        help="calibration set overriding the plans' (name in assets/calibration or a JSON path)",
+    )
+    p.add_argument("--feed-mm-s", type=float, default=None, help="feed overriding the plans'")
+    p.add_argument(
+        "--rate-hz",
+        type=float,
+        default=DEFAULT_RATE_HZ,
+        help=f"force.csv sample rate (default {DEFAULT_RATE_HZ:g})",
+    )
+    p.add_argument(
+        "--include-phi",
+        action="store_true",
+        help="write the patient's name, ID, birth date and institution into summary.json",
+    )
+    p.add_argument("--series", default=None, metavar="UID", help="SeriesInstanceUID to load")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Export and list what was written."""
+    from app.export_run import export_case
+
+    written = export_case(
+        args.dicom,
+        args.plan,
+        args.out,
+        calibration=args.calibration,
+        feed_mm_s=args.feed_mm_s,
+        rate_hz=args.rate_hz,
+        include_phi=args.include_phi,
+        series_uid=args.series,
+        progress=text_progress(sys.stderr),
+    )
+    for path in written:
+        sys.stdout.write(f"wrote {path}\n")
+    return 0

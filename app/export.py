@@ -1,0 +1,352 @@
+"""Headless export of a planned osteotomy: force/HU/clearance tables, summary and a plot.
+
+Files per trajectory (DESIGN.md section 4): ``force.csv`` (the time series at constant feed
+until the stop depth), ``profile.csv`` (per depth), ``summary.json`` and ``force.png``. The
+calibration set is named in every file (a ``calibration`` column in the CSVs, a field in the
+summary, the plot title), so an illustrative calibration is never mistaken for a measured one.
+No patient identifier is written unless asked (``include_phi``).
+
+Everything is computed before anything is written, and files are written into a staging
+folder beside the output and renamed into place: an error leaves no half-written export.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import itertools
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from app.errors import AppInputError
+from app.pipeline import PathResult
+from model.profile import force_series_n
+
+FORCE_COLUMNS = ("time_s", "depth_mm", "hu", "s_t", "force_n", "clearance_mm", "calibration")
+PROFILE_COLUMNS = (
+    "depth_mm",
+    "hu",
+    "s_t",
+    "s0_n",
+    "s1_n",
+    "s2_n",
+    "clearance_mm",
+    "misch",
+    "calibration",
+)
+#: Misch bone classes by HU (DESIGN.md section 5): lower bounds, densest first.
+MISCH_BOUNDS_HU = (("D1", 1250.0), ("D2", 850.0), ("D3", 350.0), ("D4", 150.0))
+MISCH_CLASSES = ("D1", "D2", "D3", "D4", "D5")
+N_HU_SEGMENTS = 10
+DEFAULT_RATE_HZ = 1000.0
+
+
+class ExportInputError(AppInputError):
+    """Bad export options (feed, rate, output folder)."""
+
+
+@dataclass(frozen=True)
+class ForceSeries:
+    """The force time series at constant feed, arrays of shape (T,)."""
+
+    time_s: np.ndarray
+    depth_mm: np.ndarray
+    hu: np.ndarray
+    s_t: np.ndarray
+    force_n: np.ndarray
+    clearance_mm: np.ndarray
+
+
+def misch_class(hu: np.ndarray) -> np.ndarray:
+    """Misch class per HU value: D1 > 1250, D2 850-1250, D3 350-850, D4 150-350, D5 < 150.
+
+    Parameters
+    ----------
+    hu : (N,) HU.
+
+    Returns
+    -------
+    (N,) str array of ``D1`` .. ``D5``.
+    """
+    h = np.asarray(hu, dtype=np.float64)
+    out = np.full(h.shape, "D5", dtype="<U2")
+    for name, lo in reversed(MISCH_BOUNDS_HU):
+        out = np.where(h > lo if name == "D1" else h >= lo, name, out)
+    return out
+
+
+def force_time_series(result: PathResult, *, feed_mm_s: float, rate_hz: float) -> ForceSeries:
+    """Constant-feed time series from depth 0 to the stop depth.
+
+    Parameters
+    ----------
+    result : the path.
+    feed_mm_s : feed, mm/s (> 0).
+    rate_hz : sample rate, Hz (> 0).
+
+    Returns
+    -------
+    ForceSeries with ``time_s = i / rate_hz``, ``depth_mm = feed * time_s`` <= stop depth.
+    """
+    _check_positive(feed_mm_s, "--feed-mm-s (feed_mm_s)")
+    _check_positive(rate_hz, "--rate-hz")
+    n = math.floor(result.stop_depth_mm / feed_mm_s * rate_hz + 1e-9) + 1
+    if n > 50_000_000:
+        raise ExportInputError(
+            f"--rate-hz {rate_hz:g} at {feed_mm_s:g} mm/s gives {n} samples; lower the rate"
+        )
+    t = np.arange(n, dtype=np.float64) / rate_hz
+    x = np.minimum(feed_mm_s * t, result.stop_depth_mm)
+    prof = result.profile
+    return ForceSeries(
+        time_s=t,
+        depth_mm=x,
+        hu=np.interp(x, prof.depth_mm, prof.hu_mean),
+        s_t=np.interp(x, prof.depth_mm, prof.s_t),
+        force_n=force_series_n(prof, x, feed_mm_s, t),
+        clearance_mm=np.interp(x, result.depth_mm, result.min_clearance_per_depth_mm),
+    )
+
+
+def _check_positive(value: float, name: str) -> None:
+    if not (math.isfinite(value) and value > 0.0):
+        raise ExportInputError(f"{name} must be a positive number, got {value!r}")
+
+
+def _fmt(values: np.ndarray, digits: int) -> list[str]:
+    return [f"{v:.{digits}f}" if math.isfinite(v) else repr(float(v)) for v in values.tolist()]
+
+
+def force_csv(series: ForceSeries, calibration: str) -> str:
+    """``force.csv`` text: ``time_s, depth_mm, hu, s_t, force_n`` then extras."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(FORCE_COLUMNS)
+    cols = [
+        _fmt(series.time_s, 6),
+        _fmt(series.depth_mm, 6),
+        _fmt(series.hu, 2),
+        _fmt(series.s_t, 5),
+        _fmt(series.force_n, 5),
+        _fmt(series.clearance_mm, 4),
+        [calibration] * len(series.time_s),
+    ]
+    w.writerows(zip(*cols, strict=True))
+    return buf.getvalue()
+
+
+def profile_csv(result: PathResult) -> str:
+    """``profile.csv`` text: one row per depth of the profile grid."""
+    prof = result.profile
+    sk = [prof.sk_n[k] if k < prof.sk_n.shape[0] else np.zeros_like(prof.s0_n) for k in (0, 1)]
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(PROFILE_COLUMNS)
+    cols = [
+        _fmt(prof.depth_mm, 4),
+        _fmt(prof.hu_mean, 2),
+        _fmt(prof.s_t, 5),
+        _fmt(prof.s0_n, 5),
+        _fmt(sk[0], 5),
+        _fmt(sk[1], 5),
+        _fmt(result.min_clearance_per_depth_mm, 4),
+        misch_class(prof.hu_mean).tolist(),
+        [prof.calibration] * len(prof.depth_mm),
+    ]
+    w.writerows(zip(*cols, strict=True))
+    return buf.getvalue()
+
+
+def hu_grading(result: PathResult) -> dict[str, Any]:
+    """Misch share of the path down to the stop depth and mean HU in 10 equal segments."""
+    prof = result.profile
+    stop = result.stop_depth_mm
+    keep = prof.depth_mm <= stop + 1e-9
+    classes = misch_class(prof.hu_mean[keep])
+    share = {c: float(np.mean(classes == c)) if classes.size else 0.0 for c in MISCH_CLASSES}
+    segments = []
+    edges = np.linspace(0.0, stop, N_HU_SEGMENTS + 1)
+    for lo, hi in itertools.pairwise(edges):
+        # mean of the lip-mean HU over [lo, hi], trapezoid on a fine resampling
+        xs = np.linspace(lo, hi, 33)
+        mean = float(np.mean(np.interp(xs, prof.depth_mm, prof.hu_mean))) if hi > lo else None
+        segments.append(
+            {
+                "from_mm": round(float(lo), 4),
+                "to_mm": round(float(hi), 4),
+                "mean_hu": None if mean is None else round(mean, 2),
+                "misch": None if mean is None else str(misch_class(np.array([mean]))[0]),
+            }
+        )
+    return {"misch_share": share, "segments": segments}
+
+
+def _num(v: float | None, digits: int = 4) -> float | None:
+    if v is None or not math.isfinite(v):
+        return None
+    return round(float(v), digits)
+
+
+def summary(
+    result: PathResult,
+    series: ForceSeries,
+    *,
+    feed_mm_s: float,
+    rate_hz: float,
+    series_uid: str,
+    patient: dict[str, str] | None = None,
+) -> dict[str, Any]:
+    """The ``summary.json`` document (no patient identifiers unless ``patient`` is given)."""
+    plan = result.plan
+    cal = result.calibration
+    lms = []
+    for j, lm in enumerate(result.landmarks):
+        lms.append(
+            {
+                "name": lm.name,
+                "kind": lm.kind,
+                "radius_mm": lm.radius_mm,
+                "margin_mm": float(result.margins_mm[j]),
+                "clearance_at_stop_mm": _num(float(result.stop_clearance_mm[j])),
+            }
+        )
+    nearest = result.nearest_landmark
+    prof = result.profile
+    doc: dict[str, Any] = {
+        "format": "ctdrill-export/1",
+        "plan": plan.name,
+        "planned_depth_mm": _num(result.planned_depth_mm),
+        "stop_depth_mm": _num(result.stop_depth_mm),
+        "stop_reason": result.stop_reason,
+        "max_safe_depth_mm": _num(result.max_safe_depth_mm),
+        "out_of_volume_depth_mm": _num(result.out_of_volume_depth_mm),
+        "min_clearance_mm": _num(result.min_clearance_mm),
+        "nearest_landmark": None if nearest is None else lms[nearest],
+        "margin_mm": plan.margin_mm,
+        "landmarks": lms,
+        "calibration": cal.name,
+        "calibration_illustrative": cal.illustrative,
+        "calibration_source": cal.source,
+        "feed_mm_s": feed_mm_s,
+        "rate_hz": rate_hz,
+        "duration_s": _num(float(series.time_s[-1]), 6),
+        "peak_force_n": _num(float(np.max(series.force_n)), 5),
+        "mean_force_n": _num(float(np.mean(series.force_n)), 5),
+        "drill": {
+            "diameter_mm": plan.drill.diameter_mm,
+            "tip_length_mm": plan.drill.tip_length_mm,
+            "blades": plan.drill.blades,
+            "rpm": plan.drill.rpm,
+        },
+        "entry_lps": plan.entry_lps.tolist(),
+        "target_lps": plan.target_lps.tolist(),
+        "depth_step_mm": _num(prof.step_mm, 6),
+        "series_uid": series_uid,
+        "extrapolation": {
+            "clipped_samples": prof.n_clipped,
+            "samples": prof.n_samples,
+            "share": _num(prof.n_clipped / prof.n_samples if prof.n_samples else 0.0, 6),
+        },
+        "hu_grading": hu_grading(result),
+        "warnings": [{"code": w.code, "message": w.message} for w in result.warnings],
+    }
+    if patient is not None:
+        doc["patient"] = patient
+    return doc
+
+
+@dataclass(frozen=True)
+class ExportJob:
+    """One trajectory's results, ready to write into ``subdir`` of the output folder."""
+
+    result: PathResult
+    subdir: str
+
+
+def write_exports(
+    jobs: Sequence[ExportJob],
+    out_dir: Path,
+    *,
+    feed_mm_s: float | None,
+    rate_hz: float,
+    series_uid: str,
+    patient: dict[str, str] | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> list[Path]:
+    """Write every job's four files, staged then renamed into ``out_dir``.
+
+    ``feed_mm_s`` None uses each plan's feed. Returns the written paths.
+    """
+    from app.export_plot import force_png
+
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ExportInputError(f"--out {out_dir}: exists and is not a folder; choose a folder")
+    parent = out_dir.resolve().parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.staging-", dir=parent))
+    except OSError as exc:
+        raise ExportInputError(f"--out {out_dir}: cannot create the folder ({exc})") from exc
+    written: list[Path] = []
+    try:
+        for n, job in enumerate(jobs):
+            if progress is not None:
+                progress(n, len(jobs), job.result.plan.name)
+            feed = job.result.plan.feed_mm_s if feed_mm_s is None else feed_mm_s
+            series = force_time_series(job.result, feed_mm_s=feed, rate_hz=rate_hz)
+            doc = summary(
+                job.result,
+                series,
+                feed_mm_s=feed,
+                rate_hz=rate_hz,
+                series_uid=series_uid,
+                patient=patient,
+            )
+            target = staging / job.subdir
+            target.mkdir(parents=True, exist_ok=True)
+            cal = job.result.calibration.name
+            (target / "force.csv").write_text(force_csv(series, cal), encoding="utf-8")
+            (target / "profile.csv").write_text(profile_csv(job.result), encoding="utf-8")
+            (target / "summary.json").write_text(
+                json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8"
+            )
+            force_png(job.result, series, target / "force.png")
+        if progress is not None:
+            progress(len(jobs), len(jobs), "done")
+        out_dir.mkdir(parents=True, exist_ok=True)
+        for src in sorted(staging.rglob("*")):
+            if src.is_dir():
+                continue
+            dst = out_dir / src.relative_to(staging)
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(src, dst)
+            written.append(dst)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return written
+
+
+def text_progress(stream: TextIO = sys.stderr) -> Callable[[int, int, str], None]:
+    """A one-line progress bar on ``stream`` (only drawn for more than one job)."""
+
+    def report(done: int, total: int, label: str) -> None:
+        if total <= 1:
+            return
+        width = 30
+        filled = int(width * done / total)
+        end = "\n" if done >= total else ""
+        stream.write(f"\rexport [{'#' * filled}{'.' * (width - filled)}] {done}/{total} {end}")
+        stream.flush()
+
+    return report

@@ -1,0 +1,148 @@
+"""``ctdrill export`` end to end: load the CT once, every plan, compute, then write.
+
+All inputs are read and every path computed before the first file is written, so bad input
+(one bad plan among many, a refused path) leaves the output folder untouched.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from app.errors import AppInputError
+from app.export import DEFAULT_RATE_HZ, ExportInputError, ExportJob, write_exports
+from app.pipeline import plan_path
+from imaging import load_series
+from imaging.plan import Plan, load_plans
+from model.calibration import Calibration, load_calibration
+
+#: DICOM attributes written only with ``--include-phi`` (keyword -> summary key).
+PHI_KEYWORDS = {
+    "PatientName": "patient_name",
+    "PatientID": "patient_id",
+    "PatientBirthDate": "patient_birth_date",
+    "PatientSex": "patient_sex",
+    "InstitutionName": "institution_name",
+    "StudyDate": "study_date",
+    "AccessionNumber": "accession_number",
+}
+
+
+def plan_files(paths: Sequence[Path]) -> list[Path]:
+    """The plan files named by ``paths``: files as given, folders expanded to ``*.json``."""
+    out: list[Path] = []
+    for p in paths:
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() == ".json")
+            if not found:
+                raise AppInputError(f"--plan {p}: folder holds no .json plan files")
+            out.extend(found)
+        else:
+            out.append(p)
+    return out
+
+
+def _subdir(name: str) -> str:
+    safe = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._")
+    return safe or "plan"
+
+
+def _calibration_for(plan: Plan, cache: dict[str, Calibration]) -> Calibration:
+    key = plan.calibration
+    candidate = Path(key)
+    if plan.source and not candidate.is_absolute() and ("/" in key or key.endswith(".json")):
+        beside = Path(plan.source).parent / candidate
+        if beside.is_file():
+            key = str(beside)
+    if key not in cache:
+        cache[key] = load_calibration(key)
+    return cache[key]
+
+
+def read_patient_fields(dicom: Path, series_uid: str) -> dict[str, str]:
+    """Patient identifiers of the series (for ``--include-phi`` only), as strings."""
+    import pydicom
+
+    from imaging.discovery import iter_files
+
+    for path in iter_files(dicom):
+        try:
+            ds = pydicom.dcmread(
+                path,
+                stop_before_pixels=True,
+                specific_tags=[*PHI_KEYWORDS, "SeriesInstanceUID"],
+            )
+        except Exception:  # any unreadable file is simply not the one we want
+            continue
+        if str(ds.get("SeriesInstanceUID", "")) != series_uid:
+            continue
+        return {key: str(ds.get(kw, "")) for kw, key in PHI_KEYWORDS.items()}
+    return {}
+
+
+def export_case(
+    dicom: Path,
+    plan_paths: Sequence[Path],
+    out_dir: Path,
+    *,
+    calibration: str | None = None,
+    feed_mm_s: float | None = None,
+    rate_hz: float = DEFAULT_RATE_HZ,
+    include_phi: bool = False,
+    series_uid: str | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> list[Path]:
+    """Export every trajectory of ``plan_paths`` on the CT in ``dicom``.
+
+    One trajectory writes into ``out_dir``; several write into ``out_dir/<plan name>/``.
+
+    Parameters
+    ----------
+    calibration : overrides every plan's calibration (a set name or a JSON path).
+    feed_mm_s : overrides every plan's feed, mm/s.
+    rate_hz : force.csv sample rate, Hz.
+    include_phi : add the patient identifiers to summary.json.
+    series_uid : SeriesInstanceUID to load (default: the largest CT series).
+
+    Returns
+    -------
+    The written files.
+    """
+    if feed_mm_s is not None and not feed_mm_s > 0.0:
+        raise ExportInputError(f"--feed-mm-s must be a positive number, got {feed_mm_s!r}")
+    if not rate_hz > 0.0:
+        raise ExportInputError(f"--rate-hz must be a positive number, got {rate_hz!r}")
+    plans: list[Plan] = []
+    for f in plan_files(plan_paths):
+        plans.extend(load_plans(f))
+    if not plans:
+        raise AppInputError("--plan: no trajectory to export")
+    volume = load_series(dicom, series_uid=series_uid)
+    cache: dict[str, Calibration] = {}
+    override = load_calibration(calibration) if calibration is not None else None
+    jobs: list[ExportJob] = []
+    seen: dict[str, str] = {}
+    for n, plan in enumerate(plans):
+        if progress is not None:
+            progress(n, len(plans), plan.name)
+        cal = override if override is not None else _calibration_for(plan, cache)
+        result = plan_path(volume, plan, cal)
+        sub = "" if len(plans) == 1 else _subdir(plan.name)
+        if sub in seen:
+            raise AppInputError(
+                f"--plan: two trajectories are named {plan.name!r} ({seen[sub]} and "
+                f"{plan.source}); rename one so their outputs do not overwrite each other"
+            )
+        seen[sub] = plan.source
+        jobs.append(ExportJob(result=result, subdir=sub))
+    patient = read_patient_fields(dicom, volume.info.series_uid) if include_phi else None
+    return write_exports(
+        jobs,
+        out_dir,
+        feed_mm_s=feed_mm_s,
+        rate_hz=rate_hz,
+        series_uid=volume.info.series_uid,
+        patient=patient,
+        progress=progress,
+    )
