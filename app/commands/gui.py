@@ -1,0 +1,54 @@
+"""``ctdrill gui``: the desktop window (3D view, slices, plots, planning, rehearsal)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from app.errors import AppInputError
+
+#: Upper bound on a ``--screenshot`` run when ``--quit-after-s`` is not given, s.
+SCREENSHOT_TIMEOUT_S = 120.0
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``gui`` subcommand."""
+    p = subparsers.add_parser(
+        "gui",
+        help="open the desktop window",
+        description="Open the ctdrill window: plan on the CT, see force and clearance, rehearse.",
+    )
+    p.add_argument("--dicom", type=Path, help="DICOM folder to open")
+    p.add_argument("--plan", type=Path, help="plan (ctdrill-plan/1 JSON or Slicer .mrk.json)")
+    p.add_argument("--screenshot", type=Path, help="save the window as PNG once drawn, then quit")
+    p.add_argument(
+        "--quit-after-s", type=float, default=None, help="close the window after this many seconds"
+    )
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Validate the arguments, then run the window."""
+    if args.dicom is not None and not args.dicom.exists():
+        raise AppInputError(f"--dicom {args.dicom}: no such folder; give a DICOM series folder")
+    if args.plan is not None and not args.plan.is_file():
+        raise AppInputError(f"--plan {args.plan}: no such file; give a plan JSON or .mrk.json")
+    if args.quit_after_s is not None and not args.quit_after_s > 0:
+        raise AppInputError(
+            f"--quit-after-s {args.quit_after_s}: give a positive number of seconds"
+        )
+    if args.screenshot is not None:
+        parent = args.screenshot.resolve().parent
+        if not parent.is_dir():
+            raise AppInputError(f"--screenshot {args.screenshot}: folder {parent} does not exist")
+        if args.screenshot.suffix.lower() != ".png":
+            raise AppInputError(f"--screenshot {args.screenshot}: the file name must end in .png")
+    quit_after = args.quit_after_s
+    if args.screenshot is not None and quit_after is None:
+        quit_after = SCREENSHOT_TIMEOUT_S
+    from app.gui.app import run_gui  # Qt loads only when the window is really wanted
+
+    return run_gui(
+        dicom=args.dicom, plan=args.plan, screenshot=args.screenshot, quit_after_s=quit_after
+    )

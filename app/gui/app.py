@@ -1,0 +1,103 @@
+"""Start the window: size it, open the case, and (for ``--screenshot``) save the window once it
+has drawn the case, then quit."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from PySide6.QtCore import QSettings, QTimer
+from PySide6.QtWidgets import QApplication
+
+from app.gui.main_window import MainWindow
+from app.gui.screenshot import qimage_to_rgb, region_stats, widget_rect
+
+#: Preferred and minimum window size, logical pixels (DESIGN.md section 4).
+PREFERRED_SIZE = (1440, 900)
+MIN_SIZE = (1280, 800)
+
+
+def window_size(available: tuple[int, int]) -> tuple[int, int]:
+    """The window size for a screen with ``available`` (width, height): the preferred size,
+    cut to the screen, but never under 1280x800 unless the screen is smaller."""
+    aw, ah = available
+    w = min(PREFERRED_SIZE[0], aw) if aw >= MIN_SIZE[0] else aw
+    h = min(PREFERRED_SIZE[1], ah) if ah >= MIN_SIZE[1] else ah
+    return max(w, min(MIN_SIZE[0], aw)), max(h, min(MIN_SIZE[1], ah))
+
+
+def application() -> QApplication:
+    """The running QApplication (created when missing)."""
+    app = QApplication.instance()
+    if isinstance(app, QApplication):
+        return app
+    return QApplication(sys.argv[:1])
+
+
+def make_window(settings: QSettings | None = None) -> MainWindow:
+    """A sized, shown main window."""
+    app = application()
+    window = MainWindow(settings=settings)
+    screen = app.primaryScreen()
+    avail = screen.availableGeometry() if screen is not None else None
+    size = window_size((avail.width(), avail.height()) if avail is not None else PREFERRED_SIZE)
+    window.resize(*size)
+    window.show()
+    return window
+
+
+def run_gui(
+    *,
+    dicom: Path | None = None,
+    plan: Path | None = None,
+    screenshot: Path | None = None,
+    quit_after_s: float | None = None,
+    settings: QSettings | None = None,
+) -> int:
+    """Run the window until it is closed (or ``quit_after_s``). Returns the exit code.
+
+    With ``screenshot``, the composited window is saved as soon as the case is drawn (path
+    planned, or right after showing when no series is given), and the window quits.
+    A load that fails on bad input is re-raised after the loop so the CLI reports it.
+    """
+    app = application()
+    window = make_window(settings)
+    if plan is not None:
+        window.open_plan(plan)
+    if dicom is not None:
+        window.open_folder(dicom)
+    state = {"saved": False}
+
+    def take() -> None:
+        if screenshot is None or state["saved"]:
+            return
+        state["saved"] = True
+        image = window.grab_composite()
+        if not image.save(str(screenshot)):
+            window.last_error = f"could not write the screenshot {screenshot}"
+        else:
+            rect = widget_rect(window.view3d, window)
+            stats = region_stats(
+                qimage_to_rgb(image), (rect.x(), rect.y(), rect.width(), rect.height())
+            )
+            if not stats.drawn:
+                sys.stderr.write(f"warning: the 3D view looks blank in {screenshot}\n")
+        app.quit()
+
+    if screenshot is not None:
+        if dicom is None:
+            QTimer.singleShot(500, take)
+        else:
+            window.path_updated.connect(lambda: QTimer.singleShot(300, take))
+
+    def timeout() -> None:
+        take()
+        app.quit()
+
+    if quit_after_s is not None:
+        QTimer.singleShot(int(quit_after_s * 1000), timeout)
+    app.exec()
+    window.close()
+    if window.load_error is not None:
+        raise window.load_error
+    return 0

@@ -1,0 +1,439 @@
+"""The ctdrill main window: 3D view, four slice views, depth plots, plan and rehearsal panels.
+
+Every action calls a headless function (``app.gui.compute``, ``app.gui.planning``,
+``app.pipeline``, ``imaging.plan``, ``app.export``); loading and path planning run in a worker
+thread (latest wins), so the UI thread stays responsive.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
+from matplotlib.figure import Figure
+from PySide6.QtCore import QSettings, Qt, Signal
+from PySide6.QtGui import QAction, QCloseEvent, QDragEnterEvent, QDropEvent, QImage, QKeySequence
+from PySide6.QtWidgets import (
+    QFileDialog,
+    QGridLayout,
+    QLabel,
+    QListWidget,
+    QMainWindow,
+    QMessageBox,
+    QProgressDialog,
+    QSplitter,
+    QTabWidget,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.gui import compute, planning
+from app.gui.plan_panel import PlanPanel
+from app.gui.plots import draw_depth_plots
+from app.gui.rehearsal_panel import RehearsalPanel
+from app.gui.results import PathView, block_reason, compute_path_view
+from app.gui.scene import SURFACE_PRESETS, SceneInput
+from app.gui.screenshot import grab_window
+from app.gui.slice_view import SliceCanvas
+from app.gui.slices import VIEWS, WINDOW_PRESETS, SliceImage, volume_center_lps
+from app.gui.view3d import View3D
+from app.gui.workers import Debouncer, Runner
+from imaging import CTVolume
+from imaging.plan import Plan, load_plan, save_plan
+
+MAX_RECENT = 8
+#: Delay between the last plan edit and the recomputation, ms.
+DEBOUNCE_MS = 150
+
+
+class MainWindow(QMainWindow):
+    """The desktop application window."""
+
+    path_updated = Signal()  # a new path result is shown (plots, 3D, slices)
+    volume_loaded = Signal()
+
+    def __init__(self, settings: QSettings | None = None) -> None:
+        super().__init__()
+        self.setWindowTitle("ctdrill")
+        self.setAcceptDrops(True)
+        self.settings = settings if settings is not None else QSettings("ctdrill", "ctdrill")
+        self.volume: CTVolume | None = None
+        self.volume_path = ""
+        self.plan: Plan | None = None
+        self.view: PathView | None = None
+        self.slices: dict[str, SliceImage] = {}
+        self.iso_hu = 300.0
+        self.window_level = WINDOW_PRESETS["bone"]
+        self.last_error = ""
+        self.load_error: ValueError | None = None  # bad input met while loading a series
+        self._refocus_next = False
+
+        self.view3d = View3D()
+        self.slice_canvases: dict[str, SliceCanvas] = {v: SliceCanvas(v) for v in VIEWS}
+        slice_box = QWidget()
+        grid = QGridLayout(slice_box)
+        grid.setContentsMargins(0, 0, 0, 0)
+        grid.setSpacing(2)
+        for n, v in enumerate(VIEWS):
+            grid.addWidget(self.slice_canvases[v], n // 2, n % 2)
+            self.slice_canvases[v].point_moved.connect(self._handle_moved)
+            self.slice_canvases[v].clicked.connect(self._canal_click)
+        self.plot_fig = Figure(figsize=(6, 4), dpi=80)
+        self.plot_canvas = FigureCanvasQTAgg(self.plot_fig)
+        draw_depth_plots(self.plot_fig, None, message="open a DICOM folder")
+
+        self.plan_panel = PlanPanel()
+        self.plan_panel.plan_edited.connect(self.set_plan)
+        self.plan_panel.edit_rejected.connect(self._status)
+        self.plan_panel.add_canal_toggled.connect(self._canal_mode)
+        self.rehearsal = RehearsalPanel()
+        self.rehearsal.depth_changed.connect(self.view3d.set_drill_depth)
+        self.warnings_list = QListWidget()
+        self.block_label = QLabel("")
+        self.block_label.setWordWrap(True)
+        series_tab = QWidget()
+        lay = QVBoxLayout(series_tab)
+        lay.addWidget(self.block_label)
+        lay.addWidget(self.warnings_list)
+        self.tabs = QTabWidget()
+        self.tabs.addTab(self.plan_panel, "Plan")
+        self.tabs.addTab(self.rehearsal, "Rehearsal")
+        self.tabs.addTab(series_tab, "Series")
+        self.tabs.setMinimumWidth(330)
+
+        top = QSplitter(Qt.Orientation.Horizontal)
+        top.addWidget(self.view3d)
+        top.addWidget(slice_box)
+        top.setSizes([560, 440])
+        left = QSplitter(Qt.Orientation.Vertical)
+        left.addWidget(top)
+        left.addWidget(self.plot_canvas)
+        left.setSizes([520, 280])
+        main = QSplitter(Qt.Orientation.Horizontal)
+        main.addWidget(left)
+        main.addWidget(self.tabs)
+        main.setSizes([1000, 340])
+        self.setCentralWidget(main)
+
+        self.load_runner = Runner(self._loaded, self._load_failed, parent=self)
+        self.path_runner = Runner(self._path_done, self._failed, parent=self)
+        self.slice_runner = Runner(self._slices_done, self._failed, parent=self)
+        self.debounce = Debouncer(self._recompute, DEBOUNCE_MS, parent=self)
+        self.progress: QProgressDialog | None = None
+        self._build_menus()
+        self._status("Open a DICOM folder (File > Open, or drop it here).")
+
+    # ------------------------------------------------------------------ menus
+    def _build_menus(self) -> None:
+        bar = self.menuBar()
+        file_menu = bar.addMenu("&File")
+        self._action(
+            file_menu,
+            "Open DICOM folder...",
+            self.open_folder_dialog,
+            QKeySequence.StandardKey.Open,
+        )
+        self.recent_menu = file_menu.addMenu("Open recent")
+        self._action(file_menu, "Open plan...", self.open_plan_dialog, "Ctrl+Shift+O")
+        self._action(
+            file_menu, "Save plan...", self.save_plan_dialog, QKeySequence.StandardKey.Save
+        )
+        self._action(file_menu, "Save screenshot...", self.screenshot_dialog, "Ctrl+P")
+        file_menu.addSeparator()
+        self._action(file_menu, "Quit", self.close, QKeySequence.StandardKey.Quit)
+        view_menu = bar.addMenu("&View")
+        surf = view_menu.addMenu("Bone surface")
+        for label, iso in SURFACE_PRESETS.items():
+            self._action(surf, label, lambda iso=iso: self.set_surface_preset(iso))
+        wl = view_menu.addMenu("Window/level")
+        for label in WINDOW_PRESETS:
+            self._action(wl, label, lambda label=label: self.set_window_preset(label))
+        self._action(view_menu, "Focus on trajectory", self._refocus, "F")
+        self._refresh_recent()
+
+    def _action(self, menu: Any, text: str, slot: Any, shortcut: Any = None) -> QAction:
+        action = QAction(text, self)
+        if shortcut is not None:
+            action.setShortcut(shortcut)
+        action.triggered.connect(lambda _checked=False: slot())
+        menu.addAction(action)
+        return action
+
+    def _refresh_recent(self) -> None:
+        self.recent_menu.clear()
+        for path in self.recent_folders():
+            self._action(self.recent_menu, path, lambda p=path: self.open_folder(p))
+        self.recent_menu.setEnabled(bool(self.recent_folders()))
+
+    def recent_folders(self) -> list[str]:
+        """Most recent first."""
+        value = self.settings.value("recent_folders", [])
+        if isinstance(value, str):
+            return [value]
+        if isinstance(value, list | tuple):
+            return [str(v) for v in value]
+        return []
+
+    def _remember(self, path: str) -> None:
+        items = [path] + [p for p in self.recent_folders() if p != path]
+        self.settings.setValue("recent_folders", items[:MAX_RECENT])
+        self.settings.sync()
+        self._refresh_recent()
+
+    def _status(self, text: str) -> None:
+        self.statusBar().showMessage(text)
+
+    # ------------------------------------------------------------------ opening
+    def open_folder_dialog(self) -> None:
+        start = (self.recent_folders() or [str(Path.home())])[0]
+        path = QFileDialog.getExistingDirectory(self, "Open DICOM folder", start)
+        if path:
+            self.open_folder(path)
+
+    def open_folder(self, path: str | os.PathLike[str], *, series_uid: str | None = None) -> None:
+        """Load a series in the background, with a cancellable progress dialog."""
+        folder = str(path)
+        iso = self.iso_hu
+        self.load_runner.submit(
+            lambda: compute.load_case(folder, series_uid=series_uid, iso_hu=iso)
+        )
+        self.progress = QProgressDialog(f"Loading {folder} ...", "Cancel", 0, 0, self)
+        self.progress.setWindowModality(Qt.WindowModality.WindowModal)
+        self.progress.setMinimumDuration(300)
+        self.progress.canceled.connect(self._cancel_load)
+        self._status(f"loading {folder}")
+
+    def _cancel_load(self) -> None:
+        self.load_runner.cancel()
+        self._status("loading cancelled")
+
+    def _close_progress(self) -> None:
+        if self.progress is not None:
+            self.progress.canceled.disconnect(self._cancel_load)
+            self.progress.reset()
+            self.progress = None
+
+    def _loaded(self, loaded: compute.Loaded) -> None:
+        self._close_progress()
+        self.volume = loaded.volume
+        self.volume_path = loaded.path
+        self._remember(loaded.path)
+        self.view3d.set_surface(loaded.surface)
+        self.warnings_list.clear()
+        for w in loaded.volume.warnings:
+            self.warnings_list.addItem(f"{w.code}: {w.message}")
+        if self.plan is None:
+            center = volume_center_lps(loaded.volume)
+            self.plan = planning.default_plan(center)
+        self.setWindowTitle(f"ctdrill - {Path(loaded.path).name}")
+        self._status(
+            f"loaded {loaded.path}: {loaded.volume.dims[0]}x{loaded.volume.dims[1]}x"
+            f"{loaded.volume.dims[2]}, {len(loaded.volume.warnings)} warning(s)"
+        )
+        self.volume_loaded.emit()
+        self.set_plan(self.plan, now=True)
+
+    def _load_failed(self, exc: BaseException, tb: str) -> None:
+        if isinstance(exc, ValueError):
+            self.load_error = exc
+        self._failed(exc, tb)
+
+    def _failed(self, exc: BaseException, tb: str) -> None:
+        self._close_progress()
+        self.last_error = str(exc)
+        if isinstance(exc, ValueError):  # the packages' *InputError family: bad input
+            self._status(f"error: {exc}")
+            self._show_block(str(exc))
+        else:
+            self._status(f"internal error: {exc!r}")
+            QMessageBox.critical(self, "ctdrill: internal error", tb)
+
+    def open_plan_dialog(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(
+            self, "Open plan", "", "Plans (*.json *.mrk.json);;All files (*)"
+        )
+        if path:
+            self.open_plan(path)
+
+    def open_plan(self, path: str | os.PathLike[str]) -> None:
+        """Read a ctdrill-plan/1 or Slicer markups file and show it."""
+        try:
+            plan = load_plan(path)
+        except ValueError as exc:
+            self._failed(exc, "")
+            return
+        self._status(f"plan {path}")
+        self.set_plan(plan, now=True, refocus=True)
+
+    def save_plan_dialog(self) -> None:
+        if self.plan is None:
+            return
+        path, _ = QFileDialog.getSaveFileName(
+            self, "Save plan", "plan.json", "ctdrill plan (*.json);;3D Slicer markups (*.mrk.json)"
+        )
+        if path:
+            self.save_plan(path)
+
+    def save_plan(self, path: str | os.PathLike[str]) -> None:
+        """Write the plan (``.mrk.json``: Slicer markups, else ctdrill-plan/1)."""
+        if self.plan is None:
+            return
+        try:
+            save_plan(self.plan, path)
+        except (ValueError, OSError) as exc:
+            self._status(f"error: {exc}")
+            return
+        self._status(f"saved {path}")
+
+    # ------------------------------------------------------------------ drag and drop
+    def dragEnterEvent(self, event: QDragEnterEvent) -> None:
+        if event.mimeData().hasUrls():
+            event.acceptProposedAction()
+
+    def dropEvent(self, event: QDropEvent) -> None:
+        for url in event.mimeData().urls():
+            self.open_dropped(url.toLocalFile())
+            break
+
+    def open_dropped(self, path: str) -> None:
+        """A folder opens as a series, a ``.json`` as a plan, any other file its folder."""
+        p = Path(path)
+        if p.is_dir():
+            self.open_folder(p)
+        elif p.name.lower().endswith(".json"):
+            self.open_plan(p)
+        elif p.is_file():
+            self.open_folder(p.parent)
+
+    # ------------------------------------------------------------------ plan and views
+    def set_plan(self, plan: Plan, *, now: bool = False, refocus: bool = False) -> None:
+        """Show ``plan``; slices and the path are recomputed (debounced unless ``now``)."""
+        self.plan = plan
+        self.plan_panel.set_plan(plan)
+        self._refocus_next = refocus
+        if now:
+            self._recompute()
+        else:
+            self.debounce.poke()
+
+    def _recompute(self) -> None:
+        volume, plan = self.volume, self.plan
+        if volume is None or plan is None:
+            return
+        self.slice_runner.submit(lambda: compute.slice_views(volume, plan))
+        self.path_runner.submit(lambda: compute_path_view(volume, plan))
+        draw_depth_plots(self.plot_fig, None, message="computing...")
+        self.plot_canvas.draw_idle()
+
+    def _slices_done(self, slices: dict[str, SliceImage]) -> None:
+        self.slices = slices
+        level, width = self.window_level
+        for name, img in slices.items():
+            self.slice_canvases[name].show_slice(img, level_hu=level, width_hu=width)
+        self._draw_overlays()
+
+    def _draw_overlays(self) -> None:
+        plan = self.plan
+        if plan is None:
+            return
+        view = self.view
+        stop = None if view is None else plan.point_at_depth_lps(view.curves.stop_depth_mm)
+        lms = planning.landmark_geometries(plan, None if view is None else view.min_clearance_mm)
+        for canvas in self.slice_canvases.values():
+            canvas.set_overlays(
+                entry_lps=plan.entry_lps, target_lps=plan.target_lps, stop_lps=stop, landmarks=lms
+            )
+
+    def _path_done(self, view: PathView) -> None:
+        plan = self.plan
+        if plan is None or view.plan is not plan:
+            return
+        self.view = view
+        draw_depth_plots(self.plot_fig, view.curves)
+        self.plot_canvas.draw_idle()
+        self.plan_panel.set_plan(plan, view.min_clearance_mm)
+        scene = SceneInput(
+            entry_lps=plan.entry_lps,
+            target_lps=plan.target_lps,
+            diameter_mm=plan.drill.diameter_mm,
+            tip_length_mm=plan.drill.tip_length_mm,
+            stop_depth_mm=view.curves.stop_depth_mm,
+            landmarks=planning.landmark_geometries(plan, view.min_clearance_mm),
+        )
+        self.view3d.show_scene(scene, refocus=self._refocus_next)
+        self._refocus_next = False
+        self._draw_overlays()
+        reason = block_reason(self.volume, view)
+        self._show_block(reason)
+        self.rehearsal.set_case(self.volume, plan, view.result, blocked=reason)
+        self._status(
+            f"stop at {view.curves.stop_depth_mm:.2f} mm ({view.curves.stop_reason}) of "
+            f"{view.curves.planned_depth_mm:.2f} mm planned"
+        )
+        self.path_updated.emit()
+
+    def _show_block(self, reason: str | None) -> None:
+        self.block_label.setText("" if not reason else f"Rehearsal disabled: {reason}")
+        if reason:
+            self.rehearsal.set_blocked(reason)
+
+    def _handle_moved(self, name: str, point_lps: np.ndarray) -> None:
+        if self.plan is None:
+            return
+        try:
+            self.set_plan(planning.move_handle(self.plan, name, point_lps))
+        except ValueError as exc:
+            self._status(f"error: {exc}")
+            self._draw_overlays()
+
+    def _canal_mode(self, on: bool) -> None:
+        for canvas in self.slice_canvases.values():
+            canvas.add_points_mode = on
+
+    def _canal_click(self, point_lps: np.ndarray) -> None:
+        if self.plan is not None:
+            self.set_plan(planning.add_canal_point(self.plan, point_lps))
+
+    def set_surface_preset(self, iso_hu: float) -> None:
+        """Re-contour the bone surface at ``iso_hu``."""
+        self.iso_hu = iso_hu
+        if self.volume is not None:
+            self.view3d.set_surface(compute.volume_surface(self.volume, iso_hu=iso_hu))
+
+    def set_window_preset(self, label: str) -> None:
+        """Apply a window/level preset to the slice views."""
+        self.window_level = WINDOW_PRESETS[label]
+        level, width = self.window_level
+        for name, img in self.slices.items():
+            self.slice_canvases[name].set_window(img, level_hu=level, width_hu=width)
+
+    def _refocus(self) -> None:
+        if self.view3d.scene is not None:
+            self.view3d.show_scene(self.view3d.scene, refocus=True)
+
+    # ------------------------------------------------------------------ screenshots
+    def grab_composite(self) -> QImage:
+        """The whole window with the 3D view's OpenGL content composited in."""
+        self.view3d.render_now()
+        return grab_window(self, [(self.view3d, self.view3d.grab_rgb())])
+
+    def save_screenshot(self, path: str | os.PathLike[str]) -> None:
+        """Write :meth:`grab_composite` to ``path`` (PNG)."""
+        if not self.grab_composite().save(str(path)):
+            raise OSError(f"could not write the screenshot {path}")
+
+    def screenshot_dialog(self) -> None:
+        path, _ = QFileDialog.getSaveFileName(self, "Save screenshot", "ctdrill.png", "PNG (*.png)")
+        if path:
+            self.save_screenshot(path)
+
+    def closeEvent(self, event: QCloseEvent) -> None:
+        self.rehearsal.shutdown()
+        self.load_runner.cancel()
+        self.path_runner.cancel()
+        self.slice_runner.cancel()
+        self.view3d.close_plotter()
+        super().closeEvent(event)

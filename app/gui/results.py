@@ -1,0 +1,74 @@
+"""What the window shows of a planned path: ``app.pipeline.plan_path``'s result turned into
+plot curves, per-landmark clearances and the reason rehearsal is blocked, if any."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from app.gui.plots import DepthCurves
+from app.pipeline import PathResult, plan_path
+from imaging import CTVolume
+from imaging.plan import Plan
+from model import load_calibration
+
+
+@dataclass(frozen=True, eq=False)
+class PathView:
+    """A path result and its display form, for the plan it was computed for."""
+
+    plan: Plan
+    result: PathResult
+    curves: DepthCurves
+    min_clearance_mm: np.ndarray | None  # (L,) per landmark along the stopped path
+
+
+def path_view(plan: Plan, result: PathResult) -> PathView:
+    """Plot curves and clearances of ``result`` (computed for ``plan``)."""
+    prof = result.profile
+    feed_factor = 1.0 + prof.ke_per_mm_s * plan.feed_mm_s
+    band = np.sum(np.abs(prof.sk_n), axis=0) if prof.sk_n.size else None
+    per_lm = np.asarray(result.stop_clearance_mm, dtype=np.float64)
+    curves = DepthCurves(
+        depth_mm=np.asarray(prof.depth_mm),
+        hu=np.asarray(prof.hu_mean),
+        force_n=np.asarray(prof.s0_n) * feed_factor,
+        force_band_n=band,
+        clearance_mm=np.asarray(result.min_clearance_per_depth_mm),
+        planned_depth_mm=result.planned_depth_mm,
+        stop_depth_mm=float(result.stop_depth_mm),
+        stop_reason=str(result.stop_reason),
+        margin_mm=_nearest_margin_mm(result, plan.margin_mm),
+        calibration=prof.calibration,
+    )
+    return PathView(
+        plan=plan, result=result, curves=curves, min_clearance_mm=per_lm if per_lm.size else None
+    )
+
+
+def _nearest_margin_mm(result: PathResult, default_mm: float) -> float:
+    """The margin of the landmark nearest the drill at the stop depth (the one that binds)."""
+    nearest = result.nearest_landmark
+    return default_mm if nearest is None else float(result.margins_mm[nearest])
+
+
+def compute_path_view(volume: CTVolume, plan: Plan) -> PathView:
+    """Plan the path of ``plan`` through ``volume`` (the pipeline the CLI uses) for display."""
+    calibration = load_calibration(plan.calibration)
+    return path_view(plan, plan_path(volume, plan, calibration))
+
+
+def block_reason(volume: CTVolume | None, view: PathView | None) -> str | None:
+    """Why rehearsal must not start, or None: no volume, not a volume, not HU, no path."""
+    if volume is None:
+        return "no CT series loaded"
+    if not volume.is_volume:
+        return "a single slice is not a volume for the force path"
+    if not volume.info.is_hu:
+        return "voxel values are not Hounsfield units (RescaleType); calibrate the series first"
+    if view is None:
+        return "the path has not been computed"
+    if view.curves.stop_depth_mm <= 0.0:
+        return f"the drill cannot advance (stop reason: {view.curves.stop_reason})"
+    return None

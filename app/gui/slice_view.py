@@ -1,0 +1,190 @@
+"""One slice view: a matplotlib canvas showing a :class:`~app.gui.slices.SliceImage` with the
+trajectory, the drill's stop point and the landmarks; entry and target can be dragged.
+
+The widget only draws and reports: a finished drag emits ``point_moved(name, lps)`` and a
+canal-point click emits ``clicked(lps)``; the window decides what they change.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from matplotlib.backend_bases import MouseEvent
+from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
+from matplotlib.figure import Figure
+from PySide6.QtCore import Signal
+
+from app.gui.scene import LandmarkGeometry
+from app.gui.slices import SliceImage, polyline_in_plane, window_to_uint8
+
+#: Pick radius for dragging a handle, pixels.
+PICK_PX = 10.0
+#: Overlays within this distance of the plane are drawn solid, mm.
+SLAB_MM = 2.0
+
+_TITLES = {
+    "axial": "axial (A up, L right)",
+    "coronal": "coronal (S up, L right)",
+    "sagittal": "sagittal (S up, P right)",
+    "trajectory": "along the drill",
+}
+
+
+class SliceCanvas(FigureCanvasQTAgg):
+    """A draggable-handle slice view."""
+
+    point_moved = Signal(str, object)  # handle name ("entry" | "target"), (3,) LPS mm
+    clicked = Signal(object)  # (3,) LPS mm on the plane
+
+    def __init__(self, view: str) -> None:
+        fig = Figure(figsize=(3.0, 3.0), dpi=80, facecolor="#101010")
+        super().__init__(fig)
+        self.view = view
+        self.ax = fig.add_axes((0.0, 0.0, 1.0, 0.93))
+        self.ax.set_facecolor("black")
+        self.ax.set_axis_off()
+        fig.text(0.01, 0.99, _TITLES.get(view, view), color="#e0e0e0", fontsize=8, va="top")
+        self.image: SliceImage | None = None
+        self._im: Any = None
+        self._handles: dict[str, np.ndarray] = {}
+        self._handle_artists: dict[str, Any] = {}
+        self._drag: str | None = None
+        self.add_points_mode = False
+        self.mpl_connect("button_press_event", self._press)
+        self.mpl_connect("motion_notify_event", self._motion)
+        self.mpl_connect("button_release_event", self._release)
+
+    # ------------------------------------------------------------------ drawing
+    def show_slice(self, image: SliceImage, *, level_hu: float, width_hu: float) -> None:
+        """Replace the image (and keep the overlays until ``set_overlays``)."""
+        self.image = image
+        grey = window_to_uint8(image.hu, level_hu=level_hu, width_hu=width_hu)
+        if self._im is None:
+            self._im = self.ax.imshow(
+                grey,
+                cmap="gray",
+                vmin=0,
+                vmax=255,
+                extent=image.extent_mm,
+                origin="upper",
+                interpolation="bilinear",
+                zorder=0,
+            )
+        else:
+            self._im.set_data(grey)
+            self._im.set_extent(image.extent_mm)
+        self.ax.set_xlim(image.extent_mm[0], image.extent_mm[1])
+        self.ax.set_ylim(image.extent_mm[2], image.extent_mm[3])
+
+    def set_window(self, image: SliceImage, *, level_hu: float, width_hu: float) -> None:
+        """Re-window the current image."""
+        self.show_slice(image, level_hu=level_hu, width_hu=width_hu)
+        self.draw_idle()
+
+    def set_overlays(
+        self,
+        *,
+        entry_lps: np.ndarray,
+        target_lps: np.ndarray,
+        stop_lps: np.ndarray | None,
+        landmarks: tuple[LandmarkGeometry, ...],
+    ) -> None:
+        """Draw the trajectory, stop point, landmarks and the entry/target handles."""
+        img = self.image
+        for artist in [*self.ax.lines, *self.ax.patches, *self.ax.collections]:
+            artist.remove()
+        self._handle_artists.clear()
+        if img is None:
+            return
+        for lm in landmarks:
+            uv, near = polyline_in_plane(img, lm.points_lps, slab_mm=SLAB_MM + lm.radius_mm)
+            style = "-" if near.any() else ":"
+            if len(uv) == 1:
+                self.ax.plot(uv[:, 0], uv[:, 1], "o", color="#ffd030", ms=5, zorder=3)
+            else:
+                self.ax.plot(uv[:, 0], uv[:, 1], style, color="#ffd030", lw=1.2, zorder=3)
+                if near.any():
+                    self.ax.plot(uv[near, 0], uv[near, 1], "o", color="#ffd030", ms=3, zorder=3)
+        line = np.array([entry_lps, target_lps], dtype=np.float64)
+        uv, near = polyline_in_plane(img, line, slab_mm=SLAB_MM)
+        style = "-" if near.all() else "--"
+        self.ax.plot(uv[:, 0], uv[:, 1], style, color="#4080ff", lw=1.5, zorder=4)
+        if stop_lps is not None:
+            suv, _ = img.to_plane_mm(np.asarray(stop_lps, dtype=np.float64))
+            self.ax.plot([suv[0]], [suv[1]], "x", color="#ff40b0", ms=9, mew=2, zorder=5)
+        self._handles = {
+            "entry": np.asarray(entry_lps, dtype=np.float64),
+            "target": np.asarray(target_lps, dtype=np.float64),
+        }
+        colours = {"entry": "#40e0ff", "target": "#ff6060"}
+        for name, pt in self._handles.items():
+            huv, off = img.to_plane_mm(pt)
+            alpha = 1.0 if abs(float(off)) <= SLAB_MM else 0.45
+            (artist,) = self.ax.plot(
+                [huv[0]],
+                [huv[1]],
+                "o",
+                mfc="none",
+                mec=colours[name],
+                mew=2,
+                ms=9,
+                alpha=alpha,
+                zorder=6,
+            )
+            self._handle_artists[name] = artist
+        self.draw_idle()
+
+    # ------------------------------------------------------------------ interaction
+    def _event_uv(self, event: MouseEvent) -> np.ndarray | None:
+        if event.inaxes is not self.ax or event.xdata is None or event.ydata is None:
+            return None
+        return np.array([float(event.xdata), float(event.ydata)])
+
+    def handle_at(self, x_px: float, y_px: float) -> str | None:
+        """The handle within ``PICK_PX`` of display point (x_px, y_px), if any."""
+        if self.image is None:
+            return None
+        best, best_d = None, PICK_PX
+        for name, pt in self._handles.items():
+            uv, _ = self.image.to_plane_mm(pt)
+            px = self.ax.transData.transform(uv)
+            d = float(np.hypot(px[0] - x_px, px[1] - y_px))
+            if d <= best_d:
+                best, best_d = name, d
+        return best
+
+    def lps_for(self, name: str, uv_mm: np.ndarray) -> np.ndarray:
+        """LPS of handle ``name`` moved to in-plane ``uv_mm``, keeping its distance off-plane."""
+        assert self.image is not None
+        _, off = self.image.to_plane_mm(self._handles[name])
+        return np.asarray(self.image.to_lps(uv_mm) + float(off) * self.image.normal_lps)
+
+    def _press(self, event: MouseEvent) -> None:
+        uv = self._event_uv(event)
+        if uv is None or self.image is None or event.button != 1:
+            return
+        if self.add_points_mode:
+            self.clicked.emit(self.image.to_lps(uv))
+            return
+        self._drag = self.handle_at(float(event.x), float(event.y))
+
+    def _motion(self, event: MouseEvent) -> None:
+        if self._drag is None:
+            return
+        uv = self._event_uv(event)
+        if uv is None:
+            return
+        artist = self._handle_artists.get(self._drag)
+        if artist is not None:
+            artist.set_data([uv[0]], [uv[1]])
+            self.draw_idle()
+
+    def _release(self, event: MouseEvent) -> None:
+        name, self._drag = self._drag, None
+        if name is None:
+            return
+        uv = self._event_uv(event)
+        if uv is None:
+            return
+        self.point_moved.emit(name, self.lps_for(name, uv))

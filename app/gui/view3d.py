@@ -1,0 +1,71 @@
+"""The embedded 3D view: a ``pyvistaqt.QtInteractor`` drawn by :func:`app.gui.scene.build_scene`."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pyvista as pv
+from PySide6.QtWidgets import QVBoxLayout, QWidget
+from pyvistaqt import QtInteractor
+
+from app.gui.scene import SceneInput, build_scene, focus_camera, set_drill_depth
+
+
+class View3D(QWidget):
+    """3D view of the bone surface, trajectory, drill and landmarks."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        self.plotter: Any = QtInteractor(self)
+        layout.addWidget(self.plotter.interactor)
+        self.surface: pv.PolyData | None = None
+        self.scene: SceneInput | None = None
+        self.actors: dict[str, Any] = {}
+        self._camera_for: tuple[float, ...] | None = None
+        self.frames_drawn = 0
+
+    def set_surface(self, surface: pv.PolyData | None) -> None:
+        """Use a new bone surface (new volume or preset); redraws if a scene is shown."""
+        self.surface = surface
+        self._camera_for = None
+        if self.scene is not None:
+            self.show_scene(self.scene)
+
+    def show_scene(self, scene: SceneInput, *, refocus: bool = False) -> None:
+        """Rebuild the scene; the camera is focused on the trajectory the first time."""
+        self.scene = scene
+        cam = self.plotter.camera_position
+        self.actors = build_scene(self.plotter, scene, surface=self.surface)
+        key = (len(self.actors),)
+        if refocus or self._camera_for is None:
+            focus_camera(self.plotter, scene.entry_lps, scene.target_lps)
+            self._camera_for = key
+        else:
+            self.plotter.camera_position = cam
+        self.render_now()
+
+    def set_drill_depth(self, depth_mm: float) -> None:
+        """Put the drill tip at ``depth_mm`` along the planned axis (live rehearsal)."""
+        if self.scene is None:
+            return
+        axis = np.asarray(self.scene.target_lps) - np.asarray(self.scene.entry_lps)
+        axis = axis / np.linalg.norm(axis)
+        set_drill_depth(self.actors, axis, depth_mm)
+        self.render_now()
+
+    def render_now(self) -> None:
+        """Draw one frame now."""
+        self.plotter.render()
+        self.frames_drawn += 1
+
+    def grab_rgb(self) -> np.ndarray:
+        """(H, W, 3) uint8 image of the render window, as displayed."""
+        img = self.plotter.screenshot(return_img=True)
+        return np.asarray(img)[..., :3]
+
+    def close_plotter(self) -> None:
+        """Release the render window (call before the widget is destroyed)."""
+        self.plotter.close()

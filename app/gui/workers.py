@@ -1,0 +1,120 @@
+"""Run headless work off the UI thread and hand the result back on it.
+
+A :class:`Job` wraps a plain function; its ``done`` / ``failed`` signals are delivered on the
+thread that owns the job's signal object (the UI thread), queued. Each job carries a
+generation number so a stale result (the user moved the target again, or cancelled) is dropped
+by the receiver instead of being drawn.
+"""
+
+from __future__ import annotations
+
+import traceback
+from collections.abc import Callable
+from typing import Any
+
+from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
+
+
+class JobSignals(QObject):
+    """Signals of one job: ``done(generation, result)`` or ``failed(generation, exc, tb)``."""
+
+    done = Signal(int, object)
+    failed = Signal(int, object, str)
+
+
+class Job(QRunnable):
+    """Call ``fn()`` in the thread pool and emit its result."""
+
+    def __init__(self, fn: Callable[[], Any], generation: int) -> None:
+        super().__init__()
+        self.fn = fn
+        self.generation = generation
+        self.signals = JobSignals()
+        self.setAutoDelete(True)
+
+    def run(self) -> None:  # runs in a pool thread
+        try:
+            result = self.fn()
+        except Exception as exc:  # delivered to the UI, which decides what is bad input
+            self.signals.failed.emit(self.generation, exc, traceback.format_exc())
+            return
+        self.signals.done.emit(self.generation, result)
+
+
+class Runner(QObject):
+    """Latest-wins runner: ``submit`` starts a job and invalidates every earlier one.
+
+    ``on_done(result)`` and ``on_failed(exc, tb)`` are called on the UI thread, only for the
+    latest job; ``cancel()`` drops whatever is running. ``busy`` is True while the latest job
+    runs.
+    """
+
+    def __init__(
+        self,
+        on_done: Callable[[Any], None],
+        on_failed: Callable[[BaseException, str], None],
+        *,
+        pool: QThreadPool | None = None,
+        parent: QObject | None = None,
+    ) -> None:
+        super().__init__(parent)
+        self._on_done = on_done
+        self._on_failed = on_failed
+        self._pool = pool if pool is not None else QThreadPool.globalInstance()
+        self._generation = 0
+        self._running: set[int] = set()
+        self._keep: dict[int, Job] = {}
+
+    @property
+    def busy(self) -> bool:
+        """True while the latest submitted job has not reported."""
+        return self._generation in self._running
+
+    def submit(self, fn: Callable[[], Any]) -> int:
+        """Start ``fn`` in the pool; returns its generation."""
+        self._generation += 1
+        gen = self._generation
+        job = Job(fn, gen)
+        job.signals.done.connect(self._done)
+        job.signals.failed.connect(self._failed)
+        self._running.add(gen)
+        self._keep[gen] = job  # keep the signal object alive until it reports
+        self._pool.start(job)
+        return gen
+
+    def cancel(self) -> None:
+        """Forget the running job: its result will be dropped."""
+        self._generation += 1
+
+    def _finish(self, gen: int) -> bool:
+        self._running.discard(gen)
+        self._keep.pop(gen, None)
+        return gen == self._generation
+
+    def _done(self, gen: int, result: object) -> None:
+        if self._finish(gen):
+            self._on_done(result)
+
+    def _failed(self, gen: int, exc: object, tb: str) -> None:
+        if self._finish(gen) and isinstance(exc, BaseException):
+            self._on_failed(exc, tb)
+
+
+class Debouncer(QObject):
+    """Call ``fn`` once, ``delay_ms`` after the last ``poke()``."""
+
+    def __init__(self, fn: Callable[[], None], delay_ms: int, parent: QObject | None = None):
+        super().__init__(parent)
+        self._timer = QTimer(self)
+        self._timer.setSingleShot(True)
+        self._timer.setInterval(delay_ms)
+        self._timer.timeout.connect(fn)
+
+    def poke(self) -> None:
+        """(Re)start the delay."""
+        self._timer.start()
+
+    @property
+    def pending(self) -> bool:
+        """True while a call is scheduled."""
+        return self._timer.isActive()

@@ -1,0 +1,102 @@
+"""3D scene geometry (exact) and an off-screen render that must show something."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import pyvista as pv
+
+from app.gui.scene import (
+    LandmarkGeometry,
+    SceneInput,
+    bone_surface,
+    build_scene,
+    clearance_state,
+    drill_mesh,
+    focus_camera,
+    landmark_meshes,
+    set_drill_depth,
+)
+from app.gui.screenshot import region_stats
+from tests.app.gui.phantom import BAR_SEMI_YZ, ORIGIN_LPS, SPACING_MM, phantom_volume
+
+
+def test_bone_surface_sits_on_the_phantom_bar() -> None:
+    vol = phantom_volume()
+    surf = bone_surface(vol.hu, vol.affine_lps, iso_hu=300.0, max_dim=200)
+    b = surf.bounds
+    # The bar's outer ellipse: y +-8, z +-11 mm (iso-surface within half a voxel).
+    assert b[2] == pytest.approx(-BAR_SEMI_YZ[0], abs=SPACING_MM)
+    assert b[3] == pytest.approx(BAR_SEMI_YZ[0], abs=SPACING_MM)
+    assert b[4] == pytest.approx(-BAR_SEMI_YZ[1], abs=SPACING_MM)
+    assert b[5] == pytest.approx(BAR_SEMI_YZ[1], abs=SPACING_MM)
+    # Closed at the volume's ends (x), by the air padding.
+    assert b[0] == pytest.approx(ORIGIN_LPS[0], abs=SPACING_MM)
+
+
+def test_bone_surface_follows_a_rotated_affine() -> None:
+    vol = phantom_volume()
+    rot = np.eye(4)
+    rot[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]  # 90 degrees about S
+    surf = bone_surface(vol.hu, rot @ vol.affine_lps, iso_hu=300.0, max_dim=200)
+    b = surf.bounds  # the bar now runs along y; its y half-width is along x
+    assert b[0] == pytest.approx(-BAR_SEMI_YZ[0], abs=SPACING_MM)
+    assert b[1] == pytest.approx(BAR_SEMI_YZ[0], abs=SPACING_MM)
+
+
+def test_bone_surface_strides_big_volumes_and_is_empty_without_bone() -> None:
+    vol = phantom_volume()
+    coarse = bone_surface(vol.hu, vol.affine_lps, iso_hu=300.0, max_dim=25)
+    fine = bone_surface(vol.hu, vol.affine_lps, iso_hu=300.0, max_dim=200)
+    assert 0 < coarse.n_points < fine.n_points / 4
+    assert bone_surface(vol.hu, vol.affine_lps, iso_hu=5000.0).n_points == 0
+
+
+def test_drill_mesh_has_its_tip_at_the_entry_and_the_drill_radius() -> None:
+    entry = np.array([1.0, 2.0, 3.0])
+    target = np.array([1.0, 5.0, -1.0])
+    axis = (target - entry) / 5.0
+    mesh = drill_mesh(entry, target, diameter_mm=2.0, tip_length_mm=0.6, shank_mm=20.0)
+    rel = np.asarray(mesh.points) - entry
+    along = rel @ axis
+    perp = np.linalg.norm(rel - along[:, None] * axis, axis=1)
+    assert along.max() == pytest.approx(0.0, abs=1e-5)
+    assert along.min() == pytest.approx(-20.6, abs=1e-5)
+    assert perp.max() == pytest.approx(1.0, abs=1e-5)
+
+
+def test_clearance_states() -> None:
+    assert clearance_state(None, 2.0) == "safe"
+    assert clearance_state(3.0, 2.0) == "safe"
+    assert clearance_state(2.5, 2.0) == "close"
+    assert clearance_state(1.99, 2.0) == "violated"
+
+
+def test_landmark_envelope_is_the_radius_plus_the_margin() -> None:
+    lm = LandmarkGeometry("c", np.array([[-10.0, 0, 0], [10.0, 0, 0]]), 1.2, 2.0)
+    body, env = landmark_meshes(lm)
+    assert env is not None
+    assert np.abs(np.asarray(body.points)[:, 1:]).max() == pytest.approx(1.2, rel=1e-3)
+    assert np.abs(np.asarray(env.points)[:, 1:]).max() == pytest.approx(3.2, rel=1e-3)
+
+
+def test_off_screen_scene_draws_and_the_drill_moves() -> None:
+    vol = phantom_volume()
+    entry, target = np.array([0.0, 0.0, 12.0]), np.array([0.0, 0.0, 0.0])
+    lm = LandmarkGeometry("canal", np.array([[-20.0, 0, -4], [20.0, 0, -4]]), 1.2, 2.0, 1.0)
+    scene = SceneInput(entry, target, 2.0, 0.6, 9.0, (lm,))
+    plotter = pv.Plotter(off_screen=True, window_size=(400, 300))
+    try:
+        actors = build_scene(plotter, scene, surface=bone_surface(vol.hu, vol.affine_lps))
+        assert {"bone", "trajectory", "drill", "stop", "landmark:canal", "margin:canal"} <= set(
+            actors
+        )
+        focus_camera(plotter, entry, target)
+        before = np.array(actors["drill"].GetBounds())
+        set_drill_depth(actors, np.array([0.0, 0.0, -1.0]), 5.0)
+        after = np.array(actors["drill"].GetBounds())
+        assert after[4] == pytest.approx(before[4] - 5.0)
+        img = plotter.screenshot(return_img=True)
+        assert region_stats(img).drawn
+    finally:
+        plotter.close()
