@@ -10,8 +10,11 @@ spaced angles around the axis. The midpoint rule gives each ring the weight ``1 
 Depth is measured from the entry point along the unit axis ``(target - entry) / |target - entry|``;
 all points are LPS millimetres.
 
-Defaults (``n_rings=4``, ``n_angles=12``) were chosen from the accuracy-vs-cost measurements
-of ``bench/bench_sampling.py`` (see docs/benchmarks.md, section "Lip sampling").
+Defaults (``n_rings=6``, ``n_angles=12``) come from ``bench/bench_sampling.py`` (docs/benchmarks.md,
+"Lip sampling"): on 0.3 mm voxels with trilinear interpolation and a 0.05 mm depth step they
+keep the discretisation error of ``s_t`` at 0.004 RMS and of the lip-mean HU under 1 HU, some
+20 times below the partial-volume error of the CT itself, for ~3 ms per 16 mm trajectory;
+coarser lips (3 x 8, 2 x 6) are 3-7 times less accurate, finer ones cost 3-16 times more.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from imaging.errors import ImagingInputError
 from imaging.volume import CTVolume
 
 #: Default number of rings on the lip (measured, bench/bench_sampling.py).
-DEFAULT_N_RINGS = 4
+DEFAULT_N_RINGS = 6
 #: Default number of angles per ring (measured, bench/bench_sampling.py).
 DEFAULT_N_ANGLES = 12
 
@@ -208,17 +211,27 @@ def sample_lip_rings(
     n_d, n_r, n_a = points.shape[:3]
     flat = points.reshape(-1, 3)
     everything = np.concatenate([flat, tips])
-    values = volume.sample(everything, order=order, outside_hu=float(outside_hu))
-    ring_hu = values[: flat.shape[0]].reshape(n_d, n_r, n_a).astype(np.float32)
-    inside = volume.inside(flat).reshape(n_d, n_r * n_a)
-    outside = (n_r * n_a - inside.sum(axis=1)).astype(np.int64)
+    # One lookup with NaN as the outside value marks every sample outside the grid or touching
+    # padding (NaN propagates through the interpolation weights). Only those few samples are
+    # looked up again, for their exact value with ``outside_hu`` and the exact inside test.
+    values = volume.sample(everything, order=order, outside_hu=np.nan)
+    flagged = np.flatnonzero(np.isnan(values))
+    outside_flat = np.zeros(everything.shape[0], dtype=bool)
+    if flagged.size:
+        values[flagged] = volume.sample(
+            everything[flagged], order=order, outside_hu=float(outside_hu)
+        )
+        outside_flat[flagged] = ~volume.inside(everything[flagged])
+    n_ring = flat.shape[0]
+    ring_hu = values[:n_ring].reshape(n_d, n_r, n_a).astype(np.float32)
+    outside = outside_flat[:n_ring].reshape(n_d, n_r * n_a).sum(axis=1).astype(np.int64)
     return LipSamples(
         depth_mm=depth,
         radii_mm=ring_radii_mm(diameter_mm, n_rings),
         ring_weights=np.full(n_r, 1.0 / n_r),
         hu=ring_hu,
         outside=outside,
-        axis_hu=np.asarray(values[flat.shape[0] :], dtype=np.float64),
+        axis_hu=np.asarray(values[n_ring:], dtype=np.float64),
     )
 
 
