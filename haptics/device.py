@@ -1,0 +1,119 @@
+"""The host's view of a haptic device: one small Protocol, two implementations.
+
+:class:`haptics.sim.SimulatedDevice` runs the device emulator in-process (device time advances
+only in :meth:`Device.wait`, as fast as the CPU allows, deterministic);
+:class:`haptics.serial_device.SerialDevice` talks to real hardware or ``ctdrill emulate`` over
+``serial.serial_for_url`` (``/dev/ttyUSB0``, a pty path, ``loop://``) in real time. Both share
+the host logic of :class:`haptics.host.HostDevice`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+from haptics.errors import HapticsInputError
+from haptics.profile_table import ProfileTable
+from haptics.protocol import Limits, Version
+
+
+class DeviceError(HapticsInputError):
+    """The device did not answer, or refused a command; the message says what to check."""
+
+
+@dataclass(frozen=True)
+class DeviceInfo:
+    """What HELLO returned."""
+
+    version: Version
+    limits: Limits
+
+
+@dataclass(frozen=True)
+class TelemetrySample:
+    """One TELEMETRY frame, in host units.
+
+    Attributes
+    ----------
+    time_s : float
+        Device clock, s.
+    tick : int
+        Device tick counter.
+    master_mm, drill_mm : float
+        Master depth and drill depth, mm.
+    velocity_mm_s, force_cmd_n, force_est_n : float
+        Master velocity, rendered force (>= 0 opposes advance) and the hand-force estimate.
+    state : int
+        :class:`haptics.protocol.DeviceState`.
+    faults : int
+        :class:`haptics.protocol.Fault` bits.
+    overruns : int
+        Control ticks the device ran late.
+    """
+
+    time_s: float
+    tick: int
+    master_mm: float
+    drill_mm: float
+    velocity_mm_s: float
+    force_cmd_n: float
+    force_est_n: float
+    state: int
+    faults: int
+    overruns: int
+
+
+class Device(Protocol):
+    """Host API of a haptic device (simulated or serial)."""
+
+    def hello(self) -> DeviceInfo:
+        """Open the session: version and limits; raises :class:`DeviceError` on no answer."""
+        ...
+
+    def upload_profile(self, table: ProfileTable) -> None:
+        """Send the table; returns once the device verified its CRC-32 (else DeviceError)."""
+        ...
+
+    def arm(self) -> None:
+        """Start rendering (clears a latched safe state)."""
+        ...
+
+    def disarm(self) -> None:
+        """Zero force, idle."""
+        ...
+
+    def stop(self) -> None:
+        """Emergency stop: the device latches its safe state."""
+        ...
+
+    def heartbeat(self) -> None:
+        """Feed the device watchdog (send at least every 50 ms while armed)."""
+        ...
+
+    def set_operator(self, kind: int, value: float) -> None:
+        """Simulated hand (simulator/emulator only; real hardware refuses it)."""
+        ...
+
+    def write_raw(self, data: bytes) -> None:
+        """Raw bytes to the device (fault injection)."""
+        ...
+
+    def sim_reset(self) -> None:
+        """Ask the emulator to power-cycle (fault injection)."""
+        ...
+
+    def poll(self) -> list[TelemetrySample]:
+        """Telemetry received since the last poll, oldest first."""
+        ...
+
+    def wait(self, duration_s: float) -> None:
+        """Let ``duration_s`` of time pass (simulated: runs the device; serial: sleeps)."""
+        ...
+
+    def clock_s(self) -> float:
+        """Host clock, s (simulated: the device clock; serial: monotonic)."""
+        ...
+
+    def close(self) -> None:
+        """Release the link."""
+        ...

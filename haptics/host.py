@@ -1,0 +1,223 @@
+"""Host-side protocol logic shared by the simulated and the serial device."""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+from haptics.device import DeviceError, DeviceInfo, TelemetrySample
+from haptics.profile_table import ProfileTable
+from haptics.protocol import (
+    Ack,
+    Arm,
+    Disarm,
+    FaultReport,
+    FrameReader,
+    Heartbeat,
+    Hello,
+    Limits,
+    Message,
+    Nak,
+    NakReason,
+    Packet,
+    SimOperator,
+    SimReset,
+    Stop,
+    Telemetry,
+    Version,
+    encode,
+)
+
+
+class Transport(Protocol):
+    """Byte link to a device plus the notion of time the host runs on."""
+
+    name: str
+
+    def write(self, data: bytes) -> None:
+        """Send bytes."""
+        ...
+
+    def read(self) -> bytes:
+        """Bytes received so far (non-blocking)."""
+        ...
+
+    def wait(self, duration_s: float) -> None:
+        """Let time pass."""
+        ...
+
+    def clock_s(self) -> float:
+        """Host clock, s."""
+        ...
+
+    def close(self) -> None:
+        """Release the link."""
+        ...
+
+
+class HostDevice:
+    """A :class:`haptics.device.Device` over any :class:`Transport`.
+
+    Parameters
+    ----------
+    transport : Transport
+    timeout_s : float
+        How long a command waits for its ACK/NAK (host clock).
+    poll_s : float
+        Granularity of that wait.
+    """
+
+    def __init__(self, transport: Transport, *, timeout_s: float = 1.0, poll_s: float = 0.001):
+        self.transport = transport
+        self.timeout_s = timeout_s
+        self.poll_s = poll_s
+        self._seq = 0
+        self._reader = FrameReader()
+        self._telemetry: list[TelemetrySample] = []
+        self._replies: list[tuple[Message, int]] = []
+        self.fault_reports: list[tuple[float, FaultReport]] = []
+        self.naks: list[Nak] = []
+        self.rejected_frames = 0
+
+    # ------------------------------------------------------------ plumbing
+
+    def send(self, message: Message) -> int:
+        """Send one message; returns its sequence number."""
+        self._seq = (self._seq + 1) & 0xFFFF
+        self.transport.write(encode(message, seq=self._seq))
+        return self._seq
+
+    def _pump(self) -> None:
+        for item in self._reader.feed(self.transport.read()):
+            if not isinstance(item, Packet):
+                self.rejected_frames += 1
+                continue
+            msg = item.message
+            t = item.time_us * 1e-6
+            if isinstance(msg, Telemetry):
+                self._telemetry.append(
+                    TelemetrySample(
+                        t,
+                        msg.tick,
+                        msg.master_mm,
+                        msg.drill_mm,
+                        msg.velocity_mm_s,
+                        msg.force_cmd_n,
+                        msg.force_est_n,
+                        msg.state,
+                        msg.faults,
+                        msg.overruns,
+                    )
+                )
+            elif isinstance(msg, FaultReport):
+                self.fault_reports.append((t, msg))
+            else:
+                if isinstance(msg, Nak):
+                    self.naks.append(msg)
+                self._replies.append((msg, item.seq))
+
+    def _await(self, what: str, match: type, *, count: int = 1) -> list[Message]:
+        deadline = self.transport.clock_s() + self.timeout_s
+        found: list[Message] = []
+        while True:
+            self._pump()
+            keep = []
+            for msg, seq in self._replies:
+                if isinstance(msg, match) and len(found) < count:
+                    found.append(msg)
+                else:
+                    keep.append((msg, seq))
+            self._replies = keep
+            if len(found) >= count:
+                return found
+            if self.transport.clock_s() >= deadline:
+                raise DeviceError(
+                    f"device on {self.transport.name} did not answer {what} within "
+                    f"{self.timeout_s:g} s; check the port, the cable and that the device "
+                    "(or 'ctdrill emulate') is running"
+                )
+            self.transport.wait(self.poll_s)
+
+    def _command(self, message: Message) -> None:
+        seq = self.send(message)
+        name = message.TYPE.name
+        deadline = self.transport.clock_s() + self.timeout_s
+        while True:
+            self._pump()
+            for i, (msg, _rseq) in enumerate(self._replies):
+                if isinstance(msg, Ack | Nak) and msg.acked_seq == seq:
+                    del self._replies[i]
+                    if isinstance(msg, Nak):
+                        known = {int(r): r.name for r in NakReason}
+                        reason = known.get(msg.reason, f"reason {msg.reason}")
+                        raise DeviceError(
+                            f"device on {self.transport.name} refused {name} ({reason})"
+                        )
+                    return
+            if self.transport.clock_s() >= deadline:
+                raise DeviceError(
+                    f"device on {self.transport.name} did not acknowledge {name} within "
+                    f"{self.timeout_s:g} s; check the link"
+                )
+            self.transport.wait(self.poll_s)
+
+    # ------------------------------------------------------------ Device API
+
+    def hello(self) -> DeviceInfo:
+        """HELLO -> VERSION + LIMITS."""
+        self._replies.clear()
+        self.send(Hello())
+        (version,) = self._await("HELLO", Version)
+        (limits,) = self._await("HELLO", Limits)
+        assert isinstance(version, Version) and isinstance(limits, Limits)
+        return DeviceInfo(version, limits)
+
+    def upload_profile(self, table: ProfileTable) -> None:
+        """Send BEGIN, the chunks and END; each is acknowledged, END only if the CRC matches."""
+        for message in table.upload_messages():
+            self._command(message)
+
+    def arm(self) -> None:
+        """ARM (needs a verified table)."""
+        self._command(Arm())
+
+    def disarm(self) -> None:
+        """DISARM."""
+        self._command(Disarm())
+
+    def stop(self) -> None:
+        """STOP (latched safe state)."""
+        self._command(Stop())
+
+    def heartbeat(self) -> None:
+        """HEARTBEAT (not acknowledged)."""
+        self.send(Heartbeat())
+
+    def set_operator(self, kind: int, value: float) -> None:
+        """SIM_OPERATOR (not acknowledged)."""
+        self.send(SimOperator(kind, value))
+
+    def sim_reset(self) -> None:
+        """SIM_RESET (the device reboots; its ACK may be lost in the reboot)."""
+        self.send(SimReset())
+
+    def write_raw(self, data: bytes) -> None:
+        """Raw bytes to the device."""
+        self.transport.write(data)
+
+    def poll(self) -> list[TelemetrySample]:
+        """Telemetry received since the last poll."""
+        self._pump()
+        out, self._telemetry = self._telemetry, []
+        return out
+
+    def wait(self, duration_s: float) -> None:
+        """Let time pass."""
+        self.transport.wait(duration_s)
+
+    def clock_s(self) -> float:
+        """Host clock, s."""
+        return self.transport.clock_s()
+
+    def close(self) -> None:
+        """Release the link."""
+        self.transport.close()

@@ -1,0 +1,249 @@
+"""The device-side renderer: one call per 10 kHz control tick (reference for the firmware).
+
+Per tick, from the encoder depth of the master and its velocity estimate:
+
+1. watchdog: no valid host frame for ``watchdog_s`` (50 ms) while armed -> safe state;
+2. finite checks on the inputs and on the force command (non-finite -> safe state);
+3. the cutting law (:mod:`model.cutting`) on the uploaded table: the front (deepest drill
+   depth) yields to the hand, never past the stop depth; vibration from the device clock while
+   the front advances; once the front has reached the stop depth, a stiff wall (20 N/mm on top
+   of the coupling) anchored where the master was at that moment, so the force stays continuous;
+4. force limits: 78 N peak, and an I^2t thermal model that limits the force to the continuous
+   rating (20 N) once ``thermal_budget_n2_s`` of excess ``F^2 - Fc^2`` has accumulated, until it
+   has cooled to half.
+
+States: ``IDLE`` (zero force), ``CUTTING`` (armed), ``STOPPED`` (armed, the front reached the
+stop depth), ``SAFE`` (zero force, the drill stopped: the front frozen; latched until ARM).
+The drill depth is ``min(master, front)``: it never exceeds the stop depth whatever the hand does.
+
+Force convention: ``force_cmd_n >= 0`` opposes the advance (pushes the hand back along -depth).
+Plain float arithmetic only: no arrays, no allocation per tick.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from haptics.protocol import DeviceState, Fault, ProfileBegin
+from model.cutting import (
+    DEFAULT_DAMPING_N_S_PER_MM,
+    DEFAULT_STIFFNESS_N_PER_MM,
+    advance_front_mm,
+    resistance_n,
+)
+
+TICK_HZ = 10_000
+PEAK_FORCE_N = 78.0
+CONTINUOUS_FORCE_N = 20.0
+#: Excess ``F^2 - Fc^2`` integrated before the thermal limit engages: 1 s at the peak force.
+THERMAL_BUDGET_N2_S = PEAK_FORCE_N**2 - CONTINUOUS_FORCE_N**2
+WATCHDOG_S = 0.050
+#: Stiffness of the wall rendered beyond the stop depth, N/mm (on top of the cut coupling).
+STOP_WALL_N_PER_MM = 20.0
+
+
+class Renderer:
+    """Device renderer state and its per-tick update.
+
+    Attributes (read after each :meth:`tick`)
+    ------------------------------------------
+    state : int
+        A :class:`DeviceState`.
+    faults : int
+        :class:`Fault` bits raised since the last ARM (sticky).
+    front_mm, drill_mm : float
+        Cut front (deepest drill depth so far) and drill depth, mm.
+    force_cmd_n : float
+        Force command of the last tick, N (>= 0 opposes the advance).
+    """
+
+    def __init__(
+        self,
+        *,
+        tick_hz: int = TICK_HZ,
+        peak_force_n: float = PEAK_FORCE_N,
+        continuous_force_n: float = CONTINUOUS_FORCE_N,
+        thermal_budget_n2_s: float = THERMAL_BUDGET_N2_S,
+        watchdog_s: float = WATCHDOG_S,
+        stiffness_n_per_mm: float = DEFAULT_STIFFNESS_N_PER_MM,
+        damping_n_s_per_mm: float = DEFAULT_DAMPING_N_S_PER_MM,
+        stop_wall_n_per_mm: float = STOP_WALL_N_PER_MM,
+    ) -> None:
+        self.dt_s = 1.0 / tick_hz
+        self.peak_force_n = peak_force_n
+        self.continuous_force_n = continuous_force_n
+        self.thermal_budget_n2_s = thermal_budget_n2_s
+        self.watchdog_s = watchdog_s
+        self.k = stiffness_n_per_mm
+        self.b = damping_n_s_per_mm
+        self.k_stop = stop_wall_n_per_mm
+        self.state = int(DeviceState.IDLE)
+        self.faults = 0
+        self.new_faults = 0
+        self.front_mm = 0.0
+        self.drill_mm = 0.0
+        self.force_cmd_n = 0.0
+        self.thermal_n2_s = 0.0
+        self.thermal_limited = False
+        self.last_host_s = 0.0
+        self.t_arm_s = 0.0
+        self.safe_since_s = math.nan
+        self._s0: list[float] = []
+        self._s1: list[float] = []
+        self._s2: list[float] = []
+        self._inv_step = 0.0
+        self._last = -1
+        self.ke = 0.0
+        self.w1 = 0.0
+        self.w2 = 0.0
+        self.stop_depth_mm = 0.0
+        self.stop_anchor_mm = math.inf
+
+    # ------------------------------------------------------------ commands
+
+    @property
+    def has_profile(self) -> bool:
+        """A table has been loaded."""
+        return self._last >= 0
+
+    def load(self, begin: ProfileBegin, rows: Sequence[tuple[float, float, float]]) -> None:
+        """Install a verified table (finite, ``s0 >= 0``); disarms and resets the hole."""
+        self._s0 = [r[0] for r in rows]
+        self._s1 = [r[1] for r in rows]
+        self._s2 = [r[2] for r in rows]
+        self._inv_step = 1.0 / begin.depth_step_mm
+        self._last = len(rows) - 1
+        self.ke = begin.ke_per_mm_s
+        self.w1 = 2.0 * math.pi * begin.f1_hz
+        self.w2 = 2.0 * math.pi * begin.f2_hz
+        self.stop_depth_mm = begin.stop_depth_mm
+        self.stop_anchor_mm = math.inf
+        self.front_mm = 0.0
+        self.disarm()
+
+    def clear(self) -> None:
+        """Forget the table (power-on state)."""
+        self._s0, self._s1, self._s2 = [], [], []
+        self._last = -1
+        self.front_mm = 0.0
+        self.disarm()
+
+    def arm(self, now_s: float) -> bool:
+        """Start rendering (clears latched faults); False without a table."""
+        if not self.has_profile:
+            return False
+        self.state = int(
+            DeviceState.STOPPED if self.front_mm >= self.stop_depth_mm else DeviceState.CUTTING
+        )
+        self.faults = 0
+        self.new_faults = 0
+        self.last_host_s = now_s
+        self.t_arm_s = now_s
+        self.safe_since_s = math.nan
+        return True
+
+    def disarm(self) -> None:
+        """Zero force, idle."""
+        self.state = int(DeviceState.IDLE)
+        self.force_cmd_n = 0.0
+
+    def host_frame(self, now_s: float) -> None:
+        """A valid host frame arrived: feed the watchdog."""
+        self.last_host_s = now_s
+
+    def host_stop(self, now_s: float) -> None:
+        """Emergency stop from the host: latched safe state."""
+        self._go_safe(now_s, Fault.HOST_STOP)
+
+    def _raise(self, fault: int) -> None:
+        if not self.faults & fault:
+            self.new_faults |= fault
+        self.faults |= fault
+
+    def _go_safe(self, now_s: float, fault: int) -> None:
+        self._raise(fault)
+        if self.state != DeviceState.SAFE:
+            self.safe_since_s = now_s
+        self.state = int(DeviceState.SAFE)
+        self.force_cmd_n = 0.0
+
+    # ------------------------------------------------------------ the tick
+
+    def coefficients(self, depth_mm: float) -> tuple[float, float, float]:
+        """``(S0, S1, S2)`` at ``depth_mm``, linear between rows, 0 outside the table."""
+        pos = depth_mm * self._inv_step
+        if not 0.0 <= pos <= self._last:
+            return 0.0, 0.0, 0.0
+        i = int(pos)
+        if i >= self._last:
+            return self._s0[self._last], self._s1[self._last], self._s2[self._last]
+        frac = pos - i
+        s0, s1, s2 = self._s0, self._s1, self._s2
+        return (
+            s0[i] + frac * (s0[i + 1] - s0[i]),
+            s1[i] + frac * (s1[i + 1] - s1[i]),
+            s2[i] + frac * (s2[i + 1] - s2[i]),
+        )
+
+    def tick(self, now_s: float, master_mm: float, master_v_mm_s: float) -> float:
+        """One control tick at device time ``now_s``; returns the force command, N (>= 0)."""
+        state = self.state
+        if state == DeviceState.IDLE or state == DeviceState.SAFE:
+            self.force_cmd_n = 0.0
+            cooled = self.thermal_n2_s - self.continuous_force_n**2 * self.dt_s
+            self.thermal_n2_s = cooled if cooled > 0.0 else 0.0
+            if master_mm == master_mm:  # finite-or-inf, not NaN
+                self.drill_mm = master_mm if master_mm < self.front_mm else self.front_mm
+            return 0.0
+        if now_s - self.last_host_s > self.watchdog_s:
+            self._go_safe(now_s, Fault.WATCHDOG)
+            return 0.0
+        if not (math.isfinite(master_mm) and math.isfinite(master_v_mm_s)):
+            self._go_safe(now_s, Fault.NONFINITE)
+            return 0.0
+        front = self.front_mm
+        stop = self.stop_depth_mm
+        s0, s1, s2 = self.coefficients(front)
+        new_front = advance_front_mm(
+            front, master_mm, s0, self.ke, self.dt_s, stiffness_n_per_mm=self.k, limit_mm=stop
+        )
+        front_v = (new_front - front) / self.dt_s
+        vib = 0.0
+        if new_front > front:
+            t = now_s - self.t_arm_s
+            vib = s1 * math.sin(self.w1 * t) + s2 * math.sin(self.w2 * t)
+        force = resistance_n(
+            new_front,
+            master_mm,
+            master_v_mm_s,
+            front_v,
+            vib,
+            stiffness_n_per_mm=self.k,
+            damping_n_s_per_mm=self.b,
+        )
+        if new_front >= stop and self.stop_anchor_mm == math.inf:
+            self.stop_anchor_mm = master_mm if master_mm > stop else stop
+        if master_mm > self.stop_anchor_mm:
+            force += self.k_stop * (master_mm - self.stop_anchor_mm)
+        self.front_mm = new_front
+        self.drill_mm = master_mm if master_mm < new_front else new_front
+        self.state = int(DeviceState.STOPPED if new_front >= stop else DeviceState.CUTTING)
+        if not math.isfinite(force):
+            self._go_safe(now_s, Fault.NONFINITE)
+            return 0.0
+        if force > self.peak_force_n:
+            force = self.peak_force_n
+            self._raise(Fault.PEAK_LIMIT)
+        fc = self.continuous_force_n
+        thermal = self.thermal_n2_s + (force * force - fc * fc) * self.dt_s
+        self.thermal_n2_s = thermal if thermal > 0.0 else 0.0
+        if self.thermal_n2_s >= self.thermal_budget_n2_s:
+            self.thermal_limited = True
+        elif self.thermal_n2_s < 0.5 * self.thermal_budget_n2_s:
+            self.thermal_limited = False
+        if self.thermal_limited and force > fc:
+            force = fc
+            self._raise(Fault.THERMAL_LIMIT)
+        self.force_cmd_n = force
+        return force

@@ -1,0 +1,56 @@
+"""The simulated device: the emulator in-process, device time advanced by the host's waits."""
+
+from __future__ import annotations
+
+from haptics.emulator import DeviceEmulator
+from haptics.host import HostDevice
+
+
+class SimLink:
+    """In-memory byte link to a :class:`DeviceEmulator`; :meth:`wait` runs its ticks.
+
+    Host bytes reach the device at once; time passes only in :meth:`wait`, in whole ticks (the
+    fractional remainder is carried), so a session is reproducible tick for tick.
+    """
+
+    name = "sim"
+
+    def __init__(self, emulator: DeviceEmulator) -> None:
+        self.emulator = emulator
+        self._carry_ticks = 0.0
+
+    def write(self, data: bytes) -> None:
+        """Deliver bytes to the device."""
+        self.emulator.receive(data)
+
+    def read(self) -> bytes:
+        """What the device wrote."""
+        return self.emulator.take_output()
+
+    def wait(self, duration_s: float) -> None:
+        """Run the device for ``duration_s`` of device time."""
+        ticks = duration_s * self.emulator.tick_hz + self._carry_ticks
+        n = int(ticks + 1e-9)
+        self._carry_ticks = ticks - n
+        self.emulator.run_ticks(n)
+
+    def clock_s(self) -> float:
+        """Device time, s."""
+        return self.emulator.now_s
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+class SimulatedDevice(HostDevice):
+    """A :class:`haptics.device.Device` backed by an in-process :class:`DeviceEmulator`.
+
+    Parameters
+    ----------
+    start_mm : float
+        Initial master depth, mm.
+    """
+
+    def __init__(self, *, start_mm: float = 0.0, timeout_s: float = 1.0) -> None:
+        self.emulator = DeviceEmulator(start_mm=start_mm)
+        super().__init__(SimLink(self.emulator), timeout_s=timeout_s)
