@@ -131,7 +131,7 @@ def _looks_like_dicom(path: Path) -> bool | None:
         return False
     if len(head) == 132 and head[128:132] == b"DICM":
         return True
-    if len(head) >= 8 and head[:2] in (b"\x02\x00", b"\x08\x00") and head[2:4] < b"\x00\x10":
+    if len(head) >= 8 and head[:2] in (b"\x02\x00", b"\x08\x00"):
         return None
     return False
 
