@@ -29,6 +29,12 @@ from model.errors import ModelInputError
 CALIBRATION_DIR: Path = Path(model.__file__).resolve().parents[1] / "assets" / "calibration"
 
 
+#: Largest force (N) a power law may give within its range; more is a unit or sign error.
+MAX_LAW_N: float = 1.0e6
+#: Largest feed sensitivity accepted, per (mm/s) (the paper's pine wood: 0.25).
+MAX_KE_PER_MM_S: float = 1.0e3
+
+
 class CalibrationError(ModelInputError):
     """A calibration set is missing, unreadable or has an invalid field."""
 
@@ -183,9 +189,10 @@ def calibration_from_dict(data: Any, *, source_path: Path | str = "<dict>") -> C
         )
     a0_law = PowerLaw(b0=_number(a0, "b0", "a0.", src), n=_number(a0, "n", "a0.", src))
     ke = _number(a0, "ke", "a0.", src)
-    if ke < 0.0:
+    if not 0.0 <= ke <= MAX_KE_PER_MM_S:
         raise CalibrationError(
-            f"calibration file {src}: field a0.ke must be >= 0 per (mm/s), got {ke}"
+            f"calibration file {src}: field a0.ke must be in [0, {MAX_KE_PER_MM_S:g}] "
+            f"per (mm/s), got {ke}"
         )
 
     raw_harmonics = data.get("harmonics", [])
@@ -212,6 +219,16 @@ def calibration_from_dict(data: Any, *, source_path: Path | str = "<dict>") -> C
             f"calibration file {src}: field harmonics has repeated orders {orders}; "
             "give each order once"
         )
+    laws = [("a0", a0_law.b0, a0_law.n)] + [
+        (f"harmonics[{i}]", h.b0, h.n) for i, h in enumerate(harmonics)
+    ]
+    for where, b0, n in laws:
+        log10_ends = [b0 + n * math.log10(c) for c in (lo, hi)]
+        if max(log10_ends) > math.log10(MAX_LAW_N):
+            raise CalibrationError(
+                f"calibration file {src}: field {where} gives more than {MAX_LAW_N:g} N within "
+                f"c_prime_range [{lo:g}, {hi:g}]; check the sign and units of b0 and n"
+            )
     return Calibration(
         name=name,
         material=material,

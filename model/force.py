@@ -62,14 +62,20 @@ def feed_factor(feed_mm_s: ArrayLike, *, ke_per_mm_s: float) -> np.ndarray:
     return 1.0 + ke_per_mm_s * v
 
 
+def power_law_n(c_prime_value: np.ndarray, b0: float, n: float) -> np.ndarray:
+    """``10**b0 * C'**n`` evaluated as ``10**(b0 + n log10 C')`` (no overflow of ``10**b0``).
+
+    ``c_prime_value`` must be > 0 (clip it first); float64, same shape.
+    """
+    return np.asarray(np.power(10.0, b0 + n * np.log10(c_prime_value)))
+
+
 def a0_n(hu: ArrayLike, feed_mm_s: ArrayLike, calibration: Calibration) -> np.ndarray:
     """DC term ``A0 = 10**b0 C'**n (1 + Ke v)`` (N), ungated, broadcast over ``hu`` and feed."""
     cp = c_prime_clipped(hu, calibration)
     law = calibration.a0
-    return (
-        (10.0**law.b0)
-        * np.power(cp, law.n)
-        * feed_factor(feed_mm_s, ke_per_mm_s=calibration.ke_per_mm_s)
+    return power_law_n(cp, law.b0, law.n) * feed_factor(
+        feed_mm_s, ke_per_mm_s=calibration.ke_per_mm_s
     )
 
 
@@ -78,7 +84,7 @@ def bk_n(hu: ArrayLike, calibration: Calibration) -> np.ndarray:
     cp = c_prime_clipped(hu, calibration)
     if not calibration.harmonics:
         return np.zeros((0, *cp.shape))
-    return np.stack([(10.0**h.b0) * np.power(cp, h.n) for h in calibration.harmonics])
+    return np.stack([power_law_n(cp, h.b0, h.n) for h in calibration.harmonics])
 
 
 def phase_rad(freqs_hz: ArrayLike, t_s: ArrayLike) -> np.ndarray:
