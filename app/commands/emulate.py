@@ -1,0 +1,43 @@
+"""``ctdrill emulate --pty-link PATH``: the device emulator at real time on a pseudo-terminal."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from haptics.realtime import serve_pty
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``emulate`` subcommand."""
+    p = subparsers.add_parser(
+        "emulate",
+        help="run the haptic device emulator on a pseudo-terminal",
+        description=(
+            "Open a pseudo-terminal, link PATH to it and run the device (renderer at 10 kHz "
+            "device time, force controller and a simulated master) at real time until "
+            "SIGTERM/SIGINT; the link is removed on exit. Connect with "
+            "'ctdrill rehearse --device serial:PATH'."
+        ),
+    )
+    p.add_argument("--pty-link", type=Path, required=True, metavar="PATH", help="symlink to create")
+    p.add_argument(
+        "--duration-s",
+        type=float,
+        default=None,
+        help="stop after this long (default: run until killed)",
+    )
+    p.add_argument("--start-mm", type=float, default=0.0, help="initial master depth, mm")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve until killed; print the loop's statistics."""
+    stats = serve_pty(args.pty_link, duration_s=args.duration_s, start_mm=args.start_mm)
+    sys.stderr.write(
+        f"emulator stopped: {stats.ticks} ticks, {stats.wakeups} wakeups, "
+        f"{stats.overruns} overruns, {stats.resyncs} resyncs\n"
+    )
+    return 0

@@ -1,0 +1,63 @@
+"""``ctdrill rehearse``: a simulated or real haptic rehearsal of one planned osteotomy."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from app.rehearse import rehearse
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``rehearse`` subcommand."""
+    p = subparsers.add_parser(
+        "rehearse",
+        help="rehearse a planned osteotomy on the haptic device (or its simulator)",
+        description=(
+            "Compute the force table along the plan, upload it with the stop depth to the "
+            "device, drive it with a simulated operator and log the session. Writes "
+            "OUT/session.csv (time_s, master_mm, drill_mm, force_cmd_n, state) and "
+            "OUT/summary.json."
+        ),
+    )
+    p.add_argument("--dicom", type=Path, required=True, help="CT series folder")
+    p.add_argument("--plan", type=Path, required=True, help="plan (ctdrill-plan/1 or .mrk.json)")
+    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument(
+        "--operator",
+        required=True,
+        help="push:N (constant hand force, N), feed:V (constant feed, mm/s) or script:FILE "
+        "(CSV time_s,force_n)",
+    )
+    p.add_argument("--duration-s", type=float, required=True, help="session length, s")
+    p.add_argument("--device", default="sim", help="sim (default) or serial:PORT")
+    p.add_argument(
+        "--fault",
+        action="append",
+        default=[],
+        help="link-loss@T, garbage@T, delay@T:MS or reset@T (repeatable)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of injected garbage (default 0)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the rehearsal and print a one-line summary."""
+    s = rehearse(
+        dicom=args.dicom,
+        plan=args.plan,
+        out=args.out,
+        operator=args.operator,
+        duration_s=args.duration_s,
+        device=args.device,
+        faults=args.fault,
+        seed=args.seed,
+    )
+    sys.stdout.write(
+        f"stop depth {s['stop_depth_mm']:.2f} mm ({s['stop_reason']}), max drill depth "
+        f"{s['max_drill_mm']:.2f} mm, final state {s['final_state']}, "
+        f"{len(s['faults'])} fault events; wrote {args.out}/session.csv and summary.json\n"
+    )
+    return 0

@@ -1,0 +1,123 @@
+"""Headless rehearsal: CT + plan -> force table -> a device session -> session.csv, summary.json.
+
+``ctdrill rehearse`` and the tests call :func:`rehearse`; the GUI can call the same pieces
+(:func:`load_table`, :func:`open_device`, :func:`haptics.session.run_session`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from app.errors import AppInputError
+from app.pipeline import PathResult, plan_path
+from haptics.device import Device
+from haptics.profile_table import ProfileTable
+from haptics.serial_device import SerialDevice
+from haptics.session import SessionCsv, parse_fault, parse_operator, run_session
+from haptics.sim import SimulatedDevice
+from imaging import load_series
+from imaging.plan import Plan, load_plan
+from model.calibration import Calibration, load_calibration
+
+
+@dataclass(frozen=True, eq=False)
+class RehearsalTable:
+    """The uploaded table and where it came from."""
+
+    table: ProfileTable
+    path: PathResult
+
+
+def calibration_for(plan: Plan) -> Calibration:
+    """The plan's calibration: a bundled set's name, or a path (relative to the plan file)."""
+    key = plan.calibration
+    candidate = Path(key)
+    if plan.source and not candidate.is_absolute() and ("/" in key or key.endswith(".json")):
+        beside = Path(plan.source).parent / candidate
+        if beside.is_file():
+            key = str(beside)
+    return load_calibration(key)
+
+
+def load_table(dicom: Path, plan_file: Path) -> RehearsalTable:
+    """Load the CT and the plan, compute the path and adapt its profile to a device table."""
+    volume = load_series(dicom)
+    plan = load_plan(plan_file)
+    path = plan_path(volume, plan, calibration_for(plan))
+    return RehearsalTable(ProfileTable.from_profile(path.profile, path.stop_depth_mm), path)
+
+
+def open_device(spec: str) -> Device:
+    """``sim`` or ``serial:PORT`` (a device path, a pty link, or a pyserial URL)."""
+    if spec == "sim":
+        return SimulatedDevice()
+    kind, sep, port = spec.partition(":")
+    if kind == "serial" and sep and port:
+        return SerialDevice(port)
+    raise AppInputError(f"--device {spec!r}: use sim or serial:PORT (e.g. serial:/dev/ttyUSB0)")
+
+
+def rehearse(
+    *,
+    dicom: Path,
+    plan: Path,
+    out: Path,
+    operator: str,
+    duration_s: float,
+    device: str = "sim",
+    faults: Sequence[str] = (),
+    seed: int = 0,
+) -> dict[str, Any]:
+    """Run one rehearsal and write ``OUT/session.csv`` (flushed per block) and ``summary.json``.
+
+    Returns the summary written.
+    """
+    if not (math.isfinite(duration_s) and 0.0 < duration_s <= 3600.0):
+        raise AppInputError(f"--duration-s {duration_s}: give 0 < seconds <= 3600")
+    op = parse_operator(operator)
+    fault_specs = [parse_fault(f) for f in faults]
+    loaded = load_table(dicom, plan)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        csv_out = SessionCsv(out / "session.csv")
+    except OSError as exc:
+        raise AppInputError(f"--out {out}: cannot write there ({exc.strerror})") from exc
+    dev = open_device(device)
+    try:
+        result = run_session(
+            dev,
+            loaded.table,
+            op,
+            duration_s,
+            faults=fault_specs,
+            seed=seed,
+            sink=csv_out.write,
+        )
+    finally:
+        csv_out.close()
+        dev.close()
+    path = loaded.path
+    summary = result.to_json()
+    summary.update(
+        {
+            "stop_reason": path.stop_reason,
+            "planned_depth_mm": float(path.plan.planned_depth_mm),
+            "max_safe_depth_mm": float(path.max_safe_depth_mm),
+            "calibration": path.calibration.name,
+            "calibration_illustrative": bool(path.calibration.illustrative),
+            "operator": op.spec,
+            "device": device,
+            "duration_s": duration_s,
+            "seed": seed,
+            "profile_steps": loaded.table.n_steps,
+            "depth_step_mm": loaded.table.depth_step_mm,
+            "warnings": [w.code for w in path.warnings],
+        }
+    )
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    return summary
