@@ -31,6 +31,8 @@ CALIBRATION_DIR: Path = Path(model.__file__).resolve().parents[1] / "assets" / "
 
 #: Largest force (N) a power law may give within its range; more is a unit or sign error.
 MAX_LAW_N: float = 1.0e6
+#: Highest harmonic order accepted (the paper uses 1 and 2; 90 Hz was already noise).
+MAX_ORDER: int = 64
 #: Largest feed sensitivity accepted, per (mm/s) (the paper's pine wood: 0.25).
 MAX_KE_PER_MM_S: float = 1.0e3
 
@@ -125,15 +127,28 @@ def resolve_calibration_path(name_or_path: str | Path) -> Path:
     )
 
 
+def _short(value: Any, limit: int = 40) -> str:
+    """``repr`` of a JSON value for an error message, cut to ``limit`` characters."""
+    try:
+        text = repr(value)
+    except ValueError:  # an int beyond Python's digit limit
+        text = f"<{type(value).__name__} too large to print>"
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def _number(obj: Mapping[str, Any], key: str, where: str, src: Path) -> float:
     if key not in obj:
         raise CalibrationError(f"calibration file {src}: missing field {where}{key}; add it")
     value = obj[key]
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise CalibrationError(
-            f"calibration file {src}: field {where}{key} must be a number, got {value!r}"
+            f"calibration file {src}: field {where}{key} must be a number, got {_short(value)}"
         )
-    out = float(value)
+    try:
+        out = float(value)
+    except OverflowError:
+        out = math.inf
     if not math.isfinite(out):
         raise CalibrationError(f"calibration file {src}: field {where}{key} must be finite")
     return out
@@ -206,9 +221,10 @@ def calibration_from_dict(data: Any, *, source_path: Path | str = "<dict>") -> C
                 f"calibration file {src}: field harmonics[{i}] must be an object {{order, b0, n}}"
             )
         order = h.get("order")
-        if isinstance(order, bool) or not isinstance(order, int) or order < 1:
+        if isinstance(order, bool) or not isinstance(order, int) or not 1 <= order <= MAX_ORDER:
             raise CalibrationError(
-                f"calibration file {src}: field {where}order must be an integer >= 1, got {order!r}"
+                f"calibration file {src}: field {where}order must be an integer in "
+                f"[1, {MAX_ORDER}], got {_short(order)}"
             )
         harmonics.append(
             Harmonic(order=order, b0=_number(h, "b0", where, src), n=_number(h, "n", where, src))
