@@ -99,44 +99,47 @@ def _lip_stats(hu: np.ndarray, gate_fn: object) -> tuple[np.ndarray, np.ndarray]
     return hu.mean(axis=(1, 2), dtype=np.float64), g.mean(axis=(1, 2))
 
 
-def truth(depth_mm: np.ndarray, *, n_rings: int, n_angles: int, gate_fn: object) -> Truth:
-    """Lip integrals on the continuous object (equal-weight rings, so a plain mean)."""
-    hu_mean = np.empty(depth_mm.size)
-    s_t = np.empty(depth_mm.size)
-    for a in range(0, depth_mm.size, 64):
-        sl = slice(a, a + 64)
-        pts = lip_ring_points(
-            ENTRY,
-            TARGET,
-            depth_mm[sl],
-            diameter_mm=DIAMETER_MM,
-            tip_length_mm=TIP_MM,
-            n_rings=n_rings,
-            n_angles=n_angles,
-        )
-        hu_mean[sl], s_t[sl] = _lip_stats(field_hu(pts), gate_fn)
-    return Truth(depth_mm, hu_mean, s_t)
+def _points(depth_mm: np.ndarray, n_rings: int, n_angles: int) -> np.ndarray:
+    return lip_ring_points(
+        ENTRY,
+        TARGET,
+        depth_mm,
+        diameter_mm=DIAMETER_MM,
+        tip_length_mm=TIP_MM,
+        n_rings=n_rings,
+        n_angles=n_angles,
+    )
 
 
-def converged(
-    vol: CTVolume, depth_mm: np.ndarray, *, n_rings: int, n_angles: int, gate_fn: object
+def _lip_hu(
+    vol: CTVolume, depth_mm: np.ndarray, n_rings: int, n_angles: int, order: int = 1
+) -> np.ndarray:
+    return sample_lip_rings(
+        vol,
+        ENTRY,
+        TARGET,
+        depth_mm,
+        diameter_mm=DIAMETER_MM,
+        tip_length_mm=TIP_MM,
+        n_rings=n_rings,
+        n_angles=n_angles,
+        order=order,
+    ).hu
+
+
+def reference(
+    vol: CTVolume | None, depth_mm: np.ndarray, *, n_rings: int, n_angles: int, gate_fn: object
 ) -> Truth:
-    """Lip integrals of the trilinear-interpolated voxels with a fine lip discretisation."""
+    """Lip integrals with a fine lip: of the continuous object (``vol`` None) or of ``vol``."""
     hu_mean = np.empty(depth_mm.size)
     s_t = np.empty(depth_mm.size)
     for a in range(0, depth_mm.size, 64):
         sl = slice(a, a + 64)
-        lip = sample_lip_rings(
-            vol,
-            ENTRY,
-            TARGET,
-            depth_mm[sl],
-            diameter_mm=DIAMETER_MM,
-            tip_length_mm=TIP_MM,
-            n_rings=n_rings,
-            n_angles=n_angles,
-        )
-        hu_mean[sl], s_t[sl] = _lip_stats(lip.hu, gate_fn)
+        if vol is None:
+            hu = field_hu(_points(depth_mm[sl], n_rings, n_angles))
+        else:
+            hu = _lip_hu(vol, depth_mm[sl], n_rings, n_angles)
+        hu_mean[sl], s_t[sl] = _lip_stats(hu, gate_fn)
     return Truth(depth_mm, hu_mean, s_t)
 
 
@@ -171,10 +174,12 @@ def main_sweep(quick: bool) -> tuple[list[Result], dict[str, str]]:
     fine_step = 0.05 if quick else 0.01
     fine = np.arange(0.0, LENGTH_MM + 1e-9, fine_step)
     t0 = time.perf_counter()
-    ref = truth(fine, n_rings=24 if quick else 160, n_angles=48 if quick else 256, gate_fn=gate_fn)
+    ref = reference(
+        None, fine, n_rings=24 if quick else 160, n_angles=48 if quick else 256, gate_fn=gate_fn
+    )
     t_truth = time.perf_counter() - t0
     t0 = time.perf_counter()
-    conv = converged(
+    conv = reference(
         vol, fine, n_rings=12 if quick else 48, n_angles=24 if quick else 96, gate_fn=gate_fn
     )
     t_conv = time.perf_counter() - t0
@@ -185,26 +190,8 @@ def main_sweep(quick: bool) -> tuple[list[Result], dict[str, str]]:
     def sample(order: int, step: float, n_r: int, n_a: int) -> np.ndarray:
         depth = np.arange(0.0, LENGTH_MM + 1e-9, step)
         if order in (0, 1):
-            return sample_lip_rings(
-                vol,
-                ENTRY,
-                TARGET,
-                depth,
-                diameter_mm=DIAMETER_MM,
-                tip_length_mm=TIP_MM,
-                n_rings=n_r,
-                n_angles=n_a,
-                order=order,
-            ).hu
-        pts = lip_ring_points(
-            ENTRY,
-            TARGET,
-            depth,
-            diameter_mm=DIAMETER_MM,
-            tip_length_mm=TIP_MM,
-            n_rings=n_r,
-            n_angles=n_a,
-        )
+            return _lip_hu(vol, depth, n_r, n_a, order)
+        pts = _points(depth, n_r, n_a)
         idx = vol.lps_to_index(pts.reshape(-1, 3))
         vals = ndimage.map_coordinates(
             coeffs, idx[:, ::-1].T, order=3, mode="mirror", prefilter=False
@@ -227,11 +214,13 @@ def main_sweep(quick: bool) -> tuple[list[Result], dict[str, str]]:
                     continue  # the slow corner adds nothing the order-1 sweep does not show
                 depth = np.arange(0.0, LENGTH_MM + 1e-9, step)
                 hu = sample(order, step, n_r, n_a)
-                hu_mean, s_t = _lip_stats(hu, gate_fn)
-                e_hu = np.interp(fine, depth, hu_mean) - ref.hu_mean
-                e_st = np.interp(fine, depth, s_t) - ref.s_t
-                d_hu = np.interp(fine, depth, hu_mean) - conv.hu_mean
-                d_st = np.interp(fine, depth, s_t) - conv.s_t
+                hu_mean, s_t = (np.interp(fine, depth, v) for v in _lip_stats(hu, gate_fn))
+                errs = (
+                    hu_mean - ref.hu_mean,
+                    s_t - ref.s_t,
+                    hu_mean - conv.hu_mean,
+                    s_t - conv.s_t,
+                )
                 timing = time_it(partial(sample, order, step, n_r, n_a), repeats=1 if quick else 5)
                 results.append(
                     Result(
@@ -240,11 +229,11 @@ def main_sweep(quick: bool) -> tuple[list[Result], dict[str, str]]:
                         n_r,
                         n_a,
                         timing.median_s,
-                        float(np.sqrt(np.mean(e_hu**2))),
-                        float(np.sqrt(np.mean(e_st**2))),
-                        float(np.max(np.abs(e_st))),
-                        _rms(d_hu),
-                        _rms(d_st),
+                        _rms(errs[0]),
+                        _rms(errs[1]),
+                        float(np.max(np.abs(errs[1]))),
+                        _rms(errs[2]),
+                        _rms(errs[3]),
                     )
                 )
     notes = {
@@ -273,25 +262,26 @@ def plot(results: list[Result], default: Result | None, out: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
     fig, axs = plt.subplots(2, 2, figsize=(11, 8.5), constrained_layout=True)
     axes = axs.ravel()
     colours = {0: "tab:orange", 1: "tab:blue", 3: "tab:green"}
     names = {0: "nearest", 1: "trilinear", 3: "cubic"}
+    markers = {0.01: "v", 0.02: "^", 0.05: "o", 0.1: "s", 0.2: "D", 0.5: "X"}
     for ax, key, label in (
         (axes[0], "disc_st", "RMS s_t error vs converged sampling"),
         (axes[1], "disc_hu", "RMS lip-mean HU error vs converged sampling"),
         (axes[2], "rms_st", "RMS s_t error vs the continuous object"),
         (axes[3], "rms_hu", "RMS lip-mean HU error vs the continuous object"),
     ):
-        for order in sorted({r.order for r in results}):
-            sel = [r for r in results if r.order == order]
+        for r in results:
             ax.scatter(
-                [r.time_s * 1e3 for r in sel],
-                [getattr(r, key) for r in sel],
-                s=14,
-                c=colours[order],
-                label=names[order],
+                [r.time_s * 1e3],
+                [getattr(r, key)],
+                s=16,
+                c=colours[r.order],
+                marker=markers.get(r.step_mm, "o"),
                 alpha=0.7,
             )
         front = pareto(results, key)
@@ -319,7 +309,15 @@ def plot(results: list[Result], default: Result | None, out: Path) -> None:
         ax.set_xlabel("time per 16 mm trajectory (ms)")
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=8)
+    handles = [
+        Line2D([], [], ls="", marker="o", c=colours[o], label=names[o])
+        for o in sorted({r.order for r in results})
+    ]
+    handles += [
+        Line2D([], [], ls="", marker=markers.get(h, "o"), c="grey", label=f"step {h} mm")
+        for h in sorted({r.step_mm for r in results})
+    ]
+    axes[0].legend(handles=handles + axes[0].get_legend_handles_labels()[0], fontsize=7, ncol=2)
     fig.suptitle("Lip sampling: accuracy vs cost (0.3 mm voxels, 2 mm drill)")
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
