@@ -69,7 +69,7 @@ def layered_profile(
         Tip depths, uniform step, mm.
     calibration : Calibration
     tip_length_mm : float
-        Drill tip (lip) length along the axis, mm, > 0.
+        Drill tip (lip) length along the axis, mm, >= 0 (0: a flat lip, the point value).
     blades, rpm
         Drill, for the harmonic frequencies.
     outside_hu : float
@@ -90,15 +90,19 @@ def layered_profile(
             f"hu_layers must hold {b.shape[0] - 1} finite HU values, one per layer"
         )
     lt = float(tip_length_mm)
-    if not np.isfinite(lt) or lt <= 0.0:
-        raise ProfileInputError(f"tip_length_mm must be finite and > 0, got {tip_length_mm}")
+    if not np.isfinite(lt) or lt < 0.0:
+        raise ProfileInputError(f"tip_length_mm must be finite and >= 0, got {tip_length_mm}")
     if not np.isfinite(outside_hu):
         raise ProfileInputError("outside_hu must be finite")
     depth = check_depths(depth_mm)
     freqs = harmonic_freqs_hz(calibration, blades=blades, rpm=rpm)
 
     hu_all = np.concatenate(([outside_hu], hu_l, [outside_hu]))  # (L + 2,)
-    frac = layer_overlaps_mm(b, depth, tip_length_mm=lt) / lt  # (D, L + 2)
+    if lt > 0.0:
+        frac = layer_overlaps_mm(b, depth, tip_length_mm=lt) / lt  # (D, L + 2)
+    else:  # a flat lip: the whole edge sits at the tip depth, in layer [b_i, b_{i+1})
+        frac = np.zeros((depth.shape[0], b.shape[0] + 1))
+        frac[np.arange(depth.shape[0]), np.searchsorted(b, depth, side="right")] = 1.0
     g = gate(hu_all, calibration)
     s0 = frac @ (g * a0_n(hu_all, 0.0, calibration))
     sk = (frac @ (g[None, :] * bk_n(hu_all, calibration)).T).T

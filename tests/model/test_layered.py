@@ -85,4 +85,11 @@ def test_layered_input_errors() -> None:
     with pytest.raises(ModelInputError, match="hu_layers"):
         layered_profile([0, 1], [0, 1], DEPTH, PINE, tip_length_mm=0.6, blades=2, rpm=900)
     with pytest.raises(ModelInputError, match="tip_length_mm"):
-        layered_profile([0.0, 1.0], [0.0], DEPTH, PINE, tip_length_mm=0.0, blades=2, rpm=900)
+        layered_profile([0.0, 1.0], [0.0], DEPTH, PINE, tip_length_mm=-0.1, blades=2, rpm=900)
+
+
+def test_flat_lip_is_the_point_value() -> None:
+    p = layered_profile([1.0, 2.0], [-600.0], DEPTH, PINE, tip_length_mm=0.0, blades=2, rpm=900)
+    inside = (DEPTH >= 1.0) & (DEPTH < 2.0)
+    np.testing.assert_array_equal(p.s_t, inside.astype(float))
+    np.testing.assert_allclose(p.s0_n[inside], 10**-1.35 * 400**0.77, rtol=1e-12)
