@@ -206,6 +206,8 @@ def sample_lip_rings(
         n_angles=n_angles,
     )
     depth = _depths(depth_mm)
+    if not np.isfinite(outside_hu):
+        raise LipInputError(f"outside_hu: must be a finite HU value, got {outside_hu!r}")
     axis = axis_basis(entry_lps, target_lps)[0]
     tips = np.asarray(entry_lps, dtype=np.float64) + depth[:, None] * axis  # (D, 3)
     n_d, n_r, n_a = points.shape[:3]

@@ -256,6 +256,7 @@ def test_padding_is_counted_and_given_outside_hu() -> None:
         ({"tip_length_mm": -0.1}, "tip_length_mm"),
         ({"n_rings": 0}, "n_rings"),
         ({"n_angles": 2.5}, "n_angles"),
+        ({"outside_hu": float("nan")}, "outside_hu"),
     ],
 )
 def test_bad_drill_geometry_names_the_field(kwargs: dict[str, float], field: str) -> None:

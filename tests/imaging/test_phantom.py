@@ -196,3 +196,15 @@ def test_lip_sampling_on_the_phantom_sees_each_layer(d2: Phantom) -> None:
 def test_bad_parameters_name_the_field(kwargs: dict[str, object], field: str) -> None:
     with pytest.raises(PhantomInputError, match=field):
         make_mandible_phantom(**kwargs)  # type: ignore[arg-type]
+
+
+def test_a_custom_shape_keeps_the_anatomy_centred() -> None:
+    ph = make_mandible_phantom(shape=(20, 30, 40), spacing_mm=0.5)
+    assert ph.hu.shape == (20, 30, 40)
+    centre = ph.affine_lps @ np.array([39 / 2, 29 / 2, 19 / 2, 1.0])
+    np.testing.assert_allclose(centre[:3], [30.0, 10.0, -40.0], atol=1e-9)
+    lo = ph.affine_lps[:3, 3]
+    hi = (ph.affine_lps @ np.array([39, 29, 19, 1.0]))[:3]
+    c = ph.canal_centerline_lps
+    assert len(c) >= 20 and np.all((c >= lo - 1e-9) & (c <= hi + 1e-9))
+    np.testing.assert_array_equal(ph.hu, np.rint(mandible_hu(ph.voxel_centres_lps(), ph.geometry)))
