@@ -225,6 +225,7 @@ def summary(
     doc: dict[str, Any] = {
         "format": "ctdrill-export/1",
         "plan": plan.name,
+        "plan_file": Path(plan.source).name if plan.source else None,
         "planned_depth_mm": _num(result.planned_depth_mm),
         "stop_depth_mm": _num(result.stop_depth_mm),
         "stop_reason": result.stop_reason,
@@ -337,16 +338,29 @@ def write_exports(
     return written
 
 
-def text_progress(stream: TextIO = sys.stderr) -> Callable[[int, int, str], None]:
-    """A one-line progress bar on ``stream`` (only drawn for more than one job)."""
+class TextProgress:
+    """A progress bar on ``stream`` for more than one job: redrawn in place on a terminal,
+    one line per step otherwise. :meth:`close` ends a bar left unfinished (on error)."""
 
-    def report(done: int, total: int, label: str) -> None:
+    def __init__(self, stream: TextIO = sys.stderr, *, width: int = 30) -> None:
+        self.stream = stream
+        self.width = width
+        self._open = False
+
+    def __call__(self, done: int, total: int, label: str) -> None:
         if total <= 1:
             return
-        width = 30
-        filled = int(width * done / total)
-        end = "\n" if done >= total else ""
-        stream.write(f"\rexport [{'#' * filled}{'.' * (width - filled)}] {done}/{total} {end}")
-        stream.flush()
+        filled = int(self.width * done / total)
+        bar = f"export [{'#' * filled}{'.' * (self.width - filled)}] {done}/{total} {label}"
+        if self.stream.isatty():
+            self.stream.write("\r" + bar + ("\n" if done >= total else ""))
+            self._open = done < total
+        else:
+            self.stream.write(bar + "\n")
+        self.stream.flush()
 
-    return report
+    def close(self) -> None:
+        """End the line of an unfinished bar so that what follows starts a line."""
+        if self._open:
+            self.stream.write("\n")
+            self._open = False

@@ -48,6 +48,16 @@ def _subdir(name: str) -> str:
     return safe or "plan"
 
 
+def _stem(plan: Plan, n_in_file: int) -> str:
+    """Output folder name: the plan file's stem (plus the trajectory name if it holds several)."""
+    name = Path(plan.source).name
+    for suffix in (".mrk.json", ".json"):
+        if name.lower().endswith(suffix):
+            name = name[: -len(suffix)]
+            break
+    return name if n_in_file == 1 else f"{name}-{plan.name}"
+
+
 def _calibration_for(plan: Plan, cache: dict[str, Calibration]) -> Calibration:
     key = plan.calibration
     candidate = Path(key)
@@ -114,8 +124,11 @@ def export_case(
     if not rate_hz > 0.0:
         raise ExportInputError(f"--rate-hz must be a positive number, got {rate_hz!r}")
     plans: list[Plan] = []
+    per_file: dict[str, int] = {}
     for f in plan_files(plan_paths):
-        plans.extend(load_plans(f))
+        loaded = load_plans(f)
+        plans.extend(loaded)
+        per_file[str(f)] = len(loaded)
     if not plans:
         raise AppInputError("--plan: no trajectory to export")
     volume = load_series(dicom, series_uid=series_uid)
@@ -128,7 +141,7 @@ def export_case(
             progress(n, len(plans), plan.name)
         cal = override if override is not None else _calibration_for(plan, cache)
         result = plan_path(volume, plan, cal)
-        sub = "" if len(plans) == 1 else _subdir(plan.name)
+        sub = "" if len(plans) == 1 else _subdir(_stem(plan, per_file[plan.source]))
         if sub in seen:
             raise AppInputError(
                 f"--plan: two trajectories are named {plan.name!r} ({seen[sub]} and "

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.export import DEFAULT_RATE_HZ, text_progress
+from app.export import DEFAULT_RATE_HZ, TextProgress
 
 
 def register(subparsers: Any) -> None:
@@ -59,17 +59,21 @@ def run(args: argparse.Namespace) -> int:
     """Export and list what was written."""
     from app.export_run import export_case
 
-    written = export_case(
-        args.dicom,
-        args.plan,
-        args.out,
-        calibration=args.calibration,
-        feed_mm_s=args.feed_mm_s,
-        rate_hz=args.rate_hz,
-        include_phi=args.include_phi,
-        series_uid=args.series,
-        progress=text_progress(sys.stderr),
-    )
+    progress = TextProgress(sys.stderr)
+    try:
+        written = export_case(
+            args.dicom,
+            args.plan,
+            args.out,
+            calibration=args.calibration,
+            feed_mm_s=args.feed_mm_s,
+            rate_hz=args.rate_hz,
+            include_phi=args.include_phi,
+            series_uid=args.series,
+            progress=progress,
+        )
+    finally:
+        progress.close()
     for path in written:
         sys.stdout.write(f"wrote {path}\n")
     return 0

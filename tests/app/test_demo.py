@@ -1,0 +1,45 @@
+"""ctdrill demo: exports the bundled phantom into a fresh folder, refuses foreign folders."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+from pathlib import Path
+
+from app.cli import main
+from app.export_demo import DEMO_MARKER
+
+
+def _run(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(argv)
+    return code, out.getvalue(), err.getvalue()
+
+
+def test_demo_writes_reruns_and_refuses_foreign_folders(tmp_path: Path) -> None:
+    out = tmp_path / "demo-out"
+    code, stdout, err = _run(["demo", "--out", str(out)])
+    assert (code, err) == (0, "")
+    for name in ("force.csv", "profile.csv", "summary.json", "force.png"):
+        assert f"wrote {out / name}" in stdout
+    assert "stop at 10.7999 mm (margin) of 12.0 mm planned" in stdout
+    assert "bone-illustrative (illustrative)" in stdout
+    assert (out / DEMO_MARKER).is_file()
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    assert summary["stop_reason"] == "margin"
+    # a folder made by the demo may be refreshed
+    (out / "summary.json").write_text("{}", encoding="utf-8")
+    code, _, err = _run(["demo", "--out", str(out)])
+    assert (code, err) == (0, "")
+    assert json.loads((out / "summary.json").read_text(encoding="utf-8"))["stop_reason"] == "margin"
+    # anything else that is not empty is left alone
+    foreign = tmp_path / "mine"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("keep me", encoding="utf-8")
+    code, stdout, err = _run(["demo", "--out", str(foreign)])
+    assert code == 2 and stdout == ""
+    assert err.startswith("error: --out ") and "not made by 'ctdrill demo'" in err
+    assert err.count("\n") == 1
+    assert [p.name for p in foreign.iterdir()] == ["notes.txt"]

@@ -1,0 +1,335 @@
+"""ctdrill export end to end: the demo phantom, a real series, refusals, privacy, several plans."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import json
+import struct
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pydicom
+import pytest
+
+from app.cli import main
+from app.export import FORCE_COLUMNS, PROFILE_COLUMNS, misch_class
+from imaging.plan import load_plan, save_plan
+from tests.conftest import ASSETS
+
+DEMO = ASSETS / "demo"
+PHILIPS = "dcmqa_ct_Philips_phantom_notilt_5mm"
+GE_HEAD = "dcmqa_ct_GE_head_gantrytilt_varspacing"
+
+
+def _run(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse usage errors
+            code = int(exc.code or 0)
+    return code, out.getvalue(), err.getvalue()
+
+
+def _rows(path: Path) -> tuple[list[str], list[dict[str, str]]]:
+    with path.open(newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        rows = list(reader)
+        return list(reader.fieldnames or []), rows
+
+
+def _png_size(path: Path) -> tuple[int, int]:
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    assert data[12:16] == b"IHDR"
+    width, height = struct.unpack(">II", data[16:24])
+    return width, height
+
+
+def _identifiers(dicom_dir: Path) -> list[str]:
+    """PatientName and PatientID of the first DICOM file under ``dicom_dir``."""
+    for path in sorted(dicom_dir.rglob("*")):
+        if path.suffix in (".txt", ".json", ".md") or not path.is_file():
+            continue
+        ds = pydicom.dcmread(path, stop_before_pixels=True, force=True)
+        if "PatientName" in ds:
+            values = [str(ds.PatientName), str(ds.PatientID)]
+            return [v for v in values if len(v) >= 3]
+    raise AssertionError(f"no DICOM file with a PatientName under {dicom_dir}")
+
+
+def _assert_private(out: Path, identifiers: list[str]) -> None:
+    files = [p for p in out.rglob("*") if p.is_file()]
+    assert files
+    for path in files:
+        data = path.read_bytes()
+        for ident in identifiers:
+            assert ident.encode() not in data, f"{ident!r} leaked into {path.name}"
+            assert ident.replace("^", " ").encode() not in data
+
+
+@pytest.fixture(scope="module")
+def demo_export(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("demo") / "out"
+    code, stdout, err = _run(
+        [
+            "export",
+            "--dicom",
+            str(DEMO / "ct"),
+            "--plan",
+            str(DEMO / "plan.json"),
+            "--out",
+            str(out),
+        ]
+    )
+    assert (code, err) == (0, "")
+    assert sorted(line.split()[-1] for line in stdout.splitlines()) == sorted(
+        str(out / n) for n in ("force.csv", "profile.csv", "summary.json", "force.png")
+    )
+    return out
+
+
+def test_demo_summary_matches_the_phantom_truth(demo_export: Path) -> None:
+    truth = json.loads((DEMO / "ground_truth.json").read_text(encoding="utf-8"))
+    s = json.loads((demo_export / "summary.json").read_text(encoding="utf-8"))
+    for key in (
+        "planned_depth_mm",
+        "stop_depth_mm",
+        "stop_reason",
+        "max_safe_depth_mm",
+        "min_clearance_mm",
+        "calibration",
+        "warnings",
+        "nearest_landmark",
+        "extrapolation",
+        "hu_grading",
+    ):
+        assert key in s
+    assert s["planned_depth_mm"] == pytest.approx(12.0)
+    assert s["stop_reason"] == "margin"
+    assert s["max_safe_depth_mm"] == pytest.approx(truth["max_safe_depth_mm"], abs=1e-3)
+    assert s["stop_depth_mm"] <= truth["max_safe_depth_mm"]
+    assert s["min_clearance_mm"] == pytest.approx(2.0, abs=1e-3)
+    assert s["nearest_landmark"]["name"] == "left mandibular canal"
+    assert s["calibration"] == "bone-illustrative" and s["calibration_illustrative"] is True
+    assert "calibration_illustrative" in [w["code"] for w in s["warnings"]]
+    grading = s["hu_grading"]
+    assert sum(grading["misch_share"].values()) == pytest.approx(1.0)
+    assert len(grading["segments"]) == 10
+    assert grading["segments"][-1]["to_mm"] == pytest.approx(s["stop_depth_mm"], abs=1e-4)
+    # below the cortical shell the path runs in D2 trabecular bone (1050 HU)
+    assert grading["segments"][-1]["misch"] == "D2"
+    assert grading["segments"][-1]["mean_hu"] == pytest.approx(1050.0, abs=15.0)
+
+
+def test_demo_tables_open_as_csv_and_agree(demo_export: Path) -> None:
+    cols, force = _rows(demo_export / "force.csv")
+    assert cols[:5] == ["time_s", "depth_mm", "hu", "s_t", "force_n"]
+    assert tuple(cols) == FORCE_COLUMNS
+    t = np.array([float(r["time_s"]) for r in force])
+    x = np.array([float(r["depth_mm"]) for r in force])
+    f = np.array([float(r["force_n"]) for r in force])
+    np.testing.assert_allclose(np.diff(t), 1e-3, atol=1e-9)  # 1000 Hz default
+    np.testing.assert_allclose(x, 0.4 * t, atol=1e-6)  # the plan's feed
+    s = json.loads((demo_export / "summary.json").read_text(encoding="utf-8"))
+    assert x[-1] <= s["stop_depth_mm"] + 1e-6 and x[-1] > s["stop_depth_mm"] - 0.4e-3
+    assert {r["calibration"] for r in force} == {"bone-illustrative"}
+    assert np.all(np.isfinite(f)) and f.max() == pytest.approx(s["peak_force_n"], abs=1e-5)
+    pcols, prof = _rows(demo_export / "profile.csv")
+    assert tuple(pcols) == PROFILE_COLUMNS
+    depth = np.array([float(r["depth_mm"]) for r in prof])
+    s0 = np.array([float(r["s0_n"]) for r in prof])
+    s1 = np.array([float(r["s1_n"]) for r in prof])
+    s2 = np.array([float(r["s2_n"]) for r in prof])
+    hu = np.array([float(r["hu"]) for r in prof])
+    assert depth[-1] == pytest.approx(12.0)
+    assert [r["misch"] for r in prof] == misch_class(hu).tolist()
+    # force.csv is Eq. 19 evaluated on profile.csv: S0 (1 + Ke v) + S1 sin(2 pi 30 t) + ...
+    want = (
+        np.interp(x, depth, s0) * (1 + 0.25 * 0.4)
+        + np.interp(x, depth, s1) * np.sin(2 * np.pi * 30.0 * t)
+        + np.interp(x, depth, s2) * np.sin(2 * np.pi * 60.0 * t)
+    )
+    np.testing.assert_allclose(f, want, atol=2e-4)  # 5-decimal CSV rounding
+    clearance = np.array([float(r["clearance_mm"]) for r in prof])
+    assert np.all(np.diff(clearance) <= 1e-9)
+
+
+def test_demo_plot_is_a_png(demo_export: Path) -> None:
+    assert _png_size(demo_export / "force.png") == (1200, 1000)
+
+
+def test_no_patient_identifiers_unless_asked(demo_export: Path, tmp_path: Path) -> None:
+    idents = _identifiers(DEMO / "ct")
+    assert "PHANTOM^MANDIBLE" in idents
+    _assert_private(demo_export, idents)
+    out = tmp_path / "phi"
+    code, _, err = _run(
+        [
+            "export",
+            "--dicom",
+            str(DEMO / "ct"),
+            "--plan",
+            str(DEMO / "plan.json"),
+            "--out",
+            str(out),
+            "--include-phi",
+            "--rate-hz",
+            "100",
+        ]
+    )
+    assert (code, err) == (0, "")
+    patient = json.loads((out / "summary.json").read_text(encoding="utf-8"))["patient"]
+    assert patient["patient_name"] == "PHANTOM^MANDIBLE"
+    for name in ("force.csv", "profile.csv", "force.png"):
+        for ident in idents:
+            assert ident.encode() not in (out / name).read_bytes()
+
+
+def test_real_series_export_and_privacy(shared_data: Path, tmp_path: Path) -> None:
+    dicom = shared_data / PHILIPS
+    plan: dict[str, Any] = {
+        "format": "ctdrill-plan/1",
+        "coordinate_system": "RAS",  # LPS (0, 170, 766.21) -> (0, 215, 766.21)
+        "entry_mm": [0.0, -170.0, 766.21],
+        "target_mm": [0.0, -215.0, 766.21],
+        "feed_mm_s": 1.0,
+        "landmarks": [
+            {
+                "name": "canal",
+                "kind": "canal",
+                "points_mm": [[20.0, -205.0, 766.21], [-20.0, -205.0, 766.21]],
+                "radius_mm": 1.2,
+            }
+        ],
+    }
+    plan_path = tmp_path / "real.json"
+    plan_path.write_text(json.dumps(plan), encoding="utf-8")
+    out = tmp_path / "out"
+    code, _, err = _run(
+        ["export", "--dicom", str(dicom), "--plan", str(plan_path), "--out", str(out)]
+    )
+    assert (code, err) == (0, "")
+    s = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    # canal 35 mm deep across the axis: 35 - 1.2 - 2.0
+    assert s["stop_reason"] == "margin"
+    assert s["stop_depth_mm"] == pytest.approx(31.8, abs=1e-3)
+    assert s["series_uid"].startswith("1.3.46.670589.33.1.")
+    _, force = _rows(out / "force.csv")
+    f = np.array([float(r["force_n"]) for r in force])
+    assert f.max() > 1.0  # the phantom's shell (~700 HU) is cut
+    _assert_private(out, _identifiers(dicom))
+
+
+def test_ge_head_is_refused_across_its_irregular_slices(shared_data: Path, tmp_path: Path) -> None:
+    # Index (256, 256, 10) -> (256, 256, 17) crosses the 4 mm -> 1.08 mm -> 7 mm steps.
+    plan = {
+        "format": "ctdrill-plan/1",
+        "entry_mm": [0.0, -5.0, 8.373],
+        "target_mm": [0.0, -5.0, 37.913],
+    }
+    plan_path = tmp_path / "ge.json"
+    plan_path.write_text(json.dumps(plan), encoding="utf-8")
+    out = tmp_path / "out"
+    code, stdout, err = _run(
+        [
+            "export",
+            "--dicom",
+            str(shared_data / GE_HEAD),
+            "--plan",
+            str(plan_path),
+            "--out",
+            str(out),
+        ]
+    )
+    assert code == 2 and stdout == ""
+    assert err.count("\n") == 1 and err.startswith("error: plan 'ge': ")
+    assert "irregular slice step" in err and "resample" in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "fragment"),
+    [
+        (["--rate-hz", "0"], "--rate-hz must be a positive number"),
+        (["--feed-mm-s", "-1"], "--feed-mm-s must be a positive number"),
+        (["--calibration", "no-such-set"], "no-such-set"),
+    ],
+)
+def test_bad_options_exit_2_with_one_error_line(
+    tmp_path: Path, extra: list[str], fragment: str
+) -> None:
+    out = tmp_path / "out"
+    argv = ["export", "--dicom", str(DEMO / "ct"), "--plan", str(DEMO / "plan.json")]
+    code, stdout, err = _run([*argv, "--out", str(out), *extra])
+    assert code == 2 and stdout == ""
+    assert err.startswith("error: ") and err.count("\n") == 1 and fragment in err
+    assert "Traceback" not in err
+    assert not out.exists()
+
+
+def test_bad_plan_and_missing_inputs_exit_2(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.json"
+    doc = json.loads((DEMO / "plan.json").read_text(encoding="utf-8"))
+    doc["drill"]["diameter_mm"] = -2
+    bad.write_text(json.dumps(doc), encoding="utf-8")
+    out = tmp_path / "out"
+    cases = [
+        (["--dicom", str(DEMO / "ct"), "--plan", str(bad)], "bad.json: drill.diameter_mm"),
+        (["--dicom", str(DEMO / "ct"), "--plan", str(tmp_path / "none.json")], "not found"),
+        (["--dicom", str(tmp_path / "nodir"), "--plan", str(DEMO / "plan.json")], "nodir"),
+        (["--plan", str(DEMO / "plan.json")], "--dicom"),
+    ]
+    for args, fragment in cases:
+        code, _, err = _run(["export", *args, "--out", str(out)])
+        assert code == 2, args
+        assert err.startswith("error: ") and err.count("\n") == 1 and fragment in err, err
+        assert not out.exists()
+
+
+def test_several_plans_one_load_subfolders_and_progress(tmp_path: Path) -> None:
+    plans = tmp_path / "plans"
+    plans.mkdir()
+    demo = load_plan(DEMO / "plan.json")
+    save_plan(demo, plans / "a.json")
+    save_plan(demo, plans / "b.mrk.json")
+    out = tmp_path / "out"
+    code, stdout, err = _run(
+        [
+            "export",
+            "--dicom",
+            str(DEMO / "ct"),
+            "--plan",
+            str(plans),
+            "--out",
+            str(out),
+            "--rate-hz",
+            "100",
+        ]
+    )
+    assert code == 0, err
+    assert "export [" in err and "2/2" in err  # one line per step: stderr is not a terminal
+    for stem in ("a", "b"):
+        s = json.loads((out / stem / "summary.json").read_text(encoding="utf-8"))
+        assert s["plan_file"] == {"a": "a.json", "b": "b.mrk.json"}[stem]
+        assert s["stop_depth_mm"] == pytest.approx(10.8, abs=1e-3)
+        assert _png_size(out / stem / "force.png") == (1200, 1000)
+    assert len(stdout.splitlines()) == 8
+    assert not [p for p in tmp_path.iterdir() if "staging" in p.name]
+
+
+def test_one_refused_plan_writes_nothing(tmp_path: Path) -> None:
+    outside = tmp_path / "outside.json"
+    doc = json.loads((DEMO / "plan.json").read_text(encoding="utf-8"))
+    doc["entry_mm"] = [200.0, 10.0, -29.0]
+    doc["target_mm"] = [200.0, 10.0, -41.0]
+    outside.write_text(json.dumps(doc), encoding="utf-8")
+    out = tmp_path / "out"
+    argv = ["export", "--dicom", str(DEMO / "ct"), "--plan", str(DEMO / "plan.json")]
+    code, _, err = _run([*argv, str(outside), "--out", str(out)])
+    assert code == 2 and "lies outside the CT volume" in err
+    assert not out.exists()
+    assert list(tmp_path.iterdir()) == [outside]
