@@ -325,8 +325,7 @@ class MainWindow(QMainWindow):
             return
         self.slice_runner.submit(lambda: compute.slice_views(volume, plan))
         self.path_runner.submit(lambda: compute_path_view(volume, plan))
-        draw_depth_plots(self.plot_fig, None, message="computing...")
-        self.plot_canvas.draw_idle()
+        self._status("computing the path ...")
 
     def _slices_done(self, slices: dict[str, SliceImage]) -> None:
         self.slices = slices

@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 #: Misch bone-density classes by HU (DESIGN.md section 5): (label, low, high).
@@ -57,9 +58,9 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
     """Redraw ``fig`` with three stacked axes sharing depth: HU, force, clearance.
 
     With ``curves`` None the axes are drawn empty with ``message`` (e.g. "computing...").
+    The axes are created once and reused (redrawing is then cheap enough for live updates).
     """
-    fig.clear()
-    ax_hu, ax_f, ax_c = fig.subplots(3, 1, sharex=True)
+    ax_hu, ax_f, ax_c = _axes(fig)
     for label, lo, hi in MISCH_BANDS:
         colour = _BAND_COLOURS[[b[0] for b in MISCH_BANDS].index(label)]
         ax_hu.axhspan(lo, hi, color=colour, alpha=0.8, lw=0, zorder=0)
@@ -74,7 +75,6 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
         ax_f.text(
             0.5, 0.5, message or "no plan", ha="center", va="center", transform=ax_f.transAxes
         )
-        fig.tight_layout()
         return
     d = curves.depth_mm
     ax_hu.plot(d, curves.hu, color="#203060", lw=1.2)
@@ -130,4 +130,17 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
         loc="left",
     )
     ax_c.set_xlim(0.0, max(float(d[-1]), curves.planned_depth_mm) * 1.02 + 1e-6)
-    fig.tight_layout()
+
+
+def _axes(fig: Figure) -> tuple[Axes, Axes, Axes]:
+    """The figure's three depth axes, emptied (created on first use)."""
+    if len(fig.axes) != 3:
+        fig.clear()
+        fig.subplots(3, 1, sharex=True)
+        fig.subplots_adjust(left=0.08, right=0.965, top=0.95, bottom=0.1, hspace=0.45)
+    ax_hu, ax_f, ax_c = fig.axes
+    for ax in (ax_hu, ax_f, ax_c):
+        for artist in [*ax.lines, *ax.collections, *ax.patches, *ax.texts]:
+            artist.remove()
+        ax.set_title("")
+    return ax_hu, ax_f, ax_c

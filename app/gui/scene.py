@@ -199,7 +199,8 @@ def build_scene(
     actors: dict[str, Any] = {}
     if surface is not None and surface.n_points > 0:
         actors["bone"] = plotter.add_mesh(
-            surface,
+            render=False,
+            mesh=surface,
             color=BONE_COLOUR,
             smooth_shading=True,
             opacity=bone_opacity,
@@ -213,21 +214,30 @@ def build_scene(
     axis = _unit(target - entry)
     path = pv.Line(entry - axis * 10.0, target)
     actors["trajectory"] = plotter.add_mesh(
-        path.tube(radius=0.15), color=TRAJECTORY_COLOUR, name="trajectory"
+        render=False, mesh=path.tube(radius=0.15), color=TRAJECTORY_COLOUR, name="trajectory"
     )
     actors["target"] = plotter.add_mesh(
-        pv.Sphere(radius=0.5, center=target), color=TRAJECTORY_COLOUR, name="target"
+        render=False,
+        mesh=pv.Sphere(radius=0.5, center=target),
+        color=TRAJECTORY_COLOUR,
+        name="target",
     )
     drill = drill_mesh(
         entry, target, diameter_mm=scene.diameter_mm, tip_length_mm=scene.tip_length_mm
     )
     actors["drill"] = plotter.add_mesh(
-        drill, color=DRILL_COLOUR, specular=0.6, smooth_shading=True, name="drill"
+        render=False,
+        mesh=drill,
+        color=DRILL_COLOUR,
+        specular=0.6,
+        smooth_shading=True,
+        name="drill",
     )
     if scene.stop_depth_mm is not None:
         stop = entry + axis * scene.stop_depth_mm
         actors["stop"] = plotter.add_mesh(
-            pv.Sphere(radius=max(scene.diameter_mm / 2.0, 0.4) * 1.15, center=stop),
+            render=False,
+            mesh=pv.Sphere(radius=max(scene.diameter_mm / 2.0, 0.4) * 1.15, center=stop),
             color=(0.9, 0.15, 0.6),
             opacity=0.6,
             name="stop",
@@ -238,11 +248,11 @@ def build_scene(
         body, env = landmark_meshes(lm)
         colour = CLEARANCE_COLOURS[clearance_state(lm.clearance_mm, lm.margin_mm)]
         actors[f"landmark:{lm.name}"] = plotter.add_mesh(
-            body, color=(0.95, 0.85, 0.20), name=f"landmark:{lm.name}"
+            render=False, mesh=body, color=(0.95, 0.85, 0.20), name=f"landmark:{lm.name}"
         )
         if env is not None:
             actors[f"margin:{lm.name}"] = plotter.add_mesh(
-                env, color=colour, opacity=0.3, name=f"margin:{lm.name}"
+                render=False, mesh=env, color=colour, opacity=0.3, name=f"margin:{lm.name}"
             )
     if show_axes:
         plotter.add_axes(xlabel="L", ylabel="P", zlabel="S")

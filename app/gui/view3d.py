@@ -15,11 +15,13 @@ from app.gui.scene import SceneInput, build_scene, focus_camera, set_drill_depth
 class View3D(QWidget):
     """3D view of the bone surface, trajectory, drill and landmarks."""
 
-    def __init__(self, parent: QWidget | None = None) -> None:
+    def __init__(self, parent: QWidget | None = None, *, multi_samples: int = 0) -> None:
+        """``multi_samples``: MSAA samples; 0 by default because on a software OpenGL (Mesa
+        llvmpipe, Xvfb) 4x MSAA more than doubles the frame time (see docs/benchmarks.md)."""
         super().__init__(parent)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
-        self.plotter: Any = QtInteractor(self)
+        self.plotter: Any = QtInteractor(self, multi_samples=multi_samples)
         layout.addWidget(self.plotter.interactor)
         self.surface: pv.PolyData | None = None
         self.scene: SceneInput | None = None

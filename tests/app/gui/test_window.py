@@ -1,0 +1,154 @@
+"""The main window under Xvfb: open the phantom, edit the plan, see the results follow."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PySide6.QtCore import QPoint, QSettings, Qt
+from pytestqt.qtbot import QtBot
+
+from app.gui.main_window import MainWindow
+from imaging.phantom_io import PhantomCase
+from imaging.plan import load_plan
+
+LOAD_TIMEOUT_MS = 30_000
+
+
+def open_case(qtbot: QtBot, win: MainWindow, case: PhantomCase) -> None:
+    win.open_plan(case.plan_path)
+    with qtbot.waitSignal(win.path_updated, timeout=LOAD_TIMEOUT_MS):
+        win.open_folder(case.ct_dir)
+
+
+def plot_stop_lines(win: MainWindow) -> list[float]:
+    """x of the stop-depth line (magenta, solid) on each of the three plot axes."""
+    xs = []
+    for ax in win.plot_fig.axes:
+        for line in ax.lines:
+            x = np.asarray(line.get_xdata(), dtype=float)
+            if line.get_color() == "#d02080" and x.size == 2 and x[0] == x[1]:
+                xs.append(float(x[0]))
+    return xs
+
+
+def test_window_opens_large_enough(window: MainWindow) -> None:
+    assert window.width() >= 1280 and window.height() >= 800
+
+
+def test_open_the_phantom_stops_at_the_true_safe_depth(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    truth = json.loads(phantom_case.truth_path.read_text())
+    assert window.view is not None
+    curves = window.view.curves
+    assert curves.stop_reason == "margin"
+    assert curves.stop_depth_mm == pytest.approx(truth["max_safe_depth_mm"], abs=0.01)
+    assert curves.planned_depth_mm == pytest.approx(truth["planned_depth_mm"])
+    assert plot_stop_lines(window) == pytest.approx([curves.stop_depth_mm] * 3)
+    # The trabecular bone's force shows on the plot: D2 bone, well above air.
+    mid = (curves.depth_mm > 4.0) & (curves.depth_mm < 8.0)
+    assert np.all(curves.force_n[mid] > 1.0)
+    assert set(window.slices) == {"axial", "coronal", "sagittal", "trajectory"}
+    assert "error" not in window.statusBar().currentMessage()
+    assert window.recent_folders()[0] == str(phantom_case.ct_dir)
+    assert window.rehearsal.connect_button.isEnabled()
+
+
+def test_moving_the_target_recomputes_the_plots_and_the_stop(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    assert window.plan is not None
+    target = window.plan.target_lps + np.array([0.0, 0.0, 6.0])  # 6 mm up: depth 6 mm
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        window.slice_canvases["coronal"].point_moved.emit("target", target)
+    assert window.view is not None
+    assert window.view.curves.stop_reason == "planned_depth"
+    assert window.view.curves.stop_depth_mm == pytest.approx(6.0)
+    assert plot_stop_lines(window) == pytest.approx([6.0] * 3)
+    # canal top at z = -43 + 1.2; the tip stops at z = -35: 6.8 mm clear
+    assert window.view.min_clearance_mm is not None
+    assert float(window.view.min_clearance_mm[0]) == pytest.approx(6.8, abs=0.02)
+    assert window.plan_panel.point_boxes["target"][2].value() == pytest.approx(-35.0)
+
+
+def test_dragging_the_target_on_a_slice_moves_it(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    canvas = window.slice_canvases["trajectory"]
+    assert window.plan is not None and canvas.image is not None
+    old = window.plan.target_lps.copy()
+    uv, _ = canvas.image.to_plane_mm(old)
+    new_uv = uv + np.array([0.0, -4.0])  # 4 mm up the image = 4 mm back along the drill
+    ratio = canvas.devicePixelRatioF()
+
+    def qt_point(uv_mm: np.ndarray) -> QPoint:
+        x, y = canvas.ax.transData.transform(uv_mm)
+        return QPoint(round(x / ratio), round(canvas.height() - y / ratio))
+
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        qtbot.mousePress(canvas, Qt.MouseButton.LeftButton, pos=qt_point(uv))
+        qtbot.mouseMove(canvas, qt_point((uv + new_uv) / 2))
+        qtbot.mouseMove(canvas, qt_point(new_uv))
+        qtbot.mouseRelease(canvas, Qt.MouseButton.LeftButton, pos=qt_point(new_uv))
+    moved = window.plan.target_lps - old
+    pixel = 0.4 * 1.5  # a pixel of slack either way
+    assert moved[2] == pytest.approx(4.0, abs=pixel)
+    assert window.plan.planned_depth_mm == pytest.approx(8.0, abs=pixel)
+
+
+def test_numeric_edit_and_margin_change_the_stop(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    table = window.plan_panel.table
+    margin_box = table.cellWidget(0, 2)
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        margin_box.setValue(3.0)  # type: ignore[attr-defined]
+    assert window.view is not None
+    assert window.view.curves.stop_depth_mm == pytest.approx(9.8, abs=0.01)
+    assert window.view.curves.margin_mm == pytest.approx(3.0)
+
+
+def test_save_and_reload_the_plan(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase, tmp_path: Path
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    assert window.plan is not None
+    moved = window.plan.target_lps + np.array([1.0, -0.5, 2.0])
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        window.slice_canvases["axial"].point_moved.emit("target", moved)
+    for name in ("plan.json", "plan.mrk.json"):
+        window.save_plan(tmp_path / name)
+        back = load_plan(tmp_path / name)
+        assert np.allclose(back.target_lps, moved)
+        assert np.allclose(back.entry_lps, window.plan.entry_lps)
+        assert len(back.landmarks) == 1
+    window.plan = None
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        window.open_plan(tmp_path / "plan.mrk.json")
+    assert np.allclose(window.plan.target_lps, moved)
+
+
+def test_a_bad_folder_is_reported_not_raised(
+    qtbot: QtBot, window: MainWindow, tmp_path: Path
+) -> None:
+    (tmp_path / "notes.txt").write_text("not dicom")
+    window.open_folder(tmp_path)
+    qtbot.waitUntil(lambda: window.load_error is not None, timeout=LOAD_TIMEOUT_MS)
+    assert window.statusBar().currentMessage().startswith("error:")
+    assert window.volume is None
+
+
+def test_recent_folders_persist(tmp_path: Path, window: MainWindow) -> None:
+    for i in range(10):
+        window._remember(f"/data/{i}")
+    again = QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat)
+    assert again.value("recent_folders")[:2] == ["/data/9", "/data/8"]
+    assert len(window.recent_folders()) == 8
+    assert window.recent_menu.actions()[0].text() == "/data/9"
