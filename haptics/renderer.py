@@ -29,7 +29,7 @@ from haptics.protocol import DeviceState, Fault, ProfileBegin
 from model.cutting import (
     DEFAULT_DAMPING_N_S_PER_MM,
     DEFAULT_STIFFNESS_N_PER_MM,
-    advance_front_mm,
+    cut_step,
     resistance_n,
 )
 
@@ -205,7 +205,7 @@ class Renderer:
         front = self.front_mm
         stop = self.stop_depth_mm
         s0, s1, s2 = self.coefficients(front)
-        new_front = advance_front_mm(
+        new_front, coupling = cut_step(
             front, master_mm, s0, self.ke, self.dt_s, stiffness_n_per_mm=self.k, limit_mm=stop
         )
         front_v = (new_front - front) / self.dt_s
@@ -213,15 +213,7 @@ class Renderer:
         if new_front > front:
             t = now_s - self.t_arm_s
             vib = s1 * math.sin(self.w1 * t) + s2 * math.sin(self.w2 * t)
-        force = resistance_n(
-            new_front,
-            master_mm,
-            master_v_mm_s,
-            front_v,
-            vib,
-            stiffness_n_per_mm=self.k,
-            damping_n_s_per_mm=self.b,
-        )
+        force = resistance_n(coupling, master_v_mm_s, front_v, vib, damping_n_s_per_mm=self.b)
         if new_front >= stop and self.stop_anchor_mm == math.inf:
             self.stop_anchor_mm = master_mm if master_mm > stop else stop
         if master_mm > self.stop_anchor_mm:

@@ -93,45 +93,76 @@ def advance_front_mm(
         New front, mm: never behind ``front_mm``, never beyond ``max(front_mm, limit_mm)`` nor
         ``max(front_mm, master_mm)``.
     """
+    return cut_step(
+        front_mm,
+        master_mm,
+        s0_n,
+        ke_per_mm_s,
+        dt_s,
+        stiffness_n_per_mm=stiffness_n_per_mm,
+        limit_mm=limit_mm,
+    )[0]
+
+
+def cut_step(
+    front_mm: float,
+    master_mm: float,
+    s0_n: float,
+    ke_per_mm_s: float,
+    dt_s: float,
+    *,
+    stiffness_n_per_mm: float = DEFAULT_STIFFNESS_N_PER_MM,
+    limit_mm: float = math.inf,
+) -> tuple[float, float]:
+    """One tick of the yielding front and the coupling (spring) force it sustained.
+
+    Returns ``(new_front_mm, coupling_n)``. While the front advances freely it moved at
+    ``v = (k e / S0 - 1) / Ke`` under the penetration ``e`` at the start of the tick, so the
+    force it sustained is ``k e = S0 (1 + Ke v)`` (this makes the steady cut exact at any step);
+    when the advance was clamped (rigid-plastic, air, the equilibrium, or ``limit_mm``) the
+    force is the spring's after the step. 0 inside the hole.
+    """
     e_mm = master_mm - front_mm
     if e_mm <= 0.0 or front_mm >= limit_mm:
-        return front_mm
+        return front_mm, (stiffness_n_per_mm * e_mm if e_mm > 0.0 else 0.0)
     e_star = equilibrium_penetration_mm(s0_n, stiffness_n_per_mm=stiffness_n_per_mm)
     if e_mm <= e_star:
-        return front_mm
+        return front_mm, stiffness_n_per_mm * e_mm
     room_mm = e_mm - e_star
+    free = False
     if s0_n <= 0.0 or ke_per_mm_s <= 0.0:
         step_mm = room_mm
     else:
-        feed = (stiffness_n_per_mm * e_mm / s0_n - 1.0) / ke_per_mm_s
-        step_mm = min(feed * dt_s, room_mm)
-    return min(front_mm + step_mm, limit_mm)
+        step_mm = (stiffness_n_per_mm * e_mm / s0_n - 1.0) / ke_per_mm_s * dt_s
+        free = step_mm < room_mm
+        if not free:
+            step_mm = room_mm
+    new_front = front_mm + step_mm
+    if new_front >= limit_mm:
+        new_front, free = limit_mm, False
+    if free:
+        return new_front, stiffness_n_per_mm * e_mm
+    e_after = master_mm - new_front
+    return new_front, (stiffness_n_per_mm * e_after if e_after > 0.0 else 0.0)
 
 
 def resistance_n(
-    front_mm: float,
-    master_mm: float,
+    coupling_n: float,
     master_feed_mm_s: float,
     front_feed_mm_s: float,
     vibration_n: float,
     *,
-    stiffness_n_per_mm: float = DEFAULT_STIFFNESS_N_PER_MM,
     damping_n_s_per_mm: float = DEFAULT_DAMPING_N_S_PER_MM,
 ) -> float:
     """Force the material puts on the hand, against the advance, N (``>= 0``).
 
-    ``k e + b (v_master - v_front) + vibration`` while the master is beyond the front
-    (``e = master_mm - front_mm > 0``), else 0 (in the hole; retraction is free). Pass
-    ``vibration_n = 0`` when the front is not advancing.
+    ``coupling + b (v_master - v_front) + vibration`` while the master is beyond the front
+    (``coupling_n > 0``, from :func:`cut_step`), else 0 (in the hole; retraction is free).
+    Pass ``vibration_n = 0`` when the front is not advancing.
     """
-    e_mm = master_mm - front_mm
-    if e_mm <= 0.0:
+    if coupling_n <= 0.0:
         return 0.0
-    force = (
-        stiffness_n_per_mm * e_mm
-        + damping_n_s_per_mm * (master_feed_mm_s - front_feed_mm_s)
-        + vibration_n
-    )
+    force = coupling_n + damping_n_s_per_mm * (master_feed_mm_s - front_feed_mm_s) + vibration_n
     return force if force > 0.0 else 0.0
 
 

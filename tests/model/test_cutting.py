@@ -12,6 +12,7 @@ from model.cutting import (
     DEFAULT_DAMPING_N_S_PER_MM,
     DEFAULT_STIFFNESS_N_PER_MM,
     advance_front_mm,
+    cut_step,
     equilibrium_penetration_mm,
     resistance_n,
     steady_feed_mm_s,
@@ -30,8 +31,9 @@ def test_default_gains_are_the_paper_position_gains_on_the_nominal_mass() -> Non
 def test_no_force_and_no_cut_inside_the_hole() -> None:
     assert advance_front_mm(5.0, 4.0, 3.0, 0.25, DT) == 5.0
     assert advance_front_mm(5.0, 5.0, 3.0, 0.25, DT) == 5.0
-    assert resistance_n(5.0, 4.0, 10.0, 0.0, 1.0) == 0.0
-    assert resistance_n(5.0, 5.0, 10.0, 0.0, 1.0) == 0.0
+    assert cut_step(5.0, 4.0, 3.0, 0.25, DT) == (5.0, 0.0)
+    assert cut_step(5.0, 5.0, 3.0, 0.25, DT) == (5.0, 0.0)
+    assert resistance_n(0.0, 10.0, 0.0, 1.0) == 0.0
 
 
 def test_holds_up_to_s0_at_rest() -> None:
@@ -42,7 +44,9 @@ def test_holds_up_to_s0_at_rest() -> None:
     master = 2.0 + 3.9 / K
     for _ in range(1000):
         assert advance_front_mm(2.0, master, s0, 0.25, DT) == 2.0
-    assert resistance_n(2.0, master, 0.0, 0.0, 0.0) == pytest.approx(3.9)
+    front, coupling = cut_step(2.0, master, s0, 0.25, DT)
+    assert front == 2.0 and coupling == pytest.approx(3.9)
+    assert resistance_n(coupling, 0.0, 0.0, 0.0) == pytest.approx(3.9)
     # At exactly S0 it still holds.
     assert advance_front_mm(2.0, 2.0 + e_star, s0, 0.25, DT) == 2.0
 
@@ -57,6 +61,8 @@ def test_constant_hand_force_gives_the_steady_feed(force_n: float, s0_n: float, 
     for _ in range(100):
         new = advance_front_mm(front, front + force_n / K, s0_n, ke, DT)
         assert (new - front) / DT == pytest.approx(expected, rel=1e-9)
+        # ... and the force the front sustained is the hand's.
+        assert cut_step(front, front + force_n / K, s0_n, ke, DT) == (new, pytest.approx(force_n))
         front = new
     assert front == pytest.approx(1.0 + 100 * DT * expected, rel=1e-9)
 
@@ -67,19 +73,19 @@ def test_steady_cut_at_constant_master_feed_reaches_a0_of_that_feed() -> None:
     s0, ke, v = 4.0, 0.25, 1.0
     front, master = 0.0, 0.0
     force = 0.0
-    for _ in range(40_000):  # 4 s; the time constant S0 Ke / k is 0.31 s
+    for _ in range(60_000):  # 6 s; contact builds for 1.25 s, then time constant S0 Ke/k 0.31 s
         master += v * DT
-        new = advance_front_mm(front, master, s0, ke, DT)
-        force = resistance_n(new, master, v, (new - front) / DT, 0.0)
+        new, coupling = cut_step(front, master, s0, ke, DT)
+        force = resistance_n(coupling, v, (new - front) / DT, 0.0)
         front = new
-    assert force == pytest.approx(s0 * (1.0 + ke * v), rel=1e-4)
+    assert force == pytest.approx(s0 * (1.0 + ke * v), rel=1e-7)
 
 
 def test_ke_zero_is_rigid_plastic_and_s0_zero_is_air() -> None:
     # Ke = 0: the front jumps so that the coupling force is exactly S0.
-    new = advance_front_mm(0.0, 3.0, 3.2, 0.0, DT)
+    new, coupling = cut_step(0.0, 3.0, 3.2, 0.0, DT)
     assert new == pytest.approx(2.0)
-    assert resistance_n(new, 3.0, 0.0, 0.0, 0.0) == pytest.approx(3.2)
+    assert coupling == pytest.approx(3.2)
     # S0 = 0 (or negative): nothing to cut, the front follows the master, no force.
     assert advance_front_mm(0.0, 3.0, 0.0, 0.25, DT) == 3.0
     assert advance_front_mm(0.0, 3.0, -1.0, 0.25, DT) == 3.0
@@ -95,10 +101,12 @@ def test_front_never_passes_the_limit() -> None:
 
 
 def test_resistance_adds_damping_and_vibration_and_never_pulls() -> None:
-    # k e + b (vm - vf) + vib = 3.2 * 0.5 + 0.08 * (10 - 2) + 0.3
-    assert resistance_n(1.0, 1.5, 10.0, 2.0, 0.3) == pytest.approx(1.6 + 0.64 + 0.3)
+    # coupling + b (vm - vf) + vib = 1.6 + 0.08 * (10 - 2) + 0.3
+    assert resistance_n(1.6, 10.0, 2.0, 0.3) == pytest.approx(1.6 + 0.64 + 0.3)
     # Retracting fast while still beyond the front: the total is clipped at 0, never negative.
-    assert resistance_n(1.0, 1.01, -1000.0, 0.0, 0.0) == 0.0
+    assert resistance_n(0.032, -1000.0, 0.0, 0.0) == 0.0
+    # At the limit the spring keeps compressing: the force is k e after the step.
+    assert cut_step(10.0, 12.0, 1.0, 0.25, DT, limit_mm=10.0) == (10.0, pytest.approx(6.4))
 
 
 def test_vibration_is_eq19() -> None:
@@ -126,9 +134,8 @@ def test_front_is_monotone_bounded_and_finite(
     assert math.isfinite(new)
     assert new >= front
     assert new <= max(front, min(master, limit)) + 1e-12
-    force = resistance_n(new, master, 0.0, 0.0, 0.0)
-    assert math.isfinite(force) and force >= 0.0
-    # The coupling force after a step never exceeds max(S0, what it was): the front yields.
-    before = resistance_n(front, master, 0.0, 0.0, 0.0)
-    if new < limit:
-        assert force <= max(before, s0) + 1e-9
+    new2, coupling = cut_step(front, master, s0, ke, DT, limit_mm=limit)
+    assert new2 == new
+    assert math.isfinite(coupling) and coupling >= 0.0
+    # The coupling force never exceeds what the spring held at the start of the tick.
+    assert coupling <= K * max(master - front, 0.0) * (1 + 1e-12) + 1e-12

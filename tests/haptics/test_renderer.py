@@ -1,0 +1,176 @@
+"""The device renderer alone, driven by prescribed master trajectories (exact answers)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from haptics.profile_table import ProfileTable
+from haptics.protocol import DeviceState, Fault
+from haptics.renderer import Renderer
+from model.profile import Profile, force_n
+
+DT = 1e-4
+
+
+def armed(table: ProfileTable, **kwargs: float) -> Renderer:
+    r = Renderer(**kwargs)  # type: ignore[arg-type]
+    r.load(table.begin_message(), table.rows())
+    assert r.arm(0.0)
+    return r
+
+
+def test_rendered_force_on_a_slab_matches_the_model_at_steady_feed() -> None:
+    # Slab from 0 to 40 mm, S0 = 4 N, S1 = 0.25 N, S2 = 0.125 N (float32-exact), Ke 0.25.
+    # The master advances at 1 mm/s; once the front moves with it (time constant
+    # S0 Ke / k = 0.31 s), the rendered force is the model's F(x, v, t) at the front.
+    table = ProfileTable.slab(
+        s0_n=4.0, s1_n=0.25, s2_n=0.125, top_mm=0.0, bottom_mm=40.0, stop_depth_mm=30.0
+    )
+    depth = table.depth_mm
+    profile = Profile(
+        depth_mm=depth,
+        s0_n=table.s0_n.astype(float),
+        sk_n=np.vstack([table.s1_n, table.s2_n]).astype(float),
+        freqs_hz=np.array([30.0, 60.0]),
+        s_t=np.ones_like(depth),
+        hu_mean=np.zeros_like(depth),
+        ke_per_mm_s=0.25,
+        n_clipped=0,
+        n_samples=1,
+        calibration="test",
+    )
+    r = armed(table)
+    v = 1.0
+    errors = []
+    for i in range(1, 60_001):
+        now = i * DT
+        r.host_frame(now)
+        force = r.tick(now, v * now, v)
+        if now > 5.0:  # contact after 1.25 s, then 12 time constants
+            errors.append(force - force_n(profile, r.front_mm, v, now))
+    assert r.state == DeviceState.CUTTING
+    assert max(abs(e) for e in errors) < 1e-4
+    # the front lags the master by S0 (1 + Ke v) / k, less this tick's advance v dt
+    assert r.front_mm == pytest.approx(
+        6.0 - 4.0 * 1.25 / 3.2 + v * DT, abs=1e-6
+    )  # lags by S0(1+Ke v)/k
+
+
+def test_stop_depth_is_never_passed_and_the_wall_is_continuous() -> None:
+    table = ProfileTable.slab(
+        s0_n=2.0, top_mm=0.0, bottom_mm=40.0, stop_depth_mm=5.0, ke_per_mm_s=0.0
+    )
+    r = armed(table, peak_force_n=1e9, thermal_budget_n2_s=1e9)
+    forces = []
+    for i in range(1, 200_001):  # master driven to 20 mm at 10 mm/s
+        now = i * DT
+        r.host_frame(now)
+        forces.append(r.tick(now, min(10.0 * now, 20.0), 10.0 if 10.0 * now < 20 else 0.0))
+        assert r.drill_mm <= 5.0 and r.front_mm <= 5.0
+    assert r.state == DeviceState.STOPPED
+    assert r.front_mm == 5.0 and r.drill_mm == 5.0
+    steps = np.abs(np.diff(np.array(forces)))
+    # Continuous while the master moves (1 um per tick at 10 mm/s), except where the rigid-
+    # plastic front (Ke = 0) starts and stops dead: the damping term b (vm - vf) jumps by
+    # b * 10 mm/s = 0.8 N there; the stop wall itself starts from zero.
+    moving = np.sort(steps[: int(2.0 / DT) - 2])
+    assert moving[-3] < 0.05
+    assert moving[-2:] == pytest.approx([0.8, 0.8], abs=0.05)
+    # Beyond the anchor the wall adds 20 N/mm to the 3.2 N/mm coupling.
+    anchor = r.stop_anchor_mm
+    assert anchor == pytest.approx(5.0 + 2.0 / 3.2, abs=2e-3)
+    assert forces[-1] == pytest.approx(3.2 * (20.0 - 5.0) + 20.0 * (20.0 - anchor), rel=1e-6)
+
+
+def test_peak_and_thermal_limits() -> None:
+    table = ProfileTable.slab(s0_n=2.0, top_mm=0.0, bottom_mm=40.0, stop_depth_mm=1.0)
+    r = armed(table)
+    forces = []
+    for i in range(1, 15_001):  # master held 30 mm deep: far past the stop
+        now = i * DT
+        r.host_frame(now)
+        forces.append(r.tick(now, 30.0, 0.0))
+    f = np.array(forces)
+    assert f.max() == 78.0
+    assert r.faults & Fault.PEAK_LIMIT and r.faults & Fault.THERMAL_LIMIT
+    # Budget (78^2 - 20^2) N^2 s at 78 N lasts exactly 1 s, then 20 N continuous.
+    first_limited = int(np.argmax(f < 78.0))
+    assert first_limited * DT == pytest.approx(1.0, abs=2 * DT)
+    assert np.all(f[first_limited:] == 20.0)
+
+
+def test_watchdog_trips_after_50_ms_and_latches_until_rearmed() -> None:
+    table = ProfileTable.slab(s0_n=2.0, top_mm=0.0, bottom_mm=40.0, stop_depth_mm=10.0)
+    r = armed(table)
+    r.host_frame(0.1)
+    trip = None
+    for i in range(1, 2000):
+        now = i * DT
+        r.tick(now, 1.0, 0.0)
+        if r.state == DeviceState.SAFE:
+            trip = now
+            break
+    assert trip is not None
+    assert 0.150 < trip <= 0.150 + DT + 1e-12
+    assert r.faults == Fault.WATCHDOG and r.force_cmd_n == 0.0
+    r.host_frame(trip)  # a frame after the trip does not clear it
+    assert r.tick(trip + DT, 3.0, 0.0) == 0.0 and r.state == DeviceState.SAFE
+    assert r.front_mm <= 1.0  # the drill stopped: pushing deeper does not cut
+    assert r.drill_mm <= 1.0
+    assert r.arm(trip + 2 * DT) and r.state == DeviceState.CUTTING and r.faults == 0
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_nonfinite_input_goes_safe(bad: float) -> None:
+    table = ProfileTable.slab(s0_n=2.0, top_mm=0.0, bottom_mm=40.0, stop_depth_mm=10.0)
+    r = armed(table)
+    r.host_frame(DT)
+    assert r.tick(DT, bad, 0.0) == 0.0
+    assert r.state == DeviceState.SAFE and r.faults & Fault.NONFINITE
+    r2 = armed(table)
+    assert r2.tick(DT, 1.0, bad) == 0.0 and r2.faults & Fault.NONFINITE
+
+
+def test_arm_needs_a_table_and_idle_renders_nothing() -> None:
+    r = Renderer()
+    assert not r.arm(0.0)
+    assert r.tick(DT, 5.0, 1.0) == 0.0 and r.state == DeviceState.IDLE
+
+
+@settings(max_examples=60)
+@given(
+    s0=st.floats(0.0, 60.0),
+    ke=st.floats(0.0, 2.0),
+    s1=st.floats(-10.0, 10.0),
+    stop=st.floats(0.0, 30.0),
+    moves=st.lists(
+        st.tuples(st.floats(-50.0, 80.0, allow_nan=False), st.floats(-1e4, 1e4)),
+        min_size=1,
+        max_size=40,
+    ),
+)
+def test_any_trajectory_keeps_force_bounded_and_drill_above_stop(
+    s0: float,
+    ke: float,
+    s1: float,
+    stop: float,
+    moves: list[tuple[float, float]],
+) -> None:
+    table = ProfileTable.slab(
+        s0_n=s0, s1_n=s1, s2_n=-s1, ke_per_mm_s=ke, top_mm=0.0, bottom_mm=35.0, stop_depth_mm=stop
+    )
+    r = armed(table)
+    now = 0.0
+    for master, velocity in moves:
+        for _ in range(25):
+            now += DT
+            r.host_frame(now)
+            force = r.tick(now, master, velocity)
+            assert math.isfinite(force) and 0.0 <= force <= 78.0
+            assert r.drill_mm <= table.stop_depth_mm
+            assert r.front_mm <= table.stop_depth_mm
