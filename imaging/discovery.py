@@ -21,6 +21,7 @@ from pydicom.dataset import Dataset
 from pydicom.errors import InvalidDicomError
 from pydicom.uid import ExplicitVRLittleEndian, ImplicitVRLittleEndian
 
+from imaging._load_fastheader import read_fast_header
 from imaging.errors import ImagingInputError
 
 #: SOP classes that hold CT volumes: CT Image Storage, Enhanced CT, Legacy Converted Enhanced CT.
@@ -136,7 +137,7 @@ def _looks_like_dicom(path: Path) -> bool | None:
     return False
 
 
-def _num(ds: Dataset, keyword: str) -> float | None:
+def _num(ds: Any, keyword: str) -> float | None:
     value = ds.get(keyword)
     if value is None or value == "":
         return None
@@ -146,7 +147,7 @@ def _num(ds: Dataset, keyword: str) -> float | None:
         return None
 
 
-def _int(ds: Dataset, keyword: str, default: int | None = None) -> int | None:
+def _int(ds: Any, keyword: str, default: int | None = None) -> int | None:
     value = ds.get(keyword)
     if value is None or value == "":
         return default
@@ -169,7 +170,7 @@ def _floats(value: Any, n: int) -> tuple[float, ...] | None:
     return out if len(out) == n else None
 
 
-def _fg_item(ds: Dataset, frame: int, seq_keyword: str) -> Dataset | None:
+def _fg_item(ds: Any, frame: int, seq_keyword: str) -> Dataset | None:
     """The functional-group item ``seq_keyword`` for ``frame`` (per-frame first, then shared)."""
     for fg_keyword, index in (
         ("PerFrameFunctionalGroupsSequence", frame),
@@ -205,14 +206,23 @@ def _pixel_offset(fh: Any, implicit: bool) -> tuple[int | None, bool]:
     return start, length > 0
 
 
-def read_headers(path: Path, *, ct_only: bool = True) -> list[SliceHeader] | Skipped | None:
+def read_headers(
+    path: Path, *, ct_only: bool = True, fast: bool = True
+) -> list[SliceHeader] | Skipped | None:
     """Header(s) of one file: a list of planes, a :class:`Skipped`, or None when not DICOM.
 
     ``ct_only=False`` also returns the planes of non-CT images (used to test decoding).
+    ``fast=False`` forces pydicom instead of :mod:`imaging._load_fastheader` (tests compare).
     """
     kind = _looks_like_dicom(path)
     if kind is False:
         return None
+    if kind is True and fast:
+        got = read_fast_header(path)
+        if got is not None:
+            lite, ts, _, offset, has_pixels = got
+            if str(lite.get("SOPClassUID", "")) not in MULTIFRAME_CT_SOP_CLASSES:
+                return _classify(path, lite, ts, offset, has_pixels, ct_only)
     try:
         with path.open("rb") as fh:
             ds = dcmread(fh, stop_before_pixels=True, force=kind is None)
@@ -228,6 +238,12 @@ def read_headers(path: Path, *, ct_only: bool = True) -> list[SliceHeader] | Ski
         ts = str(ImplicitVRLittleEndian if implicit else ExplicitVRLittleEndian)
     if not little:
         offset = None
+    return _classify(path, ds, ts, offset, has_pixels, ct_only)
+
+
+def _classify(
+    path: Path, ds: Any, ts: str, offset: int | None, has_pixels: bool, ct_only: bool
+) -> list[SliceHeader] | Skipped:
     sop = str(ds.get("SOPClassUID", ""))
     if sop == "1.2.840.10008.1.3.10" or "DirectoryRecordSequence" in ds:
         return Skipped(path, "directory file (DICOMDIR)")
@@ -247,7 +263,7 @@ def _sop_name(sop: str) -> str:
     return name or sop
 
 
-def _planes(path: Path, ds: Dataset, sop: str, ts: str, offset: int | None) -> list[SliceHeader]:
+def _planes(path: Path, ds: Any, sop: str, ts: str, offset: int | None) -> list[SliceHeader]:
     n_frames = _int(ds, "NumberOfFrames", 1) or 1
     lossy_tag = str(ds.get("LossyImageCompression", "")).strip() == "01"
     meta = {
@@ -267,7 +283,7 @@ def _planes(path: Path, ds: Dataset, sop: str, ts: str, offset: int | None) -> l
         "series_uid": str(ds.get("SeriesInstanceUID", "")),
         "sop_class_uid": sop,
         "modality": str(ds.get("Modality", "")),
-        "image_type": tuple(str(v).upper() for v in _multi(ds.get("ImageType"))),
+        "image_type": tuple(str(v).strip().upper() for v in _multi(ds.get("ImageType"))),
         "rows": _int(ds, "Rows", 0),
         "cols": _int(ds, "Columns", 0),
         "samples_per_pixel": _int(ds, "SamplesPerPixel", 1),
@@ -340,7 +356,7 @@ def _multi(value: Any) -> list[Any]:
         return [value]
 
 
-def _kernel(ds: Dataset) -> str:
+def _kernel(ds: Any) -> str:
     return "\\".join(str(v) for v in _multi(ds.get("ConvolutionKernel")))
 
 

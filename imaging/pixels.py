@@ -187,8 +187,14 @@ def to_hu(stored: np.ndarray, h: SliceHeader, out: np.ndarray) -> bool:
         return True
     if slope != round(slope) or intercept != round(intercept):
         return False
-    hu32 = stored.astype(np.int64) * int(slope) + int(intercept)
-    if hu32.size and (hu32.min() < -32768 or hu32.max() > 32767):
+    # Check the actual stored range instead of the one BitsStored allows.
+    lo, hi = int(stored.min()), int(stored.max())
+    ends = (slope * lo + intercept, slope * hi + intercept)
+    if min(ends) < -32768 or max(ends) > 32767:
         return False
-    out[...] = hu32
+    if slope == 1.0:
+        np.add(stored, np.int32(intercept), out=out, casting="unsafe")
+    else:
+        np.multiply(stored, np.int32(slope), out=out, casting="unsafe")
+        np.add(out, np.int32(intercept), out=out, casting="unsafe")
     return True

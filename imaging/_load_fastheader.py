@@ -1,0 +1,208 @@
+"""A minimal reader of the header tags the loader needs, for uncompressed little-endian files.
+
+pydicom converts every element it reads (~0.8 ms per CT header here); this walks the element
+stream of a Part 10 file (128-byte preamble, ``DICM``, explicit-VR file meta, then an Explicit or
+Implicit VR Little Endian dataset), keeps the raw bytes of a fixed set of top-level tags, skips
+everything else (sequences of defined or undefined length included) and stops at PixelData,
+whose value offset it returns. Anything unexpected returns None and the caller falls back to
+pydicom, so this is an accelerator, never a second source of truth: the tests check that both
+paths give identical headers on every real and synthetic file.
+"""
+
+from __future__ import annotations
+
+import mmap
+import struct
+from pathlib import Path
+from typing import Any
+
+_EXPLICIT_LE = "1.2.840.10008.1.2.1"
+_IMPLICIT_LE = "1.2.840.10008.1.2"
+_LONG_VRS = frozenset(
+    {b"OB", b"OW", b"OF", b"OD", b"OL", b"OV", b"UN", b"SQ", b"UC", b"UR", b"UT", b"SV", b"UV"}
+)
+_PIXEL_DATA = 0x7FE00010
+_ITEM = 0xFFFEE000
+_ITEM_END = 0xFFFEE00D
+_SEQ_END = 0xFFFEE0DD
+_UNDEFINED = 0xFFFFFFFF
+
+#: tag -> (keyword, VR used when the file is implicit VR)
+TAGS: dict[int, tuple[str, str]] = {
+    0x00041220: ("DirectoryRecordSequence", "SQ"),
+    0x00080008: ("ImageType", "CS"),
+    0x00080016: ("SOPClassUID", "UI"),
+    0x00080060: ("Modality", "CS"),
+    0x00080070: ("Manufacturer", "LO"),
+    0x00081030: ("StudyDescription", "LO"),
+    0x0008103E: ("SeriesDescription", "LO"),
+    0x00081090: ("ManufacturerModelName", "LO"),
+    0x00180050: ("SliceThickness", "DS"),
+    0x00180060: ("KVP", "DS"),
+    0x00180088: ("SpacingBetweenSlices", "DS"),
+    0x00181120: ("GantryDetectorTilt", "DS"),
+    0x00181210: ("ConvolutionKernel", "SH"),
+    0x0020000E: ("SeriesInstanceUID", "UI"),
+    0x00200032: ("ImagePositionPatient", "DS"),
+    0x00200037: ("ImageOrientationPatient", "DS"),
+    0x00280002: ("SamplesPerPixel", "US"),
+    0x00280004: ("PhotometricInterpretation", "CS"),
+    0x00280008: ("NumberOfFrames", "IS"),
+    0x00280010: ("Rows", "US"),
+    0x00280011: ("Columns", "US"),
+    0x00280030: ("PixelSpacing", "DS"),
+    0x00280100: ("BitsAllocated", "US"),
+    0x00280101: ("BitsStored", "US"),
+    0x00280103: ("PixelRepresentation", "US"),
+    0x00280120: ("PixelPaddingValue", "xs"),
+    0x00280121: ("PixelPaddingRangeLimit", "xs"),
+    0x00281052: ("RescaleIntercept", "DS"),
+    0x00281053: ("RescaleSlope", "DS"),
+    0x00281054: ("RescaleType", "LO"),
+    0x00282110: ("LossyImageCompression", "CS"),
+}
+_TRAILING_ONLY = frozenset({"LO", "SH", "LT", "ST", "UT"})
+_INT_FORMATS = {"US": "H", "SS": "h", "UL": "I", "SL": "i"}
+
+
+class _Malformed(Exception):
+    pass
+
+
+class LiteHeader(dict[str, Any]):
+    """Decoded tag values by keyword, answering ``get``/``in`` like a pydicom Dataset."""
+
+
+def _element(buf: Any, pos: int, implicit: bool) -> tuple[int, bytes, int, int]:
+    """(tag, vr, value start, length) of the element at ``pos``."""
+    if pos + 8 > len(buf):
+        raise _Malformed
+    group, elem = struct.unpack_from("<HH", buf, pos)
+    tag = (group << 16) | elem
+    if implicit or group == 0xFFFE:
+        (length,) = struct.unpack_from("<I", buf, pos + 4)
+        return tag, b"", pos + 8, length
+    vr = bytes(buf[pos + 4 : pos + 6])
+    if vr in _LONG_VRS:
+        if pos + 12 > len(buf):
+            raise _Malformed
+        (length,) = struct.unpack_from("<I", buf, pos + 8)
+        return tag, vr, pos + 12, length
+    if not vr.isalpha():
+        raise _Malformed
+    (length,) = struct.unpack_from("<H", buf, pos + 6)
+    return tag, vr, pos + 8, length
+
+
+def _skip_undefined(buf: Any, pos: int, implicit: bool) -> int:
+    """Skip the items of an undefined-length sequence starting at ``pos``; return the end."""
+    while True:
+        tag, _, start, length = _element(buf, pos, True)
+        if tag == _SEQ_END:
+            return start
+        if tag != _ITEM:
+            raise _Malformed
+        if length != _UNDEFINED:
+            pos = start + length
+            continue
+        pos = start
+        while True:  # elements of an undefined-length item, up to its delimiter
+            tag, vr, start, length = _element(buf, pos, implicit)
+            if tag == _ITEM_END:
+                pos = start
+                break
+            if length == _UNDEFINED:
+                pos = _skip_undefined(buf, start, implicit or vr == b"UN")
+            else:
+                pos = start + length
+            if pos > len(buf):
+                raise _Malformed
+
+
+def _decode(raw: bytes, vr: str, pixel_rep: int) -> Any:
+    if vr == "xs":
+        vr = "SS" if pixel_rep else "US"
+    if vr in _INT_FORMATS:
+        fmt = _INT_FORMATS[vr]
+        n = len(raw) // struct.calcsize(fmt)
+        vals = struct.unpack_from(f"<{n}{fmt}", raw)
+        return vals[0] if n == 1 else list(vals)
+    text = raw.decode("latin-1")
+    text = text.rstrip(" \x00") if vr in _TRAILING_ONLY else text.strip(" \x00")
+    if vr in ("LT", "ST", "UT"):
+        return text
+    parts = text.split("\\")
+    if vr not in _TRAILING_ONLY:
+        parts = [p.strip(" \x00") for p in parts]
+    return parts[0] if len(parts) == 1 else parts
+
+
+def read_fast_header(path: Path) -> tuple[LiteHeader, str, bool, int | None, bool] | None:
+    """Header of a Part 10 little-endian file without pydicom, or None to fall back.
+
+    Returns
+    -------
+    tuple | None
+        (tags, transfer syntax, implicit VR, pixel value offset or None if encapsulated,
+        has pixel data).
+    """
+    try:
+        with path.open("rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+            return _parse(buf)
+    except (_Malformed, struct.error, ValueError, OSError, UnicodeDecodeError):
+        return None
+
+
+def _parse(buf: Any) -> tuple[LiteHeader, str, bool, int | None, bool] | None:
+    if len(buf) < 132 or buf[128:132] != b"DICM":
+        return None
+    pos = 132
+    ts = ""
+    while pos + 8 <= len(buf) and struct.unpack_from("<H", buf, pos)[0] == 0x0002:
+        tag, _, start, length = _element(buf, pos, False)
+        if length == _UNDEFINED:
+            return None
+        if tag == 0x00020010:
+            ts = bytes(buf[start : start + length]).decode("ascii").strip(" \x00")
+        pos = start + length
+    if ts not in (_EXPLICIT_LE, _IMPLICIT_LE):
+        return None
+    implicit = ts == _IMPLICIT_LE
+    raw: dict[int, tuple[str, bytes]] = {}
+    offset: int | None = None
+    has_pixels = False
+    while pos + 8 <= len(buf):
+        tag, vr, start, length = _element(buf, pos, implicit)
+        if tag == _PIXEL_DATA:
+            has_pixels = length != 0
+            offset = None if length == _UNDEFINED else start
+            if offset is not None and start + length > len(buf):
+                return None
+            break
+        if tag in TAGS:
+            keyword, default_vr = TAGS[tag]
+            vr_s = default_vr if implicit or (default_vr == "xs" and vr in (b"OB", b"OW")) else ""
+            vr_s = vr_s or vr.decode("ascii")
+            raw[tag] = (vr_s, b"" if length == _UNDEFINED else bytes(buf[start : start + length]))
+        if length == _UNDEFINED:
+            pos = _skip_undefined(buf, start, implicit or vr == b"UN")
+        else:
+            pos = start + length
+        if pos > len(buf):
+            raise _Malformed
+    else:
+        if pos != len(buf):
+            raise _Malformed  # a partial element at the end: truncated file
+    out = LiteHeader()
+    pixel_rep = 0
+    if 0x00280103 in raw:
+        pixel_rep = int(_decode(raw[0x00280103][1], "US", 0))
+    for tag, (vr_s, value) in raw.items():
+        keyword = TAGS[tag][0]
+        if vr_s == "SQ":
+            out[keyword] = []
+            continue
+        if not value:
+            continue
+        out[keyword] = _decode(value, vr_s, pixel_rep)
+    return out, ts, implicit, offset, has_pixels

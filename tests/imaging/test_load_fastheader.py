@@ -1,0 +1,82 @@
+"""The fast header reader agrees with pydicom on every file, or steps aside."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydicom.data import get_testdata_file
+from pydicom.dataset import Dataset
+from pydicom.uid import ImplicitVRLittleEndian
+
+from imaging._load_fastheader import read_fast_header
+from imaging.discovery import read_headers
+from tests.imaging.factory import affine, linear_hu, write
+
+
+def _as_plain(got: object) -> object:
+    if isinstance(got, list):
+        return [dataclasses.asdict(h) for h in got]
+    return got
+
+
+def _agree(path: Path) -> None:
+    for ct_only in (True, False):
+        fast = read_headers(path, ct_only=ct_only, fast=True)
+        slow = read_headers(path, ct_only=ct_only, fast=False)
+        assert _as_plain(fast) == _as_plain(slow), path
+
+
+def test_identical_headers_on_every_real_file(shared_data: Path) -> None:
+    files = [p for p in sorted(shared_data.rglob("*")) if p.is_file()]
+    assert len(files) > 150
+    for path in files:
+        _agree(path)
+
+
+@pytest.mark.parametrize(
+    "name", ["CT_small.dcm", "693_UNCR.dcm", "693_J2KR.dcm", "MR_small.dcm", "SC_rgb.dcm"]
+)
+def test_identical_headers_on_pydicom_files(name: str) -> None:
+    _agree(Path(str(get_testdata_file(name))))
+
+
+def test_nested_undefined_length_sequences_are_skipped(tmp_path: Path) -> None:
+    inner = Dataset()
+    inner.CodeValue = "X"
+    item = Dataset()
+    item.ReferencedSOPInstanceUID = "1.2.3"
+    item.PurposeOfReferenceCodeSequence = [inner]
+    for ts in ("1.2.840.10008.1.2.1", ImplicitVRLittleEndian):
+        w = write(
+            tmp_path / ts,
+            linear_hu((2, 3, 4)),
+            affine(),
+            transfer_syntax=ts,
+            extra={"ReferencedImageSequence": [item, item], "SourceImageSequence": [item]},
+        )
+        got = read_fast_header(w.paths[0])
+        assert got is not None
+        tags, syntax, implicit, offset, has_pixels = got
+        assert syntax == ts and implicit == (ts == ImplicitVRLittleEndian) and has_pixels
+        assert tags["Rows"] == 3 and tags["Columns"] == 4
+        raw = w.paths[0].read_bytes()
+        assert offset is not None
+        np.testing.assert_array_equal(
+            np.frombuffer(raw[offset : offset + 24], "<i2").reshape(3, 4), linear_hu((2, 3, 4))[0]
+        )
+        _agree(w.paths[0])
+
+
+def test_truncated_or_foreign_files_fall_back(tmp_path: Path) -> None:
+    w = write(tmp_path / "s", linear_hu((1, 3, 4)), affine())
+    raw = w.paths[0].read_bytes()
+    cut = tmp_path / "cut.dcm"
+    cut.write_bytes(raw[:300])
+    assert read_fast_header(cut) is None
+    junk = tmp_path / "junk.bin"
+    junk.write_bytes(bytes(128) + b"DICM" + b"\xff" * 40)
+    assert read_fast_header(junk) is None
+    assert read_headers(junk) is not None  # a Skipped or planes from pydicom, not a crash
