@@ -220,6 +220,18 @@ def _out_of_volume_depth_mm(
     return lo
 
 
+def _grid_bracket(
+    depth: np.ndarray, clearance: np.ndarray, margins: np.ndarray
+) -> tuple[float, float] | None:
+    """The grid step where the margin is first violated (max_safe_depth_mm checks it)."""
+    if clearance.shape[1] == 0:
+        return None
+    bad = np.flatnonzero(np.any(clearance < margins[None, :], axis=1))
+    if bad.size == 0 or bad[0] == 0:
+        return None
+    return float(depth[bad[0] - 1]), float(depth[bad[0]])
+
+
 def plan_path(
     volume: CTVolume,
     plan: Plan,
@@ -279,7 +291,7 @@ def plan_path(
     )
     clearance = clearance_profile_mm(plan, plan.landmarks, depth)
     margins = np.array([plan.landmark_margin_mm(lm) for lm in plan.landmarks])
-    max_safe = max_safe_depth_mm(plan)
+    max_safe = max_safe_depth_mm(plan, bracket_mm=_grid_bracket(depth, clearance, margins))
     oov = _out_of_volume_depth_mm(volume, plan, lip, n_rings, n_angles)
     candidates = [
         (plan.planned_depth_mm, "planned_depth"),

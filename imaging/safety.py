@@ -37,7 +37,7 @@ def _core_distance_mm(plan: Plan, landmark: Landmark, depth_mm: np.ndarray) -> n
             )
             best = np.minimum(best, d.min(axis=1))
         return best
-    d = segment_solid_distance_mm(
+    return segment_solid_distance_mm(
         a,
         b,
         depth_mm,
@@ -46,8 +46,6 @@ def _core_distance_mm(plan: Plan, landmark: Landmark, depth_mm: np.ndarray) -> n
         radius_mm=r,
         tip_length_mm=lt,
     )
-    out: np.ndarray = d.min(axis=1)
-    return out
 
 
 def clearance_profile_mm(
@@ -93,6 +91,7 @@ def max_safe_depth_mm(
     *,
     limit_mm: float | None = None,
     tol_mm: float = SAFE_DEPTH_TOL_MM,
+    bracket_mm: tuple[float, float] | None = None,
 ) -> float:
     """Deepest tip depth whose clearance to every landmark stays >= its margin, mm.
 
@@ -105,6 +104,9 @@ def max_safe_depth_mm(
     limit_mm : search limit (default: the planned depth + 10 mm). The result is capped at it:
         a value equal to ``limit_mm`` means "safe at least that deep"; with no landmark it is
         ``limit_mm``.
+    bracket_mm : optional ``(lo, hi)`` with the margin kept at ``lo`` and violated at
+        ``hi`` (e.g. from a clearance profile on a depth grid); checked, and ignored when it
+        does not hold.
 
     Returns
     -------
@@ -115,11 +117,30 @@ def max_safe_depth_mm(
     if not lms:
         return limit
     margins = np.array([plan.landmark_margin_mm(lm) for lm in lms])
+    if bracket_mm is not None:
+        lo, hi = float(bracket_mm[0]), float(bracket_mm[1])
+        if (
+            0.0 <= lo < hi <= limit
+            and _slack(plan, lms, margins, lo) >= 0.0
+            and _slack(plan, lms, margins, hi) < 0.0
+        ):
+            return _bisect(plan, lms, margins, lo, hi, tol_mm)
     if _slack(plan, lms, margins, 0.0) < 0.0:
         return 0.0
     if _slack(plan, lms, margins, limit) >= 0.0:
         return limit
-    lo, hi = 0.0, limit  # slack(lo) >= 0 > slack(hi)
+    return _bisect(plan, lms, margins, 0.0, limit, tol_mm)
+
+
+def _bisect(
+    plan: Plan,
+    lms: tuple[Landmark, ...],
+    margins: np.ndarray,
+    lo: float,
+    hi: float,
+    tol_mm: float,
+) -> float:
+    """Bisection on [lo, hi] with slack(lo) >= 0 > slack(hi); returns the safe end."""
     while hi - lo > tol_mm:
         mid = 0.5 * (lo + hi)
         if _slack(plan, lms, margins, mid) >= 0.0:

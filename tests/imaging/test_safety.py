@@ -74,7 +74,7 @@ def test_point_and_segment_distance_match_dense_sampling(seed: int) -> None:
             direction=u,
             radius_mm=R,
             tip_length_mm=LT,
-        )[0, 0]
+        )[0]
         if exact < 0.05:
             continue  # the segment enters the solid: its surface distance is not the distance
         n = int(np.linalg.norm(b - a) / 0.01) + 2
@@ -176,3 +176,26 @@ def test_mask_landmark_clearance_equals_its_boundary_voxel_points() -> None:
     np.testing.assert_allclose(got, want, atol=1e-12)
     # The block's top face is at z = 28 - 2 = 26 (k = 2), i.e. 14 mm below the entry.
     assert got[0] == pytest.approx(14.0)
+
+
+def test_pruned_polyline_equals_the_minimum_over_its_segments() -> None:
+    rng = np.random.default_rng(5)
+    pts = np.cumsum(rng.normal(size=(31, 3)), axis=0) + np.array([5.0, -3.0, 30.0])
+    entry, u = np.array([5.0, -3.0, 40.0]), np.array([0.0, 0.0, -1.0])
+    depth = np.linspace(0.0, 20.0, 41)
+    kw = {"entry_lps": entry, "direction": u, "radius_mm": R, "tip_length_mm": LT}
+    union = segment_solid_distance_mm(pts[:-1], pts[1:], depth, **kw)
+    singles = np.stack(
+        [
+            segment_solid_distance_mm(pts[i : i + 1], pts[i + 1 : i + 2], depth, **kw)
+            for i in range(30)
+        ]
+    )
+    np.testing.assert_allclose(union, singles.min(axis=0), atol=1e-12)
+
+
+def test_bracket_hint_gives_the_same_safe_depth_and_bad_hints_are_ignored() -> None:
+    canal = CanalLandmark("canal", [[-10.0, -3.0, 25.0], [20.0, -3.0, 25.0]], radius_mm=1.2)
+    plan = _plan((canal,))
+    assert max_safe_depth_mm(plan, bracket_mm=(11.75, 11.85)) == pytest.approx(11.8, abs=1e-3)
+    assert max_safe_depth_mm(plan, bracket_mm=(12.0, 13.0)) == pytest.approx(11.8, abs=1e-3)
