@@ -307,10 +307,10 @@ def nested_sequence(depth: int) -> DicomSequence:
     return DicomSequence([inner])
 
 
-def patch_pixel_length(path: Path, new_length: int) -> None:
-    """Rewrite the declared length of the PixelData element of an explicit-VR file."""
+def patch_pixel_length(path: Path, new_length: int, *, tag: bytes = b"\xe0\x7f\x10\x00") -> None:
+    """Rewrite the declared length of an OB/OW element (PixelData) of an explicit-VR file."""
     data = bytearray(path.read_bytes())
-    at = data.rfind(b"\xe0\x7f\x10\x00")
+    at = data.rfind(tag)
     assert at > 0 and data[at + 4 : at + 6] in (b"OW", b"OB"), path
     data[at + 8 : at + 12] = struct.pack("<I", new_length)
     path.write_bytes(bytes(data))
@@ -553,20 +553,27 @@ def _padding(folder: Path) -> tuple[Expect, ...]:
     return (load("padding", dims=DIMS),)
 
 
+#: A slice unlike the others may be dropped as a stray (localizer_dropped or files_skipped).
+STRAY_OR_REFUSE_MIDDLE = (
+    *SKIP_OR_REFUSE_MIDDLE,
+    load("localizer_dropped", "slice_gap", optional=["nonuniform_spacing"]),
+)
+
+
 def _mixed_dims(folder: Path) -> tuple[Expect, ...]:
     slices = base_slices(series="mixed-dims")
     odd = ct_slice(np.zeros((ROWS + 2, COLS), np.int16), slices[4].ImagePositionPatient,
                    series="mixed-dims", instance=4)  # fmt: skip
     slices[4] = odd
     write_all(slices, folder)
-    return SKIP_OR_REFUSE_MIDDLE
+    return STRAY_OR_REFUSE_MIDDLE
 
 
 def _mixed_orientation(folder: Path) -> tuple[Expect, ...]:
     slices = base_slices(series="mixed-iop")
     slices[4].ImageOrientationPatient = [0.0, 1.0, 0.0, 1.0, 0.0, 0.0]
     write_all(slices, folder)
-    return SKIP_OR_REFUSE_MIDDLE
+    return STRAY_OR_REFUSE_MIDDLE
 
 
 def _deep_nesting(folder: Path) -> tuple[Expect, ...]:
@@ -618,6 +625,15 @@ def _bomb_one_element_length(folder: Path) -> tuple[Expect, ...]:
     paths = write_all(base_slices(series="bomb-length-one"), folder)
     patch_pixel_length(paths[-1], 0xFFFFFFF0)
     return SKIP_OR_REFUSE_END
+
+
+def _bomb_header_element_length(folder: Path) -> tuple[Expect, ...]:
+    slices = base_slices(series="bomb-header-length")
+    for ds in slices:
+        ds.add_new(0x00091010, "OB", b"\x00" * 8)  # a private binary element in the header
+    for path in write_all(slices, folder):
+        patch_pixel_length(path, 0xFFFFFFF0, tag=b"\x09\x00\x10\x10")
+    return (REFUSE,)
 
 
 OBLIQUE_IOP = (0.8, 0.6, 0.0, -0.6, 0.8, 0.0)
@@ -693,6 +709,7 @@ SYNTHETIC: dict[str, tuple[Builder, str, bool]] = {
     "bomb_number_of_frames": (_bomb_frames, "memory bomb", True),
     "bomb_pixel_length_all": (_bomb_element_length, "memory bomb", True),
     "bomb_pixel_length_one": (_bomb_one_element_length, "memory bomb", True),
+    "bomb_header_element_length": (_bomb_header_element_length, "memory bomb", True),
 }
 
 #: Cases whose exact HU and affine are known.
