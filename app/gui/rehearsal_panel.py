@@ -8,6 +8,7 @@ this panel only polls its telemetry with a QTimer and sends commands.
 from __future__ import annotations
 
 import os
+import time
 from pathlib import Path
 
 from PySide6.QtCore import QTimer, Signal
@@ -32,6 +33,8 @@ from imaging.plan import Plan
 
 #: Telemetry poll period, ms (30 Hz display).
 POLL_MS = 33
+#: Shortest interval between 3D drill updates, s (a software-GL frame costs ~80 ms).
+MIN_3D_UPDATE_S = 0.1
 
 _STATE_STYLE = {
     "idle": "background:#505860; color:white",
@@ -61,6 +64,10 @@ class RehearsalPanel(QWidget):
         self.blocked: str | None = "no CT series loaded"
         self.run: RehearsalRun | None = None
         self.last: Telemetry | None = None
+        #: Session length, s, and pacing of the simulator to the wall clock.
+        self.duration_s = 120.0
+        self.realtime = True
+        self._last_emit = (-1.0, float("nan"))  # (monotonic s, depth mm) of the last 3D update
         outer = QVBoxLayout(self)
 
         dev = QGroupBox("Device")
@@ -165,7 +172,13 @@ class RehearsalPanel(QWidget):
         device = self.device.currentText() or SIMULATOR
         try:
             self.run = RehearsalRun.start(
-                self.result, device=device, push_n=self.push.value(), record=self.record.isChecked()
+                self.result,
+                device=device,
+                push_n=self.push.value(),
+                record=self.record.isChecked(),
+                duration_s=self.duration_s,
+                realtime=self.realtime,
+                series_uid="" if self.volume is None else self.volume.info.series_uid,
             )
         except (ValueError, OSError) as exc:
             self.message.setText(f"error: {exc}")
@@ -195,6 +208,14 @@ class RehearsalPanel(QWidget):
             self._update_buttons()
             if run.error:
                 self.message.setText(f"error: {run.error}")
+            elif run.session is not None:
+                s = run.session
+                self.message.setText(
+                    f"session ended ({s.final_state}): deepest drill {s.max_drill_mm:.2f} mm of "
+                    f"stop {s.stop_depth_mm:.2f} mm, {s.samples} samples, {s.overruns} overruns"
+                )
+            elif run.cancelled:
+                self.message.setText("stopped by the user (device in its safe state)")
             self.finished.emit()
 
     def show_telemetry(self, tel: Telemetry) -> None:
@@ -213,7 +234,11 @@ class RehearsalPanel(QWidget):
             "color:#c62828; font-weight:bold" if tel.state == "stopped" else ""
         )
         self.safe_label.setText("safe state: YES" if tel.state == "safe" else "safe state: no")
-        self.depth_changed.emit(tel.drill_mm)
+        now = time.monotonic()
+        last_t, last_depth = self._last_emit
+        if now - last_t >= MIN_3D_UPDATE_S and tel.drill_mm != last_depth:
+            self._last_emit = (now, tel.drill_mm)
+            self.depth_changed.emit(tel.drill_mm)
 
     def export_dialog(self) -> None:
         path = QFileDialog.getExistingDirectory(self, "Export the session to a folder")

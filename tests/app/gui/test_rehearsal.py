@@ -1,0 +1,90 @@
+"""A simulated rehearsal from the window: arm, push, reach the auto-stop, export."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PySide6.QtCore import Qt
+from pytestqt.qtbot import QtBot
+
+from app.gui.main_window import MainWindow
+from app.gui.rehearsal import SIMULATOR, clearance_at_mm, device_choices
+from app.pipeline import plan_path
+from imaging import load_series
+from imaging.phantom_io import PhantomCase
+from imaging.plan import load_plan
+from model import load_calibration
+from tests.app.gui.test_window import LOAD_TIMEOUT_MS, open_case
+
+
+def test_device_choices_start_with_the_simulator() -> None:
+    choices = device_choices()
+    assert choices[0] == SIMULATOR
+    assert all(c.startswith("serial:") for c in choices[1:])
+
+
+def test_clearance_at_the_live_depth_interpolates_the_path(phantom_case: PhantomCase) -> None:
+    plan = load_plan(phantom_case.plan_path)
+    result = plan_path(load_series(phantom_case.ct_dir), plan, load_calibration(plan.calibration))
+    # Canal top at z = -41.8, entry at z = -29: the tip is 12.8 - x above it (vertical drill,
+    # canal directly below), so clearance(x) = 12.8 - x.
+    for depth in (0.0, 3.3, 10.8):
+        assert clearance_at_mm(result, depth) == pytest.approx(12.8 - depth, abs=0.01)
+
+
+def test_simulated_rehearsal_reaches_the_auto_stop_and_exports(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase, tmp_path: Path
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    panel = window.rehearsal
+    assert panel.connect_button.isEnabled()
+    panel.realtime = False
+    panel.duration_s = 3.0
+    panel.push.setValue(12.0)
+    panel.device.setCurrentText(SIMULATOR)
+    with qtbot.waitSignal(panel.finished, timeout=60_000):
+        qtbot.mouseClick(panel.connect_button, Qt.MouseButton.LeftButton)
+    run = panel.run
+    assert run is not None and run.error == "" and run.session is not None
+    stop = window.view.curves.stop_depth_mm if window.view is not None else np.nan
+    drill = np.array([r[2] for r in run.rows])
+    states = [r[4] for r in run.rows]
+    assert "cutting" in states and "stopped" in states
+    # The device held the drill at the stop depth: never past it by more than 0.05 mm.
+    assert drill.max() == pytest.approx(stop, abs=0.05)
+    assert run.session.max_drill_mm <= stop + 0.05
+    first_stop = states.index("stopped")
+    assert drill[first_stop] == pytest.approx(stop, abs=0.05)
+    assert "REACHED" in panel.auto_stop_label.text() or states[-1] != "stopped"
+    assert float(panel.depth_label.text().split()[0]) == pytest.approx(drill[-1], abs=0.01)
+
+    files = panel.export(tmp_path / "out")
+    names = {p.relative_to(tmp_path / "out").as_posix() for p in files}
+    assert {"force.csv", "profile.csv", "summary.json", "force.png"} <= names
+    assert {"session/session.csv", "session/summary.json"} <= names
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["stop_depth_mm"] == pytest.approx(stop, abs=1e-4)  # written to 4 decimals
+    with (tmp_path / "out" / "session" / "session.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == len(run.rows)
+    assert max(float(r["drill_mm"]) for r in rows) == pytest.approx(drill.max(), abs=1e-4)
+
+
+def test_stop_button_ends_a_realtime_run_in_the_safe_state(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    panel = window.rehearsal
+    panel.push.setValue(0.0)  # the hand rests: nothing moves
+    panel.start()
+    assert panel.run is not None
+    qtbot.waitUntil(lambda: panel.last is not None, timeout=10_000)
+    with qtbot.waitSignal(panel.finished, timeout=10_000):
+        qtbot.mouseClick(panel.stop_button, Qt.MouseButton.LeftButton)
+    assert panel.run.cancelled
+    assert "safe state" in panel.message.text()
+    assert panel.export_button.isEnabled()
