@@ -38,7 +38,9 @@ from haptics.protocol import (
     SimReset,
     Stop,
     Telemetry,
+    UnknownTypeError,
     Version,
+    VersionError,
     encode,
     profile_crc32,
 )
@@ -118,11 +120,13 @@ class DeviceEmulator:
                 self._handle(item)
             else:
                 self.frames_rejected += 1
-                reason = (
-                    NakReason.UNKNOWN_TYPE
-                    if isinstance(item, MessageError)
-                    else NakReason.BAD_FRAME
-                )
+                reason = NakReason.BAD_FRAME
+                if isinstance(item, UnknownTypeError):
+                    reason = NakReason.UNKNOWN_TYPE
+                elif isinstance(item, VersionError):
+                    reason = NakReason.BAD_VERSION
+                elif isinstance(item, MessageError):
+                    reason = NakReason.BAD_LENGTH
                 self._send(Nak(0, 0, int(reason)))
 
     # ------------------------------------------------------------ commands

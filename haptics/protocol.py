@@ -50,6 +50,14 @@ class MessageError(ProtocolError):
     """Well-framed bytes that are not a valid message (version, type or body length)."""
 
 
+class UnknownTypeError(MessageError):
+    """A message type this protocol version does not define."""
+
+
+class VersionError(MessageError):
+    """A frame of another protocol version."""
+
+
 class MsgType(IntEnum):
     """Message type codes (header byte 1)."""
 
@@ -456,7 +464,7 @@ def decode(frame: bytes) -> Packet:
         raise ChecksumError("CRC-16 mismatch")
     version, mtype, seq, time_us = HEADER.unpack_from(raw)
     if version != PROTOCOL_VERSION:
-        raise MessageError(f"protocol version {version}, expected {PROTOCOL_VERSION}")
+        raise VersionError(f"protocol version {version}, expected {PROTOCOL_VERSION}")
     body = raw[HEADER.size : -CRC.size]
     message: Message
     if mtype == MsgType.PROFILE_CHUNK:
@@ -470,7 +478,7 @@ def decode(frame: bytes) -> Packet:
     else:
         cls = _FIXED.get(mtype)
         if cls is None:
-            raise MessageError(f"unknown message type 0x{mtype:02x}")
+            raise UnknownTypeError(f"unknown message type 0x{mtype:02x}")
         if len(body) != cls.FMT.size:
             raise MessageError(
                 f"{MsgType(mtype).name} body of {len(body)} bytes, expected {cls.FMT.size}"
