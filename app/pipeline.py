@@ -220,7 +220,7 @@ def _out_of_volume_depth_mm(
     return lo
 
 
-def _grid_bracket(
+def grid_bracket(
     depth: np.ndarray, clearance: np.ndarray, margins: np.ndarray
 ) -> tuple[float, float] | None:
     """The grid step where the margin is first violated (max_safe_depth_mm checks it)."""
@@ -291,7 +291,7 @@ def plan_path(
     )
     clearance = clearance_profile_mm(plan, plan.landmarks, depth)
     margins = np.array([plan.landmark_margin_mm(lm) for lm in plan.landmarks])
-    max_safe = max_safe_depth_mm(plan, bracket_mm=_grid_bracket(depth, clearance, margins))
+    max_safe = max_safe_depth_mm(plan, bracket_mm=grid_bracket(depth, clearance, margins))
     oov = _out_of_volume_depth_mm(volume, plan, lip, n_rings, n_angles)
     candidates = [
         (plan.planned_depth_mm, "planned_depth"),
