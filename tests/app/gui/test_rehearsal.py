@@ -18,7 +18,7 @@ from imaging import load_series
 from imaging.phantom_io import PhantomCase
 from imaging.plan import load_plan
 from model import load_calibration
-from tests.app.gui.test_window import LOAD_TIMEOUT_MS, open_case
+from tests.app.gui.helpers import open_case
 
 
 def test_device_choices_start_with_the_simulator() -> None:

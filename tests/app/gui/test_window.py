@@ -13,14 +13,7 @@ from pytestqt.qtbot import QtBot
 from app.gui.main_window import MainWindow
 from imaging.phantom_io import PhantomCase
 from imaging.plan import load_plan
-
-LOAD_TIMEOUT_MS = 30_000
-
-
-def open_case(qtbot: QtBot, win: MainWindow, case: PhantomCase) -> None:
-    win.open_plan(case.plan_path)
-    with qtbot.waitSignal(win.path_updated, timeout=LOAD_TIMEOUT_MS):
-        win.open_folder(case.ct_dir)
+from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 
 
 def plot_stop_lines(win: MainWindow) -> list[float]:

@@ -1,0 +1,18 @@
+"""Helpers shared by the window tests."""
+
+from __future__ import annotations
+
+from pytestqt.qtbot import QtBot
+
+from app.gui.main_window import MainWindow
+from imaging.phantom_io import PhantomCase
+
+#: Longest wait for a load or a path computation, ms.
+LOAD_TIMEOUT_MS = 30_000
+
+
+def open_case(qtbot: QtBot, win: MainWindow, case: PhantomCase) -> None:
+    """Open the case's plan and series and wait until the path is drawn."""
+    win.open_plan(case.plan_path)
+    with qtbot.waitSignal(win.path_updated, timeout=LOAD_TIMEOUT_MS):
+        win.open_folder(case.ct_dir)
