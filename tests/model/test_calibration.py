@@ -163,3 +163,26 @@ def test_harmonics_sorted_by_order() -> None:
     doc = _mutated(harmonics=list(reversed(PINE["harmonics"])))
     cal: Calibration = calibration_from_dict(doc)
     assert [h.order for h in cal.harmonics] == [1, 2]
+
+
+def test_integer_beyond_float_range_is_refused_in_one_line() -> None:
+    with pytest.raises(CalibrationError, match="gate_hu must be finite") as info:
+        calibration_from_dict(_mutated(gate_hu=10**400), source_path="big.json")
+    assert "\n" not in str(info.value)
+    doc = _mutated(harmonics=[{"order": 10**5000, "b0": 1.0, "n": -1.0}])
+    with pytest.raises(CalibrationError, match=r"harmonics\[0\]\.order") as info:
+        calibration_from_dict(doc, source_path="big.json")
+    assert len(str(info.value)) < 300
+
+
+@pytest.mark.parametrize(
+    ("a0", "field"),
+    [
+        ({"b0": 400.0, "n": 0.77, "ke": 0.25}, "a0"),
+        ({"b0": -1.35, "n": 500.0, "ke": 0.25}, "a0"),
+        ({"b0": -1.35, "n": 0.77, "ke": 1e308}, "a0.ke"),
+    ],
+)
+def test_laws_that_would_overflow_are_refused(a0: dict[str, float], field: str) -> None:
+    with pytest.raises(CalibrationError, match=field):
+        calibration_from_dict(_mutated(a0=a0), source_path="x.json")
