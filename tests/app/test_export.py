@@ -333,3 +333,42 @@ def test_one_refused_plan_writes_nothing(tmp_path: Path) -> None:
     assert code == 2 and "lies outside the CT volume" in err
     assert not out.exists()
     assert list(tmp_path.iterdir()) == [outside]
+
+
+def test_edge_cases_no_landmark_and_a_stop_at_the_entry(tmp_path: Path) -> None:
+    from app.export import ExportJob, write_exports
+    from app.pipeline import plan_path
+    from imaging.landmarks import PointLandmark
+    from imaging.plan import Plan
+    from imaging.volume import CTVolume, SeriesInfo
+    from model.calibration import load_calibration
+
+    hu = np.full((40, 8, 8), 1000, dtype=np.int16)
+    hu[:10] = -1000
+    affine = np.diag([0.5, 0.5, 0.5, 1.0])
+    volume = CTVolume(hu=hu, affine_lps=affine, valid=None, info=SeriesInfo(series_uid="9.9"))
+    cal = load_calibration("pine-wood-paper")
+    free = Plan(entry_lps=[1.75, 1.75, 2.0], target_lps=[1.75, 1.75, 12.0], name="free")
+    blocked = Plan(
+        entry_lps=[1.75, 1.75, 2.0],
+        target_lps=[1.75, 1.75, 12.0],
+        landmarks=(PointLandmark("tooth", [1.75, 1.75, 3.0]),),  # 1 mm ahead: margin 2 mm
+        name="blocked",
+    )
+    jobs = [ExportJob(plan_path(volume, p, cal), p.name) for p in (free, blocked)]
+    written = write_exports(jobs, tmp_path / "out", feed_mm_s=2.0, rate_hz=100.0, series_uid="9.9")
+    assert len(written) == 8
+    s_free = json.loads((tmp_path / "out" / "free" / "summary.json").read_text(encoding="utf-8"))
+    assert s_free["stop_reason"] == "planned_depth" and s_free["stop_depth_mm"] == 10.0
+    assert s_free["min_clearance_mm"] is None and s_free["nearest_landmark"] is None
+    assert s_free["calibration_illustrative"] is False
+    _, rows = _rows(tmp_path / "out" / "free" / "force.csv")
+    assert len(rows) == 501 and float(rows[-1]["depth_mm"]) == pytest.approx(10.0)
+    assert {r["clearance_mm"] for r in rows} == {"inf"}
+    s_blk = json.loads((tmp_path / "out" / "blocked" / "summary.json").read_text(encoding="utf-8"))
+    assert s_blk["stop_reason"] == "margin" and s_blk["stop_depth_mm"] == 0.0
+    assert s_blk["min_clearance_mm"] == pytest.approx(1.0)
+    assert s_blk["hu_grading"]["segments"][0]["mean_hu"] is None
+    _, rows = _rows(tmp_path / "out" / "blocked" / "force.csv")
+    assert len(rows) == 1 and float(rows[0]["force_n"]) == 0.0
+    assert _png_size(tmp_path / "out" / "blocked" / "force.png") == (1200, 1000)
