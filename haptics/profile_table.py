@@ -33,9 +33,9 @@ def _f32(values: ArrayLike, name: str) -> np.ndarray:
     arr = np.asarray(values, dtype=np.float64)
     if not np.all(np.isfinite(arr)):
         raise ProfileTableError(f"profile table {name} contains NaN or inf; pass finite forces")
-    out = arr.astype(np.float32)
-    if not np.all(np.isfinite(out)):
+    if arr.size and float(np.max(np.abs(arr))) > float(np.finfo(np.float32).max):
         raise ProfileTableError(f"profile table {name} overflows float32")
+    out = arr.astype(np.float32)
     out.flags.writeable = False
     return out
 

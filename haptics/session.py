@@ -82,7 +82,7 @@ def _number(text: str, what: str, spec: str) -> float:
     except ValueError:
         value = math.nan
     if not math.isfinite(value):
-        raise SessionInputError(f"{what} in {spec!r} must be a finite number, got {text!r}")
+        raise SessionInputError(f"{spec}: {what} must be a finite number, got {text!r}")
     return value
 
 
@@ -102,8 +102,8 @@ def load_script(path: Path) -> tuple[tuple[float, float], ...]:
             continue
         if len(row) < 2:
             raise SessionInputError(f"operator script {path}:{lineno}: expected time_s,force_n")
-        t = _number(row[0], f"time_s at line {lineno}", str(path))
-        f = _number(row[1], f"force_n at line {lineno}", str(path))
+        t = _number(row[0], f"time_s at line {lineno}", f"operator script {path}")
+        f = _number(row[1], f"force_n at line {lineno}", f"operator script {path}")
         if rows and t <= rows[-1][0]:
             raise SessionInputError(f"operator script {path}:{lineno}: time_s must increase")
         if abs(f) > MAX_HAND_N:
@@ -125,7 +125,7 @@ def parse_operator(spec: str) -> Operator:
         )
     if kind == "script":
         return Operator("script", script=load_script(Path(arg)), spec=spec)
-    value = _number(arg, "the value", spec)
+    value = _number(arg, "the value", f"--operator {spec!r}")
     if kind == "push" and abs(value) > MAX_HAND_N:
         raise SessionInputError(f"--operator {spec!r}: force must be within +-{MAX_HAND_N:g} N")
     if kind == "feed" and abs(value) > 200.0:
@@ -151,12 +151,12 @@ def parse_fault(spec: str) -> FaultSpec:
             f"--fault {spec!r}: use link-loss@T, garbage@T, delay@T:MS or reset@T (T in s)"
         )
     t_text, _, ms_text = rest.partition(":")
-    t = _number(t_text, "the time", spec)
+    t = _number(t_text, "the time", f"--fault {spec!r}")
     if t < 0.0:
         raise SessionInputError(f"--fault {spec!r}: the time must be >= 0 s")
     ms = 0.0
     if kind == "delay":
-        ms = _number(ms_text, "the delay (ms)", spec)
+        ms = _number(ms_text, "the delay (ms)", f"--fault {spec!r}")
         if ms <= 0.0:
             raise SessionInputError(f"--fault {spec!r}: the delay must be > 0 ms")
     elif ms_text:
