@@ -203,11 +203,14 @@ def streak_hu(points_lps: np.ndarray, geom: MandibleGeometry) -> np.ndarray:
     return np.asarray(np.where(in_slices, amp * fade, 0.0))
 
 
-def voxel_centres_lps(shape: tuple[int, ...], affine_lps: np.ndarray) -> np.ndarray:
-    """(slices, rows, cols, 3) LPS mm of the voxel centres of a grid."""
+def voxel_centres_lps(
+    shape: tuple[int, ...], affine_lps: np.ndarray, *, slices: tuple[int, int] | None = None
+) -> np.ndarray:
+    """(slices, rows, cols, 3) LPS mm of the voxel centres of a grid (or of slices k0..k1-1)."""
     n_s, n_r, n_c = (int(v) for v in shape)
+    k0, k1 = (0, n_s) if slices is None else slices
     k, j, i = np.meshgrid(
-        np.arange(n_s, dtype=np.float64),
+        np.arange(k0, k1, dtype=np.float64),
         np.arange(n_r, dtype=np.float64),
         np.arange(n_c, dtype=np.float64),
         indexing="ij",

@@ -82,6 +82,7 @@ def ground_truth(phantom: Phantom) -> dict[str, Any]:
         "noise_hu": phantom.noise_hu,
         "metal_streak": phantom.metal_streak,
         "seed": phantom.seed,
+        "partial_volume": phantom.partial_volume,
         "geometry": geometry,
     }
 
@@ -124,6 +125,7 @@ def write_phantom(
         repr(phantom.noise_hu),
         repr(phantom.metal_streak),
         str(phantom.seed),
+        *([f"pv{phantom.partial_volume}"] if phantom.partial_volume != 1 else []),
     ]
     series_uid = str(generate_uid(entropy_srcs=[*params, "series"]))
     spacing = phantom.spacing_mm

@@ -35,6 +35,13 @@ def register(subparsers: Any) -> None:
         "--metal-streak", action="store_true", help="add a metal insert and its streak artefact"
     )
     p.add_argument("--seed", type=int, default=0, help="noise seed (0)")
+    p.add_argument(
+        "--partial-volume",
+        type=int,
+        default=1,
+        metavar="N",
+        help="average N^3 points per voxel for scanner-like blurred edges (1: exact, hard edges)",
+    )
     p.set_defaults(func=run)
 
 
@@ -46,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
         noise_hu=args.noise_hu,
         metal_streak=args.metal_streak,
         seed=args.seed,
+        partial_volume=args.partial_volume,
     )
     case = write_phantom(args.out, phantom)
     s, r, c = phantom.hu.shape

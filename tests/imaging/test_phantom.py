@@ -11,6 +11,7 @@ from imaging.phantom import (
     MISCH_CLASSES,
     Phantom,
     PhantomInputError,
+    _voxelise,
     body_coords,
     bone_sdf_mm,
     canal_distance_mm,
@@ -191,6 +192,9 @@ def test_lip_sampling_on_the_phantom_sees_each_layer(d2: Phantom) -> None:
         ({"spacing_mm": float("nan")}, "spacing_mm"),
         ({"noise_hu": -1.0}, "noise_hu"),
         ({"shape": (1, 10, 10)}, "shape"),
+        ({"shape": (400, 400, 400)}, "shape"),
+        ({"partial_volume": 0}, "partial_volume"),
+        ({"partial_volume": 2.5}, "partial_volume"),
     ],
 )
 def test_bad_parameters_name_the_field(kwargs: dict[str, object], field: str) -> None:
@@ -208,3 +212,28 @@ def test_a_custom_shape_keeps_the_anatomy_centred() -> None:
     c = ph.canal_centerline_lps
     assert len(c) >= 20 and np.all((c >= lo - 1e-9) & (c <= hi + 1e-9))
     np.testing.assert_array_equal(ph.hu, np.rint(mandible_hu(ph.voxel_centres_lps(), ph.geometry)))
+
+
+def test_partial_volume_averages_the_field_over_each_voxel(d2: Phantom) -> None:
+    ph = make_mandible_phantom(partial_volume=3)
+    assert ph.partial_volume == 3
+    centres = d2.voxel_centres_lps()
+    offs = np.array([-1.0, 0.0, 1.0]) * 0.4 / 3.0
+    mean = np.zeros(d2.hu.shape)
+    for dz in offs:
+        for dy in offs:
+            for dx in offs:
+                mean += mandible_hu(centres + np.array([dx, dy, dz]), d2.geometry)
+    np.testing.assert_array_equal(ph.hu, np.rint(mean / 27.0))
+    # Voxels wholly inside one tissue keep its exact value; edge voxels take in-between values.
+    assert (ph.hu == d2.hu).mean() > 0.85
+    edge = ph.hu != d2.hu
+    assert edge.sum() > 10_000
+    assert set(np.unique(ph.hu[edge])) - set(np.unique(d2.hu)) != set()
+
+
+def test_voxelising_in_slabs_changes_nothing() -> None:
+    ph = make_mandible_phantom(spacing_mm=1.0, metal_streak=True)
+    whole = _voxelise(ph.hu.shape, ph.affine_lps, ph.geometry, 2)
+    slabs = _voxelise(ph.hu.shape, ph.affine_lps, ph.geometry, 2, chunk_voxels=3 * 40 * 32)
+    np.testing.assert_array_equal(whole, slabs)
