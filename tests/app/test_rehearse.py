@@ -1,0 +1,131 @@
+"""``ctdrill rehearse`` on the demo phantom: files, contract, stop, faults, replay, refusals."""
+
+from __future__ import annotations
+
+import csv
+import json
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from app.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+DEMO = ROOT / "assets" / "demo"
+
+
+def _rehearse(out: Path, *extra: str, operator: str = "push:20", duration: str = "2") -> int:
+    return main(
+        [
+            "rehearse",
+            "--dicom",
+            str(DEMO / "ct"),
+            "--plan",
+            str(DEMO / "plan.json"),
+            "--out",
+            str(out),
+            "--operator",
+            operator,
+            "--duration-s",
+            duration,
+            *extra,
+        ]
+    )
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_rehearse_writes_the_contract_files_and_stops_at_the_margin(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    assert _rehearse(out, operator="push:78", duration="3") == 0
+    text = (out / "session.csv").read_text()
+    assert text.splitlines()[0] == "time_s,master_mm,drill_mm,force_cmd_n,state"
+    rows = _rows(out / "session.csv")
+    assert len(rows) == 3000
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("stop_depth_mm", "max_drill_mm", "tick_rate_hz", "overruns", "faults"):
+        assert key in summary
+    assert summary["stop_reason"] == "margin"
+    assert summary["calibration"] == "bone-illustrative" and summary["calibration_illustrative"]
+    stop = summary["stop_depth_mm"]
+    assert 0.0 < stop < summary["planned_depth_mm"]
+    drill = [float(r["drill_mm"]) for r in rows]
+    assert max(drill) <= stop + 1e-4  # CSV rounding to 1e-5 mm
+    assert max(drill) == pytest.approx(stop, abs=1e-4)  # 78 N reaches the stop...
+    assert float(rows[-1]["master_mm"]) > stop  # ...while the hand is pushed past it
+    assert rows[-1]["state"] == "stopped"
+    assert {r["state"] for r in rows} <= {"cutting", "stopped"}
+    assert all(0.0 <= float(r["force_cmd_n"]) <= 78.0 for r in rows)
+    assert summary["tick_rate_hz"] == pytest.approx(10_000.0, rel=1e-3)
+    assert summary["overruns"] == 0
+
+
+def test_same_seed_replays_identically_and_link_loss_goes_safe(tmp_path: Path) -> None:
+    faults = ["--fault", "garbage@0.2", "--fault", "link-loss@0.5", "--seed", "3"]
+    assert _rehearse(tmp_path / "a", *faults, duration="0.8") == 0
+    assert _rehearse(tmp_path / "b", *faults, duration="0.8") == 0
+    a = (tmp_path / "a" / "session.csv").read_bytes()
+    assert a == (tmp_path / "b" / "session.csv").read_bytes()
+    rows = _rows(tmp_path / "a" / "session.csv")
+    first_safe = next(float(r["time_s"]) for r in rows if r["state"] == "safe")
+    assert 0.5 < first_safe <= 0.552
+    summary = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert summary["final_state"] == "safe"
+    assert [f["kind"] for f in summary["faults"] if f["source"] == "injected"] == [
+        "garbage",
+        "link-loss",
+    ]
+
+
+@pytest.mark.parametrize(
+    ("args", "kwargs", "match"),
+    [
+        ((), {"operator": "shove:3"}, "--operator"),
+        (("--fault", "meteor@1"), {}, "--fault"),
+        (("--device", "usb"), {}, "--device"),
+        (("--device", "serial:/nonexistent/tty"), {}, "cannot open serial port"),
+        ((), {"duration": "-1"}, "--duration-s"),
+    ],
+)
+def test_bad_input_is_one_error_line_and_exit_2(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    args: tuple[str, ...],
+    kwargs: dict[str, str],
+    match: str,
+) -> None:
+    assert _rehearse(tmp_path / "out", *args, **kwargs) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and match in err and err.count("\n") == 1
+    assert "Traceback" not in err
+
+
+@pytest.mark.timeout(60)
+def test_rehearse_over_a_serial_link_to_the_emulator(tmp_path: Path) -> None:
+    link = tmp_path / "dev"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "app.cli", "emulate", "--pty-link", str(link)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().startswith("emulating on")
+        out = tmp_path / "out"
+        assert _rehearse(out, "--device", f"serial:{link}", duration="1") == 0
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.communicate(timeout=10)
+    summary = json.loads((out / "summary.json").read_text())
+    rows = _rows(out / "session.csv")
+    assert len(rows) > 300  # real time: about 1000 rows, fewer if the machine is busy
+    assert summary["max_drill_mm"] <= summary["stop_depth_mm"]
+    assert 5_000.0 < summary["tick_rate_hz"] < 15_000.0  # device time keeps up with real time
+    assert summary["device"] == f"serial:{link}"
