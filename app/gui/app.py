@@ -62,6 +62,7 @@ def run_gui(
     """
     app = application()
     window = make_window(settings)
+    window.ask_series = screenshot is None  # unattended: take the largest series
     if plan is not None:
         window.open_plan(plan)
     if dicom is not None:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pyvista as pv
@@ -15,6 +16,7 @@ from app.gui.scene import bone_surface
 from app.gui.slices import VIEWS, SliceImage, reslice
 from imaging import CTVolume, load_series
 from imaging.plan import Plan
+from imaging.series import SeriesSummary, list_series
 
 #: Longest side of the strided grid the bone surface is contoured on, samples.
 SURFACE_MAX_DIM = 160
@@ -30,14 +32,32 @@ class Loaded:
     iso_hu: float
 
 
+@dataclass(frozen=True)
+class SeriesChoice:
+    """``path`` holds several CT stacks: the user picks one (largest first)."""
+
+    path: str
+    series: tuple[SeriesSummary, ...]
+
+
 def load_case(
     path: str | os.PathLike[str],
     *,
     series_uid: str | None = None,
     iso_hu: float = 300.0,
     max_dim: int = SURFACE_MAX_DIM,
-) -> Loaded:
-    """Load the series at ``path`` and contour its bone surface."""
+    ask_series: bool = False,
+) -> Loaded | SeriesChoice:
+    """Load the series at ``path`` and contour its bone surface.
+
+    With ``ask_series`` and no ``series_uid``, a folder holding several CT stacks returns a
+    :class:`SeriesChoice` instead (the loader alone would take the largest, with a
+    ``multiple_series`` warning).
+    """
+    if ask_series and series_uid is None and Path(path).is_dir():
+        series = list_series(str(path))
+        if len(series) > 1:
+            return SeriesChoice(path=str(path), series=series)
     volume = load_series(str(path), series_uid=series_uid)
     surface = volume_surface(volume, iso_hu=iso_hu, max_dim=max_dim)
     return Loaded(path=str(path), volume=volume, surface=surface, iso_hu=iso_hu)

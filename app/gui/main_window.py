@@ -14,11 +14,12 @@ from typing import Any
 import numpy as np
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
-from PySide6.QtCore import QSettings, Qt, Signal
+from PySide6.QtCore import QSettings, Qt, QThreadPool, Signal
 from PySide6.QtGui import QAction, QCloseEvent, QDragEnterEvent, QDropEvent, QImage, QKeySequence
 from PySide6.QtWidgets import (
     QFileDialog,
     QGridLayout,
+    QInputDialog,
     QLabel,
     QListWidget,
     QMainWindow,
@@ -45,6 +46,8 @@ from imaging import CTVolume
 from imaging.plan import Plan, load_plan, save_plan
 
 MAX_RECENT = 8
+#: On close, how long to let a running load or computation finish, ms.
+CLOSE_WAIT_MS = 5000
 #: Delay between the last plan edit and the recomputation, ms.
 DEBOUNCE_MS = 150
 
@@ -69,6 +72,8 @@ class MainWindow(QMainWindow):
         self.window_level = WINDOW_PRESETS["bone"]
         self.last_error = ""
         self.load_error: ValueError | None = None  # bad input met while loading a series
+        #: Ask which series to open when a folder holds several (else the largest is taken).
+        self.ask_series = True
         self._refocus_next = False
 
         self.view3d = View3D()
@@ -196,9 +201,9 @@ class MainWindow(QMainWindow):
     def open_folder(self, path: str | os.PathLike[str], *, series_uid: str | None = None) -> None:
         """Load a series in the background, with a cancellable progress dialog."""
         folder = str(path)
-        iso = self.iso_hu
+        iso, ask = self.iso_hu, self.ask_series
         self.load_runner.submit(
-            lambda: compute.load_case(folder, series_uid=series_uid, iso_hu=iso)
+            lambda: compute.load_case(folder, series_uid=series_uid, iso_hu=iso, ask_series=ask)
         )
         self.progress = QProgressDialog(f"Loading {folder} ...", "Cancel", 0, 0, self)
         self.progress.setWindowModality(Qt.WindowModality.WindowModal)
@@ -216,8 +221,29 @@ class MainWindow(QMainWindow):
             self.progress.reset()
             self.progress = None
 
-    def _loaded(self, loaded: compute.Loaded) -> None:
+    def choose_series(self, choice: compute.SeriesChoice) -> str | None:
+        """Ask which CT stack to open; returns its SeriesInstanceUID (None: cancelled)."""
+        labels = [
+            f"{s.n_slices} slices {s.cols}x{s.rows}  {s.description or '(no description)'}  "
+            f"[{s.series_uid}]"
+            for s in choice.series
+        ]
+        label, ok = QInputDialog.getItem(
+            self, "Several series", f"{choice.path} holds several CT series:", labels, 0, False
+        )
+        if not ok:
+            return None
+        return choice.series[labels.index(label)].series_uid
+
+    def _loaded(self, loaded: compute.Loaded | compute.SeriesChoice) -> None:
         self._close_progress()
+        if isinstance(loaded, compute.SeriesChoice):
+            uid = self.choose_series(loaded)
+            if uid is None:
+                self._status("loading cancelled")
+            else:
+                self.open_folder(loaded.path, series_uid=uid)
+            return
         self.volume = loaded.volume
         self.volume_path = loaded.path
         self._remember(loaded.path)
@@ -434,5 +460,6 @@ class MainWindow(QMainWindow):
         self.load_runner.cancel()
         self.path_runner.cancel()
         self.slice_runner.cancel()
+        QThreadPool.globalInstance().waitForDone(CLOSE_WAIT_MS)
         self.view3d.close_plotter()
         super().closeEvent(event)

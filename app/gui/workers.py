@@ -34,11 +34,14 @@ class Job(QRunnable):
 
     def run(self) -> None:  # runs in a pool thread
         try:
-            result = self.fn()
-        except Exception as exc:  # delivered to the UI, which decides what is bad input
-            self.signals.failed.emit(self.generation, exc, traceback.format_exc())
+            try:
+                result = self.fn()
+            except Exception as exc:  # delivered to the UI, which decides what is bad input
+                self.signals.failed.emit(self.generation, exc, traceback.format_exc())
+                return
+            self.signals.done.emit(self.generation, result)
+        except RuntimeError:  # the receiver was destroyed (window closed): nobody to tell
             return
-        self.signals.done.emit(self.generation, result)
 
 
 class Runner(QObject):

@@ -1,0 +1,62 @@
+"""Real series in the window: the series picker, loader warnings, rehearsal blocked with why."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from pytestqt.qtbot import QtBot
+
+from app.gui import compute
+from app.gui.main_window import MainWindow
+from tests.app.gui.helpers import LOAD_TIMEOUT_MS
+
+MIXED = "dcmqa_ct_Philips_phantom_gantrytilt_mixedfolder"
+SMALLER_UID = "1.3.46.670589.33.1.7303547162003802183.31761132431540865648"  # the 54-slice one
+
+
+def test_several_series_ask_and_load_the_chosen_one(
+    qtbot: QtBot, window: MainWindow, shared_data: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    offered: list[compute.SeriesChoice] = []
+
+    def choose(choice: compute.SeriesChoice) -> str:
+        offered.append(choice)
+        return SMALLER_UID
+
+    monkeypatch.setattr(window, "choose_series", choose)
+    with qtbot.waitSignal(window.volume_loaded, timeout=LOAD_TIMEOUT_MS):
+        window.open_folder(shared_data / MIXED)
+    assert [s.n_slices for s in offered[0].series] == [58, 54]
+    assert window.volume is not None
+    assert window.volume.info.series_uid == SMALLER_UID
+    assert window.volume.hu.shape[0] == 54
+    codes = [
+        window.warnings_list.item(i).text().split(":")[0]
+        for i in range(window.warnings_list.count())
+    ]
+    assert "gantry_tilt" in codes
+
+
+def test_cancelling_the_series_choice_loads_nothing(
+    qtbot: QtBot, window: MainWindow, shared_data: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(window, "choose_series", lambda choice: None)
+    window.open_folder(shared_data / MIXED)
+    qtbot.waitUntil(
+        lambda: window.statusBar().currentMessage() == "loading cancelled", timeout=LOAD_TIMEOUT_MS
+    )
+    assert window.volume is None
+
+
+def test_a_single_slice_blocks_rehearsal_and_says_why(
+    qtbot: QtBot, window: MainWindow, shared_data: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    single = "2.16.840.1.113662.2.12.0.3057.1241703565.43"  # the RT planning CT slice
+    monkeypatch.setattr(window, "choose_series", lambda choice: single)
+    with qtbot.waitSignal(window.volume_loaded, timeout=LOAD_TIMEOUT_MS):
+        window.open_folder(shared_data / "single_slice_ct")
+    qtbot.waitUntil(lambda: "single slice" in window.block_label.text(), timeout=LOAD_TIMEOUT_MS)
+    assert "Rehearsal disabled" in window.block_label.text()
+    assert not window.rehearsal.connect_button.isEnabled()
+    assert "single slice" in window.rehearsal.message.text()
