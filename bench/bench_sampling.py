@@ -47,6 +47,11 @@ TARGET = ENTRY + LENGTH_MM * _AXIS
 _CANAL_DIR = np.array([0.0, 1.0, 0.1]) / np.linalg.norm([0.0, 1.0, 0.1])
 _CANAL_P = ENTRY + 14.0 * _AXIS + np.array([0.4, 0.0, 0.0])
 CANAL_R = 1.2
+ORDER_NAMES = {0: "nearest", 1: "trilinear", 3: "cubic"}
+# fmt: off
+TABLE_HEADER = ["order", "step mm", "rings x angles", "samples", "time ms", "disc RMS s_t",
+                "disc RMS HU", "object RMS s_t", "object max s_t err", "object RMS HU"]
+# fmt: on
 
 
 def field_hu(p: np.ndarray) -> np.ndarray:
@@ -267,7 +272,6 @@ def plot(results: list[Result], default: Result | None, out: Path) -> None:
     fig, axs = plt.subplots(2, 2, figsize=(11, 8.5), constrained_layout=True)
     axes = axs.ravel()
     colours = {0: "tab:orange", 1: "tab:blue", 3: "tab:green"}
-    names = {0: "nearest", 1: "trilinear", 3: "cubic"}
     markers = {0.01: "v", 0.02: "^", 0.05: "o", 0.1: "s", 0.2: "D", 0.5: "X"}
     for ax, key, label in (
         (axes[0], "disc_st", "RMS s_t error vs converged sampling"),
@@ -310,7 +314,7 @@ def plot(results: list[Result], default: Result | None, out: Path) -> None:
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
     handles = [
-        Line2D([], [], ls="", marker="o", c=colours[o], label=names[o])
+        Line2D([], [], ls="", marker="o", c=colours[o], label=ORDER_NAMES[o])
         for o in sorted({r.order for r in results})
     ]
     handles += [
@@ -344,51 +348,35 @@ def _peer(quick: bool) -> str:
     t_ours, t_peer = time_it(ours, repeats=reps), time_it(peer, repeats=reps)
     a = ours().hu.reshape(-1)  # type: ignore[attr-defined]
     b = np.asarray(peer())
+    ratio = f"{t_ours.median_s / t_peer.median_s:.2f}"
+    rows = [["sample_lip_rings (trilinear, + outside counts, + axis)", t_ours.fmt("ms"), ratio],
+            ["map_coordinates(order=1) on the same points", t_peer.fmt("ms"), "1.00"]]  # fmt: skip
     return (
-        table(
-            ["implementation", "time per trajectory", "ratio"],
-            [
-                [
-                    "sample_lip_rings (trilinear, + outside counts, + axis)",
-                    t_ours.fmt("ms"),
-                    f"{t_ours.median_s / t_peer.median_s:.2f}",
-                ],
-                ["map_coordinates(order=1) on the same points", t_peer.fmt("ms"), "1.00"],
-            ],
-        )
+        table(["implementation", "time per trajectory", "ratio"], rows)
         + f"\n\nSame {depth.size} x {DEFAULT_N_RINGS} x {DEFAULT_N_ANGLES} points; largest "
         f"difference between the two: {np.max(np.abs(a - b)):.2g} HU."
     )
 
 
+def _n_samples(r: Result) -> int:
+    """Lip samples per trajectory: the machine-independent cost (times vary with load)."""
+    return int(np.arange(0.0, LENGTH_MM + 1e-9, r.step_mm).size) * r.n_rings * r.n_angles
+
+
 def run(quick: bool) -> Section:
     """Run the sweep, write the Pareto figure, return the report section."""
     results, notes = main_sweep(quick)
-    default = next(
-        (
-            r
-            for r in results
-            if r.order == 1
-            and (r.n_rings, r.n_angles) == (DEFAULT_N_RINGS, DEFAULT_N_ANGLES)
-            and r.step_mm == (0.1 if quick else 0.05)
-        ),
-        None,
-    )
+    key = (1, 0.1 if quick else 0.05, DEFAULT_N_RINGS, DEFAULT_N_ANGLES)
+    default = next((r for r in results if (r.order, r.step_mm, r.n_rings, r.n_angles) == key), None)
     plot(results, default, ROOT / FIGURE)
+    # fmt: off
     rows = [
-        [
-            {0: "nearest", 1: "trilinear", 3: "cubic"}[r.order],
-            r.step_mm,
-            f"{r.n_rings}x{r.n_angles}",
-            f"{r.time_s * 1e3:.3g}",
-            f"{r.disc_st:.4f}",
-            f"{r.disc_hu:.1f}",
-            f"{r.rms_st:.4f}",
-            f"{r.max_st:.3f}",
-            f"{r.rms_hu:.1f}",
-        ]
+        [ORDER_NAMES[r.order], r.step_mm, f"{r.n_rings}x{r.n_angles}", _n_samples(r),
+         f"{r.time_s * 1e3:.3g}", f"{r.disc_st:.4f}", f"{r.disc_hu:.1f}", f"{r.rms_st:.4f}",
+         f"{r.max_st:.3f}", f"{r.rms_hu:.1f}"]
         for r in sorted(results, key=lambda r: (r.order, r.step_mm, r.n_rings * r.n_angles))
     ]
+    # fmt: on
     front = pareto(results, "disc_st")
     md = [
         __doc__.split("\n\n", 1)[1].strip() if __doc__ else "",
@@ -404,25 +392,12 @@ def run(quick: bool) -> Section:
         "",
         "Pareto front on the discretisation s_t error (time ms, RMS s_t): "
         + ", ".join(
-            f"{('nearest', 'trilinear', '', 'cubic')[r.order]} {r.step_mm} mm "
+            f"{ORDER_NAMES[r.order]} {r.step_mm} mm "
             f"{r.n_rings}x{r.n_angles} ({r.time_s * 1e3:.2g}, {r.disc_st:.4f})"
             for r in front
         ),
         "",
-        table(
-            [
-                "order",
-                "step mm",
-                "rings x angles",
-                "time ms",
-                "disc RMS s_t",
-                "disc RMS HU",
-                "object RMS s_t",
-                "object max s_t err",
-                "object RMS HU",
-            ],
-            rows,
-        ),
+        table(TABLE_HEADER, rows),
         "",
         "### Peer: the same points through scipy",
         "",
