@@ -14,18 +14,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
-from model.calibration import Calibration, harmonic_freqs_hz
+from model.calibration import Calibration, Harmonic, PowerLaw, harmonic_freqs_hz
 from model.errors import ModelInputError
 from model.force import (
     MAX_FEED_MM_S,
-    a0_n,
-    bk_n,
     feed_factor,
     gate,
-    out_of_range,
     phase_rad,
 )
 
+_LN10 = math.log(10.0)
 #: Relative tolerance on the uniformity of a profile's depth step.
 _STEP_RTOL = 1e-6
 
@@ -191,22 +189,38 @@ def build_profile(
     freqs = harmonic_freqs_hz(calibration, blades=blades, rpm=rpm)
     n_angles = hu.shape[2]
 
-    def lip_mean(values: np.ndarray) -> np.ndarray:
-        """(..., D, R, A) -> (..., D): weighted over rings, mean over angles."""
-        return np.asarray(np.einsum("...dra,r->...d", values, w) / n_angles)
+    ring_w = w / n_angles
 
+    def lip_mean(values: np.ndarray) -> np.ndarray:
+        """(D, R, A) -> (D,): weighted over rings, mean over angles."""
+        return np.asarray(values.sum(axis=2) @ ring_w)
+
+    # One pass per quantity with reused buffers (a trajectory is ~1e5-1e6 samples): the gate,
+    # log10 of the clipped C', then each power law as exp(ln 10 (b0 + n log10 C')).
     g = gate(hu, calibration)
-    s0 = lip_mean(g * a0_n(hu, 0.0, calibration))
-    sk = lip_mean(g * bk_n(hu, calibration))
+    lo, hi = calibration.c_prime_range
+    log_cp = np.add(hu, 1000.0)
+    np.clip(log_cp, lo, hi, out=log_cp)
+    np.log10(log_cp, out=log_cp)
+    buf = np.empty_like(log_cp)
+    laws: list[PowerLaw | Harmonic] = [calibration.a0, *calibration.harmonics]
+    sums = []
+    for law in laws:
+        np.multiply(log_cp, law.n * _LN10, out=buf)
+        buf += law.b0 * _LN10
+        np.exp(buf, out=buf)
+        buf *= g
+        sums.append(lip_mean(buf))
+    n_clipped = int(np.count_nonzero((g > 0.0) & ((hu < lo - 1000.0) | (hu > hi - 1000.0))))
     return Profile(
         depth_mm=depth,
-        s0_n=s0,
-        sk_n=sk.reshape(len(freqs), depth.shape[0]),
+        s0_n=sums[0],
+        sk_n=np.array(sums[1:]).reshape(len(freqs), depth.shape[0]),
         freqs_hz=freqs,
         s_t=lip_mean(g),
         hu_mean=lip_mean(hu),
         ke_per_mm_s=calibration.ke_per_mm_s,
-        n_clipped=int(np.count_nonzero(out_of_range(hu, calibration))),
+        n_clipped=n_clipped,
         n_samples=int(hu.size),
         calibration=calibration.name,
     )

@@ -6,11 +6,15 @@ import numpy as np
 import pytest
 
 from model import (
+    Calibration,
     ModelInputError,
     Profile,
+    a0_n,
+    bk_n,
     build_profile,
     force_n,
     force_series_n,
+    gate,
     harmonic_freqs_hz,
     load_calibration,
 )
@@ -173,3 +177,21 @@ def test_int16_input_accepted() -> None:
     lip = np.full((3, 2, 4), -600, dtype=np.int16)
     p = build_profile(lip, [0.5, 0.5], [0.0, 0.1, 0.2], PINE, blades=2, rpm=900)
     np.testing.assert_allclose(p.s0_n, 10**-1.35 * 400**0.77)
+
+
+@pytest.mark.parametrize("cal", [PINE, BONE], ids=lambda c: c.name)
+def test_build_profile_matches_the_force_law_on_random_lips(cal: Calibration) -> None:
+    rng = np.random.default_rng(4)
+    lip = rng.uniform(-1100.0, 3500.0, (30, 5, 7))
+    w = rng.uniform(0.1, 1.0, 5)
+    w /= w.sum()
+    p = build_profile(lip, w, np.arange(30) * 0.05, cal, blades=2, rpm=900)
+    g = gate(lip, cal)
+    s0 = np.einsum("dra,r->d", g * a0_n(lip, 0.0, cal), w) / 7
+    sk = np.einsum("kdra,r->kd", g * bk_n(lip, cal), w) / 7
+    np.testing.assert_allclose(p.s0_n, s0, rtol=1e-12)
+    np.testing.assert_allclose(p.sk_n, sk, rtol=1e-12)
+    lo, hi = cal.c_prime_range
+    cp = lip + 1000
+    assert p.n_clipped == int(np.count_nonzero((g > 0) & ((cp < lo) | (cp > hi))))
+    assert p.n_clipped > 0
