@@ -272,3 +272,17 @@ def test_same_entry_and_target_is_bad_input() -> None:
         sample_lip_rings(
             vol, np.ones(3), np.ones(3), np.array([0.0]), diameter_mm=2.0, tip_length_mm=0.6
         )
+
+
+def test_nearest_order_returns_voxel_values() -> None:
+    vol, z_top = _slab_volume()
+    entry = np.array([0.1, -0.2, z_top + 1.0])
+    target = entry - np.array([0.0, 0.0, 10.0])
+    depth = np.linspace(0.0, 2.5, 41) + 0.0037
+    lip = sample_lip_rings(
+        vol, entry, target, depth, diameter_mm=2.0, tip_length_mm=0.6, n_angles=5, order=0
+    )
+    assert set(np.unique(lip.hu)) == {-1000.0, 1000.0}
+    xi = depth[:, None] - 0.6 * lip.radii_mm[None, :]
+    expected = np.where(xi > 1.0, 1000.0, -1000.0)  # the step sits halfway between voxel planes
+    np.testing.assert_array_equal(lip.hu, np.broadcast_to(expected[:, :, None], lip.hu.shape))

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from imaging.lip import sample_lip_rings
 from imaging.phantom import (
@@ -237,3 +239,36 @@ def test_voxelising_in_slabs_changes_nothing() -> None:
     whole = _voxelise(ph.hu.shape, ph.affine_lps, ph.geometry, 2)
     slabs = _voxelise(ph.hu.shape, ph.affine_lps, ph.geometry, 2, chunk_voxels=3 * 40 * 32)
     np.testing.assert_array_equal(whole, slabs)
+
+
+@given(u=st.floats(-12.0, 12.0), w=st.floats(-18.0, 18.0))
+def test_signed_distance_matches_a_dense_outline(u: float, w: float) -> None:
+    g = make_mandible_phantom(spacing_mm=2.0).geometry
+    # The rounded box outline: four straight sides and four quarter circles, densely sampled.
+    a, b, rc = g.half_width_mm, g.half_height_mm, g.corner_radius_mm
+    t = np.linspace(-1.0, 1.0, 2001)
+    sides = [
+        np.stack([np.full_like(t, a), t * (b - rc)], 1),
+        np.stack([np.full_like(t, -a), t * (b - rc)], 1),
+        np.stack([t * (a - rc), np.full_like(t, b)], 1),
+        np.stack([t * (a - rc), np.full_like(t, -b)], 1),
+    ]
+    phi = np.linspace(0.0, 2 * np.pi, 4001)
+    for sx in (-1, 1):
+        for sy in (-1, 1):
+            arc = np.stack([rc * np.cos(phi), rc * np.sin(phi)], 1)
+            keep = (arc[:, 0] * sx >= 0) & (arc[:, 1] * sy >= 0)
+            sides.append(arc[keep] + [sx * (a - rc), sy * (b - rc)])
+    outline = np.concatenate(sides)
+    dist = float(np.min(np.hypot(outline[:, 0] - u, outline[:, 1] - w)))
+    inside = (
+        abs(u) < a
+        and abs(w) < b
+        and not (
+            abs(u) > a - rc
+            and abs(w) > b - rc
+            and np.hypot(abs(u) - (a - rc), abs(w) - (b - rc)) > rc
+        )
+    )
+    sdf = float(bone_sdf_mm(np.array(u), np.array(w), g))
+    assert sdf == pytest.approx(-dist if inside else dist, abs=5e-3)
