@@ -599,6 +599,39 @@ def _single_slice(folder: Path) -> tuple[Expect, ...]:
     return (REFUSE, load("single_slice", dims=(COLS, ROWS, 1)))
 
 
+def _unknown_vr(folder: Path) -> tuple[Expect, ...]:
+    for path in write_all(base_slices(series="unknown-vr"), folder):
+        data = bytearray(path.read_bytes())
+        at = data.find(b"\x18\x00\x50\x00DS")  # SliceThickness
+        data[at + 4 : at + 6] = b"D["  # a VR that does not exist
+        path.write_bytes(bytes(data))
+    return (REFUSE, load(dims=DIMS))
+
+
+def _meta_misaligned(folder: Path) -> tuple[Expect, ...]:
+    for path in write_all(base_slices(series="meta-misaligned"), folder):
+        data = path.read_bytes()
+        at = data.find(b"1.2.840.10008.1.2.1\x00") + 17  # inside the transfer syntax value
+        path.write_bytes(data[:at] + b"\x00" * 4 + data[at:])
+    return (REFUSE,)
+
+
+def _transfer_syntax(ts_uid: str) -> Builder:
+    def build(folder: Path) -> tuple[Expect, ...]:
+        folder.mkdir(parents=True)
+        for k, ds in enumerate(base_slices(series=f"ts-{ts_uid}")):
+            ds.file_meta.TransferSyntaxUID = UID(ts_uid)
+            ds.save_as(
+                folder / f"{k:03d}.dcm",
+                implicit_vr=False,
+                little_endian=True,
+                enforce_file_format=True,
+            )
+        return (REFUSE,)
+
+    return build
+
+
 def _bomb_rows_cols(folder: Path) -> tuple[Expect, ...]:
     slices = base_slices(series="bomb-rc")
     for ds in slices:
@@ -702,6 +735,18 @@ SYNTHETIC: dict[str, tuple[Builder, str, bool]] = {
     "padding": (_padding, "padding", False),
     "mixed_dims": (_mixed_dims, "inconsistent slices", False),
     "mixed_orientation": (_mixed_orientation, "inconsistent slices", False),
+    "unknown_vr": (_unknown_vr, "corrupt header", False),
+    "meta_misaligned": (_meta_misaligned, "corrupt header", False),
+    "unknown_transfer_syntax": (
+        _transfer_syntax("1.2.840.10008.1.2.1.99"),
+        "transfer syntax",
+        False,
+    ),
+    "private_transfer_syntax": (
+        _transfer_syntax("1.2.840.12008.1.2.1"),
+        "transfer syntax",
+        False,
+    ),
     "deep_nesting": (_deep_nesting, "recursion bomb", False),
     "symlink_loop": (_symlink_loop, "file system", False),
     "single_slice": (_single_slice, "not a volume", False),
