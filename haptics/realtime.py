@@ -53,6 +53,20 @@ class RealtimeStats:
     busy_s: float = 0.0
     lateness_s: deque[float] = field(default_factory=lambda: deque(maxlen=200_000))
 
+    def summary(self) -> str:
+        """One line: counts, lateness percentiles (us) and the cost per tick (us)."""
+        late = sorted(self.lateness_s)
+
+        def pct(q: float) -> float:
+            return late[min(len(late) - 1, int(q * len(late)))] * 1e6 if late else 0.0
+
+        per_tick = self.busy_s / self.ticks * 1e6 if self.ticks else 0.0
+        return (
+            f"{self.ticks} ticks, {self.wakeups} wakeups, {self.overruns} overruns, "
+            f"{self.resyncs} resyncs; lateness p50 {pct(0.5):.0f} us, p99 {pct(0.99):.0f} us, "
+            f"max {pct(1.0):.0f} us; tick cost {per_tick:.2f} us"
+        )
+
 
 def run_realtime(
     fd: int,

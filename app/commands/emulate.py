@@ -36,8 +36,5 @@ def register(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     """Serve until killed; print the loop's statistics."""
     stats = serve_pty(args.pty_link, duration_s=args.duration_s, start_mm=args.start_mm)
-    sys.stderr.write(
-        f"emulator stopped: {stats.ticks} ticks, {stats.wakeups} wakeups, "
-        f"{stats.overruns} overruns, {stats.resyncs} resyncs\n"
-    )
+    sys.stderr.write(f"emulator stopped: {stats.summary()}\n")
     return 0
