@@ -13,26 +13,37 @@ from model.calibration import (
     load_calibration,
 )
 from model.errors import ModelInputError
-from model.force import a0_n, bk_n, c_prime, clip_count, gate
+from model.fit import CalibrationFit, calibrate_from_manifest, fit_document
+from model.force import a0_n, bk_n, c_prime, clip_count, force_density_n, gate
+from model.layered import layered_profile
 from model.profile import Profile, ProfileInputError, build_profile, force_n, force_series_n
+from model.spectral import amplitude_spectrum, extract_components, spectrogram
 
 __all__ = [
     "Calibration",
     "CalibrationError",
+    "CalibrationFit",
     "Harmonic",
     "ModelInputError",
     "PowerLaw",
     "Profile",
     "ProfileInputError",
     "a0_n",
+    "amplitude_spectrum",
     "available_calibrations",
     "bk_n",
     "build_profile",
     "c_prime",
+    "calibrate_from_manifest",
     "clip_count",
+    "extract_components",
+    "fit_document",
+    "force_density_n",
     "force_n",
     "force_series_n",
     "gate",
     "harmonic_freqs_hz",
+    "layered_profile",
     "load_calibration",
+    "spectrogram",
 ]

@@ -18,7 +18,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from model.calibration import (
     Calibration,
@@ -114,6 +113,8 @@ def fit_power_law(
     rms_log10 : float
         RMS residual in log10 units.
     """
+    from scipy.optimize import least_squares  # imported here: 0.7 s, only calibration needs it
+
     lc = np.log10(c_prime)
     ly = np.log10(amplitude_n)
     v = np.asarray(feed_mm_s, dtype=np.float64)
