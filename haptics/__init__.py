@@ -1,1 +1,40 @@
-"""ctdrill haptics package."""
+"""ctdrill haptics: device protocol, device-side renderer and plant, devices, sessions.
+
+Imports :mod:`model` only (never ``imaging``, ``app`` or a GUI module).
+"""
+
+from haptics.device import Device, DeviceError, DeviceInfo, TelemetrySample
+from haptics.errors import HapticsInputError
+from haptics.profile_table import ProfileTable, ProfileTableError
+from haptics.protocol import DeviceState, Fault, ProtocolError
+from haptics.serial_device import SerialDevice
+from haptics.session import (
+    Operator,
+    SessionInputError,
+    SessionResult,
+    parse_fault,
+    parse_operator,
+    run_session,
+)
+from haptics.sim import SimulatedDevice
+
+__all__ = [
+    "Device",
+    "DeviceError",
+    "DeviceInfo",
+    "DeviceState",
+    "Fault",
+    "HapticsInputError",
+    "Operator",
+    "ProfileTable",
+    "ProfileTableError",
+    "ProtocolError",
+    "SerialDevice",
+    "SessionInputError",
+    "SessionResult",
+    "SimulatedDevice",
+    "TelemetrySample",
+    "parse_fault",
+    "parse_operator",
+    "run_session",
+]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import struct
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -70,21 +71,25 @@ def test_below_s0_the_drill_holds_within_coulomb_friction() -> None:
 @settings(max_examples=20)
 @given(
     force=st.floats(0.0, 78.0),
-    s0=st.floats(0.0, 30.0),
+    layers=st.lists(st.floats(0.0, 40.0), min_size=1, max_size=12),
+    vib=st.floats(0.0, 5.0),
     ke=st.floats(0.0, 1.0),
-    top=st.floats(0.0, 5.0),
+    step=st.sampled_from([0.05, 0.25, 0.5]),
     stop=st.floats(0.0, 6.0),
 )
 def test_drill_never_passes_the_stop_depth(
-    force: float, s0: float, ke: float, top: float, stop: float
+    force: float, layers: list[float], vib: float, ke: float, step: float, stop: float
 ) -> None:
-    table = ProfileTable.slab(
+    # Any heterogeneous profile: layers of 0.5 mm with their own S0 (air to dense bone), any
+    # vibration, any Ke, any hand force up to the device's peak.
+    s0 = np.repeat(np.array(layers), max(1, round(0.5 / step)))
+    table = ProfileTable(
+        depth_step_mm=step,
         s0_n=s0,
-        s1_n=0.1 * s0,
-        s2_n=0.05 * s0,
+        s1_n=vib * np.ones_like(s0),
+        s2_n=-0.5 * vib * np.ones_like(s0),
         ke_per_mm_s=ke,
-        top_mm=top,
-        bottom_mm=30.0,
+        freqs_hz=np.array([30.0, 60.0]),
         stop_depth_mm=stop,
     )
     rows: list[tuple[float, float, float, float, str]] = []
@@ -94,6 +99,21 @@ def test_drill_never_passes_the_stop_depth(
     assert result.max_drill_mm <= table.stop_depth_mm
     assert all(math.isfinite(r[3]) and 0.0 <= r[3] <= 78.0 for r in rows)
     assert result.final_state in ("cutting", "stopped")
+
+
+@settings(max_examples=50)
+@given(st.lists(st.binary(max_size=300), max_size=8))
+def test_random_bytes_never_crash_or_arm_the_device(chunks: list[bytes]) -> None:
+    emu = DeviceEmulator()
+    table = ProfileTable.slab(s0_n=4.0, top_mm=0.0, bottom_mm=3.0, stop_depth_mm=2.0)
+    for i, m in enumerate(table.upload_messages()):
+        emu.receive(encode(m, seq=i))
+    for chunk in chunks:
+        emu.receive(chunk)
+        emu.run_ticks(10)
+    assert emu.renderer.state == DeviceState.IDLE
+    for item in FrameReader().feed(emu.take_output()):
+        assert isinstance(item, Packet)  # the device only ever writes valid frames
 
 
 def test_feed_operator_cuts_at_its_feed_and_stops() -> None:
