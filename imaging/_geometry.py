@@ -11,10 +11,13 @@ convex, so the solid is convex and the distance from a point to it is the 2-D di
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-#: Golden-section iterations for a segment: the bracket shrinks by 0.618**45 < 4.2e-10.
-_GOLDEN_ITERATIONS = 45
+#: Accuracy of the segment minimisation, mm: golden-section steps continue until the bracket
+#: times the segment length (the Lipschitz bound of the distance) is below it.
+SEGMENT_TOL_MM = 1e-7
 _INV_PHI = (np.sqrt(5.0) - 1.0) / 2.0
 
 
@@ -93,9 +96,9 @@ def segment_solid_distance_mm(
 
     The distance from a point moving along a segment to a convex solid is a convex function
     of the segment parameter, so a golden-section search on ``[0, 1]`` brackets the minimiser;
-    after ``_GOLDEN_ITERATIONS`` steps the bracket is below 4.2e-10 of the segment and the value
-    is within ``|b - a| * 4.2e-10`` mm of the exact minimum (the distance is ``|b - a|``-Lipschitz
-    in the parameter). Segments that cannot hold the minimum are skipped exactly: the distance
+    it runs until the bracket times ``|b - a|`` is below :data:`SEGMENT_TOL_MM`, and as the
+    distance is ``|b - a|``-Lipschitz in the parameter the value is then within 1e-7 mm of the
+    exact minimum. Segments that cannot hold the minimum are skipped exactly: the distance
     is 1-Lipschitz in space, so a segment's minimum is at least its midpoint's distance minus
     half its length, and it is skipped when that exceeds a distance already reached.
 
@@ -146,7 +149,11 @@ def segment_solid_distance_mm(
     d = lo + _INV_PHI * (hi - lo)
     fc = f(c)
     fd = f(d)
-    for _ in range(_GOLDEN_ITERATIONS):
+    longest = float(2.0 * half[si].max())
+    steps = (
+        0 if longest <= SEGMENT_TOL_MM else math.ceil(math.log(SEGMENT_TOL_MM / longest, _INV_PHI))
+    )
+    for _ in range(steps):
         left = fc <= fd  # convexity: a minimiser lies in [lo, d], else in [c, hi]
         hi = np.where(left, d, hi)
         lo = np.where(left, lo, c)

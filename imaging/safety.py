@@ -17,6 +17,8 @@ from imaging.plan import Plan
 
 #: Tolerance of :func:`max_safe_depth_mm`, mm.
 SAFE_DEPTH_TOL_MM = 1e-3
+#: Interior depths evaluated per refinement pass of :func:`max_safe_depth_mm`.
+_REFINE_POINTS = 63
 #: Points per chunk when a landmark core has many points (mask voxels), to bound memory.
 _CHUNK_POINTS = 4096
 
@@ -96,7 +98,8 @@ def max_safe_depth_mm(
     """Deepest tip depth whose clearance to every landmark stays >= its margin, mm.
 
     Each landmark uses its own ``margin_mm`` when set, else ``plan.margin_mm``. Found by
-    bracketing on ``[0, limit_mm]`` and bisection to ``tol_mm``; the returned depth is on the
+    bracketing on ``[0, limit_mm]`` and refinement (64-section, i.e. bisection six steps at a
+    time) to ``tol_mm``; the returned depth is on the
     safe side of the boundary (within ``tol_mm`` of it).
 
     Parameters
@@ -140,13 +143,23 @@ def _bisect(
     hi: float,
     tol_mm: float,
 ) -> float:
-    """Bisection on [lo, hi] with slack(lo) >= 0 > slack(hi); returns the safe end."""
+    """Bracket refinement on [lo, hi] with slack(lo) >= 0 > slack(hi); returns the safe end.
+
+    Each pass evaluates ``_REFINE_POINTS`` interior depths in one vectorised call and keeps
+    the step where the slack first turns negative (valid because it is non-increasing), so
+    the bracket shrinks ``_REFINE_POINTS + 1``-fold per pass instead of 2-fold.
+    """
     while hi - lo > tol_mm:
-        mid = 0.5 * (lo + hi)
-        if _slack(plan, lms, margins, mid) >= 0.0:
-            lo = mid
+        xs = np.linspace(lo, hi, _REFINE_POINTS + 2)[1:-1]
+        slack = np.min(clearance_profile_mm(plan, lms, xs) - margins[None, :], axis=1)
+        bad = np.flatnonzero(slack < 0.0)
+        if bad.size == 0:
+            lo = float(xs[-1])
         else:
-            hi = mid
+            first = int(bad[0])
+            hi = float(xs[first])
+            if first > 0:
+                lo = float(xs[first - 1])
     return lo
 
 
