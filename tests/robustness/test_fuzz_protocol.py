@@ -19,7 +19,7 @@ def valid_frames() -> list[bytes]:
     """One encoded frame of several message types (host and device side)."""
     from haptics import protocol as p
 
-    messages = [
+    messages: list[p.Message] = [
         p.Hello(),
         p.Heartbeat(),
         p.ProfileBegin(3, 0.05, 0.25, 30.0, 60.0, 4.5),
