@@ -7,11 +7,12 @@ Slicer markups (``.mrk.json``): one **Line** markup is the trajectory (first con
 entry, second the target); **Curve** markups are canals, the polyline through their control
 points (Slicer draws a spline through them: place points densely); **Fiducial** markups are
 point landmarks, one per control point, named by its label. Each markup may carry settings as
-``key=value`` words in its ``description`` (e.g. ``radius_mm=1.5 margin_mm=2.5`` on a curve,
-``diameter_mm=2.0 tip_length_mm=0.6 blades=2 rpm=900 feed_mm_s=0.4 calibration=NAME
-margin_mm=2.0`` on the line); a curve without ``radius_mm`` gets
-:data:`~imaging.landmarks.DEFAULT_CANAL_RADIUS_MM` (1.2 mm) and the drill defaults are those
-of :class:`DrillSpec`. Several Line markups make several plans (:func:`load_plans`).
+``key=value`` words in its ``description`` or its control points' (e.g.
+``radius_mm=1.5 margin_mm=2.5`` on a curve, ``diameter_mm=2.0 tip_length_mm=0.6 blades=2
+rpm=900 feed_mm_s=0.4 calibration=NAME margin_mm=2.0`` on the line); a curve without
+``radius_mm`` gets :data:`~imaging.landmarks.DEFAULT_CANAL_RADIUS_MM` (1.2 mm) and the drill
+defaults are those of :class:`DrillSpec`. Several Line markups make several plans
+(:func:`load_plans`).
 """
 
 from __future__ import annotations
@@ -391,13 +392,16 @@ def _stem(path: Path) -> str:
 
 
 def _settings(ctx: _Ctx, markup: dict[str, Any], where: str) -> dict[str, Any]:
-    """``key=value`` words of a markup's description (numbers parsed), plus ``attributes``."""
+    """Settings of a markup: ``key=value`` words (numbers parsed) of its control points'
+    descriptions, then of its own ``description``, then its ``attributes`` (later wins)."""
     out: dict[str, Any] = {}
-    attrs = markup.get("attributes")
-    if isinstance(attrs, dict):
-        out.update(attrs)
-    desc = markup.get("description", "")
-    if isinstance(desc, str):
+    texts = [
+        cp.get("description") for cp in markup.get("controlPoints") or [] if isinstance(cp, dict)
+    ]
+    texts.append(markup.get("description"))
+    for desc in texts:
+        if not isinstance(desc, str):
+            continue
         for word in desc.replace(",", " ").replace(";", " ").split():
             if "=" not in word:
                 continue
@@ -406,6 +410,9 @@ def _settings(ctx: _Ctx, markup: dict[str, Any], where: str) -> dict[str, Any]:
                 out[key.strip()] = float(value) if key.strip() != "calibration" else value
             except ValueError:
                 out[key.strip()] = value
+    attrs = markup.get("attributes")
+    if isinstance(attrs, dict):
+        out.update(attrs)
     return out
 
 

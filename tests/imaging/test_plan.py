@@ -209,7 +209,15 @@ SLICER: dict[str, Any] = {
         {
             "type": "Curve",
             "coordinateSystem": "LPS",
-            "controlPoints": [{"position": [0.0, 0.0, 0.0]}, {"position": [1.0, 0.0, 0.0]}],
+            "controlPoints": [
+                {"position": [0.0, 0.0, 0.0], "description": "tip of the canal radius_mm=0.9"},
+                {"position": [1.0, 0.0, 0.0]},
+            ],
+        },
+        {
+            "type": "Curve",
+            "coordinateSystem": "LPS",
+            "controlPoints": [{"position": [5.0, 0.0, 0.0]}],
         },
         {
             "type": "Fiducial",
@@ -231,11 +239,13 @@ def test_slicer_markups_line_curves_fiducials_and_per_markup_frames(tmp_path: Pa
     assert plan.drill.diameter_mm == 2.5 and plan.drill.tip_length_mm == 0.6
     assert plan.feed_mm_s == 0.6 and plan.calibration == "pine-wood-paper"
     assert plan.margin_mm == 2.0
-    canal, canal2, apex36, apex37 = plan.landmarks
+    canal, canal2, canal3, apex36, apex37 = plan.landmarks
+    assert isinstance(canal3, CanalLandmark) and canal3.radius_mm == DEFAULT_CANAL_RADIUS_MM
     assert isinstance(canal, CanalLandmark) and canal.name == "IAN canal"
     assert canal.radius_mm == 1.5 and canal.margin_mm == 2.5
     np.testing.assert_array_equal(canal.points_lps[2], [20.0, 20.0, 11.0])  # LPS kept
-    assert isinstance(canal2, CanalLandmark) and canal2.radius_mm == DEFAULT_CANAL_RADIUS_MM
+    assert isinstance(canal2, CanalLandmark) and canal2.radius_mm == 0.9  # from a point
+    assert canal.radius_mm != DEFAULT_CANAL_RADIUS_MM
     assert isinstance(apex36, PointLandmark) and apex36.name == "apex 36"
     np.testing.assert_array_equal(apex36.point_lps, [-1.0, -2.0, 3.0])
     assert isinstance(apex37, PointLandmark)
@@ -254,8 +264,8 @@ def test_slicer_errors_and_several_lines(tmp_path: Path) -> None:
     ):
         load_plan(_write(tmp_path, doc, "a.mrk.json"))
     doc = copy.deepcopy(SLICER)
-    doc["markups"][3]["type"] = "Plane"
-    with pytest.raises(PlanInputError, match=r"markups\[3\].type must be"):
+    doc["markups"][4]["type"] = "Plane"
+    with pytest.raises(PlanInputError, match=r"markups\[4\].type must be"):
         load_plan(_write(tmp_path, doc, "a.mrk.json"))
     doc = copy.deepcopy(SLICER)
     doc["markups"][1]["coordinateSystem"] = "IJK"
