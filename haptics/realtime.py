@@ -97,6 +97,7 @@ def run_realtime(
     t0 = time.monotonic() - emulator.ticks / hz
     end = None if duration_s is None else time.monotonic() + duration_s
     pending = b""
+    next_wake = time.monotonic()
     while not should_stop():
         now = time.monotonic()
         if end is not None and now >= end:
@@ -140,7 +141,11 @@ def run_realtime(
             if len(pending) > 65536:  # the host is not reading: drop, like a full UART FIFO
                 st.dropped_bytes += len(pending)
                 pending = b""
-        time.sleep(wake_s)
+        # Sleep to the next wakeup on a fixed 1 ms grid (an oversleep shortens the next sleep).
+        next_wake = max(next_wake + wake_s, time.monotonic() - wake_s)
+        pause = next_wake - time.monotonic()
+        if pause > 0.0:
+            time.sleep(pause)
     return st
 
 
