@@ -23,6 +23,8 @@ from model import (
 from model.calibration import MAX_KE_PER_MM_S, MAX_LAW_N, calibration_from_dict
 from model.errors import ModelInputError
 from model.force import MAX_FEED_MM_S, force_density_n
+from model.layered import layered_profile
+from tests.model.lip import layered_lip_hu
 
 SETS = [load_calibration("pine-wood-paper"), load_calibration("bone-illustrative")]
 INT16 = st.integers(min_value=-32768, max_value=32767)
@@ -132,3 +134,30 @@ def test_any_accepted_calibration_is_finite_for_any_input(
         return
     f = float(force_density_n(hu, feed, t, cal, freqs_hz=[30.0]))
     assert math.isfinite(f)
+
+
+@given(
+    cuts=st.lists(st.floats(0.0, 10.0), min_size=2, max_size=6, unique=True),
+    hus=st.lists(INT16, min_size=5, max_size=5),
+    tip=st.floats(0.05, 2.0),
+    rings=st.integers(1, 64),
+    which=st.sampled_from([0, 1]),
+)
+def test_ring_quadrature_error_is_bounded_by_half_a_bin_per_boundary(
+    cuts: list[float], hus: list[int], tip: float, rings: int, which: int
+) -> None:
+    cal = SETS[which]
+    b = np.sort(np.asarray(cuts))
+    if np.min(np.diff(b)) < 1e-6:
+        return
+    hu_layers = np.asarray(hus[: b.shape[0] - 1], dtype=np.float64)
+    depth = np.linspace(-1.0, 13.0, 57)
+    exact = layered_profile(b, hu_layers, depth, cal, tip_length_mm=tip, blades=2, rpm=900)
+    assert np.all((exact.s_t >= 0.0) & (exact.s_t <= 1.0 + 1e-12))
+    assert np.all(np.isfinite(exact.s0_n)) and np.all(exact.s0_n >= 0.0)
+    lip, w = layered_lip_hu(b, hu_layers, depth, tip_length_mm=tip, n_rings=rings)
+    quad = build_profile(lip, w, depth, cal, blades=2, rpm=900)
+    hu_all = np.concatenate(([-1000.0], hu_layers, [-1000.0]))
+    f = gate(hu_all, cal) * a0_n(hu_all, 0.0, cal)
+    bound = float(np.sum(np.abs(np.diff(f)))) / (2 * rings)
+    assert np.max(np.abs(quad.s0_n - exact.s0_n)) <= bound + 1e-9
