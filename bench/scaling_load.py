@@ -1,0 +1,235 @@
+"""Loading scaling for ``bench_scaling``: readers, series, peak memory, the figure.
+
+Not a benchmark module of its own (no ``bench_`` prefix): ``bench/bench_scaling.py`` calls it.
+``python -m bench.scaling_load READER FOLDER SIDE`` is the child process that measures one
+reader's peak memory with nothing else loaded.
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bench.report import Timing, figure_path, peak_rss_mib, reset_peak_rss, rss_mib, time_it
+from imaging import load_series
+from imaging.dicom_writer import write_series
+
+ROOT = Path(__file__).resolve().parents[1]
+LOAD_FIGURE = "load_scaling.png"
+READERS = ("load_series", "SimpleITK", "raw")
+SPACING_MM = (0.4, 0.4, 0.5)  # (col, row, slice)
+
+
+def can_drop_caches() -> bool:
+    """Whether this process may drop the page cache (root, writable ``/proc/sys/vm``)."""
+    return os.access("/proc/sys/vm/drop_caches", os.W_OK)
+
+
+def drop_caches() -> bool:
+    """Write back dirty pages and drop the page cache; False when not permitted."""
+    try:
+        os.sync()
+        with open("/proc/sys/vm/drop_caches", "w", encoding="ascii") as fh:
+            fh.write("3\n")
+    except OSError:
+        return False
+    return True
+
+
+def sitk_read(folder: Path) -> tuple[np.ndarray, object]:
+    """SimpleITK (GDCM) series read as int16: (slices, rows, cols) view and the image it needs."""
+    import SimpleITK as sitk
+
+    reader = sitk.ImageSeriesReader()
+    reader.SetFileNames(sitk.ImageSeriesReader.GetGDCMSeriesFileNames(str(folder)))
+    reader.SetOutputPixelType(sitk.sitkInt16)
+    image = reader.Execute()
+    return sitk.GetArrayViewFromImage(image), image  # the view needs the image alive
+
+
+def raw_read(paths: list[Path], shape: tuple[int, int, int]) -> np.ndarray:
+    """The last ``rows * cols * 2`` bytes of each file, in order, into one int16 array."""
+    out = np.empty(shape, dtype=np.int16)
+    nbytes = shape[1] * shape[2] * 2
+    for k, path in enumerate(paths):
+        with path.open("rb") as fh:
+            fh.seek(-nbytes, os.SEEK_END)
+            fh.readinto(out[k].data.cast("B"))
+    return out
+
+
+def reader(name: str, folder: Path, side: int) -> Callable[[], object]:
+    """A no-argument loader of ``folder`` (``side`` x ``side`` slices) for reader ``name``."""
+    paths = sorted(folder.iterdir())
+    shape = (len(paths), side, side)
+    if name == "load_series":
+        return lambda: load_series(folder)
+    if name == "SimpleITK":
+        return lambda: sitk_read(folder)
+    return lambda: raw_read(paths, shape)
+
+
+def measure_peak_mib(name: str, folder: Path, side: int) -> float:
+    """Peak RSS rise (MiB) over the RSS before one load, in this process."""
+    fn = reader(name, folder, side)
+    gc.collect()
+    reset_peak_rss()
+    base = rss_mib()
+    kept = fn()
+    peak = peak_rss_mib() - base
+    del kept
+    return peak
+
+
+def peak_mib(jobs: list[tuple[str, Path, int]], *, fresh: bool = True) -> list[float]:
+    """Peak RSS rise (MiB) of each (reader, folder, side) load.
+
+    ``fresh``: each in its own new process (two at a time; memory does not depend on timing),
+    so no allocator state is shared; else one after the other in this process (quick mode).
+    """
+    if not fresh:
+        return [measure_peak_mib(name, folder, side) for name, folder, side in jobs]
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    results: list[float] = []
+    for start in range(0, len(jobs), 2):
+        procs = [
+            subprocess.Popen(
+                [sys.executable, "-m", "bench.scaling_load", name, str(folder), str(side)],
+                stdout=subprocess.PIPE,
+                text=True,
+                env=env,
+                cwd=ROOT,
+            )
+            for name, folder, side in jobs[start : start + 2]
+        ]
+        for proc in procs:
+            out, _ = proc.communicate()
+            if proc.returncode != 0:
+                raise RuntimeError(f"peak-memory child failed ({proc.args!r})")
+            results.append(float(out.strip().splitlines()[-1]))
+    return results
+
+
+def time_cold(fn: Callable[[], object], repeats: int) -> Timing:
+    """Time ``fn`` with the page cache dropped before every run."""
+    samples = []
+    for _ in range(repeats):
+        drop_caches()
+        t0 = time.perf_counter()
+        fn()
+        samples.append(time.perf_counter() - t0)
+    return Timing.from_samples(samples)
+
+
+@dataclass(frozen=True)
+class LoadRow:
+    """One series size: timings per reader (warm; cold or None) and peak RSS rise, MiB."""
+
+    slices: int
+    mib: float
+    warm: dict[str, Timing]
+    cold: dict[str, Timing] | None
+    peak_mib: dict[str, float]
+
+
+def write_folders(tmp: Path, side: int, slices: tuple[int, ...]) -> dict[int, Path]:
+    """Folders ``<side>x<n>`` holding the first n slices of one written series (hard links)."""
+    rng = np.random.default_rng(0)
+    hu = rng.integers(-1000, 2000, size=(max(slices), side, side), dtype=np.int16)
+    affine = np.diag([*SPACING_MM, 1.0])
+    affine[:3, 3] = (-0.2 * side, -0.2 * side, 0.0)
+    written = write_series(tmp / "all", hu, affine)
+    del hu
+    folders = {}
+    for n in slices:
+        folder = tmp / f"{side}x{n}"
+        folder.mkdir()
+        for path in written.paths[:n]:
+            os.link(path, folder / path.name)
+        folders[n] = folder
+    return folders
+
+
+def load_rows(
+    folders: dict[int, Path], side: int, *, repeats: int, cold_repeats: int, fresh: bool
+) -> list[LoadRow]:
+    """Warm and (``cold_repeats`` > 0) cold timings and peak memory of every reader and size.
+
+    ``fresh``: peak memory of each load in a new process (see :func:`peak_mib`).
+    """
+    jobs = [(name, folder, side) for folder in folders.values() for name in READERS]
+    peaks = iter(peak_mib(jobs, fresh=fresh))
+    rows = []
+    for n, folder in folders.items():
+        fns = {name: reader(name, folder, side) for name in READERS}
+        warm = {name: time_it(fn, repeats=repeats) for name, fn in fns.items()}
+        cold = (
+            {name: time_cold(fn, cold_repeats) for name, fn in fns.items()}
+            if cold_repeats
+            else None
+        )
+        peak = {name: next(peaks) for name in READERS}
+        rows.append(LoadRow(n, n * side**2 * 2 / 2**20, warm, cold, peak))
+    return rows
+
+
+def same_values(folder: Path, side: int) -> bool:
+    """load_series, SimpleITK and the raw bytes give identical voxels."""
+    ours = load_series(folder).hu
+    view, _image = sitk_read(folder)
+    raw = raw_read(sorted(folder.iterdir()), (ours.shape[0], side, side))
+    return bool(np.array_equal(ours, view) and np.array_equal(ours, raw))
+
+
+# ------------------------------------------------------------------------------ figures
+
+
+def plot_load(rows: list[LoadRow]) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = [r.slices for r in rows]
+    fig, (ax_t, ax_m) = plt.subplots(1, 2, figsize=(10.0, 4.2))
+    for k, name in enumerate(READERS):
+        color = f"C{k}"
+        med = [r.warm[name].median_s for r in rows]
+        err = [
+            [m - r.warm[name].p25_s for m, r in zip(med, rows, strict=True)],
+            [r.warm[name].p75_s - m for m, r in zip(med, rows, strict=True)],
+        ]
+        ax_t.errorbar(n, med, yerr=err, fmt="o-", color=color, label=f"{name}, warm", ms=4)
+        if rows[0].cold is not None:
+            cold = [r.cold[name].median_s for r in rows if r.cold is not None]
+            ax_t.plot(n, cold, "s--", color=color, label=f"{name}, cold", ms=4)
+        ax_m.plot(n, [r.peak_mib[name] for r in rows], "o-", color=color, label=name, ms=4)
+    ax_m.plot(n, [r.mib for r in rows], "k:", label="volume (int16)")
+    for ax in (ax_t, ax_m):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel(f"slices ({rows[0].mib / rows[0].slices * 1024:.0f} KiB each)")
+        ax.legend(fontsize=7)
+        ax.grid(True, which="both", alpha=0.3)
+    ax_t.set_ylabel("load time (s), median and IQR")
+    ax_m.set_ylabel("peak RSS rise (MiB)")
+    ax_t.set_title("Loading time vs slices")
+    ax_m.set_title("Peak memory vs slices")
+    fig.tight_layout()
+    out = figure_path(LOAD_FIGURE)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+if __name__ == "__main__":
+    # Child of peak_mib: python -m bench.scaling_load READER FOLDER SIDE -> peak MiB on stdout.
+    print(measure_peak_mib(sys.argv[1], Path(sys.argv[2]), int(sys.argv[3])))

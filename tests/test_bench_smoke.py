@@ -1,0 +1,139 @@
+"""Smoke test of ``make bench``: every benchmark module runs in quick mode and reports numbers.
+
+Also the report helpers on inputs with known answers.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from bench.__main__ import discover
+from bench.report import (
+    FIGURE_DIR_ENV,
+    Timing,
+    figure_path,
+    loglog_slope,
+    profile_top,
+    table,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+FIGURES = ROOT / "docs" / "benchmarks"
+BUDGET_S = 60.0
+#: The areas issue 8 asks for; each must have its module.
+REQUIRED = ("bench_export", "bench_load", "bench_model", "bench_sampling", "bench_scaling")
+NUMBER_CELL = re.compile(r"^\|(?:[^|\n]*\|)*\s*[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?\b[^|\n]*\|", re.M)
+
+
+def _sections(text: str) -> dict[str, str]:
+    """Module name -> its section's text, found by the section's reproduce line."""
+    out = {}
+    for chunk in text.split("\n## ")[1:]:
+        found = re.search(r"Reproduce: `python -m bench --only (bench_\w+)`", chunk)
+        if found:
+            out[found.group(1)] = chunk
+    return out
+
+
+def _snapshot() -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(FIGURES.glob("*.png"))}
+
+
+@pytest.mark.timeout(240)
+def test_quick_bench_writes_every_section_with_numbers(tmp_path: Path) -> None:
+    before = _snapshot()
+    out = tmp_path / "benchmarks.md"
+    t0 = time.perf_counter()
+    proc = subprocess.run(
+        [sys.executable, "-m", "bench", "--quick", "--out", str(out)],
+        cwd=ROOT,
+        env=dict(os.environ),
+        capture_output=True,
+        text=True,
+        timeout=230,
+    )
+    elapsed = time.perf_counter() - t0
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    text = out.read_text(encoding="utf-8")
+    modules = discover()
+    assert set(REQUIRED) <= set(modules)
+    sections = _sections(text)
+    assert sorted(sections) == modules, "a module's section is missing from the report"
+    for name, chunk in sections.items():
+        assert "FAILED" not in chunk.splitlines()[0], f"{name} failed:\n{chunk[:3000]}"
+        assert "|---" in chunk, f"{name}: no table"
+        assert NUMBER_CELL.search(chunk), f"{name}: no table row with a number"
+    for header in ("## Machine and settings", "## Where ctdrill is slower"):
+        assert header in text
+    for key in ("numpy ", "SimpleITK ", "MALLOC_TRIM_THRESHOLD_", "MALLOC_MMAP_THRESHOLD_"):
+        assert key in text
+    links = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)
+    assert "benchmarks/load_scaling.png" in links and "benchmarks/path_scaling.png" in links
+    for link in links:
+        assert (out.parent / link).is_file(), f"figure {link} linked but not written"
+    # The committed figures are left alone: the quick run writes beside its own report.
+    assert _snapshot() == before
+    per_module = dict(re.findall(r"^(bench_\w+): ([\d.]+) s$", proc.stderr, re.M))
+    assert elapsed < BUDGET_S, f"quick bench took {elapsed:.0f} s; per module: {per_module}"
+
+
+def test_unknown_module_is_one_line_error(tmp_path: Path) -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "bench", "--only", "bench_nope", "--out", str(tmp_path / "b.md")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error: unknown benchmark module") and "bench_nope" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "b.md").exists()
+
+
+def test_timing_from_known_samples() -> None:
+    t = Timing.from_samples([4.0, 1.0, 3.0, 2.0, 5.0])
+    assert (t.median_s, t.p25_s, t.p75_s, t.min_s, t.repeats) == (3.0, 2.0, 4.0, 1.0, 5)
+    assert t.fmt("ms") == "3e+03 ms [2e+03-4e+03]"
+    assert Timing.from_samples([0.0125]).fmt("ms") == "12.5 ms [12.5-12.5]"
+
+
+def test_loglog_slope_recovers_power_laws() -> None:
+    x = [1.0, 10.0, 100.0, 1000.0]
+    assert loglog_slope(x, [3.0 * v for v in x]) == pytest.approx(1.0)
+    assert loglog_slope(x, [0.5 * v**2 for v in x]) == pytest.approx(2.0)
+    assert loglog_slope(x, [7.0 for _ in x]) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_table_is_markdown() -> None:
+    assert table(["a", "b"], [[1, "x"], [2.5, "y"]]) == (
+        "| a | b |\n|---|---|\n| 1 | x |\n| 2.5 | y |"
+    )
+
+
+def test_figure_path_follows_the_environment(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(FIGURE_DIR_ENV, str(tmp_path / "figs"))
+    assert figure_path("x.png") == tmp_path / "figs" / "x.png"
+    assert (tmp_path / "figs").is_dir()
+
+
+def _busy() -> int:
+    return sum(i * i for i in range(20000))
+
+
+def test_profile_top_names_the_costly_function() -> None:
+    text = profile_top(lambda: [_busy() for _ in range(5)], n=3)
+    lines = text.splitlines()
+    assert lines[0] == "| function | calls | own ms | cumulative ms |"
+    assert len(lines) == 2 + 3
+    assert "test_bench_smoke.py" in text
+    assert "(_busy)" in text
