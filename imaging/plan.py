@@ -144,6 +144,16 @@ class Plan:
 # --------------------------------------------------------------------------- validation
 
 
+def _is_number(value: object) -> bool:
+    """A finite JSON number (not a bool; an integer beyond the float range is not finite)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
+
+
 class _Ctx:
     """Where we are in a file, for error messages."""
 
@@ -170,7 +180,7 @@ class _Ctx:
                 raise self.fail(fp, "is missing; add it")
             return default
         val = obj[key]
-        ok = isinstance(val, int | float) and not isinstance(val, bool) and math.isfinite(val)
+        ok = _is_number(val)
         if ok and positive and not val > 0:
             ok = False
         if ok and nonneg and not val >= 0:
@@ -184,10 +194,7 @@ class _Ctx:
         if (
             not isinstance(val, list | tuple)
             or len(val) != 3
-            or not all(
-                isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-                for v in val
-            )
+            or not all(_is_number(v) for v in val)
         ):
             raise self.fail(fp, "must be a list of 3 finite numbers [x, y, z] in mm", val)
         return np.asarray(val, dtype=np.float64)
@@ -255,7 +262,7 @@ def _parse_landmark(ctx: _Ctx, raw: object, index: int, system: str, base_dir: P
     if not isinstance(raw, dict):
         raise ctx.fail(where, "must be an object", raw)
     kind = raw.get("kind")
-    if kind not in _LANDMARK_KEYS:
+    if not isinstance(kind, str) or kind not in _LANDMARK_KEYS:
         raise ctx.fail(f"{where}.kind", 'must be "canal", "point" or "mask"', kind)
     ctx.keys(raw, _LANDMARK_KEYS[kind], where)
     name = ctx.string(raw, "name", where, default=f"{kind} {index + 1}")
@@ -280,14 +287,16 @@ def _parse_landmark(ctx: _Ctx, raw: object, index: int, system: str, base_dir: P
         return PointLandmark(name, _to_lps(pt, system), margin_mm=margin)
     rel = ctx.string(raw, "path", where, default=None)
     label = raw.get("label")
-    if label is not None and (not isinstance(label, int) or isinstance(label, bool)):
+    if label is not None and (
+        not isinstance(label, int) or isinstance(label, bool) or not -(2**63) <= label < 2**63
+    ):
         raise ctx.fail(f"{where}.label", "must be an integer label value", label)
     affine = None
     if "affine_lps" in raw:
         aff = np.asarray(raw["affine_lps"], dtype=object)
         try:
             affine = np.asarray(aff, dtype=np.float64)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             affine = None
         if affine is None or affine.shape != (4, 4) or not np.all(np.isfinite(affine)):
             raise ctx.fail(f"{where}.affine_lps", "must be a 4x4 matrix of finite numbers")
@@ -340,13 +349,7 @@ def _drill_from(ctx: _Ctx, raw: dict[str, Any], where: str) -> DrillSpec:
     diameter = ctx.number(raw, "diameter_mm", where, default=d.diameter_mm, positive=True)
     tip = ctx.number(raw, "tip_length_mm", where, default=d.tip_length_mm, positive=True)
     blades_raw = raw.get("blades", d.blades)
-    if (
-        not isinstance(blades_raw, int | float)
-        or isinstance(blades_raw, bool)
-        or not math.isfinite(blades_raw)
-        or blades_raw != int(blades_raw)
-        or blades_raw < 1
-    ):
+    if not _is_number(blades_raw) or blades_raw != int(blades_raw) or blades_raw < 1:
         raise ctx.fail(f"{where}.blades", "must be a positive whole number", blades_raw)
     rpm = ctx.number(raw, "rpm", where, default=d.rpm, positive=True)
     return DrillSpec(diameter_mm=diameter, tip_length_mm=tip, blades=int(blades_raw), rpm=rpm)
