@@ -16,13 +16,23 @@ row's ``s0, s1, s2`` float32 triplet in index order.
 from __future__ import annotations
 
 import struct
-import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
-from enum import IntEnum
 from typing import Any, ClassVar
 
-from haptics.errors import HapticsInputError
+from haptics.codes import DeviceState, Fault, MsgType, NakReason, OperatorKind
+from haptics.framing import (
+    ChecksumError,
+    FramingError,
+    MessageError,
+    ProtocolError,
+    UnknownTypeError,
+    VersionError,
+    cobs_decode,
+    cobs_encode,
+    crc16_ccitt_false,
+    crc32,
+)
 
 PROTOCOL_VERSION = 1
 HEADER = struct.Struct("<BBHQ")
@@ -32,96 +42,6 @@ MAX_DECODED = 254
 #: Rows per PROFILE_CHUNK.
 MAX_CHUNK_ROWS = 16
 ROW = struct.Struct("<fff")
-
-
-class ProtocolError(HapticsInputError):
-    """A frame that cannot be accepted; the message says what is wrong with it."""
-
-
-class FramingError(ProtocolError):
-    """Bad COBS encoding or a frame of impossible length."""
-
-
-class ChecksumError(ProtocolError):
-    """The frame's CRC-16 does not match its content."""
-
-
-class MessageError(ProtocolError):
-    """Well-framed bytes that are not a valid message (version, type or body length)."""
-
-
-class UnknownTypeError(MessageError):
-    """A message type this protocol version does not define."""
-
-
-class VersionError(MessageError):
-    """A frame of another protocol version."""
-
-
-class MsgType(IntEnum):
-    """Message type codes (header byte 1)."""
-
-    HELLO = 0x01
-    VERSION = 0x02
-    LIMITS = 0x03
-    PROFILE_BEGIN = 0x10
-    PROFILE_CHUNK = 0x11
-    PROFILE_END = 0x12
-    ARM = 0x20
-    DISARM = 0x21
-    HEARTBEAT = 0x22
-    STOP = 0x23
-    SIM_OPERATOR = 0x28
-    SIM_RESET = 0x29
-    TELEMETRY = 0x30
-    FAULT = 0x31
-    ACK = 0x40
-    NAK = 0x41
-
-
-class DeviceState(IntEnum):
-    """Renderer states reported in TELEMETRY and FAULT."""
-
-    IDLE = 0
-    CUTTING = 1
-    STOPPED = 2
-    SAFE = 3
-
-
-class Fault(IntEnum):
-    """Fault flag bits (u16) in TELEMETRY and FAULT."""
-
-    WATCHDOG = 1 << 0
-    NONFINITE = 1 << 1
-    THERMAL_LIMIT = 1 << 2
-    PEAK_LIMIT = 1 << 3
-    HOST_STOP = 1 << 4
-    PROFILE_INVALID = 1 << 5
-    RESET = 1 << 6
-    TRAVEL_LIMIT = 1 << 7
-
-
-class NakReason(IntEnum):
-    """Why the device refused a command (NAK body)."""
-
-    BAD_FRAME = 1
-    UNKNOWN_TYPE = 2
-    BAD_LENGTH = 3
-    BAD_VERSION = 4
-    NOT_READY = 5
-    PROFILE_CRC = 6
-    PROFILE_ORDER = 7
-    NONFINITE = 8
-    PROFILE_TOO_LONG = 9
-    BAD_VALUE = 10
-
-
-class OperatorKind(IntEnum):
-    """SIM_OPERATOR kinds (simulator and emulator only; a real device NAKs the message)."""
-
-    NONE = 0
-    PUSH = 1
-    FEED = 2
 
 
 # ---------------------------------------------------------------- messages
@@ -346,78 +266,6 @@ class Packet:
     message: Message
 
 
-# ---------------------------------------------------------------- checksums and COBS
-
-
-def _crc16_table() -> tuple[int, ...]:
-    table = []
-    for byte in range(256):
-        crc = byte << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else (crc << 1)
-        table.append(crc & 0xFFFF)
-    return tuple(table)
-
-
-_CRC16 = _crc16_table()
-
-
-def crc16_ccitt_false(data: bytes) -> int:
-    """CRC-16/CCITT-FALSE of ``data`` (poly 0x1021, init 0xFFFF); ``b"123456789"`` -> 0x29B1."""
-    crc = 0xFFFF
-    for byte in data:
-        crc = ((crc << 8) & 0xFFFF) ^ _CRC16[(crc >> 8) ^ byte]
-    return crc
-
-
-def crc32(data: bytes, value: int = 0) -> int:
-    """CRC-32 (IEEE 802.3, as zlib); ``b"123456789"`` -> 0xCBF43926."""
-    return zlib.crc32(data, value) & 0xFFFFFFFF
-
-
-def cobs_encode(data: bytes) -> bytes:
-    """Consistent-overhead byte stuffing: the result has no zero byte."""
-    out = bytearray()
-    block = bytearray()
-    for byte in data:
-        if byte == 0:
-            out.append(len(block) + 1)
-            out += block
-            block.clear()
-        else:
-            block.append(byte)
-            if len(block) == 254:
-                out.append(255)
-                out += block
-                block.clear()
-    out.append(len(block) + 1)
-    out += block
-    return bytes(out)
-
-
-def cobs_decode(data: bytes) -> bytes:
-    """Inverse of :func:`cobs_encode`; raises :class:`FramingError` on malformed input."""
-    out = bytearray()
-    i, n = 0, len(data)
-    if n == 0:
-        raise FramingError("empty frame between delimiters")
-    while i < n:
-        code = data[i]
-        if code == 0:
-            raise FramingError(f"COBS: zero byte inside a frame at offset {i}")
-        end = i + code
-        if end > n:
-            raise FramingError(f"COBS: block at offset {i} runs past the frame end")
-        block = data[i + 1 : end]
-        if 0 in block:
-            raise FramingError("COBS: zero byte inside a frame")
-        out += block
-        i = end
-        if code < 255 and i < n:
-            out.append(0)
-    return bytes(out)
-
-
 # ---------------------------------------------------------------- encode / decode
 
 
@@ -535,3 +383,50 @@ class FrameReader:
             self._buf.clear()
             self._overflow = True
             out.append(FramingError("run of bytes longer than any frame; dropped"))
+
+
+__all__ = [
+    "CRC",
+    "HEADER",
+    "MAX_CHUNK_ROWS",
+    "MAX_DECODED",
+    "PROTOCOL_VERSION",
+    "ROW",
+    "Ack",
+    "Arm",
+    "ChecksumError",
+    "DeviceState",
+    "Disarm",
+    "Fault",
+    "FaultReport",
+    "FrameReader",
+    "FramingError",
+    "Heartbeat",
+    "Hello",
+    "Limits",
+    "Message",
+    "MessageError",
+    "MsgType",
+    "Nak",
+    "NakReason",
+    "OperatorKind",
+    "Packet",
+    "ProfileBegin",
+    "ProfileChunk",
+    "ProfileEnd",
+    "ProtocolError",
+    "SimOperator",
+    "SimReset",
+    "Stop",
+    "Telemetry",
+    "UnknownTypeError",
+    "Version",
+    "VersionError",
+    "cobs_decode",
+    "cobs_encode",
+    "crc16_ccitt_false",
+    "crc32",
+    "decode",
+    "encode",
+    "profile_crc32",
+]
