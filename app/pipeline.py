@@ -37,6 +37,9 @@ SLICE_STEP_RTOL = 0.01
 #: Precision of the out-of-volume depth, mm.
 _OOV_TOL_MM = 1e-3
 
+#: Longest trajectory accepted, mm: far beyond any dental drill, short enough to bound memory.
+MAX_PLANNED_DEPTH_MM = 200.0
+
 STOP_REASONS = ("planned_depth", "margin", "out_of_volume")
 
 
@@ -262,6 +265,11 @@ def plan_path(
     """
     if not (math.isfinite(depth_step_mm) and depth_step_mm > 0.0):
         raise PathInputError(f"depth_step_mm must be a positive number, got {depth_step_mm!r}")
+    if not plan.planned_depth_mm <= MAX_PLANNED_DEPTH_MM:
+        raise PathInputError(
+            f"plan {plan.name!r}: planned depth {plan.planned_depth_mm:.6g} mm exceeds "
+            f"{MAX_PLANNED_DEPTH_MM:g} mm; check the entry and target (units are mm)"
+        )
     landmarks = bind_to_grid(plan.landmarks, volume.affine_lps, tuple(volume.hu.shape))
     plan = replace(plan, landmarks=landmarks)
     depth = depth_grid_mm(plan.planned_depth_mm, depth_step_mm)

@@ -161,6 +161,8 @@ def test_refusals_name_the_problem() -> None:
     valid = np.ones((N_SLICES, 9, 9), dtype=bool)
     valid[:, 0, 0] = False  # padding in a corner, away from the drill: fine
     assert plan_path(_volume(valid=valid), _plan(), cal).stop_reason == "planned_depth"
+    with pytest.raises(PathInputError, match="planned depth 1e"):
+        plan_path(_volume(), _plan(depth_mm=1e9), cal)
     far = Plan(entry_lps=[50.0, 0.0, 0.0], target_lps=[50.0, 0.0, 5.0], name="far")
     with pytest.raises(PathInputError, match="lies outside the CT volume"):
         plan_path(_volume(), far, cal)
