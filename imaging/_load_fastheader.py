@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import mmap
 import struct
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -66,17 +67,33 @@ _INT_FORMATS = {"US": "H", "SS": "h", "UL": "I", "SL": "i"}
 
 
 class _Malformed(Exception):
-    pass
+    """Something this reader does not handle: fall back to pydicom."""
 
 
-class LiteHeader(dict[str, Any]):
-    """Decoded tag values by keyword, answering ``get``/``in`` like a pydicom Dataset."""
+class HeaderCorruptError(Exception):
+    """The header cannot be right (an element runs past the end of the file): do not parse on.
+
+    pydicom would try to allocate the declared length (a memory bomb), so no fallback.
+    """
+
+
+@dataclass(frozen=True)
+class FastHeader:
+    """What :func:`read_fast_header` found."""
+
+    tags: dict[str, Any]
+    transfer_syntax: str
+    implicit: bool
+    pixel_offset: int | None  # None: encapsulated (compressed) pixel data
+    pixel_length: int | None  # declared value length of native PixelData, bytes
+    has_pixels: bool
+    file_size: int
 
 
 def _element(buf: Any, pos: int, implicit: bool) -> tuple[int, bytes, int, int]:
     """(tag, vr, value start, length) of the element at ``pos``."""
     if pos + 8 > len(buf):
-        raise _Malformed
+        raise HeaderCorruptError("the file ends inside a header element (truncated)")
     group, elem = struct.unpack_from("<HH", buf, pos)
     tag = (group << 16) | elem
     if implicit or group == 0xFFFE:
@@ -85,7 +102,7 @@ def _element(buf: Any, pos: int, implicit: bool) -> tuple[int, bytes, int, int]:
     vr = bytes(buf[pos + 4 : pos + 6])
     if vr in _LONG_VRS:
         if pos + 12 > len(buf):
-            raise _Malformed
+            raise HeaderCorruptError("the file ends inside a header element (truncated)")
         (length,) = struct.unpack_from("<I", buf, pos + 8)
         return tag, vr, pos + 12, length
     if not vr.isalpha():
@@ -104,6 +121,8 @@ def _skip_undefined(buf: Any, pos: int, implicit: bool) -> int:
             raise _Malformed
         if length != _UNDEFINED:
             pos = start + length
+            if pos > len(buf):
+                raise HeaderCorruptError("a sequence item runs past the end of the file")
             continue
         pos = start
         while True:  # elements of an undefined-length item, up to its delimiter
@@ -116,7 +135,7 @@ def _skip_undefined(buf: Any, pos: int, implicit: bool) -> int:
             else:
                 pos = start + length
             if pos > len(buf):
-                raise _Malformed
+                raise HeaderCorruptError("an element runs past the end of the file")
 
 
 def _decode(raw: bytes, vr: str, pixel_rep: int) -> Any:
@@ -137,14 +156,13 @@ def _decode(raw: bytes, vr: str, pixel_rep: int) -> Any:
     return parts[0] if len(parts) == 1 else parts
 
 
-def read_fast_header(path: Path) -> tuple[LiteHeader, str, bool, int | None, bool] | None:
+def read_fast_header(path: Path) -> FastHeader | None:
     """Header of a Part 10 little-endian file without pydicom, or None to fall back.
 
-    Returns
-    -------
-    tuple | None
-        (tags, transfer syntax, implicit VR, pixel value offset or None if encapsulated,
-        has pixel data).
+    Raises
+    ------
+    HeaderCorruptError
+        A header element declares more bytes than the file holds.
     """
     try:
         with path.open("rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as buf:
@@ -153,7 +171,7 @@ def read_fast_header(path: Path) -> tuple[LiteHeader, str, bool, int | None, boo
         return None
 
 
-def _parse(buf: Any) -> tuple[LiteHeader, str, bool, int | None, bool] | None:
+def _parse(buf: Any) -> FastHeader | None:
     if len(buf) < 132 or buf[128:132] != b"DICM":
         return None
     pos = 132
@@ -162,6 +180,8 @@ def _parse(buf: Any) -> tuple[LiteHeader, str, bool, int | None, bool] | None:
         tag, _, start, length = _element(buf, pos, False)
         if length == _UNDEFINED:
             return None
+        if start + length > len(buf):
+            raise HeaderCorruptError("a file meta element runs past the end of the file")
         if tag == 0x00020010:
             ts = bytes(buf[start : start + length]).decode("ascii").strip(" \x00")
         pos = start + length
@@ -170,14 +190,14 @@ def _parse(buf: Any) -> tuple[LiteHeader, str, bool, int | None, bool] | None:
     implicit = ts == _IMPLICIT_LE
     raw: dict[int, tuple[str, bytes]] = {}
     offset: int | None = None
+    pixel_length: int | None = None
     has_pixels = False
     while pos + 8 <= len(buf):
         tag, vr, start, length = _element(buf, pos, implicit)
         if tag == _PIXEL_DATA:
             has_pixels = length != 0
-            offset = None if length == _UNDEFINED else start
-            if offset is not None and start + length > len(buf):
-                return None
+            if length != _UNDEFINED:
+                offset, pixel_length = start, length
             break
         if tag in TAGS:
             keyword, default_vr = TAGS[tag]
@@ -189,11 +209,11 @@ def _parse(buf: Any) -> tuple[LiteHeader, str, bool, int | None, bool] | None:
         else:
             pos = start + length
         if pos > len(buf):
-            raise _Malformed
+            raise HeaderCorruptError("a header element runs past the end of the file")
     else:
         if pos != len(buf):
-            raise _Malformed  # a partial element at the end: truncated file
-    out = LiteHeader()
+            raise HeaderCorruptError("the file ends inside a header element (truncated)")
+    out: dict[str, Any] = {}
     pixel_rep = 0
     if 0x00280103 in raw:
         pixel_rep = int(_decode(raw[0x00280103][1], "US", 0))
@@ -205,4 +225,4 @@ def _parse(buf: Any) -> tuple[LiteHeader, str, bool, int | None, bool] | None:
         if not value:
             continue
         out[keyword] = _decode(value, vr_s, pixel_rep)
-    return out, ts, implicit, offset, has_pixels
+    return FastHeader(out, ts, implicit, offset, pixel_length, has_pixels, len(buf))

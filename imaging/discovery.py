@@ -9,8 +9,10 @@ pixels can later be read straight into the volume.
 
 from __future__ import annotations
 
+import math
 import os
 import struct
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,10 +20,10 @@ from typing import Any
 
 from pydicom import dcmread
 from pydicom.dataset import Dataset
-from pydicom.errors import InvalidDicomError
+from pydicom.errors import BytesLengthException, InvalidDicomError
 from pydicom.uid import ExplicitVRLittleEndian, ImplicitVRLittleEndian
 
-from imaging._load_fastheader import read_fast_header
+from imaging._load_fastheader import HeaderCorruptError, read_fast_header
 from imaging.errors import ImagingInputError
 
 #: SOP classes that hold CT volumes: CT Image Storage, Enhanced CT, Legacy Converted Enhanced CT.
@@ -87,6 +89,9 @@ class SliceHeader:
     #: Byte offset of uncompressed little-endian native pixel data (None: decode with pydicom).
     pixel_offset: int | None
     has_pixels: bool
+    #: Declared value length of native PixelData (None when encapsulated), and the file size.
+    pixel_length: int | None = None
+    file_size: int = 0
     meta: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
 
     @property
@@ -137,14 +142,16 @@ def _looks_like_dicom(path: Path) -> bool | None:
     return False
 
 
-def _num(ds: Any, keyword: str) -> float | None:
+def _num(ds: Any, keyword: str, *, finite_only: bool = True) -> float | None:
+    """A numeric tag as float; None when absent or unparsable (or non-finite if asked)."""
     value = ds.get(keyword)
     if value is None or value == "":
         return None
     try:
-        return float(value)
+        number = float(value)
     except (TypeError, ValueError):
         return None
+    return number if math.isfinite(number) or not finite_only else None
 
 
 def _int(ds: Any, keyword: str, default: int | None = None) -> int | None:
@@ -186,12 +193,12 @@ def _fg_item(ds: Any, frame: int, seq_keyword: str) -> Dataset | None:
     return None
 
 
-def _pixel_offset(fh: Any, implicit: bool) -> tuple[int | None, bool]:
-    """Offset of native pixel data at the file position, and whether pixel data is present."""
+def _pixel_offset(fh: Any, implicit: bool) -> tuple[int | None, int | None, bool]:
+    """(offset, declared length) of native pixel data at the file position, and presence."""
     pos = fh.tell()
     head = fh.read(12)
     if len(head) < 8 or head[:4] != _PIXEL_TAG:
-        return None, False
+        return None, None, False
     if implicit:
         length = struct.unpack("<I", head[4:8])[0]
         start = pos + 8
@@ -202,8 +209,27 @@ def _pixel_offset(fh: Any, implicit: bool) -> tuple[int | None, bool]:
         length = struct.unpack("<H", head[6:8])[0]
         start = pos + 8
     if length == 0xFFFFFFFF:
-        return None, True  # encapsulated
-    return start, length > 0
+        return None, None, True  # encapsulated
+    return start, length, length > 0
+
+
+#: Exceptions pydicom raises (often lazily, on first access) for a damaged header.
+_HEADER_ERRORS = (
+    InvalidDicomError,
+    BytesLengthException,
+    OSError,
+    ValueError,
+    EOFError,
+    struct.error,
+    TypeError,
+    KeyError,
+    AttributeError,
+    IndexError,
+    OverflowError,
+    NotImplementedError,
+    MemoryError,
+    RecursionError,
+)
 
 
 def read_headers(
@@ -218,32 +244,51 @@ def read_headers(
     if kind is False:
         return None
     if kind is True and fast:
-        got = read_fast_header(path)
-        if got is not None:
-            lite, ts, _, offset, has_pixels = got
-            if str(lite.get("SOPClassUID", "")) not in MULTIFRAME_CT_SOP_CLASSES:
-                return _classify(path, lite, ts, offset, has_pixels, ct_only)
+        try:
+            got = read_fast_header(path)
+        except HeaderCorruptError as exc:
+            return Skipped(path, f"corrupt DICOM header ({exc})")
+        if got is not None and str(got.tags.get("SOPClassUID", "")) not in (
+            MULTIFRAME_CT_SOP_CLASSES
+        ):
+            return _classify(
+                path,
+                got.tags,
+                got.transfer_syntax,
+                (got.pixel_offset, got.pixel_length, got.has_pixels, got.file_size),
+                ct_only,
+            )
     try:
-        with path.open("rb") as fh:
-            ds = dcmread(fh, stop_before_pixels=True, force=kind is None)
-            implicit, little = ds.original_encoding
-            offset, has_pixels = _pixel_offset(fh, bool(implicit))
-    except (InvalidDicomError, OSError, ValueError, EOFError, struct.error, TypeError):
-        return None if kind is None else Skipped(path, "unreadable DICOM header")
-    if kind is None and not ("SOPClassUID" in ds and "Rows" in ds and "Columns" in ds):
-        return None
-    meta = getattr(ds, "file_meta", None)
-    ts = str(meta.get("TransferSyntaxUID", "")) if meta is not None else ""
-    if not ts:
-        ts = str(ImplicitVRLittleEndian if implicit else ExplicitVRLittleEndian)
-    if not little:
-        offset = None
-    return _classify(path, ds, ts, offset, has_pixels, ct_only)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with path.open("rb") as fh:
+                ds = dcmread(fh, stop_before_pixels=True, force=kind is None)
+                implicit, little = ds.original_encoding
+                offset, length, has_pixels = _pixel_offset(fh, bool(implicit))
+            if kind is None and not ("SOPClassUID" in ds and "Rows" in ds and "Columns" in ds):
+                return None
+            meta = getattr(ds, "file_meta", None)
+            ts = str(meta.get("TransferSyntaxUID", "")) if meta is not None else ""
+            if not ts:
+                ts = str(ImplicitVRLittleEndian if implicit else ExplicitVRLittleEndian)
+            if not little:
+                offset = length = None
+            size = path.stat().st_size
+            return _classify(path, ds, ts, (offset, length, has_pixels, size), ct_only)
+    except _HEADER_ERRORS as exc:
+        if kind is None:
+            return None
+        return Skipped(path, f"unreadable DICOM header ({type(exc).__name__})")
 
 
 def _classify(
-    path: Path, ds: Any, ts: str, offset: int | None, has_pixels: bool, ct_only: bool
+    path: Path,
+    ds: Any,
+    ts: str,
+    pixels: tuple[int | None, int | None, bool, int],
+    ct_only: bool,
 ) -> list[SliceHeader] | Skipped:
+    offset, length, has_pixels, size = pixels
     sop = str(ds.get("SOPClassUID", ""))
     if sop == "1.2.840.10008.1.3.10" or "DirectoryRecordSequence" in ds:
         return Skipped(path, "directory file (DICOMDIR)")
@@ -251,9 +296,12 @@ def _classify(
         return Skipped(path, "no pixel data")
     if ct_only and sop not in CT_SOP_CLASSES:
         return Skipped(path, f"not a CT image ({_sop_name(sop)})")
+    n_frames = _int(ds, "NumberOfFrames", 1) or 1
+    if n_frames < 1 or n_frames > max(1, size // 8):
+        return Skipped(path, f"NumberOfFrames {n_frames} cannot fit in a {size}-byte file")
     if ts not in _FAST_SYNTAXES:
-        offset = None
-    return _planes(path, ds, sop, ts, offset)
+        offset = length = None
+    return _planes(path, ds, sop, ts, offset, length, size)
 
 
 def _sop_name(sop: str) -> str:
@@ -263,7 +311,15 @@ def _sop_name(sop: str) -> str:
     return name or sop
 
 
-def _planes(path: Path, ds: Any, sop: str, ts: str, offset: int | None) -> list[SliceHeader]:
+def _planes(
+    path: Path,
+    ds: Any,
+    sop: str,
+    ts: str,
+    offset: int | None,
+    pixel_length: int | None,
+    file_size: int,
+) -> list[SliceHeader]:
     n_frames = _int(ds, "NumberOfFrames", 1) or 1
     lossy_tag = str(ds.get("LossyImageCompression", "")).strip() == "01"
     meta = {
@@ -296,14 +352,16 @@ def _planes(path: Path, ds: Any, sop: str, ts: str, offset: int | None) -> list[
         "transfer_syntax": ts,
         "lossy": lossy_tag or ts in LOSSY_SYNTAXES,
         "has_pixels": True,
+        "pixel_length": pixel_length,
+        "file_size": file_size,
         "meta": meta,
     }
     if sop not in MULTIFRAME_CT_SOP_CLASSES:
         return [
             SliceHeader(
                 frame=0,
-                slope=_num(ds, "RescaleSlope"),
-                intercept=_num(ds, "RescaleIntercept"),
+                slope=_num(ds, "RescaleSlope", finite_only=False),
+                intercept=_num(ds, "RescaleIntercept", finite_only=False),
                 rescale_type=str(ds.get("RescaleType", "")).strip(),
                 ipp=_floats(ds.get("ImagePositionPatient"), 3),  # type: ignore[arg-type]
                 iop=_floats(ds.get("ImageOrientationPatient"), 6),  # type: ignore[arg-type]
@@ -332,8 +390,8 @@ def _planes(path: Path, ds: Any, sop: str, ts: str, offset: int | None) -> list[
         planes.append(
             SliceHeader(
                 frame=f,
-                slope=_num(src, "RescaleSlope"),
-                intercept=_num(src, "RescaleIntercept"),
+                slope=_num(src, "RescaleSlope", finite_only=False),
+                intercept=_num(src, "RescaleIntercept", finite_only=False),
                 rescale_type=str(src.get("RescaleType", "")).strip(),
                 ipp=ipp,  # type: ignore[arg-type]
                 iop=iop,  # type: ignore[arg-type]

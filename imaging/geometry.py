@@ -66,7 +66,16 @@ def require_geometry(h: SliceHeader) -> None:
                 f"{where}: missing or malformed {name}; the geometry cannot be known "
                 "(re-export the series from the scanner with full geometry)"
             )
-    assert h.pixel_spacing is not None and h.iop is not None
+    assert h.pixel_spacing is not None and h.iop is not None and h.ipp is not None
+    for name, value in (
+        ("ImagePositionPatient", h.ipp),
+        ("ImageOrientationPatient", h.iop),
+        ("PixelSpacing", h.pixel_spacing),
+    ):
+        if not all(np.isfinite(value)):
+            raise GeometryInputError(
+                f"{where}: {name} {list(value)} is not finite; the geometry cannot be known"
+            )
     if min(h.pixel_spacing) <= 0:
         raise GeometryInputError(f"{where}: PixelSpacing {h.pixel_spacing} must be positive")
     r, c = np.array(h.iop[:3]), np.array(h.iop[3:])

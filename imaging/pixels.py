@@ -9,6 +9,7 @@ pulled in by vtk, is never used). Bits above BitsStored are masked (unsigned) or
 
 from __future__ import annotations
 
+import warnings
 from functools import lru_cache
 from pathlib import Path
 
@@ -36,7 +37,14 @@ def decoder_plugin_for(transfer_syntax: str) -> str:
     decoder when pylibjpeg is missing.
     """
     uid = UID(transfer_syntax)
-    if not uid.is_compressed:
+    try:
+        compressed = uid.is_compressed
+    except ValueError as exc:
+        raise PixelInputError(
+            f"transfer syntax {transfer_syntax!r} is not a known DICOM transfer syntax; "
+            "re-export the series with a standard one"
+        ) from exc
+    if not compressed:
         return ""
     try:
         decoder = get_decoder(uid)
@@ -123,13 +131,29 @@ def read_stored(h: SliceHeader, out: np.ndarray | None = None) -> np.ndarray:
                 "the file is incomplete, copy it again"
             )
     else:
-        plugin = decoder_plugin_for(h.transfer_syntax)
         try:
-            ds = _dataset(h.path, h.transfer_syntax)
-            arr, _ = get_decoder(UID(h.transfer_syntax)).as_array(
-                ds, index=h.frame if h.n_frames > 1 else None, decoding_plugin=plugin
-            )
-        except (ValueError, RuntimeError, AttributeError, KeyError, NotImplementedError) as exc:
+            plugin = decoder_plugin_for(h.transfer_syntax)
+        except PixelInputError as exc:
+            raise PixelInputError(f"{h.path}: {exc}") from exc
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                ds = _dataset(h.path, h.transfer_syntax)
+                arr, _ = get_decoder(UID(h.transfer_syntax)).as_array(
+                    ds, index=h.frame if h.n_frames > 1 else None, decoding_plugin=plugin
+                )
+        except (
+            ValueError,
+            RuntimeError,
+            AttributeError,
+            KeyError,
+            NotImplementedError,
+            EOFError,
+            OSError,
+            TypeError,
+            IndexError,
+            MemoryError,
+        ) as exc:
             raise PixelInputError(
                 f"{h.path}: cannot decode pixel data "
                 f"({UID(h.transfer_syntax).name or h.transfer_syntax}): {exc}"

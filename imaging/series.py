@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections import Counter, defaultdict
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -68,11 +68,13 @@ def _is_greyscale(h: SliceHeader) -> bool:
 
 def _summary(planes: Sequence[SliceHeader]) -> SeriesSummary:
     h = planes[0]
+    n_positions = len(planes)
     if h.iop is not None and all(p.ipp is not None for p in planes):
-        _, _, normal = frame_axes(h)
-        n_positions = len({round(float(np.asarray(p.ipp) @ normal), 2) for p in planes})
-    else:
-        n_positions = len(planes)
+        with np.errstate(all="ignore"):  # damaged geometry is refused later, with its name
+            _, _, normal = frame_axes(h)
+            pos = [float(np.asarray(p.ipp) @ normal) for p in planes]
+        if all(np.isfinite(pos)):
+            n_positions = len({round(x, 2) for x in pos})
     return SeriesSummary(
         h.series_uid,
         len(planes),
@@ -216,6 +218,33 @@ def _dedupe(
     return kept, warnings
 
 
+def _require_pixels_and_rescale(h: SliceHeader) -> None:
+    """Refuse a plane whose rescale or pixel data cannot give a trustworthy slice."""
+    where = _where(h) if h.n_frames > 1 else str(h.path)
+    for name, value in (("RescaleSlope", h.slope), ("RescaleIntercept", h.intercept)):
+        if value is not None and not np.isfinite(value):
+            raise SeriesInputError(f"{where}: {name} {value} is not a finite number; fix the file")
+    if h.slope == 0.0:
+        raise SeriesInputError(
+            f"{where}: RescaleSlope 0 maps every voxel to the intercept; fix the file"
+        )
+    if h.pixel_offset is None or h.pixel_length is None:
+        return
+    first = h.pixel_offset - h.frame * h.frame_bytes
+    need = h.frame_bytes * h.n_frames
+    if h.pixel_length < need:
+        raise SeriesInputError(
+            f"{where}: PixelData holds {h.pixel_length} bytes but Rows x Columns x "
+            f"NumberOfFrames ({h.rows} x {h.cols} x {h.n_frames}) needs {need}; "
+            "the file is truncated or its header is wrong"
+        )
+    if first + h.pixel_length > h.file_size:
+        raise SeriesInputError(
+            f"{where}: PixelData declares {h.pixel_length} bytes but the file ends "
+            f"{h.file_size - first} bytes after its start; the copy is incomplete, copy it again"
+        )
+
+
 def _check_consistent(planes: Sequence[SliceHeader]) -> None:
     first = planes[0]
     assert first.pixel_spacing is not None
@@ -279,6 +308,7 @@ def load_series(
     planes = list(sel.planes)
     for h in planes:
         require_geometry(h)
+        _require_pixels_and_rescale(h)
     _check_consistent(planes)
     _, _, normal = frame_axes(planes[0])
     ordered, dup_warnings = _dedupe(group_positions(planes, normal), normal)
@@ -358,73 +388,4 @@ def load_series(
         info=info,
         warnings=tuple(warnings),
         slice_positions_mm=geom.positions_mm,
-    )
-
-
-def _region_mean(volume: CTVolume, region: np.ndarray | tuple[slice, ...], name: str) -> float:
-    mask = np.zeros(volume.hu.shape, dtype=bool)
-    if isinstance(region, np.ndarray) and region.dtype == bool:
-        if region.shape != volume.hu.shape:
-            raise ImagingInputError(
-                f"{name}: mask shape {region.shape} differs from the volume {volume.hu.shape}"
-            )
-        mask |= region
-    else:
-        mask[region] = True
-    if volume.valid is not None:
-        mask &= volume.valid
-    if not mask.any():
-        raise ImagingInputError(f"{name}: the region holds no valid voxel; choose another one")
-    return float(volume.hu[mask].astype(np.float64).mean())
-
-
-def calibrate_grey_to_hu(
-    volume: CTVolume,
-    *,
-    air_region: np.ndarray | tuple[slice, ...],
-    bone_or_water_region: np.ndarray | tuple[slice, ...],
-    air_hu: float = -1000.0,
-    reference_hu: float = 0.0,
-) -> CTVolume:
-    """Linear grey -> HU calibration from two regions of known HU.
-
-    Parameters
-    ----------
-    volume : CTVolume
-        Grey values (e.g. CBCT without rescale).
-    air_region, bone_or_water_region : np.ndarray | tuple[slice, ...]
-        Boolean masks (slices, rows, cols) or index expressions (``np.s_[...]``) over ``hu``.
-    air_hu : float
-        HU of the first region (air, -1000).
-    reference_hu : float
-        HU of the second region (water 0, or a known bone/insert value).
-
-    Returns
-    -------
-    CTVolume
-        float32 HU = slope * grey + intercept through both region means; ``info.is_hu`` True,
-        the ``not_hu`` warning removed.
-    """
-    g_air = _region_mean(volume, air_region, "air_region")
-    g_ref = _region_mean(volume, bone_or_water_region, "bone_or_water_region")
-    if abs(g_ref - g_air) < 1e-9:
-        raise ImagingInputError(
-            f"bone_or_water_region: mean grey {g_ref:g} equals the air region's; "
-            "choose regions of different material"
-        )
-    slope = (reference_hu - air_hu) / (g_ref - g_air)
-    intercept = air_hu - slope * g_air
-    hu = (volume.hu.astype(np.float64) * slope + intercept).astype(np.float32)
-    info = replace(
-        volume.info,
-        is_hu=True,
-        rescale_type=f"HU (calibrated: {slope:.6g} x grey + {intercept:.6g})",
-    )
-    return CTVolume(
-        hu=hu,
-        affine_lps=volume.affine_lps,
-        valid=volume.valid,
-        info=info,
-        warnings=tuple(w for w in volume.warnings if w.code != "not_hu"),
-        slice_positions_mm=volume.slice_positions_mm,
     )

@@ -11,8 +11,8 @@ from pydicom.data import get_testdata_file
 from pydicom.dataset import Dataset
 from pydicom.uid import ImplicitVRLittleEndian
 
-from imaging._load_fastheader import read_fast_header
-from imaging.discovery import read_headers
+from imaging._load_fastheader import HeaderCorruptError, read_fast_header
+from imaging.discovery import Skipped, read_headers
 from tests.imaging.factory import affine, linear_hu, write
 
 
@@ -59,9 +59,10 @@ def test_nested_undefined_length_sequences_are_skipped(tmp_path: Path) -> None:
         )
         got = read_fast_header(w.paths[0])
         assert got is not None
-        tags, syntax, implicit, offset, has_pixels = got
-        assert syntax == ts and implicit == (ts == ImplicitVRLittleEndian) and has_pixels
-        assert tags["Rows"] == 3 and tags["Columns"] == 4
+        assert got.transfer_syntax == ts and got.implicit == (ts == ImplicitVRLittleEndian)
+        assert got.has_pixels and got.pixel_length == 24
+        assert got.tags["Rows"] == 3 and got.tags["Columns"] == 4
+        offset = got.pixel_offset
         raw = w.paths[0].read_bytes()
         assert offset is not None
         np.testing.assert_array_equal(
@@ -70,12 +71,24 @@ def test_nested_undefined_length_sequences_are_skipped(tmp_path: Path) -> None:
         _agree(w.paths[0])
 
 
-def test_truncated_or_foreign_files_fall_back(tmp_path: Path) -> None:
+def test_truncated_files_are_corrupt_and_foreign_ones_fall_back(tmp_path: Path) -> None:
     w = write(tmp_path / "s", linear_hu((1, 3, 4)), affine())
     raw = w.paths[0].read_bytes()
     cut = tmp_path / "cut.dcm"
     cut.write_bytes(raw[:300])
-    assert read_fast_header(cut) is None
+    with pytest.raises(HeaderCorruptError):
+        read_fast_header(cut)
+    skipped = read_headers(cut)
+    assert isinstance(skipped, Skipped) and "corrupt DICOM header" in skipped.reason
+    # A header element declaring 4 GB in a small file: refused without reading it.
+    bomb = bytearray(raw)
+    at = bomb.find(b"\x28\x00\x30\x00DS")  # PixelSpacing
+    bomb[at + 4 : at + 8] = b"UT\x00\x00"
+    bomb[at + 8 : at + 8] = b"\xf0\xff\xff\xff"
+    (tmp_path / "bomb.dcm").write_bytes(bytes(bomb))
+    with pytest.raises(HeaderCorruptError):
+        read_fast_header(tmp_path / "bomb.dcm")
+    # Not little endian / unknown layout: None, and pydicom decides.
     junk = tmp_path / "junk.bin"
     junk.write_bytes(bytes(128) + b"DICM" + b"\xff" * 40)
     assert read_fast_header(junk) is None

@@ -290,3 +290,64 @@ def test_grey_to_hu_calibration_on_a_synthetic_volume() -> None:
     assert cal.info.is_hu and "calibrated" in cal.info.rescale_type
     with pytest.raises(ImagingInputError, match="different material"):
         calibrate_grey_to_hu(v, air_region=np.s_[:, :1], bone_or_water_region=np.s_[:, 1:2])
+
+
+def _patch(path: Path, old: bytes, new: bytes) -> None:
+    data = path.read_bytes()
+    assert data.count(old) == 1
+    path.write_bytes(data.replace(old, new))
+
+
+@pytest.mark.filterwarnings("ignore:Invalid value for VR")
+def test_damaged_values_are_refused_naming_file_and_field(tmp_path: Path) -> None:
+    hu = linear_hu(SHAPE)
+    cases = {
+        "slope0": ({"RescaleSlope": "0"}, "RescaleSlope 0"),
+        "nanslope": ({"RescaleSlope": "nan"}, "RescaleSlope nan"),
+        "infpos": ({"ImagePositionPatient": ["inf", "0", "0"]}, "ImagePositionPatient"),
+        "nanspacing": ({"PixelSpacing": ["nan", "nan"]}, "PixelSpacing"),
+    }
+    for name, (values, match) in cases.items():
+        w = write(tmp_path / name, hu, affine())
+        ds = pydicom.dcmread(w.paths[2])
+        for keyword, value in values.items():
+            setattr(ds, keyword, value)
+        ds.save_as(w.paths[2])
+        with pytest.raises(ImagingInputError, match=match) as info:
+            load_series(tmp_path / name)
+        assert "IM00002.dcm" in str(info.value)
+
+
+def test_pixel_length_bombs_and_frame_bombs_are_refused(tmp_path: Path) -> None:
+    hu = linear_hu(SHAPE)
+    nbytes = (6 * 7 * 2).to_bytes(4, "little")
+    # PixelData declaring 4 GB in a small file (an incomplete copy).
+    w = write(tmp_path / "long", hu, affine())
+    _patch(
+        w.paths[1],
+        b"\xe0\x7f\x10\x00OW\x00\x00" + nbytes,
+        b"\xe0\x7f\x10\x00OW\x00\x00\xf0\xff\xff\xff",
+    )
+    with pytest.raises(ImagingInputError, match=r"IM00001\.dcm: PixelData declares 4294967280"):
+        load_series(tmp_path / "long")
+    # NumberOfFrames far beyond the pixel data.
+    w = write(tmp_path / "frames", hu, affine(), extra={"NumberOfFrames": 2147483647})
+    with pytest.raises(ImagingInputError):
+        load_series(tmp_path / "frames")
+    # Pixel data shorter than Rows x Columns.
+    w = write(tmp_path / "short", hu, affine())
+    ds = pydicom.dcmread(w.paths[0])
+    ds.PixelData = ds.PixelData[:20]
+    ds.save_as(w.paths[0])
+    with pytest.raises(ImagingInputError, match=r"IM00000\.dcm: PixelData holds 20 bytes"):
+        load_series(tmp_path / "short")
+
+
+def test_unknown_transfer_syntax_is_refused(tmp_path: Path) -> None:
+    w = write(tmp_path, linear_hu(SHAPE), affine())
+    for p in w.paths:
+        ds = pydicom.dcmread(p)
+        ds.file_meta.TransferSyntaxUID = pydicom.uid.UID("1.2.840.12008.1.2.1")
+        ds.save_as(p, implicit_vr=False, little_endian=True, enforce_file_format=True)
+    with pytest.raises(ImagingInputError, match="not a known DICOM transfer syntax"):
+        load_series(tmp_path)
