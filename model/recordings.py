@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,7 +46,7 @@ class Recording:
 
 def _read_header(path: Path, what: str) -> tuple[list[str], list[list[str]]]:
     try:
-        with path.open(newline="", encoding="utf-8") as fh:
+        with path.open(newline="", encoding="utf-8-sig") as fh:
             rows = [row for row in csv.reader(fh) if row and any(c.strip() for c in row)]
     except FileNotFoundError as exc:
         raise RecordingError(f"{what} {path}: not found; check the path") from exc
@@ -56,12 +57,21 @@ def _read_header(path: Path, what: str) -> tuple[list[str], list[list[str]]]:
     return [c.strip() for c in rows[0]], rows[1:]
 
 
+def _clip(text: str, limit: int = 80) -> str:
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def _column_index(header: list[str], names: tuple[str, ...], path: Path, what: str) -> list[int]:
     missing = [n for n in names if n not in header]
+    if missing and len(header) == 1 and any(sep in header[0] for sep in ";\t"):
+        raise RecordingError(
+            f"{what} {path}: columns must be separated by commas, not semicolons or tabs "
+            f"(header {_clip(header[0])!r})"
+        )
     if missing:
         raise RecordingError(
             f"{what} {path}: missing column {', '.join(missing)}; the header must name "
-            f"{', '.join(names)} (found {', '.join(header) or 'nothing'})"
+            f"{', '.join(names)} (found {_clip(', '.join(header)) or 'nothing'})"
         )
     return [header.index(n) for n in names]
 
@@ -124,17 +134,21 @@ def read_recording(path: str | Path) -> Recording:
     """Read one recording CSV (``time_s, position_mm, force_n``; extra columns ignored)."""
     rpath = Path(path)
     try:
-        with rpath.open(encoding="utf-8") as fh:
-            first = fh.readline()
+        with rpath.open(newline="", encoding="utf-8-sig") as fh:
+            first = next(csv.reader([fh.readline()]), [])
     except FileNotFoundError as exc:
         raise RecordingError(f"recording {rpath}: not found; check the path") from exc
     except (OSError, UnicodeDecodeError) as exc:
         raise RecordingError(f"recording {rpath}: cannot read it ({exc})") from exc
-    header = [c.strip() for c in first.strip().split(",")]
+    header = [c.strip() for c in first]
     idx = _column_index(header, RECORDING_COLUMNS, rpath, "recording")
     try:
-        data = np.loadtxt(rpath, delimiter=",", skiprows=1, usecols=idx, ndmin=2)
-    except ValueError:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
+            data = np.loadtxt(
+                rpath, delimiter=",", skiprows=1, usecols=idx, ndmin=2, encoding="utf-8-sig"
+            )
+    except (ValueError, UnicodeDecodeError):
         _, rows = _read_header(rpath, "recording")
         data = _parse_rows(rows, idx, rpath)
     if data.shape[0] < 16:

@@ -155,3 +155,34 @@ def test_recording_time_must_increase(tmp_path: Path) -> None:
     (tmp_path / "r.csv").write_text("time_s,position_mm,force_n\n" + rows + "\n")
     with pytest.raises(ModelInputError, match=r"r\.csv, line 13, column time_s"):
         read_recording(tmp_path / "r.csv")
+
+
+@pytest.mark.parametrize(
+    ("content", "match"),
+    [
+        (b"time_s,position_mm,force_n\n", "only 0 samples"),
+        (b"time_s;position_mm;force_n\n0;0;1\n", "separated by commas"),
+        (b"\x00\xff\xfe", "cannot read it"),
+        (b"", "missing column time_s"),
+        (b"time_s,position_mm,force_n\n0,0\n", "line 2, column force_n"),
+    ],
+)
+def test_unusable_recordings_are_named(tmp_path: Path, content: bytes, match: str) -> None:
+    path = tmp_path / "rec.csv"
+    path.write_bytes(content)
+    with pytest.raises(ModelInputError, match=match) as info:
+        read_recording(path)
+    assert "rec.csv" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_bom_and_quoted_headers_are_read(tmp_path: Path) -> None:
+    rows = "\n".join(f"{i / 1000},{i * 1e-4},1.5" for i in range(20))
+    for name, header in (
+        ("bom.csv", "\ufefftime_s,position_mm,force_n"),
+        ("q.csv", '"time_s","position_mm","force_n"'),
+    ):
+        (tmp_path / name).write_text(header + "\n" + rows + "\n", encoding="utf-8")
+        rec = read_recording(tmp_path / name)
+        np.testing.assert_allclose(rec.force_n, 1.5)
+    (tmp_path / "m.csv").write_text("\ufefffile,hu,feed_mm_s\nq.csv,-600,0.4\n", encoding="utf-8")
+    assert read_manifest(tmp_path / "m.csv")[0].hu == -600.0
