@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.report import Section, table, time_it
+from bench.report import Section, figure_path, table, time_it
 from haptics.emulator import DeviceEmulator
 from haptics.profile_table import ProfileTable
 from haptics.protocol import Arm, OperatorKind, SimOperator, encode
@@ -169,6 +169,48 @@ def _realtime(duration_s: float) -> tuple[list[list[str]], list[list[str]]]:
     return rows, throughput
 
 
+FIGURE_NAME = "haptics_session.png"
+
+
+def _session_figure(operator: str, duration_s: float) -> str:
+    """A simulated rehearsal on the demo phantom: depths and rendered force against time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from app.rehearse import load_table
+    from haptics.session import parse_operator, run_session
+    from haptics.sim import SimulatedDevice
+
+    demo = ROOT / "assets" / "demo"
+    loaded = load_table(demo / "ct", demo / "plan.json")
+    rows: list[tuple[float, float, float, float, str]] = []
+    result = run_session(
+        SimulatedDevice(), loaded.table, parse_operator(operator), duration_s, sink=rows.extend
+    )
+    t = [r[0] for r in rows]
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(6.4, 5.0), sharex=True)
+    ax1.plot(t, [r[1] for r in rows], label="master (hand)")
+    ax1.plot(t, [r[2] for r in rows], label="drill")
+    ax1.axhline(result.stop_depth_mm, color="k", ls="--", lw=0.8, label="stop depth")
+    ax1.set_ylabel("depth (mm)")
+    ax1.legend(fontsize=7)
+    ax2.plot(t, [r[3] for r in rows], lw=0.6)
+    ax2.set_ylabel("rendered force (N)")
+    ax2.set_xlabel("time (s)")
+    ax1.set_title(f"Simulated rehearsal, demo phantom, {loaded.path.calibration.name}, {operator}")
+    fig.tight_layout()
+    fig.savefig(figure_path(FIGURE_NAME), dpi=110)
+    plt.close(fig)
+    return (
+        f"Figure: `ctdrill rehearse` on the demo phantom in the simulator ({operator}, "
+        f"{duration_s:g} s): the drill stops at {result.max_drill_mm:.2f} mm "
+        f"(stop depth {result.stop_depth_mm:.2f} mm, {loaded.path.stop_reason}) while the hand "
+        f"is pushed on to {result.max_master_mm:.2f} mm against the wall."
+    )
+
+
 def run(quick: bool) -> Section:
     """Measure and report (quick: fewer ticks, 1 s real-time runs)."""
     n = 5_000 if quick else 50_000
@@ -214,6 +256,9 @@ def run(quick: bool) -> Section:
             throughput,
         ),
     ]
+    text += ["", _session_figure("push:12", 3.0 if quick else 6.0)]
     return Section(
-        title="Haptics: device tick, real-time emulator, pty link", markdown="\n".join(text)
+        title="Haptics: device tick, real-time emulator, pty link",
+        markdown="\n".join(text),
+        figures=(str(figure_path(FIGURE_NAME)),),
     )
