@@ -35,7 +35,7 @@ from model.recordings import (
     read_manifest,
     read_recording,
 )
-from model.spectral import extract_components
+from model.spectral import amplitude_spectrum, dominant_frequencies, extract_components
 
 #: The paper's analysis window: "data were collected for cutting depths between 1 mm and 8 mm".
 DEFAULT_DEPTH_WINDOW_MM: tuple[float, float] = (1.0, 8.0)
@@ -71,6 +71,8 @@ class Measurement:
     feed_mm_s: float
     dc_n: float
     amplitudes_n: tuple[float, ...]
+    #: The strongest spectral peaks in the window (Hz, strongest first), for checking rpm/blades.
+    peaks_hz: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -207,12 +209,15 @@ def measure_recording(
             f"{where}, column force_n: no cutting force (DC {dc:.3g} N) in the depth window; "
             "check the recording"
         )
+    spectrum = amplitude_spectrum(f - dc, 1.0 / dt)
+    peaks = dominant_frequencies(spectrum, count=3, min_hz=0.25 * float(np.min(freqs_hz)))
     return Measurement(
         source=str(recording.path),
         hu=entry.hu,
         feed_mm_s=entry.feed_mm_s,
         dc_n=dc,
         amplitudes_n=tuple(float(a) for a in amps),
+        peaks_hz=tuple(round(float(p), 3) for p in peaks),
     )
 
 
@@ -376,6 +381,7 @@ def fit_document(fit: CalibrationFit) -> dict[str, Any]:
                 "feed_mm_s": m.feed_mm_s,
                 "a0_n": m.dc_n,
                 "amplitudes_n": list(m.amplitudes_n),
+                "peaks_hz": list(m.peaks_hz),
             }
             for m in fit.measurements
         ],

@@ -75,6 +75,9 @@ def test_recovers_pine_wood_within_the_papers_error_bars(
     assert [h.order for h in cal.harmonics] == [1, 2]
     assert doc["fit_info"]["freqs_hz"] == [30.0, 60.0]
     assert doc["fit_info"]["recordings"] == 20
+    # The spectra show the drill: 30 and 60 Hz cutting, 15 Hz free-running rotation.
+    for m in doc["fit_info"]["measurements"]:
+        assert sorted(round(f) for f in m["peaks_hz"]) == [15, 30, 60], m["file"]
     out_text = capsys.readouterr().out
     assert "a0.ke" in out_text and "error (%)" in out_text
 
