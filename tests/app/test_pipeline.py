@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from app.pipeline import PathInputError, plan_path
-from imaging.landmarks import CanalLandmark
-from imaging.plan import DrillSpec, Plan
+from imaging.landmarks import CanalLandmark, MaskLandmark
+from imaging.plan import DrillSpec, Plan, load_plan
 from imaging.volume import CTVolume, SeriesInfo
 from model.calibration import load_calibration
 from model.layered import layered_profile
@@ -179,3 +181,27 @@ def test_slice_gap_refused_on_the_path_and_a_warning_off_it() -> None:
     res = plan_path(_volume(positions=gap_on_path), _plan(depth_mm=2.0), cal)
     assert res.stop_reason == "planned_depth"
     assert "nonuniform_spacing" in [w.code for w in res.warnings]
+
+
+def test_mask_landmark_from_a_plan_file_on_the_ct_grid(slabs: CTVolume, tmp_path: Path) -> None:
+    # A bar of voxels along x at y = 0 with 3.5 <= z <= 4.5 mm: the voxel centre nearest to
+    # the drill sits on the axis at z = 3.501 mm, so the 2 mm margin allows 1.501 mm.
+    z = Z0 + DZ * np.arange(N_SLICES)
+    labels = np.zeros(slabs.hu.shape, dtype=np.uint8)
+    labels[(z >= 3.5) & (z <= 4.5), 4, :] = 5
+    np.save(tmp_path / "canal.npy", labels)
+    doc = {
+        "format": "ctdrill-plan/1",
+        "entry_mm": [0.0, 0.0, 0.0],
+        "target_mm": [0.0, 0.0, 5.0],
+        "drill": {"diameter_mm": 2 * R_MM, "tip_length_mm": LT_MM},
+        "landmarks": [{"name": "segmented canal", "kind": "mask", "path": "canal.npy", "label": 5}],
+    }
+    (tmp_path / "plan.json").write_text(json.dumps(doc), encoding="utf-8")
+    plan = load_plan(tmp_path / "plan.json")
+    res = plan_path(slabs, plan, load_calibration("bone-illustrative"))
+    assert res.stop_reason == "margin"
+    assert res.stop_depth_mm == pytest.approx(3.501 - 2.0, abs=1e-3)
+    assert res.stop_depth_mm <= 1.501 + 1e-9
+    lm = res.landmarks[0]
+    assert isinstance(lm, MaskLandmark) and lm.affine_lps is not None
