@@ -42,7 +42,7 @@ STATS = re.compile(
 def _per_tick_costs(n: int, repeats: int) -> list[list[str]]:
     renderer = Renderer()
     renderer.load(SLAB.begin_message(), SLAB.rows())
-    renderer.arm(0.0)
+    renderer.arm(0.0, 0.0)
     state = {"t": 0.0}
 
     def run_renderer() -> None:

@@ -61,6 +61,7 @@ class NakReason(IntEnum):
     NONFINITE = 8
     PROFILE_TOO_LONG = 9
     BAD_VALUE = 10
+    NOT_RETRACTED = 11
 
 
 class OperatorKind(IntEnum):

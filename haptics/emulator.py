@@ -201,10 +201,10 @@ class DeviceEmulator:
             r.load(begin, self._rows)
             return None
         if isinstance(msg, Arm):
-            if not r.arm(now):
-                return NakReason.NOT_READY
-            self._boot_fault = 0
-            return None
+            refused = r.arm(now, self.plant.encoder_mm())
+            if refused is None:
+                self._boot_fault = 0
+            return refused
         if isinstance(msg, Disarm):
             r.disarm()
             return None

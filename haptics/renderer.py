@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from haptics.protocol import DeviceState, Fault, ProfileBegin
+from haptics.protocol import DeviceState, Fault, NakReason, ProfileBegin
 from model.cutting import (
     DEFAULT_DAMPING_N_S_PER_MM,
     DEFAULT_STIFFNESS_N_PER_MM,
@@ -41,6 +41,8 @@ THERMAL_BUDGET_N2_S = PEAK_FORCE_N**2 - CONTINUOUS_FORCE_N**2
 WATCHDOG_S = 0.050
 #: Stiffness of the wall rendered beyond the stop depth, N/mm (on top of the cut coupling).
 STOP_WALL_N_PER_MM = 20.0
+#: ARM is refused while the coupling would render more than this on arming, N.
+ARM_MAX_FORCE_N = 5.0
 
 
 class Renderer:
@@ -129,10 +131,17 @@ class Renderer:
         self.front_mm = 0.0
         self.disarm()
 
-    def arm(self, now_s: float) -> bool:
-        """Start rendering (clears latched faults); False without a table."""
+    def arm(self, now_s: float, master_mm: float) -> NakReason | None:
+        """Start rendering (clears latched faults); the reason if refused.
+
+        Refused without a table (``NOT_READY``) and while the master is so far beyond the cut
+        front that arming would step the force above :data:`ARM_MAX_FORCE_N`
+        (``NOT_RETRACTED``: retract the handle first; no force step on arming).
+        """
         if not self.has_profile:
-            return False
+            return NakReason.NOT_READY
+        if not math.isfinite(master_mm) or self.k * (master_mm - self.front_mm) > ARM_MAX_FORCE_N:
+            return NakReason.NOT_RETRACTED
         self.state = int(
             DeviceState.STOPPED if self.front_mm >= self.stop_depth_mm else DeviceState.CUTTING
         )
@@ -141,7 +150,7 @@ class Renderer:
         self.last_host_s = now_s
         self.t_arm_s = now_s
         self.safe_since_s = math.nan
-        return True
+        return None
 
     def disarm(self) -> None:
         """Zero force, idle."""

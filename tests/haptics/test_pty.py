@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from haptics.device import DeviceError
 from haptics.profile_table import ProfileTable
 from haptics.protocol import DeviceState, Fault, OperatorKind
 from haptics.serial_device import SerialDevice
@@ -78,6 +79,9 @@ def test_round_trip_and_safety_over_a_pty(emulator: Path) -> None:
         assert late[-1].faults & Fault.WATCHDOG
         trips = [t for t, f in dev.fault_reports if f.faults & Fault.WATCHDOG]
         assert trips and all(s.state != DeviceState.SAFE for s in samples)
+        with pytest.raises(DeviceError, match="NOT_RETRACTED"):
+            dev.arm()  # the hand is still pushed deep: no force step on re-arming
+        _beat(dev, 0.3, -10.0)  # retract
         dev.arm()
         dev.disarm()
         idle = _beat(dev, 0.05, 0.0)

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from haptics.profile_table import ProfileTable
-from haptics.protocol import DeviceState, Fault
+from haptics.protocol import DeviceState, Fault, NakReason
 from haptics.renderer import Renderer
 from model.profile import Profile, force_n
 
@@ -20,7 +20,7 @@ DT = 1e-4
 def armed(table: ProfileTable, **kwargs: float) -> Renderer:
     r = Renderer(**kwargs)  # type: ignore[arg-type]
     r.load(table.begin_message(), table.rows())
-    assert r.arm(0.0)
+    assert r.arm(0.0, 0.0) is None
     return r
 
 
@@ -122,7 +122,10 @@ def test_watchdog_trips_after_50_ms_and_latches_until_rearmed() -> None:
     assert r.tick(trip + DT, 3.0, 0.0) == 0.0 and r.state == DeviceState.SAFE
     assert r.front_mm <= 1.0  # the drill stopped: pushing deeper does not cut
     assert r.drill_mm <= 1.0
-    assert r.arm(trip + 2 * DT) and r.state == DeviceState.CUTTING and r.faults == 0
+    # Re-arming needs the handle retracted: 3.2 N/mm * (3 - 1) mm = 6.4 N > 5 N would be a step.
+    assert r.arm(trip + 2 * DT, 3.0) == NakReason.NOT_RETRACTED and r.state == DeviceState.SAFE
+    assert r.arm(trip + 2 * DT, 1.0) is None
+    assert r.state == DeviceState.CUTTING and r.faults == 0
 
 
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
@@ -138,7 +141,7 @@ def test_nonfinite_input_goes_safe(bad: float) -> None:
 
 def test_arm_needs_a_table_and_idle_renders_nothing() -> None:
     r = Renderer()
-    assert not r.arm(0.0)
+    assert r.arm(0.0, 0.0) == NakReason.NOT_READY
     assert r.tick(DT, 5.0, 1.0) == 0.0 and r.state == DeviceState.IDLE
 
 

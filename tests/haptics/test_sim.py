@@ -147,11 +147,18 @@ def test_watchdog_trips_within_50_ms_of_the_last_host_frame() -> None:
     trips = [t for t, f in dev.fault_reports if f.faults & Fault.WATCHDOG]
     assert len(trips) == 1
     assert 0.050 - 1e-9 <= trips[0] - last_frame_s <= 0.050 + 1e-4 + 1e-9
-    # Latched: heartbeats do not clear it, the drill does not advance; ARM does.
+    # Latched: heartbeats do not clear it, the drill does not advance; ARM does, once the
+    # handle is retracted (the hand kept pushing 8 N into the unpowered master).
     drill = safe[-1].drill_mm
     dev.heartbeat()
     dev.wait(0.05)
     assert all(s.state == DeviceState.SAFE and s.drill_mm <= drill for s in dev.poll())
+    with pytest.raises(DeviceError, match="NOT_RETRACTED"):
+        dev.arm()
+    for _ in range(30):
+        dev.heartbeat()
+        dev.set_operator(int(OperatorKind.PUSH), -5.0)
+        dev.wait(0.01)
     dev.arm()
     dev.heartbeat()
     dev.wait(0.02)
