@@ -17,8 +17,8 @@ from imaging.plan import Plan
 
 #: Tolerance of :func:`max_safe_depth_mm`, mm.
 SAFE_DEPTH_TOL_MM = 1e-3
-#: Interior depths evaluated per refinement pass of :func:`max_safe_depth_mm`.
-_REFINE_POINTS = 63
+#: Depths evaluated per refinement pass of :func:`max_safe_depth_mm`.
+_REFINE_POINTS = 65
 #: Points per chunk when a landmark core has many points (mask voxels), to bound memory.
 _CHUNK_POINTS = 4096
 
@@ -82,11 +82,6 @@ def clearance_mm(plan: Plan, landmark: Landmark, depth_mm: float) -> float:
     return float(clearance_profile_mm(plan, (landmark,), np.array([depth_mm]))[0, 0])
 
 
-def _slack(plan: Plan, lms: tuple[Landmark, ...], margins: np.ndarray, x: float) -> float:
-    """min over landmarks of clearance - margin at depth x (non-increasing in x)."""
-    return float(np.min(clearance_profile_mm(plan, lms, np.array([x]))[0] - margins))
-
-
 def max_safe_depth_mm(
     plan: Plan,
     landmarks: tuple[Landmark, ...] | None = None,
@@ -98,9 +93,9 @@ def max_safe_depth_mm(
     """Deepest tip depth whose clearance to every landmark stays >= its margin, mm.
 
     Each landmark uses its own ``margin_mm`` when set, else ``plan.margin_mm``. Found by
-    bracketing on ``[0, limit_mm]`` and refinement (64-section, i.e. bisection six steps at a
-    time) to ``tol_mm``; the returned depth is on the
-    safe side of the boundary (within ``tol_mm`` of it).
+    bracketing on ``[0, limit_mm]`` and refinement (64-section, i.e. six bisection steps per
+    vectorised pass) to ``tol_mm``; the returned depth is on the safe side of the boundary
+    (within ``tol_mm`` of it).
 
     Parameters
     ----------
@@ -108,8 +103,8 @@ def max_safe_depth_mm(
         a value equal to ``limit_mm`` means "safe at least that deep"; with no landmark it is
         ``limit_mm``.
     bracket_mm : optional ``(lo, hi)`` with the margin kept at ``lo`` and violated at
-        ``hi`` (e.g. from a clearance profile on a depth grid); checked, and ignored when it
-        does not hold.
+        ``hi`` (e.g. from a clearance profile on a depth grid); checked in the first pass, and
+        the full range searched when it does not hold.
 
     Returns
     -------
@@ -122,45 +117,43 @@ def max_safe_depth_mm(
     margins = np.array([plan.landmark_margin_mm(lm) for lm in lms])
     if bracket_mm is not None:
         lo, hi = float(bracket_mm[0]), float(bracket_mm[1])
-        if (
-            0.0 <= lo < hi <= limit
-            and _slack(plan, lms, margins, lo) >= 0.0
-            and _slack(plan, lms, margins, hi) < 0.0
-        ):
-            return _bisect(plan, lms, margins, lo, hi, tol_mm)
-    if _slack(plan, lms, margins, 0.0) < 0.0:
+        if 0.0 <= lo < hi <= limit:
+            found = _refine(plan, lms, margins, lo, hi, tol_mm)
+            if found is not None and found < hi:  # safe at lo, violated by hi: it held
+                return found
+    found = _refine(plan, lms, margins, 0.0, limit, tol_mm)
+    if found is None:  # violated at the entry already
         return 0.0
-    if _slack(plan, lms, margins, limit) >= 0.0:
-        return limit
-    return _bisect(plan, lms, margins, 0.0, limit, tol_mm)
+    return found
 
 
-def _bisect(
+def _refine(
     plan: Plan,
     lms: tuple[Landmark, ...],
     margins: np.ndarray,
     lo: float,
     hi: float,
     tol_mm: float,
-) -> float:
-    """Bracket refinement on [lo, hi] with slack(lo) >= 0 > slack(hi); returns the safe end.
+) -> float | None:
+    """Deepest safe depth in ``[lo, hi]`` to ``tol_mm``, or None if ``lo`` is not safe.
 
-    Each pass evaluates ``_REFINE_POINTS`` interior depths in one vectorised call and keeps
-    the step where the slack first turns negative (valid because it is non-increasing), so
-    the bracket shrinks ``_REFINE_POINTS + 1``-fold per pass instead of 2-fold.
+    Each pass evaluates ``_REFINE_POINTS`` depths spanning the bracket (its ends included) in
+    one vectorised call and keeps the step where the slack (clearance - margin) first turns
+    negative, valid because the slack never increases with depth: the bracket shrinks
+    ``_REFINE_POINTS - 1``-fold per pass. Returns ``hi`` when it is still safe.
     """
-    while hi - lo > tol_mm:
-        xs = np.linspace(lo, hi, _REFINE_POINTS + 2)[1:-1]
+    while True:
+        xs = np.linspace(lo, hi, _REFINE_POINTS)
         slack = np.min(clearance_profile_mm(plan, lms, xs) - margins[None, :], axis=1)
         bad = np.flatnonzero(slack < 0.0)
         if bad.size == 0:
-            lo = float(xs[-1])
-        else:
-            first = int(bad[0])
-            hi = float(xs[first])
-            if first > 0:
-                lo = float(xs[first - 1])
-    return lo
+            return hi
+        first = int(bad[0])
+        if first == 0:
+            return None
+        lo, hi = float(xs[first - 1]), float(xs[first])
+        if hi - lo <= tol_mm:
+            return lo
 
 
 def nearest_landmark(clearance_mm: np.ndarray, margins_mm: np.ndarray) -> int | None:

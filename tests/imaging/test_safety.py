@@ -199,3 +199,5 @@ def test_bracket_hint_gives_the_same_safe_depth_and_bad_hints_are_ignored() -> N
     plan = _plan((canal,))
     assert max_safe_depth_mm(plan, bracket_mm=(11.75, 11.85)) == pytest.approx(11.8, abs=1e-3)
     assert max_safe_depth_mm(plan, bracket_mm=(12.0, 13.0)) == pytest.approx(11.8, abs=1e-3)
+    assert max_safe_depth_mm(plan, bracket_mm=(5.0, 6.0)) == pytest.approx(11.8, abs=1e-3)
+    assert max_safe_depth_mm(plan, bracket_mm=(11.0, 5.0)) == pytest.approx(11.8, abs=1e-3)
