@@ -21,7 +21,11 @@ from typing import Any
 from pydicom import dcmread
 from pydicom.dataset import Dataset
 from pydicom.errors import BytesLengthException, InvalidDicomError
-from pydicom.uid import ExplicitVRLittleEndian, ImplicitVRLittleEndian
+from pydicom.uid import (
+    DeflatedExplicitVRLittleEndian,
+    ExplicitVRLittleEndian,
+    ImplicitVRLittleEndian,
+)
 
 from imaging._load_fastheader import HeaderCorruptError, read_fast_header
 from imaging.errors import ImagingInputError
@@ -275,6 +279,11 @@ def read_headers(
                 ts = str(ImplicitVRLittleEndian if implicit else ExplicitVRLittleEndian)
             if not little:
                 offset = length = None
+            if ts == DeflatedExplicitVRLittleEndian:
+                # The file position is in the deflated stream: ask the inflated dataset.
+                full = dcmread(path)
+                offset = length = None
+                has_pixels = "PixelData" in full or "FloatPixelData" in full
             size = path.stat().st_size
             return _classify(path, ds, ts, (offset, length, has_pixels, size), ct_only)
     except _HEADER_ERRORS as exc:

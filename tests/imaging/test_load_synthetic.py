@@ -351,3 +351,15 @@ def test_unknown_transfer_syntax_is_refused(tmp_path: Path) -> None:
         ds.save_as(p, implicit_vr=False, little_endian=True, enforce_file_format=True)
     with pytest.raises(ImagingInputError, match="not a known DICOM transfer syntax"):
         load_series(tmp_path)
+
+
+def test_deflated_series_loads(tmp_path: Path) -> None:
+    hu = linear_hu(SHAPE)
+    w = write(tmp_path, hu, affine())
+    for p in w.paths:
+        ds = pydicom.dcmread(p)
+        ds.file_meta.TransferSyntaxUID = pydicom.uid.DeflatedExplicitVRLittleEndian
+        ds.save_as(p, enforce_file_format=True)
+    v = load_series(tmp_path)
+    np.testing.assert_array_equal(v.hu, hu)
+    assert v.info.transfer_syntax == pydicom.uid.DeflatedExplicitVRLittleEndian
