@@ -99,8 +99,9 @@ def segment_solid_distance_mm(
     it runs until the bracket times ``|b - a|`` is below :data:`SEGMENT_TOL_MM`, and as the
     distance is ``|b - a|``-Lipschitz in the parameter the value is then within 1e-7 mm of the
     exact minimum. Segments that cannot hold the minimum are skipped exactly: the distance
-    is 1-Lipschitz in space, so a segment's minimum is at least its midpoint's distance minus
-    half its length, and it is skipped when that exceeds a distance already reached.
+    is 1-Lipschitz in space, which bounds a segment's minimum from below by its values at the
+    ends and the midpoint, and it is skipped when that bound exceeds a distance already
+    reached.
 
     Parameters
     ----------
@@ -129,9 +130,12 @@ def segment_solid_distance_mm(
             tip_length_mm=tip_length_mm,
         )
 
-    d_mid = f_all(0.5)
-    upper = np.minimum(np.minimum(f_all(0.0), f_all(1.0)), d_mid).min(axis=1)  # (D,)
-    di, si = np.nonzero(d_mid - half[None, :] < upper[:, None])
+    d_a, d_mid, d_b = f_all(0.0), f_all(0.5), f_all(1.0)
+    upper = np.minimum(np.minimum(d_a, d_b), d_mid).min(axis=1)  # (D,)
+    # On a half of length L/2 between values u and v, a 1-Lipschitz function stays above
+    # (u + v - L/2) / 2: the segment's lower bound is the smaller of its halves' bounds.
+    lower = 0.5 * (np.minimum(d_a, d_b) + d_mid - half[None, :])
+    di, si = np.nonzero(lower < upper[:, None])
     best = upper.copy()
     if di.size == 0:
         return best
