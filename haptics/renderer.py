@@ -7,7 +7,8 @@ Per tick, from the encoder depth of the master and its velocity estimate:
 3. the cutting law (:mod:`model.cutting`) on the uploaded table: the front (deepest drill
    depth) yields to the hand, never past the stop depth; vibration from the device clock while
    the front advances; once the front has reached the stop depth, a stiff wall (20 N/mm on top
-   of the coupling) anchored where the master was at that moment, so the force stays continuous;
+   of the coupling) anchored where the master was at that moment, so the force stays continuous,
+   and following the master back whenever it retreats (down to the stop depth itself);
 4. force limits: 78 N peak, and an I^2t thermal model that limits the force to the continuous
    rating (20 N) once ``thermal_budget_n2_s`` of excess ``F^2 - Fc^2`` has accumulated, until it
    has cooled to half.
@@ -223,9 +224,13 @@ class Renderer:
             t = now_s - self.t_arm_s
             vib = s1 * math.sin(self.w1 * t) + s2 * math.sin(self.w2 * t)
         force = resistance_n(coupling, master_v_mm_s, front_v, vib, damping_n_s_per_mm=self.b)
-        if new_front >= stop and self.stop_anchor_mm == math.inf:
-            self.stop_anchor_mm = master_mm if master_mm > stop else stop
-        if master_mm > self.stop_anchor_mm:
+        anchor = self.stop_anchor_mm
+        if new_front >= stop and anchor == math.inf:
+            anchor = master_mm if master_mm > stop else stop  # continuous on reaching the stop
+        elif anchor != math.inf and master_mm < anchor:
+            anchor = master_mm if master_mm > stop else stop  # follows a retreat to the stop
+        self.stop_anchor_mm = anchor
+        if master_mm > anchor:
             force += self.k_stop * (master_mm - self.stop_anchor_mm)
         self.front_mm = new_front
         self.drill_mm = master_mm if master_mm < new_front else new_front
@@ -237,14 +242,15 @@ class Renderer:
             force = self.peak_force_n
             self._raise(Fault.PEAK_LIMIT)
         fc = self.continuous_force_n
+        if self.thermal_limited and force > fc:
+            force = fc
+            self._raise(Fault.THERMAL_LIMIT)
+        # I^2t on the force actually delivered
         thermal = self.thermal_n2_s + (force * force - fc * fc) * self.dt_s
         self.thermal_n2_s = thermal if thermal > 0.0 else 0.0
         if self.thermal_n2_s >= self.thermal_budget_n2_s:
             self.thermal_limited = True
         elif self.thermal_n2_s < 0.5 * self.thermal_budget_n2_s:
             self.thermal_limited = False
-        if self.thermal_limited and force > fc:
-            force = fc
-            self._raise(Fault.THERMAL_LIMIT)
         self.force_cmd_n = force
         return force

@@ -85,6 +85,15 @@ def test_stop_depth_is_never_passed_and_the_wall_is_continuous() -> None:
     anchor = r.stop_anchor_mm
     assert anchor == pytest.approx(5.0 + 2.0 / 3.2, abs=2e-3)
     assert forces[-1] == pytest.approx(3.2 * (20.0 - 5.0) + 20.0 * (20.0 - anchor), rel=1e-6)
+    # Retreat to 5.2 mm and push again: the wall followed the retreat, it is stiff from there.
+    now = 20.0
+    for target in (5.2, 6.2):
+        now += DT
+        r.host_frame(now)
+        force = r.tick(now, target, 0.0)
+    assert r.stop_anchor_mm == pytest.approx(5.2)
+    assert force == pytest.approx(3.2 * 1.2 + 20.0 * 1.0)
+    assert r.drill_mm == 5.0
 
 
 def test_peak_and_thermal_limits() -> None:
