@@ -115,19 +115,32 @@ def _rings_angles(quick: bool) -> tuple[str, list[tuple[int, int, float, float, 
                 )
             )
     front = _pareto([(r[2], r[3]) for r in rows])
+    front_samples = _pareto([(float(r[0] * r[1]), r[3]) for r in rows])
     body = table(
         [
             "rings",
             "angles",
+            "samples/depth",
             "build (ms)",
             "IQR (ms)",
             "S0 RMS error (N)",
             "S0 max error (N)",
-            "Pareto",
+            "front (samples)",
+            "front (time)",
         ],
         [
-            (r[0], r[1], f"{r[2] * 1e3:.3g}", q, f"{r[3]:.3g}", f"{r[4]:.3g}", "yes" if f else "")
-            for r, q, f in zip(rows, iqr, front, strict=True)
+            (
+                r[0],
+                r[1],
+                r[0] * r[1],
+                f"{r[2] * 1e3:.3g}",
+                q,
+                f"{r[3]:.3g}",
+                f"{r[4]:.3g}",
+                "yes" if fs else "",
+                "yes" if f else "",
+            )
+            for r, q, f, fs in zip(rows, iqr, front, front_samples, strict=True)
         ],
     )
     conv = float(np.max(np.abs(ref - ref_half)))
@@ -136,25 +149,32 @@ def _rings_angles(quick: bool) -> tuple[str, list[tuple[int, int, float, float, 
         f"layered field). Reference converged to {conv:.2g} N (max difference at half the rings); "
         f"peak S0 {ref.max():.3g} N.\n\n"
     )
-    _figure(rows, front, quick)
+    _figure(rows, front, front_samples)
     return head + body, rows
 
 
 def _figure(
-    rows: list[tuple[int, int, float, float, float]], front: list[bool], quick: bool
+    rows: list[tuple[int, int, float, float, float]],
+    front: list[bool],
+    front_samples: list[bool],
 ) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    for (n_r, n_a, t, e, _), on_front in zip(rows, front, strict=True):
-        ax.loglog(t * 1e3, max(e, 1e-6), "o", color="C1" if on_front else "C0", ms=5)
-        ax.annotate(f"{n_r}x{n_a}", (t * 1e3, max(e, 1e-6)), fontsize=6)
-    ax.set_xlabel("profile build time per trajectory (ms)")
-    ax.set_ylabel("S0 RMS error vs reference (N)")
-    ax.set_title("Lip quadrature: rings x angles (orange: Pareto front)")
+    fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.2), sharey=True)
+    panels = (
+        (axes[0], [float(r[0] * r[1]) for r in rows], front_samples, "lip samples per depth"),
+        (axes[1], [r[2] * 1e3 for r in rows], front, "profile build time, 401 depths (ms)"),
+    )
+    for ax, xs, on_front, label in panels:
+        for (n_r, n_a, _, e, _), x, on in zip(rows, xs, on_front, strict=True):
+            ax.loglog(x, max(e, 1e-6), "o", color="C1" if on else "C0", ms=5)
+            ax.annotate(f"{n_r}x{n_a}", (x, max(e, 1e-6)), fontsize=6)
+        ax.set_xlabel(label)
+    axes[0].set_ylabel("S0 RMS error vs reference (N)")
+    fig.suptitle("Lip quadrature, rings x angles (orange: Pareto front)")
     fig.tight_layout()
     fig.savefig(figure_path(FIGURE_NAME), dpi=110)
     plt.close(fig)
