@@ -230,6 +230,10 @@ def summary(
         "stop_depth_mm": _num(result.stop_depth_mm),
         "stop_reason": result.stop_reason,
         "max_safe_depth_mm": _num(result.max_safe_depth_mm),
+        # the search stops 10 mm past the planned depth: true means "at least this deep"
+        "max_safe_depth_capped": bool(
+            result.max_safe_depth_mm >= result.planned_depth_mm + 10.0 - 1e-9
+        ),
         "out_of_volume_depth_mm": _num(result.out_of_volume_depth_mm),
         "min_clearance_mm": _num(result.min_clearance_mm),
         "nearest_landmark": None if nearest is None else lms[nearest],

@@ -361,12 +361,14 @@ def test_edge_cases_no_landmark_and_a_stop_at_the_entry(tmp_path: Path) -> None:
     s_free = json.loads((tmp_path / "out" / "free" / "summary.json").read_text(encoding="utf-8"))
     assert s_free["stop_reason"] == "planned_depth" and s_free["stop_depth_mm"] == 10.0
     assert s_free["min_clearance_mm"] is None and s_free["nearest_landmark"] is None
+    assert s_free["max_safe_depth_mm"] == 20.0 and s_free["max_safe_depth_capped"] is True
     assert s_free["calibration_illustrative"] is False
     _, rows = _rows(tmp_path / "out" / "free" / "force.csv")
     assert len(rows) == 501 and float(rows[-1]["depth_mm"]) == pytest.approx(10.0)
     assert {r["clearance_mm"] for r in rows} == {"inf"}
     s_blk = json.loads((tmp_path / "out" / "blocked" / "summary.json").read_text(encoding="utf-8"))
     assert s_blk["stop_reason"] == "margin" and s_blk["stop_depth_mm"] == 0.0
+    assert s_blk["max_safe_depth_capped"] is False
     assert s_blk["min_clearance_mm"] == pytest.approx(1.0)
     assert s_blk["hu_grading"]["segments"][0]["mean_hu"] is None
     _, rows = _rows(tmp_path / "out" / "blocked" / "force.csv")
