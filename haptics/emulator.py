@@ -230,9 +230,7 @@ class DeviceEmulator:
     def reset(self) -> None:
         """Power cycle: table and state lost (the stage stays where it is); RESET reported."""
         self.renderer = Renderer(tick_hz=self.tick_hz)
-        self.renderer.front_mm = 0.0
         self.controller = ForceController(start_mm=self.plant.encoder_mm(), dt_s=self.dt_s)
-        self.plant.v_m_s = 0.0
         self._upload = None
         self._reader = FrameReader()
         self._boot_fault = int(Fault.RESET)
