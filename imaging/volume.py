@@ -37,6 +37,10 @@ WARNING_CODES: tuple[str, ...] = (
 
 #: Tolerance, in voxels, for a point on the boundary of the voxel-centre hull.
 _EDGE_TOL_VOX = 1e-6
+#: Corner bits (i, j, k) of the 8 trilinear corners.
+_BI = np.array([0, 1, 0, 1, 0, 1, 0, 1], dtype=np.intp)
+_BJ = np.array([0, 0, 1, 1, 0, 0, 1, 1], dtype=np.intp)
+_BK = np.array([0, 0, 0, 0, 1, 1, 1, 1], dtype=np.intp)
 
 
 @dataclass(frozen=True)
@@ -127,6 +131,10 @@ class CTVolume:
     slice_positions_mm: np.ndarray = field(default_factory=lambda: np.empty(0))
     _inv_lin: np.ndarray = field(init=False, repr=False)
     _inv_off: np.ndarray = field(init=False, repr=False)
+    _top: np.ndarray = field(init=False, repr=False)
+    _max_lo: np.ndarray = field(init=False, repr=False)
+    _strides: np.ndarray = field(init=False, repr=False)
+    _corner_offsets: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         hu = np.asarray(self.hu)
@@ -169,6 +177,16 @@ class CTVolume:
         inv = np.linalg.inv(affine)
         object.__setattr__(self, "_inv_lin", inv[:3, :3].copy())
         object.__setattr__(self, "_inv_off", inv[:3, 3].copy())
+        n_s, n_r, n_c = hu.shape
+        sizes = np.array([n_c, n_r, n_s], dtype=np.intp)
+        # Axes of size 1 get stride 0, so both corners along them are the same voxel.
+        strides = np.where(sizes > 1, np.array([1, n_c, n_r * n_c], dtype=np.intp), 0)
+        object.__setattr__(self, "_top", (sizes - 1).astype(np.float64))
+        object.__setattr__(self, "_max_lo", np.maximum(sizes - 2, 0))
+        object.__setattr__(self, "_strides", strides)
+        object.__setattr__(
+            self, "_corner_offsets", _BI * strides[0] + _BJ * strides[1] + _BK * strides[2]
+        )
 
     # ------------------------------------------------------------------ geometry
     @property
@@ -216,38 +234,27 @@ class CTVolume:
     def _support(
         self, points_lps: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[int, ...]]:
-        """Flat corner indices (8, N), weights (8, N), in-grid mask (N,), and the batch shape."""
+        """Flat corner indices (N, 8), weights (N, 8), in-grid mask (N,), and the batch shape."""
         pts = np.asarray(points_lps, dtype=np.float64)
         if pts.shape[-1:] != (3,):
             raise ImagingInputError(f"points_lps: expected shape (..., 3), got {pts.shape}")
         batch = pts.shape[:-1]
-        idx = self.lps_to_index(pts.reshape(-1, 3))
-        n_s, n_r, n_c = self.hu.shape
-        sizes = np.array([n_c, n_r, n_s], dtype=np.float64)
+        idx = pts.reshape(-1, 3) @ self._inv_lin.T
+        idx += self._inv_off
+        top = self._top
         with np.errstate(invalid="ignore"):
-            inside = np.all((idx >= -_EDGE_TOL_VOX) & (idx <= sizes - 1.0 + _EDGE_TOL_VOX), axis=1)
-        idx = np.where(inside[:, None], idx, 0.0)
-        idx = np.clip(idx, 0.0, sizes - 1.0)
-        lo = np.minimum(np.floor(idx), np.maximum(sizes - 2.0, 0.0))
-        frac = np.clip(idx - lo, 0.0, 1.0)
-        lo_i = lo.astype(np.intp)
-        hi_i = np.minimum(lo_i + 1, (sizes - 1.0).astype(np.intp))
-        stride_k, stride_j = n_r * n_c, n_c
-        flats = []
-        weights = []
-        fi, fj, fk = frac[:, 0], frac[:, 1], frac[:, 2]
-        for dk in (0, 1):
-            kk = (hi_i if dk else lo_i)[:, 2] * stride_k
-            wk = fk if dk else 1.0 - fk
-            for dj in (0, 1):
-                jj = (hi_i if dj else lo_i)[:, 1] * stride_j
-                wj = fj if dj else 1.0 - fj
-                for di in (0, 1):
-                    ii = (hi_i if di else lo_i)[:, 0]
-                    wi = fi if di else 1.0 - fi
-                    flats.append(kk + jj + ii)
-                    weights.append(wk * wj * wi)
-        return np.stack(flats), np.stack(weights), inside, batch
+            inside = ((idx >= -_EDGE_TOL_VOX) & (idx <= top + _EDGE_TOL_VOX)).all(axis=1)
+        if not inside.all():
+            idx[~inside] = 0.0
+        np.clip(idx, 0.0, top, out=idx)
+        lo = np.minimum(idx.astype(np.intp), self._max_lo)
+        frac = idx - lo
+        flats = (lo @ self._strides)[:, None] + self._corner_offsets
+        fx = np.empty((frac.shape[0], 3, 2))
+        fx[:, :, 1] = frac
+        fx[:, :, 0] = 1.0 - frac
+        weights = fx[:, 0, _BI] * fx[:, 1, _BJ] * fx[:, 2, _BK]
+        return flats, weights, inside, batch
 
     def sample(
         self, points_lps: np.ndarray, *, order: int = 1, outside_hu: float = -1000.0
@@ -272,15 +279,14 @@ class CTVolume:
             raise ImagingInputError(f"sample: order must be 0 or 1, got {order}")
         flats, weights, inside, batch = self._support(points_lps)
         if order == 0:
-            best = np.argmax(weights, axis=0)
-            flats = np.take_along_axis(flats, best[None, :], axis=0)
-            weights = np.ones_like(flats, dtype=np.float64)
-        flat_hu = self.hu.reshape(-1)
-        vals = flat_hu[flats].astype(np.float64)
+            best = np.argmax(weights, axis=1)
+            flats = np.take_along_axis(flats, best[:, None], axis=1)
+            weights = np.ones(flats.shape, dtype=np.float64)
+        vals = self.hu.reshape(-1)[flats]
         if self.valid is not None:
             vals = np.where(self.valid.reshape(-1)[flats], vals, float(outside_hu))
-        out = np.einsum("cn,cn->n", weights, vals)
-        out = np.where(inside, out, float(outside_hu))
+        out = np.einsum("nc,nc->n", weights, vals)
+        out[~inside] = float(outside_hu)
         return out.reshape(batch)
 
     def inside(self, points_lps: np.ndarray) -> np.ndarray:
@@ -291,7 +297,7 @@ class CTVolume:
         flats, weights, inside, batch = self._support(points_lps)
         if self.valid is not None:
             ok = self.valid.reshape(-1)[flats] | (weights == 0.0)
-            inside = inside & np.all(ok, axis=0)
+            inside = inside & np.all(ok, axis=1)
         return inside.reshape(batch)
 
 
