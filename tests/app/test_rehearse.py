@@ -83,6 +83,20 @@ def test_same_seed_replays_identically_and_link_loss_goes_safe(tmp_path: Path) -
     ]
 
 
+def test_script_operator_drives_the_session(tmp_path: Path) -> None:
+    script = tmp_path / "hand.csv"
+    script.write_text("time_s,force_n\n0,0\n0.5,0\n1.0,30\n")
+    out = tmp_path / "out"
+    assert _rehearse(out, operator=f"script:{script}", duration="1.2") == 0
+    rows = _rows(out / "session.csv")
+    early = [float(r["drill_mm"]) for r in rows if float(r["time_s"]) < 0.5]
+    assert max(early) < 0.01  # no hand force yet: the drill stays at the entry
+    assert float(rows[-1]["drill_mm"]) > 0.1  # 30 N cuts
+    assert float(rows[-1]["force_cmd_n"]) == pytest.approx(30.0, abs=3.0)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["operator"] == f"script:{script}"
+
+
 @pytest.mark.parametrize(
     ("args", "kwargs", "match"),
     [
