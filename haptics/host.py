@@ -27,6 +27,9 @@ from haptics.protocol import (
     encode,
 )
 
+#: Unclaimed replies and NAKs kept (the oldest are dropped).
+MAX_KEPT = 256
+
 
 class Transport(Protocol):
     """Byte link to a device plus the notion of time the host runs on."""
@@ -76,6 +79,7 @@ class HostDevice:
         self._replies: list[tuple[Message, int]] = []
         self.fault_reports: list[tuple[float, FaultReport]] = []
         self.naks: list[Nak] = []
+        self.nak_count = 0
         self.rejected_frames = 0
 
     # ------------------------------------------------------------ plumbing
@@ -112,8 +116,11 @@ class HostDevice:
                 self.fault_reports.append((t, msg))
             else:
                 if isinstance(msg, Nak):
+                    self.nak_count += 1
                     self.naks.append(msg)
+                    del self.naks[:-MAX_KEPT]
                 self._replies.append((msg, item.seq))
+                del self._replies[:-MAX_KEPT]  # unclaimed replies (e.g. NAKs of SIM_OPERATOR)
 
     def _await(self, what: str, match: type, *, count: int = 1) -> list[Message]:
         deadline = self.transport.clock_s() + self.timeout_s
@@ -137,7 +144,8 @@ class HostDevice:
                 )
             self.transport.wait(self.poll_s)
 
-    def _command(self, message: Message) -> None:
+    def command(self, message: Message) -> None:
+        """Send a command and wait for its ACK; :class:`DeviceError` on NAK or timeout."""
         seq = self.send(message)
         name = message.TYPE.name
         deadline = self.transport.clock_s() + self.timeout_s
@@ -174,19 +182,19 @@ class HostDevice:
     def upload_profile(self, table: ProfileTable) -> None:
         """Send BEGIN, the chunks and END; each is acknowledged, END only if the CRC matches."""
         for message in table.upload_messages():
-            self._command(message)
+            self.command(message)
 
     def arm(self) -> None:
         """ARM (needs a verified table)."""
-        self._command(Arm())
+        self.command(Arm())
 
     def disarm(self) -> None:
         """DISARM."""
-        self._command(Disarm())
+        self.command(Disarm())
 
     def stop(self) -> None:
         """STOP (latched safe state)."""
-        self._command(Stop())
+        self.command(Stop())
 
     def heartbeat(self) -> None:
         """HEARTBEAT (not acknowledged)."""

@@ -174,23 +174,23 @@ def test_device_refuses_bad_uploads_and_arming_without_a_table() -> None:
     messages = list(table.upload_messages())
     begin, chunks, end = messages[0], messages[1:-1], messages[-1]
     assert isinstance(end, ProfileEnd)
-    dev._command(begin)
+    dev.command(begin)
     for chunk in chunks:
-        dev._command(chunk)
+        dev.command(chunk)
     with pytest.raises(DeviceError, match="PROFILE_CRC"):
-        dev._command(ProfileEnd(end.n_steps, end.crc32 ^ 1))
+        dev.command(ProfileEnd(end.n_steps, end.crc32 ^ 1))
     with pytest.raises(DeviceError, match="NOT_READY"):
         dev.arm()
-    dev._command(begin)
+    dev.command(begin)
     with pytest.raises(DeviceError, match="PROFILE_ORDER"):
-        dev._command(ProfileChunk(16, ((1.0, 0.0, 0.0),)))
-    dev._command(begin)
+        dev.command(ProfileChunk(16, ((1.0, 0.0, 0.0),)))
+    dev.command(begin)
     with pytest.raises(DeviceError, match="NONFINITE"):
-        dev._command(ProfileChunk(0, ((math.nan, 0.0, 0.0),)))
+        dev.command(ProfileChunk(0, ((math.nan, 0.0, 0.0),)))
     with pytest.raises(DeviceError, match="NONFINITE"):
-        dev._command(ProfileBegin(10, 0.05, math.inf, 30.0, 60.0, 1.0))
+        dev.command(ProfileBegin(10, 0.05, math.inf, 30.0, 60.0, 1.0))
     with pytest.raises(DeviceError, match="BAD_VALUE"):
-        dev._command(ProfileBegin(10, -0.05, 0.25, 30.0, 60.0, 1.0))
+        dev.command(ProfileBegin(10, -0.05, 0.25, 30.0, 60.0, 1.0))
     dev.upload_profile(table)
     dev.arm()
 
