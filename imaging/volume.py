@@ -93,6 +93,8 @@ class SeriesInfo:
     rescale_type: str = ""
     n_files: int = 0
     gantry_tilt_deg: float = 0.0
+    #: True once :func:`imaging.resample_uniform_slices` interpolated an irregular stack.
+    resampled: bool = False
 
 
 def _readonly(arr: np.ndarray) -> np.ndarray:

@@ -9,7 +9,13 @@ import pydicom
 import pytest
 from pydicom.uid import JPEG2000Lossless, RLELossless, SecondaryCaptureImageStorage
 
-from imaging import ImagingInputError, calibrate_grey_to_hu, list_series, load_series
+from imaging import (
+    ImagingInputError,
+    calibrate_grey_to_hu,
+    list_series,
+    load_series,
+    resample_uniform_slices,
+)
 from imaging.series import DuplicateSliceError, MemoryCapError
 from tests.imaging.factory import affine, linear_hu, rotation, volume, write
 
@@ -363,3 +369,27 @@ def test_deflated_series_loads(tmp_path: Path) -> None:
     v = load_series(tmp_path)
     np.testing.assert_array_equal(v.hu, hu)
     assert v.info.transfer_syntax == pydicom.uid.DeflatedExplicitVRLittleEndian
+
+
+def test_explicit_resampling_of_an_irregular_tilted_stack(tmp_path: Path) -> None:
+    aff = affine((0.5, 0.5, 1.0), tilt_deg=10.0)
+    z = np.array([0.0, 1.0, 2.0, 4.0, 5.5, 6.0])  # a gap and irregular steps
+    k_true = z  # normal distance in units of the 1 mm step
+    pos = aff[:3, 3] + z[:, None] * aff[:3, 2]
+    shape = (6, 4, 5)
+    kk, j, i = np.indices(shape)
+    hu = (3 * i + 7 * j + 40 * k_true[kk] - 300).astype(np.int16)  # linear along the normal
+    write(tmp_path, hu, aff, positions_lps=pos)
+    v = load_series(tmp_path)
+    assert set(v.warning_codes) == {"gantry_tilt", "slice_gap", "nonuniform_spacing"}
+    r = resample_uniform_slices(v)
+    assert r.warning_codes == ("gantry_tilt",) and r.info.resampled and r.uniform_slices()
+    assert r.hu.shape == (7, 4, 5)
+    np.testing.assert_allclose(r.affine_lps, aff, atol=1e-9)
+    k, j, i = np.indices(r.hu.shape)
+    np.testing.assert_allclose(r.hu, 3 * i + 7 * j + 40 * k - 300, atol=1e-3)
+    # The same LPS point samples the same (linear) value in both volumes.
+    pts = r.index_to_lps(np.array([[1.5, 2.0, 2.5], [4.0, 3.0, 6.0]]))
+    np.testing.assert_allclose(r.sample(pts), [3 * 1.5 + 14 + 100 - 300, 12 + 21 + 240 - 300])
+    with pytest.raises(ImagingInputError, match="step_mm"):
+        resample_uniform_slices(v, step_mm=0.0)
