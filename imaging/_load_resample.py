@@ -57,9 +57,12 @@ def resample_uniform_slices(volume: CTVolume, *, step_mm: float | None = None) -
     weight = np.clip((target - pos[lower]) / (pos[upper] - pos[lower]), 0.0, 1.0)
     hu = np.empty((n_new, *volume.hu.shape[1:]), dtype=np.float32)
     valid = None if volume.valid is None else np.empty(hu.shape, dtype=bool)
+    tmp = np.empty(hu.shape[1:], dtype=np.float32)
     for k in range(n_new):
         a, b, w = int(lower[k]), int(upper[k]), float(weight[k])
-        hu[k] = (1.0 - w) * volume.hu[a].astype(np.float64) + w * volume.hu[b]
+        np.multiply(volume.hu[a], np.float32(1.0 - w), out=hu[k])
+        np.multiply(volume.hu[b], np.float32(w), out=tmp)
+        hu[k] += tmp
         if valid is not None and volume.valid is not None:
             valid[k] = (volume.valid[a] | (w == 1.0)) & (volume.valid[b] | (w == 0.0))
     affine = np.array(volume.affine_lps)
