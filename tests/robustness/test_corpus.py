@@ -10,18 +10,13 @@ from pathlib import Path
 
 import pytest
 
-from tests.robustness.checks import check_inspect, check_load, corpus_cases
+from tests.robustness.checks import check_inspect, check_load
 from tests.robustness.make_corpus import SYNTHETIC, Case, case_names
 from tests.robustness.outcomes import error_line_problems, inspect_args, run_cli_subprocess
 from tests.robustness.test_found_bugs import BUG_CASES
 
 BOMBS = {name for name, (_, _, bomb) in SYNTHETIC.items() if bomb}
 NAMES = [n for n in case_names() if n not in BOMBS and n not in BUG_CASES]
-
-
-@pytest.fixture(scope="module")
-def cases(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Case]:
-    return corpus_cases(tmp_path_factory.mktemp("corpus"))
 
 
 @pytest.mark.parametrize("name", NAMES)

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import pytest
 
-from tests.robustness.checks import corpus_cases
 from tests.robustness.make_corpus import SYNTHETIC, Case
 from tests.robustness.outcomes import error_line_problems, inspect_args, run_cli_subprocess
 from tests.robustness.test_found_bugs import BUG_CASES
@@ -18,11 +17,6 @@ from tests.robustness.test_found_bugs import BUG_CASES
 #: Address-space cap of the process that loads a bomb, bytes.
 BOMB_ADDRESS_SPACE = 2 << 30
 BOMBS = [n for n, (_, _, bomb) in SYNTHETIC.items() if bomb and n not in BUG_CASES]
-
-
-@pytest.fixture(scope="module")
-def cases(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Case]:
-    return corpus_cases(tmp_path_factory.mktemp("corpus"))
 
 
 def check_bomb(case: Case) -> None:
