@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 from typing import Any
 
+from app.errors import AppInputError
 from haptics.realtime import serve_pty
 
 
@@ -35,6 +37,12 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Serve until killed; print the loop's statistics."""
+    if args.duration_s is not None and not (
+        math.isfinite(args.duration_s) and args.duration_s > 0.0
+    ):
+        raise AppInputError(f"--duration-s {args.duration_s}: give a positive number of seconds")
+    if not math.isfinite(args.start_mm):
+        raise AppInputError(f"--start-mm {args.start_mm}: give a finite depth in mm")
     stats = serve_pty(args.pty_link, duration_s=args.duration_s, start_mm=args.start_mm)
     sys.stderr.write(f"emulator stopped: {stats.summary()}\n")
     return 0

@@ -44,3 +44,14 @@ def test_emulate_refuses_a_bad_link_path(
     assert err.startswith("error:") and "--pty-link" in err and "Traceback" not in err
     if kind == "file":
         assert path.read_text() == "keep me"
+
+
+@pytest.mark.parametrize(
+    "args", [["--duration-s", "nan"], ["--duration-s", "-1"], ["--start-mm", "inf"]]
+)
+def test_emulate_refuses_bad_numbers(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str]
+) -> None:
+    assert main(["emulate", "--pty-link", str(tmp_path / "dev"), *args]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --") and not os.path.lexists(tmp_path / "dev")
