@@ -616,6 +616,33 @@ def _meta_misaligned(folder: Path) -> tuple[Expect, ...]:
     return (REFUSE,)
 
 
+def _rle_lossless(folder: Path) -> tuple[Expect, ...]:
+    from pydicom.uid import RLELossless
+
+    slices = base_slices(series="rle")
+    for ds in slices:
+        ds.compress(RLELossless, ds.pixel_array.copy())
+    write_all(slices, folder)
+    return (load(dims=DIMS),)
+
+
+def _j2k_lossy(folder: Path) -> tuple[Expect, ...]:
+    from pydicom.uid import JPEG2000
+
+    size = 64  # JPEG 2000's default six resolutions need at least 32 x 32 pixels
+    slices = []
+    for k in range(4):
+        hu = ((np.arange(size * size).reshape(size, size) * (k + 3)) % 1500 - 1000).astype(np.int16)
+        ds = ct_slice(hu, (*ORIGIN_LPS[:2], ORIGIN_LPS[2] + k), series="j2k-lossy", instance=k)
+        ds.compress(JPEG2000, ds.pixel_array.copy(), encoding_plugin="pylibjpeg", j2k_cr=[20])
+        ds.LossyImageCompression = "01"
+        ds.LossyImageCompressionRatio = 20
+        ds.LossyImageCompressionMethod = "ISO_15444_1"
+        slices.append(ds)
+    write_all(slices, folder)
+    return (load("lossy_compression", dims=(size, size, 4)),)
+
+
 def _transfer_syntax(ts_uid: str) -> Builder:
     def build(folder: Path) -> tuple[Expect, ...]:
         folder.mkdir(parents=True)
@@ -735,6 +762,8 @@ SYNTHETIC: dict[str, tuple[Builder, str, bool]] = {
     "padding": (_padding, "padding", False),
     "mixed_dims": (_mixed_dims, "inconsistent slices", False),
     "mixed_orientation": (_mixed_orientation, "inconsistent slices", False),
+    "rle_lossless": (_rle_lossless, "none (RLE lossless)", False),
+    "j2k_lossy": (_j2k_lossy, "lossy compression", False),
     "unknown_vr": (_unknown_vr, "corrupt header", False),
     "meta_misaligned": (_meta_misaligned, "corrupt header", False),
     "unknown_transfer_syntax": (
@@ -761,6 +790,7 @@ SYNTHETIC: dict[str, tuple[Builder, str, bool]] = {
 _EXACT: dict[str, tuple[Callable[[], np.ndarray], Callable[[], np.ndarray]]] = {
     "clean": (base_hu, base_affine),
     "implicit_vr": (base_hu, base_affine),
+    "rle_lossless": (base_hu, base_affine),
     "oblique": (
         base_hu,
         lambda: base_affine(OBLIQUE_IOP[:3], OBLIQUE_IOP[3:], (0.0, 0.0, SLICE_SPACING_MM)),
