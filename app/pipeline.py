@@ -133,8 +133,12 @@ def _irregular_steps(volume: CTVolume) -> np.ndarray:
     return out
 
 
-def _check_volume(volume: CTVolume, plan: Plan, points: np.ndarray) -> list[LoadWarning]:
-    """Refuse what cannot carry a force map on the path; return warnings for the rest."""
+def _check_volume(volume: CTVolume, plan: Plan, end_points: np.ndarray) -> list[LoadWarning]:
+    """Refuse what cannot carry a force map on the path; return warnings for the rest.
+
+    ``end_points`` are the lip samples at the first and last depth: the slice index is affine
+    in position, so the extremes of every lip sample's slice index are among them.
+    """
     where = f"plan {plan.name!r}"
     if not volume.is_volume:
         raise PathInputError(
@@ -148,24 +152,10 @@ def _check_volume(volume: CTVolume, plan: Plan, points: np.ndarray) -> list[Load
             "to HU before computing forces"
         )
     warnings: list[LoadWarning] = []
-    flat = points.reshape(-1, 3)
-    idx = volume.lps_to_index(flat)
-    n_s, n_r, n_c = volume.hu.shape
-    sizes = np.array([n_c, n_r, n_s], dtype=np.float64)
-    in_grid = np.all((idx >= -1e-6) & (idx <= sizes - 1.0 + 1e-6), axis=1)
-    if volume.valid is not None and in_grid.any():
-        on_padding = in_grid & ~volume.inside(flat)
-        if on_padding.any():
-            raise PathInputError(
-                f"{where}: the drill path crosses padding (pixels outside the scanner's "
-                f"reconstruction field, {int(on_padding.sum())} lip samples); the CT holds no "
-                "data there: move the trajectory into the reconstructed field"
-            )
     irregular = _irregular_steps(volume)
     if irregular.any():
-        ks = idx[in_grid, 2] if in_grid.any() else np.zeros(0)
-        k_lo = math.floor(float(ks.min())) if ks.size else 0
-        k_hi = math.ceil(float(ks.max())) if ks.size else -1
+        ks = volume.lps_to_index(end_points.reshape(-1, 3))[:, 2]
+        k_lo, k_hi = math.floor(float(ks.min())), math.ceil(float(ks.max()))
         crossed = [k for k in np.flatnonzero(irregular) if k_lo - 1 <= k <= k_hi]
         if crossed:
             pos = volume.slice_positions_mm
@@ -184,6 +174,36 @@ def _check_volume(volume: CTVolume, plan: Plan, points: np.ndarray) -> list[Load
             )
         )
     return warnings
+
+
+def _check_padding(
+    volume: CTVolume, plan: Plan, lip: LipSamples, n_rings: int, n_angles: int
+) -> None:
+    """Refuse a path whose lip samples touch padding inside the grid (only depths where the
+    sampler counted samples outside or on padding are looked at again)."""
+    flagged = np.flatnonzero(lip.outside > 0)
+    if volume.valid is None or flagged.size == 0:
+        return
+    points = lip_ring_points(
+        plan.entry_lps,
+        plan.target_lps,
+        lip.depth_mm[flagged],
+        diameter_mm=plan.drill.diameter_mm,
+        tip_length_mm=plan.drill.tip_length_mm,
+        n_rings=n_rings,
+        n_angles=n_angles,
+    ).reshape(-1, 3)
+    idx = volume.lps_to_index(points)
+    n_s, n_r, n_c = volume.hu.shape
+    sizes = np.array([n_c, n_r, n_s], dtype=np.float64)
+    in_grid = np.all((idx >= -1e-6) & (idx <= sizes - 1.0 + 1e-6), axis=1)
+    on_padding = in_grid & ~volume.inside(points)
+    if on_padding.any():
+        raise PathInputError(
+            f"plan {plan.name!r}: the drill path crosses padding (pixels outside the scanner's "
+            f"reconstruction field, {int(on_padding.sum())} lip samples); the CT holds no "
+            "data there: move the trajectory into the reconstructed field"
+        )
 
 
 def _out_of_volume_depth_mm(
@@ -273,17 +293,17 @@ def plan_path(
     landmarks = bind_to_grid(plan.landmarks, volume.affine_lps, tuple(volume.hu.shape))
     plan = replace(plan, landmarks=landmarks)
     depth = depth_grid_mm(plan.planned_depth_mm, depth_step_mm)
-    points = lip_ring_points(
+    end_points = lip_ring_points(
         plan.entry_lps,
         plan.target_lps,
-        depth,
+        depth[[0, -1]],
         diameter_mm=plan.drill.diameter_mm,
         tip_length_mm=plan.drill.tip_length_mm,
         n_rings=n_rings,
         n_angles=n_angles,
     )
     warnings = list(volume.warnings)
-    warnings += _check_volume(volume, plan, points)
+    warnings += _check_volume(volume, plan, end_points)
     lip = sample_lip_rings(
         volume,
         plan.entry_lps,
@@ -294,6 +314,7 @@ def plan_path(
         n_rings=n_rings,
         n_angles=n_angles,
     )
+    _check_padding(volume, plan, lip, n_rings, n_angles)
     profile = build_profile(
         lip.hu, lip.ring_weights, depth, calibration, blades=plan.drill.blades, rpm=plan.drill.rpm
     )
