@@ -11,7 +11,7 @@ paths give identical headers on every real and synthetic file.
 
 from __future__ import annotations
 
-import mmap
+import os
 import struct
 from dataclasses import dataclass
 from pathlib import Path
@@ -64,6 +64,8 @@ TAGS: dict[int, tuple[str, str]] = {
 }
 _TRAILING_ONLY = frozenset({"LO", "SH", "LT", "ST", "UT"})
 _INT_FORMATS = {"US": "H", "SS": "h", "UL": "I", "SL": "i"}
+#: Bytes read first; most CT headers are shorter (more is read when needed).
+_FIRST_READ = 16384
 
 
 class _Malformed(Exception):
@@ -90,19 +92,29 @@ class FastHeader:
     file_size: int
 
 
-def _element(buf: Any, pos: int, implicit: bool) -> tuple[int, bytes, int, int]:
+class _NeedMore(Exception):
+    """The header continues beyond the bytes read so far."""
+
+
+def _need(buf: bytes, size: int, end: int) -> None:
+    """Make sure ``buf[:end]`` exists: corrupt if past the file, read more if past ``buf``."""
+    if end > size:
+        raise HeaderCorruptError("a header element runs past the end of the file (truncated)")
+    if end > len(buf):
+        raise _NeedMore
+
+
+def _element(buf: bytes, size: int, pos: int, implicit: bool) -> tuple[int, bytes, int, int]:
     """(tag, vr, value start, length) of the element at ``pos``."""
-    if pos + 8 > len(buf):
-        raise HeaderCorruptError("the file ends inside a header element (truncated)")
+    _need(buf, size, pos + 8)
     group, elem = struct.unpack_from("<HH", buf, pos)
     tag = (group << 16) | elem
     if implicit or group == 0xFFFE:
         (length,) = struct.unpack_from("<I", buf, pos + 4)
         return tag, b"", pos + 8, length
-    vr = bytes(buf[pos + 4 : pos + 6])
+    vr = buf[pos + 4 : pos + 6]
     if vr in _LONG_VRS:
-        if pos + 12 > len(buf):
-            raise HeaderCorruptError("the file ends inside a header element (truncated)")
+        _need(buf, size, pos + 12)
         (length,) = struct.unpack_from("<I", buf, pos + 8)
         return tag, vr, pos + 12, length
     if not vr.isalpha():
@@ -111,30 +123,30 @@ def _element(buf: Any, pos: int, implicit: bool) -> tuple[int, bytes, int, int]:
     return tag, vr, pos + 8, length
 
 
-def _skip_undefined(buf: Any, pos: int, implicit: bool) -> int:
+def _skip_undefined(buf: bytes, size: int, pos: int, implicit: bool) -> int:
     """Skip the items of an undefined-length sequence starting at ``pos``; return the end."""
     while True:
-        tag, _, start, length = _element(buf, pos, True)
+        tag, _, start, length = _element(buf, size, pos, True)
         if tag == _SEQ_END:
             return start
         if tag != _ITEM:
             raise _Malformed
         if length != _UNDEFINED:
             pos = start + length
-            if pos > len(buf):
+            if pos > size:
                 raise HeaderCorruptError("a sequence item runs past the end of the file")
             continue
         pos = start
         while True:  # elements of an undefined-length item, up to its delimiter
-            tag, vr, start, length = _element(buf, pos, implicit)
+            tag, vr, start, length = _element(buf, size, pos, implicit)
             if tag == _ITEM_END:
                 pos = start
                 break
             if length == _UNDEFINED:
-                pos = _skip_undefined(buf, start, implicit or vr == b"UN")
+                pos = _skip_undefined(buf, size, start, implicit or vr == b"UN")
             else:
                 pos = start + length
-            if pos > len(buf):
+            if pos > size:
                 raise HeaderCorruptError("an element runs past the end of the file")
 
 
@@ -159,31 +171,47 @@ def _decode(raw: bytes, vr: str, pixel_rep: int) -> Any:
 def read_fast_header(path: Path) -> FastHeader | None:
     """Header of a Part 10 little-endian file without pydicom, or None to fall back.
 
+    Reads a 16 KiB prefix first and more only when the header is longer.
+
     Raises
     ------
     HeaderCorruptError
         A header element declares more bytes than the file holds.
     """
     try:
-        with path.open("rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as buf:
-            return _parse(buf)
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        size = os.fstat(fd).st_size
+        chunk = _FIRST_READ
+        while True:
+            buf = os.pread(fd, min(chunk, size), 0)
+            try:
+                return _parse(buf, size)
+            except _NeedMore:
+                chunk *= 4
     except (_Malformed, struct.error, ValueError, OSError, UnicodeDecodeError):
         return None
+    finally:
+        os.close(fd)
 
 
-def _parse(buf: Any) -> FastHeader | None:
-    if len(buf) < 132 or buf[128:132] != b"DICM":
+def _parse(buf: bytes, size: int) -> FastHeader | None:
+    if size < 132 or buf[128:132] != b"DICM":
         return None
     pos = 132
     ts = ""
-    while pos + 8 <= len(buf) and struct.unpack_from("<H", buf, pos)[0] == 0x0002:
-        tag, _, start, length = _element(buf, pos, False)
+    while pos + 8 <= size:
+        _need(buf, size, pos + 2)
+        if struct.unpack_from("<H", buf, pos)[0] != 0x0002:
+            break
+        tag, _, start, length = _element(buf, size, pos, False)
         if length == _UNDEFINED:
             return None
-        if start + length > len(buf):
-            raise HeaderCorruptError("a file meta element runs past the end of the file")
+        _need(buf, size, start + length)
         if tag == 0x00020010:
-            ts = bytes(buf[start : start + length]).decode("ascii").strip(" \x00")
+            ts = buf[start : start + length].decode("ascii").strip(" \x00")
         pos = start + length
     if ts not in (_EXPLICIT_LE, _IMPLICIT_LE):
         return None
@@ -192,8 +220,8 @@ def _parse(buf: Any) -> FastHeader | None:
     offset: int | None = None
     pixel_length: int | None = None
     has_pixels = False
-    while pos + 8 <= len(buf):
-        tag, vr, start, length = _element(buf, pos, implicit)
+    while pos + 8 <= size:
+        tag, vr, start, length = _element(buf, size, pos, implicit)
         if tag == _PIXEL_DATA:
             has_pixels = length != 0
             if length != _UNDEFINED:
@@ -203,15 +231,19 @@ def _parse(buf: Any) -> FastHeader | None:
             keyword, default_vr = TAGS[tag]
             vr_s = default_vr if implicit or (default_vr == "xs" and vr in (b"OB", b"OW")) else ""
             vr_s = vr_s or vr.decode("ascii")
-            raw[tag] = (vr_s, b"" if length == _UNDEFINED else bytes(buf[start : start + length]))
+            value = b""
+            if length != _UNDEFINED:
+                _need(buf, size, start + length)
+                value = buf[start : start + length]
+            raw[tag] = (vr_s, value)
         if length == _UNDEFINED:
-            pos = _skip_undefined(buf, start, implicit or vr == b"UN")
+            pos = _skip_undefined(buf, size, start, implicit or vr == b"UN")
         else:
             pos = start + length
-        if pos > len(buf):
+        if pos > size:
             raise HeaderCorruptError("a header element runs past the end of the file")
     else:
-        if pos != len(buf):
+        if pos != size:
             raise HeaderCorruptError("the file ends inside a header element (truncated)")
     out: dict[str, Any] = {}
     pixel_rep = 0
@@ -225,4 +257,4 @@ def _parse(buf: Any) -> FastHeader | None:
         if not value:
             continue
         out[keyword] = _decode(value, vr_s, pixel_rep)
-    return FastHeader(out, ts, implicit, offset, pixel_length, has_pixels, len(buf))
+    return FastHeader(out, ts, implicit, offset, pixel_length, has_pixels, size)

@@ -93,3 +93,18 @@ def test_truncated_files_are_corrupt_and_foreign_ones_fall_back(tmp_path: Path) 
     junk.write_bytes(bytes(128) + b"DICM" + b"\xff" * 40)
     assert read_fast_header(junk) is None
     assert read_headers(junk) is not None  # a Skipped or planes from pydicom, not a crash
+
+
+def test_headers_longer_than_the_first_read(tmp_path: Path) -> None:
+    hu = linear_hu((2, 3, 4))
+    items = []
+    for n in range(1500):
+        item = Dataset()
+        item.ReferencedSOPClassUID = "1.2.840.10008.5.1.4.1.1.2"
+        item.ReferencedSOPInstanceUID = f"1.2.3.4.5.6.7.8.9.{n}"
+        items.append(item)
+    w = write(tmp_path, hu, affine(), extra={"ReferencedImageSequence": items})
+    got = read_fast_header(w.paths[0])
+    assert got is not None and got.pixel_offset is not None and got.pixel_offset > 65536
+    assert got.tags["Rows"] == 3 and got.tags["RescaleSlope"] == "1"
+    _agree(w.paths[0])
