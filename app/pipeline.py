@@ -303,6 +303,7 @@ def plan_path(
         n_angles=n_angles,
     )
     warnings = list(volume.warnings)
+    warnings += [LoadWarning("plan_default", note) for note in plan.notes]
     warnings += _check_volume(volume, plan, end_points)
     lip = sample_lip_rings(
         volume,

@@ -101,6 +101,7 @@ class Plan:
     landmarks : the structures to protect.
     name : a short label (the file stem, or the Slicer line's name).
     source : the file it was read from ("" if built in code).
+    notes : defaults the reader filled in that the user should know (e.g. a canal radius).
     """
 
     entry_lps: np.ndarray
@@ -112,6 +113,7 @@ class Plan:
     landmarks: tuple[Landmark, ...] = ()
     name: str = "plan"
     source: str = ""
+    notes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         for attr in ("entry_lps", "target_lps"):
@@ -159,6 +161,7 @@ class _Ctx:
 
     def __init__(self, path: Path) -> None:
         self.path = path
+        self.notes: list[str] = []
 
     def fail(self, field_path: str, what: str, got: object = ...) -> PlanInputError:
         tail = "" if got is ... else f", got {got!r}"
@@ -275,6 +278,11 @@ def _parse_landmark(ctx: _Ctx, raw: object, index: int, system: str, base_dir: P
             )
         pts = np.stack([ctx.point(p, f"{where}.points_mm[{i}]") for i, p in enumerate(pts_raw)])
         radius = ctx.number(raw, "radius_mm", where, default=DEFAULT_CANAL_RADIUS_MM, nonneg=True)
+        if "radius_mm" not in raw:
+            ctx.notes.append(
+                f"{ctx.path.name}: {where} ({name}) has no radius_mm; using the default "
+                f"{DEFAULT_CANAL_RADIUS_MM} mm"
+            )
         return CanalLandmark(name, _to_lps(pts, system), radius_mm=radius, margin_mm=margin)
     if kind == "point":
         if "point_mm" in raw:
@@ -380,6 +388,7 @@ def _make_plan(
         landmarks=landmarks,
         name=name,
         source=str(ctx.path),
+        notes=tuple(ctx.notes),
     )
 
 
@@ -466,7 +475,7 @@ def _parse_slicer(ctx: _Ctx, doc: dict[str, Any]) -> tuple[Plan, ...]:
                 CanalLandmark(
                     label or f"canal {m_index + 1}",
                     pts,
-                    radius_mm=DEFAULT_CANAL_RADIUS_MM if radius is None else radius,
+                    radius_mm=_default_radius(ctx, radius, where, label),
                     margin_mm=margin,
                 )
             )
@@ -504,6 +513,16 @@ def _parse_slicer(ctx: _Ctx, doc: dict[str, Any]) -> tuple[Plan, ...]:
             )
         )
     return tuple(plans)
+
+
+def _default_radius(ctx: _Ctx, radius: float | None, where: str, label: str | None) -> float:
+    if radius is not None:
+        return radius
+    ctx.notes.append(
+        f"{ctx.path.name}: {where} ({label or 'curve'}) gives no radius_mm in its description; "
+        f"using the default canal radius {DEFAULT_CANAL_RADIUS_MM} mm"
+    )
+    return DEFAULT_CANAL_RADIUS_MM
 
 
 def _setting_number(

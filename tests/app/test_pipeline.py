@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -131,6 +132,12 @@ def test_margin_stop_is_the_exact_safe_depth(slabs: CTVolume) -> None:
     assert res.min_clearance_mm == pytest.approx(2.0, abs=1e-3)
     assert res.nearest_landmark == 0
     assert res.clearance_mm.shape == (res.depth_mm.size, 1)
+    assert "plan_default" not in [w.code for w in res.warnings]
+    noted = replace(_plan(landmarks=(canal,)), notes=("plan.json: a default was used",))
+    warned = plan_path(slabs, noted, load_calibration("bone-illustrative")).warnings
+    assert ("plan_default", "plan.json: a default was used") in [
+        (w.code, w.message) for w in warned
+    ]
     # distance to the core (0 once inside it) minus the radius
     want = np.maximum(4.0 - res.depth_mm, 0.0) - 0.5
     np.testing.assert_allclose(res.clearance_mm[:, 0], want, atol=1e-9)

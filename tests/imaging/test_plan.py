@@ -61,6 +61,15 @@ def test_ctdrill_plan_parses_every_field(tmp_path: Path) -> None:
     assert canal.margin_mm is None and plan.landmark_margin_mm(canal) == 2.0
     assert isinstance(apex, PointLandmark) and plan.landmark_margin_mm(apex) == 1.5
     assert not plan.entry_lps.flags.writeable
+    assert plan.notes == ()
+    doc = copy.deepcopy(BASE)
+    del doc["landmarks"][0]["radius_mm"]
+    plan = load_plan(_write(tmp_path, doc))
+    assert plan.landmarks[0].radius_mm == DEFAULT_CANAL_RADIUS_MM
+    assert plan.notes == (
+        "plan.json: landmarks[0] (left mandibular canal) has no radius_mm; using the default "
+        "1.2 mm",
+    )
 
 
 def test_ras_plan_negates_x_and_y(tmp_path: Path) -> None:
@@ -244,6 +253,10 @@ def test_slicer_markups_line_curves_fiducials_and_per_markup_frames(tmp_path: Pa
     assert plan.margin_mm == 2.0
     canal, canal2, canal3, apex36, apex37 = plan.landmarks
     assert isinstance(canal3, CanalLandmark) and canal3.radius_mm == DEFAULT_CANAL_RADIUS_MM
+    assert plan.notes == (
+        "case.mrk.json: markups[3] (curve) gives no radius_mm in its description; using the "
+        "default canal radius 1.2 mm",
+    )
     assert isinstance(canal, CanalLandmark) and canal.name == "IAN canal"
     assert canal.radius_mm == 1.5 and canal.margin_mm == 2.5
     np.testing.assert_array_equal(canal.points_lps[2], [20.0, 20.0, 11.0])  # LPS kept
