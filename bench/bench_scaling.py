@@ -29,6 +29,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from bench.report import Section, loglog_slope, profile_top, table
 from bench.scaling_load import (
     READERS,
@@ -40,13 +42,21 @@ from bench.scaling_load import (
     same_values,
     write_folders,
 )
-from bench.scaling_path import plot_path, trajectory_scaling, volume_scaling
+from bench.scaling_path import (
+    export_profile,
+    path_profile,
+    plot_path,
+    trajectory_scaling,
+    volume_scaling,
+)
 from imaging import load_series
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "assets" / "demo"
 GOAL_VS_SITK = 0.5
 GOAL_VS_RAW_COLD = 1.5
+#: Slower than a peer means beyond this factor; closer is a tie on this shared machine.
+TIE = 1.1
 
 
 @dataclass(frozen=True)
@@ -125,85 +135,48 @@ def _slopes(x: list[float], named: dict[str, list[float]]) -> str:
     )
 
 
-def run(quick: bool) -> Section:
-    """Loading vs slices (time, memory, goals) and the force path vs trajectories and volume."""
-    sizes = QUICK if quick else FULL
-    cold_ok = sizes.cold_repeats > 0 and can_drop_caches()
-    with tempfile.TemporaryDirectory(prefix="ctdrill-bench-scaling-") as tmp:
-        t0 = time.perf_counter()
-        folders = write_folders(Path(tmp), sizes.side, sizes.slices)
-        t_write = time.perf_counter() - t0
-        same = same_values(folders[min(folders)], sizes.side)
-        rows = load_rows(
-            folders,
-            sizes.side,
-            repeats=sizes.repeats,
-            cold_repeats=sizes.cold_repeats if cold_ok else 0,
-            fresh=not quick,
-        )
-        goal_rows, misses = _goal_rows(rows)
-        biggest = folders[max(folders)]
-        profile = ""
-        if misses:
-            if cold_ok:
-                drop_caches()
-            profile = profile_top(lambda: load_series(biggest))
-        volumes = [("demo", load_series(DEMO / "ct"))]
-        volumes += [(f"{sizes.side}x{sizes.side}x{n}", load_series(f)) for n, f in folders.items()]
-        vol_rows, voxels, v_series = volume_scaling(
-            volumes, depth_mm=sizes.depth_mm, repeats=sizes.repeats
-        )
-        del volumes
-    traj_rows, t_series = trajectory_scaling(
-        sizes.trajectories, sizes.exports, repeats=sizes.repeats
-    )
-    figures = (
-        str(plot_load(rows)),
-        str(plot_path(sizes.trajectories, t_series, sizes.exports, voxels, v_series)),
-    )
-    n_slices = [float(r.slices) for r in rows]
+def _fit_rows(rows: list[LoadRow]) -> list[list[object]]:
+    """Least-squares ``t = fixed + per_slice * n`` per reader and cache state."""
+    n = np.array([r.slices for r in rows], dtype=np.float64)
+    out: list[list[object]] = []
+    for name in READERS:
+        cells: list[object] = [name]
+        for state in ("warm", "cold"):
+            t = [getattr(r, state)[name].median_s for r in rows if getattr(r, state)]
+            if len(t) == len(n) >= 2:
+                per, fixed = np.polyfit(n, np.asarray(t), 1)
+                big = rows[-1]
+                cells += [
+                    f"{fixed * 1e3:.3g}",
+                    f"{per * 1e3:.3g}",
+                    f"{big.mib / t[-1]:.0f}",
+                ]
+            else:
+                cells += ["n/a", "n/a", "n/a"]
+        out.append(cells)
+    return out
+
+
+def _load_text(
+    sizes: Sizes, rows: list[LoadRow], cold_ok: bool, same: bool, t_write: float
+) -> tuple[list[str], list[str]]:
+    goal_rows, misses = _goal_rows(rows)
+    n = [float(r.slices) for r in rows]
     warm = {name: [r.warm[name].median_s for r in rows] for name in READERS}
     cold = {name: [r.cold[name].median_s for r in rows if r.cold] for name in READERS}
     peak = {name: [max(r.peak_mib[name], 1e-3) for r in rows] for name in READERS}
-    n_traj = [float(n) for n in sizes.trajectories]
-    shortfalls = [f"loading, {m}" for m in misses]
-    slower = [
-        n
-        for n, ours, peer in zip(
-            sizes.trajectories, t_series["plan_path"], t_series["peer"], strict=True
-        )
-        if ours > peer
-    ]
-    if slower:
-        shortfalls.append(
-            f"plan_path is slower than the map_coordinates peer for {slower} trajectories on "
-            "the demo (force-path table)"
-        )
-    slower_vol = [
-        label
-        for (label, *_), ours, peer in zip(
-            vol_rows, v_series["plan_path"], v_series["peer"], strict=True
-        )
-        if ours > peer
-    ]
-    if slower_vol:
-        shortfalls.append(
-            f"plan_path is slower than the map_coordinates peer on volumes {slower_vol} "
-            "(volume-size table)"
-        )
+    ratio = ", ".join(f"{name} {rows[-1].peak_mib[name] / rows[-1].mib:.2f}" for name in READERS)
+    if cold_ok:
+        cache = "Cold: page cache dropped before every run."
+    elif sizes.cold_repeats == 0:
+        cache = "Cold runs skipped in quick mode: warm only."
+    else:
+        cache = "Cold runs not permitted here (no write access to drop_caches): warm only."
     md = [
-        __doc__.split("\n\n", 1)[1].strip() if __doc__ else "",
-        "",
         "### Loading time against slices",
         "",
-        f"Series written in {t_write:.1f} s; the three readers return identical voxels: {same}. "
-        + (
-            "Cold: page cache dropped before every run."
-            if cold_ok
-            else "Cold runs skipped (quick mode, or no write access to drop_caches): warm only."
-            if not sizes.cold_repeats or not can_drop_caches()
-            else ""
-        ),
+        f"Series written in {t_write:.1f} s; the three readers return identical voxels: "
+        f"{same}. {cache}",
         "",
         table(
             ["slices", "MiB", *(f"{n} warm" for n in READERS), *(f"{n} cold" for n in READERS)],
@@ -225,20 +198,63 @@ def run(quick: bool) -> Section:
             goal_rows,
         ),
         "",
-        f"Growth with slices (log-log slope; 1 is linear): warm {_slopes(n_slices, warm)}; "
-        f"cold {_slopes(n_slices, cold) or 'n/a'}; peak memory {_slopes(n_slices, peak)}.",
+        "### How loading grows",
+        "",
+        f"Log-log slopes against slices (1 is linear): warm {_slopes(n, warm)}; "
+        f"cold {_slopes(n, cold) or 'n/a'}; peak memory {_slopes(n, peak)}. "
+        f"Peak memory over the volume's size at {rows[-1].slices} slices: {ratio}.",
+        "",
+        "A straight-line fit `t = fixed + per_slice x n` separates a one-off cost per call "
+        "(folder listing, series discovery, setup) from the cost per slice (open, parse, "
+        "read, copy); a fixed cost bends the log-log line below slope 1 at small sizes, a "
+        "negative one means the cost per slice rises with the series size.",
+        "",
+        table(
+            [
+                "reader",
+                "warm fixed ms",
+                "warm ms / slice",
+                "warm MiB/s (largest)",
+                "cold fixed ms",
+                "cold ms / slice",
+                "cold MiB/s (largest)",
+            ],
+            _fit_rows(rows),
+        ),
         "",
     ]
-    if profile:
-        md += [
-            f"Where load_series spends its time ({max(folders)} slices"
-            + (", cold" if cold_ok else ", warm")
-            + "; cProfile, top 10 by own time):",
-            "",
-            profile,
-            "",
+    return md, [f"loading, {m}" for m in misses]
+
+
+def _path_text(
+    sizes: Sizes,
+    traj_rows: list[list[object]],
+    t_series: dict[str, list[float]],
+    vol_rows: list[list[object]],
+    voxels: list[float],
+    v_series: dict[str, list[float]],
+) -> tuple[list[str], list[str]]:
+    n_traj = [float(n) for n in sizes.trajectories]
+    exports = [float(n) for n in sizes.exports]
+    labels = [str(row[0]) for row in vol_rows]
+    checks = [
+        ("plan_path", "peer", [f"{n} trajectories" for n in sizes.trajectories], t_series),
+        ("plan_path", "peer", labels, v_series),
+        ("lip sampling", "peer lip sampling", labels, v_series),
+    ]
+    shortfalls = []
+    for ours_key, peer_key, names, series in checks:
+        slow = [
+            f"{name} ({ours / peer:.2f} x)"
+            for name, ours, peer in zip(names, series[ours_key], series[peer_key], strict=True)
+            if ours > TIE * peer
         ]
-    md += [
+        if slow:
+            shortfalls.append(
+                f"{ours_key} is slower than its map_coordinates peer on " + ", ".join(slow)
+            )
+    export_slope = _slopes(exports, {"export": t_series["export"]})
+    md = [
         "### Force path against the number of trajectories (demo)",
         "",
         table(
@@ -246,19 +262,103 @@ def run(quick: bool) -> Section:
             traj_rows,
         ),
         "",
-        f"Growth with trajectories: {_slopes(n_traj, t_series)}"
-        + (
-            f"; {_slopes([float(n) for n in sizes.exports], {'export': t_series['export']})}."
-            if len(sizes.exports) >= 2
-            else "."
-        ),
+        f"Log-log slopes against trajectories: {_slopes(n_traj, t_series)}"
+        + (f"; {export_slope}." if export_slope else "."),
+        "",
+        f"Ours counts as slower than a peer when its median is more than {TIE:g} x the "
+        "peer's; closer is within run-to-run noise on this shared machine.",
         "",
         "### One trajectory against volume size",
         "",
-        table(["volume", "Mvoxel", "plan_path", "lip sampling", "peer", "peer / ours"], vol_rows),
+        f"The same {sizes.depth_mm:g} mm trajectory down the middle of each volume.",
         "",
-        f"Growth with voxels: {_slopes(voxels, v_series)}.",
+        table(
+            [
+                "volume",
+                "Mvoxel",
+                "plan_path",
+                "peer path",
+                "peer / ours",
+                "lip: sample_lip_rings",
+                "lip: map_coordinates",
+                "peer / ours",
+            ],
+            vol_rows,
+        ),
+        "",
+        f"Log-log slopes against voxels (0 is independent of the volume's size): "
+        f"{_slopes(voxels, v_series)}.",
+        "",
     ]
+    return md, shortfalls
+
+
+def run(quick: bool) -> Section:
+    """Loading vs slices (time, memory, goals) and the force path vs trajectories and volume."""
+    sizes = QUICK if quick else FULL
+    cold_ok = sizes.cold_repeats > 0 and can_drop_caches()
+    profiles: list[str] = []
+    with tempfile.TemporaryDirectory(prefix="ctdrill-bench-scaling-") as tmp:
+        t0 = time.perf_counter()
+        folders = write_folders(Path(tmp), sizes.side, sizes.slices)
+        t_write = time.perf_counter() - t0
+        same = same_values(folders[min(folders)], sizes.side)
+        rows = load_rows(
+            folders,
+            sizes.side,
+            repeats=sizes.repeats,
+            cold_repeats=sizes.cold_repeats if cold_ok else 0,
+            fresh=not quick,
+        )
+        load_md, shortfalls = _load_text(sizes, rows, cold_ok, same, t_write)
+        if shortfalls:
+            biggest = folders[max(folders)]
+            if cold_ok:
+                drop_caches()
+            profiles += [
+                f"Where load_series spends its time ({max(folders)} slices, "
+                + ("cold" if cold_ok else "warm")
+                + "; cProfile, top 10 by own time):",
+                "",
+                profile_top(lambda: load_series(biggest)),
+                "",
+            ]
+        volumes = [("demo", load_series(DEMO / "ct"))]
+        volumes += [(f"{sizes.side}x{sizes.side}x{n}", load_series(f)) for n, f in folders.items()]
+        vol_rows, voxels, v_series = volume_scaling(
+            volumes, depth_mm=sizes.depth_mm, repeats=sizes.repeats
+        )
+        if loglog_slope(voxels, v_series["plan_path"]) > 0.15 or any(
+            ours > TIE * peer
+            for ours, peer in zip(v_series["plan_path"], v_series["peer"], strict=True)
+        ):
+            profiles += [
+                f"Where plan_path spends its time on {volumes[-1][0]} (10 runs; cProfile, top "
+                "10 by own time):",
+                "",
+                path_profile(volumes[-1][1], sizes.depth_mm, runs=10),
+                "",
+            ]
+        del volumes
+    traj_rows, t_series = trajectory_scaling(
+        sizes.trajectories, sizes.exports, repeats=sizes.repeats
+    )
+    profiles += [
+        "Where the export of one trajectory spends its time (cProfile, top 10 by own time):",
+        "",
+        export_profile(),
+        "",
+    ]
+    path_md, path_short = _path_text(sizes, traj_rows, t_series, vol_rows, voxels, v_series)
+    figures = (
+        str(plot_load(rows)),
+        str(plot_path(sizes.trajectories, t_series, sizes.exports, voxels, v_series)),
+    )
+    md = [__doc__.split("\n\n", 1)[1].strip() if __doc__ else "", "", *load_md, *path_md]
+    md += ["### Profiles", "", *profiles]
     return Section(
-        title="Scaling", markdown="\n".join(md), figures=figures, shortfalls=tuple(shortfalls)
+        title="Scaling",
+        markdown="\n".join(md),
+        figures=figures,
+        shortfalls=tuple(shortfalls + path_short),
     )

@@ -20,7 +20,7 @@ from scipy import ndimage
 
 from app.export import ExportJob, write_exports
 from app.pipeline import DEFAULT_DEPTH_STEP_MM, depth_grid_mm, plan_path
-from bench.report import figure_path, time_it
+from bench.report import figure_path, profile_top, time_it
 from imaging import load_series
 from imaging.landmarks import CanalLandmark
 from imaging.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS, lip_ring_points, sample_lip_rings
@@ -33,25 +33,31 @@ from model.profile import build_profile
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "assets" / "demo"
 PATH_FIGURE = "path_scaling.png"
+#: Per-trajectory timings against volume size, in table order.
+VOLUME_SERIES = ("plan_path", "peer", "lip sampling", "peer lip sampling")
 PathFn = Callable[[CTVolume, Plan, Calibration], object]
 
 
-def peer_path(volume: CTVolume, plan: Plan, calibration: Calibration) -> float:
-    """``plan_path``'s work with ``map_coordinates`` for the lip; returns the max safe depth."""
-    depth = depth_grid_mm(plan.planned_depth_mm, DEFAULT_DEPTH_STEP_MM)
+def peer_lip_hu(volume: CTVolume, plan: Plan, depth_mm: np.ndarray) -> np.ndarray:
+    """(D, R, A) lip HU by ``map_coordinates(order=1, mode="constant", cval=-1000)``."""
     pts = lip_ring_points(
         plan.entry_lps,
         plan.target_lps,
-        depth,
+        depth_mm,
         diameter_mm=plan.drill.diameter_mm,
         tip_length_mm=plan.drill.tip_length_mm,
         n_rings=DEFAULT_N_RINGS,
         n_angles=DEFAULT_N_ANGLES,
     )
     ijk = volume.lps_to_index(pts.reshape(-1, 3))
-    hu = ndimage.map_coordinates(
-        volume.hu, ijk[:, ::-1].T, order=1, mode="constant", cval=-1000.0
-    ).reshape(pts.shape[:3])
+    hu = ndimage.map_coordinates(volume.hu, ijk[:, ::-1].T, order=1, mode="constant", cval=-1000.0)
+    return np.asarray(hu).reshape(pts.shape[:3])
+
+
+def peer_path(volume: CTVolume, plan: Plan, calibration: Calibration) -> float:
+    """``plan_path``'s work with ``map_coordinates`` for the lip; returns the max safe depth."""
+    depth = depth_grid_mm(plan.planned_depth_mm, DEFAULT_DEPTH_STEP_MM)
+    hu = peer_lip_hu(volume, plan, depth)
     weights = np.full(DEFAULT_N_RINGS, 1.0 / DEFAULT_N_RINGS)
     build_profile(hu, weights, depth, calibration, blades=plan.drill.blades, rpm=plan.drill.rpm)
     clearance_profile_mm(plan, plan.landmarks, depth)
@@ -160,24 +166,27 @@ def volume_scaling(
     cal = load_calibration("bone-illustrative")
     rows: list[list[object]] = []
     voxels: list[float] = []
-    series: dict[str, list[float]] = {"plan_path": [], "lip sampling": [], "peer": []}
+    series: dict[str, list[float]] = {key: [] for key in VOLUME_SERIES}
     for label, volume in volumes:
         plan = volume_plan(volume, depth_mm)
         depth = depth_grid_mm(plan.planned_depth_mm, DEFAULT_DEPTH_STEP_MM)
         ours = time_it(partial(plan_path, volume, plan, cal), repeats=repeats)
-        lip = time_it(partial(_lip, volume, plan, depth), repeats=repeats)
         peer = time_it(partial(peer_path, volume, plan, cal), repeats=repeats)
+        lip = time_it(partial(_lip, volume, plan, depth), repeats=repeats)
+        peer_lip = time_it(partial(peer_lip_hu, volume, plan, depth), repeats=repeats)
         voxels.append(float(volume.hu.size))
-        for key, t in (("plan_path", ours), ("lip sampling", lip), ("peer", peer)):
+        for key, t in zip(VOLUME_SERIES, (ours, peer, lip, peer_lip), strict=True):
             series[key].append(t.median_s)
         rows.append(
             [
                 label,
                 f"{volume.hu.size / 1e6:.3g}",
                 ours.fmt(),
-                lip.fmt(),
                 peer.fmt(),
                 f"{peer.median_s / ours.median_s:.2f}",
+                lip.fmt(),
+                peer_lip.fmt(),
+                f"{peer_lip.median_s / lip.median_s:.2f}",
             ]
         )
     return rows, voxels, series
@@ -204,7 +213,7 @@ def plot_path(
     ax_n.set_xlabel("trajectories")
     ax_n.set_ylabel("total time (s)")
     ax_n.set_title("Force path vs number of trajectories (demo)")
-    for key, fmt in (("plan_path", "o-"), ("lip sampling", "^-"), ("peer", "s--")):
+    for key, fmt in zip(VOLUME_SERIES, ("o-", "s--", "^-", "v--"), strict=True):
         ax_v.plot(voxels, [t * 1e3 for t in v_series[key]], fmt, label=key)
     ax_v.set_xlabel("volume size (voxels)")
     ax_v.set_ylabel("time per trajectory (ms)")
@@ -219,3 +228,21 @@ def plot_path(
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
+
+
+def export_profile() -> str:
+    """cProfile top 10 of ``write_exports`` for one demo trajectory (Markdown table)."""
+    volume = load_series(DEMO / "ct")
+    plan = load_plan(DEMO / "plan.json")
+    job = ExportJob(plan_path(volume, plan, load_calibration(plan.calibration)), plan.name)
+    with tempfile.TemporaryDirectory(prefix="ctdrill-bench-export-") as tmp:
+        _export([job], Path(tmp) / "warm", volume.info.series_uid)  # imports, font cache
+        return profile_top(partial(_export, [job], Path(tmp) / "out", volume.info.series_uid))
+
+
+def path_profile(volume: CTVolume, depth_mm: float, *, runs: int) -> str:
+    """cProfile top 10 of ``runs`` calls of ``plan_path`` on ``volume`` (Markdown table)."""
+    plan = volume_plan(volume, depth_mm)
+    cal = load_calibration(plan.calibration)
+    plan_path(volume, plan, cal)
+    return profile_top(partial(_batch, volume, [plan] * runs, cal, plan_path))
