@@ -10,6 +10,7 @@ Fixed bugs move to ``test_regressions.py`` with their minimal inputs.
 
 from __future__ import annotations
 
+import json
 import traceback
 from dataclasses import dataclass
 from pathlib import Path
@@ -76,10 +77,17 @@ FINDINGS: tuple[Finding, ...] = (
     Finding("unknown-transfer-syntax", "imaging loader",
             "TransferSyntaxUID 1.2.840.10008.1.2.1.99 (DICOM root, undefined)",
             "loaded silently as native pixels, no warning", "open", "corpus"),
+    Finding("plan-huge-coordinates", "imaging/plan.py + imaging/_geometry.py",
+            "a canal point at z = 1e308 mm (entry_mm 1e308: see symptom)",
+            "accepted; export then exits 1 with ValueError: math domain error in the clearance "
+            "(entry 1e308: refused, but NumPy's overflow warning precedes the error: line)",
+            "open", "pipeline fuzz"),
 )  # fmt: skip
 
 #: Open bugs whose trigger the fuzzers hit.
-KNOWN_BUGS: tuple[KnownBug, ...] = ()
+KNOWN_BUGS: tuple[KnownBug, ...] = (
+    KnownBug("plan-huge-coordinates", ValueError, "imaging/_geometry.py", "*"),
+)
 
 #: Corpus cases whose outcome is wrong (kept out of test_corpus.py and test_memory_bombs.py).
 BUG_CASES: frozenset[str] = frozenset({"unknown_transfer_syntax"})
@@ -140,3 +148,39 @@ def test_unknown_transfer_syntax_in_the_dicom_root_is_refused(cases: dict[str, C
     case = cases["unknown_transfer_syntax"]
     assert case.name in BUG_CASES
     check_inspect(case, check_load(case))
+
+
+def _demo_plan_with(path: Path, edit: str, value: float) -> Path:
+    doc = json.loads((ROOT / "assets" / "demo" / "plan.json").read_text())
+    if edit == "canal":
+        doc["landmarks"][0]["points_mm"][12][2] = value
+    else:
+        doc["entry_mm"][0] = value
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_plan_with_huge_canal_coordinate_is_refused_or_handled(tmp_path: Path) -> None:
+    """plan-huge-coordinates: a canal point at z = 1e308 mm is accepted by load_plan, then
+    imaging/_geometry.py raises ValueError (math domain error): ``ctdrill export`` exits 1."""
+    from tests.robustness.outcomes import error_line_problems, run_cli_subprocess
+
+    plan = _demo_plan_with(tmp_path / "plan.json", "canal", 1e308)
+    dicom = ROOT / "assets" / "demo" / "ct"
+    run = run_cli_subprocess(
+        ["export", "--dicom", str(dicom), "--plan", str(plan), "--out", str(tmp_path / "out")]
+    )
+    assert run.code == 0 or not error_line_problems(run), run.stderr[-1500:]
+
+
+def test_plan_with_huge_entry_is_refused_in_one_line(tmp_path: Path) -> None:
+    """plan-huge-coordinates: ``entry_mm[0] = 1e308`` is refused ("planned depth inf mm"), but
+    NumPy's "overflow encountered in dot" warning is printed on stderr first."""
+    from tests.robustness.outcomes import error_line_problems, run_cli_subprocess
+
+    plan = _demo_plan_with(tmp_path / "plan.json", "entry", 1e308)
+    dicom = ROOT / "assets" / "demo" / "ct"
+    run = run_cli_subprocess(
+        ["export", "--dicom", str(dicom), "--plan", str(plan), "--out", str(tmp_path / "out")]
+    )
+    assert not error_line_problems(run), error_line_problems(run)
