@@ -62,7 +62,8 @@ def run_gui(
     """
     app = application()
     window = make_window(settings)
-    window.ask_series = screenshot is None  # unattended: take the largest series
+    window.unattended = screenshot is not None or quit_after_s is not None
+    window.ask_series = not window.unattended  # unattended: take the largest series
     if plan is not None:
         window.open_plan(plan)
     if dicom is not None:
@@ -85,6 +86,8 @@ def run_gui(
                 sys.stderr.write(f"warning: the 3D view looks blank in {screenshot}\n")
         app.quit()
 
+    if window.unattended:  # a bad series ends the run (reported after the loop)
+        window.load_failed.connect(lambda _msg: app.quit())
     if screenshot is not None:
         if dicom is None:
             QTimer.singleShot(500, take)
@@ -101,4 +104,7 @@ def run_gui(
     window.close()
     if window.load_error is not None:
         raise window.load_error
+    if window.internal_error:
+        sys.stderr.write(window.internal_error + "\n")
+        return 1
     return 0

@@ -8,6 +8,7 @@ thread (latest wins), so the UI thread stays responsive.
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +58,7 @@ class MainWindow(QMainWindow):
 
     path_updated = Signal()  # a new path result is shown (plots, 3D, slices)
     volume_loaded = Signal()
+    load_failed = Signal(str)  # the error message
 
     def __init__(self, settings: QSettings | None = None) -> None:
         super().__init__()
@@ -74,6 +76,9 @@ class MainWindow(QMainWindow):
         self.load_error: ValueError | None = None  # bad input met while loading a series
         #: Ask which series to open when a folder holds several (else the largest is taken).
         self.ask_series = True
+        #: No modal dialogs (``--screenshot`` / ``--quit-after-s`` runs); bugs are kept here.
+        self.unattended = False
+        self.internal_error = ""
         self._refocus_next = False
 
         self.view3d = View3D()
@@ -266,6 +271,7 @@ class MainWindow(QMainWindow):
         if isinstance(exc, ValueError):
             self.load_error = exc
         self._failed(exc, tb)
+        self.load_failed.emit(str(exc))
 
     def _failed(self, exc: BaseException, tb: str) -> None:
         self._close_progress()
@@ -274,8 +280,12 @@ class MainWindow(QMainWindow):
             self._status(f"error: {exc}")
             self._show_block(str(exc))
         else:
+            self.internal_error = tb or repr(exc)
             self._status(f"internal error: {exc!r}")
-            QMessageBox.critical(self, "ctdrill: internal error", tb)
+            if self.unattended:
+                sys.stderr.write(f"ctdrill gui: internal error\n{tb}\n")
+            else:
+                QMessageBox.critical(self, "ctdrill: internal error", tb)
 
     def open_plan_dialog(self) -> None:
         path, _ = QFileDialog.getOpenFileName(

@@ -18,6 +18,7 @@ from PySide6.QtWidgets import (
     QGridLayout,
     QGroupBox,
     QHBoxLayout,
+    QHeaderView,
     QLabel,
     QPushButton,
     QTableWidget,
@@ -95,9 +96,13 @@ class PlanPanel(QWidget):
         lms = QGroupBox("Landmarks")
         lay = QVBoxLayout(lms)
         self.table = QTableWidget(0, 4)
-        self.table.setHorizontalHeaderLabels(["name", "kind", "margin (mm)", "clearance"])
+        self.table.setHorizontalHeaderLabels(["name", "kind", "margin", "clearance"])
         self.table.verticalHeader().setVisible(False)
-        self.table.horizontalHeader().setStretchLastSection(True)
+        header = self.table.horizontalHeader()
+        header.setSectionResizeMode(0, QHeaderView.ResizeMode.Stretch)
+        for col in (1, 2, 3):
+            header.setSectionResizeMode(col, QHeaderView.ResizeMode.ResizeToContents)
+        self.table.setWordWrap(True)
         lay.addWidget(self.table)
         buttons = QHBoxLayout()
         self.add_canal = QPushButton("Add canal points")
@@ -135,7 +140,7 @@ class PlanPanel(QWidget):
                     item = QTableWidgetItem(text)
                     item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
                     self.table.setItem(row, col, item)
-                box = _spin(0.0, 10.0, 0.1, 2, "")
+                box = _spin(0.0, 10.0, 0.1, 2, " mm")
                 box.setValue(plan.landmark_margin_mm(lm))
                 box.valueChanged.connect(lambda v, r=row: self._margin_edited(r, v))
                 self.table.setCellWidget(row, 2, box)

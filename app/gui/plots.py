@@ -137,7 +137,7 @@ def _axes(fig: Figure) -> tuple[Axes, Axes, Axes]:
     if len(fig.axes) != 3:
         fig.clear()
         fig.subplots(3, 1, sharex=True)
-        fig.subplots_adjust(left=0.08, right=0.965, top=0.95, bottom=0.1, hspace=0.45)
+        fig.subplots_adjust(left=0.08, right=0.965, top=0.95, bottom=0.13, hspace=0.5)
     ax_hu, ax_f, ax_c = fig.axes
     for ax in (ax_hu, ax_f, ax_c):
         for artist in [*ax.lines, *ax.collections, *ax.patches, *ax.texts]:

@@ -278,14 +278,14 @@ def focus_camera(
     """Look at the trajectory's midpoint from the side of the drill, superior up.
 
     The view direction is perpendicular to the drill axis (the drill runs across the screen) and
-    tilted 25 degrees from above; distance defaults to 6 x the trajectory length, at least 60 mm.
+    tilted 25 degrees from above; distance defaults to 8 x the trajectory length, at least 90 mm.
     """
     entry = np.asarray(entry_lps, dtype=np.float64)
     target = np.asarray(target_lps, dtype=np.float64)
     axis = _unit(target - entry)
     mid = (entry + target) / 2.0
     length = float(np.linalg.norm(target - entry))
-    dist = distance_mm if distance_mm is not None else max(60.0, 6.0 * length)
+    dist = distance_mm if distance_mm is not None else max(90.0, 8.0 * length)
     up = np.array([0.0, 0.0, 1.0])
     side = np.cross(axis, up)
     if np.linalg.norm(side) < 1e-6:  # vertical drill: look from anterior (-P)

@@ -26,6 +26,8 @@ def window(qtbot: object, tmp_path: Path) -> Iterator[object]:
 
     settings = QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat)
     win = make_window(settings)
+    win.unattended = True  # no modal dialog may block a test; bugs are collected instead
     qtbot.addWidget(win)  # type: ignore[attr-defined]
     yield win
     win.close()
+    assert win.internal_error == "", win.internal_error
