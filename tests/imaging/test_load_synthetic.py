@@ -307,7 +307,7 @@ def _patch(path: Path, old: bytes, new: bytes) -> None:
 @pytest.mark.filterwarnings("ignore:Invalid value for VR")
 def test_damaged_values_are_refused_naming_file_and_field(tmp_path: Path) -> None:
     hu = linear_hu(SHAPE)
-    cases = {
+    cases: dict[str, tuple[dict[str, object], str]] = {
         "slope0": ({"RescaleSlope": "0"}, "RescaleSlope 0"),
         "nanslope": ({"RescaleSlope": "nan"}, "RescaleSlope nan"),
         "infpos": ({"ImagePositionPatient": ["inf", "0", "0"]}, "ImagePositionPatient"),
