@@ -374,3 +374,21 @@ def test_edge_cases_no_landmark_and_a_stop_at_the_entry(tmp_path: Path) -> None:
     _, rows = _rows(tmp_path / "out" / "blocked" / "force.csv")
     assert len(rows) == 1 and float(rows[0]["force_n"]) == 0.0
     assert _png_size(tmp_path / "out" / "blocked" / "force.png") == (1200, 1000)
+
+
+@pytest.mark.parametrize(
+    ("relpath", "fragment"),
+    [
+        ("single_slice_ct/dicompyler_core/ct.0.dcm", "a single slice is not a volume"),
+        ("single_slice_ct/pydicom_data_repo/eCT_Supplemental.dcm", "not Hounsfield units"),
+    ],
+)
+def test_real_files_that_cannot_carry_a_force_map_are_refused(
+    shared_data: Path, tmp_path: Path, relpath: str, fragment: str
+) -> None:
+    out = tmp_path / "out"
+    argv = ["export", "--dicom", str(shared_data / relpath), "--plan", str(DEMO / "plan.json")]
+    code, stdout, err = _run([*argv, "--out", str(out)])
+    assert code == 2 and stdout == ""
+    assert err.startswith("error: series ") and err.count("\n") == 1 and fragment in err
+    assert not out.exists()
