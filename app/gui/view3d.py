@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import numpy as np
@@ -28,6 +29,7 @@ class View3D(QWidget):
         self.actors: dict[str, Any] = {}
         self._camera_for: tuple[float, ...] | None = None
         self.frames_drawn = 0
+        self.last_frame_s = float("nan")  # perf_counter() at the end of the latest frame
 
     def set_surface(self, surface: pv.PolyData | None) -> None:
         """Use a new bone surface (new volume or preset); redraws if a scene is shown."""
@@ -62,6 +64,7 @@ class View3D(QWidget):
         """Draw one frame now."""
         self.plotter.render()
         self.frames_drawn += 1
+        self.last_frame_s = time.perf_counter()
 
     def grab_rgb(self) -> np.ndarray:
         """(H, W, 3) uint8 image of the render window, as displayed."""

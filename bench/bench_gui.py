@@ -1,0 +1,247 @@
+"""Desktop window: time from choosing a DICOM folder to the first drawn 3D frame, and the 3D
+view's frame time.
+
+Cases: the bundled demo phantom (``assets/demo``: 80 x 100 x 80 voxels of 0.4 mm) and a
+synthetic 512 x 512 x 300 series (0.3 mm voxels, a bone bar with a cortical shell and a canal)
+written with ``imaging.dicom_writer.write_series``. "Open to first frame" runs the window's own
+path: in a worker thread list the series, load it, contour the bone surface; on the UI thread
+then reslice the four views, plan the path (worker), build the scene and render. The peers are
+the same steps called headless one by one in the same run, so the breakdown shows where the
+time goes. The frame time is ``plotter.render()`` of the window's 3D view at its on-screen size,
+without and with 4x MSAA (the peer), on the software OpenGL of Xvfb (Mesa llvmpipe) when run
+by ``make bench``.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from bench.report import Section, Timing, figure_path, table, time_it
+from imaging import load_series
+from imaging.dicom_writer import write_series
+from imaging.landmarks import CanalLandmark
+from imaging.plan import Plan, load_plan, save_plan
+from imaging.series import list_series
+
+ROOT = Path(__file__).resolve().parents[1]
+DEMO = ROOT / "assets" / "demo"
+FIGURE_NAME = "gui_open.png"
+
+
+def synthetic_case(out_dir: Path, shape_kji: tuple[int, int, int], spacing_mm: float) -> Path:
+    """Write a bone-bar series and its plan into ``out_dir``; returns the plan path.
+
+    The bar runs along x (patient left), elliptical in (y, z): cortical 1500 HU (1.5 mm),
+    trabecular 700 HU, a canal of radius 1.2 mm (30 HU) 4 mm below the bar's centre.
+    """
+    nk, nj, ni = shape_kji
+    half = np.array([ni, nj, nk]) * spacing_mm / 2.0
+    affine = np.eye(4)
+    affine[:3, :3] *= spacing_mm
+    affine[:3, 3] = -half
+    z = -half[2] + spacing_mm * np.arange(nk)
+    y = -half[1] + spacing_mm * np.arange(nj)
+    zz, yy = np.meshgrid(z, y, indexing="ij")
+    semi_y, semi_z = 0.3 * half[1], 0.6 * half[2]
+    r = np.hypot(yy / semi_y, zz / semi_z)
+    inner = np.hypot(yy / (semi_y - 1.5), zz / (semi_z - 1.5))
+    plane = np.full((nk, nj), -1000, dtype=np.int16)
+    plane[r <= 1.0] = 1500
+    plane[inner <= 1.0] = 700
+    canal_z = -4.0
+    plane[np.hypot(yy, zz - canal_z) <= 1.2] = 30
+    hu = np.broadcast_to(plane[:, :, None], (nk, nj, ni))
+    write_series(out_dir / "ct", np.ascontiguousarray(hu), affine)
+    top = semi_z
+    plan = Plan(
+        entry_lps=np.array([0.0, 0.0, top + 1.0]),
+        target_lps=np.array([0.0, 0.0, canal_z + 2.5]),
+        landmarks=(
+            CanalLandmark(
+                name="canal",
+                points_lps=np.array([[-half[0] + 1, 0.0, canal_z], [half[0] - 1, 0.0, canal_z]]),
+                radius_mm=1.2,
+            ),
+        ),
+        name="synthetic",
+    )
+    save_plan(plan, out_dir / "plan.json")
+    return out_dir / "plan.json"
+
+
+def _open_to_first_frame(window: object, ct_dir: Path, repeats: int) -> Timing:
+    """Median time from ``open_folder`` to the 3D view's first frame with the case drawn."""
+    from PySide6.QtCore import QEventLoop, QTimer
+
+    from app.gui.main_window import MainWindow
+
+    assert isinstance(window, MainWindow)
+    samples = []
+    for _ in range(repeats):
+        loop = QEventLoop()
+        window.path_updated.connect(loop.quit)
+        QTimer.singleShot(120_000, loop.quit)
+        t0 = time.perf_counter()
+        window.open_folder(ct_dir)
+        loop.exec()
+        window.path_updated.disconnect(loop.quit)
+        samples.append(window.view3d.last_frame_s - t0)
+    arr = np.asarray(samples)
+    return Timing(
+        median_s=float(np.median(arr)),
+        p25_s=float(np.percentile(arr, 25)),
+        p75_s=float(np.percentile(arr, 75)),
+        min_s=float(arr.min()),
+        repeats=repeats,
+    )
+
+
+def _measure(name: str, ct_dir: Path, plan_path: Path, repeats: int) -> dict[str, object]:
+    from PySide6.QtCore import QSettings
+
+    from app.gui import compute
+    from app.gui.app import application, make_window
+    from app.gui.results import compute_path_view
+
+    app = application()
+    settings = QSettings(str(plan_path.parent / "settings.ini"), QSettings.Format.IniFormat)
+    window = make_window(settings)
+    window.unattended = True
+    window.ask_series = True
+    try:
+        window.open_plan(plan_path)
+        app.processEvents()
+        first = _open_to_first_frame(window, ct_dir, repeats)
+        volume = load_series(ct_dir)
+        plan = load_plan(plan_path)
+        steps = {
+            "list series": time_it(lambda: list_series(ct_dir), repeats=repeats),
+            "load series": time_it(lambda: load_series(ct_dir), repeats=repeats),
+            "bone surface": time_it(lambda: compute.volume_surface(volume), repeats=repeats),
+            "four slices": time_it(lambda: compute.slice_views(volume, plan), repeats=repeats),
+            "plan path": time_it(lambda: compute_path_view(volume, plan), repeats=repeats),
+        }
+        plotter = window.view3d.plotter
+        frame = time_it(plotter.render, repeats=15, warmup=2)
+        plotter.ren_win.SetMultiSamples(4)
+        frame_msaa = time_it(plotter.render, repeats=15, warmup=2)
+        plotter.ren_win.SetMultiSamples(0)
+        size = tuple(plotter.window_size)
+        n_tri = 0 if window.view3d.surface is None else int(window.view3d.surface.n_cells)
+    finally:
+        window.close()
+    return {
+        "name": name,
+        "dims": "x".join(str(d) for d in volume.dims),
+        "first": first,
+        "steps": steps,
+        "frame": frame,
+        "frame_msaa": frame_msaa,
+        "size": size,
+        "triangles": n_tri,
+    }
+
+
+def _figure(results: list[dict[str, object]]) -> str:
+    fig = Figure(figsize=(7.0, 3.2))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    labels = [str(r["name"]) for r in results]
+    bottom = np.zeros(len(results))
+    for step in ("list series", "load series", "bone surface", "four slices", "plan path"):
+        vals = np.array([r["steps"][step].median_s for r in results])  # type: ignore[index]
+        ax.barh(labels, vals, left=bottom, label=step)
+        bottom += vals
+    firsts = np.array([r["first"].median_s for r in results])  # type: ignore[attr-defined]
+    ax.scatter(firsts, labels, color="black", marker="|", s=400, label="open to first frame")
+    ax.set_xlabel("seconds (median)")
+    ax.legend(fontsize=7, loc="lower right")
+    ax.set_title("GUI: open a series, headless steps vs the window's first 3D frame", fontsize=9)
+    fig.tight_layout()
+    out = figure_path(FIGURE_NAME)
+    fig.savefig(out, dpi=110)
+    return f"benchmarks/{FIGURE_NAME}"
+
+
+def run(quick: bool) -> Section:
+    """Benchmark the window on the demo and a synthetic large series."""
+    repeats = 2 if quick else 5
+    big_shape = (60, 128, 128) if quick else (300, 512, 512)
+    results = []
+    with tempfile.TemporaryDirectory(prefix="ctdrill-bench-gui-") as tmp:
+        results.append(_measure("demo", DEMO / "ct", DEMO / "plan.json", repeats))
+        t0 = time.perf_counter()
+        plan_path = synthetic_case(Path(tmp), big_shape, 0.3)
+        write_s = time.perf_counter() - t0
+        label = "x".join(str(d) for d in big_shape[::-1])
+        results.append(_measure(f"synthetic {label}", Path(tmp) / "ct", plan_path, repeats))
+    rows = []
+    for r in results:
+        steps = r["steps"]
+        assert isinstance(steps, dict)
+        total = sum(t.median_s for t in steps.values())
+        first = r["first"]
+        assert isinstance(first, Timing)
+        rows.append(
+            [
+                r["name"],
+                r["dims"],
+                first.fmt("s"),
+                f"{total:.3g} s",
+                *(steps[k].fmt("ms") for k in steps),
+            ]
+        )
+    frame_rows = []
+    for r in results:
+        f0, f4 = r["frame"], r["frame_msaa"]
+        assert isinstance(f0, Timing) and isinstance(f4, Timing)
+        frame_rows.append(
+            [
+                r["name"],
+                r["triangles"],
+                "x".join(str(s) for s in r["size"]),  # type: ignore[attr-defined]
+                f0.fmt("ms"),
+                f4.fmt("ms"),
+                f"{f4.median_s / f0.median_s:.2f}",
+            ]
+        )
+    md = "\n\n".join(
+        [
+            __doc__.split("\n\n", 1)[1].strip() if __doc__ else "",
+            f"{repeats} repeats; the synthetic series took {write_s:.1f} s to write (not timed).",
+            table(
+                [
+                    "case",
+                    "dims",
+                    "open to first 3D frame",
+                    "sum of headless steps",
+                    "list series",
+                    "load series",
+                    "bone surface",
+                    "four slices",
+                    "plan path",
+                ],
+                rows,
+            ),
+            table(
+                [
+                    "case",
+                    "surface triangles",
+                    "3D view px",
+                    "frame, no MSAA (default)",
+                    "frame, 4x MSAA (peer)",
+                    "MSAA / default",
+                ],
+                frame_rows,
+            ),
+            "The difference between the first column and the sum of the headless steps is the "
+            "UI thread's share (scene build, slice and plot drawing, the render) plus queueing.",
+        ]
+    )
+    return Section(title="Desktop window (bench_gui)", markdown=md, figures=(_figure(results),))
