@@ -1,9 +1,10 @@
 """Fuzz the DICOM loader with byte mutations of one file of a three-slice series.
 
-Seeds: pydicom's bundled ``CT_small.dcm`` (a real scanner header) and the project's mandible
-phantom written by ``imaging.phantom_io``. One of the three files is mutated (bit flips,
-inserts, deletes, truncation, overwrites, element lengths rewritten); ``load_series`` must load
-a finite volume or raise ``ImagingInputError``, within 5 s and 1 GiB of extra address space.
+Seeds: pydicom's bundled ``CT_small.dcm`` (a real scanner header) and three consecutive slices
+of the bundled demo phantom (``assets/demo/ct``, written by ``imaging.phantom_io``). One of the
+three files is mutated (bit flips, inserts, deletes, truncation, overwrites, element lengths
+rewritten); ``load_series`` must load a finite volume or raise ``ImagingInputError``, within
+5 s and 1 GiB of extra address space.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from tests.robustness.fuzz import (
     fuzz_settings,
     timed,
 )
+from tests.robustness.make_corpus import ROOT
 from tests.robustness.mutate import ByteMutation, apply_bytes, bounded_memory, element_offsets
 from tests.robustness.test_found_bugs import known_bug
 
@@ -55,13 +57,13 @@ def seed_series(name: str) -> tuple[bytes, ...]:
                 ds.InstanceNumber = k + 1
                 paths.append(folder / f"s{k}.dcm")
                 ds.save_as(paths[-1], enforce_file_format=True)
-        else:
-            from imaging.phantom import make_mandible_phantom
-            from imaging.phantom_io import write_phantom
+        else:  # three consecutive slices of the bundled demo phantom (by position)
+            import pydicom
 
-            phantom = make_mandible_phantom(spacing_mm=1.0, shape=(3, 16, 20))
-            case = write_phantom(folder / "case", phantom)
-            paths = sorted(Path(case.ct_dir).iterdir())
+            demo = sorted((ROOT / "assets" / "demo" / "ct").iterdir())
+            z = {p: float(pydicom.dcmread(p, stop_before_pixels=True).ImagePositionPatient[2])
+                 for p in demo}  # fmt: skip
+            paths = sorted(demo, key=z.__getitem__)[38:41]
         assert len(paths) == 3
         return tuple(p.read_bytes() for p in paths)
 
