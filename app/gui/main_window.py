@@ -59,6 +59,7 @@ class MainWindow(QMainWindow):
     path_updated = Signal()  # a new path result is shown (plots, 3D, slices)
     volume_loaded = Signal()
     load_failed = Signal(str)  # the error message
+    surface_updated = Signal()
 
     def __init__(self, settings: QSettings | None = None) -> None:
         super().__init__()
@@ -131,6 +132,7 @@ class MainWindow(QMainWindow):
         self.load_runner = Runner(self._loaded, self._load_failed, parent=self)
         self.path_runner = Runner(self._path_done, self._failed, parent=self)
         self.slice_runner = Runner(self._slices_done, self._failed, parent=self)
+        self.surface_runner = Runner(self._surface_done, self._failed, parent=self)
         self.debounce = Debouncer(self._recompute, DEBOUNCE_MS, parent=self)
         self.progress: QProgressDialog | None = None
         self._build_menus()
@@ -374,7 +376,7 @@ class MainWindow(QMainWindow):
         plan = self.plan
         if plan is None:
             return
-        view = self.view
+        view = self.view if self.view is not None and self.view.plan is plan else None
         stop = None if view is None else plan.point_at_depth_lps(view.curves.stop_depth_mm)
         lms = planning.landmark_geometries(plan, None if view is None else view.min_clearance_mm)
         for canvas in self.slice_canvases.values():
@@ -433,10 +435,17 @@ class MainWindow(QMainWindow):
             self.set_plan(planning.add_canal_point(self.plan, point_lps))
 
     def set_surface_preset(self, iso_hu: float) -> None:
-        """Re-contour the bone surface at ``iso_hu``."""
+        """Re-contour the bone surface at ``iso_hu`` (in the background)."""
         self.iso_hu = iso_hu
-        if self.volume is not None:
-            self.view3d.set_surface(compute.volume_surface(self.volume, iso_hu=iso_hu))
+        volume = self.volume
+        if volume is not None:
+            self._status(f"bone surface at {iso_hu:g} HU ...")
+            self.surface_runner.submit(lambda: compute.volume_surface(volume, iso_hu=iso_hu))
+
+    def _surface_done(self, surface: Any) -> None:
+        self.view3d.set_surface(surface)
+        self._status(f"bone surface at {self.iso_hu:g} HU")
+        self.surface_updated.emit()
 
     def set_window_preset(self, label: str) -> None:
         """Apply a window/level preset to the slice views."""

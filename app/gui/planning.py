@@ -107,9 +107,12 @@ def landmark_geometries(
 ) -> tuple[LandmarkGeometry, ...]:
     """What to draw for each landmark, with its minimum clearance along the stopped path.
 
-    ``clearance_mm`` is (L,) per landmark (in plan order) or None when not computed yet.
+    ``clearance_mm`` is (L,) per landmark (in plan order) or None when not computed yet (a
+    result for another landmark list is ignored).
     Mask landmarks are drawn as their boundary points (point cloud), without a tube.
     """
+    if clearance_mm is not None and len(clearance_mm) != len(plan.landmarks):
+        clearance_mm = None
     out = []
     for i, lm in enumerate(plan.landmarks):
         clear = None if clearance_mm is None else float(clearance_mm[i])

@@ -1,8 +1,9 @@
 """One slice view: a matplotlib canvas showing a :class:`~app.gui.slices.SliceImage` with the
 trajectory, the drill's stop point and the landmarks; entry and target can be dragged.
 
-The widget only draws and reports: a finished drag emits ``point_moved(name, lps)`` and a
-canal-point click emits ``clicked(lps)``; the window decides what they change.
+The widget only draws and reports: a finished drag of a handle, or a right click (target;
+Shift + right click: entry) emits ``point_moved(name, lps)``, and a left click in canal-point
+mode emits ``clicked(lps)``; the window decides what they change.
 """
 
 from __future__ import annotations
@@ -162,7 +163,13 @@ class SliceCanvas(FigureCanvasQTAgg):
 
     def _press(self, event: MouseEvent) -> None:
         uv = self._event_uv(event)
-        if uv is None or self.image is None or event.button != 1:
+        if uv is None or self.image is None:
+            return
+        if event.button == 3:  # right click places the target; with Shift, the entry
+            name = "entry" if event.key == "shift" else "target"
+            self.point_moved.emit(name, self.image.to_lps(uv))
+            return
+        if event.button != 1:
             return
         if self.add_points_mode:
             self.clicked.emit(self.image.to_lps(uv))

@@ -1,0 +1,98 @@
+"""Window interactions: drop a folder or a plan, presets, canal points, right-click placing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PySide6.QtCore import QPoint, Qt
+from pytestqt.qtbot import QtBot
+
+from app.gui.main_window import MainWindow
+from app.gui.slice_view import SliceCanvas
+from app.gui.slices import window_to_uint8
+from imaging.landmarks import CanalLandmark
+from imaging.phantom_io import PhantomCase
+from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
+
+
+def qt_point(canvas: SliceCanvas, uv_mm: np.ndarray) -> QPoint:
+    """Widget coordinates of in-plane mm ``uv_mm`` on ``canvas``."""
+    ratio = canvas.devicePixelRatioF()
+    x, y = canvas.ax.transData.transform(uv_mm)
+    return QPoint(round(x / ratio), round(canvas.height() - y / ratio))
+
+
+def test_dropping_a_dicom_file_opens_its_folder_and_a_json_opens_the_plan(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    window.open_dropped(str(phantom_case.plan_path))
+    assert window.plan is not None and window.plan.name == "plan"
+    one_file = next(phantom_case.ct_dir.iterdir())
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        window.open_dropped(str(one_file))
+    assert window.volume_path == str(phantom_case.ct_dir)
+
+
+def test_window_preset_rewindows_the_slices(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    image = window.slices["axial"]
+    window.set_window_preset("soft tissue")
+    shown = np.asarray(window.slice_canvases["axial"]._im.get_array())
+    expected = window_to_uint8(image.hu, level_hu=40.0, width_hu=400.0)
+    assert np.array_equal(shown, expected)
+
+
+def test_surface_preset_recontours_in_the_background(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    assert window.view3d.surface is not None
+    before = window.view3d.surface.n_points
+    with qtbot.waitSignal(window.surface_updated, timeout=LOAD_TIMEOUT_MS):
+        window.set_surface_preset(-300.0)  # the soft tissue around the bone: a larger surface
+    assert window.view3d.surface is not None
+    bounds_soft = np.array(window.view3d.surface.bounds)
+    assert window.view3d.surface.n_points != before
+    with qtbot.waitSignal(window.surface_updated, timeout=LOAD_TIMEOUT_MS):
+        window.set_surface_preset(1000.0)  # cortical only
+    bounds_cortex = np.array(window.view3d.surface.bounds)
+    assert bounds_soft[5] > bounds_cortex[5]  # the soft tissue reaches higher than the bone
+
+
+def test_canal_points_clicked_on_a_slice_build_a_canal(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    window.plan_panel.add_canal.setChecked(True)
+    canvas = window.slice_canvases["coronal"]
+    assert canvas.image is not None and window.plan is not None
+    n_before = len(window.plan.landmarks)
+    for u in (10.0, 20.0):
+        uv = np.array([u, 15.0])
+        with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+            qtbot.mouseClick(canvas, Qt.MouseButton.LeftButton, pos=qt_point(canvas, uv))
+    window.plan_panel.add_canal.setChecked(False)
+    assert not canvas.add_points_mode
+    canal = window.plan.landmarks[-1]
+    assert len(window.plan.landmarks) == n_before + 1
+    assert isinstance(canal, CanalLandmark) and canal.name == "canal"
+    assert len(canal.points_lps) == 2
+    # Both points lie on the coronal plane through the target.
+    assert np.allclose(canal.points_lps[:, 1], window.plan.target_lps[1])
+    assert window.plan_panel.table.rowCount() == n_before + 1
+
+
+def test_right_click_places_the_target(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    canvas = window.slice_canvases["sagittal"]
+    assert canvas.image is not None and window.plan is not None
+    goal = window.plan.target_lps + np.array([0.0, 2.0, 3.0])  # in the sagittal plane
+    uv, off = canvas.image.to_plane_mm(goal)
+    assert abs(float(off)) < 1e-9
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        qtbot.mouseClick(canvas, Qt.MouseButton.RightButton, pos=qt_point(canvas, uv))
+    assert window.plan.target_lps == pytest.approx(goal, abs=0.4)

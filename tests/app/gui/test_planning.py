@@ -1,0 +1,81 @@
+"""Plan edits as pure functions: exact results and refusals naming the field."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app.errors import AppInputError
+from app.gui import planning
+from imaging.landmarks import CanalLandmark, PointLandmark
+from imaging.plan import Plan
+
+
+def plan() -> Plan:
+    return Plan(
+        entry_lps=np.array([0.0, 0.0, 10.0]),
+        target_lps=np.array([0.0, 0.0, 0.0]),
+        landmarks=(
+            CanalLandmark("canal", np.array([[-5.0, 0, -4], [5.0, 0, -4]]), radius_mm=1.2),
+            PointLandmark("apex", np.array([3.0, 3.0, 3.0]), margin_mm=1.5),
+        ),
+    )
+
+
+def test_move_handle_returns_a_new_plan() -> None:
+    p = plan()
+    moved = planning.move_handle(p, "target", np.array([0.0, 0.0, 4.0]))
+    assert moved.planned_depth_mm == pytest.approx(6.0)
+    assert p.planned_depth_mm == pytest.approx(10.0)  # unchanged
+    entry = planning.move_handle(p, "entry", np.array([3.0, 4.0, 0.0]))
+    assert entry.planned_depth_mm == pytest.approx(5.0)
+
+
+@pytest.mark.parametrize(
+    ("name", "point", "match"),
+    [
+        ("target", [0.0, 0.0, 10.2], "at least"),
+        ("target", [np.nan, 0.0, 0.0], "finite"),
+        ("tip", [0.0, 0.0, 0.0], "unknown handle"),
+    ],
+)
+def test_move_handle_refuses_unusable_plans(name: str, point: list[float], match: str) -> None:
+    with pytest.raises(AppInputError, match=match):
+        planning.move_handle(plan(), name, np.array(point))
+
+
+def test_margins_per_landmark() -> None:
+    p = planning.set_landmark_margin(plan(), 0, 3.0)
+    assert p.landmark_margin_mm(p.landmarks[0]) == 3.0
+    assert p.landmark_margin_mm(p.landmarks[1]) == 1.5
+    back = planning.set_landmark_margin(p, 0, None)
+    assert back.landmark_margin_mm(back.landmarks[0]) == p.margin_mm
+    with pytest.raises(AppInputError, match=r"landmarks\[1\].margin_mm"):
+        planning.set_landmark_margin(p, 1, -1.0)
+
+
+def test_canal_points_grow_the_nearer_end() -> None:
+    p = Plan(entry_lps=np.array([0.0, 0, 10]), target_lps=np.zeros(3))
+    for x in (0.0, 5.0, -5.0, 10.0):
+        p = planning.add_canal_point(p, np.array([x, 0.0, -4.0]))
+    (canal,) = p.landmarks
+    assert isinstance(canal, CanalLandmark)
+    assert canal.points_lps[:, 0].tolist() == [-5.0, 0.0, 5.0, 10.0]
+    assert canal.radius_mm == pytest.approx(1.2)
+
+
+def test_remove_landmark_and_default_plan() -> None:
+    p = planning.remove_landmark(plan(), 0)
+    assert [lm.name for lm in p.landmarks] == ["apex"]
+    d = planning.default_plan(np.array([1.0, 2.0, 3.0]), depth_mm=8.0)
+    assert d.entry_lps.tolist() == [1.0, 2.0, 7.0] and d.target_lps.tolist() == [1.0, 2.0, -1.0]
+
+
+def test_landmark_geometries_carry_margin_and_clearance() -> None:
+    geoms = planning.landmark_geometries(plan(), np.array([2.5, 4.0]))
+    assert [g.kind for g in geoms] == ["canal", "point"]
+    assert [g.margin_mm for g in geoms] == [2.0, 1.5]
+    assert [g.clearance_mm for g in geoms] == [2.5, 4.0]
+    assert geoms[1].points_lps.shape == (1, 3) and geoms[1].radius_mm == 0.0
+    stale = planning.landmark_geometries(plan(), np.array([2.5]))  # another landmark list
+    assert [g.clearance_mm for g in stale] == [None, None]
