@@ -68,6 +68,21 @@ _LANDMARK_KEYS = {
 }
 
 
+#: Largest accepted value per numeric field: far beyond any real plan, small enough that no
+#: arithmetic on it overflows (a typo or a unit error is refused, not computed with).
+_MAXIMA = {
+    "diameter_mm": 50.0,
+    "tip_length_mm": 50.0,
+    "rpm": 1e6,
+    "feed_mm_s": 1000.0,
+    "margin_mm": 1000.0,
+    "radius_mm": 1000.0,
+}
+#: Largest accepted coordinate magnitude, mm.
+_MAX_COORD_MM = 1e5
+_MAX_BLADES = 100
+
+
 class PlanInputError(ImagingInputError):
     """A plan file that cannot be used; the message names the file and the field path."""
 
@@ -191,15 +206,22 @@ class _Ctx:
         if not ok:
             kind = "a positive number" if positive else "a number >= 0" if nonneg else "a number"
             raise self.fail(fp, f"must be {kind}", val)
+        top = _MAXIMA.get(key)
+        if top is not None and not val <= top:
+            raise self.fail(fp, f"must be at most {top:g} (check the units)", val)
         return float(val)
 
     def point(self, val: object, fp: str) -> np.ndarray:
         if (
             not isinstance(val, list | tuple)
             or len(val) != 3
-            or not all(_is_number(v) for v in val)
+            or not all(_is_number(v) and abs(v) <= _MAX_COORD_MM for v in val)
         ):
-            raise self.fail(fp, "must be a list of 3 finite numbers [x, y, z] in mm", val)
+            raise self.fail(
+                fp,
+                f"must be a list of 3 finite numbers [x, y, z] in mm (|v| <= {_MAX_COORD_MM:g})",
+                val,
+            )
         return np.asarray(val, dtype=np.float64)
 
     def string(self, obj: dict[str, Any], key: str, where: str, *, default: str | None) -> str:
@@ -359,6 +381,8 @@ def _drill_from(ctx: _Ctx, raw: dict[str, Any], where: str) -> DrillSpec:
     blades_raw = raw.get("blades", d.blades)
     if not _is_number(blades_raw) or blades_raw != int(blades_raw) or blades_raw < 1:
         raise ctx.fail(f"{where}.blades", "must be a positive whole number", blades_raw)
+    if blades_raw > _MAX_BLADES:
+        raise ctx.fail(f"{where}.blades", f"must be at most {_MAX_BLADES}", blades_raw)
     rpm = ctx.number(raw, "rpm", where, default=d.rpm, positive=True)
     return DrillSpec(diameter_mm=diameter, tip_length_mm=tip, blades=int(blades_raw), rpm=rpm)
 
