@@ -1,21 +1,27 @@
 """Run the benchmark modules and write ``docs/benchmarks.md``.
 
-Usage: ``python -m bench [--quick] [--only NAME ...] [--out docs/benchmarks.md]``.
+Usage: ``python -m bench [--quick [--jobs N]] [--only NAME ...] [--out docs/benchmarks.md]``.
 
-Every module runs in this one process, one after the other, so peers inside a module are
-measured side by side under the same conditions. A module that fails is reported in the file
-with its traceback and makes the exit status 1; the others still run.
+Each module runs in a fresh process of its own, one after the other (no allocator, page or
+GUI state carried from one module to the next); peers inside a module are measured side by
+side in that process. A module that fails (an exception, or a crash of a native library) is
+reported in the file with the end of its error output and makes the exit status 1; the others
+still run.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
+import json
 import os
 import pkgutil
+import subprocess
 import sys
+import tempfile
 import time
-import traceback
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import bench
@@ -29,15 +35,15 @@ HEADER = """\
 Written by `make bench` (which runs `python -m bench` under `xvfb-run` with the allocator
 settings below); do not edit by hand, edit the modules in `bench/`. Every figure is the median
 over repeats with its inter-quartile range in brackets; peers are measured side by side in the
-same process run. Each section says how to reproduce it with one command; with `--quick` the
-same code runs at toy sizes (the smoke test `tests/test_bench_smoke.py`), and its numbers mean
-nothing.
+same run of the same process. Each module runs in a fresh process of its own. Each section says
+how to reproduce it with one command; with `--quick` the same code runs at toy sizes (the smoke
+test `tests/test_bench_smoke.py`), and its numbers mean nothing. The machine is a shared 2-core
+VM: compare ratios measured side by side, not absolute times across runs.
 
-Allocator: glibc returns freed memory to the kernel lazily on these VMs, so a fresh 300 MB
-allocation can cost 0.3-0.7 s of page faults. `make bench` sets `MALLOC_TRIM_THRESHOLD_` (16 GiB:
-never trim) and `MALLOC_MMAP_THRESHOLD_` (32 MiB: smaller blocks come from the heap and are
-reused), so repeated runs measure the code, not the kernel's page zeroing. Without them, first
-runs of the loaders are slower by about that much.
+Allocator: on these VMs freed memory goes back to the host after 1-3 s, so a fresh 300 MB
+allocation can cost 0.3-0.7 s of page faults. `make bench` sets `MALLOC_TRIM_THRESHOLD_`
+(16 GiB: glibc never trims the heap) and `MALLOC_MMAP_THRESHOLD_` (32 MiB: blocks below it come
+from the heap and are reused), so that repeats measure the code rather than the host's paging.
 """
 
 
@@ -52,25 +58,29 @@ def _snapshot(folder: Path) -> dict[Path, bytes]:
     return {p: p.read_bytes() for p in sorted(folder.glob("*.png"))} if folder.is_dir() else {}
 
 
-def _divert_figures(before: dict[Path, bytes], figure_dir: Path) -> dict[str, Path]:
-    """Move figures a module wrote into ``docs/benchmarks/`` over to ``figure_dir``.
+def _divert_figures(
+    figures: tuple[str, ...], before: dict[Path, bytes], figure_dir: Path
+) -> tuple[str, ...]:
+    """Move a module's own figures that it wrote into ``docs/benchmarks/`` to ``figure_dir``.
 
-    Used when the report goes elsewhere (``--out`` in a temporary folder): the committed
-    figures are restored byte for byte. Returns old name -> new path.
+    For a module that writes there whatever ``--out`` says: when the report goes elsewhere
+    (a quick run into a temporary folder), the committed figure is restored byte for byte.
+    Only the figures the section names are touched. Returns the section's figure paths.
     """
-    moved: dict[str, Path] = {}
-    for path in sorted(DEFAULT_FIGURE_DIR.glob("*.png")) if DEFAULT_FIGURE_DIR.is_dir() else []:
-        data = path.read_bytes()
-        if before.get(path) == data:
+    out = []
+    for fig in figures:
+        path = Path(fig) if Path(fig).is_absolute() else ROOT / fig
+        if path.parent.resolve() != DEFAULT_FIGURE_DIR.resolve() or not path.is_file():
+            out.append(fig)
             continue
         target = figure_dir / path.name
-        target.write_bytes(data)
-        moved[path.name] = target
+        target.write_bytes(path.read_bytes())
         if path in before:
             path.write_bytes(before[path])
         else:
             path.unlink()
-    return moved
+        out.append(str(target))
+    return tuple(out)
 
 
 def _link(fig: str, figure_dir: Path, out_dir: Path) -> str:
@@ -83,20 +93,45 @@ def _link(fig: str, figure_dir: Path, out_dir: Path) -> str:
     return os.path.relpath(path, out_dir)
 
 
+def _child(name: str, quick: bool, section_out: Path) -> int:
+    """In a fresh process: run one module and write its section as JSON."""
+    module = importlib.import_module(f"bench.{name}")
+    section: Section = module.run(quick=quick)
+    section_out.write_text(json.dumps(dataclasses.asdict(section)), encoding="utf-8")
+    return 0
+
+
 def _run_module(name: str, quick: bool) -> tuple[Section, float, bool]:
-    t0 = time.perf_counter()
-    try:
-        module = importlib.import_module(f"bench.{name}")
-        section: Section = module.run(quick=quick)
-        ok = True
-    except Exception:  # a failing module is reported, and the others still run
-        section = Section(
-            title=f"{name}: FAILED",
-            markdown="The module raised:\n\n```\n" + traceback.format_exc() + "```",
-            shortfalls=(f"`{name}` failed to run; see its section.",),
+    """Run module ``name`` in its own process; a crash or exception becomes a FAILED section."""
+    with tempfile.TemporaryDirectory(prefix="ctdrill-bench-") as tmp:
+        section_out = Path(tmp) / "section.json"
+        cmd = [sys.executable, "-m", "bench", "--child", name, "--section-out", str(section_out)]
+        t0 = time.perf_counter()
+        proc = subprocess.run(
+            cmd + (["--quick"] if quick else []),
+            cwd=ROOT,
+            stderr=subprocess.PIPE,
+            text=True,
         )
-        ok = False
-    return section, time.perf_counter() - t0, ok
+        seconds = time.perf_counter() - t0
+        if proc.returncode == 0 and section_out.is_file():
+            raw = json.loads(section_out.read_text(encoding="utf-8"))
+            section = Section(
+                title=raw["title"],
+                markdown=raw["markdown"],
+                figures=tuple(raw["figures"]),
+                shortfalls=tuple(raw["shortfalls"]),
+            )
+            return section, seconds, True
+    tail = "\n".join(proc.stderr.strip().splitlines()[-40:])
+    section = Section(
+        title=f"{name}: FAILED",
+        markdown=f"The module's process exited with status {proc.returncode}:\n\n```\n"
+        + tail
+        + "\n```",
+        shortfalls=(f"`{name}` failed to run; see its section.",),
+    )
+    return section, seconds, False
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -105,7 +140,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="toy sizes, few repeats (smoke)")
     parser.add_argument("--only", nargs="*", default=None, help="module names, e.g. bench_load")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    parser.add_argument(
+        "--jobs", type=int, default=1, help="modules run at a time (only with --quick)"
+    )
+    parser.add_argument("--child", help=argparse.SUPPRESS)
+    parser.add_argument("--section-out", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.child:
+        return _child(args.child, args.quick, args.section_out)
+    if args.jobs < 1 or (args.jobs > 1 and not args.quick):
+        print(
+            "error: --jobs must be 1, or more only with --quick (timings interfere)",
+            file=sys.stderr,
+        )
+        return 2
     available = discover()
     names = available if not args.only else args.only
     unknown = [n for n in names if n not in available]
@@ -123,22 +171,25 @@ def main(argv: list[str] | None = None) -> int:
     os.environ[FIGURE_DIR_ENV] = str(figure_dir)
     divert = figure_dir.resolve() != DEFAULT_FIGURE_DIR.resolve()
 
-    t_start = time.perf_counter()
-    results: list[tuple[str, Section, float]] = []
-    all_ok = True
-    for name in names:
+    def one(name: str) -> tuple[str, Section, float, bool]:
         before = _snapshot(DEFAULT_FIGURE_DIR) if divert else {}
         section, seconds, ok = _run_module(name, args.quick)
-        all_ok &= ok
         if divert:
-            moved = _divert_figures(before, figure_dir)
-            figs = tuple(str(moved.get(Path(f).name, f)) for f in section.figures)
+            figs = _divert_figures(section.figures, before, figure_dir)
             section = Section(section.title, section.markdown, figs, section.shortfalls)
-        results.append((name, section, seconds))
         print(f"{name}: {seconds:.1f} s", file=sys.stderr)
+        return name, section, seconds, ok
+
+    t_start = time.perf_counter()
+    with ThreadPoolExecutor(max_workers=args.jobs) as pool:
+        done = list(pool.map(one, names))
     total_s = time.perf_counter() - t_start
+    results = [(name, section, seconds) for name, section, seconds, _ in done]
+    all_ok = all(ok for *_, ok in done)
 
     mode = "quick (smoke: toy sizes, numbers meaningless)" if args.quick else "full"
+    if args.jobs > 1:
+        mode += f", {args.jobs} modules at a time"
     text = [HEADER, "## Machine and settings", "", machine_info()]
     text += [f"- Mode: {mode}; total run time {total_s:.0f} s", ""]
     shortfalls = [(s.title, line) for _, s, _ in results for line in s.shortfalls]

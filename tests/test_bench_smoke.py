@@ -46,13 +46,15 @@ def _snapshot() -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted(FIGURES.glob("*.png"))}
 
 
+@pytest.mark.gui  # bench_gui opens the window: run under a display (make test uses Xvfb)
 @pytest.mark.timeout(240)
 def test_quick_bench_writes_every_section_with_numbers(tmp_path: Path) -> None:
     before = _snapshot()
+    modules = discover()
     out = tmp_path / "benchmarks.md"
     t0 = time.perf_counter()
     proc = subprocess.run(
-        [sys.executable, "-m", "bench", "--quick", "--out", str(out)],
+        [sys.executable, "-m", "bench", "--quick", "--jobs", "2", "--out", str(out)],
         cwd=ROOT,
         env=dict(os.environ),
         capture_output=True,
@@ -62,7 +64,6 @@ def test_quick_bench_writes_every_section_with_numbers(tmp_path: Path) -> None:
     elapsed = time.perf_counter() - t0
     assert proc.returncode == 0, proc.stderr[-4000:]
     text = out.read_text(encoding="utf-8")
-    modules = discover()
     assert set(REQUIRED) <= set(modules)
     sections = _sections(text)
     assert sorted(sections) == modules, "a module's section is missing from the report"
@@ -79,7 +80,9 @@ def test_quick_bench_writes_every_section_with_numbers(tmp_path: Path) -> None:
     for link in links:
         assert (out.parent / link).is_file(), f"figure {link} linked but not written"
     # The committed figures are left alone: the quick run writes beside its own report.
-    assert _snapshot() == before
+    after = _snapshot()
+    for name in {Path(link).name for link in links}:
+        assert after.get(name) == before.get(name), f"docs/benchmarks/{name} was overwritten"
     per_module = dict(re.findall(r"^(bench_\w+): ([\d.]+) s$", proc.stderr, re.M))
     assert elapsed < BUDGET_S, f"quick bench took {elapsed:.0f} s; per module: {per_module}"
 
@@ -137,3 +140,16 @@ def test_profile_top_names_the_costly_function() -> None:
     assert len(lines) == 2 + 3
     assert "test_bench_smoke.py" in text
     assert "(_busy)" in text
+
+
+def test_parallel_modules_only_in_quick_mode(tmp_path: Path) -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "bench", "--jobs", "2", "--out", str(tmp_path / "b.md")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error: --jobs") and len(proc.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "b.md").exists()
