@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from app.errors import AppInputError
-from imaging.landmarks import Landmark, bind_to_grid
+from imaging.landmarks import CanalLandmark, Landmark, PointLandmark, bind_to_grid
 from imaging.lip import (
     DEFAULT_N_ANGLES,
     DEFAULT_N_RINGS,
@@ -39,6 +39,9 @@ _OOV_TOL_MM = 1e-3
 
 #: Longest trajectory accepted, mm: far beyond any dental drill, short enough to bound memory.
 MAX_PLANNED_DEPTH_MM = 200.0
+
+#: Largest coordinate magnitude accepted in a plan, mm (the plan reader's bound).
+MAX_COORDINATE_MM = 1e5
 
 STOP_REASONS = ("planned_depth", "margin", "out_of_volume")
 
@@ -285,6 +288,14 @@ def plan_path(
     """
     if not (math.isfinite(depth_step_mm) and depth_step_mm > 0.0):
         raise PathInputError(f"depth_step_mm must be a positive number, got {depth_step_mm!r}")
+    coords = [plan.entry_lps, plan.target_lps]
+    coords += [lm.points_lps for lm in plan.landmarks if isinstance(lm, CanalLandmark)]
+    coords += [lm.point_lps for lm in plan.landmarks if isinstance(lm, PointLandmark)]
+    if not all(np.all(np.abs(c) <= MAX_COORDINATE_MM) for c in coords):
+        raise PathInputError(
+            f"plan {plan.name!r}: a coordinate is not finite or beyond {MAX_COORDINATE_MM:g} mm; "
+            "check the plan's points (units are mm)"
+        )
     if not plan.planned_depth_mm <= MAX_PLANNED_DEPTH_MM:
         raise PathInputError(
             f"plan {plan.name!r}: planned depth {plan.planned_depth_mm:.6g} mm exceeds "

@@ -170,8 +170,11 @@ def test_refusals_name_the_problem() -> None:
     valid = np.ones((N_SLICES, 9, 9), dtype=bool)
     valid[:, 0, 0] = False  # padding in a corner, away from the drill: fine
     assert plan_path(_volume(valid=valid), _plan(), cal).stop_reason == "planned_depth"
-    with pytest.raises(PathInputError, match="planned depth 1e"):
-        plan_path(_volume(), _plan(depth_mm=1e9), cal)
+    huge = CanalLandmark("c", [[0.0, 0.0, 1e308], [0.0, 1.0, 1e308]])
+    with pytest.raises(PathInputError, match="a coordinate is not finite or beyond"):
+        plan_path(_volume(), _plan(landmarks=(huge,)), cal)
+    with pytest.raises(PathInputError, match="planned depth 1000 mm exceeds 200 mm"):
+        plan_path(_volume(), _plan(depth_mm=1000.0), cal)
     far = Plan(entry_lps=[50.0, 0.0, 0.0], target_lps=[50.0, 0.0, 5.0], name="far")
     with pytest.raises(PathInputError, match="lies outside the CT volume"):
         plan_path(_volume(), far, cal)
