@@ -12,6 +12,7 @@ Run ``python -m tests.robustness.make_corpus OUT`` to write the corpus for manua
 
 from __future__ import annotations
 
+import os
 import shutil
 import struct
 import sys
@@ -112,7 +113,8 @@ class Case:
     path : directory handed to ``load_series`` / ``ctdrill inspect``.
     expected : acceptable outcomes; the first is the preferred one.
     fault : which fault the case injects (the robustness report groups by it).
-    memory_bomb : declared sizes far beyond the data; run under an address-space limit.
+    isolate : a resource hazard (memory bomb, special file that may block): run only in a
+        child process under an address-space limit and a timeout.
     series_uid : passed as ``series_uid=`` / ``--series`` when set.
     hu : exact expected HU volume (slices, rows, cols) on a load, when known.
     affine_lps : exact expected (4, 4) affine on a load, when known.
@@ -123,7 +125,7 @@ class Case:
     path: Path
     expected: tuple[Expect, ...]
     fault: str
-    memory_bomb: bool = False
+    isolate: bool = False
     series_uid: str | None = None
     hu: np.ndarray | None = field(default=None, repr=False)
     affine_lps: np.ndarray | None = field(default=None, repr=False)
@@ -594,6 +596,19 @@ def _symlink_loop(folder: Path) -> tuple[Expect, ...]:
     return (load(dims=DIMS), load("files_skipped", dims=DIMS), REFUSE)
 
 
+def _fifo(folder: Path) -> tuple[Expect, ...]:
+    write_all(base_slices(series="fifo"), folder)
+    os.mkfifo(folder / "pipe.dcm")  # a named pipe: open() blocks until a writer comes
+    return (load(dims=DIMS), load("files_skipped", dims=DIMS))
+
+
+def _device_links(folder: Path) -> tuple[Expect, ...]:
+    write_all(base_slices(series="device-links"), folder)
+    (folder / "zero.dcm").symlink_to("/dev/zero")  # endless zeros
+    (folder / "random.dcm").symlink_to("/dev/urandom")  # endless noise
+    return (load(dims=DIMS), load("files_skipped", dims=DIMS))
+
+
 def _single_slice(folder: Path) -> tuple[Expect, ...]:
     write_all(base_slices(series="single")[:1], folder)
     return (REFUSE, load("single_slice", dims=(COLS, ROWS, 1)))
@@ -699,7 +714,7 @@ def _bomb_header_element_length(folder: Path) -> tuple[Expect, ...]:
 OBLIQUE_IOP = (0.8, 0.6, 0.0, -0.6, 0.8, 0.0)
 TILT_IOP = (1.0, 0.0, 0.0, 0.0, float(np.cos(np.radians(20))), float(np.sin(np.radians(-20))))
 
-#: name -> (builder, fault group, memory bomb)
+#: name -> (builder, fault group, isolate: run only in a capped child process)
 SYNTHETIC: dict[str, tuple[Builder, str, bool]] = {
     "clean": (_clean, "none (reference)", False),
     "implicit_vr": (_implicit_vr, "none (implicit VR)", False),
@@ -778,6 +793,8 @@ SYNTHETIC: dict[str, tuple[Builder, str, bool]] = {
     ),
     "deep_nesting": (_deep_nesting, "recursion bomb", False),
     "symlink_loop": (_symlink_loop, "file system", False),
+    "fifo_in_folder": (_fifo, "file system", True),
+    "device_symlinks": (_device_links, "file system", True),
     "single_slice": (_single_slice, "not a volume", False),
     "bomb_rows_cols_65535": (_bomb_rows_cols, "memory bomb", True),
     "bomb_number_of_frames": (_bomb_frames, "memory bomb", True),
@@ -906,7 +923,7 @@ def build_corpus(out_dir: Path, *, include_real: bool = True) -> list[Case]:
         with warnings.catch_warnings():  # pydicom warns about the invalid values we write
             warnings.simplefilter("ignore")
             expected = builder(folder)
-        case = Case(name, folder, expected, fault, memory_bomb=bomb)
+        case = Case(name, folder, expected, fault, isolate=bomb)
         if name in _EXACT:
             hu, affine = _EXACT[name]
             case = replace(case, hu=hu(), affine_lps=affine())

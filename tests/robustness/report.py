@@ -49,7 +49,7 @@ def corpus_rows(out_dir: Path) -> list[dict[str, str]]:
     """Run every corpus case through load_series and the CLI; one row per case."""
     rows = []
     for case in build_corpus(out_dir):
-        if case.memory_bomb:
+        if case.isolate:
             run = run_cli_subprocess(inspect_args(case), address_space_bytes=BOMB_ADDRESS_SPACE)
             seen = _from_cli(run.code, run.stdout, run.stderr)
             cli_ok = run.code == 0 or not error_line_problems(run)

@@ -1,6 +1,7 @@
 """Every hard input of the corpus meets its expected outcome, in the loader and in the CLI.
 
-The memory bombs run in ``test_memory_bombs.py`` (under an address-space limit); the cases that
+Resource hazards (memory bombs, special files) run in ``test_memory_bombs.py`` (in a child
+process under an address-space limit and a timeout); the cases that
 show a bug live in ``test_found_bugs.py``.
 """
 
@@ -15,8 +16,8 @@ from tests.robustness.make_corpus import SYNTHETIC, Case, case_names
 from tests.robustness.outcomes import error_line_problems, inspect_args, run_cli_subprocess
 from tests.robustness.test_found_bugs import BUG_CASES
 
-BOMBS = {name for name, (_, _, bomb) in SYNTHETIC.items() if bomb}
-NAMES = [n for n in case_names() if n not in BOMBS and n not in BUG_CASES]
+ISOLATED = {name for name, (_, _, isolate) in SYNTHETIC.items() if isolate}
+NAMES = [n for n in case_names() if n not in ISOLATED and n not in BUG_CASES]
 
 
 @pytest.mark.parametrize("name", NAMES)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.robustness.make_corpus import Case
+from tests.robustness.make_corpus import ROOT, Case
 
 
 def _write(tmp_path: Path, name: str, doc: object) -> Path:
@@ -143,3 +143,39 @@ def test_misaligned_file_meta_is_skipped_or_refused(tmp_path: Path) -> None:
     except ImagingInputError:
         return
     assert "files_skipped" in volume.warning_codes
+
+
+def _demo_plan_with(path: Path, edit: str, value: float) -> Path:
+    doc = json.loads((ROOT / "assets" / "demo" / "plan.json").read_text())
+    if edit == "canal":
+        doc["landmarks"][0]["points_mm"][12][2] = value
+    else:
+        doc["entry_mm"][0] = value
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_plan_with_huge_canal_coordinate_is_refused_or_handled(tmp_path: Path) -> None:
+    """plan-huge-coordinates: a canal point at z = 1e308 mm is accepted by load_plan, then
+    imaging/_geometry.py raises ValueError (math domain error): ``ctdrill export`` exits 1."""
+    from tests.robustness.outcomes import error_line_problems, run_cli_subprocess
+
+    plan = _demo_plan_with(tmp_path / "plan.json", "canal", 1e308)
+    dicom = ROOT / "assets" / "demo" / "ct"
+    run = run_cli_subprocess(
+        ["export", "--dicom", str(dicom), "--plan", str(plan), "--out", str(tmp_path / "out")]
+    )
+    assert run.code == 0 or not error_line_problems(run), run.stderr[-1500:]
+
+
+def test_plan_with_huge_entry_is_refused_in_one_line(tmp_path: Path) -> None:
+    """plan-huge-coordinates: ``entry_mm[0] = 1e308`` is refused ("planned depth inf mm"), but
+    NumPy's "overflow encountered in dot" warning is printed on stderr first."""
+    from tests.robustness.outcomes import error_line_problems, run_cli_subprocess
+
+    plan = _demo_plan_with(tmp_path / "plan.json", "entry", 1e308)
+    dicom = ROOT / "assets" / "demo" / "ct"
+    run = run_cli_subprocess(
+        ["export", "--dicom", str(dicom), "--plan", str(plan), "--out", str(tmp_path / "out")]
+    )
+    assert not error_line_problems(run), error_line_problems(run)
