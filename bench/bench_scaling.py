@@ -29,17 +29,18 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from bench.report import Section, loglog_slope, profile_top, table
 from bench.scaling_load import (
     READERS,
     LoadRow,
     can_drop_caches,
     drop_caches,
+    fit_rows,
     load_rows,
     plot_load,
     same_values,
+    slopes,
+    why_not_linear,
     write_folders,
 )
 from bench.scaling_path import (
@@ -79,16 +80,6 @@ QUICK = Sizes(128, (16, 32), (1, 2), (1,), 4.0, 1, 0)
 # ------------------------------------------------------------------------------ report
 
 
-def _growth(slope: float) -> str:
-    if abs(slope) < 0.15:
-        return "flat"
-    if slope < 0.0:
-        return "falling"
-    if 0.85 <= slope <= 1.15:
-        return "linear"
-    return "sublinear" if slope < 0.85 else "superlinear"
-
-
 def _goal_rows(rows: list[LoadRow]) -> tuple[list[list[object]], list[str]]:
     out: list[list[object]] = []
     misses: list[str] = []
@@ -123,36 +114,6 @@ def _time_rows(rows: list[LoadRow]) -> list[list[object]]:
         cells: list[object] = [r.slices, f"{r.mib:.3g}"]
         cells += [r.warm[name].fmt("s") for name in READERS]
         cells += [r.cold[name].fmt("s") if r.cold else "n/a" for name in READERS]
-        out.append(cells)
-    return out
-
-
-def _slopes(x: list[float], named: dict[str, list[float]]) -> str:
-    return ", ".join(
-        f"{name} {loglog_slope(x, y):.2f} ({_growth(loglog_slope(x, y))})"
-        for name, y in named.items()
-        if len(y) == len(x) and len(x) >= 2
-    )
-
-
-def _fit_rows(rows: list[LoadRow]) -> list[list[object]]:
-    """Least-squares ``t = fixed + per_slice * n`` per reader and cache state."""
-    n = np.array([r.slices for r in rows], dtype=np.float64)
-    out: list[list[object]] = []
-    for name in READERS:
-        cells: list[object] = [name]
-        for state in ("warm", "cold"):
-            t = [getattr(r, state)[name].median_s for r in rows if getattr(r, state)]
-            if len(t) == len(n) >= 2:
-                per, fixed = np.polyfit(n, np.asarray(t), 1)
-                big = rows[-1]
-                cells += [
-                    f"{fixed * 1e3:.3g}",
-                    f"{per * 1e3:.3g}",
-                    f"{big.mib / t[-1]:.0f}",
-                ]
-            else:
-                cells += ["n/a", "n/a", "n/a"]
         out.append(cells)
     return out
 
@@ -200,27 +161,31 @@ def _load_text(
         "",
         "### How loading grows",
         "",
-        f"Log-log slopes against slices (1 is linear): warm {_slopes(n, warm)}; "
-        f"cold {_slopes(n, cold) or 'n/a'}; peak memory {_slopes(n, peak)}. "
+        f"Log-log slopes against slices (1 is linear): warm {slopes(n, warm)}; "
+        f"cold {slopes(n, cold) or 'n/a'}; peak memory {slopes(n, peak)}. "
         f"Peak memory over the volume's size at {rows[-1].slices} slices: {ratio}.",
         "",
-        "A straight-line fit `t = fixed + per_slice x n` separates a one-off cost per call "
-        "(folder listing, series discovery, setup) from the cost per slice (open, parse, "
-        "read, copy); a fixed cost bends the log-log line below slope 1 at small sizes, a "
-        "negative one means the cost per slice rises with the series size.",
+        "A straight-line fit `y = fixed + per_slice x n` separates a one-off cost per call "
+        "(folder listing, series discovery, setup, buffers of fixed size) from the cost per "
+        "slice (open, parse, read, copy); a positive fixed cost bends the log-log line below "
+        "slope 1, a negative one means the cost per slice rises with the series size.",
         "",
         table(
             [
                 "reader",
                 "warm fixed ms",
                 "warm ms / slice",
-                "warm MiB/s (largest)",
                 "cold fixed ms",
                 "cold ms / slice",
-                "cold MiB/s (largest)",
+                "memory fixed MiB",
+                "memory MiB / slice",
             ],
-            _fit_rows(rows),
+            fit_rows(rows),
         ),
+        "",
+        "Where growth is not linear, and why:",
+        "",
+        *why_not_linear(rows),
         "",
     ]
     return md, [f"loading, {m}" for m in misses]
@@ -253,7 +218,7 @@ def _path_text(
             shortfalls.append(
                 f"{ours_key} is slower than its map_coordinates peer on " + ", ".join(slow)
             )
-    export_slope = _slopes(exports, {"export": t_series["export"]})
+    export_slope = slopes(exports, {"export": t_series["export"]})
     md = [
         "### Force path against the number of trajectories (demo)",
         "",
@@ -262,7 +227,7 @@ def _path_text(
             traj_rows,
         ),
         "",
-        f"Log-log slopes against trajectories: {_slopes(n_traj, t_series)}"
+        f"Log-log slopes against trajectories: {slopes(n_traj, t_series)}"
         + (f"; {export_slope}." if export_slope else "."),
         "",
         f"Ours counts as slower than a peer when its median is more than {TIE:g} x the "
@@ -287,7 +252,7 @@ def _path_text(
         ),
         "",
         f"Log-log slopes against voxels (0 is independent of the volume's size): "
-        f"{_slopes(voxels, v_series)}.",
+        f"{slopes(voxels, v_series)}.",
         "",
     ]
     return md, shortfalls

@@ -18,7 +18,15 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.report import Timing, figure_path, peak_rss_mib, reset_peak_rss, rss_mib, time_it
+from bench.report import (
+    Timing,
+    figure_path,
+    loglog_slope,
+    peak_rss_mib,
+    reset_peak_rss,
+    rss_mib,
+    time_it,
+)
 from imaging import load_series
 from imaging.dicom_writer import write_series
 
@@ -187,6 +195,86 @@ def same_values(folder: Path, side: int) -> bool:
     view, _image = sitk_read(folder)
     raw = raw_read(sorted(folder.iterdir()), (ours.shape[0], side, side))
     return bool(np.array_equal(ours, view) and np.array_equal(ours, raw))
+
+
+# ------------------------------------------------------------------------------ growth
+
+
+def growth(slope: float) -> str:
+    """A log-log slope in words: flat, falling, linear, sublinear or superlinear."""
+    if abs(slope) < 0.15:
+        return "flat"
+    if slope < 0.0:
+        return "falling"
+    if 0.85 <= slope <= 1.15:
+        return "linear"
+    return "sublinear" if slope < 0.85 else "superlinear"
+
+
+def slopes(x: list[float], named: dict[str, list[float]]) -> str:
+    """``name slope (growth)`` for every series of ``named`` measured at every ``x``."""
+    return ", ".join(
+        f"{name} {loglog_slope(x, y):.2f} ({growth(loglog_slope(x, y))})"
+        for name, y in named.items()
+        if len(y) == len(x) and len(x) >= 2
+    )
+
+
+def _series_of(rows: list[LoadRow], name: str) -> dict[str, list[float]]:
+    """Warm and cold times (s) and peak memory (MiB) of reader ``name``, per size."""
+    out = {
+        "warm": [r.warm[name].median_s for r in rows],
+        "cold": [r.cold[name].median_s for r in rows if r.cold],
+        "memory": [r.peak_mib[name] for r in rows],
+    }
+    return {key: values for key, values in out.items() if len(values) == len(rows)}
+
+
+def fit_rows(rows: list[LoadRow]) -> list[list[object]]:
+    """Least-squares ``y = fixed + per_slice * n`` per reader, for time and peak memory."""
+    n = np.array([r.slices for r in rows], dtype=np.float64)
+    out: list[list[object]] = []
+    for name in READERS:
+        cells: list[object] = [name]
+        series = _series_of(rows, name)
+        for key, scale in (("warm", 1e3), ("cold", 1e3), ("memory", 1.0)):
+            if key in series and len(n) >= 2:
+                per, fixed = np.polyfit(n, np.asarray(series[key]), 1)
+                cells += [f"{fixed * scale:.3g}", f"{per * scale:.3g}"]
+            else:
+                cells += ["n/a", "n/a"]
+        out.append(cells)
+    return out
+
+
+def why_not_linear(rows: list[LoadRow]) -> list[str]:
+    """One line per reader and measure whose growth is not linear, with the fit that says why."""
+    n = np.array([r.slices for r in rows], dtype=np.float64)
+    lines = []
+    units = {"warm": ("ms", 1e3), "cold": ("ms", 1e3), "memory": ("MiB", 1.0)}
+    for name in READERS:
+        for key, values in _series_of(rows, name).items():
+            y = np.maximum(np.asarray(values), 1e-9)
+            slope = loglog_slope(list(n), list(y))
+            if growth(slope) == "linear" or len(n) < 2:
+                continue
+            _, fixed = np.polyfit(n, y, 1)
+            unit, scale = units[key]
+            if fixed > 0 and slope < 1.0:
+                lines.append(
+                    f"- {name}, {key}: slope {slope:.2f}; a fixed {fixed * scale:.3g} {unit} "
+                    f"({fixed / y[0]:.0%} of the total at {int(n[0])} slices), whatever the "
+                    "number of slices, weighs less as the series grows."
+                )
+            else:
+                lines.append(
+                    f"- {name}, {key}: slope {slope:.2f}; per slice "
+                    f"{y[0] / n[0] * scale:.3g} {unit} at {int(n[0])} slices and "
+                    f"{y[-1] / n[-1] * scale:.3g} {unit} at {int(n[-1])}: the cost per slice "
+                    "itself changes with the series size (read it against the spread in the "
+                    "table above)."
+                )
+    return lines or ["- Every reader grows linearly in time and memory here."]
 
 
 # ------------------------------------------------------------------------------ figures
