@@ -72,6 +72,11 @@ def volume_surface(
     )
 
 
+def slice_key(volume: CTVolume, plan: Plan) -> tuple[object, ...]:
+    """What the four planes of :func:`slice_views` depend on (equal keys: same images)."""
+    return (id(volume), *np.round(plan.target_lps, 9), *np.round(plan.direction, 12))
+
+
 def slice_views(
     volume: CTVolume, plan: Plan, *, center_lps: np.ndarray | None = None
 ) -> dict[str, SliceImage]:

@@ -34,7 +34,7 @@ from PySide6.QtWidgets import (
 
 from app.gui import compute, planning
 from app.gui.plan_panel import PlanPanel
-from app.gui.plots import draw_depth_plots
+from app.gui.plots import draw_depth_plots, set_live_depth
 from app.gui.rehearsal_panel import RehearsalPanel
 from app.gui.results import PathView, block_reason, compute_path_view
 from app.gui.scene import SURFACE_PRESETS, SceneInput
@@ -81,6 +81,7 @@ class MainWindow(QMainWindow):
         self.unattended = False
         self.internal_error = ""
         self._refocus_next = False
+        self._slice_key: tuple[object, ...] | None = None
 
         self.view3d = View3D()
         self.slice_canvases: dict[str, SliceCanvas] = {v: SliceCanvas(v) for v in VIEWS}
@@ -101,14 +102,18 @@ class MainWindow(QMainWindow):
         self.plan_panel.edit_rejected.connect(self._status)
         self.plan_panel.add_canal_toggled.connect(self._canal_mode)
         self.rehearsal = RehearsalPanel()
-        self.rehearsal.depth_changed.connect(self.view3d.set_drill_depth)
+        self.rehearsal.depth_changed.connect(self._live_depth)
         self.warnings_list = QListWidget()
+        self.path_warnings_list = QListWidget()
         self.block_label = QLabel("")
         self.block_label.setWordWrap(True)
         series_tab = QWidget()
         lay = QVBoxLayout(series_tab)
         lay.addWidget(self.block_label)
+        lay.addWidget(QLabel("Loader warnings"))
         lay.addWidget(self.warnings_list)
+        lay.addWidget(QLabel("Along the drill path"))
+        lay.addWidget(self.path_warnings_list)
         self.tabs = QTabWidget()
         self.tabs.addTab(self.plan_panel, "Plan")
         self.tabs.addTab(self.rehearsal, "Rehearsal")
@@ -253,6 +258,7 @@ class MainWindow(QMainWindow):
             return
         self.volume = loaded.volume
         self.volume_path = loaded.path
+        self._slice_key = None
         self._remember(loaded.path)
         self.view3d.set_surface(loaded.surface)
         self.warnings_list.clear()
@@ -361,7 +367,12 @@ class MainWindow(QMainWindow):
         volume, plan = self.volume, self.plan
         if volume is None or plan is None:
             return
-        self.slice_runner.submit(lambda: compute.slice_views(volume, plan))
+        key = compute.slice_key(volume, plan)
+        if key != self._slice_key:  # the planes moved: reslice; else only the overlays change
+            self._slice_key = key
+            self.slice_runner.submit(lambda: compute.slice_views(volume, plan))
+        else:
+            self._draw_overlays()
         self.path_runner.submit(lambda: compute_path_view(volume, plan))
         self._status("computing the path ...")
 
@@ -389,6 +400,11 @@ class MainWindow(QMainWindow):
         if plan is None or view.plan is not plan:
             return
         self.view = view
+        self.path_warnings_list.clear()
+        loader = {(w.code, w.message) for w in (self.volume.warnings if self.volume else ())}
+        for w in view.result.warnings:
+            if (w.code, w.message) not in loader:
+                self.path_warnings_list.addItem(f"{w.code}: {w.message}")
         draw_depth_plots(self.plot_fig, view.curves)
         self.plot_canvas.draw_idle()
         self.plan_panel.set_plan(plan, view.min_clearance_mm)
@@ -411,6 +427,12 @@ class MainWindow(QMainWindow):
             f"{view.curves.planned_depth_mm:.2f} mm planned"
         )
         self.path_updated.emit()
+
+    def _live_depth(self, depth_mm: float) -> None:
+        """The drill's live depth (rehearsal telemetry): 3D drill and the plots' cursor."""
+        self.view3d.set_drill_depth(depth_mm)
+        set_live_depth(self.plot_fig, depth_mm)
+        self.plot_canvas.draw_idle()
 
     def _show_block(self, reason: str | None) -> None:
         self.block_label.setText("" if not reason else f"Rehearsal disabled: {reason}")

@@ -132,6 +132,18 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
     ax_c.set_xlim(0.0, max(float(d[-1]), curves.planned_depth_mm) * 1.02 + 1e-6)
 
 
+LIVE_GID = "live-depth"
+
+
+def set_live_depth(fig: Figure, depth_mm: float | None) -> None:
+    """Show (or with None remove) the live drill depth as a vertical cursor on every axis."""
+    for ax in fig.axes:
+        for line in [ln for ln in ax.lines if ln.get_gid() == LIVE_GID]:
+            line.remove()
+        if depth_mm is not None:
+            ax.axvline(depth_mm, color="#1060ff", lw=1.6, gid=LIVE_GID)
+
+
 def _axes(fig: Figure) -> tuple[Axes, Axes, Axes]:
     """The figure's three depth axes, emptied (created on first use)."""
     if len(fig.axes) != 3:

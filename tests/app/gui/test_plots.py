@@ -1,0 +1,96 @@
+"""Depth plots drawn headless on a matplotlib Figure: what is drawn where."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+from app.gui.plots import LIVE_GID, DepthCurves, draw_depth_plots, misch_class, set_live_depth
+
+
+def curves(stop: float = 7.5, reason: str = "margin") -> DepthCurves:
+    d = np.linspace(0.0, 10.0, 201)
+    return DepthCurves(
+        depth_mm=d,
+        hu=np.where(d < 2.0, 1500.0, 700.0),
+        force_n=np.where(d < 2.0, 9.0, 3.0),
+        force_band_n=np.full_like(d, 0.5),
+        clearance_mm=10.0 - d,
+        planned_depth_mm=10.0,
+        stop_depth_mm=stop,
+        stop_reason=reason,
+        margin_mm=2.5,
+        calibration="bone-illustrative",
+    )
+
+
+@pytest.mark.parametrize(
+    ("hu", "label"),
+    [
+        (2000, "D1"),
+        (1250, "D1"),
+        (1249, "D2"),
+        (850, "D2"),
+        (849, "D3"),
+        (350, "D3"),
+        (349, "D4"),
+        (150, "D4"),
+        (149, "D5"),
+        (-1000, "D5"),
+    ],
+)
+def test_misch_classes(hu: float, label: str) -> None:
+    assert misch_class(hu) == label
+
+
+def vlines(ax: object, colour: str) -> list[float]:
+    out = []
+    for line in ax.lines:  # type: ignore[attr-defined]
+        x = np.asarray(line.get_xdata(), dtype=float)
+        if line.get_color() == colour and x.size == 2 and x[0] == x[1]:
+            out.append(float(x[0]))
+    return out
+
+
+def test_three_axes_with_stop_planned_and_margin() -> None:
+    fig = Figure()
+    draw_depth_plots(fig, curves())
+    ax_hu, ax_f, ax_c = fig.axes
+    for ax in fig.axes:
+        assert vlines(ax, "#d02080") == [7.5]
+        assert vlines(ax, "#808080") == [10.0]
+    margin = [ln for ln in ax_c.lines if ln.get_color() == "#d02020"]
+    assert np.allclose(margin[0].get_ydata(), 2.5)
+    assert len(ax_hu.patches) >= 5  # the five Misch bands
+    assert "7.50 mm (margin)" in ax_hu.get_title(loc="left")
+    assert "bone-illustrative" in ax_f.get_title(loc="left")
+    assert np.array_equal(ax_f.lines[0].get_ydata(), curves().force_n)
+
+
+def test_redraw_reuses_the_axes_and_replaces_the_data() -> None:
+    fig = Figure()
+    draw_depth_plots(fig, curves())
+    axes = list(fig.axes)
+    draw_depth_plots(fig, curves(stop=10.0, reason="planned_depth"))
+    assert list(fig.axes) == axes
+    assert all(vlines(ax, "#d02080") == [10.0] for ax in fig.axes)
+    assert all(vlines(ax, "#808080") == [] for ax in fig.axes)  # nothing beyond the stop
+
+
+def test_live_cursor_moves_and_goes() -> None:
+    fig = Figure()
+    draw_depth_plots(fig, curves())
+    set_live_depth(fig, 3.0)
+    set_live_depth(fig, 4.0)
+    for ax in fig.axes:
+        live = [ln for ln in ax.lines if ln.get_gid() == LIVE_GID]
+        assert len(live) == 1 and list(live[0].get_xdata()) == [4.0, 4.0]
+    set_live_depth(fig, None)
+    assert not any(ln.get_gid() == LIVE_GID for ax in fig.axes for ln in ax.lines)
+
+
+def test_empty_plots_show_the_message() -> None:
+    fig = Figure()
+    draw_depth_plots(fig, None, message="open a DICOM folder")
+    assert any(t.get_text() == "open a DICOM folder" for t in fig.axes[1].texts)
