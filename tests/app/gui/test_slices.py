@@ -7,12 +7,14 @@ import pytest
 
 from app.gui.slices import (
     VIEWS,
+    _grid_aligned,
     polyline_in_plane,
     reslice,
     view_axes,
     volume_corners_lps,
     window_to_uint8,
 )
+from imaging import CTVolume, SeriesInfo
 from tests.app.gui.phantom import CANAL_YZ, SPACING_MM, phantom_volume
 
 
@@ -96,3 +98,45 @@ def test_polyline_near_the_plane_is_flagged() -> None:
     pts = np.array([[0.0, 0.0, -4.0], [0.0, 0.0, -5.5], [0.0, 0.0, 0.0]])
     _, near = polyline_in_plane(img, pts, slab_mm=2.0)
     assert near.tolist() == [True, True, False]
+
+
+def _flipped_padded_volume() -> CTVolume:
+    """The phantom with rows and slices reversed (negative spacings) and a padded corner."""
+    vol = phantom_volume()
+    aff = np.array(vol.affine_lps)
+    nk, nj, _ = vol.hu.shape
+    aff[:3, 3] += aff[:3, 1] * (nj - 1) + aff[:3, 2] * (nk - 1)
+    aff[:3, 1] *= -1.0
+    aff[:3, 2] *= -1.0
+    hu = np.ascontiguousarray(vol.hu[::-1, ::-1, :])
+    valid = np.ones(hu.shape, dtype=bool)
+    valid[:10, :15, :20] = False
+    return CTVolume(hu=hu, affine_lps=aff, valid=valid, info=SeriesInfo(series_uid="1.2.3.4"))
+
+
+@pytest.mark.parametrize("view", ["axial", "coronal", "sagittal"])
+@pytest.mark.parametrize("center", [(0.3, -1.1, -4.27), (-24.75, 19.5, -15.0), (0.0, 0.0, 99.0)])
+def test_the_grid_aligned_fast_path_equals_trilinear_sampling(
+    view: str, center: tuple[float, float, float]
+) -> None:
+    for vol in (phantom_volume(), _flipped_padded_volume()):
+        fast = reslice(vol, view, np.array(center))  # type: ignore[arg-type]
+        slow = reslice(vol, view, np.array(center), fast=False)  # type: ignore[arg-type]
+        assert fast.hu.shape == slow.hu.shape
+        assert np.allclose(fast.hu, slow.hu, atol=1e-3)
+        assert np.array_equal(fast.origin_lps, slow.origin_lps)
+        taken = _grid_aligned(
+            vol,
+            fast.origin_lps,
+            fast.u_lps * fast.pixel_mm,
+            fast.v_lps * fast.pixel_mm,
+            fast.hu.shape,
+            -1000.0,
+        )
+        assert taken is not None  # the fast path really ran
+
+
+def test_oblique_planes_take_the_general_path() -> None:
+    vol = phantom_volume()
+    img = reslice(vol, "trajectory", np.zeros(3), axis_lps=np.array([0.3, 0.2, -1.0]))
+    assert _grid_aligned(vol, img.origin_lps, img.u_lps, img.v_lps, img.hu.shape, -1000.0) is None
