@@ -16,29 +16,28 @@ import numpy as np
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 from PySide6.QtCore import QSettings, Qt, QThreadPool, Signal
-from PySide6.QtGui import QAction, QCloseEvent, QDragEnterEvent, QDropEvent, QImage, QKeySequence
+from PySide6.QtGui import QCloseEvent, QDragEnterEvent, QDropEvent, QImage
 from PySide6.QtWidgets import (
-    QFileDialog,
     QGridLayout,
     QInputDialog,
-    QLabel,
-    QListWidget,
     QMainWindow,
     QMessageBox,
     QProgressDialog,
     QSplitter,
     QTabWidget,
-    QVBoxLayout,
     QWidget,
 )
 
 from app.gui import compute, planning
+from app.gui.menus import build_menus, fill_recent
 from app.gui.plan_panel import PlanPanel
 from app.gui.plots import draw_depth_plots, set_live_depth
+from app.gui.recent import RecentFolders
 from app.gui.rehearsal_panel import RehearsalPanel
 from app.gui.results import PathView, block_reason, compute_path_view
-from app.gui.scene import SURFACE_PRESETS, SceneInput
+from app.gui.scene import SceneInput
 from app.gui.screenshot import grab_window
+from app.gui.series_panel import SeriesPanel
 from app.gui.slice_view import SliceCanvas
 from app.gui.slices import VIEWS, WINDOW_PRESETS, SliceImage, volume_center_lps
 from app.gui.view3d import View3D
@@ -46,7 +45,6 @@ from app.gui.workers import Debouncer, Runner
 from imaging import CTVolume
 from imaging.plan import Plan, load_plan, save_plan
 
-MAX_RECENT = 8
 #: On close, how long to let a running load or computation finish, ms.
 CLOSE_WAIT_MS = 5000
 #: Delay between the last plan edit and the recomputation, ms.
@@ -66,6 +64,7 @@ class MainWindow(QMainWindow):
         self.setWindowTitle("ctdrill")
         self.setAcceptDrops(True)
         self.settings = settings if settings is not None else QSettings("ctdrill", "ctdrill")
+        self.recent = RecentFolders(self.settings)
         self.volume: CTVolume | None = None
         self.volume_path = ""
         self.plan: Plan | None = None
@@ -103,21 +102,13 @@ class MainWindow(QMainWindow):
         self.plan_panel.add_canal_toggled.connect(self._canal_mode)
         self.rehearsal = RehearsalPanel()
         self.rehearsal.depth_changed.connect(self._live_depth)
-        self.warnings_list = QListWidget()
-        self.path_warnings_list = QListWidget()
-        self.block_label = QLabel("")
-        self.block_label.setWordWrap(True)
-        series_tab = QWidget()
-        lay = QVBoxLayout(series_tab)
-        lay.addWidget(self.block_label)
-        lay.addWidget(QLabel("Loader warnings"))
-        lay.addWidget(self.warnings_list)
-        lay.addWidget(QLabel("Along the drill path"))
-        lay.addWidget(self.path_warnings_list)
+        self.series_panel = SeriesPanel()
+        self.warnings_list = self.series_panel.warnings_list
+        self.block_label = self.series_panel.block_label
         self.tabs = QTabWidget()
         self.tabs.addTab(self.plan_panel, "Plan")
         self.tabs.addTab(self.rehearsal, "Rehearsal")
-        self.tabs.addTab(series_tab, "Series")
+        self.tabs.addTab(self.series_panel, "Series")
         self.tabs.setMinimumWidth(330)
 
         top = QSplitter(Qt.Orientation.Horizontal)
@@ -140,75 +131,21 @@ class MainWindow(QMainWindow):
         self.surface_runner = Runner(self._surface_done, self._failed, parent=self)
         self.debounce = Debouncer(self._recompute, DEBOUNCE_MS, parent=self)
         self.progress: QProgressDialog | None = None
-        self._build_menus()
+        self.recent_menu = build_menus(self)
         self._status("Open a DICOM folder (File > Open, or drop it here).")
 
-    # ------------------------------------------------------------------ menus
-    def _build_menus(self) -> None:
-        bar = self.menuBar()
-        file_menu = bar.addMenu("&File")
-        self._action(
-            file_menu,
-            "Open DICOM folder...",
-            self.open_folder_dialog,
-            QKeySequence.StandardKey.Open,
-        )
-        self.recent_menu = file_menu.addMenu("Open recent")
-        self._action(file_menu, "Open plan...", self.open_plan_dialog, "Ctrl+Shift+O")
-        self._action(
-            file_menu, "Save plan...", self.save_plan_dialog, QKeySequence.StandardKey.Save
-        )
-        self._action(file_menu, "Save screenshot...", self.screenshot_dialog, "Ctrl+P")
-        file_menu.addSeparator()
-        self._action(file_menu, "Quit", self.close, QKeySequence.StandardKey.Quit)
-        view_menu = bar.addMenu("&View")
-        surf = view_menu.addMenu("Bone surface")
-        for label, iso in SURFACE_PRESETS.items():
-            self._action(surf, label, lambda iso=iso: self.set_surface_preset(iso))
-        wl = view_menu.addMenu("Window/level")
-        for label in WINDOW_PRESETS:
-            self._action(wl, label, lambda label=label: self.set_window_preset(label))
-        self._action(view_menu, "Focus on trajectory", self._refocus, "F")
-        self._refresh_recent()
-
-    def _action(self, menu: Any, text: str, slot: Any, shortcut: Any = None) -> QAction:
-        action = QAction(text, self)
-        if shortcut is not None:
-            action.setShortcut(shortcut)
-        action.triggered.connect(lambda _checked=False: slot())
-        menu.addAction(action)
-        return action
-
-    def _refresh_recent(self) -> None:
-        self.recent_menu.clear()
-        for path in self.recent_folders():
-            self._action(self.recent_menu, path, lambda p=path: self.open_folder(p))
-        self.recent_menu.setEnabled(bool(self.recent_folders()))
-
     def recent_folders(self) -> list[str]:
-        """Most recent first."""
-        value = self.settings.value("recent_folders", [])
-        if isinstance(value, str):
-            return [value]
-        if isinstance(value, list | tuple):
-            return [str(v) for v in value]
-        return []
+        """Recently opened folders, most recent first."""
+        return self.recent.items()
 
     def _remember(self, path: str) -> None:
-        items = [path] + [p for p in self.recent_folders() if p != path]
-        self.settings.setValue("recent_folders", items[:MAX_RECENT])
-        self.settings.sync()
-        self._refresh_recent()
+        self.recent.remember(path)
+        fill_recent(self)
 
     def _status(self, text: str) -> None:
         self.statusBar().showMessage(text)
 
     # ------------------------------------------------------------------ opening
-    def open_folder_dialog(self) -> None:
-        start = (self.recent_folders() or [str(Path.home())])[0]
-        path = QFileDialog.getExistingDirectory(self, "Open DICOM folder", start)
-        if path:
-            self.open_folder(path)
 
     def open_folder(self, path: str | os.PathLike[str], *, series_uid: str | None = None) -> None:
         """Load a series in the background, with a cancellable progress dialog."""
@@ -261,9 +198,7 @@ class MainWindow(QMainWindow):
         self._slice_key = None
         self._remember(loaded.path)
         self.view3d.set_surface(loaded.surface)
-        self.warnings_list.clear()
-        for w in loaded.volume.warnings:
-            self.warnings_list.addItem(f"{w.code}: {w.message}")
+        self.series_panel.set_load_warnings(loaded.volume.warnings)
         if self.plan is None:
             center = volume_center_lps(loaded.volume)
             self.plan = planning.default_plan(center)
@@ -295,13 +230,6 @@ class MainWindow(QMainWindow):
             else:
                 QMessageBox.critical(self, "ctdrill: internal error", tb)
 
-    def open_plan_dialog(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(
-            self, "Open plan", "", "Plans (*.json *.mrk.json);;All files (*)"
-        )
-        if path:
-            self.open_plan(path)
-
     def open_plan(self, path: str | os.PathLike[str]) -> None:
         """Read a ctdrill-plan/1 or Slicer markups file and show it."""
         try:
@@ -311,15 +239,6 @@ class MainWindow(QMainWindow):
             return
         self._status(f"plan {path}")
         self.set_plan(plan, now=True, refocus=True)
-
-    def save_plan_dialog(self) -> None:
-        if self.plan is None:
-            return
-        path, _ = QFileDialog.getSaveFileName(
-            self, "Save plan", "plan.json", "ctdrill plan (*.json);;3D Slicer markups (*.mrk.json)"
-        )
-        if path:
-            self.save_plan(path)
 
     def save_plan(self, path: str | os.PathLike[str]) -> None:
         """Write the plan (``.mrk.json``: Slicer markups, else ctdrill-plan/1)."""
@@ -400,11 +319,9 @@ class MainWindow(QMainWindow):
         if plan is None or view.plan is not plan:
             return
         self.view = view
-        self.path_warnings_list.clear()
-        loader = {(w.code, w.message) for w in (self.volume.warnings if self.volume else ())}
-        for w in view.result.warnings:
-            if (w.code, w.message) not in loader:
-                self.path_warnings_list.addItem(f"{w.code}: {w.message}")
+        self.series_panel.set_path_warnings(
+            view.result.warnings, self.volume.warnings if self.volume else ()
+        )
         draw_depth_plots(self.plot_fig, view.curves)
         self.plot_canvas.draw_idle()
         self.plan_panel.set_plan(plan, view.min_clearance_mm)
@@ -435,7 +352,7 @@ class MainWindow(QMainWindow):
         self.plot_canvas.draw_idle()
 
     def _show_block(self, reason: str | None) -> None:
-        self.block_label.setText("" if not reason else f"Rehearsal disabled: {reason}")
+        self.series_panel.set_block(reason)
         if reason:
             self.rehearsal.set_blocked(reason)
 
@@ -476,7 +393,8 @@ class MainWindow(QMainWindow):
         for name, img in self.slices.items():
             self.slice_canvases[name].set_window(img, level_hu=level, width_hu=width)
 
-    def _refocus(self) -> None:
+    def refocus(self) -> None:
+        """Point the 3D camera at the trajectory again."""
         if self.view3d.scene is not None:
             self.view3d.show_scene(self.view3d.scene, refocus=True)
 
@@ -490,11 +408,6 @@ class MainWindow(QMainWindow):
         """Write :meth:`grab_composite` to ``path`` (PNG)."""
         if not self.grab_composite().save(str(path)):
             raise OSError(f"could not write the screenshot {path}")
-
-    def screenshot_dialog(self) -> None:
-        path, _ = QFileDialog.getSaveFileName(self, "Save screenshot", "ctdrill.png", "PNG (*.png)")
-        if path:
-            self.save_screenshot(path)
 
     def closeEvent(self, event: QCloseEvent) -> None:
         self.rehearsal.shutdown()

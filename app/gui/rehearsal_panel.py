@@ -67,7 +67,10 @@ class RehearsalPanel(QWidget):
         #: Session length, s, and pacing of the simulator to the wall clock.
         self.duration_s = 120.0
         self.realtime = True
-        self._last_emit = (-1.0, float("nan"))  # (monotonic s, depth mm) of the last 3D update
+        self._last_emit = (-1.0, float("nan"))
+        self._reported: RehearsalRun | None = (
+            None  # the run whose end was reported  # (monotonic s, depth mm) of the last 3D update
+        )
         outer = QVBoxLayout(self)
 
         dev = QGroupBox("Device")
@@ -200,10 +203,12 @@ class RehearsalPanel(QWidget):
         run = self.run
         if run is None:
             return
+        ended = not run.running  # read first: once ended, latest() is the final sample
         tel = run.latest()
         if tel is not None:
             self.show_telemetry(tel)
-        if not run.running:
+        if ended and self._reported is not run:
+            self._reported = run
             self.timer.stop()
             self._update_buttons()
             if run.error:

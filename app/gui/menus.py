@@ -1,0 +1,100 @@
+"""The window's menus and file dialogs (each action calls a window method)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from functools import partial
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtWidgets import QFileDialog, QMenu
+
+from app.gui.scene import SURFACE_PRESETS
+from app.gui.slices import WINDOW_PRESETS
+
+if TYPE_CHECKING:
+    from app.gui.main_window import MainWindow
+
+
+def _action(
+    window: MainWindow, menu: QMenu, text: str, slot: Callable[[], Any], shortcut: Any = None
+) -> QAction:
+    action = QAction(text, window)
+    if shortcut is not None:
+        action.setShortcut(shortcut)
+    action.triggered.connect(lambda _checked=False: slot())
+    menu.addAction(action)
+    return action
+
+
+def build_menus(window: MainWindow) -> QMenu:
+    """File and View menus; returns the "Open recent" submenu (filled by :func:`fill_recent`)."""
+    bar = window.menuBar()
+    file_menu = bar.addMenu("&File")
+    keys = QKeySequence.StandardKey
+    _action(
+        window, file_menu, "Open DICOM folder...", lambda: open_folder_dialog(window), keys.Open
+    )
+    recent = file_menu.addMenu("Open recent")
+    _action(window, file_menu, "Open plan...", lambda: open_plan_dialog(window), "Ctrl+Shift+O")
+    _action(window, file_menu, "Save plan...", lambda: save_plan_dialog(window), keys.Save)
+    _action(window, file_menu, "Save screenshot...", lambda: screenshot_dialog(window), "Ctrl+P")
+    file_menu.addSeparator()
+    _action(window, file_menu, "Quit", window.close, keys.Quit)
+    view_menu = bar.addMenu("&View")
+    surf = view_menu.addMenu("Bone surface")
+    for label, iso in SURFACE_PRESETS.items():
+        _action(window, surf, label, partial(window.set_surface_preset, iso))
+    wl = view_menu.addMenu("Window/level")
+    for label in WINDOW_PRESETS:
+        _action(window, wl, label, partial(window.set_window_preset, label))
+    _action(window, view_menu, "Focus on trajectory", window.refocus, "F")
+    window.recent_menu = recent
+    fill_recent(window)
+    return recent
+
+
+def fill_recent(window: MainWindow) -> None:
+    """Rebuild "Open recent" from the window's recent-folder list."""
+    menu = window.recent_menu
+    menu.clear()
+    folders = window.recent_folders()
+    for path in folders:
+        _action(window, menu, path, partial(window.open_folder, path))
+    menu.setEnabled(bool(folders))
+
+
+def open_folder_dialog(window: MainWindow) -> None:
+    """Ask for a DICOM folder (starting at the most recent one) and open it."""
+    start = (window.recent_folders() or [str(Path.home())])[0]
+    path = QFileDialog.getExistingDirectory(window, "Open DICOM folder", start)
+    if path:
+        window.open_folder(path)
+
+
+def open_plan_dialog(window: MainWindow) -> None:
+    """Ask for a plan file and open it."""
+    path, _ = QFileDialog.getOpenFileName(
+        window, "Open plan", "", "Plans (*.json *.mrk.json);;All files (*)"
+    )
+    if path:
+        window.open_plan(path)
+
+
+def save_plan_dialog(window: MainWindow) -> None:
+    """Ask where to save the plan (``.mrk.json``: 3D Slicer markups)."""
+    if window.plan is None:
+        return
+    path, _ = QFileDialog.getSaveFileName(
+        window, "Save plan", "plan.json", "ctdrill plan (*.json);;3D Slicer markups (*.mrk.json)"
+    )
+    if path:
+        window.save_plan(path)
+
+
+def screenshot_dialog(window: MainWindow) -> None:
+    """Ask where to save a screenshot of the window."""
+    path, _ = QFileDialog.getSaveFileName(window, "Save screenshot", "ctdrill.png", "PNG (*.png)")
+    if path:
+        window.save_screenshot(path)
