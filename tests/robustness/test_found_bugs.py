@@ -10,6 +10,7 @@ Fixed bugs move to ``test_regressions.py`` with their minimal inputs.
 
 from __future__ import annotations
 
+import json
 import traceback
 from dataclasses import dataclass
 from pathlib import Path
@@ -83,10 +84,16 @@ FINDINGS: tuple[Finding, ...] = (
             "fixed", "pipeline fuzz"),
     Finding("fifo-hang", "imaging/discovery.py", "a named pipe (mkfifo) pipe.dcm beside a series",
             "ctdrill inspect blocks forever opening it (killed after 15 s)", "open", "corpus"),
+    Finding("calibration-law-vanishing", "model/calibration.py",
+            "a0.n = -400 (or -1e308), or a0.b0 = -400",
+            "accepted; A0 = 0 N at every HU (n = -1e308: overflow in n log10 C' on the way)",
+            "open", "JSON fuzz (20000 examples)"),
 )  # fmt: skip
 
 #: Open bugs whose trigger the fuzzers hit.
-KNOWN_BUGS: tuple[KnownBug, ...] = ()
+KNOWN_BUGS: tuple[KnownBug, ...] = (
+    KnownBug("calibration-law-vanishing", FloatingPointError, "model/force.py", "power_law_n"),
+)
 
 #: Corpus cases whose outcome is wrong (kept out of test_corpus.py and test_memory_bombs.py).
 BUG_CASES: frozenset[str] = frozenset({"unknown_transfer_syntax", "fifo_in_folder"})
@@ -155,3 +162,30 @@ def test_named_pipe_in_series_folder_does_not_hang(cases: dict[str, Case]) -> No
     from tests.robustness.test_memory_bombs import check_bomb
 
     check_bomb(cases["fifo_in_folder"])
+
+
+@pytest.mark.parametrize(
+    ("field", "value"), [("n", -1e308), ("n", -400.0), ("b0", -400.0)], ids=["n-1e308", "n", "b0"]
+)
+def test_calibration_whose_force_vanishes_is_refused(
+    tmp_path: Path, field: str, value: float
+) -> None:
+    """calibration-law-vanishing: the set loads, and A0 = 0 N for every HU and feed (a material
+    that cuts with no force; with n = -1e308 the evaluation overflows in ``n log10 C'`` first).
+    Upper bounds are checked (laws above 1e6 N are refused); the lower end is not."""
+    import numpy as np
+
+    from model import ModelInputError, a0_n, load_calibration
+    from tests.robustness.fuzz import seed_calibration
+
+    doc = seed_calibration()
+    doc["a0"] = {**doc["a0"], field: value}
+    path = tmp_path / "cal.json"
+    path.write_text(json.dumps(doc))
+    try:
+        cal = load_calibration(path)
+    except ModelInputError:
+        return
+    with np.errstate(all="ignore"):
+        a0 = a0_n(np.array([-1000.0, 0.0, 1000.0]), 0.4, cal)
+    pytest.fail(f"a0.{field}={value} accepted; A0 = {a0} N at HU -1000, 0, 1000")
