@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
-from PySide6.QtCore import QSettings, Qt, QThreadPool, Signal
+from PySide6.QtCore import QSettings, Qt, QThreadPool, QTimer, Signal
 from PySide6.QtGui import QCloseEvent, QDragEnterEvent, QDropEvent, QImage
 from PySide6.QtWidgets import (
     QGridLayout,
@@ -197,7 +197,7 @@ class MainWindow(QMainWindow):
         self.volume_path = loaded.path
         self._slice_key = None
         self._remember(loaded.path)
-        self.view3d.set_surface(loaded.surface)
+        self.view3d.set_surface(loaded.surface, redraw=False)  # drawn with the new path
         self.series_panel.set_load_warnings(loaded.volume.warnings)
         if self.plan is None:
             center = volume_center_lps(loaded.volume)
@@ -319,12 +319,22 @@ class MainWindow(QMainWindow):
         if plan is None or view.plan is not plan:
             return
         self.view = view
-        self.series_panel.set_path_warnings(
-            view.result.warnings, self.volume.warnings if self.volume else ()
-        )
+        # Three steps, each its own event, so that paint events run in between and the UI
+        # thread is never held for the whole update (a software-GL frame alone is ~50 ms).
+        QTimer.singleShot(0, lambda: self._show_plots(view))
+        QTimer.singleShot(0, lambda: self._show_scene(view))
+        QTimer.singleShot(0, lambda: self._finish_path(view))
+
+    def _show_plots(self, view: PathView) -> None:
+        if view is not self.view:
+            return
         draw_depth_plots(self.plot_fig, view.curves)
         self.plot_canvas.draw_idle()
-        self.plan_panel.set_plan(plan, view.min_clearance_mm)
+
+    def _show_scene(self, view: PathView) -> None:
+        if view is not self.view:
+            return
+        plan = view.plan
         scene = SceneInput(
             entry_lps=plan.entry_lps,
             target_lps=plan.target_lps,
@@ -335,6 +345,15 @@ class MainWindow(QMainWindow):
         )
         self.view3d.show_scene(scene, refocus=self._refocus_next)
         self._refocus_next = False
+
+    def _finish_path(self, view: PathView) -> None:
+        if view is not self.view:
+            return
+        plan = view.plan
+        self.series_panel.set_path_warnings(
+            view.result.warnings, self.volume.warnings if self.volume else ()
+        )
+        self.plan_panel.set_plan(plan, view.min_clearance_mm)
         self._draw_overlays()
         reason = block_reason(self.volume, view)
         self._show_block(reason)

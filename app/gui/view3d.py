@@ -22,7 +22,9 @@ class View3D(QWidget):
         super().__init__(parent)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
-        self.plotter: Any = QtInteractor(self, multi_samples=multi_samples)
+        # No periodic re-render (pyvistaqt's default is 5 Hz even when nothing changes, ~50 ms a
+        # frame on software GL): the view renders when the scene changes or the user interacts.
+        self.plotter: Any = QtInteractor(self, multi_samples=multi_samples, auto_update=False)
         layout.addWidget(self.plotter.interactor)
         self.surface: pv.PolyData | None = None
         self.scene: SceneInput | None = None
@@ -31,11 +33,11 @@ class View3D(QWidget):
         self.frames_drawn = 0
         self.last_frame_s = float("nan")  # perf_counter() at the end of the latest frame
 
-    def set_surface(self, surface: pv.PolyData | None) -> None:
-        """Use a new bone surface (new volume or preset); redraws if a scene is shown."""
+    def set_surface(self, surface: pv.PolyData | None, *, redraw: bool = True) -> None:
+        """Use a new bone surface (new volume or preset); redraws a shown scene if ``redraw``."""
         self.surface = surface
         self._camera_for = None
-        if self.scene is not None:
+        if redraw and self.scene is not None:
             self.show_scene(self.scene)
 
     def show_scene(self, scene: SceneInput, *, refocus: bool = False) -> None:
