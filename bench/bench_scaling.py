@@ -45,6 +45,7 @@ from bench.scaling_load import (
 )
 from bench.scaling_path import (
     export_profile,
+    lip_profile,
     path_profile,
     plot_path,
     trajectory_scaling,
@@ -302,6 +303,22 @@ def run(quick: bool) -> Section:
                 "10 by own time):",
                 "",
                 path_profile(volumes[-1][1], sizes.depth_mm, runs=10),
+                "",
+            ]
+        slow_lip = [
+            k
+            for k, (ours, peer) in enumerate(
+                zip(v_series["lip sampling"], v_series["peer lip sampling"], strict=True)
+            )
+            if ours > TIE * peer
+        ]
+        if slow_lip:
+            label, volume = volumes[slow_lip[0]]
+            profiles += [
+                f"Where sample_lip_rings spends its time on {label} (50 runs; cProfile, top 10 "
+                "by own time):",
+                "",
+                lip_profile(volume, sizes.depth_mm, runs=50),
                 "",
             ]
         del volumes

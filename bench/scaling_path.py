@@ -246,3 +246,16 @@ def path_profile(volume: CTVolume, depth_mm: float, *, runs: int) -> str:
     cal = load_calibration(plan.calibration)
     plan_path(volume, plan, cal)
     return profile_top(partial(_batch, volume, [plan] * runs, cal, plan_path))
+
+
+def lip_profile(volume: CTVolume, depth_mm: float, *, runs: int) -> str:
+    """cProfile top 10 of ``runs`` calls of ``sample_lip_rings`` on ``volume`` (Markdown)."""
+    plan = volume_plan(volume, depth_mm)
+    depth = depth_grid_mm(plan.planned_depth_mm, DEFAULT_DEPTH_STEP_MM)
+    _lip(volume, plan, depth)
+    return profile_top(partial(_repeat, partial(_lip, volume, plan, depth), runs))
+
+
+def _repeat(fn: Callable[[], object], runs: int) -> None:
+    for _ in range(runs):
+        fn()
