@@ -88,10 +88,16 @@ FINDINGS: tuple[Finding, ...] = (
             "a0.n = -400 (or -1e308), or a0.b0 = -400",
             "accepted; A0 = 0 N at every HU (n = -1e308: overflow in n log10 C' on the way)",
             "open", "JSON fuzz (20000 examples)"),
+    Finding("path-too-long", "imaging loader, imaging/plan.py, model/calibration.py, app export",
+            "a path component over 255 bytes: inspect DIR, export --plan / --out, a plan's "
+            "calibration name",
+            "OSError [Errno 36] File name too long: traceback, exit 1", "open",
+            "pipeline fuzz (20000 examples)"),
 )  # fmt: skip
 
 #: Open bugs whose trigger the fuzzers hit.
 KNOWN_BUGS: tuple[KnownBug, ...] = (
+    KnownBug("path-too-long", OSError, "model/calibration.py", "resolve_calibration_path"),
     KnownBug("calibration-law-vanishing", FloatingPointError, "model/force.py", "power_law_n"),
 )
 
@@ -189,3 +195,34 @@ def test_calibration_whose_force_vanishes_is_refused(
     with np.errstate(all="ignore"):
         a0 = a0_n(np.array([-1000.0, 0.0, 1000.0]), 0.4, cal)
     pytest.fail(f"a0.{field}={value} accepted; A0 = {a0} N at HU -1000, 0, 1000")
+
+
+LONG = "y" * 300  # one path component longer than NAME_MAX (255 bytes)
+
+
+@pytest.mark.parametrize("where", ["inspect", "plan", "out", "calibration", "plan-calibration"])
+def test_overlong_path_component_is_an_input_error(where: str, tmp_path: Path) -> None:
+    """path-too-long: ``Path.is_file()``/``mkdir`` raise OSError ENAMETOOLONG (pathlib only
+    swallows ENOENT-like errors), which escapes as a traceback with exit code 1."""
+    from tests.robustness.outcomes import error_line_problems, run_cli_subprocess
+
+    demo = ROOT / "assets" / "demo"
+    export = ["export", "--dicom", str(demo / "ct"), "--plan", str(demo / "plan.json")]
+    if where == "inspect":
+        args = ["inspect", str(tmp_path / LONG), "--json"]
+    elif where == "plan":
+        args = ["export", "--dicom", str(demo / "ct"), "--plan", str(tmp_path / f"{LONG}.json")]
+        args += ["--out", str(tmp_path / "out")]
+    elif where == "out":
+        args = [*export, "--out", str(tmp_path / LONG)]
+    elif where == "calibration":
+        args = [*export, "--out", str(tmp_path / "out"), "--calibration", LONG]
+    else:
+        doc = json.loads((demo / "plan.json").read_text())
+        doc["calibration"] = LONG
+        plan = tmp_path / "plan.json"
+        plan.write_text(json.dumps(doc))
+        args = ["export", "--dicom", str(demo / "ct"), "--plan", str(plan)]
+        args += ["--out", str(tmp_path / "out")]
+    run = run_cli_subprocess(args)
+    assert not error_line_problems(run), (where, run.stderr[-800:])
