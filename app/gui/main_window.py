@@ -298,8 +298,12 @@ class MainWindow(QMainWindow):
     def _slices_done(self, slices: dict[str, SliceImage]) -> None:
         self.slices = slices
         level, width = self.window_level
+        plan = self.plan
         for name, img in slices.items():
-            self.slice_canvases[name].show_slice(img, level_hu=level, width_hu=width)
+            canvas = self.slice_canvases[name]
+            canvas.show_slice(img, level_hu=level, width_hu=width)
+            if plan is not None:  # the trajectory in the middle of the field of view
+                canvas.focus_on((plan.entry_lps + plan.target_lps) / 2.0)
         self._draw_overlays()
 
     def _draw_overlays(self) -> None:

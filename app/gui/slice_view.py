@@ -3,7 +3,8 @@ trajectory, the drill's stop point and the landmarks; entry and target can be dr
 
 The widget only draws and reports: a finished drag of a handle, or a right click (target;
 Shift + right click: entry) emits ``point_moved(name, lps)``, and a left click in canal-point
-mode emits ``clicked(lps)``; the window decides what they change.
+mode emits ``clicked(lps)``; the window decides what they change. The mouse wheel zooms about
+the cursor (``zoom``); ``focus_on`` centres the field of view on a point.
 """
 
 from __future__ import annotations
@@ -21,6 +22,11 @@ from app.gui.slices import SliceImage, polyline_in_plane, window_to_uint8
 
 #: Pick radius for dragging a handle, pixels.
 PICK_PX = 10.0
+#: Field of view of a slice view around the trajectory, and the closest zoom, mm.
+DEFAULT_FOV_MM = 50.0
+MIN_FOV_MM = 5.0
+#: Zoom per wheel step.
+WHEEL_ZOOM = 1.25
 #: Overlays within this distance of the plane are drawn solid, mm.
 SLAB_MM = 2.0
 
@@ -52,9 +58,13 @@ class SliceCanvas(FigureCanvasQTAgg):
         self._handle_artists: dict[str, Any] = {}
         self._drag: str | None = None
         self.add_points_mode = False
+        #: Field of view (mm, square) and its centre (in-plane mm); None: the whole image.
+        self.fov_mm: float | None = DEFAULT_FOV_MM
+        self.center_uv: np.ndarray | None = None
         self.mpl_connect("button_press_event", self._press)
         self.mpl_connect("motion_notify_event", self._motion)
         self.mpl_connect("button_release_event", self._release)
+        self.mpl_connect("scroll_event", self._scroll)
 
     # ------------------------------------------------------------------ drawing
     def show_slice(self, image: SliceImage, *, level_hu: float, width_hu: float) -> None:
@@ -75,8 +85,53 @@ class SliceCanvas(FigureCanvasQTAgg):
         else:
             self._im.set_data(grey)
             self._im.set_extent(image.extent_mm)
-        self.ax.set_xlim(image.extent_mm[0], image.extent_mm[1])
-        self.ax.set_ylim(image.extent_mm[2], image.extent_mm[3])
+        self._apply_view()
+
+    def focus_on(self, point_lps: np.ndarray) -> None:
+        """Centre the view on ``point_lps`` (projected into the plane), keeping the zoom."""
+        if self.image is None:
+            return
+        uv, _ = self.image.to_plane_mm(np.asarray(point_lps, dtype=np.float64))
+        self.center_uv = np.asarray(uv, dtype=np.float64)
+        self._apply_view()
+        self.draw_idle()
+
+    def zoom(self, factor: float, about_uv: np.ndarray | None = None) -> None:
+        """Zoom in (``factor`` > 1) or out about ``about_uv`` (in-plane mm; default the
+        centre); the field of view stays between ``MIN_FOV_MM`` and the whole image."""
+        if self.image is None:
+            return
+        full = self._full_fov_mm()
+        (x0, x1), (y0, y1) = self.ax.get_xlim(), self.ax.get_ylim()
+        old = max(abs(x1 - x0), abs(y0 - y1))  # what is shown now
+        new = float(np.clip(old / factor, MIN_FOV_MM, full))
+        center = np.array([(x0 + x1) / 2.0, (y0 + y1) / 2.0])
+        if about_uv is not None:
+            about = np.asarray(about_uv, dtype=np.float64)
+            center = about + (center - about) * (new / old)
+        self.center_uv = center
+        self.fov_mm = None if new >= full else new
+        self._apply_view()
+        self.draw_idle()
+
+    def _full_fov_mm(self) -> float:
+        assert self.image is not None
+        left, right, bottom, top = self.image.extent_mm
+        return max(right - left, bottom - top)
+
+    def _apply_view(self) -> None:
+        """Set the axes limits from the centre and field of view (the whole image if None)."""
+        if self.image is None:
+            return
+        left, right, bottom, top = self.image.extent_mm
+        if self.fov_mm is None or self.center_uv is None or self.fov_mm >= self._full_fov_mm():
+            self.ax.set_xlim(left, right)
+            self.ax.set_ylim(bottom, top)
+            return
+        half = self.fov_mm / 2.0
+        cu, cv = float(self.center_uv[0]), float(self.center_uv[1])
+        self.ax.set_xlim(cu - half, cu + half)
+        self.ax.set_ylim(cv + half, cv - half)  # rows grow downwards
 
     def set_window(self, image: SliceImage, *, level_hu: float, width_hu: float) -> None:
         """Re-window the current image."""
@@ -175,6 +230,12 @@ class SliceCanvas(FigureCanvasQTAgg):
             self.clicked.emit(self.image.to_lps(uv))
             return
         self._drag = self.handle_at(float(event.x), float(event.y))
+
+    def _scroll(self, event: MouseEvent) -> None:
+        uv = self._event_uv(event)
+        step = float(getattr(event, "step", 0.0) or 0.0)
+        if step:
+            self.zoom(WHEEL_ZOOM**step, uv)
 
     def _motion(self, event: MouseEvent) -> None:
         if self._drag is None:

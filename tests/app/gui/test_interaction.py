@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from PySide6.QtCore import QPoint, Qt
+from PySide6.QtCore import QPoint, QPointF, Qt
+from PySide6.QtGui import QWheelEvent
+from PySide6.QtWidgets import QApplication
 from pytestqt.qtbot import QtBot
 
 from app.gui.main_window import MainWindow
-from app.gui.slice_view import SliceCanvas
+from app.gui.slice_view import DEFAULT_FOV_MM, SliceCanvas
 from app.gui.slices import window_to_uint8
 from imaging.landmarks import CanalLandmark
 from imaging.phantom_io import PhantomCase
@@ -96,3 +98,43 @@ def test_right_click_places_the_target(
     with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
         qtbot.mouseClick(canvas, Qt.MouseButton.RightButton, pos=qt_point(canvas, uv))
     assert window.plan.target_lps == pytest.approx(goal, abs=0.4)
+
+
+def test_slice_views_frame_the_trajectory_and_zoom_with_the_wheel(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    canvas = window.slice_canvases["coronal"]
+    assert canvas.image is not None and window.plan is not None
+    left, right, bottom, top = canvas.image.extent_mm
+    full = max(right - left, bottom - top)
+    assert full < DEFAULT_FOV_MM  # the phantom is small: the whole plane is shown
+    assert canvas.ax.get_xlim() == pytest.approx((left, right))
+    # One wheel step up over the entry point zooms in by 1.25 and keeps the entry under it.
+    entry_uv, _ = canvas.image.to_plane_mm(window.plan.entry_lps)
+    pos = qt_point(canvas, entry_uv)
+    event = QWheelEvent(
+        QPointF(pos),
+        QPointF(canvas.mapToGlobal(pos)),
+        QPoint(0, 0),
+        QPoint(0, 120),
+        Qt.MouseButton.NoButton,
+        Qt.KeyboardModifier.NoModifier,
+        Qt.ScrollPhase.NoScrollPhase,
+        False,
+    )
+    QApplication.sendEvent(canvas, event)
+    x0, x1 = canvas.ax.get_xlim()
+    y0, y1 = canvas.ax.get_ylim()
+    assert x1 - x0 == pytest.approx(full / 1.25) and y0 - y1 == pytest.approx(full / 1.25)
+    assert qt_point(canvas, entry_uv) == pos  # the point under the cursor stays put
+    # Centred on the trajectory at the default field of view, then all the way out.
+    canvas.fov_mm = 20.0
+    mid = (window.plan.entry_lps + window.plan.target_lps) / 2.0
+    canvas.focus_on(mid)
+    uv, _ = canvas.image.to_plane_mm(mid)
+    x0, x1 = canvas.ax.get_xlim()
+    assert (x1 - x0, (x0 + x1) / 2) == pytest.approx((20.0, uv[0]))
+    canvas.zoom(1e-6)
+    assert canvas.fov_mm is None
+    assert canvas.ax.get_xlim() == pytest.approx((left, right))
