@@ -91,8 +91,17 @@ def run_gui(
     if screenshot is not None:
         if dicom is None:
             QTimer.singleShot(500, take)
-        else:
-            window.path_updated.connect(lambda: QTimer.singleShot(300, take))
+        else:  # once both the path (or its refusal) and the slices are drawn
+            pending = {"path", "slices"}
+
+            def arrived(what: str) -> None:
+                pending.discard(what)
+                if not pending:
+                    QTimer.singleShot(300, take)
+
+            window.path_updated.connect(lambda: arrived("path"))
+            window.path_failed.connect(lambda _msg: arrived("path"))
+            window.slices_updated.connect(lambda: arrived("slices"))
 
     def timeout() -> None:
         take()

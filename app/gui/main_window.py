@@ -57,7 +57,9 @@ class MainWindow(QMainWindow):
     path_updated = Signal()  # a new path result is shown (plots, 3D, slices)
     volume_loaded = Signal()
     load_failed = Signal(str)  # the error message
+    path_failed = Signal(str)  # no path for the plan (the error message)
     surface_updated = Signal()
+    slices_updated = Signal()
 
     def __init__(self, settings: QSettings | None = None) -> None:
         super().__init__()
@@ -126,7 +128,7 @@ class MainWindow(QMainWindow):
         self.setCentralWidget(main)
 
         self.load_runner = Runner(self._loaded, self._load_failed, parent=self)
-        self.path_runner = Runner(self._path_done, self._failed, parent=self)
+        self.path_runner = Runner(self._path_done, self._path_failed, parent=self)
         self.slice_runner = Runner(self._slices_done, self._failed, parent=self)
         self.surface_runner = Runner(self._surface_done, self._failed, parent=self)
         self.debounce = Debouncer(self._recompute, DEBOUNCE_MS, parent=self)
@@ -305,6 +307,7 @@ class MainWindow(QMainWindow):
             if plan is not None:  # the trajectory in the middle of the field of view
                 canvas.focus_on((plan.entry_lps + plan.target_lps) / 2.0)
         self._draw_overlays()
+        self.slices_updated.emit()
 
     def _draw_overlays(self) -> None:
         plan = self.plan
@@ -338,17 +341,33 @@ class MainWindow(QMainWindow):
     def _show_scene(self, view: PathView) -> None:
         if view is not self.view:
             return
-        plan = view.plan
+        self._draw_scene(view.plan, view)
+
+    def _draw_scene(self, plan: Plan, view: PathView | None) -> None:
+        """The 3D scene of ``plan``, with the stop point and clearances when computed."""
         scene = SceneInput(
             entry_lps=plan.entry_lps,
             target_lps=plan.target_lps,
             diameter_mm=plan.drill.diameter_mm,
             tip_length_mm=plan.drill.tip_length_mm,
-            stop_depth_mm=view.curves.stop_depth_mm,
-            landmarks=planning.landmark_geometries(plan, view.min_clearance_mm),
+            stop_depth_mm=None if view is None else view.curves.stop_depth_mm,
+            landmarks=planning.landmark_geometries(
+                plan, None if view is None else view.min_clearance_mm
+            ),
         )
         self.view3d.show_scene(scene, refocus=self._refocus_next)
         self._refocus_next = False
+
+    def _path_failed(self, exc: BaseException, tb: str) -> None:
+        """No path for this plan: still show the anatomy and the plan, and say why."""
+        self.view = None
+        self._failed(exc, tb)
+        draw_depth_plots(self.plot_fig, None, message=f"no force profile: {exc}")
+        self.plot_canvas.draw_idle()
+        if self.plan is not None and self.volume is not None:
+            self._draw_scene(self.plan, None)
+            self._draw_overlays()
+        self.path_failed.emit(str(exc))
 
     def _finish_path(self, view: PathView) -> None:
         if view is not self.view:

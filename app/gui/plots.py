@@ -4,6 +4,7 @@ matplotlib ``Figure``: the window's ``FigureCanvasQTAgg`` and headless tests use
 
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass
 
 import numpy as np
@@ -73,7 +74,13 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
     if curves is None or curves.depth_mm.size == 0:
         ax_hu.set_ylim(-1000, 2000)
         ax_f.text(
-            0.5, 0.5, message or "no plan", ha="center", va="center", transform=ax_f.transAxes
+            0.5,
+            0.5,
+            textwrap.fill(message or "no plan", 120),
+            ha="center",
+            va="center",
+            fontsize=8,
+            transform=ax_f.transAxes,
         )
         return
     d = curves.depth_mm

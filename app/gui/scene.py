@@ -8,6 +8,7 @@ and sheared (gantry-tilt) series land where they are.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -274,11 +275,15 @@ def focus_camera(
     target_lps: np.ndarray,
     *,
     distance_mm: float | None = None,
-) -> None:
+    bounds: Sequence[float] | None = None,
+) -> float:
     """Look at the trajectory's midpoint from the side of the drill, superior up.
 
     The view direction is perpendicular to the drill axis (the drill runs across the screen) and
-    tilted 25 degrees from above; distance defaults to 8 x the trajectory length, at least 90 mm.
+    tilted 25 degrees from above; the distance defaults to 8 x the trajectory length, at least
+    90 mm, and, given the anatomy's ``bounds`` (xmin, xmax, ymin, ymax, zmin, zmax), at least
+    20 mm beyond them along the view direction, so the camera never sits inside the bone.
+    Returns the distance, mm.
     """
     entry = np.asarray(entry_lps, dtype=np.float64)
     target = np.asarray(target_lps, dtype=np.float64)
@@ -295,5 +300,9 @@ def focus_camera(
         side = -side
     view_dir = side * np.cos(np.deg2rad(25.0)) + up * np.sin(np.deg2rad(25.0))
     view_dir /= np.linalg.norm(view_dir)
+    if distance_mm is None and bounds is not None:
+        corners = np.array([[x, y, z] for x in bounds[:2] for y in bounds[2:4] for z in bounds[4:]])
+        dist = max(dist, float(np.max((corners - mid) @ view_dir)) + 20.0)
     plotter.camera_position = [tuple(mid + view_dir * dist), tuple(mid), (0.0, 0.0, 1.0)]
     plotter.reset_camera_clipping_range()
+    return dist

@@ -10,9 +10,10 @@ from PySide6.QtCore import QPoint, QRect
 from PySide6.QtGui import QImage, QPainter
 from PySide6.QtWidgets import QWidget
 
-#: A region counts as drawn when its grey-level standard deviation exceeds this (0..255).
-MIN_STD = 8.0
-#: ... and it has at least this many distinct grey levels.
+#: A region counts as drawn when its grey-level standard deviation reaches this (0..255) ...
+MIN_STD = 2.0
+#: ... and it has at least this many distinct grey levels (what ``QWidget.grab`` returns for a
+#: GL view it cannot read is a flat black or white rectangle: one level).
 MIN_LEVELS = 16
 
 

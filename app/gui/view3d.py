@@ -47,7 +47,10 @@ class View3D(QWidget):
         self.actors = build_scene(self.plotter, scene, surface=self.surface)
         key = (len(self.actors),)
         if refocus or self._camera_for is None:
-            focus_camera(self.plotter, scene.entry_lps, scene.target_lps)
+            bounds = None
+            if self.surface is not None and self.surface.n_points > 0:
+                bounds = tuple(self.surface.bounds)
+            focus_camera(self.plotter, scene.entry_lps, scene.target_lps, bounds=bounds)
             self._camera_for = key
         else:
             self.plotter.camera_position = cam

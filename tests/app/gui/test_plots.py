@@ -94,3 +94,6 @@ def test_empty_plots_show_the_message() -> None:
     fig = Figure()
     draw_depth_plots(fig, None, message="open a DICOM folder")
     assert any(t.get_text() == "open a DICOM folder" for t in fig.axes[1].texts)
+    draw_depth_plots(fig, None, message="no force profile: " + "x " * 100)
+    (text,) = fig.axes[1].texts
+    assert text.get_text().count("\n") == 1  # long messages are wrapped

@@ -100,3 +100,19 @@ def test_off_screen_scene_draws_and_the_drill_moves() -> None:
         assert region_stats(img).drawn
     finally:
         plotter.close()
+
+
+def test_the_camera_stays_outside_the_anatomy() -> None:
+    plotter = pv.Plotter(off_screen=True, window_size=(200, 150))
+    try:
+        entry, target = np.array([0.0, 0.0, 5.0]), np.array([0.0, 0.0, -5.0])
+        assert focus_camera(plotter, entry, target) == pytest.approx(90.0)
+        head = (-100.0, 100.0, -120.0, 80.0, -90.0, 110.0)
+        dist = focus_camera(plotter, entry, target, bounds=head)
+        pos = np.array(plotter.camera_position[0])
+        # outside the box along the view direction: beyond y_min (anterior) or z_max (top)
+        assert pos[1] < head[2] or pos[2] > head[5]
+        assert np.linalg.norm(pos) == pytest.approx(dist)
+        assert plotter.camera_position[1] == pytest.approx((0.0, 0.0, 0.0))
+    finally:
+        plotter.close()

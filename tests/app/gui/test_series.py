@@ -54,9 +54,12 @@ def test_a_single_slice_blocks_rehearsal_and_says_why(
 ) -> None:
     single = "2.16.840.1.113662.2.12.0.3057.1241703565.43"  # the RT planning CT slice
     monkeypatch.setattr(window, "choose_series", lambda choice: single)
-    with qtbot.waitSignal(window.volume_loaded, timeout=LOAD_TIMEOUT_MS):
+    with qtbot.waitSignal(window.path_failed, timeout=LOAD_TIMEOUT_MS) as failed:
         window.open_folder(shared_data / "single_slice_ct")
-    qtbot.waitUntil(lambda: "single slice" in window.block_label.text(), timeout=LOAD_TIMEOUT_MS)
+    assert "single slice" in failed.args[0]
+    # The plan and the anatomy are still drawn; the plots say why there is no profile.
+    assert "drill" in window.view3d.actors and "trajectory" in window.view3d.actors
+    assert any("no force profile" in t.get_text() for t in window.plot_fig.axes[1].texts)
     assert "Rehearsal disabled" in window.block_label.text()
     assert not window.rehearsal.connect_button.isEnabled()
     assert "single slice" in window.rehearsal.message.text()
