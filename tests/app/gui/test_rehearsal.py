@@ -88,3 +88,17 @@ def test_stop_button_ends_a_realtime_run_in_the_safe_state(
     assert panel.run.cancelled
     assert "safe state" in panel.message.text()
     assert panel.export_button.isEnabled()
+
+
+def test_a_silent_serial_device_is_reported_and_the_panel_recovers(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    panel = window.rehearsal
+    panel.device.addItem("serial:loop://")  # pyserial's loopback: our own bytes come back
+    panel.device.setCurrentText("serial:loop://")
+    with qtbot.waitSignal(panel.finished, timeout=30_000):
+        panel.start()
+    assert panel.run is not None and panel.run.session is None
+    assert panel.message.text().startswith("error:")
+    assert panel.connect_button.isEnabled() and not panel.stop_button.isEnabled()
