@@ -116,7 +116,9 @@ def _open_to_first_frame(window: object, ct_dir: Path, repeats: int) -> tuple[Ti
     ), float(np.median(stalls))
 
 
-def _measure(name: str, ct_dir: Path, plan_path: Path, repeats: int) -> dict[str, object]:
+def _measure(
+    name: str, ct_dir: Path, plan_path: Path, repeats: int, scratch: Path
+) -> dict[str, object]:
     from PySide6.QtCore import QSettings
 
     from app.gui import compute
@@ -124,7 +126,7 @@ def _measure(name: str, ct_dir: Path, plan_path: Path, repeats: int) -> dict[str
     from app.gui.results import compute_path_view
 
     app = application()
-    settings = QSettings(str(plan_path.parent / "settings.ini"), QSettings.Format.IniFormat)
+    settings = QSettings(str(scratch / f"settings-{name}.ini"), QSettings.Format.IniFormat)
     window = make_window(settings)
     window.unattended = True
     window.ask_series = True
@@ -190,12 +192,14 @@ def run(quick: bool) -> Section:
     big_shape = (60, 128, 128) if quick else (300, 512, 512)
     results = []
     with tempfile.TemporaryDirectory(prefix="ctdrill-bench-gui-") as tmp:
-        results.append(_measure("demo", DEMO / "ct", DEMO / "plan.json", repeats))
+        results.append(_measure("demo", DEMO / "ct", DEMO / "plan.json", repeats, Path(tmp)))
         t0 = time.perf_counter()
         plan_path = synthetic_case(Path(tmp), big_shape, 0.3)
         write_s = time.perf_counter() - t0
         label = "x".join(str(d) for d in big_shape[::-1])
-        results.append(_measure(f"synthetic {label}", Path(tmp) / "ct", plan_path, repeats))
+        results.append(
+            _measure(f"synthetic {label}", Path(tmp) / "ct", plan_path, repeats, Path(tmp))
+        )
     rows = []
     for r in results:
         steps = r["steps"]
