@@ -66,7 +66,11 @@ def test_composited_screenshot_shows_the_3d_view_and_the_plots(
 
 def test_cli_screenshot_of_the_phantom(phantom_case: PhantomCase, tmp_path: Path) -> None:
     shot = tmp_path / "cli.png"
-    env = {**os.environ, "QT_QPA_PLATFORM": os.environ.get("QT_QPA_PLATFORM", "xcb")}
+    env = {
+        **os.environ,
+        "QT_QPA_PLATFORM": os.environ.get("QT_QPA_PLATFORM", "xcb"),
+        "XDG_CONFIG_HOME": str(tmp_path / "config"),  # the recent-folder list goes here
+    }
     proc = subprocess.run(
         [
             sys.executable,
@@ -90,6 +94,8 @@ def test_cli_screenshot_of_the_phantom(phantom_case: PhantomCase, tmp_path: Path
     )
     assert proc.returncode == 0, proc.stderr
     assert "blank" not in proc.stderr
+    recent = (tmp_path / "config" / "ctdrill" / "ctdrill.conf").read_text()
+    assert str(phantom_case.ct_dir) in recent
     img = qimage_to_rgb(QImage(str(shot)))
     h, w, _ = img.shape
     assert w >= 1280 and h >= 800
@@ -122,6 +128,7 @@ def test_cli_folder_without_dicom_exits_2(tmp_path: Path) -> None:
     proc = subprocess.run(
         [sys.executable, "-m", "app.cli", "gui", "--dicom", str(tmp_path), "--quit-after-s", "30"],
         cwd=ROOT,
+        env={**os.environ, "XDG_CONFIG_HOME": str(tmp_path / "config")},
         capture_output=True,
         text=True,
         timeout=60,
