@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 from PySide6.QtCore import Qt, Signal
@@ -53,6 +54,7 @@ class PlanPanel(QWidget):
         super().__init__(parent)
         self.plan: Plan | None = None
         self._updating = False
+        self._rows_key: tuple[tuple[str, str], ...] | None = None
         outer = QVBoxLayout(self)
 
         traj = QGroupBox("Trajectory (LPS, mm)")
@@ -134,16 +136,24 @@ class PlanPanel(QWidget):
             self.feed.setValue(plan.feed_mm_s)
             self.margin.setValue(plan.margin_mm)
             self.calibration.setCurrentText(plan.calibration)
-            self.table.setRowCount(len(plan.landmarks))
+            if clearance_mm is not None and len(clearance_mm) != len(plan.landmarks):
+                clearance_mm = None  # computed for another landmark list
+            key = tuple((lm.name, lm.kind) for lm in plan.landmarks)
+            if key != self._rows_key:  # rebuild the rows only when the landmarks change
+                self._rows_key = key
+                self.table.setRowCount(len(plan.landmarks))
+                for row, lm in enumerate(plan.landmarks):
+                    for col, text in enumerate((lm.name, lm.kind)):
+                        item = QTableWidgetItem(text)
+                        item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
+                        self.table.setItem(row, col, item)
+                    spin = _spin(0.0, 10.0, 0.1, 2, " mm")
+                    spin.valueChanged.connect(partial(self._margin_edited, row))
+                    self.table.setCellWidget(row, 2, spin)
             for row, lm in enumerate(plan.landmarks):
-                for col, text in enumerate((lm.name, lm.kind)):
-                    item = QTableWidgetItem(text)
-                    item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
-                    self.table.setItem(row, col, item)
-                box = _spin(0.0, 10.0, 0.1, 2, " mm")
-                box.setValue(plan.landmark_margin_mm(lm))
-                box.valueChanged.connect(lambda v, r=row: self._margin_edited(r, v))
-                self.table.setCellWidget(row, 2, box)
+                cell = self.table.cellWidget(row, 2)
+                if isinstance(cell, QDoubleSpinBox):
+                    cell.setValue(plan.landmark_margin_mm(lm))
                 clear = "-" if clearance_mm is None else f"{float(clearance_mm[row]):.2f} mm"
                 self.table.setItem(row, 3, QTableWidgetItem(clear))
         finally:

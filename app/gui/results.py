@@ -60,13 +60,10 @@ def compute_path_view(volume: CTVolume, plan: Plan) -> PathView:
 
 
 def block_reason(volume: CTVolume | None, view: PathView | None) -> str | None:
-    """Why rehearsal must not start, or None: no volume, not a volume, not HU, no path."""
+    """Why rehearsal must not start, or None. (A volume that cannot carry a force map, a
+    single slice or values that are not HU, is refused by ``plan_path`` itself: no view.)"""
     if volume is None:
         return "no CT series loaded"
-    if not volume.is_volume:
-        return "a single slice is not a volume for the force path"
-    if not volume.info.is_hu:
-        return "voxel values are not Hounsfield units (RescaleType); calibrate the series first"
     if view is None:
         return "the path has not been computed"
     if view.curves.stop_depth_mm <= 0.0:

@@ -106,6 +106,17 @@ def test_numeric_edit_and_margin_change_the_stop(
     assert window.view is not None
     assert window.view.curves.stop_depth_mm == pytest.approx(9.8, abs=0.01)
     assert window.view.curves.margin_mm == pytest.approx(3.0)
+    assert table.cellWidget(0, 2) is margin_box  # the row was updated, not rebuilt
+    assert table.item(0, 3).text() == "3.00 mm"
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        margin_box.setValue(2.5)  # type: ignore[attr-defined]
+    assert window.view.curves.stop_depth_mm == pytest.approx(10.3, abs=0.01)
+    # The feed spin box: the force scales by (1 + Ke v) / (1 + Ke v0), Ke = 0.25 per mm/s.
+    f0 = window.view.curves.force_n.copy()
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        window.plan_panel.feed.setValue(2.0)
+    ratio = (1.0 + 0.25 * 2.0) / (1.0 + 0.25 * 0.4)
+    assert np.allclose(window.view.curves.force_n, f0 * ratio)
 
 
 def test_save_and_reload_the_plan(
