@@ -231,6 +231,8 @@ def _path_text(
         f"Log-log slopes against trajectories: {slopes(n_traj, t_series)}"
         + (f"; {export_slope}." if export_slope else "."),
         "",
+        "Ours and the peer run alternately (repeat by repeat; chunk by chunk of 10 "
+        "trajectories for the larger batches), so that load from elsewhere hits both alike. "
         f"Ours counts as slower than a peer when its median is more than {TIE:g} x the "
         "peer's; closer is within run-to-run noise on this shared machine.",
         "",

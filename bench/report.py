@@ -86,6 +86,27 @@ def time_it(fn: Callable[[], object], *, repeats: int = 7, warmup: int = 1) -> T
     return Timing.from_samples(samples)
 
 
+def time_pair(
+    fn_a: Callable[[], object],
+    fn_b: Callable[[], object],
+    *,
+    repeats: int = 7,
+    warmup: int = 1,
+) -> tuple[Timing, Timing]:
+    """Time two peers alternately (a, b, a, b, ...), so that drifting load hits both alike."""
+    for _ in range(warmup):
+        fn_a()
+        fn_b()
+    samples: tuple[list[float], list[float]] = ([], [])
+    for _ in range(repeats):
+        for fn, out in ((fn_a, samples[0]), (fn_b, samples[1])):
+            gc.collect()
+            t0 = time.perf_counter()
+            fn()
+            out.append(time.perf_counter() - t0)
+    return Timing.from_samples(samples[0]), Timing.from_samples(samples[1])
+
+
 @dataclass(frozen=True)
 class Section:
     """One benchmark's part of ``docs/benchmarks.md``.

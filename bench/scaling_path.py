@@ -20,7 +20,7 @@ from scipy import ndimage
 
 from app.export import ExportJob, write_exports
 from app.pipeline import DEFAULT_DEPTH_STEP_MM, depth_grid_mm, plan_path
-from bench.report import figure_path, profile_top, time_it
+from bench.report import Timing, figure_path, profile_top, time_it, time_pair
 from imaging import load_series
 from imaging.landmarks import CanalLandmark
 from imaging.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS, lip_ring_points, sample_lip_rings
@@ -89,6 +89,34 @@ def _batch(volume: CTVolume, plans: list[Plan], cal: Calibration, fn: PathFn) ->
         fn(volume, plan, cal)
 
 
+def _paired_batch(
+    volume: CTVolume, batch: list[Plan], cal: Calibration, *, repeats: int
+) -> tuple[Timing, Timing]:
+    """Total time of ``plan_path`` and of the peer over ``batch``, run alternately.
+
+    Up to 10 trajectories: ``repeats`` alternating repeats. More: one pass, alternating ours
+    and the peer chunk by chunk (10 trajectories each), the totals summed.
+    """
+    if len(batch) <= 10:
+        return time_pair(
+            partial(_batch, volume, batch, cal, plan_path),
+            partial(_batch, volume, batch, cal, peer_path),
+            repeats=repeats,
+        )
+    total_ours = total_peer = 0.0
+    for start in range(0, len(batch), 10):
+        chunk = batch[start : start + 10]
+        ours, peer = time_pair(
+            partial(_batch, volume, chunk, cal, plan_path),
+            partial(_batch, volume, chunk, cal, peer_path),
+            repeats=1,
+            warmup=0,
+        )
+        total_ours += ours.median_s
+        total_peer += peer.median_s
+    return Timing.from_samples([total_ours]), Timing.from_samples([total_peer])
+
+
 def _export(jobs: list[ExportJob], folder: Path, series_uid: str) -> None:
     n = sum(1 for _ in folder.iterdir()) if folder.exists() else 0
     write_exports(jobs, folder / f"run{n}", feed_mm_s=None, rate_hz=1000.0, series_uid=series_uid)
@@ -109,9 +137,7 @@ def trajectory_scaling(
     rows: list[list[object]] = []
     for n in trajectories:
         batch = candidates(plan, n)
-        reps = repeats if n <= 10 else 1
-        ours = time_it(partial(_batch, volume, batch, cal, plan_path), repeats=reps)
-        peer = time_it(partial(_batch, volume, batch, cal, peer_path), repeats=reps)
+        ours, peer = _paired_batch(volume, batch, cal, repeats=repeats)
         series["plan_path"].append(ours.median_s)
         series["peer"].append(peer.median_s)
         export_cell = ""
@@ -170,10 +196,16 @@ def volume_scaling(
     for label, volume in volumes:
         plan = volume_plan(volume, depth_mm)
         depth = depth_grid_mm(plan.planned_depth_mm, DEFAULT_DEPTH_STEP_MM)
-        ours = time_it(partial(plan_path, volume, plan, cal), repeats=repeats)
-        peer = time_it(partial(peer_path, volume, plan, cal), repeats=repeats)
-        lip = time_it(partial(_lip, volume, plan, depth), repeats=repeats)
-        peer_lip = time_it(partial(peer_lip_hu, volume, plan, depth), repeats=repeats)
+        ours, peer = time_pair(
+            partial(plan_path, volume, plan, cal),
+            partial(peer_path, volume, plan, cal),
+            repeats=repeats,
+        )
+        lip, peer_lip = time_pair(
+            partial(_lip, volume, plan, depth),
+            partial(peer_lip_hu, volume, plan, depth),
+            repeats=repeats,
+        )
         voxels.append(float(volume.hu.size))
         for key, t in zip(VOLUME_SERIES, (ours, peer, lip, peer_lip), strict=True):
             series[key].append(t.median_s)

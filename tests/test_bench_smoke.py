@@ -22,6 +22,7 @@ from bench.report import (
     loglog_slope,
     profile_top,
     table,
+    time_pair,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -153,3 +154,11 @@ def test_parallel_modules_only_in_quick_mode(tmp_path: Path) -> None:
     assert proc.returncode == 2
     assert proc.stderr.startswith("error: --jobs") and len(proc.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "b.md").exists()
+
+
+def test_time_pair_alternates_and_times_each_peer() -> None:
+    calls: list[str] = []
+    a, b = time_pair(lambda: calls.append("a"), lambda: calls.append("b"), repeats=3, warmup=1)
+    assert calls == ["a", "b"] * 4
+    assert a.repeats == b.repeats == 3
+    assert 0.0 <= a.min_s <= a.median_s and 0.0 <= b.min_s <= b.median_s
