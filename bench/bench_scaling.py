@@ -6,11 +6,11 @@ Explicit VR Little Endian file per slice, 50-300 MiB) are written with
 readers load each: ``imaging.load_series``; SimpleITK's ``ImageSeriesReader`` (GDCM file
 discovery and ordering included, ``SetOutputPixelType(sitkInt16)``, array view); and a raw read
 of the same pixel bytes (the last ``rows * cols * 2`` bytes of every file, in a known order, into
-one preallocated array: the floor, no parsing). Warm runs repeat on a hot page cache; cold runs
-drop it before every run (``sync; echo 3 > /proc/sys/vm/drop_caches``). Peak memory is the rise
-of the peak resident set (``VmHWM``) over the resident set after imports, in a fresh process
-per reader and size, so no allocator state is shared between them (quick mode: in this
-process). Goals (issue 8): load_series at most 0.5 x SimpleITK's time, and within 1.5 x the
+one preallocated array: the floor, no parsing). The readers run round-robin, one run each in
+turn. Warm runs repeat on a hot page cache; cold runs drop it before every run
+(``sync; echo 3 > /proc/sys/vm/drop_caches``). Peak memory is the rise of the peak resident set
+(``VmHWM``) over the resident set after imports, in a fresh process per reader and size, so no
+allocator state is shared between them (quick mode: in this process). Goals (issue 8): load_series at most 0.5 x SimpleITK's time, and within 1.5 x the
 raw read cold.
 
 Force path. ``app.pipeline.plan_path`` (lip sampling at the default depth step and rings x

@@ -15,7 +15,7 @@ import platform
 import pstats
 import subprocess
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -86,6 +86,32 @@ def time_it(fn: Callable[[], object], *, repeats: int = 7, warmup: int = 1) -> T
     return Timing.from_samples(samples)
 
 
+def time_round(
+    fns: Mapping[str, Callable[[], object]],
+    *,
+    repeats: int = 7,
+    warmup: int = 1,
+    before_each: Callable[[], object] | None = None,
+) -> dict[str, Timing]:
+    """Time peers round-robin (a, b, c, a, b, c, ...), so that drifting load hits all alike.
+
+    ``before_each`` runs untimed before every timed call (e.g. dropping the page cache).
+    """
+    for _ in range(warmup):
+        for fn in fns.values():
+            fn()
+    samples: dict[str, list[float]] = {name: [] for name in fns}
+    for _ in range(repeats):
+        for name, fn in fns.items():
+            if before_each is not None:
+                before_each()
+            gc.collect()
+            t0 = time.perf_counter()
+            fn()
+            samples[name].append(time.perf_counter() - t0)
+    return {name: Timing.from_samples(values) for name, values in samples.items()}
+
+
 def time_pair(
     fn_a: Callable[[], object],
     fn_b: Callable[[], object],
@@ -93,18 +119,9 @@ def time_pair(
     repeats: int = 7,
     warmup: int = 1,
 ) -> tuple[Timing, Timing]:
-    """Time two peers alternately (a, b, a, b, ...), so that drifting load hits both alike."""
-    for _ in range(warmup):
-        fn_a()
-        fn_b()
-    samples: tuple[list[float], list[float]] = ([], [])
-    for _ in range(repeats):
-        for fn, out in ((fn_a, samples[0]), (fn_b, samples[1])):
-            gc.collect()
-            t0 = time.perf_counter()
-            fn()
-            out.append(time.perf_counter() - t0)
-    return Timing.from_samples(samples[0]), Timing.from_samples(samples[1])
+    """Time two peers alternately (a, b, a, b, ...); see :func:`time_round`."""
+    got = time_round({"a": fn_a, "b": fn_b}, repeats=repeats, warmup=warmup)
+    return got["a"], got["b"]
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,6 @@ import gc
 import os
 import subprocess
 import sys
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,7 +24,7 @@ from bench.report import (
     peak_rss_mib,
     reset_peak_rss,
     rss_mib,
-    time_it,
+    time_round,
 )
 from imaging import load_series
 from imaging.dicom_writer import write_series
@@ -126,17 +125,6 @@ def peak_mib(jobs: list[tuple[str, Path, int]], *, fresh: bool = True) -> list[f
     return results
 
 
-def time_cold(fn: Callable[[], object], repeats: int) -> Timing:
-    """Time ``fn`` with the page cache dropped before every run."""
-    samples = []
-    for _ in range(repeats):
-        drop_caches()
-        t0 = time.perf_counter()
-        fn()
-        samples.append(time.perf_counter() - t0)
-    return Timing.from_samples(samples)
-
-
 @dataclass(frozen=True)
 class LoadRow:
     """One series size: timings per reader (warm; cold or None) and peak RSS rise, MiB."""
@@ -178,9 +166,9 @@ def load_rows(
     rows = []
     for n, folder in folders.items():
         fns = {name: reader(name, folder, side) for name in READERS}
-        warm = {name: time_it(fn, repeats=repeats) for name, fn in fns.items()}
+        warm = time_round(fns, repeats=repeats)
         cold = (
-            {name: time_cold(fn, cold_repeats) for name, fn in fns.items()}
+            time_round(fns, repeats=cold_repeats, warmup=0, before_each=drop_caches)
             if cold_repeats
             else None
         )

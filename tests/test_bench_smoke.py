@@ -23,6 +23,7 @@ from bench.report import (
     profile_top,
     table,
     time_pair,
+    time_round,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -162,3 +163,15 @@ def test_time_pair_alternates_and_times_each_peer() -> None:
     assert calls == ["a", "b"] * 4
     assert a.repeats == b.repeats == 3
     assert 0.0 <= a.min_s <= a.median_s and 0.0 <= b.min_s <= b.median_s
+
+
+def test_time_round_runs_peers_in_turn_with_the_hook_before_each() -> None:
+    calls: list[str] = []
+    got = time_round(
+        {"x": lambda: calls.append("x"), "y": lambda: calls.append("y")},
+        repeats=2,
+        warmup=0,
+        before_each=lambda: calls.append("-"),
+    )
+    assert calls == ["-", "x", "-", "y"] * 2
+    assert sorted(got) == ["x", "y"] and got["x"].repeats == 2
