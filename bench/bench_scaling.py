@@ -10,8 +10,8 @@ one preallocated array: the floor, no parsing). The readers run round-robin, one
 turn. Warm runs repeat on a hot page cache; cold runs drop it before every run
 (``sync; echo 3 > /proc/sys/vm/drop_caches``). Peak memory is the rise of the peak resident set
 (``VmHWM``) over the resident set after imports, in a fresh process per reader and size, so no
-allocator state is shared between them (quick mode: in this process). Goals (issue 8): load_series at most 0.5 x SimpleITK's time, and within 1.5 x the
-raw read cold.
+allocator state is shared between them (quick mode: in this process). Goals (issue 8):
+load_series at most 0.5 x SimpleITK's time, and within 1.5 x the raw read cold.
 
 Force path. ``app.pipeline.plan_path`` (lip sampling at the default depth step and rings x
 angles, profile, clearance to the canal, exact max safe depth) on the demo case for 1 to 1000
