@@ -14,15 +14,17 @@ by ``make bench``.
 
 from __future__ import annotations
 
+import gc
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from bench.report import Section, Timing, figure_path, table, time_it
+from bench.report import Section, Timing, figure_path, table
 from imaging import load_series
 from imaging.dicom_writer import write_series
 from imaging.landmarks import CanalLandmark
@@ -75,7 +77,9 @@ def synthetic_case(out_dir: Path, shape_kji: tuple[int, int, int], spacing_mm: f
     return out_dir / "plan.json"
 
 
-def _open_to_first_frame(window: object, ct_dir: Path, repeats: int) -> tuple[Timing, float]:
+def _open_to_first_frame(
+    window: object, ct_dir: Path, repeats: int, settle_ms: int = 500
+) -> tuple[Timing, float]:
     """Median time from ``open_folder`` to the 3D view's first frame with the case drawn, and
     the longest the UI thread went without serving a 5 ms timer (from the open until 0.5 s
     after the frame), median over the repeats, s."""
@@ -101,23 +105,41 @@ def _open_to_first_frame(window: object, ct_dir: Path, repeats: int) -> tuple[Ti
         loop.exec()
         window.path_updated.disconnect(loop.quit)
         settle = QEventLoop()
-        QTimer.singleShot(500, settle.quit)
+        QTimer.singleShot(settle_ms, settle.quit)
         settle.exec()
         ticker.stop()
         samples.append(window.view3d.last_frame_s - t0)
         stalls.append(float(np.max(np.diff([t0, *ticks]))))
-    arr = np.asarray(samples)
-    return Timing(
-        median_s=float(np.median(arr)),
-        p25_s=float(np.percentile(arr, 25)),
-        p75_s=float(np.percentile(arr, 75)),
-        min_s=float(arr.min()),
-        repeats=repeats,
-    ), float(np.median(stalls))
+    return Timing.from_samples(samples), float(np.median(stalls))
+
+
+def _timed(fn: Callable[[], object], repeats: int, *, warmup: int = 1) -> Timing:
+    """Time ``repeats`` calls after ``warmup`` ones, with one garbage collection before the
+    block and the collector paused during it (with the window's Qt and VTK objects alive, a
+    collection before every call would cost more than most of the calls)."""
+    for _ in range(warmup):
+        fn()
+    gc.collect()
+    gc.disable()
+    try:
+        samples = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            fn()
+            samples.append(time.perf_counter() - t0)
+    finally:
+        gc.enable()
+    return Timing.from_samples(samples)
 
 
 def _measure(
-    name: str, ct_dir: Path, plan_path: Path, repeats: int, scratch: Path
+    name: str,
+    ct_dir: Path,
+    plan_path: Path,
+    repeats: int,
+    scratch: Path,
+    frame_repeats: int,
+    settle_ms: int,
 ) -> dict[str, object]:
     from PySide6.QtCore import QSettings
 
@@ -133,20 +155,20 @@ def _measure(
     try:
         window.open_plan(plan_path)
         app.processEvents()
-        first, stall_s = _open_to_first_frame(window, ct_dir, repeats)
+        first, stall_s = _open_to_first_frame(window, ct_dir, repeats, settle_ms=settle_ms)
         volume = load_series(ct_dir)
         plan = load_plan(plan_path)
         steps = {
-            "list series": time_it(lambda: list_series(ct_dir), repeats=repeats),
-            "load series": time_it(lambda: load_series(ct_dir), repeats=repeats),
-            "bone surface": time_it(lambda: compute.volume_surface(volume), repeats=repeats),
-            "four slices": time_it(lambda: compute.slice_views(volume, plan), repeats=repeats),
-            "plan path": time_it(lambda: compute_path_view(volume, plan), repeats=repeats),
+            "list series": _timed(lambda: list_series(ct_dir), repeats),
+            "load series": _timed(lambda: load_series(ct_dir), repeats),
+            "bone surface": _timed(lambda: compute.volume_surface(volume), repeats),
+            "four slices": _timed(lambda: compute.slice_views(volume, plan), repeats),
+            "plan path": _timed(lambda: compute_path_view(volume, plan), repeats),
         }
         plotter = window.view3d.plotter
-        frame = time_it(plotter.render, repeats=15, warmup=2)
+        frame = _timed(plotter.render, frame_repeats, warmup=2)
         plotter.ren_win.SetMultiSamples(4)
-        frame_msaa = time_it(plotter.render, repeats=15, warmup=2)
+        frame_msaa = _timed(plotter.render, frame_repeats, warmup=2)
         plotter.ren_win.SetMultiSamples(0)
         size = tuple(plotter.window_size)
         n_tri = 0 if window.view3d.surface is None else int(window.view3d.surface.n_cells)
@@ -189,16 +211,20 @@ def _figure(results: list[dict[str, object]]) -> str:
 def run(quick: bool) -> Section:
     """Benchmark the window on the demo and a synthetic large series."""
     repeats = 2 if quick else 5
+    frames = 5 if quick else 20
+    settle = 200 if quick else 500  # ms of stall watching after the first frame
     big_shape = (60, 128, 128) if quick else (300, 512, 512)
     results = []
     with tempfile.TemporaryDirectory(prefix="ctdrill-bench-gui-") as tmp:
-        results.append(_measure("demo", DEMO / "ct", DEMO / "plan.json", repeats, Path(tmp)))
+        results.append(
+            _measure("demo", DEMO / "ct", DEMO / "plan.json", repeats, Path(tmp), frames, settle)
+        )
         t0 = time.perf_counter()
         plan_path = synthetic_case(Path(tmp), big_shape, 0.3)
         write_s = time.perf_counter() - t0
-        label = "x".join(str(d) for d in big_shape[::-1])
+        label_case = "synthetic " + "x".join(str(d) for d in big_shape[::-1])
         results.append(
-            _measure(f"synthetic {label}", Path(tmp) / "ct", plan_path, repeats, Path(tmp))
+            _measure(label_case, Path(tmp) / "ct", plan_path, repeats, Path(tmp), frames, settle)
         )
     rows = []
     for r in results:
