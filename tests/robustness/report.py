@@ -13,6 +13,7 @@ import json
 import logging
 import platform
 import random
+import subprocess
 import tempfile
 import time
 import warnings
@@ -40,7 +41,7 @@ from tests.robustness.outcomes import (
     run_cli_subprocess,
 )
 from tests.robustness.test_found_bugs import FINDINGS, known_bug
-from tests.robustness.test_memory_bombs import BOMB_ADDRESS_SPACE
+from tests.robustness.test_memory_bombs import BOMB_ADDRESS_SPACE, HANG_S
 
 SLOW_S = 5.0
 
@@ -50,7 +51,13 @@ def corpus_rows(out_dir: Path) -> list[dict[str, str]]:
     rows = []
     for case in build_corpus(out_dir):
         if case.isolate:
-            run = run_cli_subprocess(inspect_args(case), address_space_bytes=BOMB_ADDRESS_SPACE)
+            try:
+                run = run_cli_subprocess(
+                    inspect_args(case), address_space_bytes=BOMB_ADDRESS_SPACE, timeout_s=HANG_S
+                )
+            except subprocess.TimeoutExpired:
+                rows.append(_row(case, f"hang (no exit within {HANG_S:.0f} s)", "killed", False))
+                continue
             seen = _from_cli(run.code, run.stdout, run.stderr)
             cli_ok = run.code == 0 or not error_line_problems(run)
         else:
@@ -59,18 +66,21 @@ def corpus_rows(out_dir: Path) -> list[dict[str, str]]:
             cli_ok = (run.code == 0) == (seen.outcome == "load") and (
                 run.code == 0 or not error_line_problems(run)
             )
-        ok = _matches(case, seen) and cli_ok
         rows.append(
-            {
-                "case": case.name,
-                "fault": case.fault,
-                "expected": " or ".join(e.describe() for e in case.expected),
-                "observed": _describe(seen),
-                "cli": f"exit {run.code}",
-                "verdict": "ok" if ok else "**bug**",
-            }
+            _row(case, _describe(seen), f"exit {run.code}", _matches(case, seen) and cli_ok)
         )
     return rows
+
+
+def _row(case: Case, observed: str, cli: str, ok: bool) -> dict[str, str]:
+    return {
+        "case": case.name,
+        "fault": case.fault,
+        "expected": " or ".join(e.describe() for e in case.expected),
+        "observed": observed,
+        "cli": cli,
+        "verdict": "ok" if ok else "**bug**",
+    }
 
 
 def _from_cli(code: int, stdout: str, stderr: str) -> Observed:
@@ -162,7 +172,7 @@ def json_campaign(n: int, rng: random.Random) -> dict[str, Counter[str]]:
 
 def protocol_campaign(n: int, rng: random.Random) -> dict[str, Counter[str]]:
     """``n`` mutated frames fed to a FrameReader followed by a valid heartbeat."""
-    from haptics.protocol import FrameReader, Packet, ProtocolError
+    from haptics.protocol import FrameReader, Packet, ProtocolError, decode
     from tests.robustness.test_fuzz_protocol import FRAMES, HEARTBEAT
 
     counts: dict[str, Counter[str]] = defaultdict(Counter)
@@ -170,7 +180,8 @@ def protocol_campaign(n: int, rng: random.Random) -> dict[str, Counter[str]]:
         mutation = random_byte_mutation(rng)
         while mutation.op == "length":  # frames have no DICOM elements
             mutation = random_byte_mutation(rng)
-        frame = apply_bytes(rng.choice(FRAMES), mutation, [])
+        original = rng.choice(FRAMES)
+        frame = apply_bytes(original, mutation, [])
         reader = FrameReader()
         try:
             out = reader.feed(rng.randbytes(rng.randrange(64)) + frame + b"\x00" + HEARTBEAT)
@@ -178,9 +189,16 @@ def protocol_campaign(n: int, rng: random.Random) -> dict[str, Counter[str]]:
             counts[mutation.op][f"NEW BUG: {type(exc).__name__}"] += 1
             continue
         recovered = bool(out) and isinstance(out[-1], Packet)
-        decoded = sum(isinstance(item, Packet) for item in out[:-1])
-        refused = sum(isinstance(item, ProtocolError) for item in out)
-        counts[mutation.op]["decoded" if decoded else "refused" if refused else "dropped"] += 1
+        packets = [item for item in out[:-1] if isinstance(item, Packet)]
+        if any(p != decode(original[:-1]) for p in packets):
+            outcome = "decoded, altered (CRC collision)"
+        elif packets:
+            outcome = "decoded intact (fault missed the frame)"
+        elif any(isinstance(item, ProtocolError) for item in out):
+            outcome = "refused"
+        else:
+            outcome = "dropped"
+        counts[mutation.op][outcome] += 1
         if not recovered:
             counts[mutation.op]["NEW BUG: next frame lost"] += 1
     return counts
@@ -222,7 +240,8 @@ def render(
         "known HU and geometry, one fault each) plus the real series of `../shared/data`.",
         "Expected outcomes list every acceptable one; a refusal is `ImagingInputError`, i.e.",
         "`ctdrill inspect` exits 2 with one `error:` line. Memory bombs run in a fresh process",
-        f"under `RLIMIT_AS` = {BOMB_ADDRESS_SPACE >> 30} GiB (a real load needs 0.4 GiB).",
+        f"under `RLIMIT_AS` = {BOMB_ADDRESS_SPACE >> 30} GiB (a real load needs 0.4 GiB), as do",
+        f"special files (named pipe, /dev/zero links), killed after {HANG_S:.0f} s.",
         "",
         f"{ok} of {len(rows)} cases behave as expected.",
         "",
@@ -240,9 +259,13 @@ def render(
         "",
         "Each DICOM example mutates one byte-level fault (flip, insert, delete, truncate,",
         "overwrite, or a data element's length field rewritten) into one file of a three-slice",
-        "series seeded from pydicom's `CT_small.dcm` or the mandible phantom, and loads the",
+        "series seeded from pydicom's `CT_small.dcm` or the bundled demo phantom, and loads the",
         "folder under 1 GiB of address-space headroom. `refuse` is the package's input error;",
-        "`known bug` rows are the reported bugs below; `NEW BUG` would be anything else.",
+        "`known bug` rows are the reported bugs below; `NEW BUG` would be anything else. A",
+        "mutation that lands in pixel data loads (different HU, same shape): that is expected.",
+        "JSON documents take one structure mutation (delete, replace with a hostile value, wrap,",
+        "stringify, duplicate) or a text cut; serial frames are followed by a valid heartbeat,",
+        "which must always come through.",
         "",
     ]
     for title, counts in campaigns.items():
