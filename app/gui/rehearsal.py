@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import threading
 import time
+import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -169,10 +170,13 @@ class RehearsalRun:
             self.cancelled = True
             try:
                 self._device.stop()
-            except ValueError as exc:
+            except (ValueError, OSError) as exc:
                 self.error = f"emergency stop not acknowledged: {exc}"
-        except ValueError as exc:  # the packages' input errors: a device that does not answer
-            self.error = str(exc)
+        except (ValueError, OSError) as exc:  # a device that does not answer, a lost port
+            self.error = str(exc) or type(exc).__name__
+        except Exception as exc:  # a bug: say so in the panel, keep the traceback on stderr
+            self.error = f"internal error: {exc!r}"
+            traceback.print_exc()
         finally:
             self._device.close()
             self._running = False
