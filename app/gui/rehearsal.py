@@ -1,24 +1,24 @@
-"""Rehearsal runs for the window, headless: device choice, a run that owns the device in its own
-thread, telemetry the GUI polls, and the clearance at the live drill depth."""
+"""Rehearsal runs for the window, headless: device choice, a run whose control loop owns the
+device in its own process, telemetry the GUI polls, and the clearance at the live depth."""
 
 from __future__ import annotations
 
 import json
-import threading
+import multiprocessing
+import queue
 import time
-import traceback
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from serial.tools import list_ports
 
 from app.export import DEFAULT_RATE_HZ, ExportJob, write_exports
+from app.gui.session_process import SessionJob, run_job
 from app.pipeline import PathResult
-from app.rehearse import open_device
-from haptics.device import Device
 from haptics.profile_table import ProfileTable
-from haptics.session import Operator, Row, SessionCsv, SessionResult, parse_operator, run_session
+from haptics.session import Row, SessionCsv
 
 #: The device-choice label of the simulator.
 SIMULATOR = "simulator"
@@ -51,25 +51,21 @@ class Telemetry:
     clearance_mm: float | None
 
 
-class _Cancelled(Exception):
-    """Raised from the session's sink to end a run the user stopped."""
-
-
 class RehearsalRun:
-    """One rehearsal on a device, run by ``haptics.session.run_session`` in its own thread.
+    """One rehearsal, its control loop in a separate process (:mod:`app.gui.session_process`).
 
-    The thread owns the device; the GUI reads :meth:`latest` (thread-safe) and may call
-    :meth:`stop`, which ends the session at the next 10 ms block with an emergency stop (the
-    device latches its safe state). With ``realtime`` the simulator is paced to the wall clock
-    (it would otherwise run as fast as the CPU allows).
+    The process owns the device; the window polls :meth:`latest` (which drains the process's
+    queue) and may call :meth:`stop`, which ends the session at the next 10 ms block with an
+    emergency stop (the device latches its safe state). With ``realtime`` the simulator is
+    paced to the wall clock (it would otherwise run as fast as the CPU allows); a serial device
+    runs on its own clock and is never paced.
     """
 
     def __init__(
         self,
         result: PathResult,
-        device: Device,
         device_spec: str,
-        operator: Operator,
+        operator_spec: str,
         *,
         duration_s: float,
         realtime: bool,
@@ -78,22 +74,31 @@ class RehearsalRun:
     ) -> None:
         self.result = result
         self.device_spec = device_spec
-        self.operator = operator
+        self.operator_spec = operator_spec
         self.duration_s = duration_s
         self.series_uid = series_uid
         self.table = ProfileTable.from_profile(result.profile, result.stop_depth_mm)
         self.rows: list[Row] = []
-        self.session: SessionResult | None = None
+        self.session: dict[str, Any] | None = None  # SessionResult.to_json() when done
         self.error = ""
         self.cancelled = False
-        self._device = device
-        self._realtime = realtime
         self._record = record
-        self._lock = threading.Lock()
         self._latest: Telemetry | None = None
-        self._stop = threading.Event()
-        self._running = True
-        self._thread = threading.Thread(target=self._run, name="ctdrill-rehearsal", daemon=True)
+        self._ended = False
+        ctx = multiprocessing.get_context("spawn")  # no fork of a Qt process
+        self._queue = ctx.Queue()
+        self._stop = ctx.Event()
+        job = SessionJob(
+            table=self.table,
+            operator_spec=operator_spec,
+            device_spec="sim" if device_spec == SIMULATOR else device_spec,
+            duration_s=duration_s,
+            realtime=realtime and device_spec == SIMULATOR,
+        )
+        self._process = ctx.Process(
+            target=run_job, args=(job, self._queue, self._stop), name="ctdrill-session"
+        )
+        self._process.daemon = True
 
     @classmethod
     def start(
@@ -107,79 +112,78 @@ class RehearsalRun:
         realtime: bool = True,
         series_uid: str = "",
     ) -> RehearsalRun:
-        """Open ``device`` (``simulator`` or ``serial:PORT``), then upload, arm and run in the
-        background with a simulated hand pushing ``push_n`` newtons (simulator only)."""
-        operator = parse_operator(f"push:{push_n:g}")
-        dev = open_device("sim" if device == SIMULATOR else device)
+        """Start a session on ``device`` (``simulator`` or ``serial:PORT``): upload, arm and
+        run, with a simulated hand pushing ``push_n`` newtons (simulator and emulator)."""
+        if not (np.isfinite(push_n) and push_n >= 0.0):
+            raise ValueError(f"simulated push: give a force >= 0 N, got {push_n}")
         run = cls(
             result,
-            dev,
             device,
-            operator,
+            f"push:{push_n:g}",
             duration_s=duration_s,
             realtime=realtime,
             record=record,
             series_uid=series_uid,
         )
-        run._thread.start()
+        run._process.start()
         return run
+
+    def _drain(self) -> None:
+        """Take everything the control loop reported so far (UI thread)."""
+        while True:
+            try:
+                kind, payload = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            if kind == "rows":
+                rows: list[Row] = payload
+                if self._record:
+                    self.rows.extend(rows)
+                t, master, drill, force, state = rows[-1]
+                self._latest = Telemetry(
+                    t, master, drill, force, state, clearance_at_mm(self.result, drill)
+                )
+            else:
+                self._ended = True
+                if kind == "done":
+                    self.session = payload
+                elif kind == "cancelled":
+                    self.cancelled = True
+                else:
+                    self.error = str(payload)
+        if not self._ended and self._process.exitcode is not None:
+            time.sleep(0.05)  # the queue's feeder may still be flushing the last message
+            if self._queue.empty():
+                self._ended = True
+                self.error = (
+                    f"the session process ended unexpectedly (exit code {self._process.exitcode})"
+                )
+            else:
+                self._drain()
 
     @property
     def running(self) -> bool:
-        """True until the session thread has finished."""
-        return self._running
+        """True until the control loop has reported its end."""
+        self._drain()
+        return not self._ended
 
     def latest(self) -> Telemetry | None:
         """The newest telemetry sample (None before the first)."""
-        with self._lock:
-            return self._latest
+        self._drain()
+        return self._latest
 
     def stop(self) -> None:
         """Ask the session to end (emergency stop at the next block)."""
         self._stop.set()
 
     def join(self, timeout_s: float) -> None:
-        """Wait for the session thread to end."""
-        self._thread.join(timeout_s)
-
-    def _sink(self, rows: list[Row], wall0: float) -> None:
-        if self._stop.is_set():
-            raise _Cancelled
-        if self._record:
-            self.rows.extend(rows)
-        t, master, drill, force, state = rows[-1]
-        tel = Telemetry(t, master, drill, force, state, clearance_at_mm(self.result, drill))
-        with self._lock:
-            self._latest = tel
-        if self._realtime:
-            ahead = t - (time.monotonic() - wall0)
-            if ahead > 0:
-                self._stop.wait(ahead)
-
-    def _run(self) -> None:
-        wall0 = time.monotonic()
-        try:
-            self.session = run_session(
-                self._device,
-                self.table,
-                self.operator,
-                self.duration_s,
-                sink=lambda rows: self._sink(rows, wall0),
-            )
-        except _Cancelled:
-            self.cancelled = True
-            try:
-                self._device.stop()
-            except (ValueError, OSError) as exc:
-                self.error = f"emergency stop not acknowledged: {exc}"
-        except (ValueError, OSError) as exc:  # a device that does not answer, a lost port
-            self.error = str(exc) or type(exc).__name__
-        except Exception as exc:  # a bug: say so in the panel, keep the traceback on stderr
-            self.error = f"internal error: {exc!r}"
-            traceback.print_exc()
-        finally:
-            self._device.close()
-            self._running = False
+        """Wait for the control loop to end, then take its last reports."""
+        end = time.monotonic() + timeout_s
+        while self.running and time.monotonic() < end:
+            time.sleep(0.01)
+        self._process.join(max(0.0, end - time.monotonic()))
+        if self._process.is_alive():
+            self._process.terminate()
 
     def export(self, out_dir: Path) -> list[Path]:
         """Write the path export (``force.csv``, ``profile.csv``, ``summary.json``,
@@ -199,13 +203,13 @@ class RehearsalRun:
             csv_out.write(self.rows)
         finally:
             csv_out.close()
-        summary: dict[str, object] = {} if self.session is None else self.session.to_json()
+        summary: dict[str, Any] = {} if self.session is None else dict(self.session)
         summary.update(
             {
                 "stop_reason": self.result.stop_reason,
                 "planned_depth_mm": float(self.result.planned_depth_mm),
                 "calibration": self.result.calibration.name,
-                "operator": self.operator.spec,
+                "operator": self.operator_spec,
                 "device": self.device_spec,
                 "cancelled": self.cancelled,
                 "recorded_rows": len(self.rows),

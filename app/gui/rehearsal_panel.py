@@ -1,7 +1,7 @@
 """The rehearsal panel: choose a device (simulator or serial port), connect, arm, watch the live
 force / depth / clearance, see the auto-stop and the safe state, record and export.
 
-The control loop owns the device (:class:`app.gui.rehearsal.RehearsalRun`, its own thread);
+The control loop owns the device (:class:`app.gui.rehearsal.RehearsalRun`, its own process);
 this panel only polls its telemetry with a QTimer and sends commands.
 """
 
@@ -216,8 +216,9 @@ class RehearsalPanel(QWidget):
             elif run.session is not None:
                 s = run.session
                 self.message.setText(
-                    f"session ended ({s.final_state}): deepest drill {s.max_drill_mm:.2f} mm of "
-                    f"stop {s.stop_depth_mm:.2f} mm, {s.samples} samples, {s.overruns} overruns"
+                    f"session ended ({s['final_state']}): deepest drill "
+                    f"{s['max_drill_mm']:.2f} mm of stop {s['stop_depth_mm']:.2f} mm, "
+                    f"{s['samples']} samples, {s['overruns']} overruns"
                 )
             elif run.cancelled:
                 self.message.setText("stopped by the user (device in its safe state)")

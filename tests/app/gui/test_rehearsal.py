@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import csv
 import json
+import signal
+import subprocess
+import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +23,8 @@ from imaging.phantom_io import PhantomCase
 from imaging.plan import load_plan
 from model import load_calibration
 from tests.app.gui.helpers import open_case
+
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def test_device_choices_start_with_the_simulator() -> None:
@@ -56,7 +62,7 @@ def test_simulated_rehearsal_reaches_the_auto_stop_and_exports(
     assert "cutting" in states and "stopped" in states
     # The device held the drill at the stop depth: never past it by more than 0.05 mm.
     assert drill.max() == pytest.approx(stop, abs=0.05)
-    assert run.session.max_drill_mm <= stop + 0.05
+    assert run.session["max_drill_mm"] <= stop + 0.05
     first_stop = states.index("stopped")
     assert drill[first_stop] == pytest.approx(stop, abs=0.05)
     assert "REACHED" in panel.auto_stop_label.text() or states[-1] != "stopped"
@@ -102,3 +108,45 @@ def test_a_silent_serial_device_is_reported_and_the_panel_recovers(
     assert panel.run is not None and panel.run.session is None
     assert panel.message.text().startswith("error:")
     assert panel.connect_button.isEnabled() and not panel.stop_button.isEnabled()
+
+
+@pytest.fixture
+def emulator_link(tmp_path: Path) -> Iterator[Path]:
+    """``ctdrill emulate`` on a pseudo-terminal linked at a path (a serial port stand-in)."""
+    link = tmp_path / "ctdrill-device"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "app.cli", "emulate", "--pty-link", str(link)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        assert proc.stdout.readline().startswith(f"emulating on {link}")
+        yield link
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.communicate(timeout=10)
+
+
+@pytest.mark.timeout(90)
+def test_rehearsal_over_a_serial_port_reaches_the_auto_stop(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase, emulator_link: Path
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    panel = window.rehearsal
+    panel.duration_s = 3.5
+    panel.push.setValue(12.0)
+    panel.device.addItem(f"serial:{emulator_link}")
+    panel.device.setCurrentText(f"serial:{emulator_link}")
+    with qtbot.waitSignal(panel.finished, timeout=60_000):
+        panel.start()
+    run = panel.run
+    assert run is not None and run.error == "" and run.session is not None
+    stop = window.view.curves.stop_depth_mm if window.view is not None else np.nan
+    drill = np.array([r[2] for r in run.rows])
+    states = [r[4] for r in run.rows]
+    assert "stopped" in states
+    assert drill.max() == pytest.approx(stop, abs=0.05)
+    assert run.session["tick_rate_hz"] > 1000.0
