@@ -16,6 +16,8 @@ from imaging.landmarks import CanalLandmark
 from imaging.phantom_io import PhantomCase
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 
+pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
+
 
 def qt_point(canvas: SliceCanvas, uv_mm: np.ndarray) -> QPoint:
     """Widget coordinates of in-plane mm ``uv_mm`` on ``canvas``."""

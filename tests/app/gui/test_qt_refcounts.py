@@ -5,8 +5,11 @@ from __future__ import annotations
 
 import sys
 
+import pytest
 from PySide6.QtCore import QObject, QTimer, Signal
 from PySide6.QtWidgets import QApplication
+
+pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
 
 CALLS = 3000
 

@@ -24,6 +24,8 @@ from imaging.plan import load_plan
 from model import load_calibration
 from tests.app.gui.helpers import open_case
 
+pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
+
 ROOT = Path(__file__).resolve().parents[3]
 
 

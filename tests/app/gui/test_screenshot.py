@@ -18,6 +18,8 @@ from app.gui.screenshot import qimage_to_rgb, region_stats, widget_rect
 from imaging.phantom_io import PhantomCase
 from tests.app.gui.helpers import open_case
 
+pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
+
 ROOT = Path(__file__).resolve().parents[3]
 
 

@@ -11,6 +11,8 @@ from app.gui import compute
 from app.gui.main_window import MainWindow
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS
 
+pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
+
 MIXED = "dcmqa_ct_Philips_phantom_gantrytilt_mixedfolder"
 SMALLER_UID = "1.3.46.670589.33.1.7303547162003802183.31761132431540865648"  # the 54-slice one
 

@@ -15,6 +15,8 @@ from imaging.phantom_io import PhantomCase
 from imaging.plan import load_plan
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 
+pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
+
 
 def plot_stop_lines(win: MainWindow) -> list[float]:
     """x of the stop-depth line (magenta, solid) on each of the three plot axes."""
