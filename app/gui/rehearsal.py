@@ -58,7 +58,9 @@ class RehearsalRun:
     queue) and may call :meth:`stop`, which ends the session at the next 10 ms block with an
     emergency stop (the device latches its safe state). With ``realtime`` the simulator is
     paced to the wall clock (it would otherwise run as fast as the CPU allows); a serial device
-    runs on its own clock and is never paced.
+    runs on its own clock and is never paced. The process is started with ``spawn`` (no fork
+    of a Qt process), so a script that starts runs needs the usual ``if __name__ ==
+    "__main__":`` guard (``ctdrill gui`` and pytest have it).
     """
 
     def __init__(
