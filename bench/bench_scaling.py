@@ -327,12 +327,13 @@ def run(quick: bool) -> Section:
     traj_rows, t_series = trajectory_scaling(
         sizes.trajectories, sizes.exports, repeats=sizes.repeats
     )
-    profiles += [
-        "Where the export of one trajectory spends its time (cProfile, top 10 by own time):",
-        "",
-        export_profile(),
-        "",
-    ]
+    if not quick:  # the export dominates the force path's cost; quick mode skips its profile
+        profiles += [
+            "Where the export of one trajectory spends its time (cProfile, top 10 by own time):",
+            "",
+            export_profile(),
+            "",
+        ]
     path_md, path_short = _path_text(sizes, traj_rows, t_series, vol_rows, voxels, v_series)
     figures = (
         str(plot_load(rows)),

@@ -56,7 +56,7 @@ def test_quick_bench_writes_every_section_with_numbers(tmp_path: Path) -> None:
     out = tmp_path / "benchmarks.md"
     t0 = time.perf_counter()
     proc = subprocess.run(
-        [sys.executable, "-m", "bench", "--quick", "--jobs", "2", "--out", str(out)],
+        [sys.executable, "-m", "bench", "--quick", "--jobs", "3", "--out", str(out)],
         cwd=ROOT,
         env=dict(os.environ),
         capture_output=True,
