@@ -75,6 +75,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except INPUT_ERRORS as exc:
         sys.stderr.write(f"error: {exc}\n")
         return 2
+    except OSError as exc:
+        # The operating system refused a path the user gave (name too long, permission, a
+        # full disk): bad input or environment, not a bug.
+        where = f"{exc.filename}: " if exc.filename else ""
+        reason = exc.strerror or str(exc)
+        sys.stderr.write(f"error: {where}{reason}; check the path and its permissions\n")
+        return 2
     except KeyboardInterrupt:
         sys.stderr.write("error: interrupted\n")
         return 130

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+import stat
 import struct
 import warnings
 from collections.abc import Iterator
@@ -124,7 +125,7 @@ class ScanResult:
 
 
 def iter_files(path: Path) -> Iterator[Path]:
-    """Every regular file under ``path`` (or ``path`` itself), in a stable order."""
+    """Every non-directory entry under ``path`` (or ``path`` itself), in a stable order."""
     if path.is_file():
         yield path
         return
@@ -132,6 +133,14 @@ def iter_files(path: Path) -> Iterator[Path]:
         dirs.sort()
         for name in sorted(files):
             yield Path(root) / name
+
+
+def _is_regular_file(path: Path) -> bool:
+    """True when ``path`` (links followed) is a regular file; never opens it."""
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:
+        return False
 
 
 def _looks_like_dicom(path: Path) -> bool | None:
@@ -467,7 +476,12 @@ def scan(path: str | Path) -> ScanResult:
     headers: list[SliceHeader] = []
     skipped: list[Skipped] = []
     not_dicom: list[Path] = []
-    files = list(iter_files(root))
+    files: list[Path] = []
+    for file in iter_files(root):
+        if _is_regular_file(file):
+            files.append(file)
+        else:  # a pipe, device or socket would block or never end: never open it
+            skipped.append(Skipped(file, "not a regular file (pipe, device or socket)"))
     _prefetch(files)
     for file in files:
         got = read_headers(file)

@@ -31,6 +31,10 @@ CALIBRATION_DIR: Path = Path(model.__file__).resolve().parents[1] / "assets" / "
 
 #: Largest force (N) a power law may give within its range; more is a unit or sign error.
 MAX_LAW_N: float = 1.0e6
+#: Smallest force (N) a law must reach somewhere in its range: below it the set cuts nothing.
+MIN_LAW_N: float = 1.0e-6
+#: Largest |exponent| n of a power law in C' (the fitted sets have |n| < 3).
+MAX_EXPONENT: float = 50.0
 #: Highest harmonic order accepted (the paper uses 1 and 2; 90 Hz was already noise).
 MAX_ORDER: int = 64
 #: Largest feed sensitivity accepted, per (mm/s) (the paper's pine wood: 0.25).
@@ -239,7 +243,18 @@ def calibration_from_dict(data: Any, *, source_path: Path | str = "<dict>") -> C
         (f"harmonics[{i}]", h.b0, h.n) for i, h in enumerate(harmonics)
     ]
     for where, b0, n in laws:
+        if abs(n) > MAX_EXPONENT:
+            raise CalibrationError(
+                f"calibration file {src}: field {where}.n must be within "
+                f"[-{MAX_EXPONENT:g}, {MAX_EXPONENT:g}], got {n:g}; check the fit"
+            )
         log10_ends = [b0 + n * math.log10(c) for c in (lo, hi)]
+        if max(log10_ends) < math.log10(MIN_LAW_N):
+            raise CalibrationError(
+                f"calibration file {src}: field {where} gives less than {MIN_LAW_N:g} N "
+                f"everywhere in c_prime_range [{lo:g}, {hi:g}] (a material cut with no force); "
+                "check the sign of b0 and n, or leave the harmonic out"
+            )
         if max(log10_ends) > math.log10(MAX_LAW_N):
             raise CalibrationError(
                 f"calibration file {src}: field {where} gives more than {MAX_LAW_N:g} N within "

@@ -33,3 +33,13 @@ def test_unknown_subcommand_is_exit_2_with_error_line(capsys: pytest.CaptureFixt
     err = capsys.readouterr().err
     assert err.startswith("error:")
     assert "Traceback" not in err
+
+
+def test_an_os_refusal_of_a_path_is_exit_2_naming_it(
+    tmp_path: object, capsys: pytest.CaptureFixture[str]
+) -> None:
+    too_long = f"{tmp_path}/{'y' * 300}"  # one component over NAME_MAX: ENAMETOOLONG
+    assert main(["inspect", too_long, "--json"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1
+    assert "y" * 300 in err and "Traceback" not in err

@@ -186,3 +186,24 @@ def test_integer_beyond_float_range_is_refused_in_one_line() -> None:
 def test_laws_that_would_overflow_are_refused(a0: dict[str, float], field: str) -> None:
     with pytest.raises(CalibrationError, match=field):
         calibration_from_dict(_mutated(a0=a0), source_path="x.json")
+
+
+@pytest.mark.parametrize(
+    ("a0", "message"),
+    [
+        ({"b0": -400.0, "n": 0.77, "ke": 0.25}, "less than 1e-06 N everywhere"),
+        ({"b0": -1.35, "n": -400.0, "ke": 0.25}, r"a0\.n must be within \[-50, 50\]"),
+        ({"b0": -1.35, "n": -1e308, "ke": 0.25}, r"a0\.n must be within"),
+    ],
+)
+def test_laws_that_vanish_or_have_absurd_exponents_are_refused(
+    a0: dict[str, float], message: str
+) -> None:
+    with pytest.raises(CalibrationError, match=message):
+        calibration_from_dict(_mutated(a0=a0), source_path="x.json")
+
+
+def test_a_vanishing_harmonic_is_refused_by_its_index() -> None:
+    doc = _mutated(harmonics=[{"order": 1, "b0": -400.0, "n": -1.91}])
+    with pytest.raises(CalibrationError, match=r"harmonics\[0\] gives less than"):
+        calibration_from_dict(doc, source_path="x.json")

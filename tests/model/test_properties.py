@@ -20,7 +20,13 @@ from model import (
     harmonic_freqs_hz,
     load_calibration,
 )
-from model.calibration import MAX_KE_PER_MM_S, MAX_LAW_N, calibration_from_dict
+from model.calibration import (
+    MAX_EXPONENT,
+    MAX_KE_PER_MM_S,
+    MAX_LAW_N,
+    MIN_LAW_N,
+    calibration_from_dict,
+)
 from model.errors import ModelInputError
 from model.force import MAX_FEED_MM_S, force_density_n
 from model.layered import layered_profile
@@ -128,9 +134,12 @@ def test_any_accepted_calibration_is_finite_for_any_input(
     try:
         cal = calibration_from_dict(doc)
     except ModelInputError:
-        # Refused only because a law exceeds MAX_LAW_N somewhere in its range.
-        worst = max(b0 + s * n * math.log10(c) for c in (lo, lo * span) for s in (1, -1))
-        assert worst > math.log10(MAX_LAW_N) - 1e-9
+        # Refused only because a law's exponent is out of bounds, or a law exceeds MAX_LAW_N
+        # somewhere in its range, or stays below MIN_LAW_N everywhere in it.
+        laws = [[b0 + s * n * math.log10(c) for c in (lo, lo * span)] for s in (1, -1)]
+        too_big = max(max(ends) for ends in laws) > math.log10(MAX_LAW_N) - 1e-9
+        vanishing = min(max(ends) for ends in laws) < math.log10(MIN_LAW_N) + 1e-9
+        assert abs(n) > MAX_EXPONENT or too_big or vanishing
         return
     f = float(force_density_n(hu, feed, t, cal, freqs_hz=[30.0]))
     assert math.isfinite(f)
