@@ -271,6 +271,26 @@ def render(
     for title, counts in campaigns.items():
         out += [*_counts_table(title, counts), ""]
     out += [
+        "## Hypothesis fuzz tests",
+        "",
+        "Marked `fuzz`: 40 examples each in `make test`, `CTDRILL_FUZZ_EXAMPLES` (20000 in",
+        "`make fuzz`) otherwise. Only the package's own input error may escape; each example has",
+        "5 s and 1 GiB of extra address space.",
+        "",
+        "| test | input | invariant |",
+        "|---|---|---|",
+        "| `test_fuzz_dicom.py` | 1-4 byte faults in one file of a 3-slice series "
+        "(CT_small, demo phantom) | loads a finite volume or `ImagingInputError` |",
+        "| `test_fuzz_json.py` | 1-3 structure or text faults in a plan, a Slicer markup, a "
+        "calibration set | a finite, sane plan / a law finite for every int16 HU, or the "
+        "package error |",
+        "| `test_fuzz_pipeline.py` | faulty demo plans that still load | `plan_path` gives finite "
+        "profiles and a stop within the plan, or an input error |",
+        "| `test_fuzz_protocol.py` | faulty frames after garbage, split at random | only "
+        "`ProtocolError`; the reader's buffer stays bounded; the next heartbeat decodes |",
+        "| `test_fuzz_device.py` | uploads, ARM/STOP/RESET, hostile values, hands up to 100 N, "
+        "ticks | force finite in 0..78 N; the drill never past the uploaded stop depth |",
+        "",
         "## Found bugs",
         "",
         "Each open bug is a failing test in `tests/robustness/test_found_bugs.py`; fixed ones keep",

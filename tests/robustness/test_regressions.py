@@ -4,7 +4,8 @@ Also fixed and covered by the corpus itself (``test_corpus.py``, ``test_memory_b
 ``zero_rescale_slope`` (loaded silently), ``bomb_number_of_frames`` (NumberOfFrames 2147483647
 loaded as one slice), ``bomb_pixel_length_all/_one`` (PixelData declaring 4 GiB in a 1 kB file
 loaded), ``bomb_header_element_length`` (MemoryError under RLIMIT_AS), ``private_transfer_syntax``
-(ValueError from the decoder lookup), ``unknown_vr`` (NotImplementedError from pydicom).
+(ValueError from the decoder lookup), ``unknown_vr`` (NotImplementedError from pydicom),
+``fifo_in_folder`` (the loader blocked forever opening a named pipe).
 """
 
 from __future__ import annotations
@@ -179,3 +180,69 @@ def test_plan_with_huge_entry_is_refused_in_one_line(tmp_path: Path) -> None:
         ["export", "--dicom", str(dicom), "--plan", str(plan), "--out", str(tmp_path / "out")]
     )
     assert not error_line_problems(run), error_line_problems(run)
+
+
+def test_named_pipe_in_series_folder_does_not_hang(cases: dict[str, Case]) -> None:
+    """fifo-hang: ``os.mkfifo("pipe.dcm")`` beside a clean series: the loader opens the pipe and
+    blocks forever. Expected: skip anything that is not a regular file (files_skipped)."""
+    from tests.robustness.test_memory_bombs import check_bomb
+
+    check_bomb(cases["fifo_in_folder"])  # also in test_memory_bombs.py; pinned here by name
+
+
+@pytest.mark.parametrize(
+    ("field", "value"), [("n", -1e308), ("n", -400.0), ("b0", -400.0)], ids=["n-1e308", "n", "b0"]
+)
+def test_calibration_whose_force_vanishes_is_refused(
+    tmp_path: Path, field: str, value: float
+) -> None:
+    """calibration-law-vanishing: the set loads, and A0 = 0 N for every HU and feed (a material
+    that cuts with no force; with n = -1e308 the evaluation overflows in ``n log10 C'`` first).
+    Upper bounds are checked (laws above 1e6 N are refused); the lower end is not."""
+    import numpy as np
+
+    from model import ModelInputError, a0_n, load_calibration
+    from tests.robustness.fuzz import seed_calibration
+
+    doc = seed_calibration()
+    doc["a0"] = {**doc["a0"], field: value}
+    path = tmp_path / "cal.json"
+    path.write_text(json.dumps(doc))
+    try:
+        cal = load_calibration(path)
+    except ModelInputError:
+        return
+    with np.errstate(all="ignore"):
+        a0 = a0_n(np.array([-1000.0, 0.0, 1000.0]), 0.4, cal)
+    pytest.fail(f"a0.{field}={value} accepted; A0 = {a0} N at HU -1000, 0, 1000")
+
+
+LONG = "y" * 300  # one path component longer than NAME_MAX (255 bytes)
+
+
+@pytest.mark.parametrize("where", ["inspect", "plan", "out", "calibration", "plan-calibration"])
+def test_overlong_path_component_is_an_input_error(where: str, tmp_path: Path) -> None:
+    """path-too-long: ``Path.is_file()``/``mkdir`` raise OSError ENAMETOOLONG (pathlib only
+    swallows ENOENT-like errors), which escapes as a traceback with exit code 1."""
+    from tests.robustness.outcomes import error_line_problems, run_cli_subprocess
+
+    demo = ROOT / "assets" / "demo"
+    export = ["export", "--dicom", str(demo / "ct"), "--plan", str(demo / "plan.json")]
+    if where == "inspect":
+        args = ["inspect", str(tmp_path / LONG), "--json"]
+    elif where == "plan":
+        args = ["export", "--dicom", str(demo / "ct"), "--plan", str(tmp_path / f"{LONG}.json")]
+        args += ["--out", str(tmp_path / "out")]
+    elif where == "out":
+        args = [*export, "--out", str(tmp_path / LONG)]
+    elif where == "calibration":
+        args = [*export, "--out", str(tmp_path / "out"), "--calibration", LONG]
+    else:
+        doc = json.loads((demo / "plan.json").read_text())
+        doc["calibration"] = LONG
+        plan = tmp_path / "plan.json"
+        plan.write_text(json.dumps(doc))
+        args = ["export", "--dicom", str(demo / "ct"), "--plan", str(plan)]
+        args += ["--out", str(tmp_path / "out")]
+    run = run_cli_subprocess(args)
+    assert not error_line_problems(run), (where, run.stderr[-800:])
