@@ -76,6 +76,9 @@ FINDINGS: tuple[Finding, ...] = (
     Finding("unknown-transfer-syntax", "imaging loader",
             "TransferSyntaxUID 1.2.840.10008.1.2.1.99 (DICOM root, undefined)",
             "loaded silently as native pixels, no warning", "open", "corpus"),
+    Finding("manifest-nul-path", "model/recordings.py", "a NUL byte in a manifest's file name",
+            "ValueError: embedded null byte from open(): calibrate exits 1", "open",
+            "calibrate fuzz"),
     Finding("plan-huge-coordinates", "imaging/plan.py + imaging/_geometry.py",
             "a canal point at z = 1e308 mm (entry_mm 1e308: see symptom)",
             "accepted; export then exits 1 with ValueError: math domain error in the clearance "
@@ -95,7 +98,9 @@ FINDINGS: tuple[Finding, ...] = (
 )  # fmt: skip
 
 #: Open bugs whose trigger the fuzzers hit.
-KNOWN_BUGS: tuple[KnownBug, ...] = ()
+KNOWN_BUGS: tuple[KnownBug, ...] = (
+    KnownBug("manifest-nul-path", ValueError, "model/recordings.py", "read_recording"),
+)
 
 #: Corpus cases whose outcome is wrong (kept out of test_corpus.py and test_memory_bombs.py).
 BUG_CASES: frozenset[str] = frozenset({"unknown_transfer_syntax"})
@@ -156,3 +161,15 @@ def test_unknown_transfer_syntax_in_the_dicom_root_is_refused(cases: dict[str, C
     case = cases["unknown_transfer_syntax"]
     assert case.name in BUG_CASES
     check_inspect(case, check_load(case))
+
+
+def test_manifest_file_name_with_nul_byte_is_an_input_error(tmp_path: Path) -> None:
+    """manifest-nul-path: ``rec\\x00.csv`` in the manifest's file column makes open() raise
+    ``ValueError: embedded null byte``, which escapes read_recording (exit 1 in the CLI)."""
+    from model import ModelInputError
+    from model.fit import calibrate_from_manifest
+
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text("file,hu,feed_mm_s\nrec\x00.csv,-600,2\n")
+    with pytest.raises(ModelInputError):
+        calibrate_from_manifest(manifest, rpm=900.0, blades=2)
