@@ -288,6 +288,9 @@ def render(
         "profiles and a stop within the plan, or an input error |",
         "| `test_fuzz_protocol.py` | faulty frames after garbage, split at random | only "
         "`ProtocolError`; the reader's buffer stays bounded; the next heartbeat decodes |",
+        "| `test_fuzz_calibrate.py` | a hostile cell, a repeated or dropped row, or byte faults "
+        "in the manifest or one of six recordings | a finite set that loads back, or the "
+        "package error |",
         "| `test_fuzz_device.py` | uploads, ARM/STOP/RESET, hostile values, hands up to 100 N, "
         "ticks | force finite in 0..78 N; the drill never past the uploaded stop depth |",
         "",
