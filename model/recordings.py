@@ -50,7 +50,7 @@ def _read_header(path: Path, what: str) -> tuple[list[str], list[list[str]]]:
             rows = [row for row in csv.reader(fh) if row and any(c.strip() for c in row)]
     except FileNotFoundError as exc:
         raise RecordingError(f"{what} {path}: not found; check the path") from exc
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, ValueError) as exc:  # ValueError: undecodable text, a NUL in the name
         raise RecordingError(f"{what} {path}: cannot read it ({exc})") from exc
     if not rows:
         raise RecordingError(f"{what} {path}: empty; it needs a header line and data rows")
@@ -138,7 +138,7 @@ def read_recording(path: str | Path) -> Recording:
             first = next(csv.reader([fh.readline()]), [])
     except FileNotFoundError as exc:
         raise RecordingError(f"recording {rpath}: not found; check the path") from exc
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, ValueError) as exc:  # ValueError: undecodable text, a NUL in the name
         raise RecordingError(f"recording {rpath}: cannot read it ({exc})") from exc
     header = [c.strip() for c in first]
     idx = _column_index(header, RECORDING_COLUMNS, rpath, "recording")
