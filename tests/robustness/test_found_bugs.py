@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from model.errors import ModelInputError
 from tests.robustness.make_corpus import ROOT, Case
 
 
@@ -77,8 +78,13 @@ FINDINGS: tuple[Finding, ...] = (
             "TransferSyntaxUID 1.2.840.10008.1.2.1.99 (DICOM root, undefined)",
             "loaded silently as native pixels, no warning", "open", "corpus"),
     Finding("manifest-nul-path", "model/recordings.py", "a NUL byte in a manifest's file name",
-            "ValueError: embedded null byte from open(): calibrate exits 1", "open",
+            "ValueError: embedded null byte from open(): calibrate exits 1", "fixed",
             "calibrate fuzz"),
+    Finding("calibrate-unloadable-fit", "model/fit.py + app/commands/calibrate.py",
+            "the 4 mm/s recordings' force in mN (x1000), the rest in N",
+            "fit gives Ke = 102696 per mm/s; calibrate writes OUT.json, then refuses to load it "
+            "(exit 2 blaming OUT.json, the unusable file left behind)", "open",
+            "calibrate fuzz (20000 examples)"),
     Finding("plan-huge-coordinates", "imaging/plan.py + imaging/_geometry.py",
             "a canal point at z = 1e308 mm (entry_mm 1e308: see symptom)",
             "accepted; export then exits 1 with ValueError: math domain error in the clearance "
@@ -99,7 +105,8 @@ FINDINGS: tuple[Finding, ...] = (
 
 #: Open bugs whose trigger the fuzzers hit.
 KNOWN_BUGS: tuple[KnownBug, ...] = (
-    KnownBug("manifest-nul-path", ValueError, "model/recordings.py", "read_recording"),
+    # only where test_fuzz_calibrate.py loads back what the fit produced
+    KnownBug("calibrate-unloadable-fit", ModelInputError, "model/calibration.py", "*"),
 )
 
 #: Corpus cases whose outcome is wrong (kept out of test_corpus.py and test_memory_bombs.py).
@@ -163,13 +170,33 @@ def test_unknown_transfer_syntax_in_the_dicom_root_is_refused(cases: dict[str, C
     check_inspect(case, check_load(case))
 
 
-def test_manifest_file_name_with_nul_byte_is_an_input_error(tmp_path: Path) -> None:
-    """manifest-nul-path: ``rec\\x00.csv`` in the manifest's file column makes open() raise
-    ``ValueError: embedded null byte``, which escapes read_recording (exit 1 in the CLI)."""
-    from model import ModelInputError
-    from model.fit import calibrate_from_manifest
+def _recordings_in_mn_at_one_feed(folder: Path) -> Path:
+    from tests.robustness.test_fuzz_calibrate import seed_files
 
-    manifest = tmp_path / "manifest.csv"
-    manifest.write_text("file,hu,feed_mm_s\nrec\x00.csv,-600,2\n")
+    for name, text in seed_files().items():
+        if name.endswith("_4.csv"):  # a unit slip: these three recordings in mN
+            head, *rows = text.strip().split("\n")
+            scaled = [",".join([*r.split(",")[:2], f"{float(r.split(',')[2]) * 1000:.3f}"])
+                      for r in rows]  # fmt: skip
+            text = "\n".join([head, *scaled]) + "\n"
+        (folder / name).write_text(text)
+    return folder / "manifest.csv"
+
+
+def test_fit_outside_the_loadable_range_is_refused_before_writing(tmp_path: Path) -> None:
+    """calibrate-unloadable-fit: forces in mN at one feed fit Ke = 102696 per (mm/s); the fit
+    returns it, ``ctdrill calibrate`` writes OUT.json and only then fails to load it (exit 2,
+    "calibration file OUT.json: field a0.ke must be in [0, 1000]"), leaving the file behind.
+    Expected: the fit refuses (naming the recordings), nothing is written."""
+    from model.fit import calibrate_from_manifest
+    from tests.robustness.outcomes import error_line_problems, run_cli_in_process
+
+    manifest = _recordings_in_mn_at_one_feed(tmp_path)
+    out = tmp_path / "out.json"
+    run = run_cli_in_process(
+        ["calibrate", str(manifest), "--rpm", "900", "--blades", "2", "--out", str(out)]
+    )
+    assert not error_line_problems(run), run.stderr
+    assert not out.exists(), "an unusable calibration set was written"
     with pytest.raises(ModelInputError):
         calibrate_from_manifest(manifest, rpm=900.0, blades=2)

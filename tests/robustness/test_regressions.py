@@ -246,3 +246,15 @@ def test_overlong_path_component_is_an_input_error(where: str, tmp_path: Path) -
         args += ["--out", str(tmp_path / "out")]
     run = run_cli_subprocess(args)
     assert not error_line_problems(run), (where, run.stderr[-800:])
+
+
+def test_manifest_file_name_with_nul_byte_is_an_input_error(tmp_path: Path) -> None:
+    """manifest-nul-path: ``rec\\x00.csv`` in the manifest's file column makes open() raise
+    ``ValueError: embedded null byte``, which escapes read_recording (exit 1 in the CLI)."""
+    from model import ModelInputError
+    from model.fit import calibrate_from_manifest
+
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text("file,hu,feed_mm_s\nrec\x00.csv,-600,2\n")
+    with pytest.raises(ModelInputError):
+        calibrate_from_manifest(manifest, rpm=900.0, blades=2)
