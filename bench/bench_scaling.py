@@ -81,23 +81,32 @@ QUICK = Sizes(128, (16, 32), (1, 2), (1,), 4.0, 1, 0)
 # ------------------------------------------------------------------------------ report
 
 
-def _goal_rows(rows: list[LoadRow]) -> tuple[list[list[object]], list[str]]:
+def goal_rows(rows: list[LoadRow]) -> tuple[list[list[object]], list[str]]:
+    """Goal table rows per size and one line per missed goal (issue 8's loading goals)."""
     out: list[list[object]] = []
     misses: list[str] = []
     for r in rows:
         vs_sitk = r.warm["load_series"].median_s / r.warm["SimpleITK"].median_s
         cells: list[object] = [r.slices, f"{vs_sitk:.2f}"]
         checks = [("warm vs SimpleITK", vs_sitk, GOAL_VS_SITK)]
+        floor = ""
         if r.cold is not None:
             c_sitk = r.cold["load_series"].median_s / r.cold["SimpleITK"].median_s
             c_raw = r.cold["load_series"].median_s / r.cold["raw"].median_s
-            cells += [f"{c_sitk:.2f}", f"{c_raw:.2f}"]
+            raw_sitk = r.cold["raw"].median_s / r.cold["SimpleITK"].median_s
+            cells += [f"{c_sitk:.2f}", f"{c_raw:.2f}", f"{raw_sitk:.2f}"]
             checks += [("cold vs SimpleITK", c_sitk, GOAL_VS_SITK)]
             checks += [("cold vs raw", c_raw, GOAL_VS_RAW_COLD)]
+            if raw_sitk > GOAL_VS_SITK:
+                floor = (
+                    f" (even the raw read of the bytes takes {raw_sitk:.2f} x SimpleITK's cold "
+                    "time here: the disk, not the parser, sets this floor)"
+                )
         else:
-            cells += ["n/a", "n/a"]
+            cells += ["n/a", "n/a", "n/a"]
         missed = [
             f"{what} {ratio:.2f} x (goal <= {goal} x)"
+            + (floor if what == "cold vs SimpleITK" else "")
             for what, ratio, goal in checks
             if ratio > goal
         ]
@@ -122,7 +131,7 @@ def _time_rows(rows: list[LoadRow]) -> list[list[object]]:
 def _load_text(
     sizes: Sizes, rows: list[LoadRow], cold_ok: bool, same: bool, t_write: float
 ) -> tuple[list[str], list[str]]:
-    goal_rows, misses = _goal_rows(rows)
+    goal_rows, misses = goal_rows(rows)
     n = [float(r.slices) for r in rows]
     warm = {name: [r.warm[name].median_s for r in rows] for name in READERS}
     cold = {name: [r.cold[name].median_s for r in rows if r.cold] for name in READERS}
@@ -153,6 +162,7 @@ def _load_text(
                 "ours / SimpleITK warm",
                 "ours / SimpleITK cold",
                 "ours / raw cold",
+                "raw / SimpleITK cold",
                 "goals (<= 0.5 x SimpleITK, <= 1.5 x raw cold)",
                 *(f"peak MiB {n}" for n in READERS),
                 "volume MiB",

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from bench.__main__ import discover
+from bench.bench_scaling import goal_rows
 from bench.report import (
     FIGURE_DIR_ENV,
     Timing,
@@ -25,6 +26,7 @@ from bench.report import (
     time_pair,
     time_round,
 )
+from bench.scaling_load import READERS, LoadRow
 
 ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / "docs" / "benchmarks"
@@ -175,3 +177,34 @@ def test_time_round_runs_peers_in_turn_with_the_hook_before_each() -> None:
     )
     assert calls == ["-", "x", "-", "y"] * 2
     assert sorted(got) == ["x", "y"] and got["x"].repeats == 2
+
+
+def _row(
+    slices: int, warm: tuple[float, float, float], cold: tuple[float, float, float]
+) -> LoadRow:
+    def timings(values: tuple[float, float, float]) -> dict[str, Timing]:
+        return {n: Timing.from_samples([v]) for n, v in zip(READERS, values, strict=True)}
+
+    peak = dict.fromkeys(READERS, 1.0)
+    return LoadRow(slices, float(slices), timings(warm), timings(cold), peak)
+
+
+def test_loading_goals_are_judged_from_the_medians() -> None:
+    # (load_series, SimpleITK, raw) seconds.
+    met = _row(100, warm=(0.04, 0.1, 0.01), cold=(0.1, 0.25, 0.08))
+    slow = _row(300, warm=(0.06, 0.1, 0.01), cold=(0.3, 0.4, 0.1))
+    rows, misses = goal_rows([met, slow])
+    assert rows[0][1:6] == ["0.40", "0.40", "1.25", "0.32", "met"]
+    assert rows[1][1:5] == ["0.60", "0.75", "3.00", "0.25"]
+    assert misses == [
+        "300 slices: warm vs SimpleITK 0.60 x (goal <= 0.5 x)",
+        "300 slices: cold vs SimpleITK 0.75 x (goal <= 0.5 x)",
+        "300 slices: cold vs raw 3.00 x (goal <= 1.5 x)",
+    ]
+    # When the raw bytes alone take more than half SimpleITK's time, the line says so.
+    floor = _row(100, warm=(0.04, 0.1, 0.01), cold=(0.2, 0.3, 0.2))
+    _, floor_misses = goal_rows([floor])
+    assert floor_misses == [
+        "100 slices: cold vs SimpleITK 0.67 x (goal <= 0.5 x) (even the raw read of the bytes "
+        "takes 0.67 x SimpleITK's cold time here: the disk, not the parser, sets this floor)"
+    ]
