@@ -131,7 +131,7 @@ def _time_rows(rows: list[LoadRow]) -> list[list[object]]:
 def _load_text(
     sizes: Sizes, rows: list[LoadRow], cold_ok: bool, same: bool, t_write: float
 ) -> tuple[list[str], list[str]]:
-    goal_rows, misses = goal_rows(rows)
+    goal_table, misses = goal_rows(rows)
     n = [float(r.slices) for r in rows]
     warm = {name: [r.warm[name].median_s for r in rows] for name in READERS}
     cold = {name: [r.cold[name].median_s for r in rows if r.cold] for name in READERS}
@@ -167,7 +167,7 @@ def _load_text(
                 *(f"peak MiB {n}" for n in READERS),
                 "volume MiB",
             ],
-            goal_rows,
+            goal_table,
         ),
         "",
         "### How loading grows",
