@@ -90,7 +90,13 @@ def fit(files: dict[str, str]) -> str:
         assert finite_numbers(doc), doc
         out = Path(tmp) / "fitted.json"
         out.write_text(json.dumps(doc, allow_nan=False))
-        load_calibration(out)  # what calibrate writes must load back
+        try:
+            load_calibration(out)  # what calibrate writes must load back
+        except ModelInputError as exc:
+            key = known_bug(exc)
+            if key is None:
+                raise
+            return key
     return "ok"
 
 
