@@ -21,9 +21,11 @@ import numpy as np
 
 from model.calibration import (
     Calibration,
+    CalibrationError,
     Harmonic,
     PowerLaw,
     available_calibrations,
+    calibration_from_dict,
     calibration_to_dict,
     load_calibration,
 )
@@ -347,7 +349,7 @@ def calibrate_from_manifest(
         measure_recording(read_recording(e.path), e, freqs, depth_window_mm=depth_window_mm)
         for e in read_manifest(mpath)
     ]
-    return fit_calibration(
+    fit = fit_calibration(
         measurements,
         orders=orders,
         freqs_hz=freqs.tolist(),
@@ -361,6 +363,16 @@ def calibrate_from_manifest(
         gate_width_hu=gate_width_hu,
         ke_per_mm_s=ke_per_mm_s,
     )
+    try:  # the set must be one load_calibration accepts, or nothing is written
+        calibration_from_dict(calibration_to_dict(fit.calibration), source_path=mpath)
+    except CalibrationError as exc:
+        reason = str(exc).split(": ", 1)[-1]
+        raise FitInputError(
+            f"manifest {mpath}: the fit gives an unusable calibration set ({reason}); check that "
+            "every recording gives force_n in N, position_mm in mm and the manifest feed_mm_s "
+            "in mm/s"
+        ) from None
+    return fit
 
 
 def fit_document(fit: CalibrationFit) -> dict[str, Any]:
