@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+from model.errors import ModelInputError
 from tests.robustness.make_corpus import ROOT, Case
 
 
@@ -256,5 +257,37 @@ def test_manifest_file_name_with_nul_byte_is_an_input_error(tmp_path: Path) -> N
 
     manifest = tmp_path / "manifest.csv"
     manifest.write_text("file,hu,feed_mm_s\nrec\x00.csv,-600,2\n")
+    with pytest.raises(ModelInputError):
+        calibrate_from_manifest(manifest, rpm=900.0, blades=2)
+
+
+def _recordings_in_mn_at_one_feed(folder: Path) -> Path:
+    from tests.robustness.test_fuzz_calibrate import seed_files
+
+    for name, text in seed_files().items():
+        if name.endswith("_4.csv"):  # a unit slip: these three recordings in mN
+            head, *rows = text.strip().split("\n")
+            scaled = [",".join([*r.split(",")[:2], f"{float(r.split(',')[2]) * 1000:.3f}"])
+                      for r in rows]  # fmt: skip
+            text = "\n".join([head, *scaled]) + "\n"
+        (folder / name).write_text(text)
+    return folder / "manifest.csv"
+
+
+def test_fit_outside_the_loadable_range_is_refused_before_writing(tmp_path: Path) -> None:
+    """calibrate-unloadable-fit: forces in mN at one feed fit Ke = 102696 per (mm/s); the fit
+    returns it, ``ctdrill calibrate`` writes OUT.json and only then fails to load it (exit 2,
+    "calibration file OUT.json: field a0.ke must be in [0, 1000]"), leaving the file behind.
+    Expected: the fit refuses (naming the recordings), nothing is written."""
+    from model.fit import calibrate_from_manifest
+    from tests.robustness.outcomes import error_line_problems, run_cli_in_process
+
+    manifest = _recordings_in_mn_at_one_feed(tmp_path)
+    out = tmp_path / "out.json"
+    run = run_cli_in_process(
+        ["calibrate", str(manifest), "--rpm", "900", "--blades", "2", "--out", str(out)]
+    )
+    assert not error_line_problems(run), run.stderr
+    assert not out.exists(), "an unusable calibration set was written"
     with pytest.raises(ModelInputError):
         calibrate_from_manifest(manifest, rpm=900.0, blades=2)
