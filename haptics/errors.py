@@ -1,4 +1,4 @@
-"""Typed errors of the ``haptics``' package."""
+"""Typed errors of the ``haptics`` package."""
 
 
 class HapticsInputError(ValueError):

@@ -1,4 +1,4 @@
-"""Typed errors of the ``imaging``' package."""
+"""Typed errors of the ``imaging`` package."""
 
 
 class ImagingInputError(ValueError):

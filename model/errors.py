@@ -1,4 +1,4 @@
-"""Typed errors of the ``model``' package."""
+"""Typed errors of the ``model`` package."""
 
 
 class ModelInputError(ValueError):
