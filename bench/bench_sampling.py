@@ -26,13 +26,13 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from bench.report import Section, table, time_it
+from bench.report import Section, figure_path, table, time_it
 from imaging.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS, lip_ring_points, sample_lip_rings
 from imaging.volume import CTVolume, SeriesInfo
 from model import gate, load_calibration
 
 ROOT = Path(__file__).resolve().parents[1]
-FIGURE = "docs/benchmarks/sampling_pareto.png"
+FIGURE_NAME = "sampling_pareto.png"
 
 SPACING_MM = 0.3
 DIAMETER_MM = 2.0
@@ -368,7 +368,7 @@ def run(quick: bool) -> Section:
     results, notes = main_sweep(quick)
     key = (1, 0.1 if quick else 0.05, DEFAULT_N_RINGS, DEFAULT_N_ANGLES)
     default = next((r for r in results if (r.order, r.step_mm, r.n_rings, r.n_angles) == key), None)
-    plot(results, default, ROOT / FIGURE)
+    plot(results, default, figure_path(FIGURE_NAME))
     # fmt: off
     rows = [
         [ORDER_NAMES[r.order], r.step_mm, f"{r.n_rings}x{r.n_angles}", _n_samples(r),
@@ -403,4 +403,8 @@ def run(quick: bool) -> Section:
         "",
         _peer(quick),
     ]
-    return Section(title="Lip sampling", markdown="\n".join(md), figures=(FIGURE,))
+    return Section(
+        title="Lip sampling",
+        markdown="\n".join(md),
+        figures=(str(figure_path(FIGURE_NAME)),),
+    )
