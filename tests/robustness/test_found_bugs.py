@@ -140,12 +140,12 @@ def test_known_bug_matches_module_and_function(monkeypatch: pytest.MonkeyPatch) 
     with pytest.raises(ImagingInputError) as info:
         load_plan(ROOT / "no-such-plan.json")
     assert known_bug(info.value) is None
-    here = KnownBug("demo", ImagingInputError, "imaging/plan.py", "*")
+    here = KnownBug("demo", ImagingInputError, "imaging/_plan_read.py", "*")
     monkeypatch.setattr(registry, "KNOWN_BUGS", (here,))
     assert known_bug(info.value) == "demo"
     elsewhere = KnownBug("demo", ImagingInputError, "imaging/series.py", "*")
     monkeypatch.setattr(registry, "KNOWN_BUGS", (elsewhere,))
     assert known_bug(info.value) is None
-    wrong_type = KnownBug("demo", TypeError, "imaging/plan.py", "*")
+    wrong_type = KnownBug("demo", TypeError, "imaging/_plan_read.py", "*")
     monkeypatch.setattr(registry, "KNOWN_BUGS", (wrong_type,))
     assert known_bug(info.value) is None
