@@ -241,10 +241,10 @@ class CTVolume:
         if pts.shape[-1:] != (3,):
             raise ImagingInputError(f"points_lps: expected shape (..., 3), got {pts.shape}")
         batch = pts.shape[:-1]
-        idx = pts.reshape(-1, 3) @ self._inv_lin.T
-        idx += self._inv_off
         top = self._top
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):  # non-finite points: outside
+            idx = pts.reshape(-1, 3) @ self._inv_lin.T
+            idx += self._inv_off
             inside = ((idx >= -_EDGE_TOL_VOX) & (idx <= top + _EDGE_TOL_VOX)).all(axis=1)
         if not inside.all():
             idx[~inside] = 0.0
