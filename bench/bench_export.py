@@ -72,10 +72,11 @@ def _iqr(values_ms: np.ndarray) -> str:
     return f"{med:.3g} ms [{q1:.3g}-{q3:.3g}]"
 
 
-def candidates(plan: Plan, n: int) -> list[Plan]:
-    """``n`` trajectories around ``plan``: shifted entries, tilted axes, same depth."""
+def candidates(plan: Plan, n: int, *, seed: int = 0) -> list[Plan]:
+    """``n`` trajectories around ``plan``: entries shifted within +-3 mm, axes tilted up to 15
+    degrees, same depth; deterministic for a ``seed``."""
     out: list[Plan] = []
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(seed)
     while len(out) < n:
         shift = rng.uniform(-3.0, 3.0, size=2)
         tilt = math.radians(rng.uniform(0.0, 15.0))

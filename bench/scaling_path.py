@@ -8,10 +8,8 @@ difference between the two is the sampling path (and ``plan_path``'s checks of t
 
 from __future__ import annotations
 
-import math
 import tempfile
 from collections.abc import Callable
-from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
@@ -20,6 +18,7 @@ from scipy import ndimage
 
 from app.export import ExportJob, write_exports
 from app.pipeline import DEFAULT_DEPTH_STEP_MM, depth_grid_mm, plan_path
+from bench.bench_export import candidates as export_candidates
 from bench.report import Timing, figure_path, profile_top, time_it, time_pair
 from imaging import load_series
 from imaging.landmarks import CanalLandmark
@@ -65,23 +64,8 @@ def peer_path(volume: CTVolume, plan: Plan, calibration: Calibration) -> float:
 
 
 def candidates(plan: Plan, n: int) -> list[Plan]:
-    """``n`` trajectories around ``plan``: entries within +-3 mm, tilts up to 15 degrees."""
-    rng = np.random.default_rng(1)
-    out = []
-    for k in range(n):
-        shift = rng.uniform(-3.0, 3.0, size=2)
-        tilt, azimuth = math.radians(rng.uniform(0.0, 15.0)), rng.uniform(0.0, 2 * math.pi)
-        entry = plan.entry_lps + np.array([shift[0], shift[1], 0.0])
-        axis = np.array(
-            [
-                math.sin(tilt) * math.cos(azimuth),
-                math.sin(tilt) * math.sin(azimuth),
-                -math.cos(tilt),
-            ]
-        )
-        target = entry + plan.planned_depth_mm * axis
-        out.append(replace(plan, entry_lps=entry, target_lps=target, name=f"c{k}"))
-    return out
+    """``n`` trajectories around ``plan`` (:func:`bench.bench_export.candidates`, seed 1)."""
+    return export_candidates(plan, n, seed=1)
 
 
 def _batch(volume: CTVolume, plans: list[Plan], cal: Calibration, fn: PathFn) -> None:
