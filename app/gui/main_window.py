@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import os
 import sys
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
-from PySide6.QtCore import QSettings, Qt, QThreadPool, QTimer, Signal
+from PySide6.QtCore import QSettings, Qt, QThreadPool, Signal
 from PySide6.QtGui import QCloseEvent, QDragEnterEvent, QDropEvent, QImage
 from PySide6.QtWidgets import (
     QGridLayout,
@@ -41,7 +42,7 @@ from app.gui.series_panel import SeriesPanel
 from app.gui.slice_view import SliceCanvas
 from app.gui.slices import VIEWS, WINDOW_PRESETS, SliceImage, volume_center_lps
 from app.gui.view3d import View3D
-from app.gui.workers import Debouncer, Runner
+from app.gui.workers import Debouncer, Runner, StepQueue
 from imaging import CTVolume
 from imaging.plan import Plan, load_plan, save_plan
 
@@ -85,7 +86,11 @@ class MainWindow(QMainWindow):
         self._slice_key: tuple[object, ...] | None = None
 
         self.view3d = View3D()
-        self.slice_canvases: dict[str, SliceCanvas] = {v: SliceCanvas(v) for v in VIEWS}
+        #: UI-thread drawing steps, one per event-loop pass (see ``_slices_done``, ``_path_done``).
+        self.ui_steps = StepQueue()
+        self.slice_canvases: dict[str, SliceCanvas] = {
+            v: SliceCanvas(v, steps=self.ui_steps) for v in VIEWS
+        }
         slice_box = QWidget()
         grid = QGridLayout(slice_box)
         grid.setContentsMargins(0, 0, 0, 0)
@@ -132,6 +137,7 @@ class MainWindow(QMainWindow):
         self.slice_runner = Runner(self._slices_done, self._failed, parent=self)
         self.surface_runner = Runner(self._surface_done, self._failed, parent=self)
         self.debounce = Debouncer(self._recompute, DEBOUNCE_MS, parent=self)
+        self.ui_steps.setParent(self)
         self.progress: QProgressDialog | None = None
         self.recent_menu = build_menus(self)
         self._status("Open a DICOM folder (File > Open, or drop it here).")
@@ -299,24 +305,38 @@ class MainWindow(QMainWindow):
 
     def _slices_done(self, slices: dict[str, SliceImage]) -> None:
         self.slices = slices
+        # One slice view per event-loop pass (each is resliced, overlaid and drawn), so the
+        # UI thread is never held for all four canvases at once.
+        for name in slices:
+            self.ui_steps.push(partial(self._show_slice, slices, name))
+        self.ui_steps.push(lambda: self._slices_shown(slices))
+
+    def _show_slice(self, slices: dict[str, SliceImage], name: str) -> None:
+        if slices is not self.slices:
+            return
         level, width = self.window_level
         plan = self.plan
-        for name, img in slices.items():
-            canvas = self.slice_canvases[name]
-            canvas.show_slice(img, level_hu=level, width_hu=width)
-            if plan is not None:  # the trajectory in the middle of the field of view
-                canvas.focus_on((plan.entry_lps + plan.target_lps) / 2.0)
-        self._draw_overlays()
-        self.slices_updated.emit()
+        canvas = self.slice_canvases[name]
+        canvas.show_slice(slices[name], level_hu=level, width_hu=width)
+        if plan is not None:  # the trajectory in the middle of the field of view
+            canvas.focus_on((plan.entry_lps + plan.target_lps) / 2.0)
+        self._draw_overlays(only=name)
 
-    def _draw_overlays(self) -> None:
+    def _slices_shown(self, slices: dict[str, SliceImage]) -> None:
+        if slices is self.slices:
+            self.slices_updated.emit()
+
+    def _draw_overlays(self, only: str | None = None) -> None:
+        """Overlay the plan on every slice view (or on view ``only``)."""
         plan = self.plan
         if plan is None:
             return
         view = self.view if self.view is not None and self.view.plan is plan else None
         stop = None if view is None else plan.point_at_depth_lps(view.curves.stop_depth_mm)
         lms = planning.landmark_geometries(plan, None if view is None else view.min_clearance_mm)
-        for canvas in self.slice_canvases.values():
+        for name, canvas in self.slice_canvases.items():
+            if only is not None and name != only:
+                continue
             canvas.set_overlays(
                 entry_lps=plan.entry_lps, target_lps=plan.target_lps, stop_lps=stop, landmarks=lms
             )
@@ -326,24 +346,31 @@ class MainWindow(QMainWindow):
         if plan is None or view.plan is not plan:
             return
         self.view = view
-        # Three steps, each its own event, so that paint events run in between and the UI
-        # thread is never held for the whole update (a software-GL frame alone is ~50 ms).
-        QTimer.singleShot(0, lambda: self._show_plots(view))
-        QTimer.singleShot(0, lambda: self._show_scene(view))
-        QTimer.singleShot(0, lambda: self._finish_path(view))
+        # Four steps, one per event-loop pass, so that paints and timers run in between and
+        # the UI thread is never held for the whole update (on software GL the scene build
+        # and the frame are each tens of ms).
+        self.ui_steps.push(lambda: self._show_plots(view))
+        self.ui_steps.push(lambda: self._show_scene(view))
+        self.ui_steps.push(lambda: self._render_scene(view))
+        self.ui_steps.push(lambda: self._finish_path(view))
 
     def _show_plots(self, view: PathView) -> None:
         if view is not self.view:
             return
         draw_depth_plots(self.plot_fig, view.curves)
-        self.plot_canvas.draw_idle()
+        self.ui_steps.push(self.plot_canvas.draw)  # ~50 ms of Agg: a pass of its own
 
     def _show_scene(self, view: PathView) -> None:
         if view is not self.view:
             return
-        self._draw_scene(view.plan, view)
+        self._draw_scene(view.plan, view, render=False)
 
-    def _draw_scene(self, plan: Plan, view: PathView | None) -> None:
+    def _render_scene(self, view: PathView) -> None:
+        if view is not self.view:
+            return
+        self.view3d.render_now()
+
+    def _draw_scene(self, plan: Plan, view: PathView | None, *, render: bool = True) -> None:
         """The 3D scene of ``plan``, with the stop point and clearances when computed."""
         scene = SceneInput(
             entry_lps=plan.entry_lps,
@@ -355,7 +382,7 @@ class MainWindow(QMainWindow):
                 plan, None if view is None else view.min_clearance_mm
             ),
         )
-        self.view3d.show_scene(scene, refocus=self._refocus_next)
+        self.view3d.show_scene(scene, refocus=self._refocus_next, render=render)
         self._refocus_next = False
 
     def _path_failed(self, exc: BaseException, tb: str) -> None:

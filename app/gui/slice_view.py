@@ -19,6 +19,7 @@ from PySide6.QtCore import Signal
 
 from app.gui.scene import LandmarkGeometry
 from app.gui.slices import SliceImage, polyline_in_plane, window_to_uint8
+from app.gui.workers import StepQueue
 
 #: Pick radius for dragging a handle, pixels.
 PICK_PX = 10.0
@@ -44,10 +45,14 @@ class SliceCanvas(FigureCanvasQTAgg):
     point_moved = Signal(str, object)  # handle name ("entry" | "target"), (3,) LPS mm
     clicked = Signal(object)  # (3,) LPS mm on the plane
 
-    def __init__(self, view: str) -> None:
+    def __init__(self, view: str, *, steps: StepQueue | None = None) -> None:
+        """``steps``: if given, redraws requested with ``draw_idle`` are queued there (one
+        canvas per event-loop pass) instead of matplotlib's own idle draw."""
         fig = Figure(figsize=(3.0, 3.0), dpi=80, facecolor="#101010")
         super().__init__(fig)
         self.view = view
+        self._steps = steps
+        self._draw_queued = False
         self.ax = fig.add_axes((0.0, 0.0, 1.0, 0.93))
         self.ax.set_facecolor("black")
         self.ax.set_axis_off()
@@ -67,6 +72,19 @@ class SliceCanvas(FigureCanvasQTAgg):
         self.mpl_connect("scroll_event", self._scroll)
 
     # ------------------------------------------------------------------ drawing
+    def draw_idle(self) -> None:
+        """Redraw soon: via the shared step queue if any (each canvas draws in a pass of its
+        own, so several views changed together never hold the UI thread back to back)."""
+        if self._steps is None:
+            super().draw_idle()
+        elif not self._draw_queued:
+            self._draw_queued = True
+            self._steps.push(self._draw_now)
+
+    def _draw_now(self) -> None:
+        self._draw_queued = False
+        self.draw()
+
     def show_slice(self, image: SliceImage, *, level_hu: float, width_hu: float) -> None:
         """Replace the image (and keep the overlays until ``set_overlays``)."""
         self.image = image

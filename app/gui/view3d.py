@@ -40,8 +40,11 @@ class View3D(QWidget):
         if redraw and self.scene is not None:
             self.show_scene(self.scene)
 
-    def show_scene(self, scene: SceneInput, *, refocus: bool = False) -> None:
-        """Rebuild the scene; the camera is focused on the trajectory the first time."""
+    def show_scene(self, scene: SceneInput, *, refocus: bool = False, render: bool = True) -> None:
+        """Rebuild the scene; the camera is focused on the trajectory the first time.
+
+        With ``render`` False the frame is left to a later :meth:`render_now` (the window
+        draws it in its own event-loop pass)."""
         self.scene = scene
         cam = self.plotter.camera_position
         self.actors = build_scene(self.plotter, scene, surface=self.surface)
@@ -54,7 +57,8 @@ class View3D(QWidget):
             self._camera_for = key
         else:
             self.plotter.camera_position = cam
-        self.render_now()
+        if render:
+            self.render_now()
 
     def set_drill_depth(self, depth_mm: float) -> None:
         """Put the drill tip at ``depth_mm`` along the planned axis (live rehearsal)."""

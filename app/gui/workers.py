@@ -9,6 +9,7 @@ by the receiver instead of being drawn.
 from __future__ import annotations
 
 import traceback
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
@@ -121,3 +122,39 @@ class Debouncer(QObject):
     def pending(self) -> bool:
         """True while a call is scheduled."""
         return self._timer.isActive()
+
+
+class StepQueue(QObject):
+    """Run queued UI-thread steps one per event-loop pass, in order.
+
+    A zero-interval timer runs one step per timeout, so the events and timers that fall due
+    in between (paints, input, other timers) are served between two steps instead of after
+    all of them: the UI thread is held for the longest single step, not for their sum.
+    """
+
+    def __init__(self, parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self._steps: deque[Callable[[], None]] = deque()
+        self._timer = QTimer(self)
+        self._timer.setInterval(0)
+        self._timer.timeout.connect(self._step)
+
+    def push(self, fn: Callable[[], None]) -> None:
+        """Queue ``fn()`` after every step queued before it."""
+        self._steps.append(fn)
+        if not self._timer.isActive():
+            self._timer.start()
+
+    @property
+    def pending(self) -> int:
+        """Number of steps not run yet."""
+        return len(self._steps)
+
+    def _step(self) -> None:
+        if not self._steps:
+            self._timer.stop()
+            return
+        fn = self._steps.popleft()
+        if not self._steps:
+            self._timer.stop()
+        fn()
