@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import ndimage
 
 from imaging.errors import ImagingInputError
 
@@ -258,6 +259,40 @@ class CTVolume:
         weights = fx[:, 0, _BI] * fx[:, 1, _BJ] * fx[:, 2, _BK]
         return flats, weights, inside, batch
 
+    def _sample_trilinear_unpadded(self, points_lps: np.ndarray, outside_hu: float) -> np.ndarray:
+        """:meth:`sample` with ``order=1`` on a volume without padding, via scipy.
+
+        Index coordinates are built directly as (3, N) rows ``(k, j, i)``. In-hull points
+        within the edge tolerance need no clipping: order-1 ``mode="nearest"`` repeats the edge
+        voxel, as clipping would. Order-1 splines need no prefilter; the stored voxels (int16
+        or float32) are interpolated in float64 without a converted copy of the volume.
+        """
+        pts = np.asarray(points_lps, dtype=np.float64)
+        if pts.shape[-1:] != (3,):
+            raise ImagingInputError(f"points_lps: expected shape (..., 3), got {pts.shape}")
+        batch = pts.shape[:-1]
+        top_kji = self._top[::-1]
+        with np.errstate(invalid="ignore", over="ignore"):  # non-finite points: outside
+            coords_kji = self._inv_lin[::-1] @ pts.reshape(-1, 3).T
+            coords_kji += self._inv_off[::-1, None]
+            inside = coords_kji[0] >= -_EDGE_TOL_VOX
+            for axis in range(3):
+                row = coords_kji[axis]
+                if axis:
+                    inside &= row >= -_EDGE_TOL_VOX
+                inside &= row <= top_kji[axis] + _EDGE_TOL_VOX
+        outside = ~inside
+        any_outside = bool(outside.any())
+        if any_outside:
+            coords_kji[:, outside] = 0.0
+        out = np.empty(coords_kji.shape[1], dtype=np.float64)
+        ndimage.map_coordinates(
+            self.hu, coords_kji, output=out, order=1, mode="nearest", prefilter=False
+        )
+        if any_outside:
+            out[outside] = outside_hu
+        return out.reshape(batch)
+
     def sample(
         self, points_lps: np.ndarray, *, order: int = 1, outside_hu: float = -1000.0
     ) -> np.ndarray:
@@ -279,6 +314,8 @@ class CTVolume:
         """
         if order not in (0, 1):
             raise ImagingInputError(f"sample: order must be 0 or 1, got {order}")
+        if order == 1 and self.valid is None:
+            return self._sample_trilinear_unpadded(points_lps, float(outside_hu))
         flats, weights, inside, batch = self._support(points_lps)
         if order == 0:
             best = np.argmax(weights, axis=1)

@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from imaging import load_series
 from imaging.lip import (
     LipInputError,
     axis_basis,
@@ -14,7 +15,10 @@ from imaging.lip import (
     ring_radii_mm,
     sample_lip_rings,
 )
+from imaging.plan import load_plan
 from imaging.volume import CTVolume, SeriesInfo
+from tests.conftest import ASSETS
+from tests.imaging.test_volume import slow_trilinear
 
 finite = st.floats(min_value=-200.0, max_value=200.0, allow_nan=False)
 point = st.tuples(finite, finite, finite).map(np.array)
@@ -286,3 +290,38 @@ def test_nearest_order_returns_voxel_values() -> None:
     xi = depth[:, None] - 0.6 * lip.radii_mm[None, :]
     expected = np.where(xi > 1.0, 1000.0, -1000.0)  # the step sits halfway between voxel planes
     np.testing.assert_array_equal(lip.hu, np.broadcast_to(expected[:, :, None], lip.hu.shape))
+
+
+def _lip_reference(
+    vol: CTVolume, entry: np.ndarray, target: np.ndarray, depth: np.ndarray, outside_hu: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ring HU (D, R, A), outside counts (D,) and axis HU (D,) from the slow reference."""
+    pts = lip_ring_points(entry, target, depth, diameter_mm=2.0, tip_length_mm=0.6)
+    hu, inside = slow_trilinear(vol, pts, outside_hu=outside_hu)
+    axis = axis_basis(entry, target)[0]
+    axis_hu, _ = slow_trilinear(vol, entry + depth[:, None] * axis, outside_hu=outside_hu)
+    outside = (~inside).reshape(depth.size, -1).sum(axis=1)
+    return hu.reshape(pts.shape[:3]), outside, axis_hu
+
+
+@pytest.mark.parametrize("padded", [False, True])
+def test_lip_samples_match_the_slow_reference_on_the_demo_ct(padded: bool) -> None:
+    vol = load_series(ASSETS / "demo" / "ct")
+    plan = load_plan(ASSETS / "demo" / "plan.json")
+    if padded:  # pad a slab the trajectory crosses, and the first slices
+        valid = np.ones(vol.hu.shape, dtype=bool)
+        valid[:, 40:44, :] = False
+        valid[:3] = False
+        vol = _volume(np.asarray(vol.hu), np.asarray(vol.affine_lps), valid)
+    entry, target = np.asarray(plan.entry_lps), np.asarray(plan.target_lps)
+    # The same axis run from far before the entry to far beyond the volume.
+    depth = np.arange(-40.0, 60.0, 0.05)
+    for outside_hu in (-1000.0, 55.0):
+        got = sample_lip_rings(
+            vol, entry, target, depth, diameter_mm=2.0, tip_length_mm=0.6, outside_hu=outside_hu
+        )
+        hu, outside, axis_hu = _lip_reference(vol, entry, target, depth, outside_hu)
+        np.testing.assert_allclose(got.hu, hu, rtol=0, atol=1e-3)
+        np.testing.assert_allclose(got.axis_hu, axis_hu, rtol=0, atol=1e-3)
+        np.testing.assert_array_equal(got.outside, outside)
+        assert 0 < int(got.outside.sum()) < got.hu.size  # both kinds of sample occur

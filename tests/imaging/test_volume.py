@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from imaging import CTVolume, ImagingInputError, SeriesInfo
+from imaging import CTVolume, ImagingInputError, SeriesInfo, load_series
+from tests.conftest import ASSETS
 from tests.imaging.factory import affine, linear_hu, rotation, volume
 
 SHAPE = (6, 9, 11)  # slices, rows, cols
@@ -161,3 +162,94 @@ def test_true_slice_positions_are_kept_and_checked() -> None:
             info=SeriesInfo(series_uid="1"),
             slice_positions_mm=pos[:3],
         )
+
+
+# ---------------------------------------------------------------- against a slow reference
+def slow_trilinear(
+    vol: CTVolume, points_lps: np.ndarray, *, outside_hu: float = -1000.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Reference trilinear HU and inside flags, corner by corner (no shared code with CTVolume).
+
+    Returns (N,) HU and (N,) bool "support entirely on valid voxels inside the hull".
+    """
+    pts = np.asarray(points_lps, dtype=np.float64).reshape(-1, 3)
+    inv = np.linalg.inv(np.asarray(vol.affine_lps))
+    with np.errstate(invalid="ignore", over="ignore"):
+        ijk = (np.c_[pts, np.ones(len(pts))] @ inv.T)[:, :3]
+    n_s, n_r, n_c = vol.hu.shape
+    size = np.array([n_c, n_r, n_s], dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        hull = np.all((ijk >= -1e-6) & (ijk <= size - 1 + 1e-6), axis=1)
+    ijk = np.where(hull[:, None], np.clip(ijk, 0.0, size - 1), 0.0)
+    lo = np.minimum(np.floor(ijk), np.maximum(size - 2, 0)).astype(int)
+    frac = ijk - lo
+    hu = np.asarray(vol.hu, dtype=np.float64)
+    valid = np.ones(hu.shape, bool) if vol.valid is None else np.asarray(vol.valid)
+    total = np.zeros(len(pts))
+    all_valid = hull.copy()
+    for bk in (0, 1):
+        for bj in (0, 1):
+            for bi in (0, 1):
+                i = np.minimum(lo[:, 0] + bi, n_c - 1)
+                j = np.minimum(lo[:, 1] + bj, n_r - 1)
+                k = np.minimum(lo[:, 2] + bk, n_s - 1)
+                w = (
+                    (frac[:, 0] if bi else 1 - frac[:, 0])
+                    * (frac[:, 1] if bj else 1 - frac[:, 1])
+                    * (frac[:, 2] if bk else 1 - frac[:, 2])
+                )
+                ok = valid[k, j, i]
+                total += w * np.where(ok, hu[k, j, i], outside_hu)
+                all_valid &= ok | (w == 0.0)
+    return np.where(hull, total, outside_hu), all_valid
+
+
+def _probe_points(vol: CTVolume, n: int, seed: int) -> np.ndarray:
+    """Points inside, on the hull faces, just beyond them, far away and non-finite, LPS mm."""
+    rng = np.random.default_rng(seed)
+    top = np.array(vol.dims, dtype=np.float64) - 1
+    ijk = rng.uniform(-0.5, 1.5, size=(n, 3)) * top
+    ijk[: n // 8, 0] = 0.0  # on a face
+    ijk[n // 8 : n // 4, 1] = top[1]  # on the opposite face
+    ijk[n // 4 : n // 4 + 5] = top + 1e-7  # the far corner, within the edge tolerance
+    pts = vol.index_to_lps(ijk)
+    far = np.array([[1e6, 0, 0], [0, -1e9, 3], [np.nan, 0, 0], [np.inf, 1, 2], [-np.inf] * 3])
+    return np.concatenate([pts, far])
+
+
+@pytest.mark.parametrize("dtype", [np.int16, np.float32])
+@pytest.mark.parametrize("padded", [False, True])
+def test_sample_and_inside_match_the_slow_reference(dtype: type, padded: bool) -> None:
+    rng = np.random.default_rng(7)
+    hu = rng.integers(-1000, 2500, size=SHAPE).astype(dtype)
+    valid = rng.random(SHAPE) > 0.2 if padded else None
+    v = volume(hu, AFF, valid)
+    assert (v.valid is None) is (not padded)
+    pts = _probe_points(v, 3000, seed=3)
+    for outside_hu in (-1000.0, 123.5):
+        ref, ref_inside = slow_trilinear(v, pts, outside_hu=outside_hu)
+        got = v.sample(pts, outside_hu=outside_hu)
+        assert np.all(np.isfinite(got))
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-3)
+        np.testing.assert_array_equal(v.inside(pts), ref_inside)
+    # The far and non-finite points are outside.
+    assert np.all(v.sample(pts[-5:], outside_hu=-777.0) == -777.0)
+
+
+def test_sample_matches_the_slow_reference_on_the_demo_ct() -> None:
+    v = load_series(ASSETS / "demo" / "ct")
+    pts = _probe_points(v, 4000, seed=11)
+    ref, ref_inside = slow_trilinear(v, pts)
+    np.testing.assert_allclose(v.sample(pts), ref, rtol=0, atol=1e-3)
+    np.testing.assert_array_equal(v.inside(pts), ref_inside)
+
+
+def test_sample_on_single_voxel_axes_matches_the_slow_reference() -> None:
+    hu = np.arange(7, dtype=np.int16).reshape(1, 1, 7) * 10
+    v = volume(hu, affine((0.5, 0.5, 1.0)))
+    ijk = np.c_[np.linspace(-0.5, 6.5, 57), np.zeros(57), np.zeros(57)]
+    ijk[::4, 1] = 1e-7  # within the edge tolerance of the single row
+    ijk[1::9, 2] = 0.01  # beyond it: outside
+    pts = v.index_to_lps(ijk)
+    ref, _ = slow_trilinear(v, pts)
+    np.testing.assert_allclose(v.sample(pts), ref, rtol=0, atol=1e-3)
