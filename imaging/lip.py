@@ -147,6 +147,28 @@ def lip_ring_points(
         axis, at depth ``depth_mm[d] - tip_length_mm * r_i / R`` along it, at angle
         ``2 pi a / n_angles`` from ``e1`` towards ``e2`` (:func:`axis_basis`).
     """
+    return _ring_points(
+        entry_lps,
+        target_lps,
+        depth_mm,
+        diameter_mm=diameter_mm,
+        tip_length_mm=tip_length_mm,
+        n_rings=n_rings,
+        n_angles=n_angles,
+    )[0]
+
+
+def _ring_points(
+    entry_lps: np.ndarray,
+    target_lps: np.ndarray,
+    depth_mm: np.ndarray,
+    *,
+    diameter_mm: float,
+    tip_length_mm: float,
+    n_rings: int,
+    n_angles: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`lip_ring_points`, plus the unit axis (3,) and the ring radii (R,) in mm."""
     depth = _depths(depth_mm)
     tip_len = float(tip_length_mm)
     if not (np.isfinite(tip_len) and tip_len >= 0.0):
@@ -167,7 +189,7 @@ def lip_ring_points(
     points = np.empty((depth.size, radii.size, n_a, 3))
     for c in range(3):
         np.add(centres[:, :, None, c], offsets[None, :, :, c], out=points[..., c])
-    return points
+    return points, axis, radii
 
 
 def sample_lip_rings(
@@ -207,7 +229,7 @@ def sample_lip_rings(
     LipSamples
         ``hu`` (D, n_rings, n_angles) float32, ``axis_hu`` (D,), ``outside`` (D,) counts.
     """
-    points = lip_ring_points(
+    points, axis, radii = _ring_points(
         entry_lps,
         target_lps,
         depth_mm,
@@ -219,7 +241,6 @@ def sample_lip_rings(
     depth = _depths(depth_mm)
     if not np.isfinite(outside_hu):
         raise LipInputError(f"outside_hu: must be a finite HU value, got {outside_hu!r}")
-    axis = axis_basis(entry_lps, target_lps)[0]
     tips = np.asarray(entry_lps, dtype=np.float64) + depth[:, None] * axis  # (D, 3)
     n_d, n_r, n_a = points.shape[:3]
     flat = points.reshape(-1, 3)
@@ -240,7 +261,7 @@ def sample_lip_rings(
     outside = outside_flat[:n_ring].reshape(n_d, n_r * n_a).sum(axis=1).astype(np.int64)
     return LipSamples(
         depth_mm=depth,
-        radii_mm=ring_radii_mm(diameter_mm, n_rings),
+        radii_mm=radii,
         ring_weights=np.full(n_r, 1.0 / n_r),
         hu=ring_hu,
         outside=outside,
