@@ -4,14 +4,12 @@ from __future__ import annotations
 
 import csv
 import json
-import signal
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from app.cli import main
+from tests.haptics.emulator_process import emulator_on_pty
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "assets" / "demo"
@@ -122,21 +120,9 @@ def test_bad_input_is_one_error_line_and_exit_2(
 
 @pytest.mark.timeout(60)
 def test_rehearse_over_a_serial_link_to_the_emulator(tmp_path: Path) -> None:
-    link = tmp_path / "dev"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "app.cli", "emulate", "--pty-link", str(link)],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        assert proc.stdout is not None and proc.stdout.readline().startswith("emulating on")
-        out = tmp_path / "out"
+    out = tmp_path / "out"
+    with emulator_on_pty(tmp_path / "dev") as link:
         assert _rehearse(out, "--device", f"serial:{link}", duration="1") == 0
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        proc.communicate(timeout=10)
     summary = json.loads((out / "summary.json").read_text())
     rows = _rows(out / "session.csv")
     assert len(rows) > 300  # real time: about 1000 rows, fewer if the machine is busy

@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 import itertools
-import signal
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -16,31 +13,13 @@ from haptics.device import DeviceError
 from haptics.profile_table import ProfileTable
 from haptics.protocol import DeviceState, Fault, OperatorKind
 from haptics.serial_device import SerialDevice
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.haptics.emulator_process import emulator_on_pty
 
 
 @pytest.fixture
 def emulator(tmp_path: Path) -> Iterator[Path]:
-    link = tmp_path / "ctdrill-device"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "app.cli", "emulate", "--pty-link", str(link)],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        assert proc.stdout is not None
-        line = proc.stdout.readline()
-        assert line.startswith(f"emulating on {link} -> /dev/pts/"), line
+    with emulator_on_pty(tmp_path / "ctdrill-device") as link:
         yield link
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=10)
-        assert proc.returncode == 0, err
-        assert "emulator stopped" in err
-        assert not link.exists() and not link.is_symlink()  # the link is cleaned up
 
 
 def _beat(dev: SerialDevice, seconds: float, force_n: float) -> list:

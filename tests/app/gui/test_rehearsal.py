@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import csv
 import json
-import signal
-import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -23,10 +20,9 @@ from imaging.phantom_io import PhantomCase
 from imaging.plan import load_plan
 from model import load_calibration
 from tests.app.gui.helpers import open_case
+from tests.haptics.emulator_process import emulator_on_pty
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
-
-ROOT = Path(__file__).resolve().parents[3]
 
 
 def test_device_choices_start_with_the_simulator() -> None:
@@ -115,21 +111,8 @@ def test_a_silent_serial_device_is_reported_and_the_panel_recovers(
 @pytest.fixture
 def emulator_link(tmp_path: Path) -> Iterator[Path]:
     """``ctdrill emulate`` on a pseudo-terminal linked at a path (a serial port stand-in)."""
-    link = tmp_path / "ctdrill-device"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "app.cli", "emulate", "--pty-link", str(link)],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        assert proc.stdout is not None
-        assert proc.stdout.readline().startswith(f"emulating on {link}")
+    with emulator_on_pty(tmp_path / "ctdrill-device") as link:
         yield link
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        proc.communicate(timeout=10)
 
 
 @pytest.mark.timeout(90)

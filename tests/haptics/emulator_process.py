@@ -1,0 +1,39 @@
+"""``ctdrill emulate`` in a subprocess on a pseudo-terminal, for the serial-path tests."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@contextmanager
+def emulator_on_pty(link: Path) -> Iterator[Path]:
+    """Run the device emulator linked at ``link`` (a serial port stand-in) and yield the link.
+
+    On exit it is stopped with SIGTERM and must end cleanly: exit code 0, its closing report on
+    stderr, and the link removed.
+    """
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "app.cli", "emulate", "--pty-link", str(link)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        line = proc.stdout.readline()
+        assert line.startswith(f"emulating on {link} -> /dev/pts/"), line
+        yield link
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=10)
+    assert proc.returncode == 0, err
+    assert "emulator stopped" in err
+    assert not link.exists() and not link.is_symlink()  # the link is cleaned up
