@@ -12,7 +12,7 @@ from pathlib import Path
 
 from app.errors import AppInputError
 from app.export import DEFAULT_RATE_HZ, ExportInputError, ExportJob, write_exports
-from app.pipeline import plan_path
+from app.pipeline import plan_calibration_key, plan_path
 from imaging import load_series
 from imaging.plan import Plan, load_plans
 from model.calibration import Calibration, load_calibration
@@ -56,18 +56,6 @@ def _stem(plan: Plan, n_in_file: int) -> str:
             name = name[: -len(suffix)]
             break
     return name if n_in_file == 1 else f"{name}-{plan.name}"
-
-
-def _calibration_for(plan: Plan, cache: dict[str, Calibration]) -> Calibration:
-    key = plan.calibration
-    candidate = Path(key)
-    if plan.source and not candidate.is_absolute() and ("/" in key or key.endswith(".json")):
-        beside = Path(plan.source).parent / candidate
-        if beside.is_file():
-            key = str(beside)
-    if key not in cache:
-        cache[key] = load_calibration(key)
-    return cache[key]
 
 
 def read_patient_fields(dicom: Path, series_uid: str) -> dict[str, str]:
@@ -139,7 +127,13 @@ def export_case(
     for n, plan in enumerate(plans):
         if progress is not None:
             progress(n, len(plans), plan.name)
-        cal = override if override is not None else _calibration_for(plan, cache)
+        if override is not None:
+            cal = override
+        else:
+            key = plan_calibration_key(plan)
+            if key not in cache:
+                cache[key] = load_calibration(key)
+            cal = cache[key]
         result = plan_path(volume, plan, cal)
         sub = "" if len(plans) == 1 else _subdir(_stem(plan, per_file[plan.source]))
         if sub in seen:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -26,7 +27,7 @@ from imaging.lip import (
 from imaging.plan import Plan
 from imaging.safety import clearance_profile_mm, max_safe_depth_mm
 from imaging.volume import CTVolume, LoadWarning
-from model.calibration import Calibration
+from model.calibration import Calibration, load_calibration
 from model.profile import Profile, build_profile
 
 #: Default depth step of the profile, mm: trilinear sampling is converged at 0.05 mm on
@@ -256,6 +257,29 @@ def grid_bracket(
     if bad.size == 0 or bad[0] == 0:
         return None
     return float(depth[bad[0] - 1]), float(depth[bad[0]])
+
+
+def plan_calibration_key(plan: Plan) -> str:
+    """What to pass to :func:`model.load_calibration` for the plan's set: a bundled name as
+    written, a path relative to the plan file resolved beside it."""
+    key = plan.calibration
+    candidate = Path(key)
+    if plan.source and not candidate.is_absolute() and ("/" in key or key.endswith(".json")):
+        beside = Path(plan.source).parent / candidate
+        if beside.is_file():
+            key = str(beside)
+    return key
+
+
+def plan_calibration(plan: Plan) -> Calibration:
+    """The plan's calibration set (see :func:`plan_calibration_key`).
+
+    Raises
+    ------
+    model.calibration.CalibrationError
+        The set is missing or invalid (the message names the file and field).
+    """
+    return load_calibration(plan_calibration_key(plan))
 
 
 def plan_path(

@@ -14,15 +14,14 @@ from pathlib import Path
 from typing import Any
 
 from app.errors import AppInputError
-from app.pipeline import PathResult, plan_path
+from app.pipeline import PathResult, plan_calibration, plan_path
 from haptics.device import Device
 from haptics.profile_table import ProfileTable
 from haptics.serial_device import SerialDevice
 from haptics.session import SessionCsv, parse_fault, parse_operator, run_session
 from haptics.sim import SimulatedDevice
 from imaging import load_series
-from imaging.plan import Plan, load_plan
-from model.calibration import Calibration, load_calibration
+from imaging.plan import load_plan
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,22 +32,11 @@ class RehearsalTable:
     path: PathResult
 
 
-def calibration_for(plan: Plan) -> Calibration:
-    """The plan's calibration: a bundled set's name, or a path (relative to the plan file)."""
-    key = plan.calibration
-    candidate = Path(key)
-    if plan.source and not candidate.is_absolute() and ("/" in key or key.endswith(".json")):
-        beside = Path(plan.source).parent / candidate
-        if beside.is_file():
-            key = str(beside)
-    return load_calibration(key)
-
-
 def load_table(dicom: Path, plan_file: Path) -> RehearsalTable:
     """Load the CT and the plan, compute the path and adapt its profile to a device table."""
     volume = load_series(dicom)
     plan = load_plan(plan_file)
-    path = plan_path(volume, plan, calibration_for(plan))
+    path = plan_path(volume, plan, plan_calibration(plan))
     return RehearsalTable(ProfileTable.from_profile(path.profile, path.stop_depth_mm), path)
 
 

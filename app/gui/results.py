@@ -8,10 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.gui.plots import DepthCurves
-from app.pipeline import PathResult, plan_path
+from app.pipeline import PathResult, plan_calibration, plan_path
 from imaging import CTVolume
 from imaging.plan import Plan
-from model import load_calibration
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,8 +54,7 @@ def _nearest_margin_mm(result: PathResult, default_mm: float) -> float:
 
 def compute_path_view(volume: CTVolume, plan: Plan) -> PathView:
     """Plan the path of ``plan`` through ``volume`` (the pipeline the CLI uses) for display."""
-    calibration = load_calibration(plan.calibration)
-    return path_view(plan, plan_path(volume, plan, calibration))
+    return path_view(plan, plan_path(volume, plan, plan_calibration(plan)))
 
 
 def block_reason(volume: CTVolume | None, view: PathView | None) -> str | None:

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.pipeline import PathInputError, plan_path
+from app.pipeline import PathInputError, plan_calibration, plan_calibration_key, plan_path
 from imaging.landmarks import CanalLandmark, MaskLandmark
 from imaging.plan import DrillSpec, Plan, load_plan
 from imaging.volume import CTVolume, SeriesInfo
@@ -215,3 +215,19 @@ def test_mask_landmark_from_a_plan_file_on_the_ct_grid(slabs: CTVolume, tmp_path
     assert res.stop_depth_mm <= 1.501 + 1e-9
     lm = res.landmarks[0]
     assert isinstance(lm, MaskLandmark) and lm.affine_lps is not None
+
+
+def test_plan_calibration_is_a_bundled_name_or_a_path_beside_the_plan(tmp_path: Path) -> None:
+    root = Path(__file__).resolve().parents[2]
+    doc = json.loads((root / "assets" / "demo" / "plan.json").read_text())
+    bundled = root / "assets" / "calibration" / "pine-wood-paper.json"
+    (tmp_path / "sets").mkdir()
+    (tmp_path / "sets" / "mine.json").write_text(bundled.read_text())
+    plan_file = tmp_path / "plan.json"
+    plan_file.write_text(json.dumps({**doc, "calibration": "sets/mine.json"}))
+    plan = load_plan(plan_file)
+    assert plan_calibration_key(plan) == str(tmp_path / "sets" / "mine.json")
+    assert plan_calibration(plan).name == "pine-wood-paper"
+    named = replace(plan, calibration="bone-illustrative")
+    assert plan_calibration_key(named) == "bone-illustrative"
+    assert plan_calibration(named).name == "bone-illustrative"
