@@ -10,7 +10,7 @@ SYSTEM_PKGS := xvfb xauth libegl1 libgl1 libxkbcommon-x11-0 libxcb-cursor0 libxc
 	libxcb-image0 libxrender1 libfontconfig1 libdbus-1-3
 DEMO_OUT ?= demo-out
 
-.PHONY: demo test bench fuzz lint typecheck sysdeps venv venv-dev clean
+.PHONY: demo test bench fuzz lint typecheck sysdeps venv venv-dev wheel-check clean
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -58,6 +58,10 @@ bench: sysdeps $(STAMP)
 
 fuzz: $(STAMP)
 	CTDRILL_FUZZ_EXAMPLES=20000 $(PY) -m pytest -q -p no:cacheprovider tests -m fuzz
+
+## Build the wheel, install it into a scratch venv and run the demo from outside the checkout.
+wheel-check: | $(VENV)/bin/python
+	bash scripts/wheel_check.sh $(PYTHON)
 
 clean:
 	rm -rf $(VENV) build *.egg-info $(DEMO_OUT)

@@ -1,4 +1,4 @@
-"""The ``ctdrill`` command line: one subcommand per module in :mod:`app.commands`.
+"""The ``ctdrill`` command line: one subcommand per module in :mod:`ctdrill.app.commands`.
 
 Every subcommand module exposes ``register(subparsers) -> None``; the parser it adds sets
 ``func`` (``Callable[[argparse.Namespace], int]``). Bad input raises one of the packages'
@@ -13,10 +13,10 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-from app.errors import AppInputError
-from haptics.errors import HapticsInputError
-from imaging.errors import ImagingInputError
-from model.errors import ModelInputError
+from ctdrill.app.errors import AppInputError
+from ctdrill.haptics.errors import HapticsInputError
+from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.model.errors import ModelInputError
 
 #: Subcommands in the order ``ctdrill --help`` lists them.
 COMMANDS: tuple[str, ...] = (
@@ -56,10 +56,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for name in COMMANDS:
         try:
-            module = importlib.import_module(f"app.commands.{name}")
+            module = importlib.import_module(f"ctdrill.app.commands.{name}")
         except ModuleNotFoundError as exc:
             # A command module not written yet: tests/test_cli.py fails until each exists.
-            if exc.name != f"app.commands.{name}":
+            if exc.name != f"ctdrill.app.commands.{name}":
                 raise
             continue
         module.register(sub)

@@ -28,9 +28,9 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from app.errors import AppInputError
-from app.pipeline import PathResult
-from model.profile import force_series_n
+from ctdrill.app.errors import AppInputError
+from ctdrill.app.pipeline import PathResult
+from ctdrill.model.profile import force_series_n
 
 FORCE_COLUMNS = ("time_s", "depth_mm", "hu", "s_t", "force_n", "clearance_mm", "calibration")
 PROFILE_COLUMNS = (
@@ -292,7 +292,7 @@ def write_exports(
 
     ``feed_mm_s`` None uses each plan's feed. Returns the written paths.
     """
-    from app.export_plot import force_png
+    from ctdrill.app.export_plot import force_png
 
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from app.export import ExportInputError
-from app.export_run import export_case
+from ctdrill.app.export import ExportInputError
+from ctdrill.app.export_run import export_case
+from ctdrill.resources import asset
 
-#: ``<repo>/assets/demo``: the phantom CT series (``ct/``) and its plan (``plan.json``).
-DEMO_DIR = Path(__file__).resolve().parents[1] / "assets" / "demo"
+#: ``assets/demo`` in the installed package: the phantom CT series (``ct/``) and its plan.
+DEMO_DIR: Path = asset("demo")
 #: File that marks a folder as written by a previous demo (so it may be overwritten).
 DEMO_MARKER = ".ctdrill-demo"
 

@@ -7,10 +7,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from app.pipeline import PathResult
+from ctdrill.app.pipeline import PathResult
 
 if TYPE_CHECKING:
-    from app.export import ForceSeries
+    from ctdrill.app.export import ForceSeries
 
 #: (class, low HU, high HU, colour) bands drawn behind the HU trace.
 _MISCH_BANDS = (

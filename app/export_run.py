@@ -10,12 +10,12 @@ import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from app.errors import AppInputError
-from app.export import DEFAULT_RATE_HZ, ExportInputError, ExportJob, write_exports
-from app.pipeline import plan_calibration_key, plan_path
-from imaging import load_series
-from imaging.plan import Plan, load_plans
-from model.calibration import Calibration, load_calibration
+from ctdrill.app.errors import AppInputError
+from ctdrill.app.export import DEFAULT_RATE_HZ, ExportInputError, ExportJob, write_exports
+from ctdrill.app.pipeline import plan_calibration_key, plan_path
+from ctdrill.imaging import load_series
+from ctdrill.imaging.plan.types import Plan, load_plans
+from ctdrill.model.calibration import Calibration, load_calibration
 
 #: DICOM attributes written only with ``--include-phi`` (keyword -> summary key).
 PHI_KEYWORDS = {
@@ -62,7 +62,7 @@ def read_patient_fields(dicom: Path, series_uid: str) -> dict[str, str]:
     """Patient identifiers of the series (for ``--include-phi`` only), as strings."""
     import pydicom
 
-    from imaging.discovery import iter_files
+    from ctdrill.imaging.dicom.discovery import iter_files
 
     for path in iter_files(dicom):
         try:

@@ -15,20 +15,20 @@ from pathlib import Path
 
 import numpy as np
 
-from app.errors import AppInputError
-from imaging.landmarks import CanalLandmark, Landmark, PointLandmark, bind_to_grid
-from imaging.lip import (
+from ctdrill.app.errors import AppInputError
+from ctdrill.imaging.plan.landmarks import CanalLandmark, Landmark, PointLandmark, bind_to_grid
+from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.sampling.lip import (
     DEFAULT_N_ANGLES,
     DEFAULT_N_RINGS,
     LipSamples,
     lip_ring_points,
     sample_lip_rings,
 )
-from imaging.plan import Plan
-from imaging.safety import clearance_profile_mm, max_safe_depth_mm
-from imaging.volume import CTVolume, LoadWarning
-from model.calibration import Calibration, load_calibration
-from model.profile import Profile, build_profile
+from ctdrill.imaging.volume import CTVolume, LoadWarning
+from ctdrill.model.calibration import Calibration, load_calibration
+from ctdrill.model.profile import Profile, build_profile
 
 #: Default depth step of the profile, mm: trilinear sampling is converged at 0.05 mm on
 #: 0.3 mm voxels (DESIGN.md section 6); steps above a third of a voxel add error.
@@ -60,7 +60,7 @@ class PathResult:
     plan : the plan (landmarks bound to the CT grid).
     depth_mm : (D,) uniform depth grid from 0 to the planned depth, mm.
     lip : HU on the cutting lip at each depth.
-    profile : force coefficients per depth (``model.Profile``).
+    profile : force coefficients per depth (``ctdrill.model.Profile``).
     calibration : the calibration set used.
     clearance_mm : (D, L) clearance from the drill to each landmark, mm.
     margins_mm : (L,) margin per landmark, mm.
@@ -260,7 +260,7 @@ def grid_bracket(
 
 
 def plan_calibration_key(plan: Plan) -> str:
-    """What to pass to :func:`model.load_calibration` for the plan's set: a bundled name as
+    """What to pass to :func:`ctdrill.model.load_calibration` for the plan's set: a bundled name as
     written, a path relative to the plan file resolved beside it."""
     key = plan.calibration
     candidate = Path(key)

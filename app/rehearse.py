@@ -1,7 +1,7 @@
 """Headless rehearsal: CT + plan -> force table -> a device session -> session.csv, summary.json.
 
 ``ctdrill rehearse`` and the tests call :func:`rehearse`; the GUI can call the same pieces
-(:func:`load_table`, :func:`open_device`, :func:`haptics.session.run_session`).
+(:func:`load_table`, :func:`open_device`, :func:`ctdrill.haptics.session.run_session`).
 """
 
 from __future__ import annotations
@@ -13,15 +13,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from app.errors import AppInputError
-from app.pipeline import PathResult, plan_calibration, plan_path
-from haptics.device import Device
-from haptics.profile_table import ProfileTable
-from haptics.serial_device import SerialDevice
-from haptics.session import SessionCsv, parse_fault, parse_operator, run_session
-from haptics.sim import SimulatedDevice
-from imaging import load_series
-from imaging.plan import load_plan
+from ctdrill.app.errors import AppInputError
+from ctdrill.app.pipeline import PathResult, plan_calibration, plan_path
+from ctdrill.haptics.device import Device
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.serial_device import SerialDevice
+from ctdrill.haptics.session import SessionCsv, parse_fault, parse_operator, run_session
+from ctdrill.haptics.sim import SimulatedDevice
+from ctdrill.imaging import load_series
+from ctdrill.imaging.plan.types import load_plan
 
 
 @dataclass(frozen=True, eq=False)

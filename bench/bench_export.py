@@ -21,16 +21,21 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from app.export import ExportJob, write_exports
-from app.pipeline import depth_grid_mm, grid_bracket, plan_path
 from bench.report import Section, table, time_it
-from imaging import load_series
-from imaging.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS, lip_ring_points, sample_lip_rings
-from imaging.plan import Plan, load_plan
-from imaging.safety import clearance_profile_mm, max_safe_depth_mm
-from imaging.volume import CTVolume
-from model.calibration import Calibration, load_calibration
-from model.profile import build_profile
+from ctdrill.app.export import ExportJob, write_exports
+from ctdrill.app.pipeline import depth_grid_mm, grid_bracket, plan_path
+from ctdrill.imaging import load_series
+from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm
+from ctdrill.imaging.plan.types import Plan, load_plan
+from ctdrill.imaging.sampling.lip import (
+    DEFAULT_N_ANGLES,
+    DEFAULT_N_RINGS,
+    lip_ring_points,
+    sample_lip_rings,
+)
+from ctdrill.imaging.volume import CTVolume
+from ctdrill.model.calibration import Calibration, load_calibration
+from ctdrill.model.profile import build_profile
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "assets" / "demo"

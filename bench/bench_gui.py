@@ -3,10 +3,10 @@ view's frame time.
 
 Cases: the bundled demo phantom (``assets/demo``: 80 x 100 x 80 voxels of 0.4 mm) and a
 synthetic 512 x 512 x 300 series (0.3 mm voxels, a bone bar with a cortical shell and a canal)
-written with ``imaging.dicom_writer.write_series``. "Open to first frame" runs the window's own
-path: in a worker thread list the series, load it, contour the bone surface; on the UI thread
-then reslice the four views, plan the path (worker), build the scene and render. The peers are
-the same steps called headless one by one in the same run, so the breakdown shows where the
+written with ``ctdrill.imaging.phantom.writer.write_series``. "Open to first frame" runs the
+window's own path: in a worker thread list the series, load it, contour the bone surface; on the UI
+thread then reslice the four views, plan the path (worker), build the scene and render. The peers
+are the same steps called headless one by one in the same run, so the breakdown shows where the
 time goes. The frame time is ``plotter.render()`` of the window's 3D view at its on-screen size,
 without and with 4x MSAA (the peer), on the software OpenGL of Xvfb (Mesa llvmpipe) when run
 by ``make bench``.
@@ -25,11 +25,11 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from bench.report import Section, Timing, figure_path, table
-from imaging import load_series
-from imaging.dicom_writer import write_series
-from imaging.landmarks import CanalLandmark
-from imaging.plan import Plan, load_plan, save_plan
-from imaging.series import list_series
+from ctdrill.imaging import load_series
+from ctdrill.imaging.dicom.series import list_series
+from ctdrill.imaging.phantom.writer import write_series
+from ctdrill.imaging.plan.landmarks import CanalLandmark
+from ctdrill.imaging.plan.types import Plan, load_plan, save_plan
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "assets" / "demo"
@@ -85,7 +85,7 @@ def _open_to_first_frame(
     after the frame), median over the repeats, s."""
     from PySide6.QtCore import QEventLoop, QTimer
 
-    from app.gui.main_window import MainWindow
+    from ctdrill.app.gui.main_window import MainWindow
 
     assert isinstance(window, MainWindow)
     samples = []
@@ -143,9 +143,9 @@ def _measure(
 ) -> dict[str, object]:
     from PySide6.QtCore import QSettings
 
-    from app.gui import compute
-    from app.gui.app import application, make_window
-    from app.gui.results import compute_path_view
+    from ctdrill.app.gui import compute
+    from ctdrill.app.gui.app import application, make_window
+    from ctdrill.app.gui.results import compute_path_view
 
     app = application()
     settings = QSettings(str(scratch / f"settings-{name}.ini"), QSettings.Format.IniFormat)

@@ -1,7 +1,7 @@
 """Haptics: renderer cost per tick, real-time emulator lateness, telemetry throughput over a pty.
 
 * Per-tick cost (in-process, monotonic clock): the device renderer alone (cutting law, limits,
-  watchdog) against its peer, the O(1) force law ``model.profile.force_n``, and the whole
+  watchdog) against its peer, the O(1) force law ``ctdrill.model.profile.force_n``, and the whole
   emulated device tick (renderer + force controller + plant + telemetry framing).
 * Real time: ``ctdrill emulate`` in a subprocess at 10 kHz device time, batching the due ticks
   at each ~1 ms wakeup; its tick lateness (p50/p99/max) with no host connected and while a
@@ -22,12 +22,12 @@ from pathlib import Path
 import numpy as np
 
 from bench.report import Section, figure_path, table, time_it
-from haptics.emulator import DeviceEmulator
-from haptics.profile_table import ProfileTable
-from haptics.protocol import Arm, OperatorKind, SimOperator, encode
-from haptics.renderer import Renderer
-from haptics.serial_device import SerialDevice
-from model.profile import Profile, force_n
+from ctdrill.haptics.emulator import DeviceEmulator
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.protocol import Arm, OperatorKind, SimOperator, encode
+from ctdrill.haptics.renderer import Renderer
+from ctdrill.haptics.serial_device import SerialDevice
+from ctdrill.model.profile import Profile, force_n
 
 ROOT = Path(__file__).resolve().parents[1]
 SLAB = ProfileTable.slab(
@@ -109,7 +109,7 @@ def _emulate(link: Path, duration_s: float) -> subprocess.Popen[str]:
         [
             sys.executable,
             "-m",
-            "app.cli",
+            "ctdrill.app.cli",
             "emulate",
             "--pty-link",
             str(link),
@@ -184,9 +184,9 @@ def _session_figure(operator: str, duration_s: float) -> str:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from app.rehearse import load_table
-    from haptics.session import parse_operator, run_session
-    from haptics.sim import SimulatedDevice
+    from ctdrill.app.rehearse import load_table
+    from ctdrill.haptics.session import parse_operator, run_session
+    from ctdrill.haptics.sim import SimulatedDevice
 
     demo = ROOT / "assets" / "demo"
     loaded = load_table(demo / "ct", demo / "plan.json")

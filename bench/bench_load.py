@@ -1,8 +1,9 @@
-"""DICOM series loading: ``imaging.load_series`` against SimpleITK and a raw read of the bytes.
+"""DICOM series loading: ``ctdrill.imaging.load_series`` against SimpleITK and a raw read of the
+bytes.
 
 A 512 x 512 x N CT series (N = 200; 64 in quick mode) is written with
-:func:`imaging.dicom_writer.write_series` into a temporary folder, one file per slice, Explicit
-VR Little Endian, in two common layouts: signed 16-bit with intercept -1024 (GE style) and
+:func:`ctdrill.imaging.phantom.writer.write_series` into a temporary folder, one file per slice,
+Explicit VR Little Endian, in two common layouts: signed 16-bit with intercept -1024 (GE style) and
 unsigned 12-bit with intercept -1024 (Philips style). Three readers load it:
 
 - ``load_series``: discovery of every file, headers with pydicom, geometry, pixels read at their
@@ -29,9 +30,9 @@ from pathlib import Path
 import numpy as np
 
 from bench.report import Section, Timing, table, time_it
-from imaging import load_series
-from imaging.dicom_writer import write_series
-from imaging.discovery import read_headers
+from ctdrill.imaging import load_series
+from ctdrill.imaging.dicom.discovery import read_headers
+from ctdrill.imaging.phantom.writer import write_series
 
 ROWS = COLS = 512
 

@@ -9,10 +9,11 @@ trabecular bone again. A lip point at depth ``xi``, radius ``r`` and angle ``the
 Reference: the lip integral of DESIGN.md 1.4 with the angle mean in closed form (the fraction
 of a ring beyond a plane is ``arccos(c) / pi``) and 2048 midpoint rings (converged: 1024 rings
 differ by < 1e-4 N). Each (rings, angles) configuration point-samples the same continuous field
-and builds its profile with :func:`model.build_profile`; its error is the RMS (and max) of
+and builds its profile with :func:`ctdrill.model.build_profile`; its error is the RMS (and max) of
 ``S0`` against the reference over 401 depths (0..20 mm, 0.05 mm). The depth step is measured
-separately on the exact layered profile (:func:`model.layered.layered_profile`), interpolated
-linearly as :func:`model.force_n` does, against the exact profile every 0.001 mm.
+separately on the exact layered profile (:func:`ctdrill.model.layered.layered_profile`),
+interpolated linearly as :func:`ctdrill.model.force_n` does, against the exact profile every 0.001
+mm.
 """
 
 from __future__ import annotations
@@ -23,11 +24,11 @@ from functools import partial
 import numpy as np
 
 from bench.report import Section, figure_path, table, time_it
-from imaging.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS
-from model import build_profile, force_n, force_series_n, load_calibration
-from model.calibration import harmonic_freqs_hz
-from model.force import a0_n, force_density_n, gate
-from model.layered import layered_profile
+from ctdrill.imaging.sampling.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS
+from ctdrill.model import build_profile, force_n, force_series_n, load_calibration
+from ctdrill.model.calibration import harmonic_freqs_hz
+from ctdrill.model.force import a0_n, force_density_n, gate
+from ctdrill.model.layered import layered_profile
 
 FIGURE_NAME = "model_pareto.png"
 

@@ -11,8 +11,8 @@ depth step 0.01 mm): the lip-mean HU and the cut fraction ``s_t`` (gate of the
 ``bone-illustrative`` calibration). Each configuration samples the voxelised volume at its depth
 step; its profile, linearly interpolated in depth as the force renderer does, is compared with
 the truth at every 0.01 mm. Errors are RMS over the trajectory; times are per trajectory
-(median of repeats), for :func:`imaging.lip.sample_lip_rings` (orders 0 and 1) and for
-``scipy.ndimage.map_coordinates`` on pre-filtered spline coefficients (order 3; the one-off
+(median of repeats), for :func:`ctdrill.imaging.sampling.lip.sample_lip_rings` (orders 0 and 1) and
+for ``scipy.ndimage.map_coordinates`` on pre-filtered spline coefficients (order 3; the one-off
 pre-filter is reported apart).
 """
 
@@ -27,9 +27,14 @@ import numpy as np
 from scipy import ndimage
 
 from bench.report import Section, figure_path, table, time_it
-from imaging.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS, lip_ring_points, sample_lip_rings
-from imaging.volume import CTVolume, SeriesInfo
-from model import a0_n, gate, load_calibration
+from ctdrill.imaging.sampling.lip import (
+    DEFAULT_N_ANGLES,
+    DEFAULT_N_RINGS,
+    lip_ring_points,
+    sample_lip_rings,
+)
+from ctdrill.imaging.volume import CTVolume, SeriesInfo
+from ctdrill.model import a0_n, gate, load_calibration
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The force law the errors in N are stated in (DESIGN.md: the set for patient CT).

@@ -2,9 +2,9 @@
 
 Loading. Series of 100, 300 and 600 slices of 512 x 512 (int16, 0.4 x 0.4 x 0.5 mm, one
 Explicit VR Little Endian file per slice, 50-300 MiB) are written with
-:func:`imaging.dicom_writer.write_series` into a temporary folder (removed afterwards). Three
-readers load each: ``imaging.load_series``; SimpleITK's ``ImageSeriesReader`` (GDCM file
-discovery and ordering included, ``SetOutputPixelType(sitkInt16)``, array view); and a raw read
+:func:`ctdrill.imaging.phantom.writer.write_series` into a temporary folder (removed afterwards).
+Three readers load each: ``ctdrill.imaging.load_series``; SimpleITK's ``ImageSeriesReader`` (GDCM
+file discovery and ordering included, ``SetOutputPixelType(sitkInt16)``, array view); and a raw read
 of the same pixel bytes (the last ``rows * cols * 2`` bytes of every file, in a known order, into
 one preallocated array: the floor, no parsing). The readers run round-robin, one run each in
 turn. Warm runs repeat on a hot page cache; cold runs drop it before every run
@@ -13,7 +13,7 @@ turn. Warm runs repeat on a hot page cache; cold runs drop it before every run
 allocator state is shared between them (quick mode: in this process). Goals (issue 8):
 load_series at most 0.5 x SimpleITK's time, and within 1.5 x the raw read cold.
 
-Force path. ``app.pipeline.plan_path`` (lip sampling at the default depth step and rings x
+Force path. ``ctdrill.app.pipeline.plan_path`` (lip sampling at the default depth step and rings x
 angles, profile, clearance to the canal, exact max safe depth) on the demo case for 1 to 1000
 candidate trajectories (entries within +-3 mm, axes tilted up to 15 degrees), against a plain
 peer doing the same work with ``scipy.ndimage.map_coordinates(order=1, mode="constant",
@@ -51,7 +51,7 @@ from bench.scaling_path import (
     trajectory_scaling,
     volume_scaling,
 )
-from imaging import load_series
+from ctdrill.imaging import load_series
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "assets" / "demo"

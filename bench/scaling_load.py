@@ -26,8 +26,8 @@ from bench.report import (
     rss_mib,
     time_round,
 )
-from imaging import load_series
-from imaging.dicom_writer import write_series
+from ctdrill.imaging import load_series
+from ctdrill.imaging.phantom.writer import write_series
 
 ROOT = Path(__file__).resolve().parents[1]
 LOAD_FIGURE = "load_scaling.png"

@@ -16,18 +16,23 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from app.export import ExportJob, write_exports
-from app.pipeline import DEFAULT_DEPTH_STEP_MM, depth_grid_mm, plan_path
 from bench.bench_export import candidates as export_candidates
 from bench.report import Timing, figure_path, profile_top, time_it, time_pair
-from imaging import load_series
-from imaging.landmarks import CanalLandmark
-from imaging.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS, lip_ring_points, sample_lip_rings
-from imaging.plan import Plan, load_plan
-from imaging.safety import clearance_profile_mm, max_safe_depth_mm
-from imaging.volume import CTVolume
-from model.calibration import Calibration, load_calibration
-from model.profile import build_profile
+from ctdrill.app.export import ExportJob, write_exports
+from ctdrill.app.pipeline import DEFAULT_DEPTH_STEP_MM, depth_grid_mm, plan_path
+from ctdrill.imaging import load_series
+from ctdrill.imaging.plan.landmarks import CanalLandmark
+from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm
+from ctdrill.imaging.plan.types import Plan, load_plan
+from ctdrill.imaging.sampling.lip import (
+    DEFAULT_N_ANGLES,
+    DEFAULT_N_RINGS,
+    lip_ring_points,
+    sample_lip_rings,
+)
+from ctdrill.imaging.volume import CTVolume
+from ctdrill.model.calibration import Calibration, load_calibration
+from ctdrill.model.profile import build_profile
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "assets" / "demo"

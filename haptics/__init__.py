@@ -3,12 +3,12 @@
 Imports :mod:`model` only (never ``imaging``, ``app`` or a GUI module).
 """
 
-from haptics.device import Device, DeviceError, DeviceInfo, TelemetrySample
-from haptics.errors import HapticsInputError
-from haptics.profile_table import ProfileTable, ProfileTableError
-from haptics.protocol import DeviceState, Fault, ProtocolError
-from haptics.serial_device import SerialDevice
-from haptics.session import (
+from ctdrill.haptics.device import Device, DeviceError, DeviceInfo, TelemetrySample
+from ctdrill.haptics.errors import HapticsInputError
+from ctdrill.haptics.profile_table import ProfileTable, ProfileTableError
+from ctdrill.haptics.protocol import DeviceState, Fault, ProtocolError
+from ctdrill.haptics.serial_device import SerialDevice
+from ctdrill.haptics.session import (
     Operator,
     SessionInputError,
     SessionResult,
@@ -16,7 +16,7 @@ from haptics.session import (
     parse_operator,
     run_session,
 )
-from haptics.sim import SimulatedDevice
+from ctdrill.haptics.sim import SimulatedDevice
 
 __all__ = [
     "Device",

@@ -1,10 +1,10 @@
 """The host's view of a haptic device: one small Protocol, two implementations.
 
-:class:`haptics.sim.SimulatedDevice` runs the device emulator in-process (device time advances
-only in :meth:`Device.wait`, as fast as the CPU allows, deterministic);
-:class:`haptics.serial_device.SerialDevice` talks to real hardware or ``ctdrill emulate`` over
-``serial.serial_for_url`` (``/dev/ttyUSB0``, a pty path, ``loop://``) in real time. Both share
-the host logic of :class:`haptics.host.HostDevice`.
+:class:`ctdrill.haptics.sim.SimulatedDevice` runs the device emulator in-process (device time
+advances only in :meth:`Device.wait`, as fast as the CPU allows, deterministic);
+:class:`ctdrill.haptics.serial_device.SerialDevice` talks to real hardware or ``ctdrill emulate``
+over ``serial.serial_for_url`` (``/dev/ttyUSB0``, a pty path, ``loop://``) in real time. Both share
+the host logic of :class:`ctdrill.haptics.host.HostDevice`.
 """
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
-from haptics.errors import HapticsInputError
-from haptics.profile_table import ProfileTable
-from haptics.protocol import Limits, Version
+from ctdrill.haptics.errors import HapticsInputError
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.protocol import Limits, Version
 
 
 class DeviceError(HapticsInputError):
@@ -44,9 +44,9 @@ class TelemetrySample:
     velocity_mm_s, force_cmd_n, force_est_n : float
         Master velocity, rendered force (>= 0 opposes advance) and the hand-force estimate.
     state : int
-        :class:`haptics.protocol.DeviceState`.
+        :class:`ctdrill.haptics.protocol.DeviceState`.
     faults : int
-        :class:`haptics.protocol.Fault` bits.
+        :class:`ctdrill.haptics.protocol.Fault` bits.
     overruns : int
         Control ticks the device ran late.
     """

@@ -2,8 +2,8 @@
 
 Bytes in (:meth:`DeviceEmulator.receive`), ticks run (:meth:`DeviceEmulator.run_ticks`), bytes out
 (:meth:`DeviceEmulator.take_output`). The same object runs in-process behind
-:class:`haptics.sim.SimulatedDevice` (device time as fast as the CPU allows) and on a
-pseudo-terminal behind ``ctdrill emulate`` (paced to real time by :mod:`haptics.realtime`).
+:class:`ctdrill.haptics.sim.SimulatedDevice` (device time as fast as the CPU allows) and on a
+pseudo-terminal behind ``ctdrill emulate`` (paced to real time by :mod:`ctdrill.haptics.realtime`).
 Fully deterministic: the only state is what it was sent and how many ticks it ran.
 """
 
@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import math
 
-from haptics.plant import TRAVEL_MM, ForceController, MasterPlant
-from haptics.profile_table import MAX_PROFILE_STEPS
-from haptics.protocol import (
+from ctdrill.haptics.plant import TRAVEL_MM, ForceController, MasterPlant
+from ctdrill.haptics.profile_table import MAX_PROFILE_STEPS
+from ctdrill.haptics.protocol import (
     PROTOCOL_VERSION,
     Ack,
     Arm,
@@ -44,7 +44,7 @@ from haptics.protocol import (
     encode,
     profile_crc32,
 )
-from haptics.renderer import (
+from ctdrill.haptics.renderer import (
     CONTINUOUS_FORCE_N,
     PEAK_FORCE_N,
     THERMAL_BUDGET_N2_S,

@@ -1,13 +1,13 @@
 """Byte-level framing of the device protocol: COBS, CRC-16/CCITT-FALSE, CRC-32, typed errors.
 
-See :mod:`haptics.protocol` for the frame layout and docs/protocol.md for the specification.
+See :mod:`ctdrill.haptics.protocol` for the frame layout and docs/protocol.md for the specification.
 """
 
 from __future__ import annotations
 
 import zlib
 
-from haptics.errors import HapticsInputError
+from ctdrill.haptics.errors import HapticsInputError
 
 
 class ProtocolError(HapticsInputError):

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from haptics.device import DeviceError, DeviceInfo, TelemetrySample
-from haptics.profile_table import ProfileTable
-from haptics.protocol import (
+from ctdrill.haptics.device import DeviceError, DeviceInfo, TelemetrySample
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.protocol import (
     Ack,
     Arm,
     Disarm,
@@ -58,7 +58,7 @@ class Transport(Protocol):
 
 
 class HostDevice:
-    """A :class:`haptics.device.Device` over any :class:`Transport`.
+    """A :class:`ctdrill.haptics.device.Device` over any :class:`Transport`.
 
     Parameters
     ----------

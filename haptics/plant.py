@@ -7,7 +7,7 @@ a pseudo-differentiator for velocity, a disturbance observer (DOB, 1000 rad/s) t
 motor an acceleration source, a reaction-force observer (RFOB, 1000 rad/s) that estimates the
 hand's force, and force control ``a_ref = Kf (F_hand_est - F_cmd) / Mn`` with ``Kf = 1.2``, so
 the hand balances the rendered force and otherwise drives an apparent mass ``Mn / Kf``.
-(``Kp, Kv`` of Table 4 set the cutting coupling, :mod:`model.cutting`.)
+(``Kp, Kv`` of Table 4 set the cutting coupling, :mod:`ctdrill.model.cutting`.)
 
 Internally SI (m, m/s, N); the interfaces are in mm and mm/s. Plain floats, no arrays.
 """

@@ -15,11 +15,17 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike
 
-from haptics.errors import HapticsInputError
-from haptics.protocol import MAX_CHUNK_ROWS, ProfileBegin, ProfileChunk, ProfileEnd, profile_crc32
+from ctdrill.haptics.errors import HapticsInputError
+from ctdrill.haptics.protocol import (
+    MAX_CHUNK_ROWS,
+    ProfileBegin,
+    ProfileChunk,
+    ProfileEnd,
+    profile_crc32,
+)
 
 if TYPE_CHECKING:
-    from model.profile import Profile
+    from ctdrill.model.profile import Profile
 
 #: Most rows a device table holds (12 bytes each: 48 KiB).
 MAX_PROFILE_STEPS = 4096
@@ -113,7 +119,7 @@ class ProfileTable:
 
     @classmethod
     def from_profile(cls, profile: Profile, stop_depth_mm: float) -> ProfileTable:
-        """Adapt a :class:`model.profile.Profile` (depth from 0, uniform step).
+        """Adapt a :class:`ctdrill.model.profile.Profile` (depth from 0, uniform step).
 
         Harmonics beyond the second are dropped, missing ones are zero.
         """

@@ -20,8 +20,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from typing import Any, ClassVar
 
-from haptics.codes import DeviceState, Fault, MsgType, NakReason, OperatorKind
-from haptics.framing import (
+from ctdrill.haptics.codes import DeviceState, Fault, MsgType, NakReason, OperatorKind
+from ctdrill.haptics.framing import (
     ChecksumError,
     FramingError,
     MessageError,

@@ -20,8 +20,8 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from haptics.emulator import DeviceEmulator
-from haptics.errors import HapticsInputError
+from ctdrill.haptics.emulator import DeviceEmulator
+from ctdrill.haptics.errors import HapticsInputError
 
 OVERRUN_S = 0.005
 RESYNC_S = 0.5

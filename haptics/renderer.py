@@ -4,7 +4,7 @@ Per tick, from the encoder depth of the master and its velocity estimate:
 
 1. watchdog: no valid host frame for ``watchdog_s`` (50 ms) while armed -> safe state;
 2. finite checks on the inputs and on the force command (non-finite -> safe state);
-3. the cutting law (:mod:`model.cutting`) on the uploaded table: the front (deepest drill
+3. the cutting law (:mod:`ctdrill.model.cutting`) on the uploaded table: the front (deepest drill
    depth) yields to the hand, never past the stop depth; vibration from the device clock while
    the front advances; once the front has reached the stop depth, a stiff wall (20 N/mm on top
    of the coupling) anchored where the master was at that moment, so the force stays continuous,
@@ -26,8 +26,8 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from haptics.protocol import DeviceState, Fault, NakReason, ProfileBegin
-from model.cutting import (
+from ctdrill.haptics.protocol import DeviceState, Fault, NakReason, ProfileBegin
+from ctdrill.model.cutting import (
     DEFAULT_DAMPING_N_S_PER_MM,
     DEFAULT_STIFFNESS_N_PER_MM,
     cut_step,

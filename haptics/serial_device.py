@@ -6,8 +6,8 @@ import time
 
 import serial
 
-from haptics.device import DeviceError
-from haptics.host import HostDevice
+from ctdrill.haptics.device import DeviceError
+from ctdrill.haptics.host import HostDevice
 
 BAUDRATE = 2_000_000
 
@@ -55,7 +55,7 @@ class SerialLink:
 
 
 class SerialDevice(HostDevice):
-    """A :class:`haptics.device.Device` on ``url`` (e.g. ``/dev/ttyUSB0``, a pty, ``loop://``)."""
+    """A :class:`ctdrill.haptics.device.Device` on ``url`` (e.g. ``/dev/ttyUSB0``, a pty, ``loop://``)."""
 
     def __init__(self, url: str, *, timeout_s: float = 1.0, baudrate: int = BAUDRATE) -> None:
         super().__init__(SerialLink(url, baudrate=baudrate), timeout_s=timeout_s)

@@ -26,10 +26,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from haptics.device import Device, TelemetrySample
-from haptics.errors import HapticsInputError
-from haptics.profile_table import ProfileTable
-from haptics.protocol import DeviceState, Fault, OperatorKind
+from ctdrill.haptics.device import Device, TelemetrySample
+from ctdrill.haptics.errors import HapticsInputError
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.protocol import DeviceState, Fault, OperatorKind
 
 SESSION_COLUMNS = ("time_s", "master_mm", "drill_mm", "force_cmd_n", "state")
 STATE_NAMES = {int(s): s.name.lower() for s in DeviceState}

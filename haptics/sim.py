@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from haptics.emulator import DeviceEmulator
-from haptics.host import HostDevice
+from ctdrill.haptics.emulator import DeviceEmulator
+from ctdrill.haptics.host import HostDevice
 
 
 class SimLink:
@@ -43,7 +43,7 @@ class SimLink:
 
 
 class SimulatedDevice(HostDevice):
-    """A :class:`haptics.device.Device` backed by an in-process :class:`DeviceEmulator`.
+    """A :class:`ctdrill.haptics.device.Device` backed by an in-process :class:`DeviceEmulator`.
 
     Parameters
     ----------

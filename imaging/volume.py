@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from imaging.errors import ImagingInputError
+from ctdrill.imaging.errors import ImagingInputError
 
 #: Warning codes a load may report (DESIGN.md section 4, plus ``single_slice``).
 WARNING_CODES: tuple[str, ...] = (
@@ -94,7 +94,7 @@ class SeriesInfo:
     rescale_type: str = ""
     n_files: int = 0
     gantry_tilt_deg: float = 0.0
-    #: True once :func:`imaging.resample_uniform_slices` interpolated an irregular stack.
+    #: True once :func:`ctdrill.imaging.resample_uniform_slices` interpolated an irregular stack.
     resampled: bool = False
 
 

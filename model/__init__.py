@@ -3,7 +3,7 @@
 Pure NumPy/SciPy; imports no other ctdrill package.
 """
 
-from model.calibration import (
+from ctdrill.model.calibration import (
     Calibration,
     CalibrationError,
     Harmonic,
@@ -12,12 +12,12 @@ from model.calibration import (
     harmonic_freqs_hz,
     load_calibration,
 )
-from model.errors import ModelInputError
-from model.fit import CalibrationFit, calibrate_from_manifest, fit_document
-from model.force import a0_n, bk_n, c_prime, clip_count, force_density_n, gate
-from model.layered import layered_profile
-from model.profile import Profile, ProfileInputError, build_profile, force_n, force_series_n
-from model.spectral import amplitude_spectrum, extract_components, spectrogram
+from ctdrill.model.errors import ModelInputError
+from ctdrill.model.fit import CalibrationFit, calibrate_from_manifest, fit_document
+from ctdrill.model.force import a0_n, bk_n, c_prime, clip_count, force_density_n, gate
+from ctdrill.model.layered import layered_profile
+from ctdrill.model.profile import Profile, ProfileInputError, build_profile, force_n, force_series_n
+from ctdrill.model.spectral import amplitude_spectrum, extract_components, spectrogram
 
 __all__ = [
     "Calibration",

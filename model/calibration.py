@@ -22,11 +22,11 @@ from typing import Any
 
 import numpy as np
 
-import model
-from model.errors import ModelInputError
+from ctdrill.model.errors import ModelInputError
+from ctdrill.resources import asset
 
-#: Where named calibration sets live: ``<repo>/assets/calibration/``.
-CALIBRATION_DIR: Path = Path(model.__file__).resolve().parents[1] / "assets" / "calibration"
+#: Where named calibration sets live: ``assets/calibration/`` inside the installed package.
+CALIBRATION_DIR: Path = asset("calibration")
 
 
 #: Largest force (N) a power law may give within its range; more is a unit or sign error.

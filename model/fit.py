@@ -1,8 +1,8 @@
 """Calibration from recordings (paper sections 2.4-3.2; DESIGN.md "Calibration from recordings").
 
 Each recording, cut at a known CT number and feed, gives ``A0`` (the DC term) and ``|Bk|`` at
-``fk = k blades rpm / 60`` (Hann-windowed DFT, :func:`model.spectral.extract_components`). Eq. 13
-is fitted in log10 with the exact ``log10(1 + Ke v)`` by nonlinear least squares:
+``fk = k blades rpm / 60`` (Hann-windowed DFT, :func:`ctdrill.model.spectral.extract_components`).
+Eq. 13 is fitted in log10 with the exact ``log10(1 + Ke v)`` by nonlinear least squares:
 
 ``log10 A0 = b0 + log10(1 + Ke v) + n log10 C'`` and ``log10 |Bk| = b0k + nk log10 C'``
 (``Ke = 0`` for the harmonics, as the paper finds). Standard errors come from the Jacobian at the
@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from model.calibration import (
+from ctdrill.model.calibration import (
     Calibration,
     CalibrationError,
     Harmonic,
@@ -29,15 +29,15 @@ from model.calibration import (
     calibration_to_dict,
     load_calibration,
 )
-from model.errors import ModelInputError
-from model.recordings import (
+from ctdrill.model.errors import ModelInputError
+from ctdrill.model.recordings import (
     ManifestEntry,
     Recording,
     RecordingError,
     read_manifest,
     read_recording,
 )
-from model.spectral import amplitude_spectrum, dominant_frequencies, extract_components
+from ctdrill.model.spectral import amplitude_spectrum, dominant_frequencies, extract_components
 
 #: The paper's analysis window: "data were collected for cutting depths between 1 mm and 8 mm".
 DEFAULT_DEPTH_WINDOW_MM: tuple[float, float] = (1.0, 8.0)

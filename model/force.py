@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from model.calibration import Calibration
+from ctdrill.model.calibration import Calibration
 
 #: Feed (mm/s) above which the feed factor ``1 + Ke v`` stops growing. The paper calibrated
 #: 0.1-0.5 mm/s; implant drilling feeds stay below a few mm/s. The cap only keeps the law
@@ -108,7 +108,7 @@ def force_density_n(
     """Force per unit lip fraction of material at ``hu``: ``g (A0 + sum_k Bk sin(2 pi fk t))``.
 
     This is ``f(HU)`` of DESIGN.md 1.4 (N). ``freqs_hz`` (K,) comes from
-    :func:`model.calibration.harmonic_freqs_hz`. Broadcasts ``hu``, feed and ``t``.
+    :func:`ctdrill.model.calibration.harmonic_freqs_hz`. Broadcasts ``hu``, feed and ``t``.
     """
     hu_b, feed_b, t_b = np.broadcast_arrays(
         np.asarray(hu, dtype=np.float64),

@@ -4,7 +4,8 @@ The lip element at radius ``r`` sits at depth ``xi = x - l_t r / R``, so for suc
 lip integral ``(1/R) int_0^R f(HU(xi(r))) dr`` is the box filter
 ``(1/l_t) int_{x - l_t}^{x} f(HU(xi)) dxi``. With piecewise-constant layers it is a sum of
 exact overlap lengths: no ring discretisation, no staircase. This is the reference that
-:func:`model.profile.build_profile` converges to, and for one slab it is the paper's Eq. 2-4.
+:func:`ctdrill.model.profile.build_profile` converges to, and for one slab it is the paper's Eq.
+2-4.
 """
 
 from __future__ import annotations
@@ -12,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from model.calibration import Calibration, harmonic_freqs_hz
-from model.force import a0_n, bk_n, gate, out_of_range
-from model.profile import Profile, ProfileInputError, check_depths
+from ctdrill.model.calibration import Calibration, harmonic_freqs_hz
+from ctdrill.model.force import a0_n, bk_n, gate, out_of_range
+from ctdrill.model.profile import Profile, ProfileInputError, check_depths
 
 
 def layer_overlaps_mm(

@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
-from model.calibration import Calibration, Harmonic, PowerLaw, harmonic_freqs_hz
-from model.errors import ModelInputError
-from model.force import (
+from ctdrill.model.calibration import Calibration, Harmonic, PowerLaw, harmonic_freqs_hz
+from ctdrill.model.errors import ModelInputError
+from ctdrill.model.force import (
     MAX_FEED_MM_S,
     feed_factor,
     gate,

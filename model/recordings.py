@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from model.errors import ModelInputError
+from ctdrill.model.errors import ModelInputError
 
 MANIFEST_COLUMNS: tuple[str, ...] = ("file", "hu", "feed_mm_s")
 RECORDING_COLUMNS: tuple[str, ...] = ("time_s", "position_mm", "force_n")

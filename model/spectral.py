@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from model.errors import ModelInputError
+from ctdrill.model.errors import ModelInputError
 
 
 class SpectralInputError(ModelInputError):

@@ -23,14 +23,22 @@ FORBIDDEN_FIRST_PARTY = {
 }
 
 
+def _root(module: str) -> str:
+    """``ctdrill.imaging.x`` -> ``imaging`` (a first-party room); ``numpy.linalg`` -> ``numpy``."""
+    parts = module.split(".")
+    if parts[0] == "ctdrill" and len(parts) > 1:
+        return parts[1]
+    return parts[0]
+
+
 def _imported_roots(path: Path) -> set[str]:
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
     roots: set[str] = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            roots.update(alias.name.split(".")[0] for alias in node.names)
+            roots.update(_root(alias.name) for alias in node.names)
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            roots.add(node.module.split(".")[0])
+            roots.add(_root(node.module))
     return roots
 
 
@@ -59,7 +67,7 @@ def test_only_app_imports_gui_and_render_modules(package: str) -> None:
 def test_importing_core_packages_loads_no_gui_module() -> None:
     code = (
         "import json, sys, importlib, pkgutil\n"
-        "for pkg in ('imaging', 'model', 'haptics'):\n"
+        "for pkg in ('ctdrill.imaging', 'ctdrill.model', 'ctdrill.haptics'):\n"
         "    mod = importlib.import_module(pkg)\n"
         "    for info in pkgutil.walk_packages(mod.__path__, pkg + '.'):\n"
         "        importlib.import_module(info.name)\n"
@@ -71,10 +79,11 @@ def test_importing_core_packages_loads_no_gui_module() -> None:
     loaded = json.loads(out.stdout)
     bad = [m for m in loaded if m.split(".")[0] in GUI_MODULES]
     assert bad == []
-    assert "imaging" in loaded and "model" in loaded and "haptics" in loaded
+    assert {"ctdrill.imaging", "ctdrill.model", "ctdrill.haptics"} <= set(loaded)
+    assert not {"app", "imaging", "model", "haptics"} & set(loaded), "no bare top-level names"
 
 
 def test_the_check_itself_sees_a_forbidden_import(tmp_path: Path) -> None:
     sample = tmp_path / "bad.py"
-    sample.write_text("import numpy\nfrom model.force import x\nimport vtkmodules.all\n")
+    sample.write_text("import numpy\nfrom ctdrill.model.force import x\nimport vtkmodules.all\n")
     assert _imported_roots(sample) == {"numpy", "model", "vtkmodules"}

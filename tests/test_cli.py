@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from app.cli import COMMANDS, main
+from ctdrill.app.cli import COMMANDS, main
 
 
 def test_help_lists_every_subcommand(capsys: pytest.CaptureFixture[str]) -> None:
@@ -21,7 +21,10 @@ def test_help_lists_every_subcommand(capsys: pytest.CaptureFixture[str]) -> None
 
 def test_console_script_runs() -> None:
     out = subprocess.run(
-        [sys.executable, "-m", "app.cli", "--help"], capture_output=True, text=True, check=True
+        [sys.executable, "-m", "ctdrill.app.cli", "--help"],
+        capture_output=True,
+        text=True,
+        check=True,
     )
     assert "inspect" in out.stdout
 

@@ -8,9 +8,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.errors import AppInputError
-from model.calibration import load_calibration
-from model.fit import DEFAULT_DEPTH_WINDOW_MM, CalibrationFit, calibrate_from_manifest, fit_document
+from ctdrill.app.errors import AppInputError
+from ctdrill.model.calibration import load_calibration
+from ctdrill.model.fit import (
+    DEFAULT_DEPTH_WINDOW_MM,
+    CalibrationFit,
+    calibrate_from_manifest,
+    fit_document,
+)
 
 
 def register(subparsers: Any) -> None:

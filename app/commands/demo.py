@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
     """Export the demo and list the files with what each holds."""
     import json
 
-    from app.export_demo import DEMO_DIR, run_demo
+    from ctdrill.app.export_demo import DEMO_DIR, run_demo
 
     written = run_demo(args.out)
     about = {

@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.errors import AppInputError
-from haptics.realtime import serve_pty
+from ctdrill.app.errors import AppInputError
+from ctdrill.haptics.realtime import serve_pty
 
 
 def register(subparsers: Any) -> None:

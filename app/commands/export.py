@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.export import DEFAULT_RATE_HZ, TextProgress
+from ctdrill.app.export import DEFAULT_RATE_HZ, TextProgress
 
 
 def register(subparsers: Any) -> None:
@@ -57,7 +57,7 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export and list what was written."""
-    from app.export_run import export_case
+    from ctdrill.app.export_run import export_case
 
     progress = TextProgress(sys.stderr)
     try:

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from app.errors import AppInputError
+from ctdrill.app.errors import AppInputError
 
 #: Upper bound on a ``--screenshot`` run when ``--quit-after-s`` is not given, s.
 SCREENSHOT_TIMEOUT_S = 120.0
@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     quit_after = args.quit_after_s
     if args.screenshot is not None and quit_after is None:
         quit_after = SCREENSHOT_TIMEOUT_S
-    from app.gui.app import run_gui  # Qt loads only when the window is really wanted
+    from ctdrill.app.gui.app import run_gui  # Qt loads only when the window is really wanted
 
     return run_gui(
         dicom=args.dicom, plan=args.plan, screenshot=args.screenshot, quit_after_s=quit_after

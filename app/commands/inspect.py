@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from imaging import list_series, load_series
-from imaging._load_report import format_report, volume_report
+from ctdrill.imaging import list_series, load_series
+from ctdrill.imaging.dicom.report import format_report, volume_report
 
 
 def register(subparsers: Any) -> None:

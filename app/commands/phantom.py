@@ -7,8 +7,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from imaging.phantom import MISCH_CLASSES, make_mandible_phantom
-from imaging.phantom_io import write_phantom
+from ctdrill.imaging.phantom.io import write_phantom
+from ctdrill.imaging.phantom.mandible import MISCH_CLASSES, make_mandible_phantom
 
 
 def register(subparsers: Any) -> None:

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.rehearse import rehearse
+from ctdrill.app.rehearse import rehearse
 
 
 def register(subparsers: Any) -> None:

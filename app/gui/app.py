@@ -9,8 +9,8 @@ from pathlib import Path
 from PySide6.QtCore import QSettings, QTimer
 from PySide6.QtWidgets import QApplication
 
-from app.gui.main_window import MainWindow
-from app.gui.screenshot import qimage_to_rgb, region_stats, widget_rect
+from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.app.gui.screenshot import qimage_to_rgb, region_stats, widget_rect
 
 #: Preferred and minimum window size, logical pixels (DESIGN.md section 4).
 PREFERRED_SIZE = (1440, 900)

@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pyvista as pv
 
-from app.gui.scene import bone_surface
-from app.gui.slices import VIEWS, SliceImage, reslice
-from imaging import CTVolume, load_series
-from imaging.plan import Plan
-from imaging.series import SeriesSummary, list_series
+from ctdrill.app.gui.scene import bone_surface
+from ctdrill.app.gui.slices import VIEWS, SliceImage, reslice
+from ctdrill.imaging import CTVolume, load_series
+from ctdrill.imaging.dicom.series import SeriesSummary, list_series
+from ctdrill.imaging.plan.types import Plan
 
 #: Longest side of the strided grid the bone surface is contoured on, samples.
 SURFACE_MAX_DIM = 160

@@ -1,8 +1,8 @@
 """The ctdrill main window: 3D view, four slice views, depth plots, plan and rehearsal panels.
 
-Every action calls a headless function (``app.gui.compute``, ``app.gui.planning``,
-``app.pipeline``, ``imaging.plan``, ``app.export``); loading and path planning run in a worker
-thread (latest wins), so the UI thread stays responsive.
+Every action calls a headless function (``ctdrill.app.gui.compute``, ``ctdrill.app.gui.planning``,
+``ctdrill.app.pipeline``, ``ctdrill.imaging.plan.types``, ``ctdrill.app.export``); loading and path
+planning run in a worker thread (latest wins), so the UI thread stays responsive.
 """
 
 from __future__ import annotations
@@ -29,22 +29,22 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui import compute, planning
-from app.gui.menus import build_menus, fill_recent
-from app.gui.plan_panel import PlanPanel
-from app.gui.plots import draw_depth_plots, set_live_depth
-from app.gui.recent import RecentFolders
-from app.gui.rehearsal_panel import RehearsalPanel
-from app.gui.results import PathView, block_reason, compute_path_view
-from app.gui.scene import SceneInput
-from app.gui.screenshot import grab_window
-from app.gui.series_panel import SeriesPanel
-from app.gui.slice_view import SliceCanvas
-from app.gui.slices import VIEWS, WINDOW_PRESETS, SliceImage, volume_center_lps
-from app.gui.view3d import View3D
-from app.gui.workers import Debouncer, Runner, StepQueue
-from imaging import CTVolume
-from imaging.plan import Plan, load_plan, save_plan
+from ctdrill.app.gui import compute, planning
+from ctdrill.app.gui.menus import build_menus, fill_recent
+from ctdrill.app.gui.plan_panel import PlanPanel
+from ctdrill.app.gui.plots import draw_depth_plots, set_live_depth
+from ctdrill.app.gui.recent import RecentFolders
+from ctdrill.app.gui.rehearsal_panel import RehearsalPanel
+from ctdrill.app.gui.results import PathView, block_reason, compute_path_view
+from ctdrill.app.gui.scene import SceneInput
+from ctdrill.app.gui.screenshot import grab_window
+from ctdrill.app.gui.series_panel import SeriesPanel
+from ctdrill.app.gui.slice_view import SliceCanvas
+from ctdrill.app.gui.slices import VIEWS, WINDOW_PRESETS, SliceImage, volume_center_lps
+from ctdrill.app.gui.view3d import View3D
+from ctdrill.app.gui.workers import Debouncer, Runner, StepQueue
+from ctdrill.imaging import CTVolume
+from ctdrill.imaging.plan.types import Plan, load_plan, save_plan
 
 #: On close, how long to let a running load or computation finish, ms.
 CLOSE_WAIT_MS = 5000

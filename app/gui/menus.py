@@ -10,11 +10,11 @@ from typing import TYPE_CHECKING, Any
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QFileDialog, QMenu
 
-from app.gui.scene import SURFACE_PRESETS
-from app.gui.slices import WINDOW_PRESETS
+from ctdrill.app.gui.scene import SURFACE_PRESETS
+from ctdrill.app.gui.slices import WINDOW_PRESETS
 
 if TYPE_CHECKING:
-    from app.gui.main_window import MainWindow
+    from ctdrill.app.gui.main_window import MainWindow
 
 
 def _action(

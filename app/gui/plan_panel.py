@@ -1,7 +1,7 @@
 """The planning panel: numeric entry/target, drill and feed, calibration, landmark margins.
 
 The panel shows a plan and reports edits as a new plan (``plan_edited``); every edit goes
-through :mod:`app.gui.planning` (pure functions), so the panel holds no planning logic.
+through :mod:`ctdrill.app.gui.planning` (pure functions), so the panel holds no planning logic.
 """
 
 from __future__ import annotations
@@ -28,9 +28,9 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui import planning
-from imaging.plan import DrillSpec, Plan
-from model import available_calibrations
+from ctdrill.app.gui import planning
+from ctdrill.imaging.plan.types import DrillSpec, Plan
+from ctdrill.model import available_calibrations
 
 
 def _spin(lo: float, hi: float, step: float, decimals: int, suffix: str) -> QDoubleSpinBox:

@@ -1,4 +1,5 @@
-"""Plan edits the window offers, as pure functions on the frozen ``imaging.plan.Plan``.
+"""Plan edits the window offers, as pure functions on the frozen
+``ctdrill.imaging.plan.types.Plan``.
 
 Each edit returns a new plan (never mutates) and raises :class:`PlanEditError` with a message
 naming the field when the result would not be a usable plan.
@@ -10,10 +11,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from app.errors import AppInputError
-from app.gui.scene import LandmarkGeometry
-from imaging.landmarks import CanalLandmark, Landmark, LandmarkInputError, PointLandmark
-from imaging.plan import Plan
+from ctdrill.app.errors import AppInputError
+from ctdrill.app.gui.scene import LandmarkGeometry
+from ctdrill.imaging.plan.landmarks import (
+    CanalLandmark,
+    Landmark,
+    LandmarkInputError,
+    PointLandmark,
+)
+from ctdrill.imaging.plan.types import Plan
 
 #: Shortest trajectory the editor accepts, mm.
 MIN_DEPTH_MM = 0.5

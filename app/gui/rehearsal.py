@@ -14,11 +14,11 @@ from typing import Any
 import numpy as np
 from serial.tools import list_ports
 
-from app.export import DEFAULT_RATE_HZ, ExportJob, write_exports
-from app.gui.session_process import SessionJob, run_job
-from app.pipeline import PathResult
-from haptics.profile_table import ProfileTable
-from haptics.session import Row, SessionCsv
+from ctdrill.app.export import DEFAULT_RATE_HZ, ExportJob, write_exports
+from ctdrill.app.gui.session_process import SessionJob, run_job
+from ctdrill.app.pipeline import PathResult
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.session import Row, SessionCsv
 
 #: The device-choice label of the simulator.
 SIMULATOR = "simulator"
@@ -52,7 +52,8 @@ class Telemetry:
 
 
 class RehearsalRun:
-    """One rehearsal, its control loop in a separate process (:mod:`app.gui.session_process`).
+    """One rehearsal, its control loop in a separate process
+    (:mod:`ctdrill.app.gui.session_process`).
 
     The process owns the device; the window polls :meth:`latest` (which drains the process's
     queue) and may call :meth:`stop`, which ends the session at the next 10 ms block with an

@@ -1,7 +1,7 @@
 """The rehearsal panel: choose a device (simulator or serial port), connect, arm, watch the live
 force / depth / clearance, see the auto-stop and the safe state, record and export.
 
-The control loop owns the device (:class:`app.gui.rehearsal.RehearsalRun`, its own process);
+The control loop owns the device (:class:`ctdrill.app.gui.rehearsal.RehearsalRun`, its own process);
 this panel only polls its telemetry with a QTimer and sends commands.
 """
 
@@ -26,10 +26,10 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.rehearsal import SIMULATOR, RehearsalRun, Telemetry, device_choices
-from app.pipeline import PathResult
-from imaging import CTVolume
-from imaging.plan import Plan
+from ctdrill.app.gui.rehearsal import SIMULATOR, RehearsalRun, Telemetry, device_choices
+from ctdrill.app.pipeline import PathResult
+from ctdrill.imaging import CTVolume
+from ctdrill.imaging.plan.types import Plan
 
 #: Telemetry poll period, ms (30 Hz display).
 POLL_MS = 33

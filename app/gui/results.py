@@ -1,4 +1,4 @@
-"""What the window shows of a planned path: ``app.pipeline.plan_path``'s result turned into
+"""What the window shows of a planned path: ``ctdrill.app.pipeline.plan_path``'s result turned into
 plot curves, per-landmark clearances and the reason rehearsal is blocked, if any."""
 
 from __future__ import annotations
@@ -7,10 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.gui.plots import DepthCurves
-from app.pipeline import PathResult, plan_calibration, plan_path
-from imaging import CTVolume
-from imaging.plan import Plan
+from ctdrill.app.gui.plots import DepthCurves
+from ctdrill.app.pipeline import PathResult, plan_calibration, plan_path
+from ctdrill.imaging import CTVolume
+from ctdrill.imaging.plan.types import Plan
 
 
 @dataclass(frozen=True, eq=False)

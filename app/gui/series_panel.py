@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from PySide6.QtWidgets import QLabel, QListWidget, QVBoxLayout, QWidget
 
-from imaging import LoadWarning
+from ctdrill.imaging import LoadWarning
 
 
 class SeriesPanel(QWidget):

@@ -19,9 +19,9 @@ import traceback
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from app.rehearse import open_device
-from haptics.profile_table import ProfileTable
-from haptics.session import Row, parse_operator, run_session
+from ctdrill.app.rehearse import open_device
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.session import Row, parse_operator, run_session
 
 
 class _Queue(Protocol):
@@ -41,8 +41,8 @@ class SessionJob:
     Attributes
     ----------
     table : the force table to upload (with the stop depth the device enforces).
-    operator_spec : ``push:N`` (``haptics.session.parse_operator``).
-    device_spec : ``sim`` or ``serial:PORT`` (``app.rehearse.open_device``).
+    operator_spec : ``push:N`` (``ctdrill.haptics.session.parse_operator``).
+    device_spec : ``sim`` or ``serial:PORT`` (``ctdrill.app.rehearse.open_device``).
     duration_s : session length, s.
     realtime : pace the simulator to the wall clock (a real device is never paced).
     """

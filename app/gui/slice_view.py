@@ -1,5 +1,5 @@
-"""One slice view: a matplotlib canvas showing a :class:`~app.gui.slices.SliceImage` with the
-trajectory, the drill's stop point and the landmarks; entry and target can be dragged.
+"""One slice view: a matplotlib canvas showing a :class:`~ctdrill.app.gui.slices.SliceImage` with
+the trajectory, the drill's stop point and the landmarks; entry and target can be dragged.
 
 The widget only draws and reports: a finished drag of a handle, or a right click (target;
 Shift + right click: entry) emits ``point_moved(name, lps)``, and a left click in canal-point
@@ -17,9 +17,9 @@ from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 from PySide6.QtCore import Signal
 
-from app.gui.scene import LandmarkGeometry
-from app.gui.slices import SliceImage, polyline_in_plane, window_to_uint8
-from app.gui.workers import StepQueue
+from ctdrill.app.gui.scene import LandmarkGeometry
+from ctdrill.app.gui.slices import SliceImage, polyline_in_plane, window_to_uint8
+from ctdrill.app.gui.workers import StepQueue
 
 #: Pick radius for dragging a handle, pixels.
 PICK_PX = 10.0

@@ -31,7 +31,7 @@ WINDOW_PRESETS: dict[str, tuple[float, float]] = {
 
 
 class Sampleable(Protocol):
-    """What reslicing needs from a volume (``imaging.CTVolume`` provides it)."""
+    """What reslicing needs from a volume (``ctdrill.imaging.CTVolume`` provides it)."""
 
     @property
     def hu(self) -> np.ndarray: ...

@@ -1,4 +1,5 @@
-"""The embedded 3D view: a ``pyvistaqt.QtInteractor`` drawn by :func:`app.gui.scene.build_scene`."""
+"""The embedded 3D view: a ``pyvistaqt.QtInteractor`` drawn by
+:func:`ctdrill.app.gui.scene.build_scene`."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import pyvista as pv
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 
-from app.gui.scene import SceneInput, build_scene, focus_camera, set_drill_depth
+from ctdrill.app.gui.scene import SceneInput, build_scene, focus_camera, set_drill_depth
 
 
 class View3D(QWidget):

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from app.cli import main
-from model import load_calibration
+from ctdrill.app.cli import main
+from ctdrill.model import load_calibration
 from tests.model.synth import TRUE_A0, TRUE_HARMONICS, write_campaign
 
 #: The paper's error bars in % (Table 3 for b0 and n, Table 2 for Ke; A0's b0 takes b'').

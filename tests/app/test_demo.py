@@ -8,8 +8,8 @@ import json
 import re
 from pathlib import Path
 
-from app.cli import main
-from app.export_demo import DEMO_MARKER
+from ctdrill.app.cli import main
+from ctdrill.app.export_demo import DEMO_MARKER
 
 
 def _run(argv: list[str]) -> tuple[int, str, str]:

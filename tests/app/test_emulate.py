@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from app.cli import main
+from ctdrill.app.cli import main
 
 
 def test_emulate_runs_for_a_duration_and_removes_its_link(

@@ -14,9 +14,9 @@ import numpy as np
 import pydicom
 import pytest
 
-from app.cli import main
-from app.export import FORCE_COLUMNS, PROFILE_COLUMNS, misch_class
-from imaging.plan import load_plan, save_plan
+from ctdrill.app.cli import main
+from ctdrill.app.export import FORCE_COLUMNS, PROFILE_COLUMNS, misch_class
+from ctdrill.imaging.plan.types import load_plan, save_plan
 from tests.conftest import ASSETS
 
 DEMO = ASSETS / "demo"
@@ -336,12 +336,12 @@ def test_one_refused_plan_writes_nothing(tmp_path: Path) -> None:
 
 
 def test_edge_cases_no_landmark_and_a_stop_at_the_entry(tmp_path: Path) -> None:
-    from app.export import ExportJob, write_exports
-    from app.pipeline import plan_path
-    from imaging.landmarks import PointLandmark
-    from imaging.plan import Plan
-    from imaging.volume import CTVolume, SeriesInfo
-    from model.calibration import load_calibration
+    from ctdrill.app.export import ExportJob, write_exports
+    from ctdrill.app.pipeline import plan_path
+    from ctdrill.imaging.plan.landmarks import PointLandmark
+    from ctdrill.imaging.plan.types import Plan
+    from ctdrill.imaging.volume import CTVolume, SeriesInfo
+    from ctdrill.model.calibration import load_calibration
 
     hu = np.full((40, 8, 8), 1000, dtype=np.int16)
     hu[:10] = -1000

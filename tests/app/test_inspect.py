@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.cli import main
-from imaging.dicom_writer import write_series
+from ctdrill.app.cli import main
+from ctdrill.imaging.phantom.writer import write_series
 from tests.imaging.factory import affine, linear_hu
 
 

@@ -10,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.pipeline import PathInputError, plan_calibration, plan_calibration_key, plan_path
-from imaging.landmarks import CanalLandmark, MaskLandmark
-from imaging.plan import DrillSpec, Plan, load_plan
-from imaging.volume import CTVolume, SeriesInfo
-from model.calibration import load_calibration
-from model.layered import layered_profile
-from model.profile import force_n
+from ctdrill.app.pipeline import PathInputError, plan_calibration, plan_calibration_key, plan_path
+from ctdrill.imaging.plan.landmarks import CanalLandmark, MaskLandmark
+from ctdrill.imaging.plan.types import DrillSpec, Plan, load_plan
+from ctdrill.imaging.volume import CTVolume, SeriesInfo
+from ctdrill.model.calibration import load_calibration
+from ctdrill.model.layered import layered_profile
+from ctdrill.model.profile import force_n
 
 DZ = 0.002  # slice spacing, mm: the trilinear blur between slabs spans one slice
 Z0 = -1.001  # first slice centre; the slab boundaries fall half-way between slice centres

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from app.cli import main
+from ctdrill.app.cli import main
 from tests.haptics.emulator_process import emulator_on_pty
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -20,7 +20,7 @@ def emulator_on_pty(link: Path) -> Iterator[Path]:
     stderr, and the link removed.
     """
     proc = subprocess.Popen(
-        [sys.executable, "-m", "app.cli", "emulate", "--pty-link", str(link)],
+        [sys.executable, "-m", "ctdrill.app.cli", "emulate", "--pty-link", str(link)],
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from haptics.plant import ENCODER_M, ForceController, MasterPlant
+from ctdrill.haptics.plant import ENCODER_M, ForceController, MasterPlant
 
 DT = 1e-4
 

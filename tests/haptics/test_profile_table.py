@@ -8,9 +8,9 @@ import struct
 import numpy as np
 import pytest
 
-from haptics.profile_table import MAX_PROFILE_STEPS, ProfileTable, ProfileTableError
-from haptics.protocol import MAX_CHUNK_ROWS, ProfileBegin, ProfileChunk, ProfileEnd, crc32
-from model.profile import Profile
+from ctdrill.haptics.profile_table import MAX_PROFILE_STEPS, ProfileTable, ProfileTableError
+from ctdrill.haptics.protocol import MAX_CHUNK_ROWS, ProfileBegin, ProfileChunk, ProfileEnd, crc32
+from ctdrill.model.profile import Profile
 
 
 def _profile(k: int) -> Profile:

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from haptics.protocol import (
+from ctdrill.haptics.protocol import (
     MAX_CHUNK_ROWS,
     Ack,
     Arm,

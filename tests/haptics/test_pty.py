@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from haptics.device import DeviceError
-from haptics.profile_table import ProfileTable
-from haptics.protocol import DeviceState, Fault, OperatorKind
-from haptics.serial_device import SerialDevice
+from ctdrill.haptics.device import DeviceError
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.protocol import DeviceState, Fault, OperatorKind
+from ctdrill.haptics.serial_device import SerialDevice
 from tests.haptics.emulator_process import emulator_on_pty
 
 

@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from haptics.profile_table import ProfileTable
-from haptics.protocol import DeviceState, Fault, NakReason
-from haptics.renderer import Renderer
-from model.profile import Profile, force_n
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.protocol import DeviceState, Fault, NakReason
+from ctdrill.haptics.renderer import Renderer
+from ctdrill.model.profile import Profile, force_n
 
 DT = 1e-4
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from haptics.device import DeviceError
-from haptics.protocol import FrameReader, Heartbeat, Packet
-from haptics.serial_device import SerialDevice
+from ctdrill.haptics.device import DeviceError
+from ctdrill.haptics.protocol import FrameReader, Heartbeat, Packet
+from ctdrill.haptics.serial_device import SerialDevice
 
 
 def test_loopback_carries_frames_but_does_not_answer_hello() -> None:

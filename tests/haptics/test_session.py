@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from haptics.profile_table import ProfileTable
-from haptics.session import (
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.session import (
     SESSION_COLUMNS,
     Operator,
     SessionCsv,
@@ -16,7 +16,7 @@ from haptics.session import (
     parse_operator,
     run_session,
 )
-from haptics.sim import SimulatedDevice
+from ctdrill.haptics.sim import SimulatedDevice
 
 TABLE = ProfileTable.slab(
     s0_n=4.0, s1_n=0.3, s2_n=0.1, top_mm=0.5, bottom_mm=39.0, stop_depth_mm=3.0

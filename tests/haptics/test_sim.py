@@ -10,10 +10,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from haptics.device import DeviceError
-from haptics.emulator import DeviceEmulator
-from haptics.profile_table import ProfileTable
-from haptics.protocol import (
+from ctdrill.haptics.device import DeviceError
+from ctdrill.haptics.emulator import DeviceEmulator
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.protocol import (
     Arm,
     DeviceState,
     Fault,
@@ -31,8 +31,8 @@ from haptics.protocol import (
     crc16_ccitt_false,
     encode,
 )
-from haptics.session import parse_operator, run_session
-from haptics.sim import SimulatedDevice
+from ctdrill.haptics.session import parse_operator, run_session
+from ctdrill.haptics.sim import SimulatedDevice
 
 
 def _connected(table: ProfileTable) -> SimulatedDevice:

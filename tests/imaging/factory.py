@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from imaging.dicom_writer import WrittenSeries, write_series
-from imaging.volume import CTVolume, SeriesInfo
+from ctdrill.imaging.phantom.writer import WrittenSeries, write_series
+from ctdrill.imaging.volume import CTVolume, SeriesInfo
 
 
 def rotation(yaw_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imaging.landmarks import (
+from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
     LandmarkInputError,
     MaskLandmark,

@@ -7,16 +7,16 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from imaging import load_series
-from imaging.lip import (
+from ctdrill.imaging import load_series
+from ctdrill.imaging.plan.types import load_plan
+from ctdrill.imaging.sampling.lip import (
     LipInputError,
     axis_basis,
     lip_ring_points,
     ring_radii_mm,
     sample_lip_rings,
 )
-from imaging.plan import load_plan
-from imaging.volume import CTVolume, SeriesInfo
+from ctdrill.imaging.volume import CTVolume, SeriesInfo
 from tests.conftest import ASSETS
 from tests.imaging.test_volume import slow_trilinear
 

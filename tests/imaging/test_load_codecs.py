@@ -11,10 +11,10 @@ import pytest
 from pydicom.data import get_testdata_file
 from pydicom.pixels import get_decoder
 
-import imaging.pixels as pixels
-from imaging import load_series
-from imaging.discovery import read_headers
-from imaging.pixels import decoder_plugin_for, read_stored
+import ctdrill.imaging.dicom.pixels as pixels
+from ctdrill.imaging import load_series
+from ctdrill.imaging.dicom.discovery import read_headers
+from ctdrill.imaging.dicom.pixels import decoder_plugin_for, read_stored
 
 
 def _path(name: str) -> Path:

@@ -11,8 +11,8 @@ from pydicom.data import get_testdata_file
 from pydicom.dataset import Dataset
 from pydicom.uid import ImplicitVRLittleEndian
 
-from imaging._load_fastheader import HeaderCorruptError, read_fast_header
-from imaging.discovery import Skipped, read_headers
+from ctdrill.imaging.dicom.discovery import Skipped, read_headers
+from ctdrill.imaging.dicom.fastheader import HeaderCorruptError, read_fast_header
 from tests.imaging.factory import affine, linear_hu, write
 
 

@@ -8,8 +8,8 @@ import numpy as np
 import pydicom
 import pytest
 
-from imaging import CTVolume, ImagingInputError, load_series
-from imaging.series import DuplicateSliceError
+from ctdrill.imaging import CTVolume, ImagingInputError, load_series
+from ctdrill.imaging.dicom.series import DuplicateSliceError
 
 GE = "dcmqa_ct_GE_head_gantrytilt_varspacing"
 MIXED = "dcmqa_ct_Philips_phantom_gantrytilt_mixedfolder"

@@ -9,14 +9,14 @@ import pydicom
 import pytest
 from pydicom.uid import JPEG2000Lossless, RLELossless, SecondaryCaptureImageStorage
 
-from imaging import (
+from ctdrill.imaging import (
     ImagingInputError,
     calibrate_grey_to_hu,
     list_series,
     load_series,
     resample_uniform_slices,
 )
-from imaging.series import DuplicateSliceError, MemoryCapError
+from ctdrill.imaging.dicom.series import DuplicateSliceError, MemoryCapError
 from tests.imaging.factory import affine, linear_hu, rotation, volume, write
 
 SHAPE = (5, 6, 7)

@@ -7,8 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from imaging.lip import sample_lip_rings
-from imaging.phantom import (
+from ctdrill.imaging.phantom.mandible import (
     LABELS,
     MISCH_CLASSES,
     Phantom,
@@ -22,7 +21,8 @@ from imaging.phantom import (
     mandible_labels,
     streak_hu,
 )
-from imaging.volume import CTVolume, SeriesInfo
+from ctdrill.imaging.sampling.lip import sample_lip_rings
+from ctdrill.imaging.volume import CTVolume, SeriesInfo
 
 MISCH_BANDS = {
     "D1": (1250.0, np.inf),

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from imaging.landmarks import (
+from ctdrill.imaging.plan.landmarks import (
     DEFAULT_CANAL_RADIUS_MM,
     CanalLandmark,
     LandmarkInputError,
@@ -18,7 +18,14 @@ from imaging.landmarks import (
     PointLandmark,
     bind_to_grid,
 )
-from imaging.plan import DrillSpec, Plan, PlanInputError, load_plan, load_plans, save_plan
+from ctdrill.imaging.plan.types import (
+    DrillSpec,
+    Plan,
+    PlanInputError,
+    load_plan,
+    load_plans,
+    save_plan,
+)
 
 BASE: dict[str, Any] = {
     "format": "ctdrill-plan/1",

@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from imaging._geometry import segment_solid_distance_mm, solid_distance_mm
-from imaging.landmarks import CanalLandmark, MaskLandmark, PointLandmark
-from imaging.plan import DrillSpec, Plan
-from imaging.safety import (
+from ctdrill.imaging.plan.distance import segment_solid_distance_mm, solid_distance_mm
+from ctdrill.imaging.plan.landmarks import CanalLandmark, MaskLandmark, PointLandmark
+from ctdrill.imaging.plan.safety import (
     clearance_mm,
     clearance_profile_mm,
     max_safe_depth_mm,
     nearest_landmark,
 )
+from ctdrill.imaging.plan.types import DrillSpec, Plan
 
 R, LT = 1.0, 0.6
 

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from imaging import CTVolume, ImagingInputError, SeriesInfo, load_series
+from ctdrill.imaging import CTVolume, ImagingInputError, SeriesInfo, load_series
 from tests.conftest import ASSETS
 from tests.imaging.factory import affine, linear_hu, rotation, volume
 

@@ -9,7 +9,7 @@ import pydicom
 import pytest
 from pydicom.uid import ImplicitVRLittleEndian, RLELossless
 
-from imaging.dicom_writer import WriterInputError, write_series
+from ctdrill.imaging.phantom.writer import WriterInputError, write_series
 from tests.imaging.factory import affine, linear_hu, rotation
 
 ROT = rotation(30.0, 15.0, -20.0)

@@ -9,14 +9,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from model import (
+from ctdrill.model import (
     Calibration,
     CalibrationError,
     ModelInputError,
     harmonic_freqs_hz,
     load_calibration,
 )
-from model.calibration import CALIBRATION_DIR, calibration_from_dict, calibration_to_dict
+from ctdrill.model.calibration import CALIBRATION_DIR, calibration_from_dict, calibration_to_dict
 
 PINE: dict[str, Any] = {
     "name": "pine-wood-paper",
@@ -64,7 +64,9 @@ def test_bone_set_matches_design_and_is_labelled_illustrative() -> None:
 
 
 def test_bundled_names_resolve_relative_to_the_package() -> None:
-    assert Path(__file__).resolve().parents[2] / "assets" / "calibration" == CALIBRATION_DIR
+    assert (
+        Path(__file__).resolve().parents[2] / "assets" / "calibration" == CALIBRATION_DIR.resolve()
+    )
     assert {"pine-wood-paper", "bone-illustrative"} <= {p.stem for p in CALIBRATION_DIR.glob("*")}
 
 

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from model.cutting import (
+from ctdrill.model.cutting import (
     DEFAULT_DAMPING_N_S_PER_MM,
     DEFAULT_STIFFNESS_N_PER_MM,
     advance_front_mm,

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from model import a0_n, bk_n, gate, load_calibration
-from model.force import out_of_range
+from ctdrill.model import a0_n, bk_n, gate, load_calibration
+from ctdrill.model.force import out_of_range
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "model.md"
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from model import ModelInputError
-from model.fit import (
+from ctdrill.model import ModelInputError
+from ctdrill.model.fit import (
     Measurement,
     fit_calibration,
     fit_document,
@@ -16,7 +16,7 @@ from model.fit import (
     measure_recording,
     nearest_calibration,
 )
-from model.recordings import ManifestEntry, Recording, read_manifest, read_recording
+from ctdrill.model.recordings import ManifestEntry, Recording, read_manifest, read_recording
 from tests.model.synth import synth_recording
 
 CP = np.array([200.0, 200.0, 350.0, 350.0, 500.0, 500.0, 650.0])

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from model import a0_n, bk_n, c_prime, clip_count, gate, harmonic_freqs_hz, load_calibration
-from model.force import (
+from ctdrill.model import a0_n, bk_n, c_prime, clip_count, gate, harmonic_freqs_hz, load_calibration
+from ctdrill.model.force import (
     MAX_FEED_MM_S,
     feed_factor,
     force_density_n,

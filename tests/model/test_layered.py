@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from model import ModelInputError, build_profile, force_series_n, load_calibration
-from model.layered import layer_overlaps_mm, layered_profile
+from ctdrill.model import ModelInputError, build_profile, force_series_n, load_calibration
+from ctdrill.model.layered import layer_overlaps_mm, layered_profile
 from tests.model.lip import layered_lip_hu
 
 PINE = load_calibration("pine-wood-paper")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from model import (
+from ctdrill.model import (
     Calibration,
     ModelInputError,
     Profile,
@@ -18,7 +18,7 @@ from model import (
     harmonic_freqs_hz,
     load_calibration,
 )
-from model.force import MAX_FEED_MM_S
+from ctdrill.model.force import MAX_FEED_MM_S
 from tests.model.lip import layered_lip_hu
 
 PINE = load_calibration("pine-wood-paper")

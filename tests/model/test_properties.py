@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from model import (
+from ctdrill.model import (
     Calibration,
     a0_n,
     bk_n,
@@ -20,16 +20,16 @@ from model import (
     harmonic_freqs_hz,
     load_calibration,
 )
-from model.calibration import (
+from ctdrill.model.calibration import (
     MAX_EXPONENT,
     MAX_KE_PER_MM_S,
     MAX_LAW_N,
     MIN_LAW_N,
     calibration_from_dict,
 )
-from model.errors import ModelInputError
-from model.force import MAX_FEED_MM_S, force_density_n
-from model.layered import layered_profile
+from ctdrill.model.errors import ModelInputError
+from ctdrill.model.force import MAX_FEED_MM_S, force_density_n
+from ctdrill.model.layered import layered_profile
 from tests.model.lip import layered_lip_hu
 
 SETS = [load_calibration("pine-wood-paper"), load_calibration("bone-illustrative")]

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from model import ModelInputError
-from model.spectral import (
+from ctdrill.model import ModelInputError
+from ctdrill.model.spectral import (
     amplitude_spectrum,
     dominant_frequencies,
     extract_components,

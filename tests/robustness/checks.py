@@ -51,11 +51,12 @@ def check_observed(case: Case, seen: Observed) -> None:
 
 
 def check_load(case: Case) -> Observed:
-    """Load the case with ``imaging.load_series`` and assert its outcome (and exact values)."""
+    """Load the case with ``ctdrill.imaging.load_series`` and assert its outcome (and exact
+    values)."""
     seen = observe_load(case)
     check_observed(case, seen)
     if seen.outcome == "load" and (case.hu is not None or case.affine_lps is not None):
-        from imaging import load_series
+        from ctdrill.imaging import load_series
 
         volume = load_series(case.path)
         if case.hu is not None:

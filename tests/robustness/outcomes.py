@@ -45,8 +45,8 @@ class Observed:
 
 
 def observe_load(case: Case) -> Observed:
-    """Call ``imaging.load_series`` on the case and classify the result."""
-    from imaging import ImagingInputError, load_series
+    """Call ``ctdrill.imaging.load_series`` on the case and classify the result."""
+    from ctdrill.imaging import ImagingInputError, load_series
 
     start = time.perf_counter()
     try:
@@ -87,8 +87,8 @@ class CliRun:
 
 
 def run_cli_in_process(args: list[str]) -> CliRun:
-    """Run ``app.cli.main(args)`` capturing stdout/stderr; exceptions propagate (bugs)."""
-    from app.cli import main
+    """Run ``ctdrill.app.cli.main(args)`` capturing stdout/stderr; exceptions propagate (bugs)."""
+    from ctdrill.app.cli import main
 
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -104,7 +104,7 @@ _LIMITED = """
 import resource, sys
 limit = int(sys.argv[1])
 resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
-from app.cli import main
+from ctdrill.app.cli import main
 sys.exit(main(sys.argv[2:]))
 """
 
@@ -115,7 +115,7 @@ def run_cli_subprocess(
     """Run ``python -m app.cli`` (optionally under ``RLIMIT_AS``) in a fresh process."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     if address_space_bytes is None:
-        argv = [sys.executable, "-m", "app.cli", *args]
+        argv = [sys.executable, "-m", "ctdrill.app.cli", *args]
     else:
         argv = [sys.executable, "-c", _LIMITED, str(address_space_bytes), *args]
     proc = subprocess.run(

@@ -130,7 +130,7 @@ def classify(call: Callable[[], Any], project_error: type[BaseException]) -> str
 
 def dicom_campaign(n: int, rng: random.Random) -> dict[str, Counter[str]]:
     """``n`` single mutations per seed series, one random file each; outcome counts per op."""
-    from imaging import ImagingInputError, load_series
+    from ctdrill.imaging import ImagingInputError, load_series
     from tests.robustness.test_fuzz_dicom import SEEDS, seed_offsets, seed_series
 
     counts: dict[str, Counter[str]] = defaultdict(Counter)
@@ -150,9 +150,9 @@ def dicom_campaign(n: int, rng: random.Random) -> dict[str, Counter[str]]:
 
 def json_campaign(n: int, rng: random.Random) -> dict[str, Counter[str]]:
     """``n`` mutated documents per JSON reader; outcome counts per reader."""
-    from imaging import ImagingInputError
-    from imaging.plan import load_plans
-    from model import ModelInputError, load_calibration
+    from ctdrill.imaging import ImagingInputError
+    from ctdrill.imaging.plan.types import load_plans
+    from ctdrill.model import ModelInputError, load_calibration
 
     targets: list[tuple[str, Any, str, Callable[[Path], object], type[BaseException]]] = [
         ("plan (ctdrill-plan/1)", SEED_PLAN, ".json", load_plans, ImagingInputError),
@@ -172,7 +172,7 @@ def json_campaign(n: int, rng: random.Random) -> dict[str, Counter[str]]:
 
 def protocol_campaign(n: int, rng: random.Random) -> dict[str, Counter[str]]:
     """``n`` mutated frames fed to a FrameReader followed by a valid heartbeat."""
-    from haptics.protocol import FrameReader, Packet, ProtocolError, decode
+    from ctdrill.haptics.protocol import FrameReader, Packet, ProtocolError, decode
     from tests.robustness.test_fuzz_protocol import FRAMES, HEARTBEAT
 
     counts: dict[str, Counter[str]] = defaultdict(Counter)

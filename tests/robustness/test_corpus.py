@@ -49,7 +49,7 @@ def test_corpus_covers_every_fault_family(cases: dict[str, Case]) -> None:
 
 
 def test_max_bytes_refuses_a_series_larger_than_allowed(cases: dict[str, Case]) -> None:
-    from imaging import ImagingInputError, load_series
+    from ctdrill.imaging import ImagingInputError, load_series
 
     with pytest.raises(ImagingInputError):
         load_series(cases["clean"].path, max_bytes=1000)  # the series holds 1920 bytes of HU

@@ -66,12 +66,13 @@ def plan_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_force_path_gives_force_map_or_clean_refusal(
     name: str, cases: dict[str, Case], plan_path: Path
 ) -> None:
-    """The headless path the export, rehearsal and GUI share (``app.pipeline.plan_path``)."""
-    from app.errors import AppInputError
-    from app.pipeline import plan_path as force_path
-    from imaging import ImagingInputError, load_series
-    from imaging.plan import load_plan
-    from model import load_calibration
+    """The headless path the export, rehearsal and GUI share
+    (``ctdrill.app.pipeline.plan_path``)."""
+    from ctdrill.app.errors import AppInputError
+    from ctdrill.app.pipeline import plan_path as force_path
+    from ctdrill.imaging import ImagingInputError, load_series
+    from ctdrill.imaging.plan.types import load_plan
+    from ctdrill.model import load_calibration
 
     case = cases[name]
     try:

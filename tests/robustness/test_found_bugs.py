@@ -108,10 +108,11 @@ BUG_CASES: frozenset[str] = frozenset()
 
 def known_bug(exc: BaseException) -> str | None:
     """The key of the reported bug ``exc`` comes from, or None if it is a new one."""
+    # Resolved: in a checkout the package runs through the ctdrill/ links to the folders.
     frames = [
         f
         for f in traceback.extract_tb(exc.__traceback__)
-        if Path(f.filename).is_relative_to(ROOT)
+        if Path(f.filename).resolve().is_relative_to(ROOT)
         and "/tests/" not in f.filename
         and "/.venv/" not in f.filename
     ]
@@ -120,7 +121,7 @@ def known_bug(exc: BaseException) -> str | None:
     if not frames:
         return None
     where = frames[-1]
-    rel = Path(where.filename).relative_to(ROOT).as_posix()
+    rel = Path(where.filename).resolve().relative_to(ROOT).as_posix()
     for bug in KNOWN_BUGS:
         if (
             isinstance(exc, bug.exc_type)
@@ -134,18 +135,18 @@ def known_bug(exc: BaseException) -> str | None:
 def test_known_bug_matches_module_and_function(monkeypatch: pytest.MonkeyPatch) -> None:
     """The fuzzers' tolerance is exact: the bug's module and function, nothing wider."""
     import tests.robustness.test_found_bugs as registry
-    from imaging import ImagingInputError
-    from imaging.plan import load_plan
+    from ctdrill.imaging import ImagingInputError
+    from ctdrill.imaging.plan.types import load_plan
 
     with pytest.raises(ImagingInputError) as info:
         load_plan(ROOT / "no-such-plan.json")
     assert known_bug(info.value) is None
-    here = KnownBug("demo", ImagingInputError, "imaging/_plan_read.py", "*")
+    here = KnownBug("demo", ImagingInputError, "imaging/plan/read.py", "*")
     monkeypatch.setattr(registry, "KNOWN_BUGS", (here,))
     assert known_bug(info.value) == "demo"
     elsewhere = KnownBug("demo", ImagingInputError, "imaging/series.py", "*")
     monkeypatch.setattr(registry, "KNOWN_BUGS", (elsewhere,))
     assert known_bug(info.value) is None
-    wrong_type = KnownBug("demo", TypeError, "imaging/_plan_read.py", "*")
+    wrong_type = KnownBug("demo", TypeError, "imaging/plan/read.py", "*")
     monkeypatch.setattr(registry, "KNOWN_BUGS", (wrong_type,))
     assert known_bug(info.value) is None

@@ -38,8 +38,8 @@ HOSTILE_CELLS = ("", "nan", "inf", "-inf", "1e400", "-0", "abc", "1,5", "0x10", 
 @functools.cache
 def seed_files() -> dict[str, str]:
     """File name -> CSV text: ``manifest.csv`` and six recordings (1 kHz, depth 0..9 mm)."""
-    from model import load_calibration
-    from model.force import a0_n, bk_n
+    from ctdrill.model import load_calibration
+    from ctdrill.model.force import a0_n, bk_n
 
     cal = load_calibration("pine-wood-paper")
     freqs = [h.order * BLADES * RPM / 60.0 for h in cal.harmonics]
@@ -64,8 +64,8 @@ def seed_files() -> dict[str, str]:
 
 def fit(files: dict[str, str]) -> str:
     """Run the calibration on ``files``; "ok", "refuse" or a known bug's key."""
-    from model import ModelInputError, load_calibration
-    from model.fit import calibrate_from_manifest, fit_document
+    from ctdrill.model import ModelInputError, load_calibration
+    from ctdrill.model.fit import calibrate_from_manifest, fit_document
 
     with tempfile.TemporaryDirectory() as tmp:
         for name, text in files.items():
@@ -102,7 +102,7 @@ def fit(files: dict[str, str]) -> str:
 
 def test_seed_recordings_recover_the_law() -> None:
     """Unmutated, the fit recovers the pine-wood exponent (the fuzzing starts from valid data)."""
-    from model.fit import calibrate_from_manifest
+    from ctdrill.model.fit import calibrate_from_manifest
 
     with tempfile.TemporaryDirectory() as tmp:
         for name, text in seed_files().items():

@@ -29,7 +29,7 @@ u16 = st.integers(0, 0xFFFF)
 @st.composite
 def valid_upload(draw: st.DrawFn) -> list[object]:
     """PROFILE_BEGIN, its chunks and PROFILE_END with the right CRC (a table the device loads)."""
-    from haptics import protocol as p
+    from ctdrill.haptics import protocol as p
 
     n = draw(st.integers(1, 40))
     step = draw(st.floats(0.01, 1.0))
@@ -61,7 +61,7 @@ def valid_upload(draw: st.DrawFn) -> list[object]:
 @st.composite
 def hostile_message(draw: st.DrawFn) -> object:
     """One host command with arbitrary field values (framing and CRC are right)."""
-    from haptics import protocol as p
+    from ctdrill.haptics import protocol as p
 
     kind = draw(st.sampled_from(["begin", "chunk", "end", "operator", "device-type"]))
     if kind == "begin":
@@ -86,14 +86,14 @@ hands = st.one_of(
 
 
 def _operator(kind: int, value: float) -> object:
-    from haptics.protocol import SimOperator
+    from ctdrill.haptics.protocol import SimOperator
 
     return SimOperator(kind, value)
 
 
 @st.composite
 def actions(draw: st.DrawFn) -> list[tuple[str, object]]:
-    from haptics import protocol as p
+    from ctdrill.haptics import protocol as p
 
     simple = {
         "arm": p.Arm(),
@@ -125,8 +125,8 @@ def check_invariants(device: object, *, ticked: bool) -> None:
     ``drill_mm`` is refreshed by the tick: right after a new table is loaded it still holds the
     previous session's value until the next tick (no telemetry is sent in between).
     """
-    from haptics.emulator import DeviceEmulator
-    from haptics.renderer import PEAK_FORCE_N
+    from ctdrill.haptics.emulator import DeviceEmulator
+    from ctdrill.haptics.renderer import PEAK_FORCE_N
 
     assert isinstance(device, DeviceEmulator)
     r = device.renderer
@@ -140,8 +140,8 @@ def check_invariants(device: object, *, ticked: bool) -> None:
 @fuzz_settings
 @given(steps=actions())
 def test_fuzz_device_commands_keep_safety_invariants(steps: list[tuple[str, object]]) -> None:
-    from haptics.emulator import DeviceEmulator
-    from haptics.protocol import FrameReader, Heartbeat, MessageError, Packet, encode
+    from ctdrill.haptics.emulator import DeviceEmulator
+    from ctdrill.haptics.protocol import FrameReader, Heartbeat, MessageError, Packet, encode
 
     device = DeviceEmulator()
     reader = FrameReader()

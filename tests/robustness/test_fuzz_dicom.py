@@ -1,8 +1,8 @@
 """Fuzz the DICOM loader with byte mutations of one file of a three-slice series.
 
 Seeds: pydicom's bundled ``CT_small.dcm`` (a real scanner header) and three consecutive slices
-of the bundled demo phantom (``assets/demo/ct``, written by ``imaging.phantom_io``). One of the
-three files is mutated (bit flips, inserts, deletes, truncation, overwrites, element lengths
+of the bundled demo phantom (``assets/demo/ct``, written by ``ctdrill.imaging.phantom.io``). One of
+the three files is mutated (bit flips, inserts, deletes, truncation, overwrites, element lengths
 rewritten); ``load_series`` must load a finite volume or raise ``ImagingInputError``, within
 5 s and 1 GiB of extra address space.
 """
@@ -76,7 +76,7 @@ def seed_offsets(name: str, index: int) -> list[tuple[int, bool]]:
 
 def test_seed_series_load() -> None:
     """Unmutated, both seeds load as three-slice volumes (the fuzzing starts from valid input)."""
-    from imaging import load_series
+    from ctdrill.imaging import load_series
 
     for name in SEEDS:
         with tempfile.TemporaryDirectory() as tmp:
@@ -89,7 +89,7 @@ def test_seed_series_load() -> None:
 
 def check_mutated_series(name: str, victim: int, mutations: list[ByteMutation]) -> str:
     """Load the seed series with file ``victim`` mutated; return "load", "refuse" or a bug key."""
-    from imaging import WARNING_CODES, ImagingInputError, load_series
+    from ctdrill.imaging import WARNING_CODES, ImagingInputError, load_series
 
     files = list(seed_series(name))
     data = files[victim]

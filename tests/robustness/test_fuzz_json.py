@@ -32,8 +32,8 @@ pytestmark = [pytest.mark.fuzz, pytest.mark.timeout(FUZZ_TIMEOUT_S)]
 
 def check_plan_text(text: str, suffix: str) -> None:
     """Load a plan text: a Plan with finite, sane fields, or a PlanInputError."""
-    from imaging import ImagingInputError
-    from imaging.plan import load_plans
+    from ctdrill.imaging import ImagingInputError
+    from ctdrill.imaging.plan.types import load_plans
 
     with tempfile.TemporaryDirectory() as tmp:
         path = write_text(Path(tmp) / f"plan{suffix}", text)
@@ -59,7 +59,7 @@ def check_plan_text(text: str, suffix: str) -> None:
 
 def test_seed_plans_load() -> None:
     """The seeds are valid, so the fuzzing starts from accepted documents."""
-    from imaging.plan import load_plan
+    from ctdrill.imaging.plan.types import load_plan
 
     with tempfile.TemporaryDirectory() as tmp:
         plan = load_plan(write_text(Path(tmp) / "p.json", json.dumps(SEED_PLAN)))
@@ -86,7 +86,7 @@ HU_ALL_INT16 = np.arange(-32768, 32768, dtype=np.float64)
 
 def check_calibration_text(text: str) -> None:
     """Load a calibration text: a set whose force law is finite for every int16 HU, or an error."""
-    from model import ModelInputError, a0_n, bk_n, load_calibration
+    from ctdrill.model import ModelInputError, a0_n, bk_n, load_calibration
 
     with tempfile.TemporaryDirectory() as tmp:
         path = write_text(Path(tmp) / "cal.json", text)

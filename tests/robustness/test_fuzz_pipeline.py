@@ -37,18 +37,18 @@ DEMO_PLAN: dict[str, Any] = json.loads((DEMO / "plan.json").read_text())
 
 @cache
 def demo_volume() -> object:
-    from imaging import load_series
+    from ctdrill.imaging import load_series
 
     return load_series(DEMO / "ct")
 
 
 def run_plan_text(text: str) -> str:
     """Load the plan text and run the force path on the demo CT; "refuse", "ok" or a bug key."""
-    from app.errors import AppInputError
-    from app.pipeline import plan_path
-    from imaging import ImagingInputError
-    from imaging.plan import load_plan
-    from model import ModelInputError, load_calibration
+    from ctdrill.app.errors import AppInputError
+    from ctdrill.app.pipeline import plan_path
+    from ctdrill.imaging import ImagingInputError
+    from ctdrill.imaging.plan.types import load_plan
+    from ctdrill.model import ModelInputError, load_calibration
 
     errors = (AppInputError, ImagingInputError, ModelInputError)
     with tempfile.TemporaryDirectory() as tmp:

@@ -17,7 +17,7 @@ pytestmark = [pytest.mark.fuzz, pytest.mark.timeout(FUZZ_TIMEOUT_S)]
 
 def valid_frames() -> list[bytes]:
     """One encoded frame of several message types (host and device side)."""
-    from haptics import protocol as p
+    from ctdrill.haptics import protocol as p
 
     messages: list[p.Message] = [
         p.Hello(),
@@ -46,7 +46,7 @@ HEARTBEAT = FRAMES[1]
 def test_fuzz_frame_reader(
     frame: bytes, mutations: list[ByteMutation], garbage: bytes, split: int
 ) -> None:
-    from haptics.protocol import MAX_DECODED, FrameReader, Packet, ProtocolError, decode
+    from ctdrill.haptics.protocol import MAX_DECODED, FrameReader, Packet, ProtocolError, decode
 
     data = frame
     for mutation in mutations:

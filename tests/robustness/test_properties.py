@@ -30,7 +30,7 @@ coords = st.one_of(
 @st.composite
 def volumes(draw: st.DrawFn) -> object:
     """A small CTVolume: random int16 HU, spacing, rotation, origin and padding mask."""
-    from imaging import CTVolume, SeriesInfo
+    from ctdrill.imaging import CTVolume, SeriesInfo
 
     shape = draw(st.tuples(st.integers(1, 4), st.integers(1, 5), st.integers(1, 5)))
     hu = draw(hnp.arrays(np.int16, shape))
@@ -53,7 +53,7 @@ def volumes(draw: st.DrawFn) -> object:
 def test_sample_is_finite_and_outside_gets_outside_hu(
     volume: object, points: np.ndarray, outside: float
 ) -> None:
-    from imaging import CTVolume
+    from ctdrill.imaging import CTVolume
 
     assert isinstance(volume, CTVolume)
     # points near the grid too: index space -1..n, mapped to LPS
@@ -75,7 +75,7 @@ def test_sample_is_finite_and_outside_gets_outside_hu(
 @given(volume=volumes(), bad=st.sampled_from([np.nan, np.inf, -np.inf]))
 def test_sample_of_nonfinite_point_is_never_nan(volume: object, bad: float) -> None:
     """A NaN/inf point is outside (outside_hu) or refused with ImagingInputError, never NaN."""
-    from imaging import CTVolume, ImagingInputError
+    from ctdrill.imaging import CTVolume, ImagingInputError
 
     assert isinstance(volume, CTVolume)
     points = np.array([[0.0, 0.0, 0.0], [bad, 0.0, 0.0]])
@@ -89,7 +89,7 @@ def test_sample_of_nonfinite_point_is_never_nan(volume: object, bad: float) -> N
 
 @pytest.mark.parametrize("name", ["pine-wood-paper", "bone-illustrative"])
 def test_force_law_is_finite_and_bounded_for_every_int16_hu(name: str) -> None:
-    from model import a0_n, bk_n, gate, load_calibration
+    from ctdrill.model import a0_n, bk_n, gate, load_calibration
 
     cal = load_calibration(name)
     lo, hi = cal.c_prime_range
@@ -117,7 +117,7 @@ def test_force_law_is_finite_and_bounded_for_every_int16_hu(name: str) -> None:
 def test_profile_and_force_finite_for_any_int16_lip(
     lip: np.ndarray, depth_mm: float, feed: float, t_s: float
 ) -> None:
-    from model import build_profile, force_n, load_calibration
+    from ctdrill.model import build_profile, force_n, load_calibration
 
     cal = load_calibration("bone-illustrative")
     weights = np.full(lip.shape[1], 1.0 / lip.shape[1])
@@ -134,9 +134,9 @@ def test_profile_and_force_finite_for_any_int16_lip(
 @cache
 def demo_case() -> tuple[object, object, object]:
     """The bundled demo phantom, its plan and calibration."""
-    from imaging import load_series
-    from imaging.plan import load_plan
-    from model import load_calibration
+    from ctdrill.imaging import load_series
+    from ctdrill.imaging.plan.types import load_plan
+    from ctdrill.model import load_calibration
 
     plan = load_plan(ROOT / "assets" / "demo" / "plan.json")
     return load_series(ROOT / "assets" / "demo" / "ct"), plan, load_calibration(plan.calibration)
@@ -160,10 +160,10 @@ def test_stop_depth_never_exceeds_planned_depth_and_clearance_is_monotone(
     canal_shift: tuple[float, float, float],
     radius: float,
 ) -> None:
-    from app.errors import AppInputError
-    from app.pipeline import plan_path
-    from imaging.landmarks import CanalLandmark
-    from imaging.plan import Plan
+    from ctdrill.app.errors import AppInputError
+    from ctdrill.app.pipeline import plan_path
+    from ctdrill.imaging.plan.landmarks import CanalLandmark
+    from ctdrill.imaging.plan.types import Plan
 
     volume, plan, cal = demo_case()
     assert isinstance(plan, Plan)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from model.errors import ModelInputError
+from ctdrill.model.errors import ModelInputError
 from tests.robustness.make_corpus import ROOT, Case
 
 
@@ -27,7 +27,7 @@ def _write(tmp_path: Path, name: str, doc: object) -> Path:
 
 def test_calibration_with_integer_beyond_float_range_is_refused(tmp_path: Path) -> None:
     """calibration-int-overflow: ``"gate_hu": 10**400`` -> OverflowError in float()."""
-    from model import ModelInputError, load_calibration
+    from ctdrill.model import ModelInputError, load_calibration
     from tests.robustness.fuzz import seed_calibration
 
     doc = {**seed_calibration(), "gate_hu": 10**400}
@@ -48,7 +48,7 @@ def test_calibration_whose_law_overflows_is_refused(
     """
     import numpy as np
 
-    from model import ModelInputError, a0_n, load_calibration
+    from ctdrill.model import ModelInputError, a0_n, load_calibration
     from tests.robustness.fuzz import seed_calibration
 
     doc = seed_calibration()
@@ -74,8 +74,8 @@ def _plan(**changes: object) -> dict[str, object]:
 
 def test_plan_with_integer_beyond_float_range_is_refused(tmp_path: Path) -> None:
     """plan-int-overflow: an integer 10**400 in ``entry_mm`` -> OverflowError (math.isfinite)."""
-    from imaging import ImagingInputError
-    from imaging.plan import load_plan
+    from ctdrill.imaging import ImagingInputError
+    from ctdrill.imaging.plan.types import load_plan
 
     with pytest.raises(ImagingInputError):
         load_plan(_write(tmp_path, "p.json", _plan(entry_mm=[10**400, 0, 0])))
@@ -85,8 +85,8 @@ def test_plan_with_integer_beyond_float_range_is_refused(tmp_path: Path) -> None
 
 def test_plan_with_list_as_landmark_kind_is_refused(tmp_path: Path) -> None:
     """plan-kind-unhashable: ``"kind": ["canal"]`` -> TypeError: unhashable type: 'list'."""
-    from imaging import ImagingInputError
-    from imaging.plan import load_plan
+    from ctdrill.imaging import ImagingInputError
+    from ctdrill.imaging.plan.types import load_plan
 
     plan = _plan()
     plan["landmarks"] = [{"name": "c", "kind": ["canal"], "points_mm": [[0, 0, 0], [1, 0, 0]]}]
@@ -109,7 +109,7 @@ def test_cli_refusal_is_one_line_even_when_libraries_warn(
 def test_nonfinite_position_refusal_names_file_and_field(cases: dict[str, Case]) -> None:
     """inf-position-message: ``ImagePositionPatient = inf\\0\\0`` is refused with
     "CTVolume.affine_lps: expected a finite (4, 4) matrix": neither the file nor the tag."""
-    from imaging import ImagingInputError, load_series
+    from ctdrill.imaging import ImagingInputError, load_series
 
     with pytest.raises(ImagingInputError) as info:
         load_series(cases["inf_position"].path)
@@ -127,9 +127,9 @@ def test_misaligned_file_meta_is_skipped_or_refused(tmp_path: Path) -> None:
     import pydicom
     from pydicom.errors import BytesLengthException
 
-    from imaging import ImagingInputError, load_series
-    from imaging.phantom import make_mandible_phantom
-    from imaging.phantom_io import write_phantom
+    from ctdrill.imaging import ImagingInputError, load_series
+    from ctdrill.imaging.phantom.io import write_phantom
+    from ctdrill.imaging.phantom.mandible import make_mandible_phantom
     from tests.robustness.mutate import ByteMutation, apply_bytes
 
     case = write_phantom(
@@ -202,7 +202,7 @@ def test_calibration_whose_force_vanishes_is_refused(
     Upper bounds are checked (laws above 1e6 N are refused); the lower end is not."""
     import numpy as np
 
-    from model import ModelInputError, a0_n, load_calibration
+    from ctdrill.model import ModelInputError, a0_n, load_calibration
     from tests.robustness.fuzz import seed_calibration
 
     doc = seed_calibration()
@@ -252,8 +252,8 @@ def test_overlong_path_component_is_an_input_error(where: str, tmp_path: Path) -
 def test_manifest_file_name_with_nul_byte_is_an_input_error(tmp_path: Path) -> None:
     """manifest-nul-path: ``rec\\x00.csv`` in the manifest's file column makes open() raise
     ``ValueError: embedded null byte``, which escapes read_recording (exit 1 in the CLI)."""
-    from model import ModelInputError
-    from model.fit import calibrate_from_manifest
+    from ctdrill.model import ModelInputError
+    from ctdrill.model.fit import calibrate_from_manifest
 
     manifest = tmp_path / "manifest.csv"
     manifest.write_text("file,hu,feed_mm_s\nrec\x00.csv,-600,2\n")
@@ -279,7 +279,7 @@ def test_fit_outside_the_loadable_range_is_refused_before_writing(tmp_path: Path
     returns it, ``ctdrill calibrate`` writes OUT.json and only then fails to load it (exit 2,
     "calibration file OUT.json: field a0.ke must be in [0, 1000]"), leaving the file behind.
     Expected: the fit refuses (naming the recordings), nothing is written."""
-    from model.fit import calibrate_from_manifest
+    from ctdrill.model.fit import calibrate_from_manifest
     from tests.robustness.outcomes import error_line_problems, run_cli_in_process
 
     manifest = _recordings_in_mn_at_one_feed(tmp_path)

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from imaging.phantom import make_mandible_phantom
-from imaging.phantom_io import PhantomCase, write_phantom
+from ctdrill.imaging.phantom.io import PhantomCase, write_phantom
+from ctdrill.imaging.phantom.mandible import make_mandible_phantom
 
 
 @pytest.fixture(scope="session")
@@ -22,7 +22,7 @@ def window(qtbot: object, tmp_path: Path) -> Iterator[object]:
     """A shown main window whose QSettings live in ``tmp_path``."""
     from PySide6.QtCore import QSettings
 
-    from app.gui.app import make_window
+    from ctdrill.app.gui.app import make_window
 
     settings = QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat)
     win = make_window(settings)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pytestqt.qtbot import QtBot
 
-from app.gui.main_window import MainWindow
-from imaging.phantom_io import PhantomCase
+from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.imaging.phantom.io import PhantomCase
 
 #: Longest wait for a load or a path computation, ms.
 LOAD_TIMEOUT_MS = 30_000

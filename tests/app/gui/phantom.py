@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from imaging import CTVolume, SeriesInfo
+from ctdrill.imaging import CTVolume, SeriesInfo
 
 SPACING_MM = 0.5
 SHAPE_KJI = (60, 80, 100)  # slices (z), rows (y), cols (x)

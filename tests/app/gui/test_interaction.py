@@ -9,11 +9,11 @@ from PySide6.QtGui import QWheelEvent
 from PySide6.QtWidgets import QApplication
 from pytestqt.qtbot import QtBot
 
-from app.gui.main_window import MainWindow
-from app.gui.slice_view import DEFAULT_FOV_MM, SliceCanvas
-from app.gui.slices import window_to_uint8
-from imaging.landmarks import CanalLandmark
-from imaging.phantom_io import PhantomCase
+from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.app.gui.slice_view import DEFAULT_FOV_MM, SliceCanvas
+from ctdrill.app.gui.slices import window_to_uint8
+from ctdrill.imaging.phantom.io import PhantomCase
+from ctdrill.imaging.plan.landmarks import CanalLandmark
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.errors import AppInputError
-from app.gui import planning
-from imaging.landmarks import CanalLandmark, PointLandmark
-from imaging.plan import Plan
+from ctdrill.app.errors import AppInputError
+from ctdrill.app.gui import planning
+from ctdrill.imaging.plan.landmarks import CanalLandmark, PointLandmark
+from ctdrill.imaging.plan.types import Plan
 
 
 def plan() -> Plan:

@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from app.gui.plots import LIVE_GID, DepthCurves, draw_depth_plots, misch_class, set_live_depth
+from ctdrill.app.gui.plots import (
+    LIVE_GID,
+    DepthCurves,
+    draw_depth_plots,
+    misch_class,
+    set_live_depth,
+)
 
 
 def curves(stop: float = 7.5, reason: str = "margin") -> DepthCurves:

@@ -12,13 +12,13 @@ import pytest
 from PySide6.QtCore import Qt
 from pytestqt.qtbot import QtBot
 
-from app.gui.main_window import MainWindow
-from app.gui.rehearsal import SIMULATOR, clearance_at_mm, device_choices
-from app.pipeline import plan_path
-from imaging import load_series
-from imaging.phantom_io import PhantomCase
-from imaging.plan import load_plan
-from model import load_calibration
+from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.app.gui.rehearsal import SIMULATOR, clearance_at_mm, device_choices
+from ctdrill.app.pipeline import plan_path
+from ctdrill.imaging import load_series
+from ctdrill.imaging.phantom.io import PhantomCase
+from ctdrill.imaging.plan.types import load_plan
+from ctdrill.model import load_calibration
 from tests.app.gui.helpers import open_case
 from tests.haptics.emulator_process import emulator_on_pty
 

@@ -16,9 +16,9 @@ import pytest
 from PySide6.QtCore import QTimer
 from pytestqt.qtbot import QtBot
 
-from app.gui.main_window import MainWindow
-from app.gui.workers import StepQueue
-from imaging.phantom_io import PhantomCase
+from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.app.gui.workers import StepQueue
+from ctdrill.imaging.phantom.io import PhantomCase
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from app.gui.scene import (
+from ctdrill.app.gui.scene import (
     LandmarkGeometry,
     SceneInput,
     bone_surface,
@@ -17,7 +17,7 @@ from app.gui.scene import (
     landmark_meshes,
     set_drill_depth,
 )
-from app.gui.screenshot import region_stats
+from ctdrill.app.gui.screenshot import region_stats
 from tests.app.gui.phantom import BAR_SEMI_YZ, ORIGIN_LPS, SPACING_MM, phantom_volume
 
 

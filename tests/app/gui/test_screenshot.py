@@ -12,10 +12,10 @@ import pytest
 from PySide6.QtGui import QImage
 from pytestqt.qtbot import QtBot
 
-from app.gui.app import window_size
-from app.gui.main_window import MainWindow
-from app.gui.screenshot import qimage_to_rgb, region_stats, widget_rect
-from imaging.phantom_io import PhantomCase
+from ctdrill.app.gui.app import window_size
+from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.app.gui.screenshot import qimage_to_rgb, region_stats, widget_rect
+from ctdrill.imaging.phantom.io import PhantomCase
 from tests.app.gui.helpers import open_case
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
@@ -77,7 +77,7 @@ def test_cli_screenshot_of_the_phantom(phantom_case: PhantomCase, tmp_path: Path
         [
             sys.executable,
             "-m",
-            "app.cli",
+            "ctdrill.app.cli",
             "gui",
             "--dicom",
             str(phantom_case.ct_dir),
@@ -118,7 +118,7 @@ def test_cli_screenshot_of_the_phantom(phantom_case: PhantomCase, tmp_path: Path
 def test_cli_bad_arguments_exit_2(
     args: list[str], message: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from app.cli import main
+    from ctdrill.app.cli import main
 
     assert main(["gui", *args]) == 2
     err = capsys.readouterr().err
@@ -128,7 +128,16 @@ def test_cli_bad_arguments_exit_2(
 def test_cli_folder_without_dicom_exits_2(tmp_path: Path) -> None:
     (tmp_path / "readme.txt").write_text("nothing here")
     proc = subprocess.run(
-        [sys.executable, "-m", "app.cli", "gui", "--dicom", str(tmp_path), "--quit-after-s", "30"],
+        [
+            sys.executable,
+            "-m",
+            "ctdrill.app.cli",
+            "gui",
+            "--dicom",
+            str(tmp_path),
+            "--quit-after-s",
+            "30",
+        ],
         cwd=ROOT,
         env={**os.environ, "XDG_CONFIG_HOME": str(tmp_path / "config")},
         capture_output=True,

@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 from pytestqt.qtbot import QtBot
 
-from app.gui import compute
-from app.gui.main_window import MainWindow
+from ctdrill.app.gui import compute
+from ctdrill.app.gui.main_window import MainWindow
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)

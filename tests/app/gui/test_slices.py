@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.gui.slices import (
+from ctdrill.app.gui.slices import (
     VIEWS,
     _grid_aligned,
     polyline_in_plane,
@@ -14,7 +14,7 @@ from app.gui.slices import (
     volume_corners_lps,
     window_to_uint8,
 )
-from imaging import CTVolume, SeriesInfo
+from ctdrill.imaging import CTVolume, SeriesInfo
 from tests.app.gui.phantom import CANAL_YZ, SPACING_MM, phantom_volume
 
 

@@ -10,9 +10,9 @@ import pytest
 from PySide6.QtCore import QPoint, QSettings, Qt
 from pytestqt.qtbot import QtBot
 
-from app.gui.main_window import MainWindow
-from imaging.phantom_io import PhantomCase
-from imaging.plan import load_plan
+from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.imaging.phantom.io import PhantomCase
+from ctdrill.imaging.plan.types import load_plan
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)

@@ -1,4 +1,5 @@
-"""Reading 3D Slicer markups (``.mrk.json``) into plans; the format is in :mod:`imaging.plan`."""
+"""Reading 3D Slicer markups (``.mrk.json``) into plans; the format is in
+:mod:`ctdrill.imaging.plan.types`."""
 
 from __future__ import annotations
 
@@ -6,14 +7,21 @@ from typing import Any
 
 import numpy as np
 
-from imaging._plan_read import _coordinate_system, _Ctx, _drill_from, _make_plan, _stem, _to_lps
-from imaging.landmarks import (
+from ctdrill.imaging.plan.landmarks import (
     DEFAULT_CANAL_RADIUS_MM,
     CanalLandmark,
     Landmark,
     PointLandmark,
 )
-from imaging.plan import (
+from ctdrill.imaging.plan.read import (
+    _coordinate_system,
+    _Ctx,
+    _drill_from,
+    _make_plan,
+    _stem,
+    _to_lps,
+)
+from ctdrill.imaging.plan.types import (
     _DRILL_KEYS,
     DEFAULT_CALIBRATION,
     DEFAULT_FEED_MM_S,

@@ -19,8 +19,8 @@ from pydicom.dataset import Dataset, FileMetaDataset
 from pydicom.pixels import get_decoder
 from pydicom.uid import UID, ExplicitVRLittleEndian, ImplicitVRLittleEndian
 
-from imaging.discovery import SliceHeader
-from imaging.errors import ImagingInputError
+from ctdrill.imaging.dicom.discovery import SliceHeader
+from ctdrill.imaging.errors import ImagingInputError
 
 _NATIVE = (ExplicitVRLittleEndian, ImplicitVRLittleEndian)
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from imaging.errors import ImagingInputError
+from ctdrill.imaging.errors import ImagingInputError
 
 #: Canal radius used when a plan or markup gives none, mm (a typical inferior alveolar canal
 #: is 2-3 mm wide).

@@ -6,8 +6,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from imaging.errors import ImagingInputError
-from imaging.volume import CTVolume
+from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.volume import CTVolume
 
 
 def _region_mean(volume: CTVolume, region: np.ndarray | tuple[slice, ...], name: str) -> float:

@@ -10,8 +10,8 @@ point landmarks, one per control point, named by its label. Each markup may carr
 ``key=value`` words in its ``description`` or its control points' (e.g.
 ``radius_mm=1.5 margin_mm=2.5`` on a curve, ``diameter_mm=2.0 tip_length_mm=0.6 blades=2
 rpm=900 feed_mm_s=0.4 calibration=NAME margin_mm=2.0`` on the line); a curve without
-``radius_mm`` gets :data:`~imaging.landmarks.DEFAULT_CANAL_RADIUS_MM` (1.2 mm) and the drill
-defaults are those of :class:`DrillSpec`. Several Line markups make several plans
+``radius_mm`` gets :data:`~ctdrill.imaging.plan.landmarks.DEFAULT_CANAL_RADIUS_MM` (1.2 mm) and the
+drill defaults are those of :class:`DrillSpec`. Several Line markups make several plans
 (:func:`load_plans`).
 """
 
@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from imaging.errors import ImagingInputError
-from imaging.landmarks import (
+from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.plan.landmarks import (
     Landmark,
 )
 
@@ -166,7 +166,7 @@ def load_plans(path: str | os.PathLike[str]) -> tuple[Plan, ...]:
     PlanInputError
         Naming the file and the field path (``plan.json: drill.diameter_mm must be ...``).
     """
-    from imaging._plan_read import read_plans
+    from ctdrill.imaging.plan.read import read_plans
 
     return read_plans(path)
 
@@ -184,14 +184,14 @@ def load_plan(path: str | os.PathLike[str]) -> Plan:
 
 def plan_to_dict(plan: Plan) -> dict[str, Any]:
     """The ``ctdrill-plan/1`` document of ``plan`` (LPS); mask paths are kept as given."""
-    from imaging._plan_write import plan_document
+    from ctdrill.imaging.plan.write import plan_document
 
     return plan_document(plan)
 
 
 def plan_to_markups(plan: Plan) -> dict[str, Any]:
     """The 3D Slicer markups document of ``plan`` (LPS; settings in descriptions)."""
-    from imaging._plan_write import markups_document
+    from ctdrill.imaging.plan.write import markups_document
 
     return markups_document(plan)
 

@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from imaging.series import SeriesSummary
-from imaging.volume import CTVolume
+from ctdrill.imaging.dicom.series import SeriesSummary
+from ctdrill.imaging.volume import CTVolume
 
 
 def volume_report(volume: CTVolume, *, series: Sequence[SeriesSummary] = ()) -> dict[str, Any]:

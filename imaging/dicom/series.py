@@ -1,10 +1,11 @@
-"""Load a DICOM CT series into a :class:`~imaging.volume.CTVolume`.
+"""Load a DICOM CT series into a :class:`~ctdrill.imaging.volume.CTVolume`.
 
-Discovery (:mod:`imaging.discovery`) reads headers only; this module picks the series and its
-spatial stack, orders and de-duplicates the slices, builds the geometry
-(:mod:`imaging.geometry`), checks the memory needed, then decodes the pixels into one
-preallocated array (:mod:`imaging.pixels`). Every oddity becomes a :class:`LoadWarning`; what
-cannot be a trustworthy volume raises an :class:`ImagingInputError` subclass.
+Discovery (:mod:`ctdrill.imaging.dicom.discovery`) reads headers only; this module picks the series
+and its spatial stack, orders and de-duplicates the slices, builds the geometry
+(:mod:`ctdrill.imaging.dicom.geometry`), checks the memory needed, then decodes the pixels into one
+preallocated array (:mod:`ctdrill.imaging.dicom.pixels`). Every oddity becomes a
+:class:`LoadWarning`; what cannot be a trustworthy volume raises an :class:`ImagingInputError`
+subclass.
 """
 
 from __future__ import annotations
@@ -16,17 +17,17 @@ from pathlib import Path
 
 import numpy as np
 
-from imaging.discovery import Skipped, SliceHeader, scan
-from imaging.errors import ImagingInputError
-from imaging.geometry import (
+from ctdrill.imaging.dicom.discovery import Skipped, SliceHeader, scan
+from ctdrill.imaging.dicom.geometry import (
     frame_axes,
     group_positions,
     orientation_key,
     require_geometry,
     stack_geometry,
 )
-from imaging.pixels import padding_mask, read_stored, rescale, stored_dtype, to_hu
-from imaging.volume import CTVolume, LoadWarning, SeriesInfo
+from ctdrill.imaging.dicom.pixels import padding_mask, read_stored, rescale, stored_dtype, to_hu
+from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.volume import CTVolume, LoadWarning, SeriesInfo
 
 DEFAULT_MAX_BYTES = 2 * 1024**3
 

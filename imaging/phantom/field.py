@@ -23,7 +23,7 @@ metal insert (optional)     vertical cylinder, 3071
 
 The canal centreline is the circle ``u = 0, w = canal_w_mm`` (exact distance ``hypot(u, w -
 canal_w)``), under the crest. The metal streak artefact (:func:`streak_hu`) is an additive
-field of its own; :mod:`imaging.phantom` samples both on a voxel grid.
+field of its own; :mod:`ctdrill.imaging.phantom.mandible` samples both on a voxel grid.
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """The synthetic mandible phantom: voxels, canal truth and a drilling plan.
 
-The anatomy is the analytic field of :mod:`imaging.phantom_field` (signed distances, so tests
-know exact answers), sampled at the voxel centres of an isotropic grid, plus the optional metal
-streak artefact and Gaussian noise, rounded and clipped to the 12-bit CT range [-1024, 3071].
+The anatomy is the analytic field of :mod:`ctdrill.imaging.phantom.field` (signed distances, so
+tests know exact answers), sampled at the voxel centres of an isotropic grid, plus the optional
+metal streak artefact and Gaussian noise, rounded and clipped to the 12-bit CT range [-1024, 3071].
 The plan enters on the alveolar crest straight above the canal and drills straight down deeper
 than the 2 mm margin allows (``Phantom.max_safe_depth_mm``), so the export stops on the margin.
 """
@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from imaging.errors import ImagingInputError
-from imaging.phantom_field import (
+from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.phantom.field import (
     AIR_HU,
     CANAL_HU,
     HU_MAX,

@@ -1,7 +1,7 @@
 """Reading plan documents: ``ctdrill-plan/1`` JSON and 3D Slicer markups, validated, to LPS.
 
-The formats are described in :mod:`imaging.plan`; this module holds the parsers behind
-:func:`imaging.plan.load_plans`.
+The formats are described in :mod:`ctdrill.imaging.plan.types`; this module holds the parsers behind
+:func:`ctdrill.imaging.plan.types.load_plans`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from imaging.landmarks import (
+from ctdrill.imaging.plan.landmarks import (
     DEFAULT_CANAL_RADIUS_MM,
     CanalLandmark,
     Landmark,
@@ -22,7 +22,7 @@ from imaging.landmarks import (
     PointLandmark,
     load_mask_file,
 )
-from imaging.plan import (
+from ctdrill.imaging.plan.types import (
     _DRILL_KEYS,
     _LANDMARK_KEYS,
     _MAX_BLADES,
@@ -321,7 +321,7 @@ def read_plans(path: str | os.PathLike[str]) -> tuple[Plan, ...]:
     if not isinstance(doc, dict):
         raise ctx.fail("(top level)", "must be a JSON object", type(doc).__name__)
     if "markups" in doc and "format" not in doc:
-        from imaging._plan_slicer import parse_slicer
+        from ctdrill.imaging.plan.slicer import parse_slicer
 
         return parse_slicer(ctx, doc)
     if "format" not in doc:

@@ -6,11 +6,11 @@ from typing import Any
 
 import numpy as np
 
-from imaging.landmarks import (
+from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
     PointLandmark,
 )
-from imaging.plan import (
+from ctdrill.imaging.plan.types import (
     _SLICER_SCHEMA,
     PLAN_FORMAT,
     Plan,

@@ -1,4 +1,5 @@
-"""Write a :class:`~imaging.phantom.Phantom` as a case folder: DICOM series, plan, ground truth.
+"""Write a :class:`~ctdrill.imaging.phantom.mandible.Phantom` as a case folder: DICOM series, plan,
+ground truth.
 
 Layout of ``out_dir``::
 
@@ -21,15 +22,15 @@ from typing import Any
 import numpy as np
 from pydicom.uid import ExplicitVRLittleEndian, generate_uid
 
-from imaging.dicom_writer import write_series
-from imaging.errors import ImagingInputError
-from imaging.phantom import (
+from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.phantom.mandible import (
     AIR_HU,
     CANAL_HU,
     METAL_HU,
     SOFT_TISSUE_HU,
     Phantom,
 )
+from ctdrill.imaging.phantom.writer import write_series
 
 PATIENT_NAME = "PHANTOM^MANDIBLE"
 TRUTH_FORMAT = "ctdrill-phantom-truth/1"
@@ -100,7 +101,7 @@ def write_phantom(
     out_dir : str | Path
         Case folder; created if missing. An existing ``ct/`` must be empty (no mixing of series).
     phantom : Phantom
-        From :func:`imaging.phantom.make_mandible_phantom`.
+        From :func:`ctdrill.imaging.phantom.mandible.make_mandible_phantom`.
     transfer_syntax : str
         DICOM transfer syntax of the series (default explicit VR little endian).
 

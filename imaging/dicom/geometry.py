@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imaging.discovery import SliceHeader
-from imaging.errors import ImagingInputError
-from imaging.volume import LoadWarning
+from ctdrill.imaging.dicom.discovery import SliceHeader
+from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.volume import LoadWarning
 
 #: Two planes closer than this along the normal are at the same position, mm.
 SAME_POSITION_TOL_MM = 0.01

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imaging.errors import ImagingInputError
-from imaging.volume import CTVolume
+from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.volume import CTVolume
 
 #: Default number of rings on the lip (measured, bench/bench_sampling.py).
 DEFAULT_N_RINGS = 6

@@ -28,8 +28,8 @@ from pydicom.uid import (
     ImplicitVRLittleEndian,
 )
 
-from imaging._load_fastheader import HeaderCorruptError, read_fast_header
-from imaging.errors import ImagingInputError
+from ctdrill.imaging.dicom.fastheader import HeaderCorruptError, read_fast_header
+from ctdrill.imaging.errors import ImagingInputError
 
 #: SOP classes that hold CT volumes: CT Image Storage, Enhanced CT, Legacy Converted Enhanced CT.
 CT_IMAGE_STORAGE = "1.2.840.10008.5.1.4.1.1.2"
@@ -253,7 +253,8 @@ def read_headers(
     """Header(s) of one file: a list of planes, a :class:`Skipped`, or None when not DICOM.
 
     ``ct_only=False`` also returns the planes of non-CT images (used to test decoding).
-    ``fast=False`` forces pydicom instead of :mod:`imaging._load_fastheader` (tests compare).
+    ``fast=False`` forces pydicom instead of :mod:`ctdrill.imaging.dicom.fastheader` (tests
+    compare).
     """
     kind = _looks_like_dicom(path)
     if kind is False:

@@ -25,7 +25,7 @@ from pydicom.uid import (
     generate_uid,
 )
 
-from imaging.errors import ImagingInputError
+from ctdrill.imaging.errors import ImagingInputError
 
 _UNCOMPRESSED = (ExplicitVRLittleEndian, ImplicitVRLittleEndian)
 

@@ -11,9 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from imaging._geometry import axial_coordinates, segment_solid_distance_mm, solid_distance_mm
-from imaging.landmarks import Landmark, landmark_core
-from imaging.plan import Plan
+from ctdrill.imaging.plan.distance import (
+    axial_coordinates,
+    segment_solid_distance_mm,
+    solid_distance_mm,
+)
+from ctdrill.imaging.plan.landmarks import Landmark, landmark_core
+from ctdrill.imaging.plan.types import Plan
 
 #: Tolerance of :func:`max_safe_depth_mm`, mm.
 SAFE_DEPTH_TOL_MM = 1e-3

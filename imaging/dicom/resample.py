@@ -13,8 +13,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from imaging.errors import ImagingInputError
-from imaging.volume import CTVolume
+from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.volume import CTVolume
 
 _IRREGULAR = ("slice_gap", "nonuniform_spacing")
 

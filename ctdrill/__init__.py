@@ -1,0 +1,18 @@
+"""ctdrill: rehearse a dental-implant osteotomy on the patient's own CT.
+
+The import package ``ctdrill`` gathers the repository's top-level folders, each a room of its
+own (``docs/architecture.md``):
+
+- ``ctdrill.imaging`` (``imaging/``): DICOM series -> HU volume, sampling, plans, landmarks,
+  clearance, the phantom and its writer.
+- ``ctdrill.model`` (``model/``): force law, profiles, calibration sets and fitting.
+- ``ctdrill.haptics`` (``haptics/``): device protocol, renderer, simulator, serial link, sessions.
+- ``ctdrill.app`` (``app/``): CLI, headless export, rehearsal and the Qt GUI.
+- ``assets/``: package data (calibration sets, the demo case), read through
+  :func:`ctdrill.resources.asset`.
+
+In a source checkout ``ctdrill/`` holds symbolic links to those folders; the wheel holds the
+folders themselves. Importing ``ctdrill`` imports none of them.
+"""
+
+__version__ = "0.1.0"

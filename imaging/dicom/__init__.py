@@ -1,0 +1,1 @@
+"""DICOM loading: file discovery, slice geometry, pixel decoding and series assembly."""

@@ -1,0 +1,1 @@
+"""The synthetic mandible phantom and the DICOM writer that stores it."""

@@ -1,0 +1,1 @@
+"""Sampling the CT: the drill lip rings and what the path crosses."""
