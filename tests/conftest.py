@@ -14,6 +14,12 @@ SHARED = ROOT.parent / "shared"
 SHARED_DATA = SHARED / "data"
 ASSETS = ROOT / "assets"
 
+# Subprocesses (``python -m ctdrill.app.cli ...``) import ctdrill from this checkout, whatever
+# their working folder and whichever checkout the virtual environment was installed from.
+os.environ["PYTHONPATH"] = os.pathsep.join(
+    p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p
+)
+
 settings.register_profile(
     "ctdrill",
     deadline=None,

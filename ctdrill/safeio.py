@@ -1,0 +1,172 @@
+"""Reading user-named input files safely: regular files only, bounded size, bounded JSON.
+
+Every room reads files a user names (plans, markups, masks, calibration sets, recordings,
+operator scripts). A path that is a FIFO blocks ``open`` forever; ``/dev/zero`` reads until
+memory runs out; a JSON document nested 1000 deep raises ``RecursionError`` and an integer of
+4300+ digits ``ValueError`` from the standard library. These helpers refuse each of them with
+the caller's own input-error type, naming the file and what to do, before anything is read.
+
+This module belongs to no room: ``imaging``, ``model``, ``haptics`` and ``app`` all use it, and
+it imports nothing of theirs.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import stat
+from typing import Any
+
+#: Largest JSON document read (plans, markups, calibration sets), bytes.
+MAX_JSON_BYTES = 64 * 1024 * 1024
+#: Deepest nesting of arrays and objects accepted in a JSON document (a plan needs 4).
+MAX_JSON_DEPTH = 64
+
+ErrorType = type[Exception]
+
+
+def regular_file_size(path: str | os.PathLike[str], *, what: str, error: ErrorType) -> int:
+    """Size in bytes of ``path`` after checking, without opening it, that it is a regular file.
+
+    Parameters
+    ----------
+    path : the file a user named.
+    what : what the file is for, used in the message (``"plan file"``, ``"mask"``).
+    error : the exception type raised (the caller's room's input error).
+
+    Raises
+    ------
+    error : the path is missing, not a regular file (folder, FIFO, device, socket) or
+        cannot be examined.
+    """
+    try:
+        st = os.stat(path)
+    except FileNotFoundError as exc:
+        raise error(f"{path}: {what} not found; check the path") from exc
+    except (OSError, ValueError) as exc:
+        raise error(f"{path}: cannot examine the {what} ({_reason(exc)}); check the path") from exc
+    if not stat.S_ISREG(st.st_mode):
+        kind = _kind(st.st_mode)
+        raise error(f"{path}: the {what} is {kind}, not a regular file; name a file")
+    return int(st.st_size)
+
+
+def read_bytes_bounded(
+    path: str | os.PathLike[str], *, what: str, error: ErrorType, max_bytes: int
+) -> bytes:
+    """The bytes of a regular file of at most ``max_bytes``, refused otherwise.
+
+    The size is checked before reading and the read stops one byte past the limit, so a file
+    that grows meanwhile is refused too.
+    """
+    size = regular_file_size(path, what=what, error=error)
+    if size > max_bytes:
+        raise error(
+            f"{path}: the {what} holds {size} bytes, more than the {max_bytes} accepted; "
+            "check that this is the right file"
+        )
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(max_bytes + 1)
+    except OSError as exc:
+        raise error(
+            f"{path}: cannot read the {what} ({_reason(exc)}); check its permissions"
+        ) from exc
+    if len(data) > max_bytes:
+        raise error(f"{path}: the {what} grew past {max_bytes} bytes while being read")
+    return data
+
+
+def load_json(
+    path: str | os.PathLike[str],
+    *,
+    what: str,
+    error: ErrorType,
+    max_bytes: int = MAX_JSON_BYTES,
+    max_depth: int = MAX_JSON_DEPTH,
+) -> Any:
+    """Parse a UTF-8 JSON file, refusing non-regular files, oversize, deep nesting, huge ints.
+
+    Parameters
+    ----------
+    path : the JSON file.
+    what : what the file is for, used in messages.
+    error : the exception type raised.
+    max_bytes : largest file accepted.
+    max_depth : deepest nesting of arrays/objects accepted (checked before parsing, so the
+        parser never recurses past it).
+
+    Returns
+    -------
+    The parsed document (``dict``, ``list``, ...). ``NaN`` and ``Infinity`` are refused.
+    """
+    data = read_bytes_bounded(path, what=what, error=error, max_bytes=max_bytes)
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise error(
+            f"{path}: the {what} is not UTF-8 text ({exc.reason} at byte {exc.start})"
+        ) from exc
+    return loads_json(text, where=str(path), what=what, error=error, max_depth=max_depth)
+
+
+def loads_json(
+    text: str, *, where: str, what: str, error: ErrorType, max_depth: int = MAX_JSON_DEPTH
+) -> Any:
+    """Parse JSON text with the checks of :func:`load_json`; ``where`` names it in messages."""
+    depth = json_nesting_depth(text)
+    if depth > max_depth:
+        raise error(
+            f"{where}: the {what} nests arrays/objects {depth} deep (at most {max_depth}); "
+            "this is not a document ctdrill writes or reads"
+        )
+
+    def _constant(name: str) -> Any:
+        raise ValueError(f"{name} is not a JSON number")
+
+    try:
+        return json.loads(text, parse_constant=_constant)
+    except json.JSONDecodeError as exc:
+        raise error(
+            f"{where}: the {what} is not valid JSON (line {exc.lineno}, column {exc.colno}: "
+            f"{exc.msg}); fix the file"
+        ) from exc
+    except (ValueError, RecursionError) as exc:
+        # ValueError: an integer beyond the interpreter's digit limit, NaN/Infinity.
+        raise error(f"{where}: the {what} holds a value that cannot be read ({exc})") from exc
+
+
+def json_nesting_depth(text: str) -> int:
+    """Deepest nesting of ``[``/``{`` in JSON text, brackets inside strings ignored."""
+    depth = best = 0
+    for match in _BRACKET_OR_STRING.finditer(text):
+        token = match.group(0)
+        if token in "[{":
+            depth += 1
+            best = max(best, depth)
+        elif token in "]}":
+            depth -= 1
+    return best
+
+
+#: A JSON string (skipped whole, escapes included) or one bracket.
+_BRACKET_OR_STRING = re.compile(r'"(?:[^"\\]|\\.)*"?|[\[\]{}]')
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a named pipe (FIFO)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def _reason(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        return exc.strerror
+    return str(exc)
