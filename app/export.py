@@ -29,6 +29,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from ctdrill.app.errors import AppInputError
+from ctdrill.app.export_defaults import DEFAULT_RATE_HZ as DEFAULT_RATE_HZ
 from ctdrill.app.pipeline import PathResult
 from ctdrill.model.profile import force_series_n
 
@@ -48,7 +49,6 @@ PROFILE_COLUMNS = (
 MISCH_BOUNDS_HU = (("D1", 1250.0), ("D2", 850.0), ("D3", 350.0), ("D4", 150.0))
 MISCH_CLASSES = ("D1", "D2", "D3", "D4", "D5")
 N_HU_SEGMENTS = 10
-DEFAULT_RATE_HZ = 1000.0
 
 
 class ExportInputError(AppInputError):

@@ -1,22 +1,54 @@
 """ctdrill haptics: device protocol, device-side renderer and plant, devices, sessions.
 
-Imports :mod:`model` only (never ``imaging``, ``app`` or a GUI module).
+Imports :mod:`model` only (never ``imaging``, ``app`` or a GUI module). The names below are
+re-exported lazily (PEP 562): each loads its module on first use, so importing
+:mod:`ctdrill.haptics.errors` does not load the serial link, the simulator or NumPy.
+:data:`_EXPORTS` is the one table of which module defines each name; the ``TYPE_CHECKING``
+imports say the same to mypy (``tests/test_architecture.py`` checks that the two agree).
 """
 
-from ctdrill.haptics.device import Device, DeviceError, DeviceInfo, TelemetrySample
-from ctdrill.haptics.errors import HapticsInputError
-from ctdrill.haptics.profile_table import ProfileTable, ProfileTableError
-from ctdrill.haptics.protocol import DeviceState, Fault, ProtocolError
-from ctdrill.haptics.serial_device import SerialDevice
-from ctdrill.haptics.session import (
-    Operator,
-    SessionInputError,
-    SessionResult,
-    parse_fault,
-    parse_operator,
-    run_session,
-)
-from ctdrill.haptics.sim import SimulatedDevice
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ctdrill.haptics.device import Device, DeviceError, DeviceInfo, TelemetrySample
+    from ctdrill.haptics.errors import HapticsInputError
+    from ctdrill.haptics.profile_table import ProfileTable, ProfileTableError
+    from ctdrill.haptics.protocol import DeviceState, Fault, ProtocolError
+    from ctdrill.haptics.serial_device import SerialDevice
+    from ctdrill.haptics.session import (
+        Operator,
+        SessionInputError,
+        SessionResult,
+        parse_fault,
+        parse_operator,
+        run_session,
+    )
+    from ctdrill.haptics.sim import SimulatedDevice
+
+#: public name -> the module that defines it (imported on first access)
+_EXPORTS: dict[str, str] = {
+    "Device": "ctdrill.haptics.device",
+    "DeviceError": "ctdrill.haptics.device",
+    "DeviceInfo": "ctdrill.haptics.device",
+    "DeviceState": "ctdrill.haptics.protocol",
+    "Fault": "ctdrill.haptics.protocol",
+    "HapticsInputError": "ctdrill.haptics.errors",
+    "Operator": "ctdrill.haptics.session",
+    "ProfileTable": "ctdrill.haptics.profile_table",
+    "ProfileTableError": "ctdrill.haptics.profile_table",
+    "ProtocolError": "ctdrill.haptics.protocol",
+    "SerialDevice": "ctdrill.haptics.serial_device",
+    "SessionInputError": "ctdrill.haptics.session",
+    "SessionResult": "ctdrill.haptics.session",
+    "SimulatedDevice": "ctdrill.haptics.sim",
+    "TelemetrySample": "ctdrill.haptics.device",
+    "parse_fault": "ctdrill.haptics.session",
+    "parse_operator": "ctdrill.haptics.session",
+    "run_session": "ctdrill.haptics.session",
+}
 
 __all__ = [
     "Device",
@@ -38,3 +70,18 @@ __all__ = [
     "parse_operator",
     "run_session",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """Import the module that defines ``name`` on first access (PEP 562) and cache it."""
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """The module's attributes plus every lazily exported name."""
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -30,6 +30,7 @@ from ctdrill.model.calibration import (
     load_calibration,
 )
 from ctdrill.model.errors import ModelInputError
+from ctdrill.model.fit_defaults import DEFAULT_DEPTH_WINDOW_MM
 from ctdrill.model.recordings import (
     ManifestEntry,
     Recording,
@@ -39,8 +40,6 @@ from ctdrill.model.recordings import (
 )
 from ctdrill.model.spectral import amplitude_spectrum, dominant_frequencies, extract_components
 
-#: The paper's analysis window: "data were collected for cutting depths between 1 mm and 8 mm".
-DEFAULT_DEPTH_WINDOW_MM: tuple[float, float] = (1.0, 8.0)
 #: A recording's cutting window must span this many periods of the lowest harmonic.
 MIN_PERIODS: int = 20
 #: Manifest feed and the feed measured from position_mm may differ by this fraction.

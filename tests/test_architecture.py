@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import importlib
 import json
 import subprocess
 import sys
@@ -87,3 +88,50 @@ def test_the_check_itself_sees_a_forbidden_import(tmp_path: Path) -> None:
     sample = tmp_path / "bad.py"
     sample.write_text("import numpy\nfrom ctdrill.model.force import x\nimport vtkmodules.all\n")
     assert _imported_roots(sample) == {"numpy", "model", "vtkmodules"}
+
+
+def _type_checking_imports(init: Path) -> dict[str, str]:
+    """name -> module of the ``from M import N`` lines under ``if TYPE_CHECKING:`` in ``init``."""
+    tree = ast.parse(init.read_text(encoding="utf-8"), filename=str(init))
+    found: dict[str, str] = {}
+    for node in tree.body:
+        if isinstance(node, ast.If) and ast.unparse(node.test) == "TYPE_CHECKING":
+            for stmt in node.body:
+                assert isinstance(stmt, ast.ImportFrom) and stmt.module, ast.unparse(stmt)
+                found.update({alias.name: stmt.module for alias in stmt.names})
+    return found
+
+
+@pytest.mark.parametrize("package", ["imaging", "model", "haptics"])
+def test_lazy_reexports_agree_with_their_typing_imports_and_resolve(package: str) -> None:
+    mod = importlib.import_module(f"ctdrill.{package}")
+    exports: dict[str, str] = mod._EXPORTS
+    assert _type_checking_imports(ROOT / package / "__init__.py") == exports
+    assert sorted(mod.__all__) == sorted(exports)
+    for name, module in exports.items():
+        assert getattr(mod, name) is getattr(importlib.import_module(module), name), name
+    assert set(exports) <= set(dir(mod))
+    with pytest.raises(AttributeError, match="no_such_name"):
+        _ = mod.no_such_name
+
+
+def test_importing_a_package_or_its_errors_loads_nothing_heavy() -> None:
+    code = (
+        "import json, sys\n"
+        "import ctdrill.imaging, ctdrill.model, ctdrill.haptics\n"
+        "import ctdrill.imaging.errors, ctdrill.model.errors, ctdrill.haptics.errors\n"
+        "print(json.dumps(sorted(sys.modules)))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
+    )
+    loaded = json.loads(out.stdout)
+    assert [m for m in loaded if m.split(".")[0] in {"numpy", "scipy", "pydicom", "serial"}] == []
+    assert sorted(m for m in loaded if m.startswith("ctdrill.")) == [
+        "ctdrill.haptics",
+        "ctdrill.haptics.errors",
+        "ctdrill.imaging",
+        "ctdrill.imaging.errors",
+        "ctdrill.model",
+        "ctdrill.model.errors",
+    ]

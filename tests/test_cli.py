@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -46,3 +47,69 @@ def test_an_os_refusal_of_a_path_is_exit_2_naming_it(
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1
     assert "y" * 300 in err and "Traceback" not in err
+
+
+#: Modules (top-level names) that ``ctdrill --help`` and ``ctdrill COMMAND --help`` must not
+#: load: the heavy numeric, DICOM, plotting, GUI and network stacks (issue 13: ``--help`` in
+#: under 0.15 s). Each command imports them inside its ``run()``.
+HEAVY_FOR_HELP = (
+    "numpy",
+    "scipy",
+    "pydicom",
+    "requests",
+    "matplotlib",
+    "vtk",
+    "vtkmodules",
+    "pyvista",
+    "pyvistaqt",
+    "PySide6",
+    "serial",
+    "SimpleITK",
+)
+#: First-party modules that building the parser may load: the CLI, its commands, the four
+#: ``*InputError`` modules the CLI catches, lazy package ``__init__`` files and the numpy-free
+#: defaults the parsers show.
+LIGHT_FIRST_PARTY = {
+    "ctdrill",
+    "ctdrill.app",
+    "ctdrill.app.cli",
+    "ctdrill.app.commands",
+    "ctdrill.app.errors",
+    "ctdrill.app.export_defaults",
+    "ctdrill.haptics",
+    "ctdrill.haptics.errors",
+    "ctdrill.imaging",
+    "ctdrill.imaging.errors",
+    "ctdrill.imaging.phantom",
+    "ctdrill.imaging.phantom.classes",
+    "ctdrill.model",
+    "ctdrill.model.errors",
+    "ctdrill.model.fit_defaults",
+}
+
+
+def _modules_imported_by(argv: list[str]) -> set[str]:
+    """Every module in ``sys.modules`` after ``ctdrill ARGV`` ran in a fresh interpreter."""
+    code = (
+        "import json, sys\n"
+        "from ctdrill.app.cli import main\n"
+        "try:\n"
+        f"    main({argv!r})\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "sys.stderr.write(json.dumps(sorted(sys.modules)))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert "usage: ctdrill" in out.stdout
+    names = set(json.loads(out.stderr))
+    assert "ctdrill.app.commands.inspect" in names  # the parser was built
+    return names
+
+
+@pytest.mark.parametrize("argv", [["--help"]] + [[name, "--help"] for name in COMMANDS])
+def test_help_imports_no_heavy_module(argv: list[str]) -> None:
+    names = _modules_imported_by(argv)
+    heavy = sorted(n for n in names if n.split(".")[0] in HEAVY_FOR_HELP)
+    assert heavy == []
+    first_party = {n for n in names if n.split(".")[0] == "ctdrill"}
+    assert first_party - {f"ctdrill.app.commands.{c}" for c in COMMANDS} <= LIGHT_FIRST_PARTY

@@ -6,16 +6,13 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.model.calibration import load_calibration
-from ctdrill.model.fit import (
-    DEFAULT_DEPTH_WINDOW_MM,
-    CalibrationFit,
-    calibrate_from_manifest,
-    fit_document,
-)
+from ctdrill.model.fit_defaults import DEFAULT_DEPTH_WINDOW_MM
+
+if TYPE_CHECKING:
+    from ctdrill.model.fit import CalibrationFit
 
 
 def register(subparsers: Any) -> None:
@@ -79,6 +76,9 @@ def format_fit(fit: CalibrationFit) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Fit, write the set, check it loads, print the summary."""
+    from ctdrill.model.calibration import load_calibration
+    from ctdrill.model.fit import calibrate_from_manifest, fit_document
+
     if args.out.exists() and args.out.is_dir():
         raise AppInputError(f"--out {args.out}: is a folder; give a .json file path")
     fit = calibrate_from_manifest(

@@ -9,7 +9,6 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.haptics.realtime import serve_pty
 
 
 def register(subparsers: Any) -> None:
@@ -37,6 +36,8 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Serve until killed; print the loop's statistics."""
+    from ctdrill.haptics.realtime import serve_pty
+
     if args.duration_s is not None and not (
         math.isfinite(args.duration_s) and args.duration_s > 0.0
     ):

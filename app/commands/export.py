@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.export import DEFAULT_RATE_HZ, TextProgress
+from ctdrill.app.export_defaults import DEFAULT_RATE_HZ
 
 
 def register(subparsers: Any) -> None:
@@ -57,6 +57,7 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export and list what was written."""
+    from ctdrill.app.export import TextProgress
     from ctdrill.app.export_run import export_case
 
     progress = TextProgress(sys.stderr)

@@ -8,9 +8,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ctdrill.imaging import list_series, load_series
-from ctdrill.imaging.dicom.report import format_report, volume_report
-
 
 def register(subparsers: Any) -> None:
     """Add the ``inspect`` subcommand."""
@@ -27,6 +24,9 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load, describe, print."""
+    from ctdrill.imaging import list_series, load_series
+    from ctdrill.imaging.dicom.report import format_report, volume_report
+
     volume = load_series(args.dicom, series_uid=args.series)
     report = volume_report(volume, series=list_series(args.dicom))
     if args.json:

@@ -7,8 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ctdrill.imaging.phantom.io import write_phantom
-from ctdrill.imaging.phantom.mandible import MISCH_CLASSES, make_mandible_phantom
+from ctdrill.imaging.phantom.classes import MISCH_CLASSES
 
 
 def register(subparsers: Any) -> None:
@@ -47,6 +46,9 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Generate and write the phantom; print where it went."""
+    from ctdrill.imaging.phantom.io import write_phantom
+    from ctdrill.imaging.phantom.mandible import make_mandible_phantom
+
     phantom = make_mandible_phantom(
         misch=args.misch,
         spacing_mm=args.spacing_mm,

@@ -7,8 +7,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.rehearse import rehearse
-
 
 def register(subparsers: Any) -> None:
     """Add the ``rehearse`` subcommand."""
@@ -45,6 +43,8 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the rehearsal and print a one-line summary."""
+    from ctdrill.app.rehearse import rehearse
+
     s = rehearse(
         dicom=args.dicom,
         plan=args.plan,
