@@ -1,0 +1,171 @@
+"""Start-up: ``ctdrill --help`` against a bare interpreter, and what a one-plan export imports.
+
+Each figure is the median (inter-quartile range) of fresh processes started round-robin with
+the peers, so drifting load on the shared VM hits all alike. The floor is ``python -c pass``
+(the interpreter and ``site``, which in a development checkout includes the editable-install
+finder); ``ctdrill --help`` builds the whole parser (every subcommand's ``register``) and prints
+it. Goal (issue 13): under 0.15 s on this machine, loading none of NumPy, SciPy, pydicom,
+matplotlib, VTK, pyvista, PySide6 (``tests/test_cli.py`` checks the module list).
+
+The one-plan export is ``ctdrill demo`` (the bundled 80 x 80 x 100 phantom, one plan) run
+with ``python -X importtime``: the import time is the sum of every module's own ("self") time
+from that log, grouped by top-level package; the rest of the wall time is the interpreter's
+start and the work (load, sample, profile, clearance, CSV/JSON, the plot).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from collections.abc import Sequence
+from pathlib import Path
+
+from bench.report import Section, Timing, table
+
+ROOT = Path(__file__).resolve().parents[1]
+HELP_GOAL_S = 0.15
+
+
+def _env() -> dict[str, str]:
+    """The environment of the timed processes: this checkout's ``ctdrill`` first."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH", "")) if p)
+    return env
+
+
+def time_commands(commands: dict[str, list[str]], repeats: int) -> dict[str, Timing]:
+    """Wall time of each command (a fresh process each run), started round-robin."""
+    env = _env()
+    samples: dict[str, list[float]] = {name: [] for name in commands}
+    for cmd in commands.values():  # warm the page cache and .pyc files
+        subprocess.run(cmd, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, check=True)
+    for _ in range(repeats):
+        for name, cmd in commands.items():
+            t0 = time.perf_counter()
+            subprocess.run(cmd, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, check=True)
+            samples[name].append(time.perf_counter() - t0)
+    return {name: Timing.from_samples(values) for name, values in samples.items()}
+
+
+def import_self_times_s(log: str) -> dict[str, float]:
+    """Seconds of import spent in each top-level package, from a ``-X importtime`` log.
+
+    Sums every module's own time ("self", the first column), so the groups partition the
+    whole import time; ``ctdrill.x.y`` counts as ``ctdrill``.
+    """
+    out: dict[str, float] = defaultdict(float)
+    for line in log.splitlines():
+        if not line.startswith("import time:"):
+            continue
+        parts = line[len("import time:") :].split("|")
+        if len(parts) != 3 or not parts[0].strip().isdigit():
+            continue  # the header line
+        name = parts[2].strip()
+        out[name.split(".")[0]] += int(parts[0]) * 1e-6
+    return dict(out)
+
+
+def demo_phases(repeats: int) -> tuple[Timing, Timing, dict[str, float]]:
+    """Wall and import time of ``ctdrill demo`` under ``-X importtime``; imports by package."""
+    env = _env()
+    walls, imports = [], []
+    groups: dict[str, list[float]] = defaultdict(list)
+    for _ in range(repeats + 1):  # the first run warms caches and is not counted
+        with tempfile.TemporaryDirectory(prefix="ctdrill-bench-") as tmp:
+            cmd = [sys.executable, "-X", "importtime", "-m", "ctdrill.app.cli", "demo"]
+            t0 = time.perf_counter()
+            proc = subprocess.run(
+                [*cmd, "--out", str(Path(tmp) / "out")],
+                cwd=ROOT,
+                env=env,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                text=True,
+                check=True,
+            )
+            wall = time.perf_counter() - t0
+        by_package = import_self_times_s(proc.stderr)
+        walls.append(wall)
+        imports.append(sum(by_package.values()))
+        for key, seconds in by_package.items():
+            groups[key].append(seconds)
+    walls, imports = walls[1:], imports[1:]
+    medians = {k: sorted(v[1:])[len(v[1:]) // 2] for k, v in groups.items() if v[1:]}
+    return Timing.from_samples(walls), Timing.from_samples(imports), medians
+
+
+def _rows(timings: dict[str, Timing], floor: Timing) -> Sequence[Sequence[object]]:
+    return [
+        (
+            f"`{name}`",
+            t.fmt("ms"),
+            f"{(t.median_s - floor.median_s) * 1e3:.0f} ms",
+            f"{t.min_s * 1e3:.0f} ms",
+        )
+        for name, t in timings.items()
+    ]
+
+
+def run(quick: bool) -> Section:
+    """Time the peers and the demo export; state the goal."""
+    py = sys.executable
+    commands = {
+        "python -c pass": [py, "-c", "pass"],
+        "python -c 'import numpy'": [py, "-c", "import numpy"],
+        "ctdrill --help": [py, "-m", "ctdrill.app.cli", "--help"],
+        "ctdrill export --help": [py, "-m", "ctdrill.app.cli", "export", "--help"],
+    }
+    repeats = 3 if quick else 20
+    timings = time_commands(commands, repeats)
+    floor = timings["python -c pass"]
+    help_t = timings["ctdrill --help"]
+    wall, imports, by_package = demo_phases(1 if quick else 5)
+    start_s = floor.median_s
+    rest_s = wall.median_s - imports.median_s - start_s
+    top = sorted(by_package.items(), key=lambda kv: -kv[1])[:8]
+
+    md = [
+        f"{repeats} runs of each command, round-robin (median [IQR], and the median above "
+        "the `python -c pass` floor):",
+        "",
+        table(["command", "wall", "above the floor", "fastest run"], _rows(timings, floor)),
+        "",
+        f"`ctdrill --help`: median {help_t.median_s * 1e3:.0f} ms against the goal of "
+        f"{HELP_GOAL_S * 1e3:.0f} ms; {(help_t.median_s - floor.median_s) * 1e3:.0f} ms of it "
+        "is ctdrill's (argparse, the command modules and the four error modules), the rest "
+        "is the interpreter's start.",
+        "",
+        f"One-plan export (`ctdrill demo`, {wall.repeats} runs under `-X importtime`): wall "
+        f"{wall.fmt('s')}, of which imports {imports.fmt('s')}, the interpreter's start "
+        f"about {start_s:.2f} s (the floor above) and the work about {rest_s:.2f} s.",
+        "",
+        "Import time by top-level package (median of the runs; own time of every module):",
+        "",
+        table(["package", "import time"], [(f"`{k}`", f"{v * 1e3:.0f} ms") for k, v in top]),
+        "",
+        "Every package here is used by the export (pydicom to read the series, SciPy's "
+        "`map_coordinates` to sample it, matplotlib for `force.png`, imported only when the "
+        "plot is drawn); pydicom itself imports `requests` (its data-download module) on "
+        "`import pydicom`.",
+    ]
+    shortfalls = []
+    if help_t.median_s > HELP_GOAL_S:
+        shortfalls.append(
+            f"`ctdrill --help` took {help_t.median_s * 1e3:.0f} ms (median), over the "
+            f"{HELP_GOAL_S * 1e3:.0f} ms goal; the bare interpreter took "
+            f"{floor.median_s * 1e3:.0f} ms in the same run."
+        )
+    if imports.median_s > rest_s:
+        shortfalls.append(
+            f"`ctdrill demo` spent {imports.median_s:.2f} s importing against about "
+            f"{rest_s:.2f} s of work."
+        )
+    return Section(
+        title="Start-up: `ctdrill --help` and a one-plan export's imports",
+        markdown="\n".join(md),
+        shortfalls=tuple(shortfalls),
+    )
