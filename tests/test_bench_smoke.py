@@ -208,3 +208,19 @@ def test_loading_goals_are_judged_from_the_medians() -> None:
         "100 slices: cold vs SimpleITK 0.67 x (goal <= 0.5 x) (even the raw read of the bytes "
         "takes 0.67 x SimpleITK's cold time here: the disk, not the parser, sets this floor)"
     ]
+
+
+def test_import_log_is_grouped_by_top_level_package() -> None:
+    from bench.bench_startup import import_self_times_s
+
+    log = (
+        "import time: self [us] | cumulative | imported package\n"
+        "import time:       100 |        100 |     numpy._core\n"
+        "import time:      2000 |       2100 |   numpy\n"
+        "import time:       300 |       2400 | ctdrill.app.export\n"
+        "unrelated line\n"
+    )
+    got = import_self_times_s(log)
+    assert got.keys() == {"numpy", "ctdrill"}
+    assert got["numpy"] == pytest.approx(2100e-6)
+    assert got["ctdrill"] == pytest.approx(300e-6)
