@@ -16,6 +16,7 @@ start and the work (load, sample, profile, clearance, CSV/JSON, the plot).
 from __future__ import annotations
 
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -37,11 +38,13 @@ def _env() -> dict[str, str]:
     return env
 
 
-def time_commands(commands: dict[str, list[str]], repeats: int) -> dict[str, Timing]:
+def time_commands(
+    commands: dict[str, list[str]], repeats: int, *, warmup: bool = True
+) -> dict[str, Timing]:
     """Wall time of each command (a fresh process each run), started round-robin."""
     env = _env()
     samples: dict[str, list[float]] = {name: [] for name in commands}
-    for cmd in commands.values():  # warm the page cache and .pyc files
+    for cmd in commands.values() if warmup else ():  # warm the page cache and .pyc files
         subprocess.run(cmd, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, check=True)
     for _ in range(repeats):
         for name, cmd in commands.items():
@@ -69,12 +72,13 @@ def import_self_times_s(log: str) -> dict[str, float]:
     return dict(out)
 
 
-def demo_phases(repeats: int) -> tuple[Timing, Timing, dict[str, float]]:
+def demo_phases(repeats: int, *, warmup: bool = True) -> tuple[Timing, Timing, dict[str, float]]:
     """Wall and import time of ``ctdrill demo`` under ``-X importtime``; imports by package."""
     env = _env()
     walls, imports = [], []
     groups: dict[str, list[float]] = defaultdict(list)
-    for _ in range(repeats + 1):  # the first run warms caches and is not counted
+    skip = 1 if warmup else 0  # a warm-up run fills the page cache and is not counted
+    for _ in range(repeats + skip):
         with tempfile.TemporaryDirectory(prefix="ctdrill-bench-") as tmp:
             cmd = [sys.executable, "-X", "importtime", "-m", "ctdrill.app.cli", "demo"]
             t0 = time.perf_counter()
@@ -93,8 +97,8 @@ def demo_phases(repeats: int) -> tuple[Timing, Timing, dict[str, float]]:
         imports.append(sum(by_package.values()))
         for key, seconds in by_package.items():
             groups[key].append(seconds)
-    walls, imports = walls[1:], imports[1:]
-    medians = {k: sorted(v[1:])[len(v[1:]) // 2] for k, v in groups.items() if v[1:]}
+    walls, imports = walls[skip:], imports[skip:]
+    medians = {k: statistics.median(v[skip:]) for k, v in groups.items() if v[skip:]}
     return Timing.from_samples(walls), Timing.from_samples(imports), medians
 
 
@@ -119,11 +123,11 @@ def run(quick: bool) -> Section:
         "ctdrill --help": [py, "-m", "ctdrill.app.cli", "--help"],
         "ctdrill export --help": [py, "-m", "ctdrill.app.cli", "export", "--help"],
     }
-    repeats = 3 if quick else 20
-    timings = time_commands(commands, repeats)
+    repeats = 2 if quick else 20
+    timings = time_commands(commands, repeats, warmup=not quick)
     floor = timings["python -c pass"]
     help_t = timings["ctdrill --help"]
-    wall, imports, by_package = demo_phases(1 if quick else 5)
+    wall, imports, by_package = demo_phases(1 if quick else 5, warmup=not quick)
     start_s = floor.median_s
     rest_s = wall.median_s - imports.median_s - start_s
     top = sorted(by_package.items(), key=lambda kv: -kv[1])[:8]
