@@ -70,6 +70,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run ``ctdrill`` with ``argv`` (default: ``sys.argv[1:]``) and return the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    _ignore_file_size_signal()
     try:
         code: int = args.func(args)
     except INPUT_ERRORS as exc:
@@ -86,6 +87,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.write("error: interrupted\n")
         return 130
     return code
+
+
+def _ignore_file_size_signal() -> None:
+    """Let a file-size limit (``ulimit -f``) surface as ``EFBIG``, an ``error:`` line naming
+    the file, instead of ``SIGXFSZ`` killing the process mid-write (the default action)."""
+    import signal
+    import threading
+
+    if hasattr(signal, "SIGXFSZ") and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 
 
 if __name__ == "__main__":  # pragma: no cover

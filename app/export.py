@@ -7,7 +7,9 @@ summary, the plot title), so an illustrative calibration is never mistaken for a
 No patient identifier is written unless asked (``include_phi``).
 
 Everything is computed before anything is written, and files are written into a staging
-folder beside the output and renamed into place: an error leaves no half-written export.
+folder beside the output that then replaces the output folder whole
+(:mod:`ctdrill.app.records`): a kill, a full disk or an error leaves the previous export as it
+was, never a mix of old and new files.
 """
 
 from __future__ import annotations
@@ -17,11 +19,8 @@ import io
 import itertools
 import json
 import math
-import os
-import shutil
 import sys
-import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -287,24 +286,25 @@ def write_exports(
     series_uid: str,
     patient: dict[str, str] | None = None,
     progress: Callable[[int, int, str], None] | None = None,
+    extra_files: Mapping[str, bytes | str] | None = None,
 ) -> list[Path]:
-    """Write every job's four files, staged then renamed into ``out_dir``.
+    """Write every job's four files into a staging folder swapped in for ``out_dir`` whole.
 
-    ``feed_mm_s`` None uses each plan's feed. Returns the written paths.
+    ``feed_mm_s`` None uses each plan's feed. ``extra_files`` (relative path -> content) are
+    written in the same swap (the demo's marker, the GUI's session record); their names may
+    be present when the folder is next replaced. ``out_dir`` is replaced as a whole
+    (:func:`ctdrill.app.records.atomic_output_dir`): a kill, a full disk or an error leaves the
+    previous export exactly as it was; a folder holding other files is refused. Returns the
+    written paths (under ``out_dir``).
     """
     from ctdrill.app.export_plot import force_png
+    from ctdrill.app.records import OUTPUT_NAMES, atomic_output_dir, write_file
 
     out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise ExportInputError(f"--out {out_dir}: exists and is not a folder; choose a folder")
-    parent = out_dir.resolve().parent
-    try:
-        parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.staging-", dir=parent))
-    except OSError as exc:
-        raise ExportInputError(f"--out {out_dir}: cannot create the folder ({exc})") from exc
-    written: list[Path] = []
-    try:
+    relative: list[Path] = []
+    extra = dict(extra_files or {})
+    owned = OUTPUT_NAMES | {Path(rel).name for rel in extra}
+    with atomic_output_dir(out_dir, what="--out", owned_names=owned) as staging:
         for n, job in enumerate(jobs):
             if progress is not None:
                 progress(n, len(jobs), job.result.plan.name)
@@ -321,25 +321,24 @@ def write_exports(
             target = staging / job.subdir
             target.mkdir(parents=True, exist_ok=True)
             cal = job.result.calibration.name
-            (target / "force.csv").write_text(force_csv(series, cal), encoding="utf-8")
-            (target / "profile.csv").write_text(profile_csv(job.result), encoding="utf-8")
-            (target / "summary.json").write_text(
-                json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8"
-            )
-            force_png(job.result, series, target / "force.png")
+            png = io.BytesIO()
+            force_png(job.result, series, png)
+            files: dict[str, bytes | str] = {
+                "force.csv": force_csv(series, cal),
+                "profile.csv": profile_csv(job.result),
+                "summary.json": json.dumps(doc, indent=2, allow_nan=False) + "\n",
+                "force.png": png.getvalue(),
+            }
+            for name, data in files.items():
+                write_file(target / name, data)
+                relative.append(Path(job.subdir) / name)
+        for rel, data in extra.items():
+            (staging / rel).parent.mkdir(parents=True, exist_ok=True)
+            write_file(staging / rel, data)
+            relative.append(Path(rel))
         if progress is not None:
             progress(len(jobs), len(jobs), "done")
-        out_dir.mkdir(parents=True, exist_ok=True)
-        for src in sorted(staging.rglob("*")):
-            if src.is_dir():
-                continue
-            dst = out_dir / src.relative_to(staging)
-            dst.parent.mkdir(parents=True, exist_ok=True)
-            os.replace(src, dst)
-            written.append(dst)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
-    return written
+    return [out_dir / rel for rel in sorted(relative)]
 
 
 class TextProgress:

@@ -18,7 +18,7 @@ def run_demo(out_dir: Path, *, demo_dir: Path = DEMO_DIR) -> list[Path]:
     """Export the demo case into ``out_dir`` and return the written files.
 
     Refuses a non-empty ``out_dir`` unless a previous demo made it (it holds
-    :data:`DEMO_MARKER`); that one is refreshed in place.
+    :data:`DEMO_MARKER`); that one is replaced whole (marker included).
     """
     out_dir = Path(out_dir)
     if out_dir.exists():
@@ -29,8 +29,6 @@ def run_demo(out_dir: Path, *, demo_dir: Path = DEMO_DIR) -> list[Path]:
                 f"--out {out_dir}: folder is not empty and was not made by 'ctdrill demo'; "
                 "choose a new or empty folder"
             )
-    written = export_case(demo_dir / "ct", [demo_dir / "plan.json"], out_dir)
-    (out_dir / DEMO_MARKER).write_text(
-        "written by 'ctdrill demo'; the demo may overwrite this folder\n", encoding="utf-8"
-    )
-    return written
+    marker = {DEMO_MARKER: "written by 'ctdrill demo'; the demo may overwrite this folder\n"}
+    written = export_case(demo_dir / "ct", [demo_dir / "plan.json"], out_dir, extra_files=marker)
+    return [p for p in written if p.name != DEMO_MARKER]

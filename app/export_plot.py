@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import IO, TYPE_CHECKING
 
 import numpy as np
 
@@ -21,8 +21,8 @@ _MISCH_BANDS = (
 )
 
 
-def force_png(result: PathResult, series: ForceSeries, path: Path) -> None:
-    """Draw the export figure into ``path`` (PNG, 1200x1000 px)."""
+def force_png(result: PathResult, series: ForceSeries, path: Path | IO[bytes]) -> None:
+    """Draw the export figure into ``path`` (PNG, 1200x1000 px): a file or a binary stream."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)

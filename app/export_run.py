@@ -7,7 +7,7 @@ All inputs are read and every path computed before the first file is written, so
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from ctdrill.app.errors import AppInputError
@@ -90,6 +90,7 @@ def export_case(
     include_phi: bool = False,
     series_uid: str | None = None,
     progress: Callable[[int, int, str], None] | None = None,
+    extra_files: Mapping[str, bytes | str] | None = None,
 ) -> list[Path]:
     """Export every trajectory of ``plan_paths`` on the CT in ``dicom``.
 
@@ -102,6 +103,7 @@ def export_case(
     rate_hz : force.csv sample rate, Hz.
     include_phi : add the patient identifiers to summary.json.
     series_uid : SeriesInstanceUID to load (default: the largest CT series).
+    extra_files : more files (relative path -> content) written in the same atomic swap.
 
     Returns
     -------
@@ -152,4 +154,5 @@ def export_case(
         series_uid=volume.info.series_uid,
         patient=patient,
         progress=progress,
+        extra_files=extra_files,
     )

@@ -13,7 +13,6 @@ fit's standard errors and is kept as read, not interpreted.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -24,11 +23,14 @@ import numpy as np
 
 from ctdrill.model.errors import ModelInputError
 from ctdrill.resources import asset
+from ctdrill.safeio import load_json
 
 #: Where named calibration sets live: ``assets/calibration/`` inside the installed package.
 CALIBRATION_DIR: Path = asset("calibration")
 
 
+#: Largest calibration file read, bytes (a set with its fit report is a few kB).
+MAX_CALIBRATION_BYTES: int = 4 * 1024 * 1024
 #: Largest force (N) a power law may give within its range; more is a unit or sign error.
 MAX_LAW_N: float = 1.0e6
 #: Smallest force (N) a law must reach somewhere in its range: below it the set cuts nothing.
@@ -117,9 +119,9 @@ def resolve_calibration_path(name_or_path: str | Path) -> Path:
     as_path = Path(text)
     looks_like_path = as_path.suffix.lower() == ".json" or len(as_path.parts) > 1
     if looks_like_path:
-        if not as_path.is_file():
+        if not as_path.exists():
             raise CalibrationError(f"calibration file {as_path}: not found; check the path")
-        return as_path
+        return as_path  # load_calibration refuses folders, FIFOs and devices by name
     named = CALIBRATION_DIR / f"{text}.json"
     if named.is_file():
         return named
@@ -288,16 +290,14 @@ def load_calibration(name_or_path: str | Path) -> Calibration:
         The set is missing, not JSON, or a field is invalid (the message names file and field).
     """
     path = resolve_calibration_path(name_or_path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CalibrationError(f"calibration file {path}: cannot read it ({exc})") from exc
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise CalibrationError(
-            f"calibration file {path}: not valid JSON (line {exc.lineno}: {exc.msg}); fix it"
-        ) from exc
+    # a regular file of bounded size, nesting and integer digits (FIFOs, /dev/zero, JSON
+    # bombs are refused before they can hang or exhaust memory)
+    data = load_json(
+        path,
+        what="calibration file",
+        error=CalibrationError,
+        max_bytes=MAX_CALIBRATION_BYTES,
+    )
     return calibration_from_dict(data, source_path=path)
 
 

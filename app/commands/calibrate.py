@@ -76,7 +76,8 @@ def format_fit(fit: CalibrationFit) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Fit, write the set, check it loads, print the summary."""
-    from ctdrill.model.calibration import load_calibration
+    from ctdrill.app.records import atomic_write_text
+    from ctdrill.model.calibration import calibration_from_dict
     from ctdrill.model.fit import calibrate_from_manifest, fit_document
 
     if args.out.exists() and args.out.is_dir():
@@ -93,11 +94,10 @@ def run(args: argparse.Namespace) -> int:
         ke_per_mm_s=args.ke,
         depth_window_mm=(args.depth_window_mm[0], args.depth_window_mm[1]),
     )
-    try:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(fit_document(fit), indent=2) + "\n", encoding="utf-8")
-    except OSError as exc:
-        raise AppInputError(f"--out {args.out}: cannot write it ({exc})") from exc
-    load_calibration(args.out)  # what we wrote must load
+    text = json.dumps(fit_document(fit), indent=2) + "\n"
+    # what we write must load: check the document before it replaces anything
+    calibration_from_dict(json.loads(text), source_path=args.out)
+    # a temporary sibling renamed over --out: a full disk or a kill leaves the old set whole
+    atomic_write_text(args.out, text, what="--out")
     sys.stdout.write(format_fit(fit) + f"\nwrote {args.out}\n")
     return 0
