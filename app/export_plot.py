@@ -37,7 +37,7 @@ def force_png(result: PathResult, series: ForceSeries, path: Path | IO[bytes]) -
     )
     ax_f.plot(
         prof.depth_mm,
-        prof.s0_n * (1.0 + prof.ke_per_mm_s * feed),
+        prof.mean_force_n(feed),
         lw=1.2,
         color="#d62728",
         label="mean force S0 (1 + Ke v)",

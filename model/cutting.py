@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import math
 
+from ctdrill.model.force import feed_at_factor_mm_s
+
 #: Nominal master mass (paper, Table 4), kg.
 MASTER_MASS_KG = 0.5
 #: Coupling stiffness master-front, ``Mn * Kp``, N/mm.
@@ -55,7 +57,7 @@ def steady_feed_mm_s(force_n: float, s0_n: float, ke_per_mm_s: float) -> float:
         return 0.0
     if s0_n <= 0.0 or ke_per_mm_s <= 0.0:
         return math.inf
-    return (force_n / s0_n - 1.0) / ke_per_mm_s
+    return feed_at_factor_mm_s(force_n / s0_n, ke_per_mm_s)
 
 
 def advance_front_mm(
@@ -133,7 +135,7 @@ def cut_step(
     if s0_n <= 0.0 or ke_per_mm_s <= 0.0:
         step_mm = room_mm
     else:
-        step_mm = (stiffness_n_per_mm * e_mm / s0_n - 1.0) / ke_per_mm_s * dt_s
+        step_mm = feed_at_factor_mm_s(stiffness_n_per_mm * e_mm / s0_n, ke_per_mm_s) * dt_s
         free = step_mm < room_mm
         if not free:
             step_mm = room_mm

@@ -55,11 +55,32 @@ def clip_count(hu: ArrayLike, calibration: Calibration) -> int:
 def feed_factor(feed_mm_s: ArrayLike, *, ke_per_mm_s: float) -> np.ndarray:
     """``1 + Ke v`` with ``v`` clipped to ``[0, MAX_FEED_MM_S]``, float64.
 
-    Retraction (``v < 0``) cuts nothing new, so it neither lowers nor raises the force: the
-    factor is 1, never below (a negative factor would push the hand).
+    The one owner of the feed factor of Eq. 19 (:func:`feed_factor_scalar` is the same rule on
+    one float, :func:`feed_at_factor_mm_s` its inverse). Retraction (``v < 0``) cuts nothing
+    new, so it neither lowers nor raises the force: the factor is 1, never below (a negative
+    factor would push the hand). A NaN feed counts as no feed.
     """
-    v = np.clip(np.asarray(feed_mm_s, dtype=np.float64), 0.0, MAX_FEED_MM_S)
+    v = np.clip(np.nan_to_num(np.asarray(feed_mm_s, dtype=np.float64), nan=0.0), 0.0, MAX_FEED_MM_S)
     return 1.0 + ke_per_mm_s * v
+
+
+def feed_factor_scalar(feed_mm_s: float, ke_per_mm_s: float) -> float:
+    """:func:`feed_factor` on one float, without NumPy (the O(1) per-tick path of ``force_n``)."""
+    v = feed_mm_s if feed_mm_s > 0.0 else 0.0  # retraction and NaN: no feed
+    if v > MAX_FEED_MM_S:
+        v = MAX_FEED_MM_S
+    return 1.0 + ke_per_mm_s * v
+
+
+def feed_at_factor_mm_s(factor: float, ke_per_mm_s: float) -> float:
+    """The feed ``v`` at which ``1 + Ke v`` equals ``factor``: ``(factor - 1) / Ke``, mm/s.
+
+    The inverse of :func:`feed_factor_scalar` for ``factor`` in ``[1, 1 + Ke MAX_FEED_MM_S]``
+    and ``Ke > 0``; the yielding cut front (:mod:`ctdrill.model.cutting`) asks it how fast the
+    material gives way under ``factor = F / S0``. Beyond the cap it keeps the same line (the
+    front's speed is not capped; its step is bounded by the spring instead).
+    """
+    return (factor - 1.0) / ke_per_mm_s
 
 
 def power_law_n(c_prime_value: np.ndarray, b0: float, n: float) -> np.ndarray:

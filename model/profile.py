@@ -17,8 +17,8 @@ from numpy.typing import ArrayLike
 from ctdrill.model.calibration import Calibration, Harmonic, PowerLaw, harmonic_freqs_hz
 from ctdrill.model.errors import ModelInputError
 from ctdrill.model.force import (
-    MAX_FEED_MM_S,
     feed_factor,
+    feed_factor_scalar,
     gate,
     phase_rad,
 )
@@ -116,6 +116,10 @@ class Profile:
     def step_mm(self) -> float:
         """Depth step, mm."""
         return 1.0 / self._inv_step
+
+    def mean_force_n(self, feed_mm_s: float) -> np.ndarray:
+        """``S0(x) (1 + Ke v)`` at every profile depth, N: the force without vibration at feed v."""
+        return np.asarray(self.s0_n * feed_factor(feed_mm_s, ke_per_mm_s=self.ke_per_mm_s))
 
 
 def check_depths(depth_mm: ArrayLike) -> np.ndarray:
@@ -241,10 +245,7 @@ def force_n(profile: Profile, depth_mm: float, feed_mm_s: float, t_s: float) -> 
         i -= 1
     frac = pos - i
     s0 = profile._s0
-    v = feed_mm_s if feed_mm_s > 0.0 else 0.0
-    if v > MAX_FEED_MM_S:
-        v = MAX_FEED_MM_S
-    out = (s0[i] + frac * (s0[i + 1] - s0[i])) * (1.0 + profile.ke_per_mm_s * v)
+    out = (s0[i] + frac * (s0[i + 1] - s0[i])) * feed_factor_scalar(feed_mm_s, profile.ke_per_mm_s)
     if math.isfinite(t_s):
         for sk, f, period in zip(profile._sk, profile._freqs, profile._periods, strict=True):
             amp = sk[i] + frac * (sk[i + 1] - sk[i])

@@ -26,13 +26,12 @@ class PathView:
 def path_view(plan: Plan, result: PathResult) -> PathView:
     """Plot curves and clearances of ``result`` (computed for ``plan``)."""
     prof = result.profile
-    feed_factor = 1.0 + prof.ke_per_mm_s * plan.feed_mm_s
     band = np.sum(np.abs(prof.sk_n), axis=0) if prof.sk_n.size else None
     per_lm = np.asarray(result.stop_clearance_mm, dtype=np.float64)
     curves = DepthCurves(
         depth_mm=np.asarray(prof.depth_mm),
         hu=np.asarray(prof.hu_mean),
-        force_n=np.asarray(prof.s0_n) * feed_factor,
+        force_n=prof.mean_force_n(plan.feed_mm_s),
         force_band_n=band,
         clearance_mm=np.asarray(result.min_clearance_per_depth_mm),
         planned_depth_mm=result.planned_depth_mm,
