@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
+from ctdrill.hu import AIR_HU
 from ctdrill.imaging.errors import ImagingInputError
 
 #: Warning codes a load may report (DESIGN.md section 4, plus ``single_slice``).
@@ -294,7 +295,7 @@ class CTVolume:
         return out.reshape(batch)
 
     def sample(
-        self, points_lps: np.ndarray, *, order: int = 1, outside_hu: float = -1000.0
+        self, points_lps: np.ndarray, *, order: int = 1, outside_hu: float = AIR_HU
     ) -> np.ndarray:
         """Trilinear HU at LPS points.
 

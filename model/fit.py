@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill.hu import AIR_HU
 from ctdrill.model.calibration import (
     Calibration,
     CalibrationError,
@@ -257,7 +258,7 @@ def fit_calibration(
     """
     if not measurements:
         raise FitInputError("no recordings to fit")
-    cp = np.array([m.hu + 1000.0 for m in measurements])
+    cp = np.array([m.hu for m in measurements], dtype=np.float64) - AIR_HU  # C'
     if np.any(cp <= 0.0):
         bad = measurements[int(np.argmax(cp <= 0.0))]
         raise FitInputError(

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ctdrill.hu import AIR_HU
 from ctdrill.model.calibration import Calibration
 
 #: Feed (mm/s) above which the feed factor ``1 + Ke v`` stops growing. The paper calibrated
@@ -20,8 +21,8 @@ MAX_FEED_MM_S: float = 50.0
 
 
 def c_prime(hu: ArrayLike) -> np.ndarray:
-    """``C' = HU + 1000`` (attenuation relative to air; DESIGN.md 1.1), float64, same shape."""
-    return np.asarray(hu, dtype=np.float64) + 1000.0
+    """``C' = HU - AIR_HU = HU + 1000`` (attenuation relative to air; DESIGN.md 1.1), float64."""
+    return np.asarray(hu, dtype=np.float64) - AIR_HU
 
 
 def c_prime_clipped(hu: ArrayLike, calibration: Calibration) -> np.ndarray:

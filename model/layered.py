@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ctdrill.hu import AIR_HU
 from ctdrill.model.calibration import Calibration, harmonic_freqs_hz
 from ctdrill.model.force import a0_n, bk_n, gate, out_of_range
 from ctdrill.model.profile import Profile, ProfileInputError, check_depths
@@ -56,7 +57,7 @@ def layered_profile(
     tip_length_mm: float,
     blades: int,
     rpm: float,
-    outside_hu: float = -1000.0,
+    outside_hu: float = AIR_HU,
 ) -> Profile:
     """Exact profile for piecewise-constant layers along the axis.
 

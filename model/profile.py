@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ctdrill.hu import AIR_HU
 from ctdrill.model.calibration import Calibration, Harmonic, PowerLaw, harmonic_freqs_hz
 from ctdrill.model.errors import ModelInputError
 from ctdrill.model.force import (
@@ -188,7 +189,7 @@ def build_profile(
     hu = hu.astype(np.float64, copy=False)
     if not np.all(np.isfinite(hu)):
         raise ProfileInputError(
-            "lip_hu contains NaN or inf; sample outside the volume as a finite HU (-1000)"
+            f"lip_hu contains NaN or inf; sample outside the volume as a finite HU ({AIR_HU:g})"
         )
     freqs = harmonic_freqs_hz(calibration, blades=blades, rpm=rpm)
     n_angles = hu.shape[2]
@@ -203,7 +204,7 @@ def build_profile(
     # log10 of the clipped C', then each power law as exp(ln 10 (b0 + n log10 C')).
     g = gate(hu, calibration)
     lo, hi = calibration.c_prime_range
-    log_cp = np.add(hu, 1000.0)
+    log_cp = np.subtract(hu, AIR_HU)  # C'
     np.clip(log_cp, lo, hi, out=log_cp)
     np.log10(log_cp, out=log_cp)
     buf = np.empty_like(log_cp)
@@ -215,7 +216,7 @@ def build_profile(
         np.exp(buf, out=buf)
         buf *= g
         sums.append(lip_mean(buf))
-    n_clipped = int(np.count_nonzero((g > 0.0) & ((hu < lo - 1000.0) | (hu > hi - 1000.0))))
+    n_clipped = int(np.count_nonzero((g > 0.0) & ((hu < lo + AIR_HU) | (hu > hi + AIR_HU))))
     return Profile(
         depth_mm=depth,
         s0_n=sums[0],

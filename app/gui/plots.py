@@ -11,13 +11,15 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from ctdrill.hu import AIR_HU
+
 #: Misch bone-density classes by HU (DESIGN.md section 5): (label, low, high).
 MISCH_BANDS: tuple[tuple[str, float, float], ...] = (
     ("D1", 1250.0, 3000.0),
     ("D2", 850.0, 1250.0),
     ("D3", 350.0, 850.0),
     ("D4", 150.0, 350.0),
-    ("D5", -1000.0, 150.0),
+    ("D5", AIR_HU, 150.0),
 )
 _BAND_COLOURS = ("#c8d7f0", "#d4e8d0", "#f2ecc4", "#f5dcc4", "#f1d0d0")
 
@@ -72,7 +74,7 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
     for ax in (ax_hu, ax_f, ax_c):
         ax.grid(True, alpha=0.3)
     if curves is None or curves.depth_mm.size == 0:
-        ax_hu.set_ylim(-1000, 2000)
+        ax_hu.set_ylim(AIR_HU, 2000)
         ax_f.text(
             0.5,
             0.5,

@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 import pyvista as pv
 
+from ctdrill.hu import AIR_HU
+
 #: Bone iso-surface presets, HU.
 SURFACE_PRESETS: dict[str, float] = {
     "CT bone (300 HU)": 300.0,
@@ -75,7 +77,7 @@ def bone_surface(
     iso_hu: float = 300.0,
     max_dim: int = 160,
     valid: np.ndarray | None = None,
-    outside_hu: float = -1000.0,
+    outside_hu: float = AIR_HU,
 ) -> pv.PolyData:
     """Iso-surface of the CT at ``iso_hu``, LPS mm.
 

@@ -16,6 +16,8 @@ from typing import Literal, Protocol
 
 import numpy as np
 
+from ctdrill.hu import AIR_HU
+
 ViewName = Literal["axial", "coronal", "sagittal", "trajectory"]
 
 #: The four slice views in the order the window shows them.
@@ -40,7 +42,7 @@ class Sampleable(Protocol):
     def affine_lps(self) -> np.ndarray: ...
 
     def sample(
-        self, points_lps: np.ndarray, *, order: int = 1, outside_hu: float = -1000.0
+        self, points_lps: np.ndarray, *, order: int = 1, outside_hu: float = AIR_HU
     ) -> np.ndarray: ...
 
 
@@ -158,7 +160,7 @@ def reslice(
     pixel_mm: float | None = None,
     max_pixels: int = 512,
     order: int = 1,
-    outside_hu: float = -1000.0,
+    outside_hu: float = AIR_HU,
     fast: bool = True,
 ) -> SliceImage:
     """Resample the plane of ``view`` through ``center_lps``, covering the whole volume.

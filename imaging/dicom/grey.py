@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ctdrill.hu import AIR_HU
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.volume import CTVolume
 
@@ -32,7 +33,7 @@ def calibrate_grey_to_hu(
     *,
     air_region: np.ndarray | tuple[slice, ...],
     bone_or_water_region: np.ndarray | tuple[slice, ...],
-    air_hu: float = -1000.0,
+    air_hu: float = AIR_HU,
     reference_hu: float = 0.0,
 ) -> CTVolume:
     """Linear grey -> HU calibration from two regions of known HU.

@@ -32,9 +32,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ctdrill.hu import AIR_HU as AIR_HU
 from ctdrill.imaging.phantom.classes import MISCH_CLASSES as MISCH_CLASSES
 
-AIR_HU = -1000.0
 SOFT_TISSUE_HU = 40.0
 CANAL_HU = 30.0
 METAL_HU = 3071.0

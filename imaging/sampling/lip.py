@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ctdrill.hu import AIR_HU
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.volume import CTVolume
 
@@ -202,7 +203,7 @@ def sample_lip_rings(
     tip_length_mm: float,
     n_rings: int = DEFAULT_N_RINGS,
     n_angles: int = DEFAULT_N_ANGLES,
-    outside_hu: float = -1000.0,
+    outside_hu: float = AIR_HU,
     order: int = 1,
 ) -> LipSamples:
     """HU on the cutting lip at each tip depth, in one vectorised volume lookup.
