@@ -7,6 +7,7 @@ All inputs are read and every path computed before the first file is written, so
 from __future__ import annotations
 
 import re
+from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
@@ -14,7 +15,7 @@ from ctdrill.app.errors import AppInputError
 from ctdrill.app.export import DEFAULT_RATE_HZ, ExportInputError, ExportJob, write_exports
 from ctdrill.app.pipeline import plan_calibration_key, plan_path
 from ctdrill.imaging import load_series
-from ctdrill.imaging.plan.types import Plan, load_plans
+from ctdrill.imaging.plan.types import Plan, load_plan_set, plan_warnings
 from ctdrill.model.calibration import Calibration, load_calibration
 
 #: DICOM attributes written only with ``--include-phi`` (keyword -> summary key).
@@ -27,20 +28,6 @@ PHI_KEYWORDS = {
     "StudyDate": "study_date",
     "AccessionNumber": "accession_number",
 }
-
-
-def plan_files(paths: Sequence[Path]) -> list[Path]:
-    """The plan files named by ``paths``: files as given, folders expanded to ``*.json``."""
-    out: list[Path] = []
-    for p in paths:
-        if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() == ".json")
-            if not found:
-                raise AppInputError(f"--plan {p}: folder holds no .json plan files")
-            out.extend(found)
-        else:
-            out.append(p)
-    return out
 
 
 def _subdir(name: str) -> str:
@@ -91,6 +78,7 @@ def export_case(
     series_uid: str | None = None,
     progress: Callable[[int, int, str], None] | None = None,
     extra_files: Mapping[str, bytes | str] | None = None,
+    warn: Callable[[str, str], None] | None = None,
 ) -> list[Path]:
     """Export every trajectory of ``plan_paths`` on the CT in ``dicom``.
 
@@ -104,6 +92,8 @@ def export_case(
     include_phi : add the patient identifiers to summary.json.
     series_uid : SeriesInstanceUID to load (default: the largest CT series).
     extra_files : more files (relative path -> content) written in the same atomic swap.
+    warn : called with (code, message), once the files are written, for what the terminal
+        must show (``no_landmarks``).
 
     Returns
     -------
@@ -113,14 +103,8 @@ def export_case(
         raise ExportInputError(f"--feed-mm-s must be a positive number, got {feed_mm_s!r}")
     if not rate_hz > 0.0:
         raise ExportInputError(f"--rate-hz must be a positive number, got {rate_hz!r}")
-    plans: list[Plan] = []
-    per_file: dict[str, int] = {}
-    for f in plan_files(plan_paths):
-        loaded = load_plans(f)
-        plans.extend(loaded)
-        per_file[str(f)] = len(loaded)
-    if not plans:
-        raise AppInputError("--plan: no trajectory to export")
+    plans = list(load_plan_set(plan_paths))
+    per_file = Counter(plan.source for plan in plans)
     volume = load_series(dicom, series_uid=series_uid)
     cache: dict[str, Calibration] = {}
     override = load_calibration(calibration) if calibration is not None else None
@@ -146,7 +130,7 @@ def export_case(
         seen[sub] = plan.source
         jobs.append(ExportJob(result=result, subdir=sub))
     patient = read_patient_fields(dicom, volume.info.series_uid) if include_phi else None
-    return write_exports(
+    written = write_exports(
         jobs,
         out_dir,
         feed_mm_s=feed_mm_s,
@@ -156,3 +140,9 @@ def export_case(
         progress=progress,
         extra_files=extra_files,
     )
+    if warn is not None:
+        for plan in plans:
+            for code, message in plan_warnings(plan):
+                if code == "no_landmarks":
+                    warn(code, message)
+    return written

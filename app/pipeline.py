@@ -18,7 +18,7 @@ import numpy as np
 from ctdrill.app.errors import AppInputError
 from ctdrill.imaging.plan.landmarks import CanalLandmark, Landmark, PointLandmark, bind_to_grid
 from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm
-from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.plan.types import Plan, plan_warnings
 from ctdrill.imaging.sampling.lip import (
     DEFAULT_N_ANGLES,
     DEFAULT_N_RINGS,
@@ -338,7 +338,7 @@ def plan_path(
         n_angles=n_angles,
     )
     warnings = list(volume.warnings)
-    warnings += [LoadWarning("plan_default", note) for note in plan.notes]
+    warnings += [LoadWarning(code, message) for code, message in plan_warnings(plan)]
     warnings += _check_volume(volume, plan, end_points)
     lip = sample_lip_rings(
         volume,

@@ -21,7 +21,7 @@ from ctdrill.haptics.serial_device import SerialDevice
 from ctdrill.haptics.session import SessionCsv, parse_fault, parse_operator, run_session
 from ctdrill.haptics.sim import SimulatedDevice
 from ctdrill.imaging import load_series
-from ctdrill.imaging.plan.types import load_plan
+from ctdrill.imaging.plan.types import load_one_plan
 
 
 @dataclass(frozen=True, eq=False)
@@ -32,10 +32,11 @@ class RehearsalTable:
     path: PathResult
 
 
-def load_table(dicom: Path, plan_file: Path) -> RehearsalTable:
-    """Load the CT and the plan, compute the path and adapt its profile to a device table."""
+def load_table(dicom: Path, plan_file: Path | Sequence[Path]) -> RehearsalTable:
+    """Load the CT and the plan (one file, or several merged into one trajectory), compute
+    the path and adapt its profile to a device table."""
     volume = load_series(dicom)
-    plan = load_plan(plan_file)
+    plan = load_one_plan([plan_file] if isinstance(plan_file, Path) else plan_file)
     path = plan_path(volume, plan, plan_calibration(plan))
     return RehearsalTable(ProfileTable.from_profile(path.profile, path.stop_depth_mm), path)
 
@@ -53,7 +54,7 @@ def open_device(spec: str) -> Device:
 def rehearse(
     *,
     dicom: Path,
-    plan: Path,
+    plan: Path | Sequence[Path],
     out: Path,
     operator: str,
     duration_s: float,

@@ -30,7 +30,8 @@ def register(subparsers: Any) -> None:
         nargs="+",
         action="extend",
         metavar="PLAN",
-        help="ctdrill-plan/1 JSON or 3D Slicer .mrk.json (repeatable; a folder of plans)",
+        help="ctdrill-plan/1 JSON, 3D Slicer .mrk.json or segmentation (.seg.nrrd, .nrrd, "
+        ".nii.gz, DICOM SEG); repeatable, or a folder: all merge into one plan",
     )
     p.add_argument("--out", type=Path, required=True, metavar="OUT", help="output folder")
     p.add_argument(
@@ -55,6 +56,11 @@ def register(subparsers: Any) -> None:
     p.set_defaults(func=run)
 
 
+def _warn(code: str, message: str) -> None:
+    """Show a warning the user must see before the run (``no_landmarks``)."""
+    sys.stderr.write(f"warning: {message}\n")
+
+
 def run(args: argparse.Namespace) -> int:
     """Export and list what was written."""
     from ctdrill.app.export import TextProgress
@@ -72,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
             include_phi=args.include_phi,
             series_uid=args.series,
             progress=progress,
+            warn=_warn,
         )
     finally:
         progress.close()

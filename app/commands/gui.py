@@ -20,7 +20,15 @@ def register(subparsers: Any) -> None:
         description="Open the ctdrill window: plan on the CT, see force and clearance, rehearse.",
     )
     p.add_argument("--dicom", type=Path, help="DICOM folder to open")
-    p.add_argument("--plan", type=Path, help="plan (ctdrill-plan/1 JSON or Slicer .mrk.json)")
+    p.add_argument(
+        "--plan",
+        type=Path,
+        nargs="+",
+        action="extend",
+        metavar="PLAN",
+        help="plan: ctdrill-plan/1 JSON, Slicer .mrk.json or segmentation files, or a folder; "
+        "repeatable, merged into one trajectory",
+    )
     p.add_argument("--screenshot", type=Path, help="save the window as PNG once drawn, then quit")
     p.add_argument(
         "--quit-after-s", type=float, default=None, help="close the window after this many seconds"
@@ -32,8 +40,9 @@ def run(args: argparse.Namespace) -> int:
     """Validate the arguments, then run the window."""
     if args.dicom is not None and not args.dicom.exists():
         raise AppInputError(f"--dicom {args.dicom}: no such folder; give a DICOM series folder")
-    if args.plan is not None and not args.plan.is_file():
-        raise AppInputError(f"--plan {args.plan}: no such file; give a plan JSON or .mrk.json")
+    for plan in args.plan or ():
+        if not plan.exists():
+            raise AppInputError(f"--plan {plan}: no such file; give a plan JSON or .mrk.json")
     if args.quit_after_s is not None and not args.quit_after_s > 0:
         raise AppInputError(
             f"--quit-after-s {args.quit_after_s}: give a positive number of seconds"

@@ -21,7 +21,16 @@ def register(subparsers: Any) -> None:
         ),
     )
     p.add_argument("--dicom", type=Path, required=True, help="CT series folder")
-    p.add_argument("--plan", type=Path, required=True, help="plan (ctdrill-plan/1 or .mrk.json)")
+    p.add_argument(
+        "--plan",
+        type=Path,
+        required=True,
+        nargs="+",
+        action="extend",
+        metavar="PLAN",
+        help="plan: ctdrill-plan/1 JSON, Slicer .mrk.json or segmentation files, or a folder; "
+        "repeatable, merged into one trajectory",
+    )
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument(
         "--operator",
@@ -60,4 +69,9 @@ def run(args: argparse.Namespace) -> int:
         f"{s['max_drill_mm']:.2f} mm, final state {s['final_state']}, "
         f"{len(s['faults'])} fault events; wrote {args.out}/session.csv and summary.json\n"
     )
+    if "no_landmarks" in s["warnings"]:
+        sys.stderr.write(
+            "warning: the plan has no landmark: no safety margin was enforced, the drill "
+            "stopped only at the planned depth or the volume's end\n"
+        )
     return 0

@@ -4,6 +4,7 @@ has drawn the case, then quit."""
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from PySide6.QtCore import QSettings, QTimer
@@ -49,7 +50,7 @@ def make_window(settings: QSettings | None = None) -> MainWindow:
 def run_gui(
     *,
     dicom: Path | None = None,
-    plan: Path | None = None,
+    plan: Path | Sequence[Path] | None = None,
     screenshot: Path | None = None,
     quit_after_s: float | None = None,
     settings: QSettings | None = None,

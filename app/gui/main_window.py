@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Sequence
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -44,7 +45,7 @@ from ctdrill.app.gui.slices import VIEWS, WINDOW_PRESETS, SliceImage, volume_cen
 from ctdrill.app.gui.view3d import View3D
 from ctdrill.app.gui.workers import Debouncer, Runner, StepQueue
 from ctdrill.imaging import CTVolume
-from ctdrill.imaging.plan.types import Plan, load_plan, save_plan
+from ctdrill.imaging.plan.types import Plan, load_one_plan, save_plan
 
 #: On close, how long to let a running load or computation finish, ms.
 CLOSE_WAIT_MS = 5000
@@ -238,14 +239,16 @@ class MainWindow(QMainWindow):
             else:
                 QMessageBox.critical(self, "ctdrill: internal error", tb)
 
-    def open_plan(self, path: str | os.PathLike[str]) -> None:
-        """Read a ctdrill-plan/1 or Slicer markups file and show it."""
+    def open_plan(self, path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]) -> None:
+        """Read a plan (ctdrill-plan/1, Slicer markups, segmentations; several files or a
+        folder merge into one trajectory) and show it."""
+        paths = [path] if isinstance(path, str | os.PathLike) else list(path)
         try:
-            plan = load_plan(path)
+            plan = load_one_plan(paths)
         except ValueError as exc:
             self._failed(exc, "")
             return
-        self._status(f"plan {path}")
+        self._status(f"plan {', '.join(str(p) for p in paths)}")
         self.set_plan(plan, now=True, refocus=True)
 
     def save_plan(self, path: str | os.PathLike[str]) -> None:

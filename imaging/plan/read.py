@@ -6,9 +6,9 @@ The formats are described in :mod:`ctdrill.imaging.plan.types`; this module hold
 
 from __future__ import annotations
 
-import json
 import math
 import os
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -37,8 +37,29 @@ from ctdrill.imaging.plan.types import (
     Plan,
     PlanInputError,
 )
+from ctdrill.safeio import load_json
 
 # --------------------------------------------------------------------------- validation
+
+
+@dataclass(frozen=True, eq=False)
+class PlanParts:
+    """What one plan file holds, before files are merged into plans.
+
+    Attributes
+    ----------
+    source : the file.
+    trajectories : its trajectories, as plans without landmarks (possibly none).
+    landmarks : its landmarks (possibly none).
+    notes : defaults the reader filled in (``plan_default`` warnings).
+    warnings : ``(code, message)`` pairs for the summary (e.g. ``markups_skipped``).
+    """
+
+    source: Path
+    trajectories: tuple[Plan, ...] = ()
+    landmarks: tuple[Landmark, ...] = ()
+    notes: tuple[str, ...] = ()
+    warnings: tuple[tuple[str, str], ...] = field(default_factory=tuple)
 
 
 def _is_number(value: object) -> bool:
@@ -57,6 +78,13 @@ class _Ctx:
     def __init__(self, path: Path) -> None:
         self.path = path
         self.notes: list[str] = []
+        self.warnings: list[tuple[str, str]] = []
+
+    def parts(self, trajectories: tuple[Plan, ...], landmarks: tuple[Landmark, ...]) -> PlanParts:
+        """The file's parts with the notes and warnings gathered while reading it."""
+        return PlanParts(
+            self.path, trajectories, landmarks, tuple(self.notes), tuple(self.warnings)
+        )
 
     def fail(self, field_path: str, what: str, got: object = ...) -> PlanInputError:
         tail = "" if got is ... else f", got {got!r}"
@@ -123,20 +151,7 @@ class _Ctx:
 
 
 def _read_json(path: Path) -> Any:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError as exc:
-        raise PlanInputError(f"{path}: plan file not found; check the path") from exc
-    except IsADirectoryError as exc:
-        raise PlanInputError(f"{path}: is a folder, expected a plan file") from exc
-    except (OSError, UnicodeDecodeError) as exc:
-        raise PlanInputError(f"{path}: cannot read the plan as UTF-8 text ({exc})") from exc
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise PlanInputError(
-            f"{path.name}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})"
-        ) from exc
+    return load_json(path, what="plan file", error=PlanInputError)
 
 
 def _to_lps(points: np.ndarray, system: str) -> np.ndarray:
@@ -215,7 +230,7 @@ def _parse_landmark(ctx: _Ctx, raw: object, index: int, system: str, base_dir: P
     return MaskLandmark(name, mask, affine_lps=affine, margin_mm=margin, source=rel)
 
 
-def _parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> Plan:
+def _parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
     fmt = doc.get("format")
     if fmt != PLAN_FORMAT:
         raise ctx.fail("format", f'must be "{PLAN_FORMAT}"', fmt)
@@ -240,7 +255,7 @@ def _parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> Plan:
     base = ctx.path.parent
     landmarks = tuple(_parse_landmark(ctx, r, i, system, base) for i, r in enumerate(lms_raw))
     name = doc.get("name") if isinstance(doc.get("name"), str) else None
-    return _make_plan(
+    plan = _make_plan(
         ctx,
         entry=entry,
         target=target,
@@ -248,10 +263,10 @@ def _parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> Plan:
         feed=feed,
         calibration=calibration,
         margin=margin,
-        landmarks=landmarks,
         name=name or _stem(ctx.path),
         field_path="target_mm",
     )
+    return ctx.parts((plan,), landmarks)
 
 
 def _drill_from(ctx: _Ctx, raw: dict[str, Any], where: str) -> DrillSpec:
@@ -276,10 +291,10 @@ def _make_plan(
     feed: float,
     calibration: str,
     margin: float,
-    landmarks: tuple[Landmark, ...],
     name: str,
     field_path: str,
 ) -> Plan:
+    """One trajectory of the file (its landmarks are joined by :func:`merge_parts`)."""
     if not np.linalg.norm(target - entry) > 1e-6:
         raise ctx.fail(field_path, "must differ from the entry point (the planned depth is 0)")
     return Plan(
@@ -289,10 +304,8 @@ def _make_plan(
         feed_mm_s=feed,
         calibration=calibration,
         margin_mm=margin,
-        landmarks=landmarks,
         name=name,
         source=str(ctx.path),
-        notes=tuple(ctx.notes),
     )
 
 
@@ -304,11 +317,12 @@ def _stem(path: Path) -> str:
     return path.stem
 
 
-def read_plans(path: str | os.PathLike[str]) -> tuple[Plan, ...]:
-    """Read every trajectory of a plan file, converted to LPS and validated.
+def read_parts(path: str | os.PathLike[str]) -> PlanParts:
+    """Read one plan file's trajectories and landmarks, converted to LPS and validated.
 
-    A ``ctdrill-plan/1`` file holds one trajectory; a Slicer ``.mrk.json`` holds one per
-    Line markup (all sharing the file's landmarks).
+    A ``ctdrill-plan/1`` file holds one trajectory and its landmarks; a Slicer ``.mrk.json``
+    holds any number of Line markups (trajectories) and Curve/Fiducial markups (landmarks),
+    possibly none of either (3D Slicer saves one markup per file).
 
     Raises
     ------
@@ -330,4 +344,12 @@ def read_plans(path: str | os.PathLike[str]) -> tuple[Plan, ...]:
             f'is missing; a plan starts with "format": "{PLAN_FORMAT}" '
             "(or is a 3D Slicer .mrk.json with markups)",
         )
-    return (_parse_ctdrill(ctx, doc),)
+    return _parse_ctdrill(ctx, doc)
+
+
+def read_plans(path: str | os.PathLike[str]) -> tuple[Plan, ...]:
+    """Every trajectory of one plan file, each with the file's landmarks (see
+    :func:`read_parts`); a file without a trajectory is refused."""
+    from ctdrill.imaging.plan.merge import merge_parts
+
+    return merge_parts([read_parts(path)])

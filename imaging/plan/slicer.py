@@ -1,5 +1,24 @@
-"""Reading 3D Slicer markups (``.mrk.json``) into plans; the format is in
-:mod:`ctdrill.imaging.plan.types`."""
+"""Reading 3D Slicer markups (``.mrk.json``) into plan parts; the format is in
+:mod:`ctdrill.imaging.plan.types`.
+
+What is read, as 3D Slicer 5 writes it (``vtkMRMLMarkupsJsonStorageNode``):
+
+- ``Line`` markups are trajectories (control point 1 the entry, 2 the target); ``Curve``
+  markups canals (centreline: Slicer's spline, :mod:`ctdrill.imaging.plan.curve`);
+  ``Fiducial`` (point list) markups point landmarks, one per control point. Any other type
+  (``ROI``, ``Plane``, ``Angle``, ``ClosedCurve``, ...) is skipped with a ``markups_skipped``
+  warning naming it.
+- Only placed control points count: ``positionStatus`` ``preview`` (being placed),
+  ``undefined`` or ``missing`` are ignored (a Line needs its two points placed).
+- ``coordinateSystem`` ``LPS`` (Slicer's default, and its default when absent) or ``RAS``;
+  ``coordinateUnits`` ``"mm"``, ``"um"`` or the coded form ``["mm", "UCUM", "millimeter"]``.
+- Settings: ``key=value`` words of the first placed control point's description
+  (:mod:`ctdrill.imaging.plan.settings`), which Slicer keeps; the markup's own ``description``
+  and ``attributes`` (which Slicer drops) are read too for older files, the control point
+  winning. A Fiducial's points each carry their own settings.
+- Names: a ``name=`` setting, else the markup's ``name``, else (Slicer writes no name; it
+  names the node after the file) the file's stem when the file holds one markup.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill.imaging.plan.curve import slicer_curve
 from ctdrill.imaging.plan.landmarks import (
     DEFAULT_CANAL_RADIUS_MM,
     CanalLandmark,
@@ -14,6 +34,7 @@ from ctdrill.imaging.plan.landmarks import (
     PointLandmark,
 )
 from ctdrill.imaging.plan.read import (
+    PlanParts,
     _coordinate_system,
     _Ctx,
     _drill_from,
@@ -21,6 +42,7 @@ from ctdrill.imaging.plan.read import (
     _stem,
     _to_lps,
 )
+from ctdrill.imaging.plan.settings import SettingsSyntaxError, parse_settings
 from ctdrill.imaging.plan.types import (
     _DRILL_KEYS,
     DEFAULT_CALIBRATION,
@@ -29,142 +51,260 @@ from ctdrill.imaging.plan.types import (
     Plan,
 )
 
-# --------------------------------------------------------------------------- Slicer markups
+#: Markup types read; every other type is skipped with a warning.
+READ_TYPES = ("Line", "Curve", "Fiducial")
+#: Settings each markup type accepts in its descriptions.
+LINE_KEYS = frozenset({"name", *_DRILL_KEYS, "feed_mm_s", "calibration", "margin_mm"})
+CURVE_KEYS = frozenset({"name", "radius_mm", "margin_mm", "curve"})
+POINT_KEYS = frozenset({"name", "margin_mm"})
+#: ``curve=`` values: Slicer's spline (default) or the straight segments between the points.
+CURVE_SPLINE, CURVE_POLYLINE = "spline", "polyline"
+#: ``positionStatus`` values of a placed point (absent means placed, as in Slicer).
+_PLACED = "defined"
+_UNPLACED = ("preview", "undefined", "missing")
+#: Length units accepted in ``coordinateUnits`` and their size in mm.
+_UNITS_MM = {"mm": 1.0, "um": 1e-3}
 
 
-def _settings(ctx: _Ctx, markup: dict[str, Any], where: str) -> dict[str, Any]:
-    """Settings of a markup: ``key=value`` words (numbers parsed) of its control points'
-    descriptions, then of its own ``description``, then its ``attributes`` (later wins)."""
-    out: dict[str, Any] = {}
-    texts = [
-        cp.get("description") for cp in markup.get("controlPoints") or [] if isinstance(cp, dict)
-    ]
-    texts.append(markup.get("description"))
-    for desc in texts:
-        if not isinstance(desc, str):
+def _units_mm(ctx: _Ctx, markup: dict[str, Any], where: str) -> float:
+    """Millimetres per coordinate unit: ``"mm"``/``"um"``, or coded ``[code, "UCUM", meaning]``."""
+    units = markup.get("coordinateUnits", "mm")
+    code = units
+    if isinstance(units, list):
+        if (
+            len(units) != 3
+            or not all(isinstance(u, str) for u in units)
+            or units[1].upper() != "UCUM"
+        ):
+            raise ctx.fail(
+                f"{where}.coordinateUnits",
+                'must be "mm" or a UCUM code such as ["mm", "UCUM", "millimeter"]',
+                units,
+            )
+        code = units[0]
+    if not isinstance(code, str) or code not in _UNITS_MM:
+        raise ctx.fail(f"{where}.coordinateUnits", 'must be "mm" or "um"', units)
+    return _UNITS_MM[code]
+
+
+def _placed_points(
+    ctx: _Ctx, markup: dict[str, Any], where: str, system: str, scale: float
+) -> tuple[np.ndarray, list[tuple[int, dict[str, Any]]]]:
+    """LPS mm positions of the placed control points, and those (index, control point)."""
+    cps = markup.get("controlPoints", [])
+    if not isinstance(cps, list):
+        raise ctx.fail(f"{where}.controlPoints", "must be a list", cps)
+    pts, kept = [], []
+    for i, cp in enumerate(cps):
+        fp = f"{where}.controlPoints[{i}]"
+        if not isinstance(cp, dict):
+            raise ctx.fail(fp, "must be an object", cp)
+        status = cp.get("positionStatus", _PLACED)
+        if status in _UNPLACED:
             continue
-        for word in desc.replace(",", " ").replace(";", " ").split():
-            if "=" not in word:
-                continue
-            key, _, value = word.partition("=")
-            try:
-                out[key.strip()] = float(value) if key.strip() != "calibration" else value
-            except ValueError:
-                out[key.strip()] = value
+        if status != _PLACED:
+            raise ctx.fail(f"{fp}.positionStatus", 'must be "defined", "preview" or "undefined"')
+        if "position" not in cp:
+            raise ctx.fail(f"{fp}.position", "is missing")
+        pts.append(ctx.point(cp["position"], f"{fp}.position") * scale)
+        kept.append((i, cp))
+    arr = _to_lps(np.asarray(pts, dtype=np.float64).reshape(-1, 3), system)
+    return arr, kept
+
+
+class _Settings(dict[str, Any]):
+    """Settings, and for each the field path of the description it came from."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.origin: dict[str, str] = {}
+
+
+def _settings(
+    ctx: _Ctx,
+    markup: dict[str, Any],
+    cp: tuple[int, dict[str, Any]] | None,
+    where: str,
+    allowed: frozenset[str],
+) -> _Settings:
+    """Settings of the markup's description and attributes, then of control point ``cp``
+    (its index in ``controlPoints`` and itself), the control point winning."""
+    out = _Settings()
+    sources: list[tuple[object, str]] = [(markup.get("description"), f"{where}.description")]
     attrs = markup.get("attributes")
+    if cp is not None:
+        sources.append((cp[1].get("description"), f"{where}.controlPoints[{cp[0]}].description"))
+    for text, fp in sources:
+        if text is None:
+            continue
+        if not isinstance(text, str):
+            raise ctx.fail(fp, "must be a string", text)
+        try:
+            found = parse_settings(text)
+        except SettingsSyntaxError as exc:
+            raise ctx.fail(fp, f"holds a malformed setting: {exc}") from exc
+        out.update(found)
+        out.origin.update(dict.fromkeys(found, fp))
     if isinstance(attrs, dict):
-        out.update(attrs)
+        for key, value in attrs.items():
+            if key not in out:
+                out[key] = value
+                out.origin[key] = f"{where}.attributes"
+    unknown = sorted(set(out) - allowed)
+    if unknown:
+        raise ctx.fail(
+            f"{out.origin[unknown[0]]}: setting {unknown[0]}",
+            f"is not a setting of this markup (known: {', '.join(sorted(allowed))})",
+        )
     return out
 
 
-def _control_points(ctx: _Ctx, markup: dict[str, Any], where: str, system: str) -> np.ndarray:
-    cps = markup.get("controlPoints")
-    if not isinstance(cps, list):
-        raise ctx.fail(f"{where}.controlPoints", "must be a list", cps)
-    pts = []
-    for i, cp in enumerate(cps):
-        if not isinstance(cp, dict) or "position" not in cp:
-            raise ctx.fail(f"{where}.controlPoints[{i}].position", "is missing")
-        pts.append(ctx.point(cp["position"], f"{where}.controlPoints[{i}].position"))
-    return _to_lps(np.asarray(pts, dtype=np.float64).reshape(-1, 3), system)
+def _name(ctx: _Ctx, settings: dict[str, Any], markup: dict[str, Any], only: bool) -> str | None:
+    name = settings.get("name")
+    if isinstance(name, str) and name.strip():
+        return name
+    label = markup.get("name")
+    if isinstance(label, str) and label.strip():
+        return label
+    return _stem(ctx.path) if only else None
 
 
-def parse_slicer(ctx: _Ctx, doc: dict[str, Any]) -> tuple[Plan, ...]:
+def parse_slicer(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
+    """The trajectories (Lines) and landmarks (Curves, Fiducials) of a markups document."""
     markups = doc.get("markups")
     if not isinstance(markups, list) or not markups:
         raise ctx.fail("markups", "must be a non-empty list of Slicer markups", markups)
-    lines: list[tuple[str, np.ndarray, dict[str, Any], str]] = []
+    only = len(markups) == 1
+    one_line = sum(isinstance(m, dict) and m.get("type") == "Line" for m in markups) == 1
+    lines: list[Plan] = []
     landmarks: list[Landmark] = []
+    skipped: list[str] = []
     for m_index, mk in enumerate(markups):
         where = f"markups[{m_index}]"
         if not isinstance(mk, dict):
             raise ctx.fail(where, "must be an object", mk)
         mtype = mk.get("type")
+        if mtype not in READ_TYPES:
+            skipped.append(f"{where} ({mtype!s})")
+            continue
         system = _coordinate_system(ctx, mk, "coordinateSystem", where)
-        units = mk.get("coordinateUnits", "mm")
-        if units != "mm":
-            raise ctx.fail(f"{where}.coordinateUnits", 'must be "mm"', units)
-        pts = _control_points(ctx, mk, where, system)
-        settings = _settings(ctx, mk, where)
-        label = mk.get("name") if isinstance(mk.get("name"), str) else None
-        margin = _setting_number(ctx, settings, "margin_mm", where, nonneg=True)
+        pts, cps = _placed_points(ctx, mk, where, system, _units_mm(ctx, mk, where))
         if mtype == "Line":
-            if len(pts) != 2:
-                raise ctx.fail(
-                    f"{where}.controlPoints",
-                    "of a Line must hold 2 points (entry, then target)",
-                    len(pts),
-                )
-            lines.append((label or "", pts, settings, where))
+            lines.append(_line(ctx, mk, where, pts, cps, one_line, len(lines)))
         elif mtype == "Curve":
-            if len(pts) == 0:
-                raise ctx.fail(f"{where}.controlPoints", "of a Curve must hold at least 1 point")
-            radius = _setting_number(ctx, settings, "radius_mm", where, nonneg=True)
-            landmarks.append(
-                CanalLandmark(
-                    label or f"canal {m_index + 1}",
-                    pts,
-                    radius_mm=_default_radius(ctx, radius, where, label),
-                    margin_mm=margin,
-                )
-            )
-        elif mtype == "Fiducial":
-            cps = mk["controlPoints"]
-            for i, pt in enumerate(pts):
-                cp_label = cps[i].get("label")
-                name = cp_label if isinstance(cp_label, str) and cp_label else None
-                landmarks.append(
-                    PointLandmark(name or f"{label or 'point'} {i + 1}", pt, margin_mm=margin)
-                )
+            canal = _curve(ctx, mk, where, pts, cps, only, m_index)
+            if canal is not None:
+                landmarks.append(canal)
         else:
-            raise ctx.fail(f"{where}.type", 'must be "Line", "Curve" or "Fiducial"', mtype)
-    if not lines:
-        raise ctx.fail("markups", "hold no Line markup; add one Line (entry, then target)")
-    plans = []
-    for index, (label, pts, settings, where) in enumerate(lines):
-        drill_raw = {k: settings[k] for k in _DRILL_KEYS if k in settings}
-        drill = _drill_from(ctx, drill_raw, f"{where}.description")
-        feed = _setting_number(ctx, settings, "feed_mm_s", where, positive=True)
-        margin = _setting_number(ctx, settings, "margin_mm", where, nonneg=True)
-        cal = settings.get("calibration", DEFAULT_CALIBRATION)
-        plans.append(
-            _make_plan(
-                ctx,
-                entry=pts[0],
-                target=pts[1],
-                drill=drill,
-                feed=DEFAULT_FEED_MM_S if feed is None else feed,
-                calibration=str(cal),
-                margin=DEFAULT_MARGIN_MM if margin is None else margin,
-                landmarks=tuple(landmarks),
-                name=label or (_stem(ctx.path) + (f"-{index + 1}" if len(lines) > 1 else "")),
-                field_path=f"{where}.controlPoints[1].position",
+            landmarks.extend(_fiducials(ctx, mk, where, pts, cps, only))
+    if skipped:
+        ctx.warnings.append(
+            (
+                "markups_skipped",
+                f"{ctx.path.name}: skipped markups ctdrill does not use: {', '.join(skipped)} "
+                "(only Line, Curve and Fiducial markups are read)",
             )
         )
-    return tuple(plans)
+    return ctx.parts(tuple(lines), tuple(landmarks))
 
 
-def _default_radius(ctx: _Ctx, radius: float | None, where: str, label: str | None) -> float:
-    if radius is not None:
-        return radius
-    ctx.notes.append(
-        f"{ctx.path.name}: {where} ({label or 'curve'}) gives no radius_mm in its description; "
-        f"using the default canal radius {DEFAULT_CANAL_RADIUS_MM} mm"
-    )
-    return DEFAULT_CANAL_RADIUS_MM
-
-
-def _setting_number(
+def _line(
     ctx: _Ctx,
-    settings: dict[str, Any],
-    key: str,
+    mk: dict[str, Any],
     where: str,
-    *,
-    positive: bool = False,
-    nonneg: bool = False,
-) -> float | None:
+    pts: np.ndarray,
+    cps: list[tuple[int, dict[str, Any]]],
+    only: bool,
+    index: int,
+) -> Plan:
+    if len(pts) != 2:
+        raise ctx.fail(
+            f"{where}.controlPoints",
+            "of a Line must hold 2 placed points (entry, then target)",
+            len(pts),
+        )
+    settings = _settings(ctx, mk, cps[0], where, LINE_KEYS)
+    for key in _DRILL_KEYS & set(settings):
+        _number(ctx, settings, key, positive=True)  # names the description on error
+    drill = _drill_from(ctx, {k: settings[k] for k in _DRILL_KEYS if k in settings}, where)
+    feed = _number(ctx, settings, "feed_mm_s", positive=True)
+    margin = _number(ctx, settings, "margin_mm")
+    cal = settings.get("calibration", DEFAULT_CALIBRATION)
+    if not isinstance(cal, str) or not cal.strip():
+        fp = settings.origin.get("calibration", where)
+        raise ctx.fail(f"{fp}.calibration", "must be a set name or a path", cal)
+    name = _name(ctx, settings, mk, only) or f"{_stem(ctx.path)}-{index + 1}"
+    return _make_plan(
+        ctx,
+        entry=pts[0],
+        target=pts[1],
+        drill=drill,
+        feed=DEFAULT_FEED_MM_S if feed is None else feed,
+        calibration=cal,
+        margin=DEFAULT_MARGIN_MM if margin is None else margin,
+        name=name,
+        field_path=f"{where}.controlPoints[1].position",
+    )
+
+
+def _curve(
+    ctx: _Ctx,
+    mk: dict[str, Any],
+    where: str,
+    pts: np.ndarray,
+    cps: list[tuple[int, dict[str, Any]]],
+    only: bool,
+    m_index: int,
+) -> CanalLandmark | None:
+    if len(pts) == 0:
+        ctx.warnings.append(
+            ("markups_skipped", f"{ctx.path.name}: {where} (Curve) has no placed point; skipped")
+        )
+        return None
+    settings = _settings(ctx, mk, cps[0], where, CURVE_KEYS)
+    name = _name(ctx, settings, mk, only) or f"canal {m_index + 1}"
+    radius = _number(ctx, settings, "radius_mm")
+    if radius is None:
+        ctx.notes.append(
+            f"{ctx.path.name}: {where} ({name}) gives no radius_mm in its description; "
+            f"using the default canal radius {DEFAULT_CANAL_RADIUS_MM} mm"
+        )
+        radius = DEFAULT_CANAL_RADIUS_MM
+    kind = settings.get("curve", CURVE_SPLINE)
+    if kind not in (CURVE_SPLINE, CURVE_POLYLINE):
+        raise ctx.fail(
+            f"{settings.origin['curve']}.curve",
+            f'must be "{CURVE_SPLINE}" or "{CURVE_POLYLINE}"',
+            kind,
+        )
+    centreline = slicer_curve(pts) if kind == CURVE_SPLINE else pts
+    margin = _number(ctx, settings, "margin_mm")
+    return CanalLandmark(name, centreline, radius_mm=radius, margin_mm=margin)
+
+
+def _fiducials(
+    ctx: _Ctx,
+    mk: dict[str, Any],
+    where: str,
+    pts: np.ndarray,
+    cps: list[tuple[int, dict[str, Any]]],
+    only: bool,
+) -> list[PointLandmark]:
+    out = []
+    base = _name(ctx, {}, mk, only) or "point"
+    for i, (pt, (cp_index, cp)) in enumerate(zip(pts, cps, strict=True)):
+        settings = _settings(ctx, mk, (cp_index, cp), where, POINT_KEYS)
+        label = cp.get("label")
+        name = settings.get("name")
+        if not (isinstance(name, str) and name.strip()):
+            name = label if isinstance(label, str) and label.strip() else f"{base} {i + 1}"
+        margin = _number(ctx, settings, "margin_mm")
+        out.append(PointLandmark(name, pt, margin_mm=margin))
+    return out
+
+
+def _number(ctx: _Ctx, settings: _Settings, key: str, *, positive: bool = False) -> float | None:
     if key not in settings:
         return None
-    return ctx.number(
-        settings, key, f"{where}.description", positive=positive, nonneg=nonneg, default=None
-    )
+    where = settings.origin[key]
+    return ctx.number(settings, key, where, positive=positive, nonneg=not positive)

@@ -1,18 +1,16 @@
-"""Drill plans: ``ctdrill-plan/1`` JSON and 3D Slicer markups (``.mrk.json``), in LPS mm.
-
-Everything is converted to LPS at this boundary (RAS: x and y negated) and validated once;
-the rest of the code trusts a :class:`Plan`.
-
-Slicer markups (``.mrk.json``): one **Line** markup is the trajectory (first control point the
-entry, second the target); **Curve** markups are canals, the polyline through their control
-points (Slicer draws a spline through them: place points densely); **Fiducial** markups are
-point landmarks, one per control point, named by its label. Each markup may carry settings as
-``key=value`` words in its ``description`` or its control points' (e.g.
-``radius_mm=1.5 margin_mm=2.5`` on a curve, ``diameter_mm=2.0 tip_length_mm=0.6 blades=2
-rpm=900 feed_mm_s=0.4 calibration=NAME margin_mm=2.0`` on the line); a curve without
-``radius_mm`` gets :data:`~ctdrill.imaging.plan.landmarks.DEFAULT_CANAL_RADIUS_MM` (1.2 mm) and the
-drill defaults are those of :class:`DrillSpec`. Several Line markups make several plans
-(:func:`load_plans`).
+"""Drill plans: ``ctdrill-plan/1`` JSON and 3D Slicer markups (``.mrk.json``, :mod:`ctdrill.imaging.plan.slicer`): **Line** markups are
+trajectories (first control point the entry, second the target); **Curve** markups are canals
+whose centreline is the spline Slicer draws through their control points
+(:mod:`ctdrill.imaging.plan.curve`); **Fiducial** markups are point landmarks, one per control
+point, named by its label; other types are skipped with a warning. Settings are ``key=value``
+words in the first control point's description, where Slicer keeps them
+(:mod:`ctdrill.imaging.plan.settings`), e.g. ``name="IAN canal" radius_mm=1.5 margin_mm=2.5``
+on a curve, ``diameter_mm=2.0 tip_length_mm=0.6 blades=2 rpm=900 feed_mm_s=0.4
+calibration="NAME" margin_mm=2.0`` on the line; a curve without ``radius_mm`` gets
+:data:`~ctdrill.imaging.plan.landmarks.DEFAULT_CANAL_RADIUS_MM` (1.2 mm, a ``plan_default``
+note) and the drill defaults are those of :class:`DrillSpec`. Slicer saves one markup per file:
+several files (or a folder) merge into plans (:func:`load_plan_set`,
+:mod:`ctdrill.imaging.plan.merge`).
 """
 
 from __future__ import annotations
@@ -20,6 +18,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -58,7 +57,7 @@ _DRILL_KEYS = {"diameter_mm", "tip_length_mm", "blades", "rpm"}
 _LANDMARK_KEYS = {
     "canal": {"name", "kind", "points_mm", "radius_mm", "margin_mm", "description"},
     "point": {"name", "kind", "point_mm", "points_mm", "margin_mm", "description"},
-    "mask": {"name", "kind", "path", "label", "affine_lps", "margin_mm", "description"},
+    "mask": {"name", "kind", "path", "label", "segment", "affine_lps", "margin_mm", "description"},
 }
 
 
@@ -111,6 +110,8 @@ class Plan:
     name : a short label (the file stem, or the Slicer line's name).
     source : the file it was read from ("" if built in code).
     notes : defaults the reader filled in that the user should know (e.g. a canal radius).
+    warnings : other ``(code, message)`` pairs from reading it (e.g. ``markups_skipped``);
+        :func:`plan_warnings` gives all of them.
     """
 
     entry_lps: np.ndarray
@@ -123,6 +124,7 @@ class Plan:
     name: str = "plan"
     source: str = ""
     notes: tuple[str, ...] = ()
+    warnings: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
         for attr in ("entry_lps", "target_lps"):
@@ -169,6 +171,49 @@ def load_plans(path: str | os.PathLike[str]) -> tuple[Plan, ...]:
     from ctdrill.imaging.plan.read import read_plans
 
     return read_plans(path)
+
+
+def load_plan_set(paths: Sequence[str | os.PathLike[str]]) -> tuple[Plan, ...]:
+    """Read several plan files (or folders of them) and merge them into plans.
+
+    Every file's landmarks protect every trajectory; a trajectory or landmark given by two
+    files must agree (see :mod:`ctdrill.imaging.plan.merge`).
+    """
+    from ctdrill.imaging.plan.merge import load_merged
+
+    return load_merged(paths)
+
+
+def load_one_plan(paths: Sequence[str | os.PathLike[str]]) -> Plan:
+    """:func:`load_plan_set` for commands that drill one trajectory (rehearse, the GUI)."""
+    plans = load_plan_set(paths)
+    if len(plans) != 1:
+        names = ", ".join(repr(p.name) for p in plans)
+        raise PlanInputError(
+            f"the plan files hold {len(plans)} trajectories ({names}); give the files of one"
+        )
+    return plans[0]
+
+
+def plan_warnings(plan: Plan) -> tuple[tuple[str, str], ...]:
+    """``(code, message)`` of everything the user must know about ``plan`` itself.
+
+    ``plan_default`` for each default the reader filled in, the reader's own warnings
+    (``markups_skipped``), and ``no_landmarks`` when nothing is protected: the drill then
+    stops only at the planned depth or where the volume ends.
+    """
+    out = [("plan_default", note) for note in plan.notes]
+    out += list(plan.warnings)
+    if not plan.landmarks:
+        out.append(
+            (
+                "no_landmarks",
+                f"plan {plan.name!r} has no landmark: no safety margin is enforced, the drill "
+                "stops only at the planned depth; add the canal (a Curve, a segmentation or "
+                "a landmark in the plan)",
+            )
+        )
+    return tuple(out)
 
 
 def load_plan(path: str | os.PathLike[str]) -> Plan:

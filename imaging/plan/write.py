@@ -6,10 +6,13 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill.imaging.plan.curve import POINTS_PER_SEGMENT, slicer_curve
 from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
     PointLandmark,
 )
+from ctdrill.imaging.plan.settings import format_settings
+from ctdrill.imaging.plan.slicer import CURVE_POLYLINE
 from ctdrill.imaging.plan.types import (
     _SLICER_SCHEMA,
     PLAN_FORMAT,
@@ -60,52 +63,92 @@ def plan_document(plan: Plan) -> dict[str, Any]:
     }
 
 
-def _markup(mtype: str, name: str, description: str, points: np.ndarray, labels: list[str]) -> Any:
+#: A control point's orientation as Slicer 5 writes it in LPS (identity in RAS).
+_ORIENTATION_LPS = [-1.0, -0.0, -0.0, -0.0, -1.0, -0.0, 0.0, 0.0, 1.0]
+
+
+def _markup(mtype: str, name: str, points: np.ndarray, cps: list[tuple[str, str]]) -> Any:
+    """One markup as 3D Slicer 5 writes it (LPS, mm); ``cps`` gives (label, description)."""
     return {
         "type": mtype,
         "name": name,
-        "description": description,
         "coordinateSystem": "LPS",
         "coordinateUnits": "mm",
+        "locked": False,
+        "fixedNumberOfControlPoints": False,
+        "labelFormat": "%N-%d",
+        "lastUsedControlPointNumber": len(points),
         "controlPoints": [
-            {"id": str(i + 1), "label": lab, "position": p.tolist()}
-            for i, (p, lab) in enumerate(zip(points, labels, strict=True))
+            {
+                "id": str(i + 1),
+                "label": label,
+                "description": desc,
+                "associatedNodeID": "",
+                "position": [float(v) for v in p],
+                "orientation": list(_ORIENTATION_LPS),
+                "selected": True,
+                "locked": False,
+                "visibility": True,
+                "positionStatus": "defined",
+            }
+            for i, (p, (label, desc)) in enumerate(zip(points, cps, strict=True))
         ],
+        "measurements": [],
     }
 
 
+def _curve_control_points(canal: CanalLandmark) -> tuple[np.ndarray, dict[str, Any]]:
+    """Control points of the Slicer Curve whose centreline is ``canal``'s, and the setting
+    needed: Slicer's spline when the centreline is one (read from a Slicer Curve), else the
+    polyline itself with ``curve=polyline`` (Slicer will draw a spline through it, ctdrill
+    keeps the straight segments)."""
+    pts = canal.points_lps
+    n = len(pts)
+    if n >= 2 and (n - 1) % POINTS_PER_SEGMENT == 0:
+        ctrl = pts[::POINTS_PER_SEGMENT]
+        if np.allclose(slicer_curve(ctrl), pts, rtol=0.0, atol=1e-9):
+            return ctrl, {}
+    if n == 1:
+        return pts, {}
+    return pts, {"curve": CURVE_POLYLINE}
+
+
 def markups_document(plan: Plan) -> dict[str, Any]:
-    """The 3D Slicer markups document of ``plan`` (LPS; settings in descriptions)."""
+    """The 3D Slicer markups document of ``plan`` (LPS, mm).
+
+    Settings go where Slicer keeps them: ``key=value`` words in the first control point's
+    description (:mod:`ctdrill.imaging.plan.settings`), so that a file loaded and saved by
+    Slicer reads back as the same plan. Mask landmarks cannot be markups and are refused.
+    """
     d = plan.drill
-    line_desc = (
-        f"diameter_mm={d.diameter_mm!r} tip_length_mm={d.tip_length_mm!r} blades={d.blades} "
-        f"rpm={d.rpm!r} feed_mm_s={plan.feed_mm_s!r} calibration={plan.calibration} "
-        f"margin_mm={plan.margin_mm!r}"
-    )
-    if any(ch.isspace() for ch in plan.calibration):
-        raise PlanInputError(
-            f"calibration {plan.calibration!r} contains spaces; save the plan as JSON instead"
-        )
+    line = {
+        "name": plan.name,
+        "diameter_mm": d.diameter_mm,
+        "tip_length_mm": d.tip_length_mm,
+        "blades": d.blades,
+        "rpm": d.rpm,
+        "feed_mm_s": plan.feed_mm_s,
+        "calibration": plan.calibration,
+        "margin_mm": plan.margin_mm,
+    }
     markups = [
         _markup(
             "Line",
             plan.name,
-            line_desc,
             np.stack([plan.entry_lps, plan.target_lps]),
-            ["entry", "target"],
+            [("entry", format_settings(line)), ("target", "")],
         )
     ]
     for lm in plan.landmarks:
-        margin = "" if lm.margin_mm is None else f" margin_mm={lm.margin_mm!r}"
+        margin = {} if lm.margin_mm is None else {"margin_mm": lm.margin_mm}
         if isinstance(lm, CanalLandmark):
-            pts = lm.points_lps
-            labels = [f"{lm.name}-{i + 1}" for i in range(len(pts))]
-            desc = f"radius_mm={lm.radius_mm!r}{margin}"
-            markups.append(_markup("Curve", lm.name, desc, pts, labels))
+            ctrl, extra = _curve_control_points(lm)
+            desc = format_settings({"name": lm.name, "radius_mm": lm.radius_mm, **margin, **extra})
+            cps = [(f"{lm.name}-{i + 1}", desc if i == 0 else "") for i in range(len(ctrl))]
+            markups.append(_markup("Curve", lm.name, ctrl, cps))
         elif isinstance(lm, PointLandmark):
-            markups.append(
-                _markup("Fiducial", lm.name, margin.strip(), lm.point_lps[None], [lm.name])
-            )
+            desc = format_settings({"name": lm.name, **margin})
+            markups.append(_markup("Fiducial", lm.name, lm.point_lps[None], [(lm.name, desc)]))
         else:
             raise PlanInputError(
                 f"mask landmark {lm.name!r} cannot be stored in a Slicer markups file; "

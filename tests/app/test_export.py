@@ -7,6 +7,7 @@ import csv
 import io
 import json
 import struct
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -294,8 +295,9 @@ def test_several_plans_one_load_subfolders_and_progress(tmp_path: Path) -> None:
     plans = tmp_path / "plans"
     plans.mkdir()
     demo = load_plan(DEMO / "plan.json")
-    save_plan(demo, plans / "a.json")
-    save_plan(demo, plans / "b.mrk.json")
+    # Two trajectories (the folder's files merge: the same trajectory twice would be one).
+    save_plan(replace(demo, name="implant a"), plans / "a.json")
+    save_plan(replace(demo, name="implant b"), plans / "b.mrk.json")
     out = tmp_path / "out"
     code, stdout, err = _run(
         [

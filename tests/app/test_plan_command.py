@@ -1,0 +1,124 @@
+"""``ctdrill plan`` and ``--plan`` repeated: a Slicer case saved one markup per file."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+from dataclasses import replace
+from pathlib import Path
+
+from ctdrill.app.cli import main
+from ctdrill.imaging.plan.types import load_plan, load_plan_set, save_plan
+from tests.conftest import ASSETS
+from tests.imaging.slicer_files import slicer_save, validate_markups
+
+DEMO = ASSETS / "demo"
+
+
+def _run(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(argv)
+        except SystemExit as exc:
+            code = int(exc.code or 0)
+    return code, out.getvalue(), err.getvalue()
+
+
+def _slicer_case(tmp_path: Path) -> Path:
+    """The demo plan after a 3D Slicer load and save: one markup per file in a folder."""
+    demo = load_plan(DEMO / "plan.json")
+    demo = replace(demo, drill=replace(demo.drill, diameter_mm=3.5), margin_mm=2.5, name="implant")
+    mrk = tmp_path / "ctdrill.mrk.json"
+    save_plan(demo, mrk)
+    case = tmp_path / "case"
+    case.mkdir()
+    slicer_save(mrk, case)
+    return case
+
+
+def test_plan_merges_a_slicer_case_and_converts_both_ways(tmp_path: Path) -> None:
+    case = _slicer_case(tmp_path)
+    out_json = tmp_path / "merged.json"
+    code, stdout, err = _run(["plan", str(case), "--out", str(out_json)])
+    assert code == 0, err
+    assert stdout.startswith(f"wrote {out_json} (ctdrill-plan/1): trajectory 'implant'")
+    doc = json.loads(out_json.read_text())
+    assert doc["format"] == "ctdrill-plan/1" and doc["drill"]["diameter_mm"] == 3.5
+    assert doc["margin_mm"] == 2.5
+    back = tmp_path / "back.mrk.json"
+    code, _, err = _run(["plan", str(out_json), "--out", str(back)])
+    assert code == 0, err
+    validate_markups(json.loads(back.read_text()))
+    (a,) = load_plan_set([case])
+    b = load_plan(back)
+    assert (a.drill, a.margin_mm, a.name) == (b.drill, b.margin_mm, b.name)
+    assert [lm.name for lm in a.landmarks] == [lm.name for lm in b.landmarks]
+
+
+def test_plan_refusals(tmp_path: Path) -> None:
+    case = _slicer_case(tmp_path)
+    code, _, err = _run(["plan", str(case), "--out", str(tmp_path / "x.txt")])
+    assert code == 2 and err.startswith("error: --out") and err.count("\n") == 1
+    code, _, err = _run(["plan", str(case), "--out", str(tmp_path / "no" / "x.json")])
+    assert code == 2 and "does not exist" in err
+    canal_only = [p for p in case.iterdir() if p.name != "implant.mrk.json"]
+    code, _, err = _run(["plan", *map(str, canal_only), "--out", str(tmp_path / "x.json")])
+    assert code == 2 and "no trajectory" in err and err.count("\n") == 1
+
+
+def test_export_with_repeated_plan_matches_the_single_file(tmp_path: Path) -> None:
+    case = _slicer_case(tmp_path)
+    files = sorted(case.iterdir())
+    merged = tmp_path / "merged.json"
+    assert _run(["plan", str(case), "--out", str(merged)])[0] == 0
+    outs = []
+    for i, args in enumerate([[str(f) for f in files], [str(merged)]]):
+        out = tmp_path / f"out{i}"
+        argv = ["export", "--dicom", str(DEMO / "ct"), "--out", str(out), "--rate-hz", "100"]
+        for a in args:
+            argv += ["--plan", a]
+        code, _, err = _run(argv)
+        assert code == 0, err
+        outs.append(json.loads((out / "summary.json").read_text()))
+    for key in ("stop_depth_mm", "max_safe_depth_mm", "min_clearance_mm", "planned_depth_mm"):
+        assert outs[0][key] == outs[1][key]
+    # The 2.5 mm margin and 3.5 mm drill survived the Slicer save: with the defaults (2.0 mm
+    # each) the demo stops at 10.8 mm; 0.5 mm more margin alone moves the stop up 0.5 mm.
+    assert outs[0]["stop_reason"] == "margin"
+    assert outs[0]["stop_depth_mm"] < 10.8 - 0.5
+
+
+def test_no_landmarks_warns_in_summary_and_terminal(tmp_path: Path) -> None:
+    case = _slicer_case(tmp_path)
+    line = case / "implant.mrk.json"
+    out = tmp_path / "out"
+    code, _, err = _run(
+        ["export", "--dicom", str(DEMO / "ct"), "--plan", str(line), "--out", str(out)]
+    )
+    assert code == 0, err
+    summary = json.loads((out / "summary.json").read_text())
+    codes = [w["code"] for w in summary["warnings"]]
+    assert codes.count("no_landmarks") == 1
+    assert summary["stop_reason"] == "planned_depth"
+    assert "warning: plan 'implant' has no landmark" in err
+    rout = tmp_path / "rehearse"
+    code, _, err = _run(
+        [
+            "rehearse",
+            "--dicom",
+            str(DEMO / "ct"),
+            "--plan",
+            str(line),
+            "--out",
+            str(rout),
+            "--operator",
+            "push:4",
+            "--duration-s",
+            "0.2",
+        ]
+    )
+    assert code == 0, err
+    assert "no_landmarks" in json.loads((rout / "summary.json").read_text())["warnings"]
+    assert "warning: the plan has no landmark" in err
