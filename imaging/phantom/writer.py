@@ -28,6 +28,22 @@ from pydicom.uid import (
 from ctdrill.imaging.errors import ImagingInputError
 
 _UNCOMPRESSED = (ExplicitVRLittleEndian, ImplicitVRLittleEndian)
+#: Type 2 (and 2C) attributes of the CT Image IOD that a synthetic series cannot know: written
+#: present and empty, as DICOM requires (dciodvfy checks it); ``extra`` may set them.
+_TYPE2_UNKNOWN = (
+    "PatientBirthDate",
+    "PatientSex",
+    "StudyDate",
+    "StudyTime",
+    "ReferringPhysicianName",
+    "StudyID",
+    "AccessionNumber",
+    "PatientPosition",
+    "PositionReferenceIndicator",
+    "AcquisitionNumber",
+    "KVP",
+    "Manufacturer",
+)
 
 
 class WriterInputError(ImagingInputError):
@@ -235,6 +251,8 @@ def write_series(
         ds.SOPInstanceUID = sop_uid
         ds.PatientName = patient_name
         ds.PatientID = patient_id
+        for keyword in _TYPE2_UNKNOWN:
+            setattr(ds, keyword, None)  # Type 2: present, empty when unknown
         ds.StudyInstanceUID = study_uid
         ds.SeriesInstanceUID = series_uid
         ds.FrameOfReferenceUID = frame_of_reference_uid
@@ -270,6 +288,9 @@ def write_series(
                 ds.add_new(0x00280121, pad_vr, int(pixel_padding_range_limit))
         for keyword, value in (extra or {}).items():
             setattr(ds, keyword, value)
+        if not ds.get("BodyPartExamined") and "Laterality" not in ds:
+            # Type 2C: needed (empty: unknown) unless the body part is known to be unpaired.
+            ds.Laterality = None
         meta = FileMetaDataset()
         meta.MediaStorageSOPClassUID = UID(sop_class_uid)
         meta.MediaStorageSOPInstanceUID = sop_uid

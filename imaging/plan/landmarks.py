@@ -94,7 +94,8 @@ class MaskLandmark:
 
     ``affine_lps`` maps ``(i=col, j=row, k=slice, 1)`` to LPS mm like ``CTVolume.affine_lps``.
     ``None`` means "the CT's grid": bind it with :func:`bind_to_grid` before computing
-    clearances. ``source`` is the file the mask came from (for messages and saving).
+    clearances. ``source`` is the file the mask came from (for messages and saving);
+    ``label`` and ``segment`` what was taken from it (a label value, a segment's name).
     """
 
     name: str
@@ -102,6 +103,8 @@ class MaskLandmark:
     affine_lps: np.ndarray | None = None
     margin_mm: float | None = None
     source: str = ""
+    label: int | None = None
+    segment: str | None = None
 
     def __post_init__(self) -> None:
         mask = np.asarray(self.mask).astype(bool, copy=False)
@@ -163,19 +166,19 @@ def landmark_core(landmark: Landmark) -> tuple[np.ndarray, np.ndarray, float]:
 def load_mask_file(path: Path, *, label: int | None = None) -> np.ndarray:
     """Read a labelmap ``.npy`` (slices, rows, cols) as a bool mask.
 
-    ``label`` selects one label value; ``None`` takes every non-zero voxel.
+    ``label`` selects one label value; ``None`` takes every non-zero voxel. The file is
+    checked (regular, bounded, an NPY header whose size fits) before the array is allocated
+    (:func:`ctdrill.imaging.plan.segmentation.read_npy`); other formats are read by
+    :func:`ctdrill.imaging.plan.segmentation.mask_landmark`.
     """
     if path.suffix.lower() != ".npy":
         raise LandmarkInputError(
             f"{path}: mask landmarks are read from NumPy .npy labelmaps on the CT grid "
             "(slices, rows, cols); convert the segmentation to .npy"
         )
-    try:
-        arr = np.load(path, allow_pickle=False)
-    except FileNotFoundError as exc:
-        raise LandmarkInputError(f"{path}: mask file not found; check the landmark's path") from exc
-    except (OSError, ValueError) as exc:
-        raise LandmarkInputError(f"{path}: not a readable .npy labelmap ({exc})") from exc
+    from ctdrill.imaging.plan.segmentation import read_npy
+
+    arr = read_npy(path)
     if arr.ndim != 3:
         raise LandmarkInputError(
             f"{path}: expected a 3-D labelmap (slices, rows, cols), got shape {arr.shape}"

@@ -18,9 +18,7 @@ from ctdrill.imaging.plan.landmarks import (
     DEFAULT_CANAL_RADIUS_MM,
     CanalLandmark,
     Landmark,
-    MaskLandmark,
     PointLandmark,
-    load_mask_file,
 )
 from ctdrill.imaging.plan.types import (
     _DRILL_KEYS,
@@ -216,6 +214,9 @@ def _parse_landmark(ctx: _Ctx, raw: object, index: int, system: str, base_dir: P
         not isinstance(label, int) or isinstance(label, bool) or not -(2**63) <= label < 2**63
     ):
         raise ctx.fail(f"{where}.label", "must be an integer label value", label)
+    segment = raw.get("segment")
+    if segment is not None and (not isinstance(segment, str) or not segment.strip()):
+        raise ctx.fail(f"{where}.segment", "must be a segment's name", segment)
     affine = None
     if "affine_lps" in raw:
         aff = np.asarray(raw["affine_lps"], dtype=object)
@@ -226,8 +227,17 @@ def _parse_landmark(ctx: _Ctx, raw: object, index: int, system: str, base_dir: P
         if affine is None or affine.shape != (4, 4) or not np.all(np.isfinite(affine)):
             raise ctx.fail(f"{where}.affine_lps", "must be a 4x4 matrix of finite numbers")
     mask_path = Path(rel) if Path(rel).is_absolute() else base_dir / rel
-    mask = load_mask_file(mask_path, label=label)
-    return MaskLandmark(name, mask, affine_lps=affine, margin_mm=margin, source=rel)
+    from ctdrill.imaging.plan.segmentation import mask_landmark
+
+    return mask_landmark(
+        mask_path,
+        name=name,
+        label=label,
+        segment=segment,
+        affine_lps=affine,
+        margin_mm=margin,
+        source=str(mask_path),
+    )
 
 
 def _parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:

@@ -1,4 +1,9 @@
-"""Drill plans: ``ctdrill-plan/1`` JSON and 3D Slicer markups (``.mrk.json``, :mod:`ctdrill.imaging.plan.slicer`): **Line** markups are
+"""Drill plans: ``ctdrill-plan/1`` JSON and 3D Slicer markups (``.mrk.json``), in LPS mm.
+
+Everything is converted to LPS at this boundary (RAS: x and y negated) and validated once;
+the rest of the code trusts a :class:`Plan`.
+
+Slicer markups (``.mrk.json``, :mod:`ctdrill.imaging.plan.slicer`): **Line** markups are
 trajectories (first control point the entry, second the target); **Curve** markups are canals
 whose centreline is the spline Slicer draws through their control points
 (:mod:`ctdrill.imaging.plan.curve`); **Fiducial** markups are point landmarks, one per control
@@ -245,7 +250,12 @@ def save_plan(plan: Plan, path: str | os.PathLike[str]) -> None:
     """Write ``plan`` atomically: Slicer markups if ``path`` ends in ``.mrk.json``, else
     ``ctdrill-plan/1`` JSON (LPS)."""
     p = Path(path)
-    doc = plan_to_markups(plan) if p.name.lower().endswith(".mrk.json") else plan_to_dict(plan)
+    if p.name.lower().endswith(".mrk.json"):
+        doc = plan_to_markups(plan)
+    else:
+        from ctdrill.imaging.plan.write import plan_document
+
+        doc = plan_document(plan, out_dir=p.parent)
     text = json.dumps(doc, indent=2) + "\n"
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent or ".")
     try:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import numpy as np
@@ -21,8 +22,13 @@ from ctdrill.imaging.plan.types import (
 )
 
 
-def plan_document(plan: Plan) -> dict[str, Any]:
-    """The ``ctdrill-plan/1`` document of ``plan`` (LPS); mask paths are kept as given."""
+def plan_document(plan: Plan, out_dir: str | os.PathLike[str] | None = None) -> dict[str, Any]:
+    """The ``ctdrill-plan/1`` document of ``plan`` (LPS).
+
+    Mask paths are written relative to ``out_dir`` (the folder the plan is saved in), else as
+    the landmark's ``source``; a mask's ``label``/``segment`` are kept, and its ``affine_lps``
+    only for a ``.npy`` (other files carry their own geometry).
+    """
     lms: list[dict[str, Any]] = []
     for lm in plan.landmarks:
         item: dict[str, Any] = {"name": lm.name, "kind": lm.kind}
@@ -37,8 +43,16 @@ def plan_document(plan: Plan) -> dict[str, Any]:
                     f"mask landmark {lm.name!r} has no file to refer to; save the mask as .npy "
                     "and set its source"
                 )
-            item["path"] = lm.source
-            if lm.affine_lps is not None:
+            item["path"] = (
+                lm.source
+                if out_dir is None
+                else os.path.relpath(os.path.abspath(lm.source), os.path.abspath(out_dir))
+            )
+            if lm.label is not None:
+                item["label"] = lm.label
+            if lm.segment is not None:
+                item["segment"] = lm.segment
+            if lm.affine_lps is not None and lm.source.lower().endswith(".npy"):
                 item["affine_lps"] = lm.affine_lps.tolist()
         if lm.margin_mm is not None:
             item["margin_mm"] = lm.margin_mm

@@ -60,7 +60,7 @@ def test_headers_are_realistic_and_synthetic(streaky: tuple[Phantom, Path]) -> N
     assert str(ds.PatientName) == "PHANTOM^MANDIBLE" and ds.PatientID == "PHANTOM-D3-S5"
     stored_max = max(int(pydicom.dcmread(f).pixel_array.max()) for f in files)
     assert stored_max == 4095  # the metal insert, 3071 HU
-    assert not hasattr(ds, "StudyDate")  # deterministic bytes: no dates
+    assert ds.StudyDate == "" and ds.StudyTime == ""  # deterministic bytes: no dates (Type 2)
 
 
 def test_plan_and_truth_files(streaky: tuple[Phantom, Path]) -> None:

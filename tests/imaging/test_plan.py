@@ -26,6 +26,7 @@ from ctdrill.imaging.plan.types import (
     load_plans,
     save_plan,
 )
+from tests.imaging.slicer_files import validate_markups
 
 BASE: dict[str, Any] = {
     "format": "ctdrill-plan/1",
@@ -350,6 +351,8 @@ def test_save_plan_round_trips(tmp_path: Path, name: str) -> None:
     plan = load_plan(_write(tmp_path, doc))
     out = tmp_path / name
     save_plan(plan, out)
+    if name.endswith(".mrk.json"):
+        validate_markups(json.loads(out.read_text(encoding="utf-8")))
     again = load_plan(out)
     _same(plan, again)
     assert again.name == plan.name == "plan"

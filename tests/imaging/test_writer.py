@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +12,7 @@ import pytest
 from pydicom.uid import ImplicitVRLittleEndian, RLELossless
 
 from ctdrill.imaging.phantom.writer import WriterInputError, write_series
+from tests.conftest import ASSETS
 from tests.imaging.factory import affine, linear_hu, rotation
 
 ROT = rotation(30.0, 15.0, -20.0)
@@ -109,3 +112,28 @@ def test_non_orthogonal_in_plane_axes_are_refused(tmp_path: Path) -> None:
     aff[:3, 1] += aff[:3, 0] * 0.2
     with pytest.raises(WriterInputError, match="orthogonal"):
         write_series(tmp_path, linear_hu((1, 2, 2)), aff)
+
+
+def _dciodvfy(path: Path) -> list[str]:
+    """dciodvfy's (dicom3tools) error lines for one file: the standard's IOD checker."""
+    exe = shutil.which("dciodvfy")
+    assert exe is not None, "dciodvfy not found: install dicom3tools (make system-deps)"
+    run = subprocess.run([exe, str(path)], capture_output=True, text=True, timeout=60)
+    return [line for line in (run.stdout + run.stderr).splitlines() if line.startswith("Error")]
+
+
+def test_written_ct_passes_dciodvfy(tmp_path: Path) -> None:
+    aff = affine((0.3, 0.8, 1.7), rot=ROT, origin_lps=(5.5, -7.25, 100.0))
+    w = write_series(tmp_path / "s", linear_hu((3, 6, 5)), aff, slice_thickness_mm=1.7)
+    for path in w.paths:
+        assert _dciodvfy(path) == [], path
+    ds = pydicom.dcmread(w.paths[0])
+    for keyword in ("PatientBirthDate", "StudyDate", "StudyID", "PatientPosition", "KVP"):
+        assert keyword in ds and ds[keyword].value in (None, "")  # present, empty: unknown
+
+
+def test_bundled_demo_passes_dciodvfy() -> None:
+    files = sorted((ASSETS / "demo" / "ct").glob("*.dcm"))
+    assert len(files) == 80
+    for path in files[:: len(files) // 8]:
+        assert _dciodvfy(path) == [], path

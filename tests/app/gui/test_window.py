@@ -14,6 +14,7 @@ from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.imaging.phantom.io import PhantomCase
 from ctdrill.imaging.plan.types import load_plan
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
+from tests.imaging.slicer_files import validate_markups
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
 
@@ -131,6 +132,8 @@ def test_save_and_reload_the_plan(
         window.slice_canvases["axial"].point_moved.emit("target", moved)
     for name in ("plan.json", "plan.mrk.json"):
         window.save_plan(tmp_path / name)
+        if name.endswith(".mrk.json"):
+            validate_markups(json.loads((tmp_path / name).read_text(encoding="utf-8")))
         back = load_plan(tmp_path / name)
         assert np.allclose(back.target_lps, moved)
         assert np.allclose(back.entry_lps, window.plan.entry_lps)
