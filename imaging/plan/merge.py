@@ -5,8 +5,9 @@ The inputs (``--plan`` repeated, or a folder) are read in order (a folder's ``*.
 
 - every trajectory (a ``ctdrill-plan/1`` file, a Line markup) becomes one plan;
 - every landmark of every file protects every trajectory;
-- a trajectory or landmark named the same in two files must be the same there (it is then
-  kept once); if the two disagree the merge is refused naming both files;
+- a trajectory, or a landmark of one kind (canal, point, mask), named the same in two files
+  must be the same there (it is then kept once); if the two disagree the merge is refused
+  naming both files (a Curve and a segment may share a name: both are kept);
 - at least one trajectory is required.
 """
 
@@ -80,7 +81,7 @@ def load_merged(paths: Sequence[str | os.PathLike[str]]) -> tuple[Plan, ...]:
 def merge_parts(parts: Sequence[PlanParts]) -> tuple[Plan, ...]:
     """Merge the parts of several files into plans (see module doc)."""
     trajectories: dict[str, tuple[Plan, Path]] = {}
-    landmarks: dict[str, tuple[Landmark, Path]] = {}
+    landmarks: dict[tuple[str, str], tuple[Landmark, Path]] = {}
     for part in parts:
         for plan in part.trajectories:
             seen = trajectories.get(plan.name)
@@ -93,9 +94,9 @@ def merge_parts(parts: Sequence[PlanParts]) -> tuple[Plan, ...]:
                     "files or rename one trajectory"
                 )
         for lm in part.landmarks:
-            seen_lm = landmarks.get(lm.name)
+            seen_lm = landmarks.get((lm.kind, lm.name))
             if seen_lm is None:
-                landmarks[lm.name] = (lm, part.source)
+                landmarks[(lm.kind, lm.name)] = (lm, part.source)
             elif not _same_landmark(seen_lm[0], lm):
                 raise PlanInputError(
                     f"{part.source.name}: landmark {lm.name!r} disagrees with the one in "

@@ -122,3 +122,14 @@ def test_no_landmarks_warns_in_summary_and_terminal(tmp_path: Path) -> None:
     assert code == 0, err
     assert "no_landmarks" in json.loads((rout / "summary.json").read_text())["warnings"]
     assert "warning: the plan has no landmark" in err
+
+
+def test_gui_takes_repeated_plans_and_names_a_missing_one(tmp_path: Path) -> None:
+    case = _slicer_case(tmp_path)
+    line = case / "implant.mrk.json"
+    missing = tmp_path / "canal.mrk.json"
+    code, _, err = _run(["gui", "--plan", str(line), "--plan", str(missing)])
+    assert (
+        code == 2
+        and err == f"error: --plan {missing}: no such file; give a plan JSON or .mrk.json\n"
+    )

@@ -132,14 +132,18 @@ def known_bug(exc: BaseException) -> str | None:
     return None
 
 
-def test_known_bug_matches_module_and_function(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_known_bug_matches_module_and_function(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
     """The fuzzers' tolerance is exact: the bug's module and function, nothing wider."""
     import tests.robustness.test_found_bugs as registry
     from ctdrill.imaging import ImagingInputError
     from ctdrill.imaging.plan.types import load_plan
 
+    bad = tmp_path / "bad-format.json"
+    bad.write_text('{"format": "ctdrill-plan/9"}', encoding="utf-8")
     with pytest.raises(ImagingInputError) as info:
-        load_plan(ROOT / "no-such-plan.json")
+        load_plan(bad)  # raised in imaging/plan/read.py
     assert known_bug(info.value) is None
     here = KnownBug("demo", ImagingInputError, "imaging/plan/read.py", "*")
     monkeypatch.setattr(registry, "KNOWN_BUGS", (here,))

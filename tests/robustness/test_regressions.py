@@ -136,8 +136,13 @@ def test_misaligned_file_meta_is_skipped_or_refused(tmp_path: Path) -> None:
         tmp_path / "case", make_mandible_phantom(spacing_mm=1.0, shape=(3, 16, 20))
     )
     first = sorted(Path(case.ct_dir).iterdir())[0]
-    mutation = ByteMutation("insert", 0.1630122888807033, 1, b"\x00" * 4)
-    first.write_bytes(apply_bytes(first.read_bytes(), mutation, []))
+    data = first.read_bytes()
+    # The fuzzer's position (0.163 of the file) was one byte into the tag that follows the
+    # TransferSyntaxUID value (20 bytes with its padding); the writer has written more
+    # attributes since (the file is longer), so aim at that byte itself.
+    inside = data.index(b"1.2.840.10008.1.2.1\x00") + 21
+    mutation = ByteMutation("insert", (inside + 0.5) / len(data), 1, b"\x00" * 4)
+    first.write_bytes(apply_bytes(data, mutation, []))
     with pytest.raises(BytesLengthException):  # the trigger still trips pydicom itself
         pydicom.dcmread(io.BytesIO(first.read_bytes()), stop_before_pixels=True)
     try:

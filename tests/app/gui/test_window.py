@@ -14,7 +14,7 @@ from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.imaging.phantom.io import PhantomCase
 from ctdrill.imaging.plan.types import load_plan
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
-from tests.imaging.slicer_files import validate_markups
+from tests.imaging.slicer_files import slicer_save, validate_markups
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
 
@@ -139,9 +139,15 @@ def test_save_and_reload_the_plan(
         assert np.allclose(back.entry_lps, window.plan.entry_lps)
         assert len(back.landmarks) == 1
     window.plan = None
+    # After a 3D Slicer load and save: one markup per file, opened together.
+    split = tmp_path / "slicer"
+    split.mkdir()
+    files = slicer_save(tmp_path / "plan.mrk.json", split)
+    assert len(files) == 2
     with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
-        window.open_plan(tmp_path / "plan.mrk.json")
+        window.open_plan(files)
     assert np.allclose(window.plan.target_lps, moved)
+    assert len(window.plan.landmarks) == 1
 
 
 def test_a_bad_folder_is_reported_not_raised(
