@@ -62,6 +62,9 @@ CURVE_SPLINE, CURVE_POLYLINE = "spline", "polyline"
 #: ``positionStatus`` values of a placed point (absent means placed, as in Slicer).
 _PLACED = "defined"
 _UNPLACED = ("preview", "undefined", "missing")
+#: Most control points a Curve may hold: its centreline has 10 samples per segment, and
+#: 20 000 points (200 000 samples) is far beyond a hand-placed canal (tens of points).
+MAX_CURVE_POINTS = 20_000
 #: Length units accepted in ``coordinateUnits`` and their size in mm.
 _UNITS_MM = {"mm": 1.0, "um": 1e-3}
 
@@ -261,6 +264,12 @@ def _curve(
             ("markups_skipped", f"{ctx.path.name}: {where} (Curve) has no placed point; skipped")
         )
         return None
+    if len(pts) > MAX_CURVE_POINTS:
+        raise ctx.fail(
+            f"{where}.controlPoints",
+            f"of a Curve hold {len(pts)} placed points, more than the {MAX_CURVE_POINTS} "
+            "accepted (a canal needs tens); resample the curve in Slicer",
+        )
     settings = _settings(ctx, mk, cps[0], where, CURVE_KEYS)
     name = _name(ctx, settings, mk, only) or f"canal {m_index + 1}"
     radius = _number(ctx, settings, "radius_mm")

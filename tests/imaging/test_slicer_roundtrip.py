@@ -10,6 +10,7 @@ import pytest
 
 from ctdrill.imaging.plan.curve import POINTS_PER_SEGMENT, slicer_curve
 from ctdrill.imaging.plan.landmarks import CanalLandmark, PointLandmark
+from ctdrill.imaging.plan.slicer import MAX_CURVE_POINTS
 from ctdrill.imaging.plan.types import (
     DrillSpec,
     Plan,
@@ -338,3 +339,15 @@ def test_hostile_json_is_refused(tmp_path: Path) -> None:
     huge.write_text('{"format": "ctdrill-plan/1", "entry_mm": [' + "9" * 5000 + ", 0, 0]}")
     with pytest.raises(PlanInputError, match="holds a value that cannot be read"):
         load_plan(huge)
+
+
+def test_a_curve_of_too_many_points_is_refused(tmp_path: Path) -> None:
+    n = MAX_CURVE_POINTS + 1
+    pts = [[float(i) * 0.01, 0.0, 0.0] for i in range(n)]
+    mk = slicer_markup("Curve", [{"position": p} for p in pts])
+    path = tmp_path / "c.mrk.json"
+    path.write_text(json.dumps(slicer_document(mk)))
+    with pytest.raises(
+        PlanInputError, match=rf"of a Curve hold {n} placed points, more than the 20000"
+    ):
+        load_plan_set([path])
