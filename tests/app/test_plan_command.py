@@ -133,3 +133,64 @@ def test_gui_takes_repeated_plans_and_names_a_missing_one(tmp_path: Path) -> Non
         code == 2
         and err == f"error: --plan {missing}: no such file; give a plan JSON or .mrk.json\n"
     )
+
+
+def _canal_seg_nrrd(path: Path, spacing_mm: float = 0.25) -> None:
+    """The demo's canal (its true centreline and radius) voxelised on a grid of its own
+    (0.25 mm, offset from the CT's), saved as 3D Slicer writes a segmentation (RAS)."""
+    import nrrd
+    import numpy as np
+
+    truth = json.loads((DEMO / "ground_truth.json").read_text(encoding="utf-8"))
+    line = np.asarray(truth["canal"]["centerline_lps"], dtype=np.float64)
+    radius = float(truth["canal"]["radius_mm"])
+    lo = line.min(axis=0) - radius - 1.0 + 0.1
+    n = np.ceil((line.max(axis=0) + radius + 1.0 - lo) / spacing_mm).astype(int) + 1
+    i, j, k = np.meshgrid(*(np.arange(m) for m in n), indexing="ij")
+    centres = lo + spacing_mm * np.stack([i, j, k], axis=-1).reshape(-1, 3)
+    a, b = line[:-1], line[1:]
+    best = np.full(len(centres), np.inf)
+    for s in range(len(a)):
+        ab = b[s] - a[s]
+        t = np.clip((centres - a[s]) @ ab / (ab @ ab), 0.0, 1.0)
+        best = np.minimum(best, np.linalg.norm(centres - (a[s] + t[:, None] * ab), axis=1))
+    inside = (best <= radius).reshape(tuple(n)).astype(np.uint8)  # (i, j, k)
+    flip = np.diag([-1.0, -1.0, 1.0])
+    header = {
+        "space": "right-anterior-superior",
+        "space directions": flip * spacing_mm,
+        "space origin": flip @ lo,
+        "kinds": ["domain"] * 3,
+        "encoding": "gzip",
+        "Segment0_ID": "Segment_1",
+        "Segment0_Name": "IAN canal",
+        "Segment0_LabelValue": "1",
+        "Segment0_Layer": "0",
+    }
+    nrrd.write(str(path), inside, header)
+
+
+def test_slicer_case_with_a_segmented_canal_runs_without_edits(tmp_path: Path) -> None:
+    """Done-when of issue 19: a Line saved by Slicer and a segmented canal, separate files."""
+    case = _slicer_case(tmp_path)
+    (case / "left mandibular canal.mrk.json").unlink()  # the canal is now a segmentation
+    _canal_seg_nrrd(case / "Segmentation.seg.nrrd")
+    out = tmp_path / "out"
+    code, _, err = _run(
+        ["export", "--dicom", str(DEMO / "ct"), "--plan", str(case), "--out", str(out)]
+    )
+    assert code == 0, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert [w["code"] for w in summary["warnings"] if w["code"] == "no_landmarks"] == []
+    assert summary["stop_reason"] == "margin"
+    # The same case with the canal as the true tube: the voxelised canal's surface is within
+    # half a voxel diagonal (0.22 mm at 0.25 mm) of the tube's, so is the stop.
+    tube = tmp_path / "tube"
+    (tmp_path / "t").mkdir()
+    case2 = _slicer_case(tmp_path / "t")
+    code, _, err = _run(
+        ["export", "--dicom", str(DEMO / "ct"), "--plan", str(case2), "--out", str(tube)]
+    )
+    assert code == 0, err
+    ref = json.loads((tube / "summary.json").read_text())["stop_depth_mm"]
+    assert abs(summary["stop_depth_mm"] - ref) <= 0.25 * 3**0.5 / 2 + 0.05
