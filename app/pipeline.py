@@ -1,10 +1,14 @@
 """One trajectory through one CT: lip samples, force profile, clearance, stop depth.
 
 :func:`plan_path` is the single headless entry point used by the export, the rehearsal and the
-GUI. It refuses (``PathInputError``, exit code 2) a volume that cannot carry a force map
-safely *on the drill path*: a single slice, values that are not HU, a slice gap or a
-non-uniform slice step crossed by the drill, padding touched by the drill, an entry point
-outside the scanned volume. The same defects away from the path become warnings.
+GUI. It orchestrates; the volume-side checks live in :mod:`ctdrill.imaging.sampling.path` and refuse
+(``PathInputError``, exit code 2) a volume that cannot carry a force map safely *on the drill
+path*: a single slice, values that are not HU, a slice gap (a step wider than 1.5 nominal
+steps) reached by the drill lip unless ``interpolate_gaps`` asks to interpolate across it (then
+warning ``gap_interpolated`` and :attr:`PathResult.interpolated_gaps`), padding touched by the
+drill, an entry point outside the scanned volume. Sampling uses every slice's true position, so
+irregular steps narrower than a gap are exact. The warnings of a path are gathered here once,
+each code + message once.
 """
 
 from __future__ import annotations
@@ -15,16 +19,28 @@ from pathlib import Path
 
 import numpy as np
 
-from ctdrill.app.errors import AppInputError
-from ctdrill.imaging.plan.landmarks import CanalLandmark, Landmark, PointLandmark, bind_to_grid
+from ctdrill.imaging.plan.landmarks import (
+    CanalLandmark,
+    Landmark,
+    MaskLandmark,
+    PointLandmark,
+    bind_to_grid,
+)
 from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm
 from ctdrill.imaging.plan.types import Plan, plan_warnings
 from ctdrill.imaging.sampling.lip import (
     DEFAULT_N_ANGLES,
     DEFAULT_N_RINGS,
     LipSamples,
-    lip_ring_points,
     sample_lip_rings,
+)
+from ctdrill.imaging.sampling.path import (
+    PathInputError,
+    SliceGap,
+    check_padding,
+    check_volume,
+    crossed_gaps,
+    out_of_volume_depth_mm,
 )
 from ctdrill.imaging.volume import CTVolume, LoadWarning
 from ctdrill.model.calibration import Calibration, load_calibration
@@ -33,11 +49,6 @@ from ctdrill.model.profile import Profile, build_profile
 #: Default depth step of the profile, mm: trilinear sampling is converged at 0.05 mm on
 #: 0.3 mm voxels (DESIGN.md section 6); steps above a third of a voxel add error.
 DEFAULT_DEPTH_STEP_MM = 0.05
-#: Relative tolerance on a slice step before it counts as irregular.
-SLICE_STEP_RTOL = 0.01
-#: Precision of the out-of-volume depth, mm.
-_OOV_TOL_MM = 1e-3
-
 #: Longest trajectory accepted, mm: far beyond any dental drill, short enough to bound memory.
 MAX_PLANNED_DEPTH_MM = 200.0
 
@@ -47,8 +58,16 @@ MAX_COORDINATE_MM = 1e5
 STOP_REASONS = ("planned_depth", "margin", "out_of_volume")
 
 
-class PathInputError(AppInputError):
-    """The volume cannot carry a force map safely along this plan's drill path."""
+__all__ = [
+    "PathInputError",
+    "PathResult",
+    "SliceGap",
+    "dedupe_warnings",
+    "depth_grid_mm",
+    "plan_calibration",
+    "plan_calibration_key",
+    "plan_path",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,7 +89,10 @@ class PathResult:
     stop_depth_mm : min(planned, max safe, out of volume), mm.
     stop_reason : ``planned_depth`` | ``margin`` | ``out_of_volume``.
     stop_clearance_mm : (L,) clearance at the stop depth, mm.
-    warnings : what the user must know (load warnings and path warnings).
+    warnings : what the user must know (load warnings and path warnings), each code + message
+        once.
+    interpolated_gaps : slice gaps the lip reaches into that were interpolated across because
+        the caller asked to (``interpolate_gaps``); empty otherwise.
     """
 
     plan: Plan
@@ -86,6 +108,7 @@ class PathResult:
     stop_reason: str
     stop_clearance_mm: np.ndarray
     warnings: tuple[LoadWarning, ...]
+    interpolated_gaps: tuple[SliceGap, ...] = ()
 
     @property
     def planned_depth_mm(self) -> float:
@@ -126,125 +149,28 @@ def depth_grid_mm(planned_depth_mm: float, step_mm: float) -> np.ndarray:
     return np.linspace(0.0, planned_depth_mm, n)
 
 
-def _irregular_steps(volume: CTVolume) -> np.ndarray:
-    """(S-1,) bool: the step between slice k and k+1 differs from the median by > 1 %."""
-    pos = np.asarray(volume.slice_positions_mm, dtype=np.float64)
-    if pos.size < 2:
-        return np.zeros(0, dtype=bool)
-    steps = np.diff(pos)
-    med = float(np.median(steps))
-    out: np.ndarray = np.abs(steps - med) > SLICE_STEP_RTOL * abs(med)
-    return out
+def dedupe_warnings(warnings: list[LoadWarning]) -> tuple[LoadWarning, ...]:
+    """``warnings`` in order, each (code, message) once."""
+    seen: set[tuple[str, str]] = set()
+    out: list[LoadWarning] = []
+    for w in warnings:
+        if (w.code, w.message) not in seen:
+            seen.add((w.code, w.message))
+            out.append(w)
+    return tuple(out)
 
 
-def _check_volume(volume: CTVolume, plan: Plan, end_points: np.ndarray) -> list[LoadWarning]:
-    """Refuse what cannot carry a force map on the path; return warnings for the rest.
-
-    ``end_points`` are the lip samples at the first and last depth: the slice index is affine
-    in position, so the extremes of every lip sample's slice index are among them.
-    """
-    where = f"plan {plan.name!r}"
-    if not volume.is_volume:
-        raise PathInputError(
-            f"series {volume.info.series_uid}: a single slice is not a volume; the force "
-            "along a drill needs a CT series of several slices"
-        )
-    if not volume.info.is_hu:
-        raise PathInputError(
-            f"series {volume.info.series_uid}: voxel values are not Hounsfield units "
-            f"(RescaleType {volume.info.rescale_type or 'missing'}); calibrate the grey values "
-            "to HU before computing forces"
-        )
-    warnings: list[LoadWarning] = []
-    irregular = _irregular_steps(volume)
-    if irregular.any():
-        ks = volume.lps_to_index(end_points.reshape(-1, 3))[:, 2]
-        k_lo, k_hi = math.floor(float(ks.min())), math.ceil(float(ks.max()))
-        crossed = [k for k in np.flatnonzero(irregular) if k_lo - 1 <= k <= k_hi]
-        if crossed:
-            pos = volume.slice_positions_mm
-            k = int(crossed[0])
-            raise PathInputError(
-                f"{where}: the drill path crosses an irregular slice step "
-                f"({pos[k]:.2f} -> {pos[k + 1]:.2f} mm, median step "
-                f"{float(np.median(np.diff(pos))):.2f} mm: a slice gap or non-uniform "
-                "spacing); resample the series to uniform slices or plan away from it"
-            )
-        warnings.append(
-            LoadWarning(
-                "nonuniform_spacing",
-                f"{where}: {int(irregular.sum())} irregular slice step(s) away from the drill "
-                "path (not used)",
-            )
-        )
-    return warnings
-
-
-def _check_padding(
-    volume: CTVolume, plan: Plan, lip: LipSamples, n_rings: int, n_angles: int
-) -> None:
-    """Refuse a path whose lip samples touch padding inside the grid (only depths where the
-    sampler counted samples outside or on padding are looked at again)."""
-    flagged = np.flatnonzero(lip.outside > 0)
-    if volume.valid is None or flagged.size == 0:
+def _require_masks_placeable(volume: CTVolume, plan: Plan) -> None:
+    """A mask landmark without its own grid takes the CT's: only a regular stack has one."""
+    if volume.regular:
         return
-    points = lip_ring_points(
-        plan.entry_lps,
-        plan.target_lps,
-        lip.depth_mm[flagged],
-        diameter_mm=plan.drill.diameter_mm,
-        tip_length_mm=plan.drill.tip_length_mm,
-        n_rings=n_rings,
-        n_angles=n_angles,
-    ).reshape(-1, 3)
-    idx = volume.lps_to_index(points)
-    n_s, n_r, n_c = volume.hu.shape
-    sizes = np.array([n_c, n_r, n_s], dtype=np.float64)
-    in_grid = np.all((idx >= -1e-6) & (idx <= sizes - 1.0 + 1e-6), axis=1)
-    on_padding = in_grid & ~volume.inside(points)
-    if on_padding.any():
-        raise PathInputError(
-            f"plan {plan.name!r}: the drill path crosses padding (pixels outside the scanner's "
-            f"reconstruction field, {int(on_padding.sum())} lip samples); the CT holds no "
-            "data there: move the trajectory into the reconstructed field"
-        )
-
-
-def _out_of_volume_depth_mm(
-    volume: CTVolume, plan: Plan, lip: LipSamples, n_rings: int, n_angles: int
-) -> float | None:
-    """Deepest depth whose lip samples all lie inside the volume (None: never leaves)."""
-    bad = np.flatnonzero(lip.outside > 0)
-    if bad.size == 0:
-        return None
-    first = int(bad[0])
-    if first == 0:
-        raise PathInputError(
-            f"plan {plan.name!r}: the entry point {np.round(plan.entry_lps, 2).tolist()} (LPS "
-            "mm) lies outside the CT volume (the drill lip is not inside the scan at depth 0); "
-            "move the entry inside the scanned field"
-        )
-    lo, hi = float(lip.depth_mm[first - 1]), float(lip.depth_mm[first])
-
-    def fully_inside(x: float) -> bool:
-        pts = lip_ring_points(
-            plan.entry_lps,
-            plan.target_lps,
-            np.array([x]),
-            diameter_mm=plan.drill.diameter_mm,
-            tip_length_mm=plan.drill.tip_length_mm,
-            n_rings=n_rings,
-            n_angles=n_angles,
-        )
-        return bool(np.all(volume.inside(pts.reshape(-1, 3))))
-
-    while hi - lo > _OOV_TOL_MM:
-        mid = 0.5 * (lo + hi)
-        if fully_inside(mid):
-            lo = mid
-        else:
-            hi = mid
-    return lo
+    for lm in plan.landmarks:
+        if isinstance(lm, MaskLandmark) and lm.affine_lps is None:
+            raise PathInputError(
+                f"plan {plan.name!r}: mask landmark {lm.name!r} has no affine_lps and the CT's "
+                "slices are irregular (no single voxel grid); give the mask its own affine_lps "
+                "or resample the series to uniform slices"
+            )
 
 
 def grid_bracket(
@@ -290,6 +216,7 @@ def plan_path(
     depth_step_mm: float = DEFAULT_DEPTH_STEP_MM,
     n_rings: int = DEFAULT_N_RINGS,
     n_angles: int = DEFAULT_N_ANGLES,
+    interpolate_gaps: bool = False,
 ) -> PathResult:
     """Sample the CT along ``plan``, build the force profile, the clearances and the stop.
 
@@ -300,6 +227,8 @@ def plan_path(
     calibration : force-law coefficients.
     depth_step_mm : profile depth step, mm (the grid is uniform from 0 to the planned depth).
     n_rings, n_angles : lip discretisation (defaults measured in bench/bench_sampling.py).
+    interpolate_gaps : interpolate across slice gaps the lip reaches into instead of refusing
+        (the result says so: warning ``gap_interpolated``, ``interpolated_gaps``).
 
     Returns
     -------
@@ -325,39 +254,40 @@ def plan_path(
             f"plan {plan.name!r}: planned depth {plan.planned_depth_mm:.6g} mm exceeds "
             f"{MAX_PLANNED_DEPTH_MM:g} mm; check the entry and target (units are mm)"
         )
+    check_volume(volume)
+    _require_masks_placeable(volume, plan)
     landmarks = bind_to_grid(plan.landmarks, volume.affine_lps, tuple(volume.hu.shape))
     plan = replace(plan, landmarks=landmarks)
     depth = depth_grid_mm(plan.planned_depth_mm, depth_step_mm)
-    end_points = lip_ring_points(
-        plan.entry_lps,
-        plan.target_lps,
-        depth[[0, -1]],
-        diameter_mm=plan.drill.diameter_mm,
-        tip_length_mm=plan.drill.tip_length_mm,
-        n_rings=n_rings,
-        n_angles=n_angles,
+    entry, target, drill = plan.entry_lps, plan.target_lps, plan.drill
+    oov = out_of_volume_depth_mm(
+        volume, entry, target, drill, plan.planned_depth_mm, name=plan.name
     )
+    gaps = crossed_gaps(volume, entry, target, drill, plan.planned_depth_mm if oov is None else oov)
+    if gaps and not interpolate_gaps:
+        raise PathInputError(
+            f"plan {plan.name!r}: the drill lip crosses {gaps[0].describe()}; the CT holds no "
+            "slice there: plan away from it, or interpolate across it explicitly "
+            "(--interpolate-gaps; the summary then says so)"
+        )
     warnings = list(volume.warnings)
     warnings += [LoadWarning(code, message) for code, message in plan_warnings(plan)]
-    warnings += _check_volume(volume, plan, end_points)
-    lip = sample_lip_rings(
-        volume,
-        plan.entry_lps,
-        plan.target_lps,
-        depth,
-        diameter_mm=plan.drill.diameter_mm,
-        tip_length_mm=plan.drill.tip_length_mm,
-        n_rings=n_rings,
-        n_angles=n_angles,
-    )
-    _check_padding(volume, plan, lip, n_rings, n_angles)
+    warnings += [
+        LoadWarning(
+            "gap_interpolated",
+            f"plan {plan.name!r}: the drill lip crosses {gap.describe()}; HU there are "
+            "interpolated linearly between the two real slices, as asked",
+        )
+        for gap in gaps
+    ]
+    lip = sample_lip_rings(volume, entry, target, depth, drill, n_rings=n_rings, n_angles=n_angles)
+    check_padding(volume, entry, target, drill, lip, n_rings, n_angles, name=plan.name)
     profile = build_profile(
         lip.hu, lip.ring_weights, depth, calibration, blades=plan.drill.blades, rpm=plan.drill.rpm
     )
     clearance = clearance_profile_mm(plan, plan.landmarks, depth)
     margins = np.array([plan.landmark_margin_mm(lm) for lm in plan.landmarks])
     max_safe = max_safe_depth_mm(plan, bracket_mm=grid_bracket(depth, clearance, margins))
-    oov = _out_of_volume_depth_mm(volume, plan, lip, n_rings, n_angles)
     candidates = [
         (plan.planned_depth_mm, "planned_depth"),
         (max_safe, "margin"),
@@ -402,5 +332,6 @@ def plan_path(
         stop_depth_mm=float(stop_depth),
         stop_reason=stop_reason,
         stop_clearance_mm=stop_clearance,
-        warnings=tuple(warnings),
+        warnings=dedupe_warnings(warnings),
+        interpolated_gaps=gaps if interpolate_gaps else (),
     )

@@ -26,7 +26,7 @@ from ctdrill.app.export import ExportJob, write_exports
 from ctdrill.app.pipeline import depth_grid_mm, grid_bracket, plan_path
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm
-from ctdrill.imaging.plan.types import Plan, load_plan
+from ctdrill.imaging.plan.types import DrillSpec, Plan, load_plan
 from ctdrill.imaging.sampling.lip import (
     DEFAULT_N_ANGLES,
     DEFAULT_N_RINGS,
@@ -49,8 +49,7 @@ def baseline_path(volume: CTVolume, plan: Plan, calibration: Calibration) -> tup
         plan.entry_lps,
         plan.target_lps,
         depth,
-        diameter_mm=plan.drill.diameter_mm,
-        tip_length_mm=plan.drill.tip_length_mm,
+        drill=DrillSpec(diameter_mm=plan.drill.diameter_mm, tip_length_mm=plan.drill.tip_length_mm),
         n_rings=DEFAULT_N_RINGS,
         n_angles=DEFAULT_N_ANGLES,
     )
@@ -120,8 +119,7 @@ def run(quick: bool) -> Section:
             plan.entry_lps,
             plan.target_lps,
             depth,
-            diameter_mm=drill.diameter_mm,
-            tip_length_mm=drill.tip_length_mm,
+            drill=DrillSpec(diameter_mm=drill.diameter_mm, tip_length_mm=drill.tip_length_mm),
         ),
         repeats=repeats,
     )
@@ -131,8 +129,7 @@ def run(quick: bool) -> Section:
             plan.entry_lps,
             plan.target_lps,
             depth,
-            diameter_mm=drill.diameter_mm,
-            tip_length_mm=drill.tip_length_mm,
+            drill=DrillSpec(diameter_mm=drill.diameter_mm, tip_length_mm=drill.tip_length_mm),
         )
         ijk = volume.lps_to_index(pts.reshape(-1, 3))
         ndimage.map_coordinates(volume.hu, ijk[:, ::-1].T, order=1, mode="constant", cval=-1000.0)

@@ -27,6 +27,7 @@ import numpy as np
 from scipy import ndimage
 
 from bench.report import Section, figure_path, table, time_it
+from ctdrill.imaging.plan.types import DrillSpec
 from ctdrill.imaging.sampling.lip import (
     DEFAULT_N_ANGLES,
     DEFAULT_N_RINGS,
@@ -123,8 +124,7 @@ def _points(depth_mm: np.ndarray, n_rings: int, n_angles: int) -> np.ndarray:
         ENTRY,
         TARGET,
         depth_mm,
-        diameter_mm=DIAMETER_MM,
-        tip_length_mm=TIP_MM,
+        drill=DrillSpec(diameter_mm=DIAMETER_MM, tip_length_mm=TIP_MM),
         n_rings=n_rings,
         n_angles=n_angles,
     )
@@ -138,8 +138,7 @@ def _lip_hu(
         ENTRY,
         TARGET,
         depth_mm,
-        diameter_mm=DIAMETER_MM,
-        tip_length_mm=TIP_MM,
+        drill=DrillSpec(diameter_mm=DIAMETER_MM, tip_length_mm=TIP_MM),
         n_rings=n_rings,
         n_angles=n_angles,
         order=order,
@@ -358,11 +357,17 @@ def _peer(quick: bool) -> tuple[str, float]:
 
     def ours() -> object:
         return sample_lip_rings(
-            vol, ENTRY, TARGET, depth, diameter_mm=DIAMETER_MM, tip_length_mm=TIP_MM
+            vol,
+            ENTRY,
+            TARGET,
+            depth,
+            drill=DrillSpec(diameter_mm=DIAMETER_MM, tip_length_mm=TIP_MM),
         )
 
     def peer() -> object:
-        pts = lip_ring_points(ENTRY, TARGET, depth, diameter_mm=DIAMETER_MM, tip_length_mm=TIP_MM)
+        pts = lip_ring_points(
+            ENTRY, TARGET, depth, drill=DrillSpec(diameter_mm=DIAMETER_MM, tip_length_mm=TIP_MM)
+        )
         idx = vol.lps_to_index(pts.reshape(-1, 3))
         return ndimage.map_coordinates(hu32, idx[:, ::-1].T, order=1, mode="constant", cval=-1000.0)
 

@@ -23,7 +23,7 @@ from ctdrill.app.pipeline import DEFAULT_DEPTH_STEP_MM, depth_grid_mm, plan_path
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm
-from ctdrill.imaging.plan.types import Plan, load_plan
+from ctdrill.imaging.plan.types import DrillSpec, Plan, load_plan
 from ctdrill.imaging.sampling.lip import (
     DEFAULT_N_ANGLES,
     DEFAULT_N_RINGS,
@@ -48,8 +48,7 @@ def peer_lip_hu(volume: CTVolume, plan: Plan, depth_mm: np.ndarray) -> np.ndarra
         plan.entry_lps,
         plan.target_lps,
         depth_mm,
-        diameter_mm=plan.drill.diameter_mm,
-        tip_length_mm=plan.drill.tip_length_mm,
+        drill=DrillSpec(diameter_mm=plan.drill.diameter_mm, tip_length_mm=plan.drill.tip_length_mm),
         n_rings=DEFAULT_N_RINGS,
         n_angles=DEFAULT_N_ANGLES,
     )
@@ -169,8 +168,7 @@ def _lip(volume: CTVolume, plan: Plan, depth_mm: np.ndarray) -> None:
         plan.entry_lps,
         plan.target_lps,
         depth_mm,
-        diameter_mm=plan.drill.diameter_mm,
-        tip_length_mm=plan.drill.tip_length_mm,
+        drill=DrillSpec(diameter_mm=plan.drill.diameter_mm, tip_length_mm=plan.drill.tip_length_mm),
     )
 
 

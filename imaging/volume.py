@@ -1,7 +1,15 @@
 """The CT volume value: HU voxels, their LPS geometry, validity, provenance and load warnings.
 
 Frames: ``affine_lps`` maps voxel indices ``(i=col, j=row, k=slice, 1)`` to DICOM patient LPS
-millimetres. ``hu`` is indexed ``hu[k, j, i]`` (slices, rows, cols).
+millimetres for a regular stack. ``hu`` is indexed ``hu[k, j, i]`` (slices, rows, cols).
+
+Slice positions are data: ``slice_positions_mm`` holds every slice's true position along the
+slice normal, and :meth:`CTVolume.lps_to_index` / :meth:`CTVolume.index_to_lps` /
+:meth:`CTVolume.sample` use them, so the continuous slice index ``k`` is piecewise linear in the
+normal position between the two real neighbouring slices (exact for any spacing pattern, a
+gantry tilt's shear included). For an irregular stack (:attr:`CTVolume.regular` False) the
+affine's k column is the *nominal* (median) step along the stack's slice direction and only
+slice 0 is placed by it; :attr:`CTVolume.slice_origins_lps` gives every slice's origin.
 
 Sampling policy (:meth:`CTVolume.sample`): trilinear interpolation on the voxel centres.
 A point is *inside* when its index coordinates lie in ``[0, n - 1]`` on every axis (the hull of
@@ -21,6 +29,7 @@ from scipy import ndimage
 
 from ctdrill.hu import AIR_HU
 from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.stack import is_regular, piecewise_linear
 
 #: Warning codes a load may report (DESIGN.md section 4, plus ``single_slice``).
 WARNING_CODES: tuple[str, ...] = (
@@ -39,6 +48,8 @@ WARNING_CODES: tuple[str, ...] = (
 
 #: Tolerance, in voxels, for a point on the boundary of the voxel-centre hull.
 _EDGE_TOL_VOX = 1e-6
+#: Largest deviation, in slice steps, of a slice from the affine's position that is ignored.
+_REGULAR_K_TOL = 1e-6
 #: Corner bits (i, j, k) of the 8 trilinear corners.
 _BI = np.array([0, 1, 0, 1, 0, 1, 0, 1], dtype=np.intp)
 _BJ = np.array([0, 0, 1, 1, 0, 0, 1, 1], dtype=np.intp)
@@ -115,6 +126,8 @@ class CTVolume:
         (slices, rows, cols) HU, int16 where exact else float32; read-only.
     affine_lps : np.ndarray
         (4, 4) float64: ``(i=col, j=row, k=slice, 1)`` -> LPS mm. May be sheared (gantry tilt).
+        Exact for every slice only when :attr:`regular`; otherwise its k column is the nominal
+        step and the mappings of this class use ``slice_positions_mm``.
     valid : np.ndarray | None
         (slices, rows, cols) bool, False on padding; None means every voxel is valid.
     info : SeriesInfo
@@ -123,8 +136,10 @@ class CTVolume:
         What the loader noticed.
     slice_positions_mm : np.ndarray
         (slices,) true slice positions along the slice normal (IPP projected on the IOP
-        normal), mm. For a non-uniform stack the affine uses the median step and these carry
-        the truth. Left empty, it is derived from the affine.
+        normal), mm, strictly monotonic in the direction of the affine's k column, the first
+        equal to the affine origin's. For a non-uniform stack the affine uses the nominal
+        (median) step and these carry the truth: every LPS <-> index mapping uses them. Left
+        empty, it is derived from the affine.
     """
 
     hu: np.ndarray
@@ -139,6 +154,10 @@ class CTVolume:
     _max_lo: np.ndarray = field(init=False, repr=False)
     _strides: np.ndarray = field(init=False, repr=False)
     _corner_offsets: np.ndarray = field(init=False, repr=False)
+    #: (slices,) slice positions in units of the affine's k column (0 for slice 0).
+    _k_nominal: np.ndarray = field(init=False, repr=False)
+    #: False when ``_k_nominal`` is exactly 0, 1, 2, ...: no remapping of k needed.
+    _remap_k: bool = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         hu = np.asarray(self.hu)
@@ -164,15 +183,32 @@ class CTVolume:
                 )
             valid = None if bool(valid.all()) else _readonly(valid)
         positions = np.asarray(self.slice_positions_mm, dtype=np.float64).reshape(-1)
+        normal = _unit_normal(affine)
+        k_step_mm = float(affine[:3, 2] @ normal)  # normal distance per unit k; det != 0
+        k_all = np.arange(hu.shape[0], dtype=np.float64)
         if positions.size == 0:
-            normal = _unit_normal(affine)
-            k = np.arange(hu.shape[0], dtype=np.float64)
-            origins = affine[:3, 3][None, :] + k[:, None] * affine[:3, 2][None, :]
-            positions = origins @ normal
+            positions = float(affine[:3, 3] @ normal) + k_all * k_step_mm
         elif positions.shape != (hu.shape[0],):
             raise ImagingInputError(
                 f"CTVolume.slice_positions_mm: expected {hu.shape[0]} values, got {positions.size}"
             )
+        k_nominal = (positions - positions[0]) / k_step_mm
+        origin_pos = float(affine[:3, 3] @ normal)
+        if not np.all(np.isfinite(positions)) or abs(positions[0] - origin_pos) > 1e-3:
+            raise ImagingInputError(
+                f"CTVolume.slice_positions_mm: the first position {positions[0]!r} mm must be "
+                f"the affine origin's ({origin_pos:.6g} mm along the slice normal)"
+            )
+        if np.any(np.diff(k_nominal) <= 0.0):
+            raise ImagingInputError(
+                "CTVolume.slice_positions_mm: positions must run strictly in the direction of "
+                "the affine's k column (ordered slices, none at the same position)"
+            )
+        # Within 1e-6 of a slice step of the regular positions (nanometres): regular, and
+        # sampled without the remapping of k.
+        remap = bool(np.max(np.abs(k_nominal - k_all)) > _REGULAR_K_TOL)
+        object.__setattr__(self, "_k_nominal", _readonly(k_nominal if remap else k_all))
+        object.__setattr__(self, "_remap_k", remap)
         object.__setattr__(self, "hu", _readonly(hu))
         object.__setattr__(self, "affine_lps", _readonly(affine))
         object.__setattr__(self, "valid", valid)
@@ -223,16 +259,55 @@ class CTVolume:
         med = float(np.median(steps))
         return bool(np.all(np.abs(steps - med) <= rtol * abs(med)))
 
+    @property
+    def regular(self) -> bool:
+        """True when ``affine_lps`` places every slice within ``stack.AFFINE_TOL_MM`` of its
+        true position (:func:`ctdrill.imaging.stack.is_regular`)."""
+        return is_regular(self.slice_positions_mm)
+
+    @property
+    def slice_origins_lps(self) -> np.ndarray:
+        """(slices, 3) LPS mm of voxel (0, 0) of every slice (its IPP), from the true
+        positions: exact for any stack; with the affine's first two columns they place every
+        voxel."""
+        a = self.affine_lps
+        return np.asarray(a[:3, 3][None, :] + self._k_nominal[:, None] * a[:3, 2][None, :])
+
+    @property
+    def affine_slice_index(self) -> np.ndarray:
+        """(slices,) each slice's position in units of the affine's k column (0, then
+        ``(p_k - p_0) / step``): equal to ``0, 1, 2, ...`` for a regular stack."""
+        return self._k_nominal
+
+    def _k_exact(self, k_affine: np.ndarray) -> np.ndarray:
+        """Affine k (nominal steps from slice 0) -> true continuous slice index."""
+        if not self._remap_k:
+            return k_affine
+        n = self._k_nominal.size
+        return piecewise_linear(k_affine, self._k_nominal, np.arange(n, dtype=np.float64))
+
     def index_to_lps(self, index_ijk: np.ndarray) -> np.ndarray:
-        """Voxel index coordinates (..., 3) as (i=col, j=row, k=slice) -> LPS mm (..., 3)."""
-        ijk = np.asarray(index_ijk, dtype=np.float64)
+        """Voxel index coordinates (..., 3) as (i=col, j=row, k=slice) -> LPS mm (..., 3).
+
+        A fractional ``k`` lies between its two real neighbouring slices, in proportion.
+        """
+        ijk = np.array(index_ijk, dtype=np.float64)
+        if self._remap_k:
+            n = self._k_nominal.size
+            ijk[..., 2] = piecewise_linear(
+                ijk[..., 2], np.arange(n, dtype=np.float64), self._k_nominal
+            )
         a = self.affine_lps
         return np.asarray(ijk @ a[:3, :3].T + a[:3, 3])
 
     def lps_to_index(self, points_lps: np.ndarray) -> np.ndarray:
-        """LPS mm (..., 3) -> continuous voxel index coordinates (i, j, k) (..., 3)."""
+        """LPS mm (..., 3) -> continuous voxel index coordinates (i, j, k) (..., 3), exact for
+        any slice spacing (k interpolates between the two real neighbouring slices)."""
         pts = np.asarray(points_lps, dtype=np.float64)
-        return np.asarray(pts @ self._inv_lin.T + self._inv_off)
+        idx = np.asarray(pts @ self._inv_lin.T + self._inv_off)
+        if self._remap_k:
+            idx[..., 2] = self._k_exact(idx[..., 2])
+        return idx
 
     # ------------------------------------------------------------------ sampling
     def _support(
@@ -247,6 +322,8 @@ class CTVolume:
         with np.errstate(invalid="ignore", over="ignore"):  # non-finite points: outside
             idx = pts.reshape(-1, 3) @ self._inv_lin.T
             idx += self._inv_off
+            if self._remap_k:
+                idx[:, 2] = self._k_exact(idx[:, 2])
             inside = ((idx >= -_EDGE_TOL_VOX) & (idx <= top + _EDGE_TOL_VOX)).all(axis=1)
         if not inside.all():
             idx[~inside] = 0.0
@@ -276,6 +353,8 @@ class CTVolume:
         with np.errstate(invalid="ignore", over="ignore"):  # non-finite points: outside
             coords_kji = self._inv_lin[::-1] @ pts.reshape(-1, 3).T
             coords_kji += self._inv_off[::-1, None]
+            if self._remap_k:
+                coords_kji[0] = self._k_exact(coords_kji[0])
             inside = coords_kji[0] >= -_EDGE_TOL_VOX
             for axis in range(3):
                 row = coords_kji[axis]
@@ -297,7 +376,7 @@ class CTVolume:
     def sample(
         self, points_lps: np.ndarray, *, order: int = 1, outside_hu: float = AIR_HU
     ) -> np.ndarray:
-        """Trilinear HU at LPS points.
+        """Trilinear HU at LPS points (between the two real neighbouring slices).
 
         Parameters
         ----------

@@ -1,9 +1,11 @@
 """Stack geometry from ImagePositionPatient / ImageOrientationPatient / PixelSpacing only.
 
 Slices are ordered by IPP projected on the IOP normal. The affine's k column is the least-squares
-IPP step per unit normal distance times the median normal step, so a gantry-tilted stack keeps
-its shear and a stack with gaps keeps the regular step. SliceThickness is never used for geometry
-(except for a single slice, where nothing else exists).
+IPP step per unit normal distance times the nominal (median) normal step, so a gantry-tilted
+stack keeps its shear; the true positions travel with it (``positions_mm``) and every mapping of
+:class:`~ctdrill.imaging.volume.CTVolume` uses them. The irregular-step rule is
+:mod:`ctdrill.imaging.stack`'s. SliceThickness is never used for geometry (except for a single
+slice, where nothing else exists).
 """
 
 from __future__ import annotations
@@ -15,12 +17,11 @@ import numpy as np
 
 from ctdrill.imaging.dicom.discovery import SliceHeader
 from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.stack import GAP_FACTOR, irregular_steps, nominal_step_mm, wide_steps
 from ctdrill.imaging.volume import LoadWarning
 
 #: Two planes closer than this along the normal are at the same position, mm.
 SAME_POSITION_TOL_MM = 0.01
-#: Relative tolerance on slice steps before ``nonuniform_spacing`` is reported.
-STEP_RTOL = 0.01
 #: A step within this fraction of an integer multiple (>= 2) of the median is a gap.
 GAP_TOL = 0.1
 #: Angle between the IPP step and the slice normal above which the stack is tilted, degrees.
@@ -144,7 +145,7 @@ def stack_geometry(planes: Sequence[SliceHeader]) -> StackGeometry:
         )
     else:
         steps = np.diff(pos)
-        med = float(np.median(steps))
+        med = nominal_step_mm(pos)
         # IPP as a linear function of the normal position: ipp = a + b * pos.
         rel = pos - pos[0]
         b = (ipp - ipp[0]).T @ rel / float(rel @ rel)
@@ -173,7 +174,14 @@ def stack_geometry(planes: Sequence[SliceHeader]) -> StackGeometry:
         ratio = steps / med
         nearest = np.rint(ratio)
         gap = (nearest >= 2) & (np.abs(ratio - nearest) <= GAP_TOL)
-        odd = ~gap & (np.abs(steps - med) > STEP_RTOL * med)
+        odd = ~gap & irregular_steps(pos)
+        wide = int(np.count_nonzero(wide_steps(pos)))
+        drill_note = (
+            f"; {wide} step(s) wider than {GAP_FACTOR:g} x the nominal step: a drill crossing "
+            "one is refused unless gaps are interpolated explicitly"
+            if wide
+            else ""
+        )
         if gap.any():
             missing = int(np.sum(nearest[gap] - 1))
             where = ", ".join(f"{pos[i]:.2f}..{pos[i + 1]:.2f}" for i in np.flatnonzero(gap))
@@ -181,7 +189,8 @@ def stack_geometry(planes: Sequence[SliceHeader]) -> StackGeometry:
                 LoadWarning(
                     "slice_gap",
                     f"{missing} slice(s) missing (step {med:.4g} mm) between positions "
-                    f"{where} mm along the normal; not interpolated",
+                    f"{where} mm along the normal; sampling uses the true positions"
+                    f"{drill_note}",
                 )
             )
         if odd.any():
@@ -190,8 +199,9 @@ def stack_geometry(planes: Sequence[SliceHeader]) -> StackGeometry:
                 LoadWarning(
                     "nonuniform_spacing",
                     f"slice steps {', '.join(f'{s:g}' for s in distinct)} mm (median "
-                    f"{med:.4g} mm, {int(odd.sum())} irregular); the affine uses the median, "
-                    "true positions are kept; not interpolated",
+                    f"{med:.4g} mm, {int(odd.sum())} irregular); the affine's k column is the "
+                    "nominal step, sampling uses the true positions"
+                    + ("" if gap.any() else drill_note),
                 )
             )
     affine = np.eye(4)

@@ -25,6 +25,7 @@ import numpy as np
 
 from ctdrill.hu import AIR_HU
 from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.plan.types import DrillSpec
 from ctdrill.imaging.volume import CTVolume
 
 #: Default number of rings on the lip (measured, bench/bench_sampling.py).
@@ -120,9 +121,8 @@ def lip_ring_points(
     entry_lps: np.ndarray,
     target_lps: np.ndarray,
     depth_mm: np.ndarray,
+    drill: DrillSpec,
     *,
-    diameter_mm: float,
-    tip_length_mm: float,
     n_rings: int = DEFAULT_N_RINGS,
     n_angles: int = DEFAULT_N_ANGLES,
 ) -> np.ndarray:
@@ -134,10 +134,9 @@ def lip_ring_points(
         (3,) LPS mm; depth 0 is the entry, the axis points to the target.
     depth_mm : np.ndarray
         (D,) tip depths, mm (any finite values).
-    diameter_mm : float
-        Drill diameter, mm (> 0).
-    tip_length_mm : float
-        Axial length of the conical tip, mm (>= 0; 0 is a flat lip).
+    drill : DrillSpec
+        ``diameter_mm`` (> 0) and ``tip_length_mm``, the axial length of the conical tip
+        (>= 0; 0 is a flat lip).
     n_rings, n_angles : int
         Rings on the lip and samples per ring (>= 1).
 
@@ -148,39 +147,29 @@ def lip_ring_points(
         axis, at depth ``depth_mm[d] - tip_length_mm * r_i / R`` along it, at angle
         ``2 pi a / n_angles`` from ``e1`` towards ``e2`` (:func:`axis_basis`).
     """
-    return _ring_points(
-        entry_lps,
-        target_lps,
-        depth_mm,
-        diameter_mm=diameter_mm,
-        tip_length_mm=tip_length_mm,
-        n_rings=n_rings,
-        n_angles=n_angles,
-    )[0]
+    return _ring_points(entry_lps, target_lps, depth_mm, drill, n_rings, n_angles)[0]
 
 
 def _ring_points(
     entry_lps: np.ndarray,
     target_lps: np.ndarray,
     depth_mm: np.ndarray,
-    *,
-    diameter_mm: float,
-    tip_length_mm: float,
+    drill: DrillSpec,
     n_rings: int,
     n_angles: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`lip_ring_points`, plus the unit axis (3,) and the ring radii (R,) in mm."""
     depth = _depths(depth_mm)
-    tip_len = float(tip_length_mm)
+    tip_len = float(drill.tip_length_mm)
     if not (np.isfinite(tip_len) and tip_len >= 0.0):
         raise LipInputError(
-            f"drill.tip_length_mm: must be a finite length >= 0 mm, got {tip_length_mm!r}"
+            f"drill.tip_length_mm: must be a finite length >= 0 mm, got {drill.tip_length_mm!r}"
         )
-    radii = ring_radii_mm(diameter_mm, n_rings)
+    radii = ring_radii_mm(drill.diameter_mm, n_rings)
     n_a = _count(n_angles, "n_angles")
     axis, e1, e2 = axis_basis(entry_lps, target_lps)
     entry = np.asarray(entry_lps, dtype=np.float64)
-    radius = float(diameter_mm) / 2.0
+    radius = float(drill.diameter_mm) / 2.0
     xi = depth[:, None] - tip_len * radii[None, :] / radius  # (D, R)
     theta = 2.0 * np.pi * np.arange(n_a, dtype=np.float64) / n_a
     ring_unit = np.cos(theta)[:, None] * e1 + np.sin(theta)[:, None] * e2  # (A, 3)
@@ -198,9 +187,8 @@ def sample_lip_rings(
     entry_lps: np.ndarray,
     target_lps: np.ndarray,
     depth_mm: np.ndarray,
+    drill: DrillSpec,
     *,
-    diameter_mm: float,
-    tip_length_mm: float,
     n_rings: int = DEFAULT_N_RINGS,
     n_angles: int = DEFAULT_N_ANGLES,
     outside_hu: float = AIR_HU,
@@ -216,8 +204,8 @@ def sample_lip_rings(
         (3,) LPS mm.
     depth_mm : np.ndarray
         (D,) tip depths from the entry along the axis, mm.
-    diameter_mm, tip_length_mm : float
-        Drill geometry, mm.
+    drill : DrillSpec
+        Drill geometry (``diameter_mm``, ``tip_length_mm``).
     n_rings, n_angles : int
         Lip discretisation (defaults measured in bench/bench_sampling.py).
     outside_hu : float
@@ -230,15 +218,7 @@ def sample_lip_rings(
     LipSamples
         ``hu`` (D, n_rings, n_angles) float32, ``axis_hu`` (D,), ``outside`` (D,) counts.
     """
-    points, axis, radii = _ring_points(
-        entry_lps,
-        target_lps,
-        depth_mm,
-        diameter_mm=diameter_mm,
-        tip_length_mm=tip_length_mm,
-        n_rings=n_rings,
-        n_angles=n_angles,
-    )
+    points, axis, radii = _ring_points(entry_lps, target_lps, depth_mm, drill, n_rings, n_angles)
     depth = _depths(depth_mm)
     if not np.isfinite(outside_hu):
         raise LipInputError(f"outside_hu: must be a finite HU value, got {outside_hu!r}")

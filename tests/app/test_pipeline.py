@@ -143,18 +143,53 @@ def test_margin_stop_is_the_exact_safe_depth(slabs: CTVolume) -> None:
     np.testing.assert_allclose(res.clearance_mm[:, 0], want, atol=1e-9)
 
 
-def test_out_of_volume_stop_where_the_lip_leaves_the_grid(slabs: CTVolume) -> None:
-    n_rings = 4
-    res = plan_path(
-        slabs, _plan(depth_mm=8.0), load_calibration("bone-illustrative"), n_rings=n_rings
-    )
+def test_out_of_volume_stop_where_the_lip_leaves_through_the_bottom(slabs: CTVolume) -> None:
+    res = plan_path(slabs, _plan(depth_mm=8.0), load_calibration("bone-illustrative"), n_rings=4)
+    # The tip point (radius 0, the deepest point of the lip) reaches the last slice plane.
     z_last = Z0 + DZ * (N_SLICES - 1)
-    # the deepest lip sample is the innermost ring, at x - l_t * r0 / R with r0 = R / (2 n)
-    want = z_last + LT_MM / (2 * n_rings)
     assert res.stop_reason == "out_of_volume"
-    assert res.out_of_volume_depth_mm == pytest.approx(want, abs=1.5e-3)
+    assert res.out_of_volume_depth_mm == pytest.approx(z_last, abs=1e-9)
     assert res.stop_depth_mm == res.out_of_volume_depth_mm
     assert "out_of_volume" in [w.code for w in res.warnings]
+
+
+def _dense_lip_inside(vol: CTVolume, plan: Plan, depth_mm: float) -> bool:
+    """The lip sampled on 400 rings x 720 angles plus its rim and tip lies in the hull."""
+    axis = plan.target_lps - plan.entry_lps
+    axis = axis / np.linalg.norm(axis)
+    e1 = np.cross(axis, [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(axis, e1)
+    r = np.linspace(0.0, R_MM, 401)[:, None]
+    th = np.linspace(0.0, 2 * np.pi, 721)[None, :]
+    xi = depth_mm - LT_MM * r / R_MM
+    pts = (
+        plan.entry_lps
+        + (xi[..., None] * axis)
+        + r[..., None] * (np.cos(th)[..., None] * e1 + np.sin(th)[..., None] * e2)
+    )
+    return bool(np.all(vol.inside(pts.reshape(-1, 3))))
+
+
+@pytest.mark.parametrize("tilt_deg", [45.0, 60.0])
+def test_out_of_volume_stop_where_the_lip_leaves_through_a_side_face(
+    slabs: CTVolume, tilt_deg: float
+) -> None:
+    # Towards +x at tilt_deg from +z, from (0, 0, 0.5): the lip leaves through the face
+    # x = 4 mm (the last column) where its outer rim's highest point reaches it.
+    a = math.radians(tilt_deg)
+    u = np.array([math.sin(a), 0.0, math.cos(a)])
+    entry = np.array([0.0, 0.0, 0.5])
+    plan = replace(_plan(), entry_lps=entry, target_lps=entry + 8.0 * u)
+    res = plan_path(slabs, plan, load_calibration("bone-illustrative"))
+    # Highest x on the lip at depth x: x sin a + max(0, R cos a - l_t sin a) (rim at r = R).
+    want = (4.0 - max(0.0, R_MM * math.cos(a) - LT_MM * math.sin(a))) / math.sin(a)
+    assert res.stop_reason == "out_of_volume"
+    assert res.out_of_volume_depth_mm == pytest.approx(want, abs=1e-9)
+    # and against a brute-force lip, independent of the closed form: inside 1e-3 mm before,
+    # outside 1e-3 mm after
+    assert _dense_lip_inside(slabs, plan, want - 1e-3)
+    assert not _dense_lip_inside(slabs, plan, want + 1e-3)
 
 
 def test_refusals_name_the_problem() -> None:
@@ -180,17 +215,77 @@ def test_refusals_name_the_problem() -> None:
         plan_path(_volume(), far, cal)
 
 
-def test_slice_gap_refused_on_the_path_and_a_warning_off_it() -> None:
+def _without_slices(vol: CTVolume, drop: slice) -> CTVolume:
+    """``vol`` with the slices ``drop`` deleted (the others keep their true positions)."""
+    keep = np.ones(vol.hu.shape[0], dtype=bool)
+    keep[drop] = False
+    return CTVolume(
+        hu=vol.hu[keep],
+        affine_lps=vol.affine_lps,
+        valid=None,
+        info=vol.info,
+        slice_positions_mm=vol.slice_positions_mm[keep],
+    )
+
+
+def test_deleted_slices_off_the_path_change_nothing(slabs: CTVolume) -> None:
+    # 5 slices deleted at z ~ 5.0 mm, below a 3 mm path whose lip ends at z = 3 mm: the median
+    # step affine would shift every slice after them; true positions keep the profile exact.
     cal = load_calibration("bone-illustrative")
-    z = Z0 + DZ * np.arange(N_SLICES)
-    gap_on_path = z.copy()
-    gap_on_path[2000:] += DZ  # a missing slice between z = 2.997 and 3.001
-    with pytest.raises(PathInputError, match="irregular slice step"):
-        plan_path(_volume(positions=gap_on_path), _plan(), cal)
-    # the same gap beyond a 2 mm trajectory (the lip reaches z = 2 mm at most)
-    res = plan_path(_volume(positions=gap_on_path), _plan(depth_mm=2.0), cal)
-    assert res.stop_reason == "planned_depth"
-    assert "nonuniform_spacing" in [w.code for w in res.warnings]
+    gapped = _without_slices(slabs, slice(3000, 3005))
+    assert not gapped.regular
+    ref = plan_path(slabs, _plan(depth_mm=3.0), cal)
+    res = plan_path(gapped, _plan(depth_mm=3.0), cal)
+    np.testing.assert_array_equal(res.lip.hu, ref.lip.hu)
+    np.testing.assert_array_equal(res.profile.s0_n, ref.profile.s0_n)
+    assert res.interpolated_gaps == ()
+    assert "gap_interpolated" not in [w.code for w in res.warnings]
+
+
+def test_a_gap_crossed_by_the_lip_is_refused_or_interpolated_on_request(slabs: CTVolume) -> None:
+    cal = load_calibration("bone-illustrative")
+    # slices 2000..2004 (z = 2.999 .. 3.007) deleted: a gap of 6 DZ between z = 2.997 and 3.009
+    gapped = _without_slices(slabs, slice(2000, 2005))
+    with pytest.raises(PathInputError) as err:
+        plan_path(gapped, _plan(), cal)
+    # the lip [x - 0.6, x] reaches into (2.997, 3.009) for 2.997 < x < 3.609
+    msg = str(err.value)
+    assert "slice gap of 0.012 mm between the slices at 2.997 and 3.009 mm" in msg
+    assert "tip depths 2.997..3.609 mm" in msg and "--interpolate-gaps" in msg
+    res = plan_path(gapped, _plan(), cal, interpolate_gaps=True)
+    (gap,) = res.interpolated_gaps
+    assert (gap.lower_mm, gap.upper_mm) == pytest.approx((2.997, 3.009), abs=1e-9)
+    assert (gap.depth_from_mm, gap.depth_to_mm) == pytest.approx((2.997, 3.609), abs=1e-9)
+    codes = [w.code for w in res.warnings]
+    assert codes.count("gap_interpolated") == 1
+    # interpolated exactly between the two real slices: HU at z = 3.003 (the gap's middle) is
+    # the mean of 40 (z = 2.997) and 1500 (z = 3.009)
+    mid = gapped.sample(np.array([[0.0, 0.0, 3.003]]))
+    assert mid[0] == pytest.approx(0.5 * (40.0 + 1500.0), abs=1e-9)
+    # a path that stops above the gap (the lip reaches z = 2.99 at most) is exact
+    assert plan_path(gapped, _plan(depth_mm=2.99), cal).interpolated_gaps == ()
+
+
+def test_each_warning_once(slabs: CTVolume) -> None:
+    from ctdrill.imaging.volume import LoadWarning
+
+    twice = (LoadWarning("nonuniform_spacing", "x"),) * 2 + (LoadWarning("padding", "y"),)
+    vol = replace_warnings(slabs, twice)
+    res = plan_path(vol, _plan(depth_mm=2.0), load_calibration("bone-illustrative"))
+    pairs = [(w.code, w.message) for w in res.warnings]
+    assert len(pairs) == len(set(pairs))
+    assert pairs.count(("nonuniform_spacing", "x")) == 1
+
+
+def replace_warnings(vol: CTVolume, warnings: tuple[object, ...]) -> CTVolume:
+    return CTVolume(
+        hu=vol.hu,
+        affine_lps=vol.affine_lps,
+        valid=vol.valid,
+        info=vol.info,
+        warnings=warnings,  # type: ignore[arg-type]
+        slice_positions_mm=vol.slice_positions_mm,
+    )
 
 
 def test_mask_landmark_from_a_plan_file_on_the_ct_grid(slabs: CTVolume, tmp_path: Path) -> None:

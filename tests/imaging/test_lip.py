@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ctdrill.imaging import load_series
-from ctdrill.imaging.plan.types import load_plan
+from ctdrill.imaging.plan.types import DrillSpec, load_plan
 from ctdrill.imaging.sampling.lip import (
     LipInputError,
     axis_basis,
@@ -88,8 +88,7 @@ def test_ring_points_sit_at_radius_r_and_depth_xi(
         entry,
         target,
         depth,
-        diameter_mm=diameter,
-        tip_length_mm=tip,
+        drill=DrillSpec(diameter_mm=diameter, tip_length_mm=tip),
         n_rings=n_rings,
         n_angles=n_angles,
     )
@@ -107,7 +106,12 @@ def test_ring_points_sit_at_radius_r_and_depth_xi(
 def test_ring_angles_are_equally_spaced_from_e1() -> None:
     entry, target = np.zeros(3), np.array([0.0, 0.0, -10.0])
     pts = lip_ring_points(
-        entry, target, np.array([2.0]), diameter_mm=2.0, tip_length_mm=0.0, n_rings=1, n_angles=8
+        entry,
+        target,
+        np.array([2.0]),
+        drill=DrillSpec(diameter_mm=2.0, tip_length_mm=0.0),
+        n_rings=1,
+        n_angles=8,
     )
     _, e1, e2 = axis_basis(entry, target)
     ring = pts[0, 0] - np.array([0.0, 0.0, -2.0])
@@ -128,10 +132,21 @@ def test_linear_field_is_sampled_exactly_on_an_oblique_grid() -> None:
     target = centre - np.array([0.5, -1.0, 1.5])
     depth = np.linspace(0.0, 6.0, 31)
     lip = sample_lip_rings(
-        vol, entry, target, depth, diameter_mm=2.2, tip_length_mm=0.7, n_rings=5, n_angles=9
+        vol,
+        entry,
+        target,
+        depth,
+        drill=DrillSpec(diameter_mm=2.2, tip_length_mm=0.7),
+        n_rings=5,
+        n_angles=9,
     )
     pts = lip_ring_points(
-        entry, target, depth, diameter_mm=2.2, tip_length_mm=0.7, n_rings=5, n_angles=9
+        entry,
+        target,
+        depth,
+        drill=DrillSpec(diameter_mm=2.2, tip_length_mm=0.7),
+        n_rings=5,
+        n_angles=9,
     )
     assert lip.hu.dtype == np.float32 and lip.hu.shape == (31, 5, 9)
     np.testing.assert_allclose(lip.hu, 100.0 + pts @ grad, atol=0.02)
@@ -176,8 +191,7 @@ def test_slab_fraction_equals_the_analytic_ring_fraction(n_rings: int) -> None:
         entry,
         target,
         depth,
-        diameter_mm=2 * radius,
-        tip_length_mm=tip,
+        drill=DrillSpec(diameter_mm=2 * radius, tip_length_mm=tip),
         n_rings=n_rings,
         n_angles=6,
     )
@@ -201,8 +215,7 @@ def test_outside_counts_samples_beyond_the_grid() -> None:
         entry,
         target,
         depth,
-        diameter_mm=2.0,
-        tip_length_mm=0.6,
+        drill=DrillSpec(diameter_mm=2.0, tip_length_mm=0.6),
         n_rings=4,
         n_angles=5,
         outside_hu=-1234.0,
@@ -226,8 +239,7 @@ def test_padding_is_counted_and_given_outside_hu() -> None:
         entry,
         target,
         np.array([1.0]),
-        diameter_mm=2.0,
-        tip_length_mm=0.0,
+        drill=DrillSpec(diameter_mm=2.0, tip_length_mm=0.0),
         n_rings=2,
         n_angles=4,
     )
@@ -239,15 +251,19 @@ def test_padding_is_counted_and_given_outside_hu() -> None:
         entry,
         target,
         np.array([1.0]),
-        diameter_mm=2.0,
-        tip_length_mm=0.0,
+        drill=DrillSpec(diameter_mm=2.0, tip_length_mm=0.0),
         n_rings=2,
         n_angles=4,
     )
     # Straight down, e1 = +x: angle 2 (-x) of ring r = 0.75 reaches x = -0.15 (padding); the
     # r = 0.25 ring stays at x >= 0.35, whose support x in [0.25, 0.5] is valid.
     pts = lip_ring_points(
-        entry, target, np.array([1.0]), diameter_mm=2.0, tip_length_mm=0.0, n_rings=2, n_angles=4
+        entry,
+        target,
+        np.array([1.0]),
+        drill=DrillSpec(diameter_mm=2.0, tip_length_mm=0.0),
+        n_rings=2,
+        n_angles=4,
     )
     assert int(lip.outside[0]) == int((pts[..., 0] < 0.0).sum()) == 1
     assert lip.hu[0, 1, 2] > -1000.0 and lip.hu[0, 1, 2] < 1000.0  # blends towards outside_hu
@@ -265,16 +281,21 @@ def test_padding_is_counted_and_given_outside_hu() -> None:
 )
 def test_bad_drill_geometry_names_the_field(kwargs: dict[str, float], field: str) -> None:
     vol, _ = _slab_volume()
-    args: dict[str, float] = {"diameter_mm": 2.0, "tip_length_mm": 0.6, **kwargs}
+    geometry = {k: kwargs.pop(k) for k in ("diameter_mm", "tip_length_mm") if k in kwargs}
+    drill = DrillSpec(**{"diameter_mm": 2.0, "tip_length_mm": 0.6, **geometry})
     with pytest.raises(LipInputError, match=field):
-        sample_lip_rings(vol, np.zeros(3), np.array([0, 0, -1.0]), np.array([0.0]), **args)  # type: ignore[arg-type]
+        sample_lip_rings(vol, np.zeros(3), np.array([0, 0, -1.0]), np.array([0.0]), drill, **kwargs)  # type: ignore[arg-type]
 
 
 def test_same_entry_and_target_is_bad_input() -> None:
     vol, _ = _slab_volume()
     with pytest.raises(LipInputError, match="entry and target"):
         sample_lip_rings(
-            vol, np.ones(3), np.ones(3), np.array([0.0]), diameter_mm=2.0, tip_length_mm=0.6
+            vol,
+            np.ones(3),
+            np.ones(3),
+            np.array([0.0]),
+            drill=DrillSpec(diameter_mm=2.0, tip_length_mm=0.6),
         )
 
 
@@ -284,7 +305,13 @@ def test_nearest_order_returns_voxel_values() -> None:
     target = entry - np.array([0.0, 0.0, 10.0])
     depth = np.linspace(0.0, 2.5, 41) + 0.0037
     lip = sample_lip_rings(
-        vol, entry, target, depth, diameter_mm=2.0, tip_length_mm=0.6, n_angles=5, order=0
+        vol,
+        entry,
+        target,
+        depth,
+        drill=DrillSpec(diameter_mm=2.0, tip_length_mm=0.6),
+        n_angles=5,
+        order=0,
     )
     assert set(np.unique(lip.hu)) == {-1000.0, 1000.0}
     xi = depth[:, None] - 0.6 * lip.radii_mm[None, :]
@@ -296,7 +323,7 @@ def _lip_reference(
     vol: CTVolume, entry: np.ndarray, target: np.ndarray, depth: np.ndarray, outside_hu: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ring HU (D, R, A), outside counts (D,) and axis HU (D,) from the slow reference."""
-    pts = lip_ring_points(entry, target, depth, diameter_mm=2.0, tip_length_mm=0.6)
+    pts = lip_ring_points(entry, target, depth, drill=DrillSpec(diameter_mm=2.0, tip_length_mm=0.6))
     hu, inside = slow_trilinear(vol, pts, outside_hu=outside_hu)
     axis = axis_basis(entry, target)[0]
     axis_hu, _ = slow_trilinear(vol, entry + depth[:, None] * axis, outside_hu=outside_hu)
@@ -318,7 +345,12 @@ def test_lip_samples_match_the_slow_reference_on_the_demo_ct(padded: bool) -> No
     depth = np.arange(-40.0, 60.0, 0.05)
     for outside_hu in (-1000.0, 55.0):
         got = sample_lip_rings(
-            vol, entry, target, depth, diameter_mm=2.0, tip_length_mm=0.6, outside_hu=outside_hu
+            vol,
+            entry,
+            target,
+            depth,
+            drill=DrillSpec(diameter_mm=2.0, tip_length_mm=0.6),
+            outside_hu=outside_hu,
         )
         hu, outside, axis_hu = _lip_reference(vol, entry, target, depth, outside_hu)
         np.testing.assert_allclose(got.hu, hu, rtol=0, atol=1e-3)

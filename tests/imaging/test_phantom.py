@@ -21,6 +21,7 @@ from ctdrill.imaging.phantom.mandible import (
     mandible_labels,
     streak_hu,
 )
+from ctdrill.imaging.plan.types import DrillSpec
 from ctdrill.imaging.sampling.lip import sample_lip_rings
 from ctdrill.imaging.volume import CTVolume, SeriesInfo
 
@@ -178,7 +179,11 @@ def test_lip_sampling_on_the_phantom_sees_each_layer(d2: Phantom) -> None:
     vol = CTVolume(hu=d2.hu, affine_lps=d2.affine_lps, valid=None, info=SeriesInfo("1.2"))
     entry, target = np.array(d2.plan["entry_mm"]), np.array(d2.plan["target_mm"])
     lip = sample_lip_rings(
-        vol, entry, target, np.array([-2.0, 6.0, 11.0]), diameter_mm=2.0, tip_length_mm=0.6
+        vol,
+        entry,
+        target,
+        np.array([-2.0, 6.0, 11.0]),
+        drill=DrillSpec(diameter_mm=2.0, tip_length_mm=0.6),
     )
     assert np.all(lip.hu[0] == 40.0)  # gingiva above the crest
     assert np.all(lip.hu[1] == 1050.0)  # D2 trabecular bone

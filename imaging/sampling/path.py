@@ -1,0 +1,251 @@
+"""What one drill path may ask of one CT volume: checks, gaps and the out-of-volume stop.
+
+Exact or refused. The drill's cutting lip (DESIGN.md 1.4) is the cone segment from the tip
+point (radius 0, depth ``x``) to the outer circle (radius ``R``, depth ``x - l_t``). Its data
+are the CT's voxel-centre hull: in true index coordinates ``0 <= i, j, k <= n - 1``, which in
+LPS is a parallelepiped (the slice index is piecewise linear in the normal position, so the
+hull's two slice faces are the first and the last real slice planes). Everything below is in
+closed form on that continuous lip, not on its ring samples:
+
+- :func:`out_of_volume_depth_mm`: the deepest depth whose whole lip lies in the hull. Along a
+  face plane ``f(p) = alpha . p + beta >= 0`` the lip's smallest value is
+  ``alpha . E + beta + x (alpha . u) + min(0, -l_t (alpha . u) - R |alpha_perp|)`` (the
+  minimum over the ring angle is ``-r |alpha_perp|``, linear in ``r``, so at ``r = 0`` or
+  ``r = R``), linear in ``x``: the stop is exact, not bisected.
+- :func:`crossed_gaps`: slice steps wider than ``stack.GAP_FACTOR`` nominal steps that the lip
+  reaches into, with the depth range affected (the lip's slice-index range is linear in ``x``
+  in the same way). Crossing one is refused unless the caller asks to interpolate across it.
+- :func:`check_volume` / :func:`check_padding`: a single slice, values that are not HU and
+  padding touched by the drill are refused.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.plan.types import DrillSpec
+from ctdrill.imaging.sampling.lip import LipSamples, axis_basis, lip_ring_points
+from ctdrill.imaging.stack import GAP_FACTOR, nominal_step_mm, wide_steps
+from ctdrill.imaging.volume import CTVolume
+
+
+class PathInputError(ImagingInputError):
+    """The volume cannot carry a force map safely along this drill path."""
+
+
+@dataclass(frozen=True)
+class SliceGap:
+    """A slice step wider than ``GAP_FACTOR`` nominal steps that the drill lip reaches into.
+
+    Attributes
+    ----------
+    lower_mm, upper_mm : float
+        True positions along the slice normal of the two real slices around the gap, mm.
+    nominal_step_mm : float
+        The stack's nominal (median) step, mm.
+    depth_from_mm, depth_to_mm : float
+        Tip depths whose lip reaches into the gap, mm (within the depths checked).
+    """
+
+    lower_mm: float
+    upper_mm: float
+    nominal_step_mm: float
+    depth_from_mm: float
+    depth_to_mm: float
+
+    @property
+    def width_mm(self) -> float:
+        """``|upper - lower|``, mm."""
+        return abs(self.upper_mm - self.lower_mm)
+
+    def describe(self) -> str:
+        """One phrase naming the gap and the depths it affects."""
+        return (
+            f"a slice gap of {_mm(self.width_mm)} mm between the slices at "
+            f"{_mm(self.lower_mm)} and {_mm(self.upper_mm)} mm along the slice normal "
+            f"(nominal step {_mm(abs(self.nominal_step_mm))} mm; steps over {GAP_FACTOR:g} x "
+            f"nominal are gaps) at tip depths {_mm(self.depth_from_mm)}.."
+            f"{_mm(self.depth_to_mm)} mm"
+        )
+
+
+def _mm(value: float) -> str:
+    """A length to the micrometre, without trailing zeros."""
+    text = f"{value:.3f}".rstrip("0").rstrip(".")
+    return "0" if text in ("", "-0") else text
+
+
+def check_volume(volume: CTVolume) -> None:
+    """Refuse a volume that cannot carry a force map at all (one slice, values not HU)."""
+    if not volume.is_volume:
+        raise PathInputError(
+            f"series {volume.info.series_uid}: a single slice is not a volume; the force "
+            "along a drill needs a CT series of several slices"
+        )
+    if not volume.info.is_hu:
+        raise PathInputError(
+            f"series {volume.info.series_uid}: voxel values are not Hounsfield units "
+            f"(RescaleType {volume.info.rescale_type or 'missing'}); calibrate the grey values "
+            "to HU before computing forces"
+        )
+
+
+def _index_planes(volume: CTVolume) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows ``a_m``, offsets ``c_m`` with affine index ``m = a_m . p + c_m``, and the hull's
+    upper bounds in those units (the true last slice for k)."""
+    inv = np.linalg.inv(np.asarray(volume.affine_lps, dtype=np.float64))
+    cols, rows, _ = volume.dims
+    k_top = float(volume.affine_slice_index[-1])
+    return inv[:3, :3], inv[:3, 3], np.array([cols - 1.0, rows - 1.0, k_top])
+
+
+def _lip_extremes(
+    alpha: np.ndarray, entry_lps: np.ndarray, basis: np.ndarray, drill: DrillSpec
+) -> tuple[float, float, float, float]:
+    """For ``f(p) = alpha . p``: value at the entry, slope per mm of depth, and the lowest and
+    highest offsets of the lip relative to its tip point."""
+    axis, e1, e2 = basis
+    su = float(alpha @ axis)
+    w = math.hypot(float(alpha @ e1), float(alpha @ e2))
+    lt, radius = float(drill.tip_length_mm), float(drill.radius_mm)
+    low = min(0.0, -lt * su - radius * w)
+    high = max(0.0, -lt * su + radius * w)
+    return float(alpha @ entry_lps), su, low, high
+
+
+def lip_inside_depths_mm(
+    volume: CTVolume, entry_lps: np.ndarray, target_lps: np.ndarray, drill: DrillSpec
+) -> tuple[float, float]:
+    """The interval of tip depths whose whole (continuous) lip lies in the voxel-centre hull.
+
+    Returns ``(lo, hi)`` in mm, ``lo > hi`` when no depth qualifies; unbounded ends are inf.
+    """
+    lin, off, top = _index_planes(volume)
+    basis = axis_basis(entry_lps, target_lps)
+    entry = np.asarray(entry_lps, dtype=np.float64)
+    lo, hi = -math.inf, math.inf
+    for m in range(3):
+        value, su, low, high = _lip_extremes(lin[m], entry, basis, drill)
+        # value + off + x su + low >= 0   and   top - (value + off + x su + high) >= 0
+        for const, slope in ((value + off[m] + low, su), (top[m] - value - off[m] - high, -su)):
+            if abs(slope) < 1e-15:
+                if const < 0.0:
+                    return math.inf, -math.inf
+                continue
+            bound = -const / slope
+            if slope > 0.0:
+                lo = max(lo, bound)
+            else:
+                hi = min(hi, bound)
+    return lo, hi
+
+
+def out_of_volume_depth_mm(
+    volume: CTVolume,
+    entry_lps: np.ndarray,
+    target_lps: np.ndarray,
+    drill: DrillSpec,
+    planned_depth_mm: float,
+    *,
+    name: str = "",
+) -> float | None:
+    """Deepest tip depth whose whole lip lies in the CT's voxel-centre hull (closed form).
+
+    Returns
+    -------
+    float | None
+        The depth where the lip's data end, mm; None when the lip stays inside down to
+        ``planned_depth_mm``.
+
+    Raises
+    ------
+    PathInputError
+        The lip is not inside the volume at depth 0 (the entry lies outside the scan).
+    """
+    lo, hi = lip_inside_depths_mm(volume, entry_lps, target_lps, drill)
+    if not (lo <= 0.0 <= hi):
+        where = f"plan {name!r}: " if name else ""
+        raise PathInputError(
+            f"{where}the entry point {np.round(np.asarray(entry_lps), 2).tolist()} (LPS mm) "
+            "lies outside the CT volume (the drill lip is not inside the scan at depth 0); "
+            "move the entry inside the scanned field"
+        )
+    return None if hi >= planned_depth_mm else float(hi)
+
+
+def crossed_gaps(
+    volume: CTVolume,
+    entry_lps: np.ndarray,
+    target_lps: np.ndarray,
+    drill: DrillSpec,
+    depth_end_mm: float,
+) -> tuple[SliceGap, ...]:
+    """Slice gaps (steps wider than ``GAP_FACTOR`` nominal steps) the lip reaches into for tip
+    depths in ``[0, depth_end_mm]``, with the depths affected (closed form)."""
+    wide = np.flatnonzero(wide_steps(volume.slice_positions_mm))
+    if wide.size == 0:
+        return ()
+    lin, off, _ = _index_planes(volume)
+    k_aff = volume.affine_slice_index
+    value, su, low, high = _lip_extremes(
+        lin[2], np.asarray(entry_lps, dtype=np.float64), axis_basis(entry_lps, target_lps), drill
+    )
+    base = value + off[2]
+    pos = volume.slice_positions_mm
+    step = nominal_step_mm(pos)
+    gaps: list[SliceGap] = []
+    for k in wide:
+        k_lo, k_hi = float(k_aff[k]), float(k_aff[k + 1])
+        # lip range at depth x: [base + x su + low, base + x su + high]; open gap (k_lo, k_hi)
+        if abs(su) < 1e-15:
+            hit = base + high > k_lo and base + low < k_hi
+            x1, x2 = (-math.inf, math.inf) if hit else (math.inf, -math.inf)
+        else:
+            t1, t2 = (k_lo - base - high) / su, (k_hi - base - low) / su
+            x1, x2 = min(t1, t2), max(t1, t2)
+        d1, d2 = max(x1, 0.0), min(x2, depth_end_mm)
+        if d1 < d2 or (d1 == d2 and x2 > 0.0 and x1 < depth_end_mm):
+            gaps.append(SliceGap(float(pos[k]), float(pos[k + 1]), step, d1, d2))
+    return tuple(gaps)
+
+
+def check_padding(
+    volume: CTVolume,
+    entry_lps: np.ndarray,
+    target_lps: np.ndarray,
+    drill: DrillSpec,
+    lip: LipSamples,
+    n_rings: int,
+    n_angles: int,
+    *,
+    name: str = "",
+) -> None:
+    """Refuse a path whose lip samples touch padding inside the grid (only depths where the
+    sampler counted samples outside or on padding are looked at again)."""
+    flagged = np.flatnonzero(lip.outside > 0)
+    if volume.valid is None or flagged.size == 0:
+        return
+    points = lip_ring_points(
+        entry_lps,
+        target_lps,
+        lip.depth_mm[flagged],
+        drill,
+        n_rings=n_rings,
+        n_angles=n_angles,
+    ).reshape(-1, 3)
+    idx = volume.lps_to_index(points)
+    n_s, n_r, n_c = volume.hu.shape
+    sizes = np.array([n_c, n_r, n_s], dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        in_grid = np.all((idx >= -1e-6) & (idx <= sizes - 1.0 + 1e-6), axis=1)
+    on_padding = in_grid & ~volume.inside(points)
+    if on_padding.any():
+        raise PathInputError(
+            f"plan {name!r}: the drill path crosses padding (pixels outside the scanner's "
+            f"reconstruction field, {int(on_padding.sum())} lip samples); the CT holds no "
+            "data there: move the trajectory into the reconstructed field"
+        )
