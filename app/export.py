@@ -190,6 +190,20 @@ def hu_grading(result: PathResult) -> dict[str, Any]:
     return {"misch_share": share, "segments": segments}
 
 
+def interpolated_gaps_json(result: PathResult) -> list[dict[str, float]]:
+    """The slice gaps interpolated across on request (``--interpolate-gaps``); [] if none."""
+    return [
+        {
+            "lower_mm": round(g.lower_mm, 4),
+            "upper_mm": round(g.upper_mm, 4),
+            "nominal_step_mm": round(abs(g.nominal_step_mm), 4),
+            "depth_from_mm": round(g.depth_from_mm, 4),
+            "depth_to_mm": round(g.depth_to_mm, 4),
+        }
+        for g in result.interpolated_gaps
+    ]
+
+
 def _num(v: float | None, digits: int = 4) -> float | None:
     if v is None or not math.isfinite(v):
         return None
@@ -262,6 +276,7 @@ def summary(
             "share": _num(prof.n_clipped / prof.n_samples if prof.n_samples else 0.0, 6),
         },
         "hu_grading": hu_grading(result),
+        "interpolated_gaps": interpolated_gaps_json(result),
         "warnings": [{"code": w.code, "message": w.message} for w in result.warnings],
     }
     if patient is not None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import re
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 from ctdrill.app.errors import AppInputError
@@ -79,6 +80,7 @@ def export_case(
     progress: Callable[[int, int, str], None] | None = None,
     extra_files: Mapping[str, bytes | str] | None = None,
     warn: Callable[[str, str], None] | None = None,
+    interpolate_gaps: bool = False,
 ) -> list[Path]:
     """Export every trajectory of ``plan_paths`` on the CT in ``dicom``.
 
@@ -94,6 +96,8 @@ def export_case(
     extra_files : more files (relative path -> content) written in the same atomic swap.
     warn : called with (code, message), once the files are written, for what the terminal
         must show (``no_landmarks``).
+    interpolate_gaps : interpolate across slice gaps the drill crosses instead of refusing
+        (each summary then says so).
 
     Returns
     -------
@@ -120,7 +124,9 @@ def export_case(
             if key not in cache:
                 cache[key] = load_calibration(key)
             cal = cache[key]
-        result = plan_path(volume, plan, cal)
+        if feed_mm_s is not None:
+            plan = replace(plan, feed_mm_s=feed_mm_s)  # the path's feed warnings see it
+        result = plan_path(volume, plan, cal, interpolate_gaps=interpolate_gaps)
         sub = "" if len(plans) == 1 else _subdir(_stem(plan, per_file[plan.source]))
         if sub in seen:
             raise AppInputError(

@@ -32,12 +32,18 @@ class RehearsalTable:
     path: PathResult
 
 
-def load_table(dicom: Path, plan_file: Path | Sequence[Path]) -> RehearsalTable:
+def load_table(
+    dicom: Path, plan_file: Path | Sequence[Path], *, interpolate_gaps: bool = False
+) -> RehearsalTable:
     """Load the CT and the plan (one file, or several merged into one trajectory), compute
-    the path and adapt its profile to a device table."""
+    the path and adapt its profile to a device table.
+
+    ``interpolate_gaps`` interpolates across slice gaps the drill crosses instead of refusing
+    (the path's warnings then say so).
+    """
     volume = load_series(dicom)
     plan = load_one_plan([plan_file] if isinstance(plan_file, Path) else plan_file)
-    path = plan_path(volume, plan, plan_calibration(plan))
+    path = plan_path(volume, plan, plan_calibration(plan), interpolate_gaps=interpolate_gaps)
     return RehearsalTable(ProfileTable.from_profile(path.profile, path.stop_depth_mm), path)
 
 
@@ -61,6 +67,7 @@ def rehearse(
     device: str = "sim",
     faults: Sequence[str] = (),
     seed: int = 0,
+    interpolate_gaps: bool = False,
 ) -> dict[str, Any]:
     """Run one rehearsal and write ``OUT/session.csv`` (flushed per block) and ``summary.json``.
 
@@ -70,7 +77,7 @@ def rehearse(
         raise AppInputError(f"--duration-s {duration_s}: give 0 < seconds <= 3600")
     op = parse_operator(operator)
     fault_specs = [parse_fault(f) for f in faults]
-    loaded = load_table(dicom, plan)
+    loaded = load_table(dicom, plan, interpolate_gaps=interpolate_gaps)
     try:
         out.mkdir(parents=True, exist_ok=True)
         csv_out = SessionCsv(out / "session.csv")
@@ -106,6 +113,7 @@ def rehearse(
             "profile_steps": loaded.table.n_steps,
             "depth_step_mm": loaded.table.depth_step_mm,
             "warnings": [w.code for w in path.warnings],
+            "interpolated_gaps": len(path.interpolated_gaps),
         }
     )
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")

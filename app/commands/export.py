@@ -53,6 +53,13 @@ def register(subparsers: Any) -> None:
         help="write the patient's name, ID, birth date and institution into summary.json",
     )
     p.add_argument("--series", default=None, metavar="UID", help="SeriesInstanceUID to load")
+    p.add_argument(
+        "--interpolate-gaps",
+        action="store_true",
+        help="interpolate HU across slice gaps (steps over 1.5 x the nominal slice step) the "
+        "drill crosses, instead of refusing; summary.json then lists them (interpolated_gaps) "
+        "with warning gap_interpolated",
+    )
     p.set_defaults(func=run)
 
 
@@ -79,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
             series_uid=args.series,
             progress=progress,
             warn=_warn,
+            interpolate_gaps=args.interpolate_gaps,
         )
     finally:
         progress.close()

@@ -47,6 +47,12 @@ def register(subparsers: Any) -> None:
         help="link-loss@T, garbage@T, delay@T:MS or reset@T (repeatable)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of injected garbage (default 0)")
+    p.add_argument(
+        "--interpolate-gaps",
+        action="store_true",
+        help="interpolate HU across slice gaps the drill crosses instead of refusing "
+        "(summary.json then counts them, warning gap_interpolated)",
+    )
     p.set_defaults(func=run)
 
 
@@ -63,6 +69,7 @@ def run(args: argparse.Namespace) -> int:
         device=args.device,
         faults=args.fault,
         seed=args.seed,
+        interpolate_gaps=args.interpolate_gaps,
     )
     sys.stdout.write(
         f"stop depth {s['stop_depth_mm']:.2f} mm ({s['stop_reason']}), max drill depth "
