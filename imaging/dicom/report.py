@@ -8,17 +8,27 @@ from typing import Any
 import numpy as np
 
 from ctdrill.imaging.dicom.series import SeriesSummary
+from ctdrill.imaging.stack import affine_residual_mm
 from ctdrill.imaging.volume import CTVolume
 
 
 def volume_report(volume: CTVolume, *, series: Sequence[SeriesSummary] = ()) -> dict[str, Any]:
     """JSON-ready facts about ``volume`` (no patient identifiers).
 
-    Keys: ``dims`` [cols, rows, slices], ``spacing_mm`` [col, row, slice], ``affine_lps`` 4x4,
-    ``hu_min`` / ``hu_max`` over valid voxels (None if none is valid), ``series_uid``,
-    ``warnings`` [{"code", "message"}], plus ``modality``, ``slice_count``, ``is_hu``,
-    ``is_volume``, ``dtype``, ``valid_fraction``, ``slice_positions_mm``, ``gantry_tilt_deg``,
-    ``info`` (series provenance) and ``series`` (every CT stack found).
+    Keys: ``dims`` [cols, rows, slices], ``spacing_mm`` [col, row, slice] (slice: the nominal,
+    median step), ``affine_lps`` 4x4, ``hu_min`` / ``hu_max`` over valid voxels (None if none is
+    valid), ``series_uid``, ``warnings`` [{"code", "message"}], plus ``modality``,
+    ``slice_count``, ``is_hu``, ``is_volume``, ``dtype``, ``valid_fraction``,
+    ``slice_positions_mm``, ``gantry_tilt_deg``, ``info`` (series provenance) and ``series``
+    (every CT stack found).
+
+    Irregular stacks (slice gaps, variable steps): no single affine is true for every slice,
+    so ``regular`` is False and ``affine_lps`` is **null**; the geometry is then
+    ``slice_origins_lps`` (every slice's voxel (0, 0), i.e. its IPP, LPS mm) plus
+    ``voxel_axes_lps`` (the LPS step of one column and of one row, mm): voxel (i, j) of slice k
+    is at ``slice_origins_lps[k] + i * voxel_axes_lps[0] + j * voxel_axes_lps[1]``. Both keys
+    are given for regular stacks too (then equal to what ``affine_lps`` says), and
+    ``affine_residual_mm`` tells how far the nominal-step affine is from the farthest slice.
     """
     hu = volume.hu
     if volume.valid is None:
@@ -33,7 +43,9 @@ def volume_report(volume: CTVolume, *, series: Sequence[SeriesSummary] = ()) -> 
     return {
         "dims": list(volume.dims),
         "spacing_mm": [round(s, 6) for s in volume.spacing_mm],
-        "affine_lps": [[float(v) for v in row] for row in volume.affine_lps],
+        "affine_lps": (
+            [[float(v) for v in row] for row in volume.affine_lps] if volume.regular else None
+        ),
         "hu_min": hu_min,
         "hu_max": hu_max,
         "series_uid": info.series_uid,
@@ -46,6 +58,10 @@ def volume_report(volume: CTVolume, *, series: Sequence[SeriesSummary] = ()) -> 
         "valid_fraction": n_valid / hu.size,
         "gantry_tilt_deg": round(info.gantry_tilt_deg, 4),
         "slice_positions_mm": [round(float(p), 4) for p in volume.slice_positions_mm],
+        "regular": volume.regular,
+        "affine_residual_mm": round(affine_residual_mm(volume.slice_positions_mm), 6),
+        "slice_origins_lps": [[float(v) for v in o] for o in volume.slice_origins_lps],
+        "voxel_axes_lps": [[float(v) for v in volume.affine_lps[:3, c]] for c in (0, 1)],
         "info": {
             "manufacturer": info.manufacturer,
             "model": info.model,
@@ -82,15 +98,26 @@ def format_report(report: dict[str, Any]) -> str:
         f"series     {report['series_uid']} ({report['modality']}, {report['info']['n_files']} "
         "files)",
         f"dims       {c} cols x {r} rows x {s} slices ({report['dtype']})",
-        f"spacing    {sx:g} x {sy:g} x {sz:g} mm (col, row, slice)",
+        f"spacing    {sx:g} x {sy:g} x {sz:g} mm (col, row, slice"
+        + ("" if report["regular"] else ": the nominal step")
+        + ")",
         f"HU range   {report['hu_min']} .. {report['hu_max']} over valid voxels "
         f"({100 * report['valid_fraction']:.1f} % valid)"
         + ("" if report["is_hu"] else " [not HU]"),
-        "affine_lps "
-        + "\n           ".join(
-            "[" + ", ".join(f"{v:10.4f}" for v in row) + "]" for row in report["affine_lps"]
-        ),
     ]
+    if report["affine_lps"] is not None:
+        lines.append(
+            "affine_lps "
+            + "\n           ".join(
+                "[" + ", ".join(f"{v:10.4f}" for v in row) + "]" for row in report["affine_lps"]
+            )
+        )
+    else:
+        lines.append(
+            "affine_lps none: irregular slice positions (a single affine would misplace slices "
+            f"by up to {report['affine_residual_mm']:.3g} mm); every slice's origin is in "
+            "--json slice_origins_lps, sampling uses the true positions"
+        )
     if not report["is_volume"]:
         lines.append("NOTE       one slice only: not a volume for the force path")
     if len(report["series"]) > 1:
