@@ -44,6 +44,7 @@ from ctdrill.imaging.sampling.path import (
 )
 from ctdrill.imaging.volume import CTVolume, LoadWarning
 from ctdrill.model.calibration import Calibration, load_calibration
+from ctdrill.model.force import feed_outside_model
 from ctdrill.model.profile import Profile, build_profile
 
 #: Default depth step of the profile, mm: trilinear sampling is converged at 0.05 mm on
@@ -303,6 +304,9 @@ def plan_path(
                 "forces show the pattern, not validated magnitudes",
             )
         )
+    feed_note = feed_outside_model(plan.feed_mm_s, calibration)
+    if feed_note is not None:
+        warnings.append(LoadWarning("feed_outside_model", f"plan {plan.name!r}: {feed_note}"))
     if profile.n_clipped:
         warnings.append(
             LoadWarning(

@@ -7,7 +7,10 @@ A set is a JSON file (schema in DESIGN.md section 1)::
      "a0": {"b0": ..., "n": ..., "ke": ...},
      "harmonics": [{"order": 1, "b0": ..., "n": ...}, ...]}
 
-``ke`` is per (mm/s). An optional ``"fit"`` object (written by ``ctdrill calibrate``) carries the
+``ke`` is per (mm/s). An optional ``"feed_range_mm_s": [lo, hi]`` gives the feeds the set was
+calibrated at (the paper: "the calibration parameters are valid within the ranges used in the
+calibration experiments"); a set without it states no feed range (sets written before it stay
+valid). An optional ``"fit"`` object (written by ``ctdrill calibrate``) carries the
 fit's standard errors and is kept as read, not interpreted.
 """
 
@@ -83,6 +86,9 @@ class Calibration:
         Feed sensitivity ``Ke`` of ``A0 (1 + Ke v)``, per (mm/s), ``>= 0``.
     harmonics : tuple of Harmonic
         Vibration terms, orders distinct and ascending.
+    feed_range_mm_s : tuple of float or None
+        ``(lo, hi)`` feeds the set was calibrated at, mm/s (``0 <= lo <= hi``); None when the
+        set does not say.
     """
 
     name: str
@@ -94,6 +100,7 @@ class Calibration:
     a0: PowerLaw
     ke_per_mm_s: float
     harmonics: tuple[Harmonic, ...]
+    feed_range_mm_s: tuple[float, float] | None = None
 
     @property
     def illustrative(self) -> bool:
@@ -272,7 +279,28 @@ def calibration_from_dict(data: Any, *, source_path: Path | str = "<dict>") -> C
         a0=a0_law,
         ke_per_mm_s=ke,
         harmonics=tuple(sorted(harmonics, key=lambda h: h.order)),
+        feed_range_mm_s=_feed_range(data, src),
     )
+
+
+def _feed_range(data: Mapping[str, Any], src: Path) -> tuple[float, float] | None:
+    """The optional ``feed_range_mm_s`` [lo, hi] with ``0 <= lo <= hi``, mm/s."""
+    if "feed_range_mm_s" not in data:
+        return None
+    rng = data["feed_range_mm_s"]
+    if not isinstance(rng, list | tuple) or len(rng) != 2:
+        raise CalibrationError(
+            f"calibration file {src}: field feed_range_mm_s must be [lo, hi] in mm/s "
+            "with 0 <= lo <= hi (or leave it out)"
+        )
+    lo = _number({"feed_range_mm_s[0]": rng[0]}, "feed_range_mm_s[0]", "", src)
+    hi = _number({"feed_range_mm_s[1]": rng[1]}, "feed_range_mm_s[1]", "", src)
+    if not 0.0 <= lo <= hi:
+        raise CalibrationError(
+            f"calibration file {src}: field feed_range_mm_s must satisfy 0 <= lo <= hi mm/s, "
+            f"got [{lo}, {hi}]"
+        )
+    return (lo, hi)
 
 
 def load_calibration(name_or_path: str | Path) -> Calibration:
@@ -316,7 +344,11 @@ def calibration_to_dict(calibration: Calibration) -> dict[str, Any]:
             "ke": calibration.ke_per_mm_s,
         },
         "harmonics": [{"order": h.order, "b0": h.b0, "n": h.n} for h in calibration.harmonics],
-    }
+    } | (
+        {}
+        if calibration.feed_range_mm_s is None
+        else {"feed_range_mm_s": list(calibration.feed_range_mm_s)}
+    )
 
 
 def harmonic_freqs_hz(calibration: Calibration, *, blades: int, rpm: float) -> np.ndarray:

@@ -309,6 +309,7 @@ def fit_calibration(
         a0=PowerLaw(b0=params["a0.b0"].value, n=params["a0.n"].value),
         ke_per_mm_s=params["a0.ke"].value,
         harmonics=tuple(harmonics),
+        feed_range_mm_s=(float(feed.min()), float(feed.max())),
     )
     return CalibrationFit(
         calibration=calibration,

@@ -20,6 +20,32 @@ from ctdrill.model.calibration import Calibration
 MAX_FEED_MM_S: float = 50.0
 
 
+def feed_outside_model(feed_mm_s: float, calibration: Calibration) -> str | None:
+    """Why ``feed_mm_s`` is beyond what the model knows, or None when it is not.
+
+    Beyond the set's ``feed_range_mm_s`` Eq. 19 is extrapolated; beyond
+    :data:`MAX_FEED_MM_S` the feed factor is held at the cap (it keeps the law bounded for the
+    device), so the forces are those at the cap: both are stated, never silent.
+    """
+    v = float(feed_mm_s)
+    notes = []
+    rng = calibration.feed_range_mm_s
+    if rng is not None and not rng[0] <= v <= rng[1]:
+        notes.append(
+            f"feed {v:g} mm/s lies outside the feeds calibration {calibration.name!r} was "
+            f"measured at ({rng[0]:g}..{rng[1]:g} mm/s): Eq. 19 is extrapolated there"
+        )
+    if v > MAX_FEED_MM_S:
+        ke = calibration.ke_per_mm_s
+        ratio = (1.0 + ke * v) / (1.0 + ke * MAX_FEED_MM_S)
+        notes.append(
+            f"the feed factor 1 + Ke v is capped at {MAX_FEED_MM_S:g} mm/s (it keeps the force "
+            f"law bounded on the device): forces are those at {MAX_FEED_MM_S:g} mm/s, Eq. 19 "
+            f"at {v:g} mm/s gives {ratio:.3g} x the DC force"
+        )
+    return "; ".join(notes) if notes else None
+
+
 def c_prime(hu: ArrayLike) -> np.ndarray:
     """``C' = HU - AIR_HU = HU + 1000`` (attenuation relative to air; DESIGN.md 1.1), float64."""
     return np.asarray(hu, dtype=np.float64) - AIR_HU
