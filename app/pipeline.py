@@ -267,7 +267,9 @@ def plan_path(
     gaps = crossed_gaps(volume, entry, target, drill, plan.planned_depth_mm if oov is None else oov)
     if gaps and not interpolate_gaps:
         raise PathInputError(
-            f"plan {plan.name!r}: the drill lip crosses {gaps[0].describe()}; the CT holds no "
+            f"plan {plan.name!r}: the drill lip crosses "
+            + (f"{len(gaps)} slice gaps, the first: " if len(gaps) > 1 else "")
+            + f"{gaps[0].describe()}; the CT holds no "
             "slice there: plan away from it, or interpolate across it explicitly "
             "(--interpolate-gaps; the summary then says so)"
         )

@@ -248,7 +248,9 @@ def test_ge_head_is_refused_across_its_irregular_slices(shared_data: Path, tmp_p
     )
     assert code == 2 and stdout == ""
     assert err.count("\n") == 1 and err.startswith("error: plan 'ge': ")
-    assert "irregular slice step" in err and "resample" in err
+    # 13 steps of 7 mm after 4 mm ones: wider than 1.5 nominal steps, gaps for the drill
+    assert "slice gaps, the first: a slice gap of 6.999 mm between the slices at" in err
+    assert "--interpolate-gaps" in err
     assert not out.exists()
 
 
