@@ -68,7 +68,12 @@ def volume_surface(
 ) -> pv.PolyData:
     """The bone surface of ``volume`` at ``iso_hu`` (padding counts as air)."""
     return bone_surface(
-        volume.hu, volume.affine_lps, iso_hu=iso_hu, max_dim=max_dim, valid=volume.valid
+        volume.hu,
+        volume.affine_lps,
+        iso_hu=iso_hu,
+        max_dim=max_dim,
+        valid=volume.valid,
+        index_to_lps=volume.index_to_lps,
     )
 
 

@@ -8,7 +8,7 @@ and sheared (gantry-tilt) series land where they are.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -78,6 +78,7 @@ def bone_surface(
     max_dim: int = 160,
     valid: np.ndarray | None = None,
     outside_hu: float = AIR_HU,
+    index_to_lps: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> pv.PolyData:
     """Iso-surface of the CT at ``iso_hu``, LPS mm.
 
@@ -88,6 +89,8 @@ def bone_surface(
     iso_hu : contour level.
     max_dim : the volume is strided so that no axis has more than this many samples.
     valid : optional (slices, rows, cols) mask; padding (False) counts as ``outside_hu``.
+    index_to_lps : maps (N, 3) index coordinates to LPS mm (``CTVolume.index_to_lps``: exact
+        for irregular slice positions); default the affine.
 
     Returns
     -------
@@ -107,8 +110,11 @@ def bone_surface(
     if surf.n_points == 0:
         return pv.PolyData()
     ijk = (np.asarray(surf.points, dtype=np.float64) - 1.0) * stride
-    aff = np.asarray(affine_lps, dtype=np.float64)
-    surf.points = ijk @ aff[:3, :3].T + aff[:3, 3]
+    if index_to_lps is not None:
+        surf.points = np.asarray(index_to_lps(ijk), dtype=np.float64)
+    else:
+        aff = np.asarray(affine_lps, dtype=np.float64)
+        surf.points = ijk @ aff[:3, :3].T + aff[:3, 3]
     surf = surf.triangulate()
     return surf.compute_normals(cell_normals=False, split_vertices=False, auto_orient_normals=False)
 

@@ -109,9 +109,23 @@ def volume_corners_lps(affine_lps: np.ndarray, shape_kji: tuple[int, ...]) -> np
     return (ijk @ np.asarray(affine_lps, dtype=np.float64).T)[:, :3]
 
 
+def _corners(volume: Sampleable) -> np.ndarray:
+    """(8, 3) LPS mm of the corner voxel centres, through the true slice positions when the
+    volume knows them (``CTVolume.index_to_lps``)."""
+    to_lps = getattr(volume, "index_to_lps", None)
+    if to_lps is None:
+        return volume_corners_lps(volume.affine_lps, volume.hu.shape)
+    nk, nj, ni = volume.hu.shape[:3]
+    ijk = np.array(
+        [[i, j, k] for i in (0, ni - 1) for j in (0, nj - 1) for k in (0, nk - 1)],
+        dtype=np.float64,
+    )
+    return np.asarray(to_lps(ijk), dtype=np.float64)
+
+
 def volume_center_lps(volume: Sampleable) -> np.ndarray:
     """(3,) LPS mm of the volume's centre."""
-    return volume_corners_lps(volume.affine_lps, volume.hu.shape).mean(axis=0)
+    return _corners(volume).mean(axis=0)
 
 
 def _unit(vec: np.ndarray) -> np.ndarray:
@@ -184,7 +198,7 @@ def reslice(
     """
     u, v = view_axes(view, axis_lps=axis_lps, roll_deg=roll_deg)
     center = np.asarray(center_lps, dtype=np.float64)
-    corners = volume_corners_lps(volume.affine_lps, volume.hu.shape)
+    corners = _corners(volume)
     rel = corners - center
     cu, cv = rel @ u, rel @ v
     u0, u1 = float(cu.min()), float(cu.max())
@@ -220,7 +234,10 @@ def _grid_aligned(
 ) -> np.ndarray | None:
     """The trilinear plane when its pixels step by exactly one voxel along two index axes and
     start on a voxel centre, else None. Padding (``valid`` False) counts as ``outside_hu``,
-    as in ``CTVolume.sample``."""
+    as in ``CTVolume.sample``. An irregular stack (``regular`` False) is never grid-aligned:
+    its planes are sampled through the true slice positions."""
+    if not getattr(volume, "regular", True):
+        return None
     inv = np.linalg.inv(np.asarray(volume.affine_lps, dtype=np.float64))
     o = inv[:3, :3] @ origin_lps + inv[:3, 3]
     du, dv = inv[:3, :3] @ du_lps, inv[:3, :3] @ dv_lps
