@@ -22,7 +22,6 @@ import numpy as np
 from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
     Landmark,
-    MaskLandmark,
     PointLandmark,
     bind_to_grid,
 )
@@ -41,6 +40,7 @@ from ctdrill.imaging.sampling.path import (
     check_volume,
     crossed_gaps,
     out_of_volume_depth_mm,
+    require_grid_for_masks,
 )
 from ctdrill.imaging.volume import CTVolume, LoadWarning
 from ctdrill.model.calibration import Calibration, load_calibration
@@ -161,19 +161,6 @@ def dedupe_warnings(warnings: list[LoadWarning]) -> tuple[LoadWarning, ...]:
     return tuple(out)
 
 
-def _require_masks_placeable(volume: CTVolume, plan: Plan) -> None:
-    """A mask landmark without its own grid takes the CT's: only a regular stack has one."""
-    if volume.regular:
-        return
-    for lm in plan.landmarks:
-        if isinstance(lm, MaskLandmark) and lm.affine_lps is None:
-            raise PathInputError(
-                f"plan {plan.name!r}: mask landmark {lm.name!r} has no affine_lps and the CT's "
-                "slices are irregular (no single voxel grid); give the mask its own affine_lps "
-                "or resample the series to uniform slices"
-            )
-
-
 def grid_bracket(
     depth: np.ndarray, clearance: np.ndarray, margins: np.ndarray
 ) -> tuple[float, float] | None:
@@ -256,7 +243,7 @@ def plan_path(
             f"{MAX_PLANNED_DEPTH_MM:g} mm; check the entry and target (units are mm)"
         )
     check_volume(volume)
-    _require_masks_placeable(volume, plan)
+    require_grid_for_masks(volume, plan.landmarks, name=plan.name)
     landmarks = bind_to_grid(plan.landmarks, volume.affine_lps, tuple(volume.hu.shape))
     plan = replace(plan, landmarks=landmarks)
     depth = depth_grid_mm(plan.planned_depth_mm, depth_step_mm)

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.plan.landmarks import Landmark, MaskLandmark
 from ctdrill.imaging.plan.types import DrillSpec
 from ctdrill.imaging.sampling.lip import LipSamples, axis_basis, lip_ring_points
 from ctdrill.imaging.stack import GAP_FACTOR, nominal_step_mm, wide_steps
@@ -92,6 +93,21 @@ def check_volume(volume: CTVolume) -> None:
             f"(RescaleType {volume.info.rescale_type or 'missing'}); calibrate the grey values "
             "to HU before computing forces"
         )
+
+
+def require_grid_for_masks(
+    volume: CTVolume, landmarks: tuple[Landmark, ...], *, name: str = ""
+) -> None:
+    """A mask landmark without its own grid takes the CT's: only a regular stack has one."""
+    if volume.regular:
+        return
+    for lm in landmarks:
+        if isinstance(lm, MaskLandmark) and lm.affine_lps is None:
+            raise PathInputError(
+                f"plan {name!r}: mask landmark {lm.name!r} has no affine_lps and the CT's "
+                "slices are irregular (no single voxel grid); give the mask its own affine_lps "
+                "or resample the series to uniform slices"
+            )
 
 
 def _index_planes(volume: CTVolume) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
