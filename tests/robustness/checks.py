@@ -80,6 +80,12 @@ def check_inspect(case: Case, seen: Observed) -> None:
     assert tuple(doc["dims"]) == seen.dims
     assert sorted(w["code"] for w in doc["warnings"]) == list(seen.codes)
     assert all(w["message"] for w in doc["warnings"])
-    assert np.isfinite(np.asarray(doc["affine_lps"], dtype=float)).all()
-    assert np.asarray(doc["affine_lps"]).shape == (4, 4)
+    # An irregular stack states no affine (docs/geometry.md): every slice's origin instead.
+    origins = np.asarray(doc["slice_origins_lps"], dtype=float)
+    assert origins.shape == (seen.dims[2], 3) and np.isfinite(origins).all()
+    if doc["regular"]:
+        assert np.isfinite(np.asarray(doc["affine_lps"], dtype=float)).all()
+        assert np.asarray(doc["affine_lps"]).shape == (4, 4)
+    else:
+        assert doc["affine_lps"] is None
     json.dumps(doc, allow_nan=False)  # strict JSON: no NaN/Infinity

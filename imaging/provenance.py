@@ -1,0 +1,77 @@
+"""What a loaded series says about itself: its provenance and the loader's warnings.
+
+Values only (no arrays); :mod:`ctdrill.imaging.volume` re-exports them with the volume.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: Warning codes a load may report (DESIGN.md section 4, plus ``single_slice``).
+WARNING_CODES: tuple[str, ...] = (
+    "slice_gap",
+    "nonuniform_spacing",
+    "gantry_tilt",
+    "localizer_dropped",
+    "multiple_series",
+    "duplicate_slice",
+    "padding",
+    "not_hu",
+    "lossy_compression",
+    "files_skipped",
+    "single_slice",
+)
+
+
+@dataclass(frozen=True)
+class LoadWarning:
+    """Something a careful reader of the series must know.
+
+    Attributes
+    ----------
+    code : str
+        One of :data:`WARNING_CODES`.
+    message : str
+        Human-readable detail (positions, counts, UIDs).
+    """
+
+    code: str
+    message: str
+
+
+@dataclass(frozen=True)
+class SeriesInfo:
+    """Provenance of a loaded series; holds no patient identifiers.
+
+    Attributes
+    ----------
+    series_uid : str
+        SeriesInstanceUID.
+    modality : str
+        DICOM Modality (``CT`` ...).
+    is_hu : bool
+        True when the voxel values are Hounsfield units (RescaleType HU or absent on a CT image
+        with a rescale); False means calibrate first (:func:`calibrate_grey_to_hu`).
+    slice_thickness_mm : float | None
+        Nominal SliceThickness: metadata only, never used for geometry.
+    n_files : int
+        Files that contributed slices to the volume.
+    """
+
+    series_uid: str
+    modality: str = "CT"
+    is_hu: bool = True
+    study_description: str = ""
+    series_description: str = ""
+    manufacturer: str = ""
+    model: str = ""
+    kvp: float | None = None
+    kernel: str = ""
+    slice_thickness_mm: float | None = None
+    transfer_syntax: str = ""
+    sop_class_uid: str = ""
+    rescale_type: str = ""
+    n_files: int = 0
+    gantry_tilt_deg: float = 0.0
+    #: True once :func:`ctdrill.imaging.resample_uniform_slices` interpolated an irregular stack.
+    resampled: bool = False
