@@ -1,7 +1,13 @@
 """Headless rehearsal: CT + plan -> force table -> a device session -> session.csv, summary.json.
 
-``ctdrill rehearse`` and the tests call :func:`rehearse`; the GUI can call the same pieces
-(:func:`load_table`, :func:`open_device`, :func:`ctdrill.haptics.session.run_session`).
+``ctdrill rehearse`` and the tests call :func:`rehearse`; the GUI calls the same pieces
+(:func:`open_device`, :func:`ctdrill.haptics.run.run_session`, :func:`rehearsal_summary`).
+
+Records: the output folder is written whole or not at all
+(:func:`ctdrill.app.records.atomic_output_dir`): the previous session stays as it was until the
+new one replaces it. Before ARM (bad input, a device that does not answer or refuses the table)
+nothing is written. Once the device was armed, ``summary.json`` is always written, with
+``complete`` and, when the session did not run its course, ``outcome`` and ``reason``.
 """
 
 from __future__ import annotations
@@ -15,13 +21,20 @@ from typing import Any
 
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.pipeline import PathResult, plan_calibration, plan_path
+from ctdrill.app.records import atomic_output_dir, write_file
 from ctdrill.haptics.device import Device
 from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.run import SessionResult, run_session
 from ctdrill.haptics.serial_device import SerialDevice
-from ctdrill.haptics.session import SessionCsv, parse_fault, parse_operator, run_session
+from ctdrill.haptics.session import SessionCsv, parse_fault, parse_operator
 from ctdrill.haptics.sim import SimulatedDevice
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.types import load_one_plan
+
+#: Exit code of a session that ended on a device fault or a host error (STOP, DISARM sent).
+EXIT_DEVICE_FAULT = 3
+#: Exit code of a session interrupted with Ctrl-C (STOP, DISARM sent, records written).
+EXIT_INTERRUPTED = 130
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,14 +60,53 @@ def load_table(
     return RehearsalTable(ProfileTable.from_profile(path.profile, path.stop_depth_mm), path)
 
 
-def open_device(spec: str) -> Device:
+def open_device(spec: str, *, seed: int = 0) -> Device:
     """``sim`` or ``serial:PORT`` (a device path, a pty link, or a pyserial URL)."""
     if spec == "sim":
-        return SimulatedDevice()
+        return SimulatedDevice(seed=seed)
     kind, sep, port = spec.partition(":")
     if kind == "serial" and sep and port:
         return SerialDevice(port)
     raise AppInputError(f"--device {spec!r}: use sim or serial:PORT (e.g. serial:/dev/ttyUSB0)")
+
+
+def rehearsal_summary(
+    session: SessionResult | dict[str, Any],
+    path: PathResult,
+    table: ProfileTable,
+    *,
+    operator: str,
+    device: str,
+    duration_s: float,
+    seed: int,
+) -> dict[str, Any]:
+    """The one ``summary.json`` of a rehearsal (CLI and GUI): the session's fields, then the
+    plan's (stop reason, planned and max safe depth, calibration and whether it is
+    illustrative, warnings) and how the session was run."""
+    summary = dict(session.to_json() if isinstance(session, SessionResult) else session)
+    summary.update(
+        {
+            "stop_reason": path.stop_reason,
+            "planned_depth_mm": float(path.plan.planned_depth_mm),
+            "max_safe_depth_mm": float(path.max_safe_depth_mm),
+            "calibration": path.calibration.name,
+            "calibration_illustrative": bool(path.calibration.illustrative),
+            "operator": operator,
+            "device": device,
+            "duration_s": duration_s,
+            "seed": seed,
+            "profile_steps": table.n_steps,
+            "depth_step_mm": table.depth_step_mm,
+            "warnings": [w.code for w in path.warnings],
+            "interpolated_gaps": len(path.interpolated_gaps),
+        }
+    )
+    return summary
+
+
+def summary_json(summary: dict[str, Any]) -> str:
+    """``summary.json``'s text."""
+    return json.dumps(summary, indent=2) + "\n"
 
 
 def rehearse(
@@ -69,52 +121,65 @@ def rehearse(
     seed: int = 0,
     interpolate_gaps: bool = False,
 ) -> dict[str, Any]:
-    """Run one rehearsal and write ``OUT/session.csv`` (flushed per block) and ``summary.json``.
+    """Run one rehearsal and write ``OUT/session.csv`` and ``OUT/summary.json`` (whole).
 
-    Returns the summary written.
+    Returns the summary written. Raises an input error (exit 2, nothing written) for bad
+    input and for a device that fails before it was armed.
     """
     if not (math.isfinite(duration_s) and 0.0 < duration_s <= 3600.0):
         raise AppInputError(f"--duration-s {duration_s}: give 0 < seconds <= 3600")
     op = parse_operator(operator)
     fault_specs = [parse_fault(f) for f in faults]
     loaded = load_table(dicom, plan, interpolate_gaps=interpolate_gaps)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        csv_out = SessionCsv(out / "session.csv")
-    except OSError as exc:
-        raise AppInputError(f"--out {out}: cannot write there ({exc.strerror})") from exc
-    dev = open_device(device)
-    try:
-        result = run_session(
-            dev,
+    with atomic_output_dir(out) as stage:
+        dev = open_device(device, seed=seed)
+        try:
+            csv_out = SessionCsv(stage / "session.csv")
+            try:
+                result = run_session(
+                    dev,
+                    loaded.table,
+                    op,
+                    duration_s,
+                    faults=fault_specs,
+                    seed=seed,
+                    sink=csv_out.write,
+                )
+            finally:
+                csv_out.close()
+        finally:
+            dev.close()
+        summary = rehearsal_summary(
+            result,
+            loaded.path,
             loaded.table,
-            op,
-            duration_s,
-            faults=fault_specs,
+            operator=op.spec,
+            device=device,
+            duration_s=duration_s,
             seed=seed,
-            sink=csv_out.write,
         )
-    finally:
-        csv_out.close()
-        dev.close()
-    path = loaded.path
-    summary = result.to_json()
-    summary.update(
-        {
-            "stop_reason": path.stop_reason,
-            "planned_depth_mm": float(path.plan.planned_depth_mm),
-            "max_safe_depth_mm": float(path.max_safe_depth_mm),
-            "calibration": path.calibration.name,
-            "calibration_illustrative": bool(path.calibration.illustrative),
-            "operator": op.spec,
-            "device": device,
-            "duration_s": duration_s,
-            "seed": seed,
-            "profile_steps": loaded.table.n_steps,
-            "depth_step_mm": loaded.table.depth_step_mm,
-            "warnings": [w.code for w in path.warnings],
-            "interpolated_gaps": len(path.interpolated_gaps),
-        }
-    )
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+        write_file(stage / "summary.json", summary_json(summary))
     return summary
+
+
+def ending_message(summary: dict[str, Any]) -> str:
+    """One line on how an incomplete session ended and what the device was sent."""
+    host = [f for f in summary.get("faults", []) if f.get("source") == "host"]
+    sent = "STOP and DISARM were not sent"
+    if host:
+        last = host[-1]
+        if last.get("stop_acknowledged") and last.get("disarm_acknowledged"):
+            sent = "the device acknowledged STOP and DISARM"
+        else:
+            why = last.get("stop_error") or last.get("disarm_error") or "no answer"
+            sent = f"STOP and DISARM were sent but not both acknowledged ({why})"
+            if not last.get("stop_acknowledged") and "not sent" in str(why):
+                sent = f"STOP and DISARM were not sent ({why})"
+    return f"the session ended early ({summary.get('reason')}); {sent}"
+
+
+def exit_code(summary: dict[str, Any]) -> int:
+    """0 for a complete session, 3 after a device fault or host error, 130 after Ctrl-C."""
+    if summary.get("complete"):
+        return 0
+    return EXIT_INTERRUPTED if summary.get("outcome") == "interrupted" else EXIT_DEVICE_FAULT

@@ -13,18 +13,23 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from ctdrill.haptics.device import Device, DeviceError, DeviceInfo, TelemetrySample
+    from ctdrill.haptics.device import (
+        Device,
+        DeviceError,
+        DeviceInfo,
+        DeviceRefused,
+        TelemetrySample,
+    )
     from ctdrill.haptics.errors import HapticsInputError
     from ctdrill.haptics.profile_table import ProfileTable, ProfileTableError
     from ctdrill.haptics.protocol import DeviceState, Fault, ProtocolError
+    from ctdrill.haptics.run import SessionResult, run_session
     from ctdrill.haptics.serial_device import SerialDevice
     from ctdrill.haptics.session import (
         Operator,
         SessionInputError,
-        SessionResult,
         parse_fault,
         parse_operator,
-        run_session,
     )
     from ctdrill.haptics.sim import SimulatedDevice
 
@@ -33,6 +38,7 @@ _EXPORTS: dict[str, str] = {
     "Device": "ctdrill.haptics.device",
     "DeviceError": "ctdrill.haptics.device",
     "DeviceInfo": "ctdrill.haptics.device",
+    "DeviceRefused": "ctdrill.haptics.device",
     "DeviceState": "ctdrill.haptics.protocol",
     "Fault": "ctdrill.haptics.protocol",
     "HapticsInputError": "ctdrill.haptics.errors",
@@ -42,18 +48,19 @@ _EXPORTS: dict[str, str] = {
     "ProtocolError": "ctdrill.haptics.protocol",
     "SerialDevice": "ctdrill.haptics.serial_device",
     "SessionInputError": "ctdrill.haptics.session",
-    "SessionResult": "ctdrill.haptics.session",
+    "SessionResult": "ctdrill.haptics.run",
     "SimulatedDevice": "ctdrill.haptics.sim",
     "TelemetrySample": "ctdrill.haptics.device",
     "parse_fault": "ctdrill.haptics.session",
     "parse_operator": "ctdrill.haptics.session",
-    "run_session": "ctdrill.haptics.session",
+    "run_session": "ctdrill.haptics.run",
 }
 
 __all__ = [
     "Device",
     "DeviceError",
     "DeviceInfo",
+    "DeviceRefused",
     "DeviceState",
     "Fault",
     "HapticsInputError",

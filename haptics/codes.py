@@ -26,6 +26,34 @@ class MsgType(IntEnum):
     NAK = 0x41
 
 
+#: Types the host sends (the device accepts only these; every type has one direction).
+HOST_TYPES: frozenset[int] = frozenset(
+    {
+        MsgType.HELLO,
+        MsgType.PROFILE_BEGIN,
+        MsgType.PROFILE_CHUNK,
+        MsgType.PROFILE_END,
+        MsgType.ARM,
+        MsgType.DISARM,
+        MsgType.HEARTBEAT,
+        MsgType.STOP,
+        MsgType.SIM_OPERATOR,
+        MsgType.SIM_RESET,
+    }
+)
+#: Types the device sends (a device receiving one drops it: a looped-back line).
+DEVICE_TYPES: frozenset[int] = frozenset(
+    {
+        MsgType.VERSION,
+        MsgType.LIMITS,
+        MsgType.TELEMETRY,
+        MsgType.FAULT,
+        MsgType.ACK,
+        MsgType.NAK,
+    }
+)
+
+
 class DeviceState(IntEnum):
     """Renderer states reported in TELEMETRY and FAULT."""
 
@@ -62,6 +90,8 @@ class NakReason(IntEnum):
     PROFILE_TOO_LONG = 9
     BAD_VALUE = 10
     NOT_RETRACTED = 11
+    BAD_SESSION = 12
+    STALE_SEQUENCE = 13
 
 
 class OperatorKind(IntEnum):

@@ -21,6 +21,10 @@ class DeviceError(HapticsInputError):
     """The device did not answer, or refused a command; the message says what to check."""
 
 
+class DeviceRefused(DeviceError):
+    """The device answered a command with NAK (it did not carry it out)."""
+
+
 @dataclass(frozen=True)
 class DeviceInfo:
     """What HELLO returned."""
@@ -75,11 +79,11 @@ class Device(Protocol):
         ...
 
     def arm(self) -> None:
-        """Start rendering (clears a latched safe state)."""
+        """Start rendering (the only way out of a latched safe state)."""
         ...
 
     def disarm(self) -> None:
-        """Zero force, idle."""
+        """Zero force, idle (a latched safe state stays safe)."""
         ...
 
     def stop(self) -> None:
@@ -103,7 +107,12 @@ class Device(Protocol):
         ...
 
     def poll(self) -> list[TelemetrySample]:
-        """Telemetry received since the last poll, oldest first."""
+        """Telemetry of this session received since the last poll, oldest first (after ARM:
+        only what the device sent once armed)."""
+        ...
+
+    def lost_session(self) -> bool:
+        """True once the device sent telemetry without the session (it rebooted)."""
         ...
 
     def wait(self, duration_s: float) -> None:

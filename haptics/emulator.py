@@ -4,16 +4,24 @@ Bytes in (:meth:`DeviceEmulator.receive`), ticks run (:meth:`DeviceEmulator.run_
 (:meth:`DeviceEmulator.take_output`). The same object runs in-process behind
 :class:`ctdrill.haptics.sim.SimulatedDevice` (device time as fast as the CPU allows) and on a
 pseudo-terminal behind ``ctdrill emulate`` (paced to real time by :mod:`ctdrill.haptics.realtime`).
-Fully deterministic: the only state is what it was sent and how many ticks it ran.
+Deterministic for a given ``nonce_seed``: the only state is what it was sent and how many ticks
+it ran (without a seed, session nonces come from the operating system's random source).
+
+Frames from the host are accepted (and feed the watchdog) only when they decode, are of a
+host->device type, and, except HELLO, carry the current session's nonce and a sequence number
+above the last accepted one: a looped-back line, a replayed frame or a frame of an earlier
+session is rejected and never keeps the device armed.
 """
 
 from __future__ import annotations
 
 import math
+import random
 
 from ctdrill.haptics.plant import TRAVEL_MM, ForceController, MasterPlant
 from ctdrill.haptics.profile_table import MAX_PROFILE_STEPS
 from ctdrill.haptics.protocol import (
+    DEVICE_TYPES,
     PROTOCOL_VERSION,
     Ack,
     Arm,
@@ -34,6 +42,7 @@ from ctdrill.haptics.protocol import (
     ProfileBegin,
     ProfileChunk,
     ProfileEnd,
+    ProtocolError,
     SimOperator,
     SimReset,
     Stop,
@@ -72,9 +81,13 @@ class DeviceEmulator:
         Initial master depth, mm.
     tick_hz : int
         Control rate, Hz.
+    nonce_seed : int, optional
+        Seeds the session nonces (reproducible simulation); default: the OS random source.
     """
 
-    def __init__(self, *, start_mm: float = 0.0, tick_hz: int = TICK_HZ) -> None:
+    def __init__(
+        self, *, start_mm: float = 0.0, tick_hz: int = TICK_HZ, nonce_seed: int | None = None
+    ) -> None:
         self.tick_hz = tick_hz
         self.dt_s = 1.0 / tick_hz
         self.ticks = 0
@@ -94,6 +107,13 @@ class DeviceEmulator:
         self.hand_n = 0.0
         self.frames_rejected = 0
         self._boot_fault = int(Fault.RESET)
+        self._nonces: random.Random = (
+            random.SystemRandom() if nonce_seed is None else random.Random(nonce_seed)
+        )
+        #: The session nonce chosen at the last HELLO (0: no session since power-on).
+        self.session = 0
+        #: The sequence number of the last accepted host frame of this session.
+        self.host_seq = 0
 
     @property
     def now_s(self) -> float:
@@ -103,8 +123,13 @@ class DeviceEmulator:
     # ------------------------------------------------------------ I/O
 
     def _send(self, message: Message) -> None:
-        self._seq = (self._seq + 1) & 0xFFFF
-        self._out += encode(message, seq=self._seq, time_us=self.ticks * 1_000_000 // self.tick_hz)
+        self._seq = (self._seq + 1) & 0xFFFFFFFF
+        self._out += encode(
+            message,
+            seq=self._seq,
+            session=self.session,
+            time_us=self.ticks * 1_000_000 // self.tick_hz,
+        )
 
     def take_output(self) -> bytes:
         """Bytes the device has written since the last call."""
@@ -116,50 +141,89 @@ class DeviceEmulator:
         """Bytes from the host, handled at the current device time."""
         for item in self._reader.feed(data):
             if isinstance(item, Packet):
-                self.renderer.host_frame(self.now_s)
-                self._handle(item)
+                self._accept(item)
             else:
-                self.frames_rejected += 1
-                reason = NakReason.BAD_FRAME
-                if isinstance(item, UnknownTypeError):
-                    reason = NakReason.UNKNOWN_TYPE
-                elif isinstance(item, VersionError):
-                    reason = NakReason.BAD_VERSION
-                elif isinstance(item, MessageError):
-                    reason = NakReason.BAD_LENGTH
-                self._send(Nak(0, 0, int(reason)))
+                self._refuse(item)
 
-    # ------------------------------------------------------------ commands
+    def _refuse(self, error: ProtocolError) -> None:
+        """A frame that did not decode: NAK it (never feeds the watchdog)."""
+        self.frames_rejected += 1
+        if error.header is not None and error.header[0] in DEVICE_TYPES:
+            return  # a device->host type: looped back; a reply would circulate forever
+        reason = NakReason.BAD_FRAME
+        if isinstance(error, UnknownTypeError):
+            reason = NakReason.UNKNOWN_TYPE
+        elif isinstance(error, VersionError):
+            reason = NakReason.BAD_VERSION
+        elif isinstance(error, MessageError):
+            reason = NakReason.BAD_LENGTH
+        mtype, seq = (error.header[0], error.header[1]) if error.header else (0, 0)
+        self._send(Nak(mtype, seq, int(reason)))
+
+    def _accept(self, packet: Packet) -> None:
+        """A decoded frame: check direction, session and sequence, then handle it."""
+        msg = packet.message
+        if msg.TYPE in DEVICE_TYPES:
+            self.frames_rejected += 1  # looped back (or a confused host): dropped, no reply
+            return
+        if isinstance(msg, Hello):
+            self._hello(packet.seq, msg)
+            return
+        if self.session == 0 or packet.session != self.session:
+            self.frames_rejected += 1
+            self._send(Nak(int(msg.TYPE), packet.seq, int(NakReason.BAD_SESSION)))
+            return
+        if packet.seq <= self.host_seq:
+            self.frames_rejected += 1
+            self._send(Nak(int(msg.TYPE), packet.seq, int(NakReason.STALE_SEQUENCE)))
+            return
+        self.host_seq = packet.seq
+        self.renderer.host_frame(self.now_s)
+        self._handle(packet)
+
+    def _hello(self, seq: int, msg: Hello) -> None:
+        """HELLO: a new session (nonce, sequences), the device disarmed; VERSION and LIMITS."""
+        if msg.protocol_version != PROTOCOL_VERSION:
+            self.frames_rejected += 1
+            self._send(Nak(int(msg.TYPE), seq, int(NakReason.BAD_VERSION)))
+            return
+        self.session = self._nonces.randrange(1, 1 << 32)
+        self.host_seq = seq
+        self._seq = 0
+        self._upload = None
+        self.renderer.disarm()  # an armed session ends with its host (safe stays latched)
+        self.renderer.host_frame(self.now_s)
+        self._send(Version(PROTOCOL_VERSION, *FW_VERSION, self.tick_hz, msg.host_token))
+        self._send(
+            Limits(
+                PEAK_FORCE_N,
+                CONTINUOUS_FORCE_N,
+                THERMAL_BUDGET_N2_S,
+                round(WATCHDOG_S * 1000),
+                MAX_PROFILE_STEPS,
+                *TRAVEL_MM,
+            )
+        )
 
     def _handle(self, packet: Packet) -> None:
         msg = packet.message
-        seq = packet.seq
-        r = self.renderer
-        now = self.now_s
         if isinstance(msg, Heartbeat):
             return
-        if isinstance(msg, Hello):
-            self._send(Version(PROTOCOL_VERSION, *FW_VERSION, self.tick_hz))
-            self._send(
-                Limits(
-                    PEAK_FORCE_N,
-                    CONTINUOUS_FORCE_N,
-                    THERMAL_BUDGET_N2_S,
-                    round(WATCHDOG_S * 1000),
-                    MAX_PROFILE_STEPS,
-                    *TRAVEL_MM,
-                )
-            )
-            return
         if isinstance(msg, SimOperator):
-            self._set_operator(msg)
+            refused = self._set_operator(msg)
+            if refused is not None:  # accepted operator inputs are not acknowledged
+                self._send(Nak(int(msg.TYPE), packet.seq, int(refused)))
             return
-        reason = self._command(msg, now)
+        if isinstance(msg, SimReset):
+            self._send(Ack(int(msg.TYPE), packet.seq))  # the last frame of the session
+            self.reset()
+            return
+        reason = self._command(msg, self.now_s)
         if reason is None:
-            self._send(Ack(int(msg.TYPE), seq))
+            self._send(Ack(int(msg.TYPE), packet.seq))
         else:
-            self._send(Nak(int(msg.TYPE), seq, int(reason)))
-        if r.new_faults:
+            self._send(Nak(int(msg.TYPE), packet.seq, int(reason)))
+        if self.renderer.new_faults:
             self._report_faults()
 
     def _command(self, msg: Message, now: float) -> NakReason | None:
@@ -211,14 +275,16 @@ class DeviceEmulator:
         if isinstance(msg, Stop):
             r.host_stop(now)
             return None
-        if isinstance(msg, SimReset):
-            self.reset()
-            return None
-        return NakReason.UNKNOWN_TYPE  # device->host types sent to the device
+        return NakReason.UNKNOWN_TYPE  # not reached: every host type is handled above
 
-    def _set_operator(self, msg: SimOperator) -> None:
-        if not math.isfinite(msg.value) or msg.kind not in tuple(OperatorKind):
-            return
+    def _set_operator(self, msg: SimOperator) -> NakReason | None:
+        """The simulated hand: PUSH N (negative pulls the handle back), FEED mm/s (negative
+        retracts), NONE (no hand). Values beyond +-78 N / +-200 mm/s are clamped; NaN, inf
+        or an unknown kind are refused and the hand keeps its previous input."""
+        if msg.kind not in tuple(OperatorKind):
+            return NakReason.BAD_VALUE
+        if not math.isfinite(msg.value):
+            return NakReason.NONFINITE
         if msg.kind == OperatorKind.FEED and (
             self.operator_kind != OperatorKind.FEED or msg.value != self.operator_value
         ):
@@ -226,14 +292,19 @@ class DeviceEmulator:
         self.operator_kind = msg.kind
         limit = HAND_MAX_N if msg.kind == OperatorKind.PUSH else MAX_FEED_MM_S
         self.operator_value = max(-limit, min(limit, msg.value))
+        return None
 
     def reset(self) -> None:
-        """Power cycle: table and state lost (the stage stays where it is); RESET reported."""
+        """Power cycle: table, session and state lost (the stage stays where it is, the hand
+        keeps doing what it did); RESET reported; unsent output is kept (it left before)."""
         self.renderer = Renderer(tick_hz=self.tick_hz)
         self.controller = ForceController(start_mm=self.plant.encoder_mm(), dt_s=self.dt_s)
         self._upload = None
         self._reader = FrameReader()
         self._boot_fault = int(Fault.RESET)
+        self.session = 0
+        self.host_seq = 0
+        self._seq = 0
 
     def _report_faults(self) -> None:
         r = self.renderer

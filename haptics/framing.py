@@ -11,11 +11,19 @@ from ctdrill.haptics.errors import HapticsInputError
 
 
 class ProtocolError(HapticsInputError):
-    """A frame that cannot be accepted; the message says what is wrong with it."""
+    """A frame that cannot be accepted; the message says what is wrong with it.
+
+    ``header`` is ``(type, seq, session)`` when the frame's header could be read (its CRC-16
+    and version are right), else None.
+    """
+
+    def __init__(self, message: str, *, header: tuple[int, int, int] | None = None) -> None:
+        super().__init__(message)
+        self.header = header
 
 
 class FramingError(ProtocolError):
-    """Bad COBS encoding or a frame of impossible length."""
+    """Bad COBS encoding or a frame of impossible length (longer than 254 decoded bytes)."""
 
 
 class ChecksumError(ProtocolError):

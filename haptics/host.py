@@ -1,12 +1,21 @@
-"""Host-side protocol logic shared by the simulated and the serial device."""
+"""Host-side protocol logic shared by the simulated and the serial device.
+
+The host accepts a device frame only when it is of a device->host type and carries the session
+nonce that the device's VERSION announced and a sequence number above the last accepted one:
+its own frames echoed by a looped-back line, stale or replayed device frames and telemetry
+queued before the session are dropped (counted in ``rejected_frames``). Telemetry and fault
+reports from before the ARM's acknowledgement are not part of the session and are discarded.
+"""
 
 from __future__ import annotations
 
+import random
 from typing import Protocol
 
-from ctdrill.haptics.device import DeviceError, DeviceInfo, TelemetrySample
+from ctdrill.haptics.device import DeviceError, DeviceInfo, DeviceRefused, TelemetrySample
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import (
+    HOST_TYPES,
     Ack,
     Arm,
     Disarm,
@@ -16,6 +25,7 @@ from ctdrill.haptics.protocol import (
     Hello,
     Limits,
     Message,
+    MsgType,
     Nak,
     NakReason,
     Packet,
@@ -67,9 +77,18 @@ class HostDevice:
         How long a command waits for its ACK/NAK (host clock).
     poll_s : float
         Granularity of that wait.
+    token_seed : int, optional
+        Seeds HELLO's token (reproducible simulation); default: the OS random source.
     """
 
-    def __init__(self, transport: Transport, *, timeout_s: float = 1.0, poll_s: float = 0.001):
+    def __init__(
+        self,
+        transport: Transport,
+        *,
+        timeout_s: float = 1.0,
+        poll_s: float = 0.001,
+        token_seed: int | None = None,
+    ):
         self.transport = transport
         self.timeout_s = timeout_s
         self.poll_s = poll_s
@@ -77,17 +96,26 @@ class HostDevice:
         self._reader = FrameReader()
         self._telemetry: list[TelemetrySample] = []
         self._replies: list[tuple[Message, int]] = []
+        self._tokens: random.Random = (
+            random.SystemRandom() if token_seed is None else random.Random(token_seed)
+        )
+        self._token = -1
+        self._arm_seq = -1
+        #: The session nonce of the device's VERSION (0: no session yet).
+        self.session = 0
+        self._device_seq = 0
         self.fault_reports: list[tuple[float, FaultReport]] = []
         self.naks: list[Nak] = []
         self.nak_count = 0
         self.rejected_frames = 0
+        self.session_lost = False
 
     # ------------------------------------------------------------ plumbing
 
     def send(self, message: Message) -> int:
-        """Send one message; returns its sequence number."""
-        self._seq = (self._seq + 1) & 0xFFFF
-        self.transport.write(encode(message, seq=self._seq))
+        """Send one message in this session; returns its sequence number."""
+        self._seq += 1
+        self.transport.write(encode(message, seq=self._seq, session=self.session))
         return self._seq
 
     def _pump(self) -> None:
@@ -96,31 +124,59 @@ class HostDevice:
                 self.rejected_frames += 1
                 continue
             msg = item.message
-            t = item.time_us * 1e-6
-            if isinstance(msg, Telemetry):
-                self._telemetry.append(
-                    TelemetrySample(
-                        t,
-                        msg.tick,
-                        msg.master_mm,
-                        msg.drill_mm,
-                        msg.velocity_mm_s,
-                        msg.force_cmd_n,
-                        msg.force_est_n,
-                        msg.state,
-                        msg.faults,
-                        msg.overruns,
-                    )
-                )
-            elif isinstance(msg, FaultReport):
-                self.fault_reports.append((t, msg))
-            else:
-                if isinstance(msg, Nak):
-                    self.nak_count += 1
-                    self.naks.append(msg)
-                    del self.naks[:-MAX_KEPT]
+            if msg.TYPE in HOST_TYPES:
+                self.rejected_frames += 1  # our own frames, looped back
+                continue
+            if isinstance(msg, Version) and msg.host_token == self._token and item.session:
+                self.session, self._device_seq = item.session, item.seq  # a new session
                 self._replies.append((msg, item.seq))
-                del self._replies[:-MAX_KEPT]  # unclaimed replies (e.g. NAKs of SIM_OPERATOR)
+                continue
+            if self.session == 0 or item.session != self.session or item.seq <= self._device_seq:
+                self.rejected_frames += 1
+                if item.session == 0 and self.session:  # the device is up without our session
+                    if isinstance(msg, Telemetry):
+                        self.session_lost = True
+                    elif isinstance(msg, Nak) and msg.reason == NakReason.BAD_SESSION:
+                        self.session_lost = True
+                        self._replies.append((msg, item.seq))  # a command's answer, at least
+                continue
+            self._device_seq = item.seq
+            self._take(msg, item.time_us * 1e-6, item.seq)
+
+    def _take(self, msg: Message, t: float, seq: int) -> None:
+        if isinstance(msg, Telemetry):
+            self._telemetry.append(
+                TelemetrySample(
+                    t,
+                    msg.tick,
+                    msg.master_mm,
+                    msg.drill_mm,
+                    msg.velocity_mm_s,
+                    msg.force_cmd_n,
+                    msg.force_est_n,
+                    msg.state,
+                    msg.faults,
+                    msg.overruns,
+                )
+            )
+            return
+        if isinstance(msg, FaultReport):
+            self.fault_reports.append((t, msg))
+            return
+        if isinstance(msg, Nak):
+            self.nak_count += 1
+            self.naks.append(msg)
+            del self.naks[:-MAX_KEPT]
+        elif (
+            isinstance(msg, Ack)
+            and msg.acked_type == MsgType.ARM
+            and msg.acked_seq == self._arm_seq
+        ):
+            # What the device reported before it armed is not part of the session.
+            self._telemetry.clear()
+            self.fault_reports.clear()
+        self._replies.append((msg, seq))
+        del self._replies[:-MAX_KEPT]  # unclaimed replies (e.g. NAKs of SIM_OPERATOR)
 
     def _await(self, what: str, match: type, *, count: int = 1) -> list[Message]:
         deadline = self.transport.clock_s() + self.timeout_s
@@ -146,18 +202,24 @@ class HostDevice:
 
     def command(self, message: Message) -> None:
         """Send a command and wait for its ACK; :class:`DeviceError` on NAK or timeout."""
+        if isinstance(message, Arm):
+            self._arm_seq = self._seq + 1
         seq = self.send(message)
         name = message.TYPE.name
         deadline = self.transport.clock_s() + self.timeout_s
         while True:
             self._pump()
             for i, (msg, _rseq) in enumerate(self._replies):
-                if isinstance(msg, Ack | Nak) and msg.acked_seq == seq:
+                if (
+                    isinstance(msg, Ack | Nak)
+                    and msg.acked_seq == seq
+                    and msg.acked_type == message.TYPE
+                ):
                     del self._replies[i]
                     if isinstance(msg, Nak):
                         known = {int(r): r.name for r in NakReason}
                         reason = known.get(msg.reason, f"reason {msg.reason}")
-                        raise DeviceError(
+                        raise DeviceRefused(
                             f"device on {self.transport.name} refused {name} ({reason})"
                         )
                     return
@@ -171,9 +233,19 @@ class HostDevice:
     # ------------------------------------------------------------ Device API
 
     def hello(self) -> DeviceInfo:
-        """HELLO -> VERSION + LIMITS."""
+        """HELLO -> VERSION + LIMITS: a new session.
+
+        What the link buffered before (telemetry the device streamed since power-on) is
+        discarded; the VERSION that echoes this HELLO's token sets the session nonce.
+        """
+        self.transport.read()  # flush: nothing before our HELLO belongs to the session
+        self._reader = FrameReader()
         self._replies.clear()
-        self.send(Hello())
+        self._telemetry.clear()
+        self.fault_reports.clear()
+        self.session, self._device_seq, self.session_lost = 0, 0, False
+        self._token = self._tokens.randrange(1 << 32)
+        self.send(Hello(host_token=self._token))
         (version,) = self._await("HELLO", Version)
         (limits,) = self._await("HELLO", Limits)
         assert isinstance(version, Version) and isinstance(limits, Limits)
@@ -205,8 +277,13 @@ class HostDevice:
         self.send(SimOperator(kind, value))
 
     def sim_reset(self) -> None:
-        """SIM_RESET (the device reboots; its ACK may be lost in the reboot)."""
+        """SIM_RESET (acknowledged, then the device reboots without a session)."""
         self.send(SimReset())
+
+    def lost_session(self) -> bool:
+        """True once telemetry arrived without our session (the device rebooted)."""
+        self._pump()
+        return self.session_lost
 
     def write_raw(self, data: bytes) -> None:
         """Raw bytes to the device."""

@@ -1,10 +1,18 @@
 """Run the device emulator at real time on a file descriptor (a pty master): ``ctdrill emulate``.
 
 Device time is 10 kHz ticks on the monotonic clock: each wakeup (about every millisecond) reads
-what the host wrote, runs the ticks that have come due in one batch, writes the device's frames
-and sleeps. A tick's *lateness* is how long after its due time it ran; a wakeup that finds more
-than :data:`OVERRUN_S` of ticks due counts as an overrun (reported in TELEMETRY). After a stall
-longer than :data:`RESYNC_S` the clock is resynchronised instead of replaying the backlog.
+what the host wrote, runs the ticks that have come due one after the other, writes the device's
+frames and sleeps. A tick's *lateness* is how long after its due time it ran, measured for every
+tick (the clock is read before each one): with ~1 ms wakeups the ticks due since the last
+wakeup all run late by up to a wakeup period, so the median is about half of it. A wakeup that
+finds more than :data:`OVERRUN_S` of ticks due counts as an overrun (reported in TELEMETRY).
+
+After a stall of the emulator itself longer than :data:`RESYNC_S` (a machine too busy to run
+it) the clock slips instead of replaying the backlog: the emulator reads the host's bytes only
+at its wakeups, so a replayed backlog would have the device run tens of milliseconds without
+hearing a live host and trip its watchdog on the emulator's own stall, not the host's. Device
+time then runs slower than the wall clock by the stalls (``resyncs`` and ``slipped_s``; the
+host sees a tick rate below 10 kHz).
 """
 
 from __future__ import annotations
@@ -15,7 +23,6 @@ import select
 import signal
 import time
 import tty
-from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,12 +31,20 @@ from ctdrill.haptics.emulator import DeviceEmulator
 from ctdrill.haptics.errors import HapticsInputError
 
 OVERRUN_S = 0.005
-RESYNC_S = 0.5
+#: A stall longer than this slips the clock (well under the 50 ms watchdog: several host frames).
+RESYNC_S = 0.020
 WAKE_S = 0.001
+#: Lateness histogram: bins of this width, s, up to :data:`LATE_MAX_S` (later ticks in the last).
+LATE_BIN_S = 10e-6
+LATE_MAX_S = 1.0
 
 
 class PtyLinkError(HapticsInputError):
     """The pty link path cannot be created."""
+
+
+def _late_bins() -> list[int]:
+    return [0] * (round(LATE_MAX_S / LATE_BIN_S) + 1)
 
 
 @dataclass
@@ -39,32 +54,56 @@ class RealtimeStats:
     Attributes
     ----------
     wakeups, ticks, overruns, resyncs, dropped_bytes : int
+    slipped_s : float
+        Device time given up to the emulator's own stalls, s.
     busy_s : float
         Time spent running ticks (the renderer, controller and plant), s.
-    lateness_s : deque of float
-        Lateness of the first tick of each wakeup, s (the most recent 200 000).
+    late_bins : list of int
+        Histogram of every tick's lateness, :data:`LATE_BIN_S` bins (the whole run).
+    late_max_s : float
+        The latest tick's lateness, s.
     """
 
     wakeups: int = 0
     ticks: int = 0
     overruns: int = 0
     resyncs: int = 0
+    slipped_s: float = 0.0
     dropped_bytes: int = 0
     busy_s: float = 0.0
-    lateness_s: deque[float] = field(default_factory=lambda: deque(maxlen=200_000))
+    late_bins: list[int] = field(default_factory=_late_bins)
+    late_max_s: float = 0.0
+
+    def record_lateness(self, late_s: float) -> None:
+        """Count one tick that ran ``late_s`` after its due time."""
+        i = int(late_s / LATE_BIN_S) if late_s > 0.0 else 0
+        self.late_bins[min(i, len(self.late_bins) - 1)] += 1
+        if late_s > self.late_max_s:
+            self.late_max_s = late_s
+
+    def lateness_percentile_s(self, q: float) -> float:
+        """Upper edge of the histogram bin holding the ``q`` quantile of tick lateness, s."""
+        total = sum(self.late_bins)
+        if total == 0:
+            return 0.0
+        target = q * total
+        seen = 0
+        for i, count in enumerate(self.late_bins):
+            seen += count
+            if seen >= target and count:
+                return min((i + 1) * LATE_BIN_S, self.late_max_s)
+        return self.late_max_s
 
     def summary(self) -> str:
-        """One line: counts, lateness percentiles (us) and the cost per tick (us)."""
-        late = sorted(self.lateness_s)
-
-        def pct(q: float) -> float:
-            return late[min(len(late) - 1, int(q * len(late)))] * 1e6 if late else 0.0
-
+        """One line: counts, per-tick lateness percentiles (us), the cost per tick (us)."""
+        pct = self.lateness_percentile_s
         per_tick = self.busy_s / self.ticks * 1e6 if self.ticks else 0.0
         return (
             f"{self.ticks} ticks, {self.wakeups} wakeups, {self.overruns} overruns, "
-            f"{self.resyncs} resyncs; lateness p50 {pct(0.5):.0f} us, p99 {pct(0.99):.0f} us, "
-            f"max {pct(1.0):.0f} us; tick cost {per_tick:.2f} us"
+            f"{self.resyncs} resyncs ({self.slipped_s * 1e3:.0f} ms slipped); "
+            f"per-tick lateness p50 {pct(0.5) * 1e6:.0f} us, "
+            f"p99 {pct(0.99) * 1e6:.0f} us, p99.9 {pct(0.999) * 1e6:.0f} us, "
+            f"max {self.late_max_s * 1e6:.0f} us; tick cost {per_tick:.2f} us"
         )
 
 
@@ -116,18 +155,23 @@ def run_realtime(
         due = int((now - t0) * hz) - emulator.ticks
         if due > 0:
             late = now - (t0 + (emulator.ticks + 1) / hz)
-            st.lateness_s.append(late)
-            if late > RESYNC_S:
-                st.resyncs += 1
-                emulator.overruns += 1
-                t0 = now - emulator.ticks / hz
-                due = 1
-            elif late > OVERRUN_S:
+            if late > OVERRUN_S:
                 st.overruns += 1
                 emulator.overruns += 1
-            b0 = time.perf_counter()
-            emulator.run_ticks(due)
-            st.busy_s += time.perf_counter() - b0
+            stall = 0.0
+            if late > RESYNC_S:  # the emulator stalled: slip, do not replay (module docstring)
+                st.resyncs += 1
+                st.slipped_s += late
+                stall = late  # the one tick run now was due that long ago
+                t0 = now - (emulator.ticks + 1) / hz
+                due = 1
+            busy = 0.0
+            for _ in range(due):  # one at a time: each tick's own lateness is measured
+                start = time.monotonic()
+                st.record_lateness(stall or start - (t0 + (emulator.ticks + 1) / hz))
+                emulator.run_ticks(1)
+                busy += time.monotonic() - start
+            st.busy_s += busy
             st.ticks += due
         out = pending + emulator.take_output()
         if out:

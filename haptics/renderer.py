@@ -2,7 +2,7 @@
 
 Per tick, from the encoder depth of the master and its velocity estimate:
 
-1. watchdog: no valid host frame for ``watchdog_s`` (50 ms) while armed -> safe state;
+1. watchdog: no accepted host frame for ``watchdog_s`` (50 ms) while armed -> safe state;
 2. finite checks on the inputs and on the force command (non-finite -> safe state);
 3. the cutting law (:mod:`ctdrill.model.cutting`) on the uploaded table: the front (deepest drill
    depth) yields to the hand, never past the stop depth; vibration from the device clock while
@@ -14,7 +14,8 @@ Per tick, from the encoder depth of the master and its velocity estimate:
    has cooled to half.
 
 States: ``IDLE`` (zero force), ``CUTTING`` (armed), ``STOPPED`` (armed, the front reached the
-stop depth), ``SAFE`` (zero force, the drill stopped: the front frozen; latched until ARM).
+stop depth), ``SAFE`` (zero force, the drill stopped: the front frozen). SAFE is latched: only
+a successful ARM (or a power cycle) leaves it; DISARM, HELLO and a new table do not.
 The drill depth is ``min(master, front)``: it never exceeds the stop depth whatever the hand does.
 
 Force convention: ``force_cmd_n >= 0`` opposes the advance (pushes the hand back along -depth).
@@ -154,12 +155,14 @@ class Renderer:
         return None
 
     def disarm(self) -> None:
-        """Zero force, idle."""
-        self.state = int(DeviceState.IDLE)
+        """Zero force; idle unless the safe state is latched (it stays safe until ARM)."""
+        if self.state != DeviceState.SAFE:
+            self.state = int(DeviceState.IDLE)
         self.force_cmd_n = 0.0
 
     def host_frame(self, now_s: float) -> None:
-        """A valid host frame arrived: feed the watchdog."""
+        """An accepted host frame arrived (decoded, host type, this session, fresh seq): feed
+        the watchdog."""
         self.last_host_s = now_s
 
     def host_stop(self, now_s: float) -> None:

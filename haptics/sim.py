@@ -49,8 +49,10 @@ class SimulatedDevice(HostDevice):
     ----------
     start_mm : float
         Initial master depth, mm.
+    seed : int
+        Seeds the session nonce and the host's HELLO token: a session is reproducible.
     """
 
-    def __init__(self, *, start_mm: float = 0.0, timeout_s: float = 1.0) -> None:
-        self.emulator = DeviceEmulator(start_mm=start_mm)
-        super().__init__(SimLink(self.emulator), timeout_s=timeout_s)
+    def __init__(self, *, start_mm: float = 0.0, timeout_s: float = 1.0, seed: int = 0) -> None:
+        self.emulator = DeviceEmulator(start_mm=start_mm, nonce_seed=seed)
+        super().__init__(SimLink(self.emulator), timeout_s=timeout_s, token_seed=seed)

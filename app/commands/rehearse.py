@@ -17,7 +17,9 @@ def register(subparsers: Any) -> None:
             "Compute the force table along the plan, upload it with the stop depth to the "
             "device, drive it with a simulated operator and log the session. Writes "
             "OUT/session.csv (time_s, master_mm, drill_mm, force_cmd_n, state) and "
-            "OUT/summary.json."
+            "OUT/summary.json, replacing OUT whole. The host watches the telemetry: a drill "
+            "past the stop, a silent or faulted device or its own error ends the session with "
+            "STOP and DISARM, the fault recorded in summary.json and exit code 3."
         ),
     )
     p.add_argument("--dicom", type=Path, required=True, help="CT series folder")
@@ -57,8 +59,8 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the rehearsal and print a one-line summary."""
-    from ctdrill.app.rehearse import rehearse
+    """Run the rehearsal and print a one-line summary; 3 if it ended on a device fault."""
+    from ctdrill.app.rehearse import ending_message, exit_code, rehearse
 
     s = rehearse(
         dicom=args.dicom,
@@ -81,4 +83,7 @@ def run(args: argparse.Namespace) -> int:
             "warning: the plan has no landmark: no safety margin was enforced, the drill "
             "stopped only at the planned depth or the volume's end\n"
         )
-    return 0
+    code = exit_code(s)
+    if code != 0:
+        sys.stderr.write(f"error: {ending_message(s)}; see {args.out}/summary.json\n")
+    return code

@@ -3,7 +3,6 @@ device in its own process, telemetry the GUI polls, and the clearance at the liv
 
 from __future__ import annotations
 
-import json
 import multiprocessing
 import queue
 import time
@@ -17,8 +16,9 @@ from serial.tools import list_ports
 from ctdrill.app.export import DEFAULT_RATE_HZ, ExportJob, write_exports
 from ctdrill.app.gui.session_process import SessionJob, run_job
 from ctdrill.app.pipeline import PathResult
+from ctdrill.app.rehearse import rehearsal_summary, summary_json
 from ctdrill.haptics.profile_table import ProfileTable
-from ctdrill.haptics.session import Row, SessionCsv
+from ctdrill.haptics.session import Row, session_csv_text
 
 #: The device-choice label of the simulator.
 SIMULATOR = "simulator"
@@ -82,7 +82,11 @@ class RehearsalRun:
         self.series_uid = series_uid
         self.table = ProfileTable.from_profile(result.profile, result.stop_depth_mm)
         self.rows: list[Row] = []
-        self.session: dict[str, Any] | None = None  # SessionResult.to_json() when done
+        #: SessionResult.to_json() of a session that ran its course or ended on a fault.
+        self.session: dict[str, Any] | None = None
+        #: SessionResult.to_json() once the session ended in any way (also when cancelled);
+        #: None if it never began (the device failed before ARM).
+        self.record: dict[str, Any] | None = None
         self.error = ""
         self.cancelled = False
         self._record = record
@@ -148,10 +152,18 @@ class RehearsalRun:
                 )
             else:
                 self._ended = True
+                if kind in ("done", "fault", "cancelled"):
+                    self.record = payload
                 if kind == "done":
                     self.session = payload
                 elif kind == "cancelled":
                     self.cancelled = True
+                elif kind == "fault":
+                    self.session = payload
+                    self.error = (
+                        f"the session ended on a fault ({payload['reason']}); the device was "
+                        "sent STOP and DISARM"
+                    )
                 else:
                     self.error = str(payload)
         if not self._ended and self._process.exitcode is not None:
@@ -191,34 +203,26 @@ class RehearsalRun:
     def export(self, out_dir: Path) -> list[Path]:
         """Write the path export (``force.csv``, ``profile.csv``, ``summary.json``,
         ``force.png``, as ``ctdrill export``) and the recorded session (``session/session.csv``,
-        ``session/summary.json``, as ``ctdrill rehearse``) into ``out_dir``."""
-        written = write_exports(
+        ``session/summary.json``, as ``ctdrill rehearse``) into ``out_dir``, all in one swap
+        (the folder is replaced whole or not at all)."""
+        summary = rehearsal_summary(
+            {} if self.record is None else self.record,
+            self.result,
+            self.table,
+            operator=self.operator_spec,
+            device=self.device_spec,
+            duration_s=self.duration_s,
+            seed=0,
+        )
+        summary.update({"cancelled": self.cancelled, "recorded_rows": len(self.rows)})
+        return write_exports(
             [ExportJob(self.result, "")],
             out_dir,
             feed_mm_s=None,
             rate_hz=DEFAULT_RATE_HZ,
             series_uid=self.series_uid,
+            extra_files={
+                "session/session.csv": session_csv_text(self.rows),
+                "session/summary.json": summary_json(summary),
+            },
         )
-        session_dir = Path(out_dir) / "session"
-        session_dir.mkdir(parents=True, exist_ok=True)
-        csv_out = SessionCsv(session_dir / "session.csv")
-        try:
-            csv_out.write(self.rows)
-        finally:
-            csv_out.close()
-        summary: dict[str, Any] = {} if self.session is None else dict(self.session)
-        summary.update(
-            {
-                "stop_reason": self.result.stop_reason,
-                "planned_depth_mm": float(self.result.planned_depth_mm),
-                "calibration": self.result.calibration.name,
-                "operator": self.operator_spec,
-                "device": self.device_spec,
-                "cancelled": self.cancelled,
-                "recorded_rows": len(self.rows),
-            }
-        )
-        (session_dir / "summary.json").write_text(
-            json.dumps(summary, indent=2) + "\n", encoding="utf-8"
-        )
-        return [*written, session_dir / "session.csv", session_dir / "summary.json"]

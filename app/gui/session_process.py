@@ -7,9 +7,11 @@ host-loop *thread* into the watchdog over a real serial link; so the loop runs h
 separate interpreter, and talks to the window through a queue:
 
 - ``("rows", rows)`` every block: ``(time_s, master_mm, drill_mm, force_cmd_n, state)``;
-- then exactly one of ``("done", summary)`` (``SessionResult.to_json()``),
-  ``("cancelled", "")`` (the stop event was set: the device was sent its emergency stop) or
-  ``("error", message)``.
+- then exactly one of ``("done", summary)`` (``SessionResult.to_json()`` of a complete
+  session), ``("fault", summary)`` (the host ended it on a device fault or its own error,
+  after STOP and DISARM: ``summary["reason"]`` says which), ``("cancelled", summary)`` (the
+  stop event was set: the device was sent STOP and DISARM) or ``("error", message)`` (before
+  ARM: nothing was armed).
 """
 
 from __future__ import annotations
@@ -21,7 +23,8 @@ from typing import Any, Protocol
 
 from ctdrill.app.rehearse import open_device
 from ctdrill.haptics.profile_table import ProfileTable
-from ctdrill.haptics.session import Row, parse_operator, run_session
+from ctdrill.haptics.run import run_session
+from ctdrill.haptics.session import Row, parse_operator
 
 
 class _Queue(Protocol):
@@ -54,10 +57,6 @@ class SessionJob:
     realtime: bool
 
 
-class _Cancelled(Exception):
-    """Raised from the sink to end a session the user stopped."""
-
-
 def run_job(job: SessionJob, out: _Queue, stop: _Event) -> None:
     """Entry point of the control-loop process: run ``job``, report on ``out``."""
     try:
@@ -69,8 +68,6 @@ def run_job(job: SessionJob, out: _Queue, stop: _Event) -> None:
     wall0 = time.monotonic()
 
     def sink(rows: list[Row]) -> None:
-        if stop.is_set():
-            raise _Cancelled
         out.put(("rows", rows))
         if job.realtime:  # the simulator's time only advances in wait(): keep it to the clock
             ahead = rows[-1][0] - (time.monotonic() - wall0)
@@ -78,17 +75,14 @@ def run_job(job: SessionJob, out: _Queue, stop: _Event) -> None:
                 stop.wait(ahead)
 
     try:
-        result = run_session(device, job.table, operator, job.duration_s, sink=sink)
-        out.put(("done", result.to_json()))
-    except _Cancelled:
-        try:
-            device.stop()
-            out.put(("cancelled", ""))
-        except (ValueError, OSError) as exc:
-            out.put(("error", f"emergency stop not acknowledged: {exc}"))
-    except (ValueError, OSError) as exc:  # a device that does not answer, a lost port
+        result = run_session(
+            device, job.table, operator, job.duration_s, sink=sink, should_stop=stop.is_set
+        )
+        kind = {"complete": "done", "cancelled": "cancelled"}.get(result.outcome, "fault")
+        out.put((kind, result.to_json()))
+    except (ValueError, OSError) as exc:  # before ARM: a device that does not answer
         out.put(("error", str(exc) or type(exc).__name__))
-    except Exception as exc:  # a bug: say so, keep the traceback on stderr
+    except Exception as exc:  # a bug (the device was made safe first): say so
         traceback.print_exc()
         out.put(("error", f"internal error: {exc!r}"))
     finally:

@@ -49,6 +49,10 @@ def test_rehearse_writes_the_contract_files_and_stops_at_the_margin(tmp_path: Pa
     summary = json.loads((out / "summary.json").read_text())
     for key in ("stop_depth_mm", "max_drill_mm", "tick_rate_hz", "overruns", "faults"):
         assert key in summary
+    assert summary["complete"] is True and summary["reason"] is None
+    # nothing from before ARM (the power-on RESET flag); at 78 N the limits engage
+    flags = {f for e in summary["faults"] for f in e["flags"]}
+    assert {e["source"] for e in summary["faults"]} == {"device"} and "reset" not in flags
     assert summary["stop_reason"] == "margin"
     assert summary["calibration"] == "bone-illustrative" and summary["calibration_illustrative"]
     stop = summary["stop_depth_mm"]
@@ -64,10 +68,15 @@ def test_rehearse_writes_the_contract_files_and_stops_at_the_margin(tmp_path: Pa
     assert summary["overruns"] == 0
 
 
-def test_same_seed_replays_identically_and_link_loss_goes_safe(tmp_path: Path) -> None:
+def test_same_seed_replays_identically_and_link_loss_ends_with_exit_3(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     faults = ["--fault", "garbage@0.2", "--fault", "link-loss@0.5", "--seed", "3"]
-    assert _rehearse(tmp_path / "a", *faults, duration="0.8") == 0
-    assert _rehearse(tmp_path / "b", *faults, duration="0.8") == 0
+    assert _rehearse(tmp_path / "a", *faults, duration="0.8") == 3
+    assert _rehearse(tmp_path / "b", *faults, duration="0.8") == 3
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2 and all(e.startswith("error: the session ended early") for e in err)
+    assert "STOP and DISARM were not sent" in err[0]  # the injected link loss cut the line
     a = (tmp_path / "a" / "session.csv").read_bytes()
     assert a == (tmp_path / "b" / "session.csv").read_bytes()
     rows = _rows(tmp_path / "a" / "session.csv")
@@ -75,10 +84,29 @@ def test_same_seed_replays_identically_and_link_loss_goes_safe(tmp_path: Path) -
     assert 0.5 < first_safe <= 0.552
     summary = json.loads((tmp_path / "a" / "summary.json").read_text())
     assert summary["final_state"] == "safe"
+    assert summary["complete"] is False and summary["outcome"] == "fault"
+    assert "watchdog" in summary["reason"]
     assert [f["kind"] for f in summary["faults"] if f["source"] == "injected"] == [
         "garbage",
         "link-loss",
     ]
+
+
+def test_a_failing_device_leaves_the_previous_session_intact(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    assert _rehearse(out, duration="0.2") == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert set(before) == {"session.csv", "summary.json"}
+    # the device cannot be opened: exit 2, nothing of the last session touched
+    assert _rehearse(out, "--device", "serial:/nonexistent/tty", duration="0.2") == 2
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    # a session that ends on a fault replaces it whole, with its summary
+    assert _rehearse(out, "--fault", "reset@0.1", duration="0.3") == 3
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] is False and "rebooted" in summary["reason"]
+    assert summary["calibration_illustrative"] is True
+    assert (out / "session.csv").read_bytes() != before["session.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no staging left over
 
 
 def test_script_operator_drives_the_session(tmp_path: Path) -> None:

@@ -13,11 +13,11 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 @contextmanager
-def emulator_on_pty(link: Path) -> Iterator[Path]:
-    """Run the device emulator linked at ``link`` (a serial port stand-in) and yield the link.
+def emulator_process(link: Path) -> Iterator[subprocess.Popen[str]]:
+    """Run the device emulator linked at ``link`` (a serial port stand-in); yield its process.
 
-    On exit it is stopped with SIGTERM and must end cleanly: exit code 0, its closing report on
-    stderr, and the link removed.
+    On exit it is stopped with SIGTERM (after SIGCONT, should a test have frozen it) and must
+    end cleanly: exit code 0, its closing report on stderr, and the link removed.
     """
     proc = subprocess.Popen(
         [sys.executable, "-m", "ctdrill.app.cli", "emulate", "--pty-link", str(link)],
@@ -30,10 +30,18 @@ def emulator_on_pty(link: Path) -> Iterator[Path]:
         assert proc.stdout is not None
         line = proc.stdout.readline()
         assert line.startswith(f"emulating on {link} -> /dev/pts/"), line
-        yield link
+        yield proc
     finally:
+        proc.send_signal(signal.SIGCONT)
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=10)
     assert proc.returncode == 0, err
     assert "emulator stopped" in err
     assert not link.exists() and not link.is_symlink()  # the link is cleaned up
+
+
+@contextmanager
+def emulator_on_pty(link: Path) -> Iterator[Path]:
+    """:func:`emulator_process`, yielding the link."""
+    with emulator_process(link):
+        yield link

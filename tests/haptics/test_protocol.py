@@ -82,49 +82,87 @@ def test_cobs_254_run() -> None:
     assert cobs_decode(cobs_encode(data)) == data
 
 
-# Frames: header (version 01, type, seq u16 LE, time_us u64 LE) + body + CRC-16 LE, COBS, 00.
+# Frames: header (version 02, type, seq u32 LE, session u32 LE, time_us u64 LE) + body +
+# CRC-16 LE, COBS, 00. Session 0x1A2B3C4D = 4d 3c 2b 1a. "raw" is spelled field by field; its
+# last two bytes are checked against the bit-by-bit CRC, the wire against the raw by COBS.
 FRAME_TABLE = [
-    # HEARTBEAT seq 5: raw 01 22 05 00 | 8x 00 | crc 0x4F35 -> 35 4F
-    (Heartbeat(), 5, 0, "04 01 22 05 01 01 01 01 01 01 01 01 03 35 4f 00"),
-    # HELLO seq 1, body 01 (version): raw 01 01 01 00 | 8x 00 | 01 | crc 0xA672
-    (Hello(), 1, 0, "04 01 01 01 01 01 01 01 01 01 01 01 04 01 72 a6 00"),
-    # ACK of (HEARTBEAT, seq 5), seq 7, t = 1000 us = e8 03: raw 01 40 07 00 e8 03 00.. | 22 05 00
-    (Ack(0x22, 5), 7, 1000, "04 01 40 07 03 e8 03 01 01 01 01 01 03 22 05 03 9f 62 00"),
-    # NAK (ARM, seq 9, NOT_READY=5), seq 2, t = 16 us
-    (Nak(0x20, 9, 5), 2, 16, "04 01 41 02 02 10 01 01 01 01 01 01 03 20 09 04 05 33 7e 00"),
+    # HEARTBEAT seq 5: 02 22 | 05 00 00 00 | 4d 3c 2b 1a | 8x 00 | crc 0x3AF0
+    (
+        Heartbeat(),
+        5,
+        0x1A2B3C4D,
+        0,
+        "02 22 05000000 4d3c2b1a 0000000000000000 f03a",
+        "04 02 22 05 01 01 05 4d 3c 2b 1a 01 01 01 01 01 01 01 03 f0 3a 00",
+    ),
+    # HELLO seq 1, no session yet; body: version 02, host token 0xCAFEF00D
+    (
+        Hello(2, 0xCAFEF00D),
+        1,
+        0,
+        0,
+        "02 01 01000000 00000000 0000000000000000 02 0df0feca f162",
+        "04 02 01 01 01 01 01 01 01 01 01 01 01 01 01 01 01 01 08 02 0d f0 fe ca f1 62 00",
+    ),
+    # ACK of (HEARTBEAT, seq 5), device seq 7, t = 1000 us = e8 03
+    (
+        Ack(0x22, 5),
+        7,
+        0x1A2B3C4D,
+        1000,
+        "02 40 07000000 4d3c2b1a e803000000000000 22 05000000 2836",
+        "04 02 40 07 01 01 07 4d 3c 2b 1a e8 03 01 01 01 01 01 03 22 05 01 01 03 28 36 00",
+    ),
+    # NAK (ARM, seq 9, NOT_READY=5), device seq 2, t = 16 us
+    (
+        Nak(0x20, 9, 5),
+        2,
+        0x1A2B3C4D,
+        16,
+        "02 41 02000000 4d3c2b1a 1000000000000000 20 09000000 05 fe82",
+        "04 02 41 02 01 01 06 4d 3c 2b 1a 10 01 01 01 01 01 01 03 20 09 01 01 04 05 fe 82 00",
+    ),
     # TELEMETRY seq 0x1234, t = 0x0102030405 us; tick 10, master 1.5 (00 00 c0 3f),
     # drill 1.0 (00 00 80 3f), velocity -2.0 (00 00 00 c0), force_cmd 3.25 (00 00 50 40),
     # force_est 0.0, state 1 (cutting), faults 0, overruns 0
     (
         Telemetry(10, 1.5, 1.0, -2.0, 3.25, 0.0, 1, 0, 0),
         0x1234,
+        0x1A2B3C4D,
         0x0102030405,
-        "0a 01 30 34 12 05 04 03 02 01 01 01 02 0a 01 01 01 01 03 c0 3f 01 03 80 3f 01 01 02 c0"
-        " 01 03 50 40 01 01 01 02 01 01 01 01 03 73 d9 00",
+        "02 30 34120000 4d3c2b1a 0504030201000000 0a000000 0000c03f 0000803f 000000c0"
+        " 00005040 00000000 01 0000 0000 2d9e",
+        "05 02 30 34 12 01 0a 4d 3c 2b 1a 05 04 03 02 01 01 01 02 0a 01 01 01 01 03 c0 3f 01 03"
+        " 80 3f 01 01 02 c0 01 03 50 40 01 01 01 02 01 01 01 01 03 2d 9e 00",
     ),
     # PROFILE_CHUNK seq 3, first 0, 1 row (1.0, 0.5, 0.25) = 00 00 80 3f, 00 00 00 3f, 00 00 80 3e
     (
         ProfileChunk(0, ((1.0, 0.5, 0.25),)),
         3,
+        0x1A2B3C4D,
         0,
-        "04 01 11 03 01 01 01 01 01 01 01 01 01 01 02 01 01 03 80 3f 01 01 02 3f 01 04 80 3e c1"
-        " 01 00",
+        "02 11 03000000 4d3c2b1a 0000000000000000 0000 01 0000803f 0000003f 0000803e d954",
+        "04 02 11 03 01 01 05 4d 3c 2b 1a 01 01 01 01 01 01 01 01 01 02 01 01 03 80 3f 01 01 02"
+        " 3f 01 05 80 3e d9 54 00",
     ),
 ]
 
 
-@pytest.mark.parametrize(("message", "seq", "time_us", "wire"), FRAME_TABLE)
-def test_frame_table(message: object, seq: int, time_us: int, wire: str) -> None:
-    frame = h(wire)
-    assert encode(message, seq=seq, time_us=time_us) == frame  # type: ignore[arg-type]
-    raw = cobs_decode(frame[:-1])
-    assert raw[-2:] == struct.pack("<H", _crc16_bitwise(raw[:-2]))
-    assert decode(frame[:-1]) == Packet(seq=seq, time_us=time_us, message=message)  # type: ignore[arg-type]
+@pytest.mark.parametrize(("message", "seq", "session", "time_us", "raw", "wire"), FRAME_TABLE)
+def test_frame_table(
+    message: object, seq: int, session: int, time_us: int, raw: str, wire: str
+) -> None:
+    frame, plain = h(wire), h(raw)
+    assert plain[-2:] == struct.pack("<H", _crc16_bitwise(plain[:-2]))
+    assert cobs_decode(frame[:-1]) == plain
+    assert encode(message, seq=seq, session=session, time_us=time_us) == frame  # type: ignore[arg-type]
+    packet = decode(frame[:-1])
+    assert packet == Packet(seq=seq, session=session, time_us=time_us, message=message)  # type: ignore[arg-type]
 
 
 ALL_MESSAGES = [
     Hello(),
-    Version(1, 0, 1, 0, 10000),
+    Version(2, 0, 1, 0, 10000, 0xFFFFFFFF),
     Limits(78.0, 20.0, 5684.0, 50, 4096, -20.0, 60.0),
     ProfileBegin(800, 0.0625, 0.25, 30.0, 60.0, 12.5),  # float32-exact values
     ProfileChunk(16, tuple((float(i), 0.5, 0.25) for i in range(MAX_CHUNK_ROWS))),
@@ -139,10 +177,10 @@ ALL_MESSAGES = [
 
 @pytest.mark.parametrize("message", ALL_MESSAGES)
 def test_round_trip(message: object) -> None:
-    frame = encode(message, seq=70000, time_us=2**40)  # type: ignore[arg-type]
+    frame = encode(message, seq=70000, session=0xFFFFFFFF, time_us=2**40)  # type: ignore[arg-type]
     assert frame.count(0) == 1 and frame[-1] == 0
     packet = decode(frame[:-1])
-    assert packet == Packet(seq=70000 & 0xFFFF, time_us=2**40, message=message)  # type: ignore[arg-type]
+    assert packet == Packet(seq=70000, session=0xFFFFFFFF, time_us=2**40, message=message)  # type: ignore[arg-type]
 
 
 def test_profile_crc32_covers_header_and_rows() -> None:
@@ -169,14 +207,19 @@ def test_typed_errors() -> None:
     raw[-2:] = struct.pack("<H", crc16_ccitt_false(bytes(raw[:-2])))
     with pytest.raises(MessageError, match="unknown message type 0x7f"):
         decode(cobs_encode(bytes(raw)))
-    raw[0] = 2  # version 2
+    with pytest.raises(MessageError) as unknown:
+        decode(cobs_encode(bytes(raw)))
+    assert unknown.value.header == (0x7F, 1, 0)  # the header was readable: a NAK can echo it
+    raw[0] = 1  # version 1
     raw[-2:] = struct.pack("<H", crc16_ccitt_false(bytes(raw[:-2])))
-    with pytest.raises(MessageError, match="version 2"):
+    with pytest.raises(MessageError, match="version 1"):
         decode(cobs_encode(bytes(raw)))
     with pytest.raises(MessageError):
         encode(ProfileChunk(0, ()), seq=0)
     with pytest.raises(MessageError):
         encode(Ack(300, 0), seq=0)
+    with pytest.raises(MessageError):
+        encode(Heartbeat(), seq=2**32)
     assert issubclass(ProtocolError, ValueError)
 
 

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import pytest
 
 from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import (
     SESSION_COLUMNS,
     Operator,
@@ -14,7 +16,7 @@ from ctdrill.haptics.session import (
     SessionInputError,
     parse_fault,
     parse_operator,
-    run_session,
+    session_csv_text,
 )
 from ctdrill.haptics.sim import SimulatedDevice
 
@@ -80,33 +82,46 @@ def test_same_seed_same_session_and_garbage_is_harmless() -> None:
     rows_a, sum_a = _run(["garbage@0.1", "garbage@0.2", "delay@0.3:20"], seed=7)
     rows_b, sum_b = _run(["garbage@0.1", "garbage@0.2", "delay@0.3:20"], seed=7)
     assert rows_a == rows_b and sum_a == sum_b
-    clean, _ = _run([])
+    clean, clean_summary = _run([])
     assert rows_a == clean  # rejected garbage and a 20 ms delay change nothing
     assert sum_a["final_state"] == "cutting"
+    assert sum_a["complete"] is True and sum_a["outcome"] == "complete"
+    assert sum_a["reason"] is None
     assert [f["kind"] for f in sum_a["faults"]] == ["garbage", "garbage", "delay"]
+    assert clean_summary["faults"] == []  # nothing from before ARM (the power-on RESET flag)
     assert sum_a["tick_rate_hz"] == pytest.approx(10_000.0, rel=1e-3)
     assert sum_a["overruns"] == 0
     assert len(rows_a) == 600  # 1 kHz telemetry
+    assert rows_a[0][0] == 0.0 and rows_a[0][4] == "cutting"  # the first row is armed
 
 
-def test_link_loss_and_long_delay_trip_the_watchdog() -> None:
+def test_link_loss_and_long_delay_trip_the_watchdog_and_end_the_session() -> None:
     rows, summary = _run(["link-loss@0.3"])
     safe = [r for r in rows if r[4] == "safe"]
     assert safe and all(r[3] == 0.0 for r in safe)
     assert 0.3 < safe[0][0] <= 0.3 + 0.05 + 0.002
+    assert rows[-1][0] < 0.3 + 0.05 + 0.011  # the host ended the session within a block
     events = [f for f in summary["faults"] if f["source"] == "device"]
     assert events[0]["flags"] == ["watchdog"]
     assert summary["final_state"] == "safe"
+    assert summary["complete"] is False and summary["outcome"] == "fault"
+    assert summary["reason"].startswith("device_fault: the device raised watchdog")
+    host = summary["faults"][-1]
+    assert host["source"] == "host" and host["stop_acknowledged"] is False  # the line is cut
     _, delayed = _run(["delay@0.3:80"])
     assert delayed["final_state"] == "safe"  # 80 ms without a frame: tripped, stays latched
+    assert delayed["outcome"] == "fault"
+    # the delay ended before the host noticed: STOP and DISARM reached the device
+    assert delayed["faults"][-1]["stop_acknowledged"] is True
+    assert delayed["faults"][-1]["disarm_acknowledged"] is True
 
 
-def test_reset_is_reported() -> None:
+def test_reset_ends_the_session() -> None:
     rows, summary = _run(["reset@0.3"])
-    assert rows[-1][4] == "idle"
+    assert rows[-1][0] < 0.3 + 0.011
     kinds = [(f["source"], f["kind"]) for f in summary["faults"]]
-    assert ("injected", "reset") in kinds and ("device", "state") in kinds
-    assert any("reset" in f.get("flags", []) for f in summary["faults"])
+    assert kinds == [("injected", "reset"), ("host", "device_reset")]
+    assert summary["outcome"] == "fault" and "rebooted" in summary["reason"]
 
 
 def test_session_csv(tmp_path: Path) -> None:
@@ -117,8 +132,23 @@ def test_session_csv(tmp_path: Path) -> None:
     assert path.read_text().splitlines()[1] == "0.0010,1.00000,0.50000,2.2500,cutting"
     out.close()
     assert SESSION_COLUMNS == ("time_s", "master_mm", "drill_mm", "force_cmd_n", "state")
+    assert session_csv_text([(0.001, 1.0, 0.5, 2.25, "cutting")]) == path.read_text()
 
 
 def test_bad_duration() -> None:
     with pytest.raises(SessionInputError, match="duration"):
         run_session(SimulatedDevice(), TABLE, parse_operator("push:1"), 0.0)
+
+
+def test_a_long_script_costs_log_time_per_block(tmp_path: Path) -> None:
+    # 200 000 rows (a 1M-row script made the host's 10 ms blocks late: a linear scan per block)
+    script = tmp_path / "long.csv"
+    script.write_text(
+        "time_s,force_n\n" + "".join(f"{i * 1e-3:.3f},{i % 50}\n" for i in range(200_000))
+    )
+    op = parse_operator(f"script:{script}")
+    start = time.perf_counter()
+    values = [op.force_at_n(t) for t in (0.0005, 99.9995, 150.0, 199.9994, 250.0)]
+    assert time.perf_counter() - start < 0.01
+    # row i: (i ms, i % 50 N), linear between rows, held after the last (199.999 s, 49 N)
+    assert values == pytest.approx([0.5, 24.5, 0.0, 49.0, 49.0])

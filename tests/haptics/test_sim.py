@@ -29,10 +29,11 @@ from ctdrill.haptics.protocol import (
     cobs_decode,
     cobs_encode,
     crc16_ccitt_false,
-    encode,
 )
-from ctdrill.haptics.session import parse_operator, run_session
+from ctdrill.haptics.run import run_session
+from ctdrill.haptics.session import parse_operator
 from ctdrill.haptics.sim import SimulatedDevice
+from tests.haptics.wire import Wire
 
 
 def _connected(table: ProfileTable) -> SimulatedDevice:
@@ -104,10 +105,12 @@ def test_drill_never_passes_the_stop_depth(
 @settings(max_examples=50)
 @given(st.lists(st.binary(max_size=300), max_size=8))
 def test_random_bytes_never_crash_or_arm_the_device(chunks: list[bytes]) -> None:
-    emu = DeviceEmulator()
+    emu = DeviceEmulator(nonce_seed=1)
+    wire = Wire(emu)
+    wire.hello()
     table = ProfileTable.slab(s0_n=4.0, top_mm=0.0, bottom_mm=3.0, stop_depth_mm=2.0)
-    for i, m in enumerate(table.upload_messages()):
-        emu.receive(encode(m, seq=i))
+    for m in table.upload_messages():
+        wire.send(m)
     for chunk in chunks:
         emu.receive(chunk)
         emu.run_ticks(10)
@@ -196,28 +199,31 @@ def test_device_refuses_bad_uploads_and_arming_without_a_table() -> None:
 
 
 def test_garbage_and_corrupt_frames_are_refused_without_effect() -> None:
-    emu = DeviceEmulator()
+    emu = DeviceEmulator(nonce_seed=1)
+    wire = Wire(emu)
+    wire.hello()
     table = ProfileTable.slab(s0_n=4.0, top_mm=0.0, bottom_mm=3.0, stop_depth_mm=2.0)
-    for i, m in enumerate(table.upload_messages()):
-        emu.receive(encode(m, seq=i))
-    arm = bytearray(cobs_decode(encode(Arm(), seq=99)[:-1]))
+    for m in table.upload_messages():
+        wire.send(m)
+    wire.packets()
+    arm = bytearray(cobs_decode(wire.frame(Arm())[:-1]))
     arm[-1] ^= 0xFF  # corrupt CRC: must not arm
     emu.receive(cobs_encode(bytes(arm)) + b"\x00")
     emu.receive(bytes(range(256)) * 3 + b"\x00")
-    raw = bytearray(arm)
-    raw[1] = 0x30  # TELEMETRY type with ARM's empty body
+    raw = bytearray(cobs_decode(wire.frame(Arm())[:-1]))
+    raw[1] = 0x23  # STOP's type with a 1-byte body: wrong length
+    raw[-2:-2] = b"\x07"
     raw[-2:] = struct.pack("<H", crc16_ccitt_false(bytes(raw[:-2])))
     emu.receive(cobs_encode(bytes(raw)) + b"\x00")
-    # a valid TELEMETRY frame sent to the device: wrong direction
-    emu.receive(encode(Telemetry(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0), seq=100))
+    # a valid TELEMETRY frame sent to the device: wrong direction, dropped without a reply
+    emu.receive(wire.frame(Telemetry(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0)))
     emu.run_ticks(100)
     assert emu.renderer.state == DeviceState.IDLE
-    replies = [p.message for p in FrameReader().feed(emu.take_output()) if isinstance(p, Packet)]
-    naks = [m for m in replies if isinstance(m, Nak)]
+    naks = [p.message for p in wire.packets() if isinstance(p.message, Nak)]
     assert naks[0] == Nak(0, 0, NakReason.BAD_FRAME)  # the corrupt ARM
-    assert Nak(0, 0, NakReason.BAD_LENGTH) in naks
-    assert naks[-1] == Nak(0x30, 100, NakReason.UNKNOWN_TYPE)
-    assert emu.frames_rejected >= 3
+    assert Nak(0x23, wire.seq - 1, NakReason.BAD_LENGTH) in naks  # header echoed
+    assert not any(n.acked_type == 0x30 for n in naks)
+    assert emu.frames_rejected >= 4
 
 
 def test_reset_loses_the_table_and_reports_it() -> None:
@@ -229,7 +235,13 @@ def test_reset_loses_the_table_and_reports_it() -> None:
     assert dev.poll()[-1].faults & Fault.RESET == 0
     dev.sim_reset()
     dev.wait(0.02)
-    last = dev.poll()[-1]
-    assert last.state == DeviceState.IDLE and last.faults & Fault.RESET
+    assert dev.poll() == [] and dev.lost_session()  # its telemetry no longer has our session
+    state = dev.emulator.renderer
+    assert state.state == DeviceState.IDLE and not state.has_profile
+    with pytest.raises(DeviceError, match="BAD_SESSION"):
+        dev.arm()
+    dev.hello()  # a new session: the table is gone
     with pytest.raises(DeviceError, match="NOT_READY"):
         dev.arm()
+    dev.wait(0.02)
+    assert dev.poll()[-1].faults & Fault.RESET

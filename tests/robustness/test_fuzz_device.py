@@ -1,7 +1,8 @@
 """Fuzz the device emulator with sequences of well-framed host commands carrying hostile values.
 
 Random uploads (valid and corrupt), ARM/DISARM/STOP/RESET, heartbeats, simulated hands pushing
-up to +-100 N or with non-finite values, and control ticks, in any order. After every step the
+up to +-100 N or with non-finite values, and control ticks, in any order, in a session opened
+with HELLO (a SIM_RESET ends it: what follows is refused, as it must be). After every step the
 device must hold its safety invariants: no exception, a finite force command within 0..78 N,
 the drill never deeper than the uploaded stop depth, and only decodable frames on the wire.
 """
@@ -141,11 +142,13 @@ def check_invariants(device: object, *, ticked: bool) -> None:
 @given(steps=actions())
 def test_fuzz_device_commands_keep_safety_invariants(steps: list[tuple[str, object]]) -> None:
     from ctdrill.haptics.emulator import DeviceEmulator
-    from ctdrill.haptics.protocol import FrameReader, Heartbeat, MessageError, Packet, encode
+    from ctdrill.haptics.protocol import FrameReader, Heartbeat, MessageError, Packet
+    from tests.haptics.wire import Wire
 
-    device = DeviceEmulator()
+    device = DeviceEmulator(nonce_seed=0)
+    wire = Wire(device)
+    wire.hello()
     reader = FrameReader()
-    seq = 0
     deepest = 0.0
     for action, arg in steps:
         if action == "tick":
@@ -156,15 +159,16 @@ def test_fuzz_device_commands_keep_safety_invariants(steps: list[tuple[str, obje
                 device.run_ticks(n)
                 done += n
                 check_invariants(device, ticked=True)
-                device.receive(encode(Heartbeat(), seq=0))
+                device.receive(wire.frame(Heartbeat()))
         else:
-            seq += 1
             try:
-                frame = encode(arg, seq=seq)  # type: ignore[arg-type]
+                frame = wire.frame(arg)  # type: ignore[arg-type]
             except MessageError:
                 continue  # the host cannot even encode it: nothing reaches the device
             device.receive(frame)
             check_invariants(device, ticked=False)
+            if type(arg).__name__ == "SimReset":
+                wire.hello()  # the power-cycle ended the session: open a new one
         for item in reader.feed(device.take_output()):
             assert isinstance(item, Packet), f"device sent an undecodable frame: {item}"
         deepest = max(deepest, device.renderer.drill_mm)

@@ -1,0 +1,334 @@
+"""The host loop of a rehearsal: arm, stream heartbeats and the operator, log and watch telemetry.
+
+The host runs in blocks of ``block_s`` (10 ms): send a heartbeat and the operator's input,
+let the block's time pass (:meth:`Device.wait`), read the telemetry and hand the rows to a sink
+(``session.csv`` is written and flushed block by block). The same loop runs against the
+simulator (device time, deterministic for a given seed) and a serial device (real time).
+
+The host does not trust the device to be right: every block it checks the telemetry
+(:class:`ctdrill.haptics.watch.TelemetryWatch`) and ends the session when
+
+* the device reports the drill beyond the stop depth by more than the encoder tolerance
+  (0.1 um plus the float32 rounding of the stop depth), or a non-finite position;
+* no telemetry arrived for more than 2 device watchdog periods;
+* the device raised a fault (its watchdog, a non-finite value, a host stop, a reset),
+  left the armed states (safe or idle) or came back without the session (rebooted);
+* the host's own step failed (a write or read error, a sink that cannot write, an ARM or
+  DISARM that was not acknowledged).
+
+It then sends STOP and DISARM (unless an injected ``link-loss`` cut the line), records the
+event in ``faults`` and returns a result with ``complete = False``, ``outcome = "fault"`` and
+the reason: ``ctdrill rehearse`` exits 3. Telemetry from before ARM is not part of the session
+(the host device discards it when the ARM is acknowledged).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import random
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from ctdrill.haptics.device import Device, DeviceError, DeviceRefused, TelemetrySample
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.protocol import OperatorKind
+from ctdrill.haptics.session import (
+    STATE_NAMES,
+    FaultSpec,
+    Operator,
+    Row,
+    SessionInputError,
+)
+from ctdrill.haptics.watch import TelemetryWatch, fault_names
+
+GARBAGE_BYTES = 64
+#: Outcomes of a session.
+OUTCOMES = ("complete", "fault", "cancelled", "interrupted")
+
+
+@dataclass
+class SessionResult:
+    """What a session did (the session fields of ``summary.json``)."""
+
+    stop_depth_mm: float
+    max_drill_mm: float = 0.0
+    max_master_mm: float = 0.0
+    max_force_cmd_n: float = 0.0
+    tick_rate_hz: float = 0.0
+    overruns: int = 0
+    samples: int = 0
+    final_state: str = "idle"
+    faults: list[dict[str, Any]] = field(default_factory=list)
+    complete: bool = False
+    outcome: str = "fault"
+    reason: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready dict."""
+        return {
+            "complete": self.complete,
+            "outcome": self.outcome,
+            "reason": self.reason,
+            "stop_depth_mm": self.stop_depth_mm,
+            "max_drill_mm": self.max_drill_mm,
+            "max_master_mm": self.max_master_mm,
+            "max_force_cmd_n": self.max_force_cmd_n,
+            "tick_rate_hz": self.tick_rate_hz,
+            "overruns": self.overruns,
+            "samples": self.samples,
+            "final_state": self.final_state,
+            "faults": self.faults,
+        }
+
+
+class _Loop:
+    """One armed session's state (:func:`run_session`)."""
+
+    def __init__(
+        self,
+        device: Device,
+        operator: Operator,
+        faults: Sequence[FaultSpec],
+        seed: int,
+        result: SessionResult,
+        sink: Callable[[list[Row]], None] | None,
+    ) -> None:
+        self.device = device
+        self.operator = operator
+        self.kind = OperatorKind.FEED if operator.kind == "feed" else OperatorKind.PUSH
+        self.rng = random.Random(seed)
+        self.result = result
+        self.sink = sink
+        self.start = device.clock_s()
+        self.pending = sorted(faults, key=lambda f: f.time_s)
+        self.link_up = True
+        self.hold_until = -1.0
+        self.held: list[tuple[int, float]] = []
+        self.t0_device: float | None = None
+        self.last: TelemetrySample | None = None
+        self.prev_faults = 0
+        self.rate_first: tuple[int, float] | None = None
+        self.rate_last: tuple[int, float] | None = None
+
+    def now(self) -> float:
+        return self.device.clock_s() - self.start
+
+    def inject(self, now: float) -> None:
+        """Carry out the injected faults that have come due."""
+        while self.pending and self.pending[0].time_s <= now + 1e-9:
+            fault = self.pending.pop(0)
+            self.result.faults.append(
+                {
+                    "time_s": round(now, 4),
+                    "source": "injected",
+                    "kind": fault.kind,
+                    "spec": fault.spec,
+                }
+            )
+            if fault.kind == "link-loss":
+                self.link_up = False
+            elif fault.kind == "garbage" and self.link_up:
+                self.device.write_raw(bytes(self.rng.randrange(256) for _ in range(GARBAGE_BYTES)))
+            elif fault.kind == "delay":
+                self.hold_until = now + fault.duration_ms / 1000.0
+            elif fault.kind == "reset" and self.link_up:
+                self.device.sim_reset()
+
+    def send(self, now: float) -> None:
+        """The block's heartbeat and operator input (held while a delay is injected)."""
+        op = self.operator
+        value = op.value if self.kind == OperatorKind.FEED else op.force_at_n(now)
+        if not self.link_up:
+            return
+        if now < self.hold_until - 1e-9:
+            self.held.append((int(self.kind), value))
+            return
+        for held_kind, held_value in self.held:
+            self.device.heartbeat()
+            self.device.set_operator(held_kind, held_value)
+        self.held.clear()
+        self.device.heartbeat()
+        self.device.set_operator(int(self.kind), value)
+
+    def take(self, samples: list[TelemetrySample]) -> None:
+        """Log a block's telemetry: rows to the sink, maxima, raised flags."""
+        result = self.result
+        rows: list[Row] = []
+        for s in samples:
+            if self.t0_device is None:
+                self.t0_device = s.time_s
+            self.last = s
+            t = s.time_s - self.t0_device
+            rows.append((t, s.master_mm, s.drill_mm, s.force_cmd_n, STATE_NAMES.get(s.state, "?")))
+            result.max_drill_mm = max(result.max_drill_mm, s.drill_mm)
+            result.max_master_mm = max(result.max_master_mm, s.master_mm)
+            result.max_force_cmd_n = max(result.max_force_cmd_n, s.force_cmd_n)
+            new_bits = s.faults & ~self.prev_faults
+            if new_bits:
+                result.faults.append(
+                    {
+                        "time_s": round(t, 4),
+                        "source": "device",
+                        "kind": "flags",
+                        "flags": fault_names(new_bits),
+                    }
+                )
+            self.prev_faults = s.faults
+        result.samples += len(rows)
+        if self.last is not None and samples:
+            mark = (self.last.tick, self.device.clock_s())
+            self.rate_first = mark if self.rate_first is None else self.rate_first
+            self.rate_last = mark
+        if self.sink is not None and rows:
+            self.sink(rows)
+
+    def finish(self) -> None:
+        """Tick rate, overruns and the final state from the last telemetry."""
+        result = self.result
+        first, last = self.rate_first, self.rate_last
+        if first is not None and last is not None and last[1] > first[1]:
+            ticks = (last[0] - first[0]) & 0xFFFFFFFF
+            result.tick_rate_hz = round(ticks / (last[1] - first[1]), 1)
+        if self.last is not None:
+            result.overruns = self.last.overruns
+            result.final_state = STATE_NAMES.get(self.last.state, "?")
+
+    def abort(self, kind: str, message: str, *, outcome: str = "fault") -> None:
+        """End the session: STOP and DISARM (each awaited), record why, log the last rows."""
+        event: dict[str, Any] = {
+            "time_s": round(self.now(), 4),
+            "source": "host",
+            "kind": kind,
+            "message": message,
+        }
+        if self.link_up:
+            for name, step in (("stop", self.device.stop), ("disarm", self.device.disarm)):
+                try:
+                    step()
+                    event[f"{name}_acknowledged"] = True
+                except (DeviceError, OSError) as exc:
+                    event[f"{name}_acknowledged"] = False
+                    event[f"{name}_error"] = str(exc)
+        else:
+            event["stop_acknowledged"] = event["disarm_acknowledged"] = False
+            event["stop_error"] = "not sent: the link is cut (injected link-loss)"
+        self.result.faults.append(event)
+        self.result.complete = False
+        self.result.outcome = outcome
+        self.result.reason = f"{kind}: {message}"
+        with contextlib.suppress(DeviceError, OSError, ValueError):
+            self.take(self.device.poll())  # the device's last words (its safe state)
+        self.finish()
+
+    def run(
+        self,
+        duration_s: float,
+        block_s: float,
+        watch: TelemetryWatch,
+        should_stop: Callable[[], bool] | None,
+    ) -> None:
+        """Blocks until ``duration_s``; ends early (and safely) on the first violation."""
+        device = self.device
+        while True:
+            now = self.now()
+            if now >= duration_s - 1e-9:
+                break
+            if should_stop is not None and should_stop():
+                self.abort("cancelled", "stopped by the user", outcome="cancelled")
+                return
+            self.inject(now)
+            self.send(now)
+            device.wait(block_s)
+            samples = device.poll()
+            self.take(samples)
+            found = watch.check(samples, device.clock_s(), device.lost_session())
+            if found is not None:
+                kind, message, sample = found
+                if sample is not None and self.t0_device is not None:
+                    message += f" at {sample.time_s - self.t0_device:.4f} s"
+                self.abort(kind, message)
+                return
+        self.finish()
+        if self.link_up:
+            try:
+                device.disarm()
+            except (DeviceError, OSError) as exc:
+                self.abort("host_error", f"DISARM at the end was not acknowledged: {exc}")
+                return
+        self.result.complete = True
+        self.result.outcome = "complete"
+        self.result.reason = None
+
+
+def run_session(
+    device: Device,
+    table: ProfileTable,
+    operator: Operator,
+    duration_s: float,
+    *,
+    faults: Sequence[FaultSpec] = (),
+    seed: int = 0,
+    block_s: float = 0.01,
+    sink: Callable[[list[Row]], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> SessionResult:
+    """Run one rehearsal on ``device``; rows go to ``sink`` block by block.
+
+    Parameters
+    ----------
+    device : Device
+        Connected device (not yet armed).
+    table : ProfileTable
+        Uploaded before arming; ``table.stop_depth_mm`` is enforced by the device.
+    operator : Operator
+    duration_s : float
+        Session length after arming, s (host clock).
+    faults : sequence of FaultSpec
+    seed : int
+        Seeds the garbage bytes; with the simulator the session is then reproducible.
+    block_s : float
+        Host loop period, s (heartbeat every block; must be well under the 50 ms watchdog).
+    sink : callable, optional
+        Receives the rows ``(time_s, master_mm, drill_mm, force_cmd_n, state)`` of each block.
+    should_stop : callable, optional
+        Polled every block; True ends the session (STOP, DISARM; outcome ``cancelled``).
+
+    Returns
+    -------
+    SessionResult
+        ``complete`` True only when the session ran its duration and was disarmed; otherwise
+        ``outcome`` and ``reason`` say why it ended (the device was sent STOP and DISARM).
+
+    Raises
+    ------
+    DeviceError
+        Before ARM (no answer, a refused upload, a refused ARM): nothing was armed.
+    """
+    if not (math.isfinite(duration_s) and duration_s > 0.0):
+        raise SessionInputError(f"--duration-s must be > 0, got {duration_s}")
+    result = SessionResult(stop_depth_mm=float(table.stop_depth_mm))
+    info = device.hello()
+    device.upload_profile(table)
+    device.set_operator(int(OperatorKind.NONE), 0.0)
+    loop = _Loop(device, operator, faults, seed, result, sink)
+    try:
+        device.arm()
+    except DeviceRefused:
+        raise  # NAK: the device did not arm
+    except (DeviceError, OSError) as exc:  # the ARM may have reached the device: end it safely
+        loop.abort("host_error", f"ARM was not acknowledged: {exc}")
+        return result
+    loop.start = device.clock_s()
+    watch = TelemetryWatch(result.stop_depth_mm, info.limits.watchdog_ms / 1000.0, device.clock_s())
+    try:
+        loop.run(duration_s, block_s, watch, should_stop)
+    except KeyboardInterrupt:
+        loop.abort("interrupted", "interrupted by the user (SIGINT)", outcome="interrupted")
+    except (DeviceError, OSError, ValueError) as exc:  # the host's own step failed
+        loop.abort("host_error", str(exc) or type(exc).__name__)
+    except BaseException as exc:  # a bug: make the device safe first, then let it surface
+        loop.abort("host_error", f"internal error: {exc!r}")
+        raise
+    return result
