@@ -30,6 +30,7 @@ import numpy as np
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.export_defaults import DEFAULT_RATE_HZ as DEFAULT_RATE_HZ
 from ctdrill.app.pipeline import PathResult
+from ctdrill.imaging.misch import MISCH_CLASSES, misch_class
 from ctdrill.model.profile import force_series_n
 
 FORCE_COLUMNS = ("time_s", "depth_mm", "hu", "s_t", "force_n", "clearance_mm", "calibration")
@@ -44,9 +45,6 @@ PROFILE_COLUMNS = (
     "misch",
     "calibration",
 )
-#: Misch bone classes by HU (DESIGN.md section 5): lower bounds, densest first.
-MISCH_BOUNDS_HU = (("D1", 1250.0), ("D2", 850.0), ("D3", 350.0), ("D4", 150.0))
-MISCH_CLASSES = ("D1", "D2", "D3", "D4", "D5")
 N_HU_SEGMENTS = 10
 
 
@@ -64,24 +62,6 @@ class ForceSeries:
     s_t: np.ndarray
     force_n: np.ndarray
     clearance_mm: np.ndarray
-
-
-def misch_class(hu: np.ndarray) -> np.ndarray:
-    """Misch class per HU value: D1 > 1250, D2 850-1250, D3 350-850, D4 150-350, D5 < 150.
-
-    Parameters
-    ----------
-    hu : (N,) HU.
-
-    Returns
-    -------
-    (N,) str array of ``D1`` .. ``D5``.
-    """
-    h = np.asarray(hu, dtype=np.float64)
-    out = np.full(h.shape, "D5", dtype="<U2")
-    for name, lo in reversed(MISCH_BOUNDS_HU):
-        out = np.where(h > lo if name == "D1" else h >= lo, name, out)
-    return out
 
 
 def force_time_series(result: PathResult, *, feed_mm_s: float, rate_hz: float) -> ForceSeries:
@@ -233,7 +213,7 @@ def summary(
                 "clearance_at_stop_mm": _num(float(result.stop_clearance_mm[j])),
             }
         )
-    nearest = result.nearest_landmark
+    binding = result.binding_landmark
     prof = result.profile
     doc: dict[str, Any] = {
         "format": "ctdrill-export/1",
@@ -243,13 +223,12 @@ def summary(
         "stop_depth_mm": _num(result.stop_depth_mm),
         "stop_reason": result.stop_reason,
         "max_safe_depth_mm": _num(result.max_safe_depth_mm),
-        # the search stops 10 mm past the planned depth: true means "at least this deep"
-        "max_safe_depth_capped": bool(
-            result.max_safe_depth_mm >= result.planned_depth_mm + 10.0 - 1e-9
-        ),
+        # the search stops past the planned depth: true means "at least this deep"
+        "max_safe_depth_capped": result.max_safe_depth_capped,
         "out_of_volume_depth_mm": _num(result.out_of_volume_depth_mm),
         "min_clearance_mm": _num(result.min_clearance_mm),
-        "nearest_landmark": None if nearest is None else lms[nearest],
+        "plan_clearance_mm": _num(result.plan_clearance_mm),
+        "binding_landmark": None if binding is None else lms[binding],
         "margin_mm": plan.margin_mm,
         "landmarks": lms,
         "calibration": cal.name,
@@ -282,6 +261,24 @@ def summary(
     if patient is not None:
         doc["patient"] = patient
     return doc
+
+
+def summary_lines(doc: dict[str, Any]) -> list[str]:
+    """What ``ctdrill export`` prints of one ``summary.json``: the stop (depth, reason, the
+    binding landmark), the planned path's clearance, then one line per warning."""
+    binding = doc.get("binding_landmark")
+    why = str(doc["stop_reason"])
+    if why == "margin" and binding is not None:
+        why += f": {binding['name']!r}, margin {binding['margin_mm']:g} mm"
+    line = (
+        f"{doc['plan']}: stop at {doc['stop_depth_mm']:.3f} mm ({why}) of "
+        f"{doc['planned_depth_mm']:.3f} mm planned"
+    )
+    if doc.get("plan_clearance_mm") is not None:
+        line += f"; clearance along the planned path {doc['plan_clearance_mm']:.3f} mm"
+    lines = [line]
+    lines += [f"warning [{w['code']}]: {w['message']}" for w in doc.get("warnings", [])]
+    return lines
 
 
 @dataclass(frozen=True)

@@ -8,17 +8,15 @@ from typing import IO, TYPE_CHECKING
 import numpy as np
 
 from ctdrill.app.pipeline import PathResult
+from ctdrill.imaging.misch import MISCH_BANDS_HU
 
 if TYPE_CHECKING:
     from ctdrill.app.export import ForceSeries
 
-#: (class, low HU, high HU, colour) bands drawn behind the HU trace.
-_MISCH_BANDS = (
-    ("D1", 1250.0, 3000.0, "#5b3a29"),
-    ("D2", 850.0, 1250.0, "#8c6239"),
-    ("D3", 350.0, 850.0, "#c69c6d"),
-    ("D4", 150.0, 350.0, "#e8d4b0"),
-)
+#: Colours of the Misch bands drawn behind the HU trace (D5 is left blank).
+_MISCH_COLOURS = {"D1": "#5b3a29", "D2": "#8c6239", "D3": "#c69c6d", "D4": "#e8d4b0"}
+#: HU range the open D1 band is drawn up to.
+_HU_TOP = 3000.0
 
 
 def force_png(result: PathResult, series: ForceSeries, path: Path | IO[bytes]) -> None:
@@ -45,8 +43,11 @@ def force_png(result: PathResult, series: ForceSeries, path: Path | IO[bytes]) -
     ax_f.set_ylabel("force (N)")
     ax_f.legend(loc="upper left", fontsize=7)
 
-    for name, lo, hi, colour in _MISCH_BANDS:
-        ax_h.axhspan(lo, hi, color=colour, alpha=0.25, lw=0)
+    for name, lo, top in MISCH_BANDS_HU:
+        if name not in _MISCH_COLOURS:
+            continue
+        hi = min(top, _HU_TOP)
+        ax_h.axhspan(lo, hi, color=_MISCH_COLOURS[name], alpha=0.25, lw=0)
         ax_h.text(
             0.995,
             (lo + min(hi, 2000.0)) / 2,

@@ -19,14 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ctdrill.imaging.plan.landmarks import (
-    CanalLandmark,
-    Landmark,
-    PointLandmark,
-    bind_to_grid,
+from ctdrill.imaging.plan.landmarks import Landmark, bind_to_grid
+from ctdrill.imaging.plan.safety import (
+    clearance_profile_mm,
+    margin_warnings,
+    margins_mm,
+    safe_depth,
 )
-from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm
-from ctdrill.imaging.plan.types import Plan, plan_warnings
+from ctdrill.imaging.plan.types import Plan, plan_warnings, series_uid_hash
 from ctdrill.imaging.sampling.lip import (
     DEFAULT_N_ANGLES,
     DEFAULT_N_RINGS,
@@ -84,7 +84,15 @@ class PathResult:
     calibration : the calibration set used.
     clearance_mm : (D, L) clearance from the drill to each landmark, mm.
     margins_mm : (L,) margin per landmark, mm.
-    max_safe_depth_mm : deepest depth keeping every margin (capped at planned + 10 mm).
+    max_safe_depth_mm : deepest depth keeping every margin (the search stops at
+        ``ctdrill.imaging.plan.safety.search_limit_mm``: see ``max_safe_depth_capped``).
+    max_safe_depth_capped : the search reached its limit safely ("safe at least this deep").
+    binding_landmark : index of the landmark whose margin sets the max safe depth; when no
+        margin binds within the search, the landmark nearest the drill at the stop depth
+        (None without landmarks). Export, GUI and rehearsal name this one.
+    plan_clearance_mm : smallest signed clearance over the whole planned path (at the planned
+        depth: clearance never increases with depth), mm; negative inside a landmark; None
+        without landmarks.
     out_of_volume_depth_mm : deepest depth whose lip stays inside the CT, or None if the lip
         stays inside down to the planned depth.
     stop_depth_mm : min(planned, max safe, out of volume), mm.
@@ -104,6 +112,9 @@ class PathResult:
     clearance_mm: np.ndarray
     margins_mm: np.ndarray
     max_safe_depth_mm: float
+    max_safe_depth_capped: bool
+    binding_landmark: int | None
+    plan_clearance_mm: float | None
     out_of_volume_depth_mm: float | None
     stop_depth_mm: float
     stop_reason: str
@@ -129,11 +140,11 @@ class PathResult:
         return float(self.stop_clearance_mm.min())
 
     @property
-    def nearest_landmark(self) -> int | None:
-        """Index of the landmark closest to the drill at the stop depth (None: no landmark)."""
-        if self.stop_clearance_mm.size == 0:
-            return None
-        return int(np.argmin(self.stop_clearance_mm))
+    def binding_margin_mm(self) -> float:
+        """The margin of :attr:`binding_landmark` (the plan's margin without landmarks), mm."""
+        if self.binding_landmark is None:
+            return float(self.plan.margin_mm)
+        return float(self.margins_mm[self.binding_landmark])
 
     @property
     def min_clearance_per_depth_mm(self) -> np.ndarray:
@@ -142,6 +153,21 @@ class PathResult:
             return np.full(self.depth_mm.shape, np.inf)
         out: np.ndarray = self.clearance_mm.min(axis=1)
         return out
+
+
+def binding_landmark_doc(result: PathResult) -> dict[str, object] | None:
+    """The binding landmark as summaries name it: ``name``, ``kind``, ``margin_mm`` and the
+    ``clearance_at_stop_mm`` (None without landmarks)."""
+    j = result.binding_landmark
+    if j is None:
+        return None
+    lm = result.landmarks[j]
+    return {
+        "name": lm.name,
+        "kind": lm.kind,
+        "margin_mm": float(result.margins_mm[j]),
+        "clearance_at_stop_mm": round(float(result.stop_clearance_mm[j]), 4),
+    }
 
 
 def depth_grid_mm(planned_depth_mm: float, step_mm: float) -> np.ndarray:
@@ -230,8 +256,7 @@ def plan_path(
     if not (math.isfinite(depth_step_mm) and depth_step_mm > 0.0):
         raise PathInputError(f"depth_step_mm must be a positive number, got {depth_step_mm!r}")
     coords = [plan.entry_lps, plan.target_lps]
-    coords += [lm.points_lps for lm in plan.landmarks if isinstance(lm, CanalLandmark)]
-    coords += [lm.point_lps for lm in plan.landmarks if isinstance(lm, PointLandmark)]
+    coords += [lm.control_points_lps() for lm in plan.landmarks]
     if not all(np.all(np.abs(c) <= MAX_COORDINATE_MM) for c in coords):
         raise PathInputError(
             f"plan {plan.name!r}: a coordinate is not finite or beyond {MAX_COORDINATE_MM:g} mm; "
@@ -276,8 +301,9 @@ def plan_path(
         lip.hu, lip.ring_weights, depth, calibration, blades=plan.drill.blades, rpm=plan.drill.rpm
     )
     clearance = clearance_profile_mm(plan, plan.landmarks, depth)
-    margins = np.array([plan.landmark_margin_mm(lm) for lm in plan.landmarks])
-    max_safe = max_safe_depth_mm(plan, bracket_mm=grid_bracket(depth, clearance, margins))
+    margins = margins_mm(plan)
+    safe = safe_depth(plan, bracket_mm=grid_bracket(depth, clearance, margins))
+    max_safe = safe.depth_mm
     candidates = [
         (plan.planned_depth_mm, "planned_depth"),
         (max_safe, "margin"),
@@ -285,6 +311,23 @@ def plan_path(
     ]
     stop_depth, stop_reason = min(candidates, key=lambda c: c[0])  # ties: first listed wins
     stop_clearance = clearance_profile_mm(plan, plan.landmarks, np.array([stop_depth]))[0]
+    binding = safe.binding
+    if binding is None and plan.landmarks:
+        binding = int(np.argmin(stop_clearance))
+    plan_clearance = clearance[-1] if plan.landmarks else np.empty(0)
+    warnings += [
+        LoadWarning(code, msg) for code, msg in margin_warnings(plan, plan_clearance, margins)
+    ]
+    if plan.series_uid_sha256 is not None and plan.series_uid_sha256 != series_uid_hash(
+        volume.info.series_uid
+    ):
+        warnings.append(
+            LoadWarning(
+                "plan_other_series",
+                f"plan {plan.name!r} was made on another series than the one loaded (its "
+                "recorded series hash differs): check that the CT and the plan belong together",
+            )
+        )
     if calibration.illustrative:
         warnings.append(
             LoadWarning(
@@ -321,6 +364,9 @@ def plan_path(
         clearance_mm=clearance,
         margins_mm=margins,
         max_safe_depth_mm=max_safe,
+        max_safe_depth_capped=safe.capped,
+        binding_landmark=binding,
+        plan_clearance_mm=float(plan_clearance.min()) if plan_clearance.size else None,
         out_of_volume_depth_mm=oov,
         stop_depth_mm=float(stop_depth),
         stop_reason=stop_reason,

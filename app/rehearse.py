@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.app.pipeline import PathResult, plan_calibration, plan_path
+from ctdrill.app.pipeline import PathResult, binding_landmark_doc, plan_calibration, plan_path
 from ctdrill.app.records import atomic_output_dir, write_file
 from ctdrill.haptics.device import Device
 from ctdrill.haptics.profile_table import ProfileTable
@@ -81,14 +81,17 @@ def rehearsal_summary(
     seed: int,
 ) -> dict[str, Any]:
     """The one ``summary.json`` of a rehearsal (CLI and GUI): the session's fields, then the
-    plan's (stop reason, planned and max safe depth, calibration and whether it is
-    illustrative, warnings) and how the session was run."""
+    plan's (stop reason, planned and max safe depth, the binding landmark, the planned path's
+    clearance, calibration and whether it is illustrative, warnings) and how the session was
+    run."""
     summary = dict(session.to_json() if isinstance(session, SessionResult) else session)
     summary.update(
         {
             "stop_reason": path.stop_reason,
             "planned_depth_mm": float(path.plan.planned_depth_mm),
             "max_safe_depth_mm": float(path.max_safe_depth_mm),
+            "binding_landmark": binding_landmark_doc(path),
+            "plan_clearance_mm": path.plan_clearance_mm,
             "calibration": path.calibration.name,
             "calibration_illustrative": bool(path.calibration.illustrative),
             "operator": operator,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -70,7 +71,7 @@ def _warn(code: str, message: str) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export and list what was written."""
-    from ctdrill.app.export import TextProgress
+    from ctdrill.app.export import TextProgress, summary_lines
     from ctdrill.app.export_run import export_case
 
     progress = TextProgress(sys.stderr)
@@ -92,4 +93,8 @@ def run(args: argparse.Namespace) -> int:
         progress.close()
     for path in written:
         sys.stdout.write(f"wrote {path}\n")
+    for path in written:
+        if path.name == "summary.json":
+            doc = json.loads(path.read_text(encoding="utf-8"))
+            sys.stdout.write("".join(line + "\n" for line in summary_lines(doc)))
     return 0

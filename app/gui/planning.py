@@ -16,8 +16,6 @@ from ctdrill.app.gui.scene import LandmarkGeometry
 from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
     Landmark,
-    LandmarkInputError,
-    PointLandmark,
 )
 from ctdrill.imaging.plan.types import Plan
 
@@ -53,7 +51,7 @@ def set_landmark_margin(plan: Plan, index: int, margin_mm: float | None) -> Plan
     if margin_mm is not None and (not np.isfinite(margin_mm) or margin_mm < 0):
         raise PlanEditError(f"landmarks[{index}].margin_mm: must be >= 0, got {margin_mm}")
     lms = list(plan.landmarks)
-    lms[index] = replace(lms[index], margin_mm=margin_mm)
+    lms[index] = lms[index].with_margin(margin_mm)
     return replace(plan, landmarks=tuple(lms))
 
 
@@ -96,16 +94,10 @@ def default_plan(center_lps: np.ndarray, *, depth_mm: float = 10.0) -> Plan:
 
 
 def landmark_points_lps(landmark: Landmark) -> np.ndarray:
-    """(N, 3) points that draw a landmark: canal centreline, the point, or mask surface."""
-    if isinstance(landmark, CanalLandmark):
-        return np.asarray(landmark.points_lps)
-    if isinstance(landmark, PointLandmark):
-        return np.asarray(landmark.point_lps).reshape(1, 3)
-    try:
-        pts = np.asarray(landmark.surface_points_lps())
-    except LandmarkInputError:  # a mask not bound to a grid yet: nothing to draw
-        return np.empty((0, 3))
-    return pts[:: max(1, len(pts) // 2000)]
+    """(N, 3) points that draw a landmark: its polyline, its point(s) or its surface cloud."""
+    drawing = landmark.drawing()
+    parts = [*drawing.polylines_lps, drawing.points_lps, drawing.surface_lps]
+    return np.concatenate([p for p in parts if len(p)] or [np.empty((0, 3))])
 
 
 def landmark_geometries(
@@ -130,6 +122,7 @@ def landmark_geometries(
                 margin_mm=plan.landmark_margin_mm(lm),
                 clearance_mm=clear,
                 kind=lm.kind,
+                cloud=len(lm.drawing().surface_lps) > 0,
             )
         )
     return tuple(out)

@@ -12,14 +12,12 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from ctdrill.hu import AIR_HU
+from ctdrill.imaging.misch import MISCH_BANDS_HU
 
-#: Misch bone-density classes by HU (DESIGN.md section 5): (label, low, high).
-MISCH_BANDS: tuple[tuple[str, float, float], ...] = (
-    ("D1", 1250.0, 3000.0),
-    ("D2", 850.0, 1250.0),
-    ("D3", 350.0, 850.0),
-    ("D4", 150.0, 350.0),
-    ("D5", AIR_HU, 150.0),
+#: Misch bands as drawn: the owner's (``ctdrill.imaging.misch``), open ends clipped to the
+#: plotted HU range.
+MISCH_BANDS: tuple[tuple[str, float, float], ...] = tuple(
+    (label, max(lo, AIR_HU), min(hi, 3000.0)) for label, lo, hi in MISCH_BANDS_HU
 )
 _BAND_COLOURS = ("#c8d7f0", "#d4e8d0", "#f2ecc4", "#f5dcc4", "#f1d0d0")
 
@@ -47,14 +45,6 @@ class DepthCurves:
     margin_mm: float
     force_band_n: np.ndarray | None = None
     calibration: str = ""
-
-
-def misch_class(hu: float) -> str:
-    """The Misch class (D1..D5) of a CT number."""
-    for label, lo, hi in MISCH_BANDS:
-        if lo <= hu < hi or (label == "D1" and hu >= lo) or (label == "D5" and hu < hi):
-            return label
-    return "D5"
 
 
 def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = "") -> None:

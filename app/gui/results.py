@@ -37,18 +37,12 @@ def path_view(plan: Plan, result: PathResult) -> PathView:
         planned_depth_mm=result.planned_depth_mm,
         stop_depth_mm=float(result.stop_depth_mm),
         stop_reason=str(result.stop_reason),
-        margin_mm=_nearest_margin_mm(result, plan.margin_mm),
+        margin_mm=result.binding_margin_mm,
         calibration=prof.calibration,
     )
     return PathView(
         plan=plan, result=result, curves=curves, min_clearance_mm=per_lm if per_lm.size else None
     )
-
-
-def _nearest_margin_mm(result: PathResult, default_mm: float) -> float:
-    """The margin of the landmark nearest the drill at the stop depth (the one that binds)."""
-    nearest = result.nearest_landmark
-    return default_mm if nearest is None else float(result.margins_mm[nearest])
 
 
 def compute_path_view(volume: CTVolume, plan: Plan) -> PathView:

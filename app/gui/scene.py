@@ -46,7 +46,8 @@ class LandmarkGeometry:
     radius_mm: float
     margin_mm: float
     clearance_mm: float | None = None  # minimum clearance along the stopped path, if known
-    kind: str = "canal"  # canal | point | mask (mask: boundary points, drawn as a cloud)
+    kind: str = "canal"  # the landmark's kind, a label only
+    cloud: bool = False  # points on the landmark's surface: drawn as a cloud, no envelope
 
 
 @dataclass(frozen=True, eq=False)
@@ -159,10 +160,10 @@ def drill_mesh(
 
 def landmark_meshes(landmark: LandmarkGeometry) -> tuple[pv.PolyData, pv.PolyData | None]:
     """(body, margin envelope): the canal tube (or point sphere) and the tube grown by the
-    margin; a mask landmark is its boundary point cloud, without an envelope."""
+    margin; a surface cloud (a mask landmark's) is drawn as points, without an envelope."""
     pts = np.atleast_2d(np.asarray(landmark.points_lps, dtype=np.float64))
     outer = landmark.radius_mm + landmark.margin_mm
-    if landmark.kind == "mask":
+    if landmark.cloud:
         return pv.PolyData(pts), None
     if len(pts) == 1:
         body = pv.Sphere(radius=max(landmark.radius_mm, 0.3), center=pts[0])

@@ -4,8 +4,9 @@
 imports nothing heavy; :mod:`ctdrill.imaging.phantom.field` and ``.mandible`` re-export them.
 """
 
-#: Misch class -> (trabecular HU, cortical HU, cortical thickness mm). Trabecular values sit
-#: inside each class's HU band (D1 > 1250, D2 850-1250, D3 350-850, D4 150-350, D5 < 150).
+#: Misch class -> (trabecular HU, cortical HU, cortical thickness mm) of the phantom. Each
+#: trabecular value sits inside its class's band (:mod:`ctdrill.imaging.misch` owns the bands;
+#: tests/imaging/test_misch.py checks it).
 MISCH_CLASSES: dict[str, tuple[float, float, float]] = {
     "D1": (1400.0, 1800.0, 2.0),
     "D2": (1050.0, 1700.0, 2.0),

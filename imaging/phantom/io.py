@@ -31,6 +31,7 @@ from ctdrill.imaging.phantom.mandible import (
     Phantom,
 )
 from ctdrill.imaging.phantom.writer import write_series
+from ctdrill.imaging.plan.types import SERIES_HASH_KEY, series_uid_hash
 
 PATIENT_NAME = "PHANTOM^MANDIBLE"
 TRUTH_FORMAT = "ctdrill-phantom-truth/1"
@@ -162,7 +163,9 @@ def write_phantom(
     )
     plan_path = out / "plan.json"
     truth_path = out / "ground_truth.json"
-    plan_path.write_text(json.dumps(phantom.plan, indent=2) + "\n", encoding="utf-8")
+    # The plan records the series it was made on (hashed, never the UID itself).
+    plan_doc = {**phantom.plan, SERIES_HASH_KEY: series_uid_hash(written.series_uid)}
+    plan_path.write_text(json.dumps(plan_doc, indent=2) + "\n", encoding="utf-8")
     truth_path.write_text(json.dumps(ground_truth(phantom), indent=2) + "\n", encoding="utf-8")
     return PhantomCase(
         ct_dir=ct_dir, plan_path=plan_path, truth_path=truth_path, series_uid=written.series_uid

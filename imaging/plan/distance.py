@@ -1,4 +1,4 @@
-"""Exact distances to the swept drill solid (pure NumPy, no I/O).
+"""Exact signed distances to the swept drill solid (pure NumPy, no I/O).
 
 The drill solid at tip depth ``x`` is the body of revolution around the drill axis whose
 meridian section is ``{(s, rho): s <= x, rho <= R * min(1, (x - s) / l_t)}``: a cylinder of
@@ -7,11 +7,17 @@ ending at the tip point ``(x, 0)``. ``s`` is the axial coordinate from the entry
 the drill direction (mm) and ``rho`` the distance from the axis (mm). The meridian section is
 convex, so the solid is convex and the distance from a point to it is the 2-D distance from
 ``(s, rho)`` to the section's boundary (the cylinder ray and the cone segment).
+
+Distances are **signed**: negative inside the solid (minus the distance to its surface), so
+a landmark the drill enters has a negative clearance however thin it is. The signed distance
+to a convex set is a convex function of the point, and it only decreases as the tip advances
+(the solid grows), which the segment minimisation and the safe-depth search rely on.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -19,6 +25,37 @@ import numpy as np
 #: times the segment length (the Lipschitz bound of the distance) is below it.
 SEGMENT_TOL_MM = 1e-7
 _INV_PHI = (np.sqrt(5.0) - 1.0) / 2.0
+#: Elements per temporary (depths x segments) array: bounds memory for any landmark size.
+_CHUNK_ELEMENTS = 1 << 18
+
+
+@dataclass(frozen=True, eq=False)
+class DrillSolid:
+    """The drill axis and shape: entry point (depth 0), unit direction, radius, cone length.
+
+    All in LPS mm. ``tip_length_mm`` must be > 0 (a flat-ended drill is not modelled).
+    """
+
+    entry_lps: np.ndarray
+    direction: np.ndarray
+    radius_mm: float
+    tip_length_mm: float
+
+    def __post_init__(self) -> None:
+        entry = np.array(self.entry_lps, dtype=np.float64).reshape(3)
+        u = np.array(self.direction, dtype=np.float64).reshape(3)
+        norm = float(np.linalg.norm(u))
+        if not (np.all(np.isfinite(entry)) and math.isfinite(norm) and norm > 0.0):
+            raise ValueError("drill axis: entry and direction must be finite, direction non-zero")
+        u = u / norm
+        if not (self.radius_mm > 0.0 and self.tip_length_mm > 0.0):
+            raise ValueError(
+                f"drill: radius and tip length must be > 0 mm, got {self.radius_mm!r}, "
+                f"{self.tip_length_mm!r}"
+            )
+        for name, arr in (("entry_lps", entry), ("direction", u)):
+            arr.flags.writeable = False
+            object.__setattr__(self, name, arr)
 
 
 def axial_coordinates(
@@ -51,7 +88,7 @@ def solid_distance_mm(
     radius_mm: float,
     tip_length_mm: float,
 ) -> np.ndarray:
-    """Exact Euclidean distance from points to the drill solid at tip depth ``depth_mm``.
+    """Exact signed distance from points to the drill solid at tip depth ``depth_mm``.
 
     Parameters
     ----------
@@ -62,7 +99,8 @@ def solid_distance_mm(
 
     Returns
     -------
-    Distance, mm, >= 0 (0 inside the solid); shape of the broadcast inputs.
+    Signed distance, mm: > 0 outside, 0 on the surface, minus the distance to the surface
+    inside (down to ``-R`` on the axis of the cylinder); shape of the broadcast inputs.
     """
     s = np.asarray(s_mm, dtype=np.float64)
     rho = np.abs(np.asarray(rho_mm, dtype=np.float64))
@@ -76,10 +114,118 @@ def solid_distance_mm(
     dr = rho - radius_mm
     t = np.clip((ds * tip_length_mm - dr * radius_mm) / seg_len2, 0.0, 1.0)
     d_cone = np.hypot(ds - t * tip_length_mm, dr + t * radius_mm)
+    # The nearest boundary point of the (symmetric, convex) full section to a point with
+    # rho >= 0 lies on its upper half (ray or cone segment), from inside as from outside.
     # Inside: s <= x and rho * l_t <= R * (x - s) and rho <= R (no division, l_t may be 0).
     inside = (s <= x) & (rho <= radius_mm) & (rho * tip_length_mm <= radius_mm * (x - s))
-    out: np.ndarray = np.where(inside, 0.0, np.minimum(d_ray, d_cone))
+    d = np.minimum(d_ray, d_cone)
+    out: np.ndarray = np.where(inside, -d, d)
     return out
+
+
+def _solid_at(solid: DrillSolid, points: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    s, perp = axial_coordinates(points, solid.entry_lps, solid.direction)
+    return solid_distance_mm(
+        s,
+        np.linalg.norm(perp, axis=-1),
+        depth,
+        radius_mm=solid.radius_mm,
+        tip_length_mm=solid.tip_length_mm,
+    )
+
+
+def _golden_min(solid: DrillSolid, a: np.ndarray, b: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """(P,) minimum over each segment ``[a_p, b_p]`` of the signed distance at ``depth_p``.
+
+    The signed distance to a convex solid is convex along a segment, so a golden-section
+    search on the segment parameter brackets the minimiser; it runs until the bracket times
+    the longest ``|b - a|`` is below :data:`SEGMENT_TOL_MM` (the distance is
+    ``|b - a|``-Lipschitz in the parameter, so the value is within that of the minimum).
+    """
+    dv = b - a
+    length = float(np.linalg.norm(dv, axis=-1).max()) if len(a) else 0.0
+
+    def f(t: np.ndarray) -> np.ndarray:
+        return _solid_at(solid, a + t[:, None] * dv, depth)
+
+    best = np.minimum(f(np.zeros(len(a))), f(np.ones(len(a))))
+    if length <= SEGMENT_TOL_MM:
+        return best
+    lo = np.zeros(len(a))
+    hi = np.ones(len(a))
+    c = hi - _INV_PHI * (hi - lo)
+    d = lo + _INV_PHI * (hi - lo)
+    fc = f(c)
+    fd = f(d)
+    steps = math.ceil(math.log(SEGMENT_TOL_MM / length, _INV_PHI))
+    for _ in range(steps):
+        left = fc <= fd  # convexity: a minimiser lies in [lo, d], else in [c, hi]
+        hi = np.where(left, d, hi)
+        lo = np.where(left, lo, c)
+        keep = np.where(left, c, d)  # the interior point that survives
+        f_keep = np.where(left, fc, fd)
+        probe = np.where(left, hi - _INV_PHI * (hi - lo), lo + _INV_PHI * (hi - lo))
+        f_probe = f(probe)
+        c, fc = np.where(left, probe, keep), np.where(left, f_probe, f_keep)
+        d, fd = np.where(left, keep, probe), np.where(left, f_keep, f_probe)
+    out: np.ndarray = np.minimum(best, np.minimum(fc, fd))
+    return out
+
+
+def segments_distance_mm(
+    a_lps: np.ndarray, b_lps: np.ndarray, depth_mm: np.ndarray, solid: DrillSolid
+) -> np.ndarray:
+    """Signed distance from the union of segments ``[a, b]`` to the drill solid at each depth.
+
+    The minimum over the union is exact to :data:`SEGMENT_TOL_MM` (see :func:`_golden_min`).
+    Segments that cannot hold the minimum are skipped exactly: the signed distance is
+    1-Lipschitz in space, which bounds a segment's minimum from below by its values at the
+    ends and the midpoint, and it is skipped when that bound exceeds a value already reached.
+    Work is done in chunks of at most ``2**18`` (depth, segment) pairs, so memory stays
+    bounded for any number of segments (a 200 000-point canal, a large mask).
+
+    Parameters
+    ----------
+    a_lps, b_lps : (S, 3) segment end points, LPS mm (``a == b`` is a point).
+    depth_mm : (D,) tip depths, mm.
+    solid : the drill axis and shape.
+
+    Returns
+    -------
+    (D,) signed distance to the nearest segment, mm (+inf when there is no segment).
+    """
+    a = np.asarray(a_lps, dtype=np.float64).reshape(-1, 3)
+    b = np.asarray(b_lps, dtype=np.float64).reshape(-1, 3)
+    x = np.asarray(depth_mm, dtype=np.float64).reshape(-1)
+    best = np.full(x.shape, np.inf)
+    if len(a) == 0 or x.size == 0:
+        return best
+    per = max(1, _CHUNK_ELEMENTS // x.size)
+    half = 0.5 * np.linalg.norm(b - a, axis=-1)
+
+    def ends(sl: slice) -> tuple[np.ndarray, np.ndarray]:
+        """(D, c) min of the three probe values and the 1-Lipschitz lower bound."""
+        va = _solid_at(solid, a[sl][None, :, :], x[:, None])
+        vb = _solid_at(solid, b[sl][None, :, :], x[:, None])
+        vm = _solid_at(solid, (0.5 * (a[sl] + b[sl]))[None, :, :], x[:, None])
+        upper = np.minimum(np.minimum(va, vb), vm)
+        # On a half of length L/2 between values u and v, a 1-Lipschitz function stays above
+        # (u + v - L/2) / 2: the segment's lower bound is the smaller of its halves' bounds.
+        lower = 0.5 * (np.minimum(va, vb) + vm - half[sl][None, :])
+        return upper, lower
+
+    for start in range(0, len(a), per):
+        upper, _ = ends(slice(start, start + per))
+        best = np.minimum(best, upper.min(axis=1))
+    for start in range(0, len(a), per):
+        sl = slice(start, start + per)
+        _, lower = ends(sl)
+        di, si = np.nonzero(lower < best[:, None])
+        si += start
+        for p in range(0, di.size, _CHUNK_ELEMENTS // 8):
+            dd, ss = di[p : p + _CHUNK_ELEMENTS // 8], si[p : p + _CHUNK_ELEMENTS // 8]
+            np.minimum.at(best, dd, _golden_min(solid, a[ss], b[ss], x[dd]))
+    return best
 
 
 def segment_solid_distance_mm(
@@ -92,80 +238,6 @@ def segment_solid_distance_mm(
     radius_mm: float,
     tip_length_mm: float,
 ) -> np.ndarray:
-    """Distance from the union of segments ``[a, b]`` to the drill solid at each depth.
-
-    The distance from a point moving along a segment to a convex solid is a convex function
-    of the segment parameter, so a golden-section search on ``[0, 1]`` brackets the minimiser;
-    it runs until the bracket times ``|b - a|`` is below :data:`SEGMENT_TOL_MM`, and as the
-    distance is ``|b - a|``-Lipschitz in the parameter the value is then within 1e-7 mm of the
-    exact minimum. Segments that cannot hold the minimum are skipped exactly: the distance
-    is 1-Lipschitz in space, which bounds a segment's minimum from below by its values at the
-    ends and the midpoint, and it is skipped when that bound exceeds a distance already
-    reached.
-
-    Parameters
-    ----------
-    a_lps, b_lps : (S, 3) segment end points, LPS mm (``a == b`` is a point).
-    depth_mm : (D,) tip depths, mm.
-    entry_lps, direction : the drill axis (entry point, unit direction).
-    radius_mm, tip_length_mm : drill radius and cone length, mm.
-
-    Returns
-    -------
-    (D,) distance to the nearest segment, mm, >= 0.
-    """
-    sa, pa = axial_coordinates(a_lps, entry_lps, direction)
-    sb, pb = axial_coordinates(b_lps, entry_lps, direction)
-    x = np.asarray(depth_mm, dtype=np.float64)
-    half = 0.5 * np.linalg.norm(np.asarray(b_lps, float) - np.asarray(a_lps, float), axis=-1)
-
-    def f_all(t: float) -> np.ndarray:
-        """(D, S) distance at parameter t of every segment."""
-        rho = np.linalg.norm(pa + t * (pb - pa), axis=-1)
-        return solid_distance_mm(
-            (sa + t * (sb - sa))[None, :],
-            rho[None, :],
-            x[:, None],
-            radius_mm=radius_mm,
-            tip_length_mm=tip_length_mm,
-        )
-
-    d_a, d_mid, d_b = f_all(0.0), f_all(0.5), f_all(1.0)
-    upper = np.minimum(np.minimum(d_a, d_b), d_mid).min(axis=1)  # (D,)
-    # On a half of length L/2 between values u and v, a 1-Lipschitz function stays above
-    # (u + v - L/2) / 2: the segment's lower bound is the smaller of its halves' bounds.
-    lower = 0.5 * (np.minimum(d_a, d_b) + d_mid - half[None, :])
-    di, si = np.nonzero(lower < upper[:, None])
-    best = upper.copy()
-    if di.size == 0:
-        return best
-    sa_p, sb_p, pa_p, dp_p, x_p = sa[si], sb[si], pa[si], (pb - pa)[si], x[di]
-
-    def f(t: np.ndarray) -> np.ndarray:
-        rho = np.linalg.norm(pa_p + t[:, None] * dp_p, axis=-1)
-        return solid_distance_mm(
-            sa_p + t * (sb_p - sa_p), rho, x_p, radius_mm=radius_mm, tip_length_mm=tip_length_mm
-        )
-
-    lo = np.zeros(di.size)
-    hi = np.ones(di.size)
-    c = hi - _INV_PHI * (hi - lo)
-    d = lo + _INV_PHI * (hi - lo)
-    fc = f(c)
-    fd = f(d)
-    longest = float(2.0 * half[si].max())
-    steps = (
-        0 if longest <= SEGMENT_TOL_MM else math.ceil(math.log(SEGMENT_TOL_MM / longest, _INV_PHI))
-    )
-    for _ in range(steps):
-        left = fc <= fd  # convexity: a minimiser lies in [lo, d], else in [c, hi]
-        hi = np.where(left, d, hi)
-        lo = np.where(left, lo, c)
-        keep = np.where(left, c, d)  # the interior point that survives
-        f_keep = np.where(left, fc, fd)
-        probe = np.where(left, hi - _INV_PHI * (hi - lo), lo + _INV_PHI * (hi - lo))
-        f_probe = f(probe)
-        c, fc = np.where(left, probe, keep), np.where(left, f_probe, f_keep)
-        d, fd = np.where(left, keep, probe), np.where(left, f_keep, f_probe)
-    np.minimum.at(best, di, np.minimum(fc, fd))
-    return best
+    """:func:`segments_distance_mm` with the drill given by its parts (signed, (D,) mm)."""
+    solid = DrillSolid(entry_lps, direction, radius_mm, tip_length_mm)
+    return segments_distance_mm(a_lps, b_lps, depth_mm, solid)

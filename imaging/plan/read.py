@@ -31,9 +31,11 @@ from ctdrill.imaging.plan.types import (
     DEFAULT_FEED_MM_S,
     DEFAULT_MARGIN_MM,
     PLAN_FORMAT,
+    SERIES_HASH_KEY,
     DrillSpec,
     Plan,
     PlanInputError,
+    is_series_hash,
 )
 from ctdrill.safeio import load_json
 
@@ -267,6 +269,7 @@ def _parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
     name = doc.get("name") if isinstance(doc.get("name"), str) else None
     plan = _make_plan(
         ctx,
+        series_hash=series_hash(ctx, doc.get(SERIES_HASH_KEY), SERIES_HASH_KEY),
         entry=entry,
         target=target,
         drill=drill,
@@ -292,9 +295,24 @@ def _drill_from(ctx: _Ctx, raw: dict[str, Any], where: str) -> DrillSpec:
     return DrillSpec(diameter_mm=diameter, tip_length_mm=tip, blades=int(blades_raw), rpm=rpm)
 
 
+def series_hash(ctx: _Ctx, value: object, field_path: str) -> str | None:
+    """The recorded series hash (``series_uid_sha256``), or None when absent."""
+    if value is None:
+        return None
+    if not is_series_hash(value):
+        raise ctx.fail(
+            field_path,
+            "must be the 64 lower-case hex digits ctdrill writes (a hashed SeriesInstanceUID); "
+            "delete it to use the plan on any series",
+            value,
+        )
+    return str(value)
+
+
 def _make_plan(
     ctx: _Ctx,
     *,
+    series_hash: str | None = None,
     entry: np.ndarray,
     target: np.ndarray,
     drill: DrillSpec,
@@ -316,6 +334,7 @@ def _make_plan(
         margin_mm=margin,
         name=name,
         source=str(ctx.path),
+        series_uid_sha256=series_hash,
     )
 
 

@@ -1,63 +1,48 @@
-"""Clearance between the swept drill and the landmarks, and the maximum safe depth.
+"""Clearance between the swept drill and the landmarks, the maximum safe depth and the
+landmark that binds it.
 
 The drill solid at tip depth ``x`` is a cylinder of radius ``R`` from far outside the patient
 to depth ``x - l_t`` plus the cone of length ``l_t`` ending at the tip (DESIGN.md section 2).
-The clearance to a landmark is ``distance(solid, landmark core) - landmark radius`` (mm,
-negative when the drill enters the landmark). The solid only grows with depth, so every
-clearance is non-increasing in depth; :func:`max_safe_depth_mm` relies on that.
+The clearance to a landmark is signed (negative when the drill enters it), so a margin of 0
+means "touch, never cross". The solid only grows with depth, so every clearance is
+non-increasing in depth; :func:`safe_depth` relies on that.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from ctdrill.imaging.plan.distance import (
-    axial_coordinates,
-    segment_solid_distance_mm,
-    solid_distance_mm,
-)
-from ctdrill.imaging.plan.landmarks import Landmark, landmark_core
-from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.plan.distance import SEGMENT_TOL_MM, DrillSolid
+from ctdrill.imaging.plan.landmarks import Landmark
+from ctdrill.imaging.plan.types import CLINICAL_MARGIN_MM, Plan
 
-#: Tolerance of :func:`max_safe_depth_mm`, mm.
+#: Tolerance of :func:`safe_depth`, mm.
 SAFE_DEPTH_TOL_MM = 1e-3
-#: Depths evaluated per refinement pass of :func:`max_safe_depth_mm`.
+#: How far past the planned depth the safe-depth search looks, mm (its one owner): a max
+#: safe depth at ``planned + this`` means "safe at least that deep".
+SEARCH_BEYOND_PLAN_MM = 10.0
+#: Depths evaluated per refinement pass of :func:`safe_depth`.
 _REFINE_POINTS = 65
-#: Points per chunk when a landmark core has many points (mask voxels), to bound memory.
-_CHUNK_POINTS = 4096
 
 
-def _core_distance_mm(plan: Plan, landmark: Landmark, depth_mm: np.ndarray) -> np.ndarray:
-    """(D,) distance from the drill solid to the landmark's core at each depth, mm."""
-    a, b, _ = landmark_core(landmark)
-    r = plan.drill.radius_mm
-    lt = plan.drill.tip_length_mm
-    if a is b or np.array_equal(a, b):  # points (point landmark, mask voxels): closed form
-        s, perp = axial_coordinates(a, plan.entry_lps, plan.direction)
-        rho = np.linalg.norm(perp, axis=-1)
-        best = np.full(depth_mm.shape, np.inf)
-        for start in range(0, len(s), _CHUNK_POINTS):
-            sl = slice(start, start + _CHUNK_POINTS)
-            d = solid_distance_mm(
-                s[None, sl], rho[None, sl], depth_mm[:, None], radius_mm=r, tip_length_mm=lt
-            )
-            best = np.minimum(best, d.min(axis=1))
-        return best
-    return segment_solid_distance_mm(
-        a,
-        b,
-        depth_mm,
-        entry_lps=plan.entry_lps,
-        direction=plan.direction,
-        radius_mm=r,
-        tip_length_mm=lt,
+def search_limit_mm(plan: Plan) -> float:
+    """Deepest depth the safe-depth search looks at: planned + :data:`SEARCH_BEYOND_PLAN_MM`."""
+    return plan.planned_depth_mm + SEARCH_BEYOND_PLAN_MM
+
+
+def drill_solid(plan: Plan) -> DrillSolid:
+    """The plan's drill axis and shape."""
+    return DrillSolid(
+        plan.entry_lps, plan.direction, plan.drill.radius_mm, plan.drill.tip_length_mm
     )
 
 
 def clearance_profile_mm(
     plan: Plan, landmarks: tuple[Landmark, ...] | None = None, depth_mm: np.ndarray | None = None
 ) -> np.ndarray:
-    """Clearance from the drill solid to each landmark's surface at each tip depth.
+    """Signed clearance from the drill solid to each landmark at each tip depth.
 
     Parameters
     ----------
@@ -67,7 +52,8 @@ def clearance_profile_mm(
 
     Returns
     -------
-    (D, L) clearance, mm; negative inside a landmark.
+    (D, L) clearance, mm; negative inside a landmark. Exact to
+    :data:`~ctdrill.imaging.plan.distance.SEGMENT_TOL_MM` (never below the true value).
     """
     lms = plan.landmarks if landmarks is None else landmarks
     depth = (
@@ -76,14 +62,81 @@ def clearance_profile_mm(
         else np.asarray(depth_mm, dtype=np.float64).reshape(-1)
     )
     out = np.empty((depth.shape[0], len(lms)))
+    if not lms:
+        return out
+    solid = drill_solid(plan)
     for j, lm in enumerate(lms):
-        out[:, j] = _core_distance_mm(plan, lm, depth) - lm.radius_mm
+        out[:, j] = lm.clearance_mm(solid, depth)
     return out
 
 
 def clearance_mm(plan: Plan, landmark: Landmark, depth_mm: float) -> float:
     """Clearance from the drill at tip depth ``depth_mm`` to one landmark's surface, mm."""
     return float(clearance_profile_mm(plan, (landmark,), np.array([depth_mm]))[0, 0])
+
+
+def margins_mm(plan: Plan, landmarks: tuple[Landmark, ...] | None = None) -> np.ndarray:
+    """(L,) the margin that applies to each landmark (its own, else the plan's), mm."""
+    lms = plan.landmarks if landmarks is None else landmarks
+    return np.array([plan.landmark_margin_mm(lm) for lm in lms], dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class SafeDepth:
+    """The deepest safe tip depth and what sets it.
+
+    Attributes
+    ----------
+    depth_mm : deepest depth whose clearance to every landmark stays >= its margin, mm.
+    binding : index of the landmark whose margin is crossed just past ``depth_mm`` (None
+        when no margin is crossed within the search, i.e. ``capped``).
+    capped : the search reached its limit safely: "safe at least ``depth_mm`` deep".
+    """
+
+    depth_mm: float
+    binding: int | None
+    capped: bool
+
+
+def safe_depth(
+    plan: Plan,
+    landmarks: tuple[Landmark, ...] | None = None,
+    *,
+    limit_mm: float | None = None,
+    tol_mm: float = SAFE_DEPTH_TOL_MM,
+    bracket_mm: tuple[float, float] | None = None,
+) -> SafeDepth:
+    """Deepest tip depth whose clearance to every landmark stays >= its margin.
+
+    Each landmark uses its own ``margin_mm`` when set, else ``plan.margin_mm``. Found by
+    bracketing on ``[0, limit_mm]`` and refinement (64-section, i.e. six bisection steps per
+    vectorised pass) to ``tol_mm``; the returned depth is on the safe side of the boundary
+    (within ``tol_mm`` of it). A clearance counts as kept only when it is at least the margin
+    plus the distance tolerance, so the stop never lies past the true safe depth.
+
+    Parameters
+    ----------
+    limit_mm : search limit (default :func:`search_limit_mm`). The result is capped at it.
+    bracket_mm : optional ``(lo, hi)`` with the margin kept at ``lo`` and violated at
+        ``hi`` (e.g. from a clearance profile on a depth grid); checked in the first pass, and
+        the full range searched when it does not hold.
+    """
+    lms = plan.landmarks if landmarks is None else landmarks
+    limit = search_limit_mm(plan) if limit_mm is None else float(limit_mm)
+    if not lms:
+        return SafeDepth(limit, None, True)
+    margins = margins_mm(plan, lms)
+    if bracket_mm is not None:
+        lo, hi = float(bracket_mm[0]), float(bracket_mm[1])
+        if 0.0 <= lo < hi <= limit:
+            found = _refine(plan, lms, margins, lo, hi, tol_mm)
+            if found is not None and found.depth_mm < hi:  # safe at lo, violated by hi
+                return found
+    found = _refine(plan, lms, margins, 0.0, limit, tol_mm)
+    if found is None:  # violated at the entry already
+        slack = clearance_profile_mm(plan, lms, np.array([0.0]))[0] - margins
+        return SafeDepth(0.0, int(np.argmin(slack)), False)
+    return found
 
 
 def max_safe_depth_mm(
@@ -94,41 +147,10 @@ def max_safe_depth_mm(
     tol_mm: float = SAFE_DEPTH_TOL_MM,
     bracket_mm: tuple[float, float] | None = None,
 ) -> float:
-    """Deepest tip depth whose clearance to every landmark stays >= its margin, mm.
-
-    Each landmark uses its own ``margin_mm`` when set, else ``plan.margin_mm``. Found by
-    bracketing on ``[0, limit_mm]`` and refinement (64-section, i.e. six bisection steps per
-    vectorised pass) to ``tol_mm``; the returned depth is on the safe side of the boundary
-    (within ``tol_mm`` of it).
-
-    Parameters
-    ----------
-    limit_mm : search limit (default: the planned depth + 10 mm). The result is capped at it:
-        a value equal to ``limit_mm`` means "safe at least that deep"; with no landmark it is
-        ``limit_mm``.
-    bracket_mm : optional ``(lo, hi)`` with the margin kept at ``lo`` and violated at
-        ``hi`` (e.g. from a clearance profile on a depth grid); checked in the first pass, and
-        the full range searched when it does not hold.
-
-    Returns
-    -------
-    Depth in ``[0, limit_mm]``, mm; 0 when the margin is already violated at the entry.
-    """
-    lms = plan.landmarks if landmarks is None else landmarks
-    limit = plan.planned_depth_mm + 10.0 if limit_mm is None else float(limit_mm)
-    if not lms:
-        return limit
-    margins = np.array([plan.landmark_margin_mm(lm) for lm in lms])
-    if bracket_mm is not None:
-        lo, hi = float(bracket_mm[0]), float(bracket_mm[1])
-        if 0.0 <= lo < hi <= limit:
-            found = _refine(plan, lms, margins, lo, hi, tol_mm)
-            if found is not None and found < hi:  # safe at lo, violated by hi: it held
-                return found
-    found = _refine(plan, lms, margins, 0.0, limit, tol_mm)
-    if found is None:  # violated at the entry already
-        return 0.0
-    return found
+    """:attr:`SafeDepth.depth_mm` of :func:`safe_depth`, mm."""
+    return safe_depth(
+        plan, landmarks, limit_mm=limit_mm, tol_mm=tol_mm, bracket_mm=bracket_mm
+    ).depth_mm
 
 
 def _refine(
@@ -138,36 +160,69 @@ def _refine(
     lo: float,
     hi: float,
     tol_mm: float,
-) -> float | None:
+) -> SafeDepth | None:
     """Deepest safe depth in ``[lo, hi]`` to ``tol_mm``, or None if ``lo`` is not safe.
 
     Each pass evaluates ``_REFINE_POINTS`` depths spanning the bracket (its ends included) in
     one vectorised call and keeps the step where the slack (clearance - margin) first turns
     negative, valid because the slack never increases with depth: the bracket shrinks
-    ``_REFINE_POINTS - 1``-fold per pass. Returns ``hi`` when it is still safe.
+    ``_REFINE_POINTS - 1``-fold per pass. Returns ``hi`` (capped) when it is still safe.
     """
     while True:
         xs = np.linspace(lo, hi, _REFINE_POINTS)
-        slack = np.min(clearance_profile_mm(plan, lms, xs) - margins[None, :], axis=1)
-        bad = np.flatnonzero(slack < 0.0)
+        slack = clearance_profile_mm(plan, lms, xs) - margins[None, :] - SEGMENT_TOL_MM
+        bad = np.flatnonzero(np.min(slack, axis=1) < 0.0)
         if bad.size == 0:
-            return hi
+            return SafeDepth(hi, None, True)
         first = int(bad[0])
         if first == 0:
             return None
         lo, hi = float(xs[first - 1]), float(xs[first])
         if hi - lo <= tol_mm:
-            return lo
+            return SafeDepth(lo, int(np.argmin(slack[first])), False)
 
 
-def nearest_landmark(clearance_mm: np.ndarray, margins_mm: np.ndarray) -> int | None:
-    """Index of the landmark with the smallest clearance minus margin over all depths.
+def margin_warnings(
+    plan: Plan, plan_clearance_mm: np.ndarray, margins: np.ndarray
+) -> list[tuple[str, str]]:
+    """``(code, message)`` for a plan that breaks a margin or uses a sub-clinical one.
 
     Parameters
     ----------
-    clearance_mm : (D, L) clearance profile.
-    margins_mm : (L,) margin per landmark.
+    plan : the plan (landmark names, margins).
+    plan_clearance_mm : (L,) signed clearance at the planned depth (the smallest along the
+        planned path, as clearance never increases with depth), mm.
+    margins : (L,) margin per landmark, mm.
+
+    Returns
+    -------
+    ``plan_violates_margin`` (one message naming every landmark whose margin the planned path
+    breaks) and ``margin_below_clinical`` (every margin under :data:`CLINICAL_MARGIN_MM`,
+    0 included), in that order; empty when neither applies.
     """
-    if clearance_mm.shape[1] == 0 or clearance_mm.shape[0] == 0:
-        return None
-    return int(np.argmin(clearance_mm.min(axis=0) - margins_mm))
+    out: list[tuple[str, str]] = []
+    broken = [
+        f"{lm.name!r} {float(c):.3f} mm (margin {float(m):g} mm"
+        + (", inside it)" if c < 0.0 else ")")
+        for lm, c, m in zip(plan.landmarks, plan_clearance_mm, margins, strict=True)
+        if c < m
+    ]
+    if broken:
+        out.append(
+            (
+                "plan_violates_margin",
+                f"plan {plan.name!r}: the planned path breaks the safety margin: clearance at "
+                f"the planned depth {plan.planned_depth_mm:.3f} mm to " + ", ".join(broken),
+            )
+        )
+    low = sorted({float(m) for m in margins} | ({plan.margin_mm} if not plan.landmarks else set()))
+    low = [m for m in low if m < CLINICAL_MARGIN_MM]
+    if low:
+        out.append(
+            (
+                "margin_below_clinical",
+                f"plan {plan.name!r}: safety margin {', '.join(f'{m:g}' for m in low)} mm is "
+                f"below the clinical {CLINICAL_MARGIN_MM:g} mm to the nerve canal",
+            )
+        )
+    return out

@@ -41,6 +41,7 @@ from ctdrill.imaging.plan.read import (
     _make_plan,
     _stem,
     _to_lps,
+    series_hash,
 )
 from ctdrill.imaging.plan.settings import SettingsSyntaxError, parse_settings
 from ctdrill.imaging.plan.types import (
@@ -48,13 +49,16 @@ from ctdrill.imaging.plan.types import (
     DEFAULT_CALIBRATION,
     DEFAULT_FEED_MM_S,
     DEFAULT_MARGIN_MM,
+    SERIES_HASH_KEY,
     Plan,
 )
 
 #: Markup types read; every other type is skipped with a warning.
 READ_TYPES = ("Line", "Curve", "Fiducial")
 #: Settings each markup type accepts in its descriptions.
-LINE_KEYS = frozenset({"name", *_DRILL_KEYS, "feed_mm_s", "calibration", "margin_mm"})
+LINE_KEYS = frozenset(
+    {"name", *_DRILL_KEYS, "feed_mm_s", "calibration", "margin_mm", SERIES_HASH_KEY}
+)
 CURVE_KEYS = frozenset({"name", "radius_mm", "margin_mm", "curve"})
 POINT_KEYS = frozenset({"name", "margin_mm"})
 #: ``curve=`` values: Slicer's spline (default) or the straight segments between the points.
@@ -237,8 +241,12 @@ def _line(
         fp = settings.origin.get("calibration", where)
         raise ctx.fail(f"{fp}.calibration", "must be a set name or a path", cal)
     name = _name(ctx, settings, mk, only) or f"{_stem(ctx.path)}-{index + 1}"
+    hashed = settings.get(SERIES_HASH_KEY)
     return _make_plan(
         ctx,
+        series_hash=series_hash(
+            ctx, hashed, f"{settings.origin.get(SERIES_HASH_KEY, where)}.{SERIES_HASH_KEY}"
+        ),
         entry=pts[0],
         target=pts[1],
         drill=drill,

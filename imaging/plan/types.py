@@ -20,11 +20,13 @@ several files (or a folder) merge into plans (:func:`load_plan_set`,
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import re
 import tempfile
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -38,7 +40,13 @@ from ctdrill.imaging.plan.landmarks import (
 PLAN_FORMAT = "ctdrill-plan/1"
 #: Calibration used when a plan names none: patient CT, labelled as illustrative.
 DEFAULT_CALIBRATION = "bone-illustrative"
-DEFAULT_MARGIN_MM = 2.0
+#: Clinical safety margin to the inferior alveolar nerve canal, mm (DESIGN.md section 5): its
+#: one owner. Margins below it are reported (warning ``margin_below_clinical``).
+CLINICAL_MARGIN_MM = 2.0
+DEFAULT_MARGIN_MM = CLINICAL_MARGIN_MM
+#: Plan key recording the series a plan was made on: :func:`series_uid_hash` of its UID.
+SERIES_HASH_KEY = "series_uid_sha256"
+_SERIES_HASH_RE = re.compile(r"[0-9a-f]{64}")
 DEFAULT_FEED_MM_S = 0.4
 _SLICER_SCHEMA = (
     "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/"
@@ -54,6 +62,7 @@ _TOP_KEYS = {
     "calibration",
     "margin_mm",
     "landmarks",
+    SERIES_HASH_KEY,
     "name",
     "description",
     "comment",
@@ -117,6 +126,8 @@ class Plan:
     notes : defaults the reader filled in that the user should know (e.g. a canal radius).
     warnings : other ``(code, message)`` pairs from reading it (e.g. ``markups_skipped``);
         :func:`plan_warnings` gives all of them.
+    series_uid_sha256 : :func:`series_uid_hash` of the series the plan was made on, or None
+        (a plan written by hand or by an older ctdrill).
     """
 
     entry_lps: np.ndarray
@@ -130,6 +141,7 @@ class Plan:
     source: str = ""
     notes: tuple[str, ...] = ()
     warnings: tuple[tuple[str, str], ...] = ()
+    series_uid_sha256: str | None = None
 
     def __post_init__(self) -> None:
         for attr in ("entry_lps", "target_lps"):
@@ -157,6 +169,20 @@ class Plan:
         """(3,) LPS point on the axis at ``depth_mm`` from the entry."""
         out: np.ndarray = self.entry_lps + depth_mm * self.direction
         return out
+
+
+def series_uid_hash(series_uid: str) -> str:
+    """The hash a plan records of a SeriesInstanceUID (64 hex digits; never the UID itself).
+
+    SHA-256 of ``"ctdrill-series/1:" + uid`` (UTF-8), so equal UIDs give equal hashes and the
+    plan file does not carry the identifier.
+    """
+    return hashlib.sha256(f"ctdrill-series/1:{series_uid.strip()}".encode()).hexdigest()
+
+
+def is_series_hash(value: object) -> bool:
+    """True for a well-formed :func:`series_uid_hash` value (64 lower-case hex digits)."""
+    return isinstance(value, str) and _SERIES_HASH_RE.fullmatch(value) is not None
 
 
 # --------------------------------------------------------------------------- public API
@@ -246,9 +272,15 @@ def plan_to_markups(plan: Plan) -> dict[str, Any]:
     return markups_document(plan)
 
 
-def save_plan(plan: Plan, path: str | os.PathLike[str]) -> None:
+def save_plan(plan: Plan, path: str | os.PathLike[str], *, series_uid: str | None = None) -> None:
     """Write ``plan`` atomically: Slicer markups if ``path`` ends in ``.mrk.json``, else
-    ``ctdrill-plan/1`` JSON (LPS)."""
+    ``ctdrill-plan/1`` JSON (LPS).
+
+    ``series_uid`` (the SeriesInstanceUID the plan was made on) is recorded hashed
+    (:func:`series_uid_hash`); without it the plan keeps the hash it has, if any.
+    """
+    if series_uid is not None:
+        plan = replace(plan, series_uid_sha256=series_uid_hash(series_uid))
     p = Path(path)
     if p.name.lower().endswith(".mrk.json"):
         doc = plan_to_markups(plan)

@@ -10,6 +10,7 @@ import numpy as np
 from ctdrill.imaging.plan.curve import POINTS_PER_SEGMENT, slicer_curve
 from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
+    LandmarkInputError,
     PointLandmark,
 )
 from ctdrill.imaging.plan.settings import format_settings
@@ -17,6 +18,7 @@ from ctdrill.imaging.plan.slicer import CURVE_POLYLINE
 from ctdrill.imaging.plan.types import (
     _SLICER_SCHEMA,
     PLAN_FORMAT,
+    SERIES_HASH_KEY,
     Plan,
     PlanInputError,
 )
@@ -29,34 +31,10 @@ def plan_document(plan: Plan, out_dir: str | os.PathLike[str] | None = None) -> 
     the landmark's ``source``; a mask's ``label``/``segment`` are kept, and its ``affine_lps``
     only for a ``.npy`` (other files carry their own geometry).
     """
-    lms: list[dict[str, Any]] = []
-    for lm in plan.landmarks:
-        item: dict[str, Any] = {"name": lm.name, "kind": lm.kind}
-        if isinstance(lm, CanalLandmark):
-            item["points_mm"] = lm.points_lps.tolist()
-            item["radius_mm"] = lm.radius_mm
-        elif isinstance(lm, PointLandmark):
-            item["point_mm"] = lm.point_lps.tolist()
-        else:
-            if not lm.source:
-                raise PlanInputError(
-                    f"mask landmark {lm.name!r} has no file to refer to; save the mask as .npy "
-                    "and set its source"
-                )
-            item["path"] = (
-                lm.source
-                if out_dir is None
-                else os.path.relpath(os.path.abspath(lm.source), os.path.abspath(out_dir))
-            )
-            if lm.label is not None:
-                item["label"] = lm.label
-            if lm.segment is not None:
-                item["segment"] = lm.segment
-            if lm.affine_lps is not None and lm.source.lower().endswith(".npy"):
-                item["affine_lps"] = lm.affine_lps.tolist()
-        if lm.margin_mm is not None:
-            item["margin_mm"] = lm.margin_mm
-        lms.append(item)
+    try:
+        lms = [lm.to_plan_item(out_dir) for lm in plan.landmarks]
+    except LandmarkInputError as exc:
+        raise PlanInputError(str(exc)) from exc
     d = plan.drill
     return {
         "format": PLAN_FORMAT,
@@ -74,7 +52,7 @@ def plan_document(plan: Plan, out_dir: str | os.PathLike[str] | None = None) -> 
         "calibration": plan.calibration,
         "margin_mm": plan.margin_mm,
         "landmarks": lms,
-    }
+    } | ({} if plan.series_uid_sha256 is None else {SERIES_HASH_KEY: plan.series_uid_sha256})
 
 
 #: A control point's orientation as Slicer 5 writes it in LPS (identity in RAS).
@@ -144,7 +122,7 @@ def markups_document(plan: Plan) -> dict[str, Any]:
         "feed_mm_s": plan.feed_mm_s,
         "calibration": plan.calibration,
         "margin_mm": plan.margin_mm,
-    }
+    } | ({} if plan.series_uid_sha256 is None else {SERIES_HASH_KEY: plan.series_uid_sha256})
     markups = [
         _markup(
             "Line",

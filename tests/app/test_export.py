@@ -87,9 +87,19 @@ def demo_export(tmp_path_factory: pytest.TempPathFactory) -> Path:
         ]
     )
     assert (code, err) == (0, "")
-    assert sorted(line.split()[-1] for line in stdout.splitlines()) == sorted(
+    wrote = [line for line in stdout.splitlines() if line.startswith("wrote ")]
+    assert sorted(line.split()[-1] for line in wrote) == sorted(
         str(out / n) for n in ("force.csv", "profile.csv", "summary.json", "force.png")
     )
+    # then the stop, why, and every warning of summary.json, on the terminal
+    s = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    rest = stdout.splitlines()[len(wrote) :]
+    assert rest[0] == (
+        f"plan: stop at {s['stop_depth_mm']:.3f} mm (margin: 'left mandibular canal', margin "
+        f"2 mm) of 12.000 mm planned; clearance along the planned path "
+        f"{s['plan_clearance_mm']:.3f} mm"
+    )
+    assert rest[1:] == [f"warning [{w['code']}]: {w['message']}" for w in s["warnings"]]
     return out
 
 
@@ -104,7 +114,8 @@ def test_demo_summary_matches_the_phantom_truth(demo_export: Path) -> None:
         "min_clearance_mm",
         "calibration",
         "warnings",
-        "nearest_landmark",
+        "binding_landmark",
+        "plan_clearance_mm",
         "extrapolation",
         "hu_grading",
     ):
@@ -114,7 +125,14 @@ def test_demo_summary_matches_the_phantom_truth(demo_export: Path) -> None:
     assert s["max_safe_depth_mm"] == pytest.approx(truth["max_safe_depth_mm"], abs=1e-3)
     assert s["stop_depth_mm"] <= truth["max_safe_depth_mm"]
     assert s["min_clearance_mm"] == pytest.approx(2.0, abs=1e-3)
-    assert s["nearest_landmark"]["name"] == "left mandibular canal"
+    assert s["binding_landmark"]["name"] == "left mandibular canal"
+    assert s["binding_landmark"]["margin_mm"] == 2.0
+    # the demo plan goes 1.2 mm deeper than the margin allows: it says so (canal at 14 mm,
+    # radius 1.2: 0.8 mm of clearance along the planned path)
+    assert s["plan_clearance_mm"] == pytest.approx(0.8, abs=1e-3)
+    codes = [w["code"] for w in s["warnings"]]
+    assert codes.count("plan_violates_margin") == 1
+    assert "margin_below_clinical" not in codes and "plan_other_series" not in codes
     assert s["calibration"] == "bone-illustrative" and s["calibration_illustrative"] is True
     assert "calibration_illustrative" in [w["code"] for w in s["warnings"]]
     grading = s["hu_grading"]
@@ -321,7 +339,9 @@ def test_several_plans_one_load_subfolders_and_progress(tmp_path: Path) -> None:
         assert s["plan_file"] == {"a": "a.json", "b": "b.mrk.json"}[stem]
         assert s["stop_depth_mm"] == pytest.approx(10.8, abs=1e-3)
         assert _png_size(out / stem / "force.png") == (1200, 1000)
-    assert len(stdout.splitlines()) == 8
+    assert len([line for line in stdout.splitlines() if line.startswith("wrote ")]) == 8
+    stops = [line for line in stdout.splitlines() if ": stop at " in line]
+    assert len(stops) == 2 and all("(margin: 'left mandibular canal'" in x for x in stops)
     assert not [p for p in tmp_path.iterdir() if "staging" in p.name]
 
 
@@ -364,7 +384,7 @@ def test_edge_cases_no_landmark_and_a_stop_at_the_entry(tmp_path: Path) -> None:
     assert len(written) == 8
     s_free = json.loads((tmp_path / "out" / "free" / "summary.json").read_text(encoding="utf-8"))
     assert s_free["stop_reason"] == "planned_depth" and s_free["stop_depth_mm"] == 10.0
-    assert s_free["min_clearance_mm"] is None and s_free["nearest_landmark"] is None
+    assert s_free["min_clearance_mm"] is None and s_free["binding_landmark"] is None
     assert s_free["max_safe_depth_mm"] == 20.0 and s_free["max_safe_depth_capped"] is True
     assert s_free["calibration_illustrative"] is False
     _, rows = _rows(tmp_path / "out" / "free" / "force.csv")

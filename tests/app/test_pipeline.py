@@ -130,7 +130,7 @@ def test_margin_stop_is_the_exact_safe_depth(slabs: CTVolume) -> None:
     assert res.stop_depth_mm == pytest.approx(4.0 - 0.5 - 2.0, abs=1e-3)
     assert res.stop_depth_mm <= 1.5
     assert res.min_clearance_mm == pytest.approx(2.0, abs=1e-3)
-    assert res.nearest_landmark == 0
+    assert res.binding_landmark == 0 and res.binding_margin_mm == 2.0
     assert res.clearance_mm.shape == (res.depth_mm.size, 1)
     assert "plan_default" not in [w.code for w in res.warnings]
     noted = replace(_plan(landmarks=(canal,)), notes=("plan.json: a default was used",))
@@ -138,9 +138,16 @@ def test_margin_stop_is_the_exact_safe_depth(slabs: CTVolume) -> None:
     assert ("plan_default", "plan.json: a default was used") in [
         (w.code, w.message) for w in warned
     ]
-    # distance to the core (0 once inside it) minus the radius
-    want = np.maximum(4.0 - res.depth_mm, 0.0) - 0.5
-    np.testing.assert_allclose(res.clearance_mm[:, 0], want, atol=1e-9)
+    # signed distance to the core minus the radius: past contact the deepest core point is on
+    # the axis, -(x - 4) R / sqrt(R^2 + l_t^2) inside the cone
+    d = res.depth_mm
+    inside = -(d - 4.0) * R_MM / math.hypot(R_MM, LT_MM)
+    want = np.where(d <= 4.0, 4.0 - d, inside) - 0.5
+    np.testing.assert_allclose(res.clearance_mm[:, 0], want, atol=1e-7)
+    # the planned path (5 mm) runs into the canal: it says so
+    assert res.plan_clearance_mm == pytest.approx(want[-1], abs=1e-7) and want[-1] < 0.0
+    codes = [w.code for w in res.warnings]
+    assert codes.count("plan_violates_margin") == 1 and "margin_below_clinical" not in codes
 
 
 def test_out_of_volume_stop_where_the_lip_leaves_through_the_bottom(slabs: CTVolume) -> None:
@@ -289,8 +296,9 @@ def replace_warnings(vol: CTVolume, warnings: tuple[object, ...]) -> CTVolume:
 
 
 def test_mask_landmark_from_a_plan_file_on_the_ct_grid(slabs: CTVolume, tmp_path: Path) -> None:
-    # A bar of voxels along x at y = 0 with 3.5 <= z <= 4.5 mm: the voxel centre nearest to
-    # the drill sits on the axis at z = 3.501 mm, so the 2 mm margin allows 1.501 mm.
+    # A bar of voxels along x at y = 0 with centres 3.5 <= z <= 4.5 mm: the first labelled
+    # slice is centred at z = 3.501 mm, so its boxes start at 3.500 mm (half a 0.002 mm slice
+    # above their centres) and the 2 mm margin allows 1.500 mm, not 1.501 (voxel centres).
     z = Z0 + DZ * np.arange(N_SLICES)
     labels = np.zeros(slabs.hu.shape, dtype=np.uint8)
     labels[(z >= 3.5) & (z <= 4.5), 4, :] = 5
@@ -306,8 +314,8 @@ def test_mask_landmark_from_a_plan_file_on_the_ct_grid(slabs: CTVolume, tmp_path
     plan = load_plan(tmp_path / "plan.json")
     res = plan_path(slabs, plan, load_calibration("bone-illustrative"))
     assert res.stop_reason == "margin"
-    assert res.stop_depth_mm == pytest.approx(3.501 - 2.0, abs=1e-3)
-    assert res.stop_depth_mm <= 1.501 + 1e-9
+    assert res.stop_depth_mm == pytest.approx(3.5 - 2.0, abs=1e-3)
+    assert res.stop_depth_mm <= 1.5
     lm = res.landmarks[0]
     assert isinstance(lm, MaskLandmark) and lm.affine_lps is not None
 

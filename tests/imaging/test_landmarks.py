@@ -9,28 +9,36 @@ import pytest
 
 from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
+    Landmark,
     LandmarkInputError,
     MaskLandmark,
     PointLandmark,
     bind_to_grid,
-    landmark_core,
     load_mask_file,
 )
 
 
-def test_cores_of_each_kind() -> None:
+def test_every_kind_implements_the_protocol() -> None:
     canal = CanalLandmark("c", [[0, 0, 0], [1, 0, 0], [1, 2, 0]], radius_mm=1.5, margin_mm=3.0)
-    a, b, r = landmark_core(canal)
+    a, b = canal.segments_lps()
     np.testing.assert_array_equal(a, [[0, 0, 0], [1, 0, 0]])
     np.testing.assert_array_equal(b, [[1, 0, 0], [1, 2, 0]])
-    assert r == 1.5 and canal.kind == "canal" and not canal.points_lps.flags.writeable
+    assert canal.kind == "canal" and not canal.points_lps.flags.writeable
+    assert len(canal.drawing().polylines_lps) == 1 and canal.drawing().radius_mm == 1.5
     dot = CanalLandmark("one point", [[4, 5, 6]])
-    a, b, r = landmark_core(dot)
-    assert a.shape == b.shape == (1, 3) and r == 1.2  # default canal radius
+    assert dot.radius_mm == 1.2  # default canal radius
+    assert dot.drawing().points_lps.shape == (1, 3) and dot.drawing().polylines_lps == ()
     apex = PointLandmark("p", [1, 2, 3])
-    a, b, r = landmark_core(apex)
-    np.testing.assert_array_equal(a, [[1, 2, 3]])
-    assert r == 0.0 and apex.radius_mm == 0.0 and apex.kind == "point"
+    assert apex.radius_mm == 0.0 and apex.kind == "point"
+    assert apex.to_plan_item() == {"name": "p", "kind": "point", "point_mm": [1.0, 2.0, 3.0]}
+    assert apex.with_margin(0.5).margin_mm == 0.5 and apex.margin_mm is None
+    mask = MaskLandmark("m", np.ones((1, 1, 1), dtype=bool), affine_lps=np.eye(4), source="m.npy")
+    assert mask.drawing().surface_lps.shape == (6, 3)  # the six face centres of one voxel
+    for lm in (canal, dot, apex, mask):
+        assert isinstance(lm, Landmark)
+        assert lm.to_plan_item()["kind"] == lm.kind
+    with pytest.raises(LandmarkInputError, match="singular"):
+        MaskLandmark("flat", np.ones((1, 1, 1), dtype=bool), affine_lps=np.diag([1, 1, 0, 1.0]))
 
 
 def test_mask_files_are_checked(tmp_path: Path) -> None:
@@ -63,8 +71,12 @@ def test_binding_gives_grid_less_masks_the_ct_affine() -> None:
     bound_canal, bound = bind_to_grid((canal, free), affine, (2, 3, 4))
     assert bound_canal is canal
     assert isinstance(bound, MaskLandmark)
-    # (k, j, i) = (1, 2, 3) -> (10 + 2*3, 20 + 3*2, 30 + 5*1)
-    np.testing.assert_allclose(bound.surface_points_lps(), [[16.0, 26.0, 35.0]])
+    # (k, j, i) = (1, 2, 3) -> centre (10 + 2*3, 20 + 3*2, 30 + 5*1); its six face centres
+    faces = bound.surface_points_lps()
+    centre = np.array([16.0, 26.0, 35.0])
+    half = np.array([1.0, 1.5, 2.5])
+    want = [centre + sign * half * np.eye(3)[m] for m in range(3) for sign in (-1, 1)]
+    assert sorted(map(tuple, faces)) == sorted(map(tuple, want))
     with pytest.raises(LandmarkInputError, match="expected a 3-D array"):
         MaskLandmark("bad", np.zeros((3, 3), dtype=bool))
     with pytest.raises(LandmarkInputError, match="finite 4x4"):

@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from ctdrill.imaging.misch import MISCH_BANDS_HU
 from ctdrill.imaging.phantom.mandible import (
     LABELS,
     MISCH_CLASSES,
@@ -25,13 +26,7 @@ from ctdrill.imaging.plan.types import DrillSpec
 from ctdrill.imaging.sampling.lip import sample_lip_rings
 from ctdrill.imaging.volume import CTVolume, SeriesInfo
 
-MISCH_BANDS = {
-    "D1": (1250.0, np.inf),
-    "D2": (850.0, 1250.0),
-    "D3": (350.0, 850.0),
-    "D4": (150.0, 350.0),
-    "D5": (-np.inf, 150.0),
-}
+MISCH_BANDS = {label: (lo, hi) for label, lo, hi in MISCH_BANDS_HU}
 
 
 @pytest.fixture(scope="module")

@@ -201,9 +201,10 @@ def test_mask_landmark_from_npy_on_the_ct_grid(tmp_path: Path) -> None:
     (bound,) = bind_to_grid(plan.landmarks, affine, (4, 5, 6))
     assert isinstance(bound, MaskLandmark)
     pts = bound.surface_points_lps()
-    # A 2-voxel-thick bar: every voxel is on the boundary; (k, j, i) -> (0.5 i, 0.5 j, 2 k).
-    assert pts.shape == (8, 3)
-    np.testing.assert_allclose(sorted(set(pts[:, 2])), [2.0, 4.0])
+    # A 2 x 1 x 4 bar of voxel boxes: its 28 exposed face centres; (k, j, i) -> (0.5 i, 0.5 j,
+    # 2 k): side faces at k = 1, 2, the bottom and top faces at k = 0.5, 2.5.
+    assert pts.shape == (28, 3)
+    np.testing.assert_allclose(sorted(set(pts[:, 2])), [1.0, 2.0, 4.0, 5.0])
     with pytest.raises(LandmarkInputError, match="does not match the CT grid"):
         bind_to_grid(plan.landmarks, affine, (4, 5, 7))
     doc["landmarks"][0]["path"] = "nothing.npy"

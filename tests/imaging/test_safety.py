@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,10 +12,12 @@ from scipy.spatial import cKDTree
 from ctdrill.imaging.plan.distance import segment_solid_distance_mm, solid_distance_mm
 from ctdrill.imaging.plan.landmarks import CanalLandmark, MaskLandmark, PointLandmark
 from ctdrill.imaging.plan.safety import (
+    SEARCH_BEYOND_PLAN_MM,
     clearance_mm,
     clearance_profile_mm,
     max_safe_depth_mm,
-    nearest_landmark,
+    safe_depth,
+    search_limit_mm,
 )
 from ctdrill.imaging.plan.types import DrillSpec, Plan
 
@@ -90,13 +93,16 @@ def test_point_and_segment_distance_match_dense_sampling(seed: int) -> None:
     assert checked >= 15
 
 
-def test_inside_the_solid_is_zero_and_ahead_of_the_tip_is_tip_distance() -> None:
-    s = np.array([-100.0, 4.0, 4.69, 5.0, 7.0, 4.0])
-    rho = np.array([0.99, 0.0, 0.5, 0.0, 0.0, 3.0])
+def test_signed_distance_inside_the_solid_and_ahead_of_the_tip() -> None:
+    s = np.array([-100.0, -100.0, 4.0, 5.0, 7.0, 4.0, 4.4])
+    rho = np.array([0.99, 0.0, 0.0, 0.0, 0.0, 3.0, 0.0])
     d = solid_distance_mm(s, rho, 5.0, radius_mm=R, tip_length_mm=LT)
-    np.testing.assert_allclose(d[:4], 0.0)
+    # inside the cylinder: rho - R; on the axis 1 mm behind the tip: the cone side is nearer,
+    # at (R (x - s) - rho l_t) / sqrt(R^2 + l_t^2); the tip itself is on the surface.
+    np.testing.assert_allclose(d[:4], [-0.01, -1.0, -1.0 / math.hypot(R, LT), 0.0], atol=1e-12)
     assert d[4] == pytest.approx(2.0)
     assert d[5] == pytest.approx(2.0)  # beside the cylinder: rho - R
+    assert d[6] == pytest.approx(-0.6 / math.hypot(R, LT))
 
 
 def _plan(landmarks: tuple[CanalLandmark | PointLandmark | MaskLandmark, ...]) -> Plan:
@@ -117,8 +123,9 @@ def test_max_safe_depth_is_exact_for_a_canal_across_the_axis() -> None:
     assert max_safe_depth_mm(plan) == pytest.approx(11.8, abs=1e-3)
     assert max_safe_depth_mm(plan) <= 11.8
     depth = np.array([0.0, 5.0, 11.8, 13.8, 20.0])
+    # signed: once the centre line lies on the axis of the cylinder it is R deep inside
     np.testing.assert_allclose(
-        clearance_profile_mm(plan, depth_mm=depth)[:, 0], [13.8, 8.8, 2.0, 0.0, -1.2], atol=1e-9
+        clearance_profile_mm(plan, depth_mm=depth)[:, 0], [13.8, 8.8, 2.0, 0.0, -2.2], atol=1e-9
     )
 
 
@@ -143,39 +150,108 @@ def test_max_safe_depth_is_exact_when_the_cone_side_touches_first() -> None:
     assert clearance_mm(plan, canal, expected) == pytest.approx(margin, abs=1e-9)
 
 
-def test_per_landmark_margin_and_nearest_landmark() -> None:
+def test_per_landmark_margin_and_the_binding_landmark() -> None:
     canal = CanalLandmark("canal", [[-10.0, -3.0, 25.0], [20.0, -3.0, 25.0]], radius_mm=1.2)
     apex = PointLandmark("apex", [5.0, -3.0, 30.0], margin_mm=0.5)  # on the axis at 10 mm
     plan = _plan((canal, apex))
-    assert max_safe_depth_mm(plan) == pytest.approx(9.5, abs=1e-3)
+    got = safe_depth(plan)
+    assert got.depth_mm == pytest.approx(9.5, abs=1e-3) and got.depth_mm <= 9.5
+    assert got.binding == 1 and not got.capped  # the apex (margin 0.5) binds, not the canal
+    # with the canal's margin 2.5 and the apex off the path, the canal binds at 15 - 1.2 - 2.5
+    far = PointLandmark("far", [40.0, -3.0, 30.0], margin_mm=0.5)
+    wide = CanalLandmark("canal", canal.points_lps, radius_mm=1.2, margin_mm=2.5)
+    got = safe_depth(_plan((far, wide)))
+    assert got.depth_mm == pytest.approx(11.3, abs=1e-3) and got.binding == 1
     depth = np.linspace(0, 20, 41)
     prof = clearance_profile_mm(plan, depth_mm=depth)
     assert prof.shape == (41, 2)
     assert np.all(np.diff(prof, axis=0) <= 1e-12)  # non-increasing in depth
-    assert nearest_landmark(prof, np.array([2.0, 0.5])) == 0
-    assert max_safe_depth_mm(_plan(())) == pytest.approx(30.0)
+    free = safe_depth(_plan(()))
+    assert free == type(free)(30.0, None, True)
+    assert search_limit_mm(plan) == plan.planned_depth_mm + SEARCH_BEYOND_PLAN_MM == 30.0
     assert max_safe_depth_mm(_plan((canal,)), limit_mm=5.0) == 5.0
+    assert safe_depth(_plan((canal,)), limit_mm=5.0).capped
     too_close = PointLandmark("touching", [5.0, -3.0, 41.0])  # 1 mm above the entry
-    assert max_safe_depth_mm(_plan((too_close,))) == 0.0
+    assert safe_depth(_plan((too_close,))) == type(free)(0.0, 0, False)
 
 
-def test_mask_landmark_clearance_equals_its_boundary_voxel_points() -> None:
+@pytest.mark.parametrize("kind", ["canal", "point"])
+def test_radius_and_margin_zero_stop_at_contact(kind: str) -> None:
+    # The centre line (or point) crosses the axis at depth 15 mm: with radius 0 and margin 0
+    # the tip may touch it and never pass (a distance that is never negative let it through).
+    if kind == "canal":
+        lm: CanalLandmark | PointLandmark = CanalLandmark(
+            "thin", [[-10.0, -3.0, 25.0], [20.0, -3.0, 25.0]], radius_mm=0.0, margin_mm=0.0
+        )
+    else:
+        lm = PointLandmark("apex", [5.0, -3.0, 25.0], margin_mm=0.0)
+    plan = _plan((lm,))
+    got = safe_depth(plan)
+    assert got.depth_mm == pytest.approx(15.0, abs=1e-3) and got.depth_mm <= 15.0
+    assert got.binding == 0
+    # past contact the clearance is negative: minus the depth of the line inside the drill
+    prof = clearance_profile_mm(plan, depth_mm=np.array([14.0, 15.0, 15.3, 20.0]))[:, 0]
+    np.testing.assert_allclose(prof[:2], [1.0, 0.0], atol=1e-9)
+    assert prof[2] == pytest.approx(-0.3 * R / math.hypot(R, LT), abs=1e-7)
+    assert prof[3] == pytest.approx(-R, abs=1e-7)  # on the axis of the cylinder
+
+
+def test_mask_voxels_are_boxes_measured_to_their_faces() -> None:
     mask = np.zeros((6, 7, 8), dtype=bool)
-    mask[2:5, 2:5, 3:6] = True  # a 3x3x3 block: 26 boundary voxels, one interior
+    mask[2:5, 2:5, 3:6] = True  # a 3x3x3 block around the axis
     affine = np.array(
         [[0.5, 0.0, 0.0, 3.0], [0.0, 0.5, 0.0, -4.0], [0.0, 0.0, -1.0, 28.0], [0, 0, 0, 1.0]]
     )
     lm = MaskLandmark("block", mask, affine_lps=affine)
-    pts = lm.surface_points_lps()
-    assert pts.shape == (26, 3)
     plan = _plan((lm,))
-    depth = np.linspace(0.0, 20.0, 21)
+    depth = np.array([0.0, 10.0, 13.5, 14.0, 20.0])
     got = clearance_profile_mm(plan, depth_mm=depth)[:, 0]
-    as_points = tuple(PointLandmark(f"p{i}", p) for i, p in enumerate(pts))
-    want = clearance_profile_mm(plan, as_points, depth).min(axis=1)
-    np.testing.assert_allclose(got, want, atol=1e-12)
-    # The block's top face is at z = 28 - 2 = 26 (k = 2), i.e. 14 mm below the entry.
-    assert got[0] == pytest.approx(14.0)
+    # The top face of the block is at z = 28 - 1.5 = 26.5 (k = 1.5), 13.5 mm below the entry
+    # (its voxel centres at 14 mm). Half a millimetre past contact the deepest block point is
+    # on the axis at the face: -(0.5 R) / sqrt(R^2 + l_t^2) from the cone; deep through it, -R.
+    want = [13.5, 3.5, 0.0, -0.5 * R / math.hypot(R, LT), -R]
+    np.testing.assert_allclose(got, want, atol=1e-7)
+    assert max_safe_depth_mm(replace(plan, margin_mm=0.0)) == pytest.approx(13.5, abs=1e-3)
+
+
+def test_mask_corner_on_the_axis_is_where_the_tip_touches() -> None:
+    # One 0.5 mm voxel whose corner sits on the axis 10 mm deep, the voxel beyond it: the
+    # stop for a 2 mm margin is at 8 mm (the voxel centre lies 0.43 mm further).
+    mask = np.ones((1, 1, 1), dtype=bool)
+    corner = np.array([5.0, -3.0, 30.0])
+    affine = np.diag([0.5, 0.5, -0.5, 1.0])
+    affine[:3, 3] = corner + np.array([0.25, 0.25, -0.25])  # the centre
+    plan = _plan((MaskLandmark("voxel", mask, affine_lps=affine),))
+    assert max_safe_depth_mm(plan) == pytest.approx(8.0, abs=1e-3)
+    assert max_safe_depth_mm(plan) <= 8.0
+    assert clearance_profile_mm(plan, depth_mm=np.array([8.0]))[0, 0] == pytest.approx(2.0)
+
+
+def test_an_oblique_mask_grid_matches_dense_sampling_of_its_boxes() -> None:
+    rng = np.random.default_rng(3)
+    lin = np.array([[0.4, 0.1, 0.05], [-0.1, 0.45, 0.1], [0.05, -0.1, -0.5]])  # sheared
+    affine = np.eye(4)
+    affine[:3, :3] = lin
+    affine[:3, 3] = [4.0, -4.0, 27.0]
+    mask = rng.random((4, 5, 5)) < 0.4
+    plan = _plan((MaskLandmark("blob", mask, affine_lps=affine),))
+    depth = np.linspace(8.0, 16.0, 9)
+    got = clearance_profile_mm(plan, depth_mm=depth)[:, 0]
+    n = 11
+    g = np.linspace(-0.5, 0.5, n)
+    sub = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    ijk = (np.argwhere(mask)[:, ::-1][:, None, :] + sub[None]).reshape(-1, 3)
+    pts = ijk @ lin.T + affine[:3, 3]
+    u = plan.direction
+    s = (pts - plan.entry_lps) @ u
+    rho = np.linalg.norm(pts - plan.entry_lps - s[:, None] * u, axis=1)
+    brute = np.array(
+        [solid_distance_mm(s, rho, x, radius_mm=R, tip_length_mm=LT).min() for x in depth]
+    )
+    spacing = np.linalg.norm(lin, axis=0).sum() / (n - 1) / 2  # farthest from a sample
+    assert np.all(got <= brute + 1e-9)  # the exact minimum is never above a sample
+    assert np.all(brute - got <= spacing)
+    assert got.min() < 0.0 < got.max()  # both signs were exercised
 
 
 def test_pruned_polyline_equals_the_minimum_over_its_segments() -> None:

@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 from matplotlib.figure import Figure
 
 from ctdrill.app.gui.plots import (
     LIVE_GID,
     DepthCurves,
     draw_depth_plots,
-    misch_class,
     set_live_depth,
 )
 
@@ -29,25 +27,6 @@ def curves(stop: float = 7.5, reason: str = "margin") -> DepthCurves:
         margin_mm=2.5,
         calibration="bone-illustrative",
     )
-
-
-@pytest.mark.parametrize(
-    ("hu", "label"),
-    [
-        (2000, "D1"),
-        (1250, "D1"),
-        (1249, "D2"),
-        (850, "D2"),
-        (849, "D3"),
-        (350, "D3"),
-        (349, "D4"),
-        (150, "D4"),
-        (149, "D5"),
-        (-1000, "D5"),
-    ],
-)
-def test_misch_classes(hu: float, label: str) -> None:
-    assert misch_class(hu) == label
 
 
 def vlines(ax: object, colour: str) -> list[float]:
