@@ -256,7 +256,8 @@ class MainWindow(QMainWindow):
         if self.plan is None:
             return
         try:
-            save_plan(self.plan, path)
+            uid = None if self.volume is None else self.volume.info.series_uid
+            save_plan(self.plan, path, series_uid=uid)  # records the series, hashed
         except (ValueError, OSError) as exc:
             self._status(f"error: {exc}")
             return

@@ -27,6 +27,8 @@ SEGMENT_TOL_MM = 1e-7
 _INV_PHI = (np.sqrt(5.0) - 1.0) / 2.0
 #: Elements per temporary (depths x segments) array: bounds memory for any landmark size.
 _CHUNK_ELEMENTS = 1 << 18
+#: Segments per block of the coarse pruning pass (used above 16 blocks).
+_BLOCK = 64
 
 
 @dataclass(frozen=True, eq=False)
@@ -200,6 +202,9 @@ def segments_distance_mm(
     best = np.full(x.shape, np.inf)
     if len(a) == 0 or x.size == 0:
         return best
+    if len(a) > _BLOCK * 16:
+        keep = _near_segments(a, b, x, solid)
+        a, b = a[keep], b[keep]
     per = max(1, _CHUNK_ELEMENTS // x.size)
     half = 0.5 * np.linalg.norm(b - a, axis=-1)
 
@@ -226,6 +231,45 @@ def segments_distance_mm(
             dd, ss = di[p : p + _CHUNK_ELEMENTS // 8], si[p : p + _CHUNK_ELEMENTS // 8]
             np.minimum.at(best, dd, _golden_min(solid, a[ss], b[ss], x[dd]))
     return best
+
+
+def _morton_order(points: np.ndarray) -> np.ndarray:
+    """Indices sorting ``points`` (N, 3) along a Z-order curve (10 bits per axis)."""
+    lo = points.min(axis=0)
+    span = float((points.max(axis=0) - lo).max()) or 1.0
+    q = ((points - lo) / span * 1023.0).astype(np.uint64)
+    key = np.zeros(len(points), dtype=np.uint64)
+    for bit in range(10):
+        for axis in range(3):
+            key |= ((q[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+    return np.argsort(key, kind="stable")
+
+
+def _near_segments(a: np.ndarray, b: np.ndarray, x: np.ndarray, solid: DrillSolid) -> np.ndarray:
+    """Indices of the segments that may hold the minimum at some depth (exact pruning).
+
+    Segments are grouped in blocks of :data:`_BLOCK` along a Z-order curve; a block's
+    bounding sphere (centre ``c``, radius ``r``) bounds its distance from below by
+    ``sd(c) - r`` (the signed distance is 1-Lipschitz) and any of its end points bounds the
+    minimum from above; blocks whose lower bound exceeds that minimum at every depth are
+    dropped.
+    """
+    order = _morton_order(0.5 * (a + b))
+    n_blocks = -(-len(order) // _BLOCK)
+    pad = np.concatenate([order, np.full(n_blocks * _BLOCK - len(order), order[-1])])
+    blocks = pad.reshape(n_blocks, _BLOCK)
+    ends = np.concatenate([a[blocks], b[blocks]], axis=1)  # (B, 2 * BLOCK, 3)
+    centre = 0.5 * (ends.min(axis=1) + ends.max(axis=1))
+    radius = np.linalg.norm(ends - centre[:, None, :], axis=-1).max(axis=1)
+    upper = np.full(x.shape, np.inf)
+    lower = np.empty((x.size, n_blocks))
+    per = max(1, _CHUNK_ELEMENTS // x.size)
+    for start in range(0, n_blocks, per):
+        sl = slice(start, start + per)
+        upper = np.minimum(upper, _solid_at(solid, ends[sl, 0][None], x[:, None]).min(axis=1))
+        lower[:, sl] = _solid_at(solid, centre[sl][None], x[:, None]) - radius[sl][None, :]
+    near = np.any(lower <= upper[:, None], axis=0)
+    return np.unique(blocks[near])
 
 
 def segment_solid_distance_mm(

@@ -12,7 +12,7 @@ import pytest
 
 from ctdrill.app.pipeline import PathInputError, plan_calibration, plan_calibration_key, plan_path
 from ctdrill.imaging.plan.landmarks import CanalLandmark, MaskLandmark
-from ctdrill.imaging.plan.types import DrillSpec, Plan, load_plan
+from ctdrill.imaging.plan.types import DrillSpec, Plan, load_plan, series_uid_hash
 from ctdrill.imaging.volume import CTVolume, SeriesInfo
 from ctdrill.model.calibration import load_calibration
 from ctdrill.model.layered import layered_profile
@@ -334,3 +334,28 @@ def test_plan_calibration_is_a_bundled_name_or_a_path_beside_the_plan(tmp_path: 
     named = replace(plan, calibration="bone-illustrative")
     assert plan_calibration_key(named) == "bone-illustrative"
     assert plan_calibration(named).name == "bone-illustrative"
+
+
+def test_margin_warnings_and_the_series_check(slabs: CTVolume) -> None:
+    cal = load_calibration("bone-illustrative")
+    canal = CanalLandmark("canal", [[-10.0, 0.0, 9.0], [10.0, 0.0, 9.0]], radius_mm=0.5)
+    safe = _plan(landmarks=(canal,))  # 5 mm deep, the canal 9 mm deep: 3.5 mm of clearance
+
+    def codes(plan: Plan) -> list[str]:
+        return [w.code for w in plan_path(slabs, plan, cal).warnings]
+
+    assert "margin_below_clinical" not in codes(safe)
+    assert "plan_violates_margin" not in codes(safe)
+    for margin in (0.0, 1.5, 1.999):
+        low = replace(safe, margin_mm=margin)
+        assert codes(low).count("margin_below_clinical") == 1
+    own = replace(safe, landmarks=(canal.with_margin(0.5),))  # a landmark's own margin counts
+    res = plan_path(slabs, own, cal)
+    (msg,) = [w.message for w in res.warnings if w.code == "margin_below_clinical"]
+    assert "0.5 mm" in msg and "clinical 2 mm" in msg
+    assert res.plan_clearance_mm == pytest.approx(3.5, abs=1e-7)
+    # a plan made on this series: no warning; on another: plan_other_series, once
+    mine = replace(safe, series_uid_sha256=series_uid_hash("1.2.3"))
+    other = replace(safe, series_uid_sha256=series_uid_hash("1.2.4"))
+    assert "plan_other_series" not in codes(mine)
+    assert codes(other).count("plan_other_series") == 1
