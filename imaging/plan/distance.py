@@ -35,7 +35,7 @@ _BLOCK = 64
 class DrillSolid:
     """The drill axis and shape: entry point (depth 0), unit direction, radius, cone length.
 
-    All in LPS mm. ``tip_length_mm`` must be > 0 (a flat-ended drill is not modelled).
+    All in LPS mm; ``tip_length_mm`` may be 0 (a flat-ended drill).
     """
 
     entry_lps: np.ndarray
@@ -50,10 +50,10 @@ class DrillSolid:
         if not (np.all(np.isfinite(entry)) and math.isfinite(norm) and norm > 0.0):
             raise ValueError("drill axis: entry and direction must be finite, direction non-zero")
         u = u / norm
-        if not (self.radius_mm > 0.0 and self.tip_length_mm > 0.0):
+        if not (self.radius_mm > 0.0 and self.tip_length_mm >= 0.0):
             raise ValueError(
-                f"drill: radius and tip length must be > 0 mm, got {self.radius_mm!r}, "
-                f"{self.tip_length_mm!r}"
+                f"drill: the radius must be > 0 mm and the tip length >= 0 mm, got "
+                f"{self.radius_mm!r}, {self.tip_length_mm!r}"
             )
         for name, arr in (("entry_lps", entry), ("direction", u)):
             arr.flags.writeable = False
@@ -219,12 +219,14 @@ def segments_distance_mm(
         lower = 0.5 * (np.minimum(va, vb) + vm - half[sl][None, :])
         return upper, lower
 
-    for start in range(0, len(a), per):
-        upper, _ = ends(slice(start, start + per))
+    starts = range(0, len(a), per)
+    first = ends(slice(0, per))  # one chunk (the usual case): computed once, used twice
+    for start in starts:
+        upper, _ = first if start == 0 else ends(slice(start, start + per))
         best = np.minimum(best, upper.min(axis=1))
-    for start in range(0, len(a), per):
+    for start in starts:
         sl = slice(start, start + per)
-        _, lower = ends(sl)
+        _, lower = first if start == 0 else ends(sl)
         di, si = np.nonzero(lower < best[:, None])
         si += start
         for p in range(0, di.size, _CHUNK_ELEMENTS // 8):

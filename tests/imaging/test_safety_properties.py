@@ -107,7 +107,7 @@ def _deepest(ok: object, limit: float) -> float:
     kind=st.sampled_from(["canal", "point", "mask"]),
     seed=st.integers(0, 2**31),
     radius=st.floats(0.3, 1.5),
-    tip=st.floats(0.1, 1.2),
+    tip=st.one_of(st.just(0.0), st.floats(0.1, 1.2)),  # 0: a flat-ended drill
     margin=st.one_of(st.just(0.0), st.floats(0.0, 3.0)),
     depth_at=st.floats(2.0, 16.0),
     offset=st.floats(0.0, 3.0),
