@@ -112,6 +112,15 @@ class Landmark(Protocol):
         """The same landmark with its own margin set (None: the plan's)."""
         ...
 
+    def same_shape(self, other: Landmark) -> bool:
+        """``other`` is the same kind with the same geometry (margins not compared)."""
+        ...
+
+    @property
+    def needs_grid(self) -> bool:
+        """True for a mask without a grid of its own (it takes the CT's, if it has one)."""
+        ...
+
     def on_grid(self, affine_lps: np.ndarray, shape: tuple[int, ...]) -> Landmark:
         """The landmark with a grid-less mask bound to the CT grid (others unchanged)."""
         ...
@@ -179,6 +188,19 @@ class CanalLandmark:
         """A copy with ``margin_mm``."""
         return replace(self, margin_mm=margin_mm)
 
+    def same_shape(self, other: Landmark) -> bool:
+        """A canal with the same radius and centre line."""
+        return (
+            isinstance(other, CanalLandmark)
+            and self.radius_mm == other.radius_mm
+            and np.array_equal(self.points_lps, other.points_lps)
+        )
+
+    @property
+    def needs_grid(self) -> bool:
+        """False: a canal has no grid."""
+        return False
+
     def on_grid(self, affine_lps: np.ndarray, shape: tuple[int, ...]) -> CanalLandmark:
         """Itself (a canal has no grid)."""
         return self
@@ -231,6 +253,15 @@ class PointLandmark:
     def with_margin(self, margin_mm: float | None) -> PointLandmark:
         """A copy with ``margin_mm``."""
         return replace(self, margin_mm=margin_mm)
+
+    def same_shape(self, other: Landmark) -> bool:
+        """A point landmark at the same point."""
+        return isinstance(other, PointLandmark) and np.array_equal(self.point_lps, other.point_lps)
+
+    @property
+    def needs_grid(self) -> bool:
+        """False: a point has no grid."""
+        return False
 
     def on_grid(self, affine_lps: np.ndarray, shape: tuple[int, ...]) -> PointLandmark:
         """Itself (a point has no grid)."""
@@ -356,6 +387,21 @@ class MaskLandmark:
     def with_margin(self, margin_mm: float | None) -> MaskLandmark:
         """A copy with ``margin_mm``."""
         return replace(self, margin_mm=margin_mm)
+
+    def same_shape(self, other: Landmark) -> bool:
+        """A mask with the same voxels on the same grid (both grid-less counts as the same)."""
+        if not isinstance(other, MaskLandmark):
+            return False
+        if self.affine_lps is None or other.affine_lps is None:
+            same_grid = self.affine_lps is None and other.affine_lps is None
+        else:
+            same_grid = np.array_equal(self.affine_lps, other.affine_lps)
+        return same_grid and np.array_equal(self.mask, other.mask)
+
+    @property
+    def needs_grid(self) -> bool:
+        """True while it has no ``affine_lps`` of its own."""
+        return self.affine_lps is None
 
     def on_grid(self, affine_lps: np.ndarray, shape: tuple[int, ...]) -> MaskLandmark:
         """Bound to the CT grid when it has none (its shape must then be the CT's)."""

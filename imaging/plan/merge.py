@@ -21,7 +21,7 @@ from typing import TypeVar
 
 import numpy as np
 
-from ctdrill.imaging.plan.landmarks import CanalLandmark, Landmark, MaskLandmark, PointLandmark
+from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.read import PlanParts, read_parts
 from ctdrill.imaging.plan.types import Plan, PlanInputError
 
@@ -131,15 +131,4 @@ def _same_trajectory(a: Plan, b: Plan) -> bool:
 
 
 def _same_landmark(a: Landmark, b: Landmark) -> bool:
-    if type(a) is not type(b) or a.margin_mm != b.margin_mm:
-        return False
-    if isinstance(a, CanalLandmark) and isinstance(b, CanalLandmark):
-        return a.radius_mm == b.radius_mm and np.array_equal(a.points_lps, b.points_lps)
-    if isinstance(a, PointLandmark) and isinstance(b, PointLandmark):
-        return np.array_equal(a.point_lps, b.point_lps)
-    assert isinstance(a, MaskLandmark) and isinstance(b, MaskLandmark)
-    if a.affine_lps is None or b.affine_lps is None:
-        same_grid = a.affine_lps is None and b.affine_lps is None
-    else:
-        same_grid = np.array_equal(a.affine_lps, b.affine_lps)
-    return same_grid and np.array_equal(a.mask, b.mask)
+    return a.margin_mm == b.margin_mm and a.same_shape(b)

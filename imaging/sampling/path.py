@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ctdrill.imaging.errors import ImagingInputError
-from ctdrill.imaging.plan.landmarks import Landmark, MaskLandmark
+from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.types import DrillSpec
 from ctdrill.imaging.sampling.lip import LipSamples, axis_basis, lip_ring_points
 from ctdrill.imaging.stack import GAP_FACTOR, nominal_step_mm, wide_steps
@@ -102,7 +102,7 @@ def require_grid_for_masks(
     if volume.regular:
         return
     for lm in landmarks:
-        if isinstance(lm, MaskLandmark) and lm.affine_lps is None:
+        if lm.needs_grid:
             raise PathInputError(
                 f"plan {name!r}: mask landmark {lm.name!r} has no affine_lps and the CT's "
                 "slices are irregular (no single voxel grid); give the mask its own affine_lps "

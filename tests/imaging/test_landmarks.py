@@ -2,20 +2,27 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
+from ctdrill.imaging.plan.distance import DrillSolid, segments_distance_mm
 from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
     Landmark,
+    LandmarkDrawing,
     LandmarkInputError,
     MaskLandmark,
     PointLandmark,
     bind_to_grid,
     load_mask_file,
 )
+from ctdrill.imaging.plan.safety import safe_depth
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.plan.write import plan_document
 
 
 def test_every_kind_implements_the_protocol() -> None:
@@ -81,3 +88,61 @@ def test_binding_gives_grid_less_masks_the_ct_affine() -> None:
         MaskLandmark("bad", np.zeros((3, 3), dtype=bool))
     with pytest.raises(LandmarkInputError, match="finite 4x4"):
         MaskLandmark("bad", mask, affine_lps=np.eye(3))
+
+
+@dataclass(frozen=True, eq=False)
+class Ball:
+    """A landmark kind written only against the protocol (a sphere of ``radius_mm``)."""
+
+    name: str
+    centre_lps: np.ndarray
+    radius_mm: float
+    margin_mm: float | None = None
+
+    @property
+    def kind(self) -> str:
+        return "ball"
+
+    def clearance_mm(self, solid: DrillSolid, depth_mm: np.ndarray) -> np.ndarray:
+        pt = np.asarray(self.centre_lps, dtype=np.float64)[None, :]
+        return segments_distance_mm(pt, pt, depth_mm, solid) - self.radius_mm
+
+    def drawing(self) -> LandmarkDrawing:
+        return LandmarkDrawing(
+            points_lps=np.asarray(self.centre_lps)[None], radius_mm=self.radius_mm
+        )
+
+    def to_plan_item(self, out_dir: object = None) -> dict[str, Any]:
+        return {"name": self.name, "kind": "ball", "centre_mm": list(self.centre_lps)}
+
+    def control_points_lps(self) -> np.ndarray:
+        return np.asarray(self.centre_lps, dtype=np.float64)[None]
+
+    def with_margin(self, margin_mm: float | None) -> Ball:
+        return replace(self, margin_mm=margin_mm)
+
+    def same_shape(self, other: Landmark) -> bool:
+        return isinstance(other, Ball) and np.array_equal(self.centre_lps, other.centre_lps)
+
+    @property
+    def needs_grid(self) -> bool:
+        return False
+
+    def on_grid(self, affine_lps: np.ndarray, shape: tuple[int, ...]) -> Ball:
+        return self
+
+
+def test_a_new_kind_is_one_class() -> None:
+    # A ball of radius 1 mm on the axis 10 mm deep: a 2 mm margin allows 7 mm; the writer,
+    # the merge and the grid binding take it without knowing its kind.
+    ball = Ball("ball", np.array([0.0, 0.0, -10.0]), 1.0)
+    assert isinstance(ball, Landmark)
+    plan = Plan(entry_lps=[0, 0, 0], target_lps=[0, 0, -12.0], landmarks=(ball,), name="b")
+    got = safe_depth(plan)
+    assert got.depth_mm == pytest.approx(7.0, abs=1e-3) and got.binding == 0
+    assert plan_document(plan)["landmarks"] == [ball.to_plan_item()]
+    assert bind_to_grid((ball,), np.eye(4), (1, 1, 1)) == (ball,)
+    from ctdrill.imaging.plan.merge import _same_landmark
+
+    assert _same_landmark(ball, Ball("other", ball.centre_lps, 1.0))
+    assert not _same_landmark(ball, ball.with_margin(0.5))
