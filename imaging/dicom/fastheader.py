@@ -124,30 +124,45 @@ def _element(buf: bytes, size: int, pos: int, implicit: bool) -> tuple[int, byte
 
 
 def _skip_undefined(buf: bytes, size: int, pos: int, implicit: bool) -> int:
-    """Skip the items of an undefined-length sequence starting at ``pos``; return the end."""
-    while True:
-        tag, _, start, length = _element(buf, size, pos, True)
-        if tag == _SEQ_END:
-            return start
-        if tag != _ITEM:
-            raise _Malformed
-        if length != _UNDEFINED:
-            pos = start + length
-            if pos > size:
-                raise HeaderCorruptError("a sequence item runs past the end of the file")
-            continue
-        pos = start
-        while True:  # elements of an undefined-length item, up to its delimiter
-            tag, vr, start, length = _element(buf, size, pos, implicit)
-            if tag == _ITEM_END:
+    """Skip the items of an undefined-length sequence starting at ``pos``; return the end.
+
+    Iterative (an explicit stack of open sequences and items), so a file nesting sequences
+    thousands deep costs time linear in its size and no recursion.
+    """
+    # each entry: (inside an item? else inside a sequence, implicit VR at that level)
+    stack: list[tuple[bool, bool]] = [(False, implicit)]
+    while stack:
+        in_item, level_implicit = stack[-1]
+        if not in_item:
+            tag, _, start, length = _element(buf, size, pos, True)
+            if tag == _SEQ_END:
+                stack.pop()
                 pos = start
-                break
-            if length == _UNDEFINED:
-                pos = _skip_undefined(buf, size, start, implicit or vr == b"UN")
-            else:
+                continue
+            if tag != _ITEM:
+                raise _Malformed
+            if length != _UNDEFINED:
                 pos = start + length
-            if pos > size:
-                raise HeaderCorruptError("an element runs past the end of the file")
+                if pos > size:
+                    raise HeaderCorruptError("a sequence item runs past the end of the file")
+                continue
+            stack.append((True, level_implicit))
+            pos = start
+            continue
+        # elements of an undefined-length item, up to its delimiter
+        tag, vr, start, length = _element(buf, size, pos, level_implicit)
+        if tag == _ITEM_END:
+            stack.pop()
+            pos = start
+            continue
+        if length == _UNDEFINED:
+            stack.append((False, level_implicit or vr == b"UN"))
+            pos = start
+            continue
+        pos = start + length
+        if pos > size:
+            raise HeaderCorruptError("an element runs past the end of the file")
+    return pos
 
 
 def _decode(raw: bytes, vr: str, pixel_rep: int) -> Any:

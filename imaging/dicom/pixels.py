@@ -9,6 +9,8 @@ pulled in by vtk, is never used). Bits above BitsStored are masked (unsigned) or
 
 from __future__ import annotations
 
+import itertools
+import struct
 import warnings
 from functools import lru_cache
 from pathlib import Path
@@ -17,12 +19,13 @@ import numpy as np
 from pydicom import dcmread
 from pydicom.dataset import Dataset, FileMetaDataset
 from pydicom.pixels import get_decoder
-from pydicom.uid import UID, ExplicitVRLittleEndian, ImplicitVRLittleEndian
+from pydicom.uid import UID, ExplicitVRLittleEndian, ImplicitVRLittleEndian, RLELossless
 
 from ctdrill.imaging.dicom.discovery import SliceHeader
 from ctdrill.imaging.errors import ImagingInputError
 
 _NATIVE = (ExplicitVRLittleEndian, ImplicitVRLittleEndian)
+_ITEM = 0xFFFEE000
 
 
 class PixelInputError(ImagingInputError):
@@ -104,6 +107,75 @@ def _dataset(path: Path, transfer_syntax: str) -> Dataset:
     return ds
 
 
+def encapsulation_problem(data: bytes, *, rle: bool) -> str | None:
+    """What is wrong with encapsulated PixelData items, or None when their lengths add up.
+
+    Checked before any decoder sees the data, because decoders trust the declared lengths: a
+    basic offset table declaring 0xFFFFFFF0 bytes made pydicom raise ``struct.error``; a
+    fragment declaring more bytes than follow was decoded from whatever was there. For RLE,
+    each fragment's 64-byte header (1..15 segments, offsets from 64, increasing, inside the
+    fragment) is checked too.
+
+    Parameters
+    ----------
+    data : the PixelData value (items, the sequence delimiter excluded).
+    rle : check RLE segment headers.
+    """
+    pos, n, index = 0, len(data), 0
+    fragments: list[tuple[int, int]] = []
+    offsets: tuple[int, ...] = ()
+    while pos < n:
+        if pos + 8 > n:
+            return f"{n - pos} stray bytes after the last item"
+        group, elem, length = struct.unpack_from("<HHI", data, pos)
+        if (group << 16) | elem != _ITEM:
+            return f"item {index} has tag ({group:04X},{elem:04X}), not an item tag"
+        start = pos + 8
+        if length > n - start:
+            return f"item {index} declares {length} bytes but {n - start} follow"
+        if index == 0:
+            if length % 4:
+                return f"the basic offset table declares {length} bytes, not a multiple of 4"
+            offsets = struct.unpack_from(f"<{length // 4}I", data, start)
+        else:
+            fragments.append((start, length))
+        pos, index = start + length, index + 1
+    if not fragments:
+        return "no compressed fragment follows the basic offset table"
+    total = sum(8 + length for _, length in fragments)
+    if offsets and (
+        offsets[0] != 0
+        or any(b <= a for a, b in itertools.pairwise(offsets))
+        or (offsets[-1] >= total)
+    ):
+        return "the basic offset table does not point at fragments inside the data"
+    if rle:
+        for k, (start, length) in enumerate(fragments):
+            problem = _rle_header_problem(data[start : start + length])
+            if problem:
+                return f"RLE fragment {k + 1}: {problem}"
+    return None
+
+
+def _rle_header_problem(fragment: bytes) -> str | None:
+    if len(fragment) < 64:
+        return f"{len(fragment)} bytes, shorter than the 64-byte RLE header"
+    count, *offsets = struct.unpack_from("<16I", fragment)
+    if not 1 <= count <= 15:
+        return f"the header declares {count} segments (1 to 15 allowed)"
+    used = offsets[:count]
+    if (
+        used[0] != 64
+        or any(b <= a for a, b in itertools.pairwise(used))
+        or used[-1] >= len(fragment)
+    ):
+        return (
+            f"segment offsets {list(used)} do not run upwards from 64 inside the "
+            f"{len(fragment)}-byte fragment"
+        )
+    return None
+
+
 def read_stored(h: SliceHeader, out: np.ndarray | None = None) -> np.ndarray:
     """Stored values of one plane, (rows, cols), high bits fixed.
 
@@ -139,9 +211,21 @@ def read_stored(h: SliceHeader, out: np.ndarray | None = None) -> np.ndarray:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 ds = _dataset(h.path, h.transfer_syntax)
+                raw = ds.get("PixelData")
+                problem = None
+                if raw is not None and UID(h.transfer_syntax).is_encapsulated:
+                    rle = h.transfer_syntax == RLELossless
+                    problem = encapsulation_problem(bytes(raw), rle=rle)
+                if problem:
+                    raise PixelInputError(
+                        f"{h.path}: the compressed pixel data is malformed ({problem}); "
+                        "the file is corrupt, copy or export it again"
+                    )
                 arr, _ = get_decoder(UID(h.transfer_syntax)).as_array(
                     ds, index=h.frame if h.n_frames > 1 else None, decoding_plugin=plugin
                 )
+        except PixelInputError:
+            raise
         except (
             ValueError,
             RuntimeError,
@@ -153,10 +237,12 @@ def read_stored(h: SliceHeader, out: np.ndarray | None = None) -> np.ndarray:
             TypeError,
             IndexError,
             MemoryError,
+            struct.error,
         ) as exc:
+            detail = " ".join(str(exc).split())  # decoders' messages span lines: one line
             raise PixelInputError(
                 f"{h.path}: cannot decode pixel data "
-                f"({UID(h.transfer_syntax).name or h.transfer_syntax}): {exc}"
+                f"({UID(h.transfer_syntax).name or h.transfer_syntax}): {detail}"
             ) from exc
         arr = np.asarray(arr).reshape(shape)
         out[...] = arr.astype(dtype, copy=False)

@@ -85,6 +85,12 @@ from tests.robustness.corpus_faults import (
     _undefined_root_transfer_syntax,
     _unknown_vr,
 )
+from tests.robustness.corpus_hostile import (
+    _nested_undefined,
+    _rle_fragment_bomb,
+    _rle_offset_table_bomb,
+    _rle_segment_bomb,
+)
 from tests.robustness.corpus_real import real_cases
 
 __all__ = [
@@ -183,6 +189,7 @@ SYNTHETIC: dict[str, tuple[Builder, str, bool]] = {
         False,
     ),
     "deep_nesting": (_deep_nesting, "recursion bomb", False),
+    "nested_undefined_sequences": (_nested_undefined, "recursion bomb", False),
     "symlink_loop": (_symlink_loop, "file system", False),
     "fifo_in_folder": (_fifo, "file system", True),
     "device_symlinks": (_device_links, "file system", True),
@@ -192,6 +199,9 @@ SYNTHETIC: dict[str, tuple[Builder, str, bool]] = {
     "bomb_pixel_length_all": (_bomb_element_length, "memory bomb", True),
     "bomb_pixel_length_one": (_bomb_one_element_length, "memory bomb", True),
     "bomb_header_element_length": (_bomb_header_element_length, "memory bomb", True),
+    "bomb_rle_offset_table": (_rle_offset_table_bomb, "memory bomb", True),
+    "bomb_rle_fragment_length": (_rle_fragment_bomb, "memory bomb", True),
+    "bomb_rle_segments": (_rle_segment_bomb, "memory bomb", True),
 }
 
 #: Cases whose exact HU and affine are known.
