@@ -49,12 +49,21 @@ class DiscoveryInputError(ImagingInputError):
     """The path holds no readable DICOM image."""
 
 
-def iter_files(path: Path) -> Iterator[Path]:
-    """Every non-directory entry under ``path`` (or ``path`` itself), in a stable order."""
-    if path.is_file():
+def iter_files(path: Path, unreadable: list[Path] | None = None) -> Iterator[Path]:
+    """Every non-directory entry under ``path`` (or ``path`` itself), in a stable order.
+
+    Folders that cannot be listed (permission denied) are appended to ``unreadable`` when
+    given, so that a caller can say so instead of loading part of a series silently.
+    """
+    if not path.is_dir():  # one file (or a pipe or device: the caller checks before opening)
         yield path
         return
-    for root, dirs, files in os.walk(path):
+
+    def _onerror(exc: OSError) -> None:
+        if unreadable is not None:
+            unreadable.append(Path(exc.filename) if exc.filename else path)
+
+    for root, dirs, files in os.walk(path, onerror=_onerror):
         dirs.sort()
         for name in sorted(files):
             yield Path(root) / name
@@ -69,12 +78,15 @@ def _is_regular_file(path: Path) -> bool:
 
 
 def _looks_like_dicom(path: Path) -> bool | None:
-    """True: preamble + DICM; None: maybe a preamble-less dataset; False: not DICOM."""
-    try:
-        with path.open("rb") as fh:
-            head = fh.read(132)
-    except OSError:
-        return False
+    """True: preamble + DICM; None: maybe a preamble-less dataset; False: not DICOM.
+
+    Raises
+    ------
+    OSError
+        The file cannot be opened or read (e.g. permission denied).
+    """
+    with path.open("rb") as fh:
+        head = fh.read(132)
     if len(head) == 132 and head[128:132] == b"DICM":
         return True
     if len(head) >= 8 and head[:2] in (b"\x02\x00", b"\x08\x00"):
@@ -125,6 +137,9 @@ def read_headers(
     path: Path, *, ct_only: bool = True, fast: bool = True
 ) -> list[SliceHeader] | Skipped | None:
     """Header(s) of one file: a list of planes, a :class:`Skipped`, or None when not DICOM.
+
+    Raises ``OSError`` when the file cannot be opened at all (permission denied): the caller
+    counts it as unreadable, never as "not DICOM".
 
     ``ct_only=False`` also returns the planes of non-CT images (used to test decoding).
     ``fast=False`` forces pydicom instead of :mod:`ctdrill.imaging.dicom.fastheader` (tests
@@ -215,18 +230,23 @@ def scan(path: str | Path) -> ScanResult:
     skipped: list[Skipped] = []
     not_dicom: list[Path] = []
     files: list[Path] = []
-    for file in iter_files(root):
+    unreadable: list[Path] = []
+    for file in iter_files(root, unreadable):
         if _is_regular_file(file):
             files.append(file)
         else:  # a pipe, device or socket would block or never end: never open it
             skipped.append(Skipped(file, "not a regular file (pipe, device or socket)"))
     _prefetch(files)
     for file in files:
-        got = read_headers(file)
+        try:
+            got = read_headers(file)
+        except OSError:
+            unreadable.append(file)
+            continue
         if got is None:
             not_dicom.append(file)
         elif isinstance(got, Skipped):
             skipped.append(got)
         else:
             headers.extend(got)
-    return ScanResult(tuple(headers), tuple(skipped), tuple(not_dicom))
+    return ScanResult(tuple(headers), tuple(skipped), tuple(not_dicom), tuple(unreadable))

@@ -132,6 +132,8 @@ def _select(path: Path, series_uid: str | None) -> _Selection:
         detail = "; ".join(f"{n} x {r}" for r, n in reasons.most_common())
         n_loc = len({h.path for h in localizers})
         extra = f"; {n_loc} localizer file(s)" if n_loc else ""
+        if found.unreadable:
+            extra += f"; {_unreadable_text(path, found.unreadable)} (check the permissions)"
         raise SeriesInputError(
             f"{path}: no CT image series (not a CT volume): {len(skipped)} DICOM file(s) "
             f"skipped ({detail or 'none'}){extra}, {len(found.not_dicom)} non-DICOM file(s); "
@@ -172,7 +174,28 @@ def _select(path: Path, series_uid: str | None) -> _Selection:
         warnings.append(
             LoadWarning("files_skipped", f"{len(skipped)} non-volume DICOM file(s): {detail}")
         )
+    if found.unreadable:
+        warnings.append(
+            LoadWarning(
+                "files_unreadable",
+                f"{_unreadable_text(path, found.unreadable)}: the series may be incomplete; "
+                "check the permissions and load again",
+            )
+        )
     return _Selection(tuple(stacks[chosen.series_uid]), others, tuple(warnings))
+
+
+def _unreadable_text(root: Path, paths: Sequence[Path]) -> str:
+    """``3 file(s) or folder(s) could not be read (...), e.g. sub/IM1`` (relative to ``root``,
+    whose own name may be a patient's)."""
+    try:
+        first = str(paths[0].relative_to(root)) if paths[0] != root else "the folder itself"
+    except ValueError:
+        first = paths[0].name
+    return (
+        f"{len(paths)} file(s) or folder(s) could not be read (permission denied or an I/O "
+        f"error), e.g. {first}"
+    )
 
 
 def list_series(path: str | Path) -> tuple[SeriesSummary, ...]:

@@ -91,3 +91,5 @@ class ScanResult:
     headers: tuple[SliceHeader, ...]
     skipped: tuple[Skipped, ...]
     not_dicom: tuple[Path, ...]
+    #: Files that could not be opened and folders that could not be listed (permissions).
+    unreadable: tuple[Path, ...] = ()
