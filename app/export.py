@@ -30,6 +30,7 @@ import numpy as np
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.export_defaults import DEFAULT_RATE_HZ as DEFAULT_RATE_HZ
 from ctdrill.app.pipeline import PathResult
+from ctdrill.app.records import printable
 from ctdrill.imaging.misch import MISCH_CLASSES, misch_class
 from ctdrill.model.profile import force_series_n
 
@@ -206,7 +207,7 @@ def summary(
     for j, lm in enumerate(result.landmarks):
         lms.append(
             {
-                "name": lm.name,
+                "name": printable(lm.name),
                 "kind": lm.kind,
                 "radius_mm": lm.radius_mm,
                 "margin_mm": float(result.margins_mm[j]),
@@ -217,8 +218,8 @@ def summary(
     prof = result.profile
     doc: dict[str, Any] = {
         "format": "ctdrill-export/1",
-        "plan": plan.name,
-        "plan_file": Path(plan.source).name if plan.source else None,
+        "plan": printable(plan.name),
+        "plan_file": printable(Path(plan.source).name) if plan.source else None,
         "planned_depth_mm": _num(result.planned_depth_mm),
         "stop_depth_mm": _num(result.stop_depth_mm),
         "stop_reason": result.stop_reason,

@@ -8,6 +8,7 @@ from typing import IO, TYPE_CHECKING
 import numpy as np
 
 from ctdrill.app.pipeline import PathResult
+from ctdrill.app.records import printable
 from ctdrill.imaging.misch import MISCH_BANDS_HU
 
 if TYPE_CHECKING:
@@ -66,7 +67,7 @@ def force_png(result: PathResult, series: ForceSeries, path: Path | IO[bytes]) -
 
     if result.clearance_mm.shape[1]:
         for j, lm in enumerate(result.landmarks):
-            ax_c.plot(result.depth_mm, result.clearance_mm[:, j], lw=1.0, label=lm.name)
+            ax_c.plot(result.depth_mm, result.clearance_mm[:, j], lw=1.0, label=printable(lm.name))
         for m in sorted(set(result.margins_mm.tolist())):
             ax_c.axhline(m, color="#d62728", ls="--", lw=0.8)
             ax_c.text(0.0, m, f" margin {m:g} mm", va="bottom", fontsize=7, color="#d62728")
@@ -95,7 +96,8 @@ def force_png(result: PathResult, series: ForceSeries, path: Path | IO[bytes]) -
     )
     cal = result.calibration
     label = f"{cal.name} (ILLUSTRATIVE)" if cal.illustrative else cal.name
-    fig.suptitle(f"{result.plan.name}: calibration {label}", fontsize=9)
+    # printable: a plan named after a file whose name is not UTF-8 must not fail the plot
+    fig.suptitle(printable(f"{result.plan.name}: calibration {label}"), fontsize=9)
     ax_c.set_xlim(0.0, result.planned_depth_mm)
     fig.tight_layout()
     fig.savefig(path, format="png")

@@ -6,7 +6,9 @@ All inputs are read and every path computed before the first file is written, so
 
 from __future__ import annotations
 
+import os
 import re
+import stat
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
@@ -46,6 +48,13 @@ def _stem(plan: Plan, n_in_file: int) -> str:
     return name if n_in_file == 1 else f"{name}-{plan.name}"
 
 
+def _regular(path: Path) -> bool:
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:
+        return False
+
+
 def read_patient_fields(dicom: Path, series_uid: str) -> dict[str, str]:
     """Patient identifiers of the series (for ``--include-phi`` only), as strings."""
     import pydicom
@@ -53,6 +62,8 @@ def read_patient_fields(dicom: Path, series_uid: str) -> dict[str, str]:
     from ctdrill.imaging.dicom.discovery import iter_files
 
     for path in iter_files(dicom):
+        if not _regular(path):  # a pipe or device beside the series: never opened
+            continue
         try:
             ds = pydicom.dcmread(
                 path,

@@ -25,11 +25,15 @@ from typing import IO
 
 from ctdrill.haptics.errors import HapticsInputError
 from ctdrill.haptics.protocol import DeviceState
+from ctdrill.safeio import read_bytes_bounded
 
 SESSION_COLUMNS = ("time_s", "master_mm", "drill_mm", "force_cmd_n", "state")
 STATE_NAMES = {int(s): s.name.lower() for s in DeviceState}
 FAULT_KINDS = ("link-loss", "garbage", "delay", "reset")
 MAX_HAND_N = 78.0
+#: Largest operator script read, bytes, and its most rows (1 kHz for over 16 minutes).
+MAX_SCRIPT_BYTES = 64 * 1024 * 1024
+MAX_SCRIPT_ROWS = 1_000_000
 
 
 class SessionInputError(HapticsInputError):
@@ -82,12 +86,29 @@ def _number(text: str, what: str, spec: str) -> float:
 
 
 def load_script(path: Path) -> tuple[tuple[float, float], ...]:
-    """Read an operator script CSV with columns ``time_s,force_n``."""
+    """Read an operator script CSV with columns ``time_s,force_n``.
+
+    A regular file of at most :data:`MAX_SCRIPT_BYTES` and :data:`MAX_SCRIPT_ROWS` rows (a FIFO
+    would block, ``/dev/zero`` would never end): it is read whole before the device is armed.
+    """
+    if not path.exists() and not path.is_symlink():
+        raise SessionInputError(f"operator script {path}: cannot read (no such file)")
+    data = read_bytes_bounded(
+        path, what="operator script", error=SessionInputError, max_bytes=MAX_SCRIPT_BYTES
+    )
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise SessionInputError(f"operator script {path}: cannot read ({exc.strerror})") from exc
-    reader = csv.reader(text.splitlines())
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise SessionInputError(
+            f"operator script {path}: not UTF-8 text ({exc.reason} at byte {exc.start})"
+        ) from exc
+    lines = text.splitlines()
+    if len(lines) > MAX_SCRIPT_ROWS + 1:
+        raise SessionInputError(
+            f"operator script {path}: {len(lines) - 1} rows, more than the {MAX_SCRIPT_ROWS} "
+            "accepted; resample it (1 kHz is finer than a hand)"
+        )
+    reader = csv.reader(lines)
     header = next(reader, None)
     if header is None or [h.strip() for h in header[:2]] != ["time_s", "force_n"]:
         raise SessionInputError(f"operator script {path}: the first line must be 'time_s,force_n'")

@@ -173,6 +173,11 @@ def _text(obj: Mapping[str, Any], key: str, src: Path, default: str | None = Non
         raise CalibrationError(
             f"calibration file {src}: field {key} must be a non-empty string; set it"
         )
+    if any("\ud800" <= c <= "\udfff" for c in value):
+        raise CalibrationError(
+            f"calibration file {src}: field {key} holds a lone surrogate escape (\\ud800-"
+            "\\udfff), which is not text; fix the string"
+        )
     return value
 
 

@@ -8,7 +8,9 @@ header ``time_s, position_mm, force_n`` (extra columns are ignored). Every probl
 from __future__ import annotations
 
 import csv
+import io
 import math
+import os
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,9 +18,12 @@ from pathlib import Path
 import numpy as np
 
 from ctdrill.model.errors import ModelInputError
+from ctdrill.safeio import read_bytes_bounded
 
 MANIFEST_COLUMNS: tuple[str, ...] = ("file", "hu", "feed_mm_s")
 RECORDING_COLUMNS: tuple[str, ...] = ("time_s", "position_mm", "force_n")
+#: Largest manifest or recording read, bytes (a 10 kHz recording of 10 minutes is ~180 MB).
+MAX_CSV_BYTES = 256 * 1024 * 1024
 
 
 class RecordingError(ModelInputError):
@@ -44,13 +49,36 @@ class Recording:
     force_n: np.ndarray
 
 
-def _read_header(path: Path, what: str) -> tuple[list[str], list[list[str]]]:
+def _read_text(path: Path, what: str) -> str:
+    """The UTF-8 text of a manifest or recording: a regular file of bounded size.
+
+    A FIFO would block ``open`` forever and ``/dev/zero`` would read until memory runs out:
+    both are refused by name, before anything is read.
+    """
     try:
-        with path.open(newline="", encoding="utf-8-sig") as fh:
-            rows = [row for row in csv.reader(fh) if row and any(c.strip() for c in row)]
-    except FileNotFoundError as exc:
-        raise RecordingError(f"{what} {path}: not found; check the path") from exc
-    except (OSError, ValueError) as exc:  # ValueError: undecodable text, a NUL in the name
+        exists = os.path.lexists(path)
+    except ValueError:  # a NUL byte in the name
+        exists = True
+    if not exists:
+        raise RecordingError(f"{what} {path}: not found; check the path")
+    try:
+        data = read_bytes_bounded(path, what=what, error=RecordingError, max_bytes=MAX_CSV_BYTES)
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise RecordingError(
+            f"{what} {path}: cannot read it (not UTF-8 text: {exc.reason} at byte {exc.start})"
+        ) from exc
+
+
+def _read_header(path: Path, what: str) -> tuple[list[str], list[list[str]]]:
+    text = _read_text(path, what)
+    try:
+        rows = [
+            row
+            for row in csv.reader(io.StringIO(text, newline=""))
+            if row and any(c.strip() for c in row)
+        ]
+    except (csv.Error, ValueError) as exc:  # a NUL inside the text
         raise RecordingError(f"{what} {path}: cannot read it ({exc})") from exc
     if not rows:
         raise RecordingError(f"{what} {path}: empty; it needs a header line and data rows")
@@ -133,22 +161,18 @@ def _parse_rows(rows: list[list[str]], idx: list[int], rpath: Path) -> np.ndarra
 def read_recording(path: str | Path) -> Recording:
     """Read one recording CSV (``time_s, position_mm, force_n``; extra columns ignored)."""
     rpath = Path(path)
+    text = _read_text(rpath, "recording")
     try:
-        with rpath.open(newline="", encoding="utf-8-sig") as fh:
-            first = next(csv.reader([fh.readline()]), [])
-    except FileNotFoundError as exc:
-        raise RecordingError(f"recording {rpath}: not found; check the path") from exc
-    except (OSError, ValueError) as exc:  # ValueError: undecodable text, a NUL in the name
+        first = next(csv.reader([text.partition("\n")[0]]), [])
+    except (csv.Error, ValueError) as exc:  # a NUL in the header
         raise RecordingError(f"recording {rpath}: cannot read it ({exc})") from exc
     header = [c.strip() for c in first]
     idx = _column_index(header, RECORDING_COLUMNS, rpath, "recording")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
-            data = np.loadtxt(
-                rpath, delimiter=",", skiprows=1, usecols=idx, ndmin=2, encoding="utf-8-sig"
-            )
-    except (ValueError, UnicodeDecodeError):
+            data = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1, usecols=idx, ndmin=2)
+    except ValueError:
         _, rows = _read_header(rpath, "recording")
         data = _parse_rows(rows, idx, rpath)
     if data.shape[0] < 16:
