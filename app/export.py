@@ -199,8 +199,15 @@ def summary(
     rate_hz: float,
     series_uid: str,
     patient: dict[str, str] | None = None,
+    include_phi: bool = False,
 ) -> dict[str, Any]:
-    """The ``summary.json`` document (no patient identifiers unless ``patient`` is given)."""
+    """The ``summary.json`` document (no patient identifiers unless ``patient`` is given).
+
+    ``series_uid`` is written as the SHA-256 of the SeriesInstanceUID (as plans record it),
+    the raw UID only with ``include_phi``; ``series_uid_sha256`` always.
+    """
+    from ctdrill.imaging.dicom.identity import series_identity
+
     plan = result.plan
     cal = result.calibration
     lms = []
@@ -249,7 +256,8 @@ def summary(
         "entry_lps": plan.entry_lps.tolist(),
         "target_lps": plan.target_lps.tolist(),
         "depth_step_mm": _num(prof.step_mm, 6),
-        "series_uid": series_uid,
+        **series_identity(series_uid, include_phi=include_phi),
+        "include_phi": include_phi,
         "extrapolation": {
             "clipped_samples": prof.n_clipped,
             "samples": prof.n_samples,
@@ -300,10 +308,12 @@ def write_exports(
     patient: dict[str, str] | None = None,
     progress: Callable[[int, int, str], None] | None = None,
     extra_files: Mapping[str, bytes | str] | None = None,
+    include_phi: bool = False,
 ) -> list[Path]:
     """Write every job's four files into a staging folder swapped in for ``out_dir`` whole.
 
-    ``feed_mm_s`` None uses each plan's feed. ``extra_files`` (relative path -> content) are
+    ``feed_mm_s`` None uses each plan's feed; ``include_phi`` writes the raw series UID (see
+    :func:`summary`). ``extra_files`` (relative path -> content) are
     written in the same swap (the demo's marker, the GUI's session record); their names may
     be present when the folder is next replaced. ``out_dir`` is replaced as a whole
     (:func:`ctdrill.app.records.atomic_output_dir`): a kill, a full disk or an error leaves the
@@ -330,6 +340,7 @@ def write_exports(
                 rate_hz=rate_hz,
                 series_uid=series_uid,
                 patient=patient,
+                include_phi=include_phi,
             )
             target = staging / job.subdir
             target.mkdir(parents=True, exist_ok=True)

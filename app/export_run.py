@@ -156,6 +156,7 @@ def export_case(
         patient=patient,
         progress=progress,
         extra_files=extra_files,
+        include_phi=include_phi,
     )
     if warn is not None:
         for plan in plans:

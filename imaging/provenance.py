@@ -19,6 +19,7 @@ WARNING_CODES: tuple[str, ...] = (
     "not_hu",
     "lossy_compression",
     "files_skipped",
+    "files_unreadable",
     "single_slice",
 )
 

@@ -51,9 +51,15 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--include-phi",
         action="store_true",
-        help="write the patient's name, ID, birth date and institution into summary.json",
+        help="write the patient's name, ID, birth date and institution, and the raw "
+        "SeriesInstanceUID, into summary.json (by default the UID's SHA-256 only)",
     )
-    p.add_argument("--series", default=None, metavar="UID", help="SeriesInstanceUID to load")
+    p.add_argument(
+        "--series",
+        default=None,
+        metavar="UID|HASH",
+        help="series to load: its SeriesInstanceUID or the hash outputs print (8+ hex digits)",
+    )
     p.add_argument(
         "--interpolate-gaps",
         action="store_true",

@@ -18,7 +18,18 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("dicom", type=Path, metavar="DIR", help="DICOM folder (or one file)")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
-    p.add_argument("--series", default=None, metavar="UID", help="SeriesInstanceUID to load")
+    p.add_argument(
+        "--series",
+        default=None,
+        metavar="UID|HASH",
+        help="series to load: its SeriesInstanceUID or the hash outputs print (8+ hex digits)",
+    )
+    p.add_argument(
+        "--include-phi",
+        action="store_true",
+        help="print the raw SeriesInstanceUIDs and the study/series descriptions (free text "
+        "that often holds a name); by default series are named by the SHA-256 of their UID",
+    )
     p.set_defaults(func=run)
 
 
@@ -28,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.imaging.dicom.report import format_report, volume_report
 
     volume = load_series(args.dicom, series_uid=args.series)
-    report = volume_report(volume, series=list_series(args.dicom))
+    report = volume_report(volume, series=list_series(args.dicom), include_phi=args.include_phi)
     if args.json:
         sys.stdout.write(json.dumps(report, indent=1) + "\n")
     else:

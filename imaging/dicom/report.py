@@ -7,13 +7,21 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill.imaging.dicom.identity import SHORT_HASH, series_identity
 from ctdrill.imaging.dicom.series import SeriesSummary
 from ctdrill.imaging.stack import affine_residual_mm
 from ctdrill.imaging.volume import CTVolume
 
 
-def volume_report(volume: CTVolume, *, series: Sequence[SeriesSummary] = ()) -> dict[str, Any]:
-    """JSON-ready facts about ``volume`` (no patient identifiers).
+def volume_report(
+    volume: CTVolume, *, series: Sequence[SeriesSummary] = (), include_phi: bool = False
+) -> dict[str, Any]:
+    """JSON-ready facts about ``volume`` (no patient identifiers unless ``include_phi``).
+
+    ``series_uid`` is the SHA-256 of the SeriesInstanceUID (as plans record it; the raw UID
+    only with ``include_phi``), ``series_uid_sha256`` always, ``include_phi`` says which; the
+    free-text study and series descriptions (which often hold a name) appear only with
+    ``include_phi`` (:mod:`ctdrill.imaging.dicom.identity`).
 
     Keys: ``dims`` [cols, rows, slices], ``spacing_mm`` [col, row, slice] (slice: the nominal,
     median step), ``affine_lps`` 4x4, ``hu_min`` / ``hu_max`` over valid voxels (None if none is
@@ -48,7 +56,8 @@ def volume_report(volume: CTVolume, *, series: Sequence[SeriesSummary] = ()) -> 
         ),
         "hu_min": hu_min,
         "hu_max": hu_max,
-        "series_uid": info.series_uid,
+        **series_identity(info.series_uid, include_phi=include_phi),
+        "include_phi": include_phi,
         "warnings": [{"code": w.code, "message": w.message} for w in volume.warnings],
         "modality": info.modality,
         "slice_count": int(hu.shape[0]),
@@ -65,8 +74,6 @@ def volume_report(volume: CTVolume, *, series: Sequence[SeriesSummary] = ()) -> 
         "info": {
             "manufacturer": info.manufacturer,
             "model": info.model,
-            "series_description": info.series_description,
-            "study_description": info.study_description,
             "kvp": info.kvp,
             "kernel": info.kernel,
             "slice_thickness_mm": info.slice_thickness_mm,
@@ -74,15 +81,23 @@ def volume_report(volume: CTVolume, *, series: Sequence[SeriesSummary] = ()) -> 
             "sop_class_uid": info.sop_class_uid,
             "rescale_type": info.rescale_type,
             "n_files": info.n_files,
+            **(
+                {
+                    "series_description": info.series_description,
+                    "study_description": info.study_description,
+                }
+                if include_phi
+                else {}
+            ),
         },
         "series": [
             {
-                "series_uid": s.series_uid,
+                **series_identity(s.series_uid, include_phi=include_phi),
                 "slices": s.n_slices,
                 "positions": s.n_positions,
                 "rows": s.rows,
                 "cols": s.cols,
-                "description": s.description,
+                **({"description": s.description} if include_phi else {}),
                 "loaded": s.series_uid == info.series_uid,
             }
             for s in series
@@ -94,9 +109,13 @@ def format_report(report: dict[str, Any]) -> str:
     """A readable multi-line summary of :func:`volume_report`."""
     c, r, s = report["dims"]
     sx, sy, sz = report["spacing_mm"]
+    phi = bool(report.get("include_phi"))
+    if phi:
+        name = report["series_uid"]
+    else:
+        name = f"{report['series_uid_sha256'][:SHORT_HASH]} (SHA-256 of the UID; --include-phi)"
     lines = [
-        f"series     {report['series_uid']} ({report['modality']}, {report['info']['n_files']} "
-        "files)",
+        f"series     {name} ({report['modality']}, {report['info']['n_files']} files)",
         f"dims       {c} cols x {r} rows x {s} slices ({report['dtype']})",
         f"spacing    {sx:g} x {sy:g} x {sz:g} mm (col, row, slice"
         + ("" if report["regular"] else ": the nominal step")
@@ -124,7 +143,8 @@ def format_report(report: dict[str, Any]) -> str:
         lines.append("series found:")
         for item in report["series"]:
             mark = "*" if item["loaded"] else " "
-            lines.append(f"  {mark} {item['series_uid']}  {item['slices']} slices")
+            item_name = item["series_uid"] if phi else item["series_uid_sha256"][:SHORT_HASH]
+            lines.append(f"  {mark} {item_name}  {item['slices']} slices")
     if report["warnings"]:
         lines.append("warnings:")
         lines.extend(f"  {w['code']}: {w['message']}" for w in report["warnings"])

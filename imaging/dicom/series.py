@@ -25,6 +25,7 @@ from ctdrill.imaging.dicom.geometry import (
     require_geometry,
     stack_geometry,
 )
+from ctdrill.imaging.dicom.identity import matches_series, series_label
 from ctdrill.imaging.dicom.pixels import padding_mask, read_stored, rescale, stored_dtype, to_hu
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.volume import CTVolume, LoadWarning, SeriesInfo
@@ -142,22 +143,28 @@ def _select(path: Path, series_uid: str | None) -> _Selection:
     if series_uid is None:
         chosen = summaries[0]
     else:
-        match = [s for s in summaries if s.series_uid == series_uid]
-        if not match:
-            listing = ", ".join(f"{s.series_uid} ({s.n_slices} slices)" for s in summaries)
+        # the UID itself, or its hash (or a hash prefix) as outputs name series
+        match = [s for s in summaries if matches_series(series_uid, s.series_uid)]
+        if len(match) != 1:
+            listing = ", ".join(
+                f"{series_label(s.series_uid)} ({s.n_slices} slices)" for s in summaries
+            )
+            problem = "not found" if not match else "matches several series"
             raise SeriesInputError(
-                f"{path}: series {series_uid} not found; available CT series: {listing}"
+                f"{path}: series {series_uid} {problem}; available CT series (hash of the "
+                f"UID): {listing}"
             )
         chosen = match[0]
     others = tuple(s for s in summaries if s.series_uid != chosen.series_uid)
     warnings: list[LoadWarning] = []
     if others:
-        listing = ", ".join(f"{s.series_uid} ({s.n_slices} slices)" for s in others)
+        listing = ", ".join(f"{series_label(s.series_uid)} ({s.n_slices} slices)" for s in others)
         warnings.append(
             LoadWarning(
                 "multiple_series",
-                f"loaded {chosen.series_uid} ({chosen.n_slices} slices); also present: "
-                f"{listing}; select one with --series UID",
+                f"loaded {series_label(chosen.series_uid)} ({chosen.n_slices} slices); also "
+                f"present: {listing}; select one with --series HASH (series named by the "
+                "SHA-256 of their UID)",
             )
         )
     if localizers:
@@ -313,7 +320,8 @@ def load_series(
     path : str | Path
         Folder (searched recursively) or a single DICOM file.
     series_uid : str | None
-        SeriesInstanceUID to load; default the CT stack with the most slices.
+        SeriesInstanceUID to load, or the SHA-256 of it (or the hash's first 8+ hex digits)
+        as outputs name series; default the CT stack with the most slices.
     max_bytes : int
         Refuse when the decoded volume (HU plus validity mask) would exceed this, bytes.
 

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ctdrill.imaging.dicom.identity import series_label
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.types import DrillSpec
@@ -84,12 +85,12 @@ def check_volume(volume: CTVolume) -> None:
     """Refuse a volume that cannot carry a force map at all (one slice, values not HU)."""
     if not volume.is_volume:
         raise PathInputError(
-            f"series {volume.info.series_uid}: a single slice is not a volume; the force "
-            "along a drill needs a CT series of several slices"
+            f"series {series_label(volume.info.series_uid)}: a single slice is not a volume; "
+            "the force along a drill needs a CT series of several slices"
         )
     if not volume.info.is_hu:
         raise PathInputError(
-            f"series {volume.info.series_uid}: voxel values are not Hounsfield units "
+            f"series {series_label(volume.info.series_uid)}: voxel values are not Hounsfield units "
             f"(RescaleType {volume.info.rescale_type or 'missing'}); calibrate the grey values "
             "to HU before computing forces"
         )

@@ -17,7 +17,8 @@ import pytest
 
 from ctdrill.app.cli import main
 from ctdrill.app.export import FORCE_COLUMNS, PROFILE_COLUMNS, misch_class
-from ctdrill.imaging.plan.types import load_plan, save_plan
+from ctdrill.imaging import load_series
+from ctdrill.imaging.plan.types import load_plan, save_plan, series_uid_hash
 from tests.conftest import ASSETS
 
 DEMO = ASSETS / "demo"
@@ -236,7 +237,12 @@ def test_real_series_export_and_privacy(shared_data: Path, tmp_path: Path) -> No
     # canal 35 mm deep across the axis: 35 - 1.2 - 2.0
     assert s["stop_reason"] == "margin"
     assert s["stop_depth_mm"] == pytest.approx(31.8, abs=1e-3)
-    assert s["series_uid"].startswith("1.3.46.670589.33.1.")
+    # the UID's SHA-256 (as plans record it), never the UID itself without --include-phi
+    uid = load_series(dicom).info.series_uid
+    assert uid.startswith("1.3.46.670589.33.1.")
+    assert s["series_uid"] == s["series_uid_sha256"] == series_uid_hash(uid)
+    assert s["include_phi"] is False
+    assert uid.encode() not in b"".join(p.read_bytes() for p in out.iterdir())
     _, force = _rows(out / "force.csv")
     f = np.array([float(r["force_n"]) for r in force])
     assert f.max() > 1.0  # the phantom's shell (~700 HU) is cut

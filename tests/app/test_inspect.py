@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
 
@@ -30,7 +31,13 @@ def test_json_keys_and_exact_values(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert data["spacing_mm"] == [0.5, 0.75, 2.0]
     np.testing.assert_allclose(np.array(data["affine_lps"]), aff, atol=1e-12)
     assert data["hu_min"] == float(hu[valid].min()) and data["hu_max"] == float(hu.max())
-    assert data["series_uid"] == w.series_uid
+    # no raw UID without --include-phi: the SHA-256 plans record, computed here independently
+    digest = hashlib.sha256(f"ctdrill-series/1:{w.series_uid}".encode()).hexdigest()
+    assert data["series_uid"] == digest and data["series_uid_sha256"] == digest
+    assert data["include_phi"] is False and w.series_uid not in json.dumps(data)
+    raw = _json([str(tmp_path), "--include-phi"], capsys)
+    assert raw["series_uid"] == w.series_uid and raw["series_uid_sha256"] == digest
+    assert raw["include_phi"] is True
     assert data["warnings"] == [
         {
             "code": "padding",
@@ -51,8 +58,17 @@ def test_real_mixed_folder_and_series_option(
     series = data["series"]
     assert [s["slices"] for s in series] == [58, 54]  # type: ignore[attr-defined]
     other = series[1]["series_uid"]  # type: ignore[index]
+    assert len(other) == 64 and "description" not in series[1]  # type: ignore[index]
     data2 = _json([str(folder), "--series", other], capsys)
     assert data2["dims"] == [512, 512, 54] and data2["series_uid"] == other
+    # the 12-digit label that warnings print selects it too, as does the raw UID
+    label = other[:12]
+    assert label in data["warnings"][0]["message"]  # type: ignore[index]
+    assert _json([str(folder), "--series", label], capsys)["series_uid"] == other
+    raw = _json([str(folder), "--include-phi"], capsys)["series"][1]  # type: ignore[index]
+    assert raw["series_uid"].startswith("1.")  # type: ignore[index]
+    by_uid = _json([str(folder), "--series", raw["series_uid"]], capsys)  # type: ignore[index]
+    assert by_uid["series_uid"] == other
 
 
 def test_text_summary(shared_data: Path, capsys: pytest.CaptureFixture[str]) -> None:

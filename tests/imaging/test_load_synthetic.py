@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 
 import numpy as np
@@ -225,7 +226,11 @@ def test_localizers_other_series_and_non_image_files(tmp_path: Path) -> None:
     assert v.info.series_uid == a.series_uid
     np.testing.assert_array_equal(v.hu, hu)
     assert v.warning_codes == ("multiple_series", "localizer_dropped", "files_skipped")
-    assert b.series_uid in v.warnings[0].message and "(3 slices)" in v.warnings[0].message
+    # the other series is named by its UID's hash, never the UID (no raw UID in any output)
+    b_label = hashlib.sha256(f"ctdrill-series/1:{b.series_uid}".encode()).hexdigest()[:12]
+    assert f"{b_label} (3 slices)" in v.warnings[0].message
+    assert b.series_uid not in v.warnings[0].message
+    assert load_series(tmp_path, series_uid=b_label).hu.shape == (3, 6, 7)
     assert "2 localizer" in v.warnings[1].message
     assert "1 non-volume" in v.warnings[2].message
     other = load_series(tmp_path, series_uid=b.series_uid)

@@ -102,3 +102,18 @@ def test_an_unreadable_folder_is_refused_saying_why(series: Path) -> None:
     message = str(got["error"])
     assert "no CT image series" in message
     assert "1 file(s) or folder(s) could not be read" in message and "e.g. ct " in message
+
+
+def test_an_unreadable_middle_slice_is_a_gap_and_says_why(series: Path) -> None:
+    """Slice 3 unreadable: the stack has a 2 mm step among 1 mm ones. The loader reports the
+    gap as for any missing slice (a drill path crossing it is then refused), and why."""
+
+    names = sorted(p.name for p in series.iterdir() if p.name.startswith("IM0") and p.is_file())
+    # write_all names slice k "IM%04d" % (k * 7919 % 1000): slice 3 is IM0757
+    assert "IM0757" in names
+    got = _load(series, "IM0757")
+    assert got["dims"] == [10, 12, 7]
+    warnings = got["warnings"]
+    assert isinstance(warnings, dict)
+    assert set(warnings) == {"slice_gap", "files_unreadable"}
+    assert warnings["files_unreadable"].startswith("1 file(s) or folder(s) could not be read")

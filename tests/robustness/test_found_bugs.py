@@ -97,6 +97,35 @@ FINDINGS: tuple[Finding, ...] = (
             "calibration name",
             "OSError [Errno 36] File name too long: traceback, exit 1", "fixed",
             "pipeline fuzz (20000 examples)"),
+    Finding("dicom-nested-sequences", "imaging/dicom/fastheader.py",
+            "1200 nested undefined-length sequences in one slice (43 KB)",
+            "RecursionError: traceback in inspect, export, rehearse and the GUI", "fixed",
+            "issue 15, corpus nested_undefined_sequences"),
+    Finding("rle-lying-lengths", "imaging/dicom/pixels.py",
+            "an RLE basic offset table, fragment or segment declaring 0xFFFFFFF0 bytes",
+            "struct.error traceback (table); loaded from what was there (fragment, segment "
+            "count); a two-line error (segment offset)", "fixed",
+            "issue 15, corpus bomb_rle_*"),
+    Finding("files-unreadable-silent", "imaging/dicom/discovery.py",
+            "files or a subfolder of the series without read permission (not root)",
+            "skipped silently: 40 of 80 slices loaded, warnings: none", "fixed",
+            "issue 15, tests/imaging/test_load_unreadable.py"),
+    Finding("special-file-readers", "haptics/session.py, model/recordings.py, app export",
+            "an operator script, manifest or recording that is a FIFO or /dev/zero; a FIFO "
+            "beside the series with --include-phi",
+            "blocks forever / reads until MemoryError", "fixed",
+            "issue 15, test_hostile_inputs.py"),
+    Finding("calibration-json-bombs", "model/calibration.py",
+            "a calibration set nested 1000 deep or holding a 4301-digit integer",
+            "RecursionError / ValueError traceback", "fixed", "issue 15, test_hostile_inputs.py"),
+    Finding("non-utf8-plan-name", "app/export_plot.py", "a plan file named b'pl\\xffan.json'",
+            "matplotlib fails drawing the force.png title: traceback, exit 1", "fixed",
+            "issue 15, test_hostile_inputs.py"),
+    Finding("outputs-not-atomic", "app/export.py, app/commands/calibrate.py",
+            "kill -9 during export; calibrate --out on a full disk",
+            "a folder mixing old and new files, staging folders piling up; a good calibration "
+            "overwritten by 8 KB of invalid JSON", "fixed",
+            "issue 15, tests/app/test_records.py, test_output_faults.py"),
 )  # fmt: skip
 
 #: Open bugs whose trigger the fuzzers hit.

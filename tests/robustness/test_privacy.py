@@ -18,6 +18,9 @@ from tests.robustness.outcomes import run_cli_in_process
 
 DEMO = ROOT / "assets" / "demo"
 PATIENT_FOLDER = "Quarantotto_Ermenegilda"
+#: A SeriesInstanceUID as a site would mint it (root, scanner, date): never in an output
+#: without --include-phi.
+SERIES_UID = "1.2.826.0.1.3680043.8.498.19540817.73395121"
 
 
 def phi_tokens() -> list[str]:
@@ -28,6 +31,7 @@ def phi_tokens() -> list[str]:
     birth = PHI["PatientBirthDate"]
     tokens.add(f"{birth[:4]}-{birth[4:6]}-{birth[6:]}")
     tokens.add(PATIENT_FOLDER)
+    tokens.add(SERIES_UID)
     return sorted(tokens)
 
 
@@ -45,6 +49,10 @@ def series_with_phi(tmp_path_factory: pytest.TempPathFactory) -> Path:
         ds = pydicom.dcmread(source)
         for keyword, value in PHI.items():
             setattr(ds, keyword, value)
+        # free text that often holds a name, and a UID that identifies the scan world-wide
+        ds.StudyDescription = "Implant planning Quarantotto"
+        ds.SeriesDescription = "CBCT Ermenegilda mandible"
+        ds.SeriesInstanceUID = SERIES_UID
         ds.save_as(folder / source.name)
     ds = pydicom.dcmread(next(folder.iterdir()))
     assert str(ds.PatientName) == PHI["PatientName"]  # the input really carries them
@@ -84,7 +92,14 @@ def test_export_writes_no_identifier(series_with_phi: Path, tmp_path: Path) -> N
     assert run.code == 0, run.stderr
     found = files_leaking(with_phi)
     assert "summary.json" in found
-    assert PHI["PatientID"] in found["summary.json"]
+    assert PHI["PatientID"] in found["summary.json"] and SERIES_UID in found["summary.json"]
+
+
+def test_inspect_include_phi_is_the_positive_control(series_with_phi: Path) -> None:
+    run = run_cli_in_process(["inspect", str(series_with_phi), "--json", "--include-phi"])
+    assert run.code == 0, run.stderr
+    found = leaks(run.stdout.encode())
+    assert {SERIES_UID, "Quarantotto", "Ermenegilda"} <= set(found)
 
 
 def test_rehearse_writes_no_identifier(series_with_phi: Path, tmp_path: Path) -> None:
