@@ -228,12 +228,14 @@ class _Loop:
         block_s: float,
         watch: TelemetryWatch,
         should_stop: Callable[[], bool] | None,
+        until: Callable[[], bool] | None = None,
     ) -> None:
-        """Blocks until ``duration_s``; ends early (and safely) on the first violation."""
+        """Blocks until ``duration_s`` (or ``until()``); ends early (and safely) on the first
+        violation."""
         device = self.device
         while True:
             now = self.now()
-            if now >= duration_s - 1e-9:
+            if now >= duration_s - 1e-9 or (until is not None and until()):
                 break
             if should_stop is not None and should_stop():
                 self.abort("cancelled", "stopped by the user", outcome="cancelled")
@@ -273,6 +275,7 @@ def run_session(
     block_s: float = 0.01,
     sink: Callable[[list[Row]], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
+    until: Callable[[], bool] | None = None,
 ) -> SessionResult:
     """Run one rehearsal on ``device``; rows go to ``sink`` block by block.
 
@@ -294,6 +297,9 @@ def run_session(
         Receives the rows ``(time_s, master_mm, drill_mm, force_cmd_n, state)`` of each block.
     should_stop : callable, optional
         Polled every block; True ends the session (STOP, DISARM; outcome ``cancelled``).
+    until : callable, optional
+        Polled every block; True ends the session as if its time were up (DISARM; outcome
+        ``complete``): the window ends a rehearsal once the device holds its auto-stop.
 
     Returns
     -------
@@ -323,7 +329,7 @@ def run_session(
     loop.start = device.clock_s()
     watch = TelemetryWatch(result.stop_depth_mm, info.limits.watchdog_ms / 1000.0, device.clock_s())
     try:
-        loop.run(duration_s, block_s, watch, should_stop)
+        loop.run(duration_s, block_s, watch, should_stop, until)
     except KeyboardInterrupt:
         loop.abort("interrupted", "interrupted by the user (SIGINT)", outcome="interrupted")
     except (DeviceError, OSError, ValueError) as exc:  # the host's own step failed

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import os
+import sys
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -10,6 +13,33 @@ from ctdrill.app.errors import AppInputError
 
 #: Upper bound on a ``--screenshot`` run when ``--quit-after-s`` is not given, s.
 SCREENSHOT_TIMEOUT_S = 120.0
+#: Qt platforms that draw no window (the embedded 3D view cannot render on them).
+HEADLESS_PLATFORMS = ("offscreen", "minimal")
+NO_DISPLAY_HINT = (
+    "run it in a desktop session, or under a virtual display: xvfb-run -a ctdrill gui ..."
+)
+
+
+def display_problem(env: Mapping[str, str], platform: str = sys.platform) -> str | None:
+    """Why Qt could not open a window with this environment (None: it can try).
+
+    Checked before Qt starts, because Qt aborts the process (exit 134) when it finds no
+    display. On Linux and the BSDs a window needs ``DISPLAY`` (X11) or ``WAYLAND_DISPLAY``;
+    ``QT_QPA_PLATFORM`` may name the one Qt must use. macOS and Windows always have one.
+    """
+    if not platform.startswith(("linux", "freebsd", "openbsd", "netbsd")):
+        return None
+    qpa = env.get("QT_QPA_PLATFORM", "").split(":", 1)[0].strip()
+    x11, wayland = env.get("DISPLAY", ""), env.get("WAYLAND_DISPLAY", "")
+    if qpa in HEADLESS_PLATFORMS:
+        return f"QT_QPA_PLATFORM={qpa} draws no window (the 3D view needs one)"
+    if qpa == "xcb" and not x11:
+        return "QT_QPA_PLATFORM=xcb but DISPLAY is not set (no X11 display)"
+    if qpa.startswith("wayland") and not wayland:
+        return f"QT_QPA_PLATFORM={qpa} but WAYLAND_DISPLAY is not set (no Wayland display)"
+    if not qpa and not x11 and not wayland:
+        return "no display: neither DISPLAY nor WAYLAND_DISPLAY is set"
+    return None
 
 
 def register(subparsers: Any) -> None:
@@ -56,8 +86,14 @@ def run(args: argparse.Namespace) -> int:
     quit_after = args.quit_after_s
     if args.screenshot is not None and quit_after is None:
         quit_after = SCREENSHOT_TIMEOUT_S
+    plan = None
+    if args.plan is not None:  # a plan that cannot be read is refused before any window
+        from ctdrill.imaging.plan.types import load_one_plan
+
+        plan = load_one_plan(args.plan)
+    problem = display_problem(os.environ)
+    if problem is not None:
+        raise AppInputError(f"ctdrill gui: {problem}; {NO_DISPLAY_HINT}")
     from ctdrill.app.gui.app import run_gui  # Qt loads only when the window is really wanted
 
-    return run_gui(
-        dicom=args.dicom, plan=args.plan, screenshot=args.screenshot, quit_after_s=quit_after
-    )
+    return run_gui(dicom=args.dicom, plan=plan, screenshot=args.screenshot, quit_after_s=quit_after)

@@ -4,7 +4,6 @@ has drawn the case, then quit."""
 from __future__ import annotations
 
 import sys
-from collections.abc import Sequence
 from pathlib import Path
 
 from PySide6.QtCore import QSettings, QTimer
@@ -12,6 +11,7 @@ from PySide6.QtWidgets import QApplication
 
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.screenshot import qimage_to_rgb, region_stats, widget_rect
+from ctdrill.imaging.plan.types import Plan
 
 #: Preferred and minimum window size, logical pixels (DESIGN.md section 4).
 PREFERRED_SIZE = (1440, 900)
@@ -50,7 +50,7 @@ def make_window(settings: QSettings | None = None) -> MainWindow:
 def run_gui(
     *,
     dicom: Path | None = None,
-    plan: Path | Sequence[Path] | None = None,
+    plan: Plan | None = None,
     screenshot: Path | None = None,
     quit_after_s: float | None = None,
     settings: QSettings | None = None,
@@ -60,13 +60,14 @@ def run_gui(
     With ``screenshot``, the composited window is saved as soon as the case is drawn (path
     planned, or right after showing when no series is given), and the window quits.
     A load that fails on bad input is re-raised after the loop so the CLI reports it.
+    ``plan`` was read by the caller (a plan that cannot be read never reaches the window).
     """
     app = application()
     window = make_window(settings)
     window.unattended = screenshot is not None or quit_after_s is not None
     window.ask_series = not window.unattended  # unattended: take the largest series
     if plan is not None:
-        window.open_plan(plan)
+        window.use_plan(plan, plan.source)
     if dicom is not None:
         window.open_folder(dicom)
     state = {"saved": False}

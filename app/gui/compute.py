@@ -13,7 +13,7 @@ import numpy as np
 import pyvista as pv
 
 from ctdrill.app.gui.scene import bone_surface
-from ctdrill.app.gui.slices import VIEWS, SliceImage, reslice
+from ctdrill.app.gui.slices import VIEWS, SliceImage, reslice, volume_center_lps
 from ctdrill.imaging import CTVolume, load_series
 from ctdrill.imaging.dicom.series import SeriesSummary, list_series
 from ctdrill.imaging.plan.types import Plan
@@ -77,21 +77,26 @@ def volume_surface(
     )
 
 
-def slice_key(volume: CTVolume, plan: Plan) -> tuple[object, ...]:
-    """What the four planes of :func:`slice_views` depend on (equal keys: same images)."""
+def slice_key(volume: CTVolume, plan: Plan | None) -> tuple[object, ...]:
+    """What the planes of :func:`slice_views` depend on (equal keys: same images)."""
+    if plan is None:
+        return (id(volume),)
     return (id(volume), *np.round(plan.target_lps, 9), *np.round(plan.direction, 12))
 
 
 def slice_views(
-    volume: CTVolume, plan: Plan, *, center_lps: np.ndarray | None = None
+    volume: CTVolume, plan: Plan | None, *, center_lps: np.ndarray | None = None
 ) -> dict[str, SliceImage]:
-    """The axial, coronal and sagittal planes through ``center_lps`` (default the target) and
-    the plane through the drill axis."""
-    center = plan.target_lps if center_lps is None else np.asarray(center_lps, dtype=np.float64)
+    """The axial, coronal and sagittal planes through ``center_lps`` (default the target; the
+    volume's centre without a plan) and, with a plan, the plane through the drill axis."""
+    if center_lps is not None:
+        center = np.asarray(center_lps, dtype=np.float64)
+    else:
+        center = volume_center_lps(volume) if plan is None else plan.target_lps
     out: dict[str, SliceImage] = {}
     for view in VIEWS:
-        if view == "trajectory":
-            out[view] = reslice(volume, view, plan.target_lps, axis_lps=plan.direction)
-        else:
+        if view != "trajectory":
             out[view] = reslice(volume, view, center)
+        elif plan is not None:
+            out[view] = reslice(volume, view, plan.target_lps, axis_lps=plan.direction)
     return out

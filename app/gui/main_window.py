@@ -1,8 +1,10 @@
-"""The ctdrill main window: 3D view, four slice views, depth plots, plan and rehearsal panels.
+"""The ctdrill main window: wiring only.
 
-Every action calls a headless function (``ctdrill.app.gui.compute``, ``ctdrill.app.gui.planning``,
-``ctdrill.app.pipeline``, ``ctdrill.imaging.plan.types``, ``ctdrill.app.export``); loading and path
-planning run in a worker thread (latest wins), so the UI thread stays responsive.
+The state lives in one :class:`~ctdrill.app.gui.document.Document` (volume, plan, path result,
+rehearsal); the views (:data:`ctdrill.app.gui.views.VIEWS`) observe it; the
+:class:`~ctdrill.app.gui.controller.Controller` runs the headless computations in worker threads.
+The window lays the views out, owns the menus, the dialogs and the status line, and turns
+file actions (open a series or a plan, save, screenshots) into document changes.
 """
 
 from __future__ import annotations
@@ -10,58 +12,57 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Sequence
-from functools import partial
 from pathlib import Path
-from typing import Any
 
-import numpy as np
-from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
-from matplotlib.figure import Figure
 from PySide6.QtCore import QSettings, Qt, QThreadPool, Signal
 from PySide6.QtGui import QCloseEvent, QDragEnterEvent, QDropEvent, QImage
 from PySide6.QtWidgets import (
-    QGridLayout,
     QInputDialog,
     QMainWindow,
     QMessageBox,
     QProgressDialog,
     QSplitter,
     QTabWidget,
+    QVBoxLayout,
     QWidget,
 )
 
-from ctdrill.app.gui import compute, planning
+from ctdrill.app.gui import compute
+from ctdrill.app.gui.controller import Controller
+from ctdrill.app.gui.document import Document, ViewContext
 from ctdrill.app.gui.menus import build_menus, fill_recent
 from ctdrill.app.gui.plan_panel import PlanPanel
-from ctdrill.app.gui.plots import draw_depth_plots, set_live_depth
+from ctdrill.app.gui.plots_view import PlotsView
 from ctdrill.app.gui.recent import RecentFolders
 from ctdrill.app.gui.rehearsal_panel import RehearsalPanel
-from ctdrill.app.gui.results import PathView, block_reason, compute_path_view
-from ctdrill.app.gui.scene import SceneInput
+from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.screenshot import grab_window
 from ctdrill.app.gui.series_panel import SeriesPanel
-from ctdrill.app.gui.slice_view import SliceCanvas
-from ctdrill.app.gui.slices import VIEWS, WINDOW_PRESETS, SliceImage, volume_center_lps
+from ctdrill.app.gui.slice_grid import SliceGrid
+from ctdrill.app.gui.slices import SliceImage
 from ctdrill.app.gui.view3d import View3D
-from ctdrill.app.gui.workers import Debouncer, Runner, StepQueue
+from ctdrill.app.gui.views import VIEWS, build_views
+from ctdrill.app.gui.workers import StepQueue
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.types import Plan, load_one_plan, save_plan
 
 #: On close, how long to let a running load or computation finish, ms.
 CLOSE_WAIT_MS = 5000
-#: Delay between the last plan edit and the recomputation, ms.
-DEBOUNCE_MS = 150
+#: What the status line says while no trajectory exists.
+PLACE_TRAJECTORY = (
+    "No trajectory yet: right-click the target on a slice view, Shift+right-click the entry "
+    "(or File > Open plan)."
+)
 
 
 class MainWindow(QMainWindow):
     """The desktop application window."""
 
-    path_updated = Signal()  # a new path result is shown (plots, 3D, slices)
+    path_updated = Signal()  # a new path result is drawn (plots, 3D, slices)
     volume_loaded = Signal()
     load_failed = Signal(str)  # the error message
     path_failed = Signal(str)  # no path for the plan (the error message)
     surface_updated = Signal()
-    slices_updated = Signal()
 
     def __init__(self, settings: QSettings | None = None) -> None:
         super().__init__()
@@ -69,13 +70,6 @@ class MainWindow(QMainWindow):
         self.setAcceptDrops(True)
         self.settings = settings if settings is not None else QSettings("ctdrill", "ctdrill")
         self.recent = RecentFolders(self.settings)
-        self.volume: CTVolume | None = None
-        self.volume_path = ""
-        self.plan: Plan | None = None
-        self.view: PathView | None = None
-        self.slices: dict[str, SliceImage] = {}
-        self.iso_hu = 300.0
-        self.window_level = WINDOW_PRESETS["bone"]
         self.last_error = ""
         self.load_error: ValueError | None = None  # bad input met while loading a series
         #: Ask which series to open when a folder holds several (else the largest is taken).
@@ -83,65 +77,92 @@ class MainWindow(QMainWindow):
         #: No modal dialogs (``--screenshot`` / ``--quit-after-s`` runs); bugs are kept here.
         self.unattended = False
         self.internal_error = ""
-        self._refocus_next = False
-        self._slice_key: tuple[object, ...] | None = None
+        self.progress: QProgressDialog | None = None
 
-        self.view3d = View3D()
-        #: UI-thread drawing steps, one per event-loop pass (see ``_slices_done``, ``_path_done``).
-        self.ui_steps = StepQueue()
-        self.slice_canvases: dict[str, SliceCanvas] = {
-            v: SliceCanvas(v, steps=self.ui_steps) for v in VIEWS
-        }
-        slice_box = QWidget()
-        grid = QGridLayout(slice_box)
-        grid.setContentsMargins(0, 0, 0, 0)
-        grid.setSpacing(2)
-        for n, v in enumerate(VIEWS):
-            grid.addWidget(self.slice_canvases[v], n // 2, n % 2)
-            self.slice_canvases[v].point_moved.connect(self._handle_moved)
-            self.slice_canvases[v].clicked.connect(self._canal_click)
-        self.plot_fig = Figure(figsize=(6, 4), dpi=80)
-        self.plot_canvas = FigureCanvasQTAgg(self.plot_fig)
-        draw_depth_plots(self.plot_fig, None, message="open a DICOM folder")
-
-        self.plan_panel = PlanPanel()
-        self.plan_panel.plan_edited.connect(self.set_plan)
-        self.plan_panel.edit_rejected.connect(self._status)
-        self.plan_panel.add_canal_toggled.connect(self._canal_mode)
-        self.rehearsal = RehearsalPanel()
-        self.rehearsal.depth_changed.connect(self._live_depth)
-        self.series_panel = SeriesPanel()
+        self.doc = Document(self)
+        #: UI-thread drawing steps, one per event-loop pass (no view holds the thread long).
+        self.ui_steps = StepQueue(self)
+        self.views = build_views(ViewContext(self.doc, self.ui_steps, self._status))
+        self.controller = Controller(self.doc, parent=self)
+        self._lay_out()
+        self.view3d: View3D = self.views["3d"]  # type: ignore[assignment]
+        self.slice_grid: SliceGrid = self.views["slices"]  # type: ignore[assignment]
+        self.plot_canvas: PlotsView = self.views["plots"]  # type: ignore[assignment]
+        self.plan_panel: PlanPanel = self.views["plan"]  # type: ignore[assignment]
+        self.rehearsal: RehearsalPanel = self.views["rehearsal"]  # type: ignore[assignment]
+        self.series_panel: SeriesPanel = self.views["series"]  # type: ignore[assignment]
+        self.plot_fig = self.plot_canvas.plot_fig
+        self.slice_canvases = self.slice_grid.canvases
+        self.slices_updated = self.slice_grid.slices_updated
         self.warnings_list = self.series_panel.warnings_list
         self.block_label = self.series_panel.block_label
-        self.tabs = QTabWidget()
-        self.tabs.addTab(self.plan_panel, "Plan")
-        self.tabs.addTab(self.rehearsal, "Rehearsal")
-        self.tabs.addTab(self.series_panel, "Series")
-        self.tabs.setMinimumWidth(330)
+        self.plan_panel.add_canal_toggled.connect(self.slice_grid.set_canal_mode)
 
-        top = QSplitter(Qt.Orientation.Horizontal)
-        top.addWidget(self.view3d)
-        top.addWidget(slice_box)
-        top.setSizes([560, 440])
-        left = QSplitter(Qt.Orientation.Vertical)
-        left.addWidget(top)
-        left.addWidget(self.plot_canvas)
-        left.setSizes([520, 280])
-        main = QSplitter(Qt.Orientation.Horizontal)
-        main.addWidget(left)
-        main.addWidget(self.tabs)
-        main.setSizes([1000, 340])
-        self.setCentralWidget(main)
-
-        self.load_runner = Runner(self._loaded, self._load_failed, parent=self)
-        self.path_runner = Runner(self._path_done, self._path_failed, parent=self)
-        self.slice_runner = Runner(self._slices_done, self._failed, parent=self)
-        self.surface_runner = Runner(self._surface_done, self._failed, parent=self)
-        self.debounce = Debouncer(self._recompute, DEBOUNCE_MS, parent=self)
-        self.ui_steps.setParent(self)
-        self.progress: QProgressDialog | None = None
+        # Connected after the views: the steps pushed here run after theirs.
+        self.doc.path_changed.connect(self._path_changed)
+        self.doc.surface_changed.connect(lambda _s: self.surface_updated.emit())
+        self.doc.edit_refused.connect(self._status)
+        self.controller.loaded.connect(self._loaded)
+        self.controller.failed.connect(self._stage_failed)
         self.recent_menu = build_menus(self)
         self._status("Open a DICOM folder (File > Open, or drop it here).")
+
+    def _lay_out(self) -> None:
+        """Place the views by area (see :mod:`ctdrill.app.gui.views`)."""
+        top = QSplitter(Qt.Orientation.Horizontal)
+        left = QSplitter(Qt.Orientation.Vertical)
+        tabs = QTabWidget()
+        tabs.setMinimumWidth(330)
+        column = QWidget()
+        box = QVBoxLayout(column)
+        box.setContentsMargins(0, 0, 0, 0)
+        box.setSpacing(2)
+        for spec in VIEWS:
+            widget = self.views[spec.key]
+            if spec.area == "banner":
+                box.addWidget(widget)
+            elif spec.area == "main":
+                top.addWidget(widget)
+            elif spec.area == "bottom":
+                left.addWidget(widget)
+            else:
+                tabs.addTab(widget, spec.title)
+        left.insertWidget(0, top)
+        left.setSizes([520, 280])
+        top.setSizes([560, 440])
+        box.addWidget(left, 1)
+        main = QSplitter(Qt.Orientation.Horizontal)
+        main.addWidget(column)
+        main.addWidget(tabs)
+        main.setSizes([1000, 340])
+        self.setCentralWidget(main)
+        self.tabs = tabs
+
+    # ------------------------------------------------------------------ state (the document's)
+    @property
+    def volume(self) -> CTVolume | None:
+        """The open series."""
+        return self.doc.volume
+
+    @property
+    def volume_path(self) -> str:
+        """Where the open series was loaded from."""
+        return self.doc.volume_path
+
+    @property
+    def plan(self) -> Plan | None:
+        """The plan (None: no trajectory placed yet)."""
+        return self.doc.plan
+
+    @property
+    def view(self) -> PathView | None:
+        """The path result of the plan (None: not computed, or not computable)."""
+        return self.doc.path
+
+    @property
+    def slices(self) -> dict[str, SliceImage]:
+        """The planes the slice views show."""
+        return self.slice_grid.slices
 
     def recent_folders(self) -> list[str]:
         """Recently opened folders, most recent first."""
@@ -155,14 +176,13 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(text)
 
     # ------------------------------------------------------------------ opening
-
     def open_folder(self, path: str | os.PathLike[str], *, series_uid: str | None = None) -> None:
         """Load a series in the background, with a cancellable progress dialog."""
+        if self.doc.rehearsing:
+            self._status("a rehearsal runs: stop it before opening another series")
+            return
         folder = str(path)
-        iso, ask = self.iso_hu, self.ask_series
-        self.load_runner.submit(
-            lambda: compute.load_case(folder, series_uid=series_uid, iso_hu=iso, ask_series=ask)
-        )
+        self.controller.load(folder, series_uid=series_uid, ask_series=self.ask_series)
         self.progress = QProgressDialog(f"Loading {folder} ...", "Cancel", 0, 0, self)
         self.progress.setWindowModality(Qt.WindowModality.WindowModal)
         self.progress.setMinimumDuration(300)
@@ -170,7 +190,7 @@ class MainWindow(QMainWindow):
         self._status(f"loading {folder}")
 
     def _cancel_load(self) -> None:
-        self.load_runner.cancel()
+        self.controller.load_runner.cancel()
         self._status("loading cancelled")
 
     def _close_progress(self) -> None:
@@ -202,35 +222,33 @@ class MainWindow(QMainWindow):
             else:
                 self.open_folder(loaded.path, series_uid=uid)
             return
-        self.volume = loaded.volume
-        self.volume_path = loaded.path
-        self._slice_key = None
+        if self.doc.volume is not loaded.volume:  # refused: a rehearsal runs
+            return
         self._remember(loaded.path)
-        self.view3d.set_surface(loaded.surface, redraw=False)  # drawn with the new path
-        self.series_panel.set_load_warnings(loaded.volume.warnings)
-        if self.plan is None:
-            center = volume_center_lps(loaded.volume)
-            self.plan = planning.default_plan(center)
         self.setWindowTitle(f"ctdrill - {Path(loaded.path).name}")
+        dims = "x".join(str(n) for n in loaded.volume.dims)
         self._status(
-            f"loaded {loaded.path}: {loaded.volume.dims[0]}x{loaded.volume.dims[1]}x"
-            f"{loaded.volume.dims[2]}, {len(loaded.volume.warnings)} warning(s)"
+            PLACE_TRAJECTORY
+            if self.doc.plan is None
+            else f"loaded {loaded.path}: {dims}, {len(loaded.volume.warnings)} warning(s)"
         )
         self.volume_loaded.emit()
-        self.set_plan(self.plan, now=True)
 
-    def _load_failed(self, exc: BaseException, tb: str) -> None:
-        if isinstance(exc, ValueError):
-            self.load_error = exc
+    def _stage_failed(self, stage: str, exc: BaseException, tb: str) -> None:
+        if stage == "load":
+            self._close_progress()
+            if isinstance(exc, ValueError):
+                self.load_error = exc
         self._failed(exc, tb)
-        self.load_failed.emit(str(exc))
+        if stage == "load":
+            self.load_failed.emit(str(exc))
+        elif stage == "path":
+            self.path_failed.emit(str(exc))
 
     def _failed(self, exc: BaseException, tb: str) -> None:
-        self._close_progress()
         self.last_error = str(exc)
         if isinstance(exc, ValueError):  # the packages' *InputError family: bad input
             self._status(f"error: {exc}")
-            self._show_block(str(exc))
         else:
             self.internal_error = tb or repr(exc)
             self._status(f"internal error: {exc!r}")
@@ -239,25 +257,37 @@ class MainWindow(QMainWindow):
             else:
                 QMessageBox.critical(self, "ctdrill: internal error", tb)
 
-    def open_plan(self, path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]) -> None:
+    def open_plan(self, path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]) -> bool:
         """Read a plan (ctdrill-plan/1, Slicer markups, segmentations; several files or a
-        folder merge into one trajectory) and show it."""
+        folder merge into one trajectory) and show it; a plan that cannot be read is an error
+        dialog (the plan shown stays). Returns True when the plan is shown."""
         paths = [path] if isinstance(path, str | os.PathLike) else list(path)
         try:
             plan = load_one_plan(paths)
         except ValueError as exc:
-            self._failed(exc, "")
-            return
-        self._status(f"plan {', '.join(str(p) for p in paths)}")
-        self.set_plan(plan, now=True, refocus=True)
+            self.last_error = str(exc)
+            self._status(f"error: {exc}")
+            if not self.unattended:
+                QMessageBox.warning(self, "ctdrill: cannot open the plan", str(exc))
+            return False
+        return self.use_plan(plan, ", ".join(str(p) for p in paths))
+
+    def use_plan(self, plan: Plan, source: str = "") -> bool:
+        """Show ``plan`` (read from ``source``), its path computed at once."""
+        if not self.doc.set_plan(plan):
+            return False
+        self.view3d.refocus_next = True
+        self.controller.recompute()
+        self._status(f"plan {source or plan.name}")
+        return True
 
     def save_plan(self, path: str | os.PathLike[str]) -> None:
         """Write the plan (``.mrk.json``: Slicer markups, else ctdrill-plan/1)."""
-        if self.plan is None:
+        if self.doc.plan is None:
             return
         try:
-            uid = None if self.volume is None else self.volume.info.series_uid
-            save_plan(self.plan, path, series_uid=uid)  # records the series, hashed
+            uid = None if self.doc.volume is None else self.doc.volume.info.series_uid
+            save_plan(self.doc.plan, path, series_uid=uid)  # records the series, hashed
         except (ValueError, OSError) as exc:
             self._status(f"error: {exc}")
             return
@@ -283,188 +313,31 @@ class MainWindow(QMainWindow):
         elif p.is_file():
             self.open_folder(p.parent)
 
-    # ------------------------------------------------------------------ plan and views
-    def set_plan(self, plan: Plan, *, now: bool = False, refocus: bool = False) -> None:
-        """Show ``plan``; slices and the path are recomputed (debounced unless ``now``)."""
-        self.plan = plan
-        self.plan_panel.set_plan(plan)
-        self._refocus_next = refocus
-        if now:
-            self._recompute()
-        else:
-            self.debounce.poke()
-
-    def _recompute(self) -> None:
-        volume, plan = self.volume, self.plan
-        if volume is None or plan is None:
+    # ------------------------------------------------------------------ results
+    def _path_changed(self, view: PathView | None) -> None:
+        if view is None:
             return
-        key = compute.slice_key(volume, plan)
-        if key != self._slice_key:  # the planes moved: reslice; else only the overlays change
-            self._slice_key = key
-            self.slice_runner.submit(lambda: compute.slice_views(volume, plan))
-        else:
-            self._draw_overlays()
-        self.path_runner.submit(lambda: compute_path_view(volume, plan))
-        self._status("computing the path ...")
 
-    def _slices_done(self, slices: dict[str, SliceImage]) -> None:
-        self.slices = slices
-        # One slice view per event-loop pass (each is resliced, overlaid and drawn), so the
-        # UI thread is never held for all four canvases at once.
-        for name in slices:
-            self.ui_steps.push(partial(self._show_slice, slices, name))
-        self.ui_steps.push(lambda: self._slices_shown(slices))
-
-    def _show_slice(self, slices: dict[str, SliceImage], name: str) -> None:
-        if slices is not self.slices:
-            return
-        level, width = self.window_level
-        plan = self.plan
-        canvas = self.slice_canvases[name]
-        canvas.show_slice(slices[name], level_hu=level, width_hu=width)
-        if plan is not None:  # the trajectory in the middle of the field of view
-            canvas.focus_on((plan.entry_lps + plan.target_lps) / 2.0)
-        self._draw_overlays(only=name)
-
-    def _slices_shown(self, slices: dict[str, SliceImage]) -> None:
-        if slices is self.slices:
-            self.slices_updated.emit()
-
-    def _draw_overlays(self, only: str | None = None) -> None:
-        """Overlay the plan on every slice view (or on view ``only``)."""
-        plan = self.plan
-        if plan is None:
-            return
-        view = self.view if self.view is not None and self.view.plan is plan else None
-        stop = None if view is None else plan.point_at_depth_lps(view.curves.stop_depth_mm)
-        lms = planning.landmark_geometries(plan, None if view is None else view.min_clearance_mm)
-        for name, canvas in self.slice_canvases.items():
-            if only is not None and name != only:
-                continue
-            canvas.set_overlays(
-                entry_lps=plan.entry_lps, target_lps=plan.target_lps, stop_lps=stop, landmarks=lms
+        def finish() -> None:  # after the views' drawing steps
+            if self.doc.path is not view:
+                return
+            c = view.curves
+            self._status(
+                f"stop at {c.stop_depth_mm:.2f} mm ({c.stop_reason}) of "
+                f"{c.planned_depth_mm:.2f} mm planned"
             )
+            self.path_updated.emit()
 
-    def _path_done(self, view: PathView) -> None:
-        plan = self.plan
-        if plan is None or view.plan is not plan:
-            return
-        self.view = view
-        # Four steps, one per event-loop pass, so that paints and timers run in between and
-        # the UI thread is never held for the whole update (on software GL the scene build
-        # and the frame are each tens of ms).
-        self.ui_steps.push(lambda: self._show_plots(view))
-        self.ui_steps.push(lambda: self._show_scene(view))
-        self.ui_steps.push(lambda: self._render_scene(view))
-        self.ui_steps.push(lambda: self._finish_path(view))
-
-    def _show_plots(self, view: PathView) -> None:
-        if view is not self.view:
-            return
-        draw_depth_plots(self.plot_fig, view.curves)
-        self.ui_steps.push(self.plot_canvas.draw)  # ~50 ms of Agg: a pass of its own
-
-    def _show_scene(self, view: PathView) -> None:
-        if view is not self.view:
-            return
-        self._draw_scene(view.plan, view, render=False)
-
-    def _render_scene(self, view: PathView) -> None:
-        if view is not self.view:
-            return
-        self.view3d.render_now()
-
-    def _draw_scene(self, plan: Plan, view: PathView | None, *, render: bool = True) -> None:
-        """The 3D scene of ``plan``, with the stop point and clearances when computed."""
-        scene = SceneInput(
-            entry_lps=plan.entry_lps,
-            target_lps=plan.target_lps,
-            diameter_mm=plan.drill.diameter_mm,
-            tip_length_mm=plan.drill.tip_length_mm,
-            stop_depth_mm=None if view is None else view.curves.stop_depth_mm,
-            landmarks=planning.landmark_geometries(
-                plan, None if view is None else view.min_clearance_mm
-            ),
-        )
-        self.view3d.show_scene(scene, refocus=self._refocus_next, render=render)
-        self._refocus_next = False
-
-    def _path_failed(self, exc: BaseException, tb: str) -> None:
-        """No path for this plan: still show the anatomy and the plan, and say why."""
-        self.view = None
-        self._failed(exc, tb)
-        draw_depth_plots(self.plot_fig, None, message=f"no force profile: {exc}")
-        self.plot_canvas.draw_idle()
-        if self.plan is not None and self.volume is not None:
-            self._draw_scene(self.plan, None)
-            self._draw_overlays()
-        self.path_failed.emit(str(exc))
-
-    def _finish_path(self, view: PathView) -> None:
-        if view is not self.view:
-            return
-        plan = view.plan
-        self.series_panel.set_path_warnings(
-            view.result.warnings, self.volume.warnings if self.volume else ()
-        )
-        self.plan_panel.set_plan(plan, view.min_clearance_mm)
-        self._draw_overlays()
-        reason = block_reason(self.volume, view)
-        self._show_block(reason)
-        self.rehearsal.set_case(self.volume, plan, view.result, blocked=reason)
-        self._status(
-            f"stop at {view.curves.stop_depth_mm:.2f} mm ({view.curves.stop_reason}) of "
-            f"{view.curves.planned_depth_mm:.2f} mm planned"
-        )
-        self.path_updated.emit()
-
-    def _live_depth(self, depth_mm: float) -> None:
-        """The drill's live depth (rehearsal telemetry): 3D drill and the plots' cursor."""
-        self.view3d.set_drill_depth(depth_mm)
-        set_live_depth(self.plot_fig, depth_mm)
-        self.plot_canvas.draw_idle()
-
-    def _show_block(self, reason: str | None) -> None:
-        self.series_panel.set_block(reason)
-        if reason:
-            self.rehearsal.set_blocked(reason)
-
-    def _handle_moved(self, name: str, point_lps: np.ndarray) -> None:
-        if self.plan is None:
-            return
-        try:
-            self.set_plan(planning.move_handle(self.plan, name, point_lps))
-        except ValueError as exc:
-            self._status(f"error: {exc}")
-            self._draw_overlays()
-
-    def _canal_mode(self, on: bool) -> None:
-        for canvas in self.slice_canvases.values():
-            canvas.add_points_mode = on
-
-    def _canal_click(self, point_lps: np.ndarray) -> None:
-        if self.plan is not None:
-            self.set_plan(planning.add_canal_point(self.plan, point_lps))
+        self.ui_steps.push(finish)
 
     def set_surface_preset(self, iso_hu: float) -> None:
         """Re-contour the bone surface at ``iso_hu`` (in the background)."""
-        self.iso_hu = iso_hu
-        volume = self.volume
-        if volume is not None:
-            self._status(f"bone surface at {iso_hu:g} HU ...")
-            self.surface_runner.submit(lambda: compute.volume_surface(volume, iso_hu=iso_hu))
-
-    def _surface_done(self, surface: Any) -> None:
-        self.view3d.set_surface(surface)
-        self._status(f"bone surface at {self.iso_hu:g} HU")
-        self.surface_updated.emit()
+        self._status(f"bone surface at {iso_hu:g} HU ...")
+        self.controller.set_iso(iso_hu)
 
     def set_window_preset(self, label: str) -> None:
         """Apply a window/level preset to the slice views."""
-        self.window_level = WINDOW_PRESETS[label]
-        level, width = self.window_level
-        for name, img in self.slices.items():
-            self.slice_canvases[name].set_window(img, level_hu=level, width_hu=width)
+        self.slice_grid.set_window_preset(label)
 
     def refocus(self) -> None:
         """Point the 3D camera at the trajectory again."""
@@ -484,9 +357,8 @@ class MainWindow(QMainWindow):
 
     def closeEvent(self, event: QCloseEvent) -> None:
         self.rehearsal.shutdown()
-        self.load_runner.cancel()
-        self.path_runner.cancel()
-        self.slice_runner.cancel()
+        self.controller.cancel()
+        self.slice_grid.runner.cancel()
         QThreadPool.globalInstance().waitForDone(CLOSE_WAIT_MS)
         self.view3d.close_plotter()
         super().closeEvent(event)

@@ -1,7 +1,9 @@
 """The planning panel: numeric entry/target, drill and feed, calibration, landmark margins.
 
-The panel shows a plan and reports edits as a new plan (``plan_edited``); every edit goes
-through :mod:`ctdrill.app.gui.planning` (pure functions), so the panel holds no planning logic.
+The panel shows the document's plan and the clearances of its path, and hands every edit to
+the document as a new plan; every edit goes through :mod:`ctdrill.app.gui.planning` (pure
+functions), so the panel holds no planning logic. While a rehearsal runs the panel is locked
+(the device holds the plan it was armed with) and says so.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from functools import partial
 
 import numpy as np
 from PySide6.QtCore import Qt, Signal
+from PySide6.QtGui import QColor
 from PySide6.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
@@ -29,6 +32,8 @@ from PySide6.QtWidgets import (
 )
 
 from ctdrill.app.gui import planning
+from ctdrill.app.gui.document import ViewContext
+from ctdrill.app.gui.results import PathView
 from ctdrill.imaging.plan.types import DrillSpec, Plan
 from ctdrill.model import available_calibrations
 
@@ -46,16 +51,23 @@ def _spin(lo: float, hi: float, step: float, decimals: int, suffix: str) -> QDou
 class PlanPanel(QWidget):
     """Numeric plan editor."""
 
-    plan_edited = Signal(object)  # the new Plan
-    edit_rejected = Signal(str)  # a message naming the field
     add_canal_toggled = Signal(bool)
 
-    def __init__(self, parent: QWidget | None = None) -> None:
-        super().__init__(parent)
+    def __init__(self, ctx: ViewContext) -> None:
+        super().__init__()
+        self.ctx = ctx
         self.plan: Plan | None = None
         self._updating = False
         self._rows_key: tuple[tuple[str, str], ...] | None = None
         outer = QVBoxLayout(self)
+        self.lock_label = QLabel("")
+        self.lock_label.setWordWrap(True)
+        self.lock_label.setStyleSheet("color:#6a1b9a; font-weight:bold")
+        outer.addWidget(self.lock_label)
+        self.body = QWidget()
+        outer.addWidget(self.body)
+        outer = QVBoxLayout(self.body)
+        outer.setContentsMargins(0, 0, 0, 0)
 
         traj = QGroupBox("Trajectory (LPS, mm)")
         grid = QGridLayout(traj)
@@ -118,7 +130,40 @@ class PlanPanel(QWidget):
         lay.addLayout(buttons)
         outer.addWidget(lms)
         outer.addStretch(1)
-        self.setEnabled(False)
+        self.body.setEnabled(False)
+        ctx.doc.plan_changed.connect(self._plan_changed)
+        ctx.doc.path_changed.connect(self._path_changed)
+        ctx.doc.rehearsal_changed.connect(self._rehearsal_changed)
+
+    # ------------------------------------------------------------------ document
+    def _plan_changed(self, plan: Plan | None) -> None:
+        if plan is None:
+            self.plan = None
+            self.body.setEnabled(False)
+        else:
+            self.set_plan(plan)
+
+    def _path_changed(self, view: PathView | None) -> None:
+        plan = self.ctx.doc.plan
+        if plan is None:
+            return
+        own = view is not None and view.plan is plan
+        lms = planning.drawn_landmarks(plan, view if own else None)
+        self.set_plan(plan, view.min_clearance_mm if own and view is not None else None)
+        for row, lm in enumerate(lms):
+            if lm.violated:
+                item = QTableWidgetItem("plan breaks the margin")
+                item.setForeground(QColor("#c62828"))
+                self.table.setItem(row, 3, item)
+
+    def _rehearsal_changed(self, running: bool) -> None:
+        self.body.setEnabled(not running and self.plan is not None)
+        self.lock_label.setText(
+            "The plan is locked while the rehearsal runs (the device holds the plan it was "
+            "armed with): stop the rehearsal to edit it."
+            if running
+            else ""
+        )
 
     # ------------------------------------------------------------------ show
     def set_plan(self, plan: Plan, clearance_mm: np.ndarray | None = None) -> None:
@@ -126,7 +171,7 @@ class PlanPanel(QWidget):
         self._updating = True
         try:
             self.plan = plan
-            self.setEnabled(True)
+            self.body.setEnabled(not self.ctx.doc.rehearsing)
             for name, pt in (("entry", plan.entry_lps), ("target", plan.target_lps)):
                 for box, value in zip(self.point_boxes[name], pt, strict=True):
                     box.setValue(float(value))
@@ -154,7 +199,7 @@ class PlanPanel(QWidget):
                 cell = self.table.cellWidget(row, 2)
                 if isinstance(cell, QDoubleSpinBox):
                     cell.setValue(plan.landmark_margin_mm(lm))
-                clear = "-" if clearance_mm is None else f"{float(clearance_mm[row]):.2f} mm"
+                clear = "unknown" if clearance_mm is None else f"{float(clearance_mm[row]):.2f} mm"
                 self.table.setItem(row, 3, QTableWidgetItem(clear))
         finally:
             self._updating = False
@@ -166,12 +211,11 @@ class PlanPanel(QWidget):
         try:
             new = fn()
         except ValueError as exc:
-            self.edit_rejected.emit(str(exc))
+            self.ctx.doc.edit_refused.emit(f"error: {exc}")
             self.set_plan(self.plan)
             return
-        self.plan = new
-        self.depth_label.setText(f"planned depth: {new.planned_depth_mm:.2f} mm")
-        self.plan_edited.emit(new)
+        if not self.ctx.doc.set_plan(new) and self.ctx.doc.plan is not None:
+            self.set_plan(self.ctx.doc.plan)  # refused: show the plan that holds
 
     def _point_edited(self, name: str) -> None:
         plan = self.plan
@@ -215,4 +259,3 @@ class PlanPanel(QWidget):
         if plan is None or row < 0 or row >= len(plan.landmarks):
             return
         self._emit(lambda: planning.remove_landmark(plan, row))
-        self.set_plan(self.plan if self.plan is not None else plan)

@@ -12,7 +12,8 @@ from dataclasses import replace
 import numpy as np
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.app.gui.scene import LandmarkGeometry
+from ctdrill.app.gui.results import PathView, binding_index, plan_violation
+from ctdrill.app.gui.scene import LandmarkGeometry, SceneInput
 from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
     Landmark,
@@ -85,12 +86,32 @@ def remove_landmark(plan: Plan, index: int) -> Plan:
     return replace(plan, landmarks=tuple(lms))
 
 
-def default_plan(center_lps: np.ndarray, *, depth_mm: float = 10.0) -> Plan:
-    """A vertical (superior to inferior) trajectory of ``depth_mm`` centred on ``center_lps``,
-    for a series opened without a plan."""
-    c = np.asarray(center_lps, dtype=np.float64).reshape(3)
-    half = np.array([0.0, 0.0, depth_mm / 2.0])
-    return Plan(entry_lps=c + half, target_lps=c - half, name="new plan")
+def place_handle(
+    plan: Plan | None, draft: dict[str, np.ndarray], name: str, point_lps: np.ndarray
+) -> Plan | dict[str, np.ndarray]:
+    """Place ``entry`` or ``target`` at ``point_lps`` (3,) LPS mm.
+
+    With a plan, the moved plan (:func:`move_handle`). Without one (a series opened without a
+    plan: no trajectory is guessed), the points placed so far (``draft`` plus this one) until
+    both exist, then a new plan from them with the default drill, feed and margin.
+    """
+    if plan is not None:
+        return move_handle(plan, name, point_lps)
+    if name not in ("entry", "target"):
+        raise PlanEditError(f"unknown handle {name!r}: use 'entry' or 'target'")
+    pt = np.asarray(point_lps, dtype=np.float64).reshape(3)
+    if not np.all(np.isfinite(pt)):
+        raise PlanEditError(f"{name}: coordinates must be finite numbers")
+    points = {**draft, name: pt}
+    if set(points) != {"entry", "target"}:
+        return points
+    new = Plan(entry_lps=points["entry"], target_lps=points["target"], name="new plan")
+    if new.planned_depth_mm < MIN_DEPTH_MM:
+        raise PlanEditError(
+            f"{name}: entry and target would be {new.planned_depth_mm:.2f} mm apart; "
+            f"keep them at least {MIN_DEPTH_MM} mm apart"
+        )
+    return new
 
 
 def landmark_points_lps(landmark: Landmark) -> np.ndarray:
@@ -101,12 +122,13 @@ def landmark_points_lps(landmark: Landmark) -> np.ndarray:
 
 
 def landmark_geometries(
-    plan: Plan, clearance_mm: np.ndarray | None = None
+    plan: Plan, clearance_mm: np.ndarray | None = None, *, violated: int | None = None
 ) -> tuple[LandmarkGeometry, ...]:
     """What to draw for each landmark, with its minimum clearance along the stopped path.
 
-    ``clearance_mm`` is (L,) per landmark (in plan order) or None when not computed yet (a
-    result for another landmark list is ignored).
+    ``clearance_mm`` is (L,) per landmark (in plan order) or None when not computed yet or
+    not computable (a result for another landmark list is ignored): drawn as unknown.
+    ``violated`` is the landmark whose margin the planned path breaks, marked in every view.
     Mask landmarks are drawn as their boundary points (point cloud), without a tube.
     """
     if clearance_mm is not None and len(clearance_mm) != len(plan.landmarks):
@@ -123,6 +145,33 @@ def landmark_geometries(
                 clearance_mm=clear,
                 kind=lm.kind,
                 cloud=len(lm.drawing().surface_lps) > 0,
+                violated=i == violated,
             )
         )
     return tuple(out)
+
+
+def drawn_landmarks(plan: Plan, view: PathView | None) -> tuple[LandmarkGeometry, ...]:
+    """The landmarks of ``plan`` as every view draws them: with the clearances of ``view``
+    when it was computed for this plan (else unknown), the binding landmark marked when the
+    planned path breaks its margin."""
+    if view is None or view.plan is not plan:
+        return landmark_geometries(plan)
+    violated = binding_index(view.result) if plan_violation(view.result) else None
+    return landmark_geometries(plan, view.min_clearance_mm, violated=violated)
+
+
+def scene_input(plan: Plan | None, view: PathView | None) -> SceneInput:
+    """The 3D scene of ``plan`` (None: the anatomy alone), with ``view``'s stop when computed
+    for it."""
+    if plan is None:
+        return SceneInput(entry_lps=None, target_lps=None, diameter_mm=0.0, tip_length_mm=0.0)
+    own = view is not None and view.plan is plan
+    return SceneInput(
+        entry_lps=plan.entry_lps,
+        target_lps=plan.target_lps,
+        diameter_mm=plan.drill.diameter_mm,
+        tip_length_mm=plan.drill.tip_length_mm,
+        stop_depth_mm=view.curves.stop_depth_mm if own and view is not None else None,
+        landmarks=drawn_landmarks(plan, view),
+    )

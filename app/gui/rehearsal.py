@@ -6,7 +6,7 @@ from __future__ import annotations
 import multiprocessing
 import queue
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -74,6 +74,7 @@ class RehearsalRun:
         realtime: bool,
         record: bool,
         series_uid: str,
+        end_at_stop: bool = False,
     ) -> None:
         self.result = result
         self.device_spec = device_spec
@@ -101,6 +102,7 @@ class RehearsalRun:
             device_spec="sim" if device_spec == SIMULATOR else device_spec,
             duration_s=duration_s,
             realtime=realtime and device_spec == SIMULATOR,
+            end_at_stop=end_at_stop,
         )
         self._process = ctx.Process(
             target=run_job, args=(job, self._queue, self._stop), name="ctdrill-session"
@@ -118,9 +120,11 @@ class RehearsalRun:
         duration_s: float = 120.0,
         realtime: bool = True,
         series_uid: str = "",
+        end_at_stop: bool = False,
     ) -> RehearsalRun:
         """Start a session on ``device`` (``simulator`` or ``serial:PORT``): upload, arm and
-        run, with a simulated hand pushing ``push_n`` newtons (simulator and emulator)."""
+        run, with a simulated hand pushing ``push_n`` newtons (simulator and emulator); with
+        ``end_at_stop`` the session ends once the device holds its auto-stop."""
         if not (np.isfinite(push_n) and push_n >= 0.0):
             raise ValueError(f"simulated push: give a force >= 0 N, got {push_n}")
         run = cls(
@@ -131,6 +135,7 @@ class RehearsalRun:
             realtime=realtime,
             record=record,
             series_uid=series_uid,
+            end_at_stop=end_at_stop,
         )
         run._process.start()
         return run
@@ -150,6 +155,9 @@ class RehearsalRun:
                 self._latest = Telemetry(
                     t, master, drill, force, state, clearance_at_mm(self.result, drill)
                 )
+            elif kind == "state":  # the device's state after the session's DISARM
+                if self._latest is not None:
+                    self._latest = replace(self._latest, state=str(payload))
             else:
                 self._ended = True
                 if kind in ("done", "fault", "cancelled"):

@@ -2,7 +2,10 @@
 force / depth / clearance, see the auto-stop and the safe state, record and export.
 
 The control loop owns the device (:class:`ctdrill.app.gui.rehearsal.RehearsalRun`, its own process);
-this panel only polls its telemetry with a QTimer and sends commands.
+this panel only polls its telemetry with a QTimer and sends commands. It observes the
+document's path result (what it would rehearse, or why it cannot) and tells the document when a
+rehearsal runs (the plan locks) and where the drill is. The session ends at the auto-stop; the
+panel says why the drill stopped, and every readout shows the device's reported state.
 """
 
 from __future__ import annotations
@@ -26,10 +29,10 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.rehearsal import SIMULATOR, RehearsalRun, Telemetry, device_choices
+from ctdrill.app.gui.results import PathView, block_reason, stop_explanation
 from ctdrill.app.pipeline import PathResult
-from ctdrill.imaging import CTVolume
-from ctdrill.imaging.plan.types import Plan
 
 #: Telemetry poll period, ms (30 Hz display).
 POLL_MS = 33
@@ -53,24 +56,21 @@ def _readout(text: str = "-") -> QLabel:
 class RehearsalPanel(QWidget):
     """Device selection, arming and the live readouts."""
 
-    depth_changed = Signal(float)  # drill depth from telemetry, mm
-    finished = Signal()  # the run ended (stop, safe state or disconnect)
+    finished = Signal()  # the run ended (auto-stop, Stop, an error or its time is up)
 
-    def __init__(self, parent: QWidget | None = None) -> None:
-        super().__init__(parent)
-        self.volume: CTVolume | None = None
-        self.plan: Plan | None = None
+    def __init__(self, ctx: ViewContext) -> None:
+        super().__init__()
+        self.ctx = ctx
         self.result: PathResult | None = None
         self.blocked: str | None = "no CT series loaded"
         self.run: RehearsalRun | None = None
         self.last: Telemetry | None = None
-        #: Session length, s, and pacing of the simulator to the wall clock.
+        #: Session length, s (the session ends earlier at the auto-stop), and pacing of the
+        #: simulator to the wall clock.
         self.duration_s = 120.0
         self.realtime = True
-        self._last_emit = (-1.0, float("nan"))
-        self._reported: RehearsalRun | None = (
-            None  # the run whose end was reported  # (monotonic s, depth mm) of the last 3D update
-        )
+        self._last_emit = (-1.0, float("nan"))  # (monotonic s, depth mm) of the last update
+        self._reported: RehearsalRun | None = None  # the run whose end was reported
         outer = QVBoxLayout(self)
 
         dev = QGroupBox("Device")
@@ -111,7 +111,8 @@ class RehearsalPanel(QWidget):
         self.force_label = _readout()
         self.clearance_label = _readout()
         self.auto_stop_label = QLabel("auto-stop: -")
-        self.safe_label = QLabel("safe state: no")
+        self.auto_stop_label.setWordWrap(True)
+        self.safe_label = QLabel("safe state: -")
         grid.addRow("state", self.state_label)
         grid.addRow("drill depth", self.depth_label)
         grid.addRow("force", self.force_label)
@@ -134,8 +135,20 @@ class RehearsalPanel(QWidget):
         self.timer.timeout.connect(self.poll)
         self.refresh_devices()
         self._update_buttons()
+        ctx.doc.path_changed.connect(self._path_changed)
+        ctx.doc.plan_changed.connect(lambda _plan: self._path_changed(None))
 
     # ------------------------------------------------------------------ case
+    def _path_changed(self, view: PathView | None) -> None:
+        doc = self.ctx.doc
+        if self.run is not None and self.run.running:
+            return  # the plan is locked: nothing changes under a running session
+        result = view.result if view is not None and view.plan is doc.plan else None
+        self.result = result
+        self.set_blocked(block_reason(doc.volume, doc.plan, view, doc.path_error))
+        if result is not None and not self.blocked and self.run is None:
+            self.auto_stop_label.setText(f"auto-stop: at {stop_explanation(result)}")
+
     def refresh_devices(self) -> None:
         """List the simulator and the serial ports present now."""
         current = self.device.currentText()
@@ -143,13 +156,6 @@ class RehearsalPanel(QWidget):
         self.device.addItems(device_choices())
         if current:
             self.device.setCurrentText(current)
-
-    def set_case(
-        self, volume: CTVolume | None, plan: Plan, result: PathResult, *, blocked: str | None
-    ) -> None:
-        """The case to rehearse (a new path result); ``blocked`` disables arming, with why."""
-        self.volume, self.plan, self.result = volume, plan, result
-        self.set_blocked(blocked)
 
     def set_blocked(self, reason: str | None) -> None:
         """Disable (reason) or enable arming."""
@@ -173,6 +179,7 @@ class RehearsalPanel(QWidget):
         if self.result is None or self.blocked:
             return
         device = self.device.currentText() or SIMULATOR
+        volume = self.ctx.doc.volume
         try:
             self.run = RehearsalRun.start(
                 self.result,
@@ -181,14 +188,18 @@ class RehearsalPanel(QWidget):
                 record=self.record.isChecked(),
                 duration_s=self.duration_s,
                 realtime=self.realtime,
-                series_uid="" if self.volume is None else self.volume.info.series_uid,
+                series_uid="" if volume is None else volume.info.series_uid,
+                end_at_stop=True,
             )
         except (ValueError, OSError) as exc:
             self.message.setText(f"error: {exc}")
             self.run = None
             self._update_buttons()
             return
-        self.message.setText(f"armed on {device}; stop depth {self.result.stop_depth_mm:.2f} mm")
+        self.message.setText(
+            f"armed on {device}; the device stops the drill at {stop_explanation(self.result)}"
+        )
+        self.ctx.doc.set_rehearsing(True)
         self.timer.start()
         self._update_buttons()
 
@@ -211,17 +222,13 @@ class RehearsalPanel(QWidget):
             self._reported = run
             self.timer.stop()
             self._update_buttons()
-            if run.error:
-                self.message.setText(f"error: {run.error}")
-            elif run.session is not None:
-                s = run.session
-                self.message.setText(
-                    f"session ended ({s['final_state']}): deepest drill "
-                    f"{s['max_drill_mm']:.2f} mm of stop {s['stop_depth_mm']:.2f} mm, "
-                    f"{s['samples']} samples, {s['overruns']} overruns"
-                )
-            elif run.cancelled:
-                self.message.setText("stopped by the user (device in its safe state)")
+            self.message.setText(end_message(run, tel))
+            if run.session is not None and run.session.get("final_state") == "stopped":
+                why = "" if self.result is None else stop_explanation(self.result)
+                self.auto_stop_label.setText(f"auto-stop: REACHED: {why}")
+                self.auto_stop_label.setStyleSheet("color:#c62828; font-weight:bold")
+            self.ctx.doc.set_rehearsing(False)
+            self._path_changed(self.ctx.doc.path)
             self.finished.emit()
 
     def show_telemetry(self, tel: Telemetry) -> None:
@@ -233,18 +240,16 @@ class RehearsalPanel(QWidget):
         self.force_label.setText(f"{tel.force_n:6.2f} N")
         clear = "-" if tel.clearance_mm is None else f"{tel.clearance_mm:6.2f} mm"
         self.clearance_label.setText(clear)
-        self.auto_stop_label.setText(
-            "auto-stop: REACHED" if tel.state == "stopped" else "auto-stop: armed"
-        )
-        self.auto_stop_label.setStyleSheet(
-            "color:#c62828; font-weight:bold" if tel.state == "stopped" else ""
-        )
+        why = "" if self.result is None else stop_explanation(self.result)
+        reached = tel.state == "stopped"
+        self.auto_stop_label.setText(f"auto-stop: {'REACHED' if reached else 'armed'}: {why}")
+        self.auto_stop_label.setStyleSheet("color:#c62828; font-weight:bold" if reached else "")
         self.safe_label.setText("safe state: YES" if tel.state == "safe" else "safe state: no")
         now = time.monotonic()
         last_t, last_depth = self._last_emit
         if now - last_t >= MIN_3D_UPDATE_S and tel.drill_mm != last_depth:
             self._last_emit = (now, tel.drill_mm)
-            self.depth_changed.emit(tel.drill_mm)
+            self.ctx.doc.set_live_depth(tel.drill_mm)
 
     def export_dialog(self) -> None:
         path = QFileDialog.getExistingDirectory(self, "Export the session to a folder")
@@ -265,3 +270,25 @@ class RehearsalPanel(QWidget):
         if self.run is not None and self.run.running:
             self.run.stop()
             self.run.join(timeout_s=2.0)
+
+
+def end_message(run: RehearsalRun, last: Telemetry | None) -> str:
+    """What the panel says when ``run`` ended, from what the device reported (``last``: the
+    final telemetry sample, its state the device's own)."""
+    state = "none reported" if last is None else last.state
+    if run.error:
+        return f"error: {run.error} (device state last reported: {state})"
+    if run.cancelled:
+        safe = "the device is in its safe state" if state == "safe" else f"device state: {state}"
+        return f"stopped by the user: emergency stop sent and acknowledged; {safe}"
+    s = run.session
+    if s is None:
+        return f"session ended (device state: {state})"
+    faults = len(s.get("faults", ()))
+    reached = s.get("final_state") == "stopped"
+    how = "at the auto-stop" if reached else "(its time is up)"
+    return (
+        f"session ended {how}: deepest drill {s['max_drill_mm']:.2f} mm of stop "
+        f"{s['stop_depth_mm']:.2f} mm, {s['samples']} samples, {s['overruns']} overruns, "
+        f"{faults} fault event(s); device state now: {state}. Export the session to keep it."
+    )

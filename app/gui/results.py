@@ -45,18 +45,52 @@ def path_view(plan: Plan, result: PathResult) -> PathView:
     )
 
 
+def binding_index(result: PathResult) -> int | None:
+    """The landmark whose margin sets the stop (``PathResult.binding_landmark``; the nearest
+    one at the stop when none binds), None without landmarks."""
+    return result.binding_landmark
+
+
+def stop_explanation(result: PathResult) -> str:
+    """Why the drill stops where it does, in words (which landmark, which margin)."""
+    stop, planned = result.stop_depth_mm, result.planned_depth_mm
+    if result.stop_reason == "planned_depth":
+        return f"the planned depth {planned:.2f} mm"
+    if result.stop_reason == "out_of_volume":
+        return f"the end of the CT data at {stop:.2f} mm (the drill would leave the scan)"
+    binding = binding_index(result)
+    if binding is None:
+        return f"the safety margin at {stop:.2f} mm"
+    name = result.landmarks[binding].name
+    margin = float(result.margins_mm[binding])
+    return f"the {margin:.2f} mm margin of {name!r} at {stop:.2f} mm (of {planned:.2f} mm planned)"
+
+
+def plan_violation(result: PathResult) -> str | None:
+    """The ``plan_violates_margin`` warning's message (the planned path breaks a margin), or
+    None."""
+    for warning in result.warnings:
+        if warning.code == "plan_violates_margin":
+            return warning.message
+    return None
+
+
 def compute_path_view(volume: CTVolume, plan: Plan) -> PathView:
     """Plan the path of ``plan`` through ``volume`` (the pipeline the CLI uses) for display."""
     return path_view(plan, plan_path(volume, plan, plan_calibration(plan)))
 
 
-def block_reason(volume: CTVolume | None, view: PathView | None) -> str | None:
+def block_reason(
+    volume: CTVolume | None, plan: Plan | None, view: PathView | None, error: str = ""
+) -> str | None:
     """Why rehearsal must not start, or None. (A volume that cannot carry a force map, a
     single slice or values that are not HU, is refused by ``plan_path`` itself: no view.)"""
     if volume is None:
         return "no CT series loaded"
+    if plan is None:
+        return "no trajectory: right-click the target on a slice view, Shift+right-click the entry"
     if view is None:
-        return "the path has not been computed"
+        return f"no path: {error}" if error else "the path has not been computed"
     if view.curves.stop_depth_mm <= 0.0:
         return f"the drill cannot advance (stop reason: {view.curves.stop_reason})"
     return None

@@ -30,6 +30,7 @@ CLEARANCE_COLOURS: dict[str, tuple[float, float, float]] = {
     "safe": (0.20, 0.70, 0.30),
     "close": (0.95, 0.65, 0.10),
     "violated": (0.90, 0.15, 0.15),
+    "unknown": (0.55, 0.55, 0.58),
 }
 
 BONE_COLOUR = (0.86, 0.80, 0.66)
@@ -48,23 +49,29 @@ class LandmarkGeometry:
     clearance_mm: float | None = None  # minimum clearance along the stopped path, if known
     kind: str = "canal"  # the landmark's kind, a label only
     cloud: bool = False  # points on the landmark's surface: drawn as a cloud, no envelope
+    violated: bool = False  # the planned path breaks this landmark's margin
 
 
 @dataclass(frozen=True, eq=False)
 class SceneInput:
     """Everything the 3D view shows, in LPS mm."""
 
-    entry_lps: np.ndarray
-    target_lps: np.ndarray
+    entry_lps: np.ndarray | None  # None (with target): no trajectory placed yet
+    target_lps: np.ndarray | None
     diameter_mm: float
     tip_length_mm: float
     stop_depth_mm: float | None = None
     landmarks: tuple[LandmarkGeometry, ...] = field(default=())
 
 
-def clearance_state(clearance_mm: float | None, margin_mm: float) -> str:
-    """``safe`` (>= margin + 1 mm, or unknown), ``close`` (>= margin) or ``violated``."""
-    if clearance_mm is None or clearance_mm >= margin_mm + 1.0:
+def clearance_state(clearance_mm: float | None, margin_mm: float, violated: bool = False) -> str:
+    """``unknown`` (not computed: never shown as safe), ``violated`` (below the margin, or
+    the planned path breaks it), ``close`` (within 1 mm of it) or ``safe``."""
+    if violated:
+        return "violated"
+    if clearance_mm is None:
+        return "unknown"
+    if clearance_mm >= margin_mm + 1.0:
         return "safe"
     if clearance_mm >= margin_mm:
         return "close"
@@ -219,8 +226,32 @@ def build_scene(
             specular=0.15,
             name="bone",
         )
-    entry = np.asarray(scene.entry_lps, dtype=np.float64)
-    target = np.asarray(scene.target_lps, dtype=np.float64)
+    if scene.entry_lps is not None and scene.target_lps is not None:
+        actors.update(_trajectory_actors(plotter, scene, scene.entry_lps, scene.target_lps))
+    for lm in scene.landmarks:
+        if len(lm.points_lps) == 0:
+            continue
+        body, env = landmark_meshes(lm)
+        colour = CLEARANCE_COLOURS[clearance_state(lm.clearance_mm, lm.margin_mm, lm.violated)]
+        actors[f"landmark:{lm.name}"] = plotter.add_mesh(
+            render=False, mesh=body, color=(0.95, 0.85, 0.20), name=f"landmark:{lm.name}"
+        )
+        if env is not None:
+            actors[f"margin:{lm.name}"] = plotter.add_mesh(
+                render=False, mesh=env, color=colour, opacity=0.3, name=f"margin:{lm.name}"
+            )
+    if show_axes:
+        plotter.add_axes(xlabel="L", ylabel="P", zlabel="S")
+    return actors
+
+
+def _trajectory_actors(
+    plotter: Any, scene: SceneInput, entry_lps: np.ndarray, target_lps: np.ndarray
+) -> dict[str, Any]:
+    """The trajectory line, target, drill and stop point of ``scene``."""
+    entry = np.asarray(entry_lps, dtype=np.float64)
+    target = np.asarray(target_lps, dtype=np.float64)
+    actors: dict[str, Any] = {}
     axis = _unit(target - entry)
     path = pv.Line(entry - axis * 10.0, target)
     actors["trajectory"] = plotter.add_mesh(
@@ -252,20 +283,6 @@ def build_scene(
             opacity=0.6,
             name="stop",
         )
-    for lm in scene.landmarks:
-        if len(lm.points_lps) == 0:
-            continue
-        body, env = landmark_meshes(lm)
-        colour = CLEARANCE_COLOURS[clearance_state(lm.clearance_mm, lm.margin_mm)]
-        actors[f"landmark:{lm.name}"] = plotter.add_mesh(
-            render=False, mesh=body, color=(0.95, 0.85, 0.20), name=f"landmark:{lm.name}"
-        )
-        if env is not None:
-            actors[f"margin:{lm.name}"] = plotter.add_mesh(
-                render=False, mesh=env, color=colour, opacity=0.3, name=f"margin:{lm.name}"
-            )
-    if show_axes:
-        plotter.add_axes(xlabel="L", ylabel="P", zlabel="S")
     return actors
 
 

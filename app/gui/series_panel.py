@@ -1,44 +1,74 @@
-"""The Series tab: why rehearsal is blocked, the loader's warnings, the path's warnings."""
+"""The Series tab: why rehearsal is blocked, the loader's warnings, the path's warnings; each
+warning once (a view of the document)."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 from PySide6.QtWidgets import QLabel, QListWidget, QVBoxLayout, QWidget
 
+from ctdrill.app.gui.document import ViewContext
+from ctdrill.app.gui.results import PathView, block_reason
 from ctdrill.imaging import LoadWarning
+
+
+def unique_warnings(
+    warnings: Iterable[LoadWarning], already: Iterable[LoadWarning] = ()
+) -> list[LoadWarning]:
+    """``warnings`` without repeats (same code and message) and without those in ``already``,
+    in their first order."""
+    seen = {(w.code, w.message) for w in already}
+    out = []
+    for w in warnings:
+        if (w.code, w.message) not in seen:
+            seen.add((w.code, w.message))
+            out.append(w)
+    return out
 
 
 class SeriesPanel(QWidget):
     """Warnings of the open series and of the planned path, and the blocking reason."""
 
-    def __init__(self, parent: QWidget | None = None) -> None:
-        super().__init__(parent)
+    def __init__(self, ctx: ViewContext) -> None:
+        super().__init__()
+        self.ctx = ctx
         self.block_label = QLabel("")
         self.block_label.setWordWrap(True)
         self.block_label.setStyleSheet("color:#b71c1c; font-weight:bold")
         self.warnings_list = QListWidget()
         self.path_warnings_list = QListWidget()
+        for box in (self.warnings_list, self.path_warnings_list):
+            box.setWordWrap(True)
         lay = QVBoxLayout(self)
         lay.addWidget(self.block_label)
         lay.addWidget(QLabel("Loader warnings"))
         lay.addWidget(self.warnings_list)
         lay.addWidget(QLabel("Along the drill path"))
         lay.addWidget(self.path_warnings_list)
+        ctx.doc.volume_changed.connect(lambda volume: self.set_load_warnings(volume.warnings))
+        ctx.doc.plan_changed.connect(lambda _plan: self._path(None))
+        ctx.doc.path_changed.connect(self._path)
+
+    def _path(self, view: PathView | None) -> None:
+        doc = self.ctx.doc
+        own = view if view is not None and view.plan is doc.plan else None
+        self.set_block(block_reason(doc.volume, doc.plan, own, doc.path_error))
+        loader = doc.volume.warnings if doc.volume is not None else ()
+        self.set_path_warnings(() if own is None else own.result.warnings, loader)
 
     def set_load_warnings(self, warnings: tuple[LoadWarning, ...]) -> None:
-        """Show the loader's warnings (``code: message``)."""
+        """Show the loader's warnings (``code: message``), each once."""
         self.warnings_list.clear()
-        for w in warnings:
+        for w in unique_warnings(warnings):
             self.warnings_list.addItem(f"{w.code}: {w.message}")
 
     def set_path_warnings(
         self, warnings: tuple[LoadWarning, ...], already: tuple[LoadWarning, ...]
     ) -> None:
-        """Show the path's warnings that the loader list does not already hold."""
-        seen = {(w.code, w.message) for w in already}
+        """Show the path's warnings that the loader list does not already hold, each once."""
         self.path_warnings_list.clear()
-        for w in warnings:
-            if (w.code, w.message) not in seen:
-                self.path_warnings_list.addItem(f"{w.code}: {w.message}")
+        for w in unique_warnings(warnings, already):
+            self.path_warnings_list.addItem(f"{w.code}: {w.message}")
 
     def set_block(self, reason: str | None) -> None:
         """Say why rehearsal is disabled (None: it is not)."""

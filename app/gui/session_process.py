@@ -11,7 +11,8 @@ separate interpreter, and talks to the window through a queue:
   session), ``("fault", summary)`` (the host ended it on a device fault or its own error,
   after STOP and DISARM: ``summary["reason"]`` says which), ``("cancelled", summary)`` (the
   stop event was set: the device was sent STOP and DISARM) or ``("error", message)`` (before
-  ARM: nothing was armed).
+  ARM: nothing was armed);
+- after ``done``'s session, ``("state", name)`` first: the device's state once disarmed.
 """
 
 from __future__ import annotations
@@ -24,7 +25,10 @@ from typing import Any, Protocol
 from ctdrill.app.rehearse import open_device
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session
-from ctdrill.haptics.session import Row, parse_operator
+from ctdrill.haptics.session import STATE_NAMES, Row, parse_operator
+
+#: With ``end_at_stop``, how long the device holds its auto-stop before the session ends, s.
+AUTO_STOP_HOLD_S = 0.25
 
 
 class _Queue(Protocol):
@@ -48,6 +52,8 @@ class SessionJob:
     device_spec : ``sim`` or ``serial:PORT`` (``ctdrill.app.rehearse.open_device``).
     duration_s : session length, s.
     realtime : pace the simulator to the wall clock (a real device is never paced).
+    end_at_stop : end the session (complete, disarmed) once the device has held its auto-stop
+        for ``AUTO_STOP_HOLD_S``: the drill can go no deeper, the window offers the export.
     """
 
     table: ProfileTable
@@ -55,6 +61,7 @@ class SessionJob:
     device_spec: str
     duration_s: float
     realtime: bool
+    end_at_stop: bool = False
 
 
 def run_job(job: SessionJob, out: _Queue, stop: _Event) -> None:
@@ -66,9 +73,14 @@ def run_job(job: SessionJob, out: _Queue, stop: _Event) -> None:
         out.put(("error", str(exc) or type(exc).__name__))
         return
     wall0 = time.monotonic()
+    stopped_at: list[float] = []  # session time of the first auto-stop row
+    held = [False]
 
     def sink(rows: list[Row]) -> None:
         out.put(("rows", rows))
+        if not stopped_at:
+            stopped_at.extend(r[0] for r in rows if r[4] == "stopped")
+        held[0] = bool(stopped_at) and rows[-1][0] - stopped_at[0] >= AUTO_STOP_HOLD_S
         if job.realtime:  # the simulator's time only advances in wait(): keep it to the clock
             ahead = rows[-1][0] - (time.monotonic() - wall0)
             if ahead > 0:
@@ -76,9 +88,20 @@ def run_job(job: SessionJob, out: _Queue, stop: _Event) -> None:
 
     try:
         result = run_session(
-            device, job.table, operator, job.duration_s, sink=sink, should_stop=stop.is_set
+            device,
+            job.table,
+            operator,
+            job.duration_s,
+            sink=sink,
+            should_stop=stop.is_set,
+            until=(lambda: held[0]) if job.end_at_stop else None,
         )
         kind = {"complete": "done", "cancelled": "cancelled"}.get(result.outcome, "fault")
+        if kind == "done":
+            device.wait(0.05)
+            states = [s.state for s in device.poll()]
+            if states:  # after the session's DISARM, as the device reports it
+                out.put(("state", STATE_NAMES.get(states[-1], "?")))
         out.put((kind, result.to_json()))
     except (ValueError, OSError) as exc:  # before ARM: a device that does not answer
         out.put(("error", str(exc) or type(exc).__name__))

@@ -30,6 +30,9 @@ MIN_FOV_MM = 5.0
 WHEEL_ZOOM = 1.25
 #: Overlays within this distance of the plane are drawn solid, mm.
 SLAB_MM = 2.0
+#: Landmark colour, and the colour of a landmark whose margin the planned path breaks.
+LANDMARK_COLOUR = "#ffd030"
+VIOLATED_COLOUR = "#ff3030"
 
 _TITLES = {
     "axial": "axial (A up, L right)",
@@ -57,6 +60,7 @@ class SliceCanvas(FigureCanvasQTAgg):
         self.ax.set_facecolor("black")
         self.ax.set_axis_off()
         fig.text(0.01, 0.99, _TITLES.get(view, view), color="#e0e0e0", fontsize=8, va="top")
+        self._note = fig.text(0.5, 0.5, "", color="#c0c0c0", fontsize=9, ha="center", wrap=True)
         self.image: SliceImage | None = None
         self._im: Any = None
         self._handles: dict[str, np.ndarray] = {}
@@ -85,9 +89,15 @@ class SliceCanvas(FigureCanvasQTAgg):
         self._draw_queued = False
         self.draw()
 
+    def set_note(self, text: str) -> None:
+        """A line of text in the middle of the view (empty: none)."""
+        self._note.set_text(text)
+        self.draw_idle()
+
     def show_slice(self, image: SliceImage, *, level_hu: float, width_hu: float) -> None:
         """Replace the image (and keep the overlays until ``set_overlays``)."""
         self.image = image
+        self._note.set_text("")
         grey = window_to_uint8(image.hu, level_hu=level_hu, width_hu=width_hu)
         if self._im is None:
             self._im = self.ax.imshow(
@@ -159,12 +169,13 @@ class SliceCanvas(FigureCanvasQTAgg):
     def set_overlays(
         self,
         *,
-        entry_lps: np.ndarray,
-        target_lps: np.ndarray,
+        entry_lps: np.ndarray | None,
+        target_lps: np.ndarray | None,
         stop_lps: np.ndarray | None,
         landmarks: tuple[LandmarkGeometry, ...],
     ) -> None:
-        """Draw the trajectory, stop point, landmarks and the entry/target handles."""
+        """Draw the trajectory, stop point, landmarks and the entry/target handles (either
+        handle may be missing while the trajectory is being placed)."""
         img = self.image
         for artist in [*self.ax.lines, *self.ax.patches, *self.ax.collections]:
             artist.remove()
@@ -172,24 +183,26 @@ class SliceCanvas(FigureCanvasQTAgg):
         if img is None:
             return
         for lm in landmarks:
+            colour = VIOLATED_COLOUR if lm.violated else LANDMARK_COLOUR
             uv, near = polyline_in_plane(img, lm.points_lps, slab_mm=SLAB_MM + lm.radius_mm)
             style = "-" if near.any() else ":"
             if len(uv) == 1:
-                self.ax.plot(uv[:, 0], uv[:, 1], "o", color="#ffd030", ms=5, zorder=3)
+                self.ax.plot(uv[:, 0], uv[:, 1], "o", color=colour, ms=5, zorder=3)
             else:
-                self.ax.plot(uv[:, 0], uv[:, 1], style, color="#ffd030", lw=1.2, zorder=3)
+                self.ax.plot(uv[:, 0], uv[:, 1], style, color=colour, lw=1.2, zorder=3)
                 if near.any():
-                    self.ax.plot(uv[near, 0], uv[near, 1], "o", color="#ffd030", ms=3, zorder=3)
-        line = np.array([entry_lps, target_lps], dtype=np.float64)
-        uv, near = polyline_in_plane(img, line, slab_mm=SLAB_MM)
-        style = "-" if near.all() else "--"
-        self.ax.plot(uv[:, 0], uv[:, 1], style, color="#4080ff", lw=1.5, zorder=4)
+                    self.ax.plot(uv[near, 0], uv[near, 1], "o", color=colour, ms=3, zorder=3)
+        if entry_lps is not None and target_lps is not None:
+            line = np.array([entry_lps, target_lps], dtype=np.float64)
+            uv, near = polyline_in_plane(img, line, slab_mm=SLAB_MM)
+            style = "-" if near.all() else "--"
+            self.ax.plot(uv[:, 0], uv[:, 1], style, color="#4080ff", lw=1.5, zorder=4)
         if stop_lps is not None:
             suv, _ = img.to_plane_mm(np.asarray(stop_lps, dtype=np.float64))
             self.ax.plot([suv[0]], [suv[1]], "x", color="#ff40b0", ms=9, mew=2, zorder=5)
+        given = {"entry": entry_lps, "target": target_lps}
         self._handles = {
-            "entry": np.asarray(entry_lps, dtype=np.float64),
-            "target": np.asarray(target_lps, dtype=np.float64),
+            name: np.asarray(pt, dtype=np.float64) for name, pt in given.items() if pt is not None
         }
         colours = {"entry": "#40e0ff", "target": "#ff6060"}
         for name, pt in self._handles.items():

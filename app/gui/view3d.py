@@ -1,5 +1,9 @@
 """The embedded 3D view: a ``pyvistaqt.QtInteractor`` drawn by
-:func:`ctdrill.app.gui.scene.build_scene`."""
+:func:`ctdrill.app.gui.scene.build_scene`, observing the window's document.
+
+The scene is rebuilt when a new bone surface arrives and when the path result for the plan
+arrives (or fails: the landmarks are then drawn as unknown), each build and its frame in an
+event-loop pass of its own; the drill follows the live depth of a rehearsal."""
 
 from __future__ import annotations
 
@@ -11,16 +15,20 @@ import pyvista as pv
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 
+from ctdrill.app.gui.document import ViewContext
+from ctdrill.app.gui.planning import scene_input
+from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.scene import SceneInput, build_scene, focus_camera, set_drill_depth
 
 
 class View3D(QWidget):
     """3D view of the bone surface, trajectory, drill and landmarks."""
 
-    def __init__(self, parent: QWidget | None = None, *, multi_samples: int = 0) -> None:
+    def __init__(self, ctx: ViewContext, *, multi_samples: int = 0) -> None:
         """``multi_samples``: MSAA samples; 0 by default because on a software OpenGL (Mesa
         llvmpipe, Xvfb) 4x MSAA more than doubles the frame time (see docs/benchmarks.md)."""
-        super().__init__(parent)
+        super().__init__()
+        self.ctx = ctx
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         # No periodic re-render (pyvistaqt's default is 5 Hz even when nothing changes, ~50 ms a
@@ -33,6 +41,35 @@ class View3D(QWidget):
         self._camera_for: tuple[float, ...] | None = None
         self.frames_drawn = 0
         self.last_frame_s = float("nan")  # perf_counter() at the end of the latest frame
+        #: Point the camera at the trajectory on the next build (a newly opened plan).
+        self.refocus_next = False
+        doc = ctx.doc
+        doc.surface_changed.connect(self._surface)
+        doc.path_changed.connect(self._path)
+        doc.live_depth_changed.connect(self.set_drill_depth)
+
+    # ------------------------------------------------------------------ document
+    def _surface(self, surface: pv.PolyData | None) -> None:
+        self.set_surface(surface, redraw=False)
+        if self.ctx.doc.plan is None:  # no trajectory yet: the anatomy alone
+            self.ctx.steps.push(lambda: self.show_scene(scene_input(None, None)))
+
+    def _path(self, view: PathView | None) -> None:
+        doc = self.ctx.doc
+        if view is None and not doc.path_error:
+            return  # reset on a plan edit: the result follows
+        plan = doc.plan
+
+        def current() -> bool:
+            return doc.plan is plan and doc.path is view
+
+        def build() -> None:
+            if current():
+                self.show_scene(scene_input(plan, view), refocus=self.refocus_next, render=False)
+                self.refocus_next = False
+
+        self.ctx.steps.push(build)  # the build and its frame: two passes
+        self.ctx.steps.push(lambda: self.render_now() if current() else None)
 
     def set_surface(self, surface: pv.PolyData | None, *, redraw: bool = True) -> None:
         """Use a new bone surface (new volume or preset); redraws a shown scene if ``redraw``."""
@@ -54,8 +91,12 @@ class View3D(QWidget):
             bounds = None
             if self.surface is not None and self.surface.n_points > 0:
                 bounds = tuple(self.surface.bounds)
-            focus_camera(self.plotter, scene.entry_lps, scene.target_lps, bounds=bounds)
-            self._camera_for = key
+            if scene.entry_lps is not None and scene.target_lps is not None:
+                focus_camera(self.plotter, scene.entry_lps, scene.target_lps, bounds=bounds)
+                self._camera_for = key
+            elif bounds is not None:  # no trajectory: look at the anatomy's centre
+                c = np.array(bounds).reshape(3, 2).mean(axis=1)
+                focus_camera(self.plotter, c, c - np.array([0.0, 0.0, 1.0]), bounds=bounds)
         else:
             self.plotter.camera_position = cam
         if render:
@@ -63,7 +104,7 @@ class View3D(QWidget):
 
     def set_drill_depth(self, depth_mm: float) -> None:
         """Put the drill tip at ``depth_mm`` along the planned axis (live rehearsal)."""
-        if self.scene is None:
+        if self.scene is None or self.scene.entry_lps is None:
             return
         axis = np.asarray(self.scene.target_lps) - np.asarray(self.scene.entry_lps)
         axis = axis / np.linalg.norm(axis)

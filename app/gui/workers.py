@@ -118,6 +118,10 @@ class Debouncer(QObject):
         """(Re)start the delay."""
         self._timer.start()
 
+    def cancel(self) -> None:
+        """Drop a scheduled call."""
+        self._timer.stop()
+
     @property
     def pending(self) -> bool:
         """True while a call is scheduled."""

@@ -64,11 +64,33 @@ def test_canal_points_grow_the_nearer_end() -> None:
     assert canal.radius_mm == pytest.approx(1.2)
 
 
-def test_remove_landmark_and_default_plan() -> None:
+def test_remove_landmark() -> None:
     p = planning.remove_landmark(plan(), 0)
     assert [lm.name for lm in p.landmarks] == ["apex"]
-    d = planning.default_plan(np.array([1.0, 2.0, 3.0]), depth_mm=8.0)
-    assert d.entry_lps.tolist() == [1.0, 2.0, 7.0] and d.target_lps.tolist() == [1.0, 2.0, -1.0]
+
+
+def test_without_a_plan_two_placed_points_make_the_trajectory() -> None:
+    assert not hasattr(planning, "default_plan")  # no trajectory is guessed for a new series
+    first = planning.place_handle(None, {}, "target", np.array([1.0, 2.0, -1.0]))
+    assert isinstance(first, dict) and set(first) == {"target"}
+    again = planning.place_handle(None, first, "target", np.array([1.0, 2.0, -2.0]))
+    assert isinstance(again, dict) and again["target"].tolist() == [1.0, 2.0, -2.0]
+    made = planning.place_handle(None, again, "entry", np.array([1.0, 2.0, 7.0]))
+    assert isinstance(made, Plan)
+    assert made.entry_lps.tolist() == [1.0, 2.0, 7.0] and made.target_lps.tolist() == [1, 2, -2]
+    assert made.planned_depth_mm == pytest.approx(9.0) and made.landmarks == ()
+    with pytest.raises(AppInputError, match="at least"):
+        planning.place_handle(None, first, "entry", np.array([1.0, 2.0, -0.9]))
+    moved = planning.place_handle(made, {}, "target", np.array([1.0, 2.0, 0.0]))
+    assert isinstance(moved, Plan) and moved.planned_depth_mm == pytest.approx(7.0)
+
+
+def test_drawn_landmarks_are_unknown_without_a_result_for_the_plan() -> None:
+    geoms = planning.drawn_landmarks(plan(), None)
+    assert [g.clearance_mm for g in geoms] == [None, None]
+    assert not any(g.violated for g in geoms)
+    marked = planning.landmark_geometries(plan(), np.array([2.5, 4.0]), violated=1)
+    assert [g.violated for g in marked] == [False, True]
 
 
 def test_landmark_geometries_carry_margin_and_clearance() -> None:

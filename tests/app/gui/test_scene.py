@@ -7,6 +7,7 @@ import pytest
 import pyvista as pv
 
 from ctdrill.app.gui.scene import (
+    CLEARANCE_COLOURS,
     LandmarkGeometry,
     SceneInput,
     bone_surface,
@@ -66,7 +67,9 @@ def test_drill_mesh_has_its_tip_at_the_entry_and_the_drill_radius() -> None:
 
 
 def test_clearance_states() -> None:
-    assert clearance_state(None, 2.0) == "safe"
+    assert clearance_state(None, 2.0) == "unknown"  # not computed is never shown as safe
+    assert CLEARANCE_COLOURS["unknown"] != CLEARANCE_COLOURS["safe"]
+    assert clearance_state(5.0, 2.0, violated=True) == "violated"
     assert clearance_state(3.0, 2.0) == "safe"
     assert clearance_state(2.5, 2.0) == "close"
     assert clearance_state(1.99, 2.0) == "violated"
@@ -114,5 +117,20 @@ def test_the_camera_stays_outside_the_anatomy() -> None:
         assert pos[1] < head[2] or pos[2] > head[5]
         assert np.linalg.norm(pos) == pytest.approx(dist)
         assert plotter.camera_position[1] == pytest.approx((0.0, 0.0, 0.0))
+    finally:
+        plotter.close()
+
+
+def test_a_scene_without_a_trajectory_draws_the_anatomy_and_unknown_landmarks() -> None:
+    vol = phantom_volume()
+    lm = LandmarkGeometry("canal", np.array([[-20.0, 0, -4], [20.0, 0, -4]]), 1.2, 2.0, None)
+    scene = SceneInput(None, None, 0.0, 0.0, None, (lm,))
+    plotter = pv.Plotter(off_screen=True, window_size=(300, 200))
+    try:
+        actors = build_scene(plotter, scene, surface=bone_surface(vol.hu, vol.affine_lps))
+        assert {"bone", "landmark:canal", "margin:canal"} <= set(actors)
+        assert not {"trajectory", "drill", "stop", "target"} & set(actors)
+        colour = actors["margin:canal"].GetProperty().GetColor()
+        assert colour == pytest.approx(CLEARANCE_COLOURS["unknown"], abs=1 / 255)
     finally:
         plotter.close()

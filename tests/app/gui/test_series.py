@@ -9,10 +9,12 @@ from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui import compute
 from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.app.gui.scene import CLEARANCE_COLOURS
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
 
+DEMO_PLAN = Path(__file__).resolve().parents[3] / "assets" / "demo" / "plan.json"
 MIXED = "dcmqa_ct_Philips_phantom_gantrytilt_mixedfolder"
 SMALLER_UID = "1.3.46.670589.33.1.7303547162003802183.31761132431540865648"  # the 54-slice one
 
@@ -56,12 +58,20 @@ def test_a_single_slice_blocks_rehearsal_and_says_why(
 ) -> None:
     single = "2.16.840.1.113662.2.12.0.3057.1241703565.43"  # the RT planning CT slice
     monkeypatch.setattr(window, "choose_series", lambda choice: single)
+    assert window.open_plan(DEMO_PLAN)
     with qtbot.waitSignal(window.path_failed, timeout=LOAD_TIMEOUT_MS) as failed:
         window.open_folder(shared_data / "single_slice_ct")
     assert "single slice" in failed.args[0]
+    qtbot.waitUntil(lambda: "margin:left mandibular canal" in window.view3d.actors, timeout=5000)
     # The plan and the anatomy are still drawn; the plots say why there is no profile.
     assert "drill" in window.view3d.actors and "trajectory" in window.view3d.actors
     assert any("no force profile" in t.get_text() for t in window.plot_fig.axes[1].texts)
     assert "Rehearsal disabled" in window.block_label.text()
     assert not window.rehearsal.connect_button.isEnabled()
     assert "single slice" in window.rehearsal.message.text()
+    # Unknown is never shown as safe: the canal's margin is grey, its clearance "unknown".
+    colour = window.view3d.actors["margin:left mandibular canal"].GetProperty().GetColor()
+    assert colour == pytest.approx(CLEARANCE_COLOURS["unknown"], abs=1 / 255)
+    assert window.plan_panel.table.item(0, 3).text() == "unknown"
+    banner = window.views["banner"]
+    assert banner.isVisible() and "unknown" in banner.text() and "single slice" in banner.text()

@@ -138,7 +138,7 @@ def test_save_and_reload_the_plan(
         assert np.allclose(back.target_lps, moved)
         assert np.allclose(back.entry_lps, window.plan.entry_lps)
         assert len(back.landmarks) == 1
-    window.plan = None
+    window.doc.set_plan(None)
     # After a 3D Slicer load and save: one markup per file, opened together.
     split = tmp_path / "slicer"
     split.mkdir()

@@ -1,0 +1,91 @@
+"""The document's background work: loading a series (with its bone surface), re-contouring the
+surface and planning the path whenever the plan changes. Each runs a headless function
+(:mod:`ctdrill.app.gui.compute`, :func:`ctdrill.app.gui.results.compute_path_view`) in a worker
+thread, latest wins, and hands the result to the document on the UI thread.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from PySide6.QtCore import QObject, Signal
+
+from ctdrill.app.gui import compute
+from ctdrill.app.gui.document import Document
+from ctdrill.app.gui.results import compute_path_view
+from ctdrill.app.gui.workers import Debouncer, Runner
+from ctdrill.imaging.plan.types import Plan
+
+#: Delay between the last plan edit and the recomputation, ms.
+DEBOUNCE_MS = 150
+
+
+class Controller(QObject):
+    """Runs the document's computations.
+
+    Signals
+    -------
+    loaded(result) : a ``compute.Loaded`` (already in the document) or a ``SeriesChoice``
+        (the window asks which series).
+    failed(stage, exc, traceback) : ``stage`` is ``load``, ``path`` or ``surface``.
+    """
+
+    loaded = Signal(object)
+    failed = Signal(str, object, str)
+
+    def __init__(self, doc: Document, parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self.doc = doc
+        self.iso_hu = 300.0
+        self.load_runner = Runner(self._loaded, self._fail("load"), parent=self)
+        self.path_runner = Runner(self._path_done, self._path_failed, parent=self)
+        self.surface_runner = Runner(doc.set_surface, self._fail("surface"), parent=self)
+        self.debounce = Debouncer(self.recompute, DEBOUNCE_MS, parent=self)
+        self._computing: Plan | None = None
+        doc.plan_changed.connect(lambda _plan: self.debounce.poke())
+        doc.volume_changed.connect(lambda _volume: self.recompute())
+
+    def _fail(self, stage: str) -> Any:
+        return lambda exc, tb: self.failed.emit(stage, exc, tb)
+
+    def load(self, folder: str, *, series_uid: str | None, ask_series: bool) -> None:
+        """Load ``folder`` in the background (``ask_series``: a folder of several CT stacks
+        gives a ``SeriesChoice`` instead)."""
+        iso, ask = self.iso_hu, ask_series
+        self.load_runner.submit(
+            lambda: compute.load_case(folder, series_uid=series_uid, iso_hu=iso, ask_series=ask)
+        )
+
+    def _loaded(self, loaded: compute.Loaded | compute.SeriesChoice) -> None:
+        if isinstance(loaded, compute.Loaded):
+            self.doc.set_volume(loaded.volume, loaded.path, loaded.surface)
+        self.loaded.emit(loaded)
+
+    def recompute(self) -> None:
+        """Plan the path of the document's plan through its volume now."""
+        self.debounce.cancel()
+        volume, plan = self.doc.volume, self.doc.plan
+        if volume is None or plan is None:
+            return
+        self._computing = plan
+        self.path_runner.submit(lambda: compute_path_view(volume, plan))
+
+    def _path_done(self, view: Any) -> None:
+        self.doc.set_path(view)
+
+    def _path_failed(self, exc: BaseException, tb: str) -> None:
+        if self._computing is not None:
+            self.doc.set_path_failed(self._computing, str(exc))
+        self.failed.emit("path", exc, tb)
+
+    def set_iso(self, iso_hu: float) -> None:
+        """Re-contour the bone surface at ``iso_hu`` (in the background)."""
+        self.iso_hu = iso_hu
+        volume = self.doc.volume
+        if volume is not None:
+            self.surface_runner.submit(lambda: compute.volume_surface(volume, iso_hu=iso_hu))
+
+    def cancel(self) -> None:
+        """Drop every running job (window closing)."""
+        for runner in (self.load_runner, self.path_runner, self.surface_runner):
+            runner.cancel()
