@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import socket
 import sys
 from collections.abc import Mapping
 from pathlib import Path
@@ -39,7 +40,35 @@ def display_problem(env: Mapping[str, str], platform: str = sys.platform) -> str
         return f"QT_QPA_PLATFORM={qpa} but WAYLAND_DISPLAY is not set (no Wayland display)"
     if not qpa and not x11 and not wayland:
         return "no display: neither DISPLAY nor WAYLAND_DISPLAY is set"
+    if x11 and not wayland and qpa in ("", "xcb") and not x11_reachable(x11):
+        return f"cannot connect to the X display DISPLAY={x11} (no X server answers there)"
     return None
+
+
+def x11_reachable(display: str, timeout_s: float = 1.0) -> bool:
+    """True if an X server accepts connections for ``display`` (``[host]:N[.S]``): the local
+    socket ``/tmp/.X11-unix/XN`` (or its abstract twin) or TCP port 6000 + N on ``host``.
+    A display name of another form is assumed reachable (Qt will say)."""
+    host, sep, rest = display.rpartition(":")
+    number = rest.split(".", 1)[0]
+    if not sep or not number.isdigit():
+        return True
+    if host in ("", "unix"):
+        targets: list[tuple[int, Any]] = [
+            (socket.AF_UNIX, f"/tmp/.X11-unix/X{number}"),
+            (socket.AF_UNIX, f"\0/tmp/.X11-unix/X{number}"),
+        ]
+    else:
+        targets = [(socket.AF_INET, (host, 6000 + int(number)))]
+    for family, address in targets:
+        try:
+            with socket.socket(family, socket.SOCK_STREAM) as sock:
+                sock.settimeout(timeout_s)
+                sock.connect(address)
+            return True
+        except OSError:
+            continue
+    return False
 
 
 def register(subparsers: Any) -> None:

@@ -137,6 +137,8 @@ class RehearsalPanel(QWidget):
         self._update_buttons()
         ctx.doc.path_changed.connect(self._path_changed)
         ctx.doc.plan_changed.connect(lambda _plan: self._path_changed(None))
+        ctx.doc.volume_changed.connect(lambda _volume: self._path_changed(None))
+        self._path_changed(None)
 
     # ------------------------------------------------------------------ case
     def _path_changed(self, view: PathView | None) -> None:
@@ -279,8 +281,12 @@ def end_message(run: RehearsalRun, last: Telemetry | None) -> str:
     if run.error:
         return f"error: {run.error} (device state last reported: {state})"
     if run.cancelled:
-        safe = "the device is in its safe state" if state == "safe" else f"device state: {state}"
-        return f"stopped by the user: emergency stop sent and acknowledged; {safe}"
+        events = [] if run.record is None else run.record.get("faults", [])
+        acked = bool(events) and all(
+            events[-1].get(f"{step}_acknowledged") for step in ("stop", "disarm")
+        )
+        sent = "STOP and DISARM acknowledged" if acked else "STOP and DISARM not acknowledged"
+        return f"stopped by the user: {sent}; device state: {state}"
     s = run.session
     if s is None:
         return f"session ended (device state: {state})"

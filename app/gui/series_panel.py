@@ -46,6 +46,7 @@ class SeriesPanel(QWidget):
         lay.addWidget(QLabel("Along the drill path"))
         lay.addWidget(self.path_warnings_list)
         ctx.doc.volume_changed.connect(lambda volume: self.set_load_warnings(volume.warnings))
+        ctx.doc.volume_changed.connect(lambda _volume: self._path(None))
         ctx.doc.plan_changed.connect(lambda _plan: self._path(None))
         ctx.doc.path_changed.connect(self._path)
 

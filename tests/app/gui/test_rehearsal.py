@@ -47,7 +47,7 @@ def test_simulated_rehearsal_reaches_the_auto_stop_and_exports(
     panel = window.rehearsal
     assert panel.connect_button.isEnabled()
     panel.realtime = False
-    panel.duration_s = 3.0
+    panel.duration_s = 60.0  # the session ends at the auto-stop, long before
     panel.push.setValue(12.0)
     panel.device.setCurrentText(SIMULATOR)
     with qtbot.waitSignal(panel.finished, timeout=60_000):
@@ -63,7 +63,15 @@ def test_simulated_rehearsal_reaches_the_auto_stop_and_exports(
     assert run.session["max_drill_mm"] <= stop + 0.05
     first_stop = states.index("stopped")
     assert drill[first_stop] == pytest.approx(stop, abs=0.05)
-    assert "REACHED" in panel.auto_stop_label.text() or states[-1] != "stopped"
+    # It ended at the auto-stop (held 0.25 s), not when its 60 s were up, and says why.
+    assert run.session["final_state"] == "stopped"
+    assert run.rows[-1][0] < run.rows[first_stop][0] + 0.5
+    assert "REACHED" in panel.auto_stop_label.text()
+    assert "2.00 mm margin of 'left mandibular canal'" in panel.auto_stop_label.text()
+    assert "session ended at the auto-stop" in panel.message.text()
+    assert "0 fault event(s)" in panel.message.text() or run.session["faults"]
+    assert panel.state_label.text() == panel.last.state if panel.last else False
+    assert panel.export_button.isEnabled() and not window.doc.rehearsing
     assert float(panel.depth_label.text().split()[0]) == pytest.approx(drill[-1], abs=0.01)
 
     files = panel.export(tmp_path / "out")
@@ -92,13 +100,31 @@ def test_stop_button_ends_a_realtime_run_in_the_safe_state(
     panel.start()
     assert panel.run is not None
     qtbot.waitUntil(lambda: panel.last is not None, timeout=10_000)
+    # The plan is locked while the device holds its table: no edit reaches the document.
+    plan = window.plan
+    assert window.doc.rehearsing and not window.plan_panel.body.isEnabled()
+    assert "locked" in window.plan_panel.lock_label.text()
+    assert plan is not None
+    window.slice_canvases["axial"].point_moved.emit("target", plan.target_lps + 1.0)
+    assert window.plan is plan and "locked" in window.statusBar().currentMessage()
+    assert not window.open_plan(phantom_case.plan_path) and window.plan is plan
     with qtbot.waitSignal(panel.finished, timeout=10_000):
         qtbot.mouseClick(panel.stop_button, Qt.MouseButton.LeftButton)
     assert panel.run.cancelled
     assert panel.run.record is not None and panel.run.record["outcome"] == "cancelled"
     assert panel.run.record["faults"][-1]["stop_acknowledged"] is True
-    assert "safe state" in panel.message.text()
+    # Every readout shows the state the device last reported (after STOP and DISARM).
+    last_state = panel.run.rows[-1][4]
+    assert last_state in ("safe", "idle")
+    assert panel.state_label.text() == last_state
+    assert panel.safe_label.text() == (
+        "safe state: YES" if last_state == "safe" else "safe state: no"
+    )
+    assert "STOP and DISARM acknowledged" in panel.message.text()
+    assert f"device state: {last_state}" in panel.message.text()
     assert panel.export_button.isEnabled()
+    assert not window.doc.rehearsing and window.plan_panel.body.isEnabled()
+    assert window.plan_panel.lock_label.text() == ""
 
 
 def test_a_silent_serial_device_is_reported_and_the_panel_recovers(

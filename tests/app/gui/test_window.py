@@ -167,3 +167,54 @@ def test_recent_folders_persist(tmp_path: Path, window: MainWindow) -> None:
     assert again.value("recent_folders")[:2] == ["/data/9", "/data/8"]
     assert len(window.recent_folders()) == 8
     assert window.recent_menu.actions()[0].text() == "/data/9"
+
+
+def test_a_new_series_opens_without_a_trajectory_until_one_is_placed(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    with qtbot.waitSignal(window.slices_updated, timeout=LOAD_TIMEOUT_MS):
+        window.open_folder(phantom_case.ct_dir)
+    assert window.plan is None and window.view is None  # nothing guessed
+    assert "right-click the target" in window.statusBar().currentMessage()
+    assert not window.rehearsal.connect_button.isEnabled()
+    assert "no trajectory" in window.rehearsal.message.text()
+    assert set(window.slices) == {"axial", "coronal", "sagittal"}
+    traj = window.slice_canvases["trajectory"]
+    assert traj.image is None and "no trajectory" in traj._note.get_text()
+    assert "drill" not in window.view3d.actors and "bone" in window.view3d.actors
+    truth = json.loads(phantom_case.truth_path.read_text())
+    plan = load_plan(phantom_case.plan_path)
+    window.slice_canvases["axial"].point_moved.emit("target", plan.target_lps)
+    assert window.plan is None and set(window.doc.draft) == {"target"}
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        window.slice_canvases["coronal"].point_moved.emit("entry", plan.entry_lps)
+    assert window.plan is not None and window.view is not None
+    assert np.allclose(window.plan.target_lps, plan.target_lps)
+    assert window.view.curves.planned_depth_mm == pytest.approx(truth["planned_depth_mm"])
+    assert window.view.curves.stop_reason == "planned_depth"  # no landmarks placed yet
+    assert window.rehearsal.connect_button.isEnabled()
+
+
+def test_a_plan_that_cannot_be_read_is_an_error_dialog(
+    qtbot: QtBot,
+    window: MainWindow,
+    phantom_case: PhantomCase,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from PySide6.QtWidgets import QMessageBox
+
+    open_case(qtbot, window, phantom_case)
+    shown = window.plan
+    dialogs: list[tuple[str, str]] = []
+    monkeypatch.setattr(
+        QMessageBox, "warning", lambda _parent, title, text: dialogs.append((title, text))
+    )
+    window.unattended = False
+    bad = tmp_path / "typo.json"
+    bad.write_text(phantom_case.plan_path.read_text().replace('"entry_mm"', '"entri_mm"'))
+    assert not window.open_plan(bad)
+    window.unattended = True
+    assert len(dialogs) == 1 and "entri_mm" in dialogs[0][1] and "typo.json" in dialogs[0][1]
+    assert window.plan is shown  # the plan shown stays; no default replaces it
+    assert window.statusBar().currentMessage().startswith("error:")
