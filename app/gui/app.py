@@ -94,12 +94,18 @@ def run_gui(
         if dicom is None:
             QTimer.singleShot(500, take)
         else:  # once both the path (or its refusal) and the slices are drawn
-            pending = {"path", "slices"}
+            pending = {"path", "slices"} if plan is not None else {"slices"}
+
+            def settled() -> None:  # every queued drawing step has run: the views are drawn
+                if window.ui_steps.pending:
+                    QTimer.singleShot(100, settled)
+                else:
+                    QTimer.singleShot(300, take)
 
             def arrived(what: str) -> None:
                 pending.discard(what)
                 if not pending:
-                    QTimer.singleShot(300, take)
+                    settled()
 
             window.path_updated.connect(lambda: arrived("path"))
             window.path_failed.connect(lambda _msg: arrived("path"))

@@ -97,6 +97,7 @@ class View3D(QWidget):
             elif bounds is not None:  # no trajectory: look at the anatomy's centre
                 c = np.array(bounds).reshape(3, 2).mean(axis=1)
                 focus_camera(self.plotter, c, c - np.array([0.0, 0.0, 1.0]), bounds=bounds)
+                self.plotter.reset_camera()  # same direction, the whole anatomy in view
         else:
             self.plotter.camera_position = cam
         if render:
