@@ -155,7 +155,7 @@ class RehearsalRun:
                 self._latest = Telemetry(
                     t, master, drill, force, state, clearance_at_mm(self.result, drill)
                 )
-            elif kind == "state":  # the device's state after the session's DISARM
+            elif kind == "state":  # the device's state once the session disarmed it
                 if self._latest is not None:
                     self._latest = replace(self._latest, state=str(payload))
             else:

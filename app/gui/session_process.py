@@ -12,11 +12,13 @@ separate interpreter, and talks to the window through a queue:
   after STOP and DISARM: ``summary["reason"]`` says which), ``("cancelled", summary)`` (the
   stop event was set: the device was sent STOP and DISARM) or ``("error", message)`` (before
   ARM: nothing was armed);
-- after ``done``'s session, ``("state", name)`` first: the device's state once disarmed.
+- before that, ``("state", name)``: the state the device reports once the session disarmed
+  it (the window's readouts show it).
 """
 
 from __future__ import annotations
 
+import contextlib
 import time
 import traceback
 from dataclasses import dataclass
@@ -97,10 +99,10 @@ def run_job(job: SessionJob, out: _Queue, stop: _Event) -> None:
             until=(lambda: held[0]) if job.end_at_stop else None,
         )
         kind = {"complete": "done", "cancelled": "cancelled"}.get(result.outcome, "fault")
-        if kind == "done":
+        with contextlib.suppress(ValueError, OSError):  # a lost link reports nothing more
             device.wait(0.05)
             states = [s.state for s in device.poll()]
-            if states:  # after the session's DISARM, as the device reports it
+            if states:  # after the session's DISARM (or STOP and DISARM), as reported
                 out.put(("state", STATE_NAMES.get(states[-1], "?")))
         out.put((kind, result.to_json()))
     except (ValueError, OSError) as exc:  # before ARM: a device that does not answer

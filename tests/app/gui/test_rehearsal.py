@@ -114,7 +114,8 @@ def test_stop_button_ends_a_realtime_run_in_the_safe_state(
     assert panel.run.record is not None and panel.run.record["outcome"] == "cancelled"
     assert panel.run.record["faults"][-1]["stop_acknowledged"] is True
     # Every readout shows the state the device last reported (after STOP and DISARM).
-    last_state = panel.run.rows[-1][4]
+    assert panel.last is not None
+    last_state = panel.last.state
     assert last_state in ("safe", "idle")
     assert panel.state_label.text() == last_state
     assert panel.safe_label.text() == (
