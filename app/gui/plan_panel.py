@@ -152,7 +152,9 @@ class PlanPanel(QWidget):
         self.set_plan(plan, view.min_clearance_mm if own and view is not None else None)
         for row, lm in enumerate(lms):
             if lm.violated:
-                item = QTableWidgetItem("plan breaks the margin")
+                shown = self.table.item(row, 3)
+                text = "" if shown is None else shown.text()
+                item = QTableWidgetItem(f"{text} (plan breaks the margin)")
                 item.setForeground(QColor("#c62828"))
                 self.table.setItem(row, 3, item)
 

@@ -1,0 +1,83 @@
+"""The margins in the window: the binding landmark's margin line, and the banner and marks
+when the planned path breaks a margin (``plan_violates_margin``)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from pytestqt.qtbot import QtBot
+
+from ctdrill.app.gui import planning
+from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.app.gui.scene import CLEARANCE_COLOURS
+from ctdrill.app.gui.slice_view import VIOLATED_COLOUR
+from ctdrill.imaging.phantom.io import PhantomCase
+from ctdrill.imaging.plan.landmarks import PointLandmark
+from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
+
+pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
+
+CANAL = "left mandibular canal"
+
+
+def margin_lines(win: MainWindow) -> list[float]:
+    """y of the dashed margin line on the clearance axis."""
+    ax = win.plot_fig.axes[2]
+    return [
+        float(line.get_ydata()[0])
+        for line in ax.lines
+        if line.get_color() == "#d02020" and line.get_linestyle() == "--"
+    ]
+
+
+def test_two_landmarks_the_plot_draws_the_binding_margin(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    plan = window.plan
+    assert plan is not None
+    # The canal below (margin 2.5 mm) sets the stop at 10.3 mm; a point 2 mm beside the axis
+    # at z = -37 (margin 0.5 mm) is then 1.0 mm from the drill's side: nearer, not binding.
+    plan = planning.set_landmark_margin(plan, 0, 2.5)
+    apex = PointLandmark("apex", np.array([34.0, 10.0, -37.0]), margin_mm=0.5)
+    plan = replace(plan, landmarks=(*plan.landmarks, apex))
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        window.use_plan(plan)
+    view = window.view
+    assert view is not None and view.curves.stop_reason == "margin"
+    assert view.curves.stop_depth_mm == pytest.approx(10.3, abs=0.01)
+    assert view.min_clearance_mm is not None
+    at_stop = view.min_clearance_mm
+    assert at_stop[1] == pytest.approx(1.0, abs=0.02) and at_stop[0] == pytest.approx(2.5, abs=0.01)
+    assert int(np.argmin(at_stop)) == 1 and view.result.binding_landmark == 0  # nearer != binding
+    assert view.curves.margin_mm == pytest.approx(2.5)
+    assert margin_lines(window) == [pytest.approx(2.5)]
+
+
+def test_a_plan_through_the_margin_shows_a_banner_and_marks_the_landmark(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)  # target 0.8 mm above the canal: margin 2 mm broken
+    assert window.view is not None
+    codes = [w.code for w in window.view.result.warnings]
+    assert codes.count("plan_violates_margin") == 1
+    banner = window.views["banner"]
+    assert banner.isVisible() and banner.kind == "violation"  # type: ignore[attr-defined]
+    assert CANAL in banner.text()  # type: ignore[attr-defined]
+    assert window.plan_panel.table.item(0, 3).text().endswith("(plan breaks the margin)")
+    qtbot.waitUntil(lambda: f"margin:{CANAL}" in window.view3d.actors, timeout=5000)
+    colour = window.view3d.actors[f"margin:{CANAL}"].GetProperty().GetColor()
+    assert colour == pytest.approx(CLEARANCE_COLOURS["violated"], abs=1 / 255)
+    canal_lines = [
+        ln for ln in window.slice_canvases["coronal"].ax.lines if ln.get_color() == VIOLATED_COLOUR
+    ]
+    assert canal_lines
+    # A target 6 mm higher keeps the margin: no banner, the canal is no longer marked.
+    assert window.plan is not None
+    target = window.plan.target_lps + np.array([0.0, 0.0, 6.0])
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        window.slice_canvases["coronal"].point_moved.emit("target", target)
+    assert not banner.isVisible()
+    assert window.plan_panel.table.item(0, 3).text() == "6.80 mm"
