@@ -33,6 +33,7 @@ def run(args: argparse.Namespace) -> int:
     """Export the demo and list the files with what each holds."""
     import json
 
+    from ctdrill.app.export import summary_lines
     from ctdrill.app.export_demo import DEMO_DIR, run_demo
 
     written = run_demo(args.out)
@@ -46,9 +47,10 @@ def run(args: argparse.Namespace) -> int:
     for path in written:
         sys.stdout.write(f"wrote {path}  ({about.get(path.name, '')})\n")
     summary = json.loads((Path(args.out) / "summary.json").read_text(encoding="utf-8"))
+    # The same stop, clearance and warning lines as ``ctdrill export``, then the calibration.
+    sys.stdout.write("".join(line + "\n" for line in summary_lines(summary)))
     sys.stdout.write(
-        f"stop at {summary['stop_depth_mm']} mm ({summary['stop_reason']}) of "
-        f"{summary['planned_depth_mm']} mm planned; calibration {summary['calibration']}"
+        f"calibration {summary['calibration']}"
         + (" (illustrative)" if summary["calibration_illustrative"] else "")
         + "\n"
     )

@@ -25,9 +25,15 @@ def test_demo_writes_reruns_and_refuses_foreign_folders(tmp_path: Path) -> None:
     assert (code, err) == (0, "")
     for name in ("force.csv", "profile.csv", "summary.json", "force.png"):
         assert f"wrote {out / name}" in stdout
-    stop = re.search(r"stop at ([0-9.]+) mm \(margin\) of 12.0 mm planned", stdout)
+    stop = re.search(
+        r"stop at ([0-9.]+) mm \(margin: 'left mandibular canal', margin 2 mm\) of "
+        r"12.000 mm planned; clearance along the planned path 0.800 mm",
+        stdout,
+    )
     assert stop is not None and 10.799 <= float(stop.group(1)) <= 10.8  # truth: 10.8 mm
-    assert "bone-illustrative (illustrative)" in stdout
+    # The demo plan goes past its margin on purpose (the stop shows it): the terminal says so.
+    assert "warning [plan_violates_margin]: " in stdout
+    assert "calibration bone-illustrative (illustrative)" in stdout
     assert (out / DEMO_MARKER).is_file()
     summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
     assert summary["stop_reason"] == "margin"
