@@ -26,8 +26,8 @@ def banner_text(view: PathView | None, path_error: str) -> tuple[str, str] | Non
     who = "" if binding is None else f" ({view.result.landmarks[binding].name!r} is marked)"
     stop = view.curves.stop_depth_mm
     return (
-        f"The planned path breaks a safety margin{who}: {message}. "
-        f"The drill is stopped at {stop:.2f} mm; move the target to plan a safe path.",
+        f"Unsafe plan{who}: {message}. The drill stops at {stop:.2f} mm; move the target "
+        "to plan a safe path.",
         "violation",
     )
 

@@ -37,6 +37,9 @@ from ctdrill.app.gui.results import PathView
 from ctdrill.imaging.plan.types import DrillSpec, Plan
 from ctdrill.model import available_calibrations
 
+#: Appended to the clearance of a landmark whose margin the planned path breaks.
+VIOLATED_MARK = "(plan!)"
+
 
 def _spin(lo: float, hi: float, step: float, decimals: int, suffix: str) -> QDoubleSpinBox:
     box = QDoubleSpinBox()
@@ -154,7 +157,8 @@ class PlanPanel(QWidget):
             if lm.violated:
                 shown = self.table.item(row, 3)
                 text = "" if shown is None else shown.text()
-                item = QTableWidgetItem(f"{text} (plan breaks the margin)")
+                item = QTableWidgetItem(f"{text} {VIOLATED_MARK}")
+                item.setToolTip("the planned path breaks this landmark's margin")
                 item.setForeground(QColor("#c62828"))
                 self.table.setItem(row, 3, item)
 

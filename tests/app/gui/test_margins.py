@@ -11,6 +11,7 @@ from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui import planning
 from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.app.gui.plan_panel import VIOLATED_MARK
 from ctdrill.app.gui.scene import CLEARANCE_COLOURS
 from ctdrill.app.gui.slice_view import VIOLATED_COLOUR
 from ctdrill.imaging.phantom.io import PhantomCase
@@ -66,7 +67,8 @@ def test_a_plan_through_the_margin_shows_a_banner_and_marks_the_landmark(
     banner = window.views["banner"]
     assert banner.isVisible() and banner.kind == "violation"  # type: ignore[attr-defined]
     assert CANAL in banner.text()  # type: ignore[attr-defined]
-    assert window.plan_panel.table.item(0, 3).text().endswith("(plan breaks the margin)")
+    item = window.plan_panel.table.item(0, 3)
+    assert item.text().endswith(VIOLATED_MARK) and "breaks" in item.toolTip()
     qtbot.waitUntil(lambda: f"margin:{CANAL}" in window.view3d.actors, timeout=5000)
     colour = window.view3d.actors[f"margin:{CANAL}"].GetProperty().GetColor()
     assert colour == pytest.approx(CLEARANCE_COLOURS["violated"], abs=1 / 255)
