@@ -132,6 +132,7 @@ def test_importing_a_package_or_its_errors_loads_nothing_heavy() -> None:
         "ctdrill.haptics.errors",
         "ctdrill.imaging",
         "ctdrill.imaging.errors",
+        "ctdrill.lazy",
         "ctdrill.model",
         "ctdrill.model.errors",
     ]

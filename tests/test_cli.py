@@ -67,8 +67,8 @@ HEAVY_FOR_HELP = (
     "SimpleITK",
 )
 #: First-party modules that building the parser may load: the CLI, its commands, the four
-#: ``*InputError`` modules the CLI catches, lazy package ``__init__`` files and the numpy-free
-#: defaults the parsers show.
+#: ``*InputError`` modules the CLI catches, lazy package ``__init__`` files (and ``ctdrill.lazy``,
+#: which builds their re-exports) and the numpy-free defaults the parsers show.
 LIGHT_FIRST_PARTY = {
     "ctdrill",
     "ctdrill.app",
@@ -82,6 +82,7 @@ LIGHT_FIRST_PARTY = {
     "ctdrill.imaging.errors",
     "ctdrill.imaging.phantom",
     "ctdrill.imaging.phantom.classes",
+    "ctdrill.lazy",
     "ctdrill.model",
     "ctdrill.model.errors",
     "ctdrill.model.fit_defaults",
