@@ -74,6 +74,7 @@ LIGHT_FIRST_PARTY = {
     "ctdrill.app",
     "ctdrill.app.cli",
     "ctdrill.app.commands",
+    "ctdrill.app.commands.options",
     "ctdrill.app.errors",
     "ctdrill.app.export_defaults",
     "ctdrill.haptics",

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ctdrill.app.commands.options import add_interpolate_gaps_option, add_plan_option
 from ctdrill.app.export_defaults import DEFAULT_RATE_HZ
 
 
@@ -24,16 +25,7 @@ def register(subparsers: Any) -> None:
         ),
     )
     p.add_argument("--dicom", type=Path, required=True, metavar="DIR", help="DICOM CT folder")
-    p.add_argument(
-        "--plan",
-        type=Path,
-        required=True,
-        nargs="+",
-        action="extend",
-        metavar="PLAN",
-        help="ctdrill-plan/1 JSON, 3D Slicer .mrk.json or segmentation (.seg.nrrd, .nrrd, "
-        ".nii.gz, DICOM SEG); repeatable, or a folder: all merge into one plan",
-    )
+    add_plan_option(p, required=True)
     p.add_argument("--out", type=Path, required=True, metavar="OUT", help="output folder")
     p.add_argument(
         "--calibration",
@@ -60,13 +52,7 @@ def register(subparsers: Any) -> None:
         metavar="UID|HASH",
         help="series to load: its SeriesInstanceUID or the hash outputs print (8+ hex digits)",
     )
-    p.add_argument(
-        "--interpolate-gaps",
-        action="store_true",
-        help="interpolate HU across slice gaps (steps over 1.5 x the nominal slice step) the "
-        "drill crosses, instead of refusing; summary.json then lists them (interpolated_gaps) "
-        "with warning gap_interpolated",
-    )
+    add_interpolate_gaps_option(p)
     p.set_defaults(func=run)
 
 

@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from ctdrill.app.commands.options import add_plan_option
 from ctdrill.app.errors import AppInputError
 
 #: Upper bound on a ``--screenshot`` run when ``--quit-after-s`` is not given, s.
@@ -79,15 +80,7 @@ def register(subparsers: Any) -> None:
         description="Open the ctdrill window: plan on the CT, see force and clearance, rehearse.",
     )
     p.add_argument("--dicom", type=Path, help="DICOM folder to open")
-    p.add_argument(
-        "--plan",
-        type=Path,
-        nargs="+",
-        action="extend",
-        metavar="PLAN",
-        help="plan: ctdrill-plan/1 JSON, Slicer .mrk.json or segmentation files, or a folder; "
-        "repeatable, merged into one trajectory",
-    )
+    add_plan_option(p, required=False)
     p.add_argument("--screenshot", type=Path, help="save the window as PNG once drawn, then quit")
     p.add_argument(
         "--quit-after-s", type=float, default=None, help="close the window after this many seconds"

@@ -7,6 +7,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ctdrill.app.commands.options import add_interpolate_gaps_option, add_plan_option
+
 
 def register(subparsers: Any) -> None:
     """Add the ``rehearse`` subcommand."""
@@ -23,16 +25,7 @@ def register(subparsers: Any) -> None:
         ),
     )
     p.add_argument("--dicom", type=Path, required=True, help="CT series folder")
-    p.add_argument(
-        "--plan",
-        type=Path,
-        required=True,
-        nargs="+",
-        action="extend",
-        metavar="PLAN",
-        help="plan: ctdrill-plan/1 JSON, Slicer .mrk.json or segmentation files, or a folder; "
-        "repeatable, merged into one trajectory",
-    )
+    add_plan_option(p, required=True)
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument(
         "--operator",
@@ -49,12 +42,7 @@ def register(subparsers: Any) -> None:
         help="link-loss@T, garbage@T, delay@T:MS or reset@T (repeatable)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of injected garbage (default 0)")
-    p.add_argument(
-        "--interpolate-gaps",
-        action="store_true",
-        help="interpolate HU across slice gaps the drill crosses instead of refusing "
-        "(summary.json then counts them, warning gap_interpolated)",
-    )
+    add_interpolate_gaps_option(p)
     p.set_defaults(func=run)
 
 
