@@ -247,12 +247,7 @@ def summary(
         "duration_s": _num(float(series.time_s[-1]), 6),
         "peak_force_n": _num(float(np.max(series.force_n)), 5),
         "mean_force_n": _num(float(np.mean(series.force_n)), 5),
-        "drill": {
-            "diameter_mm": plan.drill.diameter_mm,
-            "tip_length_mm": plan.drill.tip_length_mm,
-            "blades": plan.drill.blades,
-            "rpm": plan.drill.rpm,
-        },
+        "drill": plan.drill.to_json(),
         "entry_lps": plan.entry_lps.tolist(),
         "target_lps": plan.target_lps.tolist(),
         "depth_step_mm": _num(prof.step_mm, 6),

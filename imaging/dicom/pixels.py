@@ -289,11 +289,7 @@ def to_hu(stored: np.ndarray, h: SliceHeader, out: np.ndarray) -> bool:
         out[...] = stored.astype(np.float64) * slope + intercept
         return True
     if int16_exact(h):
-        if slope == 1.0:
-            np.add(stored, np.int32(intercept), out=out, casting="unsafe")
-        else:
-            np.multiply(stored, np.int32(slope), out=out, casting="unsafe")
-            np.add(out, np.int32(intercept), out=out, casting="unsafe")
+        _int16_rescale(stored, slope, intercept, out)
         return True
     if slope != round(slope) or intercept != round(intercept):
         return False
@@ -302,9 +298,14 @@ def to_hu(stored: np.ndarray, h: SliceHeader, out: np.ndarray) -> bool:
     ends = (slope * lo + intercept, slope * hi + intercept)
     if min(ends) < -32768 or max(ends) > 32767:
         return False
+    _int16_rescale(stored, slope, intercept, out)
+    return True
+
+
+def _int16_rescale(stored: np.ndarray, slope: float, intercept: float, out: np.ndarray) -> None:
+    """``out = stored * slope + intercept`` in integers (both known to be whole and to fit)."""
     if slope == 1.0:
         np.add(stored, np.int32(intercept), out=out, casting="unsafe")
     else:
         np.multiply(stored, np.int32(slope), out=out, casting="unsafe")
         np.add(out, np.int32(intercept), out=out, casting="unsafe")
-    return True

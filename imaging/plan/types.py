@@ -108,6 +108,15 @@ class DrillSpec:
         """Half the diameter, mm."""
         return self.diameter_mm / 2.0
 
+    def to_json(self) -> dict[str, float | int]:
+        """The four settings by their plan-file keys (plans, markups and summaries use them)."""
+        return {
+            "diameter_mm": self.diameter_mm,
+            "tip_length_mm": self.tip_length_mm,
+            "blades": self.blades,
+            "rpm": self.rpm,
+        }
+
 
 @dataclass(frozen=True, eq=False)
 class Plan:

@@ -35,19 +35,13 @@ def plan_document(plan: Plan, out_dir: str | os.PathLike[str] | None = None) -> 
         lms = [lm.to_plan_item(out_dir) for lm in plan.landmarks]
     except LandmarkInputError as exc:
         raise PlanInputError(str(exc)) from exc
-    d = plan.drill
     return {
         "format": PLAN_FORMAT,
         "coordinate_system": "LPS",
         "name": plan.name,
         "entry_mm": plan.entry_lps.tolist(),
         "target_mm": plan.target_lps.tolist(),
-        "drill": {
-            "diameter_mm": d.diameter_mm,
-            "tip_length_mm": d.tip_length_mm,
-            "blades": d.blades,
-            "rpm": d.rpm,
-        },
+        "drill": plan.drill.to_json(),
         "feed_mm_s": plan.feed_mm_s,
         "calibration": plan.calibration,
         "margin_mm": plan.margin_mm,
@@ -112,13 +106,9 @@ def markups_document(plan: Plan) -> dict[str, Any]:
     description (:mod:`ctdrill.imaging.plan.settings`), so that a file loaded and saved by
     Slicer reads back as the same plan. Mask landmarks cannot be markups and are refused.
     """
-    d = plan.drill
     line = {
         "name": plan.name,
-        "diameter_mm": d.diameter_mm,
-        "tip_length_mm": d.tip_length_mm,
-        "blades": d.blades,
-        "rpm": d.rpm,
+        **plan.drill.to_json(),
         "feed_mm_s": plan.feed_mm_s,
         "calibration": plan.calibration,
         "margin_mm": plan.margin_mm,
