@@ -1,0 +1,227 @@
+"""evaluate_batch against plan_path, row by row, to 1e-9: the demo phantom, an irregular stack,
+real tilted and padded series, random trajectories, canal / point / mask landmarks, refusals."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ctdrill.app.pipeline import PathInputError, plan_calibration, plan_path
+from ctdrill.app.search.evaluate import BatchResult, evaluate_batch
+from ctdrill.imaging.dicom.series import load_series
+from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.plan.landmarks import CanalLandmark, MaskLandmark, PointLandmark
+from ctdrill.imaging.plan.types import Plan, load_plan
+from ctdrill.imaging.sampling.lip import ring_radii_mm
+from ctdrill.imaging.volume import CTVolume
+from ctdrill.model.calibration import Calibration
+from ctdrill.model.errors import ModelInputError
+from tests.conftest import ASSETS
+
+DEMO = ASSETS / "demo"
+TOL = 1e-9
+
+
+@pytest.fixture(scope="module")
+def demo() -> tuple[CTVolume, Plan, Calibration]:
+    plan = load_plan(DEMO / "plan.json")
+    return load_series(DEMO / "ct"), plan, plan_calibration(plan)
+
+
+def _close(got: np.ndarray, want: np.ndarray, what: str) -> None:
+    np.testing.assert_allclose(
+        np.asarray(got, dtype=np.float64), want, rtol=0, atol=TOL, err_msg=what
+    )
+
+
+def assert_rows_match(
+    volume: CTVolume,
+    plan: Plan,
+    cal: Calibration,
+    entries: np.ndarray,
+    targets: np.ndarray,
+    **kw: object,
+) -> BatchResult:
+    """Every row of evaluate_batch equals plan_path on that trajectory (or its refusal)."""
+    got = evaluate_batch(volume, plan, entries, targets, cal, **kw)  # type: ignore[arg-type]
+    assert got.size == len(entries)
+    n_l = len(plan.landmarks)
+    for n, (e, t) in enumerate(zip(entries, targets, strict=True)):
+        try:
+            want = plan_path(volume, replace(plan, entry_lps=e, target_lps=t), cal, **kw)  # type: ignore[arg-type]
+        except (ImagingInputError, ModelInputError) as exc:
+            assert got.refusal[n] == str(exc), n
+            assert got.n_depths[n] == 0 and np.all(np.isnan(got.s0_n[n]))
+            assert got.stop_reason[n] == "" and got.binding_landmark[n] == -1
+            continue
+        assert got.refusal[n] is None, (n, got.refusal[n])
+        m = want.depth_mm.shape[0]
+        assert got.n_depths[n] == m
+        _close(got.depth_mm[n, :m], want.depth_mm, f"depth row {n}")
+        assert np.all(np.isnan(got.depth_mm[n, m:]))
+        prof = want.profile
+        for name in ("hu_mean", "s_t", "s0_n"):
+            _close(getattr(got, name)[n, :m], getattr(prof, name), f"{name} row {n}")
+        _close(got.sk_n[n, :, :m], prof.sk_n, f"sk_n row {n}")
+        _close(got.freqs_hz, prof.freqs_hz, "freqs")
+        assert got.ke_per_mm_s == prof.ke_per_mm_s
+        assert got.n_clipped[n] == prof.n_clipped and got.n_samples[n] == prof.n_samples
+        radii = ring_radii_mm(plan.drill.diameter_mm, want.lip.radii_mm.size)
+        disc = want.lip.hu.astype(np.float64).mean(axis=2) @ (radii / radii.sum())
+        _close(got.disc_hu[n, :m], disc, f"disc_hu row {n}")
+        _close(got.clearance_mm[n, :m], want.clearance_mm, f"clearance row {n}")
+        _close(got.margins_mm, want.margins_mm, "margins")
+        _close(got.max_safe_depth_mm[n], want.max_safe_depth_mm, f"max safe row {n}")
+        assert bool(got.max_safe_depth_capped[n]) == want.max_safe_depth_capped
+        assert got.binding_landmark[n] == (
+            -1 if want.binding_landmark is None else want.binding_landmark
+        )
+        pc = np.nan if want.plan_clearance_mm is None else want.plan_clearance_mm
+        _close(got.plan_clearance_mm[n], pc, f"plan clearance row {n}")
+        oov = np.nan if want.out_of_volume_depth_mm is None else want.out_of_volume_depth_mm
+        _close(got.out_of_volume_depth_mm[n], oov, f"out of volume row {n}")
+        _close(got.stop_depth_mm[n], want.stop_depth_mm, f"stop row {n}")
+        assert got.stop_reason[n] == want.stop_reason, n
+        assert got.stop_clearance_mm[n].shape == (n_l,)
+        _close(got.stop_clearance_mm[n], want.stop_clearance_mm, f"stop clearance row {n}")
+    return got
+
+
+def random_axes(
+    plan: Plan, n: int, seed: int, *, shift_mm: float = 3.0, cone_deg: float = 25.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Entries within ``shift_mm`` of the plan's, axes within ``cone_deg`` of it, depths 4-16 mm."""
+    rng = np.random.default_rng(seed)
+    entries = plan.entry_lps + rng.uniform(-shift_mm, shift_mm, (n, 3))
+    tilt = np.deg2rad(rng.uniform(0.0, cone_deg, n))
+    az = rng.uniform(0.0, 2 * np.pi, n)
+    u = plan.direction
+    helper = np.array([1.0, 0.0, 0.0])
+    e1 = np.cross(u, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    dirs = np.cos(tilt)[:, None] * u + np.sin(tilt)[:, None] * (
+        np.cos(az)[:, None] * e1 + np.sin(az)[:, None] * e2
+    )
+    depth = rng.uniform(4.0, 16.0, n)
+    return entries, entries + depth[:, None] * dirs
+
+
+def test_demo_random_trajectories_match_plan_path(demo: tuple[CTVolume, Plan, Calibration]) -> None:
+    volume, plan, cal = demo
+    entries, targets = random_axes(plan, 24, seed=1)
+    # The plan itself; one through the canal; one leaving the volume; one entering outside
+    # it; a degenerate axis; one too long.
+    extra_e = [plan.entry_lps, plan.entry_lps, plan.entry_lps, [500.0, 0.0, 0.0]]
+    extra_t = [
+        plan.target_lps,
+        plan.target_lps + np.array([-4.0, -20.0, -3.0]),
+        [70.0, 10.0, -32.0],
+    ]
+    extra_t += [[500.0, 0.0, -10.0]]
+    entries = np.vstack([entries, extra_e, plan.entry_lps, plan.entry_lps])
+    targets = np.vstack(
+        [targets, extra_t, plan.entry_lps, plan.entry_lps + np.array([0, 0, -300.0])]
+    )
+    got = assert_rows_match(volume, plan, cal, entries, targets)
+    reasons = set(got.stop_reason.tolist())
+    assert {"planned_depth", "margin", "out_of_volume", ""} <= reasons
+    assert sum(r is not None for r in got.refusal) == 3
+    assert np.any(got.clearance_mm[np.isfinite(got.clearance_mm)] < 0.0)  # inside the canal
+
+
+def test_point_and_mask_landmarks_with_own_margins(
+    demo: tuple[CTVolume, Plan, Calibration],
+) -> None:
+    volume, plan, cal = demo
+    mask = np.zeros(volume.hu.shape, dtype=bool)
+    # A block of voxels below and beside the planned target (indices k, j, i).
+    mask[8:14, 55:62, 62:70] = True
+    landmarks = (
+        *plan.landmarks,
+        PointLandmark("apex", plan.target_lps + np.array([1.5, 0.5, -2.5]), margin_mm=1.0),
+        MaskLandmark("block", mask, margin_mm=1.5),
+        CanalLandmark("short", np.array([[30.0, 14.0, -40.0]]), radius_mm=0.5),
+    )
+    plan2 = replace(plan, landmarks=landmarks)
+    entries, targets = random_axes(plan2, 12, seed=2)
+    got = assert_rows_match(volume, plan2, cal, entries, targets, depth_step_mm=0.1)
+    assert got.clearance_mm.shape[2] == 4
+    assert len(set(got.binding_landmark[got.ok].tolist())) >= 2
+
+
+def test_no_landmarks_coarse_lip(demo: tuple[CTVolume, Plan, Calibration]) -> None:
+    volume, plan, cal = demo
+    plan2 = replace(plan, landmarks=())
+    entries, targets = random_axes(plan2, 8, seed=3)
+    got = assert_rows_match(volume, plan2, cal, entries, targets, n_rings=3, n_angles=5)
+    assert got.clearance_mm.shape[2] == 0 and np.all(got.binding_landmark == -1)
+    assert np.all(got.max_safe_depth_capped[got.ok])
+
+
+def _without_slices(volume: CTVolume, drop: slice) -> CTVolume:
+    keep = np.ones(volume.hu.shape[0], dtype=bool)
+    keep[drop] = False
+    return CTVolume(
+        volume.hu[keep],
+        volume.affine_lps,
+        None,
+        volume.info,
+        slice_positions_mm=volume.slice_positions_mm[keep],
+    )
+
+
+@pytest.mark.parametrize("interpolate", [False, True])
+def test_irregular_stack_with_a_gap(
+    demo: tuple[CTVolume, Plan, Calibration], interpolate: bool
+) -> None:
+    volume, plan, cal = demo
+    z = volume.slice_origins_lps[:, 2]
+    gone = np.flatnonzero((z > -39.9) & (z < -38.1))
+    assert gone.size == 5
+    irregular = _without_slices(volume, slice(int(gone[0]), int(gone[-1]) + 1))
+    # Also an irregular (non-gap) step: drop single slices elsewhere.
+    irregular = _without_slices(irregular, slice(30, 31))
+    assert not irregular.regular
+    entries, targets = random_axes(plan, 16, seed=4)
+    got = assert_rows_match(irregular, plan, cal, entries, targets, interpolate_gaps=interpolate)
+    refused = [r for r in got.refusal if r is not None]
+    assert bool(refused) != interpolate
+    assert all("slice gap" in r for r in refused)
+
+
+def test_real_tilted_padded_series(shared_data: Path) -> None:
+    volume = load_series(shared_data / "dcmqa_ct_GE_head_gantrytilt_varspacing")
+    assert volume.valid is not None and not volume.regular
+    centre = volume.index_to_lps(np.array(volume.dims, dtype=float) / 2.0 - 0.5)
+    rng = np.random.default_rng(5)
+    entries = centre + rng.uniform(-60.0, 60.0, (14, 3))
+    targets = entries + rng.normal(0.0, 1.0, (14, 3)) * 15.0
+    plan = Plan(
+        entry_lps=entries[0],
+        target_lps=targets[0],
+        landmarks=(CanalLandmark("c", np.array([centre, centre + np.array([10.0, 5.0, 0.0])])),),
+    )
+    cal = plan_calibration(plan)
+    for interpolate in (False, True):
+        got = assert_rows_match(
+            volume, plan, cal, entries, targets, depth_step_mm=0.2, interpolate_gaps=interpolate
+        )
+        assert got.ok.any()
+        assert not got.ok.all()
+
+
+def test_batch_level_errors_raise_once(demo: tuple[CTVolume, Plan, Calibration]) -> None:
+    volume, plan, cal = demo
+    e = plan.entry_lps[None, :]
+    with pytest.raises(PathInputError, match="depth_step_mm"):
+        evaluate_batch(volume, plan, e, e + 1.0, cal, depth_step_mm=0.0)
+    with pytest.raises(PathInputError, match=r"\(N, 3\)"):
+        evaluate_batch(volume, plan, plan.entry_lps, plan.target_lps, cal)
+    with pytest.raises(PathInputError, match="one target per entry"):
+        evaluate_batch(volume, plan, e, np.vstack([e, e]), cal)
+    empty = evaluate_batch(volume, plan, np.empty((0, 3)), np.empty((0, 3)), cal)
+    assert empty.size == 0 and empty.depth_mm.shape == (0, 0)
