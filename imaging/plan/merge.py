@@ -125,8 +125,8 @@ def _same_trajectory(a: Plan, b: Plan) -> bool:
     return (
         np.array_equal(a.entry_lps, b.entry_lps)
         and np.array_equal(a.target_lps, b.target_lps)
-        and (a.drill, a.feed_mm_s, a.calibration, a.margin_mm)
-        == (b.drill, b.feed_mm_s, b.calibration, b.margin_mm)
+        and (a.drills, a.feed_mm_s, a.calibration, a.margin_mm)
+        == (b.drills, b.feed_mm_s, b.calibration, b.margin_mm)
     )
 
 

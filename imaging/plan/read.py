@@ -30,12 +30,14 @@ from ctdrill.imaging.plan.types import (
     DEFAULT_CALIBRATION,
     DEFAULT_FEED_MM_S,
     DEFAULT_MARGIN_MM,
+    MAX_DRILLS,
     PLAN_FORMAT,
     SERIES_HASH_KEY,
     DrillSpec,
     Plan,
     PlanInputError,
     is_series_hash,
+    sequence_error,
 )
 from ctdrill.safeio import load_json
 
@@ -253,11 +255,7 @@ def _parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
             raise ctx.fail(key, "is missing; add [x, y, z] in mm")
     entry = _to_lps(ctx.point(doc["entry_mm"], "entry_mm"), system)
     target = _to_lps(ctx.point(doc["target_mm"], "target_mm"), system)
-    drill_raw = doc.get("drill", {})
-    if not isinstance(drill_raw, dict):
-        raise ctx.fail("drill", "must be an object", drill_raw)
-    ctx.keys(drill_raw, _DRILL_KEYS, "drill")
-    drill = _drill_from(ctx, drill_raw, "drill")
+    drills = drills_field(ctx, doc, "")
     feed = ctx.number(doc, "feed_mm_s", "", default=DEFAULT_FEED_MM_S, positive=True)
     calibration = ctx.string(doc, "calibration", "", default=DEFAULT_CALIBRATION)
     margin = ctx.number(doc, "margin_mm", "", default=DEFAULT_MARGIN_MM, nonneg=True)
@@ -272,7 +270,7 @@ def _parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
         series_hash=series_hash(ctx, doc.get(SERIES_HASH_KEY), SERIES_HASH_KEY),
         entry=entry,
         target=target,
-        drill=drill,
+        drills=drills,
         feed=feed,
         calibration=calibration,
         margin=margin,
@@ -280,6 +278,48 @@ def _parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
         field_path="target_mm",
     )
     return ctx.parts((plan,), landmarks)
+
+
+def drills_field(ctx: _Ctx, doc: dict[str, Any], where: str) -> tuple[DrillSpec, ...]:
+    """The plan's drills from ``drill`` (one object) or ``drills`` (a list in drilling order).
+
+    Giving both is refused, naming ``drills``; without either the plan drills with the
+    :class:`DrillSpec` defaults. Every item of ``drills`` must give its ``diameter_mm`` (a
+    sequence is defined by its diameters); its other keys default as ``drill``'s do. The list
+    must be non-empty, at most :data:`MAX_DRILLS` long, with strictly increasing diameters.
+    """
+    fp = f"{where}.drills" if where else "drills"
+    if "drills" not in doc:
+        drill_raw = doc.get("drill", {})
+        fd = f"{where}.drill" if where else "drill"
+        if not isinstance(drill_raw, dict):
+            raise ctx.fail(fd, "must be an object", drill_raw)
+        ctx.keys(drill_raw, _DRILL_KEYS, fd)
+        return (_drill_from(ctx, drill_raw, fd),)
+    if "drill" in doc:
+        raise ctx.fail(
+            fp,
+            "and drill are both given; give drill for a single drill or drills for a sequence "
+            "(its last entry is the final drill), not both",
+        )
+    raw = doc["drills"]
+    if not isinstance(raw, list):
+        raise ctx.fail(fp, "must be a list of drill objects in drilling order", raw)
+    if len(raw) > MAX_DRILLS:
+        raise ctx.fail(fp, f"lists {len(raw)} drills, more than the {MAX_DRILLS} accepted")
+    out = []
+    for i, item in enumerate(raw):
+        fi = f"{fp}[{i}]"
+        if not isinstance(item, dict):
+            raise ctx.fail(fi, "must be a drill object", item)
+        ctx.keys(item, _DRILL_KEYS, fi)
+        if "diameter_mm" not in item:
+            raise ctx.fail(f"{fi}.diameter_mm", "is missing; every drill of a sequence needs it")
+        out.append(_drill_from(ctx, item, fi))
+    problem = sequence_error(out)
+    if problem is not None:
+        raise PlanInputError(f"{ctx.path.name}: {fp}{problem}")
+    return tuple(out)
 
 
 def _drill_from(ctx: _Ctx, raw: dict[str, Any], where: str) -> DrillSpec:
@@ -315,7 +355,7 @@ def _make_plan(
     series_hash: str | None = None,
     entry: np.ndarray,
     target: np.ndarray,
-    drill: DrillSpec,
+    drills: tuple[DrillSpec, ...],
     feed: float,
     calibration: str,
     margin: float,
@@ -328,7 +368,8 @@ def _make_plan(
     return Plan(
         entry_lps=entry,
         target_lps=target,
-        drill=drill,
+        drill=drills[-1],
+        earlier_drills=drills[:-1],
         feed_mm_s=feed,
         calibration=calibration,
         margin_mm=margin,

@@ -22,6 +22,7 @@ What is read, as 3D Slicer 5 writes it (``vtkMRMLMarkupsJsonStorageNode``):
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 import numpy as np
@@ -41,6 +42,7 @@ from ctdrill.imaging.plan.read import (
     _make_plan,
     _stem,
     _to_lps,
+    drills_field,
     series_hash,
 )
 from ctdrill.imaging.plan.settings import SettingsSyntaxError, parse_settings
@@ -50,6 +52,7 @@ from ctdrill.imaging.plan.types import (
     DEFAULT_FEED_MM_S,
     DEFAULT_MARGIN_MM,
     SERIES_HASH_KEY,
+    DrillSpec,
     Plan,
 )
 
@@ -57,7 +60,7 @@ from ctdrill.imaging.plan.types import (
 READ_TYPES = ("Line", "Curve", "Fiducial")
 #: Settings each markup type accepts in its descriptions.
 LINE_KEYS = frozenset(
-    {"name", *_DRILL_KEYS, "feed_mm_s", "calibration", "margin_mm", SERIES_HASH_KEY}
+    {"name", *_DRILL_KEYS, "drills", "feed_mm_s", "calibration", "margin_mm", SERIES_HASH_KEY}
 )
 CURVE_KEYS = frozenset({"name", "radius_mm", "margin_mm", "curve"})
 POINT_KEYS = frozenset({"name", "margin_mm"})
@@ -231,9 +234,7 @@ def _line(
             len(pts),
         )
     settings = _settings(ctx, mk, cps[0], where, LINE_KEYS)
-    for key in _DRILL_KEYS & set(settings):
-        _number(ctx, settings, key, positive=True)  # names the description on error
-    drill = _drill_from(ctx, {k: settings[k] for k in _DRILL_KEYS if k in settings}, where)
+    drills = _line_drills(ctx, settings, where)
     feed = _number(ctx, settings, "feed_mm_s", positive=True)
     margin = _number(ctx, settings, "margin_mm")
     cal = settings.get("calibration", DEFAULT_CALIBRATION)
@@ -249,13 +250,43 @@ def _line(
         ),
         entry=pts[0],
         target=pts[1],
-        drill=drill,
+        drills=drills,
         feed=DEFAULT_FEED_MM_S if feed is None else feed,
         calibration=cal,
         margin=DEFAULT_MARGIN_MM if margin is None else margin,
         name=name,
         field_path=f"{where}.controlPoints[1].position",
     )
+
+
+def _line_drills(ctx: _Ctx, settings: _Settings, where: str) -> tuple[DrillSpec, ...]:
+    """The Line's drills: its ``diameter_mm``... settings (one drill), or ``drills``: a quoted
+    JSON list of drill objects in drilling order, as a plan file's ``drills`` (a sequence)."""
+    if "drills" not in settings:
+        for key in _DRILL_KEYS & set(settings):
+            _number(ctx, settings, key, positive=True)  # names the description on error
+        return (_drill_from(ctx, {k: settings[k] for k in _DRILL_KEYS if k in settings}, where),)
+    fp = settings.origin["drills"]
+    given = sorted(_DRILL_KEYS & set(settings))
+    if given:
+        raise ctx.fail(
+            f"{fp}: setting drills",
+            f"and {given[0]} are both given; give the drill's settings for a single drill or "
+            "drills for a sequence, not both",
+        )
+    raw = settings["drills"]
+    try:
+        value = json.loads(raw) if isinstance(raw, str) else raw
+    except json.JSONDecodeError:
+        value = raw
+    if not isinstance(value, list):
+        raise ctx.fail(
+            f"{fp}: setting drills",
+            'must be a quoted JSON list of drill objects, e.g. drills="[{\\"diameter_mm\\": '
+            '2.0}, {\\"diameter_mm\\": 2.8}]"',
+            raw,
+        )
+    return drills_field(ctx, {"drills": value}, fp)
 
 
 def _curve(

@@ -58,6 +58,7 @@ _TOP_KEYS = {
     "entry_mm",
     "target_mm",
     "drill",
+    "drills",
     "feed_mm_s",
     "calibration",
     "margin_mm",
@@ -88,6 +89,9 @@ _MAXIMA = {
 #: Largest accepted coordinate magnitude, mm.
 _MAX_COORD_MM = 1e5
 _MAX_BLADES = 100
+#: Most drills accepted in a sequence: clinical sequences use 2-5; more is a typo, and each
+#: drill costs one full path computation.
+MAX_DRILLS = 12
 
 
 class PlanInputError(ImagingInputError):
@@ -118,6 +122,28 @@ class DrillSpec:
         }
 
 
+def sequence_error(drills: Sequence[DrillSpec]) -> str | None:
+    """Why ``drills`` is not a drill sequence, or None when it is one.
+
+    A sequence holds 1 to :data:`MAX_DRILLS` drills in drilling order, each wider than the one
+    before (a drill no wider than the previous hole would cut nothing). The message names the
+    offending entry as ``drills[i]``.
+    """
+    if len(drills) == 0:
+        return " must list at least one drill (or give the one drill as drill)"
+    if len(drills) > MAX_DRILLS:
+        return f" lists {len(drills)} drills, more than the {MAX_DRILLS} accepted"
+    for i in range(1, len(drills)):
+        prev, cur = drills[i - 1].diameter_mm, drills[i].diameter_mm
+        if not cur > prev:
+            return (
+                f"[{i}].diameter_mm ({cur:g} mm) must be larger than drills[{i - 1}].diameter_mm "
+                f"({prev:g} mm): list the drills in drilling order, each wider than the hole "
+                "before it"
+            )
+    return None
+
+
 @dataclass(frozen=True, eq=False)
 class Plan:
     """One planned osteotomy, LPS mm.
@@ -125,7 +151,12 @@ class Plan:
     Attributes
     ----------
     entry_lps, target_lps : (3,) read-only float64; depth 0 is the entry point.
-    drill : the drill.
+    drill : the final drill: it makes the final osteotomy, its clearance and stop rule the
+        plan.
+    earlier_drills : the drills drilled before ``drill`` along the same axis, in drilling order
+        (a pilot 2.0 mm, then 2.8 ...); empty for a single-drill plan. Diameters strictly
+        increase along :attr:`drills`. Use :meth:`with_drills` to set a whole sequence;
+        ``replace(plan, drill=d)`` changes the final drill only.
     feed_mm_s : feed rate for exports and rehearsal, mm/s.
     calibration : calibration set name (``assets/calibration/``) or path.
     margin_mm : safety margin to every landmark without its own ``margin_mm``.
@@ -151,6 +182,7 @@ class Plan:
     notes: tuple[str, ...] = ()
     warnings: tuple[tuple[str, str], ...] = ()
     series_uid_sha256: str | None = None
+    earlier_drills: tuple[DrillSpec, ...] = ()
 
     def __post_init__(self) -> None:
         for attr in ("entry_lps", "target_lps"):
@@ -158,6 +190,34 @@ class Plan:
             arr.flags.writeable = False
             object.__setattr__(self, attr, arr)
         object.__setattr__(self, "landmarks", tuple(self.landmarks))
+        object.__setattr__(self, "earlier_drills", tuple(self.earlier_drills))
+        problem = sequence_error(self.drills)
+        if problem is not None:
+            raise PlanInputError(f"plan {self.name!r}: drills{problem}")
+
+    @property
+    def drills(self) -> tuple[DrillSpec, ...]:
+        """Every drill in drilling order; the last is :attr:`drill` (``(drill,)`` for one)."""
+        return (*self.earlier_drills, self.drill)
+
+    def with_drills(self, drills: Sequence[DrillSpec]) -> Plan:
+        """This plan drilled with the sequence ``drills`` (drilling order; the last is final).
+
+        Raises
+        ------
+        PlanInputError
+            An empty list, or diameters that do not strictly increase.
+        """
+        seq = tuple(drills)
+        problem = sequence_error(seq)
+        if problem is not None:
+            raise PlanInputError(f"plan {self.name!r}: drills{problem}")
+        return replace(self, drill=seq[-1], earlier_drills=seq[:-1])
+
+    def for_drill(self, index: int) -> Plan:
+        """The single-drill plan of drill ``index`` (0-based) of the sequence: the same axis,
+        landmarks and settings with that drill alone (its own clearance and stop)."""
+        return replace(self, drill=self.drills[index], earlier_drills=())
 
     @property
     def planned_depth_mm(self) -> float:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 from typing import Any
 
@@ -24,6 +25,14 @@ from ctdrill.imaging.plan.types import (
 )
 
 
+def drills_json(plan: Plan) -> dict[str, Any]:
+    """The plan-file key(s) of ``plan``'s drills: ``{"drill": {...}}`` for one drill (today's
+    layout), ``{"drills": [{...}, ...]}`` in drilling order for a sequence."""
+    if len(plan.drills) == 1:
+        return {"drill": plan.drill.to_json()}
+    return {"drills": [d.to_json() for d in plan.drills]}
+
+
 def plan_document(plan: Plan, out_dir: str | os.PathLike[str] | None = None) -> dict[str, Any]:
     """The ``ctdrill-plan/1`` document of ``plan`` (LPS).
 
@@ -41,7 +50,7 @@ def plan_document(plan: Plan, out_dir: str | os.PathLike[str] | None = None) -> 
         "name": plan.name,
         "entry_mm": plan.entry_lps.tolist(),
         "target_mm": plan.target_lps.tolist(),
-        "drill": plan.drill.to_json(),
+        **drills_json(plan),
         "feed_mm_s": plan.feed_mm_s,
         "calibration": plan.calibration,
         "margin_mm": plan.margin_mm,
@@ -106,9 +115,10 @@ def markups_document(plan: Plan) -> dict[str, Any]:
     description (:mod:`ctdrill.imaging.plan.settings`), so that a file loaded and saved by
     Slicer reads back as the same plan. Mask landmarks cannot be markups and are refused.
     """
+    drills = drills_json(plan)
     line = {
         "name": plan.name,
-        **plan.drill.to_json(),
+        **(plan.drill.to_json() if "drill" in drills else {"drills": json.dumps(drills["drills"])}),
         "feed_mm_s": plan.feed_mm_s,
         "calibration": plan.calibration,
         "margin_mm": plan.margin_mm,
