@@ -14,6 +14,7 @@ each code + message once.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -27,6 +28,7 @@ from ctdrill.imaging.plan.safety import (
     safe_depth,
 )
 from ctdrill.imaging.plan.types import Plan, plan_warnings, series_uid_hash
+from ctdrill.imaging.sampling.annulus import Hole
 from ctdrill.imaging.sampling.lip import (
     DEFAULT_N_ANGLES,
     DEFAULT_N_RINGS,
@@ -102,6 +104,8 @@ class PathResult:
         once.
     interpolated_gaps : slice gaps the lip reaches into that were interpolated across because
         the caller asked to (``interpolate_gaps``); empty otherwise.
+    inner_holes : the holes of earlier drills of a sequence the profile cut around (empty for
+        a single drill or the first drill of a sequence).
     """
 
     plan: Plan
@@ -121,6 +125,7 @@ class PathResult:
     stop_clearance_mm: np.ndarray
     warnings: tuple[LoadWarning, ...]
     interpolated_gaps: tuple[SliceGap, ...] = ()
+    inner_holes: tuple[Hole, ...] = ()
 
     @property
     def planned_depth_mm(self) -> float:
@@ -231,6 +236,7 @@ def plan_path(
     n_rings: int = DEFAULT_N_RINGS,
     n_angles: int = DEFAULT_N_ANGLES,
     interpolate_gaps: bool = False,
+    inner_holes: Sequence[Hole] = (),
 ) -> PathResult:
     """Sample the CT along ``plan``, build the force profile, the clearances and the stop.
 
@@ -243,6 +249,11 @@ def plan_path(
     n_rings, n_angles : lip discretisation (defaults measured in bench/bench_sampling.py).
     interpolate_gaps : interpolate across slice gaps the lip reaches into instead of refusing
         (the result says so: warning ``gap_interpolated``, ``interpolated_gaps``).
+    inner_holes : holes left along this axis by the earlier, narrower drills of a sequence
+        (:mod:`ctdrill.imaging.sampling.annulus`): the force counts only the lip outside them.
+        Clearance, stop and the volume checks are this drill's own, on its whole solid. Empty
+        (a single drill): the full lip, exactly as before. :mod:`ctdrill.app.sequence` runs a
+        whole sequence.
 
     Returns
     -------
@@ -295,8 +306,11 @@ def plan_path(
         )
         for gap in gaps
     ]
-    lip = sample_lip_rings(volume, entry, target, depth, drill, n_rings=n_rings, n_angles=n_angles)
-    check_padding(volume, entry, target, drill, lip, n_rings, n_angles, name=plan.name)
+    holes = tuple(inner_holes)
+    lip = sample_lip_rings(
+        volume, entry, target, depth, drill, n_rings=n_rings, n_angles=n_angles, holes=holes
+    )
+    check_padding(volume, entry, target, drill, lip, n_rings, n_angles, name=plan.name, holes=holes)
     profile = build_profile(
         lip.hu, lip.ring_weights, depth, calibration, blades=plan.drill.blades, rpm=plan.drill.rpm
     )
@@ -373,4 +387,5 @@ def plan_path(
         stop_clearance_mm=stop_clearance,
         warnings=dedupe_warnings(warnings),
         interpolated_gaps=gaps if interpolate_gaps else (),
+        inner_holes=holes,
     )

@@ -156,8 +156,11 @@ def build_profile(
     ----------
     lip_hu : array_like, shape (D, R, A)
         HU at ring ``r``, angle ``a`` of the lip when the tip is at ``depth_mm[d]``.
-    ring_weights : array_like, shape (R,)
-        Quadrature weights of ``(1/R) integral dr``; non-negative, sum to 1.
+    ring_weights : array_like, shape (R,) or (D, R)
+        Quadrature weights of ``(1/R) integral dr``; non-negative, sum to 1. Per depth (D, R)
+        for a drill following narrower ones (rings on the lip outside their holes): each
+        depth's weights sum to the cut share of the lip, in (0, 1]; forces and ``s_t`` then
+        count only the cut part, ``hu_mean`` is the mean HU over it.
     depth_mm : array_like, shape (D,)
         Tip depths, uniform step, mm.
     calibration : Calibration
@@ -180,12 +183,21 @@ def build_profile(
             f"lip_hu has {hu.shape[0]} depths but depth_mm has {depth.shape[0]}; they must match"
         )
     w = np.asarray(ring_weights, dtype=np.float64)
-    if w.shape != (hu.shape[1],):
+    per_depth = w.ndim == 2
+    if w.shape != (hu.shape[1],) and w.shape != hu.shape[:2]:
         raise ProfileInputError(
-            f"ring_weights must have shape ({hu.shape[1]},) to match lip_hu rings, got {w.shape}"
+            f"ring_weights must have shape ({hu.shape[1]},) or {hu.shape[:2]} to match lip_hu "
+            f"rings, got {w.shape}"
         )
-    if not np.all(np.isfinite(w)) or np.any(w < 0.0) or abs(float(w.sum()) - 1.0) > 1e-6:
-        raise ProfileInputError("ring_weights must be finite, >= 0 and sum to 1")
+    if not np.all(np.isfinite(w)) or np.any(w < 0.0):
+        raise ProfileInputError("ring_weights must be finite and >= 0")
+    if not per_depth and abs(float(w.sum()) - 1.0) > 1e-6:
+        raise ProfileInputError("ring_weights must sum to 1")
+    share = w.sum(axis=-1) if per_depth else None
+    if share is not None and not (np.all(share > 0.0) and np.all(share <= 1.0 + 1e-9)):
+        raise ProfileInputError(
+            "per-depth ring_weights must sum to the cut share of the lip, in (0, 1], at each depth"
+        )
     hu = hu.astype(np.float64, copy=False)
     if not np.all(np.isfinite(hu)):
         raise ProfileInputError(
@@ -198,6 +210,8 @@ def build_profile(
 
     def lip_mean(values: np.ndarray) -> np.ndarray:
         """(D, R, A) -> (D,): weighted over rings, mean over angles."""
+        if per_depth:
+            return np.asarray(np.einsum("dr,dr->d", values.sum(axis=2), ring_w))
         return np.asarray(values.sum(axis=2) @ ring_w)
 
     # One pass per quantity with reused buffers (a trajectory is ~1e5-1e6 samples): the gate,
@@ -223,7 +237,7 @@ def build_profile(
         sk_n=np.array(sums[1:]).reshape(len(freqs), depth.shape[0]),
         freqs_hz=freqs,
         s_t=lip_mean(g),
-        hu_mean=lip_mean(hu),
+        hu_mean=lip_mean(hu) if share is None else lip_mean(hu) / share,
         ke_per_mm_s=calibration.ke_per_mm_s,
         n_clipped=n_clipped,
         n_samples=int(hu.size),

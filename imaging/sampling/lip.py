@@ -19,6 +19,7 @@ coarser lips (3 x 8, 2 x 6) are 3-7 times less accurate, finer ones cost 3-16 ti
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +27,7 @@ import numpy as np
 from ctdrill.hu import AIR_HU
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.types import DrillSpec
+from ctdrill.imaging.sampling.annulus import Hole, annulus_rings
 from ctdrill.imaging.volume import CTVolume
 
 #: Default number of rings on the lip (measured, bench/bench_sampling.py).
@@ -47,9 +49,11 @@ class LipSamples:
     depth_mm : np.ndarray
         (D,) tip depth along the axis from the entry point, mm.
     radii_mm : np.ndarray
-        (R,) ring radii, mm (midpoints of equal radial bins).
+        (R,) ring radii, mm (midpoints of equal radial bins); (D, R) per depth for a drill
+        following narrower ones (rings on the lip outside their holes).
     ring_weights : np.ndarray
-        (R,) quadrature weights of ``(1/R) integral dr``; each ``1 / R``, they sum to 1.
+        (R,) quadrature weights of ``(1/R) integral dr``: each ``1 / R``, they sum to 1;
+        (D, R) with the radii: each depth's weights sum to the cut share ``|C(x)| / R``.
     hu : np.ndarray
         (D, R, A) float32 HU at ring point (radius r, angle a), at depth ``x - l_t r / R``.
     outside : np.ndarray
@@ -67,8 +71,13 @@ class LipSamples:
 
     @property
     def lip_mean_hu(self) -> np.ndarray:
-        """(D,) lip-mean HU: ring means over angles, weighted by ``ring_weights``."""
-        return np.asarray(self.hu.mean(axis=2, dtype=np.float64) @ self.ring_weights)
+        """(D,) lip-mean HU: ring means over angles, weighted by ``ring_weights`` (per-depth
+        weights are normalised: the mean over the part of the lip that cuts)."""
+        ring_mean = self.hu.mean(axis=2, dtype=np.float64)
+        if self.ring_weights.ndim == 1:
+            return np.asarray(ring_mean @ self.ring_weights)
+        w = self.ring_weights
+        return np.asarray((ring_mean * w).sum(axis=1) / w.sum(axis=1))
 
 
 def axis_basis(entry_lps: np.ndarray, target_lps: np.ndarray) -> np.ndarray:
@@ -125,6 +134,7 @@ def lip_ring_points(
     *,
     n_rings: int = DEFAULT_N_RINGS,
     n_angles: int = DEFAULT_N_ANGLES,
+    holes: Sequence[Hole] = (),
 ) -> np.ndarray:
     """LPS positions of the lip's ring samples.
 
@@ -139,6 +149,9 @@ def lip_ring_points(
         (>= 0; 0 is a flat lip).
     n_rings, n_angles : int
         Rings on the lip and samples per ring (>= 1).
+    holes : Sequence[Hole]
+        Holes of earlier drills of a sequence: the rings then lie on the part of the lip
+        outside them (:mod:`ctdrill.imaging.sampling.annulus`), their radii per depth.
 
     Returns
     -------
@@ -147,7 +160,7 @@ def lip_ring_points(
         axis, at depth ``depth_mm[d] - tip_length_mm * r_i / R`` along it, at angle
         ``2 pi a / n_angles`` from ``e1`` towards ``e2`` (:func:`axis_basis`).
     """
-    return _ring_points(entry_lps, target_lps, depth_mm, drill, n_rings, n_angles)[0]
+    return _ring_points(entry_lps, target_lps, depth_mm, drill, n_rings, n_angles, holes)[0]
 
 
 def _ring_points(
@@ -157,8 +170,11 @@ def _ring_points(
     drill: DrillSpec,
     n_rings: int,
     n_angles: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`lip_ring_points`, plus the unit axis (3,) and the ring radii (R,) in mm."""
+    holes: Sequence[Hole] = (),
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`lip_ring_points`, plus the unit axis (3,), the ring radii in mm and the ring
+    weights: (R,) each for the full lip, (D, R) each on the cut set when ``holes`` are given
+    (:func:`ctdrill.imaging.sampling.annulus.annulus_rings`)."""
     depth = _depths(depth_mm)
     tip_len = float(drill.tip_length_mm)
     if not (np.isfinite(tip_len) and tip_len >= 0.0):
@@ -166,20 +182,32 @@ def _ring_points(
             f"drill.tip_length_mm: must be a finite length >= 0 mm, got {drill.tip_length_mm!r}"
         )
     radii = ring_radii_mm(drill.diameter_mm, n_rings)
+    weights = np.full(radii.size, 1.0 / radii.size)
     n_a = _count(n_angles, "n_angles")
     axis, e1, e2 = axis_basis(entry_lps, target_lps)
     entry = np.asarray(entry_lps, dtype=np.float64)
     radius = float(drill.diameter_mm) / 2.0
-    xi = depth[:, None] - tip_len * radii[None, :] / radius  # (D, R)
     theta = 2.0 * np.pi * np.arange(n_a, dtype=np.float64) / n_a
     ring_unit = np.cos(theta)[:, None] * e1 + np.sin(theta)[:, None] * e2  # (A, 3)
+    points = np.empty((depth.size, radii.size, n_a, 3))
+    if holes:
+        radii, weights = annulus_rings(radius, tip_len, depth, holes, radii.size)  # (D, R)
+        xi = depth[:, None] - tip_len * radii / radius
+        centres = entry + xi[:, :, None] * axis  # (D, R, 3)
+        for c in range(3):
+            np.add(
+                centres[:, :, None, c],
+                radii[:, :, None] * ring_unit[None, None, :, c],
+                out=points[..., c],
+            )
+        return points, axis, radii, weights
+    xi = depth[:, None] - tip_len * radii[None, :] / radius  # (D, R)
     offsets = radii[:, None, None] * ring_unit[None, :, :]  # (R, A, 3)
     centres = entry + xi[:, :, None] * axis  # (D, R, 3)
     # One coordinate at a time: a broadcast add with a trailing axis of 3 is ~4x slower.
-    points = np.empty((depth.size, radii.size, n_a, 3))
     for c in range(3):
         np.add(centres[:, :, None, c], offsets[None, :, :, c], out=points[..., c])
-    return points, axis, radii
+    return points, axis, radii, weights
 
 
 def sample_lip_rings(
@@ -193,6 +221,7 @@ def sample_lip_rings(
     n_angles: int = DEFAULT_N_ANGLES,
     outside_hu: float = AIR_HU,
     order: int = 1,
+    holes: Sequence[Hole] = (),
 ) -> LipSamples:
     """HU on the cutting lip at each tip depth, in one vectorised volume lookup.
 
@@ -212,13 +241,18 @@ def sample_lip_rings(
         HU given to samples outside the volume or on padding (also counted in ``outside``).
     order : int
         Interpolation order passed to :meth:`CTVolume.sample` (1 trilinear, 0 nearest).
+    holes : Sequence[Hole]
+        Holes left by earlier drills of a sequence (:mod:`ctdrill.imaging.sampling.annulus`):
+        the rings are placed on the lip outside them, radii and weights per depth.
 
     Returns
     -------
     LipSamples
         ``hu`` (D, n_rings, n_angles) float32, ``axis_hu`` (D,), ``outside`` (D,) counts.
     """
-    points, axis, radii = _ring_points(entry_lps, target_lps, depth_mm, drill, n_rings, n_angles)
+    points, axis, radii, weights = _ring_points(
+        entry_lps, target_lps, depth_mm, drill, n_rings, n_angles, holes
+    )
     depth = _depths(depth_mm)
     if not np.isfinite(outside_hu):
         raise LipInputError(f"outside_hu: must be a finite HU value, got {outside_hu!r}")
@@ -243,7 +277,7 @@ def sample_lip_rings(
     return LipSamples(
         depth_mm=depth,
         radii_mm=radii,
-        ring_weights=np.full(n_r, 1.0 / n_r),
+        ring_weights=weights,
         hu=ring_hu,
         outside=outside,
         axis_hu=np.asarray(values[n_ring:], dtype=np.float64),

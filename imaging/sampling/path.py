@@ -22,6 +22,7 @@ closed form on that continuous lip, not on its ring samples:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +31,7 @@ from ctdrill.imaging.dicom.identity import series_label
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.types import DrillSpec
+from ctdrill.imaging.sampling.annulus import Hole
 from ctdrill.imaging.sampling.lip import LipSamples, axis_basis, lip_ring_points
 from ctdrill.imaging.stack import GAP_FACTOR, nominal_step_mm, wide_steps
 from ctdrill.imaging.volume import CTVolume
@@ -240,9 +242,11 @@ def check_padding(
     n_angles: int,
     *,
     name: str = "",
+    holes: Sequence[Hole] = (),
 ) -> None:
     """Refuse a path whose lip samples touch padding inside the grid (only depths where the
-    sampler counted samples outside or on padding are looked at again)."""
+    sampler counted samples outside or on padding are looked at again; ``holes`` as given to
+    the sampler, so the same points)."""
     flagged = np.flatnonzero(lip.outside > 0)
     if volume.valid is None or flagged.size == 0:
         return
@@ -253,6 +257,7 @@ def check_padding(
         drill,
         n_rings=n_rings,
         n_angles=n_angles,
+        holes=holes,
     ).reshape(-1, 3)
     idx = volume.lps_to_index(points)
     n_s, n_r, n_c = volume.hu.shape
