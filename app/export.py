@@ -262,6 +262,10 @@ def summary(
         "interpolated_gaps": interpolated_gaps_json(result),
         "warnings": [{"code": w.code, "message": w.message} for w in result.warnings],
     }
+    if result.inner_holes:  # a drill of a sequence: the holes its profile cut around
+        from ctdrill.app.sequence import hole_json
+
+        doc["inner_holes"] = [hole_json(h) for h in result.inner_holes]
     if patient is not None:
         doc["patient"] = patient
     return doc
@@ -270,6 +274,10 @@ def summary(
 def summary_lines(doc: dict[str, Any]) -> list[str]:
     """What ``ctdrill export`` prints of one ``summary.json``: the stop (depth, reason, the
     binding landmark), the planned path's clearance, then one line per warning."""
+    if doc.get("format") == "ctdrill-sequence/1":
+        from ctdrill.app.sequence_export import sequence_lines
+
+        return sequence_lines(doc)
     binding = doc.get("binding_landmark")
     why = str(doc["stop_reason"])
     if why == "margin" and binding is not None:

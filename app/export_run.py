@@ -17,6 +17,8 @@ from pathlib import Path
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.export import DEFAULT_RATE_HZ, ExportInputError, ExportJob, write_exports
 from ctdrill.app.pipeline import plan_calibration_key, plan_path
+from ctdrill.app.sequence import SequenceResult, plan_sequence
+from ctdrill.app.sequence_export import sequence_files, sequence_jobs
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.types import Plan, load_plan_set, plan_warnings
 from ctdrill.model.calibration import Calibration, load_calibration
@@ -95,7 +97,9 @@ def export_case(
 ) -> list[Path]:
     """Export every trajectory of ``plan_paths`` on the CT in ``dicom``.
 
-    One trajectory writes into ``out_dir``; several write into ``out_dir/<plan name>/``.
+    One trajectory writes into ``out_dir``; several write into ``out_dir/<plan name>/``. A
+    plan with a drill sequence writes one folder per drill, ``drill_1/``, ``drill_2/`` ...,
+    beside its ``summary.json`` listing them (:mod:`ctdrill.app.sequence_export`).
 
     Parameters
     ----------
@@ -124,6 +128,7 @@ def export_case(
     cache: dict[str, Calibration] = {}
     override = load_calibration(calibration) if calibration is not None else None
     jobs: list[ExportJob] = []
+    sequences: list[tuple[SequenceResult, str]] = []
     seen: dict[str, str] = {}
     for n, plan in enumerate(plans):
         if progress is not None:
@@ -137,7 +142,6 @@ def export_case(
             cal = cache[key]
         if feed_mm_s is not None:
             plan = replace(plan, feed_mm_s=feed_mm_s)  # the path's feed warnings see it
-        result = plan_path(volume, plan, cal, interpolate_gaps=interpolate_gaps)
         sub = "" if len(plans) == 1 else _subdir(_stem(plan, per_file[plan.source]))
         if sub in seen:
             raise AppInputError(
@@ -145,8 +149,25 @@ def export_case(
                 f"{plan.source}); rename one so their outputs do not overwrite each other"
             )
         seen[sub] = plan.source
+        if len(plan.drills) > 1:  # a drill sequence: OUT[/plan]/drill_k/ + summary.json
+            seq = plan_sequence(volume, plan, cal, interpolate_gaps=interpolate_gaps)
+            sequences.append((seq, sub))
+            jobs.extend(sequence_jobs(seq, sub))
+            continue
+        result = plan_path(volume, plan, cal, interpolate_gaps=interpolate_gaps)
         jobs.append(ExportJob(result=result, subdir=sub))
     patient = read_patient_fields(dicom, volume.info.series_uid) if include_phi else None
+    extra_files = dict(extra_files or {})
+    for seq, sub in sequences:
+        extra_files |= sequence_files(
+            seq,
+            sub,
+            feed_mm_s=feed_mm_s,
+            rate_hz=rate_hz,
+            series_uid=volume.info.series_uid,
+            patient=patient,
+            include_phi=include_phi,
+        )
     written = write_exports(
         jobs,
         out_dir,

@@ -119,5 +119,5 @@ def hole_json(hole: Hole) -> dict[str, float]:
     return {
         "diameter_mm": 2.0 * hole.radius_mm,
         "tip_length_mm": hole.tip_length_mm,
-        "depth_mm": round(hole.depth_mm, 6),
+        "depth_mm": hole.depth_mm,
     }

@@ -61,6 +61,11 @@ def _warn(code: str, message: str) -> None:
     sys.stderr.write(f"warning: {message}\n")
 
 
+def _in_sequence(path: Path, written: list[Path]) -> bool:
+    """A drill's summary inside a sequence folder (its sequence's summary prints its lines)."""
+    return path.parent.name.startswith("drill_") and path.parent.parent / "summary.json" in written
+
+
 def run(args: argparse.Namespace) -> int:
     """Export and list what was written."""
     from ctdrill.app.export import TextProgress, summary_lines
@@ -86,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
     for path in written:
         sys.stdout.write(f"wrote {path}\n")
     for path in written:
-        if path.name == "summary.json":
+        if path.name == "summary.json" and not _in_sequence(path, written):
             doc = json.loads(path.read_text(encoding="utf-8"))
             sys.stdout.write("".join(line + "\n" for line in summary_lines(doc)))
     return 0
