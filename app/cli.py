@@ -24,6 +24,7 @@ COMMANDS: tuple[str, ...] = (
     "phantom",
     "export",
     "plan",
+    "suggest",
     "demo",
     "calibrate",
     "rehearse",

@@ -41,3 +41,26 @@ def misch_class(hu: ArrayLike) -> np.ndarray:
     for name, lo, _ in reversed(MISCH_BANDS_HU[:-1]):
         out = np.where(h > lo if name == "D1" else h >= lo, name, out)
     return out
+
+
+def _band_low_hu(name: str) -> float:
+    return next(lo for cls, lo, _ in MISCH_BANDS_HU if cls == name)
+
+
+#: Where bone begins: the lower edge of D4, the least dense band that soft tissue (about 40 HU)
+#: and the canal's contents cannot reach. ``ctdrill suggest`` finds the bone surface where a
+#: line first reaches it (:func:`is_bone`: class D4 or denser, i.e. ``HU >= 150``).
+BONE_HU: float = _band_low_hu("D4")
+#: Where cortical bone begins: the lower edge of D1, Misch's dense cortical class
+#: (:func:`is_cortical`: class D1, i.e. ``HU > 1250``).
+CORTICAL_HU: float = _band_low_hu("D1")
+
+
+def is_bone(hu: ArrayLike) -> np.ndarray:
+    """True where the CT number is in class D4 or denser (``HU >= BONE_HU``); NaN is False."""
+    return np.asarray(np.asarray(hu, dtype=np.float64) >= BONE_HU)
+
+
+def is_cortical(hu: ArrayLike) -> np.ndarray:
+    """True where the CT number is in class D1 (``HU > CORTICAL_HU``); NaN is False."""
+    return np.asarray(np.asarray(hu, dtype=np.float64) > CORTICAL_HU)

@@ -77,6 +77,8 @@ LIGHT_FIRST_PARTY = {
     "ctdrill.app.commands.options",
     "ctdrill.app.errors",
     "ctdrill.app.export_defaults",
+    "ctdrill.app.search",
+    "ctdrill.app.search.defaults",
     "ctdrill.haptics",
     "ctdrill.haptics.errors",
     "ctdrill.imaging",

@@ -61,3 +61,13 @@ def test_export_and_gui_use_the_owner() -> None:
     assert [b[0] for b in plots.MISCH_BANDS] == list(MISCH_CLASSES)
     for (_, lo, hi), (_, olo, ohi) in zip(plots.MISCH_BANDS, MISCH_BANDS_HU, strict=True):
         assert lo == max(olo, AIR_HU) and hi == min(ohi, 3000.0)
+
+
+@pytest.mark.parametrize(("hu", "label"), BOUNDARIES)
+def test_bone_and_cortical_agree_with_the_classes(hu: float, label: str) -> None:
+    from ctdrill.imaging.misch import BONE_HU, CORTICAL_HU, is_bone, is_cortical
+
+    assert (BONE_HU, CORTICAL_HU) == (150.0, 1250.0)
+    assert bool(is_bone(hu)) == (label != "D5")
+    assert bool(is_cortical(hu)) == (label == "D1")
+    assert not is_bone(np.nan) and not is_cortical(np.nan)

@@ -1,0 +1,421 @@
+"""``ctdrill suggest``, headless: candidate axes around a planned one, scored, safety first.
+
+:func:`suggest` makes the candidates (:mod:`ctdrill.app.search.candidates`; candidate 0 is the
+planned axis), evaluates them all in one batch
+(:func:`ctdrill.app.search.evaluate.evaluate_batch`: the answers of ``plan_path``), scores
+their bone engagement (:mod:`ctdrill.app.search.score`) and ranks them under the **hard
+rule**: a candidate is feasible only when its drill reaches the planned depth, i.e. the
+batch's stop reason is ``planned_depth`` (the max safe depth keeps every landmark's margin
+down to the planned depth and the lip stays in the scanned volume), and nothing refused it
+(gaps, padding, an entry outside the scan) and its line met the bone surface. Feasible rows
+come first, by score (highest first), then the rest by score; ties keep the candidate order.
+:func:`write_suggestion` writes ``candidates.csv``, ``suggest.json`` and, when a candidate is
+feasible, ``best.plan.json`` (the input plan with the best axis), all in one atomic swap.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from ctdrill.app.records import OUTPUT_NAMES, atomic_output_dir, printable, write_file
+from ctdrill.app.search.candidates import (
+    SURFACE_SEARCH_MM,
+    Candidates,
+    SearchSpace,
+    make_candidates,
+)
+from ctdrill.app.search.score import Objective, Scores, score_rows
+from ctdrill.imaging.plan.types import Plan, series_uid_hash
+from ctdrill.imaging.plan.write import plan_document
+from ctdrill.imaging.volume import CTVolume
+from ctdrill.model.calibration import Calibration
+
+#: Files ``ctdrill suggest`` writes (an existing --out holding only these may be replaced).
+SUGGEST_NAMES = frozenset({"candidates.csv", "best.plan.json", "suggest.json"})
+
+
+class BatchLike(Protocol):
+    """What :func:`suggest` reads of a ``BatchResult`` (``ctdrill.app.search.evaluate``)."""
+
+    depth_mm: np.ndarray
+    disc_hu: np.ndarray
+    max_safe_depth_mm: np.ndarray
+    max_safe_depth_capped: np.ndarray
+    binding_landmark: np.ndarray
+    plan_clearance_mm: np.ndarray
+    out_of_volume_depth_mm: np.ndarray
+    stop_reason: np.ndarray
+    refusal: tuple[str | None, ...]
+
+
+#: ``evaluate(volume, plan, entries_lps, targets_lps, calibration, interpolate_gaps=...)``.
+Evaluator = Callable[..., BatchLike]
+
+
+@dataclass(frozen=True, eq=False)
+class Suggestion:
+    """Every candidate, its score terms, its safety and the ranking.
+
+    Attributes
+    ----------
+    plan : the planned trajectory the candidates surround (candidate 0).
+    space, objective : the settings.
+    candidates : the axes.
+    scores : score terms (NaN where not evaluated).
+    max_safe_depth_mm, max_safe_depth_capped, min_clearance_mm : (N,) from the batch (NaN /
+        False where not evaluated; ``min_clearance_mm`` NaN without landmarks).
+    binding : (N,) name of the landmark whose margin binds ("" when none binds).
+    stop_reason : (N,) ``planned_depth`` | ``margin`` | ``out_of_volume`` | "" (not evaluated).
+    feasible : (N,) bool, the hard rule.
+    reason : (N,) why a row is not feasible ("" when it is).
+    order : (N,) candidate indices, best first (feasible first).
+    series_uid : the SeriesInstanceUID of the CT (recorded hashed in ``best.plan.json``).
+    evaluate_s, total_s : wall time of the batch evaluation and of the whole search, s.
+    notes : what the user must know (one line each).
+    """
+
+    plan: Plan
+    space: SearchSpace
+    objective: Objective
+    candidates: Candidates
+    scores: Scores
+    max_safe_depth_mm: np.ndarray
+    max_safe_depth_capped: np.ndarray
+    min_clearance_mm: np.ndarray
+    binding: tuple[str, ...]
+    stop_reason: tuple[str, ...]
+    feasible: np.ndarray
+    reason: tuple[str, ...]
+    order: np.ndarray
+    series_uid: str
+    evaluate_s: float
+    total_s: float
+    notes: tuple[str, ...]
+
+    @property
+    def best_index(self) -> int | None:
+        """The best feasible candidate, or None when none is feasible."""
+        first = int(self.order[0])
+        return first if bool(self.feasible[first]) else None
+
+    @property
+    def n_feasible(self) -> int:
+        """Feasible candidates."""
+        return int(np.count_nonzero(self.feasible))
+
+    def rank_of(self, index: int) -> int:
+        """1-based rank of candidate ``index``."""
+        return int(np.flatnonzero(self.order == index)[0]) + 1
+
+    def plan_of(self, index: int) -> Plan:
+        """The input plan with candidate ``index``'s axis (everything else kept; the series
+        the axis was found on recorded)."""
+        return replace(
+            self.plan,
+            entry_lps=self.candidates.entries_lps[index],
+            target_lps=self.candidates.targets_lps[index],
+            series_uid_sha256=series_uid_hash(self.series_uid),
+        )
+
+    def best_plan(self) -> Plan | None:
+        """:meth:`plan_of` the best feasible candidate, or None."""
+        best = self.best_index
+        return None if best is None else self.plan_of(best)
+
+
+def _default_evaluator() -> Evaluator:
+    from ctdrill.app.search.evaluate import evaluate_batch
+
+    return evaluate_batch
+
+
+def _reasons(
+    cands: Candidates, batch_rows: np.ndarray, batch: BatchLike | None, binding: list[str]
+) -> tuple[np.ndarray, list[str], list[str]]:
+    """(feasible, reason, stop_reason) per candidate."""
+    n = cands.size
+    feasible = np.zeros(n, dtype=bool)
+    reason = [""] * n
+    stop = [""] * n
+    for i in range(n):
+        if cands.no_surface[i]:
+            reason[i] = f"no bone surface on its line within {SURFACE_SEARCH_MM:g} mm of the anchor"
+    if batch is None:
+        return feasible, reason, stop
+    for k, i in enumerate(batch_rows):
+        refusal = batch.refusal[k]
+        if refusal is not None:
+            reason[i] = f"refused: {refusal}"
+            continue
+        stop[i] = str(batch.stop_reason[k])
+        if stop[i] == "planned_depth":
+            feasible[i] = True
+        elif stop[i] == "margin":
+            reason[i] = (
+                f"margin to {binding[i]!r}: max safe depth "
+                f"{float(batch.max_safe_depth_mm[k]):.3f} mm"
+            )
+        else:
+            reason[i] = (
+                f"leaves the CT at {float(batch.out_of_volume_depth_mm[k]):.3f} mm"
+                if stop[i] == "out_of_volume"
+                else f"stops on {stop[i]!r}"
+            )
+    return feasible, reason, stop
+
+
+def suggest(
+    volume: CTVolume,
+    plan: Plan,
+    calibration: Calibration,
+    space: SearchSpace | None = None,
+    objective: Objective | None = None,
+    *,
+    interpolate_gaps: bool = False,
+    evaluate: Evaluator | None = None,
+) -> Suggestion:
+    """Search the axes around ``plan`` (module docstring).
+
+    Parameters
+    ----------
+    volume : the CT (LPS).
+    plan : the planned trajectory, its drill, landmarks and margins.
+    calibration : the force-law set (the batch computes forces; the score uses HU only).
+    space, objective : the search space and the objective (defaults: the command's).
+    interpolate_gaps : passed to the evaluation (interpolate across slice gaps instead of
+        refusing the candidates that cross one).
+    evaluate : the batch evaluator (default ``evaluate_batch``).
+
+    Raises
+    ------
+    PathInputError
+        A volume no trajectory can use (a single slice, values not HU).
+    """
+    t0 = time.perf_counter()
+    space = space or SearchSpace()
+    objective = objective or Objective()
+    evaluator = evaluate or _default_evaluator()
+    cands = make_candidates(volume, plan, space)
+    rows = np.flatnonzero(~cands.no_surface)
+    t1 = time.perf_counter()
+    batch = evaluator(
+        volume,
+        plan,
+        cands.entries_lps[rows],
+        cands.targets_lps[rows],
+        calibration,
+        interpolate_gaps=interpolate_gaps,
+    )
+    evaluate_s = time.perf_counter() - t1
+    n = cands.size
+    d = int(np.asarray(batch.depth_mm).shape[1])
+    depth = np.full((n, d), np.nan)
+    disc = np.full((n, d), np.nan)
+    depth[rows] = batch.depth_mm
+    disc[rows] = batch.disc_hu
+    scores = score_rows(depth, disc, plan.planned_depth_mm, objective)
+    msd, capped, clear = np.full(n, np.nan), np.zeros(n, dtype=bool), np.full(n, np.nan)
+    msd[rows] = batch.max_safe_depth_mm
+    capped[rows] = batch.max_safe_depth_capped
+    clear[rows] = batch.plan_clearance_mm
+    binding = [""] * n
+    for k, i in enumerate(rows):
+        j = int(batch.binding_landmark[k])
+        if batch.refusal[k] is None and 0 <= j < len(plan.landmarks) and not capped[i]:
+            binding[i] = plan.landmarks[j].name
+    feasible, reason, stop = _reasons(cands, rows, batch, binding)
+    key = np.where(np.isfinite(scores.total), -scores.total, np.inf)
+    order = np.lexsort((np.arange(n), key, ~feasible))
+    notes = _notes(plan, cands, feasible)
+    return Suggestion(
+        plan=plan,
+        space=space,
+        objective=objective,
+        candidates=cands,
+        scores=scores,
+        max_safe_depth_mm=msd,
+        max_safe_depth_capped=capped,
+        min_clearance_mm=clear,
+        binding=tuple(binding),
+        stop_reason=tuple(stop),
+        feasible=feasible,
+        reason=tuple(reason),
+        order=order,
+        series_uid=volume.info.series_uid,
+        evaluate_s=evaluate_s,
+        total_s=time.perf_counter() - t0,
+        notes=notes,
+    )
+
+
+def _notes(plan: Plan, cands: Candidates, feasible: np.ndarray) -> tuple[str, ...]:
+    out: list[str] = []
+    gap = cands.planned_surface_mm
+    if not math.isfinite(gap):
+        out.append(
+            "the planned axis meets no bone surface within "
+            f"{SURFACE_SEARCH_MM:g} mm of its entry; candidate 0 is taken as planned"
+        )
+    elif abs(gap) > 0.05:
+        where = "above" if gap > 0 else "below"
+        out.append(
+            f"the planned entry lies {abs(gap):.2f} mm {where} the bone surface along its axis; "
+            "the other candidates enter on the surface, candidate 0 as planned"
+        )
+    missing = int(np.count_nonzero(cands.no_surface))
+    if missing:
+        out.append(
+            f"{missing} of {cands.size} candidate lines meet no bone surface within "
+            f"{SURFACE_SEARCH_MM:g} mm of their anchor: not evaluated, not feasible"
+        )
+    if not plan.landmarks:
+        out.append(
+            f"plan {plan.name!r} has no landmark: feasibility checks the planned depth and the "
+            "volume only, no safety margin"
+        )
+    if not feasible.any():
+        out.append(
+            f"no feasible candidate: none of the {cands.size} axes reaches the planned depth "
+            f"{plan.planned_depth_mm:.3f} mm keeping every landmark's margin; "
+            "best.plan.json is not written"
+        )
+    return tuple(out)
+
+
+CSV_COLUMNS = (
+    "rank",
+    "candidate",
+    "entry_x_mm",
+    "entry_y_mm",
+    "entry_z_mm",
+    "target_x_mm",
+    "target_y_mm",
+    "target_z_mm",
+    "offset_mm",
+    "tilt_deg",
+    "body_hu",
+    "body_term",
+    "crest_cortical",
+    "apex_cortical",
+    "score",
+    "max_safe_depth_mm",
+    "max_safe_depth_capped",
+    "min_clearance_mm",
+    "binding_landmark",
+    "stop_reason",
+    "feasible",
+    "reason",
+)
+
+
+def _num(value: float, digits: int = 6) -> str:
+    return "" if not math.isfinite(value) else f"{value:.{digits}f}"
+
+
+def candidates_csv(s: Suggestion) -> str:
+    """``candidates.csv``: one row per candidate, best first (coordinates LPS mm, written to
+    round-trip exactly)."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(CSV_COLUMNS)
+    c, sc = s.candidates, s.scores
+    for rank, i in enumerate(s.order, start=1):
+        w.writerow(
+            [
+                rank,
+                int(i),
+                *(repr(float(v)) for v in c.entries_lps[i]),
+                *(repr(float(v)) for v in c.targets_lps[i]),
+                _num(float(c.offset_mm[i])),
+                _num(float(c.tilt_deg[i])),
+                _num(float(sc.body_hu[i]), 3),
+                _num(float(sc.body_term[i])),
+                _num(float(sc.crest_cortical[i])),
+                _num(float(sc.apex_cortical[i])),
+                _num(float(sc.total[i])),
+                _num(float(s.max_safe_depth_mm[i])),
+                str(bool(s.max_safe_depth_capped[i])).lower(),
+                _num(float(s.min_clearance_mm[i])),
+                printable(s.binding[i]),
+                s.stop_reason[i],
+                str(bool(s.feasible[i])).lower(),
+                printable(s.reason[i]),
+            ]
+        )
+    return buf.getvalue()
+
+
+def summary_doc(s: Suggestion) -> dict[str, Any]:
+    """``suggest.json``: settings, counts, the best candidate and the planned axis's rank."""
+    best = s.best_index
+    return {
+        "format": "ctdrill-suggest/1",
+        "plan": printable(s.plan.name),
+        "planned_depth_mm": s.plan.planned_depth_mm,
+        "radius_mm": s.space.radius_mm,
+        "cone_deg": s.space.cone_deg,
+        "count": s.space.count,
+        "seed": s.space.seed,
+        "sampling": "halton-4d" if s.space.seed is None else "halton-4d-shifted",
+        "surface_search_mm": SURFACE_SEARCH_MM,
+        "objective": s.objective.to_json(),
+        "n_feasible": s.n_feasible,
+        "best_candidate": best,
+        "best_score": None if best is None else float(s.scores.total[best]),
+        "planned_rank": s.rank_of(0),
+        "planned_feasible": bool(s.feasible[0]),
+        "planned_score": _json_num(float(s.scores.total[0])),
+        "evaluate_s": round(s.evaluate_s, 4),
+        "total_s": round(s.total_s, 4),
+        "notes": [printable(n) for n in s.notes],
+    }
+
+
+def _json_num(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
+def summary_lines(s: Suggestion) -> list[str]:
+    """What the terminal shows after a search."""
+    out = [f"note: {n}" for n in s.notes]
+    best = s.best_index
+    sc = s.scores.total
+    out.append(
+        f"{s.n_feasible} of {s.candidates.size} candidates feasible; evaluation "
+        f"{s.evaluate_s:.2f} s, search {s.total_s:.2f} s"
+    )
+    if best is not None:
+        c = s.candidates
+        out.append(
+            f"best: candidate {best}, score {sc[best]:.4f} (offset {c.offset_mm[best]:.2f} mm, "
+            f"tilt {c.tilt_deg[best]:.1f} deg)"
+        )
+    planned = f"{sc[0]:.4f}" if math.isfinite(float(sc[0])) else "none"
+    state = "feasible" if s.feasible[0] else f"not feasible: {s.reason[0]}"
+    out.append(f"planned axis (candidate 0): rank {s.rank_of(0)}, score {planned}, {state}")
+    return out
+
+
+def write_suggestion(s: Suggestion, out_dir: str | Path) -> list[Path]:
+    """Write the outputs into ``out_dir`` in one atomic swap; returns the final paths."""
+    files: dict[str, str] = {"candidates.csv": candidates_csv(s)}
+    best = s.best_plan()
+    final = Path(out_dir)
+    if best is not None:
+        doc = plan_document(best, out_dir=final.resolve())
+        files["best.plan.json"] = json.dumps(doc, indent=2) + "\n"
+    files["suggest.json"] = json.dumps(summary_doc(s), indent=2) + "\n"
+    with atomic_output_dir(out_dir, owned_names=OUTPUT_NAMES | SUGGEST_NAMES) as staging:
+        for name, text in files.items():
+            write_file(staging / name, text)
+    return [final / name for name in files]
