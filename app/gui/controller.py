@@ -1,5 +1,6 @@
 """The document's background work: loading a series (with its bone surface), re-contouring the
-surface and planning the path whenever the plan changes. Each runs a headless function
+surface, planning the path whenever the plan changes and searching nearby axes when asked
+(:func:`ctdrill.app.search.suggest.suggest`). Each runs a headless function
 (:mod:`ctdrill.app.gui.compute`, :func:`ctdrill.app.gui.results.compute_path_view`) in a worker
 thread, latest wins, and hands the result to the document on the UI thread.
 """
@@ -14,6 +15,9 @@ from ctdrill.app.gui import compute
 from ctdrill.app.gui.document import Document
 from ctdrill.app.gui.results import compute_path_view
 from ctdrill.app.gui.workers import Debouncer, Runner
+from ctdrill.app.pipeline import plan_calibration
+from ctdrill.app.search.candidates import SearchSpace
+from ctdrill.app.search.suggest import Suggestion, suggest
 from ctdrill.imaging.plan.types import Plan
 
 #: Delay between the last plan edit and the recomputation, ms.
@@ -27,7 +31,8 @@ class Controller(QObject):
     -------
     loaded(result) : a ``compute.Loaded`` (already in the document) or a ``SeriesChoice``
         (the window asks which series).
-    failed(stage, exc, traceback) : ``stage`` is ``load``, ``path`` or ``surface``.
+    failed(stage, exc, traceback) : ``stage`` is ``load``, ``path``, ``surface`` or ``suggest``
+        (``suggest`` only for bugs: bad input is the document's ``suggest_status``).
     """
 
     loaded = Signal(object)
@@ -40,8 +45,11 @@ class Controller(QObject):
         self.load_runner = Runner(self._loaded, self._fail("load"), parent=self)
         self.path_runner = Runner(self._path_done, self._path_failed, parent=self)
         self.surface_runner = Runner(doc.set_surface, self._fail("surface"), parent=self)
+        self.suggest_runner = Runner(self._suggest_done, self._suggest_failed, parent=self)
         self.debounce = Debouncer(self.recompute, DEBOUNCE_MS, parent=self)
         self._computing: Plan | None = None
+        self._suggesting: Plan | None = None
+        doc.suggestion_requested.connect(self.run_suggest)
         doc.plan_changed.connect(lambda _plan: self.debounce.poke())
         doc.volume_changed.connect(lambda _volume: self.recompute())
 
@@ -85,7 +93,33 @@ class Controller(QObject):
         if volume is not None:
             self.surface_runner.submit(lambda: compute.volume_surface(volume, iso_hu=iso_hu))
 
+    def run_suggest(self, space: SearchSpace) -> None:
+        """Search the axes around the document's plan (in the background)."""
+        volume, plan = self.doc.volume, self.doc.plan
+        if volume is None or plan is None:
+            return
+        self._suggesting = plan
+
+        def job() -> tuple[Plan, Suggestion]:
+            return plan, suggest(volume, plan, plan_calibration(plan), space)
+
+        self.suggest_runner.submit(job)
+
+    def _suggest_done(self, result: tuple[Plan, Suggestion]) -> None:
+        self.doc.set_suggestion(*result)
+
+    def _suggest_failed(self, exc: BaseException, tb: str) -> None:
+        if self._suggesting is not None:
+            self.doc.set_suggestion_failed(self._suggesting, f"error: {exc}")
+        if not isinstance(exc, ValueError):  # the packages' *InputError family: bad input
+            self.failed.emit("suggest", exc, tb)
+
     def cancel(self) -> None:
         """Drop every running job (window closing)."""
-        for runner in (self.load_runner, self.path_runner, self.surface_runner):
+        for runner in (
+            self.load_runner,
+            self.path_runner,
+            self.surface_runner,
+            self.suggest_runner,
+        ):
             runner.cancel()

@@ -6,6 +6,10 @@ changes the document only through its methods (napari's model/view split); the c
 happens in headless functions (:mod:`ctdrill.app.gui.compute`,
 :mod:`ctdrill.app.gui.results`) run by :class:`ctdrill.app.gui.controller.Controller`.
 
+A suggestion (``ctdrill suggest`` run on the document's plan, :mod:`ctdrill.app.search`) is
+kept with the plan it was computed for: adopting one of its candidates replaces the plan's
+axis and keeps the suggestion (marked adopted); any other plan edit or a new series drops it.
+
 The plan is locked while a rehearsal runs: the device holds the force table of the plan it was
 armed with, so an edit then would make the views show a stop the device does not enforce.
 :meth:`Document.set_plan` refuses it and emits ``edit_refused`` with the reason.
@@ -21,6 +25,8 @@ from PySide6.QtCore import QObject, Signal
 
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.workers import StepQueue
+from ctdrill.app.search.candidates import SearchSpace
+from ctdrill.app.search.suggest import Suggestion
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.types import Plan
 
@@ -41,6 +47,11 @@ class Document(QObject):
     rehearsal_changed(running) : a rehearsal started or ended.
     live_depth_changed(depth_mm) : the drill depth reported by the device.
     edit_refused(message) : a plan change refused (locked, or an invalid edit).
+    suggestion_requested(space) : a search around the plan is asked for (the controller runs
+        it; ``space`` a ``SearchSpace``).
+    suggestion_changed(suggestion) : a search started (None, ``suggest_status`` "running"),
+        finished (a ``Suggestion``), failed (None, the message in ``suggest_status``), was
+        dropped (None) or one of its candidates was adopted.
     """
 
     volume_changed = Signal(object)
@@ -50,6 +61,8 @@ class Document(QObject):
     rehearsal_changed = Signal(bool)
     live_depth_changed = Signal(float)
     edit_refused = Signal(str)
+    suggestion_requested = Signal(object)
+    suggestion_changed = Signal(object)
 
     def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)
@@ -63,6 +76,11 @@ class Document(QObject):
         self.path_error = ""
         self.rehearsing = False
         self.live_depth_mm: float | None = None
+        self.suggestion: Suggestion | None = None
+        #: Candidate of :attr:`suggestion` adopted as the plan's axis (None: none).
+        self.adopted: int | None = None
+        #: "" (idle), "running", or why the last search failed.
+        self.suggest_status = ""
 
     # ------------------------------------------------------------------ changes
     def set_volume(self, volume: CTVolume, path: str, surface: Any) -> bool:
@@ -71,6 +89,7 @@ class Document(QObject):
             self.edit_refused.emit("a rehearsal runs: stop it before opening another series")
             return False
         self.volume, self.volume_path = volume, path
+        self._drop_suggestion()
         self.set_surface(surface)
         self.volume_changed.emit(volume)
         return True
@@ -80,16 +99,66 @@ class Document(QObject):
         self.surface = surface
         self.surface_changed.emit(surface)
 
-    def set_plan(self, plan: Plan | None) -> bool:
-        """Make ``plan`` the plan (refused while a rehearsal runs); the path result is reset."""
+    def set_plan(self, plan: Plan | None, *, adopted: int | None = None) -> bool:
+        """Make ``plan`` the plan (refused while a rehearsal runs); the path result is reset.
+
+        The suggestion is dropped, unless ``adopted`` names the candidate of it that ``plan``
+        takes its axis from (:meth:`adopt_candidate`)."""
         if self.rehearsing:
             self.edit_refused.emit(LOCKED_MESSAGE)
             return False
+        if adopted is None:
+            self._drop_suggestion()
         self.plan = plan
         self.draft = {}
         self.path, self.path_error = None, ""
         self.plan_changed.emit(plan)
         return True
+
+    # ------------------------------------------------------------------ suggestions
+    def request_suggestion(self, space: SearchSpace) -> bool:
+        """Ask for a search around the plan (refused without a series and a plan, or while a
+        rehearsal runs)."""
+        if self.rehearsing:
+            self.edit_refused.emit(LOCKED_MESSAGE)
+            return False
+        if self.volume is None or self.plan is None:
+            self.edit_refused.emit("open a series and a plan before asking for suggestions")
+            return False
+        self.suggestion, self.adopted, self.suggest_status = None, None, "running"
+        self.suggestion_changed.emit(None)
+        self.suggestion_requested.emit(space)
+        return True
+
+    def set_suggestion(self, plan: Plan, suggestion: Suggestion) -> None:
+        """The search around ``plan`` finished (dropped if the plan changed meanwhile)."""
+        if plan is not self.plan or self.suggest_status != "running":
+            return
+        self.suggestion, self.adopted, self.suggest_status = suggestion, None, ""
+        self.suggestion_changed.emit(suggestion)
+
+    def set_suggestion_failed(self, plan: Plan, message: str) -> None:
+        """The search around ``plan`` failed: ``message`` says why."""
+        if plan is not self.plan or self.suggest_status != "running":
+            return
+        self.suggestion, self.adopted, self.suggest_status = None, None, message
+        self.suggestion_changed.emit(None)
+
+    def adopt_candidate(self, index: int) -> bool:
+        """Make candidate ``index`` of the suggestion the plan's axis (everything else kept)."""
+        suggestion = self.suggestion
+        if suggestion is None or not 0 <= index < suggestion.candidates.size:
+            return False
+        if not self.set_plan(suggestion.plan_of(index), adopted=index):
+            return False
+        self.adopted = index
+        self.suggestion_changed.emit(suggestion)
+        return True
+
+    def _drop_suggestion(self) -> None:
+        if self.suggestion is not None or self.suggest_status:
+            self.suggestion, self.adopted, self.suggest_status = None, None, ""
+            self.suggestion_changed.emit(None)
 
     def set_draft_point(self, name: str, point_lps: np.ndarray) -> None:
         """Keep ``entry`` or ``target`` placed while no plan exists (views redraw it)."""

@@ -40,6 +40,7 @@ from ctdrill.app.gui.screenshot import grab_window
 from ctdrill.app.gui.series_panel import SeriesPanel
 from ctdrill.app.gui.slice_grid import SliceGrid
 from ctdrill.app.gui.slices import SliceImage
+from ctdrill.app.gui.suggest_panel import SuggestPanel
 from ctdrill.app.gui.view3d import View3D
 from ctdrill.app.gui.views import VIEWS, build_views
 from ctdrill.app.gui.workers import StepQueue
@@ -91,6 +92,7 @@ class MainWindow(QMainWindow):
         self.plan_panel: PlanPanel = self.views["plan"]  # type: ignore[assignment]
         self.rehearsal: RehearsalPanel = self.views["rehearsal"]  # type: ignore[assignment]
         self.series_panel: SeriesPanel = self.views["series"]  # type: ignore[assignment]
+        self.suggest_panel: SuggestPanel = self.views["suggest"]  # type: ignore[assignment]
         self.plot_fig = self.plot_canvas.plot_fig
         self.slice_canvases = self.slice_grid.canvases
         self.slices_updated = self.slice_grid.slices_updated
@@ -338,6 +340,11 @@ class MainWindow(QMainWindow):
     def set_window_preset(self, label: str) -> None:
         """Apply a window/level preset to the slice views."""
         self.slice_grid.set_window_preset(label)
+
+    def suggest_axes(self) -> bool:
+        """Show the *Suggest* tab and search nearby axes with its settings (background)."""
+        self.tabs.setCurrentWidget(self.suggest_panel)
+        return self.suggest_panel.start()
 
     def refocus(self) -> None:
         """Point the 3D camera at the trajectory again."""

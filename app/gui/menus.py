@@ -50,6 +50,8 @@ def build_menus(window: MainWindow) -> QMenu:
     for label in WINDOW_PRESETS:
         _action(window, wl, label, partial(window.set_window_preset, label))
     _action(window, view_menu, "Focus on trajectory", window.refocus, "F")
+    plan_menu = bar.addMenu("&Plan")
+    _action(window, plan_menu, "Suggest axes", window.suggest_axes, "Ctrl+G")
     window.recent_menu = recent
     fill_recent(window)
     return recent

@@ -13,7 +13,7 @@ import numpy as np
 
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.gui.results import PathView, binding_index, plan_violation
-from ctdrill.app.gui.scene import LandmarkGeometry, SceneInput
+from ctdrill.app.gui.scene import CandidateLine, LandmarkGeometry, SceneInput
 from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
     Landmark,
@@ -161,9 +161,11 @@ def drawn_landmarks(plan: Plan, view: PathView | None) -> tuple[LandmarkGeometry
     return landmark_geometries(plan, view.min_clearance_mm, violated=violated)
 
 
-def scene_input(plan: Plan | None, view: PathView | None) -> SceneInput:
+def scene_input(
+    plan: Plan | None, view: PathView | None, candidates: tuple[CandidateLine, ...] = ()
+) -> SceneInput:
     """The 3D scene of ``plan`` (None: the anatomy alone), with ``view``'s stop when computed
-    for it."""
+    for it and the suggested axes ``candidates``."""
     if plan is None:
         return SceneInput(entry_lps=None, target_lps=None, diameter_mm=0.0, tip_length_mm=0.0)
     own = view is not None and view.plan is plan
@@ -174,4 +176,5 @@ def scene_input(plan: Plan | None, view: PathView | None) -> SceneInput:
         tip_length_mm=plan.drill.tip_length_mm,
         stop_depth_mm=view.curves.stop_depth_mm if own and view is not None else None,
         landmarks=drawn_landmarks(plan, view),
+        candidates=candidates,
     )

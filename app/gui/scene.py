@@ -52,6 +52,26 @@ class LandmarkGeometry:
     violated: bool = False  # the planned path breaks this landmark's margin
 
 
+#: Colours (RGB 0..1) of suggested axes, best first (then the last one repeats).
+CANDIDATE_COLOURS: tuple[tuple[float, float, float], ...] = (
+    (0.10, 0.85, 0.45),
+    (0.20, 0.80, 0.85),
+    (0.55, 0.70, 0.95),
+    (0.80, 0.60, 0.95),
+    (0.95, 0.60, 0.75),
+)
+
+
+@dataclass(frozen=True, eq=False)
+class CandidateLine:
+    """A suggested axis drawn as a thin line from its entry to its target, labelled ``rank``."""
+
+    entry_lps: np.ndarray
+    target_lps: np.ndarray
+    rank: int
+    adopted: bool = False
+
+
 @dataclass(frozen=True, eq=False)
 class SceneInput:
     """Everything the 3D view shows, in LPS mm."""
@@ -62,6 +82,7 @@ class SceneInput:
     tip_length_mm: float
     stop_depth_mm: float | None = None
     landmarks: tuple[LandmarkGeometry, ...] = field(default=())
+    candidates: tuple[CandidateLine, ...] = field(default=())
 
 
 def clearance_state(clearance_mm: float | None, margin_mm: float, violated: bool = False) -> str:
@@ -209,7 +230,8 @@ def build_scene(
     Returns
     -------
     Actors by name (``bone``, ``trajectory``, ``drill``, ``stop``, ``landmark:<name>``,
-    ``margin:<name>``), for live updates (``set_drill_depth``).
+    ``margin:<name>``, ``candidate:<rank>``, ``candidate-labels``), for live updates
+    (``set_drill_depth``).
     """
     plotter.clear()
     plotter.set_background(color="#1e2430", top="#46526a")
@@ -240,8 +262,33 @@ def build_scene(
             actors[f"margin:{lm.name}"] = plotter.add_mesh(
                 render=False, mesh=env, color=colour, opacity=0.3, name=f"margin:{lm.name}"
             )
+    actors.update(_candidate_actors(plotter, scene.candidates))
     if show_axes:
         plotter.add_axes(xlabel="L", ylabel="P", zlabel="S")
+    return actors
+
+
+def _candidate_actors(plotter: Any, lines: Sequence[CandidateLine]) -> dict[str, Any]:
+    """Suggested axes: a thin tube each (the adopted one thinner: the drill shows it) and
+    their ranks at the targets."""
+    actors: dict[str, Any] = {}
+    for line in lines:
+        colour = CANDIDATE_COLOURS[min(line.rank, len(CANDIDATE_COLOURS)) - 1]
+        tube = pv.Line(line.entry_lps, line.target_lps).tube(radius=0.08 if line.adopted else 0.18)
+        name = f"candidate:{line.rank}"
+        actors[name] = plotter.add_mesh(render=False, mesh=tube, color=colour, name=name)
+    if lines:
+        actors["candidate-labels"] = plotter.add_point_labels(
+            np.array([line.target_lps for line in lines]),
+            [str(line.rank) for line in lines],
+            font_size=14,
+            text_color="white",
+            shape_opacity=0.0,
+            show_points=False,
+            always_visible=True,
+            render=False,
+            name="candidate-labels",
+        )
     return actors
 
 

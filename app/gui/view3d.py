@@ -1,9 +1,10 @@
 """The embedded 3D view: a ``pyvistaqt.QtInteractor`` drawn by
 :func:`ctdrill.app.gui.scene.build_scene`, observing the window's document.
 
-The scene is rebuilt when a new bone surface arrives and when the path result for the plan
-arrives (or fails: the landmarks are then drawn as unknown), each build and its frame in an
-event-loop pass of its own; the drill follows the live depth of a rehearsal."""
+The scene is rebuilt when a new bone surface arrives, when the path result for the plan
+arrives (or fails: the landmarks are then drawn as unknown) and when suggested axes arrive
+(the best feasible ones drawn as numbered lines), each build and its frame in an event-loop
+pass of its own; the drill follows the live depth of a rehearsal."""
 
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.planning import scene_input
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.scene import SceneInput, build_scene, focus_camera, set_drill_depth
+from ctdrill.app.gui.suggesting import candidate_lines
 
 
 class View3D(QWidget):
@@ -47,6 +49,7 @@ class View3D(QWidget):
         doc.surface_changed.connect(self._surface)
         doc.path_changed.connect(self._path)
         doc.live_depth_changed.connect(self.set_drill_depth)
+        doc.suggestion_changed.connect(self._suggestion)
 
     # ------------------------------------------------------------------ document
     def _surface(self, surface: pv.PolyData | None) -> None:
@@ -65,11 +68,26 @@ class View3D(QWidget):
 
         def build() -> None:
             if current():
-                self.show_scene(scene_input(plan, view), refocus=self.refocus_next, render=False)
+                scene = scene_input(plan, view, candidate_lines(doc.suggestion, doc.adopted))
+                self.show_scene(scene, refocus=self.refocus_next, render=False)
                 self.refocus_next = False
 
         self.ctx.steps.push(build)  # the build and its frame: two passes
         self.ctx.steps.push(lambda: self.render_now() if current() else None)
+
+    def _suggestion(self, _suggestion: object) -> None:
+        doc = self.ctx.doc
+        if doc.plan is None or self.scene is None:
+            return
+        plan, view = doc.plan, doc.path
+
+        def build() -> None:
+            if doc.plan is plan and doc.path is view:
+                lines = candidate_lines(doc.suggestion, doc.adopted)
+                self.show_scene(scene_input(plan, view, lines), render=False)
+
+        self.ctx.steps.push(build)
+        self.ctx.steps.push(self.render_now)
 
     def set_surface(self, surface: pv.PolyData | None, *, redraw: bool = True) -> None:
         """Use a new bone surface (new volume or preset); redraws a shown scene if ``redraw``."""

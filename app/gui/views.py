@@ -22,6 +22,7 @@ from ctdrill.app.gui.plots_view import PlotsView
 from ctdrill.app.gui.rehearsal_panel import RehearsalPanel
 from ctdrill.app.gui.series_panel import SeriesPanel
 from ctdrill.app.gui.slice_grid import SliceGrid
+from ctdrill.app.gui.suggest_panel import SuggestPanel
 from ctdrill.app.gui.view3d import View3D
 
 Area = Literal["banner", "main", "bottom", "tab"]
@@ -44,6 +45,7 @@ VIEWS: tuple[ViewSpec, ...] = (
     ViewSpec("slices", "main", "Slices", SliceGrid),
     ViewSpec("plots", "bottom", "Plots", PlotsView),
     ViewSpec("plan", "tab", "Plan", PlanPanel),
+    ViewSpec("suggest", "tab", "Suggest", SuggestPanel),
     ViewSpec("rehearsal", "tab", "Rehearsal", RehearsalPanel),
     ViewSpec("series", "tab", "Series", SeriesPanel),
 )
