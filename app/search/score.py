@@ -112,6 +112,14 @@ def score_rows(
         body[ok] = h.mean(axis=1)
         crest[ok] = (cortical & in_crest).sum(axis=1) / in_crest.sum(axis=1)
         apex[ok] = (cortical & in_apex).sum(axis=1) / in_apex.sum(axis=1)
+    return combine(body, crest, apex, objective)
+
+
+def combine(
+    body_hu: np.ndarray, crest_cortical: np.ndarray, apex_cortical: np.ndarray, objective: Objective
+) -> Scores:
+    """The score of the three measured terms (module docstring)."""
+    body, crest, apex = body_hu, crest_cortical, apex_cortical
     body_term = (body - BONE_HU) / (CORTICAL_HU - BONE_HU)
     total = (
         objective.body_weight * body_term

@@ -34,7 +34,7 @@ from ctdrill.app.search.candidates import (
     SearchSpace,
     make_candidates,
 )
-from ctdrill.app.search.score import Objective, Scores, score_rows
+from ctdrill.app.search.score import Objective, Scores, combine, score_rows
 from ctdrill.imaging.plan.types import Plan, series_uid_hash
 from ctdrill.imaging.plan.write import plan_document
 from ctdrill.imaging.volume import CTVolume
@@ -139,39 +139,64 @@ def _default_evaluator() -> Evaluator:
     return evaluate_batch
 
 
-def _reasons(
-    cands: Candidates, batch_rows: np.ndarray, batch: BatchLike | None, binding: list[str]
-) -> tuple[np.ndarray, list[str], list[str]]:
-    """(feasible, reason, stop_reason) per candidate."""
-    n = cands.size
-    feasible = np.zeros(n, dtype=bool)
-    reason = [""] * n
-    stop = [""] * n
-    for i in range(n):
-        if cands.no_surface[i]:
-            reason[i] = f"no bone surface on its line within {SURFACE_SEARCH_MM:g} mm of the anchor"
-    if batch is None:
-        return feasible, reason, stop
-    for k, i in enumerate(batch_rows):
-        refusal = batch.refusal[k]
-        if refusal is not None:
-            reason[i] = f"refused: {refusal}"
-            continue
-        stop[i] = str(batch.stop_reason[k])
-        if stop[i] == "planned_depth":
-            feasible[i] = True
-        elif stop[i] == "margin":
-            reason[i] = (
-                f"margin to {binding[i]!r}: max safe depth "
-                f"{float(batch.max_safe_depth_mm[k]):.3f} mm"
-            )
-        else:
-            reason[i] = (
-                f"leaves the CT at {float(batch.out_of_volume_depth_mm[k]):.3f} mm"
-                if stop[i] == "out_of_volume"
-                else f"stops on {stop[i]!r}"
-            )
-    return feasible, reason, stop
+#: Candidates evaluated per batch call: bounds memory (a row is about 50 kB of arrays).
+CHUNK = 4096
+
+
+@dataclass
+class _Rows:
+    """Per-candidate answers, filled chunk by chunk."""
+
+    body: np.ndarray
+    crest: np.ndarray
+    apex: np.ndarray
+    msd: np.ndarray
+    capped: np.ndarray
+    clear: np.ndarray
+    feasible: np.ndarray
+    binding: list[str]
+    stop: list[str]
+    reason: list[str]
+
+    @classmethod
+    def empty(cls, n: int) -> _Rows:
+        def nan() -> np.ndarray:
+            return np.full(n, np.nan)
+
+        return cls(
+            nan(), nan(), nan(), nan(), np.zeros(n, dtype=bool), nan(),
+            np.zeros(n, dtype=bool), [""] * n, [""] * n, [""] * n,
+        )  # fmt: skip
+
+    def take(self, rows: np.ndarray, batch: BatchLike, plan: Plan, objective: Objective) -> None:
+        """Copy ``batch`` (the candidates ``rows``, in order) in."""
+        sc = score_rows(batch.depth_mm, batch.disc_hu, plan.planned_depth_mm, objective)
+        self.body[rows], self.crest[rows], self.apex[rows] = (
+            sc.body_hu, sc.crest_cortical, sc.apex_cortical
+        )  # fmt: skip
+        self.msd[rows] = batch.max_safe_depth_mm
+        self.capped[rows] = batch.max_safe_depth_capped
+        self.clear[rows] = batch.plan_clearance_mm
+        for k, i in enumerate(rows):
+            refusal = batch.refusal[k]
+            if refusal is not None:
+                self.reason[i] = f"refused: {refusal}"
+                continue
+            j = int(batch.binding_landmark[k])
+            if 0 <= j < len(plan.landmarks) and not self.capped[i]:
+                self.binding[i] = plan.landmarks[j].name
+            stop = self.stop[i] = str(batch.stop_reason[k])
+            if stop == "planned_depth":
+                self.feasible[i] = True
+            elif stop == "margin":
+                self.reason[i] = (
+                    f"margin to {self.binding[i]!r}: max safe depth {self.msd[i]:.3f} mm"
+                )
+            elif stop == "out_of_volume":
+                oov = float(batch.out_of_volume_depth_mm[k])
+                self.reason[i] = f"leaves the CT at {oov:.3f} mm"
+            else:
+                self.reason[i] = f"stops on {stop!r}"
 
 
 def suggest(
@@ -206,34 +231,26 @@ def suggest(
     objective = objective or Objective()
     evaluator = evaluate or _default_evaluator()
     cands = make_candidates(volume, plan, space)
+    n = cands.size
+    out = _Rows.empty(n)
+    for i in np.flatnonzero(cands.no_surface):
+        out.reason[i] = f"no bone surface on its line within {SURFACE_SEARCH_MM:g} mm of the anchor"
     rows = np.flatnonzero(~cands.no_surface)
     t1 = time.perf_counter()
-    batch = evaluator(
-        volume,
-        plan,
-        cands.entries_lps[rows],
-        cands.targets_lps[rows],
-        calibration,
-        interpolate_gaps=interpolate_gaps,
-    )
+    for lo in range(0, rows.size, CHUNK):
+        part = rows[lo : lo + CHUNK]
+        batch = evaluator(
+            volume,
+            plan,
+            cands.entries_lps[part],
+            cands.targets_lps[part],
+            calibration,
+            interpolate_gaps=interpolate_gaps,
+        )
+        out.take(part, batch, plan, objective)
     evaluate_s = time.perf_counter() - t1
-    n = cands.size
-    d = int(np.asarray(batch.depth_mm).shape[1])
-    depth = np.full((n, d), np.nan)
-    disc = np.full((n, d), np.nan)
-    depth[rows] = batch.depth_mm
-    disc[rows] = batch.disc_hu
-    scores = score_rows(depth, disc, plan.planned_depth_mm, objective)
-    msd, capped, clear = np.full(n, np.nan), np.zeros(n, dtype=bool), np.full(n, np.nan)
-    msd[rows] = batch.max_safe_depth_mm
-    capped[rows] = batch.max_safe_depth_capped
-    clear[rows] = batch.plan_clearance_mm
-    binding = [""] * n
-    for k, i in enumerate(rows):
-        j = int(batch.binding_landmark[k])
-        if batch.refusal[k] is None and 0 <= j < len(plan.landmarks) and not capped[i]:
-            binding[i] = plan.landmarks[j].name
-    feasible, reason, stop = _reasons(cands, rows, batch, binding)
+    scores = combine(out.body, out.crest, out.apex, objective)
+    feasible = out.feasible
     key = np.where(np.isfinite(scores.total), -scores.total, np.inf)
     order = np.lexsort((np.arange(n), key, ~feasible))
     notes = _notes(plan, cands, feasible)
@@ -243,13 +260,13 @@ def suggest(
         objective=objective,
         candidates=cands,
         scores=scores,
-        max_safe_depth_mm=msd,
-        max_safe_depth_capped=capped,
-        min_clearance_mm=clear,
-        binding=tuple(binding),
-        stop_reason=tuple(stop),
+        max_safe_depth_mm=out.msd,
+        max_safe_depth_capped=out.capped,
+        min_clearance_mm=out.clear,
+        binding=tuple(out.binding),
+        stop_reason=tuple(out.stop),
         feasible=feasible,
-        reason=tuple(reason),
+        reason=tuple(out.reason),
         order=order,
         series_uid=volume.info.series_uid,
         evaluate_s=evaluate_s,

@@ -28,8 +28,8 @@ from ctdrill.imaging.volume import CTVolume
 SURFACE_STEP_MM = 0.1
 #: Bisection tolerance of the crossing on the trilinear field, mm.
 SURFACE_TOL_MM = 1e-6
-#: Most samples one call takes (memory bound: 3 float64 per sample).
-_MAX_SAMPLES = 20_000_000
+#: Samples looked up at once (memory: about 50 bytes each); longer searches go in chunks.
+_CHUNK_SAMPLES = 1_000_000
 
 
 def first_bone_crossing_mm(
@@ -65,15 +65,20 @@ def first_bone_crossing_mm(
             f"first_bone_crossing_mm: need finite start_mm < stop_mm, got {start_mm}, {stop_mm}"
         )
     n_t = math.ceil((stop_mm - start_mm) / SURFACE_STEP_MM - 1e-9) + 1
-    if origins.shape[0] * n_t > _MAX_SAMPLES:
-        raise ImagingInputError(
-            f"first_bone_crossing_mm: {origins.shape[0]} lines of {n_t} samples exceed "
-            f"{_MAX_SAMPLES} samples; search fewer lines or a shorter span"
-        )
     ts = np.linspace(start_mm, stop_mm, n_t)
     out = np.full(origins.shape[0], np.nan)
-    if origins.shape[0] == 0:
-        return out
+    lines = max(1, _CHUNK_SAMPLES // n_t)
+    for lo in range(0, origins.shape[0], lines):
+        part = slice(lo, lo + lines)
+        out[part] = _crossings(volume, origins[part], dirs[part], ts)
+    return out
+
+
+def _crossings(
+    volume: CTVolume, origins: np.ndarray, dirs: np.ndarray, ts: np.ndarray
+) -> np.ndarray:
+    """:func:`first_bone_crossing_mm` of a few lines sampled at ``ts``."""
+    out = np.full(origins.shape[0], np.nan)
     pts = origins[:, None, :] + ts[None, :, None] * dirs[:, None, :]
     hu = volume.sample(pts, outside_hu=np.nan)  # (N, T); NaN: outside or padding
     bone = hu >= BONE_HU  # NaN compares False

@@ -79,3 +79,16 @@ def test_bad_arguments_are_refused() -> None:
         first_bone_crossing_mm(vol, np.zeros((1, 3)), np.ones((1, 3)), start_mm=1.0, stop_mm=1.0)
     with pytest.raises(ImagingInputError, match="directions"):
         first_bone_crossing_mm(vol, np.zeros((2, 3)), np.ones((1, 3)), start_mm=0.0, stop_mm=1.0)
+
+
+def test_long_searches_go_in_chunks_with_the_same_answers(monkeypatch: pytest.MonkeyPatch) -> None:
+    import ctdrill.imaging.sampling.surface as mod
+
+    vol = _slab()
+    rng = np.random.default_rng(5)
+    origins = np.column_stack([rng.uniform(-3, 3, 50), rng.uniform(-3, 3, 50), np.full(50, 3.0)])
+    dirs = np.tile([0.0, 0.0, -1.0], (50, 1))
+    whole = first_bone_crossing_mm(vol, origins, dirs, start_mm=0.0, stop_mm=6.0)
+    monkeypatch.setattr(mod, "_CHUNK_SAMPLES", 200)  # 3 lines of 61 samples per chunk
+    chunked = first_bone_crossing_mm(vol, origins, dirs, start_mm=0.0, stop_mm=6.0)
+    assert np.array_equal(whole, chunked) and np.all(np.isfinite(whole))

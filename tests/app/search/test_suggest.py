@@ -205,3 +205,17 @@ def test_halton_points_are_the_radical_inverses() -> None:
     shifted = halton(4, seed=1)
     assert np.all((shifted >= 0.0) & (shifted < 1.0))
     assert not np.allclose(shifted, h)
+
+
+def test_chunked_evaluation_gives_the_same_ranking(
+    vol: CTVolume, cal: Calibration, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import ctdrill.app.search.suggest as mod
+
+    plan = columns.columns_plan()
+    whole = suggest(vol, plan, cal, SearchSpace(count=30), evaluate=evaluate_each)
+    monkeypatch.setattr(mod, "CHUNK", 7)
+    chunked = suggest(vol, plan, cal, SearchSpace(count=30), evaluate=evaluate_each)
+    assert np.array_equal(whole.order, chunked.order)
+    assert np.array_equal(whole.scores.total, chunked.scores.total, equal_nan=True)
+    assert whole.reason == chunked.reason and np.array_equal(whole.feasible, chunked.feasible)
