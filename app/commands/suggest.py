@@ -107,7 +107,8 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.pipeline import plan_calibration
     from ctdrill.app.search.candidates import SearchSpace, SuggestInputError
     from ctdrill.app.search.score import Objective
-    from ctdrill.app.search.suggest import suggest, summary_lines, write_suggestion
+    from ctdrill.app.search.suggest import suggest
+    from ctdrill.app.search.suggest_write import summary_lines, write_suggestion
     from ctdrill.imaging import load_series
     from ctdrill.imaging.plan.types import load_plan_set
 

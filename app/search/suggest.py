@@ -9,25 +9,19 @@ batch's stop reason is ``planned_depth`` (the max safe depth keeps every landmar
 down to the planned depth and the lip stays in the scanned volume), and nothing refused it
 (gaps, padding, an entry outside the scan) and its line met the bone surface. Feasible rows
 come first, by score (highest first), then the rest by score; ties keep the candidate order.
-:func:`write_suggestion` writes ``candidates.csv``, ``suggest.json`` and, when a candidate is
-feasible, ``best.plan.json`` (the input plan with the best axis), all in one atomic swap.
+:func:`ctdrill.app.search.suggest_write.write_suggestion` writes the outputs.
 """
 
 from __future__ import annotations
 
-import csv
-import io
-import json
 import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from pathlib import Path
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 
-from ctdrill.app.records import OUTPUT_NAMES, atomic_output_dir, printable, write_file
 from ctdrill.app.search.candidates import (
     SURFACE_SEARCH_MM,
     Candidates,
@@ -36,12 +30,8 @@ from ctdrill.app.search.candidates import (
 )
 from ctdrill.app.search.score import Objective, Scores, combine, score_rows
 from ctdrill.imaging.plan.types import Plan, series_uid_hash
-from ctdrill.imaging.plan.write import plan_document
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.calibration import Calibration
-
-#: Files ``ctdrill suggest`` writes (an existing --out holding only these may be replaced).
-SUGGEST_NAMES = frozenset({"candidates.csv", "best.plan.json", "suggest.json"})
 
 
 class BatchLike(Protocol):
@@ -307,132 +297,3 @@ def _notes(plan: Plan, cands: Candidates, feasible: np.ndarray) -> tuple[str, ..
             "best.plan.json is not written"
         )
     return tuple(out)
-
-
-CSV_COLUMNS = (
-    "rank",
-    "candidate",
-    "entry_x_mm",
-    "entry_y_mm",
-    "entry_z_mm",
-    "target_x_mm",
-    "target_y_mm",
-    "target_z_mm",
-    "offset_mm",
-    "tilt_deg",
-    "body_hu",
-    "body_term",
-    "crest_cortical",
-    "apex_cortical",
-    "score",
-    "max_safe_depth_mm",
-    "max_safe_depth_capped",
-    "min_clearance_mm",
-    "binding_landmark",
-    "stop_reason",
-    "feasible",
-    "reason",
-)
-
-
-def _num(value: float, digits: int = 6) -> str:
-    return "" if not math.isfinite(value) else f"{value:.{digits}f}"
-
-
-def candidates_csv(s: Suggestion) -> str:
-    """``candidates.csv``: one row per candidate, best first (coordinates LPS mm, written to
-    round-trip exactly)."""
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(CSV_COLUMNS)
-    c, sc = s.candidates, s.scores
-    for rank, i in enumerate(s.order, start=1):
-        w.writerow(
-            [
-                rank,
-                int(i),
-                *(repr(float(v)) for v in c.entries_lps[i]),
-                *(repr(float(v)) for v in c.targets_lps[i]),
-                _num(float(c.offset_mm[i])),
-                _num(float(c.tilt_deg[i])),
-                _num(float(sc.body_hu[i]), 3),
-                _num(float(sc.body_term[i])),
-                _num(float(sc.crest_cortical[i])),
-                _num(float(sc.apex_cortical[i])),
-                _num(float(sc.total[i])),
-                _num(float(s.max_safe_depth_mm[i])),
-                str(bool(s.max_safe_depth_capped[i])).lower(),
-                _num(float(s.min_clearance_mm[i])),
-                printable(s.binding[i]),
-                s.stop_reason[i],
-                str(bool(s.feasible[i])).lower(),
-                printable(s.reason[i]),
-            ]
-        )
-    return buf.getvalue()
-
-
-def summary_doc(s: Suggestion) -> dict[str, Any]:
-    """``suggest.json``: settings, counts, the best candidate and the planned axis's rank."""
-    best = s.best_index
-    return {
-        "format": "ctdrill-suggest/1",
-        "plan": printable(s.plan.name),
-        "planned_depth_mm": s.plan.planned_depth_mm,
-        "radius_mm": s.space.radius_mm,
-        "cone_deg": s.space.cone_deg,
-        "count": s.space.count,
-        "seed": s.space.seed,
-        "sampling": "halton-4d" if s.space.seed is None else "halton-4d-shifted",
-        "surface_search_mm": SURFACE_SEARCH_MM,
-        "objective": s.objective.to_json(),
-        "n_feasible": s.n_feasible,
-        "best_candidate": best,
-        "best_score": None if best is None else float(s.scores.total[best]),
-        "planned_rank": s.rank_of(0),
-        "planned_feasible": bool(s.feasible[0]),
-        "planned_score": _json_num(float(s.scores.total[0])),
-        "evaluate_s": round(s.evaluate_s, 4),
-        "total_s": round(s.total_s, 4),
-        "notes": [printable(n) for n in s.notes],
-    }
-
-
-def _json_num(value: float) -> float | None:
-    return value if math.isfinite(value) else None
-
-
-def summary_lines(s: Suggestion) -> list[str]:
-    """What the terminal shows after a search."""
-    out = [f"note: {n}" for n in s.notes]
-    best = s.best_index
-    sc = s.scores.total
-    out.append(
-        f"{s.n_feasible} of {s.candidates.size} candidates feasible; evaluation "
-        f"{s.evaluate_s:.2f} s, search {s.total_s:.2f} s"
-    )
-    if best is not None:
-        c = s.candidates
-        out.append(
-            f"best: candidate {best}, score {sc[best]:.4f} (offset {c.offset_mm[best]:.2f} mm, "
-            f"tilt {c.tilt_deg[best]:.1f} deg)"
-        )
-    planned = f"{sc[0]:.4f}" if math.isfinite(float(sc[0])) else "none"
-    state = "feasible" if s.feasible[0] else f"not feasible: {s.reason[0]}"
-    out.append(f"planned axis (candidate 0): rank {s.rank_of(0)}, score {planned}, {state}")
-    return out
-
-
-def write_suggestion(s: Suggestion, out_dir: str | Path) -> list[Path]:
-    """Write the outputs into ``out_dir`` in one atomic swap; returns the final paths."""
-    files: dict[str, str] = {"candidates.csv": candidates_csv(s)}
-    best = s.best_plan()
-    final = Path(out_dir)
-    if best is not None:
-        doc = plan_document(best, out_dir=final.resolve())
-        files["best.plan.json"] = json.dumps(doc, indent=2) + "\n"
-    files["suggest.json"] = json.dumps(summary_doc(s), indent=2) + "\n"
-    with atomic_output_dir(out_dir, owned_names=OUTPUT_NAMES | SUGGEST_NAMES) as staging:
-        for name, text in files.items():
-            write_file(staging / name, text)
-    return [final / name for name in files]

@@ -15,12 +15,8 @@ import pytest
 from ctdrill.app.pipeline import plan_path
 from ctdrill.app.search.candidates import SearchSpace, halton, make_candidates
 from ctdrill.app.search.score import Objective
-from ctdrill.app.search.suggest import (
-    CSV_COLUMNS,
-    Suggestion,
-    suggest,
-    write_suggestion,
-)
+from ctdrill.app.search.suggest import Suggestion, suggest
+from ctdrill.app.search.suggest_write import CSV_COLUMNS, write_suggestion
 from ctdrill.imaging.misch import BONE_HU, CORTICAL_HU
 from ctdrill.imaging.plan.landmarks import PointLandmark
 from ctdrill.imaging.plan.types import load_plan, series_uid_hash
