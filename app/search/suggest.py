@@ -37,15 +37,24 @@ from ctdrill.model.calibration import Calibration
 class BatchLike(Protocol):
     """What :func:`suggest` reads of a ``BatchResult`` (``ctdrill.app.search.evaluate``)."""
 
-    depth_mm: np.ndarray
-    disc_hu: np.ndarray
-    max_safe_depth_mm: np.ndarray
-    max_safe_depth_capped: np.ndarray
-    binding_landmark: np.ndarray
-    plan_clearance_mm: np.ndarray
-    out_of_volume_depth_mm: np.ndarray
-    stop_reason: np.ndarray
-    refusal: tuple[str | None, ...]
+    @property
+    def depth_mm(self) -> np.ndarray: ...
+    @property
+    def disc_hu(self) -> np.ndarray: ...
+    @property
+    def max_safe_depth_mm(self) -> np.ndarray: ...
+    @property
+    def max_safe_depth_capped(self) -> np.ndarray: ...
+    @property
+    def binding_landmark(self) -> np.ndarray: ...
+    @property
+    def plan_clearance_mm(self) -> np.ndarray: ...
+    @property
+    def out_of_volume_depth_mm(self) -> np.ndarray: ...
+    @property
+    def stop_reason(self) -> np.ndarray: ...
+    @property
+    def refusal(self) -> tuple[str | None, ...]: ...
 
 
 #: ``evaluate(volume, plan, entries_lps, targets_lps, calibration, interpolate_gaps=...)``.
