@@ -21,18 +21,10 @@ from ctdrill.imaging.phantom.io import PhantomCase
 from ctdrill.model import load_calibration
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 from tests.app.gui.phantom import phantom_volume
-from tests.app.search.standin import evaluate_each
 
 pytestmark = pytest.mark.gui
 
 COUNT = 60
-
-
-@pytest.fixture(autouse=True)
-def _standin(monkeypatch: pytest.MonkeyPatch) -> None:
-    import ctdrill.app.search.suggest as mod
-
-    monkeypatch.setattr(mod, "_default_evaluator", lambda: evaluate_each)
 
 
 def test_suggest_draws_the_top_axes_and_a_click_adopts_one(
@@ -110,7 +102,7 @@ def test_the_document_keeps_a_suggestion_only_for_its_plan(qtbot: QtBot) -> None
     doc.volume = vol
     doc.set_plan(first)
     cal = load_calibration("bone-illustrative")
-    s = suggest(vol, first, cal, SearchSpace(count=3), evaluate=evaluate_each)
+    s = suggest(vol, first, cal, SearchSpace(count=3))
     doc.set_suggestion(first, s)  # not asked for: dropped
     assert doc.suggestion is None
     with qtbot.waitSignal(doc.suggestion_requested):

@@ -23,7 +23,6 @@ from ctdrill.imaging.plan.types import load_plan, series_uid_hash
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.calibration import Calibration, load_calibration
 from tests.app.search import columns
-from tests.app.search.standin import evaluate_each
 
 COUNT = 600
 
@@ -40,9 +39,7 @@ def cal() -> Calibration:
 
 @pytest.fixture(scope="module")
 def found(vol: CTVolume, cal: Calibration) -> Suggestion:
-    return suggest(
-        vol, columns.columns_plan(), cal, SearchSpace(count=COUNT), evaluate=evaluate_each
-    )
+    return suggest(vol, columns.columns_plan(), cal, SearchSpace(count=COUNT))
 
 
 def _closed_form_score(objective: Objective) -> float:
@@ -172,7 +169,7 @@ def test_no_feasible_candidate_writes_no_best_plan(
     # (within 3 + 10 tan 15 = 5.7 mm of the axis) is closer than that.
     guard = PointLandmark(name="guard", point_lps=np.array([0.0, 0.0, -10.5]), margin_mm=8.0)
     plan = columns.columns_plan(landmarks=(guard,))
-    s = suggest(vol, plan, cal, SearchSpace(count=40), evaluate=evaluate_each)
+    s = suggest(vol, plan, cal, SearchSpace(count=40))
     assert s.best_index is None and s.best_plan() is None and s.n_feasible == 0
     assert any(n.startswith("no feasible candidate") for n in s.notes)
     written = write_suggestion(s, tmp_path / "out")
@@ -209,9 +206,9 @@ def test_chunked_evaluation_gives_the_same_ranking(
     import ctdrill.app.search.suggest as mod
 
     plan = columns.columns_plan()
-    whole = suggest(vol, plan, cal, SearchSpace(count=30), evaluate=evaluate_each)
+    whole = suggest(vol, plan, cal, SearchSpace(count=30))
     monkeypatch.setattr(mod, "CHUNK", 7)
-    chunked = suggest(vol, plan, cal, SearchSpace(count=30), evaluate=evaluate_each)
+    chunked = suggest(vol, plan, cal, SearchSpace(count=30))
     assert np.array_equal(whole.order, chunked.order)
     assert np.array_equal(whole.scores.total, chunked.scores.total, equal_nan=True)
     assert whole.reason == chunked.reason and np.array_equal(whole.feasible, chunked.feasible)

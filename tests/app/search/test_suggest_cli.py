@@ -15,14 +15,6 @@ from ctdrill.imaging.phantom.writer import write_series
 from ctdrill.imaging.plan.landmarks import PointLandmark
 from ctdrill.imaging.plan.types import load_plan, plan_to_markups, save_plan
 from tests.app.search import columns
-from tests.app.search.standin import evaluate_each
-
-
-@pytest.fixture(autouse=True)
-def _standin(monkeypatch: pytest.MonkeyPatch) -> None:
-    import ctdrill.app.search.suggest as mod
-
-    monkeypatch.setattr(mod, "_default_evaluator", lambda: evaluate_each)
 
 
 @pytest.fixture(scope="module")
