@@ -29,6 +29,7 @@ import numpy as np
 
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.export_defaults import DEFAULT_RATE_HZ as DEFAULT_RATE_HZ
+from ctdrill.app.fixedtext import fixed_csv
 from ctdrill.app.pipeline import PathResult
 from ctdrill.app.records import printable
 from ctdrill.imaging.misch import MISCH_CLASSES, misch_class
@@ -108,21 +109,21 @@ def _fmt(values: np.ndarray, digits: int) -> list[str]:
 
 
 def force_csv(series: ForceSeries, calibration: str) -> str:
-    """``force.csv`` text: ``time_s, depth_mm, hu, s_t, force_n`` then extras."""
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(FORCE_COLUMNS)
-    cols = [
-        _fmt(series.time_s, 6),
-        _fmt(series.depth_mm, 6),
-        _fmt(series.hu, 2),
-        _fmt(series.s_t, 5),
-        _fmt(series.force_n, 5),
-        _fmt(series.clearance_mm, 4),
-        [calibration] * len(series.time_s),
+    """``force.csv`` text: ``time_s, depth_mm, hu, s_t, force_n`` then extras.
+
+    Formatted whole columns at a time (:func:`ctdrill.app.fixedtext.fixed_csv`), byte for
+    byte what ``csv.writer`` writes of ``"%.6f"``-style strings (``inf`` and ``nan`` as
+    Python writes them).
+    """
+    columns = [
+        (series.time_s, 6),
+        (series.depth_mm, 6),
+        (series.hu, 2),
+        (series.s_t, 5),
+        (series.force_n, 5),
+        (series.clearance_mm, 4),
     ]
-    w.writerows(zip(*cols, strict=True))
-    return buf.getvalue()
+    return fixed_csv(FORCE_COLUMNS, columns, tail=calibration)
 
 
 def profile_csv(result: PathResult) -> str:
