@@ -313,22 +313,30 @@ def write_exports(
     progress: Callable[[int, int, str], None] | None = None,
     extra_files: Mapping[str, bytes | str] | None = None,
     include_phi: bool = False,
+    plot: bool = True,
+    files: bool = True,
+    table: bool = False,
 ) -> list[Path]:
     """Write every job's four files into a staging folder swapped in for ``out_dir`` whole.
 
     ``feed_mm_s`` None uses each plan's feed; ``include_phi`` writes the raw series UID (see
-    :func:`summary`). ``extra_files`` (relative path -> content) are
-    written in the same swap (the demo's marker, the GUI's session record); their names may
-    be present when the folder is next replaced. ``out_dir`` is replaced as a whole
+    :func:`summary`). ``plot`` False leaves out ``force.png`` (each summary says
+    ``"plot": false``); ``files`` False writes no per-job files; ``table`` writes
+    ``trajectories.csv`` (:mod:`ctdrill.app.export_table`), one row per job.
+    ``extra_files`` (relative path -> content) are written in the same swap (the demo's
+    marker, the GUI's session record); their names may be present when the folder is next
+    replaced. ``out_dir`` is replaced as a whole
     (:func:`ctdrill.app.records.atomic_output_dir`): a kill, a full disk or an error leaves the
     previous export exactly as it was; a folder holding other files is refused. Returns the
     written paths (under ``out_dir``).
     """
     from ctdrill.app.export_plot import force_png
+    from ctdrill.app.export_table import TABLE_NAME, table_csv, table_row
     from ctdrill.app.records import OUTPUT_NAMES, atomic_output_dir, write_file
 
     out_dir = Path(out_dir)
     relative: list[Path] = []
+    rows: list[dict[str, str]] = []
     extra = dict(extra_files or {})
     owned = OUTPUT_NAMES | {Path(rel).name for rel in extra}
     with atomic_output_dir(out_dir, what="--out", owned_names=owned) as staging:
@@ -346,20 +354,29 @@ def write_exports(
                 patient=patient,
                 include_phi=include_phi,
             )
+            doc["plot"] = plot
+            if table:
+                rows.append(table_row(doc, job.subdir if files else ""))
+            if not files:
+                continue
             target = staging / job.subdir
             target.mkdir(parents=True, exist_ok=True)
             cal = job.result.calibration.name
-            png = io.BytesIO()
-            force_png(job.result, series, png)
-            files: dict[str, bytes | str] = {
+            outputs: dict[str, bytes | str] = {
                 "force.csv": force_csv(series, cal),
                 "profile.csv": profile_csv(job.result),
                 "summary.json": json.dumps(doc, indent=2, allow_nan=False) + "\n",
-                "force.png": png.getvalue(),
             }
-            for name, data in files.items():
+            if plot:
+                png = io.BytesIO()
+                force_png(job.result, series, png)
+                outputs["force.png"] = png.getvalue()
+            for name, data in outputs.items():
                 write_file(target / name, data)
                 relative.append(Path(job.subdir) / name)
+        if table:
+            write_file(staging / TABLE_NAME, table_csv(rows))
+            relative.append(Path(TABLE_NAME))
         for rel, data in extra.items():
             (staging / rel).parent.mkdir(parents=True, exist_ok=True)
             write_file(staging / rel, data)

@@ -94,12 +94,16 @@ def export_case(
     extra_files: Mapping[str, bytes | str] | None = None,
     warn: Callable[[str, str], None] | None = None,
     interpolate_gaps: bool = False,
+    plot: bool = True,
+    per_trajectory: bool = False,
 ) -> list[Path]:
     """Export every trajectory of ``plan_paths`` on the CT in ``dicom``.
 
-    One trajectory writes into ``out_dir``; several write into ``out_dir/<plan name>/``. A
-    plan with a drill sequence writes one folder per drill, ``drill_1/``, ``drill_2/`` ...,
-    beside its ``summary.json`` listing them (:mod:`ctdrill.app.sequence_export`).
+    One trajectory writes its files into ``out_dir``; several write one table,
+    ``out_dir/trajectories.csv`` (one row per trajectory, or per drill of a sequence), and,
+    with ``per_trajectory``, each one's files into ``out_dir/<plan name>/``. A plan with a
+    drill sequence writes one folder per drill, ``drill_1/``, ``drill_2/`` ..., beside its
+    ``summary.json`` listing them (:mod:`ctdrill.app.sequence_export`).
 
     Parameters
     ----------
@@ -113,6 +117,8 @@ def export_case(
         must show (``no_landmarks``).
     interpolate_gaps : interpolate across slice gaps the drill crosses instead of refusing
         (each summary then says so).
+    plot : write ``force.png`` (False: ``--no-plot``, for screening).
+    per_trajectory : with several trajectories, also write each one's files.
 
     Returns
     -------
@@ -158,7 +164,8 @@ def export_case(
         jobs.append(ExportJob(result=result, subdir=sub))
     patient = read_patient_fields(dicom, volume.info.series_uid) if include_phi else None
     extra_files = dict(extra_files or {})
-    for seq, sub in sequences:
+    files = len(plans) == 1 or per_trajectory  # several: the table, files only if asked
+    for seq, sub in sequences if files else []:
         extra_files |= sequence_files(
             seq,
             sub,
@@ -178,6 +185,9 @@ def export_case(
         progress=progress,
         extra_files=extra_files,
         include_phi=include_phi,
+        plot=plot,
+        files=files,
+        table=len(plans) > 1,
     )
     if warn is not None:
         for plan in plans:

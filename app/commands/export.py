@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import sys
 from pathlib import Path
@@ -19,9 +20,10 @@ def register(subparsers: Any) -> None:
         help="export force, HU and clearance along planned trajectories (headless)",
         description=(
             "Load a DICOM CT series once, sample it along each planned drill trajectory and "
-            "write force.csv, profile.csv, summary.json and force.png. Several plans (or a "
-            "folder of plans) write into OUT/<plan name>/. No patient identifiers are written "
-            "unless --include-phi."
+            "write force.csv, profile.csv, summary.json and force.png. Several trajectories "
+            "(plans, or a folder of plans) write one table, OUT/trajectories.csv, one row per "
+            "trajectory, and with --per-trajectory also OUT/<plan name>/ with each one's "
+            "files. No patient identifiers are written unless --include-phi."
         ),
     )
     p.add_argument("--dicom", type=Path, required=True, metavar="DIR", help="DICOM CT folder")
@@ -53,6 +55,17 @@ def register(subparsers: Any) -> None:
         help="series to load: its SeriesInstanceUID or the hash outputs print (8+ hex digits)",
     )
     add_interpolate_gaps_option(p)
+    p.add_argument(
+        "--no-plot",
+        action="store_true",
+        help='do not draw force.png (screening; each summary.json says "plot": false)',
+    )
+    p.add_argument(
+        "--per-trajectory",
+        action="store_true",
+        help="with several trajectories, also write each one's files into OUT/<plan name>/ "
+        "(by default only OUT/trajectories.csv)",
+    )
     p.set_defaults(func=run)
 
 
@@ -70,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
     """Export and list what was written."""
     from ctdrill.app.export import TextProgress, summary_lines
     from ctdrill.app.export_run import export_case
+    from ctdrill.app.export_table import TABLE_NAME, table_lines
 
     progress = TextProgress(sys.stderr)
     try:
@@ -85,13 +99,21 @@ def run(args: argparse.Namespace) -> int:
             progress=progress,
             warn=_warn,
             interpolate_gaps=args.interpolate_gaps,
+            plot=not args.no_plot,
+            per_trajectory=args.per_trajectory,
         )
     finally:
         progress.close()
     for path in written:
         sys.stdout.write(f"wrote {path}\n")
-    for path in written:
-        if path.name == "summary.json" and not _in_sequence(path, written):
-            doc = json.loads(path.read_text(encoding="utf-8"))
-            sys.stdout.write("".join(line + "\n" for line in summary_lines(doc)))
+    summaries = [p for p in written if p.name == "summary.json" and not _in_sequence(p, written)]
+    for path in summaries:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        sys.stdout.write("".join(line + "\n" for line in summary_lines(doc)))
+    if not summaries:
+        for path in written:
+            if path.name == TABLE_NAME:
+                with path.open(newline="", encoding="utf-8") as fh:
+                    lines = table_lines(csv.DictReader(fh))
+                sys.stdout.write("".join(line + "\n" for line in lines))
     return 0

@@ -336,19 +336,100 @@ def test_several_plans_one_load_subfolders_and_progress(tmp_path: Path) -> None:
             str(out),
             "--rate-hz",
             "100",
+            "--per-trajectory",
         ]
     )
     assert code == 0, err
     assert "export [" in err and "2/2" in err  # one line per step: stderr is not a terminal
-    for stem in ("a", "b"):
+    _, table = _rows(out / "trajectories.csv")
+    for stem, row in zip(("a", "b"), table, strict=True):
         s = json.loads((out / stem / "summary.json").read_text(encoding="utf-8"))
         assert s["plan_file"] == {"a": "a.json", "b": "b.mrk.json"}[stem]
         assert s["stop_depth_mm"] == pytest.approx(10.8, abs=1e-3)
+        assert s["plot"] is True
         assert _png_size(out / stem / "force.png") == (1200, 1000)
-    assert len([line for line in stdout.splitlines() if line.startswith("wrote ")]) == 8
+        assert row["folder"] == stem and row["trajectory"] == s["plan"]
+        assert float(row["stop_depth_mm"]) == s["stop_depth_mm"]
+        assert float(row["peak_force_n"]) == s["peak_force_n"]
+    assert len([line for line in stdout.splitlines() if line.startswith("wrote ")]) == 9
     stops = [line for line in stdout.splitlines() if ": stop at " in line]
     assert len(stops) == 2 and all("(margin: 'left mandibular canal'" in x for x in stops)
     assert not [p for p in tmp_path.iterdir() if "staging" in p.name]
+
+
+def test_several_trajectories_write_one_table(tmp_path: Path) -> None:
+    """Many trajectories: one row each in trajectories.csv, no folder per trajectory; the
+    row's numbers are the summary's (compared with a --per-trajectory export)."""
+    plans = tmp_path / "plans"
+    plans.mkdir()
+    demo = load_plan(DEMO / "plan.json")
+    names = []
+    for k in range(4):
+        shift = np.array([0.4 * k, -0.3 * k, 0.0])
+        name = f"cand {k}"
+        names.append(name)
+        save_plan(
+            replace(
+                demo,
+                name=name,
+                entry_lps=demo.entry_lps + shift,
+                target_lps=demo.target_lps + shift,
+            ),
+            plans / f"c{k}.json",
+        )
+    out = tmp_path / "out"
+    base = ["export", "--dicom", str(DEMO / "ct"), "--plan", str(plans), "--rate-hz", "200"]
+    code, stdout, err = _run([*base, "--out", str(out), "--no-plot"])
+    assert code == 0, err
+    assert sorted(p.name for p in out.iterdir()) == ["trajectories.csv"]
+    header, rows = _rows(out / "trajectories.csv")
+    from ctdrill.app.export_table import TABLE_COLUMNS
+
+    assert tuple(header) == TABLE_COLUMNS
+    assert [r["trajectory"] for r in rows] == names
+    assert all(r["folder"] == "" for r in rows)
+    stops = [line for line in stdout.splitlines() if ": stop at " in line]
+    assert len(stops) == 4 and stops[0].startswith("cand 0: stop at 10.799 mm (margin: ")
+    full = tmp_path / "full"
+    code, stdout_full, err = _run([*base, "--out", str(full), "--per-trajectory", "--no-plot"])
+    assert code == 0, err
+    # the terminal says the same from the table as from the summaries
+    assert stops == [line for line in stdout_full.splitlines() if ": stop at " in line]
+    _, rows_full = _rows(full / "trajectories.csv")
+    for row, row_full in zip(rows, rows_full, strict=True):
+        s = json.loads((full / row_full["folder"] / "summary.json").read_text(encoding="utf-8"))
+        assert s["plot"] is False
+        assert not (full / row_full["folder"] / "force.png").exists()
+        assert {k: v for k, v in row.items() if k != "folder"} == {
+            k: v for k, v in row_full.items() if k != "folder"
+        }
+        assert row["stop_reason"] == s["stop_reason"]
+        assert row["max_safe_depth_capped"] == str(s["max_safe_depth_capped"]).lower()
+        assert row["binding_landmark"] == s["binding_landmark"]["name"]
+        assert float(row["min_clearance_mm"]) == s["min_clearance_mm"]
+        assert float(row["entry_x_mm"]) == s["entry_lps"][0]
+        shares = [float(row[f"misch_{c}_share"]) for c in ("D1", "D2", "D3", "D4", "D5")]
+        assert sum(shares) == pytest.approx(1.0, abs=1e-5)
+        assert row["warnings"] == ";".join(w["code"] for w in s["warnings"])
+
+
+def test_no_plot_single_trajectory(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    code, _, err = _run(
+        [
+            "export",
+            "--dicom",
+            str(DEMO / "ct"),
+            "--plan",
+            str(DEMO / "plan.json"),
+            "--out",
+            str(out),
+            "--no-plot",
+        ]
+    )
+    assert code == 0, err
+    assert sorted(p.name for p in out.iterdir()) == ["force.csv", "profile.csv", "summary.json"]
+    assert json.loads((out / "summary.json").read_text(encoding="utf-8"))["plot"] is False
 
 
 def test_one_refused_plan_writes_nothing(tmp_path: Path) -> None:

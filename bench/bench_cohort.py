@@ -1,0 +1,139 @@
+"""Export cost and cohorts (issue 17): the files of one trajectory, many trajectories, a batch.
+
+Case: the bundled demo phantom and its plan (27 000 rows of ``force.csv`` at 1 kHz). Peers,
+timed alternately in the same run (:func:`bench.report.time_pair`): the straightforward
+writers (``bench/export_peers.py``: ``csv.writer`` over ``"%.6f"`` strings, a fresh
+matplotlib figure with ``tight_layout`` and Pillow's PNG encoder); the full export against
+``--no-plot``; many trajectories as one table against a folder of files per trajectory.
+The goal: one trajectory's files at most 100 ms beyond the compute (``plan_path``).
+"""
+
+from __future__ import annotations
+
+import io
+import tempfile
+import time
+from pathlib import Path
+
+from bench.bench_export import candidates
+from bench.export_peers import peer_force_csv, peer_force_png
+from bench.report import Section, table, time_it, time_pair
+from ctdrill.app.export import ExportJob, force_csv, force_time_series, write_exports
+from ctdrill.app.export_plot import force_png
+from ctdrill.app.pipeline import plan_path
+from ctdrill.imaging import load_series
+from ctdrill.imaging.plan.types import load_plan
+from ctdrill.model.calibration import load_calibration
+
+ROOT = Path(__file__).resolve().parents[1]
+DEMO = ROOT / "assets" / "demo"
+GOAL_MS = 100.0
+
+
+def run(quick: bool) -> Section:
+    """Time the export's writers against their peers, and many trajectories."""
+    volume = load_series(DEMO / "ct")
+    plan = load_plan(DEMO / "plan.json")
+    cal = load_calibration(plan.calibration)
+    repeats = 5 if quick else 15
+    result = plan_path(volume, plan, cal)
+    series = force_time_series(result, feed_mm_s=plan.feed_mm_s, rate_hz=1000.0)
+    same_csv = force_csv(series, cal.name) == peer_force_csv(series, cal.name)
+
+    t_compute = time_it(lambda: plan_path(volume, plan, cal), repeats=repeats)
+    t_csv, t_csv_peer = time_pair(
+        lambda: force_csv(series, cal.name),
+        lambda: peer_force_csv(series, cal.name),
+        repeats=repeats,
+    )
+    t_png, t_png_peer = time_pair(
+        lambda: force_png(result, series, io.BytesIO()),
+        lambda: peer_force_png(result, series, io.BytesIO()),
+        repeats=repeats,
+    )
+    uid = volume.info.series_uid
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp)
+        t_all, t_noplot = time_pair(
+            lambda: write_exports(
+                [ExportJob(result, "")], out / "a", feed_mm_s=None, rate_hz=1000.0, series_uid=uid
+            ),
+            lambda: write_exports(
+                [ExportJob(result, "")],
+                out / "b",
+                feed_mm_s=None,
+                rate_hz=1000.0,
+                series_uid=uid,
+                plot=False,
+            ),
+            repeats=repeats,
+        )
+        n = 10 if quick else 100
+        plans = candidates(plan, n)
+        t0 = time.perf_counter()
+        jobs = [ExportJob(plan_path(volume, q, cal), q.name) for q in plans]
+        compute_s = time.perf_counter() - t0
+        t_table, t_folders = time_pair(
+            lambda: write_exports(
+                jobs,
+                out / "t",
+                feed_mm_s=None,
+                rate_hz=1000.0,
+                series_uid=uid,
+                files=False,
+                table=True,
+            ),
+            lambda: write_exports(
+                jobs, out / "f", feed_mm_s=None, rate_hz=1000.0, series_uid=uid, table=True
+            ),
+            repeats=max(3, repeats // 5),
+        )
+
+    def ratio(a: float, b: float) -> str:
+        return f"{b / a:.2f}"
+
+    rows = [
+        ["plan_path (the compute, for scale)", t_compute.fmt("ms"), "", ""],
+        [
+            "force.csv text (27 000 rows)",
+            t_csv.fmt("ms"),
+            t_csv_peer.fmt("ms") + " (csv.writer over %.Nf)",
+            ratio(t_csv.median_s, t_csv_peer.median_s),
+        ],
+        [
+            "force.png bytes",
+            t_png.fmt("ms"),
+            t_png_peer.fmt("ms") + " (fresh figure, tight_layout, Pillow)",
+            ratio(t_png.median_s, t_png_peer.median_s),
+        ],
+        [
+            "one trajectory's files, written and swapped in (beyond the compute)",
+            t_all.fmt("ms"),
+            t_noplot.fmt("ms") + " (--no-plot)",
+            ratio(t_noplot.median_s, t_all.median_s) + " (full / no-plot)",
+        ],
+        [
+            f"{n} trajectories: trajectories.csv only (per trajectory)",
+            f"{t_table.median_s / n * 1e3:.3g} ms",
+            f"{t_folders.median_s / n * 1e3:.3g} ms (+ a folder of 4 files each)",
+            ratio(t_table.median_s, t_folders.median_s),
+        ],
+    ]
+    verdict = "meets" if t_all.median_s * 1e3 <= GOAL_MS else "misses"
+    md = [
+        __doc__.split("\n\n", 1)[1].strip() if __doc__ else "",
+        "",
+        table(["work", "ctdrill", "peer", "peer / ctdrill"], rows),
+        "",
+        f"force.csv byte-identical to the peer's: {same_csv}. One trajectory's files take "
+        f"{t_all.median_s * 1e3:.0f} ms beyond the compute: {verdict} the {GOAL_MS:.0f} ms "
+        f"goal. The {n} trajectories' compute (plan_path each) took {compute_s:.2f} s, not "
+        f"counted above. Mode: {'quick' if quick else 'full'}, {repeats} repeats, medians.",
+    ]
+    shortfalls: tuple[str, ...] = ()
+    if verdict == "misses":
+        shortfalls = (
+            f"export files of one trajectory: {t_all.median_s * 1e3:.0f} ms beyond the compute "
+            f"(goal {GOAL_MS:.0f} ms)",
+        )
+    return Section(title="Export cost and cohorts", markdown="\n".join(md), shortfalls=shortfalls)
