@@ -23,6 +23,7 @@ COMMANDS: tuple[str, ...] = (
     "inspect",
     "phantom",
     "export",
+    "batch",
     "plan",
     "suggest",
     "demo",

@@ -1,0 +1,120 @@
+"""The batch manifest: a CSV file with columns ``dicom, plan`` (and an optional ``id``).
+
+Paths are relative to the manifest's folder (absolute paths are kept). Each data row is one
+case: a DICOM series folder and a plan (a file or a folder of plans, as ``--plan`` takes).
+``id`` names the row's output folder (default: the row number); ids must be unique and are
+kept to letters, digits, ``._-``. A manifest that cannot be read as such is bad input (one
+``error:`` line, exit 2); a row whose files are missing or bad is a failed row, reported in
+the status table while the others run.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from ctdrill.app.errors import AppInputError
+from ctdrill.safeio import read_bytes_bounded
+
+REQUIRED_COLUMNS = ("dicom", "plan")
+OPTIONAL_COLUMNS = ("id",)
+#: A manifest is a small text file; a larger one is refused before it is read.
+MAX_MANIFEST_BYTES = 64 * 1024 * 1024
+_ID = re.compile(r"^[A-Za-z0-9._-]+$")
+
+
+class ManifestError(AppInputError):
+    """The manifest cannot be read (exit 2)."""
+
+
+@dataclass(frozen=True)
+class ManifestRow:
+    """One case of the manifest.
+
+    Attributes
+    ----------
+    row : 1-based number of the data row (the header is row 0).
+    dicom, plan : the cells as written in the manifest.
+    dicom_path, plan_path : resolved against the manifest's folder.
+    row_id : the output folder's name (``id`` or the zero-padded row number).
+    """
+
+    row: int
+    dicom: str
+    plan: str
+    dicom_path: Path
+    plan_path: Path
+    row_id: str
+
+
+def read_manifest(path: Path) -> list[ManifestRow]:
+    """Read and check the manifest ``path``; raise :class:`ManifestError` naming what is wrong."""
+    raw = read_bytes_bounded(
+        path, what="manifest", error=ManifestError, max_bytes=MAX_MANIFEST_BYTES
+    )
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ManifestError(
+            f"{path}: not UTF-8 text (byte {exc.start}); save the manifest as UTF-8 CSV"
+        ) from None
+    reader = csv.reader(io.StringIO(text, newline=""))
+    try:
+        rows = [r for r in reader]
+    except csv.Error as exc:
+        raise ManifestError(f"{path}: not a CSV file ({exc}); columns dicom, plan") from None
+    if not rows:
+        raise ManifestError(f"{path}: empty; it needs a header line 'dicom,plan' and rows")
+    header = [h.strip() for h in rows[0]]
+    missing = [c for c in REQUIRED_COLUMNS if c not in header]
+    unknown = [c for c in header if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
+    if missing or unknown:
+        what = f"missing column(s) {', '.join(missing)}" if missing else ""
+        if unknown:
+            what += ("; " if what else "") + f"unknown column(s) {', '.join(map(repr, unknown))}"
+        raise ManifestError(f"{path}: {what}; the header must name dicom, plan (and optionally id)")
+    if len(set(header)) != len(header):
+        raise ManifestError(f"{path}: a column is named twice in the header {header}")
+    col = {name: header.index(name) for name in header}
+    base = path.parent
+    data = [(n, r) for n, r in enumerate(rows[1:], start=1) if any(c.strip() for c in r)]
+    if not data:
+        raise ManifestError(f"{path}: no rows below the header; add one row per case")
+    width = max(4, len(str(data[-1][0])))
+    out: list[ManifestRow] = []
+    seen: dict[str, int] = {}
+    for n, r in data:
+        if len(r) != len(header):
+            raise ManifestError(
+                f"{path}: row {n} has {len(r)} cells, the header {len(header)}; "
+                "quote cells that hold commas"
+            )
+        cells = {name: r[i].strip() for name, i in col.items()}
+        for name in REQUIRED_COLUMNS:
+            if not cells[name]:
+                raise ManifestError(f"{path}: row {n}: column {name} is empty")
+        row_id = cells.get("id") or f"{n:0{width}d}"
+        if not _ID.match(row_id) or row_id in (".", ".."):
+            raise ManifestError(
+                f"{path}: row {n}: id {row_id!r} must be letters, digits, '.', '_' or '-'"
+            )
+        if row_id in seen:
+            raise ManifestError(
+                f"{path}: rows {seen[row_id]} and {n} have the same id {row_id!r}; "
+                "ids name the output folders and must be unique"
+            )
+        seen[row_id] = n
+        out.append(
+            ManifestRow(
+                row=n,
+                dicom=cells["dicom"],
+                plan=cells["plan"],
+                dicom_path=(base / cells["dicom"]).absolute(),
+                plan_path=(base / cells["plan"]).absolute(),
+                row_id=row_id,
+            )
+        )
+    return out
