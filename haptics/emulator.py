@@ -327,28 +327,31 @@ class DeviceEmulator:
 
     def run_ticks(self, n: int) -> None:
         """Run ``n`` control ticks (telemetry every :data:`TELEMETRY_EVERY`)."""
-        r = self.renderer
-        c = self.controller
-        p = self.plant
-        dt = self.dt_s
         for _ in range(n):
-            self.ticks += 1
-            now = self.ticks * dt
-            x_mm = p.encoder_mm()
-            # the velocity estimate is the previous tick's (the controller updates it below)
-            force = r.tick(now, x_mm, c.velocity_mm_s)
-            state = r.state
-            if state == DeviceState.CUTTING or state == DeviceState.STOPPED:
-                current = c.update(x_mm, force)
-            else:
-                current = c.idle(x_mm)
-            hand = self._hand_force_n()
-            self.hand_n = hand
-            p.step(current, hand, dt)
-            if r.new_faults:
+            self.control_tick()
+            if self.renderer.new_faults:
                 self._report_faults()
             if self.ticks % TELEMETRY_EVERY == 0:
                 self._telemetry()
+
+    def control_tick(self) -> None:
+        """One control tick without I/O: renderer, force controller, hand, plant (the loop
+        :mod:`ctdrill.haptics.stability_sim` also runs)."""
+        r = self.renderer
+        c = self.controller
+        p = self.plant
+        self.ticks += 1
+        x_mm = p.encoder_mm()
+        # the velocity estimate is the previous tick's (the controller updates it below)
+        force = r.tick(self.ticks * self.dt_s, x_mm, c.velocity_mm_s)
+        state = r.state
+        if state == DeviceState.CUTTING or state == DeviceState.STOPPED:
+            current = c.update(x_mm, force)
+        else:
+            current = c.idle(x_mm)
+        hand = self._hand_force_n()
+        self.hand_n = hand
+        p.step(current, hand, self.dt_s)
 
     def _telemetry(self) -> None:
         r = self.renderer

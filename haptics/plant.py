@@ -7,7 +7,8 @@ a pseudo-differentiator for velocity, a disturbance observer (DOB, 1000 rad/s) t
 motor an acceleration source, a reaction-force observer (RFOB, 1000 rad/s) that estimates the
 hand's force, and force control ``a_ref = Kf (F_hand_est - F_cmd) / Mn`` with ``Kf = 1.2``, so
 the hand balances the rendered force and otherwise drives an apparent mass ``Mn / Kf``.
-(``Kp, Kv`` of Table 4 set the cutting coupling, :mod:`ctdrill.model.cutting`.)
+(``Kv`` of Table 4 sets the cutting coupling's damping, Table 1's 11 N/mm its stiffness,
+:mod:`ctdrill.model.cutting`; the loop's stability: :mod:`ctdrill.haptics.stability`.)
 
 Internally SI (m, m/s, N); the interfaces are in mm and mm/s. Plain floats, no arrays.
 """
@@ -32,7 +33,12 @@ FRICTION_VEL_M_S = 0.1e-3
 
 
 class MasterPlant:
-    """Rigid linear stage with Coulomb friction and hard stops, semi-implicit Euler.
+    """Rigid linear stage with Coulomb friction and hard stops, integrated exactly over a tick.
+
+    The motor current and the hand's force are held through the tick (zero-order hold), so a
+    rigid mass moves exactly ``x + v dt + a dt^2 / 2``: the sampled loop then sees the energy a
+    held spring force leaks per sample, as the hardware does (a semi-implicit Euler step would
+    conserve it and hide the stability limit: docs/haptics-stability.md).
 
     Attributes
     ----------
@@ -78,10 +84,20 @@ class MasterPlant:
             friction = fc if drive > 0.0 else -fc
         else:
             friction = fc if v > 0.0 else -fc
-        v_new = v + (drive - friction) / self.mass_kg * dt_s
+        accel = (drive - friction) / self.mass_kg
+        v_new = v + accel * dt_s
         if v != 0.0 and (v_new > 0.0) != (v > 0.0):
-            v_new = 0.0  # friction stops the stage; it does not reverse it within a step
-        x_new = self.x_m + v_new * dt_s
+            # the stage stops within the step (after -v / a); there it sticks unless the drive
+            # beats the friction the other way, then it moves off for the rest of the step
+            x_new = self.x_m - 0.5 * v * v / accel
+            v_new = 0.0
+            if abs(drive) > fc:
+                rest_s = dt_s + v / accel
+                accel = (drive - (fc if drive > 0.0 else -fc)) / self.mass_kg
+                v_new = accel * rest_s
+                x_new += 0.5 * accel * rest_s * rest_s
+        else:
+            x_new = self.x_m + v * dt_s + 0.5 * accel * dt_s * dt_s
         self.at_end_stop = False
         if x_new < self.lo_m:
             x_new, v_new, self.at_end_stop = self.lo_m, 0.0, True
