@@ -1,0 +1,207 @@
+"""The numbers of docs/haptics-stability.md, computed.
+
+Run ``python -m ctdrill.haptics.stability_report`` to print them.
+
+:func:`coupling_report` evaluates the z-plane poles of the linearised loop
+(:mod:`ctdrill.haptics.stability`) at the coupling's operating points and simulates the coupled
+master (:mod:`ctdrill.haptics.stability_sim`); :func:`report_markdown` renders the tables the
+document carries between its ``<!-- stability-report -->`` markers (a test checks they agree).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from typing import Any
+
+import numpy as np
+
+from ctdrill.haptics.renderer import PEAK_FORCE_N, STOP_WALL_N_PER_MM
+from ctdrill.haptics.stability import (
+    Loop,
+    colgate_terms,
+    dominant_pole,
+    spectral_radius,
+    stiffness_limit_n_per_mm,
+)
+from ctdrill.haptics.stability_sim import simulate_push
+from ctdrill.model.cutting import DEFAULT_DAMPING_N_S_PER_MM, DEFAULT_STIFFNESS_N_PER_MM
+
+#: The coupling before this analysis: the paper's position gain on the master mass (Table 4).
+PREVIOUS_STIFFNESS_N_PER_MM = 0.5 * 6400.0 / 1000.0
+#: Operator forces simulated for the passivity table, N (0 to the device's peak).
+REPORT_PUSHES_N = (0.0, 4.0, 10.0, 30.0, 60.0, 70.0, PEAK_FORCE_N)
+#: The hand push whose offset past the stopped drill the issue quotes, N.
+OFFSET_PUSH_N = 30.0
+#: The simulator's hand in FEED mode (:mod:`ctdrill.haptics.emulator`), N/mm and N s/mm.
+FEED_HAND = (5.0, 0.05)
+#: Cutting operating points: ``S0`` (N) with ``Ke = 0.25`` per (mm/s).
+CUT_S0_N = (2.0, 8.0, 20.0)
+CUT_KE = 0.25
+
+
+def _pole_row(name: str, loop: Loop) -> dict[str, Any]:
+    pole = dominant_pole(loop)
+    limit = stiffness_limit_n_per_mm(loop)
+    k = loop.stiffness_n_per_mm
+    return {
+        "operating point": name,
+        "stiffness_n_per_mm": k,
+        "spectral_radius": spectral_radius(loop),
+        "pole_hz": pole["frequency_hz"],
+        "damping_ratio": pole["damping_ratio"],
+        "limit_n_per_mm": limit,
+        "margin": limit / k,
+    }
+
+
+def _hand_offset_mm(stiffness_n_per_mm: float) -> float:
+    """Where a 30 N hand holds the master past the stop once settled, mm."""
+    run = simulate_push(OFFSET_PUSH_N, stiffness_n_per_mm=stiffness_n_per_mm)
+    return float(run.master_mm[-1]) - 1.0
+
+
+def coupling_report() -> dict[str, Any]:
+    """Poles, margins, Colgate's terms and the simulated passivity of the coupling."""
+    k = DEFAULT_STIFFNESS_N_PER_MM
+    b = DEFAULT_DAMPING_N_S_PER_MM
+    wall = k + STOP_WALL_N_PER_MM
+    rows = [
+        _pole_row("at rest (front fixed, F < S0)", Loop(k, b)),
+        _pole_row("at the stop (coupling + wall)", Loop(wall, b)),
+        _pole_row(
+            "at the stop, FEED hand (5 N/mm, 0.05 N s/mm)",
+            Loop(wall, b, hand_stiffness_n_per_mm=FEED_HAND[0], hand_damping_n_s_per_mm=0.05),
+        ),
+        *(
+            _pole_row(
+                f"cutting, S0 = {s0:g} N (c = S0 Ke = {s0 * CUT_KE:g} N s/mm)",
+                Loop(k, b, material_damping_n_s_per_mm=s0 * CUT_KE),
+            )
+            for s0 in CUT_S0_N
+        ),
+        _pole_row(
+            f"previous {PREVIOUS_STIFFNESS_N_PER_MM:g} N/mm, at the stop",
+            Loop(PREVIOUS_STIFFNESS_N_PER_MM + STOP_WALL_N_PER_MM, b),
+        ),
+        _pole_row("at the stop, semi-implicit Euler plant", Loop(wall, b, zoh_plant=False)),
+    ]
+    wall_limit = rows[1]["limit_n_per_mm"]
+    pushes = []
+    for push in REPORT_PUSHES_N:
+        run = simulate_push(push)
+        pushes.append(
+            {
+                "push_n": push,
+                "final_force_n": float(run.force_n[-1]),
+                "max_force_n": float(run.force_n.max()),
+                "settled_range_mm": run.settled_range_mm(),
+                "min_energy_in_j": float(run.energy_in_j.min()),
+                "min_dissipated_j": None if run.clipped else float(run.dissipated_j.min()),
+                "clipped": run.clipped,
+            }
+        )
+    beyond = []
+    for factor in (0.8, 1.25, 2.0):
+        for coulomb in (0.0, None):
+            run = simulate_push(
+                OFFSET_PUSH_N,
+                stiffness_n_per_mm=factor * wall_limit - STOP_WALL_N_PER_MM,
+                coulomb_n=coulomb,
+            )
+            beyond.append(
+                {
+                    "factor": factor,
+                    "friction": "none" if coulomb == 0.0 else "1.0 N",
+                    "settled_range_mm": run.settled_range_mm(),
+                    "min_energy_in_j": float(run.energy_in_j.min()),
+                    "min_dissipated_j": float(run.dissipated_j.min()),
+                    "peak_limit": run.clipped,
+                }
+            )
+    return {
+        "stiffness_n_per_mm": k,
+        "damping_n_s_per_mm": b,
+        "stop_wall_n_per_mm": STOP_WALL_N_PER_MM,
+        "poles": rows,
+        "colgate_at_stop": colgate_terms(wall, b, 1e-4),
+        "hand_offset_mm": {
+            PREVIOUS_STIFFNESS_N_PER_MM: _hand_offset_mm(PREVIOUS_STIFFNESS_N_PER_MM),
+            k: _hand_offset_mm(k),
+        },
+        "pushes": pushes,
+        "beyond_limit": beyond,
+    }
+
+
+def _g(value: float | None, digits: int = 4) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if math.isinf(value):
+        return "inf"
+    return f"{value:.{digits}g}"
+
+
+def report_markdown(report: dict[str, Any]) -> str:
+    """The document's tables for ``report``."""
+    lines = [
+        "| operating point | K (N/mm) | spectral radius | dominant pole (Hz) | damping ratio "
+        "| unstable from K (N/mm) | margin |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in report["poles"]:
+        lines.append(
+            f"| {r['operating point']} | {_g(r['stiffness_n_per_mm'])} "
+            f"| {r['spectral_radius']:.6f} | {_g(r['pole_hz'], 3)} | {_g(r['damping_ratio'], 3)} "
+            f"| {_g(r['limit_n_per_mm'])} | {_g(r['margin'], 3)}x |"
+        )
+    c = report["colgate_at_stop"]
+    lines += [
+        "",
+        f"Colgate at the stop: K T / 2 = {_g(c['kt_half_n_s_per_mm'], 3)} N s/mm, "
+        f"K T / 2 + |B| = {_g(c['required_b_n_s_per_mm'], 3)} N s/mm of physical damping "
+        "required; the master has none (the DOB cancels its friction).",
+        "",
+        "| coupling (N/mm) | 30 N hand past the stopped drill (mm) |",
+        "|---|---|",
+    ]
+    for k, offset in report["hand_offset_mm"].items():
+        lines.append(f"| {_g(k)} | {offset:.2f} |")
+    lines += [
+        "",
+        "| push (N) | final force (N) | max force (N) | motion in the last 0.1 s (mm) "
+        "| min E(n) (J) | min D(n) (J) | force limit acted |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for p in report["pushes"]:
+        lines.append(
+            f"| {_g(p['push_n'])} | {p['final_force_n']:.2f} | {p['max_force_n']:.2f} "
+            f"| {_g(p['settled_range_mm'], 3)} | {_g(p['min_energy_in_j'], 3)} "
+            f"| {_g(p['min_dissipated_j'], 3)} | {_g(p['clipped'])} |"
+        )
+    lines += [
+        "",
+        "| K / limit at the stop | friction | motion in the last 0.1 s (mm) | min E(n) (J) "
+        "| min D(n) (J) | peak limit hit |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in report["beyond_limit"]:
+        lines.append(
+            f"| {r['factor']:g} | {r['friction']} | {_g(r['settled_range_mm'], 3)} "
+            f"| {_g(r['min_energy_in_j'], 3)} | {_g(r['min_dissipated_j'], 3)} "
+            f"| {_g(r['peak_limit'])} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def main() -> int:
+    """Print the tables."""
+    np.set_printoptions(precision=6)
+    sys.stdout.write(report_markdown(coupling_report()))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

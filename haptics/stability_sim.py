@@ -1,0 +1,149 @@
+"""The coupled master simulated tick by tick, with its energy books (docs/haptics-stability.md).
+
+:func:`simulate_push` runs the device emulator's own control tick
+(:meth:`ctdrill.haptics.emulator.DeviceEmulator.control_tick`: renderer, DOB/RFOB force
+controller, plant, simulated hand) on a homogeneous slab with a stop, a hand pushing with a
+constant force (from the start, or stepped on later), and records per tick what the coupling
+did. No protocol, no watchdog: the loop alone.
+
+Energy (the discrete passivity check): over tick ``j`` the rendered force ``F_j`` is held while
+the master moves from ``x_j`` to ``x_{j+1}``, so the energy the virtual coupling absorbed up to
+tick ``n`` is ``E(n) = sum F_j (x_{j+1} - x_j)``. Its springs (the coupling ``k`` on the
+penetration, the stop wall beyond its anchor) store ``V(n)``. A passive coupling never gives
+back more than it took: ``E(n) >= 0``, and, while no force limit clips the springs,
+``D(n) = E(n) - V(n) >= 0`` (what the damper and the material dissipated, less what sampling
+generated: a held spring force generates ``K dx^2 / 2`` per tick).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ctdrill.haptics.emulator import DeviceEmulator
+from ctdrill.haptics.plant import ForceController, MasterPlant
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.protocol import Fault, OperatorKind, SimOperator
+from ctdrill.haptics.renderer import Renderer
+from ctdrill.model.cutting import DEFAULT_DAMPING_N_S_PER_MM, DEFAULT_STIFFNESS_N_PER_MM
+
+
+@dataclass(frozen=True, eq=False)
+class PushRun:
+    """One simulated push (per-tick arrays, SI energies).
+
+    Attributes
+    ----------
+    time_s, master_mm, front_mm, force_n, hand_n : ndarray
+        After each tick: time, master (true position), cut front, rendered force, hand force.
+    energy_in_j : ndarray
+        ``E(n)``: energy the coupling absorbed so far, J.
+    stored_j : ndarray
+        ``V(n)``: energy in the coupling's springs, J.
+    stop_reached_s : float
+        When the front reached the stop depth, s (nan: never).
+    faults : int
+        The renderer's fault bits at the end (:class:`Fault`).
+    clipped : bool
+        A force limit (peak or thermal) acted: ``V`` is then not the rendered force's energy.
+    """
+
+    time_s: np.ndarray
+    master_mm: np.ndarray
+    front_mm: np.ndarray
+    force_n: np.ndarray
+    hand_n: np.ndarray
+    energy_in_j: np.ndarray
+    stored_j: np.ndarray
+    stop_reached_s: float
+    faults: int
+    clipped: bool
+
+    @property
+    def dissipated_j(self) -> np.ndarray:
+        """``D(n) = E(n) - V(n)``, J."""
+        return self.energy_in_j - self.stored_j
+
+    def settled_range_mm(self, window_s: float = 0.1) -> float:
+        """Peak-to-peak master motion over the last ``window_s``, mm (0: at rest)."""
+        n = max(1, round(window_s / float(self.time_s[1] - self.time_s[0])))
+        tail = self.master_mm[-n:]
+        return float(tail.max() - tail.min())
+
+
+def simulate_push(
+    push_n: float,
+    *,
+    s0_n: float = 4.0,
+    ke_per_mm_s: float = 0.25,
+    stop_depth_mm: float = 1.0,
+    duration_s: float = 1.0,
+    step_at_s: float = 0.0,
+    stiffness_n_per_mm: float = DEFAULT_STIFFNESS_N_PER_MM,
+    damping_n_s_per_mm: float = DEFAULT_DAMPING_N_S_PER_MM,
+    coulomb_n: float | None = None,
+) -> PushRun:
+    """Simulate a hand pushing ``push_n`` from ``step_at_s`` on a slab of ``S0 = s0_n`` from
+    depth 0 whose stop is at ``stop_depth_mm``; the master starts at rest at the surface.
+
+    ``coulomb_n`` replaces the Coulomb friction of plant and friction model (None: the
+    paper's 1.0 N); the stiffness and damping those of the renderer's coupling.
+    """
+    emu = DeviceEmulator(nonce_seed=0)
+    emu.renderer = Renderer(
+        tick_hz=emu.tick_hz,
+        stiffness_n_per_mm=stiffness_n_per_mm,
+        damping_n_s_per_mm=damping_n_s_per_mm,
+        watchdog_s=math.inf,
+    )
+    if coulomb_n is not None:
+        emu.plant = MasterPlant(coulomb_n=coulomb_n)
+        emu.controller = ForceController(dt_s=emu.dt_s, coulomb_n=coulomb_n)
+    table = ProfileTable.slab(
+        s0_n=s0_n,
+        top_mm=0.0,
+        bottom_mm=stop_depth_mm + 10.0,
+        stop_depth_mm=stop_depth_mm,
+        ke_per_mm_s=ke_per_mm_s,
+    )
+    r = emu.renderer
+    r.load(table.begin_message(), table.rows())
+    if r.arm(0.0, emu.plant.encoder_mm()) is not None:
+        raise AssertionError("the renderer refused to arm at the surface")
+    n = round(duration_s * emu.tick_hz)
+    out = np.zeros((7, n))
+    energy = 0.0
+    stop_at = math.nan
+    k_n_per_m = stiffness_n_per_mm * 1e3
+    wall_n_per_m = r.k_stop * 1e3
+    emu._set_operator(SimOperator(int(OperatorKind.NONE), 0.0))
+    for i in range(n):
+        if emu.now_s >= step_at_s - 1e-12 and emu.operator_kind != OperatorKind.PUSH:
+            emu._set_operator(SimOperator(int(OperatorKind.PUSH), push_n))
+        x0 = emu.plant.x_m
+        emu.control_tick()
+        x1 = emu.plant.x_m
+        force = r.force_cmd_n
+        energy += force * (x1 - x0)
+        e_m = x1 - r.front_mm * 1e-3
+        stored = 0.5 * k_n_per_m * e_m * e_m if e_m > 0.0 else 0.0
+        beyond_m = x1 - r.stop_anchor_mm * 1e-3
+        if beyond_m > 0.0:
+            stored += 0.5 * wall_n_per_m * beyond_m * beyond_m
+        if math.isnan(stop_at) and r.front_mm >= stop_depth_mm:
+            stop_at = emu.now_s
+        out[:, i] = (emu.now_s, x1 * 1e3, r.front_mm, force, emu.hand_n, energy, stored)
+    return PushRun(
+        time_s=out[0],
+        master_mm=out[1],
+        front_mm=out[2],
+        force_n=out[3],
+        hand_n=out[4],
+        energy_in_j=out[5],
+        stored_j=out[6],
+        stop_reached_s=stop_at,
+        faults=r.faults,
+        clipped=bool(r.faults & (Fault.PEAK_LIMIT | Fault.THERMAL_LIMIT)),
+    )
