@@ -21,6 +21,7 @@ from typing import Any
 
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.pipeline import PathResult, binding_landmark_doc, plan_calibration, plan_path
+from ctdrill.app.readout import push_summary
 from ctdrill.app.records import atomic_output_dir, write_file
 from ctdrill.haptics.device import Device
 from ctdrill.haptics.profile_table import ProfileTable
@@ -82,8 +83,10 @@ def rehearsal_summary(
 ) -> dict[str, Any]:
     """The one ``summary.json`` of a rehearsal (CLI and GUI): the session's fields, then the
     plan's (stop reason, planned and max safe depth, the binding landmark, the planned path's
-    clearance, calibration and whether it is illustrative, warnings) and how the session was
-    run."""
+    clearance, calibration and whether it is illustrative, warnings), how the session was
+    run, and for a ``push:N`` operator the readouts of :func:`ctdrill.app.readout.push_summary`
+    (the model's time to the stop against the session's, a push too weak to cut, the hand's
+    offset past the stopped drill)."""
     summary = dict(session.to_json() if isinstance(session, SessionResult) else session)
     summary.update(
         {
@@ -104,6 +107,7 @@ def rehearsal_summary(
             "interpolated_gaps": len(path.interpolated_gaps),
         }
     )
+    summary.update(push_summary(summary, table, operator, duration_s))
     return summary
 
 

@@ -33,7 +33,7 @@ from typing import Any
 
 from ctdrill.haptics.device import Device, DeviceError, DeviceRefused, TelemetrySample
 from ctdrill.haptics.profile_table import ProfileTable
-from ctdrill.haptics.protocol import OperatorKind
+from ctdrill.haptics.protocol import DeviceState, OperatorKind
 from ctdrill.haptics.session import (
     STATE_NAMES,
     FaultSpec,
@@ -64,6 +64,13 @@ class SessionResult:
     complete: bool = False
     outcome: str = "fault"
     reason: str | None = None
+    #: Session time of the first sample in the stopped state, s (None: never stopped).
+    time_to_stop_s: float | None = None
+    #: The last sample's master and drill depth, rendered force and hand-force estimate.
+    final_master_mm: float | None = None
+    final_drill_mm: float | None = None
+    final_force_cmd_n: float | None = None
+    final_hand_est_n: float | None = None
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dict."""
@@ -80,6 +87,11 @@ class SessionResult:
             "samples": self.samples,
             "final_state": self.final_state,
             "faults": self.faults,
+            "time_to_stop_s": self.time_to_stop_s,
+            "final_master_mm": self.final_master_mm,
+            "final_drill_mm": self.final_drill_mm,
+            "final_force_cmd_n": self.final_force_cmd_n,
+            "final_hand_est_n": self.final_hand_est_n,
         }
 
 
@@ -94,8 +106,10 @@ class _Loop:
         seed: int,
         result: SessionResult,
         sink: Callable[[list[Row]], None] | None,
+        on_samples: Callable[[list[TelemetrySample]], None] | None = None,
     ) -> None:
         self.device = device
+        self.on_samples = on_samples
         self.operator = operator
         self.kind = OperatorKind.FEED if operator.kind == "feed" else OperatorKind.PUSH
         self.rng = random.Random(seed)
@@ -165,6 +179,8 @@ class _Loop:
             result.max_drill_mm = max(result.max_drill_mm, s.drill_mm)
             result.max_master_mm = max(result.max_master_mm, s.master_mm)
             result.max_force_cmd_n = max(result.max_force_cmd_n, s.force_cmd_n)
+            if result.time_to_stop_s is None and s.state == DeviceState.STOPPED:
+                result.time_to_stop_s = round(t, 4)
             new_bits = s.faults & ~self.prev_faults
             if new_bits:
                 result.faults.append(
@@ -183,6 +199,8 @@ class _Loop:
             self.rate_last = mark
         if self.sink is not None and rows:
             self.sink(rows)
+        if self.on_samples is not None and samples:
+            self.on_samples(samples)
 
     def finish(self) -> None:
         """Tick rate, overruns and the final state from the last telemetry."""
@@ -191,9 +209,14 @@ class _Loop:
         if first is not None and last is not None and last[1] > first[1]:
             ticks = (last[0] - first[0]) & 0xFFFFFFFF
             result.tick_rate_hz = round(ticks / (last[1] - first[1]), 1)
-        if self.last is not None:
-            result.overruns = self.last.overruns
-            result.final_state = STATE_NAMES.get(self.last.state, "?")
+        sample = self.last
+        if sample is not None:
+            result.overruns = sample.overruns
+            result.final_state = STATE_NAMES.get(sample.state, "?")
+            result.final_master_mm = sample.master_mm
+            result.final_drill_mm = sample.drill_mm
+            result.final_force_cmd_n = sample.force_cmd_n
+            result.final_hand_est_n = sample.force_est_n
 
     def abort(self, kind: str, message: str, *, outcome: str = "fault") -> None:
         """End the session: STOP and DISARM (each awaited), record why, log the last rows."""
@@ -276,6 +299,7 @@ def run_session(
     sink: Callable[[list[Row]], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
     until: Callable[[], bool] | None = None,
+    on_samples: Callable[[list[TelemetrySample]], None] | None = None,
 ) -> SessionResult:
     """Run one rehearsal on ``device``; rows go to ``sink`` block by block.
 
@@ -300,6 +324,8 @@ def run_session(
     until : callable, optional
         Polled every block; True ends the session as if its time were up (DISARM; outcome
         ``complete``): the window ends a rehearsal once the device holds its auto-stop.
+    on_samples : callable, optional
+        Receives each block's telemetry samples (all fields, e.g. the hand-force estimate).
 
     Returns
     -------
@@ -318,7 +344,7 @@ def run_session(
     info = device.hello()
     device.upload_profile(table)
     device.set_operator(int(OperatorKind.NONE), 0.0)
-    loop = _Loop(device, operator, faults, seed, result, sink)
+    loop = _Loop(device, operator, faults, seed, result, sink, on_samples)
     try:
         device.arm()
     except DeviceRefused:

@@ -48,6 +48,7 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the rehearsal and print a one-line summary; 3 if it ended on a device fault."""
+    from ctdrill.app.readout import readout_lines
     from ctdrill.app.rehearse import ending_message, exit_code, rehearse
 
     s = rehearse(
@@ -66,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
         f"{s['max_drill_mm']:.2f} mm, final state {s['final_state']}, "
         f"{len(s['faults'])} fault events; wrote {args.out}/session.csv and summary.json\n"
     )
+    sys.stdout.write(readout_lines(s))
     if "no_landmarks" in s["warnings"]:
         sys.stderr.write(
             "warning: the plan has no landmark: no safety margin was enforced, the drill "

@@ -49,6 +49,7 @@ class Telemetry:
     force_n: float
     state: str  # idle | cutting | stopped | safe
     clearance_mm: float | None
+    hand_n: float | None = None  # the device's reading of the hand's force (RFOB)
 
 
 class RehearsalRun:
@@ -92,6 +93,9 @@ class RehearsalRun:
         self.cancelled = False
         self._record = record
         self._latest: Telemetry | None = None
+        self._hand_n: float | None = None
+        #: The newest sample while the device was armed (cutting or stopped).
+        self.last_armed: Telemetry | None = None
         self._ended = False
         ctx = multiprocessing.get_context("spawn")  # no fork of a Qt process
         self._queue = ctx.Queue()
@@ -153,8 +157,21 @@ class RehearsalRun:
                     self.rows.extend(rows)
                 t, master, drill, force, state = rows[-1]
                 self._latest = Telemetry(
-                    t, master, drill, force, state, clearance_at_mm(self.result, drill)
+                    t,
+                    master,
+                    drill,
+                    force,
+                    state,
+                    clearance_at_mm(self.result, drill),
+                    self._hand_n,
                 )
+            elif kind == "hand":
+                self._hand_n = float(payload)
+                if self._latest is not None:
+                    self._latest = replace(self._latest, hand_n=self._hand_n)
+            if kind in ("rows", "hand") and self._latest is not None:
+                if self._latest.state in ("cutting", "stopped"):
+                    self.last_armed = self._latest
             elif kind == "state":  # the device's state once the session disarmed it
                 if self._latest is not None:
                     self._latest = replace(self._latest, state=str(payload))

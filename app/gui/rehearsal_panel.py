@@ -33,11 +33,24 @@ from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.rehearsal import SIMULATOR, RehearsalRun, Telemetry, device_choices
 from ctdrill.app.gui.results import PathView, block_reason, stop_explanation
 from ctdrill.app.pipeline import PathResult
+from ctdrill.app.readout import live_readout, push_of, stop_timing
+from ctdrill.haptics.predict import predict_push
 
 #: Telemetry poll period, ms (30 Hz display).
 POLL_MS = 33
 #: Shortest interval between 3D drill updates, s (a software-GL frame costs ~80 ms).
 MIN_3D_UPDATE_S = 0.1
+#: The drill's feed readout is measured over this much session time, s.
+FEED_WINDOW_S = 0.25
+
+#: How the device force is named, by :attr:`ctdrill.app.readout.LiveReadout.kind`.
+_FORCE_KIND = {
+    "cutting": "cutting",
+    "wall": "wall (stop)",
+    "holding": "holding: push too weak to cut",
+    "free": "no contact",
+    "off": "off",
+}
 
 _STATE_STYLE = {
     "idle": "background:#505860; color:white",
@@ -51,6 +64,16 @@ def _readout(text: str = "-") -> QLabel:
     label = QLabel(text)
     label.setStyleSheet("font-size:15pt; font-family:monospace")
     return label
+
+
+def _pair(value: QLabel, note: QLabel) -> QWidget:
+    """A big readout and a small note beside it."""
+    box = QWidget()
+    row = QHBoxLayout(box)
+    row.setContentsMargins(0, 0, 0, 0)
+    row.addWidget(value)
+    row.addWidget(note, 1)
+    return box
 
 
 class RehearsalPanel(QWidget):
@@ -71,6 +94,7 @@ class RehearsalPanel(QWidget):
         self.realtime = True
         self._last_emit = (-1.0, float("nan"))  # (monotonic s, depth mm) of the last update
         self._reported: RehearsalRun | None = None  # the run whose end was reported
+        self._drill_history: list[tuple[float, float]] = []  # (session s, drill mm)
         outer = QVBoxLayout(self)
 
         dev = QGroupBox("Device")
@@ -104,22 +128,51 @@ class RehearsalPanel(QWidget):
         outer.addLayout(buttons)
 
         live = QGroupBox("Live")
-        grid = QFormLayout(live)
+        live_box = QVBoxLayout(live)
+        grid = QFormLayout()
+        live_box.addLayout(grid)
         self.state_label = QLabel("idle")
         self.state_label.setStyleSheet(_STATE_STYLE["idle"])
         self.depth_label = _readout()
+        self.hand_label = _readout()
+        self.hand_label.setToolTip(
+            "The operator's force: the device's reading (reaction-force observer); with the "
+            "simulator also the push it was set to"
+        )
+        self.hand_note = QLabel("")
         self.force_label = _readout()
+        self.force_label.setToolTip(
+            "The force the device renders against the advance, named by what makes it: the "
+            "cut, the stop's wall, or material holding a push too weak to cut"
+        )
+        self.force_kind_label = QLabel("-")
+        self.force_kind_label.setWordWrap(True)
+        self.force_kind_label.setStyleSheet("font-weight:bold")
+        self.model_label = QLabel("-")
+        self.model_label.setWordWrap(True)
+        self.model_label.setToolTip(
+            "The model's cutting force at the drill depth: S0, the static force a push must "
+            "exceed to cut at all, and S0 (1 + Ke v) at the plan's feed (what export shows)"
+        )
+        self.status_label = QLabel("-")
+        self.status_label.setWordWrap(True)
+        self.timing_label = QLabel("time to the stop: -")
+        self.timing_label.setWordWrap(True)
         self.clearance_label = _readout()
         self.auto_stop_label = QLabel("auto-stop: -")
         self.auto_stop_label.setWordWrap(True)
         self.safe_label = QLabel("safe state: -")
         grid.addRow("state", self.state_label)
         grid.addRow("drill depth", self.depth_label)
-        grid.addRow("force", self.force_label)
+        grid.addRow("hand force", _pair(self.hand_label, self.hand_note))
+        grid.addRow("device force", _pair(self.force_label, self.force_kind_label))
+        grid.addRow("model here", self.model_label)
         grid.addRow("clearance", self.clearance_label)
-        grid.addRow(self.auto_stop_label)
-        grid.addRow(self.safe_label)
+        live_box.addWidget(self.status_label)
+        live_box.addWidget(self.auto_stop_label)
+        live_box.addWidget(self.safe_label)
         outer.addWidget(live)
+        outer.addWidget(self.timing_label)
 
         self.export_button = QPushButton("Export session...")
         self.export_button.clicked.connect(self.export_dialog)
@@ -201,7 +254,9 @@ class RehearsalPanel(QWidget):
         self.message.setText(
             f"armed on {device}; the device stops the drill at {stop_explanation(self.result)}"
         )
+        self.timing_label.setText(f"time to the stop: {self._predicted_text(self.run)}")
         self.ctx.doc.set_rehearsing(True)
+        self._drill_history.clear()
         self.timer.start()
         self._update_buttons()
 
@@ -225,6 +280,7 @@ class RehearsalPanel(QWidget):
             self.timer.stop()
             self._update_buttons()
             self.message.setText(end_message(run, tel))
+            self.timing_label.setText(f"time to the stop: {timing_text(run)}")
             if run.session is not None and run.session.get("final_state") == "stopped":
                 why = "" if self.result is None else stop_explanation(self.result)
                 self.auto_stop_label.setText(f"auto-stop: REACHED: {why}")
@@ -239,7 +295,7 @@ class RehearsalPanel(QWidget):
         self.state_label.setText(tel.state)
         self.state_label.setStyleSheet(_STATE_STYLE.get(tel.state, ""))
         self.depth_label.setText(f"{tel.drill_mm:6.2f} mm")
-        self.force_label.setText(f"{tel.force_n:6.2f} N")
+        self._show_forces(tel)
         clear = "-" if tel.clearance_mm is None else f"{tel.clearance_mm:6.2f} mm"
         self.clearance_label.setText(clear)
         why = "" if self.result is None else stop_explanation(self.result)
@@ -252,6 +308,65 @@ class RehearsalPanel(QWidget):
         if now - last_t >= MIN_3D_UPDATE_S and tel.drill_mm != last_depth:
             self._last_emit = (now, tel.drill_mm)
             self.ctx.doc.set_live_depth(tel.drill_mm)
+
+    def _show_forces(self, tel: Telemetry) -> None:
+        """Hand, device and model forces, and what the push does here (once the device is idle
+        or safe again: its last armed reading, said so)."""
+        run = self.run
+        if run is None:
+            return
+        now_state = tel.state
+        if now_state not in ("cutting", "stopped") and run.last_armed is not None:
+            tel = run.last_armed
+        push = push_of(run.operator_spec) if run.device_spec == SIMULATOR else None
+        hist = self._drill_history
+        if hist and tel.time_s < hist[-1][0]:
+            hist.clear()  # a new run
+        hist.append((tel.time_s, tel.drill_mm))
+        while len(hist) > 2 and hist[1][0] <= tel.time_s - FEED_WINDOW_S:
+            hist.pop(0)
+        span = hist[-1][0] - hist[0][0]
+        feed = (hist[-1][1] - hist[0][1]) / span if span >= 0.5 * FEED_WINDOW_S else None
+        r = live_readout(
+            run.table,
+            state=tel.state,
+            master_mm=tel.master_mm,
+            drill_mm=tel.drill_mm,
+            force_n=tel.force_n,
+            hand_n=tel.hand_n,
+            push_n=push,
+            plan_feed_mm_s=run.result.plan.feed_mm_s,
+            drill_feed_mm_s=feed,
+        )
+        self.hand_label.setText("-" if r.hand_n is None else f"{r.hand_n:6.2f} N")
+        self.hand_note.setText("device reading" if push is None else f"(set {push:g} N)")
+        self.force_label.setText(f"{tel.force_n:6.2f} N")
+        kind = _FORCE_KIND[r.kind]
+        status = r.status
+        if tel.state != now_state:
+            kind = f"{kind} (last armed; now {now_state})"
+            status = f"{status} (last armed reading; the device is now {now_state}, no force)"
+        self.force_kind_label.setText(kind)
+        self.model_label.setText(
+            f"S0 {r.s0_n:.2f} N static; {r.plan_force_n:.2f} N at the plan's "
+            f"{run.result.plan.feed_mm_s:g} mm/s"
+        )
+        self.status_label.setText(status)
+        weak = "color:#c62828; font-weight:bold"
+        self.status_label.setStyleSheet(weak if r.kind == "holding" else "")
+
+    @staticmethod
+    def _predicted_text(run: RehearsalRun) -> str:
+        push = push_of(run.operator_spec)
+        if push is None:
+            return "-"
+        pred = predict_push(run.table, push)
+        if pred.too_weak:
+            return (
+                f"never at {push:g} N: too weak to cut at {pred.stall_depth_mm:.2f} mm "
+                f"(S0 = {pred.stall_s0_n:.2f} N)"
+            )
+        return f"the model's feed predicts {pred.time_to_stop_s:.2f} s at {push:g} N"
 
     def export_dialog(self) -> None:
         path = QFileDialog.getExistingDirectory(self, "Export the session to a folder")
@@ -298,3 +413,14 @@ def end_message(run: RehearsalRun, last: Telemetry | None) -> str:
         f"{s['stop_depth_mm']:.2f} mm, {s['samples']} samples, {s['overruns']} overruns, "
         f"{faults} fault event(s); device state now: {state}. Export the session to keep it."
     )
+
+
+def timing_text(run: RehearsalRun) -> str:
+    """The time to the stop once ``run`` ended: the session's against the model's, and why
+    they differ (push operators; "-" otherwise)."""
+    push = push_of(run.operator_spec)
+    record = run.record
+    if push is None or record is None or run.cancelled or run.error:
+        return "-" if push is None else RehearsalPanel._predicted_text(run)
+    ended_s = run.rows[-1][0] if run.rows else run.duration_s
+    return stop_timing(run.table, push, record.get("time_to_stop_s"), ended_s).message

@@ -6,7 +6,8 @@ for tens of milliseconds at a time (a software-GL frame, a plot redraw), which s
 host-loop *thread* into the watchdog over a real serial link; so the loop runs here, in a
 separate interpreter, and talks to the window through a queue:
 
-- ``("rows", rows)`` every block: ``(time_s, master_mm, drill_mm, force_cmd_n, state)``;
+- ``("rows", rows)`` every block: ``(time_s, master_mm, drill_mm, force_cmd_n, state)``,
+  then ``("hand", force_est_n)``: the device's reading of the hand's force at the block's end;
 - then exactly one of ``("done", summary)`` (``SessionResult.to_json()`` of a complete
   session), ``("fault", summary)`` (the host ended it on a device fault or its own error,
   after STOP and DISARM: ``summary["reason"]`` says which), ``("cancelled", summary)`` (the
@@ -97,6 +98,7 @@ def run_job(job: SessionJob, out: _Queue, stop: _Event) -> None:
             sink=sink,
             should_stop=stop.is_set,
             until=(lambda: held[0]) if job.end_at_stop else None,
+            on_samples=lambda samples: out.put(("hand", samples[-1].force_est_n)),
         )
         kind = {"complete": "done", "cancelled": "cancelled"}.get(result.outcome, "fault")
         with contextlib.suppress(ValueError, OSError):  # a lost link reports nothing more

@@ -73,6 +73,19 @@ def test_simulated_rehearsal_reaches_the_auto_stop_and_exports(
     assert panel.state_label.text() == panel.last.state if panel.last else False
     assert panel.export_button.isEnabled() and not window.doc.rehearsing
     assert float(panel.depth_label.text().split()[0]) == pytest.approx(drill[-1], abs=0.01)
+    # The forces kept apart: the hand (set push and the device's reading), the device's force
+    # named by its source, the model's at the depth; the time to the stop against the model's.
+    assert panel.hand_note.text() == "(set 12 N)"
+    assert panel.force_kind_label.text().startswith("wall (stop)")
+    assert "hand is" in panel.status_label.text() and "past the stopped drill" in (
+        panel.status_label.text()
+    )
+    assert "S0" in panel.model_label.text() and "at the plan's" in panel.model_label.text()
+    timing = panel.timing_label.text()
+    assert "reached the stop after" in timing and "the model's feed predicts" in timing
+    assert timing.endswith(": agrees") or "why:" in timing
+    window.tabs.setCurrentWidget(panel)
+    window.grab().save(str(tmp_path / "rehearsal-stopped.png"))
 
     files = panel.export(tmp_path / "out")
     names = {p.relative_to(tmp_path / "out").as_posix() for p in files}
@@ -89,6 +102,31 @@ def test_simulated_rehearsal_reaches_the_auto_stop_and_exports(
         rows = list(csv.DictReader(fh))
     assert len(rows) == len(run.rows)
     assert max(float(r["drill_mm"]) for r in rows) == pytest.approx(drill.max(), abs=1e-4)
+
+
+def test_a_push_too_weak_to_cut_says_so(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase, tmp_path: Path
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    panel = window.rehearsal
+    panel.realtime = True  # paced: the readouts see the drill holding
+    panel.duration_s = 3.0
+    panel.push.setValue(2.0)
+    panel.device.setCurrentText(SIMULATOR)
+    assert panel.run is None
+    window.tabs.setCurrentWidget(panel)
+    with qtbot.waitSignal(panel.finished, timeout=60_000):
+        panel.start()
+        assert "too weak to cut" in panel.timing_label.text()  # predicted before it runs
+        qtbot.waitUntil(lambda: "too weak" in panel.status_label.text(), timeout=30_000)
+        assert "holding: push too weak to cut" in panel.force_kind_label.text()
+        qtbot.wait(200)  # let the layout fit the new texts before the picture
+        window.grab().save(str(tmp_path / "rehearsal-too-weak.png"))
+    run = panel.run
+    assert run is not None and run.session is not None
+    assert run.session["final_state"] == "cutting" and run.session["time_to_stop_s"] is None
+    assert "as the model predicts: push 2 N too weak to" in panel.timing_label.text()
+    assert "cutting" not in panel.timing_label.text()
 
 
 def test_stop_button_ends_a_realtime_run_in_the_safe_state(
