@@ -71,7 +71,7 @@ def run(quick: bool) -> Section:
             ),
             repeats=repeats,
         )
-        n = 3 if quick else 100
+        n = 3 if quick else 30
         plans = candidates(plan, n)
         t0 = time.perf_counter()
         jobs = [ExportJob(plan_path(volume, q, cal), q.name) for q in plans]
@@ -89,7 +89,7 @@ def run(quick: bool) -> Section:
             lambda: write_exports(
                 jobs, out / "f", feed_mm_s=None, rate_hz=1000.0, series_uid=uid, table=True
             ),
-            repeats=max(2, repeats // 5),
+            repeats=2,
         )
 
     batch_rows, n_cases = _batch(quick)

@@ -40,6 +40,7 @@ from ctdrill.app.batch.task import (
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.export_table import TABLE_COLUMNS, TABLE_NAME, table_csv, table_row
 from ctdrill.app.records import atomic_write_text, clean_leftovers
+from ctdrill.app.sequence_export import SEQUENCE_FORMAT
 
 STATUS_NAME = "status.csv"
 BATCH_NAME = "batch.json"
@@ -327,10 +328,25 @@ def _row_trajectories(r: ManifestRow, out: Path) -> list[dict[str, str]]:
     summary = folder / "summary.json"
     if summary.is_file():
         doc = json.loads(summary.read_text(encoding="utf-8"))
-        return [{**head, **table_row(doc, rel)}]
+        if doc.get("format") != SEQUENCE_FORMAT:
+            return [{**head, **table_row(doc, rel)}]
+        rows = []  # a drill sequence: one row per drill, from the drill's own summary
+        for drill in doc["drills"]:
+            sub = folder / drill["folder"] / "summary.json"
+            one = json.loads(sub.read_text(encoding="utf-8"))
+            rows.append({**head, **table_row(one, f"{rel}/{drill['folder']}")})
+        return rows
     with (folder / TABLE_NAME).open(newline="", encoding="utf-8") as fh:
         got = list(csv.DictReader(fh))
-    return [{**head, **t, "folder": f"{rel}/{t['folder']}" if t["folder"] else ""} for t in got]
+    # projected on today's columns: a row written by another version of the table reads too
+    return [
+        {
+            **head,
+            **{k: t.get(k) or "" for k in TABLE_COLUMNS},
+            "folder": f"{rel}/{t['folder']}" if t.get("folder") else "",
+        }
+        for t in got
+    ]
 
 
 def default_workers() -> int:

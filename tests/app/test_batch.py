@@ -273,3 +273,24 @@ def test_unreachable_scheduler_is_one_error_line_and_writes_nothing(tmp_path: Pa
     )
     assert code == 2 and err.startswith("error: --scheduler tcp://127.0.0.1:1: cannot connect")
     assert err.count("\n") == 1 and not out.exists()
+
+
+def test_a_drill_sequence_row_has_one_cohort_row_per_drill(tmp_path: Path) -> None:
+    from ctdrill.imaging.plan.types import DrillSpec
+
+    drills = (
+        DrillSpec(diameter_mm=2.0, tip_length_mm=0.6),
+        DrillSpec(diameter_mm=2.8, tip_length_mm=0.84),
+    )
+    save_plan(load_plan(DEMO / "plan.json").with_drills(drills), tmp_path / "seq.json")
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"id,dicom,plan\nseq,{DEMO / 'ct'},seq.json\n", encoding="utf-8")
+    out = tmp_path / "out"
+    code, stdout, err = _run(["batch", str(manifest), "--out", str(out), "--no-plot", *FAST])
+    assert code == 0, err
+    cohort = _csv(out / "trajectories.csv")
+    assert [c["drill_diameter_mm"] for c in cohort] == ["2.0", "2.8"]
+    assert [c["folder"] for c in cohort] == ["rows/seq/drill_1", "rows/seq/drill_2"]
+    for c in cohort:
+        doc = json.loads((out / c["folder"] / "summary.json").read_text(encoding="utf-8"))
+        assert float(c["stop_depth_mm"]) == doc["stop_depth_mm"]
