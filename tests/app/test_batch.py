@@ -286,7 +286,7 @@ def test_a_drill_sequence_row_has_one_cohort_row_per_drill(tmp_path: Path) -> No
     manifest = tmp_path / "m.csv"
     manifest.write_text(f"id,dicom,plan\nseq,{DEMO / 'ct'},seq.json\n", encoding="utf-8")
     out = tmp_path / "out"
-    code, stdout, err = _run(["batch", str(manifest), "--out", str(out), "--no-plot", *FAST])
+    code, _, err = _run(["batch", str(manifest), "--out", str(out), "--no-plot", *FAST])
     assert code == 0, err
     cohort = _csv(out / "trajectories.csv")
     assert [c["drill_diameter_mm"] for c in cohort] == ["2.0", "2.8"]
