@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ctdrill.haptics.plant import KF, MASS_KG
+from ctdrill.haptics.plant import COULOMB_N, KF, MASS_KG
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.renderer import CONTINUOUS_FORCE_N, THERMAL_BUDGET_N2_S
 from ctdrill.model.force import MAX_FEED_MM_S, feed_at_factor_mm_s
@@ -40,6 +40,11 @@ class PushPrediction:
         ``integral dx / v(x)`` to the stop, s; ``inf`` when the push stalls on the way.
     stall_depth_mm, stall_s0_n : float or None
         The first depth where ``S0 >= push`` (the drill holds there) and ``S0`` there.
+    friction_depth_mm, friction_s0_n : float or None
+        Short of a stall, the first depth where the push exceeds ``S0`` by no more than the
+        master's Coulomb friction (1 N): the friction model fades to 0 at standstill, so once
+        the stage stops there (after the impact's rebound, say) its static friction can hold
+        it and the drill with it.
     air_mm : float
         Millimetres to the stop with ``S0 = 0`` (no model feed: crossed at the hand's pace).
     min_feed_mm_s, max_feed_mm_s : float
@@ -61,6 +66,8 @@ class PushPrediction:
     time_to_stop_s: float
     stall_depth_mm: float | None
     stall_s0_n: float | None
+    friction_depth_mm: float | None
+    friction_s0_n: float | None
     air_mm: float
     min_feed_mm_s: float
     max_feed_mm_s: float
@@ -85,6 +92,12 @@ class PushPrediction:
             out.append(
                 f"push {self.push_n:g} N too weak to cut at {self.stall_depth_mm:.2f} mm "
                 f"(static cutting force S0 = {self.stall_s0_n:.2f} N): the drill holds there"
+            )
+        if self.friction_depth_mm is not None:
+            out.append(
+                f"from {self.friction_depth_mm:.2f} mm the push exceeds S0 "
+                f"({self.friction_s0_n:.2f} N) by no more than the master's {COULOMB_N:g} N "
+                "static friction, which holds the drill once it stops there"
             )
         if self.free_mm > 0.0:
             out.append(
@@ -113,15 +126,12 @@ def predict_push(table: ProfileTable, push_n: float) -> PushPrediction:
     rows = np.arange(s0.size) * step
     s0_mid = np.interp(mids, rows, s0, right=0.0)
     s0_edge = np.interp(edges[:-1], rows, s0, right=0.0)
-    weak = (s0_edge >= push_n) & (s0_edge > 0.0) | (s0_mid >= push_n) & (s0_mid > 0.0)
     stall_depth = stall_s0 = None
     if push_n <= 0.0:  # no push: nothing moves
         stall_depth, stall_s0 = 0.0, float(s0_edge[0]) if s0_edge.size else 0.0
-    elif stop > 0.0 and np.any(weak):
-        i = int(np.argmax(weak))
-        at_edge = s0_edge[i] >= push_n and s0_edge[i] > 0.0
-        stall_depth = float(edges[i] if at_edge else mids[i])
-        stall_s0 = float(s0_edge[i] if at_edge else s0_mid[i])
+    elif stop > 0.0:
+        stall_depth, stall_s0 = _first_at_least(edges, mids, s0_edge, s0_mid, push_n)
+    friction_depth, friction_s0 = _first_at_least(edges, mids, s0_edge, s0_mid, push_n - COULOMB_N)
     cut = s0_mid > 0.0
     air_mm = float(dx[~cut].sum())
     feeds = np.full(mids.shape, np.inf)
@@ -142,6 +152,8 @@ def predict_push(table: ProfileTable, push_n: float) -> PushPrediction:
         time_to_stop_s=time_s,
         stall_depth_mm=stall_depth,
         stall_s0_n=stall_s0,
+        friction_depth_mm=friction_depth if stall_depth is None else None,
+        friction_s0_n=friction_s0 if stall_depth is None else None,
         air_mm=air_mm,
         min_feed_mm_s=float(cut_feeds.min()) if cut_feeds.size else math.nan,
         max_feed_mm_s=float(cut_feeds.max()) if cut_feeds.size else math.nan,
@@ -167,3 +179,17 @@ def _free_time_s(dx: np.ndarray, free: np.ndarray, push_n: float) -> float:
     if run > 0.0:
         total += math.sqrt(2.0 * run / accel_mm_s2)
     return total
+
+
+def _first_at_least(
+    edges: np.ndarray, mids: np.ndarray, s0_edge: np.ndarray, s0_mid: np.ndarray, force_n: float
+) -> tuple[float | None, float | None]:
+    """The first depth (sub-step edge or midpoint) where ``0 < S0 >= force_n`` and ``S0`` there."""
+    hit_edge = (s0_edge >= force_n) & (s0_edge > 0.0)
+    hit = hit_edge | (s0_mid >= force_n) & (s0_mid > 0.0)
+    if not np.any(hit):
+        return None, None
+    i = int(np.argmax(hit))
+    if hit_edge[i]:
+        return float(edges[i]), float(s0_edge[i])
+    return float(mids[i]), float(s0_mid[i])

@@ -205,3 +205,20 @@ def test_rehearse_prints_and_records_the_readouts(
     assert weak["time_to_stop_s"] is None and weak["model_time_to_stop_s"] is None
     assert weak["push_too_weak_at_mm"] == pytest.approx(weak["max_drill_mm"], abs=0.1)
     assert "too weak to cut" in out
+
+
+def test_a_push_within_the_friction_of_s0_stalls_and_the_note_says_why() -> None:
+    # 8.5 N on S0 = 8 N: the model cuts at 0.25 mm/s, but once the stage stops after the
+    # impact, the push beats the material by 0.5 N, less than the master's 1 N static friction
+    # (its friction model fades to 0 at standstill): the drill holds, and the note says so.
+    slab = ProfileTable.slab(s0_n=8.0, top_mm=0.0, bottom_mm=39.0, stop_depth_mm=1.0)
+    pred = predict_push(slab, 8.5)
+    assert not pred.too_weak and pred.time_to_stop_s == pytest.approx(4.0, rel=1e-9)
+    assert pred.friction_depth_mm == 0.0 and pred.friction_s0_n == 8.0
+    session = _session(slab, 8.5, 6.0)
+    assert session.time_to_stop_s is None and session.max_drill_mm < 0.2
+    timing = stop_timing(slab, 8.5, None, 6.0)
+    assert not timing.agrees
+    assert "by no more than the master's 1 N static friction" in timing.message
+    # 1 N above S0 plus a margin cuts (the 12 N slab case above reaches the stop on time)
+    assert predict_push(slab, 10.0).friction_depth_mm is None
