@@ -10,7 +10,7 @@ SYSTEM_PKGS := xvfb xauth libegl1 libgl1 libxkbcommon-x11-0 libxcb-cursor0 libxc
 	libxcb-image0 libxrender1 libfontconfig1 libdbus-1-3 dicom3tools
 DEMO_OUT ?= demo-out
 
-.PHONY: demo test bench fuzz lint typecheck sysdeps venv venv-dev wheel-check clean
+.PHONY: demo test bench fuzz lint typecheck sysdeps venv venv-dev wheel-check clean warmup
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -50,10 +50,15 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(VENV)/bin/mypy
 
-test: sysdeps $(STAMP) lint typecheck
+## Compile the trajectory-search kernels into numba's disk cache (once per install; CI runs it
+## before the tests, with NUMBA_CACHE_DIR on a cached folder when the tree is read-only).
+warmup: $(STAMP_RUN)
+	$(PY) -m ctdrill.app.search.warmup
+
+test: sysdeps $(STAMP) lint typecheck warmup
 	QT_QPA_PLATFORM=xcb xvfb-run -a -s "-screen 0 1600x1000x24" $(PY) -m pytest -q -p no:cacheprovider
 
-bench: sysdeps $(STAMP)
+bench: sysdeps $(STAMP) warmup
 	MALLOC_TRIM_THRESHOLD_=17179869184 MALLOC_MMAP_THRESHOLD_=33554432 xvfb-run -a -s "-screen 0 1600x1000x24" $(PY) -m bench
 
 fuzz: $(STAMP)

@@ -25,7 +25,15 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import bench
-from bench.report import DEFAULT_FIGURE_DIR, FIGURE_DIR_ENV, ROOT, Section, machine_info
+from bench.report import (
+    DEFAULT_FIGURE_DIR,
+    FIGURE_DIR_ENV,
+    HEADLINE_COLUMNS,
+    ROOT,
+    Section,
+    machine_info,
+    table,
+)
 
 DEFAULT_OUT = ROOT / "docs" / "benchmarks.md"
 
@@ -121,6 +129,7 @@ def _run_module(name: str, quick: bool) -> tuple[Section, float, bool]:
                 markdown=raw["markdown"],
                 figures=tuple(raw["figures"]),
                 shortfalls=tuple(raw["shortfalls"]),
+                headline=tuple(tuple(row) for row in raw.get("headline", ())),
             )
             return section, seconds, True
     tail = "\n".join(proc.stderr.strip().splitlines()[-40:])
@@ -176,7 +185,9 @@ def main(argv: list[str] | None = None) -> int:
         section, seconds, ok = _run_module(name, args.quick)
         if divert:
             figs = _divert_figures(section.figures, before, figure_dir)
-            section = Section(section.title, section.markdown, figs, section.shortfalls)
+            section = Section(
+                section.title, section.markdown, figs, section.shortfalls, section.headline
+            )
         print(f"{name}: {seconds:.1f} s", file=sys.stderr)
         return name, section, seconds, ok
 
@@ -192,6 +203,9 @@ def main(argv: list[str] | None = None) -> int:
         mode += f", {args.jobs} modules at a time"
     text = [HEADER, "## Machine and settings", "", machine_info()]
     text += [f"- Mode: {mode}; total run time {total_s:.0f} s", ""]
+    headline = [row for _, s, _ in results for row in s.headline]
+    if headline:
+        text += ["## Headline", "", table(HEADLINE_COLUMNS, headline), ""]
     shortfalls = [(s.title, line) for _, s, _ in results for line in s.shortfalls]
     text += ["## Where ctdrill is slower than a peer or misses a goal", ""]
     if shortfalls:

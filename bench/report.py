@@ -130,13 +130,27 @@ class Section:
 
     ``figures`` are paths of written figures (absolute, or relative to the repository root);
     ``shortfalls`` are one-line statements of where ctdrill is slower than a peer or misses a
-    goal, repeated in the report's summary.
+    goal, repeated in the report's summary. ``headline`` rows go into the report's headline
+    table, each :data:`HEADLINE_COLUMNS` long (use :func:`headline_row`).
     """
 
     title: str
     markdown: str
     figures: tuple[str, ...] = field(default=())
     shortfalls: tuple[str, ...] = field(default=())
+    headline: tuple[tuple[str, ...], ...] = field(default=())
+
+
+#: Columns of the report's headline table (one row per headline figure of any module).
+HEADLINE_COLUMNS = ("work", "ctdrill", "peer", "peer / ctdrill", "goal")
+
+
+def headline_row(
+    work: str, ours: str, peer: str = "", ratio: str = "", goal: str = ""
+) -> tuple[str, ...]:
+    """One row of the headline table: what was measured, our figure, the peer's, their
+    ratio and the goal it answers (empty cells allowed)."""
+    return (work, ours, peer, ratio, goal)
 
 
 def table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:

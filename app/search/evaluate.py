@@ -20,20 +20,42 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ctdrill.app.pipeline import DEFAULT_DEPTH_STEP_MM, PathInputError, PathResult, plan_path
+from ctdrill.app.pipeline import (
+    DEFAULT_DEPTH_STEP_MM,
+    PathInputError,
+)
+from ctdrill.app.search.rows import clearances_each, gap_checks, row_checks
 from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.plan.clearance_batch import (
+    STOP_REASONS,
+    evaluate_clearances,
+)
 from ctdrill.imaging.plan.safety import margins_mm
 from ctdrill.imaging.plan.types import Plan
-from ctdrill.imaging.sampling.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS, ring_radii_mm
-from ctdrill.imaging.sampling.path import check_volume
+from ctdrill.imaging.sampling.lip import (
+    DEFAULT_N_ANGLES,
+    DEFAULT_N_RINGS,
+    axis_basis,
+    ring_radii_mm,
+    sample_lip_rings,
+)
+from ctdrill.imaging.sampling.lip_batch import sample_lips
+from ctdrill.imaging.sampling.path import (
+    check_padding,
+    check_volume,
+)
+from ctdrill.imaging.stack import wide_steps
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.calibration import Calibration, harmonic_freqs_hz
-from ctdrill.model.errors import ModelInputError
+from ctdrill.model.profile_batch import build_profiles
 
 __all__ = ["BatchResult", "evaluate_batch"]
 
 #: Most trajectories one call accepts (memory: a row is ~50 kB at the default grid).
 MAX_BATCH = 200_000
+#: Rows sampled and integrated per pass (bounds the float32 ring-sample buffer: 128 rows of a
+#: 16 mm path at the default lip are ~9 MB, reused).
+CHUNK_ROWS = 128
 
 
 @dataclass(frozen=True, eq=False)
@@ -182,7 +204,9 @@ def evaluate_batch(
     -------
     BatchResult
         Row ``n`` equal (to 1e-9) to ``plan_path`` on ``plan`` with that entry and target, or
-        the message ``plan_path`` refuses it with.
+        the message ``plan_path`` refuses it with. The compiled kernels run when their cache
+        is present (``python -m ctdrill.app.search.warmup``); otherwise the per-trajectory
+        functions of ``plan_path`` run row by row, with the same answers.
 
     Raises
     ------
@@ -197,99 +221,135 @@ def evaluate_batch(
         n_rings=n_rings,
         n_angles=n_angles,
     )
-    return _evaluate_each(
-        volume,
-        plan,
-        entries,
-        targets,
-        calibration,
-        depth_step_mm=depth_step_mm,
-        n_rings=n_rings,
-        n_angles=n_angles,
-        interpolate_gaps=interpolate_gaps,
-    )
-
-
-def _evaluate_each(
-    volume: CTVolume,
-    plan: Plan,
-    entries: np.ndarray,
-    targets: np.ndarray,
-    calibration: Calibration,
-    *,
-    depth_step_mm: float,
-    n_rings: int,
-    n_angles: int,
-    interpolate_gaps: bool,
-) -> BatchResult:
-    """One ``plan_path`` per row (the reference the batched kernels are tested against)."""
+    freqs = harmonic_freqs_hz(calibration, blades=plan.drill.blades, rpm=plan.drill.rpm)
     n = entries.shape[0]
-    results: list[PathResult | None] = []
-    refusal: list[str | None] = []
-    for e, t in zip(entries, targets, strict=True):
-        try:
-            res = plan_path(
+    planned = np.array(
+        [float(np.linalg.norm(t - e)) for e, t in zip(entries, targets, strict=True)]
+    )
+    refusal: list[str | None] = [None] * n
+    landmarks, oov = row_checks(volume, plan, entries, targets, planned, refusal)
+    gaps_possible = bool(np.any(wide_steps(volume.slice_positions_mm)))
+    plan = replace(plan, landmarks=landmarks)
+    if gaps_possible:
+        gap_checks(volume, plan, entries, targets, planned, oov, refusal, interpolate_gaps)
+    ok_rows = np.array([i for i in range(n) if refusal[i] is None], dtype=np.int64)
+    n_dep = np.zeros(n, dtype=np.int64)
+    steps = np.zeros(n)
+    for i in ok_rows.tolist():
+        n_dep[i] = max(2, math.ceil(planned[i] / depth_step_mm - 1e-9) + 1)
+    d_max = int(n_dep.max()) if n else 0
+    depth = np.full((n, d_max), np.nan)
+    for m in np.unique(n_dep[ok_rows]).tolist():
+        rows = ok_rows[n_dep[ok_rows] == m]
+        steps[rows] = planned[rows] / (m - 1)  # np.linspace(0, planned, m), row by row
+        depth[rows, :m] = np.arange(m, dtype=np.float64)[None, :] * steps[rows, None] + 0.0
+        depth[rows, m - 1] = planned[rows]
+    bases = np.zeros((n, 3, 3))
+    for i in ok_rows.tolist():
+        bases[i] = axis_basis(entries[i], targets[i])
+    radii = ring_radii_mm(plan.drill.diameter_mm, n_rings)
+    ring_w = np.full(n_rings, 1.0 / n_rings)
+    area_w = radii / radii.sum()
+    n_k = freqs.shape[0]
+    s_t, hu_mean, s0, disc = (np.full((n, d_max), np.nan) for _ in range(4))
+    sk = np.full((n, n_k, d_max), np.nan)
+    n_clipped = np.zeros(n, dtype=np.int64)
+    n_samples = np.zeros(n, dtype=np.int64)
+    buf = np.empty((min(CHUNK_ROWS, max(n, 1)), d_max, n_rings, n_angles), dtype=np.float32)
+    for start in range(0, ok_rows.size, CHUNK_ROWS):
+        rows = ok_rows[start : start + CHUNK_ROWS]
+        local = np.arange(rows.size)
+        chunk = buf[: rows.size]
+        if volume.valid is None:
+            sample_lips(
                 volume,
-                replace(plan, entry_lps=e, target_lps=t),
-                calibration,
-                depth_step_mm=depth_step_mm,
+                entries[rows],
+                targets[rows],
+                bases[rows],
+                depth[rows],
+                n_dep[rows],
+                plan.drill,
                 n_rings=n_rings,
                 n_angles=n_angles,
-                interpolate_gaps=interpolate_gaps,
+                out=chunk,
             )
-        except (ImagingInputError, ModelInputError) as exc:
-            results.append(None)
-            refusal.append(str(exc))
-        else:
-            results.append(res)
-            refusal.append(None)
+        else:  # padding: the per-trajectory sampler and its padding check
+            for j, i in enumerate(rows.tolist()):
+                m = int(n_dep[i])
+                lip = sample_lip_rings(
+                    volume,
+                    entries[i],
+                    targets[i],
+                    depth[i, :m],
+                    plan.drill,
+                    n_rings=n_rings,
+                    n_angles=n_angles,
+                )
+                try:
+                    check_padding(
+                        volume,
+                        entries[i],
+                        targets[i],
+                        plan.drill,
+                        lip,
+                        n_rings,
+                        n_angles,
+                        name=plan.name,
+                    )
+                except ImagingInputError as exc:
+                    refusal[i] = str(exc)
+                chunk[j, :m] = lip.hu
+        prof = build_profiles(
+            chunk,
+            depth[rows],
+            n_dep[rows],
+            ring_w,
+            calibration,
+            blades=plan.drill.blades,
+            rpm=plan.drill.rpm,
+            alt_weights=area_w,
+            rows=local,
+        )
+        s_t[rows], hu_mean[rows], s0[rows] = prof.s_t, prof.hu_mean, prof.s0_n
+        sk[rows], disc[rows] = prof.sk_n, prof.hu_mean_alt
+        n_clipped[rows], n_samples[rows] = prof.n_clipped, prof.n_samples
+    ok_rows = np.array([i for i in ok_rows.tolist() if refusal[i] is None], dtype=np.int64)
+    margins = margins_mm(plan)
+    oov_or_inf = np.where(np.isnan(oov), np.inf, oov)
+    clear = evaluate_clearances(
+        plan.landmarks,
+        margins,
+        plan.drill.radius_mm,
+        plan.drill.tip_length_mm,
+        entries,
+        targets,
+        depth,
+        n_dep,
+        planned,
+        oov_or_inf,
+        ok_rows,
+    )
+    if clear is None:
+        clear = clearances_each(plan, entries, targets, depth, n_dep, oov_or_inf, ok_rows)
+    bad = np.array([r is not None for r in refusal], dtype=bool)
     n_l = len(plan.landmarks)
-    freqs = harmonic_freqs_hz(calibration, blades=plan.drill.blades, rpm=plan.drill.rpm)
-    n_k = freqs.shape[0]
-    n_dep = np.array([0 if r is None else r.depth_mm.shape[0] for r in results], dtype=np.int64)
-    d_max = int(n_dep.max()) if n else 0
-    radii = ring_radii_mm(plan.drill.diameter_mm, n_rings)
-    area_w = radii / radii.sum()
-
-    def per_depth() -> np.ndarray:
-        return np.full((n, d_max), np.nan)
-
-    depth, disc, hu_mean, s_t, s0 = (per_depth() for _ in range(5))
-    sk = np.full((n, n_k, d_max), np.nan)
-    clearance = np.full((n, d_max, n_l), np.nan)
-    stop_clear = np.full((n, n_l), np.nan)
-    scalars = {
-        k: np.full(n, np.nan)
-        for k in ("max_safe", "plan_clear", "oov", "stop", "n_clipped", "n_samples")
-    }
-    capped = np.zeros(n, dtype=bool)
-    binding = np.full(n, -1, dtype=np.int64)
+    for arr in (depth, s_t, hu_mean, s0, disc, sk):
+        arr[bad] = np.nan
+    n_dep[bad] = 0
+    n_clipped[bad] = 0
+    n_samples[bad] = 0
+    plan_clear = np.full(n, np.nan)
+    if n_l:
+        for i in ok_rows.tolist():
+            plan_clear[i] = float(clear.clearance_mm[i, n_dep[i] - 1].min())
     reason = np.full(n, "", dtype=object)
-    for i, r in enumerate(results):
-        if r is None:
-            continue
-        m = r.depth_mm.shape[0]
-        depth[i, :m] = r.depth_mm
-        disc[i, :m] = r.lip.hu.mean(axis=2, dtype=np.float64) @ area_w
-        hu_mean[i, :m] = r.profile.hu_mean
-        s_t[i, :m] = r.profile.s_t
-        s0[i, :m] = r.profile.s0_n
-        sk[i, :, :m] = r.profile.sk_n
-        clearance[i, :m] = r.clearance_mm
-        stop_clear[i] = r.stop_clearance_mm
-        scalars["max_safe"][i] = r.max_safe_depth_mm
-        scalars["plan_clear"][i] = np.nan if r.plan_clearance_mm is None else r.plan_clearance_mm
-        scalars["oov"][i] = np.nan if r.out_of_volume_depth_mm is None else r.out_of_volume_depth_mm
-        scalars["stop"][i] = r.stop_depth_mm
-        scalars["n_clipped"][i] = r.profile.n_clipped
-        scalars["n_samples"][i] = r.profile.n_samples
-        capped[i] = r.max_safe_depth_capped
-        binding[i] = -1 if r.binding_landmark is None else r.binding_landmark
-        reason[i] = r.stop_reason
+    for i in ok_rows.tolist():
+        reason[i] = STOP_REASONS[int(clear.stop_reason[i])]
+    oov[bad] = np.nan
     return BatchResult(
         entries_lps=entries.copy(),
         targets_lps=targets.copy(),
-        planned_depth_mm=np.linalg.norm(targets - entries, axis=1),
+        planned_depth_mm=planned,
         n_depths=n_dep,
         depth_mm=depth,
         disc_hu=disc,
@@ -299,17 +359,17 @@ def _evaluate_each(
         sk_n=sk,
         freqs_hz=freqs,
         ke_per_mm_s=calibration.ke_per_mm_s,
-        n_clipped=np.nan_to_num(scalars["n_clipped"], nan=0.0).astype(np.int64),
-        n_samples=np.nan_to_num(scalars["n_samples"], nan=0.0).astype(np.int64),
-        clearance_mm=clearance,
-        margins_mm=margins_mm(plan),
-        max_safe_depth_mm=scalars["max_safe"],
-        max_safe_depth_capped=capped,
-        binding_landmark=binding,
-        plan_clearance_mm=scalars["plan_clear"],
-        out_of_volume_depth_mm=scalars["oov"],
-        stop_depth_mm=scalars["stop"],
+        n_clipped=n_clipped,
+        n_samples=n_samples,
+        clearance_mm=clear.clearance_mm,
+        margins_mm=margins,
+        max_safe_depth_mm=clear.max_safe_depth_mm,
+        max_safe_depth_capped=clear.capped,
+        binding_landmark=clear.binding,
+        plan_clearance_mm=plan_clear,
+        out_of_volume_depth_mm=oov,
+        stop_depth_mm=clear.stop_depth_mm,
         stop_reason=reason,
-        stop_clearance_mm=stop_clear,
+        stop_clearance_mm=clear.stop_clearance_mm,
         refusal=tuple(refusal),
     )

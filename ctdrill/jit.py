@@ -1,0 +1,203 @@
+"""Compiled kernels that are never compiled in a user's path (numba, optional at run time).
+
+A :class:`Kernel` wraps a numba function with its exact signatures. Compilation happens only
+in :func:`warm_up` (``python -m ctdrill.app.search.warmup``, ``make warmup``, CI), which saves
+the machine code in numba's on-disk cache; every other process only *loads* that cache
+(:meth:`Kernel.ready`, a few ms) with compilation switched off, so a call can never stall on
+the ~20 s compile. When the cache is absent or stale, numba is missing, or
+``CTDRILL_NO_JIT=1`` is set, :meth:`Kernel.ready` is False and callers take their NumPy path,
+which gives the same answers (the kernels are tested against it).
+
+Where the cache lives: numba's default, ``__pycache__`` beside the module when that folder is
+writable (a source checkout), else the user-wide cache (``~/.cache/numba`` or
+``$NUMBA_CACHE_DIR``), which is where a wheel installed as root and used by another user
+keeps it. Set ``NUMBA_CACHE_DIR`` to choose one (CI runs as root: a cache folder it
+restores between runs).
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+
+_numba: Any
+try:  # numba is a dependency, but a missing or broken one only costs speed
+    import numba as _numba
+except Exception:  # pragma: no cover - exercised by CTDRILL_NO_JIT in the tests
+    _numba = None
+
+#: Environment variable that switches every kernel off (NumPy paths only).
+NO_JIT_ENV = "CTDRILL_NO_JIT"
+
+_KERNELS: list[Kernel] = []
+
+
+def available() -> bool:
+    """numba imports and ``CTDRILL_NO_JIT`` is not set."""
+    return _numba is not None and os.environ.get(NO_JIT_ENV, "") in ("", "0")
+
+
+class Kernel:
+    """A numba function compiled only by :func:`warm_up`, else loaded from the disk cache.
+
+    Parameters
+    ----------
+    pyfunc : the Python function (numba-compatible, no Python objects).
+    signatures : numba signature strings, e.g. ``"void(float64[:, ::1], int64)"``; calls must
+        pass exactly these types (the caller converts).
+    readonly : positions of the arguments passed as read-only arrays (e.g. a volume's voxels).
+    """
+
+    def __init__(
+        self,
+        pyfunc: Callable[..., Any],
+        signatures: Sequence[str],
+        *,
+        readonly: Sequence[int] = (),
+    ) -> None:
+        self.pyfunc = pyfunc
+        self.signatures = tuple(signatures)
+        self.readonly = tuple(readonly)
+        self._dispatcher: Any = None
+        self._ready: bool | None = None
+        _KERNELS.append(self)
+
+    @property
+    def name(self) -> str:
+        """The function's qualified name."""
+        return f"{self.pyfunc.__module__}.{self.pyfunc.__qualname__}"
+
+    def _dispatch(self) -> Any:
+        if self._dispatcher is None:
+            assert _numba is not None
+            self._dispatcher = _numba.njit(cache=True, nogil=True, error_model="numpy")(self.pyfunc)
+        return self._dispatcher
+
+    def ready(self) -> bool:
+        """True when every signature is loaded from the disk cache (never compiles)."""
+        if self._ready is None:
+            self._ready = available() and self._load()
+        return self._ready
+
+    def _arg_types(self) -> list[tuple[Any, ...]]:
+        """Each signature as its tuple of argument types (read-only where asked)."""
+        from numba.core import sigutils
+
+        out = []
+        for sig in self.signatures:
+            args, _ = sigutils.normalize_signature(sig)
+            args = tuple(
+                a.copy(readonly=True) if i in self.readonly else a for i, a in enumerate(args)
+            )
+            out.append(args)
+        return out
+
+    def _load(self) -> bool:
+        disp = self._dispatch()
+        for sig in self._arg_types():
+            if sig in disp.overloads:
+                continue
+            cres = disp._cache.load_overload(sig, disp.targetctx)
+            if cres is None:
+                return False
+            if not cres.objectmode:
+                disp.targetctx.insert_user_function(cres.entry_point, cres.fndesc, [cres.library])
+            disp.add_overload(cres)
+        disp.disable_compile()
+        return True
+
+    def __call__(self, *args: Any) -> Any:
+        """Run the compiled kernel (only after :meth:`ready` returned True)."""
+        if not self.ready():
+            raise RuntimeError(f"kernel {self.name} is not compiled; run the warm-up")
+        fixed = []
+        for i, arg in enumerate(args):
+            if isinstance(arg, np.ndarray):
+                if i in self.readonly and arg.flags.writeable:
+                    arg = arg.view()
+                    arg.flags.writeable = False
+                elif i not in self.readonly and not arg.flags.writeable:
+                    arg = arg.copy()  # only inputs are ever read-only
+            fixed.append(arg)
+        return self._dispatch()(*fixed)
+
+    def compile(self) -> None:
+        """Compile every signature and save it in the disk cache (the warm-up's work)."""
+        disp = self._dispatch()
+        disp._can_compile = True
+        for sig in self._arg_types():
+            disp.compile(sig)
+        self._ready = None
+
+
+def helper(pyfunc: Callable[..., Any]) -> Any:
+    """A function the kernels call (compiled into them; plain Python without numba)."""
+    if _numba is None:
+        return pyfunc
+    return _numba.njit(nogil=True, error_model="numpy")(pyfunc)
+
+
+def kernels() -> tuple[Kernel, ...]:
+    """Every kernel defined so far (import the modules that define them first)."""
+    return tuple(_KERNELS)
+
+
+def warm_up(kernels_: Sequence[Kernel] | None = None) -> list[str]:
+    """Compile (or load) ``kernels_`` (default: all defined) into the disk cache.
+
+    Returns the names compiled; raises RuntimeError when numba is unavailable.
+    """
+    if not available():
+        raise RuntimeError(
+            f"numba is not available (not installed, or {NO_JIT_ENV} is set); nothing to warm up"
+        )
+    out = []
+    for k in _KERNELS if kernels_ is None else kernels_:
+        if not k.ready():
+            k._ready = None
+            k.compile()
+        if not k.ready():
+            raise RuntimeError(f"kernel {k.name}: compiled but not found in the cache")
+        out.append(k.name)
+    return out
+
+
+def cpus() -> int:
+    """CPUs this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def row_spans(rows: np.ndarray, parts: int | None = None) -> list[tuple[int, int]]:
+    """``rows`` (indices) as half-open spans of consecutive rows, each run cut in up to
+    ``parts`` (default: the CPUs, at most 8) near-equal pieces for worker threads."""
+    parts = max(1, min(8, cpus())) if parts is None else parts
+    uniq = np.unique(np.asarray(rows, dtype=np.int64))
+    if uniq.size == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(uniq) != 1) + 1
+    out: list[tuple[int, int]] = []
+    for run in np.split(uniq, breaks):
+        lo, hi = int(run[0]), int(run[-1]) + 1
+        edges = np.linspace(lo, hi, min(parts, hi - lo) + 1).round().astype(np.int64)
+        out += [(int(a), int(b)) for a, b in itertools.pairwise(edges) if b > a]
+    return out
+
+
+def run_spans(kernel: Kernel, spans: Sequence[tuple[int, int]], *args: Any) -> None:
+    """``kernel(*args, lo, hi)`` for every span, on a thread per span (the kernels drop the
+    GIL; each span writes only its own rows)."""
+    if len(spans) <= 1:
+        for lo, hi in spans:
+            kernel(*args, lo, hi)
+        return
+    with ThreadPoolExecutor(len(spans)) as pool:
+        for fut in [pool.submit(kernel, *args, lo, hi) for lo, hi in spans]:
+            fut.result()

@@ -1,0 +1,263 @@
+"""The cutting lip's HU for many trajectories at once (the batched form of ``lip.py``).
+
+:func:`sample_lips` returns, for ``N`` trajectories sharing one drill, exactly the float32 ring
+samples :func:`ctdrill.imaging.sampling.lip.sample_lip_rings` gives for each (the same ring
+points, built with the same floating-point operations, the same trilinear weights and
+summation order as ``scipy.ndimage.map_coordinates(order=1, mode="nearest")`` that
+:meth:`CTVolume.sample` uses, the same hull test and the same true slice positions for an
+irregular stack). The compiled kernel covers volumes without padding; a padded volume (whose
+sampler substitutes padding voxels) and a process without the compiled kernel use the
+per-trajectory sampler itself.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ctdrill.hu import AIR_HU
+from ctdrill.imaging.plan.types import DrillSpec
+from ctdrill.imaging.sampling.lip import ring_radii_mm, sample_lip_rings
+from ctdrill.imaging.volume import CTVolume
+from ctdrill.jit import Kernel, row_spans, run_spans
+
+#: Tolerance of the hull test, voxels (CTVolume's own).
+_EDGE_TOL_VOX = 1e-6
+
+
+def _lip_kernel(
+    vol: np.ndarray,
+    inv_lin: np.ndarray,
+    inv_off: np.ndarray,
+    top: np.ndarray,
+    k_nominal: np.ndarray,
+    remap: bool,
+    entries: np.ndarray,
+    bases: np.ndarray,
+    depth: np.ndarray,
+    n_depth: np.ndarray,
+    xi_off: np.ndarray,
+    radii: np.ndarray,
+    cos_t: np.ndarray,
+    sin_t: np.ndarray,
+    outside_hu: float,
+    out: np.ndarray,
+    row_lo: int,
+    row_hi: int,
+) -> None:  # pragma: no cover - compiled by numba; tested against sample_lip_rings
+    n_k, n_j, n_i = vol.shape
+    n_s = k_nominal.shape[0]
+    tol = 1e-6
+    offsets = np.empty((radii.shape[0], cos_t.shape[0], 3))
+    for n in range(row_lo, row_hi):
+        ax0, ax1, ax2 = bases[n, 0, 0], bases[n, 0, 1], bases[n, 0, 2]
+        for r in range(radii.shape[0]):  # the sampler's radii * (cos e1 + sin e2)
+            for a in range(cos_t.shape[0]):
+                for c in range(3):
+                    unit = cos_t[a] * bases[n, 1, c] + sin_t[a] * bases[n, 2, c]
+                    offsets[r, a, c] = radii[r] * unit
+        for d in range(n_depth[n]):
+            for r in range(radii.shape[0]):
+                xi = depth[n, d] - xi_off[r]
+                c0 = entries[n, 0] + xi * ax0
+                c1 = entries[n, 1] + xi * ax1
+                c2 = entries[n, 2] + xi * ax2
+                for a in range(cos_t.shape[0]):
+                    p0 = c0 + offsets[r, a, 0]
+                    p1 = c1 + offsets[r, a, 1]
+                    p2 = c2 + offsets[r, a, 2]
+                    ck = inv_lin[2, 0] * p0 + inv_lin[2, 1] * p1 + inv_lin[2, 2] * p2
+                    ck += inv_off[2]
+                    cj = inv_lin[1, 0] * p0 + inv_lin[1, 1] * p1 + inv_lin[1, 2] * p2
+                    cj += inv_off[1]
+                    ci = inv_lin[0, 0] * p0 + inv_lin[0, 1] * p1 + inv_lin[0, 2] * p2
+                    ci += inv_off[0]
+                    if remap:  # np.interp on the true slice positions, linear beyond the ends
+                        if ck < k_nominal[0]:
+                            slope = 1.0 / (k_nominal[1] - k_nominal[0])
+                            ck = 0.0 + (ck - k_nominal[0]) * slope
+                        elif ck > k_nominal[n_s - 1]:
+                            slope = 1.0 / (k_nominal[n_s - 1] - k_nominal[n_s - 2])
+                            ck = (n_s - 1.0) + (ck - k_nominal[n_s - 1]) * slope
+                        elif ck == k_nominal[n_s - 1]:
+                            ck = n_s - 1.0
+                        else:
+                            j = np.searchsorted(k_nominal, ck, side="right") - 1
+                            if k_nominal[j] == ck:
+                                ck = float(j)
+                            else:
+                                slope = 1.0 / (k_nominal[j + 1] - k_nominal[j])
+                                ck = slope * (ck - k_nominal[j]) + float(j)
+                    if not (
+                        ck >= -tol
+                        and cj >= -tol
+                        and ci >= -tol
+                        and ck <= top[2] + tol
+                        and cj <= top[1] + tol
+                        and ci <= top[0] + tol
+                    ):
+                        out[n, d, r, a] = outside_hu
+                        continue
+                    sk = math.floor(ck)
+                    sj = math.floor(cj)
+                    si = math.floor(ci)
+                    wk1 = ck - sk
+                    wj1 = cj - sj
+                    wi1 = ci - si
+                    wk0 = 1.0 - wk1
+                    wj0 = 1.0 - wj1
+                    wi0 = 1.0 - wi1
+                    # corner indices clamped as mode="nearest" does
+                    k0 = min(max(sk, 0), n_k - 1)
+                    k1 = min(max(sk + 1, 0), n_k - 1)
+                    j0 = min(max(sj, 0), n_j - 1)
+                    j1 = min(max(sj + 1, 0), n_j - 1)
+                    i0 = min(max(si, 0), n_i - 1)
+                    i1 = min(max(si + 1, 0), n_i - 1)
+                    # scipy's order: corners with i fastest, each (value * wk) * wj * wi
+                    total = 0.0
+                    total += float(vol[k0, j0, i0]) * wk0 * wj0 * wi0
+                    total += float(vol[k0, j0, i1]) * wk0 * wj0 * wi1
+                    total += float(vol[k0, j1, i0]) * wk0 * wj1 * wi0
+                    total += float(vol[k0, j1, i1]) * wk0 * wj1 * wi1
+                    total += float(vol[k1, j0, i0]) * wk1 * wj0 * wi0
+                    total += float(vol[k1, j0, i1]) * wk1 * wj0 * wi1
+                    total += float(vol[k1, j1, i0]) * wk1 * wj1 * wi0
+                    total += float(vol[k1, j1, i1]) * wk1 * wj1 * wi1
+                    out[n, d, r, a] = total
+
+
+_SIG = (
+    "void({vol}[:, :, ::1], float64[:, ::1], float64[::1], float64[::1], float64[::1], boolean, "
+    "float64[:, ::1], float64[:, :, ::1], float64[:, ::1], int64[::1], float64[::1], "
+    "float64[::1], float64[::1], float64[::1], float64, float32[:, :, :, ::1], int64, int64)"
+)
+LIP_KERNEL = Kernel(
+    _lip_kernel, [_SIG.format(vol="int16"), _SIG.format(vol="float32")], readonly=(0, 4)
+)
+
+
+def sample_lips(
+    volume: CTVolume,
+    entries_lps: np.ndarray,
+    targets_lps: np.ndarray,
+    bases: np.ndarray,
+    depth_mm: np.ndarray,
+    n_depths: np.ndarray,
+    drill: DrillSpec,
+    *,
+    n_rings: int,
+    n_angles: int,
+    rows: np.ndarray | None = None,
+    out: np.ndarray | None = None,
+) -> np.ndarray:
+    """Ring samples of ``N`` trajectories, float32 (N, D, n_rings, n_angles).
+
+    Parameters
+    ----------
+    volume : the CT.
+    entries_lps, targets_lps : (N, 3) LPS mm.
+    bases : (N, 3, 3) :func:`~ctdrill.imaging.sampling.lip.axis_basis` of each trajectory.
+    depth_mm : (N, D) tip depths (row ``n`` valid up to ``n_depths[n]``), mm.
+    n_depths : (N,) depths per row.
+    drill : the drill (diameter, tip length).
+    n_rings, n_angles : lip discretisation.
+    rows : which rows to sample (default all); the others are left as they are in ``out``.
+    out : optional float32 (N, D, n_rings, n_angles) buffer to fill.
+
+    Returns
+    -------
+    np.ndarray
+        Equal to ``sample_lip_rings(...).hu`` of each row up to its ``n_depths``; AIR_HU
+        outside the voxel-centre hull.
+    """
+    n, d_max = depth_mm.shape
+    shape = (n, d_max, n_rings, n_angles)
+    if out is None:
+        out = np.empty(shape, dtype=np.float32)
+    todo = np.arange(n) if rows is None else np.asarray(rows, dtype=np.int64)
+    if todo.size == 0:
+        return out
+    if volume.valid is not None or not LIP_KERNEL.ready():  # the per-trajectory sampler
+        for i in todo.tolist():
+            m = int(n_depths[i])
+            lip = sample_lip_rings(
+                volume,
+                entries_lps[i],
+                targets_lps[i],
+                depth_mm[i, :m],
+                drill,
+                n_rings=n_rings,
+                n_angles=n_angles,
+            )
+            out[i, :m] = lip.hu
+        return out
+    radius = float(drill.diameter_mm) / 2.0
+    tip_len = float(drill.tip_length_mm)
+    radii = ring_radii_mm(drill.diameter_mm, n_rings)
+    theta = 2.0 * np.pi * np.arange(n_angles, dtype=np.float64) / n_angles
+    xi_off = tip_len * radii / radius  # the sampler's xi = depth - tip_len * r / R
+    args = (
+        np.ascontiguousarray(volume.hu),
+        np.ascontiguousarray(volume._inv_lin),
+        np.ascontiguousarray(volume._inv_off),
+        np.ascontiguousarray(volume._top),
+        np.ascontiguousarray(volume._k_nominal, dtype=np.float64),
+        bool(volume._remap_k),
+    )
+    ent = np.ascontiguousarray(entries_lps, dtype=np.float64)
+    bas = np.ascontiguousarray(bases, dtype=np.float64)
+    dep = np.ascontiguousarray(depth_mm, dtype=np.float64)
+    nd = np.ascontiguousarray(n_depths, dtype=np.int64)
+    rest = (xi_off, radii, np.cos(theta), np.sin(theta), float(AIR_HU), out)
+    run_spans(LIP_KERNEL, row_spans(todo), *args, ent, bas, dep, nd, *rest)
+    return out
+
+
+def axis_bases(entries_lps: np.ndarray, targets_lps: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) :func:`~ctdrill.imaging.sampling.lip.axis_basis` of every row, vectorised
+    (equal to it to rounding; rows with entry == target give NaN)."""
+    d = np.asarray(targets_lps, dtype=np.float64) - np.asarray(entries_lps, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        axis = d / np.sqrt(np.sum(d * d, axis=1))[:, None]
+        helper = np.zeros_like(axis)
+        helper[np.arange(len(axis)), np.argmin(np.abs(axis), axis=1)] = 1.0
+        e1 = helper - np.sum(helper * axis, axis=1)[:, None] * axis
+        e1 /= np.sqrt(np.sum(e1 * e1, axis=1))[:, None]
+    return np.stack([axis, e1, np.cross(axis, e1)], axis=1)
+
+
+def lip_inside_depths(
+    volume: CTVolume, entries_lps: np.ndarray, targets_lps: np.ndarray, drill: DrillSpec
+) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) ``lo``, ``hi``: :func:`~ctdrill.imaging.sampling.path.lip_inside_depths_mm` of
+    every row at once (the tip depths whose whole lip lies in the voxel-centre hull; the
+    same closed form, to rounding)."""
+    inv = np.linalg.inv(np.asarray(volume.affine_lps, dtype=np.float64))
+    lin, off = inv[:3, :3], inv[:3, 3]
+    cols, rows, _ = volume.dims
+    top = np.array([cols - 1.0, rows - 1.0, float(volume.affine_slice_index[-1])])
+    entries = np.asarray(entries_lps, dtype=np.float64)
+    basis = axis_bases(entries, targets_lps)
+    n = entries.shape[0]
+    lo = np.full(n, -np.inf)
+    hi = np.full(n, np.inf)
+    empty = np.zeros(n, dtype=bool)
+    lt, radius = float(drill.tip_length_mm), float(drill.radius_mm)
+    for m in range(3):
+        su = basis[:, 0] @ lin[m]
+        w = np.hypot(basis[:, 1] @ lin[m], basis[:, 2] @ lin[m])
+        low = np.minimum(0.0, -lt * su - radius * w)
+        high = np.maximum(0.0, -lt * su + radius * w)
+        value = entries @ lin[m]
+        for const, slope in ((value + off[m] + low, su), (top[m] - value - off[m] - high, -su)):
+            flat = np.abs(slope) < 1e-15
+            empty |= flat & (const < 0.0)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                bound = -const / slope
+            lo = np.where(~flat & (slope > 0.0), np.maximum(lo, bound), lo)
+            hi = np.where(~flat & (slope < 0.0), np.minimum(hi, bound), hi)
+    lo[empty] = np.inf
+    hi[empty] = -np.inf
+    return lo, hi
