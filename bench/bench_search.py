@@ -84,9 +84,9 @@ def run(quick: bool) -> Section:
     volume = load_series(demo / "ct")
     plan = load_plan(demo / "plan.json")
     cal = plan_calibration(plan)
-    n = 20 if quick else 1000
-    n_path = 4 if quick else 100
-    repeats = 2 if quick else 3
+    n = 8 if quick else 1000
+    n_path = 2 if quick else 100
+    repeats = 1 if quick else 3
     entries, targets = candidates(plan, n)
     t0 = time.perf_counter()
     was_ready = all(k.ready() for k in search_kernels())
@@ -123,7 +123,7 @@ def run(quick: bool) -> Section:
         t_path.min_s * scale,
         t_path.repeats,
     )
-    n_agree = 4 if quick else 20
+    n_agree = 2 if quick else 20
     agree = _agreement(result, plan, volume, cal, n_agree)
     batch, peer_t = times["batch"], times["peer"]
     ratio_peer = peer_t.median_s / batch.median_s
