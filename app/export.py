@@ -27,6 +27,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
+from ctdrill.app.calibration_info import calibration_fields, calibration_line
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.export_defaults import DEFAULT_RATE_HZ as DEFAULT_RATE_HZ
 from ctdrill.app.fixedtext import fixed_csv
@@ -240,9 +241,7 @@ def summary(
         "binding_landmark": None if binding is None else lms[binding],
         "margin_mm": plan.margin_mm,
         "landmarks": lms,
-        "calibration": cal.name,
-        "calibration_illustrative": cal.illustrative,
-        "calibration_source": cal.source,
+        **calibration_fields(cal),
         "feed_mm_s": feed_mm_s,
         "rate_hz": rate_hz,
         "duration_s": _num(float(series.time_s[-1]), 6),
@@ -290,6 +289,8 @@ def summary_lines(doc: dict[str, Any]) -> list[str]:
     if doc.get("plan_clearance_mm") is not None:
         line += f"; clearance along the planned path {doc['plan_clearance_mm']:.3f} mm"
     lines = [line]
+    if "calibration" in doc:
+        lines.append(calibration_line(doc))
     lines += [f"warning [{w['code']}]: {w['message']}" for w in doc.get("warnings", [])]
     return lines
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ctdrill.app.calibration_info import calibration_fields
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.pipeline import PathResult, binding_landmark_doc, plan_calibration, plan_path
 from ctdrill.app.readout import push_summary
@@ -95,8 +96,7 @@ def rehearsal_summary(
             "max_safe_depth_mm": float(path.max_safe_depth_mm),
             "binding_landmark": binding_landmark_doc(path),
             "plan_clearance_mm": path.plan_clearance_mm,
-            "calibration": path.calibration.name,
-            "calibration_illustrative": bool(path.calibration.illustrative),
+            **calibration_fields(path.calibration),
             "operator": operator,
             "device": device,
             "duration_s": duration_s,

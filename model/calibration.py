@@ -11,7 +11,11 @@ A set is a JSON file (schema in DESIGN.md section 1)::
 calibrated at (the paper: "the calibration parameters are valid within the ranges used in the
 calibration experiments"); a set without it states no feed range (sets written before it stay
 valid). An optional ``"fit"`` object (written by ``ctdrill calibrate``) carries the
-fit's standard errors and is kept as read, not interpreted.
+fit's standard errors and is kept as read, not interpreted. An optional ``"covariance"``
+(:mod:`ctdrill.model.calibration_cov`) gives the covariance of the DC law's parameters, from
+which outputs draw an uncertainty band; a set without one states no uncertainty. An optional
+``"provenance"`` object says how the set was obtained: its ``"method"`` (one sentence) is read
+and repeated by every output; the rest (points used, conversions) is kept as read.
 """
 
 from __future__ import annotations
@@ -24,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill.model.calibration_cov import ParameterCovariance, parse_covariance
+from ctdrill.model.errors import CalibrationError as CalibrationError
 from ctdrill.model.errors import ModelInputError
 from ctdrill.resources import asset
 from ctdrill.safeio import load_json
@@ -44,10 +50,6 @@ MAX_EXPONENT: float = 50.0
 MAX_ORDER: int = 64
 #: Largest feed sensitivity accepted, per (mm/s) (the paper's pine wood: 0.25).
 MAX_KE_PER_MM_S: float = 1.0e3
-
-
-class CalibrationError(ModelInputError):
-    """A calibration set is missing, unreadable or has an invalid field."""
 
 
 @dataclass(frozen=True)
@@ -89,6 +91,11 @@ class Calibration:
     feed_range_mm_s : tuple of float or None
         ``(lo, hi)`` feeds the set was calibrated at, mm/s (``0 <= lo <= hi``); None when the
         set does not say.
+    covariance : ParameterCovariance or None
+        Covariance of the DC law's parameters (``a0.b0``, ``a0.n``, ``a0.ke``); None when the
+        set gives none (then no output shows a band).
+    method : str or None
+        How the set was obtained, one sentence (``provenance.method``); None when not said.
     """
 
     name: str
@@ -101,6 +108,8 @@ class Calibration:
     ke_per_mm_s: float
     harmonics: tuple[Harmonic, ...]
     feed_range_mm_s: tuple[float, float] | None = None
+    covariance: ParameterCovariance | None = None
+    method: str | None = None
 
     @property
     def illustrative(self) -> bool:
@@ -285,7 +294,28 @@ def calibration_from_dict(data: Any, *, source_path: Path | str = "<dict>") -> C
         ke_per_mm_s=ke,
         harmonics=tuple(sorted(harmonics, key=lambda h: h.order)),
         feed_range_mm_s=_feed_range(data, src),
+        covariance=parse_covariance(data, src),
+        method=_method(data, src),
     )
+
+
+def _method(data: Mapping[str, Any], src: Path) -> str | None:
+    """``provenance.method``: how the set was obtained (None when the set has no provenance)."""
+    if "provenance" not in data:
+        return None
+    prov = data["provenance"]
+    if not isinstance(prov, Mapping):
+        raise CalibrationError(
+            f"calibration file {src}: field provenance must be an object (or leave it out)"
+        )
+    if "method" not in prov:
+        return None
+    try:
+        return _text(prov, "method", src)
+    except CalibrationError:
+        raise CalibrationError(
+            f"calibration file {src}: field provenance.method must be a non-empty string"
+        ) from None
 
 
 def _feed_range(data: Mapping[str, Any], src: Path) -> tuple[float, float] | None:
@@ -336,7 +366,7 @@ def load_calibration(name_or_path: str | Path) -> Calibration:
 
 def calibration_to_dict(calibration: Calibration) -> dict[str, Any]:
     """The JSON document of a set (inverse of :func:`calibration_from_dict`)."""
-    return {
+    doc: dict[str, Any] = {
         "name": calibration.name,
         "material": calibration.material,
         "source": calibration.source,
@@ -349,11 +379,14 @@ def calibration_to_dict(calibration: Calibration) -> dict[str, Any]:
             "ke": calibration.ke_per_mm_s,
         },
         "harmonics": [{"order": h.order, "b0": h.b0, "n": h.n} for h in calibration.harmonics],
-    } | (
-        {}
-        if calibration.feed_range_mm_s is None
-        else {"feed_range_mm_s": list(calibration.feed_range_mm_s)}
-    )
+    }
+    if calibration.feed_range_mm_s is not None:
+        doc["feed_range_mm_s"] = list(calibration.feed_range_mm_s)
+    if calibration.covariance is not None:
+        doc["covariance"] = calibration.covariance.to_json()
+    if calibration.method is not None:
+        doc["provenance"] = {"method": calibration.method}
+    return doc
 
 
 def harmonic_freqs_hz(calibration: Calibration, *, blades: int, rpm: float) -> np.ndarray:

@@ -6,3 +6,7 @@ class ModelInputError(ValueError):
 
     The CLI turns every subclass into one ``error:`` line on stderr and exit code 2.
     """
+
+
+class CalibrationError(ModelInputError):
+    """A calibration set is missing, unreadable or has an invalid field."""

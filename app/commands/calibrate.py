@@ -24,12 +24,25 @@ def register(subparsers: Any) -> None:
             "Fit the force law log10 F = b0 + log10(1 + Ke v) + n log10(HU + 1000) to slave-robot "
             "recordings listed in MANIFEST.csv (columns file, hu, feed_mm_s; paths relative to "
             "it). Each recording (columns time_s, position_mm, force_n) gives A0 (DC) and the "
-            "amplitudes at k * blades * rpm / 60 Hz by a Hann-windowed DFT over its depth window."
+            "amplitudes at k * blades * rpm / 60 Hz by a Hann-windowed DFT over its depth window. "
+            "With --literature instead of a manifest, fit the bone-literature set to published "
+            "points (bone_force_points.csv; docs/model.md says which points and conversions)."
         ),
     )
-    p.add_argument("manifest", type=Path, metavar="MANIFEST.csv", help="recordings manifest")
-    p.add_argument("--rpm", type=float, required=True, help="drill speed, rev/min")
-    p.add_argument("--blades", type=int, required=True, help="cutting blades of the drill")
+    p.add_argument(
+        "manifest", type=Path, nargs="?", metavar="MANIFEST.csv", help="recordings manifest"
+    )
+    p.add_argument(
+        "--literature",
+        type=Path,
+        default=None,
+        metavar="CSV",
+        help="fit bone-literature to this bone_force_points.csv instead of recordings",
+    )
+    p.add_argument("--rpm", type=float, default=None, help="drill speed, rev/min (recordings)")
+    p.add_argument(
+        "--blades", type=int, default=None, help="cutting blades of the drill (recordings)"
+    )
     p.add_argument("--out", type=Path, required=True, metavar="CAL.json", help="output set")
     p.add_argument("--name", default=None, help="set name (default: the manifest's stem)")
     p.add_argument("--material", default="unspecified", help="material cut in the recordings")
@@ -82,6 +95,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.out.exists() and args.out.is_dir():
         raise AppInputError(f"--out {args.out}: is a folder; give a .json file path")
+    if (args.manifest is None) == (args.literature is None):
+        raise AppInputError("give either MANIFEST.csv (recordings) or --literature CSV, not both")
+    if args.literature is not None:
+        return _run_literature(args)
+    if args.rpm is None or args.blades is None:
+        raise AppInputError("--rpm and --blades are required with MANIFEST.csv")
     fit = calibrate_from_manifest(
         args.manifest,
         rpm=args.rpm,
@@ -100,4 +119,31 @@ def run(args: argparse.Namespace) -> int:
     # a temporary sibling renamed over --out: a full disk or a kill leaves the old set whole
     atomic_write_text(args.out, text, what="--out")
     sys.stdout.write(format_fit(fit) + f"\nwrote {args.out}\n")
+    return 0
+
+
+def format_literature(doc: dict[str, Any]) -> str:
+    """Parameter, value and standard error of the literature fit, and the points used."""
+    lines = [f"calibration {doc['name']}: {doc['provenance']['method']}"]
+    lines.append(f"{'parameter':<10} {'value':>10} {'stderr':>10} {'error (%)':>10}")
+    for key, p in doc["fit"].items():
+        lines.append(f"{key:<10} {p['value']:>10.4g} {p['stderr']:>10.3g} {p['stderr_pct']:>10.2f}")
+    used = ", ".join(p["source_key"] for p in doc["provenance"]["points_used"])
+    lines.append(f"points used: {used}")
+    lines.append(
+        f"points excluded: {len(doc['provenance']['points_excluded'])} (reasons in the set)"
+    )
+    return "\n".join(lines)
+
+
+def _run_literature(args: argparse.Namespace) -> int:
+    from ctdrill.app.records import atomic_write_text
+    from ctdrill.model.calibration import calibration_from_dict
+    from ctdrill.model.literature import fit_literature
+
+    doc = fit_literature(args.literature)
+    text = json.dumps(doc, indent=2, ensure_ascii=False) + "\n"
+    calibration_from_dict(json.loads(text), source_path=args.out)
+    atomic_write_text(args.out, text, what="--out")
+    sys.stdout.write(format_literature(doc) + f"\nwrote {args.out}\n")
     return 0

@@ -47,11 +47,6 @@ def run(args: argparse.Namespace) -> int:
     for path in written:
         sys.stdout.write(f"wrote {path}  ({about.get(path.name, '')})\n")
     summary = json.loads((Path(args.out) / "summary.json").read_text(encoding="utf-8"))
-    # The same stop, clearance and warning lines as ``ctdrill export``, then the calibration.
+    # The same stop, calibration and warning lines as ``ctdrill export``.
     sys.stdout.write("".join(line + "\n" for line in summary_lines(summary)))
-    sys.stdout.write(
-        f"calibration {summary['calibration']}"
-        + (" (illustrative)" if summary["calibration_illustrative"] else "")
-        + "\n"
-    )
     return 0

@@ -48,6 +48,7 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the rehearsal and print a one-line summary; 3 if it ended on a device fault."""
+    from ctdrill.app.calibration_info import calibration_line
     from ctdrill.app.readout import readout_lines
     from ctdrill.app.rehearse import ending_message, exit_code, rehearse
 
@@ -66,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
         f"stop depth {s['stop_depth_mm']:.2f} mm ({s['stop_reason']}), max drill depth "
         f"{s['max_drill_mm']:.2f} mm, final state {s['final_state']}, "
         f"{len(s['faults'])} fault events; wrote {args.out}/session.csv and summary.json\n"
+        f"{calibration_line(s)}\n"
     )
     sys.stdout.write(readout_lines(s))
     if "no_landmarks" in s["warnings"]:

@@ -38,8 +38,9 @@ from ctdrill.imaging.plan.landmarks import (
 )
 
 PLAN_FORMAT = "ctdrill-plan/1"
-#: Calibration used when a plan names none: patient CT, labelled as illustrative.
-DEFAULT_CALIBRATION = "bone-illustrative"
+#: Calibration used when a plan names none (patient CT): the literature fit, with its covariance
+#: (docs/model.md). ``bone-illustrative`` stays available by name.
+DEFAULT_CALIBRATION = "bone-literature"
 #: Clinical safety margin to the inferior alveolar nerve canal, mm (DESIGN.md section 5): its
 #: one owner. Margins below it are reported (warning ``margin_below_clinical``).
 CLINICAL_MARGIN_MM = 2.0

@@ -100,7 +100,10 @@ def demo_export(tmp_path_factory: pytest.TempPathFactory) -> Path:
         f"2 mm) of 12.000 mm planned; clearance along the planned path "
         f"{s['plan_clearance_mm']:.3f} mm"
     )
-    assert rest[1:] == [f"warning [{w['code']}]: {w['message']}" for w in s["warnings"]]
+    # which calibration set, and how it was obtained (the illustrative set has no method)
+    assert rest[1] == f"calibration bone-illustrative (illustrative): {s['calibration_source']}"
+    assert s["calibration_method"] == "not stated by the set (see its source)"
+    assert rest[2:] == [f"warning [{w['code']}]: {w['message']}" for w in s["warnings"]]
     return out
 
 

@@ -98,7 +98,7 @@ def test_defaults_when_optional_fields_are_missing(tmp_path: Path) -> None:
     doc = {"format": "ctdrill-plan/1", "entry_mm": [0, 0, 0], "target_mm": [0, 0, 5]}
     plan = load_plan(_write(tmp_path, doc))
     assert plan.drill == DrillSpec()
-    assert plan.calibration == "bone-illustrative"
+    assert plan.calibration == "bone-literature"
     assert plan.margin_mm == 2.0 and plan.feed_mm_s == 0.4 and plan.landmarks == ()
 
 

@@ -209,3 +209,61 @@ def test_a_vanishing_harmonic_is_refused_by_its_index() -> None:
     doc = _mutated(harmonics=[{"order": 1, "b0": -400.0, "n": -1.91}])
     with pytest.raises(CalibrationError, match=r"harmonics\[0\] gives less than"):
         calibration_from_dict(doc, source_path="x.json")
+
+
+COV_OK: dict[str, Any] = {
+    "parameters": ["a0.b0", "a0.n", "a0.ke"],
+    "matrix": [[2.0, -0.5, 0.1], [-0.5, 0.2, 0.0], [0.1, 0.0, 4.0]],
+}
+
+
+def test_old_sets_load_unchanged_without_covariance() -> None:
+    for name in ("pine-wood-paper", "bone-illustrative"):
+        cal = load_calibration(name)
+        assert cal.covariance is None and cal.method is None
+        doc = json.loads((CALIBRATION_DIR / f"{name}.json").read_text("utf-8"))
+        assert calibration_from_dict(calibration_to_dict(cal)) == cal == calibration_from_dict(doc)
+        assert "covariance" not in calibration_to_dict(cal)
+
+
+def test_covariance_round_trips() -> None:
+    doc = dict(PINE, covariance=COV_OK, provenance={"method": "a test", "other": [1, 2]})
+    cal = calibration_from_dict(doc)
+    assert cal.covariance is not None and cal.method == "a test"
+    assert cal.covariance.stderr("a0.n") == pytest.approx(0.2**0.5)
+    again = calibration_from_dict(calibration_to_dict(cal))
+    assert again == cal
+
+
+@pytest.mark.parametrize(
+    ("cov", "field"),
+    [
+        ("x", "covariance must be an object"),
+        ({"parameters": [], "matrix": []}, "covariance.parameters must be a non-empty list"),
+        ({"parameters": ["a0.q"], "matrix": [[1.0]]}, r"covariance.parameters\[0\] names 'a0.q'"),
+        ({"parameters": ["a0.n", "a0.n"], "matrix": [[1, 0], [0, 1]]}, "repeats a name"),
+        ({"parameters": ["a0.n", "a0.b0"], "matrix": [[1.0, 0.0]]}, "must be a 2 x 2"),
+        ({"parameters": ["a0.n", "a0.b0"], "matrix": [[1.0], [0.0, 1.0]]}, r"matrix\[0\] must"),
+        ({"parameters": ["a0.n"], "matrix": [["1"]]}, r"matrix\[0\]\[0\] must be a number"),
+        ({"parameters": ["a0.n"], "matrix": [[1e400]]}, r"matrix\[0\]\[0\] must be finite"),
+        ({"parameters": ["a0.n"], "matrix": [[-1.0]]}, r"matrix\[0\]\[0\] is a variance"),
+        (
+            {"parameters": ["a0.n", "a0.b0"], "matrix": [[1.0, 0.5], [0.4, 1.0]]},
+            r"matrix\[0\]\[1\] \(0.5\) differs from covariance.matrix\[1\]\[0\]",
+        ),
+        (
+            {"parameters": ["a0.n", "a0.b0"], "matrix": [[1.0, 2.0], [2.0, 1.0]]},
+            "covariance.matrix is not positive semi-definite",
+        ),
+    ],
+)
+def test_malformed_covariance_is_refused_naming_the_field(cov: Any, field: str) -> None:
+    with pytest.raises(CalibrationError, match=field):
+        calibration_from_dict(dict(PINE, covariance=cov), source_path="x.json")
+
+
+def test_malformed_provenance_is_refused() -> None:
+    with pytest.raises(CalibrationError, match="field provenance must be an object"):
+        calibration_from_dict(dict(PINE, provenance=[1]))
+    with pytest.raises(CalibrationError, match=r"provenance.method must be a non-empty string"):
+        calibration_from_dict(dict(PINE, provenance={"method": ""}))

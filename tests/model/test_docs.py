@@ -21,7 +21,7 @@ def _rows(set_name: str) -> list[list[str]]:
     return [[c.strip() for c in row] for row in rows]
 
 
-@pytest.mark.parametrize("set_name", ["pine-wood-paper", "bone-illustrative"])
+@pytest.mark.parametrize("set_name", ["pine-wood-paper", "bone-illustrative", "bone-literature"])
 def test_law_tables_match_the_code(set_name: str) -> None:
     cal = load_calibration(set_name)
     rows = _rows(set_name)

@@ -1,0 +1,141 @@
+"""bone-literature: the committed set is what the fit gives on ../shared/literature."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from ctdrill.hu import AIR_HU
+from ctdrill.imaging.misch import MISCH_BANDS_HU
+from ctdrill.model.calibration import CALIBRATION_DIR, load_calibration
+from ctdrill.model.literature import (
+    CORTICAL_HU_RANGE,
+    EXCLUDED,
+    MISCH_HU_RANGES,
+    THRUST_KEYS,
+    TORQUE_KEYS,
+    LiteratureError,
+    converted_thrust,
+    fit_literature,
+    read_literature,
+)
+from tests.conftest import SHARED
+
+LITERATURE = SHARED / "literature" / "bone_force_points.csv"
+
+
+@pytest.fixture(scope="module")
+def fitted() -> dict[str, Any]:
+    assert LITERATURE.is_file(), f"literature data missing: {LITERATURE}"
+    return fit_literature(LITERATURE)
+
+
+def _same(a: Any, b: Any, where: str = "") -> None:
+    """Equal documents, numbers to 1e-6 relative (the fit's convergence), text exactly."""
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and a.keys() == b.keys(), where
+        for k in a:
+            _same(a[k], b[k], f"{where}.{k}")
+    elif isinstance(a, list):
+        assert isinstance(b, list) and len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _same(x, y, f"{where}[{i}]")
+    elif isinstance(a, float | int) and not isinstance(a, bool):
+        assert b == pytest.approx(a, rel=1e-6, abs=1e-12), where
+    else:
+        assert a == b, where
+
+
+def test_committed_set_is_reproduced_by_the_fit(fitted: dict[str, Any]) -> None:
+    committed = json.loads((CALIBRATION_DIR / "bone-literature.json").read_text("utf-8"))
+    _same(json.loads(json.dumps(fitted)), committed)
+
+
+def test_set_loads_with_its_covariance_and_standard_errors(fitted: dict[str, Any]) -> None:
+    cal = load_calibration("bone-literature")
+    assert not cal.illustrative and cal.method is not None and "literature" in cal.method
+    cov = cal.covariance
+    assert cov is not None and cov.parameters == ("a0.b0", "a0.n", "a0.ke")
+    m = cov.array()
+    np.testing.assert_array_equal(m, m.T)
+    assert np.linalg.eigvalsh(m)[0] > 0.0
+    for key in cov.parameters:
+        assert cov.stderr(key) == pytest.approx(fitted["fit"][key]["stderr"], rel=1e-5)
+    # the set is for the reference drill and the equivalent feeds it was fitted on
+    assert cal.feed_range_mm_s == pytest.approx((0.833 * 900 / 12000, 1.167 * 900 / 500), rel=1e-3)
+
+
+def test_every_row_is_used_or_excluded_with_a_reason() -> None:
+    data = read_literature(LITERATURE)
+    with LITERATURE.open(encoding="utf-8") as fh:
+        keys = [r["source_key"] for r in csv.DictReader(fh)]
+    used = {p.key for p in data.thrust} | {t.key for t in data.torque}
+    assert used == set(THRUST_KEYS) | set(TORQUE_KEYS)
+    assert sorted(used | {k for k, _ in data.excluded}) == sorted(keys)
+    assert len(keys) == 42 and len(data.excluded) == 32
+    assert all(why for _, why in data.excluded)
+
+
+def test_an_unclassified_row_is_refused(tmp_path: Path) -> None:
+    text = LITERATURE.read_text("utf-8")
+    rows = list(csv.DictReader(io.StringIO(text)))
+    extra = dict(rows[0], source_key="NewStudy2030")
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(rows[0]))
+    w.writeheader()
+    w.writerows([*rows, extra])
+    path = tmp_path / "points.csv"
+    path.write_text(buf.getvalue(), "utf-8")
+    with pytest.raises(LiteratureError, match=r"NewStudy2030.*neither fitted nor excluded"):
+        read_literature(path)
+    missing = tmp_path / "missing.csv"
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(rows[0]))
+    w.writeheader()
+    w.writerows([r for r in rows if r["source_key"] != "HSBD2020_JBSMSE"])
+    missing.write_text(buf.getvalue(), "utf-8")
+    with pytest.raises(LiteratureError, match=r"HSBD2020_JBSMSE.*the fit needs it"):
+        read_literature(missing)
+
+
+def test_conversions_by_hand() -> None:
+    data = read_literature(LITERATURE)
+    mac = next(p for p in data.thrust if p.key == "MacAvelia2012_human_1000")
+    assert converted_thrust(mac, 1.0) == pytest.approx((198.4 * 2.0 / 3.2, 2.0 * 900 / 1000))
+    pig = next(p for p in data.thrust if p.key == "PorcineFemur2014_max")
+    assert converted_thrust(pig, 1.0) == pytest.approx((139.84 * 0.4, 1.167 * 900 / 500))
+    d2 = next(t for t in data.torque if t.key == "BovineRib_torque_D2")
+    assert (d2.misch, d2.torque_ncm, d2.sd_ncm, d2.sites) == ("D2", 11.2, 3.2, 87)
+
+
+def test_misch_ranges_are_the_imaging_bands() -> None:
+    bands = {name: (lo, hi) for name, lo, hi in MISCH_BANDS_HU}
+    for name, (lo, hi) in MISCH_HU_RANGES.items():
+        band = bands[name]
+        assert hi == band[1] and (lo == band[0] or (name == "D5" and lo == 0.0))
+    assert CORTICAL_HU_RANGE[0] == bands["D1"][0]
+
+
+def test_cortical_assignment_moves_the_level_by_n_dlog10_c(fitted: dict[str, Any]) -> None:
+    # Only the thrust points carry the cortical HU, and n comes from the torque slope alone, so
+    # shifting the assignment by one SD moves b0 by n * d log10 C' and nothing else.
+    sd = (CORTICAL_HU_RANGE[1] - CORTICAL_HU_RANGE[0]) / math.sqrt(12.0)
+    mid = sum(CORTICAL_HU_RANGE) / 2.0 - AIR_HU
+    n = fitted["a0"]["n"]
+    expected = n * (math.log10(mid + sd) - math.log10(mid - sd)) / 2.0
+    got = fitted["provenance"]["stderr_systematic"]["cortical_hu"]
+    assert got["b0"] == pytest.approx(expected, rel=1e-5)  # stored to 6 digits
+    assert got["n"] < 1e-6 and got["ke"] < 1e-6
+
+
+def test_excluded_reasons_cover_every_prefix_used() -> None:
+    data = read_literature(LITERATURE)
+    prefixes = {next(p for p in EXCLUDED if k.startswith(p)) for k, _ in data.excluded}
+    assert prefixes == set(EXCLUDED)
