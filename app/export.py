@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import csv
 import io
-import itertools
 import json
 import math
 import sys
@@ -29,11 +28,15 @@ import numpy as np
 
 from ctdrill.app.calibration_info import calibration_fields, calibration_line
 from ctdrill.app.errors import AppInputError
+from ctdrill.app.export_band import BAND_COLUMNS, band_line, band_summary, path_band
 from ctdrill.app.export_defaults import DEFAULT_RATE_HZ as DEFAULT_RATE_HZ
+from ctdrill.app.export_fields import hu_grading, interpolated_gaps_json
 from ctdrill.app.fixedtext import fixed_csv
+from ctdrill.app.grey_option import grey_line
 from ctdrill.app.pipeline import PathResult
 from ctdrill.app.records import printable
-from ctdrill.imaging.misch import MISCH_CLASSES, misch_class
+from ctdrill.imaging.misch import misch_class
+from ctdrill.model.band import ForceBand, HuUncertainty
 from ctdrill.model.profile import force_series_n
 
 FORCE_COLUMNS = ("time_s", "depth_mm", "hu", "s_t", "force_n", "clearance_mm", "calibration")
@@ -48,7 +51,6 @@ PROFILE_COLUMNS = (
     "misch",
     "calibration",
 )
-N_HU_SEGMENTS = 10
 
 
 class ExportInputError(AppInputError):
@@ -127,13 +129,16 @@ def force_csv(series: ForceSeries, calibration: str) -> str:
     return fixed_csv(FORCE_COLUMNS, columns, tail=calibration)
 
 
-def profile_csv(result: PathResult) -> str:
-    """``profile.csv`` text: one row per depth of the profile grid."""
+def profile_csv(result: PathResult, band: ForceBand | None = None) -> str:
+    """``profile.csv`` text: one row per depth of the profile grid; then ``mean_force_n``,
+    ``s0_lo_n``, ``s0_hi_n`` (the mean force at the band's feed and its 68 % band; empty
+    without a band: docs/export.md)."""
     prof = result.profile
     sk = [prof.sk_n[k] if k < prof.sk_n.shape[0] else np.zeros_like(prof.s0_n) for k in (0, 1)]
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(PROFILE_COLUMNS)
+    w.writerow(PROFILE_COLUMNS + BAND_COLUMNS)
+    empty = [""] * len(prof.depth_mm)
     cols = [
         _fmt(prof.depth_mm, 4),
         _fmt(prof.hu_mean, 2),
@@ -144,47 +149,14 @@ def profile_csv(result: PathResult) -> str:
         _fmt(result.min_clearance_per_depth_mm, 4),
         misch_class(prof.hu_mean).tolist(),
         [prof.calibration] * len(prof.depth_mm),
+        *(
+            [empty] * 3
+            if band is None
+            else [_fmt(band.mean_n, 5), _fmt(band.lo_n, 5), _fmt(band.hi_n, 5)]
+        ),
     ]
     w.writerows(zip(*cols, strict=True))
     return buf.getvalue()
-
-
-def hu_grading(result: PathResult) -> dict[str, Any]:
-    """Misch share of the path down to the stop depth and mean HU in 10 equal segments."""
-    prof = result.profile
-    stop = result.stop_depth_mm
-    keep = prof.depth_mm <= stop + 1e-9
-    classes = misch_class(prof.hu_mean[keep])
-    share = {c: float(np.mean(classes == c)) if classes.size else 0.0 for c in MISCH_CLASSES}
-    segments = []
-    edges = np.linspace(0.0, stop, N_HU_SEGMENTS + 1)
-    for lo, hi in itertools.pairwise(edges):
-        # mean of the lip-mean HU over [lo, hi], trapezoid on a fine resampling
-        xs = np.linspace(lo, hi, 33)
-        mean = float(np.mean(np.interp(xs, prof.depth_mm, prof.hu_mean))) if hi > lo else None
-        segments.append(
-            {
-                "from_mm": round(float(lo), 4),
-                "to_mm": round(float(hi), 4),
-                "mean_hu": None if mean is None else round(mean, 2),
-                "misch": None if mean is None else str(misch_class(np.array([mean]))[0]),
-            }
-        )
-    return {"misch_share": share, "segments": segments}
-
-
-def interpolated_gaps_json(result: PathResult) -> list[dict[str, float]]:
-    """The slice gaps interpolated across on request (``--interpolate-gaps``); [] if none."""
-    return [
-        {
-            "lower_mm": round(g.lower_mm, 4),
-            "upper_mm": round(g.upper_mm, 4),
-            "nominal_step_mm": round(abs(g.nominal_step_mm), 4),
-            "depth_from_mm": round(g.depth_from_mm, 4),
-            "depth_to_mm": round(g.depth_to_mm, 4),
-        }
-        for g in result.interpolated_gaps
-    ]
 
 
 def _num(v: float | None, digits: int = 4) -> float | None:
@@ -202,8 +174,10 @@ def summary(
     series_uid: str,
     patient: dict[str, str] | None = None,
     include_phi: bool = False,
+    band: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """The ``summary.json`` document (no patient identifiers unless ``patient`` is given).
+    """The ``summary.json`` document (no patient identifiers unless ``patient`` is given);
+    ``band``: :func:`ctdrill.app.export_band.band_summary`'s fields (and ``grey_to_hu``).
 
     ``series_uid`` is written as the SHA-256 of the SeriesInstanceUID (as plans record it),
     the raw UID only with ``include_phi``; ``series_uid_sha256`` always.
@@ -242,6 +216,7 @@ def summary(
         "margin_mm": plan.margin_mm,
         "landmarks": lms,
         **calibration_fields(cal),
+        **(band or {}),
         "feed_mm_s": feed_mm_s,
         "rate_hz": rate_hz,
         "duration_s": _num(float(series.time_s[-1]), 6),
@@ -291,6 +266,11 @@ def summary_lines(doc: dict[str, Any]) -> list[str]:
     lines = [line]
     if "calibration" in doc:
         lines.append(calibration_line(doc))
+    if "force_band_note" in doc:
+        lines.append(band_line(doc))
+    grey = grey_line(doc)
+    if grey is not None:
+        lines.append(grey)
     lines += [f"warning [{w['code']}]: {w['message']}" for w in doc.get("warnings", [])]
     return lines
 
@@ -317,6 +297,8 @@ def write_exports(
     plot: bool = True,
     files: bool = True,
     table: bool = False,
+    hu_uncertainty: HuUncertainty | None = None,
+    grey_to_hu: dict[str, Any] | None = None,
 ) -> list[Path]:
     """Write every job's four files into a staging folder swapped in for ``out_dir`` whole.
 
@@ -324,6 +306,8 @@ def write_exports(
     :func:`summary`). ``plot`` False leaves out ``force.png`` (each summary says
     ``"plot": false``); ``files`` False writes no per-job files; ``table`` writes
     ``trajectories.csv`` (:mod:`ctdrill.app.export_table`), one row per job.
+    ``hu_uncertainty`` enters every force band (``--hu-sigma``, a grey map); ``grey_to_hu``
+    (the map applied to the series, or None) is recorded in every summary.
     ``extra_files`` (relative path -> content) are written in the same swap (the demo's
     marker, the GUI's session record); their names may be present when the folder is next
     replaced. ``out_dir`` is replaced as a whole
@@ -346,6 +330,7 @@ def write_exports(
                 progress(n, len(jobs), job.result.plan.name)
             feed = job.result.plan.feed_mm_s if feed_mm_s is None else feed_mm_s
             series = force_time_series(job.result, feed_mm_s=feed, rate_hz=rate_hz)
+            band = path_band(job.result, feed, hu_uncertainty)
             doc = summary(
                 job.result,
                 series,
@@ -354,6 +339,10 @@ def write_exports(
                 series_uid=series_uid,
                 patient=patient,
                 include_phi=include_phi,
+                band={
+                    **band_summary(job.result, band, feed_mm_s=feed, hu=hu_uncertainty),
+                    "grey_to_hu": grey_to_hu,
+                },
             )
             doc["plot"] = plot
             if table:
@@ -365,12 +354,12 @@ def write_exports(
             cal = job.result.calibration.name
             outputs: dict[str, bytes | str] = {
                 "force.csv": force_csv(series, cal),
-                "profile.csv": profile_csv(job.result),
+                "profile.csv": profile_csv(job.result, band),
                 "summary.json": json.dumps(doc, indent=2, allow_nan=False) + "\n",
             }
             if plot:
                 png = io.BytesIO()
-                force_png(job.result, series, png)
+                force_png(job.result, series, png, band=band)
                 outputs["force.png"] = png.getvalue()
             for name, data in outputs.items():
                 write_file(target / name, data)

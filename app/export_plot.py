@@ -32,6 +32,7 @@ from ctdrill.imaging.misch import MISCH_BANDS_HU
 
 if TYPE_CHECKING:
     from ctdrill.app.export import ForceSeries
+    from ctdrill.model.band import ForceBand
 
 #: Colours of the Misch bands drawn behind the HU trace (D5 is left blank).
 _MISCH_COLOURS = {"D1": "#5b3a29", "D2": "#8c6239", "D3": "#c69c6d", "D4": "#e8d4b0"}
@@ -142,12 +143,22 @@ def _canvas() -> _Canvas:
         return _CANVAS
 
 
-def force_png(result: PathResult, series: ForceSeries, path: Path | IO[bytes]) -> None:
-    """Draw the export figure into ``path`` (PNG, 1200x1000 px): a file or a binary stream."""
+def force_png(
+    result: PathResult,
+    series: ForceSeries,
+    path: Path | IO[bytes],
+    *,
+    band: ForceBand | None = None,
+) -> None:
+    """Draw the export figure into ``path`` (PNG, 1200x1000 px): a file or a binary stream.
+
+    ``band`` (the mean force's 68 % band) is shaded around the mean force; without one the
+    force panel says that the set gives no band.
+    """
     c = _canvas()
     with c.lock:
         try:
-            _draw(c, result, series)
+            _draw(c, result, series, band)
             c.canvas.draw()
             data = png_bytes(np.asarray(c.canvas.buffer_rgba())[:, :, :3])
         finally:
@@ -184,7 +195,7 @@ def _chunk(kind: bytes, data: bytes) -> bytes:
     return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
 
 
-def _draw(c: _Canvas, result: PathResult, series: ForceSeries) -> None:
+def _draw(c: _Canvas, result: PathResult, series: ForceSeries, band: ForceBand | None) -> None:
     """Add one trajectory's artists to the template."""
     ax_f, ax_h, ax_c = c.ax_f, c.ax_h, c.ax_c
     prof = result.profile
@@ -201,7 +212,29 @@ def _draw(c: _Canvas, result: PathResult, series: ForceSeries) -> None:
         color="#d62728",
         label="mean force S0 (1 + Ke v)",
     )
-    ax_f.legend(loc="upper left", fontsize=7)
+    if band is not None:
+        what = "calibration" + (" + HU" if band.hu is not None else "")
+        ax_f.fill_between(
+            prof.depth_mm,
+            band.lo_n,
+            band.hi_n,
+            color="#d62728",
+            alpha=0.18,
+            lw=0,
+            label=f"68 % band of the mean ({what})",
+        )
+    else:
+        ax_f.text(
+            0.99,
+            0.04,
+            f"no band: {result.calibration.name} gives no covariance",
+            transform=ax_f.transAxes,
+            ha="right",
+            va="bottom",
+            fontsize=7,
+            color="#7f7f7f",
+        )
+    ax_f.legend(loc="upper right", fontsize=7)
 
     ax_h.plot(prof.depth_mm, prof.hu_mean, color="k", lw=1.0, label="lip-mean HU")
     ax_h.plot(result.depth_mm, result.lip.axis_hu, color="#7f7f7f", lw=0.6, label="axis HU")

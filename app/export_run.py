@@ -16,6 +16,8 @@ from pathlib import Path
 
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.export import DEFAULT_RATE_HZ, ExportInputError, ExportJob, write_exports
+from ctdrill.app.export_band import hu_uncertainty_option
+from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
 from ctdrill.app.pipeline import plan_calibration_key, plan_path
 from ctdrill.app.sequence import SequenceResult, plan_sequence
 from ctdrill.app.sequence_export import sequence_files, sequence_jobs
@@ -96,6 +98,8 @@ def export_case(
     interpolate_gaps: bool = False,
     plot: bool = True,
     per_trajectory: bool = False,
+    hu_sigma: float | None = None,
+    grey: GreyMapSpec | None = None,
 ) -> list[Path]:
     """Export every trajectory of ``plan_paths`` on the CT in ``dicom``.
 
@@ -119,6 +123,9 @@ def export_case(
         (each summary then says so).
     plot : write ``force.png`` (False: ``--no-plot``, for screening).
     per_trajectory : with several trajectories, also write each one's files.
+    hu_sigma : SD of the series' HU (``--hu-sigma``), entered into every force band.
+    grey : a grey-to-HU map (``--grey-to-hu``/``--grey-ref``) applied to the series as loaded;
+        recorded in every summary, its uncertainty entered into the force band.
 
     Returns
     -------
@@ -128,9 +135,11 @@ def export_case(
         raise ExportInputError(f"--feed-mm-s must be a positive number, got {feed_mm_s!r}")
     if not rate_hz > 0.0:
         raise ExportInputError(f"--rate-hz must be a positive number, got {rate_hz!r}")
+    manual_hu = hu_uncertainty_option(hu_sigma)
     plans = list(load_plan_set(plan_paths))
     per_file = Counter(plan.source for plan in plans)
-    volume = load_series(dicom, series_uid=series_uid)
+    volume, grey_map = map_volume(load_series(dicom, series_uid=series_uid), grey)
+    hu_unc = hu_uncertainty(grey_map, manual_hu)
     cache: dict[str, Calibration] = {}
     override = load_calibration(calibration) if calibration is not None else None
     jobs: list[ExportJob] = []
@@ -174,6 +183,8 @@ def export_case(
             series_uid=volume.info.series_uid,
             patient=patient,
             include_phi=include_phi,
+            hu_uncertainty=hu_unc,
+            grey_to_hu=None if grey_map is None else grey_map.to_json(),
         )
     written = write_exports(
         jobs,
@@ -188,6 +199,8 @@ def export_case(
         plot=plot,
         files=files,
         table=len(plans) > 1,
+        hu_uncertainty=hu_unc,
+        grey_to_hu=None if grey_map is None else grey_map.to_json(),
     )
     if warn is not None:
         for plan in plans:

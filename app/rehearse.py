@@ -21,6 +21,8 @@ from typing import Any
 
 from ctdrill.app.calibration_info import calibration_fields
 from ctdrill.app.errors import AppInputError
+from ctdrill.app.export_band import band_summary, hu_uncertainty_option, path_band
+from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
 from ctdrill.app.pipeline import PathResult, binding_landmark_doc, plan_calibration, plan_path
 from ctdrill.app.readout import push_summary
 from ctdrill.app.records import atomic_output_dir, write_file
@@ -31,7 +33,9 @@ from ctdrill.haptics.serial_device import SerialDevice
 from ctdrill.haptics.session import SessionCsv, parse_fault, parse_operator
 from ctdrill.haptics.sim import SimulatedDevice
 from ctdrill.imaging import load_series
+from ctdrill.imaging.dicom.grey import GreyToHu
 from ctdrill.imaging.plan.types import load_one_plan
+from ctdrill.model.band import HuUncertainty
 
 #: Exit code of a session that ended on a device fault or a host error (STOP, DISARM sent).
 EXIT_DEVICE_FAULT = 3
@@ -45,21 +49,28 @@ class RehearsalTable:
 
     table: ProfileTable
     path: PathResult
+    grey_map: GreyToHu | None = None
 
 
 def load_table(
-    dicom: Path, plan_file: Path | Sequence[Path], *, interpolate_gaps: bool = False
+    dicom: Path,
+    plan_file: Path | Sequence[Path],
+    *,
+    interpolate_gaps: bool = False,
+    grey: GreyMapSpec | None = None,
 ) -> RehearsalTable:
     """Load the CT and the plan (one file, or several merged into one trajectory), compute
     the path and adapt its profile to a device table.
 
     ``interpolate_gaps`` interpolates across slice gaps the drill crosses instead of refusing
-    (the path's warnings then say so).
+    (the path's warnings then say so); ``grey`` maps grey values to HU (``--grey-to-hu``).
     """
-    volume = load_series(dicom)
+    volume, grey_map = map_volume(load_series(dicom), grey)
     plan = load_one_plan([plan_file] if isinstance(plan_file, Path) else plan_file)
     path = plan_path(volume, plan, plan_calibration(plan), interpolate_gaps=interpolate_gaps)
-    return RehearsalTable(ProfileTable.from_profile(path.profile, path.stop_depth_mm), path)
+    return RehearsalTable(
+        ProfileTable.from_profile(path.profile, path.stop_depth_mm), path, grey_map
+    )
 
 
 def open_device(spec: str, *, seed: int = 0) -> Device:
@@ -81,13 +92,16 @@ def rehearsal_summary(
     device: str,
     duration_s: float,
     seed: int,
+    hu: HuUncertainty | None = None,
+    grey_map: GreyToHu | None = None,
 ) -> dict[str, Any]:
     """The one ``summary.json`` of a rehearsal (CLI and GUI): the session's fields, then the
     plan's (stop reason, planned and max safe depth, the binding landmark, the planned path's
-    clearance, calibration and whether it is illustrative, warnings), how the session was
-    run, and for a ``push:N`` operator the readouts of :func:`ctdrill.app.readout.push_summary`
-    (the model's time to the stop against the session's, a push too weak to cut, the hand's
-    offset past the stopped drill)."""
+    clearance, calibration, how it was obtained, the force band at the peak at the plan's feed
+    with ``hu`` (``--hu-sigma``), warnings), how the session was run, and for a ``push:N``
+    operator the readouts of :func:`ctdrill.app.readout.push_summary` (the model's time to the
+    stop against the session's, a push too weak to cut, the hand's offset past the stopped
+    drill)."""
     summary = dict(session.to_json() if isinstance(session, SessionResult) else session)
     summary.update(
         {
@@ -97,6 +111,13 @@ def rehearsal_summary(
             "binding_landmark": binding_landmark_doc(path),
             "plan_clearance_mm": path.plan_clearance_mm,
             **calibration_fields(path.calibration),
+            **band_summary(
+                path,
+                path_band(path, path.plan.feed_mm_s, hu),
+                feed_mm_s=path.plan.feed_mm_s,
+                hu=hu,
+            ),
+            "grey_to_hu": None if grey_map is None else grey_map.to_json(),
             "operator": operator,
             "device": device,
             "duration_s": duration_s,
@@ -127,6 +148,8 @@ def rehearse(
     faults: Sequence[str] = (),
     seed: int = 0,
     interpolate_gaps: bool = False,
+    hu_sigma: float | None = None,
+    grey: GreyMapSpec | None = None,
 ) -> dict[str, Any]:
     """Run one rehearsal and write ``OUT/session.csv`` and ``OUT/summary.json`` (whole).
 
@@ -136,8 +159,10 @@ def rehearse(
     if not (math.isfinite(duration_s) and 0.0 < duration_s <= 3600.0):
         raise AppInputError(f"--duration-s {duration_s}: give 0 < seconds <= 3600")
     op = parse_operator(operator)
+    manual_hu = hu_uncertainty_option(hu_sigma)
     fault_specs = [parse_fault(f) for f in faults]
-    loaded = load_table(dicom, plan, interpolate_gaps=interpolate_gaps)
+    loaded = load_table(dicom, plan, interpolate_gaps=interpolate_gaps, grey=grey)
+    hu = hu_uncertainty(loaded.grey_map, manual_hu)
     with atomic_output_dir(out) as stage:
         dev = open_device(device, seed=seed)
         try:
@@ -164,6 +189,8 @@ def rehearse(
             device=device,
             duration_s=duration_s,
             seed=seed,
+            hu=hu,
+            grey_map=loaded.grey_map,
         )
         write_file(stage / "summary.json", summary_json(summary))
     return summary

@@ -14,8 +14,11 @@ from __future__ import annotations
 import json
 from typing import Any
 
+from ctdrill.app.calibration_info import calibration_line
 from ctdrill.app.export import ExportJob, force_time_series, summary
+from ctdrill.app.export_band import band_summary, path_band
 from ctdrill.app.sequence import SequenceResult, drill_folder, hole_json
+from ctdrill.model.band import HuUncertainty
 
 SEQUENCE_FORMAT = "ctdrill-sequence/1"
 #: Keys of the final drill's summary that describe the plan (copied to the top level).
@@ -36,6 +39,10 @@ PLAN_KEYS = (
     "calibration",
     "calibration_illustrative",
     "calibration_source",
+    "calibration_method",
+    "calibration_covariance",
+    "hu_uncertainty",
+    "grey_to_hu",
     "feed_mm_s",
     "rate_hz",
     "entry_lps",
@@ -67,8 +74,11 @@ def sequence_summary(
     series_uid: str,
     patient: dict[str, str] | None = None,
     include_phi: bool = False,
+    hu_uncertainty: HuUncertainty | None = None,
+    grey_to_hu: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """The top-level ``summary.json`` of a sequence (see the module docstring).
+    """The top-level ``summary.json`` of a sequence (see the module docstring); each drill
+    with its force band at its peak (``hu_uncertainty`` as ``write_exports``').
 
     Each drill's numbers are those of its own ``summary.json`` (the same functions compute
     them from the same path)."""
@@ -85,6 +95,15 @@ def sequence_summary(
                 series_uid=series_uid,
                 patient=patient,
                 include_phi=include_phi,
+                band={
+                    **band_summary(
+                        step,
+                        path_band(step, feed, hu_uncertainty),
+                        feed_mm_s=feed,
+                        hu=hu_uncertainty,
+                    ),
+                    "grey_to_hu": grey_to_hu,
+                },
             )
         )
     final = docs[-1]
@@ -102,6 +121,7 @@ def sequence_summary(
             "min_clearance_mm": doc["min_clearance_mm"],
             "peak_force_n": doc["peak_force_n"],
             "mean_force_n": doc["mean_force_n"],
+            "force_band": doc["force_band"],
             "inner_holes": [hole_json(h) for h in step.inner_holes],
         }
         for k, (step, doc) in enumerate(zip(seq.steps, docs, strict=True))
@@ -129,6 +149,12 @@ def sequence_lines(doc: dict[str, Any]) -> list[str]:
             f"{doc['plan']} drill {d['drill']}/{n} ({d['diameter_mm']:g} mm): stop at "
             f"{d['stop_depth_mm']:.3f} mm ({d['stop_reason']}), peak force "
             f"{d['peak_force_n']:.3f} N"
+            + (
+                ""
+                if d.get("force_band") is None
+                else f", 68 % band of the peak mean force {d['force_band']['peak_lo_n']:.2f}-"
+                f"{d['force_band']['peak_hi_n']:.2f} N"
+            )
         )
     why = str(doc["stop_reason"])
     binding = doc.get("binding_landmark")
@@ -141,5 +167,7 @@ def sequence_lines(doc: dict[str, Any]) -> list[str]:
     if doc.get("plan_clearance_mm") is not None:
         line += f"; clearance along the planned path {doc['plan_clearance_mm']:.3f} mm"
     lines.append(line)
+    if "calibration" in doc:
+        lines.append(calibration_line(doc))
     lines += [f"warning [{w['code']}]: {w['message']}" for w in doc.get("warnings", [])]
     return lines

@@ -106,14 +106,19 @@ def lip_sensitivity(
     lip_hu: ArrayLike, ring_weights: ArrayLike, calibration: Calibration
 ) -> LipSensitivity:
     """The sums of :class:`LipSensitivity` over lip samples ``(D, R, A)`` (HU) with the ring
-    weights ``(R,)`` of :func:`ctdrill.model.profile.build_profile` (same quadrature)."""
+    weights ``(R,)`` or ``(D, R)`` (a drill of a sequence: rings on the cut part of the lip) of
+    :func:`ctdrill.model.profile.build_profile` (same quadrature)."""
     hu = np.asarray(lip_hu, dtype=np.float64)
     w = np.asarray(ring_weights, dtype=np.float64)
-    if hu.ndim != 3 or w.shape != (hu.shape[1],):
-        raise ModelInputError(f"lip_hu (D, R, A) and ring_weights (R,) disagree: {hu.shape}")
+    if hu.ndim != 3 or w.shape not in ((hu.shape[1],), hu.shape[:2]):
+        raise ModelInputError(
+            f"lip_hu {hu.shape} (D, R, A) and ring_weights {w.shape} ((R,) or (D, R)) disagree"
+        )
     ring_w = w / hu.shape[2]
 
     def lip_mean(values: np.ndarray) -> np.ndarray:
+        if ring_w.ndim == 2:
+            return np.asarray(np.einsum("dr,dr->d", values.sum(axis=2), ring_w))
         return np.asarray(values.sum(axis=2) @ ring_w)
 
     g = gate(hu, calibration)
@@ -158,9 +163,15 @@ def force_band(
     calibration: Calibration,
     feed_mm_s: float,
     hu: HuUncertainty | None = None,
+    *,
+    s0_n: ArrayLike | None = None,
 ) -> ForceBand | None:
     """The 68 % band of ``S0 (1 + Ke v)`` (module docstring); None when the set has no
-    covariance (an HU uncertainty alone would present the calibration as certain)."""
+    covariance (an HU uncertainty alone would present the calibration as certain).
+
+    ``s0_n`` (D,) is the centre's ``S0`` when the caller's profile holds its own (the relative
+    sensitivities still come from ``sens``); default ``sens.s0_n``.
+    """
     cov = calibration.covariance
     if cov is None:
         return None
@@ -184,7 +195,10 @@ def force_band(
     sd_cal = np.where(cut, np.sqrt(np.clip(var_cal, 0.0, None)), 0.0)
     sd_hu = np.where(cut, np.sqrt(np.clip(var_hu, 0.0, None)), 0.0)
     sd = np.hypot(sd_cal, sd_hu)
-    mean = s0 * factor
+    centre = s0 if s0_n is None else np.asarray(s0_n, dtype=np.float64)
+    if centre.shape != s0.shape:
+        raise ModelInputError(f"s0_n has shape {centre.shape}, the lip sums {s0.shape}")
+    mean = centre * factor
     return ForceBand(
         feed_mm_s=float(feed_mm_s),
         mean_n=mean,

@@ -30,6 +30,7 @@ from ctdrill.model.calibration import (
     calibration_to_dict,
     load_calibration,
 )
+from ctdrill.model.calibration_cov import ParameterCovariance
 from ctdrill.model.errors import ModelInputError
 from ctdrill.model.fit_defaults import DEFAULT_DEPTH_WINDOW_MM
 from ctdrill.model.recordings import (
@@ -100,6 +101,7 @@ def fit_power_law(
     *,
     fit_ke: bool,
     ke_per_mm_s: float = 0.0,
+    cov_out: list[np.ndarray] | None = None,
 ) -> tuple[dict[str, FitParameter], float]:
     """Fit ``log10 y = b0 + log10(1 + Ke v) + n log10 C'`` by nonlinear least squares.
 
@@ -109,6 +111,8 @@ def fit_power_law(
         ``C' > 0``, feed (mm/s) and the measured amplitude (N, > 0) of each recording.
     fit_ke : bool
         Fit ``Ke`` (bounded to >= 0); otherwise hold it at ``ke_per_mm_s``.
+    cov_out : list, optional
+        Receives the covariance of ``(b0, n[, ke])`` (``s^2 (J^T J)^-1``).
 
     Returns
     -------
@@ -168,6 +172,8 @@ def fit_power_law(
         "n": FitParameter(n, float(se[1])),
         "ke": FitParameter(ke, float(se[2]) if fit_ke else 0.0),
     }
+    if cov_out is not None:
+        cov_out.append(cov)
     return params, float(np.sqrt(np.mean(r**2)))
 
 
@@ -280,7 +286,10 @@ def fit_calibration(
     params: dict[str, FitParameter] = {}
     rms: dict[str, float] = {}
     dc = np.array([m.dc_n for m in measurements])
-    a0_fit, rms["a0"] = fit_power_law(cp, feed, dc, fit_ke=fit_ke, ke_per_mm_s=ke_per_mm_s or 0.0)
+    a0_cov: list[np.ndarray] = []
+    a0_fit, rms["a0"] = fit_power_law(
+        cp, feed, dc, fit_ke=fit_ke, ke_per_mm_s=ke_per_mm_s or 0.0, cov_out=a0_cov
+    )
     params.update({f"a0.{k}": v for k, v in a0_fit.items()})
     harmonics: list[Harmonic] = []
     for i, order in enumerate(orders):
@@ -310,6 +319,11 @@ def fit_calibration(
         ke_per_mm_s=params["a0.ke"].value,
         harmonics=tuple(harmonics),
         feed_range_mm_s=(float(feed.min()), float(feed.max())),
+        covariance=ParameterCovariance(
+            ("a0.b0", "a0.n", "a0.ke")[: a0_cov[0].shape[0]],
+            tuple(tuple(float(v) for v in row) for row in (a0_cov[0] + a0_cov[0].T) / 2.0),
+        ),
+        method=f"fitted to {len(measurements)} force recordings (ctdrill calibrate)",
     )
     return CalibrationFit(
         calibration=calibration,

@@ -9,7 +9,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.commands.options import add_interpolate_gaps_option, add_plan_option
+from ctdrill.app.commands.options import (
+    add_grey_map_options,
+    add_hu_sigma_option,
+    add_interpolate_gaps_option,
+    add_plan_option,
+)
 from ctdrill.app.export_defaults import DEFAULT_RATE_HZ
 
 
@@ -66,6 +71,8 @@ def register(subparsers: Any) -> None:
         help="with several trajectories, also write each one's files into OUT/<plan name>/ "
         "(by default only OUT/trajectories.csv)",
     )
+    add_hu_sigma_option(p)
+    add_grey_map_options(p)
     p.set_defaults(func=run)
 
 
@@ -84,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.export import TextProgress, summary_lines
     from ctdrill.app.export_run import export_case
     from ctdrill.app.export_table import TABLE_NAME, table_lines
+    from ctdrill.app.grey_option import parse_grey_options
 
     progress = TextProgress(sys.stderr)
     try:
@@ -101,6 +109,8 @@ def run(args: argparse.Namespace) -> int:
             interpolate_gaps=args.interpolate_gaps,
             plot=not args.no_plot,
             per_trajectory=args.per_trajectory,
+            hu_sigma=args.hu_sigma,
+            grey=parse_grey_options(args.grey_to_hu, args.grey_ref),
         )
     finally:
         progress.close()

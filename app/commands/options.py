@@ -29,3 +29,36 @@ def add_interpolate_gaps_option(parser: argparse.ArgumentParser) -> None:
         "drill crosses, instead of refusing; summary.json then states them (interpolated_gaps) "
         "with warning gap_interpolated",
     )
+
+
+def add_hu_sigma_option(parser: argparse.ArgumentParser) -> None:
+    """``--hu-sigma HU``: an HU uncertainty of the series, entered into the force band."""
+    parser.add_argument(
+        "--hu-sigma",
+        type=float,
+        default=None,
+        metavar="HU",
+        help="standard deviation of the series' HU calibration (an offset shared by the whole "
+        "scan), combined with the calibration set's covariance in the force band; recorded "
+        "in the summary (default: not known, not included)",
+    )
+
+
+def add_grey_map_options(parser: argparse.ArgumentParser) -> None:
+    """``--grey-to-hu`` / ``--grey-ref``: map CBCT grey values to HU (docs/export.md)."""
+    parser.add_argument(
+        "--grey-to-hu",
+        default=None,
+        metavar="SLOPE,INTERCEPT[,SLOPE_SE,INTERCEPT_SE]",
+        help="the series holds grey values, not HU: HU = SLOPE x grey + INTERCEPT, with the "
+        "standard errors when known (they enter the force band); recorded in every output",
+    )
+    parser.add_argument(
+        "--grey-ref",
+        action="append",
+        default=None,
+        metavar="X,Y,Z,R=HU",
+        help="a region of known HU for the grey-to-HU map: the voxels within R mm of the LPS "
+        "point X,Y,Z (e.g. air -1000, a reference insert); give two or more; the line "
+        "through their mean grey values is the map, their grey SDs its uncertainty",
+    )

@@ -7,7 +7,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.commands.options import add_interpolate_gaps_option, add_plan_option
+from ctdrill.app.commands.options import (
+    add_grey_map_options,
+    add_hu_sigma_option,
+    add_interpolate_gaps_option,
+    add_plan_option,
+)
 
 
 def register(subparsers: Any) -> None:
@@ -43,12 +48,16 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("--seed", type=int, default=0, help="seed of injected garbage (default 0)")
     add_interpolate_gaps_option(p)
+    add_hu_sigma_option(p)
+    add_grey_map_options(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the rehearsal and print a one-line summary; 3 if it ended on a device fault."""
     from ctdrill.app.calibration_info import calibration_line
+    from ctdrill.app.export_band import band_line
+    from ctdrill.app.grey_option import grey_line, parse_grey_options
     from ctdrill.app.readout import readout_lines
     from ctdrill.app.rehearse import ending_message, exit_code, rehearse
 
@@ -62,14 +71,19 @@ def run(args: argparse.Namespace) -> int:
         faults=args.fault,
         seed=args.seed,
         interpolate_gaps=args.interpolate_gaps,
+        hu_sigma=args.hu_sigma,
+        grey=parse_grey_options(args.grey_to_hu, args.grey_ref),
     )
     sys.stdout.write(
         f"stop depth {s['stop_depth_mm']:.2f} mm ({s['stop_reason']}), max drill depth "
         f"{s['max_drill_mm']:.2f} mm, final state {s['final_state']}, "
         f"{len(s['faults'])} fault events; wrote {args.out}/session.csv and summary.json\n"
-        f"{calibration_line(s)}\n"
+        f"{calibration_line(s)}\n{band_line(s)}\n"
     )
     sys.stdout.write(readout_lines(s))
+    grey = grey_line(s)
+    if grey is not None:
+        sys.stdout.write(grey + "\n")
     if "no_landmarks" in s["warnings"]:
         sys.stderr.write(
             "warning: the plan has no landmark: no safety margin was enforced, the drill "

@@ -35,7 +35,7 @@ from ctdrill.app.gui import planning
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.results import PathView
 from ctdrill.imaging.plan.types import DrillSpec, Plan
-from ctdrill.model import available_calibrations
+from ctdrill.model import available_calibrations, load_calibration
 
 #: Appended to the clearance of a landmark whose margin the planned path breaks.
 VIOLATED_MARK = "(plan!)"
@@ -97,6 +97,8 @@ class PlanPanel(QWidget):
         self.calibration = QComboBox()
         self.calibration.setEditable(True)
         self.calibration.addItems(list(available_calibrations()))
+        for i, name in enumerate(available_calibrations()):  # which set, and how obtained
+            self.calibration.setItemData(i, calibration_tooltip(name), Qt.ItemDataRole.ToolTipRole)
         form.addRow("diameter", self.diameter)
         form.addRow("tip length", self.tip_length)
         form.addRow("feed", self.feed)
@@ -265,3 +267,12 @@ class PlanPanel(QWidget):
         if plan is None or row < 0 or row >= len(plan.landmarks):
             return
         self._emit(lambda: planning.remove_landmark(plan, row))
+
+
+def calibration_tooltip(name: str) -> str:
+    """What the set is and how it was obtained (its provenance or source), for a tooltip."""
+    from ctdrill.app.calibration_info import calibration_fields, calibration_line
+
+    cal = load_calibration(name)
+    band = "with a 68 % force band" if cal.covariance is not None else "no uncertainty band"
+    return f"{calibration_line(calibration_fields(cal))} ({band})"

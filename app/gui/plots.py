@@ -33,6 +33,8 @@ class DepthCurves:
     force_n : (N,) predicted mean cutting force at the planned feed, N.
     force_band_n : (N,) half-width of the vibration (sum of harmonic amplitudes), N, or None.
     clearance_mm : (N,) clearance from the drill to the nearest landmark, mm (inf: none).
+    mean_lo_n, mean_hi_n : (N,) the mean force's 68 % band from the calibration's covariance
+        (``ctdrill.model.band``), or None when the set gives none (``band_note`` says so).
     """
 
     depth_mm: np.ndarray
@@ -45,6 +47,9 @@ class DepthCurves:
     margin_mm: float
     force_band_n: np.ndarray | None = None
     calibration: str = ""
+    mean_lo_n: np.ndarray | None = None
+    mean_hi_n: np.ndarray | None = None
+    band_note: str = ""
 
 
 def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = "") -> None:
@@ -93,10 +98,18 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
             alpha=0.25,
             lw=0,
         )
+    if curves.mean_lo_n is not None and curves.mean_hi_n is not None:
+        ax_f.fill_between(
+            d, curves.mean_lo_n, curves.mean_hi_n, color="#4060c0", alpha=0.18, lw=0, zorder=0
+        )
+        for edge in (curves.mean_lo_n, curves.mean_hi_n):
+            ax_f.plot(d, edge, color="#4060c0", lw=0.7, ls="--")
     ax_f.plot(d, curves.force_n, color="#c04000", lw=1.2)
     title = "predicted force"
     if curves.calibration:
         title += f" ({curves.calibration})"
+    if curves.band_note:
+        title += f"; {curves.band_note}"
     ax_f.set_title(title, fontsize=8, loc="left")
     finite = np.isfinite(curves.clearance_mm)
     if finite.any():

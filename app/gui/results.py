@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ctdrill.app.export_band import path_band
 from ctdrill.app.gui.plots import DepthCurves
 from ctdrill.app.pipeline import PathResult, plan_calibration, plan_path
 from ctdrill.imaging import CTVolume
@@ -27,6 +28,12 @@ def path_view(plan: Plan, result: PathResult) -> PathView:
     """Plot curves and clearances of ``result`` (computed for ``plan``)."""
     prof = result.profile
     band = np.sum(np.abs(prof.sk_n), axis=0) if prof.sk_n.size else None
+    mean_band = path_band(result, plan.feed_mm_s, None)
+    note = (
+        f"no uncertainty band: {result.calibration.name} gives no covariance"
+        if mean_band is None
+        else "blue: 68 % band of the mean (calibration)"
+    )
     per_lm = np.asarray(result.stop_clearance_mm, dtype=np.float64)
     curves = DepthCurves(
         depth_mm=np.asarray(prof.depth_mm),
@@ -39,6 +46,9 @@ def path_view(plan: Plan, result: PathResult) -> PathView:
         stop_reason=str(result.stop_reason),
         margin_mm=result.binding_margin_mm,
         calibration=prof.calibration,
+        mean_lo_n=None if mean_band is None else mean_band.lo_n,
+        mean_hi_n=None if mean_band is None else mean_band.hi_n,
+        band_note=note,
     )
     return PathView(
         plan=plan, result=result, curves=curves, min_clearance_mm=per_lm if per_lm.size else None

@@ -73,6 +73,11 @@ def test_recovers_pine_wood_within_the_papers_error_bars(
     assert cal.c_prime_range == (200.0, 600.0)  # HU -800..-400
     assert (cal.gate_hu, cal.gate_width_hu) == (-900.0, 50.0)  # nearest bundled: pine wood
     assert [h.order for h in cal.harmonics] == [1, 2]
+    # the set carries the DC law's covariance: its diagonal is the reported standard errors
+    assert cal.covariance is not None and cal.covariance.parameters == ("a0.b0", "a0.n", "a0.ke")
+    for key in cal.covariance.parameters:
+        assert cal.covariance.stderr(key) == pytest.approx(doc["fit"][key]["stderr"], rel=1e-9)
+    assert cal.method == "fitted to 20 force recordings (ctdrill calibrate)"
     assert doc["fit_info"]["freqs_hz"] == [30.0, 60.0]
     assert doc["fit_info"]["recordings"] == 20
     # The spectra show the drill: 30 and 60 Hz cutting, 15 Hz free-running rotation.
@@ -157,3 +162,31 @@ def test_wrong_feed_in_manifest_is_caught(
     assert _calibrate(manifest, tmp_path / "o.json", "--ke", "0.25") == 2
     line = _error_line(capsys)
     assert "position_mm" in line and "feed_mm_s" in line
+
+
+def test_literature_fit_through_the_cli_writes_the_committed_set(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from tests.conftest import ASSETS, SHARED
+
+    out = tmp_path / "lit.json"
+    code = main(
+        [
+            "calibrate",
+            "--literature",
+            str(SHARED / "literature" / "bone_force_points.csv"),
+            "--out",
+            str(out),
+        ]
+    )
+    stdout = capsys.readouterr().out
+    assert code == 0
+    assert "points used: MacAvelia2012_human_1000" in stdout and "a0.n" in stdout
+    assert load_calibration(out) == load_calibration(
+        ASSETS / "calibration" / "bone-literature.json"
+    )
+    # a manifest and --literature together, or a manifest without --rpm: exit 2, says what to do
+    assert main(["calibrate", "m.csv", "--literature", "x.csv", "--out", str(out)]) == 2
+    assert "not both" in capsys.readouterr().err
+    assert main(["calibrate", "m.csv", "--out", str(out)]) == 2
+    assert "--rpm and --blades are required" in capsys.readouterr().err

@@ -103,7 +103,8 @@ def demo_export(tmp_path_factory: pytest.TempPathFactory) -> Path:
     # which calibration set, and how it was obtained (the illustrative set has no method)
     assert rest[1] == f"calibration bone-illustrative (illustrative): {s['calibration_source']}"
     assert s["calibration_method"] == "not stated by the set (see its source)"
-    assert rest[2:] == [f"warning [{w['code']}]: {w['message']}" for w in s["warnings"]]
+    assert rest[2] == s["force_band_note"] and s["force_band"] is None  # no covariance: no band
+    assert rest[3:] == [f"warning [{w['code']}]: {w['message']}" for w in s["warnings"]]
     return out
 
 
@@ -162,7 +163,7 @@ def test_demo_tables_open_as_csv_and_agree(demo_export: Path) -> None:
     assert {r["calibration"] for r in force} == {"bone-illustrative"}
     assert np.all(np.isfinite(f)) and f.max() == pytest.approx(s["peak_force_n"], abs=1e-5)
     pcols, prof = _rows(demo_export / "profile.csv")
-    assert tuple(pcols) == PROFILE_COLUMNS
+    assert tuple(pcols) == (*PROFILE_COLUMNS, "mean_force_n", "s0_lo_n", "s0_hi_n")
     depth = np.array([float(r["depth_mm"]) for r in prof])
     s0 = np.array([float(r["s0_n"]) for r in prof])
     s1 = np.array([float(r["s1_n"]) for r in prof])

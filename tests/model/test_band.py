@@ -127,3 +127,19 @@ def test_hu_uncertainty_validation_and_sum() -> None:
     both = HuUncertainty.offset(30.0, "a").plus(HuUncertainty(((0.0, 0.0), (0.0, 1e-4)), "b"))
     assert both.source == "a + b"
     assert both.sd_hu_at(1000.0) == pytest.approx(math.hypot(30.0, 10.0))
+
+
+def test_per_depth_ring_weights_of_a_drill_sequence() -> None:
+    # a drill following a narrower one: per-depth weights summing to the cut share; the sums
+    # equal build_profile's and the band's relative width that of the full lip of that material
+    rng = np.random.default_rng(5)
+    lip = rng.uniform(300.0, 1600.0, size=(4, N_RINGS, N_ANGLES))
+    w = np.tile(WEIGHTS, (4, 1))
+    w[:, :3] = 0.0  # the inner rings lie in the earlier hole
+    prof = build_profile(lip, w, np.arange(4) * 0.1, CAL, blades=2, rpm=900)
+    sens = lip_sensitivity(lip, w, CAL)
+    np.testing.assert_allclose(sens.s0_n, prof.s0_n, rtol=1e-12)
+    band = force_band(sens, CAL, 0.4)
+    assert band is not None and np.all(band.lo_n < band.mean_n) and np.all(band.mean_n < band.hi_n)
+    with pytest.raises(ModelInputError, match="disagree"):
+        lip_sensitivity(lip, w[:, :5], CAL)

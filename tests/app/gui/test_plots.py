@@ -82,3 +82,26 @@ def test_empty_plots_show_the_message() -> None:
     draw_depth_plots(fig, None, message="no force profile: " + "x " * 100)
     (text,) = fig.axes[1].texts
     assert text.get_text().count("\n") == 1  # long messages are wrapped
+
+
+def test_the_mean_force_band_is_drawn_or_its_absence_said() -> None:
+    from dataclasses import replace
+
+    base = curves()
+    with_band = replace(
+        base,
+        mean_lo_n=base.force_n * 0.6,
+        mean_hi_n=base.force_n * 1.6,
+        band_note="blue: 68 % band of the mean (calibration)",
+    )
+    fig = Figure()
+    draw_depth_plots(fig, with_band)
+    ax_f = fig.axes[1]
+    edges = [ln for ln in ax_f.lines if ln.get_color() == "#4060c0"]
+    assert len(edges) == 2
+    assert np.allclose(edges[0].get_ydata(), base.force_n * 0.6)
+    assert np.allclose(edges[1].get_ydata(), base.force_n * 1.6)
+    assert "68 % band" in ax_f.get_title(loc="left")
+    draw_depth_plots(fig, replace(base, band_note="no uncertainty band: x gives no covariance"))
+    assert not [ln for ln in fig.axes[1].lines if ln.get_color() == "#4060c0"]
+    assert "no uncertainty band" in fig.axes[1].get_title(loc="left")
