@@ -24,7 +24,7 @@ import shutil
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ctdrill.app.batch.manifest import ManifestRow
 from ctdrill.app.batch.task import (
@@ -50,7 +50,18 @@ COHORT_COLUMNS = ("row", "id", "dicom", "plan", *TABLE_COLUMNS)
 #: Exit code of a batch that ran with some rows failed (0: all ok; 2: bad input; 1: a bug).
 EXIT_ROWS_FAILED = 4
 
+if TYPE_CHECKING:
+    from multiprocessing.context import BaseContext
+
 Progress = Callable[[int, int, RowOutcome], None]
+#: Modules the forkserver imports once for every worker it forks.
+PRELOAD = (
+    "ctdrill.app.batch.task",
+    "ctdrill.app.export_run",
+    "ctdrill.app.export_plot",
+    "matplotlib.figure",
+    "matplotlib.backends.backend_agg",
+)
 
 
 class BatchInputError(AppInputError):
@@ -134,8 +145,13 @@ def run_serial(tasks: Sequence[RowTask], on_done: Callable[[RowOutcome], None]) 
 def run_processes(
     tasks: Sequence[RowTask], workers: int, on_done: Callable[[RowOutcome], None]
 ) -> None:
-    """Run the tasks on a pool of ``workers`` processes (started with ``spawn``: no state of
-    this process, threads included, is copied into them).
+    """Run the tasks on a pool of ``workers`` processes.
+
+    Workers are forked from a ``forkserver`` (a fresh interpreter that has imported the
+    export once, :data:`PRELOAD`), so no state or thread of this process is copied into them
+    and each starts without importing NumPy, SciPy and matplotlib again (a 4-case batch on
+    2 workers took 6 s instead of 11 s with ``spawn`` here); ``spawn`` where there is no
+    forkserver.
 
     A worker process that dies (killed, out of memory, a crash in a library) breaks the
     pool: the rows it held are run again each in a pool of its own, and a row that kills
@@ -145,7 +161,13 @@ def run_processes(
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
-    ctx = multiprocessing.get_context("spawn")
+    ctx: BaseContext
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        server = multiprocessing.get_context("forkserver")
+        server.set_forkserver_preload(list(PRELOAD))
+        ctx = server
+    else:
+        ctx = multiprocessing.get_context("spawn")
     broken: list[RowTask] = []
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
         pending = {pool.submit(run_row, t): t for t in tasks}
