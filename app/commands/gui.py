@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.commands.options import add_plan_option
+from ctdrill.app.commands.options import add_hu_sigma_option, add_plan_option
 from ctdrill.app.errors import AppInputError
 
 #: Upper bound on a ``--screenshot`` run when ``--quit-after-s`` is not given, s.
@@ -81,6 +81,7 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("--dicom", type=Path, help="DICOM folder to open")
     add_plan_option(p, required=False)
+    add_hu_sigma_option(p)
     p.add_argument("--screenshot", type=Path, help="save the window as PNG once drawn, then quit")
     p.add_argument(
         "--quit-after-s", type=float, default=None, help="close the window after this many seconds"
@@ -108,6 +109,9 @@ def run(args: argparse.Namespace) -> int:
     quit_after = args.quit_after_s
     if args.screenshot is not None and quit_after is None:
         quit_after = SCREENSHOT_TIMEOUT_S
+    from ctdrill.app.export_band import hu_uncertainty_option
+
+    hu = hu_uncertainty_option(args.hu_sigma)
     plan = None
     if args.plan is not None:  # a plan that cannot be read is refused before any window
         from ctdrill.imaging.plan.types import load_one_plan
@@ -118,4 +122,10 @@ def run(args: argparse.Namespace) -> int:
         raise AppInputError(f"ctdrill gui: {problem}; {NO_DISPLAY_HINT}")
     from ctdrill.app.gui.app import run_gui  # Qt loads only when the window is really wanted
 
-    return run_gui(dicom=args.dicom, plan=plan, screenshot=args.screenshot, quit_after_s=quit_after)
+    return run_gui(
+        dicom=args.dicom,
+        plan=plan,
+        screenshot=args.screenshot,
+        quit_after_s=quit_after,
+        hu_uncertainty=hu,
+    )

@@ -12,6 +12,7 @@ from PySide6.QtWidgets import QApplication
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.screenshot import qimage_to_rgb, region_stats, widget_rect
 from ctdrill.imaging.plan.types import Plan
+from ctdrill.model.band import HuUncertainty
 
 #: Preferred and minimum window size, logical pixels (DESIGN.md section 4).
 PREFERRED_SIZE = (1440, 900)
@@ -54,6 +55,7 @@ def run_gui(
     screenshot: Path | None = None,
     quit_after_s: float | None = None,
     settings: QSettings | None = None,
+    hu_uncertainty: HuUncertainty | None = None,
 ) -> int:
     """Run the window until it is closed (or ``quit_after_s``). Returns the exit code.
 
@@ -64,6 +66,7 @@ def run_gui(
     """
     app = application()
     window = make_window(settings)
+    window.doc.hu_uncertainty = hu_uncertainty  # ``--hu-sigma``: enters the force band
     window.unattended = screenshot is not None or quit_after_s is not None
     window.ask_series = not window.unattended  # unattended: take the largest series
     if plan is not None:

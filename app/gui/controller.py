@@ -76,7 +76,8 @@ class Controller(QObject):
         if volume is None or plan is None:
             return
         self._computing = plan
-        self.path_runner.submit(lambda: compute_path_view(volume, plan))
+        hu = self.doc.hu_uncertainty
+        self.path_runner.submit(lambda: compute_path_view(volume, plan, hu))
 
     def _path_done(self, view: Any) -> None:
         self.doc.set_path(view)

@@ -29,6 +29,7 @@ from ctdrill.app.search.candidates import SearchSpace
 from ctdrill.app.search.suggest import Suggestion
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.types import Plan
+from ctdrill.model.band import HuUncertainty
 
 #: What ``edit_refused`` says while a rehearsal runs.
 LOCKED_MESSAGE = "the plan is locked while a rehearsal runs: stop the rehearsal to edit it"
@@ -75,6 +76,8 @@ class Document(QObject):
         self.path: PathView | None = None
         self.path_error = ""
         self.rehearsing = False
+        #: The series' HU uncertainty (``ctdrill gui --hu-sigma``), entered into the force band.
+        self.hu_uncertainty: HuUncertainty | None = None
         self.live_depth_mm: float | None = None
         self.suggestion: Suggestion | None = None
         #: Candidate of :attr:`suggestion` adopted as the plan's axis (None: none).

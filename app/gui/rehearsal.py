@@ -19,6 +19,7 @@ from ctdrill.app.pipeline import PathResult
 from ctdrill.app.rehearse import rehearsal_summary, summary_json
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.session import Row, session_csv_text
+from ctdrill.model.band import HuUncertainty
 
 #: The device-choice label of the simulator.
 SIMULATOR = "simulator"
@@ -91,6 +92,8 @@ class RehearsalRun:
         self.record: dict[str, Any] | None = None
         self.error = ""
         self.cancelled = False
+        #: The series' HU uncertainty for the summary's force band (the window's, if any).
+        self.hu: HuUncertainty | None = None
         self._record = record
         self._latest: Telemetry | None = None
         self._hand_n: float | None = None
@@ -238,6 +241,7 @@ class RehearsalRun:
             device=self.device_spec,
             duration_s=self.duration_s,
             seed=0,
+            hu=self.hu,
         )
         summary.update({"cancelled": self.cancelled, "recorded_rows": len(self.rows)})
         return write_exports(

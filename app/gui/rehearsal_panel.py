@@ -246,6 +246,7 @@ class RehearsalPanel(QWidget):
                 series_uid="" if volume is None else volume.info.series_uid,
                 end_at_stop=True,
             )
+            self.run.hu = self.ctx.doc.hu_uncertainty
         except (ValueError, OSError) as exc:
             self.message.setText(f"error: {exc}")
             self.run = None

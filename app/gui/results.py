@@ -12,6 +12,7 @@ from ctdrill.app.gui.plots import DepthCurves
 from ctdrill.app.pipeline import PathResult, plan_calibration, plan_path
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.types import Plan
+from ctdrill.model.band import HuUncertainty
 
 
 @dataclass(frozen=True, eq=False)
@@ -24,15 +25,16 @@ class PathView:
     min_clearance_mm: np.ndarray | None  # (L,) per landmark along the stopped path
 
 
-def path_view(plan: Plan, result: PathResult) -> PathView:
-    """Plot curves and clearances of ``result`` (computed for ``plan``)."""
+def path_view(plan: Plan, result: PathResult, hu: HuUncertainty | None = None) -> PathView:
+    """Plot curves and clearances of ``result`` (computed for ``plan``); the mean force's band
+    with the HU uncertainty ``hu`` (``ctdrill gui --hu-sigma``)."""
     prof = result.profile
     band = np.sum(np.abs(prof.sk_n), axis=0) if prof.sk_n.size else None
-    mean_band = path_band(result, plan.feed_mm_s, None)
+    mean_band = path_band(result, plan.feed_mm_s, hu)
     note = (
         f"no uncertainty band: {result.calibration.name} gives no covariance"
         if mean_band is None
-        else "blue: 68 % band of the mean (calibration)"
+        else "blue: 68 % band of the mean (calibration" + (" + HU)" if hu is not None else ")")
     )
     per_lm = np.asarray(result.stop_clearance_mm, dtype=np.float64)
     curves = DepthCurves(
@@ -85,9 +87,10 @@ def plan_violation(result: PathResult) -> str | None:
     return None
 
 
-def compute_path_view(volume: CTVolume, plan: Plan) -> PathView:
-    """Plan the path of ``plan`` through ``volume`` (the pipeline the CLI uses) for display."""
-    return path_view(plan, plan_path(volume, plan, plan_calibration(plan)))
+def compute_path_view(volume: CTVolume, plan: Plan, hu: HuUncertainty | None = None) -> PathView:
+    """Plan the path of ``plan`` through ``volume`` (the pipeline the CLI uses) for display;
+    ``hu`` enters the force band."""
+    return path_view(plan, plan_path(volume, plan, plan_calibration(plan)), hu)
 
 
 def block_reason(

@@ -7,6 +7,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ctdrill.model import load_calibration
@@ -159,3 +160,23 @@ def test_a_drill_sequence_states_each_drills_band(tmp_path: Path) -> None:
             f"{own['force_band']['peak_lo_n']:.2f}-{own['force_band']['peak_hi_n']:.2f} N" in stdout
         )
     assert "calibration bone-literature: least-squares fit" in stdout
+
+
+def test_the_gui_force_plot_band_takes_the_hu_sigma(tmp_path: Path) -> None:
+    from ctdrill.app.export_band import hu_uncertainty_option
+    from ctdrill.app.gui.results import compute_path_view
+    from ctdrill.imaging import load_series
+    from ctdrill.imaging.plan.types import load_plan
+
+    plan = json.loads((DEMO / "plan.json").read_text("utf-8"))
+    plan["calibration"] = "bone-literature"
+    path = tmp_path / "plan.json"
+    path.write_text(json.dumps(plan), "utf-8")
+    volume, p = load_series(DEMO / "ct"), load_plan(path)
+    bare = compute_path_view(volume, p).curves
+    with_hu = compute_path_view(volume, p, hu_uncertainty_option(30.0)).curves
+    assert bare.mean_hi_n is not None and with_hu.mean_hi_n is not None
+    assert np.all(with_hu.mean_hi_n >= bare.mean_hi_n) and np.any(
+        with_hu.mean_hi_n > bare.mean_hi_n
+    )
+    assert bare.band_note.endswith("(calibration)") and with_hu.band_note.endswith("+ HU)")
