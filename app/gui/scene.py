@@ -64,12 +64,14 @@ CANDIDATE_COLOURS: tuple[tuple[float, float, float], ...] = (
 
 @dataclass(frozen=True, eq=False)
 class CandidateLine:
-    """A suggested axis drawn as a thin line from its entry to its target, labelled ``rank``."""
+    """A suggested axis drawn as a thin line from its entry to its target, labelled ``rank``
+    and coloured by ``slot`` (its place among the lines shown, 0 first)."""
 
     entry_lps: np.ndarray
     target_lps: np.ndarray
     rank: int
     adopted: bool = False
+    slot: int = 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -273,7 +275,7 @@ def _candidate_actors(plotter: Any, lines: Sequence[CandidateLine]) -> dict[str,
     their ranks at the targets."""
     actors: dict[str, Any] = {}
     for line in lines:
-        colour = CANDIDATE_COLOURS[min(line.rank, len(CANDIDATE_COLOURS)) - 1]
+        colour = CANDIDATE_COLOURS[min(line.slot, len(CANDIDATE_COLOURS) - 1)]
         tube = pv.Line(line.entry_lps, line.target_lps).tube(radius=0.08 if line.adopted else 0.18)
         name = f"candidate:{line.rank}"
         actors[name] = plotter.add_mesh(render=False, mesh=tube, color=colour, name=name)

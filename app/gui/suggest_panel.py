@@ -76,6 +76,8 @@ class SuggestPanel(QWidget):
         header = self.table.horizontalHeader()
         header.setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
         self.table.setToolTip(
+            "the best distinct axes (# is the rank in candidates.csv; an axis whose entry and "
+            "target both lie within a drill diameter of a better one's is not listed); "
             "crest/apex: fraction of the 2 mm zone in cortical bone; offset: entry move; "
             "tilt: from the planned axis; clearance: smallest to any landmark"
         )

@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from ctdrill.app.gui.scene import CandidateLine
 from ctdrill.app.search.suggest import Suggestion
 
@@ -43,9 +45,31 @@ def row(s: Suggestion, index: int) -> CandidateRow:
     )
 
 
+def distinct_mm(s: Suggestion) -> float:
+    """How far apart two shown axes' entries or targets must be: the drill's diameter, mm."""
+    return float(s.plan.drill.diameter_mm)
+
+
 def top_rows(s: Suggestion, k: int = TOP_K) -> tuple[CandidateRow, ...]:
-    """The ``k`` best feasible candidates, best first (fewer when fewer are feasible)."""
-    return tuple(row(s, int(i)) for i in s.order[: min(k, s.n_feasible)])
+    """The ``k`` best distinct feasible candidates, best first (fewer when fewer are
+    feasible): each next one is the best whose entry or target lies at least one drill
+    diameter (:func:`distinct_mm`) from those of every axis already taken: closer, both ends
+    drill largely the same bone. Ranks are those of ``candidates.csv``."""
+    c = s.candidates
+    limit = distinct_mm(s)
+    taken: list[int] = []
+    for i in s.order[: s.n_feasible]:
+        j = int(i)
+        if any(
+            np.linalg.norm(c.entries_lps[j] - c.entries_lps[t]) < limit
+            and np.linalg.norm(c.targets_lps[j] - c.targets_lps[t]) < limit
+            for t in taken
+        ):
+            continue
+        taken.append(j)
+        if len(taken) == k:
+            break
+    return tuple(row(s, j) for j in taken)
 
 
 def candidate_lines(
@@ -61,8 +85,9 @@ def candidate_lines(
             target_lps=c.targets_lps[r.index],
             rank=r.rank,
             adopted=r.index == adopted,
+            slot=slot,
         )
-        for r in top_rows(s, k)
+        for slot, r in enumerate(top_rows(s, k))
     )
 
 

@@ -14,8 +14,9 @@ from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui.document import Document
 from ctdrill.app.gui.main_window import MainWindow
-from ctdrill.app.gui.suggesting import TOP_K, top_rows
+from ctdrill.app.gui.suggesting import TOP_K, distinct_mm, top_rows
 from ctdrill.app.search.candidates import SearchSpace
+from ctdrill.app.search.defaults import DEFAULT_COUNT
 from ctdrill.app.search.suggest import suggest
 from ctdrill.imaging.phantom.io import PhantomCase
 from ctdrill.model import load_calibration
@@ -23,8 +24,6 @@ from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 from tests.app.gui.phantom import phantom_volume
 
 pytestmark = pytest.mark.gui
-
-COUNT = 60
 
 
 def test_suggest_draws_the_top_axes_and_a_click_adopts_one(
@@ -34,14 +33,30 @@ def test_suggest_draws_the_top_axes_and_a_click_adopts_one(
     assert window.view is not None and window.view.curves.stop_reason == "margin"
     planned = window.plan
     panel = window.suggest_panel
-    panel.count.setValue(COUNT)
+    assert panel.count.value() == DEFAULT_COUNT  # the command's default, 2000
     assert window.suggest_axes()
     assert window.doc.suggest_status == "running" and not panel.button.isEnabled()
     qtbot.waitUntil(lambda: window.doc.suggestion is not None, timeout=LOAD_TIMEOUT_MS)
     s = window.doc.suggestion
-    assert s is not None and s.plan is planned and s.candidates.size == COUNT
+    assert s is not None and s.plan is planned and s.candidates.size == DEFAULT_COUNT
     rows = top_rows(s)
-    assert 0 < len(rows) <= TOP_K and len(rows) == min(TOP_K, s.n_feasible)
+    assert len(rows) == TOP_K and rows[0].rank == 1 and rows[0].index == s.best_index
+    # Distinct axes: every feasible candidate ranked above the last one shown is shown or
+    # within a drill diameter (entry and target) of a shown one.
+    assert distinct_mm(s) == planned.drill.diameter_mm == 2.0
+    c = s.candidates
+    shown_ix = [r.index for r in rows]
+
+    def near(i: int, j: int) -> bool:
+        return bool(
+            np.linalg.norm(c.entries_lps[i] - c.entries_lps[j]) < distinct_mm(s)
+            and np.linalg.norm(c.targets_lps[i] - c.targets_lps[j]) < distinct_mm(s)
+        )
+
+    assert not any(near(i, j) for i in shown_ix for j in shown_ix if i != j)
+    for i in s.order[: rows[-1].rank]:
+        assert s.feasible[i] and (int(i) in shown_ix or any(near(int(i), j) for j in shown_ix))
+    assert [r.rank for r in rows] == sorted(r.rank for r in rows)
     # The best feasible ones, then the planned axis (not feasible here) with its rank.
     assert panel.table.rowCount() == len(rows) + 1
     shown = [panel.table.item(r, 1).text() for r in range(len(rows) + 1)]  # type: ignore[union-attr]
