@@ -198,6 +198,21 @@ def run_spans(kernel: Kernel, spans: Sequence[tuple[int, int]], *args: Any) -> N
         for lo, hi in spans:
             kernel(*args, lo, hi)
         return
-    with ThreadPoolExecutor(len(spans)) as pool:
-        for fut in [pool.submit(kernel, *args, lo, hi) for lo, hi in spans]:
-            fut.result()
+    pool = _pool()
+    # the calling thread takes the first span itself: one thread fewer to wake
+    futures = [pool.submit(kernel, *args, lo, hi) for lo, hi in spans[1:]]
+    kernel(*args, *spans[0])
+    for fut in futures:
+        fut.result()
+
+
+_POOL: ThreadPoolExecutor | None = None
+
+
+def _pool() -> ThreadPoolExecutor:
+    """One pool of worker threads for the process (starting threads per call cost ~2 ms
+    each on this VM), created on first use."""
+    global _POOL
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max(1, min(8, cpus()) - 1), thread_name_prefix="ctdrill-jit")
+    return _POOL

@@ -53,9 +53,9 @@ __all__ = ["BatchResult", "evaluate_batch"]
 
 #: Most trajectories one call accepts (memory: a row is ~50 kB at the default grid).
 MAX_BATCH = 200_000
-#: Rows sampled and integrated per pass (bounds the float32 ring-sample buffer: 128 rows of a
-#: 16 mm path at the default lip are ~9 MB, reused).
-CHUNK_ROWS = 128
+#: Rows sampled and integrated per pass (bounds the float32 ring-sample buffer: 256 rows of a
+#: 16 mm path at the default lip are ~18 MB, reused).
+CHUNK_ROWS = 256
 
 
 @dataclass(frozen=True, eq=False)
