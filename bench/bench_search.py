@@ -85,14 +85,14 @@ def run(quick: bool) -> Section:
     plan = load_plan(demo / "plan.json")
     cal = plan_calibration(plan)
     n = 8 if quick else 1000
-    n_path = 2 if quick else 100
+    n_path = 1 if quick else 100
     repeats = 1 if quick else 3
     entries, targets = candidates(plan, n)
     t0 = time.perf_counter()
     was_ready = all(k.ready() for k in search_kernels())
     jit.warm_up(search_kernels())
     warm_s = time.perf_counter() - t0
-    load_s = _load_seconds()
+    load_s = float("nan") if quick else _load_seconds()
     result = evaluate_batch(volume, plan, entries, targets, cal)
     peer = search_peer.evaluate(volume, plan, entries, targets, cal, result.depth_mm)
     peer_diff = max(
@@ -114,7 +114,9 @@ def run(quick: bool) -> Section:
         replace(plan, entry_lps=e, target_lps=t)
         for e, t in zip(entries[:n_path], targets[:n_path], strict=True)
     ]
-    t_path = time_it(lambda: [plan_path(volume, p, cal) for p in sub], repeats=3, warmup=0)
+    t_path = time_it(
+        lambda: [plan_path(volume, p, cal) for p in sub], repeats=1 if quick else 3, warmup=0
+    )
     scale = n / n_path
     path_s = Timing(
         t_path.median_s * scale,
@@ -123,7 +125,7 @@ def run(quick: bool) -> Section:
         t_path.min_s * scale,
         t_path.repeats,
     )
-    n_agree = 2 if quick else 20
+    n_agree = 1 if quick else 20
     agree = _agreement(result, plan, volume, cal, n_agree)
     batch, peer_t = times["batch"], times["peer"]
     ratio_peer = peer_t.median_s / batch.median_s
