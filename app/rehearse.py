@@ -153,6 +153,9 @@ def rehearse(
 ) -> dict[str, Any]:
     """Run one rehearsal and write ``OUT/session.csv`` and ``OUT/summary.json`` (whole).
 
+    A plan with a drill sequence runs one session per drill
+    (:mod:`ctdrill.app.rehearse_sequence`: ``OUT/drill_k/`` and a listing ``summary.json``).
+
     Returns the summary written. Raises an input error (exit 2, nothing written) for bad
     input and for a device that fails before it was armed.
     """
@@ -161,6 +164,26 @@ def rehearse(
     op = parse_operator(operator)
     manual_hu = hu_uncertainty_option(hu_sigma)
     fault_specs = [parse_fault(f) for f in faults]
+    whole = load_one_plan([plan] if isinstance(plan, Path) else plan)
+    if len(whole.drills) > 1:  # a drill sequence: one session per drill
+        from ctdrill.app.rehearse_sequence import rehearse_sequence
+
+        return rehearse_sequence(
+            dicom=dicom,
+            plan=whole,
+            out=out,
+            operator=op,
+            duration_s=duration_s,
+            device=device,
+            faults=fault_specs,
+            seed=seed,
+            interpolate_gaps=interpolate_gaps,
+            grey=grey,
+            manual_hu=manual_hu,
+            open_device=open_device,
+            summarise=rehearsal_summary,
+            to_json=summary_json,
+        )
     loaded = load_table(dicom, plan, interpolate_gaps=interpolate_gaps, grey=grey)
     hu = hu_uncertainty(loaded.grey_map, manual_hu)
     with atomic_output_dir(out) as stage:

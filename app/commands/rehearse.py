@@ -74,12 +74,14 @@ def run(args: argparse.Namespace) -> int:
         hu_sigma=args.hu_sigma,
         grey=parse_grey_options(args.grey_to_hu, args.grey_ref),
     )
-    sys.stdout.write(
-        f"stop depth {s['stop_depth_mm']:.2f} mm ({s['stop_reason']}), max drill depth "
-        f"{s['max_drill_mm']:.2f} mm, final state {s['final_state']}, "
-        f"{len(s['faults'])} fault events; wrote {args.out}/session.csv and summary.json\n"
-        f"{calibration_line(s)}\n{band_line(s)}\n"
-    )
+    if s.get("format") == "ctdrill-rehearsal-sequence/1":
+        from ctdrill.app.rehearse_sequence import sequence_lines
+
+        sys.stdout.write("".join(line + "\n" for line in sequence_lines(s, args.out)))
+    else:
+        _single_line(s, args.out)
+    # a sequence: the last drill run's calibration, band and readouts
+    sys.stdout.write(f"{calibration_line(s)}\n{band_line(s)}\n")
     sys.stdout.write(readout_lines(s))
     grey = grey_line(s)
     if grey is not None:
@@ -93,3 +95,11 @@ def run(args: argparse.Namespace) -> int:
     if code != 0:
         sys.stderr.write(f"error: {ending_message(s)}; see {args.out}/summary.json\n")
     return code
+
+
+def _single_line(s: dict[str, Any], out: Path) -> None:
+    sys.stdout.write(
+        f"stop depth {s['stop_depth_mm']:.2f} mm ({s['stop_reason']}), max drill depth "
+        f"{s['max_drill_mm']:.2f} mm, final state {s['final_state']}, "
+        f"{len(s['faults'])} fault events; wrote {out}/session.csv and summary.json\n"
+    )

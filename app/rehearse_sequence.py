@@ -1,0 +1,180 @@
+"""Rehearsing a drill sequence: one device session per drill, in drilling order.
+
+A plan with ``drills`` (pilot 2.0 mm, then 2.8, 3.5 ...) rehearses as the surgeon drills it:
+drill ``k`` gets its own table (its own profile and stop depth, :mod:`ctdrill.app.sequence`),
+the device is opened, armed with it, driven by the same operator for ``duration_s`` and
+closed: **one session per drill** (a drill change is a new upload and ARM, as on the real
+device). The hole drill ``k`` leaves for the next is as deep as its tip **actually reached**
+in its session (``max_drill_mm``, at most its stop depth unless the device overran it), not its
+planned or stop depth: a push too weak or a session too short leaves a shallower pilot hole,
+and the next drill meets the bone below it with its full lip.
+
+Every drill's table is computed once before the first ARM, with the stop depths as reached
+depths, so bad input is refused before anything runs; each later drill is recomputed from the
+depths actually reached. A session that does not complete (a device fault, Ctrl-C) ends the
+sequence: the drills after it are not run, and the summary says so. ``--fault`` times are
+session times and apply to every session.
+
+Records (whole or not at all): ``OUT/drill_k/session.csv`` and ``OUT/drill_k/summary.json`` per
+drill run (the single-drill rehearsal's files, plus ``inner_holes``), and ``OUT/summary.json``
+(``"format": "ctdrill-rehearsal-sequence/1"``) with the session fields of the final drill run,
+``complete`` for the whole sequence, the faults of every session (each with its ``drill``), and
+``drills``: one entry per drill run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
+from ctdrill.app.pipeline import PathResult, plan_calibration
+from ctdrill.app.records import atomic_output_dir, write_file
+from ctdrill.app.sequence import drill_folder, drill_path, hole_json, plan_sequence
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.run import run_session
+from ctdrill.haptics.session import FaultSpec, Operator, SessionCsv
+from ctdrill.imaging import load_series
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.model.band import HuUncertainty
+
+SEQUENCE_FORMAT = "ctdrill-rehearsal-sequence/1"
+
+
+def reached_depth_mm(session: dict[str, Any]) -> float:
+    """The depth a drill's session reached: its deepest drill position, mm (>= 0)."""
+    return max(0.0, float(session["max_drill_mm"]))
+
+
+def rehearse_sequence(
+    *,
+    dicom: Path,
+    plan: Plan,
+    out: Path,
+    operator: Operator,
+    duration_s: float,
+    device: str,
+    faults: Sequence[FaultSpec],
+    seed: int,
+    interpolate_gaps: bool,
+    grey: GreyMapSpec | None,
+    manual_hu: HuUncertainty | None,
+    open_device: Callable[..., Any],
+    summarise: Callable[..., dict[str, Any]],
+    to_json: Callable[[dict[str, Any]], str],
+) -> dict[str, Any]:
+    """Run every drill of ``plan`` on its own session and write the records (module docstring).
+
+    ``grey`` and ``manual_hu`` are the rehearsal's grey-to-HU map and ``--hu-sigma``;
+    ``open_device``, ``summarise`` (the single rehearsal's summary) and ``to_json`` are
+    :mod:`ctdrill.app.rehearse`'s, so one drill's records are exactly a rehearsal's.
+    """
+    volume, grey_map = map_volume(load_series(dicom), grey)
+    hu = hu_uncertainty(grey_map, manual_hu)
+    calibration = plan_calibration(plan)
+    options = {"interpolate_gaps": interpolate_gaps}
+    # every drill computed before the first ARM: bad input is refused before anything runs
+    first = plan_sequence(volume, plan, calibration, **options)
+    runs: list[tuple[PathResult, dict[str, Any], float]] = []
+    with atomic_output_dir(out) as stage:
+        for k in range(len(plan.drills)):
+            reached = [r for _, _, r in runs]
+            path = (
+                first.steps[0]
+                if k == 0
+                else drill_path(volume, plan, k, calibration, reached, **options)
+            )
+            table = ProfileTable.from_profile(path.profile, path.stop_depth_mm)
+            folder = stage / drill_folder(k)
+            folder.mkdir()
+            dev = open_device(device, seed=seed)
+            try:
+                csv_out = SessionCsv(folder / "session.csv")
+                try:
+                    result = run_session(
+                        dev,
+                        table,
+                        operator,
+                        duration_s,
+                        faults=faults,
+                        seed=seed,
+                        sink=csv_out.write,
+                    )
+                finally:
+                    csv_out.close()
+            finally:
+                dev.close()
+            doc = summarise(
+                result,
+                path,
+                table,
+                operator=operator.spec,
+                device=device,
+                duration_s=duration_s,
+                seed=seed,
+                hu=hu,
+                grey_map=grey_map,
+            )
+            doc["drill"] = path.plan.drill.to_json()
+            doc["inner_holes"] = [hole_json(h) for h in path.inner_holes]
+            write_file(folder / "summary.json", to_json(doc))
+            runs.append((path, doc, reached_depth_mm(doc)))
+            if not doc.get("complete"):
+                break
+        top = sequence_summary(plan, runs)
+        write_file(stage / "summary.json", to_json(top))
+    return top
+
+
+def sequence_summary(
+    plan: Plan, runs: Sequence[tuple[PathResult, dict[str, Any], float]]
+) -> dict[str, Any]:
+    """The top-level ``summary.json`` of a rehearsed sequence (module docstring)."""
+    last = runs[-1][1]
+    n = len(plan.drills)
+    done = len(runs) == n
+    top: dict[str, Any] = {"format": SEQUENCE_FORMAT}
+    top.update(last)
+    top.pop("drill", None)
+    top.pop("inner_holes", None)
+    top["complete"] = done and all(doc.get("complete") for _, doc, _ in runs)
+    if not done:  # the final drill never ran: the plan's stop is not known from this session
+        top["stop_depth_mm"] = None
+        top["stop_reason"] = None
+    top["drills_planned"] = n
+    top["drills_run"] = len(runs)
+    top["faults"] = [
+        {"drill": k + 1, **fault} for k, (_, doc, _) in enumerate(runs) for fault in doc["faults"]
+    ]
+    top["warnings"] = list(dict.fromkeys(code for _, doc, _ in runs for code in doc["warnings"]))
+    top["drills"] = [
+        {
+            "drill": k + 1,
+            "folder": drill_folder(k),
+            **path.plan.drill.to_json(),
+            "stop_depth_mm": path.stop_depth_mm,
+            "stop_reason": path.stop_reason,
+            "max_drill_mm": doc["max_drill_mm"],
+            "reached_depth_mm": reached,
+            "max_force_cmd_n": doc.get("max_force_cmd_n"),
+            "complete": doc.get("complete"),
+            "inner_holes": doc["inner_holes"],
+        }
+        for k, (path, doc, reached) in enumerate(runs)
+    ]
+    return top
+
+
+def sequence_lines(summary: dict[str, Any], out: Path) -> list[str]:
+    """What ``ctdrill rehearse`` prints of a sequence: one line per drill run, then the files."""
+    n = summary["drills_planned"]
+    lines = [
+        f"drill {d['drill']}/{n} ({d['diameter_mm']:g} mm): stop depth {d['stop_depth_mm']:.2f} "
+        f"mm ({d['stop_reason']}), reached {d['reached_depth_mm']:.2f} mm"
+        for d in summary["drills"]
+    ]
+    if summary["drills_run"] < n:
+        lines.append(f"{summary['drills_run']} of {n} drills run: the sequence ended early")
+    lines.append(f"wrote {out}/drill_*/session.csv, summary.json and {out}/summary.json")
+    return lines

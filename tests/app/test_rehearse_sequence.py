@@ -1,0 +1,121 @@
+"""``ctdrill rehearse`` of a drill sequence on the demo phantom: one session per drill, each
+drill's table cut around the hole the drill before it actually reached."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ctdrill.app.cli import main
+from ctdrill.app.pipeline import plan_calibration, plan_path
+from ctdrill.app.sequence import drill_path
+from ctdrill.imaging import load_series
+from ctdrill.imaging.plan.types import DrillSpec, load_plan, save_plan
+from ctdrill.model.profile import force_series_n
+
+ROOT = Path(__file__).resolve().parents[2]
+DEMO = ROOT / "assets" / "demo"
+DRILLS = (
+    DrillSpec(diameter_mm=2.0, tip_length_mm=0.6),
+    DrillSpec(diameter_mm=2.8, tip_length_mm=0.84),
+)
+FEED = 4.0
+
+
+def _rows(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    with path.open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    return np.array(
+        [[float(r["time_s"]), float(r["drill_mm"]), float(r["force_cmd_n"])] for r in rows]
+    ), np.array([r["state"] for r in rows])
+
+
+@pytest.fixture(scope="module")
+def rehearsed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, int, str]:
+    base = tmp_path_factory.mktemp("rehearse_seq")
+    plan = load_plan(DEMO / "plan.json").with_drills(DRILLS)
+    save_plan(plan, base / "plan.json")
+    out = base / "out"
+    import contextlib
+    import io
+
+    stdout = io.StringIO()
+    with contextlib.redirect_stdout(stdout):
+        code = main(
+            [
+                "rehearse",
+                "--dicom",
+                str(DEMO / "ct"),
+                "--plan",
+                str(base / "plan.json"),
+                "--out",
+                str(out),
+                "--operator",
+                f"feed:{FEED}",
+                "--duration-s",
+                "3.5",
+            ]
+        )
+    return base / "plan.json", out, code, stdout.getvalue()
+
+
+def test_one_session_per_drill_and_a_listing_summary(
+    rehearsed: tuple[Path, Path, int, str],
+) -> None:
+    _, out, code, stdout = rehearsed
+    assert code == 0
+    files = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    assert files == [
+        "drill_1/session.csv",
+        "drill_1/summary.json",
+        "drill_2/session.csv",
+        "drill_2/summary.json",
+        "summary.json",
+    ]
+    top = json.loads((out / "summary.json").read_text())
+    one, two = (json.loads((out / f"drill_{k}" / "summary.json").read_text()) for k in (1, 2))
+    assert top["format"] == "ctdrill-rehearsal-sequence/1"
+    assert top["complete"] is True and (top["drills_run"], top["drills_planned"]) == (2, 2)
+    assert top["stop_depth_mm"] == two["stop_depth_mm"]  # the final drill's stop rules
+    assert [d["diameter_mm"] for d in top["drills"]] == [2.0, 2.8]
+    assert one["inner_holes"] == [] and one["drill"]["diameter_mm"] == 2.0
+    # the hole drill 2 cut around is as deep as drill 1 actually reached in its session
+    assert two["inner_holes"] == [
+        {"diameter_mm": 2.0, "tip_length_mm": 0.6, "depth_mm": one["max_drill_mm"]}
+    ]
+    assert top["drills"][0]["reached_depth_mm"] == one["max_drill_mm"]
+    assert stdout.splitlines()[0].startswith("drill 1/2 (2 mm): stop depth ")
+
+
+def test_drill_two_feels_the_annulus_force(rehearsed: tuple[Path, Path, int, str]) -> None:
+    """At a steady feed the device renders S0(x) (1 + Ke v) (+ vibration, averaged out over
+    0.1 s windows): drill 2's force follows its annulus profile, some 3.5 times below what
+    its full lip would give in the same bone."""
+    plan_file, out, _, _ = rehearsed
+    plan = load_plan(plan_file)
+    volume = load_series(DEMO / "ct")
+    cal = plan_calibration(plan)
+    one = json.loads((out / "drill_1" / "summary.json").read_text())
+    annulus = drill_path(volume, plan, 1, cal, [one["max_drill_mm"]]).profile
+    full = plan_path(volume, plan.for_drill(1), cal).profile
+    data, state = _rows(out / "drill_2" / "session.csv")
+    t, x, f = data.T
+    steady = (state == "cutting") & (x > 4.0) & (x < one["max_drill_mm"] - 1.0)
+    assert steady.sum() > 500
+    ratios, full_ratios = [], []
+    for start in np.arange(t[steady][0], t[steady][-1] - 0.1, 0.1):
+        w = steady & (t >= start) & (t < start + 0.1)
+        if w.sum() < 50:
+            continue
+        v = (x[w][-1] - x[w][0]) / (t[w][-1] - t[w][0])
+        want = force_series_n(annulus, x[w], v, np.full(w.sum(), np.nan))
+        want_full = force_series_n(full, x[w], v, np.full(w.sum(), np.nan))
+        ratios.append(f[w].mean() / want.mean())
+        full_ratios.append(f[w].mean() / want_full.mean())
+    assert len(ratios) >= 5
+    assert np.median(ratios) == pytest.approx(1.0, abs=0.1)
+    assert np.median(full_ratios) < 0.45
