@@ -28,7 +28,9 @@ def register(subparsers: Any) -> None:
             "write force.csv, profile.csv, summary.json and force.png. Several trajectories "
             "(plans, or a folder of plans) write one table, OUT/trajectories.csv, one row per "
             "trajectory, and with --per-trajectory also OUT/<plan name>/ with each one's "
-            "files. No patient identifiers are written unless --include-phi."
+            "files. A plan with a drill sequence (drills) writes OUT/drill_1/, OUT/drill_2/ "
+            "... and a summary.json listing them. No patient identifiers are written unless "
+            "--include-phi."
         ),
     )
     p.add_argument("--dicom", type=Path, required=True, metavar="DIR", help="DICOM CT folder")

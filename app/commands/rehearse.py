@@ -26,7 +26,9 @@ def register(subparsers: Any) -> None:
             "OUT/session.csv (time_s, master_mm, drill_mm, force_cmd_n, state) and "
             "OUT/summary.json, replacing OUT whole. The host watches the telemetry: a drill "
             "past the stop, a silent or faulted device or its own error ends the session with "
-            "STOP and DISARM, the fault recorded in summary.json and exit code 3."
+            "STOP and DISARM, the fault recorded in summary.json and exit code 3. A plan with "
+            "a drill sequence (drills) runs one session per drill into OUT/drill_1/, "
+            "OUT/drill_2/ ... with a summary.json listing them."
         ),
     )
     p.add_argument("--dicom", type=Path, required=True, help="CT series folder")

@@ -10,6 +10,7 @@ import numpy as np
 from ctdrill.app.export_band import path_band
 from ctdrill.app.gui.plots import DepthCurves
 from ctdrill.app.pipeline import PathResult, plan_calibration, plan_path
+from ctdrill.app.sequence import plan_sequence
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.model.band import HuUncertainty
@@ -64,7 +65,12 @@ def binding_index(result: PathResult) -> int | None:
 
 
 def stop_explanation(result: PathResult) -> str:
-    """Why the drill stops where it does, in words (which landmark, which margin)."""
+    """Why the drill stops where it does, in words (which landmark, which margin), and for a
+    drill of a sequence which drill it is (:func:`drill_note`)."""
+    return _stop_words(result) + drill_note(result)
+
+
+def _stop_words(result: PathResult) -> str:
     stop, planned = result.stop_depth_mm, result.planned_depth_mm
     if result.stop_reason == "planned_depth":
         return f"the planned depth {planned:.2f} mm"
@@ -89,8 +95,24 @@ def plan_violation(result: PathResult) -> str | None:
 
 def compute_path_view(volume: CTVolume, plan: Plan, hu: HuUncertainty | None = None) -> PathView:
     """Plan the path of ``plan`` through ``volume`` (the pipeline the CLI uses) for display;
-    ``hu`` enters the force band."""
-    return path_view(plan, plan_path(volume, plan, plan_calibration(plan)), hu)
+    ``hu`` enters the force band.
+
+    For a drill sequence the window shows and rehearses the **final** drill, cutting around
+    the holes the drills before it leave at their stop depths (the export's last folder,
+    :mod:`ctdrill.app.sequence`); ``ctdrill rehearse`` runs every drill."""
+    cal = plan_calibration(plan)
+    if len(plan.drills) > 1:
+        return path_view(plan, plan_sequence(volume, plan, cal).final, hu)
+    return path_view(plan, plan_path(volume, plan, cal), hu)
+
+
+def drill_note(result: PathResult) -> str:
+    """Which drill of a sequence ``result`` is, and the holes it cuts around ("" for one)."""
+    if not result.inner_holes:
+        return ""
+    holes = ", ".join(f"{2 * h.radius_mm:g} mm to {h.depth_mm:.2f} mm" for h in result.inner_holes)
+    n = len(result.inner_holes) + 1
+    return f" (drill {n}, {result.plan.drill.diameter_mm:g} mm, after {holes})"
 
 
 def block_reason(

@@ -119,3 +119,24 @@ def test_drill_two_feels_the_annulus_force(rehearsed: tuple[Path, Path, int, str
     assert len(ratios) >= 5
     assert np.median(ratios) == pytest.approx(1.0, abs=0.1)
     assert np.median(full_ratios) < 0.45
+
+
+def test_gui_shows_the_final_drill_around_the_earlier_holes(
+    rehearsed: tuple[Path, Path, int, str],
+) -> None:
+    """The window computes a sequence's final drill as the export's last folder and says
+    which drill it is where it explains the auto-stop."""
+    from ctdrill.app.gui.results import compute_path_view, stop_explanation
+    from ctdrill.app.sequence import plan_sequence
+
+    plan_file = rehearsed[0]
+    plan = load_plan(plan_file)
+    volume = load_series(DEMO / "ct")
+    view = compute_path_view(volume, plan)
+    seq = plan_sequence(volume, plan, plan_calibration(plan))
+    np.testing.assert_array_equal(view.result.profile.s0_n, seq.final.profile.s0_n)
+    pilot_stop = seq.steps[0].stop_depth_mm
+    assert stop_explanation(view.result).endswith(
+        f" (drill 2, 2.8 mm, after 2 mm to {pilot_stop:.2f} mm)"
+    )
+    assert "drill" not in stop_explanation(seq.steps[0])
