@@ -140,3 +140,37 @@ def test_gui_shows_the_final_drill_around_the_earlier_holes(
         f" (drill 2, 2.8 mm, after 2 mm to {pilot_stop:.2f} mm)"
     )
     assert "drill" not in stop_explanation(seq.steps[0])
+
+
+def test_a_fault_ends_the_sequence_and_says_how_far_it_got(
+    rehearsed: tuple[Path, Path, int, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    plan_file = rehearsed[0]
+    out = tmp_path / "out"
+    code = main(
+        [
+            "rehearse",
+            "--dicom",
+            str(DEMO / "ct"),
+            "--plan",
+            str(plan_file),
+            "--out",
+            str(out),
+            "--operator",
+            "push:20",
+            "--duration-s",
+            "0.6",
+            "--fault",
+            "link-loss@0.3",
+        ]
+    )
+    assert code == 3
+    files = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    assert files == ["drill_1/session.csv", "drill_1/summary.json", "summary.json"]
+    top = json.loads((out / "summary.json").read_text())
+    assert top["complete"] is False and (top["drills_run"], top["drills_planned"]) == (1, 2)
+    assert top["stop_depth_mm"] is None and top["stop_reason"] is None
+    assert top["faults"] and all(f["drill"] == 1 for f in top["faults"])
+    captured = capsys.readouterr()
+    assert "1 of 2 drills run: the sequence ended early" in captured.out
+    assert captured.err.strip().splitlines()[-1].startswith("error: the session ended early")
