@@ -287,9 +287,12 @@ def drills_field(ctx: _Ctx, doc: dict[str, Any], where: str) -> tuple[DrillSpec,
     :class:`DrillSpec` defaults. Every item of ``drills`` must give its ``diameter_mm`` (a
     sequence is defined by its diameters); its other keys default as ``drill``'s do. The list
     must be non-empty, at most :data:`MAX_DRILLS` long, with strictly increasing diameters.
+    Neither given: the default drill, with a ``plan_default`` note saying so.
     """
     fp = f"{where}.drills" if where else "drills"
     if "drills" not in doc:
+        if "drill" not in doc:
+            ctx.notes.append(no_drill_note(ctx, where))
         drill_raw = doc.get("drill", {})
         fd = f"{where}.drill" if where else "drill"
         if not isinstance(drill_raw, dict):
@@ -320,6 +323,16 @@ def drills_field(ctx: _Ctx, doc: dict[str, Any], where: str) -> tuple[DrillSpec,
     if problem is not None:
         raise PlanInputError(f"{ctx.path.name}: {fp}{problem}")
     return tuple(out)
+
+
+def no_drill_note(ctx: _Ctx, where: str) -> str:
+    """The ``plan_default`` note of a trajectory that names no drill (the default drill)."""
+    d = DrillSpec()
+    at = f" {where}" if where else ""
+    return (
+        f"{ctx.path.name}:{at} gives no drill; using the default {d.diameter_mm:g} mm drill "
+        f"({d.tip_length_mm:g} mm tip, {d.blades} blades, {d.rpm:g} rpm)"
+    )
 
 
 def _drill_from(ctx: _Ctx, raw: dict[str, Any], where: str) -> DrillSpec:

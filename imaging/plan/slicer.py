@@ -43,6 +43,7 @@ from ctdrill.imaging.plan.read import (
     _stem,
     _to_lps,
     drills_field,
+    no_drill_note,
     series_hash,
 )
 from ctdrill.imaging.plan.settings import SettingsSyntaxError, parse_settings
@@ -263,6 +264,8 @@ def _line_drills(ctx: _Ctx, settings: _Settings, where: str) -> tuple[DrillSpec,
     """The Line's drills: its ``diameter_mm``... settings (one drill), or ``drills``: a quoted
     JSON list of drill objects in drilling order, as a plan file's ``drills`` (a sequence)."""
     if "drills" not in settings:
+        if not _DRILL_KEYS & set(settings):
+            ctx.notes.append(no_drill_note(ctx, where))
         for key in _DRILL_KEYS & set(settings):
             _number(ctx, settings, key, positive=True)  # names the description on error
         return (_drill_from(ctx, {k: settings[k] for k in _DRILL_KEYS if k in settings}, where),)

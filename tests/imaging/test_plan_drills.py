@@ -54,8 +54,13 @@ def test_single_drill_plan_has_a_one_drill_sequence(tmp_path: Path) -> None:
     plan = load_plan(_write(tmp_path, _doc(drill=MIDDLE.to_json())))
     assert plan.drills == (MIDDLE,)
     assert plan.drill == MIDDLE
+    assert plan.notes == ()
+    # neither drill nor drills: the default drill, said so (a plan_default note)
     default = load_plan(_write(tmp_path, _doc(), "bare.json"))
     assert default.drills == (DrillSpec(),)
+    assert default.notes == (
+        "bare.json: gives no drill; using the default 2 mm drill (0.6 mm tip, 2 blades, 900 rpm)",
+    )
 
 
 def test_sequence_items_default_like_drill_but_need_a_diameter(tmp_path: Path) -> None:

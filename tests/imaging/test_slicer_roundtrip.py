@@ -176,7 +176,11 @@ def test_slicer5_case_in_separate_files_runs_without_edits(tmp_path: Path) -> No
     np.testing.assert_array_equal(canal.points_lps[::10][-1], [30.0, 18.0, 12.0])
     assert isinstance(apex, PointLandmark) and apex.name == "apex 36"  # undefined point ignored
     codes = [code for code, _ in plan_warnings(plan)]
-    assert codes == ["markups_skipped"]
+    assert codes == ["plan_default", "markups_skipped"]  # the line names no drill: said so
+    assert plan_warnings(plan)[0][1] == (
+        "L.mrk.json: markups[0] gives no drill; using the default 2 mm drill (0.6 mm tip, "
+        "2 blades, 900 rpm)"
+    )
     (message,) = [m for c, m in plan_warnings(plan) if c == "markups_skipped"]
     assert message.startswith("R.mrk.json: skipped markups ctdrill does not use: markups[0] (ROI)")
 
