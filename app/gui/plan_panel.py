@@ -99,6 +99,9 @@ class PlanPanel(QWidget):
         self.calibration.addItems(list(available_calibrations()))
         for i, name in enumerate(available_calibrations()):  # which set, and how obtained
             self.calibration.setItemData(i, calibration_tooltip(name), Qt.ItemDataRole.ToolTipRole)
+        #: the drill sequence, read-only: the fields below edit the final drill
+        self.sequence_label = QLabel("-")
+        form.addRow("drills", self.sequence_label)
         form.addRow("diameter", self.diameter)
         form.addRow("tip length", self.tip_length)
         form.addRow("feed", self.feed)
@@ -184,6 +187,7 @@ class PlanPanel(QWidget):
                 for box, value in zip(self.point_boxes[name], pt, strict=True):
                     box.setValue(float(value))
             self.depth_label.setText(f"planned depth: {plan.planned_depth_mm:.2f} mm")
+            self.sequence_label.setText(drills_text(plan))
             self.diameter.setValue(plan.drill.diameter_mm)
             self.tip_length.setValue(plan.drill.tip_length_mm)
             self.feed.setValue(plan.feed_mm_s)
@@ -276,3 +280,11 @@ def calibration_tooltip(name: str) -> str:
     cal = load_calibration(name)
     band = "with a 68 % force band" if cal.covariance is not None else "no uncertainty band"
     return f"{calibration_line(calibration_fields(cal))} ({band})"
+
+
+def drills_text(plan: Plan) -> str:
+    """The plan's drills in words: ``one drill`` or ``2 -> 2.8 -> 3.5 mm (fields: the final)``."""
+    if len(plan.drills) == 1:
+        return "one drill"
+    seq = " -> ".join(f"{d.diameter_mm:g}" for d in plan.drills)
+    return f"{seq} mm (the fields edit the final drill)"
