@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from ctdrill.imaging.plan.curve import slicer_curve
+from ctdrill.imaging.plan.drills import drill_from, drills_field, no_drill_note
 from ctdrill.imaging.plan.landmarks import (
     DEFAULT_CANAL_RADIUS_MM,
     CanalLandmark,
@@ -38,12 +39,9 @@ from ctdrill.imaging.plan.read import (
     PlanParts,
     _coordinate_system,
     _Ctx,
-    _drill_from,
     _make_plan,
     _stem,
     _to_lps,
-    drills_field,
-    no_drill_note,
     series_hash,
 )
 from ctdrill.imaging.plan.settings import SettingsSyntaxError, parse_settings
@@ -268,7 +266,7 @@ def _line_drills(ctx: _Ctx, settings: _Settings, where: str) -> tuple[DrillSpec,
             ctx.notes.append(no_drill_note(ctx, where))
         for key in _DRILL_KEYS & set(settings):
             _number(ctx, settings, key, positive=True)  # names the description on error
-        return (_drill_from(ctx, {k: settings[k] for k in _DRILL_KEYS if k in settings}, where),)
+        return (drill_from(ctx, {k: settings[k] for k in _DRILL_KEYS if k in settings}, where),)
     fp = settings.origin["drills"]
     given = sorted(_DRILL_KEYS & set(settings))
     if given:

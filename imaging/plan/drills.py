@@ -1,0 +1,87 @@
+"""Reading a trajectory's drills: ``drill`` (one) or ``drills`` (a sequence in drilling order).
+
+Used by the ``ctdrill-plan/1`` reader (:mod:`ctdrill.imaging.plan.read`) and the Slicer Line
+reader (:mod:`ctdrill.imaging.plan.slicer`); the rules are in :func:`drills_field`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ctdrill.imaging.plan.read import _Ctx, _is_number
+from ctdrill.imaging.plan.types import (
+    _DRILL_KEYS,
+    _MAX_BLADES,
+    MAX_DRILLS,
+    DrillSpec,
+    PlanInputError,
+    sequence_error,
+)
+
+
+def drills_field(ctx: _Ctx, doc: dict[str, Any], where: str) -> tuple[DrillSpec, ...]:
+    """The plan's drills from ``drill`` (one object) or ``drills`` (a list in drilling order).
+
+    Giving both is refused, naming ``drills``; without either the plan drills with the
+    :class:`DrillSpec` defaults. Every item of ``drills`` must give its ``diameter_mm`` (a
+    sequence is defined by its diameters); its other keys default as ``drill``'s do. The list
+    must be non-empty, at most :data:`MAX_DRILLS` long, with strictly increasing diameters.
+    Neither given: the default drill, with a ``plan_default`` note saying so.
+    """
+    fp = f"{where}.drills" if where else "drills"
+    if "drills" not in doc:
+        if "drill" not in doc:
+            ctx.notes.append(no_drill_note(ctx, where))
+        drill_raw = doc.get("drill", {})
+        fd = f"{where}.drill" if where else "drill"
+        if not isinstance(drill_raw, dict):
+            raise ctx.fail(fd, "must be an object", drill_raw)
+        ctx.keys(drill_raw, _DRILL_KEYS, fd)
+        return (drill_from(ctx, drill_raw, fd),)
+    if "drill" in doc:
+        raise ctx.fail(
+            fp,
+            "and drill are both given; give drill for a single drill or drills for a sequence "
+            "(its last entry is the final drill), not both",
+        )
+    raw = doc["drills"]
+    if not isinstance(raw, list):
+        raise ctx.fail(fp, "must be a list of drill objects in drilling order", raw)
+    if len(raw) > MAX_DRILLS:
+        raise ctx.fail(fp, f"lists {len(raw)} drills, more than the {MAX_DRILLS} accepted")
+    out = []
+    for i, item in enumerate(raw):
+        fi = f"{fp}[{i}]"
+        if not isinstance(item, dict):
+            raise ctx.fail(fi, "must be a drill object", item)
+        ctx.keys(item, _DRILL_KEYS, fi)
+        if "diameter_mm" not in item:
+            raise ctx.fail(f"{fi}.diameter_mm", "is missing; every drill of a sequence needs it")
+        out.append(drill_from(ctx, item, fi))
+    problem = sequence_error(out)
+    if problem is not None:
+        raise PlanInputError(f"{ctx.path.name}: {fp}{problem}")
+    return tuple(out)
+
+
+def no_drill_note(ctx: _Ctx, where: str) -> str:
+    """The ``plan_default`` note of a trajectory that names no drill (the default drill)."""
+    d = DrillSpec()
+    at = f" {where}" if where else ""
+    return (
+        f"{ctx.path.name}:{at} gives no drill; using the default {d.diameter_mm:g} mm drill "
+        f"({d.tip_length_mm:g} mm tip, {d.blades} blades, {d.rpm:g} rpm)"
+    )
+
+
+def drill_from(ctx: _Ctx, raw: dict[str, Any], where: str) -> DrillSpec:
+    d = DrillSpec()
+    diameter = ctx.number(raw, "diameter_mm", where, default=d.diameter_mm, positive=True)
+    tip = ctx.number(raw, "tip_length_mm", where, default=d.tip_length_mm, positive=True)
+    blades_raw = raw.get("blades", d.blades)
+    if not _is_number(blades_raw) or blades_raw != int(blades_raw) or blades_raw < 1:
+        raise ctx.fail(f"{where}.blades", "must be a positive whole number", blades_raw)
+    if blades_raw > _MAX_BLADES:
+        raise ctx.fail(f"{where}.blades", f"must be at most {_MAX_BLADES}", blades_raw)
+    rpm = ctx.number(raw, "rpm", where, default=d.rpm, positive=True)
+    return DrillSpec(diameter_mm=diameter, tip_length_mm=tip, blades=int(blades_raw), rpm=rpm)
