@@ -28,7 +28,7 @@ from ctdrill.imaging.plan.safety import (
     safe_depth,
 )
 from ctdrill.imaging.plan.types import Plan, plan_warnings, series_uid_hash
-from ctdrill.imaging.sampling.annulus import Hole
+from ctdrill.imaging.sampling.annulus import Hole, holes_on_grid
 from ctdrill.imaging.sampling.lip import (
     DEFAULT_N_ANGLES,
     DEFAULT_N_RINGS,
@@ -307,10 +307,13 @@ def plan_path(
         for gap in gaps
     ]
     holes = tuple(inner_holes)
+    on_grid = holes_on_grid(holes, depth)
     lip = sample_lip_rings(
-        volume, entry, target, depth, drill, n_rings=n_rings, n_angles=n_angles, holes=holes
+        volume, entry, target, depth, drill, n_rings=n_rings, n_angles=n_angles, holes=on_grid
     )
-    check_padding(volume, entry, target, drill, lip, n_rings, n_angles, name=plan.name, holes=holes)
+    check_padding(
+        volume, entry, target, drill, lip, n_rings, n_angles, name=plan.name, holes=on_grid
+    )
     profile = build_profile(
         lip.hu, lip.ring_weights, depth, calibration, blades=plan.drill.blades, rpm=plan.drill.rpm
     )

@@ -29,7 +29,7 @@ full lip's (``(i + 1/2) R / n``, weight ``1 / n``).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -137,3 +137,27 @@ def annulus_rings(
     radii = edges[rows, k] + (s - cum[rows, k])
     weights = np.repeat((total / (n_rings * radius_mm))[:, None], n_rings, axis=1)
     return radii, weights
+
+
+def holes_on_grid(holes: tuple[Hole, ...], depth_mm: np.ndarray) -> tuple[Hole, ...]:
+    """``holes`` with each depth rounded **up** to the profile's depth grid.
+
+    The profile is linear between grid depths (``force_n``, the device table, force.csv). At
+    the bottom of an earlier hole the force jumps (equal point angles) from the annulus to the
+    full lip; sampled at the true depth, the grid depth just below the bottom would still be
+    annulus and the one just above it full, so the interpolated force would start rising up to
+    one step *inside* the hole. Placed at the next grid depth, the hole holds exactly at every
+    depth down to its true bottom (a drill stopping where the one before it stopped feels only
+    the annulus), and the full lip engages late by less than two steps (a larger hole only
+    removes material: no force is ever added). A depth within 1e-9 mm of a grid depth is that
+    grid depth; one past the grid's end is kept.
+    """
+    if not holes:
+        return holes
+    tol = 1e-9
+    out = []
+    for hole in holes:
+        k = int(np.searchsorted(depth_mm, hole.depth_mm - tol, side="left"))
+        snapped = hole.depth_mm if k >= depth_mm.size else float(depth_mm[k])
+        out.append(replace(hole, depth_mm=max(snapped, hole.depth_mm)))
+    return tuple(out)

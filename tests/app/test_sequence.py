@@ -195,3 +195,26 @@ def test_each_drill_has_its_own_stop_and_the_next_cuts_to_it(slab: CTVolume) -> 
     x = last.depth_mm
     ok = _immersed(x, 1.08)
     np.testing.assert_allclose(last.profile.s0_n[ok], A0_800 * (1 - 1.0 / 1.8), rtol=1e-9)
+
+
+def test_a_hole_bottom_between_grid_depths_never_leaks_into_the_hole(slab: CTVolume) -> None:
+    """The pilot stops at 6.02 mm, between the grid depths 6.00 and 6.05: the follower's force
+    (linear between grid depths, as the device and force.csv use it) is the annulus force at
+    every depth down to 6.02 and, here, down to 6.05 (the hole's grid placement); the full lip
+    is reached at 6.10: at most two steps late, never early."""
+    from ctdrill.model.profile import force_n
+
+    drill = DrillSpec(diameter_mm=2.8, tip_length_mm=0.84)
+    res = drill_path(slab, _plan((PILOT, drill)), 1, CAL, [6.02])
+    prof = res.profile
+    share = 1.0 - 1.0 / 1.4
+    for x in np.linspace(2.0, 6.02, 403):
+        assert force_n(prof, float(x), 0.0, np.nan) == pytest.approx(A0_800 * share, rel=1e-9)
+    assert force_n(prof, 6.05, 0.0, np.nan) == pytest.approx(A0_800 * share, rel=1e-9)
+    assert force_n(prof, 6.10, 0.0, np.nan) == pytest.approx(A0_800, rel=1e-9)
+    assert res.inner_holes == (Hole(1.0, 0.6, 6.02),)  # the true hole is reported
+    # a follower stopping where the pilot stopped feels only the annulus at its stop
+    same = drill_path(slab, _plan((PILOT, drill), depth_mm=6.02), 1, CAL, [6.02])
+    assert same.stop_depth_mm == pytest.approx(6.02)
+    got = force_n(same.profile, same.stop_depth_mm, 0.0, np.nan)
+    assert got == pytest.approx(A0_800 * share, rel=1e-9)
