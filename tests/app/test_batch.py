@@ -160,12 +160,33 @@ def test_status_table_cohort_table_and_exit_code(tmp_path: Path) -> None:
     assert (batch["rows"], batch["ok"], batch["failed"]) == (3, 2, 1)
 
 
-def test_workers_and_dask_write_what_the_serial_run_writes(tmp_path: Path) -> None:
-    """Byte-identical outputs (force.png included) from one process, a process pool and a
-    Dask LocalCluster; the status tables agree but for the timings."""
+def test_workers_and_dask_write_what_the_serial_run_writes(
+    tmp_path: Path, shared_data: Path
+) -> None:
+    """Several series (the demo phantom and a real Philips CT): byte-identical outputs
+    (force.png included) from one process, a process pool and a Dask LocalCluster; the
+    status tables agree but for the timings."""
     from distributed import LocalCluster
 
     manifest = _cohort(tmp_path)
+    plan = {
+        "format": "ctdrill-plan/1",
+        "coordinate_system": "RAS",
+        "entry_mm": [0.0, -170.0, 766.21],
+        "target_mm": [0.0, -215.0, 766.21],
+        "landmarks": [
+            {
+                "name": "canal",
+                "kind": "canal",
+                "radius_mm": 1.2,
+                "points_mm": [[20.0, -205.0, 766.21], [-20.0, -205.0, 766.21]],
+            }
+        ],
+    }
+    (tmp_path / "plans" / "philips.json").write_text(json.dumps(plan), encoding="utf-8")
+    real = shared_data / "dcmqa_ct_Philips_phantom_notilt_5mm"
+    with manifest.open("a", encoding="utf-8") as fh:
+        fh.write(f"{real},plans/philips.json\n")
     args = [str(manifest), *FAST]
     code, _, err = _run(["batch", *args, "--out", str(tmp_path / "serial"), "--workers", "1"])
     assert code == EXIT_ROWS_FAILED, err
@@ -185,9 +206,11 @@ def test_workers_and_dask_write_what_the_serial_run_writes(tmp_path: Path) -> No
             ]
         )
     assert code == EXIT_ROWS_FAILED, err
-    assert "2 ok (0 resumed), 1 failed" in stdout
+    assert "3 ok (0 resumed), 1 failed" in stdout
     serial = _files(tmp_path / "serial")
     assert "rows/0001/force.png" in serial and "rows/0003/trajectories.csv" in serial
+    real_row = json.loads(serial["rows/0004/summary.json"])
+    assert real_row["stop_depth_mm"] == pytest.approx(31.8, abs=1e-3)  # 35 - 1.2 - 2.0
     assert _files(tmp_path / "pool") == serial
     assert _files(tmp_path / "dask") == serial
 
