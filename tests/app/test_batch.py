@@ -317,3 +317,28 @@ def test_a_drill_sequence_row_has_one_cohort_row_per_drill(tmp_path: Path) -> No
     for c in cohort:
         doc = json.loads((out / c["folder"] / "summary.json").read_text(encoding="utf-8"))
         assert float(c["stop_depth_mm"]) == doc["stop_depth_mm"]
+
+
+def test_progress_on_a_terminal_is_a_rich_bar_and_plain_lines_otherwise() -> None:
+    from ctdrill.app.batch.progress import make_progress
+    from ctdrill.app.batch.task import RowOutcome
+
+    class Tty(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    ids = {1: "a", 2: "b"}
+    outcomes = [RowOutcome(1, "ok", 0.1), RowOutcome(2, "error: x.json: bad", 0.1)]
+    tty = Tty()
+    with make_progress(tty, ids) as progress:
+        for n, o in enumerate(outcomes, start=1):
+            progress(n, 2, o)
+    text = tty.getvalue()
+    assert "2/2" in text and "row 2 (b): error: x.json: bad" in text
+    plain = io.StringIO()
+    with make_progress(plain, ids) as progress:
+        for n, o in enumerate(outcomes, start=1):
+            progress(n, 2, o)
+    assert plain.getvalue() == (
+        "batch [1/2] row 1 (a): ok\nbatch [2/2] row 2 (b): error: x.json: bad\n"
+    )
