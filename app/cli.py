@@ -31,6 +31,7 @@ COMMANDS: tuple[str, ...] = (
     "rehearse",
     "emulate",
     "gui",
+    "warmup",
 )
 
 INPUT_ERRORS: tuple[type[Exception], ...] = (

@@ -109,6 +109,7 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.search.score import Objective
     from ctdrill.app.search.suggest import suggest
     from ctdrill.app.search.suggest_write import summary_lines, write_suggestion
+    from ctdrill.app.search.warmup import SLOW_PATH_NOTE, kernels_ready
     from ctdrill.imaging import load_series
     from ctdrill.imaging.plan.types import load_plan_set
 
@@ -131,6 +132,8 @@ def run(args: argparse.Namespace) -> int:
         volume, plan, calibration, space, objective, interpolate_gaps=args.interpolate_gaps
     )
     written = write_suggestion(result, args.out)
+    if not kernels_ready():
+        sys.stdout.write(SLOW_PATH_NOTE + "\n")
     for path in written:
         sys.stdout.write(f"wrote {path}\n")
     sys.stdout.write("".join(line + "\n" for line in summary_lines(result)))

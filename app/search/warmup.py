@@ -1,7 +1,8 @@
 """Compile the search kernels into numba's disk cache: ``python -m ctdrill.app.search.warmup``.
 
-Run once after installing (``make warmup``; CI runs it before the tests). Without it every
-call takes the NumPy per-trajectory path (same answers, ~30x slower); with it each process
+Run once after installing (``ctdrill warmup``, ``make warmup``; CI runs it before the tests).
+Without it every call takes the NumPy per-trajectory path (same answers, ~30x slower; ``ctdrill
+suggest`` says so); with it each process
 loads the kernels from the cache in milliseconds and nothing is ever compiled in a user's path.
 """
 
@@ -20,6 +21,18 @@ def search_kernels() -> tuple[jit.Kernel, ...]:
     from ctdrill.model.profile_batch import PROFILE_KERNEL
 
     return (LIP_KERNEL, PROFILE_KERNEL, CLEARANCE_KERNEL)
+
+
+def kernels_ready() -> bool:
+    """True when every search kernel loads from the disk cache (the fast path; never compiles)."""
+    return all(k.ready() for k in search_kernels())
+
+
+#: What suggest prints when it must take the NumPy path.
+SLOW_PATH_NOTE = (
+    "note: the compiled search kernels are not in the cache here, so the search took the NumPy "
+    "path (same answers, about 30 times slower); run 'ctdrill warmup' once to compile them"
+)
 
 
 def main(argv: list[str] | None = None) -> int:

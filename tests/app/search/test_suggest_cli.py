@@ -28,6 +28,15 @@ def case(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return root
 
 
+@pytest.fixture(scope="module", autouse=True)
+def kernels() -> None:
+    """The compiled kernels, as `make warmup` leaves them (compiled here if the cache is cold)."""
+    from ctdrill import jit
+    from ctdrill.app.search.warmup import search_kernels
+
+    jit.warm_up(search_kernels())
+
+
 def _run(case: Path, out: Path, *extra: str) -> int:
     return main(
         [
@@ -51,6 +60,7 @@ def test_suggest_writes_the_ranked_table_and_the_best_plan(
     text = capsys.readouterr().out
     assert f"wrote {out / 'candidates.csv'}" in text and "best: candidate" in text
     assert "planned axis (candidate 0): rank" in text
+    assert "ctdrill warmup" not in text  # the kernels are compiled for the tests
     rows = list(csv.DictReader((out / "candidates.csv").open(encoding="utf-8")))
     assert len(rows) == 60 and rows[0]["feasible"] == "true"
     best = load_plan(out / "best.plan.json")
@@ -61,6 +71,30 @@ def test_suggest_writes_the_ranked_table_and_the_best_plan(
     before = (out / "candidates.csv").read_bytes()
     assert _run(case, out, "--count", "60") == 0
     assert (out / "candidates.csv").read_bytes() == before
+
+
+def test_the_numpy_path_says_so_and_gives_the_same_table(
+    case: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from ctdrill.app.search.warmup import search_kernels
+
+    assert _run(case, tmp_path / "fast", "--count", "30") == 0
+    assert "ctdrill warmup" not in capsys.readouterr().out
+    for kernel in search_kernels():
+        monkeypatch.setattr(kernel, "_ready", False)
+    assert _run(case, tmp_path / "slow", "--count", "30") == 0
+    assert "run 'ctdrill warmup' once" in capsys.readouterr().out
+    fast = (tmp_path / "fast" / "candidates.csv").read_bytes()
+    assert (tmp_path / "slow" / "candidates.csv").read_bytes() == fast
+
+
+def test_warmup_without_numba_is_one_error_line(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("CTDRILL_NO_JIT", "1")
+    assert main(["warmup"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: numba is not available") and err.count("\n") == 1
 
 
 def test_no_feasible_candidate_exits_0_without_a_best_plan(
