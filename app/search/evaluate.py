@@ -211,8 +211,17 @@ def evaluate_batch(
     Raises
     ------
     PathInputError
-        Bad arguments, or a volume no trajectory can use (a single slice, values not HU).
+        Bad arguments, a plan with a drill sequence (its forces need the earlier holes:
+        evaluate ``plan.for_drill(k)``), or a volume no trajectory can use (a single slice,
+        values not HU).
     """
+    if plan.earlier_drills:
+        sizes = ", ".join(f"{d.diameter_mm:g}" for d in plan.drills)
+        raise PathInputError(
+            f"plan {plan.name!r} drills a sequence ({sizes} mm): evaluate_batch computes one "
+            "drill on a full lip, not a drill cutting around earlier holes; pass "
+            "plan.for_drill(k) for drill k alone (app.sequence computes the sequence's forces)"
+        )
     entries, targets = check_batch_arguments(
         volume,
         entries_lps,

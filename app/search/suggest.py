@@ -229,7 +229,10 @@ def suggest(
     space = space or SearchSpace()
     objective = objective or Objective()
     evaluator = evaluate or _default_evaluator()
-    cands = make_candidates(volume, plan, space)
+    # A sequence's final drill makes the final osteotomy: it is what the axis is checked and
+    # scored with (the score reads HU, not forces); best.plan.json keeps the whole sequence.
+    final = plan.for_drill(len(plan.drills) - 1) if plan.earlier_drills else plan
+    cands = make_candidates(volume, final, space)
     n = cands.size
     out = _Rows.empty(n)
     for i in np.flatnonzero(cands.no_surface):
@@ -240,13 +243,13 @@ def suggest(
         part = rows[lo : lo + CHUNK]
         batch = evaluator(
             volume,
-            plan,
+            final,
             cands.entries_lps[part],
             cands.targets_lps[part],
             calibration,
             interpolate_gaps=interpolate_gaps,
         )
-        out.take(part, batch, plan, objective)
+        out.take(part, batch, final, objective)
     evaluate_s = time.perf_counter() - t1
     scores = combine(out.body, out.crest, out.apex, objective)
     feasible = out.feasible
@@ -287,6 +290,14 @@ def _notes(plan: Plan, cands: Candidates, feasible: np.ndarray) -> tuple[str, ..
         out.append(
             f"the planned entry lies {abs(gap):.2f} mm {where} the bone surface along its axis; "
             "the other candidates enter on the surface, candidate 0 as planned"
+        )
+    if plan.earlier_drills:
+        sizes = ", ".join(f"{d.diameter_mm:g}" for d in plan.drills)
+        out.append(
+            f"plan {plan.name!r} drills a sequence ({sizes} mm): candidates are checked and "
+            f"scored with the final {plan.drill.diameter_mm:g} mm drill alone; the earlier "
+            "drills' own stops are not checked here (ctdrill export on best.plan.json checks "
+            "each drill)"
         )
     missing = int(np.count_nonzero(cands.no_surface))
     if missing:

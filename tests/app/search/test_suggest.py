@@ -212,3 +212,25 @@ def test_chunked_evaluation_gives_the_same_ranking(
     assert np.array_equal(whole.order, chunked.order)
     assert np.array_equal(whole.scores.total, chunked.scores.total, equal_nan=True)
     assert whole.reason == chunked.reason and np.array_equal(whole.feasible, chunked.feasible)
+
+
+def test_a_drill_sequence_is_searched_with_its_final_drill_and_kept(
+    vol: CTVolume, cal: Calibration, found: Suggestion, tmp_path: Path
+) -> None:
+    from ctdrill.app.pipeline import PathInputError
+    from ctdrill.app.search.evaluate import evaluate_batch
+
+    plan = columns.columns_plan()
+    pilot = replace(plan.drill, diameter_mm=plan.drill.diameter_mm / 2)
+    seq = plan.with_drills((pilot, plan.drill))
+    with pytest.raises(PathInputError, match="drills a sequence"):
+        evaluate_batch(vol, seq, plan.entry_lps[None], plan.target_lps[None], cal)
+    s = suggest(vol, seq, cal, SearchSpace(count=COUNT))
+    # the final drill alone decides: the same table as the single-drill plan's
+    assert np.array_equal(s.order, found.order)
+    assert np.array_equal(s.feasible, found.feasible)
+    assert np.array_equal(s.scores.total, found.scores.total, equal_nan=True)
+    assert any("drills a sequence" in note and "final" in note for note in s.notes)
+    write_suggestion(s, tmp_path / "out")
+    best = load_plan(tmp_path / "out" / "best.plan.json")
+    assert [d.diameter_mm for d in best.drills] == [pilot.diameter_mm, plan.drill.diameter_mm]
