@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import ctdrill
+from ctdrill.app.grey_option import GreyMapSpec
 
 #: The marker written last (in the same swap) into a row's output folder.
 ROW_MARKER = "batch-row.json"
@@ -49,6 +50,8 @@ class ExportOptions:
     plot: bool = True
     per_trajectory: bool = False
     interpolate_gaps: bool = False
+    hu_sigma: float | None = None
+    grey: GreyMapSpec | None = None
 
 
 @dataclass(frozen=True)
@@ -171,6 +174,8 @@ def run_row(task: RowTask) -> RowOutcome:
             interpolate_gaps=opts.interpolate_gaps,
             plot=opts.plot,
             per_trajectory=opts.per_trajectory,
+            hu_sigma=opts.hu_sigma,
+            grey=opts.grey,
             extra_files={ROW_MARKER: marker_json(task)},
         )
         status = "ok"

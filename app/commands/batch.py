@@ -7,7 +7,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.commands.options import add_interpolate_gaps_option
+from ctdrill.app.commands.options import (
+    add_grey_map_options,
+    add_hu_sigma_option,
+    add_interpolate_gaps_option,
+)
 from ctdrill.app.export_defaults import DEFAULT_RATE_HZ
 
 
@@ -59,6 +63,8 @@ def register(subparsers: Any) -> None:
         help="rows with several trajectories: also each one's files",
     )
     add_interpolate_gaps_option(p)
+    add_hu_sigma_option(p)
+    add_grey_map_options(p)
     p.set_defaults(func=run)
 
 
@@ -74,10 +80,13 @@ def run(args: argparse.Namespace) -> int:
         run_batch,
     )
     from ctdrill.app.batch.task import ExportOptions
+    from ctdrill.app.export_band import hu_uncertainty_option
+    from ctdrill.app.grey_option import parse_grey_options
 
     for name, value in (("--feed-mm-s", args.feed_mm_s), ("--rate-hz", args.rate_hz)):
         if value is not None and not value > 0.0:
             raise BatchInputError(f"{name} must be a positive number, got {value!r}")
+    hu_uncertainty_option(args.hu_sigma)  # a bad --hu-sigma is one error line, not N rows
     rows = read_manifest(args.manifest)
     options = ExportOptions(
         calibration=args.calibration,
@@ -86,6 +95,8 @@ def run(args: argparse.Namespace) -> int:
         plot=not args.no_plot,
         per_trajectory=args.per_trajectory,
         interpolate_gaps=args.interpolate_gaps,
+        hu_sigma=args.hu_sigma,
+        grey=parse_grey_options(args.grey_to_hu, args.grey_ref),
     )
     workers = default_workers() if args.workers is None else args.workers
     with make_progress(sys.stderr, {r.row: r.row_id for r in rows}) as progress:

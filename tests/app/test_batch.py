@@ -342,3 +342,26 @@ def test_progress_on_a_terminal_is_a_rich_bar_and_plain_lines_otherwise() -> Non
     assert plain.getvalue() == (
         "batch [1/2] row 1 (a): ok\nbatch [2/2] row 2 (b): error: x.json: bad\n"
     )
+
+
+def test_hu_sigma_and_grey_map_reach_every_row_as_in_export(tmp_path: Path) -> None:
+    """``--hu-sigma`` and ``--grey-to-hu`` give each row the files ``ctdrill export`` writes
+    with the same options (profile.csv with its band byte for byte); a bad one is one line."""
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"dicom,plan\n{DEMO / 'ct'},{DEMO / 'plan.json'}\n", encoding="utf-8")
+    opts = [*FAST, "--calibration", "bone-literature", "--hu-sigma", "30"]
+    opts += ["--grey-to-hu", "1,0,0.01,2"]
+    code, _, err = _run(["batch", str(manifest), "--out", str(tmp_path / "b"), *opts])
+    assert code == 0, err
+    export = ["export", "--dicom", str(DEMO / "ct"), "--plan", str(DEMO / "plan.json")]
+    code, _, err = _run([*export, "--out", str(tmp_path / "e"), *opts])
+    assert code == 0, err
+    row = tmp_path / "b" / "rows" / "0001"
+    assert (row / "profile.csv").read_bytes() == (tmp_path / "e" / "profile.csv").read_bytes()
+    summary = json.loads((row / "summary.json").read_text(encoding="utf-8"))
+    assert summary["hu_uncertainty"] is not None and summary["grey_to_hu"] is not None
+    lo = [r["s0_lo_n"] for r in _csv(row / "profile.csv")]
+    assert all(v != "" for v in lo)
+    code, _, err = _run(["batch", str(manifest), "--out", str(tmp_path / "c"), "--hu-sigma", "-1"])
+    assert code == 2 and err.startswith("error:") and err.count("\n") == 1
+    assert not (tmp_path / "c").exists()
