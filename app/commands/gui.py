@@ -112,11 +112,11 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.export_band import hu_uncertainty_option
 
     hu = hu_uncertainty_option(args.hu_sigma)
-    plan = None
+    plans: tuple[Any, ...] = ()
     if args.plan is not None:  # a plan that cannot be read is refused before any window
-        from ctdrill.imaging.plan.types import load_one_plan
+        from ctdrill.imaging.plan.types import load_plan_set
 
-        plan = load_one_plan(args.plan)
+        plans = load_plan_set(args.plan)  # every trajectory: the first is current
     problem = display_problem(os.environ)
     if problem is not None:
         raise AppInputError(f"ctdrill gui: {problem}; {NO_DISPLAY_HINT}")
@@ -124,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
 
     return run_gui(
         dicom=args.dicom,
-        plan=plan,
+        plans=plans,
         screenshot=args.screenshot,
         quit_after_s=quit_after,
         hu_uncertainty=hu,

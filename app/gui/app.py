@@ -51,7 +51,7 @@ def make_window(settings: QSettings | None = None) -> MainWindow:
 def run_gui(
     *,
     dicom: Path | None = None,
-    plan: Plan | None = None,
+    plans: tuple[Plan, ...] = (),
     screenshot: Path | None = None,
     quit_after_s: float | None = None,
     settings: QSettings | None = None,
@@ -62,15 +62,16 @@ def run_gui(
     With ``screenshot``, the composited window is saved as soon as the case is drawn (path
     planned, or right after showing when no series is given), and the window quits.
     A load that fails on bad input is re-raised after the loop so the CLI reports it.
-    ``plan`` was read by the caller (a plan that cannot be read never reaches the window).
+    ``plans`` (every trajectory of the plan files) were read by the caller (a plan that cannot
+    be read never reaches the window).
     """
     app = application()
     window = make_window(settings)
     window.doc.hu_uncertainty = hu_uncertainty  # ``--hu-sigma``: enters the force band
     window.unattended = screenshot is not None or quit_after_s is not None
     window.ask_series = not window.unattended  # unattended: take the largest series
-    if plan is not None:
-        window.use_plan(plan, plan.source)
+    if plans:
+        window.use_plans(plans, plans[0].source)
     if dicom is not None:
         window.open_folder(dicom)
     state = {"saved": False}
@@ -97,7 +98,7 @@ def run_gui(
         if dicom is None:
             QTimer.singleShot(500, take)
         else:  # once both the path (or its refusal) and the slices are drawn
-            pending = {"path", "slices"} if plan is not None else {"slices"}
+            pending = {"path", "slices"} if plans else {"slices"}
 
             def settled() -> None:  # every queued drawing step has run: the views are drawn
                 if window.ui_steps.pending:

@@ -70,11 +70,14 @@ class Controller(QObject):
         self.loaded.emit(loaded)
 
     def recompute(self) -> None:
-        """Plan the path of the document's plan through its volume now."""
+        """Plan the path of the document's current trajectory through its volume now (unless
+        already computed for it)."""
         self.debounce.cancel()
         volume, plan = self.doc.volume, self.doc.plan
         if volume is None or plan is None:
             return
+        if self.doc.path is not None and self.doc.path.plan is plan:
+            return  # already computed for this trajectory (switching back to it)
         self._computing = plan
         hu = self.doc.hu_uncertainty
         self.path_runner.submit(lambda: compute_path_view(volume, plan, hu))

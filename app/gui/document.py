@@ -1,28 +1,41 @@
 """The window's document: the one observable object every view draws from.
 
-The CT volume (with its bone surface), the plan, the path computed for the plan and the
-rehearsal state live here and nowhere else. A view subscribes to the signals it needs and
-changes the document only through its methods (napari's model/view split); the computing
-happens in headless functions (:mod:`ctdrill.app.gui.compute`,
+The CT volume (with its bone surface), the plan's trajectories, the path computed for the
+current one and the rehearsal state live here and nowhere else. A view subscribes to the
+signals it needs and changes the document only through its methods (napari's model/view
+split); the computing happens in headless functions (:mod:`ctdrill.app.gui.compute`,
 :mod:`ctdrill.app.gui.results`) run by :class:`ctdrill.app.gui.controller.Controller`.
 
-A suggestion (``ctdrill suggest`` run on the document's plan, :mod:`ctdrill.app.search`) is
+A plan holds several trajectories (one per implant, :attr:`Document.plans`); one is current
+(:attr:`Document.plan`): the panels edit it and the path (force, clearance, stop) is computed
+for it. Paths already computed are kept per trajectory object, so switching back shows them at
+once. Every plan edit (a trajectory moved, its drill, implant or landmarks changed, the arch,
+a trajectory added, removed or renamed, a suggested axis adopted) is a named undo step
+(:mod:`ctdrill.app.gui.history`); opening a plan file starts a new history. The volume is not
+part of it.
+
+A suggestion (``ctdrill suggest`` run on the current trajectory, :mod:`ctdrill.app.search`) is
 kept with the plan it was computed for: adopting one of its candidates replaces the plan's
-axis and keeps the suggestion (marked adopted); any other plan edit or a new series drops it.
+axis and keeps the suggestion (marked adopted); any other plan edit, selecting another
+trajectory or a new series drops it.
 
 The plan is locked while a rehearsal runs: the device holds the force table of the plan it was
 armed with, so an edit then would make the views show a stop the device does not enforce.
-:meth:`Document.set_plan` refuses it and emits ``edit_refused`` with the reason.
+Every edit (undo, redo and selecting another trajectory included) is refused then, with
+``edit_refused`` saying why.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from PySide6.QtCore import QObject, Signal
 
+from ctdrill.app.gui.history import History, State
+from ctdrill.app.gui.planning import arch_of, edit_name, with_arch
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.workers import StepQueue
 from ctdrill.app.search.candidates import SearchSpace
@@ -33,16 +46,23 @@ from ctdrill.model.band import HuUncertainty
 
 #: What ``edit_refused`` says while a rehearsal runs.
 LOCKED_MESSAGE = "the plan is locked while a rehearsal runs: stop the rehearsal to edit it"
+#: Path results kept for trajectories other than the current one (oldest dropped first).
+PATH_CACHE_SIZE = 32
 
 
 class Document(QObject):
-    """Volume, plan, path result and rehearsal state, with a signal per change.
+    """Volume, trajectories, path result and rehearsal state, with a signal per change.
 
     Signals
     -------
     volume_changed(volume) : a new series is open (``surface`` is set before).
     surface_changed(surface) : a new bone surface (new series or iso-surface preset).
-    plan_changed(plan) : the plan (or None) changed; the path result is reset to None.
+    plans_changed(plans) : the trajectories, or which one is current, changed (every change;
+        emitted before ``plan_changed``).
+    plan_changed(plan) : the current trajectory (or None) changed or another one was selected;
+        the path result is reset (to the one already computed for it, if any, announced by
+        ``path_changed`` right after).
+    history_changed() : what undo / redo would do changed (:attr:`undo_name`).
     path_changed(view) : a path result for the current plan (a ``PathView``), or None with
         ``path_error`` saying why (empty: not computed yet).
     rehearsal_changed(running) : a rehearsal started or ended.
@@ -57,7 +77,9 @@ class Document(QObject):
 
     volume_changed = Signal(object)
     surface_changed = Signal(object)
+    plans_changed = Signal(object)
     plan_changed = Signal(object)
+    history_changed = Signal()
     path_changed = Signal(object)
     rehearsal_changed = Signal(bool)
     live_depth_changed = Signal(float)
@@ -70,9 +92,14 @@ class Document(QObject):
         self.volume: CTVolume | None = None
         self.volume_path = ""
         self.surface: Any = None  # pyvista.PolyData of the bone surface
-        self.plan: Plan | None = None
+        #: Every trajectory of the plan, in order (empty: none placed yet).
+        self.plans: tuple[Plan, ...] = ()
+        #: Index of the current trajectory in :attr:`plans`.
+        self.current = 0
         #: Trajectory points placed before a plan exists (``entry`` / ``target``), LPS mm.
         self.draft: dict[str, np.ndarray] = {}
+        #: An arch drawn before any trajectory exists ((K, 3) LPS mm); the first one takes it.
+        self.draft_arch: np.ndarray | None = None
         self.path: PathView | None = None
         self.path_error = ""
         self.rehearsing = False
@@ -84,14 +111,49 @@ class Document(QObject):
         self.adopted: int | None = None
         #: "" (idle), "running", or why the last search failed.
         self.suggest_status = ""
+        self.history = History()
+        self._paths: dict[Plan, PathView] = {}  # by trajectory object (Plan compares by id)
 
-    # ------------------------------------------------------------------ changes
+    # ------------------------------------------------------------------ reading
+    @property
+    def plan(self) -> Plan | None:
+        """The current trajectory (None: no trajectory placed yet)."""
+        return self.plans[self.current] if self.plans else None
+
+    @property
+    def arch_lps(self) -> np.ndarray | None:
+        """The dental arch ((K, 3) LPS mm, shared by every trajectory), or None."""
+        plan = self.plan
+        return self.draft_arch if plan is None else arch_of(plan)
+
+    @property
+    def can_undo(self) -> bool:
+        """An edit can be undone."""
+        return self.history.undo_name is not None
+
+    @property
+    def can_redo(self) -> bool:
+        """An undone edit can be applied again."""
+        return self.history.redo_name is not None
+
+    @property
+    def undo_name(self) -> str | None:
+        """What undo would revert (e.g. ``move entry``), or None."""
+        return self.history.undo_name
+
+    @property
+    def redo_name(self) -> str | None:
+        """What redo would apply again, or None."""
+        return self.history.redo_name
+
+    # ------------------------------------------------------------------ series
     def set_volume(self, volume: CTVolume, path: str, surface: Any) -> bool:
         """Open a new series (refused while a rehearsal runs)."""
         if self.rehearsing:
             self.edit_refused.emit("a rehearsal runs: stop it before opening another series")
             return False
         self.volume, self.volume_path = volume, path
+        self._paths.clear()
         self._drop_suggestion()
         self.set_surface(surface)
         self.volume_changed.emit(volume)
@@ -102,21 +164,158 @@ class Document(QObject):
         self.surface = surface
         self.surface_changed.emit(surface)
 
-    def set_plan(self, plan: Plan | None, *, adopted: int | None = None) -> bool:
-        """Make ``plan`` the plan (refused while a rehearsal runs); the path result is reset.
+    # ------------------------------------------------------------------ plan edits
+    def set_plans(
+        self, plans: tuple[Plan, ...] | list[Plan], current: int = 0, *, edit: str | None = None
+    ) -> bool:
+        """Make ``plans`` the trajectories, ``current`` the current one.
 
-        The suggestion is dropped, unless ``adopted`` names the candidate of it that ``plan``
-        takes its axis from (:meth:`adopt_candidate`)."""
+        ``edit`` names the change as an undo step; without it the plans are a new document (a
+        plan file opened): the history starts again. Refused while a rehearsal runs.
+        """
+        plans = tuple(plans)
+        if plans and not 0 <= current < len(plans):
+            raise IndexError(f"current {current} is not a trajectory of {len(plans)}")
+        if not self._editable():
+            return False
+        before = self._state()
+        self._drop_suggestion()
+        self._apply(State(plans, current if plans else 0))
+        if edit is None:
+            self.history.clear()
+        else:
+            self.history.push(edit, before)
+        self.history_changed.emit()
+        return True
+
+    def set_plan(
+        self, plan: Plan | None, *, adopted: int | None = None, edit: str | None = None
+    ) -> bool:
+        """Make ``plan`` the current trajectory (refused while a rehearsal runs).
+
+        Without trajectories ``plan`` becomes the first (taking the arch drawn so far); None
+        removes every trajectory. The edit is an undo step named ``edit`` (default: what
+        changed, :func:`~ctdrill.app.gui.planning.edit_name`). The suggestion is dropped,
+        unless ``adopted`` names the candidate of it that ``plan`` takes its axis from
+        (:meth:`adopt_candidate`)."""
+        if not self._editable():
+            return False
+        before = self._state()
+        name = edit or edit_name(self.plan, plan)
+        if plan is None:
+            plans: tuple[Plan, ...] = ()
+        elif not self.plans:
+            if arch_of(plan) is None and self.draft_arch is not None:
+                plan = with_arch(plan, self.draft_arch)
+            plans = (plan,)
+        else:
+            plans = (*self.plans[: self.current], plan, *self.plans[self.current + 1 :])
+        if adopted is None:
+            self._drop_suggestion()
+        self._apply(replace(self._state(), plans=plans, current=self.current if plans else 0))
+        self.history.push(name, before)
+        self.history_changed.emit()
+        return True
+
+    def select(self, index: int) -> bool:
+        """Make trajectory ``index`` the current one (not an undo step; refused while a
+        rehearsal runs: the device holds the current one)."""
+        if not 0 <= index < len(self.plans):
+            return False
+        if index == self.current:
+            return True
+        if not self._editable():
+            return False
+        self._drop_suggestion()
+        self._apply(State(self.plans, index))
+        return True
+
+    def add_plan(self, plan: Plan) -> bool:
+        """Append ``plan`` as a new trajectory and make it current (an undo step)."""
+        plans = (*self.plans, plan)
+        return self.set_plans(plans, len(plans) - 1, edit=f"add trajectory {plan.name!r}")
+
+    def remove_plan(self, index: int) -> bool:
+        """Remove trajectory ``index`` (an undo step); the one before it becomes current."""
+        if not 0 <= index < len(self.plans):
+            return False
+        gone = self.plans[index]
+        plans = self.plans[:index] + self.plans[index + 1 :]
+        if index < self.current:
+            current = self.current - 1
+        elif index == self.current:
+            current = max(index - 1, 0)
+        else:
+            current = self.current
+        return self.set_plans(plans, current, edit=f"remove trajectory {gone.name!r}")
+
+    def set_arch(self, arch_lps: np.ndarray | None) -> bool:
+        """Give every trajectory the dental arch ``arch_lps`` ((K, 3) LPS mm; None removes
+        it): one undo step. Without trajectories the arch is kept for the first one.
+
+        An arch the plan model refuses (fewer than 2 points, repeated points) is refused with
+        ``edit_refused`` naming the problem."""
+        if not self._editable():
+            return False
+        old = self.arch_lps
+        name = "remove arch" if arch_lps is None else "draw arch" if old is None else "edit arch"
+        if not self.plans:
+            self.draft_arch = None if arch_lps is None else np.array(arch_lps, dtype=np.float64)
+            self.plans_changed.emit(self.plans)
+            self.plan_changed.emit(None)
+            return True
+        try:
+            plans = tuple(with_arch(p, arch_lps) for p in self.plans)
+        except ValueError as exc:
+            self.edit_refused.emit(f"error: {exc}")
+            return False
+        return self.set_plans(plans, self.current, edit=name)
+
+    def undo(self) -> bool:
+        """Revert the last plan edit (refused while a rehearsal runs)."""
+        return self._travel(self.history.undo)
+
+    def redo(self) -> bool:
+        """Apply the last undone plan edit again (refused while a rehearsal runs)."""
+        return self._travel(self.history.redo)
+
+    def _travel(self, step: Callable[[State], State | None]) -> bool:
+        if not self._editable():
+            return False
+        state = step(self._state())
+        if state is None:
+            return False
+        self._drop_suggestion()
+        self._apply(state)
+        self.history_changed.emit()
+        return True
+
+    def _editable(self) -> bool:
         if self.rehearsing:
             self.edit_refused.emit(LOCKED_MESSAGE)
             return False
-        if adopted is None:
-            self._drop_suggestion()
-        self.plan = plan
-        self.draft = {}
-        self.path, self.path_error = None, ""
-        self.plan_changed.emit(plan)
         return True
+
+    def _state(self) -> State:
+        return State(self.plans, self.current, self.suggestion, self.adopted)
+
+    def _apply(self, state: State) -> None:
+        """Show ``state``: the plans, the current one, its cached path, its suggestion."""
+        self.plans, self.current = state.plans, state.current
+        if state.suggestion is not None:
+            self.suggestion, self.adopted = state.suggestion, state.adopted
+        self.draft = {}
+        if self.plans:
+            self.draft_arch = None
+        plan = self.plan
+        cached = None if plan is None else self._paths.get(plan)
+        self.path, self.path_error = cached, ""
+        self.plans_changed.emit(self.plans)
+        self.plan_changed.emit(plan)
+        if cached is not None:
+            self.path_changed.emit(cached)
+        if state.suggestion is not None:
+            self.suggestion_changed.emit(state.suggestion)
 
     # ------------------------------------------------------------------ suggestions
     def request_suggestion(self, space: SearchSpace) -> bool:
@@ -148,11 +347,14 @@ class Document(QObject):
         self.suggestion_changed.emit(None)
 
     def adopt_candidate(self, index: int) -> bool:
-        """Make candidate ``index`` of the suggestion the plan's axis (everything else kept)."""
+        """Make candidate ``index`` of the suggestion the plan's axis (everything else kept;
+        an undo step)."""
         suggestion = self.suggestion
         if suggestion is None or not 0 <= index < suggestion.candidates.size:
             return False
-        if not self.set_plan(suggestion.plan_of(index), adopted=index):
+        if not self.set_plan(
+            suggestion.plan_of(index), adopted=index, edit=f"adopt suggested axis {index + 1}"
+        ):
             return False
         self.adopted = index
         self.suggestion_changed.emit(suggestion)
@@ -165,18 +367,27 @@ class Document(QObject):
 
     def set_draft_point(self, name: str, point_lps: np.ndarray) -> None:
         """Keep ``entry`` or ``target`` placed while no plan exists (views redraw it)."""
-        if self.rehearsing:
-            self.edit_refused.emit(LOCKED_MESSAGE)
+        if not self._editable():
             return
         self.draft = {**self.draft, name: np.asarray(point_lps, dtype=np.float64).reshape(3)}
         self.plan_changed.emit(None)
 
+    # ------------------------------------------------------------------ results
     def set_path(self, view: PathView) -> None:
-        """The path result for the current plan (dropped if computed for another plan)."""
+        """The path result for the current plan (kept for its trajectory; not shown if
+        computed for another plan)."""
+        if view.plan in self.plans:
+            self._paths[view.plan] = view
+            while len(self._paths) > PATH_CACHE_SIZE:
+                del self._paths[next(iter(self._paths))]
         if view.plan is not self.plan:
             return
         self.path, self.path_error = view, ""
         self.path_changed.emit(view)
+
+    def cached_path(self, plan: Plan) -> PathView | None:
+        """The path result already computed for ``plan`` on this series, or None."""
+        return self._paths.get(plan)
 
     def set_path_failed(self, plan: Plan, message: str) -> None:
         """No path for ``plan``: the result is unknown (never shown as safe)."""

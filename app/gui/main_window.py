@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from PySide6.QtCore import QSettings, Qt, QThreadPool, Signal
-from PySide6.QtGui import QCloseEvent, QDragEnterEvent, QDropEvent, QImage
+from PySide6.QtGui import QAction, QCloseEvent, QDragEnterEvent, QDropEvent, QImage
 from PySide6.QtWidgets import (
     QInputDialog,
     QMainWindow,
@@ -32,6 +32,7 @@ from ctdrill.app.gui.controller import Controller
 from ctdrill.app.gui.document import Document, ViewContext
 from ctdrill.app.gui.menus import build_menus, fill_recent
 from ctdrill.app.gui.plan_panel import PlanPanel
+from ctdrill.app.gui.planning import write_all_plans
 from ctdrill.app.gui.plots_view import PlotsView
 from ctdrill.app.gui.recent import RecentFolders
 from ctdrill.app.gui.rehearsal_panel import RehearsalPanel
@@ -45,7 +46,7 @@ from ctdrill.app.gui.view3d import View3D
 from ctdrill.app.gui.views import VIEWS, build_views
 from ctdrill.app.gui.workers import StepQueue
 from ctdrill.imaging import CTVolume
-from ctdrill.imaging.plan.types import Plan, load_one_plan, save_plan
+from ctdrill.imaging.plan.types import Plan, load_plan_set
 
 #: On close, how long to let a running load or computation finish, ms.
 CLOSE_WAIT_MS = 5000
@@ -64,6 +65,8 @@ class MainWindow(QMainWindow):
     load_failed = Signal(str)  # the error message
     path_failed = Signal(str)  # no path for the plan (the error message)
     surface_updated = Signal()
+    undo_action: QAction  # Edit > Undo / Redo (menus.build_menus)
+    redo_action: QAction
 
     def __init__(self, settings: QSettings | None = None) -> None:
         super().__init__()
@@ -261,35 +264,42 @@ class MainWindow(QMainWindow):
 
     def open_plan(self, path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]) -> bool:
         """Read a plan (ctdrill-plan/1, Slicer markups, segmentations; several files or a
-        folder merge into one trajectory) and show it; a plan that cannot be read is an error
-        dialog (the plan shown stays). Returns True when the plan is shown."""
+        folder merge, :func:`~ctdrill.imaging.plan.types.load_plan_set`) with every trajectory
+        it holds, and show it (the first trajectory current); a plan that cannot be read is an
+        error dialog (the plan shown stays). Returns True when the plan is shown."""
         paths = [path] if isinstance(path, str | os.PathLike) else list(path)
         try:
-            plan = load_one_plan(paths)
+            plans = load_plan_set(paths)
         except ValueError as exc:
             self.last_error = str(exc)
             self._status(f"error: {exc}")
             if not self.unattended:
                 QMessageBox.warning(self, "ctdrill: cannot open the plan", str(exc))
             return False
-        return self.use_plan(plan, ", ".join(str(p) for p in paths))
+        return self.use_plans(plans, ", ".join(str(p) for p in paths))
 
-    def use_plan(self, plan: Plan, source: str = "") -> bool:
-        """Show ``plan`` (read from ``source``), its path computed at once."""
-        if not self.doc.set_plan(plan):
+    def use_plans(self, plans: Sequence[Plan], source: str = "") -> bool:
+        """Show ``plans`` (read from ``source``; a new undo history), the first one current,
+        its path computed at once."""
+        if not plans or not self.doc.set_plans(tuple(plans)):
             return False
         self.view3d.refocus_next = True
         self.controller.recompute()
-        self._status(f"plan {source or plan.name}")
+        count = f" ({len(plans)} trajectories)" if len(plans) > 1 else ""
+        self._status(f"plan {source or plans[0].name}{count}")
         return True
 
+    def use_plan(self, plan: Plan, source: str = "") -> bool:
+        """Show the one-trajectory plan ``plan`` (:meth:`use_plans`)."""
+        return self.use_plans((plan,), source)
+
     def save_plan(self, path: str | os.PathLike[str]) -> None:
-        """Write the plan (``.mrk.json``: Slicer markups, else ctdrill-plan/1)."""
-        if self.doc.plan is None:
+        """Write every trajectory (``.mrk.json``: Slicer markups, else ctdrill-plan/1)."""
+        if not self.doc.plans:
             return
         try:
             uid = None if self.doc.volume is None else self.doc.volume.info.series_uid
-            save_plan(self.doc.plan, path, series_uid=uid)  # records the series, hashed
+            write_all_plans(self.doc.plans, path, series_uid=uid)  # records the series, hashed
         except (ValueError, OSError) as exc:
             self._status(f"error: {exc}")
             return

@@ -29,7 +29,8 @@ def _action(
 
 
 def build_menus(window: MainWindow) -> QMenu:
-    """File and View menus; returns the "Open recent" submenu (filled by :func:`fill_recent`)."""
+    """File, Edit, View and Plan menus; returns the "Open recent" submenu (filled by
+    :func:`fill_recent`)."""
     bar = window.menuBar()
     file_menu = bar.addMenu("&File")
     keys = QKeySequence.StandardKey
@@ -42,6 +43,12 @@ def build_menus(window: MainWindow) -> QMenu:
     _action(window, file_menu, "Save screenshot...", lambda: screenshot_dialog(window), "Ctrl+P")
     file_menu.addSeparator()
     _action(window, file_menu, "Quit", window.close, keys.Quit)
+    edit_menu = bar.addMenu("&Edit")
+    window.undo_action = _action(window, edit_menu, "Undo", window.doc.undo, "Ctrl+Z")
+    window.redo_action = _action(window, edit_menu, "Redo", window.doc.redo, "Ctrl+Shift+Z")
+    window.doc.history_changed.connect(partial(name_history_actions, window))
+    window.doc.rehearsal_changed.connect(lambda _running: name_history_actions(window))
+    name_history_actions(window)
     view_menu = bar.addMenu("&View")
     surf = view_menu.addMenu("Bone surface")
     for label, iso in SURFACE_PRESETS.items():
@@ -55,6 +62,18 @@ def build_menus(window: MainWindow) -> QMenu:
     window.recent_menu = recent
     fill_recent(window)
     return recent
+
+
+def name_history_actions(window: MainWindow) -> None:
+    """Edit > Undo / Redo say which edit they revert or repeat, enabled only when they can
+    (never while a rehearsal locks the plan)."""
+    doc = window.doc
+    for action, verb, name in (
+        (window.undo_action, "Undo", doc.undo_name),
+        (window.redo_action, "Redo", doc.redo_name),
+    ):
+        action.setText(verb if name is None else f"{verb} {name}")
+        action.setEnabled(name is not None and not doc.rehearsing)
 
 
 def fill_recent(window: MainWindow) -> None:
@@ -86,7 +105,7 @@ def open_plan_dialog(window: MainWindow) -> None:
 
 def save_plan_dialog(window: MainWindow) -> None:
     """Ask where to save the plan (``.mrk.json``: 3D Slicer markups)."""
-    if window.plan is None:
+    if not window.doc.plans:
         return
     path, _ = QFileDialog.getSaveFileName(
         window, "Save plan", "plan.json", "ctdrill plan (*.json);;3D Slicer markups (*.mrk.json)"

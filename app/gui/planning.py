@@ -7,7 +7,10 @@ naming the field when the result would not be a usable plan.
 
 from __future__ import annotations
 
+import os
+from collections.abc import Sequence
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -18,7 +21,7 @@ from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
     Landmark,
 )
-from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.plan.types import Plan, save_plan
 
 #: Shortest trajectory the editor accepts, mm.
 MIN_DEPTH_MM = 0.5
@@ -178,3 +181,78 @@ def scene_input(
         landmarks=drawn_landmarks(plan, view),
         candidates=candidates,
     )
+
+
+def arch_of(plan: Plan) -> np.ndarray | None:
+    """The plan's dental arch ((K, 3) LPS mm) or None."""
+    arch: np.ndarray | None = getattr(plan, "arch_lps", None)
+    return arch
+
+
+def with_arch(plan: Plan, arch_lps: np.ndarray | None) -> Plan:
+    """``plan`` with the dental arch ``arch_lps`` ((K, 3) LPS mm, or None: no arch); the plan
+    model validates it (a ValueError names the problem)."""
+    fields: dict[str, Any] = {"arch_lps": arch_lps}
+    return replace(plan, **fields)
+
+
+def _same(a: object, b: object) -> bool:
+    """Equal plan field values (arrays by value, tuples item by item)."""
+    if a is b:
+        return True
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return (
+            isinstance(a, np.ndarray)
+            and isinstance(b, np.ndarray)
+            and a.shape == b.shape
+            and bool(np.array_equal(a, b))
+        )
+    if isinstance(a, tuple) and isinstance(b, tuple):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    try:
+        return bool(a == b)
+    except (ValueError, TypeError):  # dataclasses holding arrays: not comparable, say changed
+        return False
+
+
+#: What an edit is called (Edit > Undo NAME) by the first plan field it changes.
+_EDIT_NAMES = (
+    ("entry_lps", "move entry"),
+    ("target_lps", "move target"),
+    ("drill", "change drill"),
+    ("earlier_drills", "change drill sequence"),
+    ("implant", "change implant"),
+    ("arch_lps", "edit arch"),
+    ("landmarks", "edit landmarks"),
+    ("margin_mm", "change safety margin"),
+    ("feed_mm_s", "change feed"),
+    ("calibration", "change calibration"),
+    ("name", "rename trajectory"),
+)
+
+
+def edit_name(before: Plan | None, after: Plan | None) -> str:
+    """What changing ``before`` into ``after`` is called in Edit > Undo (``move entry``,
+    ``change drill``, ...; ``edit trajectory`` when no listed field differs)."""
+    if before is None:
+        return "place trajectory" if after is not None else "edit trajectory"
+    if after is None:
+        return "remove every trajectory"
+    changed = [
+        label
+        for attr, label in _EDIT_NAMES
+        if not _same(getattr(before, attr, None), getattr(after, attr, None))
+    ]
+    if len(changed) == 2 and changed[:2] == ["move entry", "move target"]:
+        return "move trajectory"
+    return changed[0] if changed else "edit trajectory"
+
+
+def write_all_plans(
+    plans: Sequence[Plan], path: str | os.PathLike[str], *, series_uid: str | None = None
+) -> None:
+    """Write every trajectory to one plan file (``.mrk.json``: Slicer markups), the series
+    ``series_uid`` recorded hashed."""
+    if len(plans) != 1:
+        raise PlanEditError(f"{path}: writing {len(plans)} trajectories needs write_plans")
+    save_plan(plans[0], path, series_uid=series_uid)
