@@ -18,11 +18,10 @@ import csv
 import io
 import json
 import math
-import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import numpy as np
 
@@ -35,6 +34,7 @@ from ctdrill.app.fixedtext import fixed_csv
 from ctdrill.app.grey_option import grey_line
 from ctdrill.app.pipeline import PathResult
 from ctdrill.app.records import printable
+from ctdrill.app.text_progress import TextProgress as TextProgress
 from ctdrill.imaging.misch import misch_class
 from ctdrill.model.band import ForceBand, HuUncertainty
 from ctdrill.model.profile import force_series_n
@@ -275,6 +275,41 @@ def summary_lines(doc: dict[str, Any]) -> list[str]:
     return lines
 
 
+def job_summary(
+    result: PathResult,
+    *,
+    feed_mm_s: float | None,
+    rate_hz: float,
+    series_uid: str,
+    patient: dict[str, str] | None = None,
+    include_phi: bool = False,
+    hu_uncertainty: HuUncertainty | None = None,
+    grey_to_hu: dict[str, Any] | None = None,
+) -> tuple[ForceSeries, ForceBand | None, dict[str, Any]]:
+    """One trajectory's force series, force band and ``summary.json`` document, exactly as
+    ``ctdrill export`` writes them (``ctdrill report`` shows the same numbers).
+
+    ``feed_mm_s`` None uses the plan's feed; the other parameters are :func:`write_exports`'.
+    """
+    feed = result.plan.feed_mm_s if feed_mm_s is None else feed_mm_s
+    series = force_time_series(result, feed_mm_s=feed, rate_hz=rate_hz)
+    band = path_band(result, feed, hu_uncertainty)
+    doc = summary(
+        result,
+        series,
+        feed_mm_s=feed,
+        rate_hz=rate_hz,
+        series_uid=series_uid,
+        patient=patient,
+        include_phi=include_phi,
+        band={
+            **band_summary(result, band, feed_mm_s=feed, hu=hu_uncertainty),
+            "grey_to_hu": grey_to_hu,
+        },
+    )
+    return series, band, doc
+
+
 @dataclass(frozen=True)
 class ExportJob:
     """One trajectory's results, ready to write into ``subdir`` of the output folder."""
@@ -328,21 +363,15 @@ def write_exports(
         for n, job in enumerate(jobs):
             if progress is not None:
                 progress(n, len(jobs), job.result.plan.name)
-            feed = job.result.plan.feed_mm_s if feed_mm_s is None else feed_mm_s
-            series = force_time_series(job.result, feed_mm_s=feed, rate_hz=rate_hz)
-            band = path_band(job.result, feed, hu_uncertainty)
-            doc = summary(
+            series, band, doc = job_summary(
                 job.result,
-                series,
-                feed_mm_s=feed,
+                feed_mm_s=feed_mm_s,
                 rate_hz=rate_hz,
                 series_uid=series_uid,
                 patient=patient,
                 include_phi=include_phi,
-                band={
-                    **band_summary(job.result, band, feed_mm_s=feed, hu=hu_uncertainty),
-                    "grey_to_hu": grey_to_hu,
-                },
+                hu_uncertainty=hu_uncertainty,
+                grey_to_hu=grey_to_hu,
             )
             doc["plot"] = plot
             if table:
@@ -374,31 +403,3 @@ def write_exports(
         if progress is not None:
             progress(len(jobs), len(jobs), "done")
     return [out_dir / rel for rel in sorted(relative)]
-
-
-class TextProgress:
-    """A progress bar on ``stream`` for more than one job: redrawn in place on a terminal,
-    one line per step otherwise. :meth:`close` ends a bar left unfinished (on error)."""
-
-    def __init__(self, stream: TextIO = sys.stderr, *, width: int = 30) -> None:
-        self.stream = stream
-        self.width = width
-        self._open = False
-
-    def __call__(self, done: int, total: int, label: str) -> None:
-        if total <= 1:
-            return
-        filled = int(self.width * done / total)
-        bar = f"export [{'#' * filled}{'.' * (self.width - filled)}] {done}/{total} {label}"
-        if self.stream.isatty():
-            self.stream.write("\r" + bar + ("\n" if done >= total else ""))
-            self._open = done < total
-        else:
-            self.stream.write(bar + "\n")
-        self.stream.flush()
-
-    def close(self) -> None:
-        """End the line of an unfinished bar so that what follows starts a line."""
-        if self._open:
-            self.stream.write("\n")
-            self._open = False

@@ -11,8 +11,9 @@ import re
 import stat
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.export import DEFAULT_RATE_HZ, ExportInputError, ExportJob, write_exports
@@ -23,6 +24,8 @@ from ctdrill.app.sequence import SequenceResult, plan_sequence
 from ctdrill.app.sequence_export import sequence_files, sequence_jobs
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.types import Plan, load_plan_set, plan_warnings
+from ctdrill.imaging.volume import CTVolume
+from ctdrill.model.band import HuUncertainty
 from ctdrill.model.calibration import Calibration, load_calibration
 
 #: DICOM attributes written only with ``--include-phi`` (keyword -> summary key).
@@ -82,6 +85,105 @@ def read_patient_fields(dicom: Path, series_uid: str) -> dict[str, str]:
     return {}
 
 
+@dataclass(frozen=True, eq=False)
+class PreparedCase:
+    """Everything ``ctdrill export`` computes before writing (``ctdrill report`` draws it).
+
+    Attributes
+    ----------
+    volume : the CT as loaded (grey-mapped when a map was given).
+    plans : every trajectory, in order (feed overridden when asked).
+    jobs : one per trajectory, or per drill of a sequence, in order.
+    sequences : the drill sequences with their output subfolders.
+    patient : the identifiers (``include_phi`` only), else None.
+    hu_uncertainty : ``--hu-sigma`` and the grey map's uncertainty, or None.
+    grey_to_hu : the grey map applied (its JSON), or None.
+    """
+
+    volume: CTVolume
+    plans: tuple[Plan, ...]
+    jobs: tuple[ExportJob, ...]
+    sequences: tuple[tuple[SequenceResult, str], ...]
+    patient: dict[str, str] | None
+    hu_uncertainty: HuUncertainty | None
+    grey_to_hu: dict[str, Any] | None
+
+
+def prepare_case(
+    dicom: Path,
+    plan_paths: Sequence[Path],
+    *,
+    calibration: str | None = None,
+    feed_mm_s: float | None = None,
+    rate_hz: float = DEFAULT_RATE_HZ,
+    include_phi: bool = False,
+    series_uid: str | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+    interpolate_gaps: bool = False,
+    hu_sigma: float | None = None,
+    grey: GreyMapSpec | None = None,
+) -> PreparedCase:
+    """Read every input and compute every trajectory of ``plan_paths`` on the CT in
+    ``dicom`` (parameters as :func:`export_case`); nothing is written.
+
+    Raises
+    ------
+    AppInputError, ImagingInputError, ModelInputError
+        Bad input (one line naming the file or field).
+    """
+    if feed_mm_s is not None and not feed_mm_s > 0.0:
+        raise ExportInputError(f"--feed-mm-s must be a positive number, got {feed_mm_s!r}")
+    if not rate_hz > 0.0:
+        raise ExportInputError(f"--rate-hz must be a positive number, got {rate_hz!r}")
+    manual_hu = hu_uncertainty_option(hu_sigma)
+    plans = list(load_plan_set(plan_paths))
+    per_file = Counter(plan.source for plan in plans)
+    volume, grey_map = map_volume(load_series(dicom, series_uid=series_uid), grey)
+    hu_unc = hu_uncertainty(grey_map, manual_hu)
+    cache: dict[str, Calibration] = {}
+    override = load_calibration(calibration) if calibration is not None else None
+    jobs: list[ExportJob] = []
+    sequences: list[tuple[SequenceResult, str]] = []
+    seen: dict[str, str] = {}
+    for n, plan in enumerate(plans):
+        if progress is not None:
+            progress(n, len(plans), plan.name)
+        if override is not None:
+            cal = override
+        else:
+            key = plan_calibration_key(plan)
+            if key not in cache:
+                cache[key] = load_calibration(key)
+            cal = cache[key]
+        if feed_mm_s is not None:
+            plan = replace(plan, feed_mm_s=feed_mm_s)  # the path's feed warnings see it
+            plans[n] = plan
+        sub = "" if len(plans) == 1 else _subdir(_stem(plan, per_file[plan.source]))
+        if sub in seen:
+            raise AppInputError(
+                f"--plan: two trajectories are named {plan.name!r} ({seen[sub]} and "
+                f"{plan.source}); rename one so their outputs do not overwrite each other"
+            )
+        seen[sub] = plan.source
+        if len(plan.drills) > 1:  # a drill sequence: OUT[/plan]/drill_k/ + summary.json
+            seq = plan_sequence(volume, plan, cal, interpolate_gaps=interpolate_gaps)
+            sequences.append((seq, sub))
+            jobs.extend(sequence_jobs(seq, sub))
+            continue
+        result = plan_path(volume, plan, cal, interpolate_gaps=interpolate_gaps)
+        jobs.append(ExportJob(result=result, subdir=sub))
+    patient = read_patient_fields(dicom, volume.info.series_uid) if include_phi else None
+    return PreparedCase(
+        volume=volume,
+        plans=tuple(plans),
+        jobs=tuple(jobs),
+        sequences=tuple(sequences),
+        patient=patient,
+        hu_uncertainty=hu_unc,
+        grey_to_hu=None if grey_map is None else grey_map.to_json(),
+    )
+
+
 def export_case(
     dicom: Path,
     plan_paths: Sequence[Path],
@@ -131,79 +233,53 @@ def export_case(
     -------
     The written files.
     """
-    if feed_mm_s is not None and not feed_mm_s > 0.0:
-        raise ExportInputError(f"--feed-mm-s must be a positive number, got {feed_mm_s!r}")
-    if not rate_hz > 0.0:
-        raise ExportInputError(f"--rate-hz must be a positive number, got {rate_hz!r}")
-    manual_hu = hu_uncertainty_option(hu_sigma)
-    plans = list(load_plan_set(plan_paths))
-    per_file = Counter(plan.source for plan in plans)
-    volume, grey_map = map_volume(load_series(dicom, series_uid=series_uid), grey)
-    hu_unc = hu_uncertainty(grey_map, manual_hu)
-    cache: dict[str, Calibration] = {}
-    override = load_calibration(calibration) if calibration is not None else None
-    jobs: list[ExportJob] = []
-    sequences: list[tuple[SequenceResult, str]] = []
-    seen: dict[str, str] = {}
-    for n, plan in enumerate(plans):
-        if progress is not None:
-            progress(n, len(plans), plan.name)
-        if override is not None:
-            cal = override
-        else:
-            key = plan_calibration_key(plan)
-            if key not in cache:
-                cache[key] = load_calibration(key)
-            cal = cache[key]
-        if feed_mm_s is not None:
-            plan = replace(plan, feed_mm_s=feed_mm_s)  # the path's feed warnings see it
-        sub = "" if len(plans) == 1 else _subdir(_stem(plan, per_file[plan.source]))
-        if sub in seen:
-            raise AppInputError(
-                f"--plan: two trajectories are named {plan.name!r} ({seen[sub]} and "
-                f"{plan.source}); rename one so their outputs do not overwrite each other"
-            )
-        seen[sub] = plan.source
-        if len(plan.drills) > 1:  # a drill sequence: OUT[/plan]/drill_k/ + summary.json
-            seq = plan_sequence(volume, plan, cal, interpolate_gaps=interpolate_gaps)
-            sequences.append((seq, sub))
-            jobs.extend(sequence_jobs(seq, sub))
-            continue
-        result = plan_path(volume, plan, cal, interpolate_gaps=interpolate_gaps)
-        jobs.append(ExportJob(result=result, subdir=sub))
-    patient = read_patient_fields(dicom, volume.info.series_uid) if include_phi else None
+    case = prepare_case(
+        dicom,
+        plan_paths,
+        calibration=calibration,
+        feed_mm_s=feed_mm_s,
+        rate_hz=rate_hz,
+        include_phi=include_phi,
+        series_uid=series_uid,
+        progress=progress,
+        interpolate_gaps=interpolate_gaps,
+        hu_sigma=hu_sigma,
+        grey=grey,
+    )
+    series_uid_loaded = case.volume.info.series_uid
+    several = len(case.plans) > 1
     extra_files = dict(extra_files or {})
-    files = len(plans) == 1 or per_trajectory  # several: the table, files only if asked
-    for seq, sub in sequences if files else []:
+    files = not several or per_trajectory  # several: the table, files only if asked
+    for seq, sub in case.sequences if files else ():
         extra_files |= sequence_files(
             seq,
             sub,
             feed_mm_s=feed_mm_s,
             rate_hz=rate_hz,
-            series_uid=volume.info.series_uid,
-            patient=patient,
+            series_uid=series_uid_loaded,
+            patient=case.patient,
             include_phi=include_phi,
-            hu_uncertainty=hu_unc,
-            grey_to_hu=None if grey_map is None else grey_map.to_json(),
+            hu_uncertainty=case.hu_uncertainty,
+            grey_to_hu=case.grey_to_hu,
         )
     written = write_exports(
-        jobs,
+        case.jobs,
         out_dir,
         feed_mm_s=feed_mm_s,
         rate_hz=rate_hz,
-        series_uid=volume.info.series_uid,
-        patient=patient,
+        series_uid=series_uid_loaded,
+        patient=case.patient,
         progress=progress,
         extra_files=extra_files,
         include_phi=include_phi,
         plot=plot,
         files=files,
-        table=len(plans) > 1,
-        hu_uncertainty=hu_unc,
-        grey_to_hu=None if grey_map is None else grey_map.to_json(),
+        table=several,
+        hu_uncertainty=case.hu_uncertainty,
+        grey_to_hu=case.grey_to_hu,
     )
     if warn is not None:
-        for plan in plans:
+        for plan in case.plans:
             for code, message in plan_warnings(plan):
                 if code == "no_landmarks":
                     warn(code, message)
