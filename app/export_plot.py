@@ -31,6 +31,9 @@ from ctdrill.app.records import printable
 from ctdrill.imaging.misch import MISCH_BANDS_HU
 
 if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
     from ctdrill.app.export import ForceSeries
     from ctdrill.model.band import ForceBand
 
@@ -50,6 +53,8 @@ _XLABEL_AT = (0.5, -0.2)
 #: zlib level of the PNG (level 6 spends about 2.5 times as long on this canvas as level 1,
 #: for a file about 15 % smaller).
 PNG_COMPRESS_LEVEL = 1
+#: Room above the highest force for the legend, a share of the force range.
+LEGEND_ROOM = 0.3
 #: Envelope columns across the depth axis: at least one per pixel of the axes (~1060 px).
 ENVELOPE_COLUMNS = 1200
 
@@ -74,6 +79,35 @@ def envelope(
     return x_mid, np.minimum.reduceat(y, starts), np.maximum.reduceat(y, starts)
 
 
+def draw_template(ax_f: Axes, ax_h: Axes, ax_c: Axes) -> None:
+    """What every force figure draws alike: the Misch bands behind the HU axes, the axis
+    labels and the grid (force.png's cached canvas and ``ctdrill report``'s curves page)."""
+    for name, lo, top in MISCH_BANDS_HU:
+        if name not in _MISCH_COLOURS:
+            continue
+        hi = min(top, _HU_TOP)
+        ax_h.axhspan(lo, hi, color=_MISCH_COLOURS[name], alpha=0.25, lw=0)
+        ax_h.text(
+            0.995,
+            (lo + min(hi, 2000.0)) / 2,
+            name,
+            transform=ax_h.get_yaxis_transform(),
+            ha="right",
+            va="center",
+            fontsize=7,
+        )
+    ax_f.set_ylabel("force (N)")
+    ax_h.set_ylabel("HU")
+    ax_c.set_ylabel("clearance (mm)")
+    ax_c.set_xlabel("tip depth from the entry (mm)")
+    for ax in (ax_f, ax_h, ax_c):
+        ax.grid(alpha=0.3)
+        # fixed label positions: matplotlib otherwise measures every tick label of the
+        # three shared axes on each draw to place them
+        ax.yaxis.set_label_coords(*_YLABEL_AT)
+    ax_c.xaxis.set_label_coords(*_XLABEL_AT)
+
+
 class _Canvas:
     """The figure, its three axes and what every export draws alike (labels, grid, Misch
     bands), built once per process; :func:`force_png` adds a trajectory's artists, draws and
@@ -92,30 +126,7 @@ class _Canvas:
         self.fig.subplots_adjust(**_MARGINS)
         self.ax_f, self.ax_h, self.ax_c = self.fig.subplots(3, 1, sharex=True)
         self.lock = threading.Lock()
-        for name, lo, top in MISCH_BANDS_HU:
-            if name not in _MISCH_COLOURS:
-                continue
-            hi = min(top, _HU_TOP)
-            self.ax_h.axhspan(lo, hi, color=_MISCH_COLOURS[name], alpha=0.25, lw=0)
-            self.ax_h.text(
-                0.995,
-                (lo + min(hi, 2000.0)) / 2,
-                name,
-                transform=self.ax_h.get_yaxis_transform(),
-                ha="right",
-                va="center",
-                fontsize=7,
-            )
-        self.ax_f.set_ylabel("force (N)")
-        self.ax_h.set_ylabel("HU")
-        self.ax_c.set_ylabel("clearance (mm)")
-        self.ax_c.set_xlabel("tip depth from the entry (mm)")
-        for ax in (self.ax_f, self.ax_h, self.ax_c):
-            ax.grid(alpha=0.3)
-            # fixed label positions: matplotlib otherwise measures every tick label of the
-            # three shared axes on each draw to place them
-            ax.yaxis.set_label_coords(*_YLABEL_AT)
-        self.ax_c.xaxis.set_label_coords(*_XLABEL_AT)
+        draw_template(self.ax_f, self.ax_h, self.ax_c)
         self.fixed = {id(a) for ax in (self.ax_f, self.ax_h, self.ax_c) for a in ax.get_children()}
 
     def reset(self) -> None:
@@ -196,8 +207,38 @@ def _chunk(kind: bytes, data: bytes) -> bytes:
 
 
 def _draw(c: _Canvas, result: PathResult, series: ForceSeries, band: ForceBand | None) -> None:
-    """Add one trajectory's artists to the template."""
-    ax_f, ax_h, ax_c = c.ax_f, c.ax_h, c.ax_c
+    """Add one trajectory's artists to the cached canvas."""
+    draw_trajectory(c.fig, c.ax_f, c.ax_h, c.ax_c, result, series, band)
+
+
+def force_limits_n(
+    env_lo: np.ndarray, env_hi: np.ndarray, mean_n: np.ndarray, band: ForceBand | None
+) -> tuple[float, float]:
+    """The force axis, N: from 0 (or the lowest value drawn, if below) to above the highest
+    with room for the legend, so a flat curve is drawn flat (issue 16: an axis zoomed to
+    4.5-5.5 N made a small ripple look like a large swing)."""
+    drawn = [env_lo, env_hi, mean_n] + ([] if band is None else [band.lo_n, band.hi_n])
+    values = np.concatenate([np.asarray(v, dtype=np.float64).ravel() for v in drawn])
+    values = values[np.isfinite(values)]
+    lo = min(0.0, float(values.min())) if values.size else 0.0
+    hi = float(values.max()) if values.size else 1.0
+    if not hi > lo:
+        hi = lo + 1.0
+    return lo, hi + LEGEND_ROOM * (hi - lo)
+
+
+def draw_trajectory(
+    fig: Figure,
+    ax_f: Axes,
+    ax_h: Axes,
+    ax_c: Axes,
+    result: PathResult,
+    series: ForceSeries,
+    band: ForceBand | None,
+) -> None:
+    """Draw one trajectory on axes prepared by :func:`draw_template`: the force (with its
+    vibration envelope, mean and 68 % band), the lip HU, the clearance to each landmark with
+    the margins, and the stop, max safe and planned depths on all three."""
     prof = result.profile
     x_hi = result.planned_depth_mm
     feed = float(series.depth_mm[-1] / series.time_s[-1]) if series.time_s[-1] > 0 else 0.0
@@ -234,6 +275,7 @@ def _draw(c: _Canvas, result: PathResult, series: ForceSeries, band: ForceBand |
             fontsize=7,
             color="#7f7f7f",
         )
+    ax_f.set_ylim(*force_limits_n(env_lo, env_hi, prof.mean_force_n(feed), band))
     ax_f.legend(loc="upper right", fontsize=7)
 
     ax_h.plot(prof.depth_mm, prof.hu_mean, color="k", lw=1.0, label="lip-mean HU")
@@ -279,5 +321,5 @@ def _draw(c: _Canvas, result: PathResult, series: ForceSeries, band: ForceBand |
     cal = result.calibration
     label = f"{cal.name} (ILLUSTRATIVE)" if cal.illustrative else cal.name
     # printable: a plan named after a file whose name is not UTF-8 must not fail the plot
-    c.fig.suptitle(printable(f"{result.plan.name}: calibration {label}"), fontsize=9, y=0.985)
+    fig.suptitle(printable(f"{result.plan.name}: calibration {label}"), fontsize=9, y=0.985)
     ax_c.set_xlim(0.0, x_hi)

@@ -21,6 +21,20 @@ MISCH_BANDS: tuple[tuple[str, float, float], ...] = tuple(
 )
 _BAND_COLOURS = ("#c8d7f0", "#d4e8d0", "#f2ecc4", "#f5dcc4", "#f1d0d0")
 
+#: Resolution the window's figure is made at (:class:`ctdrill.app.gui.plots_view.PlotsView`),
+#: dots per inch: a point is 80/72 px there.
+WINDOW_DPI = 80.0
+#: Smallest text, pt: 9 pt is 10 px at :data:`WINDOW_DPI` (issue 16: 7-8 pt, 8-9 px, was
+#: hard to read at the window's default size). Tick labels, axis labels and notes.
+TEXT_PT = 9.0
+#: Titles above each axes, pt (11 px at the window's resolution).
+TITLE_PT = 10.0
+#: Room around the axes, px (converted to figure fractions for the figure's current size, so
+#: the tick and axis labels are never clipped however the window is sized): left of the y tick
+#: labels and axis label, right of the Misch labels, above the first title, below the x label,
+#: and between axes for a title.
+_MARGIN_PX = {"left": 62.0, "right": 34.0, "top": 6.0, "bottom": 40.0, "gap": 22.0}
+
 
 @dataclass(frozen=True, eq=False)
 class DepthCurves:
@@ -59,13 +73,15 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
     The axes are created once and reused (redrawing is then cheap enough for live updates).
     """
     ax_hu, ax_f, ax_c = _axes(fig)
+    for ax in (ax_hu, ax_f, ax_c):
+        ax.tick_params(labelsize=TEXT_PT)
     for label, lo, hi in MISCH_BANDS:
         colour = _BAND_COLOURS[[b[0] for b in MISCH_BANDS].index(label)]
         ax_hu.axhspan(lo, hi, color=colour, alpha=0.8, lw=0, zorder=0)
-    ax_hu.set_ylabel("HU")
-    ax_f.set_ylabel("force (N)")
-    ax_c.set_ylabel("clearance (mm)")
-    ax_c.set_xlabel("depth (mm)")
+    ax_hu.set_ylabel("HU", fontsize=TEXT_PT)
+    ax_f.set_ylabel("force (N)", fontsize=TEXT_PT)
+    ax_c.set_ylabel("clearance (mm)", fontsize=TEXT_PT)
+    ax_c.set_xlabel("depth (mm)", fontsize=TEXT_PT)
     for ax in (ax_hu, ax_f, ax_c):
         ax.grid(True, alpha=0.3)
     if curves is None or curves.depth_mm.size == 0:
@@ -76,7 +92,7 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
             textwrap.fill(message or "no plan", 120),
             ha="center",
             va="center",
-            fontsize=8,
+            fontsize=TEXT_PT,
             transform=ax_f.transAxes,
         )
         return
@@ -85,10 +101,7 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
     hu_lo = min(-200.0, float(np.nanmin(curves.hu)) - 100.0)
     hu_hi = max(1600.0, float(np.nanmax(curves.hu)) + 100.0)
     ax_hu.set_ylim(hu_lo, hu_hi)
-    for label, lo, hi in MISCH_BANDS:
-        mid = (max(lo, hu_lo) + min(hi, hu_hi)) / 2.0
-        if hu_lo < mid < hu_hi:
-            ax_hu.text(1.005, mid, label, transform=ax_hu.get_yaxis_transform(), fontsize=7)
+    _misch_labels(fig, ax_hu, hu_lo, hu_hi)
     if curves.force_band_n is not None:
         ax_f.fill_between(
             d,
@@ -105,12 +118,13 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
         for edge in (curves.mean_lo_n, curves.mean_hi_n):
             ax_f.plot(d, edge, color="#4060c0", lw=0.7, ls="--")
     ax_f.plot(d, curves.force_n, color="#c04000", lw=1.2)
+    ax_f.set_ylim(*force_limits_n(curves))
     title = "predicted force"
     if curves.calibration:
         title += f" ({curves.calibration})"
     if curves.band_note:
         title += f"; {curves.band_note}"
-    ax_f.set_title(title, fontsize=8, loc="left")
+    ax_f.set_title(title, fontsize=TITLE_PT, loc="left")
     finite = np.isfinite(curves.clearance_mm)
     if finite.any():
         ax_c.plot(d[finite], curves.clearance_mm[finite], color="#207040", lw=1.2)
@@ -124,7 +138,7 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
         curves.margin_mm,
         f" margin {curves.margin_mm:g} mm",
         color="#d02020",
-        fontsize=7,
+        fontsize=TEXT_PT,
         va="bottom",
         transform=ax_c.get_yaxis_transform(),
     )
@@ -138,7 +152,7 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
     ax_hu.set_title(
         f"stop {curves.stop_depth_mm:.2f} mm ({curves.stop_reason}) of "
         f"{curves.planned_depth_mm:.2f} mm planned",
-        fontsize=8,
+        fontsize=TITLE_PT,
         loc="left",
     )
     ax_c.set_xlim(0.0, max(float(d[-1]), curves.planned_depth_mm) * 1.02 + 1e-6)
@@ -156,12 +170,63 @@ def set_live_depth(fig: Figure, depth_mm: float | None) -> None:
             ax.axvline(depth_mm, color="#1060ff", lw=1.6, gid=LIVE_GID)
 
 
+def force_limits_n(curves: DepthCurves) -> tuple[float, float]:
+    """The force axis, N: from 0 (or the lowest value drawn, if below) to a little above the
+    highest, so a flat curve is drawn flat (issue 16: an axis zoomed to 4.5-5.5 N made a
+    0.1 N ripple look like a large swing)."""
+    drawn = [curves.force_n]
+    if curves.force_band_n is not None:
+        drawn += [curves.force_n - curves.force_band_n, curves.force_n + curves.force_band_n]
+    if curves.mean_lo_n is not None and curves.mean_hi_n is not None:
+        drawn += [curves.mean_lo_n, curves.mean_hi_n]
+    values = np.concatenate([np.asarray(v, dtype=np.float64).ravel() for v in drawn])
+    values = values[np.isfinite(values)]
+    lo = min(0.0, float(values.min())) if values.size else 0.0
+    hi = float(values.max()) if values.size else 1.0
+    hi = max(hi, lo + 1.0) if hi <= lo else hi
+    return lo, hi + 0.08 * (hi - lo)
+
+
+def _misch_labels(fig: Figure, ax: Axes, hu_lo: float, hu_hi: float) -> None:
+    """Name each Misch band at the right of the HU axes where its visible part is tall
+    enough for the text; thinner bands keep their colour only (labels would overlap)."""
+    px_per_hu = ax.get_position().height * fig.get_figheight() * fig.dpi / (hu_hi - hu_lo)
+    text_px = TEXT_PT * fig.dpi / 72.0
+    for label, lo, hi in MISCH_BANDS:
+        a, b = max(lo, hu_lo), min(hi, hu_hi)
+        if b <= a or (b - a) * px_per_hu < text_px:
+            continue
+        ax.text(
+            1.005,
+            (a + b) / 2.0,
+            label,
+            transform=ax.get_yaxis_transform(),
+            fontsize=TEXT_PT,
+            va="center",
+        )
+
+
+def fit_margins(fig: Figure) -> None:
+    """Place the three axes with :data:`_MARGIN_PX` of room at the figure's current size."""
+    w_px = max(fig.get_figwidth() * fig.dpi, 1.0)
+    h_px = max(fig.get_figheight() * fig.dpi, 1.0)
+    m = _MARGIN_PX
+    left, right = m["left"] / w_px, 1.0 - m["right"] / w_px
+    bottom, top = m["bottom"] / h_px, 1.0 - (m["top"] + m["gap"]) / h_px
+    if not (right > left + 0.05 and top > bottom + 0.05):
+        return  # a window squeezed to nothing: keep the last layout
+    axes_h = (top - bottom) * h_px
+    each = (axes_h - 2.0 * m["gap"]) / 3.0
+    hspace = m["gap"] / each if each > 1.0 else 0.5
+    fig.subplots_adjust(left=left, right=right, bottom=bottom, top=top, hspace=hspace)
+
+
 def _axes(fig: Figure) -> tuple[Axes, Axes, Axes]:
     """The figure's three depth axes, emptied (created on first use)."""
     if len(fig.axes) != 3:
         fig.clear()
         fig.subplots(3, 1, sharex=True)
-        fig.subplots_adjust(left=0.08, right=0.965, top=0.95, bottom=0.13, hspace=0.5)
+    fit_margins(fig)
     ax_hu, ax_f, ax_c = fig.axes
     for ax in (ax_hu, ax_f, ax_c):
         for artist in [*ax.lines, *ax.collections, *ax.patches, *ax.texts]:

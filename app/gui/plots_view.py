@@ -6,9 +6,10 @@ from __future__ import annotations
 
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
+from PySide6.QtGui import QResizeEvent
 
 from ctdrill.app.gui.document import ViewContext
-from ctdrill.app.gui.plots import draw_depth_plots, set_live_depth
+from ctdrill.app.gui.plots import WINDOW_DPI, draw_depth_plots, fit_margins, set_live_depth
 from ctdrill.app.gui.results import PathView
 from ctdrill.imaging.plan.types import Plan
 
@@ -23,7 +24,7 @@ class PlotsView(FigureCanvasQTAgg):
     """HU, force and clearance along the drill."""
 
     def __init__(self, ctx: ViewContext) -> None:
-        fig = Figure(figsize=(6, 4), dpi=80)
+        fig = Figure(figsize=(6, 4), dpi=WINDOW_DPI)
         super().__init__(fig)
         self.plot_fig = fig
         self.ctx = ctx
@@ -32,6 +33,11 @@ class PlotsView(FigureCanvasQTAgg):
         ctx.doc.plan_changed.connect(self._plan)
         ctx.doc.volume_changed.connect(lambda _v: self._plan(ctx.doc.plan))
         ctx.doc.live_depth_changed.connect(self._live_depth)
+
+    def resizeEvent(self, event: QResizeEvent) -> None:
+        """Keep the labels' room in pixels whatever the size (:func:`fit_margins`)."""
+        super().resizeEvent(event)
+        fit_margins(self.plot_fig)
 
     def _plan(self, plan: Plan | None) -> None:
         if plan is None and self.ctx.doc.volume is not None:

@@ -93,3 +93,29 @@ def test_reused_figure_leaves_nothing_behind() -> None:
     # the force band is drawn: the default blue (#1f77b4) covers a solid area
     blue = np.all(np.abs(px - [0x1F, 0x77, 0xB4]) < 8, axis=2)
     assert blue.sum() > 10_000
+
+
+def test_the_force_axis_starts_at_zero_so_a_flat_curve_looks_flat() -> None:
+    """A drill through uniform bone (the demo's D2 trabecular bone, 1050 HU, 4 to 10 mm deep):
+    the force is flat with a small vibration; its axis starts at 0 N, not at the curve."""
+    volume = load_series(ASSETS / "demo" / "ct")
+    plan = load_plan(ASSETS / "demo" / "plan.json")
+    axis = (plan.target_lps - plan.entry_lps) / plan.planned_depth_mm
+    flat = replace(
+        plan, entry_lps=plan.entry_lps + 4.0 * axis, target_lps=plan.entry_lps + 10.0 * axis
+    )
+    result = plan_path(volume, flat, load_calibration(plan.calibration))
+    series = force_time_series(result, feed_mm_s=0.4, rate_hz=1000.0)
+    c = plot._canvas()
+    with c.lock:
+        try:
+            plot._draw(c, result, series, None)
+            lo, hi = c.ax_f.get_ylim()
+        finally:
+            c.reset()
+    inside = series.force_n[series.depth_mm > 1.0]  # the lip fully in the bone
+    assert lo == 0.0
+    assert hi >= float(series.force_n.max())
+    # the curve's own swing is a small part of the axis (it filled the axis when zoomed)
+    assert (float(inside.max()) - float(inside.min())) / (hi - lo) < 0.25
+    assert c.ax_f.get_autoscaley_on()  # reset hands the next trajectory an autoscaled axis

@@ -105,3 +105,68 @@ def test_the_mean_force_band_is_drawn_or_its_absence_said() -> None:
     draw_depth_plots(fig, replace(base, band_note="no uncertainty band: x gives no covariance"))
     assert not [ln for ln in fig.axes[1].lines if ln.get_color() == "#4060c0"]
     assert "no uncertainty band" in fig.axes[1].get_title(loc="left")
+
+
+def _window_figure() -> Figure:
+    """The plots at the size the window gives them at its default 1440 x 900 (measured on a
+    screenshot: about 1070 x 290 px) and its resolution."""
+    from ctdrill.app.gui.plots import WINDOW_DPI
+
+    return Figure(figsize=(1070 / WINDOW_DPI, 290 / WINDOW_DPI), dpi=WINDOW_DPI)
+
+
+def test_every_text_is_at_least_10_px_and_inside_the_figure() -> None:
+    from dataclasses import replace
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from ctdrill.app.gui.plots import WINDOW_DPI
+
+    for small in (False, True):
+        fig = _window_figure()
+        if small:  # a window shrunk to 1280 x 800: the labels keep their room
+            fig.set_size_inches(900 / WINDOW_DPI, 220 / WINDOW_DPI)
+        canvas = FigureCanvasAgg(fig)
+        draw_depth_plots(fig, replace(curves(), calibration="bone-illustrative"))
+        canvas.draw()
+        renderer = canvas.get_renderer()
+        box = fig.bbox
+        hidden = set()  # tick labels of ticks outside the view are not drawn
+        for ax in fig.axes:
+            x0, x1 = sorted(ax.get_xlim())
+            y0, y1 = sorted(ax.get_ylim())
+            hidden |= {id(t) for t in ax.get_xticklabels() if not x0 <= t.get_position()[0] <= x1}
+            hidden |= {id(t) for t in ax.get_yticklabels() if not y0 <= t.get_position()[1] <= y1}
+        texts = [
+            t
+            for t in fig.findobj(lambda a: hasattr(a, "get_fontsize"))
+            if t.get_text() and t.get_visible() and id(t) not in hidden
+        ]
+        assert len(texts) > 15  # tick labels, axis labels, titles, Misch names, margin
+        for t in texts:
+            assert t.get_fontsize() * WINDOW_DPI / 72.0 >= 10.0 - 1e-9, t.get_text()
+            ext = t.get_window_extent(renderer)
+            assert ext.x0 >= box.x0 - 0.5 and ext.x1 <= box.x1 + 0.5, t.get_text()
+            assert ext.y0 >= box.y0 - 0.5 and ext.y1 <= box.y1 + 0.5, t.get_text()
+
+
+def test_the_force_axis_starts_at_zero_so_a_flat_curve_looks_flat() -> None:
+    from dataclasses import replace
+
+    d = np.linspace(0.0, 10.0, 201)
+    flat = replace(
+        curves(),
+        force_n=5.0 + 0.05 * np.sin(d),  # 4.95 .. 5.05 N: a ripple of 2 %
+        force_band_n=None,
+    )
+    fig = _window_figure()
+    draw_depth_plots(fig, flat)
+    lo, hi = fig.axes[1].get_ylim()
+    assert lo == 0.0
+    # the ripple spans at most 2.2 % of the axis (it spanned all of it when zoomed)
+    assert 0.1 / (hi - lo) < 0.022 and hi >= 5.05
+    # a band reaching below 0 is shown whole
+    neg = replace(flat, force_band_n=np.full_like(d, 6.0))
+    draw_depth_plots(fig, neg)
+    lo, hi = fig.axes[1].get_ylim()
+    assert lo == np.min(neg.force_n - 6.0) and hi > np.max(neg.force_n + 6.0)
