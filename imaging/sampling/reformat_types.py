@@ -120,6 +120,26 @@ class Reformat:
         v = np.where(np.isfinite(s), z_top - pts[:, 2], np.nan)
         return np.stack([s, v], axis=1), off
 
+    def directions_lps(self, points_lps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The image's local directions at LPS points, each (N, 3) unit LPS: along increasing
+        columns, along increasing rows (down the image) and along the slab (the offset of
+        :meth:`project`). A panorama's column direction is the arch tangent at the point's
+        column (NaN beyond the arch's ends), its rows run down -z, its slab along the normal.
+        """
+        pts = np.asarray(points_lps, dtype=np.float64).reshape(-1, 3)
+        if self.plane_lps is not None:
+            _origin, col, row, normal = self.plane_lps
+            ones = np.ones((len(pts), 1))
+            return ones * col, ones * row, ones * normal
+        curve = self._curve if self._curve is not None else self._make_curve()
+        s, _ = curve.project(pts)
+        _o, tangent, normal = curve.frame(np.where(np.isfinite(s), s, 0.0))
+        tangent[~np.isfinite(s)] = np.nan
+        normal[~np.isfinite(s)] = np.nan
+        down = np.zeros_like(tangent)
+        down[:, 2] = -1.0
+        return tangent, down, normal
+
     def arch_point_lps(self) -> np.ndarray | None:
         """Cross-section: the arch's own point (its height included) at ``at_arc_mm``, LPS
         (3,), for the arch position marker; None for a panorama."""

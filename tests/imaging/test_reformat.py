@@ -167,6 +167,13 @@ def test_projection_round_trip_panorama_and_cross_section(lin: CTVolume) -> None
     uv2, off2 = r.project(moved.reshape(-1, 3))
     np.testing.assert_allclose(uv2, uv, atol=1e-7)
     np.testing.assert_allclose(off2, 1.3, atol=1e-7)
+    # The local directions: tangent (columns), -z (rows), the normal (slab).
+    col_dir, row_dir, slab_dir = r.directions_lps(r.lps[0])
+    np.testing.assert_allclose(slab_dir, normal, atol=1e-9)
+    np.testing.assert_allclose(
+        np.cross(col_dir, slab_dir), np.tile([0.0, 0.0, 1.0], (w, 1)), atol=1e-9
+    )
+    np.testing.assert_allclose(row_dir, np.tile([0.0, 0.0, -1.0], (w, 1)))
     # Beyond the arch's ends: NaN.
     start = arch[0] - 5.0 * (arch[1] - arch[0]) / np.linalg.norm(arch[1] - arch[0])
     assert np.all(np.isnan(r.project(start[None])[0]))
