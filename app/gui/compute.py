@@ -12,14 +12,16 @@ from pathlib import Path
 import numpy as np
 import pyvista as pv
 
-from ctdrill.app.gui.scene import bone_surface
 from ctdrill.app.gui.slices import VIEWS, SliceImage, reslice, volume_center_lps
+from ctdrill.app.gui.surface import DISPLAY_TRIANGLES, bone_surface, display_block
 from ctdrill.imaging import CTVolume, load_series
 from ctdrill.imaging.dicom.series import SeriesSummary, list_series
 from ctdrill.imaging.plan.types import Plan
 
-#: Longest side of the strided grid the bone surface is contoured on, samples.
-SURFACE_MAX_DIM = 160
+#: Longest side of the strided grid the bone surface is contoured on, samples; None: every
+#: voxel (the default since issue 16; 160 was the earlier coarse surface, every 4th slice on a
+#: 512 x 512 series, kept as the benchmark's peer).
+SURFACE_MAX_DIM: int | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,7 +47,7 @@ def load_case(
     *,
     series_uid: str | None = None,
     iso_hu: float = 300.0,
-    max_dim: int = SURFACE_MAX_DIM,
+    max_dim: int | None = SURFACE_MAX_DIM,
     ask_series: bool = False,
 ) -> Loaded | SeriesChoice:
     """Load the series at ``path`` and contour its bone surface.
@@ -64,9 +66,26 @@ def load_case(
 
 
 def volume_surface(
-    volume: CTVolume, *, iso_hu: float = 300.0, max_dim: int = SURFACE_MAX_DIM
+    volume: CTVolume,
+    *,
+    iso_hu: float = 300.0,
+    max_dim: int | None = SURFACE_MAX_DIM,
+    max_triangles: int | None = DISPLAY_TRIANGLES,
 ) -> pv.PolyData:
-    """The bone surface of ``volume`` at ``iso_hu`` (padding counts as air)."""
+    """The bone surface of ``volume`` at ``iso_hu`` (padding counts as air), at the finest
+    voxel block whose surface has at most ``max_triangles`` triangles (``display_block``;
+    None: every voxel); its field data ``block`` says which. Slices are merged only in a
+    regular stack and only where thinner than the block."""
+    block = (1, 1, 1)
+    if max_dim is None and max_triangles is not None:
+        block = display_block(
+            volume.hu,
+            volume.spacing_mm,
+            iso_hu=iso_hu,
+            valid=volume.valid,
+            merge_slices=regular_stack(volume),
+            max_triangles=max_triangles,
+        )
     return bone_surface(
         volume.hu,
         volume.affine_lps,
@@ -74,7 +93,14 @@ def volume_surface(
         max_dim=max_dim,
         valid=volume.valid,
         index_to_lps=volume.index_to_lps,
+        block=block,
     )
+
+
+def regular_stack(volume: CTVolume) -> bool:
+    """True when the slices are evenly spaced (to 0.1 %): blocks may then merge slices."""
+    steps = np.diff(np.asarray(volume.slice_positions_mm, dtype=np.float64))
+    return steps.size == 0 or bool(np.allclose(steps, steps[0], rtol=1e-3, atol=1e-6))
 
 
 def slice_key(volume: CTVolume, plan: Plan | None) -> tuple[object, ...]:

@@ -1,21 +1,24 @@
 """The 3D scene, built on any pyvista plotter (on screen: ``QtInteractor``; off screen:
-``pyvista.Plotter(off_screen=True)``), so the window, the screenshot and the tests draw the same.
+``pyvista.Plotter(off_screen=True)``), so the window, the screenshot, the report and the tests
+draw the same.
 
-Geometry is computed in the world frame (LPS, mm). The bone surface is a marching-cubes contour
-in *index* space on a strided copy of the volume, mapped to LPS with the full affine, so oblique
-and sheared (gantry-tilt) series land where they are.
+Geometry is in the world frame (LPS, mm). The bone surface (:func:`bone_surface`, defined in
+:mod:`ctdrill.app.gui.surface`) is drawn as one actor or several pieces (``bone:<n>``) that keep
+their GPU buffers while the plan's actors (``plan_actors``) are rebuilt on every plan change.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import pyvista as pv
 
-from ctdrill.hu import AIR_HU
+from ctdrill.app.gui.camera import CameraPose, add_orientation_marker, initial_camera, scene_bounds
+from ctdrill.app.gui.meshes import drill_mesh, implant_mesh, landmark_meshes, unit
+from ctdrill.app.gui.surface import bone_surface as bone_surface
 
 #: Bone iso-surface presets, HU.
 SURFACE_PRESETS: dict[str, float] = {
@@ -36,6 +39,12 @@ CLEARANCE_COLOURS: dict[str, tuple[float, float, float]] = {
 BONE_COLOUR = (0.86, 0.80, 0.66)
 TRAJECTORY_COLOUR = (0.15, 0.45, 0.95)
 DRILL_COLOUR = (0.75, 0.75, 0.80)
+#: Implant bodies: the current trajectory's, and the others' (dimmer).
+IMPLANT_COLOUR = (0.30, 0.80, 0.95)
+OTHER_IMPLANT_COLOUR = (0.45, 0.55, 0.70)
+OTHER_TRAJECTORY_COLOUR = (0.55, 0.65, 0.90)
+#: Background gradient (bottom, top): dark, so labels are white.
+BACKGROUND = ("#1e2430", "#46526a")
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,6 +84,30 @@ class CandidateLine:
 
 
 @dataclass(frozen=True, eq=False)
+class ImplantGeometry:
+    """An implant body as drawn: its profile (``ImplantSpec.profile_mm()``: radius ``r_mm``
+    at ``s_mm`` from the platform) placed with the platform at ``platform_lps`` and the apex
+    along unit ``axis_lps``; ``current`` marks the selected trajectory's."""
+
+    name: str
+    platform_lps: np.ndarray
+    axis_lps: np.ndarray
+    s_mm: np.ndarray
+    r_mm: np.ndarray
+    current: bool = True
+
+
+@dataclass(frozen=True, eq=False)
+class TrajectoryLine:
+    """Another trajectory of the plan (not the selected one): a line from entry to target."""
+
+    name: str
+    entry_lps: np.ndarray
+    target_lps: np.ndarray
+    diameter_mm: float
+
+
+@dataclass(frozen=True, eq=False)
 class SceneInput:
     """Everything the 3D view shows, in LPS mm."""
 
@@ -85,6 +118,9 @@ class SceneInput:
     stop_depth_mm: float | None = None
     landmarks: tuple[LandmarkGeometry, ...] = field(default=())
     candidates: tuple[CandidateLine, ...] = field(default=())
+    arch_lps: np.ndarray | None = None  # (K, 3) dental arch: the camera looks from outside it
+    implants: tuple[ImplantGeometry, ...] = field(default=())  # every trajectory's implant
+    others: tuple[TrajectoryLine, ...] = field(default=())  # the plan's other trajectories
 
 
 def clearance_state(clearance_mm: float | None, margin_mm: float, violated: bool = False) -> str:
@@ -101,115 +137,28 @@ def clearance_state(clearance_mm: float | None, margin_mm: float, violated: bool
     return "violated"
 
 
-def bone_surface(
-    hu: np.ndarray,
-    affine_lps: np.ndarray,
-    *,
-    iso_hu: float = 300.0,
-    max_dim: int = 160,
-    valid: np.ndarray | None = None,
-    outside_hu: float = AIR_HU,
-    index_to_lps: Callable[[np.ndarray], np.ndarray] | None = None,
-) -> pv.PolyData:
-    """Iso-surface of the CT at ``iso_hu``, LPS mm.
+def add_bone(
+    plotter: Any, surface: pv.PolyData, *, name: str = "bone", opacity: float = 0.45
+) -> Any:
+    """Add ``surface`` (with its own ``Normals``: none are recomputed) as a bone actor without
+    rendering; the GPU upload happens at the next render."""
+    from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper
 
-    Parameters
-    ----------
-    hu : (slices, rows, cols) CT numbers.
-    affine_lps : (4, 4) index (i=col, j=row, k=slice) to LPS mm.
-    iso_hu : contour level.
-    max_dim : the volume is strided so that no axis has more than this many samples.
-    valid : optional (slices, rows, cols) mask; padding (False) counts as ``outside_hu``.
-    index_to_lps : maps (N, 3) index coordinates to LPS mm (``CTVolume.index_to_lps``: exact
-        for irregular slice positions); default the affine.
-
-    Returns
-    -------
-    Triangle surface with point normals; empty when nothing crosses ``iso_hu``.
-    """
-    shape = np.asarray(hu.shape[:3])
-    stride = max(1, int(np.ceil(shape.max() / max_dim)))
-    sub = np.asarray(hu[::stride, ::stride, ::stride], dtype=np.float32)
-    if valid is not None:
-        sub = np.where(valid[::stride, ::stride, ::stride], sub, np.float32(outside_hu))
-    # Close the surface at the volume border: pad with air.
-    sub = np.pad(sub, 1, mode="constant", constant_values=np.float32(outside_hu))
-    nk, nj, ni = sub.shape
-    grid = pv.ImageData(dimensions=(ni, nj, nk))
-    grid.point_data["hu"] = sub.ravel(order="C")  # i fastest, as VTK stores points
-    surf = grid.contour([iso_hu], scalars="hu", method="flying_edges")
-    if surf.n_points == 0:
-        return pv.PolyData()
-    ijk = (np.asarray(surf.points, dtype=np.float64) - 1.0) * stride
-    if index_to_lps is not None:
-        surf.points = np.asarray(index_to_lps(ijk), dtype=np.float64)
-    else:
-        aff = np.asarray(affine_lps, dtype=np.float64)
-        surf.points = ijk @ aff[:3, :3].T + aff[:3, 3]
-    surf = surf.triangulate()
-    return surf.compute_normals(cell_normals=False, split_vertices=False, auto_orient_normals=False)
-
-
-def drill_mesh(
-    entry_lps: np.ndarray,
-    target_lps: np.ndarray,
-    *,
-    diameter_mm: float,
-    tip_length_mm: float,
-    shank_mm: float = 20.0,
-    resolution: int = 32,
-) -> pv.PolyData:
-    """The drill with its tip point at the entry (depth 0): a cone of length ``tip_length_mm``
-    behind which a cylinder of ``diameter_mm`` runs back ``shank_mm`` out of the patient.
-
-    Translate it by ``depth_mm * axis`` to put the tip at depth ``depth_mm``.
-    """
-    entry = np.asarray(entry_lps, dtype=np.float64)
-    axis = _unit(np.asarray(target_lps, dtype=np.float64) - entry)
-    radius = diameter_mm / 2.0
-    tip_len = max(tip_length_mm, 1e-3)
-    cone = pv.Cone(
-        center=entry - axis * tip_len / 2.0,
-        direction=axis,
-        height=tip_len,
-        radius=radius,
-        resolution=resolution,
-        capping=True,
-    )
-    cyl = pv.Cylinder(
-        center=entry - axis * (tip_len + shank_mm / 2.0),
-        direction=axis,
-        radius=radius,
-        height=shank_mm,
-        resolution=resolution,
-        capping=True,
-    )
-    out: pv.PolyData = (cone + cyl).extract_surface(algorithm=None)
-    return out
-
-
-def landmark_meshes(landmark: LandmarkGeometry) -> tuple[pv.PolyData, pv.PolyData | None]:
-    """(body, margin envelope): the canal tube (or point sphere) and the tube grown by the
-    margin; a surface cloud (a mask landmark's) is drawn as points, without an envelope."""
-    pts = np.atleast_2d(np.asarray(landmark.points_lps, dtype=np.float64))
-    outer = landmark.radius_mm + landmark.margin_mm
-    if landmark.cloud:
-        return pv.PolyData(pts), None
-    if len(pts) == 1:
-        body = pv.Sphere(radius=max(landmark.radius_mm, 0.3), center=pts[0])
-        env = pv.Sphere(radius=max(outer, 0.3), center=pts[0])
-        return body, env
-    line = pv.lines_from_points(pts)
-    body = line.tube(radius=max(landmark.radius_mm, 0.2), n_sides=24, capping=True)
-    env = line.tube(radius=max(outer, 0.2), n_sides=24, capping=True)
-    return body, env
-
-
-def _unit(vec: np.ndarray) -> np.ndarray:
-    n = float(np.linalg.norm(vec))
-    if n == 0.0:
-        raise ValueError("entry and target coincide: the trajectory has no direction")
-    return np.asarray(vec, dtype=np.float64) / n
+    mapper = vtkPolyDataMapper()
+    mapper.SetInputData(surface)
+    mapper.ScalarVisibilityOff()
+    mapper.SetStatic(True)  # no pipeline checks per frame: the data never changes
+    actor = vtkActor()
+    actor.SetMapper(mapper)
+    prop = actor.GetProperty()
+    prop.SetColor(*BONE_COLOUR)
+    prop.SetOpacity(opacity)
+    prop.SetInterpolationToGouraud()
+    prop.SetAmbient(0.15)
+    prop.SetDiffuse(0.75)
+    prop.SetSpecular(0.15)
+    plotter.add_actor(actor, name=name, render=False, reset_camera=False)
+    return actor
 
 
 def build_scene(
@@ -220,7 +169,8 @@ def build_scene(
     bone_opacity: float = 0.45,
     show_axes: bool = True,
 ) -> dict[str, Any]:
-    """Draw the bone surface, trajectory, drill, landmarks and stop point on ``plotter``.
+    """Clear ``plotter`` and draw the bone surface, the orientation marker and
+    :func:`plan_actors` of ``scene``.
 
     Parameters
     ----------
@@ -231,25 +181,29 @@ def build_scene(
 
     Returns
     -------
-    Actors by name (``bone``, ``trajectory``, ``drill``, ``stop``, ``landmark:<name>``,
-    ``margin:<name>``, ``candidate:<rank>``, ``candidate-labels``), for live updates
-    (``set_drill_depth``).
+    Actors by name: ``bone`` and those of :func:`plan_actors`.
     """
     plotter.clear()
-    plotter.set_background(color="#1e2430", top="#46526a")
+    plotter.set_background(color=BACKGROUND[0], top=BACKGROUND[1])
     actors: dict[str, Any] = {}
     if surface is not None and surface.n_points > 0:
-        actors["bone"] = plotter.add_mesh(
-            render=False,
-            mesh=surface,
-            color=BONE_COLOUR,
-            smooth_shading=True,
-            opacity=bone_opacity,
-            ambient=0.15,
-            diffuse=0.75,
-            specular=0.15,
-            name="bone",
-        )
+        actors["bone"] = add_bone(plotter, surface, opacity=bone_opacity)
+    actors.update(plan_actors(plotter, scene))
+    if show_axes:
+        add_orientation_marker(plotter)
+    return actors
+
+
+def plan_actors(plotter: Any, scene: SceneInput) -> dict[str, Any]:
+    """Add the plan's actors of ``scene`` (no render, nothing removed).
+
+    Returns
+    -------
+    Actors by name (``trajectory``, ``target``, ``drill``, ``stop``, ``landmark:<name>``,
+    ``margin:<name>``, ``implant:<i>``, ``other:<i>``, ``candidate:<rank>``,
+    ``candidate-labels``), for live updates (``set_drill_depth``) and removal.
+    """
+    actors: dict[str, Any] = {}
     if scene.entry_lps is not None and scene.target_lps is not None:
         actors.update(_trajectory_actors(plotter, scene, scene.entry_lps, scene.target_lps))
     for lm in scene.landmarks:
@@ -264,9 +218,24 @@ def build_scene(
             actors[f"margin:{lm.name}"] = plotter.add_mesh(
                 render=False, mesh=env, color=colour, opacity=0.3, name=f"margin:{lm.name}"
             )
+    for i, imp in enumerate(scene.implants):
+        mesh = implant_mesh(imp.platform_lps, imp.axis_lps, imp.s_mm, imp.r_mm)
+        actors[f"implant:{i}"] = plotter.add_mesh(
+            render=False,
+            mesh=mesh,
+            color=IMPLANT_COLOUR if imp.current else OTHER_IMPLANT_COLOUR,
+            opacity=0.85 if imp.current else 0.6,
+            specular=0.5,
+            name=f"implant:{i}",
+        )
+    for i, other in enumerate(scene.others):
+        tube = pv.Line(other.entry_lps, other.target_lps).tube(
+            radius=max(other.diameter_mm / 2.0, 0.2)
+        )
+        actors[f"other:{i}"] = plotter.add_mesh(
+            render=False, mesh=tube, color=OTHER_TRAJECTORY_COLOUR, opacity=0.7, name=f"other:{i}"
+        )
     actors.update(_candidate_actors(plotter, scene.candidates))
-    if show_axes:
-        plotter.add_axes(xlabel="L", ylabel="P", zlabel="S")
     return actors
 
 
@@ -301,7 +270,7 @@ def _trajectory_actors(
     entry = np.asarray(entry_lps, dtype=np.float64)
     target = np.asarray(target_lps, dtype=np.float64)
     actors: dict[str, Any] = {}
-    axis = _unit(target - entry)
+    axis = unit(target - entry)
     path = pv.Line(entry - axis * 10.0, target)
     actors["trajectory"] = plotter.add_mesh(
         render=False, mesh=path.tube(radius=0.15), color=TRAJECTORY_COLOUR, name="trajectory"
@@ -344,40 +313,22 @@ def set_drill_depth(actors: dict[str, Any], axis_lps: np.ndarray, depth_mm: floa
     actor.SetPosition(*offset.tolist())
 
 
-def focus_camera(
-    plotter: Any,
-    entry_lps: np.ndarray,
-    target_lps: np.ndarray,
-    *,
-    distance_mm: float | None = None,
-    bounds: Sequence[float] | None = None,
-) -> float:
-    """Look at the trajectory's midpoint from the side of the drill, superior up.
-
-    The view direction is perpendicular to the drill axis (the drill runs across the screen) and
-    tilted 25 degrees from above; the distance defaults to 8 x the trajectory length, at least
-    90 mm, and, given the anatomy's ``bounds`` (xmin, xmax, ymin, ymax, zmin, zmax), at least
-    20 mm beyond them along the view direction, so the camera never sits inside the bone.
-    Returns the distance, mm.
-    """
-    entry = np.asarray(entry_lps, dtype=np.float64)
-    target = np.asarray(target_lps, dtype=np.float64)
-    axis = _unit(target - entry)
-    mid = (entry + target) / 2.0
-    length = float(np.linalg.norm(target - entry))
-    dist = distance_mm if distance_mm is not None else max(90.0, 8.0 * length)
-    up = np.array([0.0, 0.0, 1.0])
-    side = np.cross(axis, up)
-    if np.linalg.norm(side) < 1e-6:  # vertical drill: look from anterior (-P)
-        side = np.array([0.0, -1.0, 0.0])
-    side = side / np.linalg.norm(side)
-    if side[1] > 0:  # prefer looking from the front of the patient
-        side = -side
-    view_dir = side * np.cos(np.deg2rad(25.0)) + up * np.sin(np.deg2rad(25.0))
-    view_dir /= np.linalg.norm(view_dir)
-    if distance_mm is None and bounds is not None:
-        corners = np.array([[x, y, z] for x in bounds[:2] for y in bounds[2:4] for z in bounds[4:]])
-        dist = max(dist, float(np.max((corners - mid) @ view_dir)) + 20.0)
-    plotter.camera_position = [tuple(mid + view_dir * dist), tuple(mid), (0.0, 0.0, 1.0)]
-    plotter.reset_camera_clipping_range()
-    return dist
+def scene_camera(scene: SceneInput, surface: pv.PolyData | None) -> CameraPose | None:
+    """The starting camera of ``scene`` (:func:`ctdrill.app.gui.camera.initial_camera`): the
+    bone surface, the trajectory and the landmarks in view, looking at the target from the
+    buccal side (away from the dental arch's centroid when the scene has an arch); None when
+    there is nothing to look at."""
+    surface_bounds = None
+    if surface is not None and surface.n_points > 0:
+        surface_bounds = tuple(surface.bounds)
+    points = [lm.points_lps for lm in scene.landmarks]
+    points += [p for o in scene.others for p in (o.entry_lps, o.target_lps)]
+    if scene.entry_lps is not None and scene.target_lps is not None:
+        points += [scene.entry_lps, scene.target_lps]
+    bounds = scene_bounds(surface_bounds, points)
+    if bounds is None:
+        return None
+    centre = None
+    if scene.arch_lps is not None and len(scene.arch_lps) >= 2:
+        centre = np.asarray(scene.arch_lps, dtype=np.float64).mean(axis=0)
+    return initial_camera(bounds, scene.entry_lps, scene.target_lps, centre_lps=centre)

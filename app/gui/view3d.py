@@ -1,10 +1,13 @@
 """The embedded 3D view: a ``pyvistaqt.QtInteractor`` drawn by
 :func:`ctdrill.app.gui.scene.build_scene`, observing the window's document.
 
-The scene is rebuilt when a new bone surface arrives, when the path result for the plan
-arrives (or fails: the landmarks are then drawn as unknown) and when suggested axes arrive
-(the best feasible ones drawn as numbered lines), each build and its frame in an event-loop
-pass of its own; the drill follows the live depth of a rehearsal."""
+A new bone surface (computed in a worker: every slice, full resolution) is handed to VTK in
+pieces (:func:`ctdrill.app.gui.surface.surface_piece`), one piece added and drawn per event-loop
+pass, so no pass uploads millions of triangles at once; its actors stay while the plan's actors
+are rebuilt when the path result for the plan arrives (or fails: the landmarks are then drawn as
+unknown) and when suggested axes arrive (the best feasible ones drawn as numbered lines), each
+build and its frame in an event-loop pass of its own; the drill follows the live depth of a
+rehearsal. The camera starts where :func:`ctdrill.app.gui.scene.scene_camera` says."""
 
 from __future__ import annotations
 
@@ -13,18 +16,36 @@ from typing import Any
 
 import numpy as np
 import pyvista as pv
+from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 
+from ctdrill.app.gui.camera import add_orientation_marker, apply_camera
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.planning import scene_input
 from ctdrill.app.gui.results import PathView
-from ctdrill.app.gui.scene import SceneInput, build_scene, focus_camera, set_drill_depth
+from ctdrill.app.gui.scene import (
+    BACKGROUND,
+    SceneInput,
+    add_bone,
+    plan_actors,
+    scene_camera,
+    set_drill_depth,
+)
 from ctdrill.app.gui.suggesting import candidate_lines
+from ctdrill.app.gui.surface import piece_count, surface_piece
 
 
 class View3D(QWidget):
-    """3D view of the bone surface, trajectory, drill and landmarks."""
+    """3D view of the bone surface, trajectories, implants, drill and landmarks.
+
+    Signals
+    -------
+    surface_shown() : the last piece of the current bone surface has been drawn
+        (:attr:`surface_shown_s` holds when).
+    """
+
+    surface_shown = Signal()
 
     def __init__(self, ctx: ViewContext, *, multi_samples: int = 0) -> None:
         """``multi_samples``: MSAA samples; 0 by default because on a software OpenGL (Mesa
@@ -35,14 +56,22 @@ class View3D(QWidget):
         layout.setContentsMargins(0, 0, 0, 0)
         # No periodic re-render (pyvistaqt's default is 5 Hz even when nothing changes, ~50 ms a
         # frame on software GL): the view renders when the scene changes or the user interacts.
-        self.plotter: Any = QtInteractor(self, multi_samples=multi_samples, auto_update=False)
-        layout.addWidget(self.plotter.interactor)
+        plotter: Any = QtInteractor(self, multi_samples=multi_samples, auto_update=False)
+        self.plotter = plotter
+        layout.addWidget(plotter.interactor)
+        plotter.set_background(BACKGROUND[0], top=BACKGROUND[1])
+        add_orientation_marker(plotter)
         self.surface: pv.PolyData | None = None
         self.scene: SceneInput | None = None
+        #: Every actor by name: the bone pieces (``bone``, ``bone:1``, ...) and the plan's.
         self.actors: dict[str, Any] = {}
+        self._bone: dict[str, Any] = {}
+        self._surface_gen = 0
         self._camera_for: tuple[float, ...] | None = None
         self.frames_drawn = 0
         self.last_frame_s = float("nan")  # perf_counter() at the end of the latest frame
+        #: perf_counter() when the current surface's last piece was drawn (nan: not yet).
+        self.surface_shown_s = float("nan")
         #: Point the camera at the trajectory on the next build (a newly opened plan).
         self.refocus_next = False
         doc = ctx.doc
@@ -53,7 +82,7 @@ class View3D(QWidget):
 
     # ------------------------------------------------------------------ document
     def _surface(self, surface: pv.PolyData | None) -> None:
-        self.set_surface(surface, redraw=False)
+        self.set_surface(surface)
         if self.ctx.doc.plan is None:  # no trajectory yet: the anatomy alone
             self.ctx.steps.push(lambda: self.show_scene(scene_input(None, None)))
 
@@ -89,33 +118,73 @@ class View3D(QWidget):
         self.ctx.steps.push(build)
         self.ctx.steps.push(self.render_now)
 
+    # ------------------------------------------------------------------ bone surface
     def set_surface(self, surface: pv.PolyData | None, *, redraw: bool = True) -> None:
-        """Use a new bone surface (new volume or preset); redraws a shown scene if ``redraw``."""
+        """Use a new bone surface (new volume or preset): its pieces are added and drawn one
+        per event-loop pass (``redraw`` is accepted for compatibility: the pieces always
+        draw); the camera is re-aimed with the first piece."""
         self.surface = surface
         self._camera_for = None
-        if redraw and self.scene is not None:
-            self.show_scene(self.scene)
+        self._surface_gen += 1
+        gen = self._surface_gen
+        self.surface_shown_s = float("nan")
+        n = 0 if surface is None else piece_count(surface)
+        self.ctx.steps.push(lambda: self._drop_bone(gen))
+        for index in range(n):
+            self.ctx.steps.push(lambda i=index: self._add_piece(gen, i, n))  # type: ignore[misc]
+        if n == 0:
+            self.ctx.steps.push(lambda: self._surface_done(gen))
+
+    def _drop_bone(self, gen: int) -> None:
+        """Remove the previous surface's actors (the GPU buffers go with them)."""
+        if gen != self._surface_gen:
+            return
+        for name, actor in self._bone.items():
+            self.plotter.remove_actor(actor, render=False)
+            self.actors.pop(name, None)
+        self._bone = {}
+
+    def _add_piece(self, gen: int, index: int, total: int) -> None:
+        """Add piece ``index`` of the current surface and draw the frame that uploads it."""
+        if gen != self._surface_gen or self.surface is None:
+            return
+        name = "bone" if index == 0 else f"bone:{index}"
+        actor = add_bone(self.plotter, surface_piece(self.surface, index), name=name)
+        self._bone[name] = actor
+        self.actors[name] = actor
+        if index == 0 and self._camera_for is None:
+            self._aim(self.scene or scene_input(None, None))
+        self.render_now()
+        if index == total - 1:
+            self._surface_done(gen)
+
+    def _surface_done(self, gen: int) -> None:
+        if gen == self._surface_gen:
+            self.surface_shown_s = self.last_frame_s
+            self.surface_shown.emit()
+
+    # ------------------------------------------------------------------ plan
+    def _aim(self, scene: SceneInput) -> None:
+        pose = scene_camera(scene, self.surface)
+        if pose is not None:
+            apply_camera(self.plotter, pose)
+        if scene.entry_lps is not None and scene.target_lps is not None:
+            self._camera_for = (1.0,)
 
     def show_scene(self, scene: SceneInput, *, refocus: bool = False, render: bool = True) -> None:
-        """Rebuild the scene; the camera is focused on the trajectory the first time.
+        """Replace the plan's actors by those of ``scene`` (the bone stays); the camera is
+        aimed the first time a trajectory is shown on this surface, or when ``refocus``.
 
         With ``render`` False the frame is left to a later :meth:`render_now` (the window
         draws it in its own event-loop pass)."""
         self.scene = scene
         cam = self.plotter.camera_position
-        self.actors = build_scene(self.plotter, scene, surface=self.surface)
-        key = (len(self.actors),)
+        for name, actor in list(self.actors.items()):
+            if name not in self._bone:
+                self.plotter.remove_actor(actor, render=False)
+        self.actors = {**self._bone, **plan_actors(self.plotter, scene)}
         if refocus or self._camera_for is None:
-            bounds = None
-            if self.surface is not None and self.surface.n_points > 0:
-                bounds = tuple(self.surface.bounds)
-            if scene.entry_lps is not None and scene.target_lps is not None:
-                focus_camera(self.plotter, scene.entry_lps, scene.target_lps, bounds=bounds)
-                self._camera_for = key
-            elif bounds is not None:  # no trajectory: look at the anatomy's centre
-                c = np.array(bounds).reshape(3, 2).mean(axis=1)
-                focus_camera(self.plotter, c, c - np.array([0.0, 0.0, 1.0]), bounds=bounds)
-                self.plotter.reset_camera()  # same direction, the whole anatomy in view
+            self._aim(scene)
         else:
             self.plotter.camera_position = cam
         if render:

@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 import pyvista as pv
 
+from ctdrill.app.gui.camera import apply_camera
+from ctdrill.app.gui.meshes import drill_mesh, landmark_meshes
 from ctdrill.app.gui.scene import (
     CLEARANCE_COLOURS,
     LandmarkGeometry,
@@ -13,9 +15,7 @@ from ctdrill.app.gui.scene import (
     bone_surface,
     build_scene,
     clearance_state,
-    drill_mesh,
-    focus_camera,
-    landmark_meshes,
+    scene_camera,
     set_drill_depth,
 )
 from ctdrill.app.gui.screenshot import region_stats
@@ -94,29 +94,15 @@ def test_off_screen_scene_draws_and_the_drill_moves() -> None:
         assert {"bone", "trajectory", "drill", "stop", "landmark:canal", "margin:canal"} <= set(
             actors
         )
-        focus_camera(plotter, entry, target)
+        pose = scene_camera(scene, None)
+        assert pose is not None
+        apply_camera(plotter, pose)
         before = np.array(actors["drill"].GetBounds())
         set_drill_depth(actors, np.array([0.0, 0.0, -1.0]), 5.0)
         after = np.array(actors["drill"].GetBounds())
         assert after[4] == pytest.approx(before[4] - 5.0)
         img = plotter.screenshot(return_img=True)
         assert region_stats(img).drawn
-    finally:
-        plotter.close()
-
-
-def test_the_camera_stays_outside_the_anatomy() -> None:
-    plotter = pv.Plotter(off_screen=True, window_size=(200, 150))
-    try:
-        entry, target = np.array([0.0, 0.0, 5.0]), np.array([0.0, 0.0, -5.0])
-        assert focus_camera(plotter, entry, target) == pytest.approx(90.0)
-        head = (-100.0, 100.0, -120.0, 80.0, -90.0, 110.0)
-        dist = focus_camera(plotter, entry, target, bounds=head)
-        pos = np.array(plotter.camera_position[0])
-        # outside the box along the view direction: beyond y_min (anterior) or z_max (top)
-        assert pos[1] < head[2] or pos[2] > head[5]
-        assert np.linalg.norm(pos) == pytest.approx(dist)
-        assert plotter.camera_position[1] == pytest.approx((0.0, 0.0, 0.0))
     finally:
         plotter.close()
 
