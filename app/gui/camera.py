@@ -20,6 +20,9 @@ import numpy as np
 TILT_DEG = 20.0
 #: VTK's default vertical view angle, degrees (the horizontal one is wider on a landscape view).
 VIEW_ANGLE_DEG = 30.0
+#: An entry nearer the anatomy's centre than this fraction of its width has no buccal side
+#: of its own: the camera looks from anterior.
+CENTRE_TOLERANCE = 0.1
 #: Gap between the anatomy's bounding box and the camera, mm.
 CLEARANCE_MM = 20.0
 #: Face letters of the orientation cube: LPS +x is patient left, +y posterior, +z superior.
@@ -111,7 +114,8 @@ def initial_camera(
     Returns
     -------
     Focal point the target; view direction horizontal-outward through the entry, made
-    perpendicular to the drill axis, tilted :data:`TILT_DEG` up; distance from
+    perpendicular to the drill axis, then tilted :data:`TILT_DEG` towards superior (so the
+    drill leaves the screen plane by at most that angle); distance from
     :func:`fit_distance_mm` (outside the box, the whole box in view).
     """
     box = [float(b) for b in bounds]
@@ -130,15 +134,19 @@ def initial_camera(
         axis = focal - entry
         axis = axis / np.linalg.norm(axis)
         outward = _horizontal_unit(entry - centre)
-        if outward is None:
-            outward = _ANTERIOR
+        off_centre = float(np.hypot(*(entry - centre)[:2]))
+        if outward is None or off_centre < CENTRE_TOLERANCE * min(box[1] - box[0], box[3] - box[2]):
+            outward = _ANTERIOR  # the entry at the anatomy's centre: no side to prefer
         side = outward - (outward @ axis) * axis  # perpendicular to the drill
         if np.linalg.norm(side) < 1e-6:  # a horizontal drill pointing at the centre
             side = _SUPERIOR - (_SUPERIOR @ axis) * axis
             if np.linalg.norm(side) < 1e-6:
                 side = _ANTERIOR
         side = side / np.linalg.norm(side)
-        view = side * np.cos(tilt) + _SUPERIOR * np.sin(tilt)
+        lift = _SUPERIOR - (_SUPERIOR @ side) * side  # superior, perpendicular to the side
+        lift_n = float(np.linalg.norm(lift))
+        lift = lift / lift_n if lift_n > 1e-6 else np.zeros(3)
+        view = side * np.cos(tilt) + lift * np.sin(tilt)  # unit: side and lift orthonormal
     view = view / np.linalg.norm(view)
     up = _SUPERIOR - (_SUPERIOR @ view) * view
     if np.linalg.norm(up) < 1e-6:

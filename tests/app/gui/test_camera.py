@@ -1,0 +1,103 @@
+"""The starting camera: outside the anatomy, the target at the focal point, the whole box in
+view, looking from the buccal side of the entry; and the orientation marker's letters."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ctdrill.app.gui.camera import (
+    CLEARANCE_MM,
+    LETTER_COLOUR,
+    ORIENTATION_LETTERS,
+    TILT_DEG,
+    VIEW_ANGLE_DEG,
+    fit_distance_mm,
+    initial_camera,
+    orientation_cube,
+    scene_bounds,
+)
+
+#: A jaw-sized box, LPS mm: x (R -> L) -50..50, y (A -> P) -60..10, z -40..0.
+JAW = (-50.0, 50.0, -60.0, 10.0, -40.0, 0.0)
+
+
+def _corners(b: tuple[float, ...]) -> np.ndarray:
+    return np.array([[x, y, z] for x in b[:2] for y in b[2:4] for z in b[4:]])
+
+
+def _check_pose_sees_the_box(pose: object, bounds: tuple[float, ...]) -> None:
+    pos = pose.position_lps  # type: ignore[attr-defined]
+    focal = pose.focal_lps  # type: ignore[attr-defined]
+    view = pose.view_dir  # type: ignore[attr-defined]
+    rel = _corners(bounds) - pos
+    # every corner is in front of the camera, within half the view angle of its axis
+    cos = (rel @ -view) / np.linalg.norm(rel, axis=1)
+    assert np.all(cos >= np.cos(np.deg2rad(VIEW_ANGLE_DEG / 2.0)) - 1e-9)
+    # the camera stands outside the box, at least CLEARANCE_MM beyond it along the view
+    assert (pos - focal) @ view >= np.max((_corners(bounds) - focal) @ view) + CLEARANCE_MM - 1e-9
+    lo, hi = np.array(bounds[::2]), np.array(bounds[1::2])
+    assert not np.all((pos >= lo) & (pos <= hi))
+    up = pose.up  # type: ignore[attr-defined]
+    assert abs(up @ view) < 1e-9 and up[2] > 0 and np.linalg.norm(up) == pytest.approx(1.0)
+
+
+def test_a_molar_on_the_right_is_seen_from_the_right_cheek() -> None:
+    entry = np.array([-35.0, -20.0, 0.0])  # patient right (x < 0), on the crest
+    target = np.array([-35.0, -20.0, -12.0])  # straight down
+    pose = initial_camera(JAW, entry, target)
+    np.testing.assert_allclose(pose.focal_lps, target)
+    # buccal = away from the box's centre (0, -25) through the entry: towards -x mostly
+    horiz = pose.view_dir[:2] / np.linalg.norm(pose.view_dir[:2])
+    want = np.array([-35.0, 5.0]) / np.hypot(35.0, 5.0)
+    np.testing.assert_allclose(horiz, want, atol=1e-9)
+    assert np.degrees(np.arcsin(pose.view_dir[2])) == pytest.approx(TILT_DEG)
+    _check_pose_sees_the_box(pose, JAW)
+
+
+def test_an_incisor_is_seen_from_the_front_and_the_arch_centre_decides_the_side() -> None:
+    entry = np.array([0.0, -55.0, 0.0])
+    target = np.array([0.0, -50.0, -12.0])  # tilted lingually
+    pose = initial_camera(JAW, entry, target)
+    assert pose.position_lps[1] < target[1]  # anterior of the target
+    axis = (target - entry) / np.linalg.norm(target - entry)
+    # the drill crosses the screen: it leaves the screen plane by no more than the tilt
+    assert abs(pose.view_dir @ axis) <= np.sin(np.deg2rad(TILT_DEG)) + 1e-9
+    _check_pose_sees_the_box(pose, JAW)
+    # an arch centre behind the entry keeps the anterior side; one in front flips it
+    front = initial_camera(JAW, entry, target, centre_lps=np.array([0.0, -80.0, 0.0]))
+    assert front.position_lps[1] > target[1]
+
+
+def test_without_a_trajectory_the_anatomy_is_seen_from_the_front() -> None:
+    pose = initial_camera(JAW)
+    np.testing.assert_allclose(pose.focal_lps, [0.0, -25.0, -20.0])
+    assert pose.position_lps[1] < -60.0
+    _check_pose_sees_the_box(pose, JAW)
+
+
+def test_the_fitted_distance_is_tight() -> None:
+    focal = np.array([10.0, -20.0, -5.0])
+    view = np.array([0.0, -1.0, 0.0])
+    d = fit_distance_mm(focal, view, JAW)
+    rel = _corners(JAW) - (focal + d * view)
+    cos = (rel @ -view) / np.linalg.norm(rel, axis=1)
+    # at the fitted distance the widest corner sits exactly on the edge of the view cone
+    assert np.min(cos) == pytest.approx(np.cos(np.deg2rad(VIEW_ANGLE_DEG / 2.0)), abs=1e-9)
+
+
+def test_scene_bounds_hold_the_surface_and_every_point() -> None:
+    b = scene_bounds((0.0, 1.0, 0.0, 1.0, 0.0, 1.0), [np.array([5.0, -2.0, 0.5])])
+    assert b == (0.0, 5.0, -2.0, 1.0, 0.0, 1.0)
+    assert scene_bounds(None, []) is None
+
+
+def test_the_orientation_cube_is_lettered_in_white() -> None:
+    cube = orientation_cube()
+    assert {cube.GetXPlusFaceText(), cube.GetXMinusFaceText()} == {"L", "R"}
+    assert (cube.GetYPlusFaceText(), cube.GetYMinusFaceText()) == ("P", "A")
+    assert (cube.GetZPlusFaceText(), cube.GetZMinusFaceText()) == ("S", "I")
+    assert cube.GetXPlusFaceText() == "L"  # LPS: +x is the patient's left
+    for face in ORIENTATION_LETTERS:
+        colour = getattr(cube, f"Get{face}FaceProperty")().GetColor()
+        assert colour == pytest.approx(LETTER_COLOUR)
