@@ -97,16 +97,19 @@ def block_grid(
         return padded
     nk, nj, ni = sub.shape
     shape_b = (-(-nk // fk), -(-nj // fj), -(-ni // fi))
-    full = np.full((shape_b[0] * fk, shape_b[1] * fj, shape_b[2] * fi), outside_hu, np.float32)
-    full[:nk, :nj, :ni] = sub
-    if vsub is not None:
-        full[:nk, :nj, :ni][~vsub] = outside_hu
-    means = full.reshape(shape_b[0], fk, shape_b[1], fj, shape_b[2], fi).mean(
-        axis=(1, 3, 5), dtype=np.float32
-    )
-    del full
     padded = np.full(tuple(n + 2 for n in shape_b), outside_hu, dtype=np.float32)
-    padded[1:-1, 1:-1, 1:-1] = means
+    # One slab of fk slices at a time: no float copy of the whole volume.
+    slab = np.full((fk, shape_b[1] * fj, shape_b[2] * fi), outside_hu, dtype=np.float32)
+    for kb in range(shape_b[0]):
+        k0, k1 = kb * fk, min(nk, kb * fk + fk)
+        slab.fill(outside_hu)
+        part = slab[: k1 - k0, :nj, :ni]
+        part[...] = sub[k0:k1]
+        if vsub is not None:
+            part[~vsub[k0:k1]] = outside_hu
+        padded[kb + 1, 1:-1, 1:-1] = slab.reshape(fk, shape_b[1], fj, shape_b[2], fi).mean(
+            axis=(0, 2, 4), dtype=np.float32
+        )
     return padded
 
 
@@ -130,28 +133,44 @@ def display_block(
     outside_hu: float = AIR_HU,
     merge_slices: bool = True,
     max_triangles: int = DISPLAY_TRIANGLES,
-    max_tries: int = 8,
+    max_tries: int = 6,
 ) -> tuple[int, int, int]:
     """The finest block (:func:`block_for`) whose surface has at most ``max_triangles``
-    triangles: every voxel when that fits, else blocks grown from the in-plane pixel size
-    by the square root of the excess (surface triangles scale with the inverse block area),
-    counted again each time. Slices are merged only where they are thinner than the block
-    and ``merge_slices`` (a regular stack); the result after ``max_tries`` counts at worst."""
-    size = float(min(spacing_mm[0], spacing_mm[1]))
-    block = (1, 1, 1)
+    triangles, found by counting: a first count at blocks of 4 pixels predicts the size for
+    the budget (triangles scale with the inverse block area, or length where slices stay
+    whole), then each candidate is counted, finer while it fits, coarser while it does not.
+    Every voxel when that fits. Slices are merged only with ``merge_slices`` (a regular stack)
+    and only where thinner than the block; after ``max_tries`` counts the coarsest fitting
+    block found (or the last counted) is returned."""
+    pixel = float(min(spacing_mm[0], spacing_mm[1]))
+    counts: dict[tuple[int, int, int], int] = {}
+
+    def count(block: tuple[int, int, int]) -> int:
+        if block not in counts:
+            grid = block_grid(hu, block=block, valid=valid, outside_hu=outside_hu)
+            counts[block] = contour_grid(grid, iso_hu, normals=False).n_cells
+        return counts[block]
+
+    # Bracket the in-plane factor f (blocks of f pixels): f_fit fits, f_over does not.
+    f_over, f_fit = 0, 0
+    f = 4
     for _ in range(max_tries):
-        grid = block_grid(hu, block=block, valid=valid, outside_hu=outside_hu)
-        n_tri = contour_grid(grid, iso_hu, normals=False).n_cells
-        del grid
+        block = block_for(spacing_mm, f * pixel, merge_slices=merge_slices)
+        n_tri = count(block)
         if n_tri <= max_triangles:
-            return block
-        size *= max(1.25, 1.05 * float(np.sqrt(n_tri / max_triangles)))
-        nxt = block_for(spacing_mm, size, merge_slices=merge_slices)
-        while nxt == block:  # the size grew less than a voxel: grow it to the next voxel
-            size *= 1.25
-            nxt = block_for(spacing_mm, size, merge_slices=merge_slices)
-        block = nxt
-    return block
+            f_fit = f
+        else:
+            f_over = f
+        if f_fit == 1 or (f_fit and f_fit - f_over <= 1):
+            break
+        power = 2.0 if block[2] > 1 else 1.5
+        guess = round(f * (max(n_tri, 1) / max_triangles) ** (1.0 / power))
+        hi = f_fit - 1 if f_fit else 10**6
+        f = min(max(guess, f_over + 1), hi)
+        if f == f_fit:
+            break
+    best = block_for(spacing_mm, (f_fit or f) * pixel, merge_slices=merge_slices)
+    return best
 
 
 def bone_surface(
