@@ -8,6 +8,8 @@ The inputs (``--plan`` repeated, or a folder) are read in order (a folder's ``*.
 - a trajectory, or a landmark of one kind (canal, point, mask), named the same in two files
   must be the same there (it is then kept once); if the two disagree the merge is refused
   naming both files (a Curve and a segment may share a name: both are kept);
+- the dental arch (``arch_mm``, an arch Curve) is shared by every trajectory too; two files
+  giving different arches are refused naming both;
 - at least one trajectory is required.
 """
 
@@ -82,7 +84,16 @@ def merge_parts(parts: Sequence[PlanParts]) -> tuple[Plan, ...]:
     """Merge the parts of several files into plans (see module doc)."""
     trajectories: dict[str, tuple[Plan, Path]] = {}
     landmarks: dict[tuple[str, str], tuple[Landmark, Path]] = {}
+    arch: tuple[np.ndarray, Path] | None = None
     for part in parts:
+        if part.arch is not None:
+            if arch is None:
+                arch = (part.arch, part.source)
+            elif not np.array_equal(arch[0], part.arch):
+                raise PlanInputError(
+                    f"{part.source.name}: its dental arch disagrees with the one in "
+                    f"{arch[1].name}; a plan has one arch: remove one of them"
+                )
         for plan in part.trajectories:
             seen = trajectories.get(plan.name)
             if seen is None:
@@ -112,7 +123,13 @@ def merge_parts(parts: Sequence[PlanParts]) -> tuple[Plan, ...]:
     warnings = _unique(w for p in parts for w in p.warnings)
     all_landmarks = tuple(lm for lm, _ in landmarks.values())
     return tuple(
-        replace(plan, landmarks=all_landmarks, notes=notes, warnings=warnings)
+        replace(
+            plan,
+            landmarks=all_landmarks,
+            notes=notes,
+            warnings=warnings,
+            arch_lps=None if arch is None else arch[0],
+        )
         for plan, _ in trajectories.values()
     )
 
@@ -125,8 +142,8 @@ def _same_trajectory(a: Plan, b: Plan) -> bool:
     return (
         np.array_equal(a.entry_lps, b.entry_lps)
         and np.array_equal(a.target_lps, b.target_lps)
-        and (a.drills, a.feed_mm_s, a.calibration, a.margin_mm)
-        == (b.drills, b.feed_mm_s, b.calibration, b.margin_mm)
+        and (a.drills, a.feed_mm_s, a.calibration, a.margin_mm, a.implant)
+        == (b.drills, b.feed_mm_s, b.calibration, b.margin_mm, b.implant)
     )
 
 

@@ -14,22 +14,15 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill.imaging.plan.arch import arch_error
+from ctdrill.imaging.plan.implants import ImplantInputError, ImplantSpec, implant_from_json
 from ctdrill.imaging.plan.landmarks import (
-    DEFAULT_CANAL_RADIUS_MM,
-    CanalLandmark,
     Landmark,
-    PointLandmark,
 )
 from ctdrill.imaging.plan.types import (
-    _LANDMARK_KEYS,
     _MAX_COORD_MM,
     _MAXIMA,
-    _TOP_KEYS,
-    DEFAULT_CALIBRATION,
-    DEFAULT_FEED_MM_S,
-    DEFAULT_MARGIN_MM,
     PLAN_FORMAT,
-    SERIES_HASH_KEY,
     DrillSpec,
     Plan,
     PlanInputError,
@@ -51,6 +44,7 @@ class PlanParts:
     landmarks : its landmarks (possibly none).
     notes : defaults the reader filled in (``plan_default`` warnings).
     warnings : ``(code, message)`` pairs for the summary (e.g. ``markups_skipped``).
+    arch : (K, 3) LPS mm dental arch of the file (``arch_mm``, an arch Curve), or None.
     """
 
     source: Path
@@ -58,6 +52,7 @@ class PlanParts:
     landmarks: tuple[Landmark, ...] = ()
     notes: tuple[str, ...] = ()
     warnings: tuple[tuple[str, str], ...] = field(default_factory=tuple)
+    arch: np.ndarray | None = None
 
 
 def _is_number(value: object) -> bool:
@@ -78,11 +73,35 @@ class _Ctx:
         self.notes: list[str] = []
         self.warnings: list[tuple[str, str]] = []
 
-    def parts(self, trajectories: tuple[Plan, ...], landmarks: tuple[Landmark, ...]) -> PlanParts:
+    def parts(
+        self,
+        trajectories: tuple[Plan, ...],
+        landmarks: tuple[Landmark, ...],
+        arch: np.ndarray | None = None,
+    ) -> PlanParts:
         """The file's parts with the notes and warnings gathered while reading it."""
         return PlanParts(
-            self.path, trajectories, landmarks, tuple(self.notes), tuple(self.warnings)
+            self.path, trajectories, landmarks, tuple(self.notes), tuple(self.warnings), arch
         )
+
+    def arch(self, val: object, fp: str, system: str) -> np.ndarray:
+        """An arch polyline (``arch_mm``) in LPS, refused naming ``fp`` (``arch_mm[3] ...``)."""
+        if not isinstance(val, list) or not all(isinstance(p, list | tuple) for p in val):
+            raise self.fail(fp, "must be a list of [x, y, z] points in mm", _short(val))
+        for i, p in enumerate(val):
+            if len(p) != 3 or not all(_is_number(v) for v in p):
+                raise self.fail(f"{fp}[{i}]", "must be 3 finite numbers [x, y, z] in mm", p)
+        problem = arch_error(val, _MAX_COORD_MM)
+        if problem is not None:
+            raise PlanInputError(f"{self.path.name}: {fp}{problem}")
+        return _to_lps(np.asarray(val, dtype=np.float64).reshape(-1, 3), system)
+
+    def implant(self, val: object, fp: str) -> ImplantSpec:
+        """An implant object (every key given), refused naming ``fp``."""
+        try:
+            return implant_from_json(val, where=fp, source=self.path.name)
+        except ImplantInputError as exc:
+            raise PlanInputError(str(exc)) from exc
 
     def fail(self, field_path: str, what: str, got: object = ...) -> PlanInputError:
         tail = "" if got is ... else f", got {got!r}"
@@ -148,6 +167,13 @@ class _Ctx:
             raise self.fail(fp, f"is not a known field (known: {', '.join(sorted(allowed))})")
 
 
+def _short(val: object) -> object:
+    """``val`` for a message: a long list is cut to its length."""
+    if isinstance(val, list) and len(val) > 4:
+        return f"a list of {len(val)} items"
+    return val
+
+
 def _read_json(path: Path) -> Any:
     return load_json(path, what="plan file", error=PlanInputError)
 
@@ -167,115 +193,6 @@ def _coordinate_system(ctx: _Ctx, obj: dict[str, Any], key: str, where: str) -> 
     if not isinstance(system, str) or system.upper() not in ("LPS", "RAS"):
         raise ctx.fail(fp, 'must be "LPS" or "RAS"', system)
     return system.upper()
-
-
-def _check_margin(ctx: _Ctx, obj: dict[str, Any], where: str) -> float | None:
-    if "margin_mm" not in obj:
-        return None
-    return ctx.number(obj, "margin_mm", where, nonneg=True)
-
-
-def _parse_landmark(ctx: _Ctx, raw: object, index: int, system: str, base_dir: Path) -> Landmark:
-    where = f"landmarks[{index}]"
-    if not isinstance(raw, dict):
-        raise ctx.fail(where, "must be an object", raw)
-    kind = raw.get("kind")
-    if not isinstance(kind, str) or kind not in _LANDMARK_KEYS:
-        raise ctx.fail(f"{where}.kind", 'must be "canal", "point" or "mask"', kind)
-    ctx.keys(raw, _LANDMARK_KEYS[kind], where)
-    name = ctx.string(raw, "name", where, default=f"{kind} {index + 1}")
-    margin = _check_margin(ctx, raw, where)
-    if kind == "canal":
-        pts_raw = raw.get("points_mm")
-        if not isinstance(pts_raw, list) or len(pts_raw) == 0:
-            raise ctx.fail(
-                f"{where}.points_mm", "must be a non-empty list of [x, y, z] points", pts_raw
-            )
-        pts = np.stack([ctx.point(p, f"{where}.points_mm[{i}]") for i, p in enumerate(pts_raw)])
-        radius = ctx.number(raw, "radius_mm", where, default=DEFAULT_CANAL_RADIUS_MM, nonneg=True)
-        if "radius_mm" not in raw:
-            ctx.notes.append(
-                f"{ctx.path.name}: {where} ({name}) has no radius_mm; using the default "
-                f"{DEFAULT_CANAL_RADIUS_MM} mm"
-            )
-        return CanalLandmark(name, _to_lps(pts, system), radius_mm=radius, margin_mm=margin)
-    if kind == "point":
-        if "point_mm" in raw:
-            pt = ctx.point(raw["point_mm"], f"{where}.point_mm")
-        else:
-            pts_raw = raw.get("points_mm")
-            if not isinstance(pts_raw, list) or len(pts_raw) != 1:
-                raise ctx.fail(f"{where}.point_mm", "is missing; give [x, y, z] in mm")
-            pt = ctx.point(pts_raw[0], f"{where}.points_mm[0]")
-        return PointLandmark(name, _to_lps(pt, system), margin_mm=margin)
-    rel = ctx.string(raw, "path", where, default=None)
-    label = raw.get("label")
-    if label is not None and (
-        not isinstance(label, int) or isinstance(label, bool) or not -(2**63) <= label < 2**63
-    ):
-        raise ctx.fail(f"{where}.label", "must be an integer label value", label)
-    segment = raw.get("segment")
-    if segment is not None and (not isinstance(segment, str) or not segment.strip()):
-        raise ctx.fail(f"{where}.segment", "must be a segment's name", segment)
-    affine = None
-    if "affine_lps" in raw:
-        aff = np.asarray(raw["affine_lps"], dtype=object)
-        try:
-            affine = np.asarray(aff, dtype=np.float64)
-        except (TypeError, ValueError, OverflowError):
-            affine = None
-        if affine is None or affine.shape != (4, 4) or not np.all(np.isfinite(affine)):
-            raise ctx.fail(f"{where}.affine_lps", "must be a 4x4 matrix of finite numbers")
-    mask_path = Path(rel) if Path(rel).is_absolute() else base_dir / rel
-    from ctdrill.imaging.plan.segmentation import mask_landmark
-
-    return mask_landmark(
-        mask_path,
-        name=name,
-        label=label,
-        segment=segment,
-        affine_lps=affine,
-        margin_mm=margin,
-        source=str(mask_path),
-    )
-
-
-def _parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
-    fmt = doc.get("format")
-    if fmt != PLAN_FORMAT:
-        raise ctx.fail("format", f'must be "{PLAN_FORMAT}"', fmt)
-    ctx.keys(doc, _TOP_KEYS, "")
-    system = _coordinate_system(ctx, doc, "coordinate_system", "")
-    for key in ("entry_mm", "target_mm"):
-        if key not in doc:
-            raise ctx.fail(key, "is missing; add [x, y, z] in mm")
-    entry = _to_lps(ctx.point(doc["entry_mm"], "entry_mm"), system)
-    target = _to_lps(ctx.point(doc["target_mm"], "target_mm"), system)
-    from ctdrill.imaging.plan.drills import drills_field  # it reads with this module's _Ctx
-
-    drills = drills_field(ctx, doc, "")
-    feed = ctx.number(doc, "feed_mm_s", "", default=DEFAULT_FEED_MM_S, positive=True)
-    calibration = ctx.string(doc, "calibration", "", default=DEFAULT_CALIBRATION)
-    margin = ctx.number(doc, "margin_mm", "", default=DEFAULT_MARGIN_MM, nonneg=True)
-    lms_raw = doc.get("landmarks", [])
-    if not isinstance(lms_raw, list):
-        raise ctx.fail("landmarks", "must be a list", lms_raw)
-    base = ctx.path.parent
-    landmarks = tuple(_parse_landmark(ctx, r, i, system, base) for i, r in enumerate(lms_raw))
-    name = doc.get("name") if isinstance(doc.get("name"), str) else None
-    plan = _make_plan(
-        ctx,
-        series_hash=series_hash(ctx, doc.get(SERIES_HASH_KEY), SERIES_HASH_KEY),
-        entry=entry,
-        target=target,
-        drills=drills,
-        feed=feed,
-        calibration=calibration,
-        margin=margin,
-        name=name or _stem(ctx.path),
-        field_path="target_mm",
-    )
-    return ctx.parts((plan,), landmarks)
 
 
 def series_hash(ctx: _Ctx, value: object, field_path: str) -> str | None:
@@ -304,8 +221,9 @@ def _make_plan(
     margin: float,
     name: str,
     field_path: str,
+    implant: ImplantSpec | None = None,
 ) -> Plan:
-    """One trajectory of the file (its landmarks are joined by :func:`merge_parts`)."""
+    """One trajectory of the file (its landmarks and arch are joined by :func:`merge_parts`)."""
     if not np.linalg.norm(target - entry) > 1e-6:
         raise ctx.fail(field_path, "must differ from the entry point (the planned depth is 0)")
     return Plan(
@@ -319,6 +237,7 @@ def _make_plan(
         name=name,
         source=str(ctx.path),
         series_uid_sha256=series_hash,
+        implant=implant,
     )
 
 
@@ -333,7 +252,8 @@ def _stem(path: Path) -> str:
 def read_parts(path: str | os.PathLike[str]) -> PlanParts:
     """Read one plan file's trajectories and landmarks, converted to LPS and validated.
 
-    A ``ctdrill-plan/1`` file holds one trajectory and its landmarks; a Slicer ``.mrk.json``
+    A ``ctdrill-plan/1`` file holds one trajectory (or several in ``trajectories``), its
+    landmarks and arch; a Slicer ``.mrk.json``
     holds any number of Line markups (trajectories) and Curve/Fiducial markups (landmarks),
     possibly none of either (3D Slicer saves one markup per file).
 
@@ -357,7 +277,9 @@ def read_parts(path: str | os.PathLike[str]) -> PlanParts:
             f'is missing; a plan starts with "format": "{PLAN_FORMAT}" '
             "(or is a 3D Slicer .mrk.json with markups)",
         )
-    return _parse_ctdrill(ctx, doc)
+    from ctdrill.imaging.plan.plan_file import parse_ctdrill
+
+    return parse_ctdrill(ctx, doc)
 
 
 def read_plans(path: str | os.PathLike[str]) -> tuple[Plan, ...]:

@@ -20,7 +20,9 @@ from typing import Any
 #: ``key=value``: key a word, value a JSON string ("...", escapes allowed) or a bare word.
 _SETTING = re.compile(r'(?<![\w"=])([A-Za-z_][A-Za-z0-9_]*)=("(?:[^"\\]|\\.)*"|[^\s,;]*)')
 #: Settings whose value is text, never a number.
-TEXT_KEYS = frozenset({"name", "calibration", "series", "series_uid_sha256", "drills"})
+TEXT_KEYS = frozenset(
+    {"name", "calibration", "series", "series_uid_sha256", "drills", "implant", "implant_apex"}
+)
 
 
 class SettingsSyntaxError(ValueError):

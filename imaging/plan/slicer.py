@@ -4,7 +4,11 @@
 What is read, as 3D Slicer 5 writes it (``vtkMRMLMarkupsJsonStorageNode``):
 
 - ``Line`` markups are trajectories (control point 1 the entry, 2 the target); ``Curve``
-  markups canals (centreline: Slicer's spline, :mod:`ctdrill.imaging.plan.curve`);
+  markups canals (centreline: Slicer's spline, :mod:`ctdrill.imaging.plan.curve`), except
+  the one whose name or first control point's description says ``arch`` (the word, any
+  case): that Curve is the dental arch (:mod:`ctdrill.imaging.plan.arch`), the polyline
+  Slicer draws (its spline; ``curve=polyline`` keeps the straight segments), at most one a
+  file;
   ``Fiducial`` (point list) markups point landmarks, one per control point. Any other type
   (``ROI``, ``Plane``, ``Angle``, ``ClosedCurve``, ...) is skipped with a ``markups_skipped``
   warning naming it.
@@ -16,6 +20,8 @@ What is read, as 3D Slicer 5 writes it (``vtkMRMLMarkupsJsonStorageNode``):
   (:mod:`ctdrill.imaging.plan.settings`), which Slicer keeps; the markup's own ``description``
   and ``attributes`` (which Slicer drops) are read too for older files, the control point
   winning. A Fiducial's points each carry their own settings.
+- A Line's implant: ``implant="NAME" implant_diameter_mm=4.1 implant_length_mm=10.0
+  implant_apex_diameter_mm=2.9 implant_apex=round`` (all five, or none).
 - Names: a ``name=`` setting, else the markup's ``name``, else (Slicer writes no name; it
   names the node after the file) the file's stem when the file holds one markup.
 """
@@ -27,13 +33,23 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill.imaging.plan.arch import is_arch_label
 from ctdrill.imaging.plan.curve import slicer_curve
 from ctdrill.imaging.plan.drills import drill_from, drills_field, no_drill_note
+from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.landmarks import (
     DEFAULT_CANAL_RADIUS_MM,
     CanalLandmark,
     Landmark,
     PointLandmark,
+)
+from ctdrill.imaging.plan.markup_fields import (
+    _name,
+    _number,
+    _placed_points,
+    _Settings,
+    _settings,
+    _units_mm,
 )
 from ctdrill.imaging.plan.read import (
     PlanParts,
@@ -41,10 +57,8 @@ from ctdrill.imaging.plan.read import (
     _Ctx,
     _make_plan,
     _stem,
-    _to_lps,
     series_hash,
 )
-from ctdrill.imaging.plan.settings import SettingsSyntaxError, parse_settings
 from ctdrill.imaging.plan.types import (
     _DRILL_KEYS,
     DEFAULT_CALIBRATION,
@@ -58,124 +72,34 @@ from ctdrill.imaging.plan.types import (
 #: Markup types read; every other type is skipped with a warning.
 READ_TYPES = ("Line", "Curve", "Fiducial")
 #: Settings each markup type accepts in its descriptions.
+#: A Line's implant settings and the implant object's key each gives.
+IMPLANT_SETTINGS = {
+    "implant": "name",
+    "implant_diameter_mm": "diameter_mm",
+    "implant_length_mm": "length_mm",
+    "implant_apex_diameter_mm": "apex_diameter_mm",
+    "implant_apex": "apex",
+}
 LINE_KEYS = frozenset(
-    {"name", *_DRILL_KEYS, "drills", "feed_mm_s", "calibration", "margin_mm", SERIES_HASH_KEY}
+    {
+        "name",
+        *_DRILL_KEYS,
+        "drills",
+        "feed_mm_s",
+        "calibration",
+        "margin_mm",
+        SERIES_HASH_KEY,
+        *IMPLANT_SETTINGS,
+    }
 )
 CURVE_KEYS = frozenset({"name", "radius_mm", "margin_mm", "curve"})
+ARCH_KEYS = frozenset({"name", "curve"})
 POINT_KEYS = frozenset({"name", "margin_mm"})
 #: ``curve=`` values: Slicer's spline (default) or the straight segments between the points.
 CURVE_SPLINE, CURVE_POLYLINE = "spline", "polyline"
-#: ``positionStatus`` values of a placed point (absent means placed, as in Slicer).
-_PLACED = "defined"
-_UNPLACED = ("preview", "undefined", "missing")
 #: Most control points a Curve may hold: its centreline has 10 samples per segment, and
 #: 20 000 points (200 000 samples) is far beyond a hand-placed canal (tens of points).
 MAX_CURVE_POINTS = 20_000
-#: Length units accepted in ``coordinateUnits`` and their size in mm.
-_UNITS_MM = {"mm": 1.0, "um": 1e-3}
-
-
-def _units_mm(ctx: _Ctx, markup: dict[str, Any], where: str) -> float:
-    """Millimetres per coordinate unit: ``"mm"``/``"um"``, or coded ``[code, "UCUM", meaning]``."""
-    units = markup.get("coordinateUnits", "mm")
-    code = units
-    if isinstance(units, list):
-        if (
-            len(units) != 3
-            or not all(isinstance(u, str) for u in units)
-            or units[1].upper() != "UCUM"
-        ):
-            raise ctx.fail(
-                f"{where}.coordinateUnits",
-                'must be "mm" or a UCUM code such as ["mm", "UCUM", "millimeter"]',
-                units,
-            )
-        code = units[0]
-    if not isinstance(code, str) or code not in _UNITS_MM:
-        raise ctx.fail(f"{where}.coordinateUnits", 'must be "mm" or "um"', units)
-    return _UNITS_MM[code]
-
-
-def _placed_points(
-    ctx: _Ctx, markup: dict[str, Any], where: str, system: str, scale: float
-) -> tuple[np.ndarray, list[tuple[int, dict[str, Any]]]]:
-    """LPS mm positions of the placed control points, and those (index, control point)."""
-    cps = markup.get("controlPoints", [])
-    if not isinstance(cps, list):
-        raise ctx.fail(f"{where}.controlPoints", "must be a list", cps)
-    pts, kept = [], []
-    for i, cp in enumerate(cps):
-        fp = f"{where}.controlPoints[{i}]"
-        if not isinstance(cp, dict):
-            raise ctx.fail(fp, "must be an object", cp)
-        status = cp.get("positionStatus", _PLACED)
-        if status in _UNPLACED:
-            continue
-        if status != _PLACED:
-            raise ctx.fail(f"{fp}.positionStatus", 'must be "defined", "preview" or "undefined"')
-        if "position" not in cp:
-            raise ctx.fail(f"{fp}.position", "is missing")
-        pts.append(ctx.point(cp["position"], f"{fp}.position") * scale)
-        kept.append((i, cp))
-    arr = _to_lps(np.asarray(pts, dtype=np.float64).reshape(-1, 3), system)
-    return arr, kept
-
-
-class _Settings(dict[str, Any]):
-    """Settings, and for each the field path of the description it came from."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.origin: dict[str, str] = {}
-
-
-def _settings(
-    ctx: _Ctx,
-    markup: dict[str, Any],
-    cp: tuple[int, dict[str, Any]] | None,
-    where: str,
-    allowed: frozenset[str],
-) -> _Settings:
-    """Settings of the markup's description and attributes, then of control point ``cp``
-    (its index in ``controlPoints`` and itself), the control point winning."""
-    out = _Settings()
-    sources: list[tuple[object, str]] = [(markup.get("description"), f"{where}.description")]
-    attrs = markup.get("attributes")
-    if cp is not None:
-        sources.append((cp[1].get("description"), f"{where}.controlPoints[{cp[0]}].description"))
-    for text, fp in sources:
-        if text is None:
-            continue
-        if not isinstance(text, str):
-            raise ctx.fail(fp, "must be a string", text)
-        try:
-            found = parse_settings(text)
-        except SettingsSyntaxError as exc:
-            raise ctx.fail(fp, f"holds a malformed setting: {exc}") from exc
-        out.update(found)
-        out.origin.update(dict.fromkeys(found, fp))
-    if isinstance(attrs, dict):
-        for key, value in attrs.items():
-            if key not in out:
-                out[key] = value
-                out.origin[key] = f"{where}.attributes"
-    unknown = sorted(set(out) - allowed)
-    if unknown:
-        raise ctx.fail(
-            f"{out.origin[unknown[0]]}: setting {unknown[0]}",
-            f"is not a setting of this markup (known: {', '.join(sorted(allowed))})",
-        )
-    return out
-
-
-def _name(ctx: _Ctx, settings: dict[str, Any], markup: dict[str, Any], only: bool) -> str | None:
-    name = settings.get("name")
-    if isinstance(name, str) and name.strip():
-        return name
-    label = markup.get("name")
-    if isinstance(label, str) and label.strip():
-        return label
-    return _stem(ctx.path) if only else None
 
 
 def parse_slicer(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
@@ -188,6 +112,7 @@ def parse_slicer(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
     lines: list[Plan] = []
     landmarks: list[Landmark] = []
     skipped: list[str] = []
+    arch: tuple[np.ndarray, str] | None = None
     for m_index, mk in enumerate(markups):
         where = f"markups[{m_index}]"
         if not isinstance(mk, dict):
@@ -200,6 +125,13 @@ def parse_slicer(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
         pts, cps = _placed_points(ctx, mk, where, system, _units_mm(ctx, mk, where))
         if mtype == "Line":
             lines.append(_line(ctx, mk, where, pts, cps, one_line, len(lines)))
+        elif mtype == "Curve" and _is_arch(mk, cps):
+            if arch is not None:
+                raise ctx.fail(
+                    where,
+                    f"is a second arch Curve (the first is {arch[1]}); a plan has one arch",
+                )
+            arch = (_arch(ctx, mk, where, pts, cps), where)
         elif mtype == "Curve":
             canal = _curve(ctx, mk, where, pts, cps, only, m_index)
             if canal is not None:
@@ -214,7 +146,47 @@ def parse_slicer(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
                 "(only Line, Curve and Fiducial markups are read)",
             )
         )
-    return ctx.parts(tuple(lines), tuple(landmarks))
+    return ctx.parts(tuple(lines), tuple(landmarks), None if arch is None else arch[0])
+
+
+def _is_arch(mk: dict[str, Any], cps: list[tuple[int, dict[str, Any]]]) -> bool:
+    """A Curve named ``arch``, or whose first placed point's description says it."""
+    first = cps[0][1].get("description") if cps else None
+    return is_arch_label(mk.get("name"), first)
+
+
+def _arch(
+    ctx: _Ctx,
+    mk: dict[str, Any],
+    where: str,
+    pts: np.ndarray,
+    cps: list[tuple[int, dict[str, Any]]],
+) -> np.ndarray:
+    """The arch polyline of an arch Curve: Slicer's spline, or the points (``curve=polyline``)."""
+    settings = _settings(ctx, mk, cps[0] if cps else None, where, ARCH_KEYS)
+    if len(pts) > MAX_CURVE_POINTS:
+        raise ctx.fail(
+            f"{where}.controlPoints",
+            f"of the arch Curve hold {len(pts)} placed points, more than the "
+            f"{MAX_CURVE_POINTS} accepted; resample the curve in Slicer",
+        )
+    kind = settings.get("curve", CURVE_SPLINE)
+    if kind not in (CURVE_SPLINE, CURVE_POLYLINE):
+        raise ctx.fail(
+            f"{settings.origin['curve']}.curve",
+            f'must be "{CURVE_SPLINE}" or "{CURVE_POLYLINE}"',
+            kind,
+        )
+    if len(pts) < 2:
+        raise ctx.fail(
+            f"{where}.controlPoints",
+            "of the arch Curve must hold at least 2 placed points",
+            len(pts),
+        )
+    # Repeated control points are refused by their index (the spline would hide them).
+    ctx.arch(pts.tolist(), f"{where}.controlPoints", "LPS")
+    line = slicer_curve(pts) if kind == CURVE_SPLINE else pts
+    return ctx.arch(line.tolist(), f"{where} (arch)", "LPS")
 
 
 def _line(
@@ -242,6 +214,7 @@ def _line(
         raise ctx.fail(f"{fp}.calibration", "must be a set name or a path", cal)
     name = _name(ctx, settings, mk, only) or f"{_stem(ctx.path)}-{index + 1}"
     hashed = settings.get(SERIES_HASH_KEY)
+    implant = _line_implant(ctx, settings, where)
     return _make_plan(
         ctx,
         series_hash=series_hash(
@@ -255,7 +228,24 @@ def _line(
         margin=DEFAULT_MARGIN_MM if margin is None else margin,
         name=name,
         field_path=f"{where}.controlPoints[1].position",
+        implant=implant,
     )
+
+
+def _line_implant(ctx: _Ctx, settings: _Settings, where: str) -> ImplantSpec | None:
+    """The Line's implant from its five ``implant*`` settings (all or none)."""
+    given = [k for k in IMPLANT_SETTINGS if k in settings]
+    if not given:
+        return None
+    fp = settings.origin[given[0]]
+    missing = [k for k in IMPLANT_SETTINGS if k not in settings]
+    if missing:
+        raise ctx.fail(
+            f"{fp}: setting {missing[0]}",
+            "is missing; an implant needs all of " + ", ".join(IMPLANT_SETTINGS),
+        )
+    raw = {IMPLANT_SETTINGS[k]: settings[k] for k in IMPLANT_SETTINGS}
+    return ctx.implant(raw, f"{fp}: implant")
 
 
 def _line_drills(ctx: _Ctx, settings: _Settings, where: str) -> tuple[DrillSpec, ...]:
@@ -350,10 +340,3 @@ def _fiducials(
         margin = _number(ctx, settings, "margin_mm")
         out.append(PointLandmark(name, pt, margin_mm=margin))
     return out
-
-
-def _number(ctx: _Ctx, settings: _Settings, key: str, *, positive: bool = False) -> float | None:
-    if key not in settings:
-        return None
-    where = settings.origin[key]
-    return ctx.number(settings, key, where, positive=positive, nonneg=not positive)

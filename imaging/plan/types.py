@@ -21,10 +21,8 @@ several files (or a folder) merge into plans (:func:`load_plan_set`,
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import re
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -33,6 +31,8 @@ from typing import Any
 import numpy as np
 
 from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.plan.arch import arch_error
+from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.landmarks import (
     Landmark,
 )
@@ -68,7 +68,26 @@ _TOP_KEYS = {
     "name",
     "description",
     "comment",
+    "implant",
+    "arch_mm",
+    "trajectories",
 }
+#: Keys of one item of ``trajectories`` (several trajectories in one file).
+_TRAJECTORY_KEYS = {
+    "name",
+    "entry_mm",
+    "target_mm",
+    "drill",
+    "drills",
+    "implant",
+    "feed_mm_s",
+    "calibration",
+    "margin_mm",
+    "description",
+    "comment",
+}
+#: Top-level keys a file with ``trajectories`` must not give (they belong to a trajectory).
+_PER_TRAJECTORY_KEYS = _TRAJECTORY_KEYS - {"name", "description", "comment"}
 _DRILL_KEYS = {"diameter_mm", "tip_length_mm", "blades", "rpm"}
 _LANDMARK_KEYS = {
     "canal": {"name", "kind", "points_mm", "radius_mm", "margin_mm", "description"},
@@ -169,6 +188,11 @@ class Plan:
         :func:`plan_warnings` gives all of them.
     series_uid_sha256 : :func:`series_uid_hash` of the series the plan was made on, or None
         (a plan written by hand or by an older ctdrill).
+    implant : the implant placed on this trajectory (apex at the target,
+        :func:`ctdrill.imaging.plan.implants.implant_placement`), or None.
+    arch_lps : (K, 3) read-only float64, the dental arch polyline (K >= 2, consecutive points
+        distinct; :mod:`ctdrill.imaging.plan.arch`), shared by every trajectory of a plan
+        like the landmarks; None when the plan gives none.
     """
 
     entry_lps: np.ndarray
@@ -184,12 +208,23 @@ class Plan:
     warnings: tuple[tuple[str, str], ...] = ()
     series_uid_sha256: str | None = None
     earlier_drills: tuple[DrillSpec, ...] = ()
+    implant: ImplantSpec | None = None
+    arch_lps: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         for attr in ("entry_lps", "target_lps"):
             arr = np.array(getattr(self, attr), dtype=np.float64).reshape(3)
             arr.flags.writeable = False
             object.__setattr__(self, attr, arr)
+        if self.arch_lps is not None:
+            problem = arch_error(self.arch_lps, _MAX_COORD_MM)
+            if problem is not None:
+                raise PlanInputError(f"plan {self.name!r}: arch{problem}")
+            arch = np.array(self.arch_lps, dtype=np.float64).reshape(-1, 3)
+            arch.flags.writeable = False
+            object.__setattr__(self, "arch_lps", arch)
+        if self.implant is not None and not isinstance(self.implant, ImplantSpec):
+            raise PlanInputError(f"plan {self.name!r}: implant must be an ImplantSpec or None")
         object.__setattr__(self, "landmarks", tuple(self.landmarks))
         object.__setattr__(self, "earlier_drills", tuple(self.earlier_drills))
         problem = sequence_error(self.drills)
@@ -261,8 +296,8 @@ def is_series_hash(value: object) -> bool:
 def load_plans(path: str | os.PathLike[str]) -> tuple[Plan, ...]:
     """Read every trajectory of a plan file, converted to LPS and validated.
 
-    A ``ctdrill-plan/1`` file holds one trajectory; a Slicer ``.mrk.json`` holds one per
-    Line markup (all sharing the file's landmarks).
+    A ``ctdrill-plan/1`` file holds one trajectory, or several in ``trajectories``; a Slicer
+    ``.mrk.json`` holds one per Line markup (all sharing the file's landmarks and arch).
 
     Raises
     ------
@@ -349,21 +384,26 @@ def save_plan(plan: Plan, path: str | os.PathLike[str], *, series_uid: str | Non
     ``series_uid`` (the SeriesInstanceUID the plan was made on) is recorded hashed
     (:func:`series_uid_hash`); without it the plan keeps the hash it has, if any.
     """
-    if series_uid is not None:
-        plan = replace(plan, series_uid_sha256=series_uid_hash(series_uid))
-    p = Path(path)
-    if p.name.lower().endswith(".mrk.json"):
-        doc = plan_to_markups(plan)
-    else:
-        from ctdrill.imaging.plan.write import plan_document
+    write_plans((plan,), path, series_uid=series_uid)
 
-        doc = plan_document(plan, out_dir=p.parent)
-    text = json.dumps(doc, indent=2) + "\n"
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+
+def write_plans(
+    plans: Sequence[Plan], path: str | os.PathLike[str], *, series_uid: str | None = None
+) -> None:
+    """Write every trajectory of ``plans`` into one file, atomically (written aside, then
+    renamed): Slicer markups (one Line each) if ``path`` ends in ``.mrk.json``, else
+    ``ctdrill-plan/1`` (one trajectory: the single form; several: ``trajectories``).
+
+    The plans must share their landmarks and arch (a file holds one set of each) and their
+    series hash; ``series_uid`` records one for all of them.
+
+    Raises
+    ------
+    PlanInputError
+        No plan, names not unique, landmarks/arch/series that differ between the plans.
+    """
+    from ctdrill.imaging.plan.write import write_plan_file
+
+    if series_uid is not None:
+        plans = [replace(p, series_uid_sha256=series_uid_hash(series_uid)) for p in plans]
+    write_plan_file(tuple(plans), Path(path))

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -15,7 +17,7 @@ from ctdrill.imaging.plan.landmarks import (
     PointLandmark,
 )
 from ctdrill.imaging.plan.settings import format_settings
-from ctdrill.imaging.plan.slicer import CURVE_POLYLINE
+from ctdrill.imaging.plan.slicer import CURVE_POLYLINE, IMPLANT_SETTINGS
 from ctdrill.imaging.plan.types import (
     _SLICER_SCHEMA,
     PLAN_FORMAT,
@@ -23,6 +25,9 @@ from ctdrill.imaging.plan.types import (
     Plan,
     PlanInputError,
 )
+
+#: The name the markups writer gives the arch Curve (the word ``arch`` marks it).
+ARCH_MARKUP_NAME = "dental arch"
 
 
 def drills_json(plan: Plan) -> dict[str, Any]:
@@ -33,29 +38,109 @@ def drills_json(plan: Plan) -> dict[str, Any]:
     return {"drills": [d.to_json() for d in plan.drills]}
 
 
+def _shared(plans: tuple[Plan, ...]) -> Plan:
+    """The first plan, after checking that every plan shares its landmarks, arch and series
+    (a file holds one set of each) and that names are unique."""
+    if not plans:
+        raise PlanInputError("no trajectory to write; a plan file holds at least one")
+    first = plans[0]
+    names: set[str] = set()
+    for p in plans:
+        if p.name in names:
+            raise PlanInputError(
+                f"two trajectories are named {p.name!r}; name each trajectory once"
+            )
+        names.add(p.name)
+        if p is first:
+            continue
+        same_lms = len(p.landmarks) == len(first.landmarks) and all(
+            a.kind == b.kind and a.name == b.name and a.margin_mm == b.margin_mm and a.same_shape(b)
+            for a, b in zip(p.landmarks, first.landmarks, strict=True)
+        )
+        if not same_lms:
+            raise PlanInputError(
+                f"trajectories {first.name!r} and {p.name!r} protect different landmarks; one "
+                "plan file holds one set of landmarks shared by all its trajectories"
+            )
+        a, b = p.arch_lps, first.arch_lps
+        if (a is None) != (b is None) or (
+            a is not None and b is not None and not np.array_equal(a, b)
+        ):
+            raise PlanInputError(
+                f"trajectories {first.name!r} and {p.name!r} have different dental arches; "
+                "one plan file holds one arch"
+            )
+        if p.series_uid_sha256 != first.series_uid_sha256:
+            raise PlanInputError(
+                f"trajectories {first.name!r} and {p.name!r} were made on different series "
+                "(their series hashes differ); write them to separate files"
+            )
+    return first
+
+
+def _trajectory_json(plan: Plan) -> dict[str, Any]:
+    """The trajectory keys of ``plan`` (entry, target, drills, implant, settings)."""
+    return {
+        "entry_mm": plan.entry_lps.tolist(),
+        "target_mm": plan.target_lps.tolist(),
+        **drills_json(plan),
+        **({} if plan.implant is None else {"implant": plan.implant.to_json()}),
+        "feed_mm_s": plan.feed_mm_s,
+        "calibration": plan.calibration,
+        "margin_mm": plan.margin_mm,
+    }
+
+
 def plan_document(plan: Plan, out_dir: str | os.PathLike[str] | None = None) -> dict[str, Any]:
-    """The ``ctdrill-plan/1`` document of ``plan`` (LPS).
+    """The ``ctdrill-plan/1`` document of ``plan`` (LPS); see :func:`plans_document`."""
+    return plans_document((plan,), out_dir)
+
+
+def plans_document(
+    plans: tuple[Plan, ...], out_dir: str | os.PathLike[str] | None = None
+) -> dict[str, Any]:
+    """The ``ctdrill-plan/1`` document of ``plans`` (LPS): one trajectory in the single form
+    (``entry_mm``, ``target_mm``, ... at the top level), several in ``trajectories``; the
+    landmarks, the arch and the series hash once, shared.
 
     Mask paths are written relative to ``out_dir`` (the folder the plan is saved in), else as
     the landmark's ``source``; a mask's ``label``/``segment`` are kept, and its ``affine_lps``
     only for a ``.npy`` (other files carry their own geometry).
     """
+    first = _shared(plans)
     try:
-        lms = [lm.to_plan_item(out_dir) for lm in plan.landmarks]
+        lms = [lm.to_plan_item(out_dir) for lm in first.landmarks]
     except LandmarkInputError as exc:
         raise PlanInputError(str(exc)) from exc
-    return {
-        "format": PLAN_FORMAT,
-        "coordinate_system": "LPS",
-        "name": plan.name,
-        "entry_mm": plan.entry_lps.tolist(),
-        "target_mm": plan.target_lps.tolist(),
-        **drills_json(plan),
-        "feed_mm_s": plan.feed_mm_s,
-        "calibration": plan.calibration,
-        "margin_mm": plan.margin_mm,
-        "landmarks": lms,
-    } | ({} if plan.series_uid_sha256 is None else {SERIES_HASH_KEY: plan.series_uid_sha256})
+    head: dict[str, Any] = {"format": PLAN_FORMAT, "coordinate_system": "LPS"}
+    if len(plans) == 1:
+        head |= {"name": first.name, **_trajectory_json(first)}
+    else:
+        head["trajectories"] = [{"name": p.name, **_trajectory_json(p)} for p in plans]
+    head["landmarks"] = lms
+    if first.arch_lps is not None:
+        head["arch_mm"] = first.arch_lps.tolist()
+    if first.series_uid_sha256 is not None:
+        head[SERIES_HASH_KEY] = first.series_uid_sha256
+    return head
+
+
+def write_plan_file(plans: tuple[Plan, ...], path: Path) -> None:
+    """Write ``plans`` to ``path`` atomically (aside, then renamed): Slicer markups for a
+    ``.mrk.json``, else ``ctdrill-plan/1``."""
+    if path.name.lower().endswith(".mrk.json"):
+        doc = markups_document(plans)
+    else:
+        doc = plans_document(plans, out_dir=path.parent)
+    text = json.dumps(doc, indent=2) + "\n"
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 #: A control point's orientation as Slicer 5 writes it in LPS (identity in RAS).
@@ -92,12 +177,11 @@ def _markup(mtype: str, name: str, points: np.ndarray, cps: list[tuple[str, str]
     }
 
 
-def _curve_control_points(canal: CanalLandmark) -> tuple[np.ndarray, dict[str, Any]]:
-    """Control points of the Slicer Curve whose centreline is ``canal``'s, and the setting
-    needed: Slicer's spline when the centreline is one (read from a Slicer Curve), else the
-    polyline itself with ``curve=polyline`` (Slicer will draw a spline through it, ctdrill
-    keeps the straight segments)."""
-    pts = canal.points_lps
+def _curve_control_points(pts: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+    """Control points of the Slicer Curve whose polyline is ``pts`` (a canal's centreline,
+    the arch), and the setting needed: Slicer's spline when the polyline is one (read from a
+    Slicer Curve), else the polyline itself with ``curve=polyline`` (Slicer will draw a
+    spline through it, ctdrill keeps the straight segments)."""
     n = len(pts)
     if n >= 2 and (n - 1) % POINTS_PER_SEGMENT == 0:
         ctrl = pts[::POINTS_PER_SEGMENT]
@@ -108,33 +192,53 @@ def _curve_control_points(canal: CanalLandmark) -> tuple[np.ndarray, dict[str, A
     return pts, {"curve": CURVE_POLYLINE}
 
 
-def markups_document(plan: Plan) -> dict[str, Any]:
-    """The 3D Slicer markups document of ``plan`` (LPS, mm).
+def _line_settings(plan: Plan) -> dict[str, Any]:
+    """The Line's settings: name, drills, implant, feed, calibration, margin, series."""
+    drills = drills_json(plan)
+    implant = {} if plan.implant is None else plan.implant.to_json()
+    return (
+        {
+            "name": plan.name,
+            **(
+                plan.drill.to_json()
+                if "drill" in drills
+                else {"drills": json.dumps(drills["drills"])}
+            ),
+        }
+        | {key: implant[field] for key, field in IMPLANT_SETTINGS.items() if implant}
+        | {
+            "feed_mm_s": plan.feed_mm_s,
+            "calibration": plan.calibration,
+            "margin_mm": plan.margin_mm,
+        }
+        | ({} if plan.series_uid_sha256 is None else {SERIES_HASH_KEY: plan.series_uid_sha256})
+    )
+
+
+def markups_document(plans: Plan | tuple[Plan, ...]) -> dict[str, Any]:
+    """The 3D Slicer markups document of ``plans`` (LPS, mm): one Line per trajectory, then
+    the shared landmarks (Curves, Fiducials) and the arch (a Curve whose first control point's
+    description starts with the word ``arch``).
 
     Settings go where Slicer keeps them: ``key=value`` words in the first control point's
     description (:mod:`ctdrill.imaging.plan.settings`), so that a file loaded and saved by
     Slicer reads back as the same plan. Mask landmarks cannot be markups and are refused.
     """
-    drills = drills_json(plan)
-    line = {
-        "name": plan.name,
-        **(plan.drill.to_json() if "drill" in drills else {"drills": json.dumps(drills["drills"])}),
-        "feed_mm_s": plan.feed_mm_s,
-        "calibration": plan.calibration,
-        "margin_mm": plan.margin_mm,
-    } | ({} if plan.series_uid_sha256 is None else {SERIES_HASH_KEY: plan.series_uid_sha256})
+    seq = (plans,) if isinstance(plans, Plan) else tuple(plans)
+    plan = _shared(seq)
     markups = [
         _markup(
             "Line",
-            plan.name,
-            np.stack([plan.entry_lps, plan.target_lps]),
-            [("entry", format_settings(line)), ("target", "")],
+            p.name,
+            np.stack([p.entry_lps, p.target_lps]),
+            [("entry", format_settings(_line_settings(p))), ("target", "")],
         )
+        for p in seq
     ]
     for lm in plan.landmarks:
         margin = {} if lm.margin_mm is None else {"margin_mm": lm.margin_mm}
         if isinstance(lm, CanalLandmark):
-            ctrl, extra = _curve_control_points(lm)
+            ctrl, extra = _curve_control_points(lm.points_lps)
             desc = format_settings({"name": lm.name, "radius_mm": lm.radius_mm, **margin, **extra})
             cps = [(f"{lm.name}-{i + 1}", desc if i == 0 else "") for i in range(len(ctrl))]
             markups.append(_markup("Curve", lm.name, ctrl, cps))
@@ -146,4 +250,9 @@ def markups_document(plan: Plan) -> dict[str, Any]:
                 f"mask landmark {lm.name!r} cannot be stored in a Slicer markups file; "
                 "save the plan as ctdrill-plan/1 JSON"
             )
+    if plan.arch_lps is not None:
+        ctrl, extra = _curve_control_points(plan.arch_lps)
+        desc = ("arch " + format_settings(extra)).strip()
+        cps = [(f"arch-{i + 1}", desc if i == 0 else "") for i in range(len(ctrl))]
+        markups.append(_markup("Curve", ARCH_MARKUP_NAME, ctrl, cps))
     return {"@schema": _SLICER_SCHEMA, "markups": markups}
