@@ -19,7 +19,7 @@ from ctdrill.app.errors import AppInputError
 from ctdrill.app.export import DEFAULT_RATE_HZ, ExportInputError, ExportJob, write_exports
 from ctdrill.app.export_band import hu_uncertainty_option
 from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
-from ctdrill.app.pipeline import plan_calibration_key, plan_path
+from ctdrill.app.pipeline import plan_calibration_key, plan_path, with_set_warnings
 from ctdrill.app.sequence import SequenceResult, plan_sequence
 from ctdrill.app.sequence_export import sequence_files, sequence_jobs
 from ctdrill.imaging import load_series
@@ -136,7 +136,7 @@ def prepare_case(
     if not rate_hz > 0.0:
         raise ExportInputError(f"--rate-hz must be a positive number, got {rate_hz!r}")
     manual_hu = hu_uncertainty_option(hu_sigma)
-    plans = list(load_plan_set(plan_paths))
+    plans = list(with_set_warnings(load_plan_set(plan_paths)))
     per_file = Counter(plan.source for plan in plans)
     volume, grey_map = map_volume(load_series(dicom, series_uid=series_uid), grey)
     hu_unc = hu_uncertainty(grey_map, manual_hu)

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ctdrill.imaging.plan.implant_checks import implant_warnings, implants_too_close
 from ctdrill.imaging.plan.landmarks import Landmark, bind_to_grid
 from ctdrill.imaging.plan.safety import (
     clearance_profile_mm,
@@ -70,6 +71,7 @@ __all__ = [
     "plan_calibration",
     "plan_calibration_key",
     "plan_path",
+    "with_set_warnings",
 ]
 
 
@@ -173,6 +175,18 @@ def binding_landmark_doc(result: PathResult) -> dict[str, object] | None:
         "margin_mm": float(result.margins_mm[j]),
         "clearance_at_stop_mm": round(float(result.stop_clearance_mm[j]), 4),
     }
+
+
+def with_set_warnings(plans: Sequence[Plan]) -> tuple[Plan, ...]:
+    """``plans`` each carrying the warnings only the whole set shows (``implants_too_close``,
+    :func:`~ctdrill.imaging.plan.implant_checks.implants_too_close`) in ``Plan.warnings``, so
+    that :func:`plan_path` reports them with the rest; call it where a command sees every
+    trajectory of a plan set, after its last edit."""
+    seq = tuple(plans)
+    extra = implants_too_close(seq)
+    return tuple(
+        replace(p, warnings=(*p.warnings, *extra[p.name])) if p.name in extra else p for p in seq
+    )
 
 
 def depth_grid_mm(planned_depth_mm: float, step_mm: float) -> np.ndarray:
@@ -364,6 +378,10 @@ def plan_path(
                 f"calibration's C' range {list(calibration.c_prime_range)}; clipped to it",
             )
         )
+    warnings += [
+        LoadWarning(code, msg)
+        for code, msg in implant_warnings(plan, float(stop_depth), stop_reason)
+    ]
     if stop_reason == "out_of_volume":
         warnings.append(
             LoadWarning(

@@ -16,8 +16,10 @@ def register(subparsers: Any) -> None:
         description=(
             "Read plan files (ctdrill-plan/1 JSON, 3D Slicer .mrk.json, segmentations, or a "
             "folder of them), merge them into one plan and write it to OUT: ctdrill-plan/1 "
-            "when OUT ends in .json, 3D Slicer markups when it ends in .mrk.json. The plan "
-            "must hold one trajectory (a Line)."
+            "when OUT ends in .json, 3D Slicer markups when it ends in .mrk.json. Every "
+            "trajectory (Line) of the inputs is written: one in ctdrill-plan/1's single form, "
+            "several in its trajectories list (one Line each in markups), with the shared "
+            "landmarks and dental arch."
         ),
     )
     p.add_argument(
@@ -40,7 +42,7 @@ def register(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     """Merge, convert, write; print what was written and the plan's warnings."""
     from ctdrill.app.errors import AppInputError
-    from ctdrill.imaging.plan.types import load_one_plan, plan_warnings, save_plan
+    from ctdrill.imaging.plan.types import load_plan_set, plan_warnings, write_plans
 
     out: Path = args.out
     if not out.name.lower().endswith(".json"):
@@ -49,14 +51,23 @@ def run(args: argparse.Namespace) -> int:
         )
     if not out.resolve().parent.is_dir():
         raise AppInputError(f"--out {out}: folder {out.resolve().parent} does not exist")
-    plan = load_one_plan(args.plans)
-    save_plan(plan, out)
-    for code, message in plan_warnings(plan):
-        sys.stderr.write(
-            f"warning: {message}\n" if code != "plan_default" else f"note: {message}\n"
-        )
+    plans = load_plan_set(args.plans)
+    write_plans(plans, out)
+    seen: set[tuple[str, str]] = set()
+    for plan in plans:
+        for code, message in plan_warnings(plan):
+            if (code, message) in seen:
+                continue
+            seen.add((code, message))
+            sys.stderr.write(
+                f"warning: {message}\n" if code != "plan_default" else f"note: {message}\n"
+            )
     kind = "3D Slicer markups" if out.name.lower().endswith(".mrk.json") else "ctdrill-plan/1"
-    sys.stdout.write(
-        f"wrote {out} ({kind}): trajectory {plan.name!r}, {len(plan.landmarks)} landmarks\n"
-    )
+    first = plans[0]
+    names = ", ".join(repr(p.name) for p in plans)
+    what = f"trajectory {names}" if len(plans) == 1 else f"{len(plans)} trajectories ({names})"
+    extra = "" if first.arch_lps is None else ", the dental arch"
+    implants = sum(p.implant is not None for p in plans)
+    extra += f", {implants} implant{'s' if implants != 1 else ''}" if implants else ""
+    sys.stdout.write(f"wrote {out} ({kind}): {what}, {len(first.landmarks)} landmarks{extra}\n")
     return 0

@@ -5,6 +5,9 @@ tests know exact answers), sampled at the voxel centres of an isotropic grid, pl
 metal streak artefact and Gaussian noise, rounded and clipped to the 12-bit CT range [-1024, 3071].
 The plan enters on the alveolar crest straight above the canal and drills straight down deeper
 than the 2 mm margin allows (``Phantom.max_safe_depth_mm``), so the export stops on the margin.
+It places a generic tapered implant (4.1 x 11.5 mm, apex at the target) and gives the dental
+arch: the body's mid-line at mid-height, along which a panoramic reformat shows the mandible
+and the canal.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from ctdrill.imaging.phantom.field import (
     streak_hu,
     voxel_centres_lps,
 )
+from ctdrill.imaging.plan.implants import load_implant_library
 
 __all__ = [
     "AIR_HU",
@@ -293,6 +297,8 @@ def make_mandible_phantom(
                 "radius_mm": geom.canal_radius_mm,
             }
         ],
+        "implant": _demo_implant(planned_depth),
+        "arch_mm": [[float(v) for v in p] for p in _arch_polyline(geom, affine, dims)],
     }
     return Phantom(
         hu=hu,
@@ -311,6 +317,51 @@ def make_mandible_phantom(
     )
 
 
+#: The implant the phantom's plan places (a generic library size shorter than the planned
+#: depth, so its platform sits just under the crest).
+DEMO_IMPLANT = "tapered 4.1 x 11.5"
+#: Arc length between two points of the phantom's arch polyline, mm.
+ARCH_STEP_MM = 2.0
+
+
+def _demo_implant(planned_depth_mm: float) -> dict[str, Any]:
+    """The plan's ``implant`` object: :data:`DEMO_IMPLANT` from the generic library."""
+    spec = next(s for s in load_implant_library() if s.name == DEMO_IMPLANT)
+    if not spec.length_mm <= planned_depth_mm:
+        raise PhantomInputError(
+            f"the demo implant {DEMO_IMPLANT!r} is longer than the planned depth "
+            f"{planned_depth_mm:g} mm"
+        )
+    return spec.to_json()
+
+
+def _arc_angles(
+    geom: MandibleGeometry, affine_lps: np.ndarray, dims: tuple[int, ...]
+) -> tuple[float, float]:
+    """The arch angles (rad) whose y stays inside the grid (the arch runs along y at 0)."""
+    a = affine_lps
+    lo = a[:3, 3]
+    hi = a[:3, 3] + (np.array([dims[2], dims[1], dims[0]], dtype=np.float64) - 1.0) * np.diag(
+        a[:3, :3]
+    )
+    cy = geom.arch_centre_xy_lps[1]
+    r = geom.arch_radius_mm
+    s_lo = np.clip((lo[1] - cy) / r, -1.0, 1.0)
+    s_hi = np.clip((hi[1] - cy) / r, -1.0, 1.0)
+    return float(np.arcsin(s_lo)), float(np.arcsin(s_hi))
+
+
+def _arch_polyline(
+    geom: MandibleGeometry, affine_lps: np.ndarray, dims: tuple[int, ...]
+) -> np.ndarray:
+    """(K, 3) the dental arch: the body's mid-line (u = 0) at mid-height (w = 0), one point
+    every ~:data:`ARCH_STEP_MM` of arc over the grid's extent along the arch; a panoramic
+    reformat along it shows the body from the crest to the lower border, canal included."""
+    a0, a1 = _arc_angles(geom, affine_lps, dims)
+    n = max(2, int(np.ceil((a1 - a0) * geom.arch_radius_mm / ARCH_STEP_MM)) + 1)
+    return np.asarray(geom.arch_point_lps(np.linspace(a0, a1, n), w_mm=0.0))
+
+
 def _canal_centerline(
     geom: MandibleGeometry, affine_lps: np.ndarray, dims: tuple[int, ...]
 ) -> np.ndarray:
@@ -320,12 +371,8 @@ def _canal_centerline(
     hi = a[:3, 3] + (np.array([dims[2], dims[1], dims[0]], dtype=np.float64) - 1.0) * np.diag(
         a[:3, :3]
     )
-    # Arc angles whose y stays inside the grid (the arch runs along y at angle 0).
-    cy = geom.arch_centre_xy_lps[1]
+    a0, a1 = _arc_angles(geom, affine_lps, dims)
     r = geom.arch_radius_mm
-    s_lo = np.clip((lo[1] - cy) / r, -1.0, 1.0)
-    s_hi = np.clip((hi[1] - cy) / r, -1.0, 1.0)
-    a0, a1 = float(np.arcsin(s_lo)), float(np.arcsin(s_hi))
     n = max(2, int(np.ceil((a1 - a0) * r / 0.5)) + 1)
     pts = geom.arch_point_lps(np.linspace(a0, a1, n), w_mm=geom.canal_w_mm)
     keep = np.all((pts >= lo - 1e-9) & (pts <= hi + 1e-9), axis=1)

@@ -8,6 +8,8 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from ctdrill.app.cli import main
 from ctdrill.imaging.plan.types import load_plan, load_plan_set, save_plan
 from tests.conftest import ASSETS
@@ -194,3 +196,37 @@ def test_slicer_case_with_a_segmented_canal_runs_without_edits(tmp_path: Path) -
     assert code == 0, err
     ref = json.loads((tube / "summary.json").read_text())["stop_depth_mm"]
     assert abs(summary["stop_depth_mm"] - ref) <= 0.25 * 3**0.5 / 2 + 0.05
+
+
+def test_plan_keeps_every_trajectory_the_arch_and_the_implants(tmp_path: Path) -> None:
+    demo = load_plan(DEMO / "plan.json")
+    assert demo.arch_lps is not None and demo.implant is not None
+    second = replace(
+        demo,
+        name="second",
+        entry_lps=demo.entry_lps + np.array([0.0, 8.0, 0.0]),
+        target_lps=demo.target_lps + np.array([0.0, 8.0, 0.0]),
+        implant=None,
+    )
+    first = replace(demo, name="first")
+    mrk = tmp_path / "two.mrk.json"
+    from ctdrill.imaging.plan.types import write_plans
+
+    write_plans([first, second], mrk)
+    out_json = tmp_path / "two.json"
+    code, stdout, err = _run(["plan", str(mrk), "--out", str(out_json)])
+    assert code == 0, err
+    assert stdout == (
+        f"wrote {out_json} (ctdrill-plan/1): 2 trajectories ('first', 'second'), 1 landmarks, "
+        "the dental arch, 1 implant\n"
+    )
+    doc = json.loads(out_json.read_text())
+    assert [t["name"] for t in doc["trajectories"]] == ["first", "second"]
+    assert doc["trajectories"][0]["implant"] == demo.implant.to_json()
+    assert doc["arch_mm"] == demo.arch_lps.tolist()
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc | {"arch_mm": [[0, 0, 0], [0, 0, 0]]}))
+    code, _, err = _run(["plan", str(bad), "--out", str(tmp_path / "x.json")])
+    assert (
+        code == 2 and err.startswith("error: bad.json: arch_mm[1] repeats") and err.count("\n") == 1
+    )
