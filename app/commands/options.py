@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from ctdrill.imaging.plan.implants import ImplantSpec
 
 
 def add_plan_option(parser: argparse.ArgumentParser, *, required: bool) -> None:
@@ -61,4 +65,32 @@ def add_grey_map_options(parser: argparse.ArgumentParser) -> None:
         help="a region of known HU for the grey-to-HU map: the voxels within R mm of the LPS "
         "point X,Y,Z (e.g. air -1000, a reference insert); give two or more; the line "
         "through their mean grey values is the map, their grey SDs its uncertainty",
+    )
+
+
+def add_implants_option(parser: argparse.ArgumentParser) -> None:
+    """``--implants FILE``: a ``ctdrill-implants/1`` file extending the generic library."""
+    parser.add_argument(
+        "--implants",
+        type=Path,
+        metavar="FILE",
+        help="a ctdrill-implants/1 file of your implants: it extends the generic library "
+        "(assets/implants/generic.json), an entry named as a library one replaces it "
+        "(docs/plan.md)",
+    )
+
+
+def pick_implant(name: str, implants_file: Path | None) -> ImplantSpec:
+    """The implant ``name`` of the library (extended by ``implants_file``); an unknown name is
+    an input error listing the names there are."""
+    from ctdrill.app.errors import AppInputError
+    from ctdrill.imaging.plan.implants import load_implant_library
+
+    library = load_implant_library(implants_file)
+    for spec in library:
+        if spec.name == name:
+            return spec
+    raise AppInputError(
+        f"--implant {name!r}: no implant of that name in the library; choose one of "
+        + ", ".join(repr(s.name) for s in library)
     )

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
+
+from ctdrill.app.commands.options import add_implants_option, pick_implant
 
 
 def register(subparsers: Any) -> None:
@@ -36,6 +39,13 @@ def register(subparsers: Any) -> None:
         metavar="OUT",
         help="the plan to write: NAME.json (ctdrill-plan/1) or NAME.mrk.json (Slicer markups)",
     )
+    p.add_argument(
+        "--implant",
+        metavar="NAME",
+        help="place this library implant on every trajectory (apex at the target); "
+        "replaces any implant the plan gives",
+    )
+    add_implants_option(p)
     p.set_defaults(func=run)
 
 
@@ -52,6 +62,11 @@ def run(args: argparse.Namespace) -> int:
     if not out.resolve().parent.is_dir():
         raise AppInputError(f"--out {out}: folder {out.resolve().parent} does not exist")
     plans = load_plan_set(args.plans)
+    if args.implants is not None and args.implant is None:
+        raise AppInputError("--implants: give --implant NAME too (the implant to place)")
+    if args.implant is not None:
+        spec = pick_implant(args.implant, args.implants)
+        plans = tuple(replace(p, implant=spec) for p in plans)
     write_plans(plans, out)
     seen: set[tuple[str, str]] = set()
     for plan in plans:

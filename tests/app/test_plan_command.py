@@ -230,3 +230,35 @@ def test_plan_keeps_every_trajectory_the_arch_and_the_implants(tmp_path: Path) -
     assert (
         code == 2 and err.startswith("error: bad.json: arch_mm[1] repeats") and err.count("\n") == 1
     )
+
+
+def test_plan_places_a_library_implant_or_one_of_the_users_file(tmp_path: Path) -> None:
+    out = tmp_path / "p.json"
+    code, _, err = _run(
+        ["plan", str(DEMO / "plan.json"), "--out", str(out), "--implant", "parallel 3.3 x 8"]
+    )
+    assert code == 0, err
+    assert json.loads(out.read_text())["implant"] == {
+        "name": "parallel 3.3 x 8",
+        "diameter_mm": 3.3,
+        "length_mm": 8.0,
+        "apex_diameter_mm": 3.3,
+        "apex": "flat",
+    }
+    mine = tmp_path / "mine.json"
+    item = {"name": "ours", "diameter_mm": 4.5, "length_mm": 9, "apex_diameter_mm": 3.5}
+    mine.write_text(json.dumps({"format": "ctdrill-implants/1", "implants": [item]}))
+    argv = ["plan", str(DEMO / "plan.json"), "--out", str(out), "--implants", str(mine)]
+    code, _, err = _run([*argv, "--implant", "ours"])
+    assert code == 2 and err == "error: mine.json: implants[0].apex is missing; add it\n"
+    mine.write_text(
+        json.dumps({"format": "ctdrill-implants/1", "implants": [item | {"apex": "round"}]})
+    )
+    code, _, err = _run([*argv, "--implant", "ours"])
+    assert code == 0, err
+    assert load_plan(out).implant is not None and load_plan(out).implant.length_mm == 9.0  # type: ignore[union-attr]
+    code, _, err = _run([*argv, "--implant", "nope"])
+    assert code == 2 and err.startswith("error: --implant 'nope': no implant of that name")
+    assert "'ours'" in err and err.count("\n") == 1
+    code, _, err = _run(argv)
+    assert code == 2 and err.startswith("error: --implants: give --implant NAME too")
