@@ -311,3 +311,50 @@ def test_slicer_line_implant_needs_every_setting(tmp_path: Path) -> None:
     path = _write(tmp_path, slicer_document(line), "line.mrk.json")
     with pytest.raises(PlanInputError, match="setting implant_apex_diameter_mm is missing"):
         load_plans(path)
+
+
+@pytest.mark.parametrize(
+    ("points", "expected"),
+    [
+        ([[0.0, 0.0, 0.0]], "arch.mrk.json: markups[0].controlPoints of the arch Curve must hold"),
+        (
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
+            "arch.mrk.json: markups[0].controlPoints[2] repeats the point before it",
+        ),
+        (
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 1e9]],
+            "arch.mrk.json: markups[0].controlPoints[1].position must be a list of 3 finite",
+        ),
+    ],
+)
+def test_bad_slicer_arches_are_refused(
+    tmp_path: Path, points: list[list[float]], expected: str
+) -> None:
+    cps = [
+        slicer_control_point(i, p, description="arch" if i == 0 else "")
+        for i, p in enumerate(points)
+    ]
+    path = _write(tmp_path, slicer_document(slicer_markup("Curve", cps)), "arch.mrk.json")
+    with pytest.raises(PlanInputError) as info:
+        load_plan_set([path])
+    assert str(info.value).startswith(expected)
+
+
+def test_two_arch_curves_in_one_file_are_refused(tmp_path: Path) -> None:
+    cps = [slicer_control_point(i, [float(i), 0.0, 0.0], description="ARCH") for i in range(2)]
+    doc = {"markups": [slicer_markup("Curve", cps), slicer_markup("Curve", cps)]}
+    with pytest.raises(PlanInputError, match=r"markups\[1\] is a second arch Curve"):
+        load_plans(_write(tmp_path, doc, "two.mrk.json"))
+
+
+def test_a_canal_named_like_an_arch_word_inside_another_word_stays_a_canal(
+    tmp_path: Path,
+) -> None:
+    desc = 'name="archaic canal" radius_mm=1.0'
+    cps = [slicer_control_point(i, [float(i), 0.0, 0.0], description=desc) for i in range(2)]
+    line = slicer_markup(
+        "Line", [slicer_control_point(0, [5.0, 5.0, 5.0]), slicer_control_point(1, [5, 5, 0])]
+    )
+    doc = {"markups": [line, slicer_markup("Curve", cps)]}
+    (plan,) = load_plans(_write(tmp_path, doc, "c.mrk.json"))
+    assert plan.arch_lps is None and [lm.name for lm in plan.landmarks] == ["archaic canal"]
