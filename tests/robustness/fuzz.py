@@ -60,6 +60,37 @@ SEED_PLAN: dict[str, Any] = {
     ],
 }
 
+#: A ctdrill-plan/1 document of several trajectories with implants, a drill sequence and the
+#: dental arch (issue 16).
+SEED_PLAN_SET: dict[str, Any] = {
+    "format": "ctdrill-plan/1",
+    "coordinate_system": "RAS",
+    "trajectories": [
+        {
+            "name": "36",
+            "entry_mm": [10.0, -20.0, 35.0],
+            "target_mm": [10.5, -19.0, 23.0],
+            "drill": {"diameter_mm": 2.0},
+            "implant": {
+                "name": "tapered 4.1 x 10",
+                "diameter_mm": 4.1,
+                "length_mm": 10.0,
+                "apex_diameter_mm": 2.9,
+                "apex": "round",
+            },
+        },
+        {
+            "name": "37",
+            "entry_mm": [20.0, -20.0, 35.0],
+            "target_mm": [20.0, -20.0, 24.0],
+            "drills": [{"diameter_mm": 2.0}, {"diameter_mm": 2.8}],
+            "margin_mm": 1.5,
+        },
+    ],
+    "landmarks": SEED_PLAN["landmarks"],
+    "arch_mm": [[0.0, -30.0, 25.0], [15.0, -25.0, 25.0], [30.0, -10.0, 25.5]],
+}
+
 #: A 3D Slicer markups document: a Line (trajectory), a Curve (canal), Fiducials.
 SEED_MARKUPS: dict[str, Any] = {
     "@schema": "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/"
@@ -90,6 +121,27 @@ SEED_MARKUPS: dict[str, Any] = {
             "name": "foramen",
             "coordinateSystem": "RAS",
             "controlPoints": [{"label": "mental foramen", "position": [-25.0, 25.0, 20.0]}],
+        },
+        {
+            "type": "Curve",
+            "coordinateSystem": "LPS",
+            "controlPoints": [
+                {"description": "arch", "position": [0.0, -30.0, 25.0]},
+                {"position": [15.0, -25.0, 25.0]},
+                {"position": [30.0, -10.0, 25.5]},
+            ],
+        },
+        {
+            "type": "Line",
+            "coordinateSystem": "LPS",
+            "controlPoints": [
+                {
+                    "description": 'name="37" implant="x" implant_diameter_mm=4.0 '
+                    "implant_length_mm=8.0 implant_apex_diameter_mm=3.0 implant_apex=flat",
+                    "position": [20.0, -20.0, 35.0],
+                },
+                {"position": [20.0, -20.0, 24.0]},
+            ],
         },
     ],
 }

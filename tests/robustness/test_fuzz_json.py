@@ -18,6 +18,7 @@ from tests.robustness.fuzz import (
     FUZZ_TIMEOUT_S,
     SEED_MARKUPS,
     SEED_PLAN,
+    SEED_PLAN_SET,
     fuzz_settings,
     mutated_json,
     seed_calibration,
@@ -55,18 +56,39 @@ def check_plan_text(text: str, suffix: str) -> None:
         for landmark in plan.landmarks:
             assert finite_numbers(landmark), landmark
             assert landmark.radius_mm >= 0.0
+        if plan.arch_lps is not None:
+            arch = plan.arch_lps
+            assert arch.ndim == 2 and arch.shape[1] == 3 and len(arch) >= 2
+            assert np.isfinite(arch).all()
+            assert (np.linalg.norm(np.diff(arch, axis=0), axis=1) > 0.0).all()
+        if plan.implant is not None:
+            spec = plan.implant
+            assert 0.0 < spec.apex_diameter_mm <= spec.diameter_mm and spec.length_mm > 0.0
+            s_mm, r_mm = spec.profile_mm()
+            assert np.isfinite(s_mm).all() and np.isfinite(r_mm).all()
+    assert len({p.name for p in plans}) == len(plans)
 
 
 def test_seed_plans_load() -> None:
     """The seeds are valid, so the fuzzing starts from accepted documents."""
-    from ctdrill.imaging.plan.types import load_plan
+    from ctdrill.imaging.plan.types import load_plan, load_plans
 
     with tempfile.TemporaryDirectory() as tmp:
         plan = load_plan(write_text(Path(tmp) / "p.json", json.dumps(SEED_PLAN)))
         assert plan.planned_depth_mm == pytest.approx(np.linalg.norm([0.5, 1.0, -12.0]))
         assert len(plan.landmarks) == 2
-        markup = load_plan(write_text(Path(tmp) / "p.mrk.json", json.dumps(SEED_MARKUPS)))
-        np.testing.assert_allclose(markup.entry_lps, [10.0, -20.0, 35.0])  # RAS -> LPS
+        markups = load_plans(write_text(Path(tmp) / "p.mrk.json", json.dumps(SEED_MARKUPS)))
+        np.testing.assert_allclose(markups[0].entry_lps, [10.0, -20.0, 35.0])  # RAS -> LPS
+        assert markups[1].implant is not None and markups[0].arch_lps is not None
+        both = load_plans(write_text(Path(tmp) / "s.json", json.dumps(SEED_PLAN_SET)))
+        assert [p.name for p in both] == ["36", "37"] and len(both[1].drills) == 2
+        assert both[0].implant is not None and both[0].arch_lps is not None
+
+
+@fuzz_settings
+@given(text=mutated_json(SEED_PLAN_SET))
+def test_fuzz_plan_set_json(text: str) -> None:
+    check_plan_text(text, ".json")
 
 
 @fuzz_settings
