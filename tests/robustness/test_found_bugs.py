@@ -172,14 +172,14 @@ def test_known_bug_matches_module_and_function(
     bad = tmp_path / "bad-format.json"
     bad.write_text('{"format": "ctdrill-plan/9"}', encoding="utf-8")
     with pytest.raises(ImagingInputError) as info:
-        load_plan(bad)  # raised in imaging/plan/read.py
+        load_plan(bad)  # raised in imaging/plan/plan_file.py
     assert known_bug(info.value) is None
-    here = KnownBug("demo", ImagingInputError, "imaging/plan/read.py", "*")
+    here = KnownBug("demo", ImagingInputError, "imaging/plan/plan_file.py", "*")
     monkeypatch.setattr(registry, "KNOWN_BUGS", (here,))
     assert known_bug(info.value) == "demo"
     elsewhere = KnownBug("demo", ImagingInputError, "imaging/series.py", "*")
     monkeypatch.setattr(registry, "KNOWN_BUGS", (elsewhere,))
     assert known_bug(info.value) is None
-    wrong_type = KnownBug("demo", TypeError, "imaging/plan/read.py", "*")
+    wrong_type = KnownBug("demo", TypeError, "imaging/plan/plan_file.py", "*")
     monkeypatch.setattr(registry, "KNOWN_BUGS", (wrong_type,))
     assert known_bug(info.value) is None
