@@ -143,11 +143,12 @@ def test_save_and_reload_the_plan(
     split = tmp_path / "slicer"
     split.mkdir()
     files = slicer_save(tmp_path / "plan.mrk.json", split)
-    assert len(files) == 2
+    assert len(files) == 3  # the Line, the canal's Curve, the arch's Curve
     with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
         window.open_plan(files)
     assert np.allclose(window.plan.target_lps, moved)
     assert len(window.plan.landmarks) == 1
+    assert window.plan.arch_lps is not None and window.plan.implant is not None
 
 
 def test_a_bad_folder_is_reported_not_raised(
