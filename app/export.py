@@ -29,7 +29,7 @@ from ctdrill.app.calibration_info import calibration_fields, calibration_line
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.export_band import BAND_COLUMNS, band_line, band_summary, path_band
 from ctdrill.app.export_defaults import DEFAULT_RATE_HZ as DEFAULT_RATE_HZ
-from ctdrill.app.export_fields import hu_grading, interpolated_gaps_json
+from ctdrill.app.export_fields import hu_grading, implant_json, interpolated_gaps_json
 from ctdrill.app.fixedtext import fixed_csv
 from ctdrill.app.grey_option import grey_line
 from ctdrill.app.pipeline import PathResult
@@ -225,6 +225,7 @@ def summary(
         "drill": plan.drill.to_json(),
         "entry_lps": plan.entry_lps.tolist(),
         "target_lps": plan.target_lps.tolist(),
+        "implant": implant_json(result),
         "depth_step_mm": _num(prof.step_mm, 6),
         **series_identity(series_uid, include_phi=include_phi),
         "include_phi": include_phi,

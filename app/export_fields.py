@@ -1,4 +1,5 @@
-"""Summary fields derived from a path: the HU grading and the slice gaps interpolated across."""
+"""Summary fields derived from a path: the HU grading, the slice gaps interpolated across, the
+implant."""
 
 from __future__ import annotations
 
@@ -50,3 +51,16 @@ def interpolated_gaps_json(result: PathResult) -> list[dict[str, float]]:
         }
         for g in result.interpolated_gaps
     ]
+
+
+def implant_json(result: PathResult) -> dict[str, Any] | None:
+    """The summary's ``implant``: its spec and placement (``ImplantPlacement.to_json``) and
+    ``seated``: whether the stop reaches its apex (else warning ``implant_beyond_stop``);
+    None for a plan without an implant."""
+    from ctdrill.imaging.plan.implant_checks import implant_seated
+    from ctdrill.imaging.plan.implants import implant_placement
+
+    place = implant_placement(result.plan)
+    if place is None:
+        return None
+    return {**place.to_json(), "seated": implant_seated(place, result.stop_depth_mm)}

@@ -47,6 +47,7 @@ PLAN_KEYS = (
     "rate_hz",
     "entry_lps",
     "target_lps",
+    "implant",
     "series_uid",
     "series_uid_sha256",
     "include_phi",

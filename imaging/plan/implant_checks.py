@@ -23,11 +23,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from ctdrill.imaging.plan.implants import MIN_IMPLANT_DISTANCE_MM, implant_placement
+from ctdrill.imaging.plan.implants import (
+    MIN_IMPLANT_DISTANCE_MM,
+    ImplantPlacement,
+    implant_placement,
+)
 from ctdrill.imaging.plan.types import Plan
 
 #: Depths closer than this (mm) are equal (a stop at the planned depth is at the apex).
 DEPTH_TOL_MM = 1e-9
+
+
+def implant_seated(place: ImplantPlacement, stop_depth_mm: float) -> bool:
+    """Whether a drill stopping at ``stop_depth_mm`` reaches the implant's apex (its seat)."""
+    return stop_depth_mm >= place.apex_depth_mm - DEPTH_TOL_MM
 
 
 def implant_warnings(
@@ -39,7 +48,7 @@ def implant_warnings(
         return ()
     spec = place.spec
     out: list[tuple[str, str]] = []
-    if stop_depth_mm < place.apex_depth_mm - DEPTH_TOL_MM:
+    if not implant_seated(place, stop_depth_mm):
         out.append(
             (
                 "implant_beyond_stop",

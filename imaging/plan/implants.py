@@ -275,6 +275,18 @@ class ImplantPlacement:
     platform_depth_mm: float
     apex_depth_mm: float
 
+    def to_json(self) -> dict[str, Any]:
+        """The placement for summaries: the spec's keys, ``platform_lps``, ``apex_lps``,
+        ``axis_lps``, ``platform_depth_mm``, ``apex_depth_mm``."""
+        return {
+            **self.spec.to_json(),
+            "platform_lps": self.platform_lps.tolist(),
+            "apex_lps": self.apex_lps.tolist(),
+            "axis_lps": self.axis_lps.tolist(),
+            "platform_depth_mm": self.platform_depth_mm,
+            "apex_depth_mm": self.apex_depth_mm,
+        }
+
     def point_at_mm(self, s_mm: float) -> np.ndarray:
         """(3,) LPS point on the axis ``s_mm`` from the platform towards the apex."""
         out: np.ndarray = self.platform_lps + s_mm * self.axis_lps

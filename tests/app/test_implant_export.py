@@ -41,6 +41,12 @@ def test_demo_implant_is_left_short_by_the_margin_stop(tmp_path: Path) -> None:
     assert not any(w["code"] == "implant_above_entry" for w in s["warnings"])
     codes = [(w["code"], w["message"]) for w in s["warnings"]]
     assert len(codes) == len(set(codes))
+    implant = s["implant"]
+    assert implant["name"] == "tapered 4.1 x 11.5" and implant["seated"] is False
+    assert implant["apex_lps"] == s["target_lps"] and implant["axis_lps"] == [0.0, 0.0, -1.0]
+    # The platform 11.5 mm back from the target along the axis: 0.5 mm under the entry.
+    assert implant["platform_lps"] == [s["entry_lps"][0], s["entry_lps"][1], -29.5]
+    assert (implant["platform_depth_mm"], implant["apex_depth_mm"]) == (0.5, 12.0)
 
 
 def test_two_implants_under_3_mm_apart_warn_on_both_rows(tmp_path: Path) -> None:
