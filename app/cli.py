@@ -26,6 +26,7 @@ COMMANDS: tuple[str, ...] = (
     "batch",
     "plan",
     "suggest",
+    "panorama",
     "demo",
     "calibrate",
     "rehearse",
