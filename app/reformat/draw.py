@@ -251,13 +251,13 @@ def _draw_arch_marks(ax: Axes, reformat: Reformat, cross_section_at_mm: float | 
     u, v = float(uv[0, 0]), float(uv[0, 1])
     ax.plot([u], [v], marker="v", color=ARCH_COLOUR, ms=10, mec="black")
     ax.text(
-        u,
-        v - 1.5,
+        u + 1.0,
+        v,
         "arch",
         color=ARCH_COLOUR,
         fontsize=FONT_PT,
-        ha="center",
-        va="bottom",
+        ha="left",
+        va="center",
         path_effects=_STROKE,
     )
 
