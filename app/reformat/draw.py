@@ -11,6 +11,7 @@ being hidden. Geometry comes from :mod:`ctdrill.app.reformat.overlay`; fonts are
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -45,6 +46,8 @@ IMPLANT_COLOUR = "#4fc3f7"
 DRILL_COLOUR = "#ff4fd8"
 ARCH_COLOUR = "#7cfc00"
 _STROKE = [patheffects.withStroke(linewidth=2.5, foreground="black")]
+#: Caption lines are wrapped at this many characters.
+_CAPTION_CHARS = 90
 #: Scale bar lengths tried, mm (the longest at most a quarter of the image width).
 _BAR_MM = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0)
 
@@ -81,6 +84,7 @@ def draw_reformat(
     width_hu: float = DEFAULT_WIDTH_HU,
     cross_section_at_mm: float | None = None,
     title: str | None = None,
+    captions: Sequence[str] = (),
 ) -> ReformatDrawing:
     """Draw ``reformat`` and the plans on ``ax`` (module docstring).
 
@@ -100,6 +104,8 @@ def draw_reformat(
         On a panorama, the arc position of a cross-section to mark.
     title : str | None
         Axes title.
+    captions : Sequence[str]
+        More lines to write under the image (e.g. why a drill's stop is not known).
 
     Returns
     -------
@@ -139,7 +145,7 @@ def draw_reformat(
         if reformat.slab_mm > 0
         else "no slab (one plane)"
     )
-    out.captions.extend(list(reformat.notes))
+    out.captions.extend([*reformat.notes, *captions])
     _captions(ax, [*out.captions, f"{slab}, pixel {p:.2f} mm, W/L {width_hu:g}/{level_hu:g}"])
     return out
 
@@ -299,6 +305,8 @@ def _letters(ax: Axes, reformat: Reformat) -> None:
 
 
 def _captions(ax: Axes, lines: list[str]) -> None:
-    """Captions go under the x-axis label, outside the image (layouts make room for them)."""
+    """Captions go under the x-axis label, outside the image (layouts make room for them),
+    wrapped to ``_CAPTION_CHARS`` characters."""
     label = ax.get_xlabel()
-    ax.set_xlabel("\n".join([label, *lines]), fontsize=FONT_PT + 1, linespacing=1.4)
+    wrapped = [part for line in lines for part in textwrap.wrap(line, _CAPTION_CHARS)]
+    ax.set_xlabel("\n".join([label, *wrapped]), fontsize=FONT_PT + 1, linespacing=1.4)

@@ -99,6 +99,7 @@ def _png(
     options: ReformatOptions,
     title: str,
     at_mm: float | None,
+    notes: Sequence[str],
 ) -> tuple[bytes, list[str]]:
     fig = _figure(reformat)
     ax = fig.add_subplot(1, 1, 1)
@@ -111,6 +112,7 @@ def _png(
         width_hu=options.width_hu,
         cross_section_at_mm=at_mm,
         title=title,
+        captions=notes,
     )
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=DPI)
@@ -173,9 +175,11 @@ def export_panorama(
     pano, cs = build_reformats(volume, plans, arch, options)
     paths, path_notes = _paths(volume, plans)
     first = plans[0]
-    pano_png, pano_captions = _png(pano, plans, paths, options, "Panoramic reformat", cs.at_arc_mm)
+    pano_png, pano_captions = _png(
+        pano, plans, paths, options, "Panoramic reformat", cs.at_arc_mm, path_notes
+    )
     cs_title = f"Cross-section through {first.name} at {cs.at_arc_mm:.1f} mm along the arch"
-    cs_png, cs_captions = _png(cs, plans, paths, options, cs_title, None)
+    cs_png, cs_captions = _png(cs, plans, paths, options, cs_title, None, path_notes)
     doc: dict[str, Any] = {
         "format": "ctdrill-reformat/1",
         "series_uid_sha256": series_uid_hash(volume.info.series_uid),

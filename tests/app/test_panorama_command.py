@@ -116,3 +116,34 @@ def test_real_philips_head(
     assert lps[0, 0, 2] == pytest.approx(831.21) and lps[-1, 0, 2] >= 696.21 - 1e-9
     assert hu.shape[0] == int((831.21 - 696.21) / volume.spacing_mm[0] + 1e-9) + 1
     assert (hu > 300.0).mean() > 0.05  # facial bones in the picture
+
+
+def test_real_gantry_tilt_head_with_a_drill_across_a_gap(
+    tmp_path: Path, shared_data: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The tilted, unevenly spaced GE head: the images follow CTVolume.sample; a drill whose
+    path cannot be computed (it crosses a slice gap) is drawn as its planned axis and the
+    caption says why."""
+    arch = [[-50, -60], [-35, -80], [-15, -92], [0, -95], [15, -92], [35, -80], [50, -60]]
+    plan = tmp_path / "ge.json"
+    raw = json.loads(DEMO_PLAN.read_text())
+    raw.update(
+        entry_mm=[-15.0, -88.0, 50.0],
+        target_mm=[-15.0, -88.0, 38.0],
+        landmarks=[],
+        arch_mm=[[x, y, 40.0] for x, y in arch],
+    )
+    raw.pop("series_uid_sha256", None)
+    plan.write_text(json.dumps(raw))
+    dicom = shared_data / "dcmqa_ct_GE_head_gantrytilt_varspacing"
+    out = tmp_path / "out"
+    argv = ["panorama", "--dicom", str(dicom), "--plan", str(plan), "--out", str(out)]
+    code, _, err = _run([*argv, "--slab-mm", "0", "--cs-slab-mm", "0"], capsys)
+    assert code == 0, err
+    volume = load_series(dicom)
+    for name in ("panorama", "cross_section"):
+        with np.load(out / f"{name}.npz") as z:
+            np.testing.assert_allclose(z["hu"], volume.sample(z["lps"]), atol=1e-9)
+    doc = json.loads((out / "reformat.json").read_text())
+    said = " ".join(doc["cross_section"]["captions"])
+    assert "drill stop not computed" in said and "slice gap" in said
