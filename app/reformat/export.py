@@ -60,9 +60,8 @@ class ReformatOptions:
 def plan_arch(plans: Sequence[Plan], sources: Sequence[Path]) -> np.ndarray:
     """The plans' shared dental arch, or one clear error naming the plan files."""
     for plan in plans:
-        arch = getattr(plan, "arch_lps", None)
-        if arch is not None:
-            return np.asarray(arch, dtype=np.float64)
+        if plan.arch_lps is not None:
+            return np.asarray(plan.arch_lps, dtype=np.float64)
     names = ", ".join(str(p) for p in sources)
     raise AppInputError(
         f"--plan {names}: the plan has no dental arch; add arch_mm (a list of points along "

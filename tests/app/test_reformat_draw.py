@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
-from typing import Any
 
 import matplotlib
 
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from ctdrill.app.reformat import draw as draw_module
+from ctdrill.app.pipeline import plan_calibration, plan_path
 from ctdrill.app.reformat.draw import FONT_PT, draw_reformat
 from ctdrill.app.reformat.overlay import body_overlay, drill_profile_mm, tube_overlay
 from ctdrill.imaging.phantom.mandible import make_mandible_phantom
@@ -82,46 +82,40 @@ def test_body_outline_on_a_cross_section_and_the_drill_profile() -> None:
     assert far.caption() == "drill: 3.5 mm outside the slab, not drawn"
 
 
-def _stand_in_implant(plan: Any) -> tuple[np.ndarray, ...] | None:
-    """A 4 x 10 mm tapered implant, apex at the target (planmodel's placement rule)."""
-    axis = (plan.target_lps - plan.entry_lps) / np.linalg.norm(plan.target_lps - plan.entry_lps)
-    s = np.array([0.0, 9.0, 10.0])
-    r = np.array([2.0, 1.6, 0.0])
-    return (plan.target_lps - 10.0 * axis, axis, s, r, "stand-in 4x10")  # type: ignore[return-value]
-
-
-def test_draw_demo_panorama_and_cross_section(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    monkeypatch.setattr(draw_module, "implant_body", _stand_in_implant)
+def test_draw_demo_panorama_and_cross_section(tmp_path: Path) -> None:
     ph = make_mandible_phantom()
     vol = CTVolume(hu=ph.hu, affine_lps=ph.affine_lps, valid=None, info=SeriesInfo(series_uid="1"))
     plan_file = tmp_path / "plan.json"
-    import json
-
     plan_file.write_text(json.dumps(ph.plan))
     plans = read_plans(plan_file)
-    g = ph.geometry
-    ang = np.linspace(-0.45, 0.45, 15)
-    arch = np.stack(
-        [
-            g.arch_centre_xy_lps[0] + g.arch_radius_mm * np.cos(ang),
-            g.arch_centre_xy_lps[1] + g.arch_radius_mm * np.sin(ang),
-            np.full(15, -33.0),
-        ],
-        1,
-    )
-    pano = panorama(vol, arch, slab_mm=4.0)
     plan = plans[0]
-    cs = cross_section(vol, arch, axis=(plan.entry_lps, plan.target_lps))
+    assert plan.arch_lps is not None and plan.implant is not None
+    pano = panorama(vol, plan.arch_lps, slab_mm=4.0)
+    cs = cross_section(vol, plan.arch_lps, axis=(plan.entry_lps, plan.target_lps))
+    path = plan_path(vol, plan, plan_calibration(plan))
     fig = Figure(figsize=(12, 8), dpi=100)
     ax1, ax2 = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
-    d1 = draw_reformat(ax1, pano, plans, cross_section_at_mm=cs.at_arc_mm)
-    d2 = draw_reformat(ax2, cs, plans)
+    d1 = draw_reformat(ax1, pano, plans, paths=[path], cross_section_at_mm=cs.at_arc_mm)
+    d2 = draw_reformat(ax2, cs, plans, paths=[path])
     fig.savefig(tmp_path / "demo.png")
     for d in (d1, d2):
         assert [t.visible for t in d.tubes] == [True]
-        assert [b.visible for b in d.bodies] == [True]
+        assert [b.visible for b in d.bodies] == [True, True]  # implant, drill
+        assert d.captions == []
+    # The vertical implant on the cross-section: apex at the target, platform its length
+    # above, its diameter across.
+    implant, drill = d2.bodies
+    (u_t, v_t), (_u_e, v_e) = cs.project(np.stack([plan.target_lps, plan.entry_lps]))[0]
+    spec = plan.implant
+    assert implant.outline_uv[:, 1].max() == pytest.approx(v_t, abs=1e-9)
+    assert implant.outline_uv[:, 1].min() == pytest.approx(v_t - spec.length_mm, abs=1e-9)
+    half = implant.outline_uv[:, 0] - u_t
+    assert half.max() == pytest.approx(spec.diameter_mm / 2, abs=1e-9)
+    assert half.min() == pytest.approx(-spec.diameter_mm / 2, abs=1e-9)
+    # The drill from the entry to its stop depth, its diameter across.
+    assert drill.outline_uv[:, 1].min() == pytest.approx(v_e, abs=1e-9)
+    assert drill.outline_uv[:, 1].max() == pytest.approx(v_e + path.stop_depth_mm, abs=1e-9)
+    assert np.ptp(drill.outline_uv[:, 0]) == pytest.approx(plan.drill.diameter_mm, abs=1e-9)
     # The image covers its pixels' true millimetre extent, equal aspect.
     w_mm, h_mm = pano.extent_mm
     p = pano.pixel_mm
