@@ -50,7 +50,8 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Merge, convert, write; print what was written and the plan's warnings."""
+    """Merge, convert, write; print what was written and the plan's warnings (those the plan
+    alone shows: ``implant_above_entry``, ``implants_too_close`` among them)."""
     from ctdrill.app.errors import AppInputError
     from ctdrill.imaging.plan.types import load_plan_set, plan_warnings, write_plans
 
@@ -68,9 +69,18 @@ def run(args: argparse.Namespace) -> int:
         spec = pick_implant(args.implant, args.implants)
         plans = tuple(replace(p, implant=spec) for p in plans)
     write_plans(plans, out)
+    from ctdrill.imaging.plan.implant_checks import implant_warnings, implants_too_close
+
+    # What the plan alone shows (no CT: the stop is not known, so not implant_beyond_stop).
+    pairs = implants_too_close(plans)
     seen: set[tuple[str, str]] = set()
     for plan in plans:
-        for code, message in plan_warnings(plan):
+        found = [
+            *plan_warnings(plan),
+            *implant_warnings(plan, plan.planned_depth_mm, "planned_depth"),
+            *pairs.get(plan.name, ()),
+        ]
+        for code, message in found:
             if (code, message) in seen:
                 continue
             seen.add((code, message))

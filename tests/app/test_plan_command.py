@@ -262,3 +262,28 @@ def test_plan_places_a_library_implant_or_one_of_the_users_file(tmp_path: Path) 
     assert "'ours'" in err and err.count("\n") == 1
     code, _, err = _run(argv)
     assert code == 2 and err.startswith("error: --implants: give --implant NAME too")
+
+
+def test_plan_reports_implants_too_close_and_above_the_entry(tmp_path: Path) -> None:
+    demo = load_plan(DEMO / "plan.json")
+    shift = np.array([0.0, 5.0, 0.0])
+    near = replace(
+        demo, name="near", entry_lps=demo.entry_lps + shift, target_lps=demo.target_lps + shift
+    )
+    from ctdrill.imaging.plan.implants import ImplantSpec
+    from ctdrill.imaging.plan.types import write_plans
+
+    long = ImplantSpec("long", 4.1, 13.0, 2.9, "round")  # 1 mm longer than the planned depth
+    src = tmp_path / "two.json"
+    write_plans([replace(demo, name="site", implant=long), near], src)
+    code, _, err = _run(["plan", str(src), "--out", str(tmp_path / "out.json")])
+    assert code == 0, err
+    lines = err.splitlines()
+    close = [ln for ln in lines if "are 0.90 mm apart" in ln]
+    assert close == [
+        "warning: implants of 'site' and 'near' are 0.90 mm apart, less than the 3 mm kept "
+        "between implants (gap between their platform-wide bodies); move one of them"
+    ]
+    above = [ln for ln in lines if "above the entry point" in ln]
+    assert len(above) == 1 and "plan 'site': implant 'long' (13 mm)" in above[0]
+    assert "1.00 mm above the entry point" in above[0]
