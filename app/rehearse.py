@@ -58,15 +58,19 @@ def load_table(
     *,
     interpolate_gaps: bool = False,
     grey: GreyMapSpec | None = None,
+    trajectory: str | None = None,
 ) -> RehearsalTable:
     """Load the CT and the plan (one file, or several merged into one trajectory), compute
     the path and adapt its profile to a device table.
 
     ``interpolate_gaps`` interpolates across slice gaps the drill crosses instead of refusing
-    (the path's warnings then say so); ``grey`` maps grey values to HU (``--grey-to-hu``).
+    (the path's warnings then say so); ``grey`` maps grey values to HU (``--grey-to-hu``);
+    ``trajectory`` picks one of several by name or number (``load_one_plan``).
     """
     volume, grey_map = map_volume(load_series(dicom), grey)
-    plan = load_one_plan([plan_file] if isinstance(plan_file, Path) else plan_file)
+    plan = load_one_plan(
+        [plan_file] if isinstance(plan_file, Path) else plan_file, trajectory=trajectory
+    )
     path = plan_path(volume, plan, plan_calibration(plan), interpolate_gaps=interpolate_gaps)
     return RehearsalTable(
         ProfileTable.from_profile(path.profile, path.stop_depth_mm), path, grey_map
@@ -150,8 +154,11 @@ def rehearse(
     interpolate_gaps: bool = False,
     hu_sigma: float | None = None,
     grey: GreyMapSpec | None = None,
+    trajectory: str | None = None,
 ) -> dict[str, Any]:
     """Run one rehearsal and write ``OUT/session.csv`` and ``OUT/summary.json`` (whole).
+
+    ``trajectory`` picks one trajectory of several plan files by name or number.
 
     A plan with a drill sequence runs one session per drill
     (:mod:`ctdrill.app.rehearse_sequence`: ``OUT/drill_k/`` and a listing ``summary.json``).
@@ -164,7 +171,7 @@ def rehearse(
     op = parse_operator(operator)
     manual_hu = hu_uncertainty_option(hu_sigma)
     fault_specs = [parse_fault(f) for f in faults]
-    whole = load_one_plan([plan] if isinstance(plan, Path) else plan)
+    whole = load_one_plan([plan] if isinstance(plan, Path) else plan, trajectory=trajectory)
     if len(whole.drills) > 1:  # a drill sequence: one session per drill
         from ctdrill.app.rehearse_sequence import rehearse_sequence
 
@@ -184,7 +191,9 @@ def rehearse(
             summarise=rehearsal_summary,
             to_json=summary_json,
         )
-    loaded = load_table(dicom, plan, interpolate_gaps=interpolate_gaps, grey=grey)
+    loaded = load_table(
+        dicom, plan, interpolate_gaps=interpolate_gaps, grey=grey, trajectory=trajectory
+    )
     hu = hu_uncertainty(loaded.grey_map, manual_hu)
     with atomic_output_dir(out) as stage:
         dev = open_device(device, seed=seed)

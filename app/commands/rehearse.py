@@ -33,6 +33,12 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("--dicom", type=Path, required=True, help="CT series folder")
     add_plan_option(p, required=True)
+    p.add_argument(
+        "--trajectory",
+        metavar="NAME|N",
+        help="which trajectory to rehearse when the plan files hold several: its name, or "
+        "its number (1-based, in the order ctdrill export lists them)",
+    )
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument(
         "--operator",
@@ -75,6 +81,7 @@ def run(args: argparse.Namespace) -> int:
         interpolate_gaps=args.interpolate_gaps,
         hu_sigma=args.hu_sigma,
         grey=parse_grey_options(args.grey_to_hu, args.grey_ref),
+        trajectory=args.trajectory,
     )
     if s.get("format") == "ctdrill-rehearsal-sequence/1":
         from ctdrill.app.rehearse_sequence import sequence_lines

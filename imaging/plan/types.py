@@ -320,13 +320,28 @@ def load_plan_set(paths: Sequence[str | os.PathLike[str]]) -> tuple[Plan, ...]:
     return load_merged(paths)
 
 
-def load_one_plan(paths: Sequence[str | os.PathLike[str]]) -> Plan:
-    """:func:`load_plan_set` for commands that drill one trajectory (rehearse, the GUI)."""
+def load_one_plan(paths: Sequence[str | os.PathLike[str]], trajectory: str | None = None) -> Plan:
+    """:func:`load_plan_set` for commands that drill one trajectory (rehearse).
+
+    ``trajectory`` picks one of several by its name, or by its number (1-based, in the order
+    :func:`load_plan_set` gives them); None requires the files to hold exactly one.
+    """
     plans = load_plan_set(paths)
-    if len(plans) != 1:
-        names = ", ".join(repr(p.name) for p in plans)
+    names = ", ".join(f"{i + 1}: {p.name!r}" for i, p in enumerate(plans))
+    if trajectory is not None:
+        for p in plans:
+            if p.name == trajectory:
+                return p
+        if trajectory.strip().isdigit() and 1 <= int(trajectory) <= len(plans):
+            return plans[int(trajectory) - 1]
         raise PlanInputError(
-            f"the plan files hold {len(plans)} trajectories ({names}); give the files of one"
+            f"--trajectory {trajectory!r}: the plan files hold no trajectory of that name or "
+            f"number; they hold {names}"
+        )
+    if len(plans) != 1:
+        raise PlanInputError(
+            f"the plan files hold {len(plans)} trajectories ({names}); pick one with "
+            "--trajectory NAME (or its number)"
         )
     return plans[0]
 
