@@ -34,6 +34,7 @@ from PySide6.QtWidgets import (
 from ctdrill.app.gui import planning
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.results import PathView
+from ctdrill.app.gui.trajectory_list import TrajectoryList
 from ctdrill.imaging.plan.types import DrillSpec, Plan
 from ctdrill.model import available_calibrations, load_calibration
 
@@ -71,8 +72,10 @@ class PlanPanel(QWidget):
         outer.addWidget(self.body)
         outer = QVBoxLayout(self.body)
         outer.setContentsMargins(0, 0, 0, 0)
+        self.trajectories = TrajectoryList(ctx)
+        outer.addWidget(self.trajectories)
 
-        traj = QGroupBox("Trajectory (LPS, mm)")
+        traj = QGroupBox("Current trajectory (LPS, mm)")
         grid = QGridLayout(traj)
         self.point_boxes: dict[str, list[QDoubleSpinBox]] = {}
         for col, axis in enumerate(("x (L)", "y (P)", "z (S)")):

@@ -256,3 +256,68 @@ def write_all_plans(
     if len(plans) != 1:
         raise PlanEditError(f"{path}: writing {len(plans)} trajectories needs write_plans")
     save_plan(plans[0], path, series_uid=series_uid)
+
+
+#: How far a new trajectory is placed from the current one, mm (about one implant's width plus
+#: the usual 3 mm between neighbouring implants).
+NEW_TRAJECTORY_SPACING_MM = 8.0
+
+
+def unique_name(plans: Sequence[Plan], stem: str = "implant") -> str:
+    """``stem N`` with the smallest N >= 1 no trajectory of ``plans`` is called."""
+    taken = {p.name for p in plans}
+    n = 1
+    while f"{stem} {n}" in taken:
+        n += 1
+    return f"{stem} {n}"
+
+
+def rename(plans: Sequence[Plan], index: int, name: str) -> Plan:
+    """Trajectory ``index`` called ``name`` (stripped; unique among ``plans``, not empty)."""
+    name = name.strip()
+    if not name:
+        raise PlanEditError(f"trajectory {index + 1}: a name cannot be empty")
+    if any(p.name == name for i, p in enumerate(plans) if i != index):
+        raise PlanEditError(f"trajectory {index + 1}: another trajectory is called {name!r}")
+    return replace(plans[index], name=name)
+
+
+def new_trajectory(
+    plans: Sequence[Plan], current: int, *, spacing_mm: float = NEW_TRAJECTORY_SPACING_MM
+) -> tuple[Plan, str]:
+    """A new trajectory next to ``plans[current]`` and where it was put, in words.
+
+    A copy (drill, implant, landmarks, settings) moved ``spacing_mm`` sideways: along the
+    arch's horizontal tangent at the current target when the plan has an arch (toward the
+    arch's end farther away), else toward the patient's left (+x LPS); the user drags it into
+    place. Named :func:`unique_name`.
+    """
+    base = plans[current]
+    arch = arch_of(base)
+    shift = np.array([spacing_mm, 0.0, 0.0])
+    where = f"{spacing_mm:g} mm to the patient's left of {base.name!r}"
+    if arch is not None:
+        xy = arch[:, :2]
+        seg = np.diff(xy, axis=0)
+        lengths = np.linalg.norm(seg, axis=1)
+        t = base.target_lps[:2]
+        best, best_d, best_s = 0, np.inf, 0.0
+        cum = np.concatenate([[0.0], np.cumsum(lengths)])
+        for i, (a, d, ln) in enumerate(zip(xy[:-1], seg, lengths, strict=True)):
+            if ln == 0:
+                continue
+            u = float(np.clip(np.dot(t - a, d) / ln**2, 0.0, 1.0))
+            dist = float(np.linalg.norm(a + u * d - t))
+            if dist < best_d:
+                best, best_d, best_s = i, dist, cum[i] + u * ln
+        tangent = seg[best] / lengths[best]
+        sign = 1.0 if cum[-1] - best_s >= best_s else -1.0
+        shift = np.array([*(sign * spacing_mm * tangent), 0.0])
+        where = f"{spacing_mm:g} mm along the arch from {base.name!r}"
+    new = replace(
+        base,
+        entry_lps=base.entry_lps + shift,
+        target_lps=base.target_lps + shift,
+        name=unique_name(plans),
+    )
+    return new, where
