@@ -35,7 +35,7 @@ import numpy as np
 from PySide6.QtCore import QObject, Signal
 
 from ctdrill.app.gui.history import History, State
-from ctdrill.app.gui.planning import arch_of, edit_name, with_arch
+from ctdrill.app.gui.planning import arch_of, edit_name, with_arch, with_shared
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.workers import StepQueue
 from ctdrill.app.search.candidates import SearchSpace
@@ -194,10 +194,12 @@ class Document(QObject):
         """Make ``plan`` the current trajectory (refused while a rehearsal runs).
 
         Without trajectories ``plan`` becomes the first (taking the arch drawn so far); None
-        removes every trajectory. The edit is an undo step named ``edit`` (default: what
-        changed, :func:`~ctdrill.app.gui.planning.edit_name`). The suggestion is dropped,
-        unless ``adopted`` names the candidate of it that ``plan`` takes its axis from
-        (:meth:`adopt_candidate`)."""
+        removes every trajectory. Its landmarks and arch are the plan's, shared by every
+        trajectory: changed on ``plan``, they change on all
+        (:func:`~ctdrill.app.gui.planning.with_shared`). The edit is an undo step named
+        ``edit`` (default: what changed, :func:`~ctdrill.app.gui.planning.edit_name`). The
+        suggestion is dropped, unless ``adopted`` names the candidate of it that ``plan``
+        takes its axis from (:meth:`adopt_candidate`)."""
         if not self._editable():
             return False
         before = self._state()
@@ -209,7 +211,7 @@ class Document(QObject):
                 plan = with_arch(plan, self.draft_arch)
             plans = (plan,)
         else:
-            plans = (*self.plans[: self.current], plan, *self.plans[self.current + 1 :])
+            plans = with_shared(self.plans, self.current, plan)
         if adopted is None:
             self._drop_suggestion()
         self._apply(replace(self._state(), plans=plans, current=self.current if plans else 0))

@@ -321,3 +321,19 @@ def new_trajectory(
         name=unique_name(plans),
     )
     return new, where
+
+
+def with_shared(plans: Sequence[Plan], index: int, plan: Plan) -> tuple[Plan, ...]:
+    """``plans`` with trajectory ``index`` replaced by ``plan``, whose landmarks and arch go to
+    every trajectory: a plan file holds one set of each, shared by all its trajectories, so an
+    edit of them on one trajectory (a canal point, a landmark's margin, the arch) is an edit of
+    the plan's."""
+    old = plans[index]
+    shared: dict[str, Any] = {}
+    if plan.landmarks is not old.landmarks:
+        shared["landmarks"] = plan.landmarks
+    if not _same(arch_of(plan), arch_of(old)):
+        shared["arch_lps"] = arch_of(plan)
+    out = [replace(p, **shared) if shared and i != index else p for i, p in enumerate(plans)]
+    out[index] = plan
+    return tuple(out)

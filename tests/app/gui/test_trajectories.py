@@ -200,3 +200,18 @@ def test_history_keeps_at_most_its_step_count() -> None:
         undone.append(s)
         now = s
     assert undone == [states[4], states[3], states[2]]
+
+
+def test_a_landmark_edit_on_one_trajectory_is_the_plans(qtbot: QtBot) -> None:
+    from ctdrill.app.gui.planning import add_canal_point
+
+    doc = Document()
+    a, b = traj("a"), traj("b", 5.0)
+    doc.set_plans([a, b])
+    edited = add_canal_point(a, np.array([1.0, 2.0, -3.0]))
+    assert doc.set_plan(edited)
+    assert doc.plans[0] is edited
+    assert doc.plans[1].landmarks is edited.landmarks and doc.plans[1].name == "b"
+    assert np.array_equal(doc.plans[1].entry_lps, b.entry_lps)
+    assert doc.undo_name == "edit landmarks"
+    assert doc.undo() and doc.plans == (a, b)
