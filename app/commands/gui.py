@@ -10,7 +10,11 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.commands.options import add_hu_sigma_option, add_plan_option
+from ctdrill.app.commands.options import (
+    add_hu_sigma_option,
+    add_implants_option,
+    add_plan_option,
+)
 from ctdrill.app.errors import AppInputError
 
 #: Upper bound on a ``--screenshot`` run when ``--quit-after-s`` is not given, s.
@@ -82,6 +86,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--dicom", type=Path, help="DICOM folder to open")
     add_plan_option(p, required=False)
     add_hu_sigma_option(p)
+    add_implants_option(p)
     p.add_argument("--screenshot", type=Path, help="save the window as PNG once drawn, then quit")
     p.add_argument(
         "--quit-after-s", type=float, default=None, help="close the window after this many seconds"
@@ -117,6 +122,11 @@ def run(args: argparse.Namespace) -> int:
         from ctdrill.imaging.plan.types import load_plan_set
 
         plans = load_plan_set(args.plan)  # every trajectory: the first is current
+    library = None
+    if args.implants is not None:  # a library that cannot be read is refused before any window
+        from ctdrill.imaging.plan.implants import load_implant_library
+
+        library = load_implant_library(args.implants)
     problem = display_problem(os.environ)
     if problem is not None:
         raise AppInputError(f"ctdrill gui: {problem}; {NO_DISPLAY_HINT}")
@@ -125,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
     return run_gui(
         dicom=args.dicom,
         plans=plans,
+        implants=library,
         screenshot=args.screenshot,
         quit_after_s=quit_after,
         hu_uncertainty=hu,

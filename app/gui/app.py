@@ -11,6 +11,7 @@ from PySide6.QtWidgets import QApplication
 
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.screenshot import qimage_to_rgb, region_stats, widget_rect
+from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.model.band import HuUncertainty
 
@@ -52,6 +53,7 @@ def run_gui(
     *,
     dicom: Path | None = None,
     plans: tuple[Plan, ...] = (),
+    implants: tuple[ImplantSpec, ...] | None = None,
     screenshot: Path | None = None,
     quit_after_s: float | None = None,
     settings: QSettings | None = None,
@@ -62,12 +64,15 @@ def run_gui(
     With ``screenshot``, the composited window is saved as soon as the case is drawn (path
     planned, or right after showing when no series is given), and the window quits.
     A load that fails on bad input is re-raised after the loop so the CLI reports it.
-    ``plans`` (every trajectory of the plan files) were read by the caller (a plan that cannot
-    be read never reaches the window).
+    ``plans`` (every trajectory of the plan files) and ``implants`` (the implant library,
+    ``--implants``) were read by the caller (a file that cannot be read never reaches the
+    window).
     """
     app = application()
     window = make_window(settings)
     window.doc.hu_uncertainty = hu_uncertainty  # ``--hu-sigma``: enters the force band
+    if implants is not None:  # ``--implants``: the library the implant picker offers
+        window.plan_panel.implant.set_library(implants)
     window.unattended = screenshot is not None or quit_after_s is not None
     window.ask_series = not window.unattended  # unattended: take the largest series
     if plans:

@@ -35,7 +35,7 @@ import numpy as np
 from PySide6.QtCore import QObject, Signal
 
 from ctdrill.app.gui.history import History, State
-from ctdrill.app.gui.planning import arch_of, edit_name, with_arch, with_shared
+from ctdrill.app.gui.planning import edit_name, with_shared
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.workers import StepQueue
 from ctdrill.app.search.candidates import SearchSpace
@@ -62,7 +62,7 @@ class Document(QObject):
     plan_changed(plan) : the current trajectory (or None) changed or another one was selected;
         the path result is reset (to the one already computed for it, if any, announced by
         ``path_changed`` right after).
-    history_changed() : what undo / redo would do changed (:attr:`undo_name`).
+    history_changed() : what undo / redo would do changed (``history.undo_name``).
     path_changed(view) : a path result for the current plan (a ``PathView``), or None with
         ``path_error`` saying why (empty: not computed yet).
     rehearsal_changed(running) : a rehearsal started or ended.
@@ -124,7 +124,7 @@ class Document(QObject):
     def arch_lps(self) -> np.ndarray | None:
         """The dental arch ((K, 3) LPS mm, shared by every trajectory), or None."""
         plan = self.plan
-        return self.draft_arch if plan is None else arch_of(plan)
+        return self.draft_arch if plan is None else plan.arch_lps
 
     @property
     def can_undo(self) -> bool:
@@ -135,16 +135,6 @@ class Document(QObject):
     def can_redo(self) -> bool:
         """An undone edit can be applied again."""
         return self.history.redo_name is not None
-
-    @property
-    def undo_name(self) -> str | None:
-        """What undo would revert (e.g. ``move entry``), or None."""
-        return self.history.undo_name
-
-    @property
-    def redo_name(self) -> str | None:
-        """What redo would apply again, or None."""
-        return self.history.redo_name
 
     # ------------------------------------------------------------------ series
     def set_volume(self, volume: CTVolume, path: str, surface: Any) -> bool:
@@ -207,8 +197,8 @@ class Document(QObject):
         if plan is None:
             plans: tuple[Plan, ...] = ()
         elif not self.plans:
-            if arch_of(plan) is None and self.draft_arch is not None:
-                plan = with_arch(plan, self.draft_arch)
+            if plan.arch_lps is None and self.draft_arch is not None:
+                plan = replace(plan, arch_lps=self.draft_arch)
             plans = (plan,)
         else:
             plans = with_shared(self.plans, self.current, plan)
@@ -233,7 +223,10 @@ class Document(QObject):
         return True
 
     def add_plan(self, plan: Plan) -> bool:
-        """Append ``plan`` as a new trajectory and make it current (an undo step)."""
+        """Append ``plan`` as a new trajectory and make it current (an undo step); it takes
+        the plan's landmarks and arch, shared by every trajectory."""
+        if self.plans:
+            plan = replace(plan, landmarks=self.plans[0].landmarks, arch_lps=self.plans[0].arch_lps)
         plans = (*self.plans, plan)
         return self.set_plans(plans, len(plans) - 1, edit=f"add trajectory {plan.name!r}")
 
@@ -267,7 +260,7 @@ class Document(QObject):
             self.plan_changed.emit(None)
             return True
         try:
-            plans = tuple(with_arch(p, arch_lps) for p in self.plans)
+            plans = tuple(replace(p, arch_lps=arch_lps) for p in self.plans)
         except ValueError as exc:
             self.edit_refused.emit(f"error: {exc}")
             return False

@@ -32,7 +32,6 @@ from ctdrill.app.gui.controller import Controller
 from ctdrill.app.gui.document import Document, ViewContext
 from ctdrill.app.gui.menus import build_menus, fill_recent
 from ctdrill.app.gui.plan_panel import PlanPanel
-from ctdrill.app.gui.planning import write_all_plans
 from ctdrill.app.gui.plots_view import PlotsView
 from ctdrill.app.gui.recent import RecentFolders
 from ctdrill.app.gui.rehearsal_panel import RehearsalPanel
@@ -46,7 +45,7 @@ from ctdrill.app.gui.view3d import View3D
 from ctdrill.app.gui.views import VIEWS, build_views
 from ctdrill.app.gui.workers import StepQueue
 from ctdrill.imaging import CTVolume
-from ctdrill.imaging.plan.types import Plan, load_plan_set
+from ctdrill.imaging.plan.types import Plan, load_plan_set, write_plans
 
 #: On close, how long to let a running load or computation finish, ms.
 CLOSE_WAIT_MS = 5000
@@ -116,6 +115,8 @@ class MainWindow(QMainWindow):
         """Place the views by area (see :mod:`ctdrill.app.gui.views`)."""
         top = QSplitter(Qt.Orientation.Horizontal)
         left = QSplitter(Qt.Orientation.Vertical)
+        pages = QTabWidget()  # the main views on the first page, "page" views beside
+        pages.addTab(top, "3D and slices")
         tabs = QTabWidget()
         tabs.setMinimumWidth(330)
         column = QWidget()
@@ -128,11 +129,13 @@ class MainWindow(QMainWindow):
                 box.addWidget(widget)
             elif spec.area == "main":
                 top.addWidget(widget)
+            elif spec.area == "page":
+                pages.addTab(widget, spec.title)
             elif spec.area == "bottom":
                 left.addWidget(widget)
             else:
                 tabs.addTab(widget, spec.title)
-        left.insertWidget(0, top)
+        left.insertWidget(0, pages)
         left.setSizes([520, 280])
         top.setSizes([560, 440])
         box.addWidget(left, 1)
@@ -142,6 +145,7 @@ class MainWindow(QMainWindow):
         main.setSizes([1000, 340])
         self.setCentralWidget(main)
         self.tabs = tabs
+        self.pages = pages
 
     # ------------------------------------------------------------------ state (the document's)
     @property
@@ -299,7 +303,7 @@ class MainWindow(QMainWindow):
             return
         try:
             uid = None if self.doc.volume is None else self.doc.volume.info.series_uid
-            write_all_plans(self.doc.plans, path, series_uid=uid)  # records the series, hashed
+            write_plans(self.doc.plans, path, series_uid=uid)  # records the series, hashed
         except (ValueError, OSError) as exc:
             self._status(f"error: {exc}")
             return
@@ -364,6 +368,8 @@ class MainWindow(QMainWindow):
     # ------------------------------------------------------------------ screenshots
     def grab_composite(self) -> QImage:
         """The whole window with the 3D view's OpenGL content composited in."""
+        if not self.view3d.isVisible():  # another page is shown: no GL content to add
+            return grab_window(self, [])
         self.view3d.render_now()
         return grab_window(self, [(self.view3d, self.view3d.grab_rgb())])
 

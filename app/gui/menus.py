@@ -69,8 +69,8 @@ def name_history_actions(window: MainWindow) -> None:
     (never while a rehearsal locks the plan)."""
     doc = window.doc
     for action, verb, name in (
-        (window.undo_action, "Undo", doc.undo_name),
-        (window.redo_action, "Redo", doc.redo_name),
+        (window.undo_action, "Undo", doc.history.undo_name),
+        (window.redo_action, "Redo", doc.history.redo_name),
     ):
         action.setText(verb if name is None else f"{verb} {name}")
         action.setEnabled(name is not None and not doc.rehearsing)

@@ -1,4 +1,5 @@
-"""The planning panel: numeric entry/target, drill and feed, calibration, landmark margins.
+"""The planning panel: the trajectories, the current one's numeric entry/target, implant,
+drill and feed, calibration, landmark margins.
 
 The panel shows the document's plan and the clearances of its path, and hands every edit to
 the document as a new plan; every edit goes through :mod:`ctdrill.app.gui.planning` (pure
@@ -33,6 +34,7 @@ from PySide6.QtWidgets import (
 
 from ctdrill.app.gui import planning
 from ctdrill.app.gui.document import ViewContext
+from ctdrill.app.gui.implant_picker import ImplantPicker
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.trajectory_list import TrajectoryList
 from ctdrill.imaging.plan.types import DrillSpec, Plan
@@ -91,8 +93,10 @@ class PlanPanel(QWidget):
         grid.addWidget(self.depth_label, 3, 0, 1, 4)
         outer.addWidget(traj)
 
-        drill = QGroupBox("Drill and feed")
+        drill = QGroupBox("Implant, drill and feed")
         form = QFormLayout(drill)
+        self.implant = ImplantPicker(ctx)
+        form.addRow("implant", self.implant)
         self.diameter = _spin(0.5, 10.0, 0.1, 2, " mm")
         self.tip_length = _spin(0.0, 5.0, 0.1, 2, " mm")
         self.feed = _spin(0.01, 10.0, 0.05, 2, " mm/s")
@@ -191,6 +195,7 @@ class PlanPanel(QWidget):
                     box.setValue(float(value))
             self.depth_label.setText(f"planned depth: {plan.planned_depth_mm:.2f} mm")
             self.sequence_label.setText(drills_text(plan))
+            self.implant.show_plan(plan)
             self.diameter.setValue(plan.drill.diameter_mm)
             self.tip_length.setValue(plan.drill.tip_length_mm)
             self.feed.setValue(plan.feed_mm_s)

@@ -7,7 +7,6 @@ naming the field when the result would not be a usable plan.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
@@ -21,7 +20,8 @@ from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
     Landmark,
 )
-from ctdrill.imaging.plan.types import Plan, save_plan
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.sampling.arch import ArchCurve
 
 #: Shortest trajectory the editor accepts, mm.
 MIN_DEPTH_MM = 0.5
@@ -183,19 +183,6 @@ def scene_input(
     )
 
 
-def arch_of(plan: Plan) -> np.ndarray | None:
-    """The plan's dental arch ((K, 3) LPS mm) or None."""
-    arch: np.ndarray | None = getattr(plan, "arch_lps", None)
-    return arch
-
-
-def with_arch(plan: Plan, arch_lps: np.ndarray | None) -> Plan:
-    """``plan`` with the dental arch ``arch_lps`` ((K, 3) LPS mm, or None: no arch); the plan
-    model validates it (a ValueError names the problem)."""
-    fields: dict[str, Any] = {"arch_lps": arch_lps}
-    return replace(plan, **fields)
-
-
 def _same(a: object, b: object) -> bool:
     """Equal plan field values (arrays by value, tuples item by item)."""
     if a is b:
@@ -248,16 +235,6 @@ def edit_name(before: Plan | None, after: Plan | None) -> str:
     return changed[0] if changed else "edit trajectory"
 
 
-def write_all_plans(
-    plans: Sequence[Plan], path: str | os.PathLike[str], *, series_uid: str | None = None
-) -> None:
-    """Write every trajectory to one plan file (``.mrk.json``: Slicer markups), the series
-    ``series_uid`` recorded hashed."""
-    if len(plans) != 1:
-        raise PlanEditError(f"{path}: writing {len(plans)} trajectories needs write_plans")
-    save_plan(plans[0], path, series_uid=series_uid)
-
-
 #: How far a new trajectory is placed from the current one, mm (about one implant's width plus
 #: the usual 3 mm between neighbouring implants).
 NEW_TRAJECTORY_SPACING_MM = 8.0
@@ -287,33 +264,29 @@ def new_trajectory(
 ) -> tuple[Plan, str]:
     """A new trajectory next to ``plans[current]`` and where it was put, in words.
 
-    A copy (drill, implant, landmarks, settings) moved ``spacing_mm`` sideways: along the
-    arch's horizontal tangent at the current target when the plan has an arch (toward the
-    arch's end farther away), else toward the patient's left (+x LPS); the user drags it into
-    place. Named :func:`unique_name`.
+    A copy (drill, implant, landmarks, settings) moved sideways: ``spacing_mm`` along the arch
+    (the panorama's arc length, toward the arch's end farther away) when the plan has an arch
+    and the target lies beside it, else ``spacing_mm`` toward the patient's left (+x LPS); the
+    user drags it into place. Named :func:`unique_name`.
     """
     base = plans[current]
-    arch = arch_of(base)
     shift = np.array([spacing_mm, 0.0, 0.0])
     where = f"{spacing_mm:g} mm to the patient's left of {base.name!r}"
+    arch = base.arch_lps
     if arch is not None:
-        xy = arch[:, :2]
-        seg = np.diff(xy, axis=0)
-        lengths = np.linalg.norm(seg, axis=1)
-        t = base.target_lps[:2]
-        best, best_d, best_s = 0, np.inf, 0.0
-        cum = np.concatenate([[0.0], np.cumsum(lengths)])
-        for i, (a, d, ln) in enumerate(zip(xy[:-1], seg, lengths, strict=True)):
-            if ln == 0:
-                continue
-            u = float(np.clip(np.dot(t - a, d) / ln**2, 0.0, 1.0))
-            dist = float(np.linalg.norm(a + u * d - t))
-            if dist < best_d:
-                best, best_d, best_s = i, dist, cum[i] + u * ln
-        tangent = seg[best] / lengths[best]
-        sign = 1.0 if cum[-1] - best_s >= best_s else -1.0
-        shift = np.array([*(sign * spacing_mm * tangent), 0.0])
-        where = f"{spacing_mm:g} mm along the arch from {base.name!r}"
+        try:
+            curve = ArchCurve(arch)
+            s_mm = float(curve.project(base.target_lps.reshape(1, 3))[0][0])
+        except ValueError:  # an arch the panorama refuses: the plain shift, said so
+            s_mm = float("nan")
+        if np.isfinite(s_mm):
+            sign = 1.0 if curve.length_mm - s_mm >= s_mm else -1.0
+            to_mm = float(np.clip(s_mm + sign * spacing_mm, 0.0, curve.length_mm))
+            step = curve.point_xy(np.array([to_mm, s_mm]))
+            shift = np.array([*(step[0] - step[1]), 0.0])
+            where = f"{abs(to_mm - s_mm):.1f} mm along the arch from {base.name!r}"
+        else:
+            where += " (its target is beyond the arch's ends)"
     new = replace(
         base,
         entry_lps=base.entry_lps + shift,
@@ -332,8 +305,8 @@ def with_shared(plans: Sequence[Plan], index: int, plan: Plan) -> tuple[Plan, ..
     shared: dict[str, Any] = {}
     if plan.landmarks is not old.landmarks:
         shared["landmarks"] = plan.landmarks
-    if not _same(arch_of(plan), arch_of(old)):
-        shared["arch_lps"] = arch_of(plan)
+    if not _same(plan.arch_lps, old.arch_lps):
+        shared["arch_lps"] = plan.arch_lps
     out = [replace(p, **shared) if shared and i != index else p for i, p in enumerate(plans)]
     out[index] = plan
     return tuple(out)

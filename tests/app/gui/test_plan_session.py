@@ -14,6 +14,8 @@ from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.imaging.phantom.io import PhantomCase
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 
+DEMO_PLAN = Path(__file__).resolve().parents[3] / "assets" / "demo" / "plan.json"
+
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
 
 
@@ -34,10 +36,13 @@ def test_add_select_rename_remove_trajectories_and_undo_each(
     first_view = window.view
     assert window.undo_action.text() == "Undo" and not window.undo_action.isEnabled()
 
-    tl.add.click()  # a copy 8 mm to the patient's left (the phantom plan has no arch)
+    tl.add.click()  # a copy 8 mm along the phantom's arch (a polyline on a 32 mm circle)
     assert len(doc.plans) == 2 and doc.current == 1 and tl.list.currentRow() == 1
     second = doc.plans[1]
-    assert np.allclose(second.entry_lps - first.entry_lps, [8.0, 0.0, 0.0])
+    shift = second.entry_lps - first.entry_lps
+    assert np.array_equal(second.target_lps - first.target_lps, shift) and shift[2] == 0.0
+    chord = 2 * 32.0 * np.sin(4.0 / 32.0)  # an 8 mm arc's chord on the circle: 7.979 mm
+    assert chord - 0.02 < np.linalg.norm(shift) <= 8.0
     assert second.name == "implant 1" and second.drill == first.drill
     assert window.undo_action.text() == "Undo add trajectory 'implant 1'"
     wait_path(qtbot, window)  # the new current trajectory's path is computed
@@ -89,3 +94,94 @@ def test_add_select_rename_remove_trajectories_and_undo_each(
         window.plan_panel.trajectories.list, Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier
     )
     assert len(doc.plans) == 2  # Ctrl+Z undid the removal
+
+
+def test_pick_an_implant_from_the_library_and_undo_it(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    picker = window.plan_panel.implant
+    library = picker.library
+    assert len(library) >= 2 and picker.count() >= len(library) + 1
+    before = window.plan
+    assert before is not None
+    target = next(s for s in library if s != before.implant)
+    assert picker.pick(target.name)
+    assert window.plan is not None and window.plan.implant == target
+    assert window.undo_action.text() == f"Undo pick implant {target.name!r}"
+    assert picker.pick(None)
+    assert window.plan is not None and window.plan.implant is None
+    assert picker.currentText() == "(no implant)"
+    assert window.undo_action.text() == "Undo remove implant"
+    window.undo_action.trigger()
+    assert window.plan is not None and window.plan.implant == target
+    assert picker.spec == target  # the picker shows the undone state
+    window.undo_action.trigger()
+    assert window.plan is before and picker.spec == before.implant
+
+
+def test_save_writes_every_trajectory_and_reopening_gives_them_back(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase, tmp_path: Path
+) -> None:
+    from ctdrill.imaging.plan.types import load_plan_set
+
+    open_case(qtbot, window, phantom_case)
+    window.plan_panel.trajectories.add.click()
+    window.plan_panel.trajectories.add.click()
+    saved = window.doc.plans
+    for name in ("all.json", "all.mrk.json"):
+        window.save_plan(tmp_path / name)
+        back = load_plan_set([tmp_path / name])
+        assert [p.name for p in back] == [p.name for p in saved]
+        for a, b in zip(back, saved, strict=True):
+            np.testing.assert_allclose(a.entry_lps, b.entry_lps, atol=1e-9)
+            np.testing.assert_allclose(a.target_lps, b.target_lps, atol=1e-9)
+            assert a.drill == b.drill and a.implant == b.implant
+    assert window.open_plan(tmp_path / "all.json")
+    assert len(window.doc.plans) == 3 and window.doc.current == 0
+    assert not window.undo_action.isEnabled()  # a plan file opened: a new history
+
+
+def test_gui_command_loads_every_trajectory_of_repeated_plan_options(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import argparse
+    from dataclasses import replace
+
+    from ctdrill.app.commands import gui as gui_command
+    from ctdrill.app.gui import app as gui_app
+    from ctdrill.imaging.plan.implants import load_implant_library
+    from ctdrill.imaging.plan.types import load_plan_set, write_plans
+
+    demo = load_plan_set([DEMO_PLAN])[0]
+    write_plans([replace(demo, name="a"), replace(demo, name="b")], tmp_path / "ab.json")
+    seen: dict[str, object] = {}
+    monkeypatch.setattr(gui_app, "run_gui", lambda **kw: seen.update(kw) or 0)
+    parser = argparse.ArgumentParser()
+    gui_command.register(parser.add_subparsers())
+    mine = tmp_path / "mine.json"
+    mine.write_text(
+        '{"format": "ctdrill-implants/1", "implants": [{"name": "mine 3.3 x 9", '
+        '"diameter_mm": 3.3, "length_mm": 9.0, "apex_diameter_mm": 2.5, "apex": "flat"}]}'
+    )
+    ab = str(tmp_path / "ab.json")
+    args = parser.parse_args(
+        ["gui", "--plan", ab, "--plan", str(DEMO_PLAN), "--implants", str(mine)]
+    )
+    assert gui_command.run(args) == 0
+    plans = seen["plans"]
+    assert isinstance(plans, tuple) and [p.name for p in plans] == ["a", "b", "plan"]
+    library = seen["implants"]
+    assert isinstance(library, tuple) and library[-1].name == "mine 3.3 x 9"
+    assert len(library) == len(load_implant_library()) + 1  # the generic sizes, extended
+
+
+def test_an_implant_library_that_cannot_be_read_is_exit_2_before_any_window(
+    tmp_path: Path,
+) -> None:
+    from tests.app.gui.test_command import one_error_line, run_gui
+
+    bad = tmp_path / "implants.json"
+    bad.write_text('{"format": "ctdrill-implants/1", "implants": [{"name": "x"}]}')
+    err = one_error_line(run_gui(["--plan", str(DEMO_PLAN), "--implants", str(bad)], {}))
+    assert "implants.json" in err and "diameter_mm" in err

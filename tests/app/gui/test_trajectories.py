@@ -55,7 +55,7 @@ def test_set_plan_replaces_the_current_one_only(qtbot: QtBot) -> None:
     moved = move_handle(b, "target", np.array([5.0, 0.0, 2.0]))
     assert doc.set_plan(moved)
     assert doc.plans == (a, moved) and doc.current == 1
-    assert doc.undo_name == "move target"
+    assert doc.history.undo_name == "move target"
 
 
 def test_undo_and_redo_walk_every_edit_kind_back_and_forth(qtbot: QtBot) -> None:
@@ -68,8 +68,8 @@ def test_undo_and_redo_walk_every_edit_kind_back_and_forth(qtbot: QtBot) -> None
     def edit(ok: bool) -> None:
         assert ok
         history.append((doc.plans, doc.current))
-        assert doc.undo_name is not None
-        names.append(doc.undo_name)
+        assert doc.history.undo_name is not None
+        names.append(doc.history.undo_name)
 
     edit(doc.set_plan(move_handle(a, "entry", np.array([0.0, 1.0, 12.0]))))
     edit(doc.set_plan(replace(doc.plans[0], drill=DrillSpec(diameter_mm=3.5))))
@@ -84,12 +84,12 @@ def test_undo_and_redo_walk_every_edit_kind_back_and_forth(qtbot: QtBot) -> None
         "remove trajectory 'a'",
     ]
     for k in range(len(history) - 1, 0, -1):
-        assert doc.undo_name == names[k - 1]
+        assert doc.history.undo_name == names[k - 1]
         assert doc.undo()
         assert (doc.plans, doc.current) == history[k - 1]
     assert not doc.can_undo and not doc.undo()
     for k in range(1, len(history)):
-        assert doc.redo_name == names[k - 1]
+        assert doc.history.redo_name == names[k - 1]
         assert doc.redo()
         assert (doc.plans, doc.current) == history[k]
     assert not doc.can_redo and not doc.redo()
@@ -171,7 +171,7 @@ def test_undo_of_an_adopted_suggestion_restores_the_axis_and_the_suggestion(
     doc.request_suggestion(SearchSpace(count=3))
     doc.set_suggestion(first, s)
     assert doc.adopt_candidate(1)
-    assert doc.undo_name == "adopt suggested axis 2"
+    assert doc.history.undo_name == "adopt suggested axis 2"
     assert doc.undo()
     assert doc.plan is first and doc.suggestion is s and doc.adopted is None
     assert doc.redo()
@@ -213,5 +213,52 @@ def test_a_landmark_edit_on_one_trajectory_is_the_plans(qtbot: QtBot) -> None:
     assert doc.plans[0] is edited
     assert doc.plans[1].landmarks is edited.landmarks and doc.plans[1].name == "b"
     assert np.array_equal(doc.plans[1].entry_lps, b.entry_lps)
-    assert doc.undo_name == "edit landmarks"
+    assert doc.history.undo_name == "edit landmarks"
     assert doc.undo() and doc.plans == (a, b)
+
+
+def test_a_new_trajectory_goes_along_the_arch_or_to_the_left() -> None:
+    from ctdrill.app.gui.planning import new_trajectory
+
+    a = traj("implant 1")
+    b, where = new_trajectory([a], 0)
+    assert np.array_equal(b.entry_lps - a.entry_lps, [8.0, 0.0, 0.0])
+    assert b.name == "implant 2" and "patient's left" in where
+    # A straight arch along +y from y = -30 to y = +10: the target at y = 0 is 30 mm from the
+    # first end and 10 mm from the last, so the copy goes 8 mm toward the first (-y).
+    arch = np.array([[0.0, -30.0, 0.0], [0.0, 10.0, 0.0]])
+    on_arch = replace(a, arch_lps=arch)
+    c, where = new_trajectory([on_arch], 0)
+    np.testing.assert_allclose(c.target_lps - on_arch.target_lps, [0.0, -8.0, 0.0], atol=1e-12)
+    assert "8.0 mm along the arch" in where
+    near_end = replace(on_arch, entry_lps=[0.0, 6.0, 12.0], target_lps=[0.0, 6.0, 0.0])
+    d, where = new_trajectory([near_end], 0)  # only 6 mm... no: 36 mm to the first end
+    np.testing.assert_allclose(d.target_lps[:2], [0.0, -2.0], atol=1e-12)
+    beyond = replace(on_arch, entry_lps=[0.0, 20.0, 12.0], target_lps=[0.0, 20.0, 0.0])
+    e, where = new_trajectory([beyond], 0)  # beside no point of the arch: the plain shift
+    assert np.array_equal(e.target_lps - beyond.target_lps, [8.0, 0.0, 0.0])
+    assert "beyond the arch's ends" in where
+
+
+def test_the_arch_is_set_on_every_trajectory_refused_when_invalid_and_undone(
+    qtbot: QtBot,
+) -> None:
+    doc = Document()
+    arch = np.array([[-20.0, 0.0, 0.0], [0.0, -10.0, 0.0], [20.0, 0.0, 0.0]])
+    doc.set_arch(arch)  # before any trajectory: kept for the first one
+    assert np.array_equal(doc.arch_lps, arch) and not doc.can_undo  # type: ignore[arg-type]
+    first = traj("a")
+    assert doc.set_plan(first)
+    assert doc.plan is not None and np.array_equal(doc.plan.arch_lps, arch)  # type: ignore[arg-type]
+    assert doc.add_plan(traj("b", 5.0))
+    moved = arch + np.array([0.0, 1.0, 0.0])
+    assert doc.set_arch(moved) and doc.history.undo_name == "edit arch"
+    assert all(np.array_equal(p.arch_lps, moved) for p in doc.plans)  # type: ignore[arg-type]
+    log = log_of(doc)
+    assert not doc.set_arch(np.array([[0.0, 0.0, 0.0]]))  # one point is no arch
+    assert log[0][0] == "edit_refused" and "arch" in str(log[0][1]) and len(log) == 1
+    assert doc.set_arch(None) and doc.history.undo_name == "remove arch"
+    assert all(p.arch_lps is None for p in doc.plans)
+    assert doc.undo() and doc.undo()
+    assert all(np.array_equal(p.arch_lps, arch) for p in doc.plans)  # type: ignore[arg-type]
+    assert doc.history.undo_name == "add trajectory 'b'"
