@@ -18,6 +18,9 @@ from ctdrill.imaging import CTVolume, load_series
 from ctdrill.imaging.dicom.series import SeriesSummary, list_series
 from ctdrill.imaging.plan.types import Plan
 
+#: Triangles of the first bone surface a series opens with (cheap to compute and to draw on
+#: software OpenGL); the 3D view then asks for the finest its measured frame time affords.
+FIRST_TRIANGLES = 60_000
 #: Longest side of the strided grid the bone surface is contoured on, samples; None: every
 #: voxel (the default since issue 16; 160 was the earlier coarse surface, every 4th slice on a
 #: 512 x 512 series, kept as the benchmark's peer).
@@ -61,7 +64,7 @@ def load_case(
         if len(series) > 1:
             return SeriesChoice(path=str(path), series=series)
     volume = load_series(str(path), series_uid=series_uid)
-    surface = volume_surface(volume, iso_hu=iso_hu, max_dim=max_dim)
+    surface = volume_surface(volume, iso_hu=iso_hu, max_dim=max_dim, max_triangles=FIRST_TRIANGLES)
     return Loaded(path=str(path), volume=volume, surface=surface, iso_hu=iso_hu)
 
 
@@ -86,7 +89,7 @@ def volume_surface(
             merge_slices=regular_stack(volume),
             max_triangles=max_triangles,
         )
-    return bone_surface(
+    surface = bone_surface(
         volume.hu,
         volume.affine_lps,
         iso_hu=iso_hu,
@@ -95,6 +98,8 @@ def volume_surface(
         index_to_lps=volume.index_to_lps,
         block=block,
     )
+    surface.field_data["iso_hu"] = np.array([iso_hu])
+    return surface
 
 
 def regular_stack(volume: CTVolume) -> bool:

@@ -95,7 +95,11 @@ class Controller(QObject):
         self.iso_hu = iso_hu
         volume = self.doc.volume
         if volume is not None:
-            self.surface_runner.submit(lambda: compute.volume_surface(volume, iso_hu=iso_hu))
+            self.surface_runner.submit(
+                lambda: compute.volume_surface(
+                    volume, iso_hu=iso_hu, max_triangles=compute.FIRST_TRIANGLES
+                )
+            )
 
     def run_suggest(self, space: SearchSpace) -> None:
         """Search the axes around the document's plan (in the background)."""

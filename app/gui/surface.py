@@ -32,6 +32,8 @@ PIECE_TRIANGLES = 100_000
 #: the UI thread may be held (bench/bench_gui3d.py measures it). Above it the voxels are
 #: averaged in blocks (``display_block``), slices kept whole where they are thick.
 DISPLAY_TRIANGLES = 300_000
+#: Most triangles the 3D view ever asks for (a fast GPU: every voxel of most series).
+MAX_TRIANGLES = 4_000_000
 
 _SMP_READY = False
 

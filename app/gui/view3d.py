@@ -21,6 +21,7 @@ from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 
 from ctdrill.app.gui.camera import add_orientation_marker, apply_camera
+from ctdrill.app.gui.compute import volume_surface
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.planning import scene_input
 from ctdrill.app.gui.results import PathView
@@ -33,7 +34,32 @@ from ctdrill.app.gui.scene import (
     set_drill_depth,
 )
 from ctdrill.app.gui.suggesting import candidate_lines
-from ctdrill.app.gui.surface import piece_count, surface_piece
+from ctdrill.app.gui.surface import MAX_TRIANGLES, piece_count, surface_piece
+from ctdrill.app.gui.workers import Runner
+
+#: The longest a frame of the 3D view should hold the UI thread, s.
+FRAME_BUDGET_S = 0.1
+#: The refined surface is asked for only when it may have this many times more triangles.
+REFINE_GAIN = 1.5
+#: Share of the frame budget left for the surface that the refinement plans to use.
+REFINE_SAFETY = 0.7
+
+
+def refine_budget(n_triangles: int, frame_without_s: float, frame_with_s: float) -> int | None:
+    """Triangles a frame of :data:`FRAME_BUDGET_S` affords, from two measured frames of the
+    view (without and with a surface of ``n_triangles``): the surface's cost per triangle is
+    their difference (at least 10 % of the frame with it, so noise never promises too much),
+    and :data:`REFINE_SAFETY` of the room left is used (frame times vary with the load); None
+    when that is less than :data:`REFINE_GAIN` times ``n_triangles`` (no refinement worth it),
+    at most :data:`MAX_TRIANGLES`."""
+    if n_triangles <= 0 or not (np.isfinite(frame_without_s) and np.isfinite(frame_with_s)):
+        return None
+    per_tri = max(frame_with_s - frame_without_s, 0.1 * frame_with_s) / n_triangles
+    room = FRAME_BUDGET_S - min(frame_without_s, frame_with_s)
+    if per_tri <= 0.0 or room <= 0.0:
+        return None
+    budget = int(min(MAX_TRIANGLES, REFINE_SAFETY * room / per_tri))
+    return budget if budget >= REFINE_GAIN * n_triangles else None
 
 
 class View3D(QWidget):
@@ -43,9 +69,16 @@ class View3D(QWidget):
     -------
     surface_shown() : the last piece of the current bone surface has been drawn
         (:attr:`surface_shown_s` holds when).
+    surface_settled() : no finer surface will follow (:attr:`settled_s` holds when).
+
+    The series opens with a coarse surface (``compute.FIRST_TRIANGLES``); once it is drawn,
+    the frame it took says how many triangles a frame of :data:`FRAME_BUDGET_S` affords, and
+    a worker contours the finest surface within that (every voxel when it fits), which then
+    replaces the coarse one piece by piece.
     """
 
     surface_shown = Signal()
+    surface_settled = Signal()
 
     def __init__(self, ctx: ViewContext, *, multi_samples: int = 0) -> None:
         """``multi_samples``: MSAA samples; 0 by default because on a software OpenGL (Mesa
@@ -72,6 +105,12 @@ class View3D(QWidget):
         self.last_frame_s = float("nan")  # perf_counter() at the end of the latest frame
         #: perf_counter() when the current surface's last piece was drawn (nan: not yet).
         self.surface_shown_s = float("nan")
+        self.settled_s = float("nan")
+        self.last_render_s = float("nan")  # duration of the latest frame
+        self._refined_gen = 0  # the surface generation a refinement was installed as
+        self._refiner = Runner(self._refined, self._refine_failed, parent=self)
+        self._refining_for = 0
+        self._frame_without_s = float("nan")
         #: Point the camera at the trajectory on the next build (a newly opened plan).
         self.refocus_next = False
         doc = ctx.doc
@@ -119,15 +158,23 @@ class View3D(QWidget):
         self.ctx.steps.push(self.render_now)
 
     # ------------------------------------------------------------------ bone surface
-    def set_surface(self, surface: pv.PolyData | None, *, redraw: bool = True) -> None:
+    def set_surface(
+        self, surface: pv.PolyData | None, *, redraw: bool = True, refined: bool = False
+    ) -> None:
         """Use a new bone surface (new volume or preset): its pieces are added and drawn one
         per event-loop pass (``redraw`` is accepted for compatibility: the pieces always
-        draw); the camera is re-aimed with the first piece."""
+        draw); the camera is re-aimed with the first piece, unless ``refined`` (a finer
+        surface of the same volume, which is never refined again)."""
         self.surface = surface
-        self._camera_for = None
+        self._refiner.cancel()
+        if not refined:
+            self._camera_for = None
         self._surface_gen += 1
+        if refined:
+            self._refined_gen = self._surface_gen
         gen = self._surface_gen
         self.surface_shown_s = float("nan")
+        self.settled_s = float("nan")
         n = 0 if surface is None else piece_count(surface)
         self.ctx.steps.push(lambda: self._drop_bone(gen))
         for index in range(n):
@@ -159,9 +206,77 @@ class View3D(QWidget):
             self._surface_done(gen)
 
     def _surface_done(self, gen: int) -> None:
-        if gen == self._surface_gen:
-            self.surface_shown_s = self.last_frame_s
-            self.surface_shown.emit()
+        if gen != self._surface_gen:
+            return
+        self.surface_shown_s = self.last_frame_s
+        self.surface_shown.emit()
+        if self._refined_gen == gen or not self._refinable():
+            self._settle()
+            return
+        # Two frames, each in its own pass: without the bone, then with it.
+        self.ctx.steps.push(lambda: self._time_frame(gen, bone=False))
+        self.ctx.steps.push(lambda: self._time_frame(gen, bone=True))
+
+    def _refinable(self) -> bool:
+        surf = self.surface
+        if surf is None or surf.n_cells == 0 or self.ctx.doc.volume is None:
+            return False
+        if "iso_hu" not in surf.field_data or "block" not in surf.field_data:
+            return False
+        return tuple(int(b) for b in surf.field_data["block"]) != (1, 1, 1)
+
+    def _time_frame(self, gen: int, *, bone: bool) -> None:
+        """Time one frame with the bone hidden (``bone`` False) or shown; after both, ask for
+        the finer surface the frame budget affords."""
+        if gen != self._surface_gen:
+            return
+        for actor in self._bone.values():
+            actor.SetVisibility(bone)
+        self.render_now()
+        if not bone:
+            self._frame_without_s = self.last_render_s
+            return
+        budget = refine_budget(
+            self.surface.n_cells if self.surface is not None else 0,
+            self._frame_without_s,
+            self.last_render_s,
+        )
+        volume = self.ctx.doc.volume
+        if budget is None or volume is None or self.surface is None:
+            if self.surface is not None:
+                block = "x".join(str(int(b)) for b in self.surface.field_data["block"])
+                self.ctx.status(
+                    f"3D: bone surface of {self.surface.n_cells:,} triangles on {block} voxel "
+                    f"blocks; a frame takes {1e3 * self.last_render_s:.0f} ms here, so no "
+                    f"finer one within {1e3 * FRAME_BUDGET_S:.0f} ms"
+                )
+            self._settle()
+            return
+        iso = float(self.surface.field_data["iso_hu"][0])
+        self._refining_for = gen
+        self.ctx.status(f"3D: contouring a finer bone surface (up to {budget:,} triangles) ...")
+        self._refiner.submit(lambda: volume_surface(volume, iso_hu=iso, max_triangles=budget))
+
+    def _refined(self, surface: pv.PolyData) -> None:
+        if self._refining_for != self._surface_gen:
+            return
+        old = self.surface
+        if old is not None and surface.n_cells <= old.n_cells:
+            self._settle()
+            return
+        self.ctx.status(
+            f"3D: bone surface of {surface.n_cells:,} triangles "
+            f"(voxel blocks {tuple(int(b) for b in surface.field_data['block'])})"
+        )
+        self.set_surface(surface, refined=True)
+
+    def _refine_failed(self, exc: BaseException, _tb: str) -> None:
+        self.ctx.status(f"3D: the finer bone surface failed: {exc}")
+        self._settle()
+
+    def _settle(self) -> None:
+        self.settled_s = time.perf_counter()
+        self.surface_settled.emit()
 
     # ------------------------------------------------------------------ plan
     def _aim(self, scene: SceneInput) -> None:
@@ -201,9 +316,11 @@ class View3D(QWidget):
 
     def render_now(self) -> None:
         """Draw one frame now."""
+        t0 = time.perf_counter()
         self.plotter.render()
         self.frames_drawn += 1
         self.last_frame_s = time.perf_counter()
+        self.last_render_s = self.last_frame_s - t0
 
     def grab_rgb(self) -> np.ndarray:
         """(H, W, 3) uint8 image of the render window, as displayed."""

@@ -21,8 +21,7 @@ from ctdrill.app.gui.surface import (
 )
 from ctdrill.imaging import CTVolume, SeriesInfo, load_series
 
-DATA = Path("/work/shared/data")
-PHILIPS = DATA / "dcmqa_ct_Philips_phantom_notilt_5mm"
+PHILIPS = "dcmqa_ct_Philips_phantom_notilt_5mm"
 SHAPE = (20, 22, 24)  # slices, rows, cols
 #: A linear field HU(p) = GRAD . p + offset, in LPS: its iso-surface is a plane, exactly.
 GRAD = np.array([30.0, -20.0, 45.0])
@@ -146,8 +145,8 @@ def test_pieces_add_up_to_the_surface_slab_by_slab() -> None:
         assert lo >= hi - 1.0 - 1e-9
 
 
-def test_the_real_head_surface_has_vertices_on_every_slice() -> None:
-    vol = load_series(PHILIPS)
+def test_the_real_head_surface_has_vertices_on_every_slice(shared_data: Path) -> None:
+    vol = load_series(shared_data / PHILIPS)
     surf = volume_surface(vol, iso_hu=300.0)
     bone_slices = set(np.flatnonzero((vol.hu > 300).any(axis=(1, 2))).tolist())
     assert len(bone_slices) >= 20
@@ -206,3 +205,26 @@ def test_the_display_block_is_the_first_within_the_budget() -> None:
     # thick slices: only the pixels are merged
     got_thick = display_block(hu, (0.5, 0.5, 5.0), iso_hu=0.0, max_triangles=full // 3)
     assert got_thick[2] == 1 and count(got_thick) <= full // 3
+
+
+def test_the_refinement_budget_follows_the_measured_frames() -> None:
+    from ctdrill.app.gui.view3d import (
+        FRAME_BUDGET_S,
+        REFINE_GAIN,
+        REFINE_SAFETY,
+        refine_budget,
+    )
+
+    # 20 ms without the bone, 40 ms with 50k triangles: 0.4 us a triangle, 80 ms of room.
+    want = int(REFINE_SAFETY * (FRAME_BUDGET_S - 0.020) / (0.020 / 50_000))
+    assert refine_budget(50_000, 0.020, 0.040) == pytest.approx(want, abs=1)
+    assert want == pytest.approx(140_000, abs=1)
+    # too slow already, or too little gain: no refinement
+    assert refine_budget(50_000, 0.020, 0.150) is None
+    assert refine_budget(50_000, 0.020, 0.020 + 0.080 * REFINE_SAFETY / REFINE_GAIN * 1.01) is None
+    # noise: a frame with the bone faster than without still counts 10 % of it as the bone's
+    assert refine_budget(10_000, 0.030, 0.025) == pytest.approx(
+        REFINE_SAFETY * 0.075 / (0.0025 / 10_000), abs=1
+    )
+    assert refine_budget(0, 0.01, 0.02) is None
+    assert refine_budget(1000, float("nan"), 0.02) is None
