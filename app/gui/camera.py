@@ -93,12 +93,41 @@ def fit_distance_mm(
     return float(max(np.max(along) + clearance_mm, np.max(along + across / tan_half)))
 
 
+def buccal_direction(arch_lps: np.ndarray, entry_lps: np.ndarray) -> np.ndarray | None:
+    """The horizontal unit vector out of the dental arch at the point nearest ``entry_lps``:
+    perpendicular to the arch there, on its convex side (away from the centroid of its points,
+    which lies on the concave, lingual side of any curved arch or arc of one); None when the
+    arch is straight there (no side to tell)."""
+    pts = np.asarray(arch_lps, dtype=np.float64)[:, :2]
+    e = np.asarray(entry_lps, dtype=np.float64)[:2]
+    a, b = pts[:-1], pts[1:]
+    seg = b - a
+    length2 = np.einsum("ij,ij->i", seg, seg)
+    ok = length2 > 0
+    if not ok.any():
+        return None
+    t = np.clip(np.einsum("ij,ij->i", e - a, seg) / np.where(ok, length2, 1.0), 0.0, 1.0)
+    near = a + t[:, None] * seg
+    dist = np.where(ok, np.linalg.norm(near - e, axis=1), np.inf)
+    m = int(np.argmin(dist))
+    tangent = seg[m] / np.sqrt(length2[m])
+    normal = np.array([-tangent[1], tangent[0]])
+    away = near[m] - pts.mean(axis=0)
+    span = float(np.max(np.linalg.norm(pts - pts.mean(axis=0), axis=1)))
+    side = float(normal @ away)
+    if span == 0.0 or abs(side) < 1e-3 * span:
+        return None
+    normal = normal if side > 0 else -normal
+    return np.array([normal[0], normal[1], 0.0])
+
+
 def initial_camera(
     bounds: Sequence[float],
     entry_lps: np.ndarray | None = None,
     target_lps: np.ndarray | None = None,
     *,
     centre_lps: np.ndarray | None = None,
+    outward_lps: np.ndarray | None = None,
     view_angle_deg: float = VIEW_ANGLE_DEG,
 ) -> CameraPose:
     """The starting camera for the anatomy ``bounds`` and the trajectory entry -> target.
@@ -109,7 +138,9 @@ def initial_camera(
         the volume), LPS mm.
     entry_lps, target_lps : the trajectory; None: look at the anatomy's centre from anterior.
     centre_lps : the anatomy's centre the buccal side is away from (default: the centre of
-        ``bounds``; the dental arch's centroid is a better one when known).
+        ``bounds``).
+    outward_lps : the buccal direction itself (:func:`buccal_direction` of the dental arch),
+        which then replaces the centre rule.
 
     Returns
     -------
@@ -137,6 +168,9 @@ def initial_camera(
         off_centre = float(np.hypot(*(entry - centre)[:2]))
         if outward is None or off_centre < CENTRE_TOLERANCE * min(box[1] - box[0], box[3] - box[2]):
             outward = _ANTERIOR  # the entry at the anatomy's centre: no side to prefer
+        if outward_lps is not None:
+            outward = _horizontal_unit(np.asarray(outward_lps, dtype=np.float64))
+            outward = _ANTERIOR if outward is None else outward
         side = outward - (outward @ axis) * axis  # perpendicular to the drill
         if np.linalg.norm(side) < 1e-6:  # a horizontal drill pointing at the centre
             side = _SUPERIOR - (_SUPERIOR @ axis) * axis

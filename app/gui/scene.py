@@ -16,7 +16,13 @@ from typing import Any
 import numpy as np
 import pyvista as pv
 
-from ctdrill.app.gui.camera import CameraPose, add_orientation_marker, initial_camera, scene_bounds
+from ctdrill.app.gui.camera import (
+    CameraPose,
+    add_orientation_marker,
+    buccal_direction,
+    initial_camera,
+    scene_bounds,
+)
 from ctdrill.app.gui.meshes import drill_mesh, implant_mesh, landmark_meshes, unit
 from ctdrill.app.gui.surface import bone_surface as bone_surface
 
@@ -316,8 +322,8 @@ def set_drill_depth(actors: dict[str, Any], axis_lps: np.ndarray, depth_mm: floa
 def scene_camera(scene: SceneInput, surface: pv.PolyData | None) -> CameraPose | None:
     """The starting camera of ``scene`` (:func:`ctdrill.app.gui.camera.initial_camera`): the
     bone surface, the trajectory and the landmarks in view, looking at the target from the
-    buccal side (away from the dental arch's centroid when the scene has an arch); None when
-    there is nothing to look at."""
+    buccal side (out of the dental arch at the entry when the scene has an arch, else away
+    from the anatomy's centre); None when there is nothing to look at."""
     surface_bounds = None
     if surface is not None and surface.n_points > 0:
         surface_bounds = tuple(surface.bounds)
@@ -328,7 +334,7 @@ def scene_camera(scene: SceneInput, surface: pv.PolyData | None) -> CameraPose |
     bounds = scene_bounds(surface_bounds, points)
     if bounds is None:
         return None
-    centre = None
-    if scene.arch_lps is not None and len(scene.arch_lps) >= 2:
-        centre = np.asarray(scene.arch_lps, dtype=np.float64).mean(axis=0)
-    return initial_camera(bounds, scene.entry_lps, scene.target_lps, centre_lps=centre)
+    outward = None
+    if scene.arch_lps is not None and len(scene.arch_lps) >= 2 and scene.entry_lps is not None:
+        outward = buccal_direction(scene.arch_lps, scene.entry_lps)
+    return initial_camera(bounds, scene.entry_lps, scene.target_lps, outward_lps=outward)

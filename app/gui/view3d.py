@@ -33,6 +33,7 @@ from ctdrill.app.gui.scene import (
     scene_camera,
     set_drill_depth,
 )
+from ctdrill.app.gui.scene_plans import plans_scene
 from ctdrill.app.gui.suggesting import candidate_lines
 from ctdrill.app.gui.surface import MAX_TRIANGLES, piece_count, surface_piece
 from ctdrill.app.gui.workers import Runner
@@ -118,6 +119,7 @@ class View3D(QWidget):
         doc.path_changed.connect(self._path)
         doc.live_depth_changed.connect(self.set_drill_depth)
         doc.suggestion_changed.connect(self._suggestion)
+        doc.plans_changed.connect(self._plans)
 
     # ------------------------------------------------------------------ document
     def _surface(self, surface: pv.PolyData | None) -> None:
@@ -136,12 +138,19 @@ class View3D(QWidget):
 
         def build() -> None:
             if current():
-                scene = scene_input(plan, view, candidate_lines(doc.suggestion, doc.adopted))
+                lines = candidate_lines(doc.suggestion, doc.adopted)
+                scene = plans_scene(doc.plans, doc.current, view, lines)
                 self.show_scene(scene, refocus=self.refocus_next, render=False)
                 self.refocus_next = False
 
         self.ctx.steps.push(build)  # the build and its frame: two passes
         self.ctx.steps.push(lambda: self.render_now() if current() else None)
+
+    def _plans(self, plans: tuple[object, ...]) -> None:
+        """Every trajectory removed: the anatomy alone (otherwise the current one's path
+        result rebuilds the scene, with every trajectory)."""
+        if not plans and self.scene is not None and self.scene.entry_lps is not None:
+            self.ctx.steps.push(lambda: self.show_scene(scene_input(None, None)))
 
     def _suggestion(self, _suggestion: object) -> None:
         doc = self.ctx.doc
@@ -152,7 +161,7 @@ class View3D(QWidget):
         def build() -> None:
             if doc.plan is plan and doc.path is view:
                 lines = candidate_lines(doc.suggestion, doc.adopted)
-                self.show_scene(scene_input(plan, view, lines), render=False)
+                self.show_scene(plans_scene(doc.plans, doc.current, view, lines), render=False)
 
         self.ctx.steps.push(build)
         self.ctx.steps.push(self.render_now)

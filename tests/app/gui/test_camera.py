@@ -12,6 +12,7 @@ from ctdrill.app.gui.camera import (
     ORIENTATION_LETTERS,
     TILT_DEG,
     VIEW_ANGLE_DEG,
+    buccal_direction,
     fit_distance_mm,
     initial_camera,
     orientation_cube,
@@ -101,3 +102,39 @@ def test_the_orientation_cube_is_lettered_in_white() -> None:
     for face in ORIENTATION_LETTERS:
         colour = getattr(cube, f"Get{face}FaceProperty")().GetColor()
         assert colour == pytest.approx(LETTER_COLOUR)
+
+
+def _u_arch() -> np.ndarray:
+    """A U-shaped arch, incisors anterior (y = -50), molars at y = 0, x from -30 to 30."""
+    x = np.linspace(-30.0, 30.0, 61)
+    return np.column_stack([x, -50.0 + x**2 / 18.0, np.full_like(x, -5.0)])
+
+
+def test_the_buccal_side_is_out_of_the_arch() -> None:
+    arch = _u_arch()
+    front = buccal_direction(arch, np.array([0.0, -49.0, 0.0]))
+    assert front is not None
+    np.testing.assert_allclose(front, [0.0, -1.0, 0.0], atol=0.06)  # incisor: anterior
+    right = buccal_direction(arch, np.array([-27.0, -9.0, 0.0]))
+    assert right is not None and right[0] < -0.8 and right[2] == 0.0  # right molar: right
+    # at x = -27 the arch's outward normal is (-dy/dx, 1) normalised, pointing right-front
+    slope = -27.0 / 9.0
+    want = np.array([slope, -1.0]) / np.hypot(slope, 1.0)
+    np.testing.assert_allclose(right[:2], want, atol=0.02)
+    # an arc of the arch alone (a partial arch) still knows its convex side
+    arc = arch[40:55]
+    part = buccal_direction(arc, arc[7] + np.array([0.0, 0.0, 3.0]))
+    assert part is not None and part[0] > 0.8
+    # a straight arch has no side
+    line = np.array([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [20.0, 0.0, 0.0]])
+    assert buccal_direction(line, np.array([10.0, 0.0, 5.0])) is None
+
+
+def test_the_camera_looks_from_the_arch_side_it_is_given() -> None:
+    entry = np.array([-27.0, -9.0, 0.0])
+    out = buccal_direction(_u_arch(), entry)
+    pose = initial_camera(JAW, entry, entry - np.array([0.0, 0.0, 12.0]), outward_lps=out)
+    assert out is not None
+    horiz = pose.view_dir[:2] / np.linalg.norm(pose.view_dir[:2])
+    np.testing.assert_allclose(horiz, out[:2] / np.linalg.norm(out[:2]), atol=1e-9)
+    _check_pose_sees_the_box(pose, JAW)
