@@ -108,3 +108,54 @@ def test_a_real_head_is_drawn_from_every_slice_and_seen_from_the_front(
     pos, focal = _camera(window)
     assert pos[1] < focal[1]  # no plan: from anterior
     window.save_screenshot(tmp_path / f"{series}.png")
+
+
+def test_every_trajectory_and_implant_is_drawn_and_the_selected_one_highlighted(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    from dataclasses import replace
+
+    from ctdrill.app.gui.scene import IMPLANT_COLOUR, OTHER_IMPLANT_COLOUR
+    from ctdrill.imaging.plan.implants import ImplantSpec
+
+    window.open_plan(phantom_case.plan_path)
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        _open_and_settle(qtbot, window, phantom_case.ct_dir)
+    doc = window.doc
+    first = doc.plan
+    assert first is not None
+    spec = ImplantSpec("generic 4.1 x 10", 4.1, 10.0, 3.2, "round")
+    shift = np.array([6.0, 0.0, 0.0])
+    second = replace(
+        first,
+        name="second",
+        entry_lps=first.entry_lps + shift,
+        target_lps=first.target_lps + shift,
+        implant=spec,
+    )
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        doc.set_plans((replace(first, implant=spec), second), current=1)
+
+    def drawn() -> bool:
+        names = set(window.view3d.actors)
+        return {"implant:0", "implant:1", "other:0", "drill"} <= names
+
+    qtbot.waitUntil(drawn, timeout=LOAD_TIMEOUT_MS)
+    actors = window.view3d.actors
+    colour = [actors[f"implant:{i}"].GetProperty().GetColor() for i in (0, 1)]
+    assert colour[0] == pytest.approx(OTHER_IMPLANT_COLOUR, abs=1 / 255)  # not selected
+    assert colour[1] == pytest.approx(IMPLANT_COLOUR, abs=1 / 255)  # the selected one
+    # the selected trajectory is the one drawn in full (its drill at its entry)
+    b = np.array(actors["drill"].GetBounds())
+    centre_x = (b[0] + b[1]) / 2.0
+    assert centre_x == pytest.approx(second.entry_lps[0], abs=0.5)
+    # back to the first: the highlight follows
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        doc.select(0)
+    qtbot.waitUntil(
+        lambda: (
+            window.view3d.actors["implant:0"].GetProperty().GetColor()
+            == pytest.approx(IMPLANT_COLOUR, abs=1 / 255)
+        ),
+        timeout=LOAD_TIMEOUT_MS,
+    )
