@@ -385,11 +385,12 @@ def plan_to_dict(plan: Plan) -> dict[str, Any]:
     return plan_document(plan)
 
 
-def plan_to_markups(plan: Plan) -> dict[str, Any]:
-    """The 3D Slicer markups document of ``plan`` (LPS; settings in descriptions)."""
+def plan_to_markups(plan: Plan | Sequence[Plan]) -> dict[str, Any]:
+    """The 3D Slicer markups document of ``plan`` (LPS; settings in descriptions), or of
+    several trajectories sharing their landmarks and arch (one Line each)."""
     from ctdrill.imaging.plan.write import markups_document
 
-    return markups_document(plan)
+    return markups_document(plan if isinstance(plan, Plan) else tuple(plan))
 
 
 def save_plan(plan: Plan, path: str | os.PathLike[str], *, series_uid: str | None = None) -> None:

@@ -358,3 +358,11 @@ def test_a_canal_named_like_an_arch_word_inside_another_word_stays_a_canal(
     doc = {"markups": [line, slicer_markup("Curve", cps)]}
     (plan,) = load_plans(_write(tmp_path, doc, "c.mrk.json"))
     assert plan.arch_lps is None and [lm.name for lm in plan.landmarks] == ["archaic canal"]
+
+
+def test_plan_to_markups_takes_several_trajectories() -> None:
+    plans = _plans()
+    doc = plan_to_markups(plans)
+    validate_markups(doc)
+    assert [m["type"] for m in doc["markups"]] == ["Line"] * 3 + ["Curve", "Fiducial", "Curve"]
+    assert doc == plan_to_markups(list(plans))
