@@ -29,6 +29,8 @@ from ctdrill.imaging.volume import CTVolume
 #: |axis component across the bucco-lingual normal| below which the cross-section is refused.
 _DEGENERATE_AXIS = 1e-3
 _EZ = np.array([0.0, 0.0, 1.0])
+#: An arch whose centroid lies within this distance (mm) of its own normal line is straight.
+_STRAIGHT_MM = 1e-6
 
 
 def cross_section(
@@ -103,9 +105,7 @@ def cross_section(
     lps = centre + u[None, :, None] * col + v[:, None, None] * row
     offsets = slab_offsets_mm(volume, slab_mm)
     hu = sample_slab(volume, lps, normal[None, None, :], offsets, slab_mode, float(outside_hu))
-    centroid = np.mean(curve.point_xy(curve.grid_mm(1.0)), axis=0)
-    inward = float((centroid - curve.point_xy(np.array([s]))[0]) @ col[:2])
-    letters = ("B", "Li") if inward >= 0.0 else ("Li", "B")
+    letters = _column_letters(curve, s, col)
     return Reformat(
         hu=readonly(hu),
         lps=readonly(np.ascontiguousarray(lps)),
@@ -166,3 +166,19 @@ def _check_arc(curve: ArchCurve, s: float) -> float:
             f"cross-section: at_arc_mm {s!r} lies outside the arch (0 to {curve.length_mm:.1f} mm)"
         )
     return min(max(s, 0.0), curve.length_mm)
+
+
+def _lps_letter(direction: np.ndarray) -> str:
+    """The patient direction (``R L A P I S``) a vector points to most."""
+    axis = int(np.argmax(np.abs(direction)))
+    return ("RL", "AP", "IS")[axis][int(direction[axis] > 0.0)]
+
+
+def _column_letters(curve: ArchCurve, s: float, col: np.ndarray) -> tuple[str, str]:
+    """Buccal (away from the arch's centroid) and lingual sides of the image; a straight arch
+    has no inside, so its sides get the patient directions (``R L A P``) instead."""
+    centroid = np.mean(curve.point_xy(curve.grid_mm(1.0)), axis=0)
+    inward = float((centroid - curve.point_xy(np.array([s]))[0]) @ col[:2])
+    if abs(inward) < _STRAIGHT_MM:
+        return (_lps_letter(-col), _lps_letter(col))
+    return ("B", "Li") if inward > 0.0 else ("Li", "B")

@@ -56,7 +56,8 @@ class Reformat:
         and slab normal, LPS; None for a panorama.
     column_letters : tuple[str, str]
         Anatomical side of the image's left and right edges: ``R``/``L`` on a panorama
-        (patient right/left), ``B``/``Li`` (buccal/lingual) on a cross-section.
+        (patient right/left), ``B``/``Li`` (buccal/lingual) on a cross-section (the patient
+        directions ``R L A P`` on a cross-section of a straight arch, which has no inside).
     notes : tuple[str, ...]
         What the caller should know (a slab folding on a tight curve, ...).
     """

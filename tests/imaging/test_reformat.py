@@ -201,6 +201,7 @@ def test_cross_section_contains_the_axis_and_scrolls_along_the_arch(lin: CTVolum
     np.testing.assert_allclose(centre, 0.5 * (entry + target))
     np.testing.assert_allclose(col, [0.0, 1.0, 0.0])
     assert row[2] < 0  # rows run down
+    assert c.column_letters == ("A", "P")  # a straight arch has no inside: patient directions
     np.testing.assert_allclose(np.cross(col, -row), normal)
     np.testing.assert_allclose(c.hu, lin.sample(c.lps), atol=1e-9)
     moved = cross_section(
@@ -293,3 +294,21 @@ def test_real_gantry_tilt_head(shared_data: Path) -> None:
     )
     np.testing.assert_allclose(r.hu, expect, atol=1e-9)
     assert (r.hu > 0).mean() > 0.05  # bone and brain are in the picture
+
+
+def test_cross_section_sides_buccal_and_lingual(lin: CTVolume) -> None:
+    """A U-shaped arch from the patient's right molars (x -20) through the incisors (y -28,
+    anterior) to the left molars: at the incisors the arch's inside is posterior (+y)."""
+    ang = np.linspace(np.pi, 0.0, 13)
+    arch = np.stack([20.0 * np.cos(ang), -8.0 - 20.0 * np.sin(ang), np.zeros(13)], axis=1)
+    mid = ArchCurve(arch).length_mm / 2
+    c = cross_section(lin, arch, at_arc_mm=mid, pixel_mm=0.5, width_mm=10.0, height_mm=4.0)
+    assert c.plane_lps is not None
+    np.testing.assert_allclose(c.plane_lps[1], [0.0, 1.0, 0.0], atol=1e-12)  # columns +y
+    assert c.column_letters == ("B", "Li")  # buccal (anterior) on the left
+    reverse = cross_section(
+        lin, arch[::-1], at_arc_mm=mid, pixel_mm=0.5, width_mm=10.0, height_mm=4.0
+    )
+    assert reverse.column_letters == ("Li", "B")
+    pano = panorama(lin, arch, pixel_mm=1.0, slab_mm=0.0, height_mm=2.0)
+    assert pano.column_letters == ("R", "L")
