@@ -50,6 +50,7 @@ from ctdrill.imaging.sampling.reformat_cross import cross_section
 from ctdrill.imaging.sampling.reformat_grid import (
     check_options,
     default_pixel_mm,
+    inside_fraction,
     slab_offsets_mm,
     volume_z_range_mm,
 )
@@ -142,6 +143,7 @@ def panorama(
     lps = np.empty((n_rows, n_cols, 3), dtype=np.float64)
     lps[:, :, :2] = origin[None, :, :2]
     lps[:, :, 2] = z[:, None]
+    inside = inside_fraction(volume, lps, "panorama")
     offsets = slab_offsets_mm(volume, slab_mm)
     hu = sample_slab(volume, lps, normal[None], offsets, slab_mode, float(outside_hu))
     first_x, last_x = float(origin[0, 0]), float(origin[-1, 0])
@@ -159,5 +161,6 @@ def panorama(
         outside_hu=float(outside_hu),
         column_letters=letters,
         notes=_fold_notes(curve, float(slab_mm)),
+        inside_fraction=inside,
         _curve=curve,
     )

@@ -15,6 +15,7 @@ from ctdrill.imaging.sampling.arch import TANGENT_WINDOW_MM, ArchCurve, ArchInpu
 from ctdrill.imaging.sampling.reformat_grid import (
     check_options,
     default_pixel_mm,
+    inside_fraction,
     slab_offsets_mm,
 )
 from ctdrill.imaging.sampling.reformat_types import (
@@ -103,6 +104,7 @@ def cross_section(
     u = (np.arange(n_cols) - 0.5 * (n_cols - 1)) * pixel
     v = (np.arange(n_rows) - 0.5 * (n_rows - 1)) * pixel
     lps = centre + u[None, :, None] * col + v[:, None, None] * row
+    inside = inside_fraction(volume, lps, "cross-section")
     offsets = slab_offsets_mm(volume, slab_mm)
     hu = sample_slab(volume, lps, normal[None, None, :], offsets, slab_mode, float(outside_hu))
     letters = _column_letters(curve, s, col)
@@ -120,6 +122,7 @@ def cross_section(
         at_arc_mm=float(s),
         plane_lps=readonly(np.stack([centre, col, row, normal])),
         column_letters=letters,
+        inside_fraction=inside,
         _curve=curve,
     )
 

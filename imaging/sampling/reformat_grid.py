@@ -68,3 +68,26 @@ def check_options(
         raise ImagingInputError(f"reformat: slab mode {slab_mode!r} must be 'mean' or 'mip'")
     if size_mm is not None and not (math.isfinite(size_mm) and size_mm > 0.0):
         raise ImagingInputError(f"reformat: {size_name} {size_mm!r} must be a positive number")
+
+
+def inside_fraction(volume: CTVolume, lps: np.ndarray, what: str) -> float:
+    """Fraction of the image's pixel centres (the slab's middle) inside the CT's voxel-centre
+    hull; an image wholly outside is refused (an arch or axis in the wrong frame or series).
+    """
+    h, w = lps.shape[:2]
+    top = np.array([volume.dims[0], volume.dims[1], volume.dims[2]], dtype=np.float64) - 1.0
+    count = 0
+    rows = max(1, 262_144 // max(w, 1))
+    for r0 in range(0, h, rows):
+        idx = volume.lps_to_index(lps[r0 : r0 + rows])
+        count += int(np.count_nonzero(np.all((idx >= -1e-6) & (idx <= top + 1e-6), axis=-1)))
+    if count == 0:
+        lo, hi = np.min(lps, axis=(0, 1)), np.max(lps, axis=(0, 1))
+        z_lo, z_hi = volume_z_range_mm(volume)
+        raise ImagingInputError(
+            f"{what}: the whole image (LPS x {lo[0]:.1f}..{hi[0]:.1f}, y {lo[1]:.1f}..{hi[1]:.1f}, "
+            f"z {lo[2]:.1f}..{hi[2]:.1f} mm) lies outside the CT (z {z_lo:.1f}..{z_hi:.1f} mm); "
+            "check the plan's coordinate_system (LPS or RAS) and that the plan was made on this "
+            "series"
+        )
+    return count / float(h * w)

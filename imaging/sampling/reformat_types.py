@@ -60,6 +60,8 @@ class Reformat:
         directions ``R L A P`` on a cross-section of a straight arch, which has no inside).
     notes : tuple[str, ...]
         What the caller should know (a slab folding on a tight curve, ...).
+    inside_fraction : float
+        Fraction of the pixel centres inside the CT (an image wholly outside is refused).
     """
 
     hu: np.ndarray
@@ -76,6 +78,7 @@ class Reformat:
     plane_lps: np.ndarray | None = None
     column_letters: tuple[str, str] = ("", "")
     notes: tuple[str, ...] = ()
+    inside_fraction: float = 1.0
     _curve: ArchCurve | None = field(default=None, repr=False)
 
     @property
@@ -169,6 +172,7 @@ class Reformat:
             "column_letters": list(self.column_letters),
             "top_left_lps": self.lps[0, 0].tolist(),
             "notes": list(self.notes),
+            "inside_fraction": self.inside_fraction,
         }
         if self.at_arc_mm is not None:
             meta["at_arc_mm"] = self.at_arc_mm

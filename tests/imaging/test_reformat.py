@@ -125,7 +125,7 @@ def test_straight_arch_is_the_oblique_plane_of_ctvolume_sample() -> None:
 
 
 def test_circular_arch_positions_in_closed_form_and_normals_never_jump() -> None:
-    vol = volume(np.zeros((4, 4, 4), np.int16), affine())
+    vol = volume(np.zeros((4, 71, 71), np.int16), affine((1.0, 1.0, 1.0), origin_lps=(-35, -35, 8)))
     radius, n = 30.0, 7
     arch = circle_arch(radius, (0.0, 0.0), 0.0, np.pi, n, z=10.0)
     step = np.pi / (n - 1)
@@ -296,19 +296,37 @@ def test_real_gantry_tilt_head(shared_data: Path) -> None:
     assert (r.hu > 0).mean() > 0.05  # bone and brain are in the picture
 
 
-def test_cross_section_sides_buccal_and_lingual(lin: CTVolume) -> None:
+def test_cross_section_sides_buccal_and_lingual() -> None:
     """A U-shaped arch from the patient's right molars (x -20) through the incisors (y -28,
     anterior) to the left molars: at the incisors the arch's inside is posterior (+y)."""
+    flat = volume(
+        np.zeros((9, 81, 81), np.int16), affine((1.0, 1.0, 1.0), origin_lps=(-40, -40, -4))
+    )
     ang = np.linspace(np.pi, 0.0, 13)
     arch = np.stack([20.0 * np.cos(ang), -8.0 - 20.0 * np.sin(ang), np.zeros(13)], axis=1)
     mid = ArchCurve(arch).length_mm / 2
-    c = cross_section(lin, arch, at_arc_mm=mid, pixel_mm=0.5, width_mm=10.0, height_mm=4.0)
+    c = cross_section(flat, arch, at_arc_mm=mid, pixel_mm=0.5, width_mm=10.0, height_mm=4.0)
     assert c.plane_lps is not None
     np.testing.assert_allclose(c.plane_lps[1], [0.0, 1.0, 0.0], atol=1e-12)  # columns +y
     assert c.column_letters == ("B", "Li")  # buccal (anterior) on the left
     reverse = cross_section(
-        lin, arch[::-1], at_arc_mm=mid, pixel_mm=0.5, width_mm=10.0, height_mm=4.0
+        flat, arch[::-1], at_arc_mm=mid, pixel_mm=0.5, width_mm=10.0, height_mm=4.0
     )
     assert reverse.column_letters == ("Li", "B")
-    pano = panorama(lin, arch, pixel_mm=1.0, slab_mm=0.0, height_mm=2.0)
+    pano = panorama(flat, arch, pixel_mm=1.0, slab_mm=0.0, height_mm=2.0)
     assert pano.column_letters == ("R", "L")
+
+
+def test_image_wholly_outside_the_ct_is_refused_and_coverage_recorded(lin: CTVolume) -> None:
+    """An arch in the wrong frame (RAS read as LPS: x and y negated, far off here) samples
+    nothing of the CT: refused, never an all-air image."""
+    arch = np.array([[200.0, 200.0, 0.0], [240.0, 200.0, 0.0]])
+    with pytest.raises(ImagingInputError, match=r"outside the CT.*coordinate_system"):
+        panorama(lin, arch, pixel_mm=1.0)
+    with pytest.raises(ImagingInputError, match="cross-section: the whole image"):
+        cross_section(lin, arch, at_arc_mm=20.0, pixel_mm=1.0)
+    half = np.array([[-60.0, 0.0, 0.0], [60.0, 5.0, 0.0]])
+    r = panorama(lin, half, pixel_mm=1.0, slab_mm=0.0)
+    assert r.inside_fraction == pytest.approx(float(lin.inside(r.lps).mean()))
+    assert 0.0 < r.inside_fraction < 1.0
+    assert r.metadata()["inside_fraction"] == r.inside_fraction
