@@ -3,7 +3,8 @@
 A view is a widget built from a :class:`~ctdrill.app.gui.document.ViewContext`; it subscribes to
 the document's signals itself and changes the document only through its methods. The window
 places each view by its ``area``: ``banner`` (a strip over the rest), ``main`` (side by side,
-left to right), ``bottom`` (under the main views) or ``tab`` (the side panel). A new view (a
+left to right), ``page`` (a page of its own, a tab beside the main views), ``bottom`` (under
+the main views) or ``tab`` (the side panel). A new view (a
 panoramic reformat, say) is one new module and one line in :data:`VIEWS`.
 """
 
@@ -17,6 +18,7 @@ from PySide6.QtWidgets import QWidget
 
 from ctdrill.app.gui.banner import Banner
 from ctdrill.app.gui.document import ViewContext
+from ctdrill.app.gui.panorama_view import PanoramaView
 from ctdrill.app.gui.plan_panel import PlanPanel
 from ctdrill.app.gui.plots_view import PlotsView
 from ctdrill.app.gui.rehearsal_panel import RehearsalPanel
@@ -25,7 +27,7 @@ from ctdrill.app.gui.slice_grid import SliceGrid
 from ctdrill.app.gui.suggest_panel import SuggestPanel
 from ctdrill.app.gui.view3d import View3D
 
-Area = Literal["banner", "main", "bottom", "tab"]
+Area = Literal["banner", "main", "page", "bottom", "tab"]
 
 
 @dataclass(frozen=True)
@@ -43,6 +45,7 @@ VIEWS: tuple[ViewSpec, ...] = (
     ViewSpec("banner", "banner", "", Banner),
     ViewSpec("3d", "main", "3D", View3D),
     ViewSpec("slices", "main", "Slices", SliceGrid),
+    ViewSpec("panorama", "page", "Panorama and cross-section", PanoramaView),
     ViewSpec("plots", "bottom", "Plots", PlotsView),
     ViewSpec("plan", "tab", "Plan", PlanPanel),
     ViewSpec("suggest", "tab", "Suggest", SuggestPanel),
