@@ -185,3 +185,25 @@ def test_an_implant_library_that_cannot_be_read_is_exit_2_before_any_window(
     bad.write_text('{"format": "ctdrill-implants/1", "implants": [{"name": "x"}]}')
     err = one_error_line(run_gui(["--plan", str(DEMO_PLAN), "--implants", str(bad)], {}))
     assert "implants.json" in err and "diameter_mm" in err
+
+
+def test_a_rehearsal_locks_the_trajectory_list_the_implant_and_undo(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    tl, doc = window.plan_panel.trajectories, window.doc
+    tl.add.click()
+    assert window.undo_action.isEnabled()
+    doc.set_rehearsing(True)  # as the rehearsal panel does when the device is armed
+    assert not window.undo_action.isEnabled() and not window.redo_action.isEnabled()
+    assert not tl.add.isEnabled() and not tl.list.isEnabled()
+    assert not window.plan_panel.body.isEnabled()  # the implant picker is in the locked body
+    plans = doc.plans
+    window.undo_action.trigger()  # a disabled action does nothing...
+    assert not doc.undo()  # ...and the document refuses it anyway
+    assert doc.plans is plans and doc.current == 1
+    assert window.statusBar().currentMessage().startswith("the plan is locked")
+    doc.set_rehearsing(False)
+    assert window.undo_action.isEnabled() and tl.add.isEnabled()
+    window.undo_action.trigger()
+    assert len(doc.plans) == 1
