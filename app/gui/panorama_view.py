@@ -14,6 +14,7 @@ Nothing is computed while the page is hidden.
 
 from __future__ import annotations
 
+import textwrap
 from functools import partial
 from typing import Any
 
@@ -21,7 +22,7 @@ from matplotlib.backend_bases import MouseEvent
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 from PySide6.QtCore import Qt, Signal
-from PySide6.QtGui import QKeyEvent, QShowEvent, QWheelEvent
+from PySide6.QtGui import QKeyEvent, QResizeEvent, QShowEvent, QWheelEvent
 from PySide6.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
@@ -49,6 +50,12 @@ _KEY_STEPS = {
 _PAGE_KEYS = {Qt.Key.Key_PageUp: 1.0, Qt.Key.Key_PageDown: -1.0}
 
 
+#: Room around the image, display pixels: left (tick labels and the mm label), right, top,
+#: and bottom for the tick labels and the x label's first line; each more line adds _LINE_PX.
+_MARGINS_PX = (56.0, 14.0, 10.0, 44.0)
+_LINE_PX = 17.0
+
+
 class ReformatCanvas(FigureCanvasQTAgg):
     """One reformat image (or a message saying why there is none)."""
 
@@ -56,17 +63,51 @@ class ReformatCanvas(FigureCanvasQTAgg):
     clicked_mm = Signal(float, float)  # image column, row in mm
 
     def __init__(self) -> None:
-        fig = Figure(figsize=(6.0, 3.0), dpi=80, layout="constrained")  # room for captions
+        fig = Figure(figsize=(6.0, 3.0), dpi=80)
         super().__init__(fig)
         self.ax = fig.add_subplot()
         self.message = ""
+        self._captions = ""  # the x label and captions as drawn, before wrapping
         self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self.mpl_connect("button_press_event", self._press)
+
+    def image_drawn(self) -> None:
+        """An image was just drawn on :attr:`ax`: lay it out and show it."""
+        self.message = ""
+        self._captions = self.ax.get_xlabel()
+        self.fit_captions()
+        self.draw_idle()
+
+    def fit_captions(self) -> None:
+        """Wrap the lines under the image (x label and captions) to the canvas width and
+        leave room for them: a fixed layout (matplotlib's constrained layout costs more than
+        the drawing itself)."""
+        fig, label = self.figure, self.ax.xaxis.label
+        w_px, h_px = max(fig.bbox.width, 100.0), max(fig.bbox.height, 100.0)
+        char_px = 0.6 * float(label.get_fontsize()) * fig.dpi / 72.0
+        chars = max(20, int((w_px - 20.0) / char_px))
+        lines = [
+            piece
+            for line in self._captions.split("\n")
+            for piece in (textwrap.wrap(line, chars) or [""])
+        ]
+        label.set_text("\n".join(lines))
+        left, right, top, bottom = _MARGINS_PX
+        bottom += _LINE_PX * (len(lines) - 1)
+        self.ax.set_position(
+            (left / w_px, bottom / h_px, 1 - (left + right) / w_px, 1 - (top + bottom) / h_px)
+        )
+
+    def resizeEvent(self, event: QResizeEvent) -> None:
+        super().resizeEvent(event)
+        if not self.message and self._captions:
+            self.fit_captions()
 
     def show_message(self, text: str) -> None:
         """Show ``text`` instead of an image."""
         self.message = text
         self.ax.clear()
+        self.ax.set_position((0.02, 0.02, 0.96, 0.96))
         self.ax.set_axis_off()
         self.ax.text(
             0.5, 0.5, text, ha="center", va="center", wrap=True, fontsize=11,
@@ -289,7 +330,10 @@ class PanoramaView(QWidget):
 
     def _redraw(self) -> None:
         """Redraw both images with the plan as it is now, each in a UI-thread step of its
-        own; a redraw already queued is not queued twice."""
+        own; a redraw already queued is not queued twice; none while the page is hidden."""
+        if not self.isVisible():
+            self._dirty = True
+            return
         for kind in ("panorama", "cross_section"):
             if kind not in self._queued:
                 self._queued.add(kind)
@@ -319,9 +363,7 @@ class PanoramaView(QWidget):
             paths=self._paths(),
             cross_section_at_mm=None if cross is None else cross.at_arc_mm,
         )
-        self.pano.ax.xaxis.label.set_wrap(True)
-        self.pano.message = ""
-        self.pano.draw_idle()
+        self.pano.image_drawn()
         self.drawn.emit("panorama")
 
     def _draw_cross(self, image: Reformat) -> None:
@@ -329,9 +371,7 @@ class PanoramaView(QWidget):
             return
         doc = self.ctx.doc
         draw_reformat(self.cross.ax, image, doc.plans, paths=self._paths())
-        self.cross.ax.xaxis.label.set_wrap(True)  # long captions wrap in a narrow pane
-        self.cross.message = ""
-        self.cross.draw_idle()
+        self.cross.image_drawn()
         arch = doc.arch_lps
         length = 0.0 if arch is None else reformats.arch_length_mm(arch)
         at_implant = self.at_arc_mm is None and doc.plan is not None
