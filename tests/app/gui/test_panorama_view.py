@@ -219,3 +219,12 @@ def test_real_head_panorama_and_cross_section_through_the_implant(
     wheel(view.cross, -3)
     site = arc_position_mm(plan.arch_lps, mid)
     assert at_mm(qtbot, window, view) == pytest.approx(site - 3.0)
+    # A second implant on the real head: added along the arch, the cross-section follows it;
+    # undone, the cross-section is back on the first implant.
+    window.plan_panel.trajectories.add.click()
+    assert len(window.doc.plans) == 2
+    assert at_mm(qtbot, window, view) == pytest.approx(site + 8.0, abs=0.5)
+    window.undo_action.trigger()
+    assert len(window.doc.plans) == 1 and window.plan is plan
+    assert at_mm(qtbot, window, view) == pytest.approx(site, abs=1e-6)
+    window.save_screenshot(tmp_path / "philips_after_undo.png")
