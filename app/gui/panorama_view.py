@@ -158,7 +158,10 @@ class SlabControls(QWidget):
         self.mode = QComboBox()
         self.mode.addItems(["mean", "MIP"])
         self.mode.setToolTip("mean of the slab, or its maximum (MIP: bone and implants stand out)")
-        for w in (label, QLabel("slab"), self.slab, self.mode):
+        #: "computing ..." while its image is computed in the background
+        self.busy = QLabel("")
+        self.busy.setStyleSheet("color:#6a1b9a")
+        for w in (label, QLabel("slab"), self.slab, self.mode, self.busy):
             self.row.addWidget(w)
         self.slab.valueChanged.connect(lambda _v: self.changed.emit())
         self.mode.currentIndexChanged.connect(lambda _i: self.changed.emit())
@@ -255,6 +258,8 @@ class PanoramaView(QWidget):
             self.pano_image = self.cross_image = None
             self.pano_runner.cancel()
             self.cross_runner.cancel()
+            self.pano_controls.busy.setText("")
+            self.cross_controls.busy.setText("")
             self.position.setText("")
             self.pano.show_message(reformats.NO_SERIES if doc.volume is None else reformats.NO_ARCH)
             self.cross.show_message("")
@@ -273,9 +278,11 @@ class PanoramaView(QWidget):
         if not pano.same_as(self._pano_req):
             self._pano_req = pano
             self.pano_runner.submit(pano.compute)
+            self.pano_controls.busy.setText("computing ...")
         if not cross.same_as(self._cross_req):
             self._cross_req = cross
             self.cross_runner.submit(cross.compute)
+            self.cross_controls.busy.setText("computing ...")
         self._redraw()
 
     def move_to(self, at_arc_mm: float | None) -> None:
@@ -308,18 +315,22 @@ class PanoramaView(QWidget):
     # ------------------------------------------------------------------ results
     def _pano_done(self, image: Reformat) -> None:
         self.pano_image = image
+        self.pano_controls.busy.setText("")
         self._redraw()
 
     def _cross_done(self, image: Reformat) -> None:
         self.cross_image = image
+        self.cross_controls.busy.setText("")
         self._redraw()  # the panorama marks where the cross-section is: both
 
     def _failed(self, canvas: ReformatCanvas) -> Any:
         def failed(exc: BaseException, tb: str) -> None:
             if canvas is self.pano:
                 self.pano_image, self._pano_req = None, None
+                self.pano_controls.busy.setText("")
             else:
                 self.cross_image, self._cross_req = None, None
+                self.cross_controls.busy.setText("")
             if isinstance(exc, ValueError):  # bad input: the arch, the axis, the slab
                 canvas.show_message(f"error: {exc}")
             else:

@@ -139,7 +139,10 @@ def test_demo_cross_section_scrolls_along_the_arch_and_follows_the_panorama(
 
     # Slab controls: one plane (0 mm) samples the CT exactly at each pixel; MIP is kept.
     view.cross_controls.slab.setValue(0.0)
+    assert view.cross_controls.busy.text() == "computing ..."
+    assert view.pano_controls.busy.text() == ""  # the panorama did not change
     settle(qtbot, window, view)
+    assert view.cross_controls.busy.text() == ""
     image = view.cross_image
     assert image is not None and image.slab_mm == 0.0
     np.testing.assert_allclose(image.hu, volume.sample(image.lps, outside_hu=-1000.0), atol=1e-9)
