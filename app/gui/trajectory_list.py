@@ -8,8 +8,9 @@ the document's :attr:`~ctdrill.app.gui.document.Document.plans`.
 
 from __future__ import annotations
 
-from PySide6.QtCore import Qt
+from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import (
+    QAbstractItemView,
     QGroupBox,
     QHBoxLayout,
     QListWidget,
@@ -54,6 +55,14 @@ class TrajectoryList(QGroupBox):
         self.list.setMaximumHeight(VISIBLE_ROWS * row_h + 8)
         self.list.currentRowChanged.connect(self._selected)
         self.list.itemChanged.connect(self._renamed)
+        # Renaming edits the bare name (not the row's label); Escape shows the label again.
+        self.list.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
+        self.list.itemDoubleClicked.connect(lambda _item: self._edit_name())
+        # The list is rebuilt only after the editor is gone (a rebuild inside the editor's
+        # own signals deletes the item it is committing: Qt crashes).
+        self.list.itemDelegate().closeEditor.connect(
+            lambda *_args: QTimer.singleShot(0, self.refresh)
+        )
         lay.addWidget(self.list)
         buttons = QHBoxLayout()
         self.add = QPushButton("Add")
@@ -127,11 +136,14 @@ class TrajectoryList(QGroupBox):
             self.list.editItem(item)
 
     def _renamed(self, item: QListWidgetItem) -> None:
-        if self._updating:
-            return
+        if not self._updating:  # applied once the editor is gone (see __init__)
+            row, text = self.list.row(item), item.text()
+            QTimer.singleShot(0, lambda: self._rename(row, text))
+
+    def _rename(self, row: int, text: str) -> None:
         doc = self.ctx.doc
-        row = self.list.row(item)
-        text = item.text()
+        if not 0 <= row < len(doc.plans):
+            return
         if text == trajectory_label(row, doc.plans[row]) or text == doc.plans[row].name:
             self.refresh()  # not changed (or only the label shown again)
             return

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PySide6.QtCore import Qt
-from PySide6.QtWidgets import QApplication
+from PySide6.QtWidgets import QApplication, QLineEdit
 from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui.main_window import MainWindow
@@ -55,6 +55,22 @@ def test_add_select_rename_remove_trajectories_and_undo_each(
     tl.list.setCurrentRow(1)
     assert window.view is second_view
 
+    tl.rename.click()  # the editor opens on the bare name; typing a new one renames
+    editors = [e for e in tl.list.findChildren(QLineEdit) if e.isVisible()]
+    assert len(editors) == 1 and editors[0].text() == second.name
+    editor = editors[0]
+    editor.selectAll()
+    qtbot.keyClicks(editor, "35")
+    qtbot.keyClick(editor, Qt.Key.Key_Return)
+    qtbot.waitUntil(lambda: window.plan is not None and window.plan.name == "35")
+    assert tl.list.item(1).text().startswith("2. 35  (")
+    rect = tl.list.visualItemRect(tl.list.item(1))  # a double-click opens the same editor
+    qtbot.mouseClick(tl.list.viewport(), Qt.MouseButton.LeftButton, pos=rect.center())
+    qtbot.mouseDClick(tl.list.viewport(), Qt.MouseButton.LeftButton, pos=rect.center())
+    editors = [e for e in tl.list.findChildren(QLineEdit) if e.isVisible()]
+    assert len(editors) == 1 and editors[0].text() == "35"
+    qtbot.keyClick(editors[0], Qt.Key.Key_Escape)  # cancelled: the row's label comes back
+    qtbot.waitUntil(lambda: tl.list.item(1).text().startswith("2. 35  ("))
     assert tl.rename_current("36")
     assert window.plan is not None and window.plan.name == "36"
     assert tl.list.item(1).text().startswith("2. 36  (")
@@ -75,6 +91,7 @@ def test_add_select_rename_remove_trajectories_and_undo_each(
         ("remove trajectory '36'", 2),
         ("change drill", 2),
         ("move target", 2),
+        ("rename trajectory", 2),
         ("rename trajectory", 2),
         ("add trajectory 'implant 1'", 1),
     ]
