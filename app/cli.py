@@ -23,6 +23,7 @@ COMMANDS: tuple[str, ...] = (
     "inspect",
     "phantom",
     "export",
+    "report",
     "batch",
     "plan",
     "suggest",

@@ -1,0 +1,144 @@
+"""The whole report: inputs read and computed as ``ctdrill export`` does, pages drawn off
+screen, the PDF written atomically.
+
+Order of the pages: the summary (the case, the table of every trajectory, each one's lines and
+warnings), the panoramic reformat with every implant, a cross-section per trajectory, the 3D
+view, then each trajectory's curves. Everything is computed and drawn in memory first; the file
+appears whole (a temporary sibling renamed over it) or not at all.
+"""
+
+from __future__ import annotations
+
+import io
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from matplotlib.figure import Figure
+
+from ctdrill.app.export import DEFAULT_RATE_HZ
+from ctdrill.app.export_run import PreparedCase, prepare_case
+from ctdrill.app.grey_option import GreyMapSpec
+from ctdrill.app.records import atomic_write_bytes, printable
+from ctdrill.app.report.curves import curves_page
+from ctdrill.app.report.entries import Entry, report_entries
+from ctdrill.app.report.layout import TextPages
+from ctdrill.app.report.summary import summary_pages
+from ctdrill.app.report.timing import Timings
+
+#: The document's title (every page's header).
+TITLE = "ctdrill report: planned implant osteotomy"
+
+
+def _plan_files(case: PreparedCase) -> list[str]:
+    seen: list[str] = []
+    for plan in case.plans:
+        name = printable(Path(plan.source).name) if plan.source else plan.name
+        if name not in seen:
+            seen.append(name)
+    return seen
+
+
+def report_pages(
+    case: PreparedCase,
+    entries: Sequence[Entry],
+    *,
+    include_phi: bool,
+    timings: Timings | None = None,
+    views: Callable[[TextPages, PreparedCase, Sequence[Entry], Timings], None] | None = None,
+) -> list[Figure]:
+    """Every page of the report, drawn (not yet written)."""
+    t = timings if timings is not None else Timings()
+    pages = TextPages(TITLE)
+    t0 = time.perf_counter()
+    summary_pages(
+        pages, case.volume, entries, include_phi=include_phi, plan_files=_plan_files(case)
+    )
+    t.add("summary", time.perf_counter() - t0)
+    if views is None:
+        from ctdrill.app.report.views import view_pages
+
+        views = view_pages
+    views(pages, case, entries, t)
+    t0 = time.perf_counter()
+    for entry in entries:
+        curves_page(pages.figure(), entry)
+    t.add("curves", time.perf_counter() - t0)
+    return pages.finish()
+
+
+def pdf_bytes(figures: Sequence[Figure]) -> bytes:
+    """The PDF of ``figures``, one page each, with no date or identifier in its metadata
+    (the same inputs give the same bytes)."""
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    buf = io.BytesIO()
+    meta = {"Title": TITLE, "Creator": "ctdrill report", "Producer": "ctdrill (matplotlib)"}
+    with PdfPages(buf, metadata={**meta, "CreationDate": None}) as pdf:
+        for fig in figures:
+            pdf.savefig(fig)
+    return buf.getvalue()
+
+
+def write_report(
+    dicom: Path,
+    plan_paths: Sequence[Path],
+    out: Path,
+    *,
+    calibration: str | None = None,
+    feed_mm_s: float | None = None,
+    include_phi: bool = False,
+    series_uid: str | None = None,
+    interpolate_gaps: bool = False,
+    hu_sigma: float | None = None,
+    grey: GreyMapSpec | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+    timings: Timings | None = None,
+) -> tuple[Path, int]:
+    """Compute the case as ``ctdrill export`` does and write its report to ``out`` (PDF).
+
+    Parameters are :func:`ctdrill.app.export_run.export_case`'s; ``timings`` collects the
+    seconds of each stage.
+
+    Returns
+    -------
+    The written path and its number of pages.
+
+    Raises
+    ------
+    AppInputError, ImagingInputError, ModelInputError
+        Bad input (one line naming the file or field); ``out`` is then untouched.
+    """
+    from ctdrill.app.errors import AppInputError
+
+    if Path(out).is_dir():
+        raise AppInputError(f"--out {out}: is a folder; give the PDF's file name")
+    t = timings if timings is not None else Timings()
+    t0 = time.perf_counter()
+    case = prepare_case(
+        dicom,
+        plan_paths,
+        calibration=calibration,
+        feed_mm_s=feed_mm_s,
+        rate_hz=DEFAULT_RATE_HZ,
+        include_phi=include_phi,
+        series_uid=series_uid,
+        progress=progress,
+        interpolate_gaps=interpolate_gaps,
+        hu_sigma=hu_sigma,
+        grey=grey,
+    )
+    t.add("load and compute", time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    entries = report_entries(
+        case, feed_mm_s=feed_mm_s, rate_hz=DEFAULT_RATE_HZ, include_phi=include_phi
+    )
+    t.add("summaries", time.perf_counter() - t0)
+    figures = report_pages(case, entries, include_phi=include_phi, timings=t)
+    t0 = time.perf_counter()
+    data = pdf_bytes(figures)
+    t.add("pdf", time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    path = atomic_write_bytes(out, data, what="--out")
+    t.add("write", time.perf_counter() - t0)
+    return path, len(figures)

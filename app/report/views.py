@@ -1,0 +1,165 @@
+"""The report's image pages: the panoramic reformat with every implant, a cross-section per
+trajectory, and the 3D view.
+
+The reformats are :func:`ctdrill.imaging.sampling.reformat.panorama` and
+:func:`~ctdrill.imaging.sampling.reformat.cross_section`, drawn by
+:func:`ctdrill.app.reformat.draw.draw_reformat` (the canal with its radius and margin zone, the
+implant body, the drill to its stop, a mm scale), the same code as ``ctdrill panorama`` and the
+window's views. The 3D view is :func:`ctdrill.app.gui.scene.render_offscreen` of the window's
+scene, off screen. A plan without a dental arch gets a page saying so and how to add one, not a
+refused report.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from ctdrill.app.export_run import PreparedCase
+from ctdrill.app.records import printable
+from ctdrill.app.report.entries import Entry
+from ctdrill.app.report.layout import MARGIN_IN, PAGE_IN, TextPages, wrap
+from ctdrill.app.report.timing import Timings
+
+#: What the report says when the plan has no arch (and how to add one).
+NO_ARCH = (
+    "No dental arch in the plan, so no panoramic reformat or cross-sections perpendicular to "
+    "the arch. To add one: give the plan an arch_mm polyline (points along the arch, in the "
+    "plan's coordinate system; docs/plan.md), or draw it on the axial view of ctdrill gui and "
+    "save the plan, or add a 3D Slicer Curve markup named 'arch' to the plan files. Then run "
+    "ctdrill report again."
+)
+#: Grey window of the reformats (bone: level 400 HU, width 2000 HU).
+LEVEL_HU = 400.0
+WIDTH_HU = 2000.0
+#: The 3D view's size in pixels (drawn at 150 dpi on the page).
+VIEW3D_PX = (1500, 900)
+
+
+def _final_entries(entries: Sequence[Entry]) -> list[Entry]:
+    """One entry per trajectory: a drill sequence's final drill (its stop rules the plan)."""
+    return [e for e in entries if e.drill_index is None or e.drill_index[0] == e.drill_index[1]]
+
+
+def _heading(fig: Figure, title: str, note: str = "") -> None:
+    fig.text(
+        MARGIN_IN[0] / PAGE_IN[0],
+        1.0 - (MARGIN_IN[2] + 0.25) / PAGE_IN[1],
+        printable(title),
+        fontsize=12,
+        fontweight="bold",
+        va="top",
+    )
+    if note:
+        y = MARGIN_IN[2] + 0.55
+        for line in wrap(note, PAGE_IN[0] - MARGIN_IN[0] - MARGIN_IN[1], 8.5):
+            fig.text(MARGIN_IN[0] / PAGE_IN[0], 1.0 - y / PAGE_IN[1], line, fontsize=8.5, va="top")
+            y += 8.5 * 1.3 / 72.0
+
+
+def _image_axes(fig: Figure, top_in: float = 1.3) -> Axes:
+    """Axes filling the page below the heading."""
+    left = MARGIN_IN[0] / PAGE_IN[0]
+    bottom = (MARGIN_IN[3] + 0.2) / PAGE_IN[1]
+    width = 1.0 - (MARGIN_IN[0] + MARGIN_IN[1]) / PAGE_IN[0]
+    height = 1.0 - top_in / PAGE_IN[1] - bottom
+    return fig.add_axes((left, bottom, width, height))
+
+
+def _message(fig: Figure, title: str, message: str) -> None:
+    _heading(fig, title)
+    y = MARGIN_IN[2] + 0.7
+    for line in wrap(message, PAGE_IN[0] - MARGIN_IN[0] - MARGIN_IN[1], 11.0):
+        fig.text(MARGIN_IN[0] / PAGE_IN[0], 1.0 - y / PAGE_IN[1], line, fontsize=11, va="top")
+        y += 11 * 1.35 / 72.0
+
+
+def view_pages(
+    pages: TextPages, case: PreparedCase, entries: Sequence[Entry], timings: Timings
+) -> None:
+    """Add the panoramic, the cross-sections and the 3D view to ``pages``."""
+    finals = _final_entries(entries)
+    arch = getattr(case.plans[0], "arch_lps", None) if case.plans else None
+    t0 = time.perf_counter()
+    if arch is None:
+        _message(pages.figure(), "Panoramic reformat", NO_ARCH)
+    else:
+        panorama_page(pages.figure(), case, finals, np.asarray(arch))
+    timings.add("panoramic", time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    for entry in finals:
+        fig = pages.figure()
+        if arch is None:
+            _message(fig, f"Cross-section: {entry.label}", NO_ARCH)
+        else:
+            cross_section_page(fig, case, entry, np.asarray(arch))
+    timings.add("cross-sections", time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    view3d_page(pages.figure(), case, finals)
+    timings.add("3D view", time.perf_counter() - t0)
+
+
+def panorama_page(
+    fig: Figure, case: PreparedCase, entries: Sequence[Entry], arch_lps: np.ndarray
+) -> None:
+    """The panoramic reformat along the arch with every trajectory's implant and drill."""
+    from ctdrill.app.reformat.draw import draw_reformat
+    from ctdrill.imaging.sampling.reformat import panorama
+
+    ref = panorama(case.volume, arch_lps)
+    _heading(
+        fig,
+        "Panoramic reformat along the dental arch",
+        f"curved planar reformat, slab {ref.slab_mm:g} mm ({ref.slab_mode}), pixel "
+        f"{ref.pixel_mm:.2f} mm; left of the image = the arch's first point. Drawn: "
+        "each canal with its radius and margin zone, each implant body, each drill to its "
+        f"stop. Window: level {LEVEL_HU:g} HU, width {WIDTH_HU:g} HU.",
+    )
+    ax = _image_axes(fig)
+    draw_reformat(
+        ax,
+        ref,
+        [e.result.plan for e in entries],
+        paths=[e.result for e in entries],
+        level_hu=LEVEL_HU,
+        width_hu=WIDTH_HU,
+    )
+
+
+def cross_section_page(fig: Figure, case: PreparedCase, entry: Entry, arch_lps: np.ndarray) -> None:
+    """The cross-section perpendicular to the arch through ``entry``'s drill axis."""
+    from ctdrill.app.reformat.draw import draw_reformat
+    from ctdrill.imaging.sampling.reformat import cross_section
+
+    plan = entry.result.plan
+    ref = cross_section(case.volume, arch_lps, axis=(plan.entry_lps, plan.target_lps))
+    _heading(
+        fig,
+        f"Cross-section: {entry.label}",
+        f"the plane across the arch containing the drill axis, slab {ref.slab_mm:g} mm "
+        f"({ref.slab_mode}), pixel {ref.pixel_mm:.2f} mm; stop at "
+        f"{entry.doc['stop_depth_mm']:.3f} mm ({entry.doc['stop_reason']}) of "
+        f"{entry.doc['planned_depth_mm']:.3f} mm planned.",
+    )
+    ax = _image_axes(fig)
+    draw_reformat(ax, ref, [plan], paths=[entry.result], level_hu=LEVEL_HU, width_hu=WIDTH_HU)
+
+
+def view3d_page(fig: Figure, case: PreparedCase, entries: Sequence[Entry]) -> None:
+    """The window's 3D scene rendered off screen: the bone surface, every trajectory."""
+    from ctdrill.app.report.scene3d import render_case
+
+    image = render_case(case, entries, size_px=VIEW3D_PX)
+    _heading(
+        fig,
+        "3D view",
+        "bone surface of the CT with every drill to its stop, implant and landmark (the "
+        "window's 3D scene and starting camera, rendered off screen).",
+    )
+    ax = _image_axes(fig)
+    ax.imshow(image, interpolation="antialiased")
+    ax.set_axis_off()

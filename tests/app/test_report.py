@@ -1,0 +1,154 @@
+"""``ctdrill report``: a PDF of the planned case whose numbers are the export's.
+
+The PDF is read back with pypdf (an independent reader): it parses, its pages are those the
+case asks for, and its text (the summary table, every warning) can be extracted and equals
+what ``ctdrill export`` writes into summary.json with the same options.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import pypdf
+import pytest
+
+from ctdrill.app.cli import main
+from tests.conftest import ASSETS
+
+DEMO = ASSETS / "demo"
+
+
+def run_cli(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse usage errors
+            code = int(exc.code or 0)
+    return code, out.getvalue(), err.getvalue()
+
+
+def pdf_pages(path: Path) -> list[str]:
+    """The text of each page (pypdf), whitespace runs as one space."""
+    reader = pypdf.PdfReader(str(path), strict=True)
+    return [re.sub(r"\s+", " ", page.extract_text()) for page in reader.pages]
+
+
+def flat(text: str) -> str:
+    return re.sub(r"\s+", "", text)
+
+
+@pytest.fixture(scope="module")
+def demo_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """The demo's report and its export with the same options (--hu-sigma for a band)."""
+    root = tmp_path_factory.mktemp("report")
+    common = ["--dicom", str(DEMO / "ct"), "--plan", str(DEMO / "plan.json")]
+    options = ["--calibration", "bone-literature", "--hu-sigma", "40"]
+    code, out, err = run_cli(["report", *common, *options, "--out", str(root / "r.pdf")])
+    assert (code, err) == (0, "")
+    assert out == f"wrote {root / 'r.pdf'} (5 pages)\n"
+    code, _, err = run_cli(["export", *common, *options, "--out", str(root / "export")])
+    assert (code, err) == (0, "")
+    return root / "r.pdf", root / "export" / "summary.json"
+
+
+def test_the_pdf_parses_with_the_pages_of_the_case(demo_report: tuple[Path, Path]) -> None:
+    pdf, _ = demo_report
+    assert pdf.read_bytes().startswith(b"%PDF-")
+    pages = pdf_pages(pdf)
+    # summary, panoramic, one cross-section (one trajectory), 3D view, one curves page
+    assert len(pages) == 5
+    assert "Planned osteotomy: summary" in pages[0]
+    assert "Panoramic reformat" in pages[1]
+    assert "Cross-section: plan" in pages[2]
+    assert "3D view" in pages[3]
+    assert "plan: force, HU and clearance against depth" in pages[4]
+    for k, text in enumerate(pages, start=1):
+        assert f"page {k} of 5" in text
+
+
+def _table_cells(page: str) -> str:
+    """The table row's text: after the headings, before the note under the table."""
+    start = page.index("calibration", page.index("peak mean force"))
+    return page[start : page.index("Depths are the drill tip")]
+
+
+def test_the_table_holds_the_exports_numbers(demo_report: tuple[Path, Path]) -> None:
+    pdf, summary_json = demo_report
+    doc: dict[str, Any] = json.loads(summary_json.read_text(encoding="utf-8"))
+    row = _table_cells(pdf_pages(pdf)[0])
+    # every number as the export's terminal lines print it, from the export's own summary
+    for key in ("planned_depth_mm", "stop_depth_mm", "max_safe_depth_mm"):
+        assert f"{doc[key]:.3f}" in row, key
+    assert f"{doc['min_clearance_mm']:.3f}" in row
+    assert f"{doc['plan_clearance_mm']:.3f}" in row
+    binding = doc["binding_landmark"]
+    assert binding["name"] in row and f"margin {binding['margin_mm']:g} mm" in row
+    assert f"{binding['clearance_at_stop_mm']:.3f} at stop" in row
+    assert "(safety margin)" in row and doc["stop_reason"] == "margin"
+    band = doc["force_band"]
+    assert f"{band['peak_mean_force_n']:.2f} at {band['peak_depth_mm']:.2f} mm" in row
+    assert f"68 %: {band['peak_lo_n']:.2f}-{band['peak_hi_n']:.2f}" in row
+    assert doc["calibration"] == "bone-literature" and "bone-literature" in row
+    assert not doc["calibration_illustrative"] and "ILLUSTRATIVE" not in row
+    drill = doc["drill"]
+    assert f"{drill['diameter_mm']:g} mm, tip {drill['tip_length_mm']:g} mm" in row
+
+
+def test_every_warning_and_summary_line_is_there_in_full(demo_report: tuple[Path, Path]) -> None:
+    from ctdrill.app.export import summary_lines
+
+    pdf, summary_json = demo_report
+    doc = json.loads(summary_json.read_text(encoding="utf-8"))
+    text = flat(" ".join(pdf_pages(pdf)))
+    lines = summary_lines(doc)
+    assert any(line.startswith("warning [plan_violates_margin]") for line in lines)
+    for line in lines:  # wrapped over several lines, never cut
+        assert flat(line) in text, line
+
+
+def test_no_patient_identifier_unless_asked(tmp_path: Path) -> None:
+    from ctdrill.app.export_run import read_patient_fields
+    from ctdrill.imaging import load_series
+
+    uid = load_series(DEMO / "ct").info.series_uid
+    phi = read_patient_fields(DEMO / "ct", uid)
+    assert phi["patient_name"] and phi["patient_id"]
+    common = ["--dicom", str(DEMO / "ct"), "--plan", str(DEMO / "plan.json")]
+    code, _, err = run_cli(["report", *common, "--out", str(tmp_path / "a.pdf")])
+    assert (code, err) == (0, "")
+    raw = (tmp_path / "a.pdf").read_bytes()
+    text = " ".join(pdf_pages(tmp_path / "a.pdf"))
+    for value in (phi["patient_name"], phi["patient_id"], uid):
+        assert value not in text and value.encode() not in raw
+    assert "no patient identifiers in this report" in text
+    code, _, err = run_cli(["report", *common, "--include-phi", "--out", str(tmp_path / "b.pdf")])
+    assert (code, err) == (0, "")
+    text = " ".join(pdf_pages(tmp_path / "b.pdf"))
+    assert phi["patient_name"] in text and phi["patient_id"] in text and uid in text
+
+
+def test_bad_input_is_one_error_line_and_leaves_the_old_report(tmp_path: Path) -> None:
+    out = tmp_path / "r.pdf"
+    out.write_bytes(b"previous report")
+    bad_plan = tmp_path / "bad.json"
+    bad_plan.write_text('{"format": "ctdrill-plan/1", "entry_mm": [0, 0]}', encoding="utf-8")
+    ct, plan = str(DEMO / "ct"), str(DEMO / "plan.json")
+    cases = [
+        ["--dicom", ct, "--plan", str(bad_plan), "--out", str(out)],  # a plan missing fields
+        ["--dicom", str(tmp_path / "nothing"), "--plan", plan, "--out", str(out)],  # no CT
+        ["--dicom", ct, "--plan", plan, "--out", str(tmp_path)],  # a folder, not a file
+        ["--dicom", ct, "--plan", plan, "--out", str(out), "--hu-sigma", "-3"],
+    ]
+    for argv in cases:
+        code, stdout, err = run_cli(["report", *argv])
+        assert code == 2, argv
+        assert err.startswith("error: ") and err.count("\n") == 1, err
+        assert "Traceback" not in err and stdout == ""
+        assert out.read_bytes() == b"previous report"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json", "r.pdf"]
