@@ -152,3 +152,60 @@ def test_bad_input_is_one_error_line_and_leaves_the_old_report(tmp_path: Path) -
         assert "Traceback" not in err and stdout == ""
         assert out.read_bytes() == b"previous report"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json", "r.pdf"]
+
+
+def test_several_trajectories_and_a_drill_sequence_each_get_their_rows_and_pages(
+    tmp_path: Path,
+) -> None:
+    """Two plan files: the demo's, and a second trajectory 6 mm along the canal drilled with a
+    2.0 then a 2.8 mm drill. Each drill is a row holding the numbers of its own summary.json
+    (``ctdrill export --per-trajectory``); each trajectory has a cross-section, each drill a
+    curves page."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from ctdrill.imaging.plan.types import DrillSpec, load_plan, save_plan
+
+    demo = load_plan(DEMO / "plan.json")
+    shift = np.array([0.0, 6.0, 0.0])
+    second = replace(
+        demo.with_drills((DrillSpec(diameter_mm=2.0, tip_length_mm=0.6), DrillSpec(2.8, 0.84))),
+        name="second",
+        entry_lps=demo.entry_lps + shift,
+        target_lps=demo.target_lps + shift,
+    )
+    save_plan(second, tmp_path / "second.json")
+    common = ["--dicom", str(DEMO / "ct"), "--plan", str(DEMO / "plan.json")]
+    common += ["--plan", str(tmp_path / "second.json")]
+    code, out, err = run_cli(["report", *common, "--out", str(tmp_path / "r.pdf")])
+    assert code == 0 and "Traceback" not in err
+    code, _, _ = run_cli(["export", *common, "--per-trajectory", "--out", str(tmp_path / "x")])
+    assert code == 0
+    pages = pdf_pages(tmp_path / "r.pdf")
+    n = len(pages)
+    assert out == f"wrote {tmp_path / 'r.pdf'} ({n} pages)\n"
+    titles = [p for p in pages if "Cross-section: " in p]
+    assert len(titles) == 2
+    assert "Cross-section: plan" in titles[0] and "Cross-section: second, drill 2 of 2" in titles[1]
+    curves = [p for p in pages if "force, HU and clearance against depth" in p]
+    assert len(curves) == 3  # plan; second drill 1; second drill 2
+    summary_text = " ".join(p for p in pages if "Panoramic reformat" not in p)
+    docs = {
+        "plan": json.loads((tmp_path / "x" / "plan" / "summary.json").read_text()),
+        "second, drill 1 of 2": json.loads(
+            (tmp_path / "x" / "second" / "drill_1" / "summary.json").read_text()
+        ),
+        "second, drill 2 of 2": json.loads(
+            (tmp_path / "x" / "second" / "drill_2" / "summary.json").read_text()
+        ),
+    }
+    first = pages[0]
+    for label, doc in docs.items():
+        start = first.index(label + " ")
+        row = first[start : start + 400]
+        assert f"{doc['stop_depth_mm']:.3f}" in row and f"{doc['planned_depth_mm']:.3f}" in row
+        assert f"{doc['drill']['diameter_mm']:g} mm" in row
+        for w in doc["warnings"]:
+            assert flat(w["message"]) in flat(summary_text)
+    assert "drill 2 of 2 (final)" in first
