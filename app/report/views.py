@@ -33,9 +33,6 @@ NO_ARCH = (
     "save the plan, or add a 3D Slicer Curve markup named 'arch' to the plan files. Then run "
     "ctdrill report again."
 )
-#: Grey window of the reformats (bone: level 400 HU, width 2000 HU).
-LEVEL_HU = 400.0
-WIDTH_HU = 2000.0
 #: The 3D view's size in pixels (drawn at 150 dpi on the page).
 VIEW3D_PX = (1500, 900)
 
@@ -96,7 +93,7 @@ def view_pages(
         if arch is None:
             _message(fig, f"Cross-section: {entry.label}", NO_ARCH)
         else:
-            cross_section_page(fig, case, entry, np.asarray(arch))
+            cross_section_page(fig, case, entry, np.asarray(arch), finals)
     timings.add("cross-sections", time.perf_counter() - t0)
     t0 = time.perf_counter()
     view3d_page(pages.figure(), case, finals)
@@ -114,24 +111,23 @@ def panorama_page(
     _heading(
         fig,
         "Panoramic reformat along the dental arch",
-        f"curved planar reformat, slab {ref.slab_mm:g} mm ({ref.slab_mode}), pixel "
-        f"{ref.pixel_mm:.2f} mm; left of the image = the arch's first point. Drawn: "
-        "each canal with its radius and margin zone, each implant body, each drill to its "
-        f"stop. Window: level {LEVEL_HU:g} HU, width {WIDTH_HU:g} HU.",
+        "the curved planar reformat along the plan's arch, from its first point (left) to its "
+        "last; drawn where they reach the slab: each canal with its radius and margin zone, "
+        "each implant body, each drill to its stop (the caption names what lies outside).",
     )
     ax = _image_axes(fig)
-    draw_reformat(
-        ax,
-        ref,
-        [e.result.plan for e in entries],
-        paths=[e.result for e in entries],
-        level_hu=LEVEL_HU,
-        width_hu=WIDTH_HU,
-    )
+    draw_reformat(ax, ref, [e.result.plan for e in entries], paths=[e.result for e in entries])
 
 
-def cross_section_page(fig: Figure, case: PreparedCase, entry: Entry, arch_lps: np.ndarray) -> None:
-    """The cross-section perpendicular to the arch through ``entry``'s drill axis."""
+def cross_section_page(
+    fig: Figure,
+    case: PreparedCase,
+    entry: Entry,
+    arch_lps: np.ndarray,
+    entries: Sequence[Entry],
+) -> None:
+    """The cross-section perpendicular to the arch through ``entry``'s drill axis, with every
+    trajectory of ``entries`` that reaches its slab (a neighbouring implant shows)."""
     from ctdrill.app.reformat.draw import draw_reformat
     from ctdrill.imaging.sampling.reformat import cross_section
 
@@ -140,13 +136,12 @@ def cross_section_page(fig: Figure, case: PreparedCase, entry: Entry, arch_lps: 
     _heading(
         fig,
         f"Cross-section: {entry.label}",
-        f"the plane across the arch containing the drill axis, slab {ref.slab_mm:g} mm "
-        f"({ref.slab_mode}), pixel {ref.pixel_mm:.2f} mm; stop at "
+        "the plane across the arch that contains the drill axis; stop at "
         f"{entry.doc['stop_depth_mm']:.3f} mm ({entry.doc['stop_reason']}) of "
         f"{entry.doc['planned_depth_mm']:.3f} mm planned.",
     )
     ax = _image_axes(fig)
-    draw_reformat(ax, ref, [plan], paths=[entry.result], level_hu=LEVEL_HU, width_hu=WIDTH_HU)
+    draw_reformat(ax, ref, [e.result.plan for e in entries], paths=[e.result for e in entries])
 
 
 def view3d_page(fig: Figure, case: PreparedCase, entries: Sequence[Entry]) -> None:
