@@ -209,3 +209,22 @@ def test_several_trajectories_and_a_drill_sequence_each_get_their_rows_and_pages
         for w in doc["warnings"]:
             assert flat(w["message"]) in flat(summary_text)
     assert "drill 2 of 2 (final)" in first
+
+
+def test_a_plan_without_an_arch_gets_its_report_saying_how_to_add_one(tmp_path: Path) -> None:
+    from dataclasses import replace
+
+    from ctdrill.imaging.plan.types import load_plan, save_plan
+
+    plan = replace(load_plan(DEMO / "plan.json"), arch_lps=None)
+    save_plan(plan, tmp_path / "no_arch.json")
+    argv = ["report", "--dicom", str(DEMO / "ct"), "--plan", str(tmp_path / "no_arch.json")]
+    code, _, err = run_cli([*argv, "--out", str(tmp_path / "r.pdf")])
+    assert (code, err) == (0, "")
+    pages = pdf_pages(tmp_path / "r.pdf")
+    assert len(pages) == 5
+    for page in pages[1:3]:  # the panoramic and the cross-section say why, and how
+        assert "No dental arch in the plan" in page
+        assert "arch_mm" in page and "ctdrill gui" in page and "'arch'" in page
+    assert "3D view" in pages[3]
+    assert "Planned osteotomy: summary" in pages[0]
