@@ -1,44 +1,66 @@
-"""The report's 3D view: the window's scene of the case, rendered off screen into an image."""
+"""The report's 3D view: the window's scene of the case, rendered off screen into an image.
+
+The bone surface is the window's (:func:`ctdrill.app.gui.compute.volume_surface` with its
+defaults), the scene the window's for the first trajectory
+(:func:`ctdrill.app.gui.planning.scene_input`: its drill to the stop, the landmarks with their
+clearance colours) plus every trajectory's implant body and the other trajectories' axes, the
+dental arch for the camera; :func:`ctdrill.app.gui.offscreen.render_offscreen` draws it with
+the window's starting camera, no display needed.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
 from ctdrill.app.export_run import PreparedCase
 from ctdrill.app.report.entries import Entry
 
-#: Largest number of samples along any axis of the volume the report's bone surface is made
-#: from (the window's default: ``ctdrill.app.gui.compute.SURFACE_MAX_DIM``).
-SURFACE_MAX_DIM = 160
-
 
 def render_case(
     case: PreparedCase, entries: Sequence[Entry], *, size_px: tuple[int, int]
 ) -> np.ndarray:
-    """(H, W, 3) uint8 image of the bone surface with every trajectory of ``entries``."""
-    import pyvista as pv
-
+    """(H, W, 3) uint8 image of the bone surface with every trajectory of ``entries`` (the
+    first one as the window's current trajectory)."""
     from ctdrill.app.gui.compute import volume_surface
+    from ctdrill.app.gui.offscreen import render_offscreen
     from ctdrill.app.gui.planning import scene_input
     from ctdrill.app.gui.results import path_view
-    from ctdrill.app.gui.scene import build_scene, focus_camera
+    from ctdrill.app.gui.scene import ImplantGeometry, TrajectoryLine
+    from ctdrill.imaging.plan.implants import implant_placement
 
-    surface = volume_surface(case.volume, max_dim=SURFACE_MAX_DIM)
-    first = entries[0]
-    view = path_view(first.result.plan, first.result)
-    scene = scene_input(first.result.plan, view)
-    plotter = pv.Plotter(off_screen=True, window_size=list(size_px))
-    try:
-        build_scene(plotter, scene, surface=surface)
-        focus_camera(
-            plotter,
-            first.result.plan.entry_lps,
-            first.result.plan.target_lps,
-            bounds=surface.bounds if surface.n_points else None,
+    first = entries[0].result
+    implants = []
+    for k, entry in enumerate(entries):
+        placed = implant_placement(entry.result.plan)
+        if placed is None:
+            continue
+        s_mm, r_mm = placed.spec.profile_mm()
+        implants.append(
+            ImplantGeometry(
+                name=entry.label,
+                platform_lps=placed.platform_lps,
+                axis_lps=placed.axis_lps,
+                s_mm=s_mm,
+                r_mm=r_mm,
+                current=k == 0,
+            )
         )
-        img = plotter.screenshot(return_img=True)
-    finally:
-        plotter.close()
-    return np.ascontiguousarray(np.asarray(img)[..., :3], dtype=np.uint8)
+    others = tuple(
+        TrajectoryLine(
+            name=e.label,
+            entry_lps=e.result.plan.entry_lps,
+            target_lps=e.result.plan.target_lps,
+            diameter_mm=e.result.plan.drill.diameter_mm,
+        )
+        for e in entries[1:]
+    )
+    scene = replace(
+        scene_input(first.plan, path_view(first.plan, first)),
+        implants=tuple(implants),
+        others=others,
+        arch_lps=first.plan.arch_lps,
+    )
+    return render_offscreen(volume_surface(case.volume), scene, size_px=size_px)

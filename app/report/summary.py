@@ -47,7 +47,7 @@ def mm(value: Any) -> str:
 
 def implant_text(entry: Entry) -> str:
     """The implant placed on the trajectory (name, diameter x length), or ``none``."""
-    spec = getattr(entry.result.plan, "implant", None)
+    spec = entry.result.plan.implant
     if spec is None:
         return "none"
     return f"{spec.name} ({spec.diameter_mm:g} x {spec.length_mm:g} mm)"

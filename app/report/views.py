@@ -80,7 +80,7 @@ def view_pages(
 ) -> None:
     """Add the panoramic, the cross-sections and the 3D view to ``pages``."""
     finals = _final_entries(entries)
-    arch = getattr(case.plans[0], "arch_lps", None) if case.plans else None
+    arch = case.plans[0].arch_lps if case.plans else None
     t0 = time.perf_counter()
     if arch is None:
         _message(pages.figure(), "Panoramic reformat", NO_ARCH)
