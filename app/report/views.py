@@ -42,7 +42,8 @@ def _final_entries(entries: Sequence[Entry]) -> list[Entry]:
     return [e for e in entries if e.drill_index is None or e.drill_index[0] == e.drill_index[1]]
 
 
-def _heading(fig: Figure, title: str, note: str = "") -> None:
+def _heading(fig: Figure, title: str, note: str = "") -> float:
+    """The page's heading and its wrapped note; returns where they end, inches from the top."""
     fig.text(
         MARGIN_IN[0] / PAGE_IN[0],
         1.0 - (MARGIN_IN[2] + 0.25) / PAGE_IN[1],
@@ -51,20 +52,26 @@ def _heading(fig: Figure, title: str, note: str = "") -> None:
         fontweight="bold",
         va="top",
     )
-    if note:
-        y = MARGIN_IN[2] + 0.55
-        for line in wrap(note, PAGE_IN[0] - MARGIN_IN[0] - MARGIN_IN[1], 8.5):
-            fig.text(MARGIN_IN[0] / PAGE_IN[0], 1.0 - y / PAGE_IN[1], line, fontsize=8.5, va="top")
-            y += 8.5 * 1.3 / 72.0
+    y = MARGIN_IN[2] + 0.55
+    for line in wrap(note, PAGE_IN[0] - MARGIN_IN[0] - MARGIN_IN[1], 8.5) if note else []:
+        fig.text(MARGIN_IN[0] / PAGE_IN[0], 1.0 - y / PAGE_IN[1], line, fontsize=8.5, va="top")
+        y += 8.5 * 1.3 / 72.0
+    return y
 
 
-def _image_axes(fig: Figure, top_in: float = 1.3) -> Axes:
-    """Axes filling the page below the heading."""
-    left = MARGIN_IN[0] / PAGE_IN[0]
-    bottom = (MARGIN_IN[3] + 0.2) / PAGE_IN[1]
-    width = 1.0 - (MARGIN_IN[0] + MARGIN_IN[1]) / PAGE_IN[0]
-    height = 1.0 - top_in / PAGE_IN[1] - bottom
-    return fig.add_axes((left, bottom, width, height))
+def _place(ax: Axes, top_in: float, *, below_in: float = 0.3) -> None:
+    """Fit ``ax`` between ``top_in`` (inches from the page's top) and the bottom margin, with
+    room below for its tick labels and its x label's lines (``draw_reformat`` writes its
+    captions there) and ``below_in`` more."""
+    label = ax.get_xaxis().get_label()
+    lines = label.get_text().count("\n") + 1 if label.get_text() else 0
+    size_pt = float(label.get_fontsize())
+    under_in = 0.3 + lines * size_pt * 1.45 / 72.0 + below_in
+    left = (MARGIN_IN[0] + 0.45) / PAGE_IN[0]
+    bottom = (MARGIN_IN[3] + under_in) / PAGE_IN[1]
+    width = 1.0 - (MARGIN_IN[0] + 0.45 + MARGIN_IN[1]) / PAGE_IN[0]
+    height = 1.0 - (top_in + 0.15) / PAGE_IN[1] - bottom
+    ax.set_position((left, bottom, width, height))
 
 
 def _message(fig: Figure, title: str, message: str) -> None:
@@ -108,15 +115,16 @@ def panorama_page(
     from ctdrill.imaging.sampling.reformat import panorama
 
     ref = panorama(case.volume, arch_lps)
-    _heading(
+    top = _heading(
         fig,
         "Panoramic reformat along the dental arch",
         "the curved planar reformat along the plan's arch, from its first point (left) to its "
         "last; drawn where they reach the slab: each canal with its radius and margin zone, "
         "each implant body, each drill to its stop (the caption names what lies outside).",
     )
-    ax = _image_axes(fig)
+    ax = fig.add_axes((0.1, 0.1, 0.8, 0.8))
     draw_reformat(ax, ref, [e.result.plan for e in entries], paths=[e.result for e in entries])
+    _place(ax, top)
 
 
 def cross_section_page(
@@ -133,15 +141,16 @@ def cross_section_page(
 
     plan = entry.result.plan
     ref = cross_section(case.volume, arch_lps, axis=(plan.entry_lps, plan.target_lps))
-    _heading(
+    top = _heading(
         fig,
         f"Cross-section: {entry.label}",
         "the plane across the arch that contains the drill axis; stop at "
         f"{entry.doc['stop_depth_mm']:.3f} mm ({entry.doc['stop_reason']}) of "
         f"{entry.doc['planned_depth_mm']:.3f} mm planned.",
     )
-    ax = _image_axes(fig)
+    ax = fig.add_axes((0.1, 0.1, 0.8, 0.8))
     draw_reformat(ax, ref, [e.result.plan for e in entries], paths=[e.result for e in entries])
+    _place(ax, top)
 
 
 def view3d_page(fig: Figure, case: PreparedCase, entries: Sequence[Entry]) -> None:
@@ -149,12 +158,13 @@ def view3d_page(fig: Figure, case: PreparedCase, entries: Sequence[Entry]) -> No
     from ctdrill.app.report.scene3d import render_case
 
     image = render_case(case, entries, size_px=VIEW3D_PX)
-    _heading(
+    top = _heading(
         fig,
         "3D view",
         "bone surface of the CT with every drill to its stop, implant and landmark (the "
         "window's 3D scene and starting camera, rendered off screen).",
     )
-    ax = _image_axes(fig)
+    ax = fig.add_axes((0.1, 0.1, 0.8, 0.8))
     ax.imshow(image, interpolation="antialiased")
     ax.set_axis_off()
+    _place(ax, top, below_in=0.0)
