@@ -23,6 +23,7 @@ from ctdrill.app.export_run import PreparedCase
 from ctdrill.app.records import printable
 from ctdrill.app.report.entries import Entry
 from ctdrill.app.report.layout import MARGIN_IN, PAGE_IN, TextPages, wrap
+from ctdrill.app.report.summary import STOP_WORDS
 from ctdrill.app.report.timing import Timings
 
 #: What the report says when the plan has no arch (and how to add one).
@@ -59,17 +60,17 @@ def _heading(fig: Figure, title: str, note: str = "") -> float:
     return y
 
 
-def _place(ax: Axes, top_in: float, *, below_in: float = 0.3) -> None:
+def _place(ax: Axes, top_in: float, *, below_in: float = 0.3, label_in: float = 0.45) -> None:
     """Fit ``ax`` between ``top_in`` (inches from the page's top) and the bottom margin, with
     room below for its tick labels and its x label's lines (``draw_reformat`` writes its
-    captions there) and ``below_in`` more."""
+    captions there) and ``below_in`` more, ``label_in`` at the left for the y labels."""
     label = ax.get_xaxis().get_label()
     lines = label.get_text().count("\n") + 1 if label.get_text() else 0
     size_pt = float(label.get_fontsize())
     under_in = 0.3 + lines * size_pt * 1.45 / 72.0 + below_in
-    left = (MARGIN_IN[0] + 0.45) / PAGE_IN[0]
+    left = (MARGIN_IN[0] + label_in) / PAGE_IN[0]
     bottom = (MARGIN_IN[3] + under_in) / PAGE_IN[1]
-    width = 1.0 - (MARGIN_IN[0] + 0.45 + MARGIN_IN[1]) / PAGE_IN[0]
+    width = 1.0 - (MARGIN_IN[0] + label_in + MARGIN_IN[1]) / PAGE_IN[0]
     height = 1.0 - (top_in + 0.15) / PAGE_IN[1] - bottom
     ax.set_position((left, bottom, width, height))
 
@@ -145,7 +146,7 @@ def cross_section_page(
         fig,
         f"Cross-section: {entry.label}",
         "the plane across the arch that contains the drill axis; stop at "
-        f"{entry.doc['stop_depth_mm']:.3f} mm ({entry.doc['stop_reason']}) of "
+        f"{entry.doc['stop_depth_mm']:.3f} mm ({STOP_WORDS[entry.doc['stop_reason']]}) of "
         f"{entry.doc['planned_depth_mm']:.3f} mm planned.",
     )
     ax = fig.add_axes((0.1, 0.1, 0.8, 0.8))
@@ -167,4 +168,4 @@ def view3d_page(fig: Figure, case: PreparedCase, entries: Sequence[Entry]) -> No
     ax = fig.add_axes((0.1, 0.1, 0.8, 0.8))
     ax.imshow(image, interpolation="antialiased")
     ax.set_axis_off()
-    _place(ax, top, below_in=0.0)
+    _place(ax, top, below_in=0.0, label_in=0.0)
