@@ -1,0 +1,70 @@
+"""``ctdrill report`` on a real CT: the Philips head series of ``../shared/data`` with two
+implants along an arch drawn on its anterior skull (``bench.bench_report.REAL_PLAN``)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from bench.bench_report import REAL_PLAN, real_plan
+from tests.app.test_report import flat, pdf_pages, run_cli
+
+PHILIPS = "dcmqa_ct_Philips_phantom_notilt_5mm"
+
+
+@pytest.fixture(scope="module")
+def real_report(
+    shared_data: Path, tmp_path_factory: pytest.TempPathFactory
+) -> tuple[list[str], Path]:
+    root = tmp_path_factory.mktemp("real_report")
+    plan = real_plan(root)
+    common = ["--dicom", str(shared_data / PHILIPS), "--plan", str(plan)]
+    code, out, err = run_cli(["report", *common, "--out", str(root / "r.pdf")])
+    assert code == 0 and "Traceback" not in err, err
+    assert out.startswith(f"wrote {root / 'r.pdf'}")
+    code, _, err = run_cli(["export", *common, "--per-trajectory", "--out", str(root / "x")])
+    assert code == 0, err
+    return pdf_pages(root / "r.pdf"), root / "x"
+
+
+def test_pages_of_two_implants_on_a_real_head(real_report: tuple[list[str], Path]) -> None:
+    pages, _ = real_report
+    # summary, panoramic, 2 cross-sections, 3D view, 3 curves pages (front; left's 2 drills)
+    assert len(pages) == 8
+    assert "Panoramic reformat along the dental arch" in pages[1]
+    assert "No dental arch" not in " ".join(pages)
+    assert "Cross-section: front" in pages[2] and "Cross-section: left, drill 2 of 2" in pages[3]
+    assert "3D view" in pages[4]
+    names = ["front", "left, drill 1 of 2", "left, drill 2 of 2"]
+    for page, name in zip(pages[5:], names, strict=True):
+        assert f"{name}: force, HU and clearance against depth" in page
+    implant = REAL_PLAN["trajectories"][0]["implant"]  # type: ignore[index]
+    assert (
+        f"{implant['name']} ({implant['diameter_mm']:g} x {implant['length_mm']:g} mm)" in pages[0]
+    )
+
+
+def test_the_real_heads_table_is_the_exports(real_report: tuple[list[str], Path]) -> None:
+    pages, export = real_report
+    docs = {
+        "front": export / "philips_arch-front" / "summary.json",
+        "left, drill 1 of 2": export / "philips_arch-left" / "drill_1" / "summary.json",
+        "left, drill 2 of 2": export / "philips_arch-left" / "drill_2" / "summary.json",
+    }
+    first, text = pages[0], flat(" ".join(pages))
+    starts = [first.index(label + " ") for label in docs]
+    ends = [*starts[1:], first.index("Depths are the drill tip")]
+    for (label, path), start, end in zip(docs.items(), starts, ends, strict=True):
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        row = first[start:end]
+        for key in ("planned_depth_mm", "stop_depth_mm", "max_safe_depth_mm"):
+            assert f"{doc[key]:.3f}" in row, (label, key)
+        assert f"{doc['min_clearance_mm']:.3f}" in row and f"{doc['plan_clearance_mm']:.3f}" in row
+        assert doc["binding_landmark"]["name"] in row
+        band = doc["force_band"]
+        assert f"{band['peak_lo_n']:.2f}-{band['peak_hi_n']:.2f}" in row
+        assert doc["calibration"] in row
+        for w in doc["warnings"]:
+            assert flat(w["message"]) in text
