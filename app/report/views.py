@@ -34,8 +34,8 @@ NO_ARCH = (
     "save the plan, or add a 3D Slicer Curve markup named 'arch' to the plan files. Then run "
     "ctdrill report again."
 )
-#: The 3D view's size in pixels (drawn at 150 dpi on the page).
-VIEW3D_PX = (1500, 900)
+#: The 3D view's size in pixels (about 115 per inch across the page).
+VIEW3D_PX = (1200, 720)
 
 
 def _final_entries(entries: Sequence[Entry]) -> list[Entry]:
