@@ -127,6 +127,9 @@ def test_no_patient_identifier_unless_asked(tmp_path: Path) -> None:
     for value in (phi["patient_name"], phi["patient_id"], uid):
         assert value not in text and value.encode() not in raw
     assert "no patient identifiers in this report" in text
+    # no date or identifier in the metadata: the same inputs give the same bytes
+    code, _, err = run_cli(["report", *common, "--out", str(tmp_path / "again.pdf")])
+    assert (code, err) == (0, "") and (tmp_path / "again.pdf").read_bytes() == raw
     code, _, err = run_cli(["report", *common, "--include-phi", "--out", str(tmp_path / "b.pdf")])
     assert (code, err) == (0, "")
     text = " ".join(pdf_pages(tmp_path / "b.pdf"))
