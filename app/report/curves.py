@@ -15,6 +15,7 @@ from ctdrill.app.export_plot import draw_template, draw_trajectory
 from ctdrill.app.records import printable
 from ctdrill.app.report.entries import Entry
 from ctdrill.app.report.layout import LINE_SPACING, MARGIN_IN, PAGE_IN, wrap
+from ctdrill.app.report.summary import STOP_WORDS
 
 #: Axes placement on the A4 page (figure fractions): room for the y labels at the left
 #: (draw_template places them 0.075 axes widths left of the axes), the title and the stop
@@ -44,8 +45,8 @@ def curves_page(fig: Figure, entry: Entry) -> None:
     cal = f"{doc['calibration']}" + (" (ILLUSTRATIVE)" if doc["calibration_illustrative"] else "")
     note = (
         f"at {doc['feed_mm_s']:g} mm/s, calibration {cal}. Red line: the stop "
-        f"({doc['stop_depth_mm']:.3f} mm, {doc['stop_reason']}); orange dotted: the max "
-        "safe depth where it is before the planned depth; grey dashed: the planned depth "
+        f"({doc['stop_depth_mm']:.3f} mm, {STOP_WORDS[doc['stop_reason']]}); orange dotted: "
+        "the max safe depth where it is before the planned depth; grey dashed: the planned depth "
         f"({doc['planned_depth_mm']:.3f} mm); shaded bands behind the HU: Misch D1-D4."
     )
     y_in = MARGIN_IN[2] + 0.55
