@@ -72,9 +72,9 @@ def table_row(entry: Entry) -> list[str]:
         f"{mm(binding['clearance_at_stop_mm'])} at stop)"
     )
     band = doc.get("force_band")
-    force = (
-        "-" if doc.get("peak_force_n") is None else f"peak {doc['peak_force_n']:.2f} (vibration)"
-    )
+    force = "-"
+    if doc.get("peak_force_n") is not None:
+        force = f"{doc['peak_force_n']:.2f} (peak with vibration; no band)"
     if band is not None:
         force = (
             f"{band['peak_mean_force_n']:.2f} at {band['peak_depth_mm']:.2f} mm; "
