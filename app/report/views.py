@@ -25,6 +25,7 @@ from ctdrill.app.report.entries import Entry
 from ctdrill.app.report.layout import MARGIN_IN, PAGE_IN, TextPages, wrap
 from ctdrill.app.report.summary import STOP_WORDS
 from ctdrill.app.report.timing import Timings
+from ctdrill.imaging.errors import ImagingInputError
 
 #: What the report says when the plan has no arch (and how to add one).
 NO_ARCH = (
@@ -34,6 +35,9 @@ NO_ARCH = (
     "save the plan, or add a 3D Slicer Curve markup named 'arch' to the plan files. Then run "
     "ctdrill report again."
 )
+#: What a reformat page says when the reformat refuses the arch or the axis (the rest of the
+#: report stands).
+NOT_DRAWN = "Not drawn: {reason}. The rest of the report is unaffected."
 #: The 3D view's size in pixels (about 115 per inch across the page).
 VIEW3D_PX = (1200, 720)
 
@@ -93,15 +97,23 @@ def view_pages(
     if arch is None:
         _message(pages.figure(), "Panoramic reformat", NO_ARCH)
     else:
-        panorama_page(pages.figure(), case, finals, np.asarray(arch))
+        fig = pages.figure()
+        try:
+            panorama_page(fig, case, finals, np.asarray(arch))
+        except ImagingInputError as exc:  # refused before anything is drawn: say why
+            _message(fig, "Panoramic reformat", NOT_DRAWN.format(reason=exc))
     timings.add("panoramic", time.perf_counter() - t0)
     t0 = time.perf_counter()
     for entry in finals:
         fig = pages.figure()
+        title = f"Cross-section: {entry.label}"
         if arch is None:
-            _message(fig, f"Cross-section: {entry.label}", NO_ARCH)
-        else:
+            _message(fig, title, NO_ARCH)
+            continue
+        try:
             cross_section_page(fig, case, entry, np.asarray(arch), finals)
+        except ImagingInputError as exc:
+            _message(fig, title, NOT_DRAWN.format(reason=exc))
     timings.add("cross-sections", time.perf_counter() - t0)
     t0 = time.perf_counter()
     view3d_page(pages.figure(), case, finals)

@@ -231,3 +231,30 @@ def test_a_plan_without_an_arch_gets_its_report_saying_how_to_add_one(tmp_path: 
         assert "arch_mm" in page and "ctdrill gui" in page and "'arch'" in page
     assert "3D view" in pages[3]
     assert "Planned osteotomy: summary" in pages[0]
+
+
+def test_a_reformat_the_plan_cannot_give_is_said_on_its_page(tmp_path: Path) -> None:
+    """A horizontal drill along the arch's bucco-lingual normal spans no cross-section plane
+    (the reformat refuses it): its page says why; the rest of the report stands."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from ctdrill.imaging.plan.types import load_plan, save_plan
+
+    demo = load_plan(DEMO / "plan.json")
+    across = replace(
+        demo, entry_lps=np.array([18.0, 10.0, -35.0]), target_lps=np.array([30.0, 10.0, -35.0])
+    )
+    save_plan(across, tmp_path / "across.json")
+    argv = ["report", "--dicom", str(DEMO / "ct"), "--plan", str(tmp_path / "across.json")]
+    code, _, err = run_cli([*argv, "--out", str(tmp_path / "r.pdf")])
+    assert (code, err) == (0, "")
+    pages = pdf_pages(tmp_path / "r.pdf")
+    assert len(pages) == 5
+    assert "Panoramic reformat along the dental arch" in pages[1]
+    assert (
+        "Not drawn: cross-section: the axis runs along the arch's bucco-lingual normal"
+        in (pages[2])
+    )
+    assert "The rest of the report is unaffected." in pages[2]
