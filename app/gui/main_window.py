@@ -361,9 +361,11 @@ class MainWindow(QMainWindow):
         return self.suggest_panel.start()
 
     def refocus(self) -> None:
-        """Point the 3D camera at the trajectory again."""
+        """Point the 3D camera and the slice planes at the trajectory again."""
         if self.view3d.scene is not None:
             self.view3d.show_scene(self.view3d.scene, refocus=True)
+        if self.plan is not None:
+            self.slice_grid.centre_on_drill()
 
     # ------------------------------------------------------------------ screenshots
     def grab_composite(self) -> QImage:

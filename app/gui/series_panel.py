@@ -1,14 +1,15 @@
 """The Series tab: why rehearsal is blocked, the loader's warnings, the path's warnings; each
-warning once (a view of the document)."""
+warning once and whole (wrapped to the tab's width, scrollable; a view of the document)."""
 
 from __future__ import annotations
 
 from collections.abc import Iterable
 
-from PySide6.QtWidgets import QLabel, QListWidget, QVBoxLayout, QWidget
+from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.results import PathView, block_reason
+from ctdrill.app.gui.wrapped_list import WrappedList
 from ctdrill.imaging import LoadWarning
 
 
@@ -35,10 +36,9 @@ class SeriesPanel(QWidget):
         self.block_label = QLabel("")
         self.block_label.setWordWrap(True)
         self.block_label.setStyleSheet("color:#b71c1c; font-weight:bold")
-        self.warnings_list = QListWidget()
-        self.path_warnings_list = QListWidget()
-        for box in (self.warnings_list, self.path_warnings_list):
-            box.setWordWrap(True)
+        # every warning whole: wrapped (long paths too), as tall as it needs, scrollable
+        self.warnings_list = WrappedList()
+        self.path_warnings_list = WrappedList()
         lay = QVBoxLayout(self)
         lay.addWidget(self.block_label)
         lay.addWidget(QLabel("Loader warnings"))

@@ -1,10 +1,13 @@
-"""The four slice views (axial, coronal, sagittal, along the drill), observing the document.
+"""The four slice views (axial, coronal, sagittal, along the drill) with their toolbar and
+readout line, observing the document.
 
-The planes are resliced in a worker thread when the series or the trajectory's target and
-direction change (else only the overlays are redrawn); each canvas is then drawn in an
-event-loop pass of its own. A handle dragged or placed on a canvas becomes a plan edit through
-:func:`ctdrill.app.gui.planning.place_handle`; without a plan, the first two points placed
-make the trajectory (no trajectory is guessed for a new series).
+Each orthogonal view shows one plane of the volume; paging moves it through the volume's own
+planes (:mod:`ctdrill.app.gui.slice_nav`), independently of the plan: a series opens with the
+whole volume in view and the planes through the target (the middle planes without a plan);
+"Centre on drill" (C) brings them back to the trajectory. The view along the drill turns about
+the drill when paged. A plane is resliced in a worker thread (one runner per view) and each
+canvas is drawn in an event-loop pass of its own. Handles dragged or placed become plan edits
+through :func:`ctdrill.app.gui.planning.place_handle`; arch edits go to ``Document.set_arch``.
 """
 
 from __future__ import annotations
@@ -13,21 +16,46 @@ from functools import partial
 
 import numpy as np
 from PySide6.QtCore import Signal
-from PySide6.QtWidgets import QGridLayout, QWidget
+from PySide6.QtWidgets import QGridLayout, QHBoxLayout, QLabel, QSizePolicy, QVBoxLayout, QWidget
 
-from ctdrill.app.gui import compute, planning
+from ctdrill.app.gui import planning
 from ctdrill.app.gui.document import ViewContext
-from ctdrill.app.gui.scene import LandmarkGeometry
+from ctdrill.app.gui.slice_nav import (
+    SliceStack,
+    cursor_text,
+    dragged_window,
+    plane_center,
+    slice_stack,
+    window_text,
+)
+from ctdrill.app.gui.slice_scene import overlay_scene
+from ctdrill.app.gui.slice_toolbar import SliceToolbar
+from ctdrill.app.gui.slice_tools import edit_arch
 from ctdrill.app.gui.slice_view import SliceCanvas
-from ctdrill.app.gui.slices import VIEWS, WINDOW_PRESETS, SliceImage
+from ctdrill.app.gui.slices import VIEWS, WINDOW_PRESETS, SliceImage, reslice, volume_center_lps
 from ctdrill.app.gui.workers import Runner
+from ctdrill.imaging import CTVolume
+from ctdrill.imaging.plan.types import Plan
 
 #: What the trajectory view says before a trajectory exists.
 PLACE_HINT = "no trajectory yet:\nright-click the target,\nShift+right-click the entry"
+#: Turn of the view along the drill per page step, degrees.
+ROLL_STEP_DEG = 15.0
+#: The orthogonal views (paged through the volume's planes).
+ORTHO = ("axial", "coronal", "sagittal")
+
+
+def doc_plans(doc: object) -> tuple[tuple[Plan, ...], int]:
+    """Every trajectory of the document and the index of the current one."""
+    plans = tuple(getattr(doc, "plans", ()) or ())
+    plan = getattr(doc, "plan", None)
+    if not plans:
+        return ((plan,) if plan is not None else ()), 0
+    return plans, int(getattr(doc, "current", 0))
 
 
 class SliceGrid(QWidget):
-    """Four :class:`SliceCanvas` in a 2 x 2 grid."""
+    """Four :class:`SliceCanvas` in a 2 x 2 grid, a toolbar and a readout line."""
 
     slices_updated = Signal()  # every canvas shows the latest planes
 
@@ -37,78 +65,241 @@ class SliceGrid(QWidget):
         self.canvases: dict[str, SliceCanvas] = {v: SliceCanvas(v, steps=ctx.steps) for v in VIEWS}
         self.slices: dict[str, SliceImage] = {}
         self.window_level = WINDOW_PRESETS["bone"]
-        self._key: tuple[object, ...] | None = None
-        grid = QGridLayout(self)
+        self.stacks: dict[str, SliceStack] = {}
+        #: Position of each orthogonal plane along its LPS axis, mm.
+        self.positions: dict[str, float] = {}
+        self.roll_deg = 0.0
+        #: Arch points placed while fewer than two (no arch in the plan yet).
+        self.arch_draft: np.ndarray | None = None
+        self._keys: dict[str, tuple[object, ...] | None] = dict.fromkeys(VIEWS)
+        self._had_plan = False
+        self.toolbar = SliceToolbar(self)
+        #: The readout line: window/level, then HU and position at the cursor.
+        self.wl_label = QLabel("")
+        self.readout = QLabel("")
+        for label in (self.wl_label, self.readout):
+            label.setStyleSheet("font-family: monospace")
+        wl_width = self.wl_label.fontMetrics().horizontalAdvance("W 99999 L -9999 ")
+        self.wl_label.setFixedWidth(wl_width)
+        # a long readout must not widen the grid (the canvases would move under the cursor)
+        self.readout.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Fixed)
+        grid = QGridLayout()
         grid.setContentsMargins(0, 0, 0, 0)
         grid.setSpacing(2)
+        self.runners: dict[str, Runner] = {}
         for n, v in enumerate(VIEWS):
-            grid.addWidget(self.canvases[v], n // 2, n % 2)
-            self.canvases[v].point_moved.connect(self._handle_moved)
-            self.canvases[v].clicked.connect(self._canal_click)
-        self.runner = Runner(self._sliced, self._slice_failed, parent=self)
+            canvas = self.canvases[v]
+            grid.addWidget(canvas, n // 2, n % 2)
+            canvas.point_moved.connect(self._handle_moved)
+            canvas.clicked.connect(self._canal_click)
+            canvas.paged.connect(partial(self.page, v))
+            canvas.window_dragged.connect(self._window_dragged)
+            canvas.cursor_moved.connect(self._cursor)
+            canvas.centre_requested.connect(self.centre_on_drill)
+            canvas.arch_edited.connect(self._arch_edit)
+            self.runners[v] = Runner(partial(self._sliced, v), self._slice_failed, parent=self)
+        box = QVBoxLayout(self)
+        box.setContentsMargins(0, 0, 0, 0)
+        box.setSpacing(2)
+        box.addWidget(self.toolbar)
+        box.addLayout(grid, 1)
+        line = QHBoxLayout()
+        line.setContentsMargins(2, 0, 2, 0)
+        line.addWidget(self.wl_label)
+        line.addWidget(self.readout, 1)
+        box.addLayout(line)
+        self._show_readout("")
         doc = ctx.doc
-        doc.volume_changed.connect(self._reslice)
-        doc.plan_changed.connect(self._reslice)
+        doc.volume_changed.connect(self._volume_changed)
+        doc.plan_changed.connect(self._plan_changed)
         doc.path_changed.connect(lambda _view: self.draw_overlays())
+        plans_changed = getattr(doc, "plans_changed", None)
+        if plans_changed is not None:
+            plans_changed.connect(lambda _plans: self._plan_changed(doc.plan))
 
-    # ------------------------------------------------------------------ document
-    def _reslice(self, *_args: object) -> None:
+    @property
+    def runner(self) -> _Runners:
+        """Every view's runner, as one (``cancel``, ``busy``)."""
+        return _Runners(self.runners)
+
+    # ------------------------------------------------------------------ planes
+    def _volume_changed(self, volume: CTVolume) -> None:
+        self.stacks = {v: slice_stack(volume, v) for v in ORTHO}
+        self.positions = {v: float(s.positions_mm[s.count // 2]) for v, s in self.stacks.items()}
+        self.roll_deg = 0.0
+        self.arch_draft = None
+        plan = self.ctx.doc.plan
+        if plan is not None:
+            self._through(plan.target_lps)
+        for canvas in self.canvases.values():  # the whole volume in view
+            canvas.fov_mm, canvas.center_uv = None, None
+        self._had_plan = plan is not None
+        self.reslice()
+
+    def _plan_changed(self, plan: Plan | None) -> None:
+        if plan is not None and not self._had_plan and self.stacks:
+            self._through(plan.target_lps)  # a trajectory appeared: show it
+        self._had_plan = plan is not None
+        self.reslice()
+
+    def _through(self, point_lps: np.ndarray) -> None:
+        for v in ORTHO:
+            self.positions[v] = float(np.asarray(point_lps)[self.stacks[v].axis])
+
+    def plane_params(self, view: str) -> tuple[np.ndarray, np.ndarray | None] | None:
+        """(centre, axis) of the plane ``view`` shows now, or None (no trajectory view)."""
         volume, plan = self.ctx.doc.volume, self.ctx.doc.plan
         if volume is None:
-            return
-        key = compute.slice_key(volume, plan)
-        if key == self._key:  # the planes did not move: only the overlays change
-            self.draw_overlays()
-            return
-        self._key = key
-        self.runner.submit(lambda: compute.slice_views(volume, plan))
+            return None
+        if view == "trajectory":
+            return None if plan is None else (plan.target_lps, plan.direction)
+        return plane_center(volume_center_lps(volume), view, self.positions[view]), None
 
-    def _sliced(self, slices: dict[str, SliceImage]) -> None:
-        self.slices = slices
-        for name in VIEWS:  # one canvas per event-loop pass
-            self.ctx.steps.push(partial(self._show, slices, name))
-        self.ctx.steps.push(lambda: self.slices_updated.emit() if slices is self.slices else None)
+    def reslice(self, views: tuple[str, ...] = VIEWS) -> None:
+        """Reslice the views whose plane moved (in the background); redraw the others'
+        overlays."""
+        volume = self.ctx.doc.volume
+        if volume is None:
+            return
+        for view in views:
+            params = self.plane_params(view)
+            if params is None:
+                self._keys[view] = None
+                self.slices.pop(view, None)
+                self.ctx.steps.push(partial(self._no_plane, view))
+                continue
+            center, axis = params
+            roll = self.roll_deg if view == "trajectory" else 0.0
+            key = (id(volume), view, *np.round(center, 9), roll)
+            if axis is not None:
+                key = (*key, *np.round(axis, 12))
+            if key == self._keys[view]:
+                self.draw_overlays(only=view)
+                continue
+            self._keys[view] = key
+
+            def job(
+                view: str = view,
+                c: np.ndarray = center,
+                a: np.ndarray | None = axis,
+                r: float = roll,
+            ) -> SliceImage:
+                return reslice(volume, view, c, axis_lps=a, roll_deg=r)  # type: ignore[arg-type]
+
+            self.runners[view].submit(job)
+
+    def _no_plane(self, view: str) -> None:
+        if self._keys[view] is None:
+            self.canvases[view].set_note(PLACE_HINT)
+            self._maybe_updated()
+
+    def _sliced(self, view: str, image: SliceImage) -> None:
+        self.slices[view] = image
+        self.ctx.steps.push(partial(self._show, view, image))
 
     def _slice_failed(self, exc: BaseException, tb: str) -> None:
-        self._key = None
+        self._keys = dict.fromkeys(VIEWS)
         self.ctx.status(f"error: the slice views could not be drawn: {exc}")
 
-    def _show(self, slices: dict[str, SliceImage], name: str) -> None:
-        if slices is not self.slices:
+    def _show(self, view: str, image: SliceImage) -> None:
+        if self.slices.get(view) is not image:
             return
-        canvas = self.canvases[name]
-        if name not in slices:
-            canvas.set_note(PLACE_HINT)
-            return
+        canvas = self.canvases[view]
         level, width = self.window_level
-        canvas.show_slice(slices[name], level_hu=level, width_hu=width)
-        plan = self.ctx.doc.plan
-        if plan is not None:  # the trajectory in the middle of the field of view
-            canvas.focus_on((plan.entry_lps + plan.target_lps) / 2.0)
-        else:
-            canvas.fov_mm = None  # no trajectory: the whole plane
-        self.draw_overlays(only=name)
+        canvas.show_slice(image, level_hu=level, width_hu=width)
+        canvas.set_position_text(self.position_text(view))
+        self.draw_overlays(only=view)
+        self._maybe_updated()
 
+    def _maybe_updated(self) -> None:
+        if not any(r.busy for r in self.runners.values()):
+            self.ctx.steps.push(self._emit_updated)
+
+    def _emit_updated(self) -> None:
+        if not any(r.busy for r in self.runners.values()):
+            self.slices_updated.emit()
+
+    def position_text(self, view: str) -> str:
+        """The readout of a view's plane position."""
+        if view == "trajectory":
+            return f"turned {self.roll_deg:+.0f}° about the drill"
+        stack = self.stacks.get(view)
+        return "" if stack is None else stack.describe(self.positions[view])
+
+    def page(self, view: str, steps: int) -> None:
+        """Move ``view``'s plane ``steps`` planes on (the drill view: turn it)."""
+        if self.ctx.doc.volume is None:
+            return
+        if view == "trajectory":
+            self.roll_deg = (self.roll_deg + ROLL_STEP_DEG * steps + 180.0) % 360.0 - 180.0
+        else:
+            self.positions[view] = self.stacks[view].step(self.positions[view], steps)
+        self.reslice((view,))
+
+    def centre_on_drill(self) -> None:
+        """Bring every plane back to the trajectory (through the target, centred on it)."""
+        plan = self.ctx.doc.plan
+        if plan is None or not self.stacks:
+            self.ctx.status("no trajectory to centre on")
+            return
+        self._through(plan.target_lps)
+        self.roll_deg = 0.0
+        mid = (plan.entry_lps + plan.target_lps) / 2.0
+        for canvas in self.canvases.values():
+            canvas.center_uv = None if canvas.image is None else canvas.image.to_plane_mm(mid)[0]
+        self.reslice()
+
+    # ------------------------------------------------------------------ overlays
     def draw_overlays(self, only: str | None = None) -> None:
         """Overlay the plan (or the points placed so far) on every canvas (or on ``only``)."""
         doc = self.ctx.doc
-        plan, view = doc.plan, doc.path
-        lms: tuple[LandmarkGeometry, ...]
-        if plan is None:
-            entry, target = doc.draft.get("entry"), doc.draft.get("target")
-            stop, lms = None, ()
-        else:
-            entry, target = plan.entry_lps, plan.target_lps
-            own = view is not None and view.plan is plan
-            stop = plan.point_at_depth_lps(view.curves.stop_depth_mm) if own and view else None
-            lms = planning.drawn_landmarks(plan, view)
+        plans, current = doc_plans(doc)
+        scene = overlay_scene(plans, current, doc.path, draft=doc.draft, arch_draft=self.arch_draft)
         for name, canvas in self.canvases.items():
             if only is None or name == only:
-                canvas.set_overlays(
-                    entry_lps=entry, target_lps=target, stop_lps=stop, landmarks=lms
-                )
+                canvas.set_overlays(scene)
+
+    # ------------------------------------------------------------------ window, cursor
+    def set_window_preset(self, label: str) -> None:
+        """Apply a window/level preset to the slice views."""
+        self.set_window(*WINDOW_PRESETS[label])
+
+    def set_window(self, level_hu: float, width_hu: float) -> None:
+        """Apply a window/level to the slice views."""
+        self.window_level = (float(level_hu), float(width_hu))
+        for name, img in self.slices.items():
+            self.canvases[name].set_window(img, level_hu=level_hu, width_hu=width_hu)
+        self._show_readout(None)
+
+    def _window_dragged(self, dx_px: float, dy_px: float) -> None:
+        self.set_window(*dragged_window(*self.window_level, dx_px, dy_px))
+
+    def _cursor(self, point_lps: np.ndarray | None) -> None:
+        volume = self.ctx.doc.volume
+        if point_lps is None or volume is None:
+            self._show_readout("")
+        else:
+            self._show_readout(cursor_text(volume, point_lps))
+
+    def _show_readout(self, cursor: str | None) -> None:
+        if cursor is None:
+            cursor = getattr(self, "_cursor_text", "")
+        self._cursor_text = cursor
+        level, width = self.window_level
+        self.wl_label.setText(window_text(level, width))
+        self.readout.setText(cursor or "move over a slice for the HU and position")
 
     # ------------------------------------------------------------------ edits
+    def set_mode(self, mode: str) -> None:
+        """``navigate``, ``canal``, ``distance`` or ``arch`` on every canvas."""
+        for canvas in self.canvases.values():
+            canvas.mode = mode
+        self.toolbar.show_mode(mode)
+
+    def set_canal_mode(self, on: bool) -> None:
+        """Left clicks append canal points (True) or drag handles."""
+        self.set_mode("canal" if on else "navigate")
+
     def _handle_moved(self, name: str, point_lps: np.ndarray) -> None:
         doc = self.ctx.doc
         try:
@@ -129,14 +320,42 @@ class SliceGrid(QWidget):
         else:
             doc.set_plan(planning.add_canal_point(doc.plan, point_lps))
 
-    def set_canal_mode(self, on: bool) -> None:
-        """Left clicks append canal points (True) or drag handles."""
-        for canvas in self.canvases.values():
-            canvas.add_points_mode = on
+    def _arch_edit(self, op: str, index: int, point_lps: np.ndarray | None) -> None:
+        doc = self.ctx.doc
+        set_arch = getattr(doc, "set_arch", None)
+        if doc.plan is None or set_arch is None:
+            doc.edit_refused.emit("place a trajectory before the arch")
+            return
+        current = self.arch_draft
+        if current is None:
+            current = getattr(doc.plan, "arch_lps", None)
+        try:
+            points = edit_arch(current, op, index, point_lps)
+        except ValueError as exc:
+            doc.edit_refused.emit(f"error: {exc}")
+            return
+        if len(points) >= 2:
+            self.arch_draft = None
+            set_arch(points)
+        else:
+            self.arch_draft = points
+            if getattr(doc.plan, "arch_lps", None) is not None:
+                set_arch(None)
+            self.draw_overlays()
 
-    def set_window_preset(self, label: str) -> None:
-        """Apply a window/level preset to the slice views."""
-        self.window_level = WINDOW_PRESETS[label]
-        level, width = self.window_level
-        for name, img in self.slices.items():
-            self.canvases[name].set_window(img, level_hu=level, width_hu=width)
+
+class _Runners:
+    """The grid's per-view runners seen as one."""
+
+    def __init__(self, runners: dict[str, Runner]) -> None:
+        self._runners = runners
+
+    @property
+    def busy(self) -> bool:
+        """True while any view is being resliced."""
+        return any(r.busy for r in self._runners.values())
+
+    def cancel(self) -> None:
+        """Drop every running reslice."""
+        for r in self._runners.values():
+            r.cancel()

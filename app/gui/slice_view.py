@@ -1,10 +1,17 @@
-"""One slice view: a matplotlib canvas showing a :class:`~ctdrill.app.gui.slices.SliceImage` with
-the trajectory, the drill's stop point and the landmarks; entry and target can be dragged.
+"""One slice view: a matplotlib canvas showing a :class:`~ctdrill.app.gui.slices.SliceImage`
+with its orientation letters, the plane's position, and the plan drawn over it
+(:mod:`ctdrill.app.gui.slice_overlays`).
 
-The widget only draws and reports: a finished drag of a handle, or a right click (target;
-Shift + right click: entry) emits ``point_moved(name, lps)``, and a left click in canal-point
-mode emits ``clicked(lps)``; the window decides what they change. The mouse wheel zooms about
-the cursor (``zoom``); ``focus_on`` centres the field of view on a point.
+The widget only draws and reports; the grid (:mod:`ctdrill.app.gui.slice_grid`) decides what a
+report changes. Controls (docs/gui.md):
+
+- wheel, PageUp/PageDown, Up/Down: ``paged(steps)`` (the next or previous plane);
+- Ctrl+wheel, +/-: zoom about the cursor (or the centre); C: ``centre_requested``;
+- right-drag: ``window_dragged(dx_px, dy_px)`` (window/level); a right *click* places the
+  target (Shift: the entry), ``point_moved``; dragging a handle with the left button moves it;
+- mouse over the image: ``cursor_moved(lps)`` (None when it leaves the image);
+- tools (:attr:`mode`): ``canal`` (left click: ``clicked(lps)``), ``distance``
+  (:mod:`ctdrill.app.gui.slice_tools`), ``arch`` (``arch_edited(op, index, lps)``).
 """
 
 from __future__ import annotations
@@ -15,70 +22,100 @@ import numpy as np
 from matplotlib.backend_bases import MouseEvent
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
-from PySide6.QtCore import Signal
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtGui import QKeyEvent, QWheelEvent
 
-from ctdrill.app.gui.scene import LandmarkGeometry
-from ctdrill.app.gui.slices import SliceImage, polyline_in_plane, window_to_uint8
+from ctdrill.app.gui.slice_nav import orientation_letters
+from ctdrill.app.gui.slice_overlays import draw_scene
+from ctdrill.app.gui.slice_scene import OverlayScene
+from ctdrill.app.gui.slice_tools import PICK_PX, ToolState
+from ctdrill.app.gui.slices import SliceImage, window_to_uint8
 from ctdrill.app.gui.workers import StepQueue
 
-#: Pick radius for dragging a handle, pixels.
-PICK_PX = 10.0
-#: Field of view of a slice view around the trajectory, and the closest zoom, mm.
-DEFAULT_FOV_MM = 50.0
+#: The closest zoom, mm of field of view.
 MIN_FOV_MM = 5.0
-#: Zoom per wheel step.
+#: Zoom per wheel step or +/- key.
 WHEEL_ZOOM = 1.25
-#: Overlays within this distance of the plane are drawn solid, mm.
-SLAB_MM = 2.0
-#: Landmark colour, and the colour of a landmark whose margin the planned path breaks.
-LANDMARK_COLOUR = "#ffd030"
-VIOLATED_COLOUR = "#ff3030"
+#: A right-button press that moves more than this is a window/level drag, not a click, px.
+DRAG_PX = 4.0
 
 _TITLES = {
-    "axial": "axial (A up, L right)",
-    "coronal": "coronal (S up, L right)",
-    "sagittal": "sagittal (S up, P right)",
+    "axial": "axial",
+    "coronal": "coronal",
+    "sagittal": "sagittal",
     "trajectory": "along the drill",
 }
+_PAGE_KEYS = {
+    Qt.Key.Key_PageUp: 1,
+    Qt.Key.Key_Up: 1,
+    Qt.Key.Key_PageDown: -1,
+    Qt.Key.Key_Down: -1,
+}
+_TEXT: dict[str, Any] = {"color": "#e8e8e8", "fontsize": 9}
 
 
 class SliceCanvas(FigureCanvasQTAgg):
-    """A draggable-handle slice view."""
+    """A slice view with draggable handles, paging, zoom, window/level drag and tools."""
 
     point_moved = Signal(str, object)  # handle name ("entry" | "target"), (3,) LPS mm
-    clicked = Signal(object)  # (3,) LPS mm on the plane
+    clicked = Signal(object)  # canal mode: (3,) LPS mm on the plane
+    paged = Signal(int)  # planes to step (+: towards larger coordinates)
+    window_dragged = Signal(float, float)  # screen px since the last report (x right, y down)
+    cursor_moved = Signal(object)  # (3,) LPS mm under the cursor, or None
+    centre_requested = Signal()
+    arch_edited = Signal(str, int, object)  # "add" | "move" | "delete", vertex, LPS or None
 
     def __init__(self, view: str, *, steps: StepQueue | None = None) -> None:
         """``steps``: if given, redraws requested with ``draw_idle`` are queued there (one
         canvas per event-loop pass) instead of matplotlib's own idle draw."""
         fig = Figure(figsize=(3.0, 3.0), dpi=80, facecolor="#101010")
         super().__init__(fig)
+        self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self.view = view
         self._steps = steps
         self._draw_queued = False
-        self.ax = fig.add_axes((0.0, 0.0, 1.0, 0.93))
+        self.ax = fig.add_axes((0.0, 0.04, 1.0, 0.90))
         self.ax.set_facecolor("black")
         self.ax.set_axis_off()
-        fig.text(0.01, 0.99, _TITLES.get(view, view), color="#e0e0e0", fontsize=8, va="top")
+        fig.text(0.01, 0.995, _TITLES.get(view, view), va="top", fontweight="bold", **_TEXT)
+        self._position = fig.text(0.01, 0.005, "", va="bottom", **_TEXT)
+        self._letters = {
+            "left": fig.text(0.01, 0.49, "", ha="left", va="center", **_TEXT),
+            "right": fig.text(0.99, 0.49, "", ha="right", va="center", **_TEXT),
+            "top": fig.text(0.5, 0.94, "", ha="center", va="bottom", **_TEXT),
+            "bottom": fig.text(0.5, 0.045, "", ha="center", va="bottom", **_TEXT),
+        }
         self._note = fig.text(0.5, 0.5, "", color="#c0c0c0", fontsize=9, ha="center", wrap=True)
         self.image: SliceImage | None = None
         self._im: Any = None
-        self._handles: dict[str, np.ndarray] = {}
+        self.scene = OverlayScene()
         self._handle_artists: dict[str, Any] = {}
         self._drag: str | None = None
-        self.add_points_mode = False
+        self._right: tuple[float, float, bool, bool] | None = None  # x, y, shift, dragging
+        #: ``navigate`` (handles), ``canal``, ``distance`` or ``arch``.
+        self.mode = "navigate"
+        self.tools = ToolState(self)
         #: Field of view (mm, square) and its centre (in-plane mm); None: the whole image.
-        self.fov_mm: float | None = DEFAULT_FOV_MM
+        self.fov_mm: float | None = None
         self.center_uv: np.ndarray | None = None
         self.mpl_connect("button_press_event", self._press)
         self.mpl_connect("motion_notify_event", self._motion)
         self.mpl_connect("button_release_event", self._release)
-        self.mpl_connect("scroll_event", self._scroll)
+        self.mpl_connect("axes_leave_event", lambda _e: self.cursor_moved.emit(None))
+
+    @property
+    def add_points_mode(self) -> bool:
+        """Left clicks add canal points (the ``canal`` mode)."""
+        return self.mode == "canal"
+
+    @add_points_mode.setter
+    def add_points_mode(self, on: bool) -> None:
+        self.mode = "canal" if on else "navigate"
 
     # ------------------------------------------------------------------ drawing
     def draw_idle(self) -> None:
-        """Redraw soon: via the shared step queue if any (each canvas draws in a pass of its
-        own, so several views changed together never hold the UI thread back to back)."""
+        """Queue a redraw (on the step queue when given: the canvases' expensive Agg draws
+        never hold the UI thread back to back)."""
         if self._steps is None:
             super().draw_idle()
         elif not self._draw_queued:
@@ -94,10 +131,25 @@ class SliceCanvas(FigureCanvasQTAgg):
         self._note.set_text(text)
         self.draw_idle()
 
+    def set_position_text(self, text: str) -> None:
+        """The plane's position readout (bottom left)."""
+        self._position.set_text(text)
+        self.draw_idle()
+
+    def position_text(self) -> str:
+        """The plane's position readout as shown."""
+        return str(self._position.get_text())
+
+    def letters(self) -> dict[str, str]:
+        """The orientation letters shown at the image's edges."""
+        return {k: str(t.get_text()) for k, t in self._letters.items()}
+
     def show_slice(self, image: SliceImage, *, level_hu: float, width_hu: float) -> None:
         """Replace the image (and keep the overlays until ``set_overlays``)."""
         self.image = image
         self._note.set_text("")
+        for side, text in orientation_letters(image.u_lps, image.v_lps).items():
+            self._letters[side].set_text(text)
         grey = window_to_uint8(image.hu, level_hu=level_hu, width_hu=width_hu)
         if self._im is None:
             self._im = self.ax.imshow(
@@ -114,6 +166,11 @@ class SliceCanvas(FigureCanvasQTAgg):
             self._im.set_data(grey)
             self._im.set_extent(image.extent_mm)
         self._apply_view()
+
+    def set_window(self, image: SliceImage, *, level_hu: float, width_hu: float) -> None:
+        """Re-window the current image."""
+        self.show_slice(image, level_hu=level_hu, width_hu=width_hu)
+        self.draw_idle()
 
     def focus_on(self, point_lps: np.ndarray) -> None:
         """Centre the view on ``point_lps`` (projected into the plane), keeping the zoom."""
@@ -161,81 +218,62 @@ class SliceCanvas(FigureCanvasQTAgg):
         self.ax.set_xlim(cu - half, cu + half)
         self.ax.set_ylim(cv + half, cv - half)  # rows grow downwards
 
-    def set_window(self, image: SliceImage, *, level_hu: float, width_hu: float) -> None:
-        """Re-window the current image."""
-        self.show_slice(image, level_hu=level_hu, width_hu=width_hu)
-        self.draw_idle()
-
-    def set_overlays(
-        self,
-        *,
-        entry_lps: np.ndarray | None,
-        target_lps: np.ndarray | None,
-        stop_lps: np.ndarray | None,
-        landmarks: tuple[LandmarkGeometry, ...],
-    ) -> None:
-        """Draw the trajectory, stop point, landmarks and the entry/target handles (either
-        handle may be missing while the trajectory is being placed)."""
-        img = self.image
-        for artist in [*self.ax.lines, *self.ax.patches, *self.ax.collections]:
+    def set_overlays(self, scene: OverlayScene) -> None:
+        """Draw ``scene`` (every trajectory, landmarks, arch, handles) and the tools' marks."""
+        self.scene = scene
+        for artist in [*self.ax.lines, *self.ax.patches, *self.ax.collections, *self.ax.texts]:
             artist.remove()
-        self._handle_artists.clear()
-        if img is None:
-            return
-        for lm in landmarks:
-            colour = VIOLATED_COLOUR if lm.violated else LANDMARK_COLOUR
-            uv, near = polyline_in_plane(img, lm.points_lps, slab_mm=SLAB_MM + lm.radius_mm)
-            style = "-" if near.any() else ":"
-            if len(uv) == 1:
-                self.ax.plot(uv[:, 0], uv[:, 1], "o", color=colour, ms=5, zorder=3)
-            else:
-                self.ax.plot(uv[:, 0], uv[:, 1], style, color=colour, lw=1.2, zorder=3)
-                if near.any():
-                    self.ax.plot(uv[near, 0], uv[near, 1], "o", color=colour, ms=3, zorder=3)
-        if entry_lps is not None and target_lps is not None:
-            line = np.array([entry_lps, target_lps], dtype=np.float64)
-            uv, near = polyline_in_plane(img, line, slab_mm=SLAB_MM)
-            style = "-" if near.all() else "--"
-            self.ax.plot(uv[:, 0], uv[:, 1], style, color="#4080ff", lw=1.5, zorder=4)
-        if stop_lps is not None:
-            suv, _ = img.to_plane_mm(np.asarray(stop_lps, dtype=np.float64))
-            self.ax.plot([suv[0]], [suv[1]], "x", color="#ff40b0", ms=9, mew=2, zorder=5)
-        given = {"entry": entry_lps, "target": target_lps}
-        self._handles = {
-            name: np.asarray(pt, dtype=np.float64) for name, pt in given.items() if pt is not None
-        }
-        colours = {"entry": "#40e0ff", "target": "#ff6060"}
-        for name, pt in self._handles.items():
-            huv, off = img.to_plane_mm(pt)
-            alpha = 1.0 if abs(float(off)) <= SLAB_MM else 0.45
-            (artist,) = self.ax.plot(
-                [huv[0]],
-                [huv[1]],
-                "o",
-                mfc="none",
-                mec=colours[name],
-                mew=2,
-                ms=9,
-                alpha=alpha,
-                zorder=6,
-            )
-            self._handle_artists[name] = artist
+        self._handle_artists = {}
+        if self.image is not None:
+            self._handle_artists = draw_scene(self.ax, self.image, scene, arch=self.view == "axial")
+            self.tools.draw()
         self.draw_idle()
 
-    # ------------------------------------------------------------------ interaction
+    # ------------------------------------------------------------------ keys and wheel
+    def keyPressEvent(self, event: QKeyEvent) -> None:
+        key = Qt.Key(event.key())
+        if key in _PAGE_KEYS:
+            self.paged.emit(_PAGE_KEYS[key])
+        elif key in (Qt.Key.Key_Plus, Qt.Key.Key_Equal):
+            self.zoom(WHEEL_ZOOM)
+        elif key == Qt.Key.Key_Minus:
+            self.zoom(1.0 / WHEEL_ZOOM)
+        elif key == Qt.Key.Key_C:
+            self.centre_requested.emit()
+        elif key in (Qt.Key.Key_Delete, Qt.Key.Key_Backspace, Qt.Key.Key_Escape):
+            self.tools.delete()
+        else:
+            super().keyPressEvent(event)
+
+    def wheelEvent(self, event: QWheelEvent) -> None:
+        steps = round(event.angleDelta().y() / 120.0)
+        if steps == 0:
+            return
+        if event.modifiers() & Qt.KeyboardModifier.ControlModifier:
+            x, y = self.mouseEventCoords(event)
+            uv = np.asarray(self.ax.transData.inverted().transform((x, y)), dtype=np.float64)
+            self.zoom(WHEEL_ZOOM**steps, uv)
+        else:
+            self.paged.emit(int(steps))
+
+    # ------------------------------------------------------------------ mouse
     def _event_uv(self, event: MouseEvent) -> np.ndarray | None:
         if event.inaxes is not self.ax or event.xdata is None or event.ydata is None:
             return None
         return np.array([float(event.xdata), float(event.ydata)])
+
+    def display_of(self, uv_mm: np.ndarray) -> np.ndarray:
+        """Display (matplotlib) pixel position of in-plane mm."""
+        return np.asarray(self.ax.transData.transform(np.asarray(uv_mm, dtype=np.float64)))
 
     def handle_at(self, x_px: float, y_px: float) -> str | None:
         """The handle within ``PICK_PX`` of display point (x_px, y_px), if any."""
         if self.image is None:
             return None
         best, best_d = None, PICK_PX
-        for name, pt in self._handles.items():
+        for name, pt in self.scene.handles.items():
             uv, _ = self.image.to_plane_mm(pt)
-            px = self.ax.transData.transform(uv)
+            px = self.display_of(uv)
             d = float(np.hypot(px[0] - x_px, px[1] - y_px))
             if d <= best_d:
                 best, best_d = name, d
@@ -244,35 +282,39 @@ class SliceCanvas(FigureCanvasQTAgg):
     def lps_for(self, name: str, uv_mm: np.ndarray) -> np.ndarray:
         """LPS of handle ``name`` moved to in-plane ``uv_mm``, keeping its distance off-plane."""
         assert self.image is not None
-        _, off = self.image.to_plane_mm(self._handles[name])
+        _, off = self.image.to_plane_mm(self.scene.handles[name])
         return np.asarray(self.image.to_lps(uv_mm) + float(off) * self.image.normal_lps)
 
     def _press(self, event: MouseEvent) -> None:
         uv = self._event_uv(event)
         if uv is None or self.image is None:
             return
-        if event.button == 3:  # right click places the target; with Shift, the entry
-            name = "entry" if event.key == "shift" else "target"
-            self.point_moved.emit(name, self.image.to_lps(uv))
+        if event.button == 3:
+            self._right = (float(event.x), float(event.y), event.key == "shift", False)
             return
         if event.button != 1:
             return
-        if self.add_points_mode:
+        if self.mode == "canal":
             self.clicked.emit(self.image.to_lps(uv))
-            return
-        self._drag = self.handle_at(float(event.x), float(event.y))
-
-    def _scroll(self, event: MouseEvent) -> None:
-        uv = self._event_uv(event)
-        step = float(getattr(event, "step", 0.0) or 0.0)
-        if step:
-            self.zoom(WHEEL_ZOOM**step, uv)
+        elif self.mode in ("distance", "arch"):
+            self.tools.press(uv, float(event.x), float(event.y))
+        else:
+            self._drag = self.handle_at(float(event.x), float(event.y))
 
     def _motion(self, event: MouseEvent) -> None:
-        if self._drag is None:
-            return
         uv = self._event_uv(event)
-        if uv is None:
+        if self._right is not None:
+            x0, y0, shift, dragging = self._right
+            dx, dy = float(event.x) - x0, float(event.y) - y0
+            if dragging or np.hypot(dx, dy) > DRAG_PX:
+                self._right = (float(event.x), float(event.y), shift, True)
+                self.window_dragged.emit(dx, -dy)  # matplotlib's y grows upwards
+            return
+        if uv is not None and self.image is not None:
+            self.cursor_moved.emit(self.image.to_lps(uv))
+        if self.tools.motion(uv):
+            return
+        if self._drag is None or uv is None:
             return
         artist = self._handle_artists.get(self._drag)
         if artist is not None:
@@ -280,10 +322,20 @@ class SliceCanvas(FigureCanvasQTAgg):
             self.draw_idle()
 
     def _release(self, event: MouseEvent) -> None:
-        name, self._drag = self._drag, None
-        if name is None:
-            return
         uv = self._event_uv(event)
-        if uv is None:
+        if event.button == 3 and self._right is not None:
+            _x, _y, shift, dragging = self._right
+            self._right = None
+            if dragging or uv is None or self.image is None:
+                return
+            if self.mode in ("distance", "arch"):
+                self.tools.right_click(float(event.x), float(event.y))
+                return
+            self.point_moved.emit("entry" if shift else "target", self.image.to_lps(uv))
+            return
+        if self.tools.release(uv):
+            return
+        name, self._drag = self._drag, None
+        if name is None or uv is None:
             return
         self.point_moved.emit(name, self.lps_for(name, uv))

@@ -10,7 +10,7 @@ from PySide6.QtWidgets import QApplication
 from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui.main_window import MainWindow
-from ctdrill.app.gui.slice_view import DEFAULT_FOV_MM, SliceCanvas
+from ctdrill.app.gui.slice_view import SliceCanvas
 from ctdrill.app.gui.slices import window_to_uint8
 from ctdrill.imaging.phantom.io import PhantomCase
 from ctdrill.imaging.plan.landmarks import CanalLandmark
@@ -102,7 +102,7 @@ def test_right_click_places_the_target(
     assert window.plan.target_lps == pytest.approx(goal, abs=0.4)
 
 
-def test_slice_views_frame_the_trajectory_and_zoom_with_the_wheel(
+def test_slice_views_show_the_whole_plane_and_zoom_with_ctrl_wheel(
     qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
 ) -> None:
     open_case(qtbot, window, phantom_case)
@@ -110,9 +110,8 @@ def test_slice_views_frame_the_trajectory_and_zoom_with_the_wheel(
     assert canvas.image is not None and window.plan is not None
     left, right, bottom, top = canvas.image.extent_mm
     full = max(right - left, bottom - top)
-    assert full < DEFAULT_FOV_MM  # the phantom is small: the whole plane is shown
-    assert canvas.ax.get_xlim() == pytest.approx((left, right))
-    # One wheel step up over the entry point zooms in by 1.25 and keeps the entry under it.
+    assert canvas.ax.get_xlim() == pytest.approx((left, right))  # the whole plane on open
+    # One Ctrl+wheel step up over the entry point zooms in by 1.25 and keeps the entry under it.
     entry_uv, _ = canvas.image.to_plane_mm(window.plan.entry_lps)
     pos = qt_point(canvas, entry_uv)
     event = QWheelEvent(
@@ -121,7 +120,7 @@ def test_slice_views_frame_the_trajectory_and_zoom_with_the_wheel(
         QPoint(0, 0),
         QPoint(0, 120),
         Qt.MouseButton.NoButton,
-        Qt.KeyboardModifier.NoModifier,
+        Qt.KeyboardModifier.ControlModifier,
         Qt.ScrollPhase.NoScrollPhase,
         False,
     )
@@ -129,8 +128,15 @@ def test_slice_views_frame_the_trajectory_and_zoom_with_the_wheel(
     x0, x1 = canvas.ax.get_xlim()
     y0, y1 = canvas.ax.get_ylim()
     assert x1 - x0 == pytest.approx(full / 1.25) and y0 - y1 == pytest.approx(full / 1.25)
-    assert qt_point(canvas, entry_uv) == pos  # the point under the cursor stays put
-    # Centred on the trajectory at the default field of view, then all the way out.
+    after = qt_point(canvas, entry_uv)  # the point under the cursor stays put (rounding: 1 px)
+    assert abs(after.x() - pos.x()) <= 1 and abs(after.y() - pos.y()) <= 1
+    # "-" zooms back out (by the same factor), "+" in again
+    qtbot.keyClick(canvas, Qt.Key.Key_Minus)
+    assert canvas.ax.get_xlim() == pytest.approx((left, right))
+    qtbot.keyClick(canvas, Qt.Key.Key_Plus)
+    x0, x1 = canvas.ax.get_xlim()
+    assert x1 - x0 == pytest.approx(full / 1.25)
+    # Centred on the trajectory at a chosen field of view, then all the way out.
     canvas.fov_mm = 20.0
     mid = (window.plan.entry_lps + window.plan.target_lps) / 2.0
     canvas.focus_on(mid)

@@ -13,7 +13,7 @@ from ctdrill.app.gui import planning
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.plan_panel import VIOLATED_MARK
 from ctdrill.app.gui.scene import CLEARANCE_COLOURS
-from ctdrill.app.gui.slice_view import VIOLATED_COLOUR
+from ctdrill.app.gui.slice_overlays import VIOLATED_COLOUR
 from ctdrill.imaging.phantom.io import PhantomCase
 from ctdrill.imaging.plan.landmarks import PointLandmark
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case

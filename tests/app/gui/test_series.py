@@ -75,3 +75,36 @@ def test_a_single_slice_blocks_rehearsal_and_says_why(
     assert window.plan_panel.table.item(0, 3).text() == "unknown"
     banner = window.views["banner"]
     assert banner.isVisible() and "unknown" in banner.text() and "single slice" in banner.text()
+
+
+def test_the_series_tab_shows_every_warning_whole(
+    qtbot: QtBot, window: MainWindow, shared_data: Path, tmp_path: Path
+) -> None:
+    from ctdrill.imaging import LoadWarning
+
+    window.resize(1280, 800)
+    with qtbot.waitSignal(window.volume_loaded, timeout=LOAD_TIMEOUT_MS):
+        window.open_folder(shared_data / "dcmqa_ct_GE_head_gantrytilt_varspacing")
+    panel = window.series_panel
+    window.tabs.setCurrentWidget(panel)
+    # the real loader warnings, plus one holding a path far longer than a line (no spaces)
+    long_path = "/".join(["a_very_long_folder_name_without_spaces"] * 12) + "/slice.dcm"
+    assert window.volume is not None
+    warnings = (*window.volume.warnings, LoadWarning("files_skipped", f"skipped {long_path}"))
+    panel.set_load_warnings(warnings)
+    box = panel.warnings_list
+    for width in (900, 340):  # wide, then as narrow as the tab gets
+        window.tabs.setFixedWidth(width)
+        qtbot.wait(100)
+        assert box.count() == len(warnings)
+        view_w = box.viewport().width()
+        for row in range(box.count()):
+            text = box.item(row).text()
+            assert text == f"{warnings[row].code}: {warnings[row].message}"  # the whole text
+            rect = box.visualItemRect(box.item(row))
+            assert rect.width() <= view_w  # nothing runs off the right edge
+            assert rect.height() >= box.text_height(row)  # every wrapped line shown
+        # the long path needs several lines at this width: it wraps inside the word
+        assert box.text_height(box.count() - 1) > 3 * box.fontMetrics().height()
+    assert box.horizontalScrollBar().maximum() == 0
+    window.grab().save(str(tmp_path / "series_tab.png"))

@@ -1,0 +1,243 @@
+"""Where a plane cuts the plan's solids, headless and exact: what the slice views draw.
+
+A plane is given by a point ``origin_lps``, in-plane unit vectors ``u_lps``, ``v_lps`` and
+their normal ``n = u x v``; results are in-plane millimetres ``(u, v)`` from the origin (the
+:class:`~ctdrill.app.gui.slices.SliceImage` convention).
+
+Solids of revolution (the drill with its cone tip, an implant body) are a radius profile
+``r(s)`` along an axis from ``p0``; the plane cuts the disc of radius ``r(s)`` at ``s`` in a
+chord whose half-length has the closed form
+
+    t(s) = sqrt(r(s)^2 - ((h + c s) / sigma)^2)
+
+with ``h`` the signed distance of ``p0`` from the plane, ``c = axis . n`` and
+``sigma = sqrt(1 - c^2)`` (the chord's midpoint lies on the line where the disc's plane meets
+the view's). A cylinder seen across its axis is therefore an ellipse of semi-axes ``r`` and
+``r / |c|``, seen along its axis a band ``2 sqrt(r^2 - h^2)`` wide, seen end on a circle. The
+outline is traced at chords spaced by a cosine law between the exact ends of every piece, so
+its vertices lie on the true boundary.
+
+A tube around a polyline (the canal with its radius, its safety margin) is the set of points
+within a distance of the polyline: :func:`polyline_distance_mm` gives that distance exactly on
+a grid of in-plane points, for contouring.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Chords traced per piece of a profile (cosine spaced).
+CHORDS_PER_PIECE = 48
+#: Below this sine of the angle between axis and plane, the axis is taken as normal to it.
+END_ON_SIN = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class Plane:
+    """An oriented plane: a point and two in-plane unit vectors (LPS)."""
+
+    origin_lps: np.ndarray
+    u_lps: np.ndarray
+    v_lps: np.ndarray
+
+    @property
+    def normal_lps(self) -> np.ndarray:
+        """(3,) unit normal ``u x v``."""
+        return np.asarray(np.cross(self.u_lps, self.v_lps), dtype=np.float64)
+
+    def to_uv(self, points_lps: np.ndarray) -> np.ndarray:
+        """(..., 3) LPS -> (..., 2) in-plane mm (the off-plane part dropped)."""
+        rel = np.asarray(points_lps, dtype=np.float64) - self.origin_lps
+        return np.stack([rel @ self.u_lps, rel @ self.v_lps], axis=-1)
+
+    def to_lps(self, uv_mm: np.ndarray) -> np.ndarray:
+        """(..., 2) in-plane mm -> (..., 3) LPS on the plane."""
+        uv = np.asarray(uv_mm, dtype=np.float64)
+        return np.asarray(self.origin_lps + uv[..., :1] * self.u_lps + uv[..., 1:2] * self.v_lps)
+
+
+def _profile_r(s: np.ndarray, s_knots: np.ndarray, r_knots: np.ndarray) -> np.ndarray:
+    return np.asarray(np.interp(s, s_knots, r_knots), dtype=np.float64)
+
+
+def revolved_section(
+    plane: Plane,
+    p0_lps: np.ndarray,
+    axis_lps: np.ndarray,
+    s_mm: np.ndarray,
+    r_mm: np.ndarray,
+    *,
+    chords: int = CHORDS_PER_PIECE,
+) -> list[np.ndarray]:
+    """Outline(s) of the cut of a solid of revolution by ``plane``.
+
+    Parameters
+    ----------
+    plane : the view plane.
+    p0_lps : (3,) the axis point at ``s = 0``.
+    axis_lps : (3,) the axis direction (normalised here).
+    s_mm, r_mm : (K,) the radius profile, ``s`` non-decreasing along the axis, ``r >= 0``,
+        linear between the knots; the solid spans ``s_mm[0]..s_mm[-1]``.
+    chords : chords traced per piece.
+
+    Returns
+    -------
+    list of (M, 2) closed outlines in in-plane mm (first vertex not repeated); empty when the
+    plane misses the solid.
+    """
+    s_k = np.asarray(s_mm, dtype=np.float64)
+    r_k = np.asarray(r_mm, dtype=np.float64)
+    if s_k.ndim != 1 or s_k.shape != r_k.shape or s_k.size < 2 or np.any(np.diff(s_k) < 0):
+        raise ValueError("profile: s_mm and r_mm need the same K >= 2 values, s non-decreasing")
+    a = np.asarray(axis_lps, dtype=np.float64)
+    a = a / np.linalg.norm(a)
+    p0 = np.asarray(p0_lps, dtype=np.float64)
+    n = plane.normal_lps
+    c = float(a @ n)
+    h = float((p0 - plane.origin_lps) @ n)
+    sigma = float(np.sqrt(max(0.0, 1.0 - c * c)))
+    if sigma < END_ON_SIN:  # the axis pierces the plane square on: a circle
+        s_star = -h / c
+        if not s_k[0] <= s_star <= s_k[-1]:
+            return []
+        radius = float(_profile_r(np.array(s_star), s_k, r_k))
+        if radius <= 0.0:
+            return []
+        phi = np.linspace(0.0, 2.0 * np.pi, 4 * chords, endpoint=False)
+        centre = plane.to_uv(p0 + s_star * a)
+        return [centre + radius * np.stack([np.cos(phi), np.sin(phi)], axis=-1)]
+    a_hat = (a - c * n) / sigma  # in-plane direction of the axis
+    b = np.cross(n, a_hat)  # in-plane, across the axis
+    q_uv = plane.to_uv(p0 - h * n)
+    along = np.array([a_hat @ plane.u_lps, a_hat @ plane.v_lps])
+    across = np.array([b @ plane.u_lps, b @ plane.v_lps])
+
+    def slack(s: np.ndarray) -> np.ndarray:  # r(s) sigma - |h + c s|: >= 0 where a chord is
+        return _profile_r(s, s_k, r_k) * sigma - np.abs(h + c * s)
+
+    nodes = [*s_k.tolist()]
+    if c != 0.0:
+        nodes.append(-h / c)
+    for s_a, s_b, r_a, r_b in zip(s_k[:-1], s_k[1:], r_k[:-1], r_k[1:], strict=True):
+        if s_b <= s_a:
+            continue
+        k = (r_b - r_a) / (s_b - s_a)  # r(s) = r_a + k (s - s_a)
+        for sign in (1.0, -1.0):  # (r_a + k (s - s_a)) sigma = sign (h + c s)
+            den = k * sigma - sign * c
+            if den != 0.0:
+                nodes.append((sign * h - (r_a - k * s_a) * sigma) / den)
+    knots = np.unique(np.clip(np.array(nodes), s_k[0], s_k[-1]))
+    runs: list[list[float]] = []
+    phi = np.linspace(0.0, np.pi, chords + 1)
+    last_end = None
+    for s_a, s_b in itertools.pairwise(knots):
+        if slack(np.array(0.5 * (s_a + s_b))) < 0.0:
+            continue
+        piece = (0.5 * (s_a + s_b) - 0.5 * (s_b - s_a) * np.cos(phi)).tolist()
+        piece[0], piece[-1] = float(s_a), float(s_b)
+        if runs and last_end == s_a:
+            runs[-1].extend(piece[1:])
+        else:
+            runs.append(piece)
+        last_end = s_b
+    out = []
+    for run in runs:
+        s = np.array(run)
+        t = np.sqrt(np.maximum(0.0, _profile_r(s, s_k, r_k) ** 2 - ((h + c * s) / sigma) ** 2))
+        w = (s + h * c) / sigma
+        foot = q_uv + w[:, None] * along
+        left, right = foot - t[:, None] * across, foot + t[:, None] * across
+        outline = np.concatenate([left, right[::-1]])
+        keep = np.ones(len(outline), dtype=bool)  # drop repeated vertices (t = 0 ends)
+        keep[1:] = np.any(np.abs(np.diff(outline, axis=0)) > 1e-12, axis=1)
+        if keep.sum() >= 3:
+            out.append(outline[keep])
+    return out
+
+
+def cylinder_profile(length_mm: float, radius_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """(s, r) of a cylinder of ``length_mm`` and ``radius_mm``."""
+    return np.array([0.0, length_mm]), np.array([radius_mm, radius_mm])
+
+
+def drill_profile(
+    depth_mm: float, radius_mm: float, tip_length_mm: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(s, r) of a drill from the entry (s = 0) to its tip at ``depth_mm``: the body, then a
+    cone of ``tip_length_mm`` (shortened to the depth when the drill is shallower)."""
+    tip = min(max(tip_length_mm, 0.0), depth_mm)
+    return (
+        np.array([0.0, depth_mm - tip, depth_mm]),
+        np.array([radius_mm, radius_mm, 0.0 if tip > 0.0 else radius_mm]),
+    )
+
+
+def polyline_distance_mm(points_lps: np.ndarray, polyline_lps: np.ndarray) -> np.ndarray:
+    """Exact distance (..., ) from each point (..., 3) to a polyline (K, 3) (K = 1: a point)."""
+    pts = np.asarray(points_lps, dtype=np.float64)
+    line = np.atleast_2d(np.asarray(polyline_lps, dtype=np.float64))
+    flat = pts.reshape(-1, 3)
+    if len(line) == 1:
+        return np.asarray(np.linalg.norm(flat - line[0], axis=1).reshape(pts.shape[:-1]))
+    best = np.full(len(flat), np.inf)
+    for p, q in itertools.pairwise(line):
+        d = q - p
+        dd = float(d @ d)
+        t = np.zeros(len(flat)) if dd == 0.0 else np.clip((flat - p) @ d / dd, 0.0, 1.0)
+        np.minimum(best, np.linalg.norm(flat - (p + t[:, None] * d), axis=1), out=best)
+    return best.reshape(pts.shape[:-1])
+
+
+def near_part(polyline_lps: np.ndarray, plane: Plane, reach_mm: float) -> np.ndarray:
+    """(M, 3) the pieces of the polyline within ``reach_mm`` of the plane (segments clipped
+    to the slab, consecutive pieces joined); (0, 3) when none is."""
+    line = np.atleast_2d(np.asarray(polyline_lps, dtype=np.float64))
+    n = plane.normal_lps
+    d = (line - plane.origin_lps) @ n
+    if len(line) == 1:
+        return line if abs(float(d[0])) <= reach_mm else np.empty((0, 3))
+    kept: list[np.ndarray] = []
+    for p, q, dp, dq in zip(line[:-1], line[1:], d[:-1], d[1:], strict=True):
+        lo, hi = 0.0, 1.0
+        if dq != dp:  # clip t to |dp + t (dq - dp)| <= reach
+            t1, t2 = (-reach_mm - dp) / (dq - dp), (reach_mm - dp) / (dq - dp)
+            lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
+        elif abs(dp) > reach_mm:
+            continue
+        if lo <= hi:
+            kept.extend([p + lo * (q - p), p + hi * (q - p)])
+    return np.array(kept).reshape(-1, 3)
+
+
+@dataclass(frozen=True, eq=False)
+class TubeField:
+    """Distance to a tube's centreline on an in-plane grid (for ``contour``/``contourf``)."""
+
+    u_mm: np.ndarray  # (W,)
+    v_mm: np.ndarray  # (H,)
+    distance_mm: np.ndarray  # (H, W)
+
+
+def tube_field(
+    plane: Plane, polyline_lps: np.ndarray, reach_mm: float, step_mm: float
+) -> TubeField | None:
+    """The distance to ``polyline_lps`` over the part of ``plane`` within ``reach_mm`` of it
+    (a grid of ``step_mm``, one step of border), or None when the tube misses the plane."""
+    near = near_part(polyline_lps, plane, reach_mm)
+    if len(near) == 0:
+        return None
+    uv = plane.to_uv(near)
+    lo, hi = uv.min(axis=0) - reach_mm - step_mm, uv.max(axis=0) + reach_mm + step_mm
+    u = np.arange(lo[0], hi[0] + step_mm, step_mm)
+    v = np.arange(lo[1], hi[1] + step_mm, step_mm)
+    grid = np.stack(np.meshgrid(u, v), axis=-1)
+    dist = polyline_distance_mm(plane.to_lps(grid), polyline_lps)
+    return TubeField(u_mm=u, v_mm=v, distance_mm=dist)
+
+
+def in_plane_distance_mm(a_lps: np.ndarray, b_lps: np.ndarray) -> float:
+    """Length of a measured segment, mm (both ends on the plane: exact in LPS)."""
+    return float(np.linalg.norm(np.asarray(b_lps, float) - np.asarray(a_lps, float)))

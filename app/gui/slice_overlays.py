@@ -1,0 +1,147 @@
+"""Matplotlib drawing of an :class:`~ctdrill.app.gui.slice_scene.OverlayScene` on a slice:
+where the plane cuts each solid (:mod:`ctdrill.app.gui.sections`), in in-plane mm.
+
+- a canal: its tube (radius, filled) and the margin zone around it (shaded), with the
+  centreline (solid where it runs within the tube's reach of the plane, dotted elsewhere);
+- a drill: its diameter down to the stop (or the planned depth) with the cone tip, the planned
+  axis dashed; the current trajectory bright, the others muted;
+- an implant body: its outline;
+- the arch (axial view): solid where it lies on the slice, dotted where it is projected.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ctdrill.app.gui.scene import LandmarkGeometry
+from ctdrill.app.gui.sections import Plane, revolved_section, tube_field
+from ctdrill.app.gui.slice_scene import BodyDrawing, OverlayScene, TrajectoryDrawing
+from ctdrill.app.gui.slices import SliceImage, polyline_in_plane
+
+#: Overlays within this distance of the plane are drawn solid, mm.
+SLAB_MM = 2.0
+#: Landmark colour, and the colour of a landmark whose margin the planned path breaks.
+LANDMARK_COLOUR = "#ffd030"
+VIOLATED_COLOUR = "#ff3030"
+#: Drill colours: the trajectory being edited, the others.
+CURRENT_COLOUR = "#4080ff"
+OTHER_COLOUR = "#8c9cc0"
+IMPLANT_COLOUR = "#40e080"
+ARCH_COLOUR = "#ff9040"
+STOP_COLOUR = "#ff40b0"
+HANDLE_COLOURS = {"entry": "#40e0ff", "target": "#ff6060"}
+
+
+def plane_of(image: SliceImage) -> Plane:
+    """The plane of a slice image."""
+    return Plane(origin_lps=image.origin_lps, u_lps=image.u_lps, v_lps=image.v_lps)
+
+
+def _draw_canal(ax: Any, image: SliceImage, lm: LandmarkGeometry) -> None:
+    colour = VIOLATED_COLOUR if lm.violated else LANDMARK_COLOUR
+    reach = lm.radius_mm + lm.margin_mm
+    uv, near = polyline_in_plane(image, lm.points_lps, slab_mm=max(reach, SLAB_MM))
+    if len(uv) == 1 or lm.cloud:
+        ax.plot(uv[:, 0], uv[:, 1], "o", color=colour, ms=3 if lm.cloud else 5, zorder=3)
+        return
+    ax.plot(uv[:, 0], uv[:, 1], "-" if near.any() else ":", color=colour, lw=0.8, zorder=3)
+    step = float(np.clip(min(image.pixel_mm, lm.radius_mm / 4.0), 0.05, 1.0))
+    field = tube_field(plane_of(image), lm.points_lps, reach, step)
+    if field is None or field.distance_mm.min() > reach:
+        return
+    u, v, d = field.u_mm, field.v_mm, field.distance_mm
+    if lm.radius_mm > 0.0 and d.min() <= lm.radius_mm:
+        ax.contourf(u, v, d, levels=[-1.0, lm.radius_mm], colors=[colour], alpha=0.45, zorder=2)
+        ax.contour(u, v, d, levels=[lm.radius_mm], colors=[colour], linewidths=1.2, zorder=3)
+    if lm.margin_mm > 0.0:
+        ax.contourf(u, v, d, levels=[lm.radius_mm, reach], colors=[colour], alpha=0.15, zorder=2)
+        ax.contour(
+            u, v, d, levels=[reach], colors=[colour], linewidths=0.9, linestyles="--", zorder=3
+        )
+
+
+def _draw_body(ax: Any, image: SliceImage, body: BodyDrawing, **style: Any) -> int:
+    polys = revolved_section(plane_of(image), body.p0_lps, body.axis_lps, body.s_mm, body.r_mm)
+    for poly in polys:
+        ax.fill(poly[:, 0], poly[:, 1], **style)
+    return len(polys)
+
+
+def _draw_trajectory(ax: Any, image: SliceImage, tr: TrajectoryDrawing) -> None:
+    colour = CURRENT_COLOUR if tr.current else OTHER_COLOUR
+    line = np.array([tr.entry_lps, tr.target_lps], dtype=np.float64)
+    uv, near = polyline_in_plane(image, line, slab_mm=SLAB_MM)
+    ax.plot(
+        uv[:, 0],
+        uv[:, 1],
+        "-" if near.all() else "--",
+        color=colour,
+        lw=1.0 if tr.current else 0.8,
+        alpha=0.9,
+        zorder=4,
+    )
+    _draw_body(
+        ax,
+        image,
+        tr.drill,
+        facecolor=colour,
+        edgecolor=colour,
+        alpha=0.35 if tr.current else 0.2,
+        lw=1.4 if tr.current else 0.8,
+        zorder=4,
+    )
+    if tr.implant is not None:
+        _draw_body(
+            ax,
+            image,
+            tr.implant,
+            facecolor="none",
+            edgecolor=IMPLANT_COLOUR if tr.current else OTHER_COLOUR,
+            lw=1.6 if tr.current else 1.0,
+            zorder=5,
+        )
+
+
+def _draw_arch(ax: Any, image: SliceImage, arch_lps: np.ndarray) -> None:
+    uv, off = image.to_plane_mm(np.atleast_2d(arch_lps))
+    on = np.abs(off) <= SLAB_MM
+    ax.plot(uv[:, 0], uv[:, 1], ":", color=ARCH_COLOUR, lw=1.2, zorder=6)
+    for a, b in zip(range(len(uv) - 1), range(1, len(uv)), strict=True):
+        if on[a] and on[b]:
+            ax.plot(uv[[a, b], 0], uv[[a, b], 1], "-", color=ARCH_COLOUR, lw=1.8, zorder=6)
+    ax.plot(
+        uv[:, 0], uv[:, 1], "s", mfc="none", mec=ARCH_COLOUR, ms=7, mew=1.5, zorder=7, alpha=0.9
+    )
+
+
+def draw_scene(
+    ax: Any, image: SliceImage, scene: OverlayScene, *, arch: bool = False
+) -> dict[str, Any]:
+    """Draw ``scene`` on ``ax`` (in-plane mm) and return the handle artists by name; the arch
+    only when ``arch`` (the axial view)."""
+    for lm in scene.landmarks:
+        _draw_canal(ax, image, lm)
+    for tr in sorted(scene.trajectories, key=lambda t: t.current):  # the current one on top
+        _draw_trajectory(ax, image, tr)
+    if arch and scene.arch_lps is not None and len(scene.arch_lps):
+        _draw_arch(ax, image, scene.arch_lps)
+    if scene.stop_lps is not None:
+        suv, _ = image.to_plane_mm(np.asarray(scene.stop_lps, dtype=np.float64))
+        ax.plot([suv[0]], [suv[1]], "x", color=STOP_COLOUR, ms=9, mew=2, zorder=8)
+    artists: dict[str, Any] = {}
+    for name, pt in scene.handles.items():
+        huv, off = image.to_plane_mm(pt)
+        (artists[name],) = ax.plot(
+            [huv[0]],
+            [huv[1]],
+            "o",
+            mfc="none",
+            mec=HANDLE_COLOURS[name],
+            mew=2,
+            ms=9,
+            alpha=1.0 if abs(float(off)) <= SLAB_MM else 0.45,
+            zorder=9,
+        )
+    return artists
