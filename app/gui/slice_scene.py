@@ -6,6 +6,7 @@ handles of the trajectory being edited.
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -67,9 +68,9 @@ def implant_drawing(plan: Plan) -> BodyDrawing | None:
     spec = getattr(plan, "implant", None)
     if spec is None:
         return None
-    from ctdrill.imaging.plan.implants import implant_placement
-
-    placement = implant_placement(plan)
+    # ctdrill.imaging.plan.implants (issue 16, planmodel) may not have landed yet
+    implants = importlib.import_module("ctdrill.imaging.plan.implants")
+    placement = implants.implant_placement(plan)
     if placement is None:
         return None
     s, r = spec.profile_mm()
