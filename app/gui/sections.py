@@ -130,23 +130,29 @@ def revolved_section(
             if den != 0.0:
                 nodes.append((sign * h - (r_a - k * s_a) * sigma) / den)
     knots = np.unique(np.clip(np.array(nodes), s_k[0], s_k[-1]))
-    runs: list[list[float]] = []
+    # runs of consecutive valid pieces, each piece's radius from its own profile segment (so a
+    # step in the profile, such as a flat apex, keeps both its sides)
+    runs: list[tuple[list[np.ndarray], list[np.ndarray]]] = []
     phi = np.linspace(0.0, np.pi, chords + 1)
     last_end = None
     for s_a, s_b in itertools.pairwise(knots):
-        if slack(np.array(0.5 * (s_a + s_b))) < 0.0:
+        mid = 0.5 * (s_a + s_b)
+        if slack(np.array(mid)) < 0.0:
             continue
-        piece = (0.5 * (s_a + s_b) - 0.5 * (s_b - s_a) * np.cos(phi)).tolist()
-        piece[0], piece[-1] = float(s_a), float(s_b)
+        s = mid - 0.5 * (s_b - s_a) * np.cos(phi)
+        s[0], s[-1] = s_a, s_b
+        j = int(np.clip(np.searchsorted(s_k, mid, side="right") - 1, 0, s_k.size - 2))
+        r = r_k[j] + (r_k[j + 1] - r_k[j]) * (s - s_k[j]) / (s_k[j + 1] - s_k[j])
         if runs and last_end == s_a:
-            runs[-1].extend(piece[1:])
+            runs[-1][0].append(s[1:])
+            runs[-1][1].append(r[1:])
         else:
-            runs.append(piece)
+            runs.append(([s], [r]))
         last_end = s_b
     out = []
-    for run in runs:
-        s = np.array(run)
-        t = np.sqrt(np.maximum(0.0, _profile_r(s, s_k, r_k) ** 2 - ((h + c * s) / sigma) ** 2))
+    for s_parts, r_parts in runs:
+        s, r = np.concatenate(s_parts), np.concatenate(r_parts)
+        t = np.sqrt(np.maximum(0.0, r**2 - ((h + c * s) / sigma) ** 2))
         w = (s + h * c) / sigma
         foot = q_uv + w[:, None] * along
         left, right = foot - t[:, None] * across, foot + t[:, None] * across

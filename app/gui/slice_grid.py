@@ -54,6 +54,14 @@ def doc_plans(doc: object) -> tuple[tuple[Plan, ...], int]:
     return plans, int(getattr(doc, "current", 0))
 
 
+def doc_arch(doc: object) -> np.ndarray | None:
+    """The document's dental arch (the plan's, or the one placed before a plan), or None."""
+    if hasattr(doc, "arch_lps"):
+        return getattr(doc, "arch_lps", None)
+    plan = getattr(doc, "plan", None)
+    return None if plan is None else getattr(plan, "arch_lps", None)
+
+
 class SliceGrid(QWidget):
     """Four :class:`SliceCanvas` in a 2 x 2 grid, a toolbar and a readout line."""
 
@@ -73,6 +81,7 @@ class SliceGrid(QWidget):
         self.arch_draft: np.ndarray | None = None
         self._keys: dict[str, tuple[object, ...] | None] = dict.fromkeys(VIEWS)
         self._had_plan = False
+        self._current = 0
         self.toolbar = SliceToolbar(self)
         #: The readout line: window/level, then HU and position at the cursor.
         self.wl_label = QLabel("")
@@ -113,9 +122,6 @@ class SliceGrid(QWidget):
         doc.volume_changed.connect(self._volume_changed)
         doc.plan_changed.connect(self._plan_changed)
         doc.path_changed.connect(lambda _view: self.draw_overlays())
-        plans_changed = getattr(doc, "plans_changed", None)
-        if plans_changed is not None:
-            plans_changed.connect(lambda _plans: self._plan_changed(doc.plan))
 
     @property
     def runner(self) -> _Runners:
@@ -134,12 +140,15 @@ class SliceGrid(QWidget):
         for canvas in self.canvases.values():  # the whole volume in view
             canvas.fov_mm, canvas.center_uv = None, None
         self._had_plan = plan is not None
+        self._current = int(getattr(self.ctx.doc, "current", 0))
         self.reslice()
 
     def _plan_changed(self, plan: Plan | None) -> None:
-        if plan is not None and not self._had_plan and self.stacks:
-            self._through(plan.target_lps)  # a trajectory appeared: show it
-        self._had_plan = plan is not None
+        current = int(getattr(self.ctx.doc, "current", 0))
+        appeared = plan is not None and not self._had_plan
+        if plan is not None and self.stacks and (appeared or current != self._current):
+            self._through(plan.target_lps)  # a trajectory appeared or was selected: show it
+        self._had_plan, self._current = plan is not None, current
         self.reslice()
 
     def _through(self, point_lps: np.ndarray) -> None:
@@ -254,7 +263,10 @@ class SliceGrid(QWidget):
         """Overlay the plan (or the points placed so far) on every canvas (or on ``only``)."""
         doc = self.ctx.doc
         plans, current = doc_plans(doc)
-        scene = overlay_scene(plans, current, doc.path, draft=doc.draft, arch_draft=self.arch_draft)
+        cached = getattr(doc, "cached_path", lambda _plan: None)
+        views = [doc.path if i == current else cached(p) for i, p in enumerate(plans)]
+        arch = self.arch_draft if self.arch_draft is not None else doc_arch(doc)
+        scene = overlay_scene(plans, current, views, draft=doc.draft, arch_lps=arch)
         for name, canvas in self.canvases.items():
             if only is None or name == only:
                 canvas.set_overlays(scene)
@@ -323,12 +335,10 @@ class SliceGrid(QWidget):
     def _arch_edit(self, op: str, index: int, point_lps: np.ndarray | None) -> None:
         doc = self.ctx.doc
         set_arch = getattr(doc, "set_arch", None)
-        if doc.plan is None or set_arch is None:
-            doc.edit_refused.emit("place a trajectory before the arch")
+        if set_arch is None:
+            doc.edit_refused.emit("this window cannot edit the arch")
             return
-        current = self.arch_draft
-        if current is None:
-            current = getattr(doc.plan, "arch_lps", None)
+        current = self.arch_draft if self.arch_draft is not None else doc_arch(doc)
         try:
             points = edit_arch(current, op, index, point_lps)
         except ValueError as exc:
@@ -337,9 +347,9 @@ class SliceGrid(QWidget):
         if len(points) >= 2:
             self.arch_draft = None
             set_arch(points)
-        else:
-            self.arch_draft = points
-            if getattr(doc.plan, "arch_lps", None) is not None:
+        else:  # one point (or none): held here until a second one makes an arch
+            self.arch_draft = points if len(points) else None
+            if doc_arch(doc) is not None:
                 set_arch(None)
             self.draw_overlays()
 

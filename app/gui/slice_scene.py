@@ -100,30 +100,27 @@ def trajectory_drawing(plan: Plan, view: PathView | None, *, current: bool) -> T
 def overlay_scene(
     plans: Sequence[Plan],
     current: int,
-    view: PathView | None,
+    views: Sequence[PathView | None],
     *,
     draft: dict[str, np.ndarray] | None = None,
-    arch_draft: np.ndarray | None = None,
+    arch_lps: np.ndarray | None = None,
 ) -> OverlayScene:
-    """The overlays of a document holding ``plans`` (``current`` edited, ``view`` its path
-    result); without a plan, the ``draft`` entry/target placed so far. The arch is the
-    plan's (``Plan.arch_lps``) unless ``arch_draft`` (fewer than two points placed) is given."""
-    arch: np.ndarray | None = arch_draft
+    """The overlays of a document holding ``plans`` (``current`` edited; ``views[i]`` the path
+    result known for trajectory ``i``, or None); without a plan, the ``draft`` entry/target
+    placed so far. ``arch_lps``: the arch (or the points of one being placed)."""
+    arch = None if arch_lps is None else np.asarray(arch_lps, dtype=np.float64).reshape(-1, 3)
     if not plans:
         handles = {k: np.asarray(v, dtype=np.float64) for k, v in (draft or {}).items()}
         return OverlayScene(handles=handles, arch_lps=arch)
-    plan = plans[current]
-    if arch is None:
-        arch = getattr(plan, "arch_lps", None)
+    plan, view = plans[current], views[current]
     own = view is not None and view.plan is plan
     stop = plan.point_at_depth_lps(view.curves.stop_depth_mm) if own and view else None
     return OverlayScene(
         trajectories=tuple(
-            trajectory_drawing(p, view if i == current else None, current=i == current)
-            for i, p in enumerate(plans)
+            trajectory_drawing(p, views[i], current=i == current) for i, p in enumerate(plans)
         ),
         landmarks=planning.drawn_landmarks(plan, view),
         handles={"entry": plan.entry_lps, "target": plan.target_lps},
         stop_lps=stop,
-        arch_lps=None if arch is None else np.asarray(arch, dtype=np.float64),
+        arch_lps=arch,
     )

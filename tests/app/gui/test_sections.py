@@ -103,3 +103,14 @@ def test_the_distance_to_a_polyline_is_exact_and_the_tube_field_covers_its_cut()
     assert tube_field(far, line, reach_mm=2.0, step_mm=0.1) is None
     # only the pieces within reach of the plane are kept, clipped to the slab
     np.testing.assert_allclose(near_part(line, AXIAL, 2.0), [[0, 0, -2.0], [0, 0, 2.0]])
+
+
+def test_a_flat_apex_keeps_its_flat_end() -> None:
+    # platform radius 2, apex radius 1.5 with a flat end: the profile steps to 0 at s = 10
+    s_k, r_k = np.array([0.0, 10.0, 10.0]), np.array([2.0, 1.5, 0.0])
+    (poly,) = revolved_section(AXIAL, np.zeros(3), np.array([0.0, 1.0, 0.0]), s_k, r_k)
+    end = poly[np.isclose(poly[:, 1], 10.0)]
+    np.testing.assert_allclose(np.sort(end[:, 0]), [-1.5, 1.5], atol=1e-12)
+    start = poly[np.isclose(poly[:, 1], 0.0)]
+    np.testing.assert_allclose(np.sort(start[:, 0]), [-2.0, 2.0], atol=1e-12)
+    assert _area(poly) == pytest.approx(10.0 * (2.0 + 1.5), rel=1e-12)  # a trapezoid
