@@ -27,7 +27,7 @@ LANDMARK_COLOUR = "#ffd030"
 VIOLATED_COLOUR = "#ff3030"
 #: Drill colours: the trajectory being edited, the others.
 CURRENT_COLOUR = "#4080ff"
-OTHER_COLOUR = "#8c9cc0"
+OTHER_COLOUR = "#c090ff"
 IMPLANT_COLOUR = "#40e080"
 ARCH_COLOUR = "#ff9040"
 STOP_COLOUR = "#ff40b0"
@@ -88,8 +88,8 @@ def _draw_trajectory(ax: Any, image: SliceImage, tr: TrajectoryDrawing) -> None:
         tr.drill,
         facecolor=colour,
         edgecolor=colour,
-        alpha=0.35 if tr.current else 0.2,
-        lw=1.4 if tr.current else 0.8,
+        alpha=0.35 if tr.current else 0.3,
+        lw=1.4 if tr.current else 1.1,
         zorder=4,
     )
     if tr.implant is not None:

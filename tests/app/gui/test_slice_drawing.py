@@ -3,15 +3,17 @@ diameter down to the stop, the canal's outlines lie on its tube and its margin."
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from PySide6.QtCore import Qt
 from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.sections import polyline_distance_mm
-from ctdrill.app.gui.slice_overlays import CURRENT_COLOUR
+from ctdrill.app.gui.slice_overlays import CURRENT_COLOUR, OTHER_COLOUR
 from ctdrill.imaging.phantom.io import PhantomCase
 from tests.app.gui.helpers import open_case
 from tests.app.gui.test_slice_navigation import settle, shots
@@ -71,3 +73,40 @@ def test_the_drill_band_and_the_canal_tube_on_the_demo(
                 levels.append(float(level))
     assert sorted(levels) == pytest.approx([radius, radius + margin])
     window.grab().save(str(shots(tmp_path) / "demo_drawing.png"))
+
+
+def test_every_trajectory_is_drawn_the_current_one_highlighted(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase, tmp_path: Path
+) -> None:
+    window.resize(1440, 900)
+    open_case(qtbot, window, phantom_case)
+    settle(qtbot, window)
+    doc, grid = window.doc, window.slice_grid
+    first = window.plan
+    assert first is not None
+    shift = np.array([-6.0, 0.0, 1.0])  # in the coronal plane through the first target
+    second = replace(
+        first, entry_lps=first.entry_lps + shift, target_lps=first.target_lps + shift, name="b"
+    )
+    assert doc.set_plans((first, second), 0, edit="add trajectory")
+    settle(qtbot, window)
+    cor = window.slice_canvases["coronal"]
+    edges = [tuple(np.round(p.get_edgecolor()[:3], 3)) for p in cor.ax.patches]
+    assert edges.count(tuple(np.round(_rgb(CURRENT_COLOUR), 3))) == 1
+    assert edges.count(tuple(np.round(_rgb(OTHER_COLOUR), 3))) == 1
+    (band,) = _drill_patches(cor)
+    assert cor.image is not None
+    u_first = cor.image.to_plane_mm(first.entry_lps)[0][0]
+    assert (band[:, 0].min() + band[:, 0].max()) / 2 == pytest.approx(u_first, abs=1e-9)
+    window.grab().save(str(shots(tmp_path) / "demo_two_trajectories.png"))
+    # selecting the other one highlights it and brings the planes to its target
+    qtbot.keyClick(window.slice_canvases["axial"], Qt.Key.Key_PageDown)
+    settle(qtbot, window)
+    assert doc.select(1)
+    settle(qtbot, window)
+    assert grid.positions["axial"] == pytest.approx(second.target_lps[2])
+    (band,) = _drill_patches(cor)
+    mid = (band[:, 0].min() + band[:, 0].max()) / 2
+    assert mid == pytest.approx(u_first + shift[0], abs=1e-9)
+    # the handles are the current trajectory's
+    np.testing.assert_array_equal(cor.scene.handles["target"], second.target_lps)
