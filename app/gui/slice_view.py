@@ -290,7 +290,8 @@ class SliceCanvas(FigureCanvasQTAgg):
         if uv is None or self.image is None:
             return
         if event.button == 3:
-            self._right = (float(event.x), float(event.y), event.key == "shift", False)
+            shift = event.key == "shift" or "shift" in (getattr(event, "modifiers", None) or ())
+            self._right = (float(event.x), float(event.y), shift, False)
             return
         if event.button != 1:
             return

@@ -271,3 +271,52 @@ def test_centre_on_the_drill_and_measure_a_distance_on_the_demo(
     qtbot.keyClick(traj, Qt.Key.Key_PageUp)
     settle(qtbot, window)
     assert traj.position_text() == "turned +15° about the drill"
+
+
+def test_a_trajectory_placed_on_real_ct_is_drawn_as_the_drill(
+    qtbot: QtBot, window: MainWindow, shared_data: Path, tmp_path: Path
+) -> None:
+    window.resize(1440, 900)
+    open_series(qtbot, window, shared_data / PHILIPS)
+    grid = window.slice_grid
+    ax, cor = window.slice_canvases["axial"], window.slice_canvases["coronal"]
+    assert ax.image is not None and cor.image is not None
+    # target: right click on the axial slice; entry: Shift + right click on the coronal, 20 mm
+    # above the target
+    # (on the coronal plane shown, so the drill lies in it)
+    target_uv = np.array([115.0, grid.positions["coronal"] - ax.image.origin_lps[1]])
+    qtbot.mouseClick(ax, Qt.MouseButton.RightButton, pos=qt_point(ax, target_uv))
+    target = window.doc.draft["target"]
+    assert target[2] == pytest.approx(grid.positions["axial"])
+    assert target[1] == pytest.approx(grid.positions["coronal"], abs=ax.image.pixel_mm)
+    target[1] = grid.positions["coronal"]
+    entry = target + np.array([0.0, 0.0, 20.0])
+    e_uv, off = cor.image.to_plane_mm(entry)
+    assert abs(float(off)) < 1e-9
+    qtbot.mouseClick(
+        cor,
+        Qt.MouseButton.RightButton,
+        Qt.KeyboardModifier.ShiftModifier,
+        pos=qt_point(cor, e_uv),
+    )
+    plan = window.plan
+    assert plan is not None
+    settle(qtbot, window)
+    # a trajectory appeared: the planes go through its target; the drill is drawn on them
+    for view in ("axial", "coronal", "sagittal"):
+        assert grid.positions[view] == pytest.approx(plan.target_lps[grid.stacks[view].axis])
+    assert cor.ax.patches and window.slice_canvases["sagittal"].ax.patches
+    # the axial plane through the target meets only the drill's tip point: nothing to fill;
+    # one slice up (5 mm) it cuts the vertical drill in a circle of the drill's radius
+    assert not ax.ax.patches
+    qtbot.keyClick(ax, Qt.Key.Key_PageUp)
+    settle(qtbot, window)
+    assert grid.positions["axial"] == pytest.approx(plan.target_lps[2] + 5.0)
+    (circle,) = [np.asarray(p.get_xy()) for p in ax.ax.patches]
+    centre, _ = ax.image.to_plane_mm(plan.target_lps)
+    np.testing.assert_allclose(np.hypot(*(circle - centre).T), plan.drill.radius_mm, atol=1e-9)
+    traj = window.slice_canvases["trajectory"]
+    assert traj.image is not None and traj.ax.patches
+    qtbot.waitUntil(lambda: window.view is not None, timeout=LOAD_TIMEOUT_MS)
+    settle(qtbot, window)
+    window.grab().save(str(shots(tmp_path) / "philips_trajectory.png"))
