@@ -130,6 +130,7 @@ class SliceGrid(QWidget):
 
     # ------------------------------------------------------------------ planes
     def _volume_changed(self, volume: CTVolume) -> None:
+        self._keys = dict.fromkeys(VIEWS)  # a new volume may reuse a freed one's id
         self.stacks = {v: slice_stack(volume, v) for v in ORTHO}
         self.positions = {v: float(s.positions_mm[s.count // 2]) for v, s in self.stacks.items()}
         self.roll_deg = 0.0

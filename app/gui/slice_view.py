@@ -3,7 +3,7 @@ with its orientation letters, the plane's position, and the plan drawn over it
 (:mod:`ctdrill.app.gui.slice_overlays`).
 
 The widget only draws and reports; the grid (:mod:`ctdrill.app.gui.slice_grid`) decides what a
-report changes. Controls (docs/gui.md):
+report changes. Controls (docs/slice_views.md):
 
 - wheel, PageUp/PageDown, Up/Down: ``paged(steps)`` (the next or previous plane);
 - Ctrl+wheel, +/-: zoom about the cursor (or the centre); C: ``centre_requested``;
