@@ -45,23 +45,6 @@ ROLL_STEP_DEG = 15.0
 ORTHO = ("axial", "coronal", "sagittal")
 
 
-def doc_plans(doc: object) -> tuple[tuple[Plan, ...], int]:
-    """Every trajectory of the document and the index of the current one."""
-    plans = tuple(getattr(doc, "plans", ()) or ())
-    plan = getattr(doc, "plan", None)
-    if not plans:
-        return ((plan,) if plan is not None else ()), 0
-    return plans, int(getattr(doc, "current", 0))
-
-
-def doc_arch(doc: object) -> np.ndarray | None:
-    """The document's dental arch (the plan's, or the one placed before a plan), or None."""
-    if hasattr(doc, "arch_lps"):
-        return getattr(doc, "arch_lps", None)
-    plan = getattr(doc, "plan", None)
-    return None if plan is None else getattr(plan, "arch_lps", None)
-
-
 class SliceGrid(QWidget):
     """Four :class:`SliceCanvas` in a 2 x 2 grid, a toolbar and a readout line."""
 
@@ -82,6 +65,7 @@ class SliceGrid(QWidget):
         self._keys: dict[str, tuple[object, ...] | None] = dict.fromkeys(VIEWS)
         self._had_plan = False
         self._current = 0
+        self._cursor_text = ""
         self.toolbar = SliceToolbar(self)
         #: The readout line: window/level, then HU and position at the cursor.
         self.wl_label = QLabel("")
@@ -141,11 +125,11 @@ class SliceGrid(QWidget):
         for canvas in self.canvases.values():  # the whole volume in view
             canvas.fov_mm, canvas.center_uv = None, None
         self._had_plan = plan is not None
-        self._current = int(getattr(self.ctx.doc, "current", 0))
+        self._current = self.ctx.doc.current
         self.reslice()
 
     def _plan_changed(self, plan: Plan | None) -> None:
-        current = int(getattr(self.ctx.doc, "current", 0))
+        current = self.ctx.doc.current
         appeared = plan is not None and not self._had_plan
         if plan is not None and self.stacks and (appeared or current != self._current):
             self._through(plan.target_lps)  # a trajectory appeared or was selected: show it
@@ -263,10 +247,9 @@ class SliceGrid(QWidget):
     def draw_overlays(self, only: str | None = None) -> None:
         """Overlay the plan (or the points placed so far) on every canvas (or on ``only``)."""
         doc = self.ctx.doc
-        plans, current = doc_plans(doc)
-        cached = getattr(doc, "cached_path", lambda _plan: None)
-        views = [doc.path if i == current else cached(p) for i, p in enumerate(plans)]
-        arch = self.arch_draft if self.arch_draft is not None else doc_arch(doc)
+        plans, current = doc.plans, doc.current
+        views = [doc.path if i == current else doc.cached_path(p) for i, p in enumerate(plans)]
+        arch = self.arch_draft if self.arch_draft is not None else doc.arch_lps
         scene = overlay_scene(plans, current, views, draft=doc.draft, arch_lps=arch)
         for name, canvas in self.canvases.items():
             if only is None or name == only:
@@ -296,7 +279,7 @@ class SliceGrid(QWidget):
 
     def _show_readout(self, cursor: str | None) -> None:
         if cursor is None:
-            cursor = getattr(self, "_cursor_text", "")
+            cursor = self._cursor_text
         self._cursor_text = cursor
         level, width = self.window_level
         self.wl_label.setText(window_text(level, width))
@@ -335,11 +318,7 @@ class SliceGrid(QWidget):
 
     def _arch_edit(self, op: str, index: int, point_lps: np.ndarray | None) -> None:
         doc = self.ctx.doc
-        set_arch = getattr(doc, "set_arch", None)
-        if set_arch is None:
-            doc.edit_refused.emit("this window cannot edit the arch")
-            return
-        current = self.arch_draft if self.arch_draft is not None else doc_arch(doc)
+        current = self.arch_draft if self.arch_draft is not None else doc.arch_lps
         try:
             points = edit_arch(current, op, index, point_lps)
         except ValueError as exc:
@@ -347,11 +326,11 @@ class SliceGrid(QWidget):
             return
         if len(points) >= 2:
             self.arch_draft = None
-            set_arch(points)
+            doc.set_arch(points)
         else:  # one point (or none): held here until a second one makes an arch
             self.arch_draft = points if len(points) else None
-            if doc_arch(doc) is not None:
-                set_arch(None)
+            if doc.arch_lps is not None:
+                doc.set_arch(None)
             self.draw_overlays()
 
 

@@ -97,7 +97,7 @@ def _draw_trajectory(ax: Any, image: SliceImage, tr: TrajectoryDrawing) -> None:
             ax,
             image,
             tr.implant,
-            facecolor="none",
+            fill=False,
             edgecolor=IMPLANT_COLOUR if tr.current else OTHER_COLOUR,
             lw=1.6 if tr.current else 1.0,
             zorder=5,

@@ -6,7 +6,6 @@ handles of the trajectory being edited.
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -16,6 +15,7 @@ from ctdrill.app.gui import planning
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.scene import LandmarkGeometry
 from ctdrill.app.gui.sections import drill_profile
+from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.plan.types import Plan
 
 
@@ -65,12 +65,10 @@ def drill_drawing(plan: Plan, depth_mm: float) -> BodyDrawing:
 
 def implant_drawing(plan: Plan) -> BodyDrawing | None:
     """The implant body placed on ``plan``'s trajectory (apex at the target), or None."""
-    spec = getattr(plan, "implant", None)
+    spec = plan.implant
     if spec is None:
         return None
-    # ctdrill.imaging.plan.implants (issue 16, planmodel) may not have landed yet
-    implants = importlib.import_module("ctdrill.imaging.plan.implants")
-    placement = implants.implant_placement(plan)
+    placement = implant_placement(plan)
     if placement is None:
         return None
     s, r = spec.profile_mm()

@@ -25,6 +25,8 @@ def _drill_patches(canvas: object) -> list[np.ndarray]:
     ax = canvas.ax  # type: ignore[attr-defined]
     out = []
     for patch in ax.patches:
+        if not patch.get_fill():  # an implant outline
+            continue
         edge = patch.get_edgecolor()
         if np.allclose(edge[:3], _rgb(CURRENT_COLOUR)):
             out.append(np.asarray(patch.get_xy()))
@@ -91,7 +93,8 @@ def test_every_trajectory_is_drawn_the_current_one_highlighted(
     assert doc.set_plans((first, second), 0, edit="add trajectory")
     settle(qtbot, window)
     cor = window.slice_canvases["coronal"]
-    edges = [tuple(np.round(p.get_edgecolor()[:3], 3)) for p in cor.ax.patches]
+    filled = [p for p in cor.ax.patches if p.get_fill()]  # drills; implants are outlines
+    edges = [tuple(np.round(p.get_edgecolor()[:3], 3)) for p in filled]
     assert edges.count(tuple(np.round(_rgb(CURRENT_COLOUR), 3))) == 1
     assert edges.count(tuple(np.round(_rgb(OTHER_COLOUR), 3))) == 1
     (band,) = _drill_patches(cor)
