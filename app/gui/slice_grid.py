@@ -63,6 +63,8 @@ class SliceGrid(QWidget):
         #: Arch points placed while fewer than two (no arch in the plan yet).
         self.arch_draft: np.ndarray | None = None
         self._keys: dict[str, tuple[object, ...] | None] = dict.fromkeys(VIEWS)
+        #: Views paged while their previous plane was still being resliced.
+        self._pending: set[str] = set()
         self._had_plan = False
         self._current = 0
         self._cursor_text = ""
@@ -114,6 +116,8 @@ class SliceGrid(QWidget):
 
     # ------------------------------------------------------------------ planes
     def _volume_changed(self, volume: CTVolume) -> None:
+        self.runner.cancel()  # planes of the previous series are dropped
+        self._pending.clear()
         self._keys = dict.fromkeys(VIEWS)  # a new volume may reuse a freed one's id
         self.stacks = {v: slice_stack(volume, v) for v in ORTHO}
         self.positions = {v: float(s.positions_mm[s.count // 2]) for v, s in self.stacks.items()}
@@ -170,6 +174,9 @@ class SliceGrid(QWidget):
             if key == self._keys[view]:
                 self.draw_overlays(only=view)
                 continue
+            if self.runners[view].busy:  # one plane at a time per view: the latest one next
+                self._pending.add(view)
+                continue
             self._keys[view] = key
 
             def job(
@@ -190,9 +197,13 @@ class SliceGrid(QWidget):
     def _sliced(self, view: str, image: SliceImage) -> None:
         self.slices[view] = image
         self.ctx.steps.push(partial(self._show, view, image))
+        if view in self._pending:  # paged on meanwhile: reslice where the view is now
+            self._pending.discard(view)
+            self.reslice((view,))
 
     def _slice_failed(self, exc: BaseException, tb: str) -> None:
         self._keys = dict.fromkeys(VIEWS)
+        self._pending.clear()
         self.ctx.status(f"error: the slice views could not be drawn: {exc}")
 
     def _show(self, view: str, image: SliceImage) -> None:

@@ -175,6 +175,16 @@ def test_the_tilted_head_is_sampled_exactly_and_padding_reads_outside(
     # sagittal view pages through the columns
     assert not grid.stacks["axial"].real and grid.stacks["sagittal"].label == "column"
     assert "oblique to the slices" in window.slice_canvases["axial"].position_text()
+    # keys faster than the planes are resliced: the view ends on the last plane asked for
+    axial = window.slice_canvases["axial"]
+    start = grid.positions["axial"]
+    for _ in range(6):
+        qtbot.keyClick(axial, Qt.Key.Key_PageUp)
+    settle(qtbot, window)
+    assert grid.positions["axial"] == pytest.approx(grid.stacks["axial"].step(start, 6))
+    assert axial.image is not None
+    assert axial.image.origin_lps[2] == pytest.approx(grid.positions["axial"], abs=1e-9)
+    assert axial.position_text() == grid.stacks["axial"].describe(grid.positions["axial"])
     for view in ("axial", "coronal", "sagittal"):
         canvas = window.slice_canvases[view]
         img = canvas.image
