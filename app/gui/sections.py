@@ -198,8 +198,9 @@ def polyline_distance_mm(points_lps: np.ndarray, polyline_lps: np.ndarray) -> np
 
 
 def near_part(polyline_lps: np.ndarray, plane: Plane, reach_mm: float) -> np.ndarray:
-    """(M, 3) the pieces of the polyline within ``reach_mm`` of the plane (segments clipped
-    to the slab, consecutive pieces joined); (0, 3) when none is."""
+    """(2M, 3) the ends, in pairs, of the M pieces of the polyline within ``reach_mm`` of the
+    plane (its segments clipped to the slab); a one-point polyline: that point when within
+    reach; (0, 3) when none is."""
     line = np.atleast_2d(np.asarray(polyline_lps, dtype=np.float64))
     n = plane.normal_lps
     d = (line - plane.origin_lps) @ n
@@ -231,7 +232,11 @@ def tube_field(
     plane: Plane, polyline_lps: np.ndarray, reach_mm: float, step_mm: float
 ) -> TubeField | None:
     """The distance to ``polyline_lps`` over the part of ``plane`` within ``reach_mm`` of it
-    (a grid of ``step_mm``, one step of border), or None when the tube misses the plane."""
+    (a grid of ``step_mm``, one step of border), or None when the tube misses the plane.
+
+    Exact wherever it is at most ``reach_mm + 2 step_mm`` (so on both sides of every contour
+    up to ``reach_mm``); elsewhere it holds that value, a lower bound. Each piece of the
+    polyline near the plane is measured only over the grid window it can reach."""
     near = near_part(polyline_lps, plane, reach_mm)
     if len(near) == 0:
         return None
@@ -239,9 +244,50 @@ def tube_field(
     lo, hi = uv.min(axis=0) - reach_mm - step_mm, uv.max(axis=0) + reach_mm + step_mm
     u = np.arange(lo[0], hi[0] + step_mm, step_mm)
     v = np.arange(lo[1], hi[1] + step_mm, step_mm)
-    grid = np.stack(np.meshgrid(u, v), axis=-1)
-    dist = polyline_distance_mm(plane.to_lps(grid), polyline_lps)
+    far = reach_mm + 2.0 * step_mm
+    dist = np.full((len(v), len(u)), far)
+    pieces = (
+        [(near[0], near[0])] if len(near) == 1 else list(zip(near[0::2], near[1::2], strict=True))
+    )
+    for a, b in pieces:
+        ends = plane.to_uv(np.array([a, b]))
+        i0, j0 = (
+            np.searchsorted(u, ends[:, 0].min() - far),
+            np.searchsorted(v, ends[:, 1].min() - far),
+        )
+        i1 = np.searchsorted(u, ends[:, 0].max() + far, side="right")
+        j1 = np.searchsorted(v, ends[:, 1].max() + far, side="right")
+        if i0 >= i1 or j0 >= j1:
+            continue
+        grid = np.stack(np.meshgrid(u[i0:i1], v[j0:j1]), axis=-1)
+        d = segments_distance_mm(plane.to_lps(grid), a[None, :], b[None, :])
+        np.minimum(dist[j0:j1, i0:i1], d.reshape(grid.shape[:2]), out=dist[j0:j1, i0:i1])
     return TubeField(u_mm=u, v_mm=v, distance_mm=dist)
+
+
+def segments_distance_mm(
+    points_lps: np.ndarray, a_lps: np.ndarray, b_lps: np.ndarray, *, chunk: int = 16384
+) -> np.ndarray:
+    """(N,) exact distance from each point (N, 3) to the nearest of the segments
+    ``a_lps[s]``-``b_lps[s]`` (S, 3), vectorised over points and segments."""
+    a, b = np.asarray(a_lps, dtype=np.float64), np.asarray(b_lps, dtype=np.float64)
+    centre = a[0].copy()  # local coordinates: no cancellation far from the origin
+    pts = np.asarray(points_lps, dtype=np.float64).reshape(-1, 3) - centre
+    a, b = a - centre, b - centre
+    d = b - a
+    dd = np.einsum("ij,ij->i", d, d)
+    safe = np.where(dd > 0.0, dd, 1.0)
+    out = np.empty(len(pts))
+    for lo in range(0, len(pts), chunk):
+        p = pts[lo : lo + chunk]
+        rel_d = p @ d.T - np.einsum("ij,ij->i", a, d)  # (P - a) . d, (n, S)
+        t = np.where(dd > 0.0, np.clip(rel_d / safe, 0.0, 1.0), 0.0)
+        rel2 = (
+            np.einsum("ij,ij->i", p, p)[:, None] - 2.0 * p @ a.T + np.einsum("ij,ij->i", a, a)
+        )  # |P - a|^2
+        dist2 = rel2 - 2.0 * t * rel_d + t * t * dd
+        out[lo : lo + chunk] = np.sqrt(np.maximum(dist2.min(axis=1), 0.0))
+    return out
 
 
 def in_plane_distance_mm(a_lps: np.ndarray, b_lps: np.ndarray) -> float:

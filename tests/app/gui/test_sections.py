@@ -13,6 +13,7 @@ from ctdrill.app.gui.sections import (
     near_part,
     polyline_distance_mm,
     revolved_section,
+    segments_distance_mm,
     tube_field,
 )
 
@@ -97,7 +98,11 @@ def test_the_distance_to_a_polyline_is_exact_and_the_tube_field_covers_its_cut()
     field = tube_field(AXIAL, line, reach_mm=2.0, step_mm=0.1)
     assert field is not None
     uu, vv = np.meshgrid(field.u_mm, field.v_mm)
-    np.testing.assert_allclose(field.distance_mm, np.hypot(uu, vv), atol=1e-12)
+    true = np.hypot(uu, vv)
+    exact = true <= 2.0 + 2 * 0.1  # exact up to reach + 2 steps, a lower bound beyond
+    np.testing.assert_allclose(field.distance_mm[exact], true[exact], atol=1e-9)
+    assert np.all(field.distance_mm[~exact] <= true[~exact])
+    assert np.all(field.distance_mm[~exact] >= 2.0 + 2 * 0.1 - 1e-12)
     assert field.u_mm.min() <= -2.0 and field.u_mm.max() >= 2.0
     far = Plane(origin_lps=np.array([0, 0, 7.5]), u_lps=AXIAL.u_lps, v_lps=AXIAL.v_lps)
     assert tube_field(far, line, reach_mm=2.0, step_mm=0.1) is None
@@ -114,3 +119,12 @@ def test_a_flat_apex_keeps_its_flat_end() -> None:
     start = poly[np.isclose(poly[:, 1], 0.0)]
     np.testing.assert_allclose(np.sort(start[:, 0]), [-2.0, 2.0], atol=1e-12)
     assert _area(poly) == pytest.approx(10.0 * (2.0 + 1.5), rel=1e-12)  # a trapezoid
+
+
+def test_the_vectorised_segment_distance_equals_the_polyline_distance() -> None:
+    rng = np.random.default_rng(7)
+    line = np.cumsum(rng.normal(size=(30, 3)), axis=0) + np.array([0.0, 100.0, 700.0])
+    pts = line.mean(axis=0) + rng.normal(scale=6.0, size=(500, 3))
+    want = polyline_distance_mm(pts, line)
+    got = segments_distance_mm(pts, line[:-1], line[1:], chunk=128)
+    np.testing.assert_allclose(got, want, atol=1e-9)
