@@ -16,6 +16,7 @@ report changes. Controls (docs/slice_views.md):
 
 from __future__ import annotations
 
+import contextlib
 from typing import Any
 
 import numpy as np
@@ -101,7 +102,7 @@ class SliceCanvas(FigureCanvasQTAgg):
         self.mpl_connect("button_press_event", self._press)
         self.mpl_connect("motion_notify_event", self._motion)
         self.mpl_connect("button_release_event", self._release)
-        self.mpl_connect("axes_leave_event", lambda _e: self.cursor_moved.emit(None))
+        self.mpl_connect("axes_leave_event", self._left)
 
     @property
     def add_points_mode(self) -> bool:
@@ -257,6 +258,10 @@ class SliceCanvas(FigureCanvasQTAgg):
             self.paged.emit(int(steps))
 
     # ------------------------------------------------------------------ mouse
+    def _left(self, _event: object) -> None:
+        with contextlib.suppress(RuntimeError):  # the window is closing: nobody to tell
+            self.cursor_moved.emit(None)
+
     def _event_uv(self, event: MouseEvent) -> np.ndarray | None:
         if event.inaxes is not self.ax or event.xdata is None or event.ydata is None:
             return None
