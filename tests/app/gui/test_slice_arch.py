@@ -15,7 +15,7 @@ from ctdrill.app.gui.slice_overlays import IMPLANT_COLOUR
 from ctdrill.app.gui.slice_view import SliceCanvas
 from ctdrill.imaging.phantom.io import PhantomCase
 from ctdrill.imaging.plan.implants import implant_placement, load_implant_library
-from tests.app.gui.helpers import open_case
+from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 from tests.app.gui.test_slice_drawing import _rgb
 from tests.app.gui.test_slice_navigation import qt_point, settle, shots
 
@@ -128,3 +128,42 @@ def test_the_implant_body_is_drawn_to_its_profile(
     assert (s.min(), s.max()) == pytest.approx((0.0, spec.length_mm), abs=1e-9)
     assert rho.max() == pytest.approx(spec.diameter_mm / 2.0, abs=1e-9)
     window.grab().save(str(shots(tmp_path) / "demo_implant.png"))
+
+
+def test_the_arch_and_the_implant_of_a_real_ct_plan_on_the_slices(
+    qtbot: QtBot, window: MainWindow, shared_data: Path, tmp_path: Path
+) -> None:
+    window.resize(1440, 900)
+    plan_file = Path(__file__).resolve().parents[2] / "data" / "philips_head_arch.plan.json"
+    window.open_plan(plan_file)
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        window.open_folder(shared_data / "dcmqa_ct_Philips_phantom_notilt_5mm")
+    settle(qtbot, window)
+    doc, grid = window.doc, window.slice_grid
+    arch = doc.arch_lps
+    assert arch is not None and window.plan is not None and window.plan.implant is not None
+    ax = window.slice_canvases["axial"]
+    # opened through the target (z 701.0 mm, between slices 1 and 2): one page up is the
+    # arch's slice (z 701.21 mm, slice 2 of 28)
+    assert ax.position_text().endswith("between slices 1 and 2")
+    qtbot.keyClick(ax, Qt.Key.Key_PageUp)
+    settle(qtbot, window)
+    assert grid.positions["axial"] == pytest.approx(float(arch[0, 2]))
+    assert ax.position_text().endswith("slice 2/28")
+    assert ax.image is not None
+    uv, off = ax.image.to_plane_mm(arch)
+    np.testing.assert_allclose(off, 0.0, atol=1e-9)  # the arch lies on this slice
+    solid = [
+        ln for ln in ax.ax.lines if ln.get_linestyle() == "-" and len(ln.get_xdata()) == len(arch)
+    ]
+    assert any(np.allclose(np.asarray(ln.get_xydata()), uv) for ln in solid)
+    qtbot.keyClick(ax, Qt.Key.Key_C)  # back to the drill: the implant is drawn on the planes
+    settle(qtbot, window)
+    implants = [
+        p
+        for c in window.slice_canvases.values()
+        for p in c.ax.patches
+        if np.allclose(p.get_edgecolor()[:3], _rgb(IMPLANT_COLOUR))
+    ]
+    assert implants
+    window.grab().save(str(shots(tmp_path) / "philips_arch_implant.png"))
