@@ -80,7 +80,8 @@ class Controller(QObject):
             return  # already computed for this trajectory (switching back to it)
         self._computing = plan
         hu = self.doc.hu_uncertainty
-        self.path_runner.submit(lambda: compute_path_view(volume, plan, hu))
+        plans = self.doc.plans
+        self.path_runner.submit(lambda: compute_path_view(volume, plan, hu, plan_set=plans))
 
     def _path_done(self, view: Any) -> None:
         self.doc.set_path(view)

@@ -3,13 +3,14 @@ plot curves, per-landmark clearances and the reason rehearsal is blocked, if any
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from ctdrill.app.export_band import path_band
 from ctdrill.app.gui.plots import DepthCurves
-from ctdrill.app.pipeline import PathResult, plan_calibration, plan_path
+from ctdrill.app.pipeline import PathResult, plan_calibration, plan_path, with_set_warnings
 from ctdrill.app.sequence import plan_sequence
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.types import Plan
@@ -37,6 +38,9 @@ def path_view(plan: Plan, result: PathResult, hu: HuUncertainty | None = None) -
         if mean_band is None
         else "blue: 68 % band of the mean (calibration" + (" + HU)" if hu is not None else ")")
     )
+    if band is not None:
+        # the orange envelope is the 30/60 Hz vibration the device adds, not an uncertainty
+        note = f"orange: vibration range; {note}"
     per_lm = np.asarray(result.stop_clearance_mm, dtype=np.float64)
     curves = DepthCurves(
         depth_mm=np.asarray(prof.depth_mm),
@@ -93,17 +97,29 @@ def plan_violation(result: PathResult) -> str | None:
     return None
 
 
-def compute_path_view(volume: CTVolume, plan: Plan, hu: HuUncertainty | None = None) -> PathView:
+def compute_path_view(
+    volume: CTVolume,
+    plan: Plan,
+    hu: HuUncertainty | None = None,
+    *,
+    plan_set: Sequence[Plan] = (),
+) -> PathView:
     """Plan the path of ``plan`` through ``volume`` (the pipeline the CLI uses) for display;
-    ``hu`` enters the force band.
+    ``hu`` enters the force band. ``plan_set`` (every trajectory of the document, ``plan``
+    among them) adds the warnings only the whole set shows (``implants_too_close``,
+    :func:`~ctdrill.app.pipeline.with_set_warnings`), as ``ctdrill export`` reports them.
 
     For a drill sequence the window shows and rehearses the **final** drill, cutting around
     the holes the drills before it leave at their stop depths (the export's last folder,
     :mod:`ctdrill.app.sequence`); ``ctdrill rehearse`` runs every drill."""
-    cal = plan_calibration(plan)
-    if len(plan.drills) > 1:
-        return path_view(plan, plan_sequence(volume, plan, cal).final, hu)
-    return path_view(plan, plan_path(volume, plan, cal), hu)
+    own = plan
+    for i, warned in enumerate(with_set_warnings(plan_set)):
+        if plan_set[i] is plan:
+            own = warned
+    cal = plan_calibration(own)
+    if len(own.drills) > 1:
+        return path_view(plan, plan_sequence(volume, own, cal).final, hu)
+    return path_view(plan, plan_path(volume, own, cal), hu)
 
 
 def drill_note(result: PathResult) -> str:

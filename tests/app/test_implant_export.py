@@ -83,3 +83,24 @@ def test_two_implants_under_3_mm_apart_warn_on_both_rows(tmp_path: Path) -> None
     assert len(warned) == 2 and all(len(v) == 1 for v in warned.values())
     (message,) = {v[0] for v in warned.values()}
     assert message.startswith("implants of 'site' and 'near' are 1.90 mm apart")
+
+
+def test_the_window_reports_implants_too_close_as_export_does() -> None:
+    from ctdrill.app.gui.results import compute_path_view
+    from ctdrill.imaging import load_series
+
+    demo = replace(load_plan(DEMO / "plan.json"), name="site")
+    shift = np.array([0.0, 6.0, 0.0])  # 1.9 mm between the 4.1 mm platforms
+    near = replace(
+        demo, name="near", entry_lps=demo.entry_lps + shift, target_lps=demo.target_lps + shift
+    )
+    volume = load_series(DEMO / "ct")
+    alone = compute_path_view(volume, demo)
+    in_set = compute_path_view(volume, demo, plan_set=(demo, near))
+    codes = [w.code for w in in_set.result.warnings]
+    assert "implants_too_close" not in [w.code for w in alone.result.warnings]
+    assert codes.count("implants_too_close") == 1
+    # The view belongs to the document's own plan object (the window matches results by it).
+    assert in_set.plan is demo
+    # The orange envelope is named for what it is: the device's vibration, not an uncertainty.
+    assert in_set.curves.band_note.startswith("orange: vibration range; no uncertainty band")
