@@ -228,3 +228,21 @@ def test_the_refinement_budget_follows_the_measured_frames() -> None:
     )
     assert refine_budget(0, 0.01, 0.02) is None
     assert refine_budget(1000, float("nan"), 0.02) is None
+
+
+@pytest.mark.parametrize("block", [(2, 3, 4), (1, 1, 2), (3, 3, 1)])
+def test_block_means_count_every_voxel_and_pad_with_air(block: tuple[int, int, int]) -> None:
+    rng = np.random.default_rng(7)
+    hu = rng.integers(-1000, 2000, size=(23, 17, 19)).astype(np.int16)
+    valid = rng.random(hu.shape) > 0.1
+    grid = block_grid(hu, block=block, valid=valid)
+    fi, fj, fk = block
+    nk, nj, ni = hu.shape
+    nb = (-(-nk // fk), -(-nj // fj), -(-ni // fi))
+    # the reference: the volume padded with air to whole blocks, invalid voxels air, then means
+    full = np.full((nb[0] * fk, nb[1] * fj, nb[2] * fi), -1000.0)
+    full[:nk, :nj, :ni] = np.where(valid, hu, -1000)
+    want = full.reshape(nb[0], fk, nb[1], fj, nb[2], fi).mean(axis=(1, 3, 5))
+    assert grid.shape == tuple(n + 2 for n in nb)
+    np.testing.assert_allclose(grid[1:-1, 1:-1, 1:-1], want, atol=1e-3)
+    assert np.all(grid[0] == -1000) and np.all(grid[:, :, -1] == -1000)  # the closing layer
