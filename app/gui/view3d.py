@@ -97,9 +97,11 @@ class View3D(QWidget):
         add_orientation_marker(plotter)
         self.surface: pv.PolyData | None = None
         self.scene: SceneInput | None = None
-        #: Every actor by name: the bone pieces (``bone``, ``bone:1``, ...) and the plan's.
+        #: Every actor by name: the bone pieces (``bone:<surface>:<piece>``, the current
+        #: surface's first also as ``bone``) and the plan's.
         self.actors: dict[str, Any] = {}
-        self._bone: dict[str, Any] = {}
+        self._bone: dict[str, Any] = {}  # the current surface's pieces, by name
+        self._old_bone: dict[str, Any] = {}  # the coarser surface a refined one replaces
         self._surface_gen = 0
         self._camera_for: tuple[float, ...] | None = None
         self.frames_drawn = 0
@@ -185,31 +187,46 @@ class View3D(QWidget):
         self.surface_shown_s = float("nan")
         self.settled_s = float("nan")
         n = 0 if surface is None else piece_count(surface)
-        self.ctx.steps.push(lambda: self._drop_bone(gen))
+        if refined:  # the coarse surface stays until the finer one is all in
+            self._old_bone, self._bone = {**self._old_bone, **self._bone}, {}
+        else:
+            self.ctx.steps.push(lambda: self._drop_bone(gen))
         for index in range(n):
             self.ctx.steps.push(lambda i=index: self._add_piece(gen, i, n))  # type: ignore[misc]
         if n == 0:
             self.ctx.steps.push(lambda: self._surface_done(gen))
 
     def _drop_bone(self, gen: int) -> None:
-        """Remove the previous surface's actors (the GPU buffers go with them)."""
+        """Remove the previous surfaces' actors (the GPU buffers go with them)."""
         if gen != self._surface_gen:
             return
+        self._drop_old()
         for name, actor in self._bone.items():
             self.plotter.remove_actor(actor, render=False)
             self.actors.pop(name, None)
         self._bone = {}
+        self.actors.pop("bone", None)
+
+    def _drop_old(self) -> None:
+        for name, actor in self._old_bone.items():
+            self.plotter.remove_actor(actor, render=False)
+            self.actors.pop(name, None)
+        self._old_bone = {}
 
     def _add_piece(self, gen: int, index: int, total: int) -> None:
         """Add piece ``index`` of the current surface and draw the frame that uploads it."""
         if gen != self._surface_gen or self.surface is None:
             return
-        name = "bone" if index == 0 else f"bone:{index}"
+        name = f"bone:{gen}:{index}"
         actor = add_bone(self.plotter, surface_piece(self.surface, index), name=name)
         self._bone[name] = actor
         self.actors[name] = actor
-        if index == 0 and self._camera_for is None:
-            self._aim(self.scene or scene_input(None, None))
+        if index == 0:
+            self.actors["bone"] = actor  # the surface's first piece, by its short name
+            if self._camera_for is None:
+                self._aim(self.scene or scene_input(None, None))
+        if index == total - 1:
+            self._drop_old()
         self.render_now()
         if index == total - 1:
             self._surface_done(gen)
@@ -303,10 +320,12 @@ class View3D(QWidget):
         draws it in its own event-loop pass)."""
         self.scene = scene
         cam = self.plotter.camera_position
+        bone = {**self._old_bone, **self._bone}
         for name, actor in list(self.actors.items()):
-            if name not in self._bone:
+            if name not in bone and name != "bone":
                 self.plotter.remove_actor(actor, render=False)
-        self.actors = {**self._bone, **plan_actors(self.plotter, scene)}
+        first = {"bone": self.actors["bone"]} if "bone" in self.actors else {}
+        self.actors = {**bone, **first, **plan_actors(self.plotter, scene)}
         if refocus or self._camera_for is None:
             self._aim(scene)
         else:

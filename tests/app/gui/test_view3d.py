@@ -32,7 +32,7 @@ def _bone_cells(window: MainWindow) -> list[int]:
     return [
         int(actor.GetMapper().GetInput().GetNumberOfCells())
         for name, actor in window.view3d.actors.items()
-        if name == "bone" or name.startswith("bone:")
+        if name.startswith("bone:")
     ]
 
 
@@ -86,6 +86,8 @@ def test_a_finer_surface_replaces_the_first_without_moving_the_camera(
     assert view.surface is not window.doc.surface  # the document keeps the first one
     cells = _bone_cells(window)
     assert sum(cells) == view.surface.n_cells
+    # the coarse surface's actors are gone: every piece drawn is of the refined surface
+    assert len({n.split(":")[1] for n in view.actors if n.startswith("bone:")}) == 1
 
 
 @pytest.mark.parametrize("series", [PHILIPS, GE_TILT])
