@@ -103,7 +103,8 @@ def run_gui(
         if dicom is None:
             QTimer.singleShot(500, take)
         else:  # once both the path (or its refusal) and the slices are drawn
-            pending = {"path", "slices"} if plans else {"slices"}
+            # the 3D view's surface settled: the finer one its frame time affords is drawn
+            pending = {"path", "slices", "surface"} if plans else {"slices", "surface"}
 
             def settled() -> None:  # every queued drawing step has run: the views are drawn
                 if window.ui_steps.pending:
@@ -119,6 +120,7 @@ def run_gui(
             window.path_updated.connect(lambda: arrived("path"))
             window.path_failed.connect(lambda _msg: arrived("path"))
             window.slices_updated.connect(lambda: arrived("slices"))
+            window.view3d.surface_settled.connect(lambda: arrived("surface"))
 
     def timeout() -> None:
         take()
