@@ -144,6 +144,7 @@ class Document(QObject):
             return False
         self.volume, self.volume_path = volume, path
         self._paths.clear()
+        self.path, self.path_error = None, ""  # the old series' result is not this one's
         self._drop_suggestion()
         self.set_surface(surface)
         self.volume_changed.emit(volume)
