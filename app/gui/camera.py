@@ -207,9 +207,14 @@ def scene_bounds(
 
 def apply_camera(plotter: Any, pose: CameraPose) -> None:
     """Put ``plotter``'s camera at ``pose`` (its view angle left at VTK's 30 degrees)."""
-    plotter.camera.view_angle = VIEW_ANGLE_DEG
-    plotter.camera_position = pose.as_pyvista()
-    plotter.reset_camera_clipping_range()
+    # Through the renderer: ``plotter.camera`` on a camera not yet set first resets it to
+    # pyvista's default and draws a whole frame (a second frame of the bone surface in the
+    # same UI step).
+    renderer = plotter.renderer
+    renderer.camera.view_angle = VIEW_ANGLE_DEG
+    renderer.camera_position = pose.as_pyvista()
+    renderer.camera.is_set = True
+    renderer.reset_camera_clipping_range()
 
 
 def orientation_cube() -> Any:

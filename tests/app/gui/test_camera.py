@@ -138,3 +138,33 @@ def test_the_camera_looks_from_the_arch_side_it_is_given() -> None:
     horiz = pose.view_dir[:2] / np.linalg.norm(pose.view_dir[:2])
     np.testing.assert_allclose(horiz, out[:2] / np.linalg.norm(out[:2]), atol=1e-9)
     _check_pose_sees_the_box(pose, JAW)
+
+
+def test_applying_a_pose_draws_no_frame() -> None:
+    """The pose is set on the renderer: no frame is drawn (pyvista's ``plotter.camera`` on an
+    unset camera resets it and renders the whole scene, a second frame in the UI step)."""
+    import pyvista as pv
+
+    from ctdrill.app.gui.camera import CameraPose, apply_camera
+
+    plotter = pv.Plotter(off_screen=True, window_size=(64, 48))
+    plotter.add_mesh(pv.Sphere(radius=5.0))
+    plotter.show(auto_close=False)  # shown, as the window's view is before a surface comes
+    plotter.renderer.camera.is_set = False  # no pose yet
+    frames: list[int] = []
+    plotter.ren_win.AddObserver("StartEvent", lambda *_: frames.append(1))
+    pose = CameraPose(
+        position_lps=np.array([0.0, -80.0, 10.0]),
+        focal_lps=np.array([1.0, 2.0, 3.0]),
+        up=np.array([0.0, 0.0, 1.0]),
+    )
+    apply_camera(plotter, pose)
+    assert frames == []
+    camera = plotter.renderer.camera
+    assert np.allclose(camera.position, pose.position_lps)
+    assert np.allclose(camera.focal_point, pose.focal_lps)
+    assert np.allclose(camera.up, pose.up)
+    plotter.ren_win.Render()
+    assert frames == [1]  # the observer sees a frame when one is drawn
+    assert np.allclose(plotter.camera.position, pose.position_lps)  # kept: no reset on use
+    plotter.close()
