@@ -11,6 +11,7 @@ from ctdrill.app.commands.options import (
     add_grey_map_options,
     add_hu_sigma_option,
     add_interpolate_gaps_option,
+    add_override_options,
 )
 from ctdrill.app.export_defaults import DEFAULT_RATE_HZ
 
@@ -46,10 +47,7 @@ def register(subparsers: Any) -> None:
         help="run on a dask.distributed cluster (tcp://HOST:8786; needs ctdrill[cluster] and "
         "a file system the workers share at the same paths)",
     )
-    p.add_argument(
-        "--calibration", default=None, metavar="NAME|PATH", help="overrides every plan's"
-    )
-    p.add_argument("--feed-mm-s", type=float, default=None, help="feed overriding the plans'")
+    add_override_options(p)
     p.add_argument(
         "--rate-hz",
         type=float,

@@ -13,7 +13,9 @@ from ctdrill.app.commands.options import (
     add_grey_map_options,
     add_hu_sigma_option,
     add_interpolate_gaps_option,
+    add_override_options,
     add_plan_option,
+    add_series_option,
 )
 from ctdrill.app.export_defaults import DEFAULT_RATE_HZ
 
@@ -36,13 +38,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--dicom", type=Path, required=True, metavar="DIR", help="DICOM CT folder")
     add_plan_option(p, required=True)
     p.add_argument("--out", type=Path, required=True, metavar="OUT", help="output folder")
-    p.add_argument(
-        "--calibration",
-        default=None,
-        metavar="NAME|PATH",
-        help="calibration set overriding the plans' (name in assets/calibration or a JSON path)",
-    )
-    p.add_argument("--feed-mm-s", type=float, default=None, help="feed overriding the plans'")
+    add_override_options(p)
     p.add_argument(
         "--rate-hz",
         type=float,
@@ -55,12 +51,7 @@ def register(subparsers: Any) -> None:
         help="write the patient's name, ID, birth date and institution, and the raw "
         "SeriesInstanceUID, into summary.json (by default the UID's SHA-256 only)",
     )
-    p.add_argument(
-        "--series",
-        default=None,
-        metavar="UID|HASH",
-        help="series to load: its SeriesInstanceUID or the hash outputs print (8+ hex digits)",
-    )
+    add_series_option(p)
     add_interpolate_gaps_option(p)
     p.add_argument(
         "--no-plot",

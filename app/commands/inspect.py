@@ -8,6 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ctdrill.app.commands.options import add_series_option
+
 
 def register(subparsers: Any) -> None:
     """Add the ``inspect`` subcommand."""
@@ -18,12 +20,7 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("dicom", type=Path, metavar="DIR", help="DICOM folder (or one file)")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
-    p.add_argument(
-        "--series",
-        default=None,
-        metavar="UID|HASH",
-        help="series to load: its SeriesInstanceUID or the hash outputs print (8+ hex digits)",
-    )
+    add_series_option(p)
     p.add_argument(
         "--include-phi",
         action="store_true",

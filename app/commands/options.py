@@ -24,6 +24,27 @@ def add_plan_option(parser: argparse.ArgumentParser, *, required: bool) -> None:
     )
 
 
+def add_series_option(parser: argparse.ArgumentParser) -> None:
+    """``--series UID|HASH``: which series of a folder holding several to load."""
+    parser.add_argument(
+        "--series",
+        default=None,
+        metavar="UID|HASH",
+        help="series to load: its SeriesInstanceUID or the hash outputs print (8+ hex digits)",
+    )
+
+
+def add_override_options(parser: argparse.ArgumentParser) -> None:
+    """``--calibration NAME|PATH`` and ``--feed-mm-s``: override every plan's own."""
+    parser.add_argument(
+        "--calibration",
+        default=None,
+        metavar="NAME|PATH",
+        help="calibration set overriding the plans' (name in assets/calibration or a JSON path)",
+    )
+    parser.add_argument("--feed-mm-s", type=float, default=None, help="feed overriding the plans'")
+
+
 def add_interpolate_gaps_option(parser: argparse.ArgumentParser) -> None:
     """``--interpolate-gaps``: interpolate across gaps the drill crosses, stated in the output."""
     parser.add_argument(

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.commands.options import add_grey_map_options, add_plan_option
+from ctdrill.app.commands.options import add_grey_map_options, add_plan_option, add_series_option
 
 
 def register(subparsers: Any) -> None:
@@ -28,12 +28,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--dicom", type=Path, required=True, metavar="DIR", help="DICOM CT folder")
     add_plan_option(p, required=True)
     p.add_argument("--out", type=Path, required=True, metavar="OUT", help="output folder")
-    p.add_argument(
-        "--series",
-        default=None,
-        metavar="UID|HASH",
-        help="series to load: its SeriesInstanceUID or the hash outputs print (8+ hex digits)",
-    )
+    add_series_option(p)
     p.add_argument(
         "--pixel-mm",
         type=float,

@@ -12,7 +12,9 @@ from ctdrill.app.commands.options import (
     add_grey_map_options,
     add_hu_sigma_option,
     add_interpolate_gaps_option,
+    add_override_options,
     add_plan_option,
+    add_series_option,
 )
 
 
@@ -35,25 +37,14 @@ def register(subparsers: Any) -> None:
     p.add_argument("--dicom", type=Path, required=True, metavar="DIR", help="DICOM CT folder")
     add_plan_option(p, required=True)
     p.add_argument("--out", type=Path, required=True, metavar="PDF", help="the report to write")
-    p.add_argument(
-        "--calibration",
-        default=None,
-        metavar="NAME|PATH",
-        help="calibration set overriding the plans' (name in assets/calibration or a JSON path)",
-    )
-    p.add_argument("--feed-mm-s", type=float, default=None, help="feed overriding the plans'")
+    add_override_options(p)
     p.add_argument(
         "--include-phi",
         action="store_true",
         help="write the patient's name, ID, birth date and institution, and the raw "
         "SeriesInstanceUID, into the report (by default the UID's SHA-256 only)",
     )
-    p.add_argument(
-        "--series",
-        default=None,
-        metavar="UID|HASH",
-        help="series to load: its SeriesInstanceUID or the hash outputs print (8+ hex digits)",
-    )
+    add_series_option(p)
     add_interpolate_gaps_option(p)
     add_hu_sigma_option(p)
     add_grey_map_options(p)

@@ -8,7 +8,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.commands.options import add_interpolate_gaps_option, add_plan_option
+from ctdrill.app.commands.options import (
+    add_interpolate_gaps_option,
+    add_plan_option,
+    add_series_option,
+)
 
 
 def _weights(text: str) -> tuple[float, float, float]:
@@ -92,12 +96,7 @@ def register(subparsers: Any) -> None:
         + ",".join(f"{w:g}" for w in DEFAULT_WEIGHTS)
         + ")",
     )
-    p.add_argument(
-        "--series",
-        default=None,
-        metavar="UID|HASH",
-        help="series to load: its SeriesInstanceUID or the hash outputs print (8+ hex digits)",
-    )
+    add_series_option(p)
     add_interpolate_gaps_option(p)
     p.set_defaults(func=run)
 
