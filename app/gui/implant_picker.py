@@ -31,8 +31,7 @@ def implant_text(spec: ImplantSpec) -> str:
         if spec.apex_diameter_mm == spec.diameter_mm
         else f"apex {spec.apex_diameter_mm:g} mm"
     )
-    size = f"{spec.diameter_mm:g} x {spec.length_mm:g} mm"
-    return f"{spec.name}  ({size}, {shape}, {spec.apex})"
+    return f"{spec.name}  ({spec.size_text}, {shape}, {spec.apex})"
 
 
 class ImplantPicker(QComboBox):

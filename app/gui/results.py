@@ -112,10 +112,10 @@ def compute_path_view(
     For a drill sequence the window shows and rehearses the **final** drill, cutting around
     the holes the drills before it leave at their stop depths (the export's last folder,
     :mod:`ctdrill.app.sequence`); ``ctdrill rehearse`` runs every drill."""
-    own = plan
-    for i, warned in enumerate(with_set_warnings(plan_set)):
-        if plan_set[i] is plan:
-            own = warned
+    # ``plan`` with the set's warnings; the view below stays the document's own ``plan``
+    own = next(
+        (w for p, w in zip(plan_set, with_set_warnings(plan_set), strict=True) if p is plan), plan
+    )
     cal = plan_calibration(own)
     if len(own.drills) > 1:
         return path_view(plan, plan_sequence(volume, own, cal).final, hu)

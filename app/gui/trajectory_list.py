@@ -29,12 +29,8 @@ VISIBLE_ROWS = 4
 
 def trajectory_label(index: int, plan: Plan) -> str:
     """A list row: ``2. 36  (implant 4.1 x 10 mm, drill 3.5 mm)``."""
-    implant = getattr(plan, "implant", None)
-    body = (
-        "no implant"
-        if implant is None
-        else f"implant {implant.diameter_mm:g} x {implant.length_mm:g} mm"
-    )
+    implant = plan.implant
+    body = "no implant" if implant is None else f"implant {implant.size_text}"
     return f"{index + 1}. {plan.name}  ({body}, drill {plan.drill.diameter_mm:g} mm)"
 
 

@@ -50,7 +50,7 @@ def implant_text(entry: Entry) -> str:
     spec = entry.result.plan.implant
     if spec is None:
         return "none"
-    return f"{spec.name} ({spec.diameter_mm:g} x {spec.length_mm:g} mm)"
+    return f"{spec.name} ({spec.size_text})"
 
 
 def table_row(entry: Entry) -> list[str]:

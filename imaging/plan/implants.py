@@ -129,6 +129,11 @@ class ImplantSpec:
             object.__setattr__(self, key, float(getattr(self, key)))
 
     @property
+    def size_text(self) -> str:
+        """Diameter x length as implant lists print it: ``4.1 x 10 mm``."""
+        return f"{self.diameter_mm:g} x {self.length_mm:g} mm"
+
+    @property
     def radius_mm(self) -> float:
         """Platform radius, mm (the widest part of the body)."""
         return self.diameter_mm / 2.0
