@@ -48,7 +48,7 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
 typecheck: $(STAMP)
-	$(VENV)/bin/mypy
+	bash scripts/typecheck.sh
 
 ## Compile the trajectory-search kernels into numba's disk cache (once per install; CI runs it
 ## before the tests, with NUMBA_CACHE_DIR on a cached folder when the tree is read-only).

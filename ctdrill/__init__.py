@@ -8,11 +8,11 @@ own (``docs/architecture.md``):
 - ``ctdrill.model`` (``model/``): force law, profiles, calibration sets and fitting.
 - ``ctdrill.haptics`` (``haptics/``): device protocol, renderer, simulator, serial link, sessions.
 - ``ctdrill.app`` (``app/``): CLI, headless export, rehearsal and the Qt GUI.
-- ``assets/``: package data (calibration sets, the demo case), read through
+- ``ctdrill.assets`` (``assets/``): package data (calibration sets, the demo case), read through
   :func:`ctdrill.resources.asset`.
 
-In a source checkout ``ctdrill/`` holds symbolic links to those folders; the wheel holds the
-folders themselves. Importing ``ctdrill`` imports none of them.
+``pyproject.toml`` maps those folders into this package (``package-dir``), in an editable install
+and in the wheel alike. Importing ``ctdrill`` imports none of them.
 """
 
 __version__ = "0.1.0"

@@ -21,7 +21,7 @@ def asset(*parts: str) -> Path:
     -------
     Path : an existing or missing path; callers check existence and report it.
     """
-    ref = files("ctdrill").joinpath("assets", *parts)
+    ref = files("ctdrill.assets").joinpath(*parts)
     # A wheel installs as plain files, so as_file yields the path itself (no temporary copy).
     with as_file(ref) as path:
         return Path(path)

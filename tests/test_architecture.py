@@ -227,3 +227,44 @@ def test_no_module_is_far_past_400_lines() -> None:
         if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES
     }
     assert long == {}
+
+
+def test_the_repository_holds_no_symbolic_link() -> None:
+    # a checkout without link support (Windows by default) would get text files in their place
+    if (ROOT / ".git").exists():
+        out = subprocess.run(
+            ["git", "ls-files", "-s"], cwd=ROOT, capture_output=True, text=True, check=True
+        ).stdout
+        assert [line for line in out.splitlines() if line.startswith("120000")] == []
+    skip = {".venv", ".git", "build", ".mypy_cache", ".ruff_cache"}
+    links = [
+        str(p.relative_to(ROOT))
+        for p in ROOT.rglob("*")
+        if p.is_symlink() and not skip & set(p.relative_to(ROOT).parts)
+    ]
+    assert links == []
+
+
+def test_pyproject_maps_every_package_folder_into_ctdrill() -> None:
+    import tomllib
+
+    conf = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]
+    setup = conf["setuptools"]
+    assert setup["package-dir"] == {
+        "ctdrill": "ctdrill",
+        **{f"ctdrill.{p}": p for p in (*PACKAGES, "assets")},
+    }
+    found = {"ctdrill", "ctdrill.assets"} | {
+        _module_name(init).removesuffix(".__init__")
+        for package in PACKAGES
+        for init in (ROOT / package).rglob("__init__.py")
+    }
+    assert sorted(setup["packages"]) == sorted(found)
+
+
+def test_ctdrill_app_imports_from_the_mapped_folder() -> None:
+    import ctdrill.app
+    import ctdrill.imaging.plan
+
+    assert Path(ctdrill.app.__file__ or "").resolve() == ROOT / "app" / "__init__.py"
+    assert Path(ctdrill.imaging.plan.__file__ or "").resolve().parent == ROOT / "imaging" / "plan"
