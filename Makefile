@@ -10,7 +10,7 @@ SYSTEM_PKGS := xvfb xauth libegl1 libgl1 libxkbcommon-x11-0 libxcb-cursor0 libxc
 	libxcb-image0 libxrender1 libfontconfig1 libdbus-1-3 dicom3tools
 DEMO_OUT ?= demo-out
 
-.PHONY: demo test bench fuzz lint typecheck sysdeps venv venv-dev wheel-check clean warmup
+.PHONY: test-blas demo test bench fuzz lint typecheck sysdeps venv venv-dev wheel-check clean warmup
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -49,6 +49,11 @@ lint: $(STAMP)
 
 typecheck: $(STAMP)
 	bash scripts/typecheck.sh
+
+## The fit's numerics on another BLAS code path (CI hosts differ: AMD, Intel): the model's tests
+## again with OpenBLAS's Haswell kernels.
+test-blas: $(STAMP)
+	OPENBLAS_CORETYPE=Haswell $(PY) -m pytest -q -p no:cacheprovider tests/model tests/app/test_calibrate.py
 
 ## Compile the trajectory-search kernels into numba's disk cache (once per install; CI runs it
 ## before the tests, with NUMBA_CACHE_DIR on a cached folder when the tree is read-only).

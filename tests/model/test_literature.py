@@ -27,6 +27,7 @@ from ctdrill.model.literature import (
     read_literature,
 )
 from tests.conftest import SHARED
+from tests.model.fitcompare import assert_same_fit
 
 LITERATURE = SHARED / "literature" / "bone_force_points.csv"
 
@@ -37,25 +38,9 @@ def fitted() -> dict[str, Any]:
     return fit_literature(LITERATURE)
 
 
-def _same(a: Any, b: Any, where: str = "") -> None:
-    """Equal documents, numbers to 1e-6 relative (the fit's convergence), text exactly."""
-    if isinstance(a, dict):
-        assert isinstance(b, dict) and a.keys() == b.keys(), where
-        for k in a:
-            _same(a[k], b[k], f"{where}.{k}")
-    elif isinstance(a, list):
-        assert isinstance(b, list) and len(a) == len(b), where
-        for i, (x, y) in enumerate(zip(a, b, strict=True)):
-            _same(x, y, f"{where}[{i}]")
-    elif isinstance(a, float | int) and not isinstance(a, bool):
-        assert b == pytest.approx(a, rel=1e-6, abs=1e-12), where
-    else:
-        assert a == b, where
-
-
 def test_committed_set_is_reproduced_by_the_fit(fitted: dict[str, Any]) -> None:
     committed = json.loads((CALIBRATION_DIR / "bone-literature.json").read_text("utf-8"))
-    _same(json.loads(json.dumps(fitted)), committed)
+    assert_same_fit(json.loads(json.dumps(fitted)), committed)
 
 
 def test_set_loads_with_its_covariance_and_standard_errors(fitted: dict[str, Any]) -> None:
