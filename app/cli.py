@@ -31,6 +31,7 @@ COMMANDS: tuple[str, ...] = (
     "demo",
     "calibrate",
     "rehearse",
+    "assess",
     "emulate",
     "gui",
     "warmup",

@@ -16,6 +16,7 @@ import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +27,15 @@ from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
 from ctdrill.app.pipeline import PathResult, binding_landmark_doc, plan_calibration, plan_path
 from ctdrill.app.readout import push_summary
 from ctdrill.app.records import atomic_output_dir, write_file
+from ctdrill.app.trainee.exam import (
+    ExamSetup,
+    assessment_context,
+    exam_setup,
+    plan_hash,
+    refuse_exam_device,
+    refuse_exam_sequence,
+)
+from ctdrill.haptics.assessment import AssessmentContext, Assessor
 from ctdrill.haptics.device import Device
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import SessionResult, run_session
@@ -45,11 +55,18 @@ EXIT_INTERRUPTED = 130
 
 @dataclass(frozen=True, eq=False)
 class RehearsalTable:
-    """The uploaded table and where it came from."""
+    """The uploaded table and where it came from: ``path`` is the plan's own (guarded) path;
+    in exam mode ``exam`` holds the table without the margin's wall (then ``table`` is its)."""
 
     table: ProfileTable
     path: PathResult
     grey_map: GreyToHu | None = None
+    exam: ExamSetup | None = None
+
+    @property
+    def context(self) -> AssessmentContext:
+        """What the session is measured against (its assessment)."""
+        return assessment_context(self.path, None if self.exam is None else self.exam.path)
 
 
 def load_table(
@@ -59,19 +76,24 @@ def load_table(
     interpolate_gaps: bool = False,
     grey: GreyMapSpec | None = None,
     trajectory: str | None = None,
+    exam: bool = False,
 ) -> RehearsalTable:
     """Load the CT and the plan (one file, or several merged into one trajectory), compute
     the path and adapt its profile to a device table.
 
     ``interpolate_gaps`` interpolates across slice gaps the drill crosses instead of refusing
     (the path's warnings then say so); ``grey`` maps grey values to HU (``--grey-to-hu``);
-    ``trajectory`` picks one of several by name or number (``load_one_plan``).
+    ``trajectory`` picks one of several by name or number (``load_one_plan``); ``exam``
+    uploads the exam's table (:func:`ctdrill.app.trainee.exam.exam_setup`).
     """
     volume, grey_map = map_volume(load_series(dicom), grey)
     plan = load_one_plan(
         [plan_file] if isinstance(plan_file, Path) else plan_file, trajectory=trajectory
     )
     path = plan_path(volume, plan, plan_calibration(plan), interpolate_gaps=interpolate_gaps)
+    if exam:
+        setup = exam_setup(volume, plan, path, interpolate_gaps=interpolate_gaps)
+        return RehearsalTable(setup.table, path, grey_map, setup)
     return RehearsalTable(
         ProfileTable.from_profile(path.profile, path.stop_depth_mm), path, grey_map
     )
@@ -98,6 +120,8 @@ def rehearsal_summary(
     seed: int,
     hu: HuUncertainty | None = None,
     grey_map: GreyToHu | None = None,
+    assessor: Assessor | None = None,
+    exam: ExamSetup | None = None,
 ) -> dict[str, Any]:
     """The one ``summary.json`` of a rehearsal (CLI and GUI): the session's fields, then the
     plan's (stop reason, planned and max safe depth, the binding landmark, the planned path's
@@ -105,7 +129,9 @@ def rehearsal_summary(
     with ``hu`` (``--hu-sigma``), warnings), how the session was run, and for a ``push:N``
     operator the readouts of :func:`ctdrill.app.readout.push_summary` (the model's time to the
     stop against the session's, a push too weak to cut, the hand's offset past the stopped
-    drill)."""
+    drill); then ``exam`` (exam mode: the stop and why there, or ``{"enabled": false}``),
+    ``plan_sha256``, ``recorded_at`` (UTC) and, with the session's ``assessor``, the
+    ``assessment`` (:class:`ctdrill.haptics.assessment.Assessment`)."""
     summary = dict(session.to_json() if isinstance(session, SessionResult) else session)
     summary.update(
         {
@@ -133,6 +159,11 @@ def rehearsal_summary(
         }
     )
     summary.update(push_summary(summary, table, operator, duration_s))
+    summary["exam"] = {"enabled": False} if exam is None else exam.to_json()
+    summary["plan_sha256"] = plan_hash(path.plan)
+    summary["recorded_at"] = datetime.now(UTC).isoformat(timespec="seconds")
+    if assessor is not None:
+        summary["assessment"] = assessor.result().to_json()
     return summary
 
 
@@ -155,10 +186,12 @@ def rehearse(
     hu_sigma: float | None = None,
     grey: GreyMapSpec | None = None,
     trajectory: str | None = None,
+    exam: bool = False,
 ) -> dict[str, Any]:
     """Run one rehearsal and write ``OUT/session.csv`` and ``OUT/summary.json`` (whole).
 
-    ``trajectory`` picks one trajectory of several plan files by name or number.
+    ``trajectory`` picks one trajectory of several plan files by name or number; ``exam``
+    removes the margin's wall (simulator only: refused with any other device; docs/rehearse.md).
 
     A plan with a drill sequence runs one session per drill
     (:mod:`ctdrill.app.rehearse_sequence`: ``OUT/drill_k/`` and a listing ``summary.json``).
@@ -171,7 +204,11 @@ def rehearse(
     op = parse_operator(operator)
     manual_hu = hu_uncertainty_option(hu_sigma)
     fault_specs = [parse_fault(f) for f in faults]
+    if exam:
+        refuse_exam_device(device)
     whole = load_one_plan([plan] if isinstance(plan, Path) else plan, trajectory=trajectory)
+    if exam:
+        refuse_exam_sequence(whole)
     if len(whole.drills) > 1:  # a drill sequence: one session per drill
         from ctdrill.app.rehearse_sequence import rehearse_sequence
 
@@ -192,9 +229,10 @@ def rehearse(
             to_json=summary_json,
         )
     loaded = load_table(
-        dicom, plan, interpolate_gaps=interpolate_gaps, grey=grey, trajectory=trajectory
+        dicom, plan, interpolate_gaps=interpolate_gaps, grey=grey, trajectory=trajectory, exam=exam
     )
     hu = hu_uncertainty(loaded.grey_map, manual_hu)
+    assessor = Assessor(loaded.context, loaded.table)
     with atomic_output_dir(out) as stage:
         dev = open_device(device, seed=seed)
         try:
@@ -208,6 +246,7 @@ def rehearse(
                     faults=fault_specs,
                     seed=seed,
                     sink=csv_out.write,
+                    on_samples=assessor.add,
                 )
             finally:
                 csv_out.close()
@@ -223,6 +262,8 @@ def rehearse(
             seed=seed,
             hu=hu,
             grey_map=loaded.grey_map,
+            assessor=assessor,
+            exam=loaded.exam,
         )
         write_file(stage / "summary.json", summary_json(summary))
     return summary

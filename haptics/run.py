@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ctdrill.haptics.device import Device, DeviceError, DeviceRefused, TelemetrySample
+from ctdrill.haptics.hands import Hand, hand_for
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import DeviceState, OperatorKind
 from ctdrill.haptics.session import (
@@ -106,12 +107,13 @@ class _Loop:
         seed: int,
         result: SessionResult,
         sink: Callable[[list[Row]], None] | None,
-        on_samples: Callable[[list[TelemetrySample]], None] | None = None,
+        on_samples: Callable[[list[TelemetrySample]], None] | None,
+        hand: Hand,
     ) -> None:
         self.device = device
         self.on_samples = on_samples
         self.operator = operator
-        self.kind = OperatorKind.FEED if operator.kind == "feed" else OperatorKind.PUSH
+        self.hand = hand
         self.rng = random.Random(seed)
         self.result = result
         self.sink = sink
@@ -152,19 +154,18 @@ class _Loop:
 
     def send(self, now: float) -> None:
         """The block's heartbeat and operator input (held while a delay is injected)."""
-        op = self.operator
-        value = op.value if self.kind == OperatorKind.FEED else op.force_at_n(now)
+        kind, value = self.hand.command(now)
         if not self.link_up:
             return
         if now < self.hold_until - 1e-9:
-            self.held.append((int(self.kind), value))
+            self.held.append((kind, value))
             return
         for held_kind, held_value in self.held:
             self.device.heartbeat()
             self.device.set_operator(held_kind, held_value)
         self.held.clear()
         self.device.heartbeat()
-        self.device.set_operator(int(self.kind), value)
+        self.device.set_operator(kind, value)
 
     def take(self, samples: list[TelemetrySample]) -> None:
         """Log a block's telemetry: rows to the sink, maxima, raised flags."""
@@ -176,6 +177,7 @@ class _Loop:
             self.last = s
             t = s.time_s - self.t0_device
             rows.append((t, s.master_mm, s.drill_mm, s.force_cmd_n, STATE_NAMES.get(s.state, "?")))
+            self.hand.observe(t, s)
             result.max_drill_mm = max(result.max_drill_mm, s.drill_mm)
             result.max_master_mm = max(result.max_master_mm, s.master_mm)
             result.max_force_cmd_n = max(result.max_force_cmd_n, s.force_cmd_n)
@@ -300,6 +302,7 @@ def run_session(
     should_stop: Callable[[], bool] | None = None,
     until: Callable[[], bool] | None = None,
     on_samples: Callable[[list[TelemetrySample]], None] | None = None,
+    hand: Hand | None = None,
 ) -> SessionResult:
     """Run one rehearsal on ``device``; rows go to ``sink`` block by block.
 
@@ -326,6 +329,9 @@ def run_session(
         ``complete``): the window ends a rehearsal once the device holds its auto-stop.
     on_samples : callable, optional
         Receives each block's telemetry samples (all fields, e.g. the hand-force estimate).
+    hand : Hand, optional
+        Who drives the session (:mod:`ctdrill.haptics.hands`); default: the hand that carries
+        out ``operator`` (:func:`~ctdrill.haptics.hands.hand_for`).
 
     Returns
     -------
@@ -344,7 +350,8 @@ def run_session(
     info = device.hello()
     device.upload_profile(table)
     device.set_operator(int(OperatorKind.NONE), 0.0)
-    loop = _Loop(device, operator, faults, seed, result, sink, on_samples)
+    driver = hand if hand is not None else hand_for(operator, table)
+    loop = _Loop(device, operator, faults, seed, result, sink, on_samples, driver)
     try:
         device.arm()
     except DeviceRefused:

@@ -4,7 +4,9 @@ The host loop that runs a session is :func:`ctdrill.haptics.run.run_session`.
 
 Operators (``--operator``): ``push:N`` constant hand force N newtons; ``feed:V`` the hand
 moves at a constant feed V mm/s (a stiff hand, its force capped at 78 N); ``script:FILE`` a CSV
-``time_s,force_n`` (linear between rows, held after the last).
+``time_s,force_n`` (linear between rows, held after the last);
+``human:force=N,react_ms=T[,noise_n=S,seed=K]`` a person (:class:`HumanSpec`; what it does in a
+session: :class:`ctdrill.haptics.hands.HumanHand`).
 
 Faults (``--fault``, repeatable): ``link-loss@T`` the host's frames stop reaching the device
 from T s on; ``garbage@T`` 64 random bytes (from the seed) on the link at T; ``delay@T:MS`` the
@@ -36,8 +38,38 @@ MAX_SCRIPT_BYTES = 64 * 1024 * 1024
 MAX_SCRIPT_ROWS = 1_000_000
 
 
+#: The fields of a ``human:`` operator, required first (docs/rehearse.md).
+HUMAN_FIELDS = ("force", "react_ms", "noise_n", "seed")
+HUMAN_GRAMMAR = "human:force=N,react_ms=T[,noise_n=S,seed=K]"
+#: Longest reaction time accepted, ms (a minute: longer is no reaction).
+MAX_REACT_MS = 60_000.0
+
+
 class SessionInputError(HapticsInputError):
     """A bad ``--operator`` or ``--fault`` specification or operator script."""
+
+
+@dataclass(frozen=True)
+class HumanSpec:
+    """A modelled person (``human:`` operator).
+
+    Attributes
+    ----------
+    force_n : float
+        The push while the hand holds on, N (0 < force <= 78).
+    react_ms : float
+        Reaction time: the hand lets go this long after it feels a breakthrough or meets the
+        wall, ms.
+    noise_n : float
+        Standard deviation of the Gaussian noise added to the push at 100 Hz, N.
+    seed : int
+        Seeds the noise.
+    """
+
+    force_n: float
+    react_ms: float
+    noise_n: float = 0.0
+    seed: int = 0
 
 
 @dataclass(frozen=True)
@@ -47,23 +79,26 @@ class Operator:
     Attributes
     ----------
     kind : str
-        ``push``, ``feed`` or ``script``.
+        ``push``, ``feed``, ``script`` or ``human``.
     value : float
-        Force N (push) or feed mm/s (feed); unused for script.
+        Force N (push, human) or feed mm/s (feed); unused for script.
     script : tuple of (time_s, force_n)
         Script rows, times increasing (script only).
     spec : str
         The specification it was parsed from.
+    human : HumanSpec or None
+        The person (human only).
     """
 
     kind: str
     value: float = 0.0
     script: tuple[tuple[float, float], ...] = ()
     spec: str = ""
+    human: HumanSpec | None = None
 
     def force_at_n(self, t_s: float) -> float:
-        """Hand force at session time ``t_s`` (push and script), N."""
-        if self.kind == "push":
+        """Hand force at session time ``t_s`` (push and script; a human's set push), N."""
+        if self.kind in ("push", "human"):
             return self.value
         rows = self.script
         if t_s <= rows[0][0]:
@@ -132,13 +167,61 @@ def load_script(path: Path) -> tuple[tuple[float, float], ...]:
     return tuple(rows)
 
 
-def parse_operator(spec: str) -> Operator:
-    """``push:N``, ``feed:V`` or ``script:FILE``."""
-    kind, sep, arg = spec.partition(":")
-    if not sep or kind not in ("push", "feed", "script") or not arg:
+def _bounded(text: str, field: str, spec: str, low: float, high: float, *, open_low: bool) -> float:
+    value = _number(text, field, f"--operator {spec!r}")
+    if not (low < value if open_low else low <= value) or value > high:
+        lower = f"> {low:g}" if open_low else f">= {low:g}"
+        raise SessionInputError(f"--operator {spec!r}: {field} must be {lower} and <= {high:g}")
+    return value
+
+
+def parse_human(spec: str) -> HumanSpec:
+    """The fields of ``human:force=N,react_ms=T[,noise_n=S,seed=K]`` (any order, each once).
+
+    Raises
+    ------
+    SessionInputError
+        Naming the field: unknown, repeated, missing or out of range.
+    """
+    arg = spec.partition(":")[2]
+    fields: dict[str, str] = {}
+    for item in arg.split(","):
+        key, eq, text = (part.strip() for part in item.partition("="))
+        if not eq or key not in HUMAN_FIELDS:
+            raise SessionInputError(
+                f"--operator {spec!r}: unknown field {key or item!r}; use {HUMAN_GRAMMAR}"
+            )
+        if key in fields:
+            raise SessionInputError(f"--operator {spec!r}: field {key} is given twice")
+        fields[key] = text
+    for key in HUMAN_FIELDS[:2]:
+        if key not in fields:
+            raise SessionInputError(
+                f"--operator {spec!r}: field {key} is missing ({HUMAN_GRAMMAR})"
+            )
+    force = _bounded(fields["force"], "force", spec, 0.0, MAX_HAND_N, open_low=True)
+    react = _bounded(fields["react_ms"], "react_ms", spec, 0.0, MAX_REACT_MS, open_low=False)
+    noise = _bounded(fields.get("noise_n", "0"), "noise_n", spec, 0.0, MAX_HAND_N, open_low=False)
+    seed_text = fields.get("seed", "0")
+    if not seed_text.isdigit() or len(seed_text) > 18:
         raise SessionInputError(
-            f"--operator {spec!r}: use push:N (newtons), feed:V (mm/s) or script:FILE"
+            f"--operator {spec!r}: seed must be a whole number >= 0 (at most 18 digits), "
+            f"got {seed_text!r}"
         )
+    return HumanSpec(force, react, noise, int(seed_text))
+
+
+def parse_operator(spec: str) -> Operator:
+    """``push:N``, ``feed:V``, ``script:FILE`` or ``human:...`` (:data:`HUMAN_GRAMMAR`)."""
+    kind, sep, arg = spec.partition(":")
+    if not sep or kind not in ("push", "feed", "script", "human") or not arg:
+        raise SessionInputError(
+            f"--operator {spec!r}: use push:N (newtons), feed:V (mm/s), script:FILE or "
+            f"{HUMAN_GRAMMAR}"
+        )
+    if kind == "human":
+        human = parse_human(spec)
+        return Operator("human", value=human.force_n, spec=spec, human=human)
     if kind == "script":
         return Operator("script", script=load_script(Path(arg)), spec=spec)
     value = _number(arg, "the value", f"--operator {spec!r}")

@@ -43,8 +43,9 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--operator",
         required=True,
-        help="push:N (constant hand force, N), feed:V (constant feed, mm/s) or script:FILE "
-        "(CSV time_s,force_n)",
+        help="push:N (constant hand force, N), feed:V (constant feed, mm/s), script:FILE "
+        "(CSV time_s,force_n) or human:force=N,react_ms=T[,noise_n=S,seed=K] (a person who "
+        "lets go T ms after a breakthrough or the wall; docs/rehearse.md)",
     )
     p.add_argument("--duration-s", type=float, required=True, help="session length, s")
     p.add_argument("--device", default="sim", help="sim (default) or serial:PORT")
@@ -55,6 +56,13 @@ def register(subparsers: Any) -> None:
         help="link-loss@T, garbage@T, delay@T:MS or reset@T (repeatable)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of injected garbage (default 0)")
+    p.add_argument(
+        "--exam",
+        action="store_true",
+        help="exam mode (simulator only): no wall at the margin, the stop 10 mm beyond the "
+        "planned depth, so the drill can enter the margin zone and the canal; the summary's "
+        "assessment records any breach (docs/rehearse.md)",
+    )
     add_interpolate_gaps_option(p)
     add_hu_sigma_option(p)
     add_grey_map_options(p)
@@ -82,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
         hu_sigma=args.hu_sigma,
         grey=parse_grey_options(args.grey_to_hu, args.grey_ref),
         trajectory=args.trajectory,
+        exam=args.exam,
     )
     if s.get("format") == "ctdrill-rehearsal-sequence/1":
         from ctdrill.app.rehearse_sequence import sequence_lines
@@ -92,6 +101,10 @@ def run(args: argparse.Namespace) -> int:
     # a sequence: the last drill run's calibration, band and readouts
     sys.stdout.write(f"{calibration_line(s)}\n{band_line(s)}\n")
     sys.stdout.write(readout_lines(s))
+    if "assessment" in s:
+        from ctdrill.app.trainee.words import assessment_line
+
+        sys.stdout.write(assessment_line(s) + "\n")
     grey = grey_line(s)
     if grey is not None:
         sys.stdout.write(grey + "\n")
@@ -107,8 +120,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _single_line(s: dict[str, Any], out: Path) -> None:
+    exam = s.get("exam", {})
+    why = f"exam: {exam['stop_basis']}" if exam.get("enabled") else s["stop_reason"]
     sys.stdout.write(
-        f"stop depth {s['stop_depth_mm']:.2f} mm ({s['stop_reason']}), max drill depth "
+        f"stop depth {s['stop_depth_mm']:.2f} mm ({why}), max drill depth "
         f"{s['max_drill_mm']:.2f} mm, final state {s['final_state']}, "
         f"{len(s['faults'])} fault events; wrote {out}/session.csv and summary.json\n"
     )

@@ -1,0 +1,187 @@
+"""A trainee's learning curve and percentiles against the experts (``ctdrill assess --out``).
+
+``learning_curve.csv``: one row per session of the trainee in time order
+(:data:`CURVE_COLUMNS`): the score, every assessment metric, and the score's percentile among
+the expert sessions of the same plan. ``percentiles.csv``: for the trainee's latest session on
+each plan, every metric's percentile among those expert sessions (:data:`PERCENTILE_COLUMNS`).
+``learning_curve.png``: the score and the overshoot per session, with the experts' scores.
+
+A percentile is the mid-rank share of expert values below the trainee's, 0-100 (ties count
+half): 50 is the experts' median, whichever way is better for the metric.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ctdrill.app.records import atomic_output_dir, write_file
+from ctdrill.app.trainee.record import RecordError, TraineeRecord
+from ctdrill.haptics.assessment import ASSESSMENT_FIELDS
+
+METRICS = tuple(f for f in ASSESSMENT_FIELDS if f != "score")
+CURVE_COLUMNS = (
+    "session",
+    "recorded_at",
+    "session_hash",
+    "plan_hash",
+    "exam",
+    "score",
+    *METRICS,
+    "expert_sessions",
+    "score_expert_percentile",
+)
+PERCENTILE_COLUMNS = (
+    "plan_hash",
+    "session_hash",
+    "metric",
+    "value",
+    "expert_sessions",
+    "expert_median",
+    "percentile",
+)
+CURVE_FILES = frozenset({"learning_curve.csv", "learning_curve.png", "percentiles.csv"})
+
+
+def percentile(value: float, others: Sequence[float]) -> float | None:
+    """Mid-rank percentile of ``value`` among ``others``, 0-100 (None without others)."""
+    if not others:
+        return None
+    arr = np.asarray(others, dtype=float)
+    below = float(np.sum(arr < value)) + 0.5 * float(np.sum(arr == value))
+    return round(100.0 * below / arr.size, 1)
+
+
+def _number(value: Any) -> float | None:
+    if value is None:
+        return None
+    return float(value)
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "1" if value else "0"
+    return str(value)
+
+
+def _csv(columns: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> str:
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(columns)
+    writer.writerows([[_cell(r.get(c)) for c in columns] for r in rows])
+    return out.getvalue()
+
+
+def learning_curve(
+    record: TraineeRecord, trainee: str
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]], dict[str, list[dict[str, Any]]]]:
+    """``(curve rows, percentile rows, expert sessions by plan)`` of ``trainee``.
+
+    Raises
+    ------
+    RecordError
+        The record holds no session of ``trainee``.
+    """
+    sessions = record.sessions(trainee=trainee)
+    if not sessions:
+        raise RecordError(f"--trainee {trainee!r}: no session of this trainee in {record.path}")
+    experts: dict[str, list[dict[str, Any]]] = {}
+    for plan in {s["plan_hash"] for s in sessions}:
+        experts[plan] = record.sessions(plan_hash=plan, expert=True)
+    curve = []
+    for i, s in enumerate(sessions, start=1):
+        peers = [
+            e["score"] for e in experts[s["plan_hash"]] if e["session_hash"] != s["session_hash"]
+        ]
+        row = {c: s.get(c) for c in CURVE_COLUMNS}
+        row.update(
+            session=i,
+            expert_sessions=len(peers),
+            score_expert_percentile=percentile(s["score"], peers),
+        )
+        curve.append(row)
+    latest = {s["plan_hash"]: s for s in sessions}
+    pct = []
+    for plan, s in latest.items():
+        peers = [e for e in experts[plan] if e["session_hash"] != s["session_hash"]]
+        for metric in ("score", *METRICS):
+            value = _number(s[metric])
+            values = [v for v in (_number(e[metric]) for e in peers) if v is not None]
+            pct.append(
+                {
+                    "plan_hash": plan,
+                    "session_hash": s["session_hash"],
+                    "metric": metric,
+                    "value": s[metric],
+                    "expert_sessions": len(values),
+                    "expert_median": round(float(np.median(values)), 4) if values else None,
+                    "percentile": None if value is None else percentile(value, values),
+                }
+            )
+    return curve, pct, experts
+
+
+def curve_png(
+    curve: Sequence[Mapping[str, Any]],
+    experts: Mapping[str, Sequence[Mapping[str, Any]]],
+    trainee: str,
+) -> bytes:
+    """``learning_curve.png``: score (breaching sessions in red, the experts' scores of the
+    same plans as a grey band) and overshoot per session."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8.0, 5.5), dpi=100)
+    FigureCanvasAgg(fig)
+    top, bottom = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    n = np.array([r["session"] for r in curve])
+    score = np.array([float(r["score"]) for r in curve])
+    breach = np.array([bool(r["breach"]) for r in curve])
+    expert_scores = [float(e["score"]) for plan in experts.values() for e in plan]
+    if expert_scores:
+        lo, hi = min(expert_scores), max(expert_scores)
+        if hi > lo:
+            top.axhspan(lo, hi, color="0.88", label="experts' range")
+        top.axhline(
+            float(np.median(expert_scores)),
+            color="0.45",
+            lw=1.2,
+            ls="--",
+            label=f"experts' median ({len(expert_scores)} sessions)",
+        )
+    top.plot(n, score, "-", color="#1565c0", lw=1.5)
+    top.plot(n[~breach], score[~breach], "o", color="#1565c0", label="kept the margin")
+    if breach.any():
+        top.plot(n[breach], score[breach], "o", color="#c62828", label="breached the margin")
+    top.set_ylim(0, 100)
+    top.set_ylabel("score (0-100)")
+    top.set_title(f"learning curve of {trainee}")
+    top.legend(loc="lower right", fontsize=8)
+    top.grid(alpha=0.3)
+    bottom.bar(n, [float(r["overshoot_mm"]) for r in curve], color="#c62828", width=0.6)
+    bottom.set_ylabel("overshoot (mm)")
+    bottom.set_xlabel("session")
+    bottom.set_xticks(n)
+    bottom.grid(alpha=0.3)
+    fig.tight_layout()
+    out = io.BytesIO()
+    fig.savefig(out, format="png")
+    return out.getvalue()
+
+
+def write_learning_curve(record: TraineeRecord, trainee: str, out: Path) -> list[Path]:
+    """Write ``learning_curve.csv``, ``learning_curve.png`` and ``percentiles.csv`` into
+    ``out`` (the folder replaced whole); returns the files."""
+    curve, pct, experts = learning_curve(record, trainee)
+    with atomic_output_dir(out, owned_names=CURVE_FILES) as stage:
+        write_file(stage / "learning_curve.csv", _csv(CURVE_COLUMNS, curve))
+        write_file(stage / "percentiles.csv", _csv(PERCENTILE_COLUMNS, pct))
+        write_file(stage / "learning_curve.png", curve_png(curve, experts, trainee))
+    return [out / name for name in sorted(CURVE_FILES)]

@@ -1,0 +1,180 @@
+"""Exam mode and what a session is measured against (docs/rehearse.md).
+
+In exam mode the device's stop is not at the margin: the table runs
+:data:`EXAM_REACH_MM` beyond the planned depth (or to where the drill leaves the CT, whichever
+comes first) and its stop is there, so the virtual drill can go past the planned depth into the
+margin zone and the canal, as a real drill can, and the session shows whether the student
+stopped in time. The device still enforces that stop: it is never disabled. When the path
+beyond the planned depth cannot carry a force table (padding or a slice gap there), the stop is
+the planned depth (or the volume's end) and :attr:`ExamSetup.note` says why.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from ctdrill.app.errors import AppInputError
+from ctdrill.app.pipeline import (
+    MAX_PLANNED_DEPTH_MM,
+    PathInputError,
+    PathResult,
+    plan_path,
+)
+from ctdrill.haptics.assessment import AssessmentContext
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.imaging.plan.types import Plan, plan_to_dict
+from ctdrill.imaging.volume import CTVolume
+
+#: How far beyond the planned depth an exam's table (and its stop) reaches, mm: past a canal
+#: at the margin (2 mm) and its whole diameter (2-4 mm) with room to spare; a hundred more
+#: table rows at the 0.05 mm step.
+EXAM_REACH_MM = 10.0
+#: Exam stop bases: beyond the plan (the usual case) or the planned depth (the path beyond it
+#: cannot carry a table).
+EXAM_BASES = ("beyond_plan", "planned_depth")
+
+
+class ExamInputError(AppInputError):
+    """Exam mode asked where it cannot run (a hardware device, a drill sequence)."""
+
+
+def refuse_exam_device(device_spec: str) -> None:
+    """Exam mode runs on the simulator only: a hardware device keeps its stop at the margin.
+
+    Raises
+    ------
+    ExamInputError
+        For any device but ``sim`` (``serial:...``).
+    """
+    if device_spec != "sim":
+        raise ExamInputError(
+            f"--exam with --device {device_spec!r}: exam mode removes the margin's wall and "
+            "runs on the simulator only (--device sim); a hardware device always stops at the "
+            "margin"
+        )
+
+
+def refuse_exam_sequence(plan: Plan) -> None:
+    """Exam mode rehearses one drill.
+
+    Raises
+    ------
+    ExamInputError
+        For a plan with a drill sequence.
+    """
+    if len(plan.drills) > 1:
+        raise ExamInputError(
+            f"--exam: plan {plan.name!r} has a drill sequence (drills); exam mode rehearses "
+            "one drill: give a plan with its final drill alone"
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class ExamSetup:
+    """The exam's table and the path it was computed on.
+
+    Attributes
+    ----------
+    table : the uploaded table; its stop is the exam's stop.
+    path : the path the table comes from (beyond the plan, or the plan's own).
+    basis : ``beyond_plan`` or ``planned_depth`` (:data:`EXAM_BASES`).
+    note : why the stop is where it is, in words.
+    """
+
+    table: ProfileTable
+    path: PathResult
+    basis: str
+    note: str
+
+    def to_json(self) -> dict[str, Any]:
+        """``summary.json`` ``exam``."""
+        return {
+            "enabled": True,
+            "stop_depth_mm": round(float(self.table.stop_depth_mm), 4),
+            "stop_basis": self.basis,
+            "note": self.note,
+        }
+
+
+def _free_stop_mm(path: PathResult) -> float:
+    """The path's stop without the margin: its planned depth or where it leaves the CT."""
+    oov = path.out_of_volume_depth_mm
+    return float(path.planned_depth_mm if oov is None else min(oov, path.planned_depth_mm))
+
+
+def exam_setup(
+    volume: CTVolume, plan: Plan, guarded: PathResult, *, interpolate_gaps: bool = False
+) -> ExamSetup:
+    """The exam table of ``plan`` (whose guarded path is ``guarded``): module docstring."""
+    refuse_exam_sequence(plan)
+    reach = min(plan.planned_depth_mm + EXAM_REACH_MM, MAX_PLANNED_DEPTH_MM)
+    extended = replace(plan, target_lps=plan.point_at_depth_lps(reach), implant=None)
+    try:
+        path = plan_path(volume, extended, guarded.calibration, interpolate_gaps=interpolate_gaps)
+    except PathInputError as exc:
+        stop = _free_stop_mm(guarded)
+        note = (
+            f"the stop is at {stop:.2f} mm, the planned depth (or the CT's end): the path "
+            f"beyond it cannot carry a force table ({exc})"
+        )
+        table = ProfileTable.from_profile(guarded.profile, stop)
+        return ExamSetup(table, guarded, "planned_depth", note)
+    stop = _free_stop_mm(path)
+    where = (
+        f"{EXAM_REACH_MM:g} mm beyond the planned depth"
+        if path.out_of_volume_depth_mm is None
+        else "where the drill leaves the CT"
+    )
+    note = (
+        f"no wall at the margin: the stop is at {stop:.2f} mm, {where}; past the max safe "
+        f"depth {guarded.max_safe_depth_mm:.2f} mm the drill enters the margin zone"
+    )
+    return ExamSetup(ProfileTable.from_profile(path.profile, stop), path, "beyond_plan", note)
+
+
+def assessment_context(
+    guarded: PathResult, clearance: PathResult | None = None
+) -> AssessmentContext:
+    """What a session on ``guarded``'s plan is measured against; ``clearance`` is the path
+    whose clearance profile reaches as deep as the session's table (the exam's), default
+    ``guarded``. A max safe depth the search only bounded (no margin binds within it) is
+    taken as beyond reach."""
+    deep = guarded if clearance is None else clearance
+    max_safe = math.inf
+    for path in (guarded, deep):
+        if path.landmarks and not path.max_safe_depth_capped:
+            max_safe = float(path.max_safe_depth_mm)
+            break
+    curve = deep.min_clearance_per_depth_mm if deep.landmarks else np.empty(0)
+    return AssessmentContext(
+        planned_depth_mm=float(guarded.planned_depth_mm),
+        max_safe_depth_mm=max_safe,
+        goal_depth_mm=float(guarded.stop_depth_mm),
+        clearance_depth_mm=np.asarray(deep.depth_mm, dtype=float) if deep.landmarks else curve,
+        clearance_mm=np.asarray(curve, dtype=float),
+    )
+
+
+def plan_hash(plan: Plan) -> str:
+    """SHA-256 (hex) of the plan's ``ctdrill-plan/1`` document without its name: the same
+    trajectory, drill, settings and landmarks give the same hash, whatever the file is called.
+    """
+    try:
+        doc = plan_to_dict(plan)
+    except ValueError:  # a mask landmark without a file: its geometry stands in
+        doc = {
+            "entry_mm": plan.entry_lps.tolist(),
+            "target_mm": plan.target_lps.tolist(),
+            "drill": plan.drill.to_json(),
+            "margin_mm": plan.margin_mm,
+            "landmarks": [lm.name for lm in plan.landmarks],
+        }
+    doc.pop("name", None)
+    text = json.dumps(doc, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(f"ctdrill-plan-hash/1:{text}".encode()).hexdigest()

@@ -1,0 +1,470 @@
+"""The trainee record: every assessed session in one SQLite file (stdlib ``sqlite3``).
+
+Schema version :data:`SCHEMA_VERSION` (``PRAGMA user_version``):
+
+* ``sessions``: one row per session, keyed by ``session_hash`` (the SHA-256 of the session's
+  ``summary.json`` and ``session.csv``, :func:`session_hash`): ``trainee``, ``expert`` (0/1),
+  ``plan_hash``, ``recorded_at`` (when the session ran, UTC ISO-8601), ``stored_at``,
+  ``exam`` (0/1), ``operator``, ``device``, ``calibration``, ``planned_depth_mm``,
+  ``max_safe_depth_mm``, then one column per assessment field
+  (:data:`ctdrill.haptics.assessment.ASSESSMENT_FIELDS`);
+* ``traces``: the session's time, hand (master), drill and force at :data:`TRACE_RATE_HZ`
+  (float32 arrays as blobs), for the window's replay and its expert overlay.
+
+Each session is written in one transaction (``BEGIN IMMEDIATE`` ... ``COMMIT``: its row and its
+trace, or neither); SQLite's rollback journal makes that hold through ``kill -9`` and power
+loss. The same session stored twice stays one row. A file that is not a ctdrill record, a
+corrupt one, one from a newer ctdrill or one locked by another program is refused with an
+:class:`RecordError` and left as it was.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import math
+import os
+import sqlite3
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ctdrill.app.errors import AppInputError
+from ctdrill.haptics.assessment import ASSESSMENT_FIELDS
+from ctdrill.safeio import loads_json, read_bytes_bounded
+
+SCHEMA_VERSION = 1
+#: How long to wait for another program's lock on the file before refusing, s.
+LOCK_TIMEOUT_S = 2.0
+#: The replay trace is kept at this rate, Hz.
+TRACE_RATE_HZ = 100.0
+#: Largest ``session.csv`` read, bytes (an hour at 1 kHz is about 150 MB).
+MAX_SESSION_CSV_BYTES = 256 * 1024 * 1024
+#: Largest ``summary.json`` read, bytes.
+MAX_SUMMARY_BYTES = 16 * 1024 * 1024
+#: Longest trainee name, characters.
+MAX_TRAINEE_CHARS = 100
+
+_BOOL_FIELDS = ("breach", "canal_entered")
+_INT_FIELDS = ("wall_contacts",)
+_NULLABLE = ("time_to_planned_s", "feed_cv", "reaction_ms")
+#: The session columns before the assessment's, with their SQL types.
+_HEAD_COLUMNS = (
+    ("session_hash", "TEXT PRIMARY KEY"),
+    ("trainee", "TEXT NOT NULL"),
+    ("expert", "INTEGER NOT NULL CHECK (expert IN (0, 1))"),
+    ("plan_hash", "TEXT NOT NULL"),
+    ("recorded_at", "TEXT NOT NULL"),
+    ("stored_at", "TEXT NOT NULL"),
+    ("exam", "INTEGER NOT NULL CHECK (exam IN (0, 1))"),
+    ("operator", "TEXT"),
+    ("device", "TEXT"),
+    ("calibration", "TEXT"),
+    ("planned_depth_mm", "REAL"),
+    ("max_safe_depth_mm", "REAL"),
+)
+TRACE_ARRAYS = ("time_s", "master_mm", "drill_mm", "force_n")
+
+
+def _field_type(name: str) -> str:
+    if name in _BOOL_FIELDS:
+        return f"INTEGER NOT NULL CHECK ({name} IN (0, 1))"
+    if name in _INT_FIELDS:
+        return "INTEGER NOT NULL"
+    return "REAL" if name in _NULLABLE else "REAL NOT NULL"
+
+
+SESSION_COLUMNS = tuple(c for c, _ in _HEAD_COLUMNS) + ASSESSMENT_FIELDS
+_SCHEMA = (
+    "CREATE TABLE sessions ("
+    + ", ".join(
+        [f"{c} {t}" for c, t in _HEAD_COLUMNS]
+        + [f"{f} {_field_type(f)}" for f in ASSESSMENT_FIELDS]
+    )
+    + ")",
+    "CREATE INDEX sessions_by_trainee ON sessions (trainee, recorded_at)",
+    "CREATE INDEX sessions_by_plan ON sessions (plan_hash, expert)",
+    "CREATE TABLE traces (session_hash TEXT PRIMARY KEY REFERENCES sessions (session_hash), "
+    "rate_hz REAL NOT NULL, samples INTEGER NOT NULL, "
+    + ", ".join(f"{a} BLOB NOT NULL" for a in TRACE_ARRAYS)
+    + ")",
+)
+
+
+class RecordError(AppInputError):
+    """The trainee record or a session folder cannot be used (the message says why)."""
+
+
+@dataclass(frozen=True, eq=False)
+class SessionEntry:
+    """One session folder, read and checked, ready to store."""
+
+    folder: Path
+    session_hash: str
+    summary: dict[str, Any]
+    trace: dict[str, np.ndarray]
+
+    @property
+    def assessment(self) -> dict[str, Any]:
+        """The summary's ``assessment``."""
+        out: dict[str, Any] = self.summary["assessment"]
+        return out
+
+
+def session_hash(summary_bytes: bytes, csv_bytes: bytes) -> str:
+    """The session's content hash: SHA-256 of its ``summary.json`` and ``session.csv``."""
+    h = hashlib.sha256(b"ctdrill-session/1\0")
+    h.update(len(summary_bytes).to_bytes(8, "little") + summary_bytes)
+    h.update(csv_bytes)
+    return h.hexdigest()
+
+
+def check_trainee(trainee: str) -> str:
+    """A trainee id: 1 to 100 printable characters, no surrounding spaces."""
+    if not trainee or trainee != trainee.strip() or len(trainee) > MAX_TRAINEE_CHARS:
+        raise RecordError(
+            f"--trainee {trainee!r}: give 1 to {MAX_TRAINEE_CHARS} characters without "
+            "surrounding spaces"
+        )
+    if not trainee.isprintable():
+        raise RecordError(f"--trainee {trainee!r}: use printable characters only")
+    return trainee
+
+
+def _check_assessment(where: str, a: object) -> dict[str, Any]:
+    if not isinstance(a, dict):
+        raise RecordError(
+            f"{where}: no assessment (a drill sequence, or a session recorded before ctdrill "
+            "assessed sessions): rehearse it again"
+        )
+    for name in ASSESSMENT_FIELDS:
+        if name not in a:
+            raise RecordError(f"{where}: assessment.{name} is missing; rehearse the session again")
+        value = a[name]
+        if name in _BOOL_FIELDS:
+            ok = isinstance(value, bool)
+        elif name in _INT_FIELDS:
+            ok = isinstance(value, int) and not isinstance(value, bool) and value >= 0
+        else:
+            ok = (value is None and name in _NULLABLE) or (
+                isinstance(value, int | float)
+                and not isinstance(value, bool)
+                and math.isfinite(value)
+            )
+        if not ok:
+            raise RecordError(f"{where}: assessment.{name} = {value!r} is not a valid value")
+    return a
+
+
+def _trace(where: str, data: bytes) -> dict[str, np.ndarray]:
+    """``session.csv`` at :data:`TRACE_RATE_HZ` (float32 arrays)."""
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise RecordError(f"{where}: session.csv is not UTF-8 text") from exc
+    reader = csv.reader(io.StringIO(text))
+    header = next(reader, None)
+    want = ["time_s", "master_mm", "drill_mm", "force_cmd_n"]
+    if header is None or header[:4] != want:
+        raise RecordError(f"{where}: session.csv does not start with {','.join(want)}")
+    out: list[list[float]] = []
+    next_t = -math.inf
+    for lineno, row in enumerate(reader, start=2):
+        try:
+            t = float(row[0])
+            if t + 1e-9 < next_t:
+                continue
+            values = [t, float(row[1]), float(row[2]), float(row[3])]
+        except (ValueError, IndexError) as exc:
+            raise RecordError(f"{where}: session.csv line {lineno} is not a number row") from exc
+        if not all(math.isfinite(v) for v in values):
+            raise RecordError(f"{where}: session.csv line {lineno} holds a non-finite value")
+        out.append(values)
+        next_t = t + 1.0 / TRACE_RATE_HZ
+    arr = np.asarray(out, dtype=np.float32).reshape(-1, 4)
+    return {name: arr[:, i].copy() for i, name in enumerate(TRACE_ARRAYS)}
+
+
+def read_session(folder: Path) -> SessionEntry:
+    """Read a rehearsal's folder (``ctdrill rehearse --out``, or the window's export, whose
+    ``session/`` holds it) and check its assessment.
+
+    Raises
+    ------
+    RecordError
+        No ``summary.json`` or ``session.csv``, unreadable files, no or bad assessment.
+    """
+    base = folder / "session" if (folder / "session" / "summary.json").is_file() else folder
+    summary_path, csv_path = base / "summary.json", base / "session.csv"
+    for path in (summary_path, csv_path):
+        if not path.is_file():
+            raise RecordError(
+                f"{folder}: no {path.name}; give a folder written by ctdrill rehearse --out "
+                "(or exported from the window)"
+            )
+    summary_bytes = read_bytes_bounded(
+        summary_path, what="session summary", error=RecordError, max_bytes=MAX_SUMMARY_BYTES
+    )
+    csv_bytes = read_bytes_bounded(
+        csv_path, what="session log", error=RecordError, max_bytes=MAX_SESSION_CSV_BYTES
+    )
+    return session_entry(folder, summary_bytes, csv_bytes)
+
+
+def session_entry(folder: Path, summary_bytes: bytes, csv_bytes: bytes) -> SessionEntry:
+    """A session from its ``summary.json`` and ``session.csv`` bytes (the window stores the
+    session it holds this way, with the hash ``ctdrill assess`` gives its exported folder).
+
+    Raises
+    ------
+    RecordError
+        Not a rehearsal summary, no or bad assessment, no plan hash, a bad ``session.csv``.
+    """
+    where = str(folder / "summary.json")
+    try:
+        text = summary_bytes.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise RecordError(f"{where}: not UTF-8 text") from exc
+    summary = loads_json(text, where=where, what="session summary", error=RecordError)
+    if not isinstance(summary, dict):
+        raise RecordError(f"{where}: not a rehearsal summary (a JSON object)")
+    _check_assessment(where, summary.get("assessment"))
+    if not isinstance(summary.get("plan_sha256"), str):
+        raise RecordError(
+            f"{where}: plan_sha256 is missing (a session recorded before ctdrill assessed "
+            "sessions): rehearse it again"
+        )
+    trace = _trace(str(folder / "session.csv"), csv_bytes)
+    return SessionEntry(folder, session_hash(summary_bytes, csv_bytes), summary, trace)
+
+
+def _now() -> str:
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+def _error(path: Path, exc: sqlite3.Error) -> RecordError:
+    text = str(exc)
+    if "locked" in text or "busy" in text:
+        return RecordError(
+            f"--db {path}: the trainee record is locked by another program ({text}); close it "
+            "and try again (nothing was written)"
+        )
+    return RecordError(
+        f"--db {path}: not a usable ctdrill trainee record ({text}); the file was left as it "
+        "was: check the path, or restore it from a backup"
+    )
+
+
+class TraineeRecord:
+    """An open trainee record (use :func:`open_record`)."""
+
+    def __init__(self, path: Path, conn: sqlite3.Connection) -> None:
+        self.path = path
+        self.conn = conn
+
+    def store(self, entry: SessionEntry, *, trainee: str, expert: bool) -> bool:
+        """Store one session in one transaction; False if it was stored already (then the
+        row is left as it was)."""
+        s = entry.summary
+        a = entry.assessment
+        exam = s.get("exam")
+        head: dict[str, Any] = {
+            "session_hash": entry.session_hash,
+            "trainee": trainee,
+            "expert": int(expert),
+            "plan_hash": s["plan_sha256"],
+            "recorded_at": str(s.get("recorded_at") or _now()),
+            "stored_at": _now(),
+            "exam": int(bool(isinstance(exam, dict) and exam.get("enabled"))),
+            "operator": _text(s.get("operator")),
+            "device": _text(s.get("device")),
+            "calibration": _text(s.get("calibration")),
+            "planned_depth_mm": _real(s.get("planned_depth_mm")),
+            "max_safe_depth_mm": _real(s.get("max_safe_depth_mm")),
+        }
+        values = [head[c] for c, _ in _HEAD_COLUMNS]
+        values += [int(a[f]) if f in _BOOL_FIELDS else a[f] for f in ASSESSMENT_FIELDS]
+        marks = ", ".join("?" for _ in SESSION_COLUMNS)
+        trace = entry.trace
+        try:
+            with self._transaction() as cur:
+                cur.execute(
+                    f"INSERT INTO sessions ({', '.join(SESSION_COLUMNS)}) VALUES ({marks}) "
+                    "ON CONFLICT (session_hash) DO NOTHING",
+                    values,
+                )
+                if cur.rowcount == 0:
+                    return False
+                self._store_trace(cur, entry.session_hash, trace)
+        except sqlite3.Error as exc:
+            raise _error(self.path, exc) from exc
+        return True
+
+    def _store_trace(self, cur: sqlite3.Cursor, key: str, trace: Mapping[str, np.ndarray]) -> None:
+        """The session's replay trace (inside the session's transaction)."""
+        arrays = [np.asarray(trace[a], dtype="<f4").tobytes() for a in TRACE_ARRAYS]
+        cur.execute(
+            f"INSERT INTO traces (session_hash, rate_hz, samples, {', '.join(TRACE_ARRAYS)}) "
+            "VALUES (?, ?, ?, ?, ?, ?, ?)",
+            [key, TRACE_RATE_HZ, len(trace["time_s"]), *arrays],
+        )
+
+    @contextmanager
+    def _transaction(self) -> Iterator[sqlite3.Cursor]:
+        cur = self.conn.cursor()
+        cur.execute("BEGIN IMMEDIATE")
+        try:
+            yield cur
+        except BaseException:
+            self.conn.rollback()
+            raise
+        self.conn.commit()
+
+    def sessions(
+        self,
+        *,
+        trainee: str | None = None,
+        plan_hash: str | None = None,
+        expert: bool | None = None,
+    ) -> list[dict[str, Any]]:
+        """Rows (column -> value, booleans as bool) in time order, filtered."""
+        where, args = [], []
+        for column, value in (("trainee", trainee), ("plan_hash", plan_hash)):
+            if value is not None:
+                where.append(f"{column} = ?")
+                args.append(value)
+        if expert is not None:
+            where.append("expert = ?")
+            args.append(int(expert))
+        sql = f"SELECT {', '.join(SESSION_COLUMNS)} FROM sessions"
+        if where:
+            sql += " WHERE " + " AND ".join(where)
+        try:
+            rows = self.conn.execute(sql + " ORDER BY recorded_at, rowid", args).fetchall()
+        except sqlite3.Error as exc:
+            raise _error(self.path, exc) from exc
+        out = []
+        for row in rows:
+            item = dict(zip(SESSION_COLUMNS, row, strict=True))
+            for name in ("expert", "exam", *_BOOL_FIELDS):
+                item[name] = bool(item[name])
+            out.append(item)
+        return out
+
+    def trace(self, key: str) -> dict[str, np.ndarray] | None:
+        """A session's replay trace (None if it has none)."""
+        try:
+            row = self.conn.execute(
+                f"SELECT {', '.join(TRACE_ARRAYS)} FROM traces WHERE session_hash = ?", (key,)
+            ).fetchone()
+        except sqlite3.Error as exc:
+            raise _error(self.path, exc) from exc
+        if row is None:
+            return None
+        return {
+            a: np.frombuffer(b, dtype="<f4").copy() for a, b in zip(TRACE_ARRAYS, row, strict=True)
+        }
+
+    def close(self) -> None:
+        """Close the file."""
+        self.conn.close()
+
+
+def _text(value: object) -> str | None:
+    return None if value is None else str(value)
+
+
+def _real(value: object) -> float | None:
+    if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
+        return float(value)
+    return None
+
+
+def _tables(conn: sqlite3.Connection) -> set[str]:
+    rows = conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'").fetchall()
+    return {str(r[0]) for r in rows}
+
+
+def open_record(path: Path, *, create: bool) -> TraineeRecord:
+    """Open the trainee record at ``path`` (``create``: a missing or empty file becomes a new
+    record; otherwise it must exist).
+
+    Raises
+    ------
+    RecordError
+        Missing (without ``create``), not SQLite, corrupt, of a newer schema, another
+        program's database, or locked beyond :data:`LOCK_TIMEOUT_S`. The file is not changed.
+    """
+    if not path.exists():
+        if not create:
+            raise RecordError(f"--db {path}: no such trainee record; record a session first")
+        if not path.parent.is_dir():
+            raise RecordError(f"--db {path}: the folder {path.parent} does not exist")
+    elif not path.is_file():
+        raise RecordError(f"--db {path}: not a regular file")
+    try:
+        conn = sqlite3.connect(
+            os.fspath(path), timeout=LOCK_TIMEOUT_S, isolation_level=None, check_same_thread=False
+        )
+    except sqlite3.Error as exc:
+        raise _error(path, exc) from exc
+    try:
+        version = int(conn.execute("PRAGMA user_version").fetchone()[0])
+        tables = _tables(conn)
+        if version > SCHEMA_VERSION:
+            raise RecordError(
+                f"--db {path}: a trainee record of schema {version}, newer than this ctdrill "
+                f"reads ({SCHEMA_VERSION}); update ctdrill"
+            )
+        if version == SCHEMA_VERSION:
+            if not {"sessions", "traces"} <= tables:
+                raise RecordError(f"--db {path}: its sessions or traces table is missing")
+            check = conn.execute("PRAGMA quick_check").fetchone()[0]
+            if check != "ok":
+                raise RecordError(
+                    f"--db {path}: the trainee record is damaged ({check}); the file was left "
+                    "as it was: restore it from a backup"
+                )
+        elif tables:
+            raise RecordError(
+                f"--db {path}: an SQLite database that is not a ctdrill trainee record (tables "
+                f"{', '.join(sorted(tables))}); name another file"
+            )
+        elif not create:
+            raise RecordError(f"--db {path}: an empty trainee record; record a session first")
+        else:
+            conn.execute("BEGIN IMMEDIATE")
+            if not _tables(conn):
+                for statement in _SCHEMA:
+                    conn.execute(statement)
+                conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+            conn.execute("COMMIT")
+    except RecordError:
+        conn.close()
+        raise
+    except sqlite3.Error as exc:
+        conn.close()
+        raise _error(path, exc) from exc
+    return TraineeRecord(path, conn)
+
+
+def record_sessions(
+    path: Path, folders: Sequence[Path], *, trainee: str, expert: bool
+) -> list[tuple[SessionEntry, bool]]:
+    """Read and check every folder, then store each session in its own transaction.
+
+    Returns ``(entry, stored)`` per folder (``stored`` False: it was there already).
+    """
+    trainee = check_trainee(trainee)
+    entries = [read_session(f) for f in folders]
+    record = open_record(path, create=True)
+    try:
+        return [(e, record.store(e, trainee=trainee, expert=expert)) for e in entries]
+    finally:
+        record.close()
