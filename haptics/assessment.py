@@ -42,6 +42,10 @@ ASSESSMENT_FIELDS = (
     "peak_wall_force_n",
     "score",
 )
+#: The fields that are booleans, whole numbers, and may be null (the others are finite numbers).
+BOOL_FIELDS = ("breach", "canal_entered")
+INT_FIELDS = ("wall_contacts",)
+NULLABLE_FIELDS = ("time_to_planned_s", "feed_cv", "reaction_ms")
 #: A drill depth counts as beyond the max safe depth (or at a goal) past this tolerance, mm:
 #: the device holds its stop in float32 (a 10.8 mm stop reads 10.7999992 mm) and its encoder
 #: counts 0.1 um.

@@ -69,7 +69,7 @@ def breakthrough_depths_mm(table: ProfileTable) -> tuple[float, ...]:
     """
     s0 = table.s0_n.astype(float)
     step = float(table.depth_step_mm)
-    window = math.floor(BREAKTHROUGH_WINDOW_MM / step + 1e-9)
+    window = math.floor(BREAKTHROUGH_WINDOW_MM / step + 1e-6)  # the step is float32
     padded = np.concatenate([np.zeros(window), s0])
     peak = np.lib.stride_tricks.sliding_window_view(padded, window + 1).max(axis=1)
     hit = (peak >= BREAKTHROUGH_MIN_PEAK_N) & (s0 < BREAKTHROUGH_RATIO * peak)

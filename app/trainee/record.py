@@ -3,7 +3,8 @@
 Schema version :data:`SCHEMA_VERSION` (``PRAGMA user_version``):
 
 * ``sessions``: one row per session, keyed by ``session_hash`` (the SHA-256 of the session's
-  ``summary.json`` and ``session.csv``, :func:`session_hash`): ``trainee``, ``expert`` (0/1),
+  ``summary.json`` and ``session.csv``,
+  :func:`~ctdrill.app.trainee.session_files.session_hash`): ``trainee``, ``expert`` (0/1),
   ``plan_hash``, ``recorded_at`` (when the session ran, UTC ISO-8601), ``stored_at``,
   ``exam`` (0/1), ``operator``, ``device``, ``calibration``, ``planned_depth_mm``,
   ``max_safe_depth_mm``, then one column per assessment field
@@ -20,15 +21,11 @@ corrupt one, one from a newer ctdrill or one locked by another program is refuse
 
 from __future__ import annotations
 
-import csv
-import hashlib
-import io
 import math
 import os
 import sqlite3
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -36,24 +33,20 @@ from typing import Any
 import numpy as np
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.haptics.assessment import ASSESSMENT_FIELDS
-from ctdrill.safeio import loads_json, read_bytes_bounded
+from ctdrill.app.trainee.session_files import (
+    TRACE_ARRAYS,
+    TRACE_RATE_HZ,
+    SessionEntry,
+    read_session,
+)
+from ctdrill.haptics.assessment import ASSESSMENT_FIELDS, BOOL_FIELDS, INT_FIELDS, NULLABLE_FIELDS
 
 SCHEMA_VERSION = 1
 #: How long to wait for another program's lock on the file before refusing, s.
 LOCK_TIMEOUT_S = 2.0
-#: The replay trace is kept at this rate, Hz.
-TRACE_RATE_HZ = 100.0
-#: Largest ``session.csv`` read, bytes (an hour at 1 kHz is about 150 MB).
-MAX_SESSION_CSV_BYTES = 256 * 1024 * 1024
-#: Largest ``summary.json`` read, bytes.
-MAX_SUMMARY_BYTES = 16 * 1024 * 1024
 #: Longest trainee name, characters.
 MAX_TRAINEE_CHARS = 100
 
-_BOOL_FIELDS = ("breach", "canal_entered")
-_INT_FIELDS = ("wall_contacts",)
-_NULLABLE = ("time_to_planned_s", "feed_cv", "reaction_ms")
 #: The session columns before the assessment's, with their SQL types.
 _HEAD_COLUMNS = (
     ("session_hash", "TEXT PRIMARY KEY"),
@@ -69,15 +62,14 @@ _HEAD_COLUMNS = (
     ("planned_depth_mm", "REAL"),
     ("max_safe_depth_mm", "REAL"),
 )
-TRACE_ARRAYS = ("time_s", "master_mm", "drill_mm", "force_n")
 
 
 def _field_type(name: str) -> str:
-    if name in _BOOL_FIELDS:
+    if name in BOOL_FIELDS:
         return f"INTEGER NOT NULL CHECK ({name} IN (0, 1))"
-    if name in _INT_FIELDS:
+    if name in INT_FIELDS:
         return "INTEGER NOT NULL"
-    return "REAL" if name in _NULLABLE else "REAL NOT NULL"
+    return "REAL" if name in NULLABLE_FIELDS else "REAL NOT NULL"
 
 
 SESSION_COLUMNS = tuple(c for c, _ in _HEAD_COLUMNS) + ASSESSMENT_FIELDS
@@ -101,30 +93,6 @@ class RecordError(AppInputError):
     """The trainee record or a session folder cannot be used (the message says why)."""
 
 
-@dataclass(frozen=True, eq=False)
-class SessionEntry:
-    """One session folder, read and checked, ready to store."""
-
-    folder: Path
-    session_hash: str
-    summary: dict[str, Any]
-    trace: dict[str, np.ndarray]
-
-    @property
-    def assessment(self) -> dict[str, Any]:
-        """The summary's ``assessment``."""
-        out: dict[str, Any] = self.summary["assessment"]
-        return out
-
-
-def session_hash(summary_bytes: bytes, csv_bytes: bytes) -> str:
-    """The session's content hash: SHA-256 of its ``summary.json`` and ``session.csv``."""
-    h = hashlib.sha256(b"ctdrill-session/1\0")
-    h.update(len(summary_bytes).to_bytes(8, "little") + summary_bytes)
-    h.update(csv_bytes)
-    return h.hexdigest()
-
-
 def check_trainee(trainee: str) -> str:
     """A trainee id: 1 to 100 printable characters, no surrounding spaces."""
     if not trainee or trainee != trainee.strip() or len(trainee) > MAX_TRAINEE_CHARS:
@@ -137,119 +105,12 @@ def check_trainee(trainee: str) -> str:
     return trainee
 
 
-def _check_assessment(where: str, a: object) -> dict[str, Any]:
-    if not isinstance(a, dict):
-        raise RecordError(
-            f"{where}: no assessment (a drill sequence, or a session recorded before ctdrill "
-            "assessed sessions): rehearse it again"
-        )
-    for name in ASSESSMENT_FIELDS:
-        if name not in a:
-            raise RecordError(f"{where}: assessment.{name} is missing; rehearse the session again")
-        value = a[name]
-        if name in _BOOL_FIELDS:
-            ok = isinstance(value, bool)
-        elif name in _INT_FIELDS:
-            ok = isinstance(value, int) and not isinstance(value, bool) and value >= 0
-        else:
-            ok = (value is None and name in _NULLABLE) or (
-                isinstance(value, int | float)
-                and not isinstance(value, bool)
-                and math.isfinite(value)
-            )
-        if not ok:
-            raise RecordError(f"{where}: assessment.{name} = {value!r} is not a valid value")
-    return a
-
-
-def _trace(where: str, data: bytes) -> dict[str, np.ndarray]:
-    """``session.csv`` at :data:`TRACE_RATE_HZ` (float32 arrays)."""
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise RecordError(f"{where}: session.csv is not UTF-8 text") from exc
-    reader = csv.reader(io.StringIO(text))
-    header = next(reader, None)
-    want = ["time_s", "master_mm", "drill_mm", "force_cmd_n"]
-    if header is None or header[:4] != want:
-        raise RecordError(f"{where}: session.csv does not start with {','.join(want)}")
-    out: list[list[float]] = []
-    next_t = -math.inf
-    for lineno, row in enumerate(reader, start=2):
-        try:
-            t = float(row[0])
-            if t + 1e-9 < next_t:
-                continue
-            values = [t, float(row[1]), float(row[2]), float(row[3])]
-        except (ValueError, IndexError) as exc:
-            raise RecordError(f"{where}: session.csv line {lineno} is not a number row") from exc
-        if not all(math.isfinite(v) for v in values):
-            raise RecordError(f"{where}: session.csv line {lineno} holds a non-finite value")
-        out.append(values)
-        next_t = t + 1.0 / TRACE_RATE_HZ
-    arr = np.asarray(out, dtype=np.float32).reshape(-1, 4)
-    return {name: arr[:, i].copy() for i, name in enumerate(TRACE_ARRAYS)}
-
-
-def read_session(folder: Path) -> SessionEntry:
-    """Read a rehearsal's folder (``ctdrill rehearse --out``, or the window's export, whose
-    ``session/`` holds it) and check its assessment.
-
-    Raises
-    ------
-    RecordError
-        No ``summary.json`` or ``session.csv``, unreadable files, no or bad assessment.
-    """
-    base = folder / "session" if (folder / "session" / "summary.json").is_file() else folder
-    summary_path, csv_path = base / "summary.json", base / "session.csv"
-    for path in (summary_path, csv_path):
-        if not path.is_file():
-            raise RecordError(
-                f"{folder}: no {path.name}; give a folder written by ctdrill rehearse --out "
-                "(or exported from the window)"
-            )
-    summary_bytes = read_bytes_bounded(
-        summary_path, what="session summary", error=RecordError, max_bytes=MAX_SUMMARY_BYTES
-    )
-    csv_bytes = read_bytes_bounded(
-        csv_path, what="session log", error=RecordError, max_bytes=MAX_SESSION_CSV_BYTES
-    )
-    return session_entry(folder, summary_bytes, csv_bytes)
-
-
-def session_entry(folder: Path, summary_bytes: bytes, csv_bytes: bytes) -> SessionEntry:
-    """A session from its ``summary.json`` and ``session.csv`` bytes (the window stores the
-    session it holds this way, with the hash ``ctdrill assess`` gives its exported folder).
-
-    Raises
-    ------
-    RecordError
-        Not a rehearsal summary, no or bad assessment, no plan hash, a bad ``session.csv``.
-    """
-    where = str(folder / "summary.json")
-    try:
-        text = summary_bytes.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise RecordError(f"{where}: not UTF-8 text") from exc
-    summary = loads_json(text, where=where, what="session summary", error=RecordError)
-    if not isinstance(summary, dict):
-        raise RecordError(f"{where}: not a rehearsal summary (a JSON object)")
-    _check_assessment(where, summary.get("assessment"))
-    if not isinstance(summary.get("plan_sha256"), str):
-        raise RecordError(
-            f"{where}: plan_sha256 is missing (a session recorded before ctdrill assessed "
-            "sessions): rehearse it again"
-        )
-    trace = _trace(str(folder / "session.csv"), csv_bytes)
-    return SessionEntry(folder, session_hash(summary_bytes, csv_bytes), summary, trace)
-
-
 def _now() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
 
 
 def _error(path: Path, exc: sqlite3.Error) -> RecordError:
-    text = str(exc)
+    text = " ".join(str(exc).split())
     if "locked" in text or "busy" in text:
         return RecordError(
             f"--db {path}: the trainee record is locked by another program ({text}); close it "
@@ -289,7 +150,7 @@ class TraineeRecord:
             "max_safe_depth_mm": _real(s.get("max_safe_depth_mm")),
         }
         values = [head[c] for c, _ in _HEAD_COLUMNS]
-        values += [int(a[f]) if f in _BOOL_FIELDS else a[f] for f in ASSESSMENT_FIELDS]
+        values += [int(a[f]) if f in BOOL_FIELDS else a[f] for f in ASSESSMENT_FIELDS]
         marks = ", ".join("?" for _ in SESSION_COLUMNS)
         trace = entry.trace
         try:
@@ -334,7 +195,8 @@ class TraineeRecord:
         expert: bool | None = None,
     ) -> list[dict[str, Any]]:
         """Rows (column -> value, booleans as bool) in time order, filtered."""
-        where, args = [], []
+        where: list[str] = []
+        args: list[object] = []
         for column, value in (("trainee", trainee), ("plan_hash", plan_hash)):
             if value is not None:
                 where.append(f"{column} = ?")
@@ -352,7 +214,7 @@ class TraineeRecord:
         out = []
         for row in rows:
             item = dict(zip(SESSION_COLUMNS, row, strict=True))
-            for name in ("expert", "exam", *_BOOL_FIELDS):
+            for name in ("expert", "exam", *BOOL_FIELDS):
                 item[name] = bool(item[name])
             out.append(item)
         return out
@@ -425,7 +287,7 @@ def open_record(path: Path, *, create: bool) -> TraineeRecord:
         if version == SCHEMA_VERSION:
             if not {"sessions", "traces"} <= tables:
                 raise RecordError(f"--db {path}: its sessions or traces table is missing")
-            check = conn.execute("PRAGMA quick_check").fetchone()[0]
+            check = " ".join(str(conn.execute("PRAGMA quick_check").fetchone()[0]).split())
             if check != "ok":
                 raise RecordError(
                     f"--db {path}: the trainee record is damaged ({check}); the file was left "

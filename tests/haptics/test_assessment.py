@@ -1,0 +1,153 @@
+"""The session's assessment on telemetry whose answers are known, and the score's properties."""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ctdrill.haptics.assessment import (
+    ASSESSMENT_FIELDS,
+    AssessmentContext,
+    Assessor,
+    score_of,
+)
+from ctdrill.haptics.device import TelemetrySample
+from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.protocol import DeviceState
+
+CUT, STOP = int(DeviceState.CUTTING), int(DeviceState.STOPPED)
+TABLE = ProfileTable.slab(s0_n=4.0, top_mm=0.0, bottom_mm=30.0, stop_depth_mm=20.0)
+
+
+def _sample(t: float, master: float, drill: float, force: float, hand: float, state: int) -> Any:
+    return TelemetrySample(t, round(t * 1e4), master, drill, 0.0, force, hand, state, 0, 0)
+
+
+def _context(**kw: Any) -> AssessmentContext:
+    depth = np.linspace(0.0, 30.0, 601)
+    base: dict[str, Any] = {
+        "planned_depth_mm": 10.0,
+        "max_safe_depth_mm": 8.0,
+        "goal_depth_mm": 8.0,
+        "clearance_depth_mm": depth,
+        "clearance_mm": 10.0 - depth,
+    }
+    return AssessmentContext(**(base | kw))
+
+
+def test_a_steady_feed_and_a_margin_crossing_measured_exactly() -> None:
+    # 1 kHz: the drill advances 2 mm/s from 0 to 9 mm (4.5 s), then holds at 9 mm for 1 s.
+    a = Assessor(_context(), TABLE)
+    t = np.arange(0, 5501) / 1000.0
+    drill = np.minimum(2.0 * t, 9.0)
+    a.add([_sample(ti, d + 0.5, d, 6.0, 6.0, CUT) for ti, d in zip(t, drill, strict=True)])
+    r = a.result()
+    assert r.depth_error_mm == pytest.approx(-1.0)
+    assert r.breach and r.overshoot_mm == pytest.approx(1.0)
+    # beyond 8 mm from t = 4.0 s on: 1.5 s in the margin (to a millisecond sample)
+    assert r.time_in_margin_s == pytest.approx(1.5, abs=0.0015)
+    assert r.time_to_planned_s == pytest.approx(4.0, abs=0.0015)  # the goal: 8 mm
+    assert not r.canal_entered  # clearance 10 - 9 = 1 mm
+    assert r.feed_cv == pytest.approx(0.0, abs=1e-6)  # the held second is not cutting
+    assert r.peak_hand_force_n == 6.0 and r.mean_hand_force_n == 6.0
+    assert r.wall_contacts == 0 and r.peak_wall_force_n == 0.0 and r.reaction_ms is None
+    assert r.score == score_of(r.to_json()) and r.score < 45.0
+
+
+def test_feed_variation_contacts_and_reaction() -> None:
+    # Feeds alternate 1 and 3 mm/s in 0.1 s windows: mean 2, standard deviation 1: cv 0.5.
+    table = ProfileTable.slab(s0_n=4.0, top_mm=0.0, bottom_mm=4.0, stop_depth_mm=6.0)
+    a = Assessor(_context(max_safe_depth_mm=20.0, goal_depth_mm=6.0), table)
+    samples, d = [], 0.0
+    for i in range(1601):  # 1.6 s; the session's time starts at the first sample
+        samples.append(_sample(i / 1000.0, d + 0.2, d, 5.0, 9.0, CUT))
+        d += (1.0 if i // 100 % 2 == 0 else 3.0) / 1000.0
+    a.add(samples)
+    assert a.result().feed_cv == pytest.approx(0.5, rel=1e-3)
+    assert a.result().reaction_ms is None  # still inside the bone: no breakthrough yet
+
+
+def test_reaction_and_wall_contacts() -> None:
+    # The drill crosses the table's breakthrough (its far face, 4 mm + one row) at 2 mm/s; the
+    # device reads the hand below 1 N from 250 ms later; then two separate touches of the wall.
+    table = ProfileTable.slab(s0_n=4.0, top_mm=0.0, bottom_mm=4.0, stop_depth_mm=6.0)
+    a = Assessor(_context(max_safe_depth_mm=20.0, goal_depth_mm=6.0), table)
+    bt = a.breakthrough_mm
+    assert bt is not None and 4.0 < bt <= 4.0625 + 1e-9
+    t_cross = bt / 2.0
+    samples = []
+    for i in range(2800):
+        t = i / 1000.0
+        hand = 9.0 if t < t_cross + 0.25 - 1e-9 else 0.2
+        samples.append(_sample(t, 2.0 * t + 0.2, min(2.0 * t, 5.5), 5.0, hand, CUT))
+    a.add(samples)
+    for k, (master, force) in enumerate([(6.1, 7.0), (6.0, 0.0), (6.3, 12.0), (6.0, 0.0)]):
+        a.add([_sample(2.8 + 0.001 * (k + 1), master, 6.0, force, 0.0, STOP)])
+    r = a.result()
+    assert r.reaction_ms == pytest.approx(250.0, abs=1.01)  # to a millisecond sample
+    assert r.wall_contacts == 2 and r.peak_wall_force_n == 12.0
+    assert r.peak_hand_force_n == 9.0 and r.mean_hand_force_n == 9.0  # while on the handle
+
+
+@st.composite
+def assessments(draw: Any, breach: bool) -> dict[str, Any]:
+    pos = st.floats(0.0, 100.0, allow_nan=False)
+    return {
+        "depth_error_mm": draw(st.floats(-50.0, 50.0, allow_nan=False)),
+        "overshoot_mm": draw(st.floats(0.001, 40.0)) if breach else 0.0,
+        "breach": breach,
+        "time_in_margin_s": draw(pos) if breach else 0.0,
+        "canal_entered": draw(st.booleans()) if breach else False,
+        "peak_hand_force_n": draw(st.floats(0.0, 78.0)),
+        "mean_hand_force_n": draw(st.floats(0.0, 78.0)),
+        "time_to_planned_s": draw(st.none() | pos),
+        "feed_cv": draw(st.none() | st.floats(0.0, 1e3)),
+        "reaction_ms": draw(st.none() | st.floats(0.0, 1e6)),
+        "wall_contacts": draw(st.integers(0, 10_000)),
+        "peak_wall_force_n": draw(st.floats(0.0, 78.0)),
+    }
+
+
+@settings(max_examples=150, deadline=None)
+@given(assessments(breach=True), assessments(breach=False))
+def test_a_breach_scores_below_any_session_that_kept_the_margin(
+    bad: dict[str, Any], good: dict[str, Any]
+) -> None:
+    lo, hi = score_of(bad), score_of(good)
+    assert 0.0 <= lo < hi <= 100.0 and math.isfinite(lo)
+    deeper = bad | {"overshoot_mm": bad["overshoot_mm"] + 1.0}
+    assert score_of(deeper) <= lo
+    json.dumps(good | {"score": hi}, allow_nan=False)
+
+
+def test_the_fields_are_the_contract() -> None:
+    assert ASSESSMENT_FIELDS == (
+        "depth_error_mm",
+        "overshoot_mm",
+        "breach",
+        "time_in_margin_s",
+        "canal_entered",
+        "peak_hand_force_n",
+        "mean_hand_force_n",
+        "time_to_planned_s",
+        "feed_cv",
+        "reaction_ms",
+        "wall_contacts",
+        "peak_wall_force_n",
+        "score",
+    )
+    perfect = dict.fromkeys(ASSESSMENT_FIELDS[:-1], 0.0) | {
+        "breach": False,
+        "canal_entered": False,
+        "wall_contacts": 0,
+        "feed_cv": None,
+        "reaction_ms": None,
+    }
+    assert score_of(perfect) == 100.0
+    assert score_of(perfect | {"depth_error_mm": -3.0}) == 50.0  # no hole: the floor
