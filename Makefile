@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed-dev
 STAMP_RUN := $(VENV)/.installed
 SYSTEM_PKGS := xvfb xauth libegl1 libgl1 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 \
 	libxcb-keysyms1 libxcb-shape0 libxcb-xinerama0 libxcb-randr0 libxcb-render-util0 \
-	libxcb-image0 libxrender1 libfontconfig1 libdbus-1-3 dicom3tools
+	libxcb-image0 libxrender1 libfontconfig1 libdbus-1-3 dicom3tools libportaudio2
 DEMO_OUT ?= demo-out
 
 .PHONY: test-blas demo test bench fuzz lint typecheck sysdeps venv venv-dev wheel-check clean warmup

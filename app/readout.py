@@ -59,6 +59,15 @@ def s0_at(table: ProfileTable, depth_mm: float) -> float:
     return float(np.interp(depth_mm, rows, table.s0_n.astype(float), left=0.0, right=0.0))
 
 
+def harmonics_at(table: ProfileTable, depth_mm: float) -> tuple[float, float]:
+    """``(S1, S2)`` at ``depth_mm`` as the device interpolates them (0 outside the table), N."""
+    rows = np.arange(table.n_steps) * float(table.depth_step_mm)
+    return (
+        float(np.interp(depth_mm, rows, table.s1_n.astype(float), left=0.0, right=0.0)),
+        float(np.interp(depth_mm, rows, table.s2_n.astype(float), left=0.0, right=0.0)),
+    )
+
+
 @dataclass(frozen=True)
 class LiveReadout:
     """What the panel shows for one telemetry sample."""
@@ -142,6 +151,23 @@ def live_readout(
             feed = steady_feed_mm_s(push, s0, ke)
             status = f"cutting: the model's feed under {push:.1f} N here is {feed:.2f} mm/s"
     return LiveReadout(hand_n, force_n, kind, s0, plan_force, status)
+
+
+#: The force gauge's three named forces: the hand, the device's cut, the stop's wall.
+GAUGE_FORCES = ("hand", "cutting", "wall")
+
+
+def gauge_forces(r: LiveReadout, push_n: float | None = None) -> dict[str, float]:
+    """:data:`GAUGE_FORCES` of a readout, N: the hand (the device's reading, else the set
+    push), the device force as the cut (``cutting`` and ``holding``: the material resists) or
+    as the wall (``wall``), 0 for what it is not."""
+    hand = r.hand_n if r.hand_n is not None else push_n
+    device = max(r.device_n, 0.0)
+    return {
+        "hand": 0.0 if hand is None else max(hand, 0.0),
+        "cutting": device if r.kind in ("cutting", "holding") else 0.0,
+        "wall": device if r.kind == "wall" else 0.0,
+    }
 
 
 @dataclass(frozen=True)

@@ -120,7 +120,7 @@ def rehearsal_summary(
     seed: int,
     hu: HuUncertainty | None = None,
     grey_map: GreyToHu | None = None,
-    assessor: Assessor | None = None,
+    assessment: dict[str, Any] | None = None,
     exam: ExamSetup | None = None,
 ) -> dict[str, Any]:
     """The one ``summary.json`` of a rehearsal (CLI and GUI): the session's fields, then the
@@ -130,8 +130,8 @@ def rehearsal_summary(
     operator the readouts of :func:`ctdrill.app.readout.push_summary` (the model's time to the
     stop against the session's, a push too weak to cut, the hand's offset past the stopped
     drill); then ``exam`` (exam mode: the stop and why there, or ``{"enabled": false}``),
-    ``plan_sha256``, ``recorded_at`` (UTC) and, with the session's ``assessor``, the
-    ``assessment`` (:class:`ctdrill.haptics.assessment.Assessment`)."""
+    ``plan_sha256``, ``recorded_at`` (UTC) and the session's ``assessment``
+    (:meth:`ctdrill.haptics.assessment.Assessment.to_json`), when given."""
     summary = dict(session.to_json() if isinstance(session, SessionResult) else session)
     summary.update(
         {
@@ -162,8 +162,8 @@ def rehearsal_summary(
     summary["exam"] = {"enabled": False} if exam is None else exam.to_json()
     summary["plan_sha256"] = plan_hash(path.plan)
     summary["recorded_at"] = datetime.now(UTC).isoformat(timespec="seconds")
-    if assessor is not None:
-        summary["assessment"] = assessor.result().to_json()
+    if assessment is not None:
+        summary["assessment"] = assessment
     return summary
 
 
@@ -262,7 +262,7 @@ def rehearse(
             seed=seed,
             hu=hu,
             grey_map=loaded.grey_map,
-            assessor=assessor,
+            assessment=assessor.result().to_json(),
             exam=loaded.exam,
         )
         write_file(stage / "summary.json", summary_json(summary))

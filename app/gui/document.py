@@ -86,6 +86,7 @@ class Document(QObject):
     edit_refused = Signal(str)
     suggestion_requested = Signal(object)
     suggestion_changed = Signal(object)
+    debrief_changed = Signal(object)  # the last rehearsal's debrief (app/gui/debrief.Debrief)
 
     def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)
@@ -112,6 +113,7 @@ class Document(QObject):
         #: "" (idle), "running", or why the last search failed.
         self.suggest_status = ""
         self.history = History()
+        self.debrief: object = None
         self._paths: dict[Plan, PathView] = {}  # by trajectory object (Plan compares by id)
 
     # ------------------------------------------------------------------ reading
@@ -399,6 +401,11 @@ class Document(QObject):
             if not running:
                 self.live_depth_mm = None
             self.rehearsal_changed.emit(running)
+
+    def set_debrief(self, debrief: object) -> None:
+        """A rehearsal ended: its debrief (the debrief page shows it)."""
+        self.debrief = debrief
+        self.debrief_changed.emit(debrief)
 
     def set_live_depth(self, depth_mm: float) -> None:
         """The drill's depth reported by the device during a rehearsal, mm."""

@@ -6,6 +6,7 @@ from __future__ import annotations
 import multiprocessing
 import queue
 import time
+from collections import deque
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -16,13 +17,17 @@ from serial.tools import list_ports
 from ctdrill.app.export import DEFAULT_RATE_HZ, ExportJob, write_exports
 from ctdrill.app.gui.session_process import SessionJob, run_job
 from ctdrill.app.pipeline import PathResult
+from ctdrill.app.readout import push_of
 from ctdrill.app.rehearse import rehearsal_summary, summary_json
+from ctdrill.app.trainee.exam import ExamSetup, assessment_context
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.session import Row, session_csv_text
 from ctdrill.model.band import HuUncertainty
 
 #: The device-choice label of the simulator.
 SIMULATOR = "simulator"
+#: Rows kept for the live vibration trace (0.5 s at the 1 kHz telemetry).
+TRACE_ROWS = 500
 
 
 def device_choices() -> list[str]:
@@ -77,14 +82,30 @@ class RehearsalRun:
         record: bool,
         series_uid: str,
         end_at_stop: bool = False,
+        exam: ExamSetup | None = None,
+        live: bool = False,
     ) -> None:
         self.result = result
         self.device_spec = device_spec
         self.operator_spec = operator_spec
         self.duration_s = duration_s
         self.series_uid = series_uid
-        self.table = ProfileTable.from_profile(result.profile, result.stop_depth_mm)
+        #: Exam mode's table and why its stop is where it is (None: the margin's wall).
+        self.exam = exam
+        self.table = (
+            ProfileTable.from_profile(result.profile, result.stop_depth_mm)
+            if exam is None
+            else exam.table
+        )
+        #: The hand is set while the session runs (:meth:`set_push`, :meth:`retract`).
+        self.live = live
         self.rows: list[Row] = []
+        #: The newest rows' ``(time_s, force_cmd_n)`` (the live vibration trace).
+        self.trace: deque[tuple[float, float]] = deque(maxlen=TRACE_ROWS)
+        #: The session's assessment (``Assessment.to_json()``) once it ended (None before).
+        self.assessment: dict[str, Any] | None = None
+        #: The session's ``summary.json``, frozen when first asked for after the end.
+        self._summary: dict[str, Any] | None = None
         #: SessionResult.to_json() of a session that ran its course or ended on a fault.
         self.session: dict[str, Any] | None = None
         #: SessionResult.to_json() once the session ended in any way (also when cancelled);
@@ -103,6 +124,9 @@ class RehearsalRun:
         ctx = multiprocessing.get_context("spawn")  # no fork of a Qt process
         self._queue = ctx.Queue()
         self._stop = ctx.Event()
+        push = push_of(operator_spec)
+        self._push = ctx.Value("d", 0.0 if push is None else push)
+        self._retract = ctx.Value("b", 0)
         job = SessionJob(
             table=self.table,
             operator_spec=operator_spec,
@@ -110,9 +134,13 @@ class RehearsalRun:
             duration_s=duration_s,
             realtime=realtime and device_spec == SIMULATOR,
             end_at_stop=end_at_stop,
+            context=assessment_context(result, None if exam is None else exam.path),
+            live=live,
         )
         self._process = ctx.Process(
-            target=run_job, args=(job, self._queue, self._stop), name="ctdrill-session"
+            target=run_job,
+            args=(job, self._queue, self._stop, self._push, self._retract),
+            name="ctdrill-session",
         )
         self._process.daemon = True
 
@@ -128,12 +156,18 @@ class RehearsalRun:
         realtime: bool = True,
         series_uid: str = "",
         end_at_stop: bool = False,
+        exam: ExamSetup | None = None,
+        live: bool = False,
     ) -> RehearsalRun:
         """Start a session on ``device`` (``simulator`` or ``serial:PORT``): upload, arm and
         run, with a simulated hand pushing ``push_n`` newtons (simulator and emulator); with
-        ``end_at_stop`` the session ends once the device holds its auto-stop."""
+        ``live`` the push follows :meth:`set_push` and :meth:`retract` while it runs; with
+        ``end_at_stop`` the session ends once the device holds its auto-stop; with ``exam``
+        (simulator only) the exam's table is uploaded instead of the margin's."""
         if not (np.isfinite(push_n) and push_n >= 0.0):
             raise ValueError(f"simulated push: give a force >= 0 N, got {push_n}")
+        if exam is not None and device != SIMULATOR:
+            raise ValueError("exam mode runs on the simulator only: the device keeps its stop")
         run = cls(
             result,
             device,
@@ -143,9 +177,31 @@ class RehearsalRun:
             record=record,
             series_uid=series_uid,
             end_at_stop=end_at_stop,
+            exam=exam,
+            live=live,
         )
         run._process.start()
         return run
+
+    def set_push(self, push_n: float) -> None:
+        """The hand's push from now on, N (a live run; clamped to 0..78 N by the device)."""
+        self._retract.value = 0
+        self._push.value = float(push_n)
+
+    def retract(self) -> None:
+        """Draw the handle back out of the hole (a live run), then rest."""
+        self._push.value = 0.0
+        self._retract.value = 1
+
+    @property
+    def push_n(self) -> float:
+        """The push the hand is set to, N."""
+        return float(self._push.value)
+
+    @property
+    def retracting(self) -> bool:
+        """The hand is drawing the handle back."""
+        return bool(self._retract.value)
 
     def _drain(self) -> None:
         """Take everything the control loop reported so far (UI thread)."""
@@ -158,6 +214,7 @@ class RehearsalRun:
                 rows: list[Row] = payload
                 if self._record:
                     self.rows.extend(rows)
+                self.trace.extend((r[0], r[3]) for r in rows)
                 t, master, drill, force, state = rows[-1]
                 self._latest = Telemetry(
                     t,
@@ -178,6 +235,8 @@ class RehearsalRun:
             elif kind == "state":  # the device's state once the session disarmed it
                 if self._latest is not None:
                     self._latest = replace(self._latest, state=str(payload))
+            elif kind == "assessment":
+                self.assessment = payload
             else:
                 self._ended = True
                 if kind in ("done", "fault", "cancelled"):
@@ -228,22 +287,39 @@ class RehearsalRun:
         if self._process.is_alive():
             self._process.terminate()
 
+    def summary(self) -> dict[str, Any]:
+        """The session's ``summary.json`` (as ``ctdrill rehearse`` writes it, with
+        ``cancelled`` and ``recorded_rows``), made once after the session ended: the export and
+        the trainee record get the same bytes."""
+        if self._summary is not None and not self.running:
+            return self._summary
+        summary = rehearsal_summary(
+            {} if self.record is None else self.record,
+            self.result,
+            self.table,
+            operator="live hand (the window)" if self.live else self.operator_spec,
+            device=self.device_spec,
+            duration_s=self.duration_s,
+            seed=0,
+            hu=self.hu,
+            assessment=self.assessment,
+            exam=self.exam,
+        )
+        summary.update({"cancelled": self.cancelled, "recorded_rows": len(self.rows)})
+        if not self.running:
+            self._summary = summary
+        return summary
+
+    def session_files(self) -> tuple[str, str]:
+        """``(summary.json, session.csv)`` texts of the ended session."""
+        return summary_json(self.summary()), session_csv_text(self.rows)
+
     def export(self, out_dir: Path) -> list[Path]:
         """Write the path export (``force.csv``, ``profile.csv``, ``summary.json``,
         ``force.png``, as ``ctdrill export``) and the recorded session (``session/session.csv``,
         ``session/summary.json``, as ``ctdrill rehearse``) into ``out_dir``, all in one swap
         (the folder is replaced whole or not at all)."""
-        summary = rehearsal_summary(
-            {} if self.record is None else self.record,
-            self.result,
-            self.table,
-            operator=self.operator_spec,
-            device=self.device_spec,
-            duration_s=self.duration_s,
-            seed=0,
-            hu=self.hu,
-        )
-        summary.update({"cancelled": self.cancelled, "recorded_rows": len(self.rows)})
+        summary_text, csv_text = self.session_files()
         return write_exports(
             [ExportJob(self.result, "")],
             out_dir,
@@ -251,7 +327,7 @@ class RehearsalRun:
             rate_hz=DEFAULT_RATE_HZ,
             series_uid=self.series_uid,
             extra_files={
-                "session/session.csv": session_csv_text(self.rows),
-                "session/summary.json": summary_json(summary),
+                "session/session.csv": csv_text,
+                "session/summary.json": summary_text,
             },
         )

@@ -14,7 +14,12 @@ separate interpreter, and talks to the window through a queue:
   stop event was set: the device was sent STOP and DISARM) or ``("error", message)`` (before
   ARM: nothing was armed);
 - before that, ``("state", name)``: the state the device reports once the session disarmed
-  it (the window's readouts show it).
+  it (the window's readouts show it), and ``("assessment", fields)``: the session's
+  assessment (:class:`ctdrill.haptics.assessment.Assessment`), when it was armed.
+
+With a live hand (``SessionJob.live``) the window sets the push and the retraction in two
+shared values the hand reads every block (:class:`ctdrill.haptics.hands.LiveHand`); a live
+session also ends once the hand has drawn the drill back out of the hole it drilled.
 """
 
 from __future__ import annotations
@@ -26,6 +31,9 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from ctdrill.app.rehearse import open_device
+from ctdrill.haptics.assessment import AssessmentContext, Assessor
+from ctdrill.haptics.device import TelemetrySample
+from ctdrill.haptics.hands import RETRACTED_MM, Hand, LiveHand
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import STATE_NAMES, Row, parse_operator
@@ -42,6 +50,10 @@ class _Event(Protocol):
     def is_set(self) -> bool: ...
 
     def wait(self, timeout: float | None = None) -> bool: ...
+
+
+class _Shared(Protocol):
+    value: Any
 
 
 @dataclass(frozen=True)
@@ -65,29 +77,57 @@ class SessionJob:
     duration_s: float
     realtime: bool
     end_at_stop: bool = False
+    context: AssessmentContext | None = None
+    live: bool = False
 
 
-def run_job(job: SessionJob, out: _Queue, stop: _Event) -> None:
-    """Entry point of the control-loop process: run ``job``, report on ``out``."""
+def run_job(
+    job: SessionJob,
+    out: _Queue,
+    stop: _Event,
+    push: _Shared | None = None,
+    retract: _Shared | None = None,
+) -> None:
+    """Entry point of the control-loop process: run ``job``, report on ``out``; ``push`` and
+    ``retract`` are the live hand's shared values (``job.live``)."""
     try:
         operator = parse_operator(job.operator_spec)
         device = open_device(job.device_spec)
     except (ValueError, OSError) as exc:
         out.put(("error", str(exc) or type(exc).__name__))
         return
+    hand: Hand | None = None
+    if job.live and push is not None and retract is not None:
+        hand = LiveHand(lambda: float(push.value), lambda: bool(retract.value))
+    assessor = None if job.context is None else Assessor(job.context, job.table)
     wall0 = time.monotonic()
     stopped_at: list[float] = []  # session time of the first auto-stop row
-    held = [False]
+    done = [False]
+    drilled = [0.0]
 
     def sink(rows: list[Row]) -> None:
         out.put(("rows", rows))
         if not stopped_at:
             stopped_at.extend(r[0] for r in rows if r[4] == "stopped")
-        held[0] = bool(stopped_at) and rows[-1][0] - stopped_at[0] >= AUTO_STOP_HOLD_S
+        held = bool(stopped_at) and rows[-1][0] - stopped_at[0] >= AUTO_STOP_HOLD_S
+        drilled[0] = max(drilled[0], max(r[2] for r in rows))
+        out_again = (
+            hand is not None
+            and retract is not None
+            and bool(retract.value)
+            and drilled[0] > 0.0
+            and rows[-1][1] <= RETRACTED_MM
+        )  # the live hand drew the drill back out of the hole it drilled
+        done[0] = (job.end_at_stop and held) or out_again
         if job.realtime:  # the simulator's time only advances in wait(): keep it to the clock
             ahead = rows[-1][0] - (time.monotonic() - wall0)
             if ahead > 0:
                 stop.wait(ahead)
+
+    def samples(block: list[TelemetrySample]) -> None:
+        out.put(("hand", block[-1].force_est_n))
+        if assessor is not None:
+            assessor.add(block)
 
     try:
         result = run_session(
@@ -97,8 +137,9 @@ def run_job(job: SessionJob, out: _Queue, stop: _Event) -> None:
             job.duration_s,
             sink=sink,
             should_stop=stop.is_set,
-            until=(lambda: held[0]) if job.end_at_stop else None,
-            on_samples=lambda samples: out.put(("hand", samples[-1].force_est_n)),
+            until=lambda: done[0],
+            on_samples=samples,
+            hand=hand,
         )
         kind = {"complete": "done", "cancelled": "cancelled"}.get(result.outcome, "fault")
         with contextlib.suppress(ValueError, OSError):  # a lost link reports nothing more
@@ -106,6 +147,8 @@ def run_job(job: SessionJob, out: _Queue, stop: _Event) -> None:
             states = [s.state for s in device.poll()]
             if states:  # after the session's DISARM (or STOP and DISARM), as reported
                 out.put(("state", STATE_NAMES.get(states[-1], "?")))
+        if assessor is not None and assessor.t0 is not None:
+            out.put(("assessment", assessor.result().to_json()))
         out.put((kind, result.to_json()))
     except (ValueError, OSError) as exc:  # before ARM: a device that does not answer
         out.put(("error", str(exc) or type(exc).__name__))

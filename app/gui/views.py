@@ -17,6 +17,7 @@ from typing import Literal
 from PySide6.QtWidgets import QWidget
 
 from ctdrill.app.gui.banner import Banner
+from ctdrill.app.gui.debrief_view import DebriefView
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.panorama_view import PanoramaView
 from ctdrill.app.gui.plan_panel import PlanPanel
@@ -46,6 +47,7 @@ VIEWS: tuple[ViewSpec, ...] = (
     ViewSpec("3d", "main", "3D", View3D),
     ViewSpec("slices", "main", "Slices", SliceGrid),
     ViewSpec("panorama", "page", "Panorama and cross-section", PanoramaView),
+    ViewSpec("debrief", "page", "Debrief", DebriefView),
     ViewSpec("plots", "bottom", "Plots", PlotsView),
     ViewSpec("plan", "tab", "Plan", PlanPanel),
     ViewSpec("suggest", "tab", "Suggest", SuggestPanel),

@@ -1,0 +1,128 @@
+"""What the rehearsal panel says, in plain words for a student (headless).
+
+Each text comes with a tooltip holding the engineering terms (``S0``, ``Ke``, the device's
+limits) that the screen itself leaves out; ``summary.json`` keeps them all.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ctdrill.app.gui.rehearsal import RehearsalRun, Telemetry
+from ctdrill.app.readout import LiveReadout, push_of, stop_timing
+from ctdrill.haptics.plant import COULOMB_N
+from ctdrill.haptics.predict import predict_push
+from ctdrill.haptics.profile_table import ProfileTable
+
+
+def needed_n(s0_n: float) -> int:
+    """The push that cuts where the static cutting force is ``s0_n``, in whole newtons: more
+    than ``S0`` (a push at or below it holds)."""
+    return math.floor(s0_n) + 1
+
+
+def need_here_n(r: LiveReadout, push_n: float | None) -> int | None:
+    """The push that cuts at the drill's depth, N (None: nothing to cut there): more than
+    ``S0``, and where a push above ``S0`` is held by the master's friction (the drill has
+    stopped there), more than ``S0`` plus that friction."""
+    if r.s0_n <= 0.0:
+        return None
+    stuck = r.kind == "holding" and push_n is not None and push_n > r.s0_n
+    return needed_n(r.s0_n + (COULOMB_N if stuck else 0.0))
+
+
+def live_words(r: LiveReadout, push_n: float | None) -> tuple[str, str]:
+    """``(text, tooltip)`` for one telemetry sample's readout."""
+    tip = (
+        f"device force {r.device_n:.2f} N ({r.kind}); static cutting force S0 = {r.s0_n:.2f} N "
+        f"here, {r.plan_force_n:.2f} N at the plan's feed; {r.status}"
+    )
+    push = push_n if push_n is not None else r.hand_n
+    if r.kind == "off":
+        return "The device is off: no force.", tip
+    if r.kind == "wall":
+        return "At the stop: the drill goes no deeper. Let go, or retract (R).", tip
+    if r.kind == "holding":
+        if push is None:
+            return f"The drill holds: {needed_n(r.s0_n)} N needed to cut here.", tip
+        if push <= COULOMB_N:
+            return "Push to start: the handle does not move.", tip
+        need = need_here_n(r, push) or needed_n(r.s0_n)
+        return (
+            f"Push harder: {need} N needed to cut here, {need - push:.1f} N more than your "
+            f"{push:.1f} N.",
+            tip,
+        )
+    if r.kind == "free":
+        if r.s0_n <= 0.0:
+            return "No bone here: the drill moves freely.", tip
+        return "In the hole: the drill is not touching bone.", tip
+    return "Cutting.", tip
+
+
+def predicted_words(table: ProfileTable, push_n: float) -> tuple[str, str]:
+    """``(text, tooltip)``: what a constant ``push_n`` does on ``table`` (the model's
+    schedule, :func:`ctdrill.haptics.predict.predict_push`)."""
+    pred = predict_push(table, push_n)
+    tip = "; ".join(pred.reasons()) or "the model's feed at this push"
+    if push_n <= 0.0:
+        return "Set a push to start drilling.", tip
+    if pred.too_weak and pred.stall_depth_mm is not None:
+        rows = np.arange(table.n_steps) * float(table.depth_step_mm)
+        ahead = table.s0_n[rows <= float(table.stop_depth_mm) + 1e-9]
+        need = needed_n(float(ahead.max()) if ahead.size else 0.0)
+        return (
+            f"{push_n:g} N is too weak: the drill stops at {pred.stall_depth_mm:.1f} mm; "
+            f"{need} N reaches the stop ({need - push_n:.1f} N more).",
+            tip,
+        )
+    return (
+        f"At {push_n:g} N the drill reaches the stop in about {pred.time_to_stop_s:.1f} s.",
+        tip,
+    )
+
+
+def end_message(run: RehearsalRun, last: Telemetry | None) -> str:
+    """What the panel says when ``run`` ended, from what the device reported (``last``: the
+    final telemetry sample, its state the device's own)."""
+    state = "none reported" if last is None else last.state
+    if run.error:
+        return f"error: {run.error} (device state last reported: {state})"
+    if run.cancelled:
+        events = [] if run.record is None else run.record.get("faults", [])
+        acked = bool(events) and all(
+            events[-1].get(f"{step}_acknowledged") for step in ("stop", "disarm")
+        )
+        sent = "STOP and DISARM acknowledged" if acked else "STOP and DISARM not acknowledged"
+        return f"stopped by the user: {sent}; device state: {state}"
+    s = run.session
+    if s is None:
+        return f"session ended (device state: {state})"
+    faults = len(s.get("faults", ()))
+    reached = s.get("final_state") == "stopped"
+    how = "at the auto-stop" if reached else "(its time is up, or the drill came out)"
+    return (
+        f"session ended {how}: deepest drill {s['max_drill_mm']:.2f} mm of stop "
+        f"{s['stop_depth_mm']:.2f} mm, {s['samples']} samples, {s['overruns']} overruns, "
+        f"{faults} fault event(s); device state now: {state}. Export the session to keep it."
+    )
+
+
+def timing_text(run: RehearsalRun) -> str:
+    """The time to the stop once ``run`` ended: for a constant push the session's against the
+    model's, and why they differ; for the window's hand, when it reached the stop."""
+    push = push_of(run.operator_spec)
+    record = run.record
+    if push is None:
+        return "-"
+    if record is None or run.cancelled or run.error:
+        return predicted_words(run.table, run.push_n)[0]
+    reached = record.get("time_to_stop_s")
+    if run.live:
+        if reached is None:
+            return "The drill did not reach the stop."
+        return f"You reached the stop after {float(reached):.1f} s."
+    ended_s = run.rows[-1][0] if run.rows else run.duration_s
+    return stop_timing(run.table, push, reached, ended_s).message
