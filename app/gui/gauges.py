@@ -160,6 +160,8 @@ class DepthGauge(QWidget):
             (self.planned_mm, f"planned {self.planned_mm:.1f}"),
             (self.stop_mm, f"stop {self.stop_mm:.1f}"),
         ]
+        if self.planned_mm <= 0.0 and self.stop_mm <= 0.0:
+            labels = []  # no path yet
         for depth, text in labels:
             p.drawText(
                 QRectF(text_x, y(depth) - 8, self.width() - text_x, 16),

@@ -216,13 +216,14 @@ class RehearsalRun:
                     self.rows.extend(rows)
                 self.trace.extend((r[0], r[3]) for r in rows)
                 t, master, drill, force, state = rows[-1]
+                exam = self.exam
                 self._latest = Telemetry(
                     t,
                     master,
                     drill,
                     force,
                     state,
-                    clearance_at_mm(self.result, drill),
+                    clearance_at_mm(self.result if exam is None else exam.path, drill),
                     self._hand_n,
                 )
             elif kind == "hand":

@@ -48,6 +48,8 @@ class LiveReadouts(QGroupBox):
         box.addWidget(self.trace)
         self.status_label = QLabel("-")
         self.status_label.setWordWrap(True)
+        # room for two lines whatever it says, so a longer text never overlaps the next row
+        self.status_label.setMinimumHeight(2 * self.status_label.fontMetrics().lineSpacing() + 6)
         box.addWidget(self.status_label)
         self.depth_label = QLabel("-")
         self.clearance_label = QLabel("-")
@@ -78,8 +80,9 @@ class LiveReadouts(QGroupBox):
         self.depth_label.setText(f"drill {tel.drill_mm:.2f} mm deep")
         self.depth_gauge.set_depth(tel.drill_mm, tel.master_mm)
         self._show_forces(run, tel, sound)
+        c = tel.clearance_mm
         self.clearance_label.setText(
-            "-" if tel.clearance_mm is None else f"{tel.clearance_mm:.2f} mm from the nerve"
+            "-" if c is None else (f"{c:.2f} mm from the nerve" if c >= 0.0 else "in the nerve!")
         )
         reached = tel.state == "stopped"
         self.auto_stop_label.setText(f"auto-stop: {'REACHED' if reached else 'armed'}: {stop_why}")

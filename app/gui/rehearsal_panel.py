@@ -28,6 +28,7 @@ from PySide6.QtWidgets import (
     QGroupBox,
     QHBoxLayout,
     QLabel,
+    QLayout,
     QPushButton,
     QScrollArea,
     QVBoxLayout,
@@ -82,6 +83,7 @@ class RehearsalPanel(QWidget):
         self._reported: RehearsalRun | None = None  # the run whose end was reported
         content = QWidget()
         outer = QVBoxLayout(content)
+        outer.setSizeConstraint(QLayout.SizeConstraint.SetMinimumSize)  # scroll, never squeeze
         scroll = QScrollArea()  # whatever the screen's height, nothing overlaps
         scroll.setWidgetResizable(True)
         scroll.setFrameShape(QFrame.Shape.NoFrame)
@@ -316,6 +318,12 @@ class RehearsalPanel(QWidget):
         if ended and self._reported is not run:
             self._ended(run, tel)
 
+    def _stop_why(self, run: RehearsalRun) -> str:
+        """Where the device stops the drill, and why (exam mode: its stop beyond the plan)."""
+        if run.exam is not None:
+            return f"exam, no wall at the margin: the stop is at {run.table.stop_depth_mm:.2f} mm"
+        return "" if self.result is None else stop_explanation(self.result)
+
     def _ended(self, run: RehearsalRun, tel: Telemetry | None) -> None:
         self._reported = run
         self.timer.stop()
@@ -328,8 +336,7 @@ class RehearsalPanel(QWidget):
         self.message.setText(text)
         self.timing_label.setText(timing_text(run))
         if run.session is not None and run.session.get("final_state") == "stopped":
-            why = "" if self.result is None else stop_explanation(self.result)
-            self.auto_stop_label.setText(f"auto-stop: REACHED: {why}")
+            self.auto_stop_label.setText(f"auto-stop: REACHED: {self._stop_why(run)}")
             self.auto_stop_label.setStyleSheet(WARN_STYLE)
         self.ctx.doc.set_rehearsing(False)
         self._path_changed(self.ctx.doc.path)
@@ -342,8 +349,7 @@ class RehearsalPanel(QWidget):
         self.last = tel
         if self.run is None:
             return
-        why = "" if self.result is None else stop_explanation(self.result)
-        self.live.show_telemetry(self.run, tel, why, self.sound)
+        self.live.show_telemetry(self.run, tel, self._stop_why(self.run), self.sound)
         now = time.monotonic()
         last_t, last_depth = self._last_emit
         if now - last_t >= MIN_3D_UPDATE_S and tel.drill_mm != last_depth:

@@ -165,7 +165,9 @@ def curve_png(
     top.set_title(f"learning curve of {trainee}")
     top.legend(loc="lower right", fontsize=8)
     top.grid(alpha=0.3)
-    bottom.bar(n, [float(r["overshoot_mm"]) for r in curve], color="#c62828", width=0.6)
+    over = [float(r["overshoot_mm"]) for r in curve]
+    bottom.bar(n, over, color="#c62828", width=0.6)
+    bottom.set_ylim(0.0, max(1.0, 1.15 * max(over)))
     bottom.set_ylabel("overshoot (mm)")
     bottom.set_xlabel("session")
     bottom.set_xticks(n)
