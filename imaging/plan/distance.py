@@ -1,4 +1,9 @@
-"""Exact signed distances to the swept drill solid (pure NumPy, no I/O).
+"""Exact signed distances to the swept drill solid and the implant body (pure NumPy, no I/O).
+
+Both are convex solids of revolution about a trajectory's axis, measured by the one routine
+of :mod:`ctdrill.imaging.plan.revolution`; what this module adds is the minimum of that
+distance over segments (a landmark's centreline, a point, a mask's candidate segments), which
+holds for any convex solid on the axis (:class:`AxialSolid`).
 
 The drill solid at tip depth ``x`` is the body of revolution around the drill axis whose
 meridian section is ``{(s, rho): s <= x, rho <= R * min(1, (x - s) / l_t)}``: a cylinder of
@@ -17,9 +22,12 @@ to a convex set is a convex function of the point, and it only decreases as the 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
+
+from ctdrill.imaging.plan.revolution import Meridian, drill_meridian
 
 #: Accuracy of the segment minimisation, mm: golden-section steps continue until the bracket
 #: times the segment length (the Lipschitz bound of the distance) is below it.
@@ -29,6 +37,29 @@ _INV_PHI = (np.sqrt(5.0) - 1.0) / 2.0
 _CHUNK_ELEMENTS = 1 << 18
 #: Segments per block of the coarse pruning pass (used above 16 blocks).
 _BLOCK = 64
+
+
+class AxialSolid(Protocol):
+    """A convex solid of revolution about an axis, placed by a depth along it: the swept drill
+    (:class:`DrillSolid`, tip at the depth) or an implant body (its apex at the depth,
+    :class:`~ctdrill.imaging.plan.implant_body.ImplantBody`). Landmarks measure their
+    clearance to any of them (:meth:`~ctdrill.imaging.plan.landmark_base.Landmark.clearance_mm`).
+    """
+
+    @property
+    def entry_lps(self) -> np.ndarray:
+        """(3,) LPS mm, depth 0 of the axis."""
+        ...
+
+    @property
+    def direction(self) -> np.ndarray:
+        """(3,) unit vector along the axis (entry to target)."""
+        ...
+
+    def signed_distance_mm(self, points_lps: np.ndarray, depth_mm: np.ndarray) -> np.ndarray:
+        """Signed distance (mm, < 0 inside) from points (..., 3) to the solid placed at
+        ``depth_mm`` (broadcast with the points' batch shape)."""
+        ...
 
 
 @dataclass(frozen=True, eq=False)
@@ -42,6 +73,7 @@ class DrillSolid:
     direction: np.ndarray
     radius_mm: float
     tip_length_mm: float
+    meridian: Meridian = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         entry = np.array(self.entry_lps, dtype=np.float64).reshape(3)
@@ -58,6 +90,15 @@ class DrillSolid:
         for name, arr in (("entry_lps", entry), ("direction", u)):
             arr.flags.writeable = False
             object.__setattr__(self, name, arr)
+        object.__setattr__(self, "meridian", drill_meridian(self.radius_mm, self.tip_length_mm))
+
+    def signed_distance_mm(self, points_lps: np.ndarray, depth_mm: np.ndarray) -> np.ndarray:
+        """Signed distance from points (..., 3) LPS mm to the solid at tip depth ``depth_mm``
+        (broadcast), mm."""
+        s, perp = axial_coordinates(points_lps, self.entry_lps, self.direction)
+        return self.meridian.signed_distance_mm(
+            s - np.asarray(depth_mm, dtype=np.float64), np.linalg.norm(perp, axis=-1)
+        )
 
 
 def axial_coordinates(
@@ -104,39 +145,11 @@ def solid_distance_mm(
     Signed distance, mm: > 0 outside, 0 on the surface, minus the distance to the surface
     inside (down to ``-R`` on the axis of the cylinder); shape of the broadcast inputs.
     """
-    s = np.asarray(s_mm, dtype=np.float64)
-    rho = np.abs(np.asarray(rho_mm, dtype=np.float64))
-    x = np.asarray(depth_mm, dtype=np.float64)
-    corner_s = x - tip_length_mm
-    # Cylinder side: the ray {(t, R): t <= corner_s}.
-    d_ray = np.hypot(np.maximum(s - corner_s, 0.0), rho - radius_mm)
-    # Cone side: the segment from the corner (corner_s, R) to the tip (x, 0).
-    seg_len2 = tip_length_mm**2 + radius_mm**2
-    ds = s - corner_s
-    dr = rho - radius_mm
-    t = np.clip((ds * tip_length_mm - dr * radius_mm) / seg_len2, 0.0, 1.0)
-    d_cone = np.hypot(ds - t * tip_length_mm, dr + t * radius_mm)
-    # The nearest boundary point of the (symmetric, convex) full section to a point with
-    # rho >= 0 lies on its upper half (ray or cone segment), from inside as from outside.
-    # Inside: s <= x and rho * l_t <= R * (x - s) and rho <= R (no division, l_t may be 0).
-    inside = (s <= x) & (rho <= radius_mm) & (rho * tip_length_mm <= radius_mm * (x - s))
-    d = np.minimum(d_ray, d_cone)
-    out: np.ndarray = np.where(inside, -d, d)
-    return out
+    u = np.asarray(s_mm, dtype=np.float64) - np.asarray(depth_mm, dtype=np.float64)
+    return drill_meridian(radius_mm, tip_length_mm).signed_distance_mm(u, rho_mm)
 
 
-def _solid_at(solid: DrillSolid, points: np.ndarray, depth: np.ndarray) -> np.ndarray:
-    s, perp = axial_coordinates(points, solid.entry_lps, solid.direction)
-    return solid_distance_mm(
-        s,
-        np.linalg.norm(perp, axis=-1),
-        depth,
-        radius_mm=solid.radius_mm,
-        tip_length_mm=solid.tip_length_mm,
-    )
-
-
-def _golden_min(solid: DrillSolid, a: np.ndarray, b: np.ndarray, depth: np.ndarray) -> np.ndarray:
+def _golden_min(solid: AxialSolid, a: np.ndarray, b: np.ndarray, depth: np.ndarray) -> np.ndarray:
     """(P,) minimum over each segment ``[a_p, b_p]`` of the signed distance at ``depth_p``.
 
     The signed distance to a convex solid is convex along a segment, so a golden-section
@@ -148,7 +161,7 @@ def _golden_min(solid: DrillSolid, a: np.ndarray, b: np.ndarray, depth: np.ndarr
     length = float(np.linalg.norm(dv, axis=-1).max()) if len(a) else 0.0
 
     def f(t: np.ndarray) -> np.ndarray:
-        return _solid_at(solid, a + t[:, None] * dv, depth)
+        return solid.signed_distance_mm(a + t[:, None] * dv, depth)
 
     best = np.minimum(f(np.zeros(len(a))), f(np.ones(len(a))))
     if length <= SEGMENT_TOL_MM:
@@ -175,9 +188,9 @@ def _golden_min(solid: DrillSolid, a: np.ndarray, b: np.ndarray, depth: np.ndarr
 
 
 def segments_distance_mm(
-    a_lps: np.ndarray, b_lps: np.ndarray, depth_mm: np.ndarray, solid: DrillSolid
+    a_lps: np.ndarray, b_lps: np.ndarray, depth_mm: np.ndarray, solid: AxialSolid
 ) -> np.ndarray:
-    """Signed distance from the union of segments ``[a, b]`` to the drill solid at each depth.
+    """Signed distance from the union of segments ``[a, b]`` to a solid at each depth.
 
     The minimum over the union is exact to :data:`SEGMENT_TOL_MM` (see :func:`_golden_min`).
     Segments that cannot hold the minimum are skipped exactly: the signed distance is
@@ -189,8 +202,8 @@ def segments_distance_mm(
     Parameters
     ----------
     a_lps, b_lps : (S, 3) segment end points, LPS mm (``a == b`` is a point).
-    depth_mm : (D,) tip depths, mm.
-    solid : the drill axis and shape.
+    depth_mm : (D,) depths where the solid is placed (the drill's tip, an implant's apex), mm.
+    solid : the drill or implant on its axis (any convex :class:`AxialSolid`).
 
     Returns
     -------
@@ -210,9 +223,9 @@ def segments_distance_mm(
 
     def ends(sl: slice) -> tuple[np.ndarray, np.ndarray]:
         """(D, c) min of the three probe values and the 1-Lipschitz lower bound."""
-        va = _solid_at(solid, a[sl][None, :, :], x[:, None])
-        vb = _solid_at(solid, b[sl][None, :, :], x[:, None])
-        vm = _solid_at(solid, (0.5 * (a[sl] + b[sl]))[None, :, :], x[:, None])
+        va = solid.signed_distance_mm(a[sl][None, :, :], x[:, None])
+        vb = solid.signed_distance_mm(b[sl][None, :, :], x[:, None])
+        vm = solid.signed_distance_mm((0.5 * (a[sl] + b[sl]))[None, :, :], x[:, None])
         upper = np.minimum(np.minimum(va, vb), vm)
         # On a half of length L/2 between values u and v, a 1-Lipschitz function stays above
         # (u + v - L/2) / 2: the segment's lower bound is the smaller of its halves' bounds.
@@ -247,7 +260,7 @@ def _morton_order(points: np.ndarray) -> np.ndarray:
     return np.argsort(key, kind="stable")
 
 
-def _near_segments(a: np.ndarray, b: np.ndarray, x: np.ndarray, solid: DrillSolid) -> np.ndarray:
+def _near_segments(a: np.ndarray, b: np.ndarray, x: np.ndarray, solid: AxialSolid) -> np.ndarray:
     """Indices of the segments that may hold the minimum at some depth (exact pruning).
 
     Segments are grouped in blocks of :data:`_BLOCK` along a Z-order curve; a block's
@@ -268,8 +281,10 @@ def _near_segments(a: np.ndarray, b: np.ndarray, x: np.ndarray, solid: DrillSoli
     per = max(1, _CHUNK_ELEMENTS // x.size)
     for start in range(0, n_blocks, per):
         sl = slice(start, start + per)
-        upper = np.minimum(upper, _solid_at(solid, ends[sl, 0][None], x[:, None]).min(axis=1))
-        lower[:, sl] = _solid_at(solid, centre[sl][None], x[:, None]) - radius[sl][None, :]
+        upper = np.minimum(
+            upper, solid.signed_distance_mm(ends[sl, 0][None], x[:, None]).min(axis=1)
+        )
+        lower[:, sl] = solid.signed_distance_mm(centre[sl][None], x[:, None]) - radius[sl][None, :]
     near = np.any(lower <= upper[:, None], axis=0)
     return np.unique(blocks[near])
 

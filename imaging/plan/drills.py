@@ -8,27 +8,36 @@ from __future__ import annotations
 
 from typing import Any
 
-from ctdrill.imaging.plan.read import _Ctx, _is_number
-from ctdrill.imaging.plan.types import (
+from ctdrill.imaging.plan.drill_spec import (
     _DRILL_KEYS,
     _MAX_BLADES,
     MAX_DRILLS,
     DrillSpec,
-    PlanInputError,
     sequence_error,
 )
+from ctdrill.imaging.plan.implants import ImplantSpec
+from ctdrill.imaging.plan.protocol import PROTOCOL_NOTE_CODE, protocol_drills, protocol_note
+from ctdrill.imaging.plan.read import _Ctx, _is_number
+from ctdrill.imaging.plan.types import PlanInputError
 
 
-def drills_field(ctx: _Ctx, doc: dict[str, Any], where: str) -> tuple[DrillSpec, ...]:
+def drills_field(
+    ctx: _Ctx, doc: dict[str, Any], where: str, implant: ImplantSpec | None = None
+) -> tuple[DrillSpec, ...]:
     """The plan's drills from ``drill`` (one object) or ``drills`` (a list in drilling order).
 
-    Giving both is refused, naming ``drills``; without either the plan drills with the
-    :class:`DrillSpec` defaults. Every item of ``drills`` must give its ``diameter_mm`` (a
-    sequence is defined by its diameters); its other keys default as ``drill``'s do. The list
-    must be non-empty, at most :data:`MAX_DRILLS` long, with strictly increasing diameters.
-    Neither given: the default drill, with a ``plan_default`` note saying so.
+    Giving both is refused, naming ``drills``. Every item of ``drills`` must give its
+    ``diameter_mm`` (a sequence is defined by its diameters); its other keys default as
+    ``drill``'s do. The list must be non-empty, at most :data:`MAX_DRILLS` long, with strictly
+    increasing diameters. Neither given: the ``implant``'s drilling protocol
+    (:func:`~ctdrill.imaging.plan.protocol.protocol_drills`) with an ``implant_protocol``
+    note, or without an implant the default drill with a ``plan_default`` note.
     """
     fp = f"{where}.drills" if where else "drills"
+    if "drills" not in doc and "drill" not in doc and implant is not None:
+        label = f"{ctx.path.name}: {where or 'the trajectory'}"
+        ctx.warnings.append((PROTOCOL_NOTE_CODE, protocol_note(label, implant)))
+        return protocol_drills(implant)[0]
     if "drills" not in doc:
         if "drill" not in doc:
             ctx.notes.append(no_drill_note(ctx, where))

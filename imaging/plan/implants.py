@@ -22,7 +22,14 @@ library name replacing it::
 
     {"format": "ctdrill-implants/1",
      "implants": [{"name": "tapered 4.1 x 10", "diameter_mm": 4.1, "length_mm": 10.0,
-                   "apex_diameter_mm": 2.9, "apex": "round"}]}
+                   "apex_diameter_mm": 2.9, "apex": "round",
+                   "drills": [{"diameter_mm": 2.0, "tip_length_mm": 0.6},
+                              {"diameter_mm": 2.8, "tip_length_mm": 0.8},
+                              {"diameter_mm": 3.5, "tip_length_mm": 1.0}]}]}
+
+``drills`` (optional) is the implant's **drilling protocol**: the drills in drilling order, the
+last one sized for the implant, each with its tip length (how far it cuts beyond the depth its
+full diameter reaches); :mod:`ctdrill.imaging.plan.protocol` uses it (or the generic rule).
 """
 
 from __future__ import annotations
@@ -36,6 +43,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.plan.drill_spec import DrillSpec
 from ctdrill.resources import asset
 from ctdrill.safeio import load_json
 
@@ -56,8 +64,11 @@ MAX_NAME_CHARS = 200
 MAX_LIBRARY_IMPLANTS = 10_000
 #: The clinical minimum distance between two implants, mm (DESIGN.md section 5): its one owner.
 MIN_IMPLANT_DISTANCE_MM = 3.0
-#: Keys of an implant object (plan files and library files).
+#: Keys of an implant object (plan files and library files), all required.
 IMPLANT_KEYS = ("name", "diameter_mm", "length_mm", "apex_diameter_mm", "apex")
+#: The optional key of an implant object: its drilling protocol
+#: (:mod:`ctdrill.imaging.plan.protocol`).
+PROTOCOL_KEY = "drills"
 
 
 class ImplantInputError(ImagingInputError):
@@ -108,6 +119,9 @@ class ImplantSpec:
     length_mm : platform to apex tip.
     apex_diameter_mm : diameter where the side wall ends (<= ``diameter_mm``).
     apex : ``"flat"`` or ``"round"``.
+    drills : its drilling protocol in drilling order (the last drill sized for the implant),
+        each a :class:`DrillSpec` with its diameter and tip length; empty when none is known
+        (:func:`ctdrill.imaging.plan.protocol.protocol_drills` then gives the generic one).
     """
 
     name: str
@@ -115,6 +129,7 @@ class ImplantSpec:
     length_mm: float
     apex_diameter_mm: float
     apex: str = "flat"
+    drills: tuple[DrillSpec, ...] = ()
 
     def __post_init__(self) -> None:
         problem = spec_error(
@@ -127,6 +142,12 @@ class ImplantSpec:
             )
         for key in ("diameter_mm", "length_mm", "apex_diameter_mm"):
             object.__setattr__(self, key, float(getattr(self, key)))
+        object.__setattr__(self, "drills", tuple(self.drills))
+        from ctdrill.imaging.plan.protocol import protocol_error  # it imports this module
+
+        bad = protocol_error(self.drills)
+        if bad is not None:
+            raise ImplantInputError(f"implant {self.name!r}: {bad[0]} {bad[1]}")
 
     @property
     def size_text(self) -> str:
@@ -139,14 +160,20 @@ class ImplantSpec:
         return self.diameter_mm / 2.0
 
     def to_json(self) -> dict[str, Any]:
-        """The implant object of plan and library files."""
-        return {
+        """The implant object of plan and library files (``drills`` only when it has a
+        protocol: each drill's ``diameter_mm`` and ``tip_length_mm``)."""
+        out: dict[str, Any] = {
             "name": self.name,
             "diameter_mm": self.diameter_mm,
             "length_mm": self.length_mm,
             "apex_diameter_mm": self.apex_diameter_mm,
             "apex": self.apex,
         }
+        if self.drills:
+            from ctdrill.imaging.plan.protocol import protocol_json
+
+            out[PROTOCOL_KEY] = protocol_json(self.drills)
+        return out
 
     def profile_mm(self, n: int = 16) -> tuple[np.ndarray, np.ndarray]:
         """The body's outline: radius ``r_mm`` at distance ``s_mm`` from the platform.
@@ -187,14 +214,16 @@ class ImplantSpec:
 def implant_from_json(raw: object, *, where: str, source: str) -> ImplantSpec:
     """An :class:`ImplantSpec` from its JSON object, refused naming ``source: where.field``.
 
-    Every key of :data:`IMPLANT_KEYS` is required (a plan carries its implant in full).
+    Every key of :data:`IMPLANT_KEYS` is required (a plan carries its implant in full);
+    ``drills`` (:data:`PROTOCOL_KEY`, the drilling protocol) is optional.
     """
     if not isinstance(raw, dict):
         raise ImplantInputError(f"{source}: {where} must be an implant object, got {raw!r}")
-    extra = sorted(set(raw) - set(IMPLANT_KEYS))
+    known = (*IMPLANT_KEYS, PROTOCOL_KEY)
+    extra = sorted(set(raw) - set(known))
     if extra:
         raise ImplantInputError(
-            f"{source}: {where}.{extra[0]} is not a known field (known: {', '.join(IMPLANT_KEYS)})"
+            f"{source}: {where}.{extra[0]} is not a known field (known: {', '.join(known)})"
         )
     missing = [k for k in IMPLANT_KEYS if k not in raw]
     if missing:
@@ -204,7 +233,14 @@ def implant_from_json(raw: object, *, where: str, source: str) -> ImplantSpec:
         raise ImplantInputError(
             f"{source}: {where}.{problem[0]} {problem[1]}, got {raw[problem[0]]!r}"
         )
-    return ImplantSpec(**{k: raw[k] for k in IMPLANT_KEYS})
+    from ctdrill.imaging.plan.protocol import protocol_from_json
+
+    drills = (
+        protocol_from_json(raw[PROTOCOL_KEY], where=f"{where}.{PROTOCOL_KEY}", source=source)
+        if PROTOCOL_KEY in raw
+        else ()
+    )
+    return ImplantSpec(**{k: raw[k] for k in IMPLANT_KEYS}, drills=drills)
 
 
 def read_library_file(path: str | os.PathLike[str]) -> tuple[ImplantSpec, ...]:
@@ -299,15 +335,17 @@ class ImplantPlacement:
 
 
 def implant_placement(plan: Plan) -> ImplantPlacement | None:
-    """Where ``plan``'s implant sits: apex at the target, platform ``length_mm`` back along the
-    axis; None when the plan has no implant."""
+    """Where ``plan``'s implant sits: apex at the plan's target
+    (:attr:`~ctdrill.imaging.plan.types.Plan.planned_target_lps`; a drill's view,
+    ``plan.for_drill(k)``, drills beyond it), platform ``length_mm`` back along the axis; None
+    when the plan has no implant."""
     spec = plan.implant
     if spec is None:
         return None
     axis = np.array(plan.direction, dtype=np.float64)
-    apex = np.array(plan.target_lps, dtype=np.float64)
+    apex = np.array(plan.planned_target_lps, dtype=np.float64)
     platform = apex - spec.length_mm * axis
     for arr in (axis, apex, platform):
         arr.flags.writeable = False
-    depth = plan.planned_depth_mm
+    depth = plan.planned_depth_mm - plan.overdrill_mm
     return ImplantPlacement(spec, platform, apex, axis, depth - spec.length_mm, depth)

@@ -13,7 +13,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from ctdrill.imaging.errors import ImagingInputError
-from ctdrill.imaging.plan.distance import DrillSolid
+from ctdrill.imaging.plan.distance import AxialSolid
 
 #: Canal radius used when a plan or markup gives none, mm (a typical inferior alveolar canal
 #: is 2-3 mm wide).
@@ -77,8 +77,12 @@ class Landmark(Protocol):
         """Radius around its core, mm (0 for points and masks)."""
         ...
 
-    def clearance_mm(self, solid: DrillSolid, depth_mm: np.ndarray) -> np.ndarray:
-        """(D,) signed clearance from the drill solid at each tip depth, mm (< 0 inside)."""
+    def clearance_mm(self, solid: AxialSolid, depth_mm: np.ndarray) -> np.ndarray:
+        """(D,) signed clearance from a solid placed at each depth, mm (< 0 inside, minus the
+        penetration depth): the swept drill (:class:`~ctdrill.imaging.plan.distance.DrillSolid`,
+        tip at the depth) or the implant body
+        (:class:`~ctdrill.imaging.plan.implant_safety.ImplantBody`, apex at the depth). A kind
+        measures any convex solid of revolution on the trajectory's axis the same way."""
         ...
 
     def drawing(self) -> LandmarkDrawing:

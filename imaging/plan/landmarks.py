@@ -1,7 +1,8 @@
 """Anatomical landmarks the drill must keep clear of, in LPS millimetres.
 
 Every kind implements one small protocol, :class:`Landmark`: its signed clearance to the
-drill solid, what draws it (:class:`LandmarkDrawing`) and its plan-file form. Nothing else
+drill solid or the implant body (any convex solid of revolution on the axis), what draws it
+(:class:`LandmarkDrawing`) and its plan-file form. Nothing else
 in ctdrill needs to know which kind it holds; a new kind is one new class here (plus its
 reader in :mod:`ctdrill.imaging.plan.read`).
 
@@ -24,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ctdrill.imaging.plan.distance import DrillSolid, segments_distance_mm
+from ctdrill.imaging.plan.distance import AxialSolid, segments_distance_mm
 from ctdrill.imaging.plan.landmark_base import (
     DEFAULT_CANAL_RADIUS_MM,
     MAX_DRAWN_SURFACE_POINTS,
@@ -78,7 +79,7 @@ class CanalLandmark:
             return pts, pts
         return pts[:-1], pts[1:]
 
-    def clearance_mm(self, solid: DrillSolid, depth_mm: np.ndarray) -> np.ndarray:
+    def clearance_mm(self, solid: AxialSolid, depth_mm: np.ndarray) -> np.ndarray:
         """Signed distance from the solid to the centerline minus the radius, mm."""
         a, b = self.segments_lps()
         out: np.ndarray = segments_distance_mm(a, b, depth_mm, solid) - float(self.radius_mm)
@@ -148,7 +149,7 @@ class PointLandmark:
         """Always 0: the landmark is the point itself."""
         return 0.0
 
-    def clearance_mm(self, solid: DrillSolid, depth_mm: np.ndarray) -> np.ndarray:
+    def clearance_mm(self, solid: AxialSolid, depth_mm: np.ndarray) -> np.ndarray:
         """Signed distance from the solid to the point, mm (closed form)."""
         pt = self.point_lps[None, :]
         return segments_distance_mm(pt, pt, depth_mm, solid)

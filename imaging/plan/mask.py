@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ctdrill.imaging.plan.distance import DrillSolid, segments_distance_mm
+from ctdrill.imaging.plan.distance import AxialSolid, segments_distance_mm
 from ctdrill.imaging.plan.landmark_base import (
     MAX_DRAWN_SURFACE_POINTS,
     NO_POINTS,
@@ -89,7 +89,7 @@ class MaskLandmark:
             )
         return self.affine_lps
 
-    def clearance_mm(self, solid: DrillSolid, depth_mm: np.ndarray) -> np.ndarray:
+    def clearance_mm(self, solid: AxialSolid, depth_mm: np.ndarray) -> np.ndarray:
         """Exact signed distance from the solid to the union of the voxel boxes, mm."""
         affine = self._grid()
         key = np.concatenate([solid.entry_lps, solid.direction]).tobytes()

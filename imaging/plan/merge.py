@@ -142,8 +142,8 @@ def _same_trajectory(a: Plan, b: Plan) -> bool:
     return (
         np.array_equal(a.entry_lps, b.entry_lps)
         and np.array_equal(a.target_lps, b.target_lps)
-        and (a.drills, a.feed_mm_s, a.calibration, a.margin_mm, a.implant)
-        == (b.drills, b.feed_mm_s, b.calibration, b.margin_mm, b.implant)
+        and (a.drills, a.feed_mm_s, a.calibration, a.margin_mm, a.implant, a.min_wall_mm, a.site)
+        == (b.drills, b.feed_mm_s, b.calibration, b.margin_mm, b.implant, b.min_wall_mm, b.site)
     )
 
 

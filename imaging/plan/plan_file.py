@@ -20,6 +20,12 @@ from ctdrill.imaging.plan.landmarks import (
     Landmark,
     PointLandmark,
 )
+from ctdrill.imaging.plan.plan_keys import (
+    _LANDMARK_KEYS,
+    _PER_TRAJECTORY_KEYS,
+    _TOP_KEYS,
+    _TRAJECTORY_KEYS,
+)
 from ctdrill.imaging.plan.read import (
     PlanParts,
     _coordinate_system,
@@ -31,13 +37,10 @@ from ctdrill.imaging.plan.read import (
     series_hash,
 )
 from ctdrill.imaging.plan.types import (
-    _LANDMARK_KEYS,
-    _PER_TRAJECTORY_KEYS,
-    _TOP_KEYS,
-    _TRAJECTORY_KEYS,
     DEFAULT_CALIBRATION,
     DEFAULT_FEED_MM_S,
     DEFAULT_MARGIN_MM,
+    DEFAULT_MIN_WALL_MM,
     PLAN_FORMAT,
     SERIES_HASH_KEY,
     Plan,
@@ -172,11 +175,13 @@ def _trajectory(
     target = _to_lps(ctx.point(obj["target_mm"], pre + "target_mm"), system)
     from ctdrill.imaging.plan.drills import drills_field  # it reads with this module's _Ctx
 
-    drills = drills_field(ctx, obj, where)
+    implant = ctx.implant(obj["implant"], pre + "implant") if "implant" in obj else None
+    drills = drills_field(ctx, obj, where, implant)
     feed = ctx.number(obj, "feed_mm_s", where, default=DEFAULT_FEED_MM_S, positive=True)
     calibration = ctx.string(obj, "calibration", where, default=DEFAULT_CALIBRATION)
     margin = ctx.number(obj, "margin_mm", where, default=DEFAULT_MARGIN_MM, nonneg=True)
-    implant = ctx.implant(obj["implant"], pre + "implant") if "implant" in obj else None
+    wall = ctx.number(obj, "min_wall_mm", where, default=DEFAULT_MIN_WALL_MM, nonneg=True)
+    site = ctx.site(obj["site"], pre + "site") if "site" in obj else None
     return _make_plan(
         ctx,
         series_hash=hashed,
@@ -189,4 +194,6 @@ def _trajectory(
         name=name,
         field_path=pre + "target_mm",
         implant=implant,
+        min_wall=wall,
+        site=site,
     )

@@ -19,9 +19,11 @@ from ctdrill.imaging.plan.implants import ImplantInputError, ImplantSpec, implan
 from ctdrill.imaging.plan.landmarks import (
     Landmark,
 )
+from ctdrill.imaging.plan.site import site_error
 from ctdrill.imaging.plan.types import (
     _MAX_COORD_MM,
     _MAXIMA,
+    DEFAULT_MIN_WALL_MM,
     PLAN_FORMAT,
     DrillSpec,
     Plan,
@@ -102,6 +104,13 @@ class _Ctx:
             return implant_from_json(val, where=fp, source=self.path.name)
         except ImplantInputError as exc:
             raise PlanInputError(str(exc)) from exc
+
+    def site(self, val: object, fp: str) -> int:
+        """An FDI implant site (:mod:`~ctdrill.imaging.plan.site`), refused naming ``fp``."""
+        problem = site_error(val)
+        if problem is not None:
+            raise self.fail(fp, problem, val)
+        return int(val)  # type: ignore[call-overload]
 
     def fail(self, field_path: str, what: str, got: object = ...) -> PlanInputError:
         tail = "" if got is ... else f", got {got!r}"
@@ -222,6 +231,8 @@ def _make_plan(
     name: str,
     field_path: str,
     implant: ImplantSpec | None = None,
+    min_wall: float = DEFAULT_MIN_WALL_MM,
+    site: int | None = None,
 ) -> Plan:
     """One trajectory of the file (its landmarks and arch are joined by :func:`merge_parts`)."""
     if not np.linalg.norm(target - entry) > 1e-6:
@@ -238,6 +249,8 @@ def _make_plan(
         source=str(ctx.path),
         series_uid_sha256=series_hash,
         implant=implant,
+        min_wall_mm=min_wall,
+        site=site,
     )
 
 

@@ -21,7 +21,16 @@ from typing import Any
 _SETTING = re.compile(r'(?<![\w"=])([A-Za-z_][A-Za-z0-9_]*)=("(?:[^"\\]|\\.)*"|[^\s,;]*)')
 #: Settings whose value is text, never a number.
 TEXT_KEYS = frozenset(
-    {"name", "calibration", "series", "series_uid_sha256", "drills", "implant", "implant_apex"}
+    {
+        "name",
+        "calibration",
+        "series",
+        "series_uid_sha256",
+        "drills",
+        "implant",
+        "implant_apex",
+        "implant_drills",
+    }
 )
 
 

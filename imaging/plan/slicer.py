@@ -21,7 +21,11 @@ What is read, as 3D Slicer 5 writes it (``vtkMRMLMarkupsJsonStorageNode``):
   and ``attributes`` (which Slicer drops) are read too for older files, the control point
   winning. A Fiducial's points each carry their own settings.
 - A Line's implant: ``implant="NAME" implant_diameter_mm=4.1 implant_length_mm=10.0
-  implant_apex_diameter_mm=2.9 implant_apex=round`` (all five, or none).
+  implant_apex_diameter_mm=2.9 implant_apex=round`` (all five, or none), and optionally its
+  drilling protocol ``implant_drills="[{...}, ...]"`` (a quoted JSON list, as the implant
+  object's ``drills``). A Line with an implant and no drill settings drills its protocol.
+- A Line's ``min_wall_mm`` (the thinnest bone wall to keep) and ``site`` (the FDI tooth
+  number, 11-48), as the plan keys.
 - Names: a ``name=`` setting, else the markup's ``name``, else (Slicer writes no name; it
   names the node after the file) the file's stem when the file holds one markup.
 """
@@ -35,6 +39,7 @@ import numpy as np
 
 from ctdrill.imaging.plan.arch import is_arch_label
 from ctdrill.imaging.plan.curve import slicer_curve
+from ctdrill.imaging.plan.drill_spec import _DRILL_KEYS
 from ctdrill.imaging.plan.drills import drill_from, drills_field, no_drill_note
 from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.landmarks import (
@@ -60,10 +65,10 @@ from ctdrill.imaging.plan.read import (
     series_hash,
 )
 from ctdrill.imaging.plan.types import (
-    _DRILL_KEYS,
     DEFAULT_CALIBRATION,
     DEFAULT_FEED_MM_S,
     DEFAULT_MARGIN_MM,
+    DEFAULT_MIN_WALL_MM,
     SERIES_HASH_KEY,
     DrillSpec,
     Plan,
@@ -80,6 +85,8 @@ IMPLANT_SETTINGS = {
     "implant_apex_diameter_mm": "apex_diameter_mm",
     "implant_apex": "apex",
 }
+#: A Line's setting holding its implant's drilling protocol (a quoted JSON list).
+IMPLANT_DRILLS_SETTING = "implant_drills"
 LINE_KEYS = frozenset(
     {
         "name",
@@ -90,6 +97,9 @@ LINE_KEYS = frozenset(
         "margin_mm",
         SERIES_HASH_KEY,
         *IMPLANT_SETTINGS,
+        IMPLANT_DRILLS_SETTING,
+        "min_wall_mm",
+        "site",
     }
 )
 CURVE_KEYS = frozenset({"name", "radius_mm", "margin_mm", "curve"})
@@ -205,16 +215,22 @@ def _line(
             len(pts),
         )
     settings = _settings(ctx, mk, cps[0], where, LINE_KEYS)
-    drills = _line_drills(ctx, settings, where)
+    implant = _line_implant(ctx, settings, where)
+    drills = _line_drills(ctx, settings, where, implant)
     feed = _number(ctx, settings, "feed_mm_s", positive=True)
     margin = _number(ctx, settings, "margin_mm")
+    wall = _number(ctx, settings, "min_wall_mm")
+    site = (
+        ctx.site(settings["site"], f"{settings.origin['site']}: setting site")
+        if "site" in settings
+        else None
+    )
     cal = settings.get("calibration", DEFAULT_CALIBRATION)
     if not isinstance(cal, str) or not cal.strip():
         fp = settings.origin.get("calibration", where)
         raise ctx.fail(f"{fp}.calibration", "must be a set name or a path", cal)
     name = _name(ctx, settings, mk, only) or f"{_stem(ctx.path)}-{index + 1}"
     hashed = settings.get(SERIES_HASH_KEY)
-    implant = _line_implant(ctx, settings, where)
     return _make_plan(
         ctx,
         series_hash=series_hash(
@@ -229,13 +245,21 @@ def _line(
         name=name,
         field_path=f"{where}.controlPoints[1].position",
         implant=implant,
+        min_wall=DEFAULT_MIN_WALL_MM if wall is None else wall,
+        site=site,
     )
 
 
 def _line_implant(ctx: _Ctx, settings: _Settings, where: str) -> ImplantSpec | None:
-    """The Line's implant from its five ``implant*`` settings (all or none)."""
+    """The Line's implant from its five ``implant*`` settings (all or none) and its optional
+    ``implant_drills`` protocol."""
     given = [k for k in IMPLANT_SETTINGS if k in settings]
     if not given:
+        if IMPLANT_DRILLS_SETTING in settings:
+            raise ctx.fail(
+                f"{settings.origin[IMPLANT_DRILLS_SETTING]}: setting {IMPLANT_DRILLS_SETTING}",
+                "is given without an implant; give " + ", ".join(IMPLANT_SETTINGS) + " too",
+            )
         return None
     fp = settings.origin[given[0]]
     missing = [k for k in IMPLANT_SETTINGS if k not in settings]
@@ -245,12 +269,28 @@ def _line_implant(ctx: _Ctx, settings: _Settings, where: str) -> ImplantSpec | N
             "is missing; an implant needs all of " + ", ".join(IMPLANT_SETTINGS),
         )
     raw = {IMPLANT_SETTINGS[k]: settings[k] for k in IMPLANT_SETTINGS}
+    if IMPLANT_DRILLS_SETTING in settings:
+        text = settings[IMPLANT_DRILLS_SETTING]
+        try:
+            raw["drills"] = json.loads(text) if isinstance(text, str) else text
+        except json.JSONDecodeError:
+            raise ctx.fail(
+                f"{settings.origin[IMPLANT_DRILLS_SETTING]}: setting {IMPLANT_DRILLS_SETTING}",
+                "must be a quoted JSON list of drills, e.g. "
+                'implant_drills="[{\\"diameter_mm\\": 2.0, \\"tip_length_mm\\": 0.6}]"',
+                text,
+            ) from None
     return ctx.implant(raw, f"{fp}: implant")
 
 
-def _line_drills(ctx: _Ctx, settings: _Settings, where: str) -> tuple[DrillSpec, ...]:
+def _line_drills(
+    ctx: _Ctx, settings: _Settings, where: str, implant: ImplantSpec | None
+) -> tuple[DrillSpec, ...]:
     """The Line's drills: its ``diameter_mm``... settings (one drill), or ``drills``: a quoted
-    JSON list of drill objects in drilling order, as a plan file's ``drills`` (a sequence)."""
+    JSON list of drill objects in drilling order, as a plan file's ``drills`` (a sequence);
+    neither: the implant's protocol (:func:`~ctdrill.imaging.plan.drills.drills_field`)."""
+    if "drills" not in settings and not _DRILL_KEYS & set(settings) and implant is not None:
+        return drills_field(ctx, {}, where, implant)
     if "drills" not in settings:
         if not _DRILL_KEYS & set(settings):
             ctx.notes.append(no_drill_note(ctx, where))

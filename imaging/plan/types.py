@@ -32,10 +32,14 @@ import numpy as np
 
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.arch import arch_error
+from ctdrill.imaging.plan.drill_spec import MAX_DRILLS as MAX_DRILLS
+from ctdrill.imaging.plan.drill_spec import DrillSpec, sequence_error
 from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.landmarks import (
     Landmark,
 )
+from ctdrill.imaging.plan.protocol import final_drill_warnings
+from ctdrill.imaging.plan.site import site_error
 
 PLAN_FORMAT = "ctdrill-plan/1"
 #: Calibration used when a plan names none (patient CT): the literature fit, with its covariance
@@ -45,6 +49,11 @@ DEFAULT_CALIBRATION = "bone-literature"
 #: one owner. Margins below it are reported (warning ``margin_below_clinical``).
 CLINICAL_MARGIN_MM = 2.0
 DEFAULT_MARGIN_MM = CLINICAL_MARGIN_MM
+#: Thinnest bone wall to keep around an implant, mm (DESIGN.md section 5: at least 1.5 mm of
+#: bone around the implant, buccal above all): its one owner, the default of ``min_wall_mm``.
+#: Thinner walls are reported (warning ``thin_wall``).
+CLINICAL_MIN_WALL_MM = 1.5
+DEFAULT_MIN_WALL_MM = CLINICAL_MIN_WALL_MM
 #: Plan key recording the series a plan was made on: :func:`series_uid_hash` of its UID.
 SERIES_HASH_KEY = "series_uid_sha256"
 _SERIES_HASH_RE = re.compile(r"[0-9a-f]{64}")
@@ -53,49 +62,6 @@ _SLICER_SCHEMA = (
     "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/"
     "Resources/Schema/markups-schema-v1.0.3.json#"
 )
-_TOP_KEYS = {
-    "format",
-    "coordinate_system",
-    "entry_mm",
-    "target_mm",
-    "drill",
-    "drills",
-    "feed_mm_s",
-    "calibration",
-    "margin_mm",
-    "landmarks",
-    SERIES_HASH_KEY,
-    "name",
-    "description",
-    "comment",
-    "implant",
-    "arch_mm",
-    "trajectories",
-}
-#: Keys of one item of ``trajectories`` (several trajectories in one file).
-_TRAJECTORY_KEYS = {
-    "name",
-    "entry_mm",
-    "target_mm",
-    "drill",
-    "drills",
-    "implant",
-    "feed_mm_s",
-    "calibration",
-    "margin_mm",
-    "description",
-    "comment",
-}
-#: Top-level keys a file with ``trajectories`` must not give (they belong to a trajectory).
-_PER_TRAJECTORY_KEYS = _TRAJECTORY_KEYS - {"name", "description", "comment"}
-_DRILL_KEYS = {"diameter_mm", "tip_length_mm", "blades", "rpm"}
-_LANDMARK_KEYS = {
-    "canal": {"name", "kind", "points_mm", "radius_mm", "margin_mm", "description"},
-    "point": {"name", "kind", "point_mm", "points_mm", "margin_mm", "description"},
-    "mask": {"name", "kind", "path", "label", "segment", "affine_lps", "margin_mm", "description"},
-}
-
-
 #: Largest accepted value per numeric field: far beyond any real plan, small enough that no
 #: arithmetic on it overflows (a typo or a unit error is refused, not computed with).
 _MAXIMA = {
@@ -104,64 +70,15 @@ _MAXIMA = {
     "rpm": 1e6,
     "feed_mm_s": 1000.0,
     "margin_mm": 1000.0,
+    "min_wall_mm": 1000.0,
     "radius_mm": 1000.0,
 }
 #: Largest accepted coordinate magnitude, mm.
 _MAX_COORD_MM = 1e5
-_MAX_BLADES = 100
-#: Most drills accepted in a sequence: clinical sequences use 2-5; more is a typo, and each
-#: drill costs one full path computation.
-MAX_DRILLS = 12
 
 
 class PlanInputError(ImagingInputError):
     """A plan file that cannot be used; the message names the file and the field path."""
-
-
-@dataclass(frozen=True)
-class DrillSpec:
-    """The drill: diameter and tip (cone) length in mm, number of blades, speed in rpm."""
-
-    diameter_mm: float = 2.0
-    tip_length_mm: float = 0.6
-    blades: int = 2
-    rpm: float = 900.0
-
-    @property
-    def radius_mm(self) -> float:
-        """Half the diameter, mm."""
-        return self.diameter_mm / 2.0
-
-    def to_json(self) -> dict[str, float | int]:
-        """The four settings by their plan-file keys (plans, markups and summaries use them)."""
-        return {
-            "diameter_mm": self.diameter_mm,
-            "tip_length_mm": self.tip_length_mm,
-            "blades": self.blades,
-            "rpm": self.rpm,
-        }
-
-
-def sequence_error(drills: Sequence[DrillSpec]) -> str | None:
-    """Why ``drills`` is not a drill sequence, or None when it is one.
-
-    A sequence holds 1 to :data:`MAX_DRILLS` drills in drilling order, each wider than the one
-    before (a drill no wider than the previous hole would cut nothing). The message names the
-    offending entry as ``drills[i]``.
-    """
-    if len(drills) == 0:
-        return " must list at least one drill (or give the one drill as drill)"
-    if len(drills) > MAX_DRILLS:
-        return f" lists {len(drills)} drills, more than the {MAX_DRILLS} accepted"
-    for i in range(1, len(drills)):
-        prev, cur = drills[i - 1].diameter_mm, drills[i].diameter_mm
-        if not cur > prev:
-            return (
-                f"[{i}].diameter_mm ({cur:g} mm) must be larger than drills[{i - 1}].diameter_mm "
-                f"({prev:g} mm): list the drills in drilling order, each wider than the hole "
-                "before it"
-            )
-    return None
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,6 +110,14 @@ class Plan:
     arch_lps : (K, 3) read-only float64, the dental arch polyline (K >= 2, consecutive points
         distinct; :mod:`ctdrill.imaging.plan.arch`), shared by every trajectory of a plan
         like the landmarks; None when the plan gives none.
+    min_wall_mm : thinnest bone wall to keep around the implant, mm (plan key ``min_wall_mm``,
+        default :data:`DEFAULT_MIN_WALL_MM`; warning ``thin_wall`` below it).
+    site : the implant site, an FDI tooth number 11-48 (:mod:`ctdrill.imaging.plan.site`),
+        or None.
+    overdrill_mm : how far ``target_lps`` lies beyond the plan's target (the implant's apex,
+        :attr:`planned_target_lps`): 0 for a plan as drawn; in a drill's view of an implant
+        plan (:meth:`for_drill`) the drill's tip length, so that the drill's full diameter
+        reaches the apex and its tip goes beyond.
     """
 
     entry_lps: np.ndarray
@@ -210,6 +135,9 @@ class Plan:
     earlier_drills: tuple[DrillSpec, ...] = ()
     implant: ImplantSpec | None = None
     arch_lps: np.ndarray | None = None
+    min_wall_mm: float = DEFAULT_MIN_WALL_MM
+    site: int | None = None
+    overdrill_mm: float = 0.0
 
     def __post_init__(self) -> None:
         for attr in ("entry_lps", "target_lps"):
@@ -230,6 +158,21 @@ class Plan:
         problem = sequence_error(self.drills)
         if problem is not None:
             raise PlanInputError(f"plan {self.name!r}: drills{problem}")
+        wall = self.min_wall_mm
+        if isinstance(wall, bool) or not (isinstance(wall, int | float) and 0.0 <= wall <= 1e3):
+            raise PlanInputError(f"plan {self.name!r}: min_wall_mm must be a number 0-1000 mm")
+        object.__setattr__(self, "min_wall_mm", float(wall))
+        if self.site is not None:
+            bad = site_error(self.site)
+            if bad is not None:
+                raise PlanInputError(f"plan {self.name!r}: site {bad}, got {self.site!r}")
+            object.__setattr__(self, "site", int(self.site))
+        over = self.overdrill_mm
+        if not (0.0 <= over < self.planned_depth_mm) or (over > 0.0 and self.implant is None):
+            raise PlanInputError(
+                f"plan {self.name!r}: overdrill_mm must be >= 0, shorter than the path, and 0 "
+                "without an implant"
+            )
 
     @property
     def drills(self) -> tuple[DrillSpec, ...]:
@@ -248,17 +191,43 @@ class Plan:
         problem = sequence_error(seq)
         if problem is not None:
             raise PlanInputError(f"plan {self.name!r}: drills{problem}")
-        return replace(self, drill=seq[-1], earlier_drills=seq[:-1])
+        whole = replace(self, target_lps=self.planned_target_lps, overdrill_mm=0.0)
+        return replace(whole, drill=seq[-1], earlier_drills=seq[:-1])
 
     def for_drill(self, index: int) -> Plan:
         """The single-drill plan of drill ``index`` (0-based) of the sequence: the same axis,
-        landmarks and settings with that drill alone (its own clearance and stop)."""
-        return replace(self, drill=self.drills[index], earlier_drills=())
+        landmarks and settings with that drill alone (its own clearance and stop).
+
+        With an implant, the plan's target is the implant's apex and the drill's full
+        diameter reaches it: its tip goes beyond by the drill's tip length, so the drill's
+        ``target_lps`` (its planned tip position) and ``planned_depth_mm`` are the apex's plus
+        that tip length (:attr:`overdrill_mm`); without an implant the target is the tip's.
+        """
+        drill = self.drills[index]
+        if self.implant is None:
+            return replace(self, drill=drill, earlier_drills=())
+        over = drill.tip_length_mm
+        tip = self.planned_target_lps + over * self.direction
+        return replace(self, drill=drill, earlier_drills=(), target_lps=tip, overdrill_mm=over)
+
+    def drill_depths_mm(self) -> tuple[float, ...]:
+        """Each drill's planned depth (its tip's, :meth:`for_drill`), in drilling order, mm."""
+        return tuple(self.for_drill(k).planned_depth_mm for k in range(len(self.drills)))
 
     @property
     def planned_depth_mm(self) -> float:
-        """``|target - entry|``, mm."""
+        """``|target - entry|``: the drill tip's planned depth, mm (for a drill's view of an
+        implant plan, the apex's depth plus the drill's tip length)."""
         return float(np.linalg.norm(self.target_lps - self.entry_lps))
+
+    @property
+    def planned_target_lps(self) -> np.ndarray:
+        """(3,) the plan's target as drawn, LPS mm: the implant's apex when it places one
+        (``target_lps`` less :attr:`overdrill_mm` along the axis)."""
+        if self.overdrill_mm == 0.0:
+            return self.target_lps
+        out: np.ndarray = self.target_lps - self.overdrill_mm * self.direction
+        return out
 
     @property
     def direction(self) -> np.ndarray:
@@ -350,11 +319,14 @@ def plan_warnings(plan: Plan) -> tuple[tuple[str, str], ...]:
     """``(code, message)`` of everything the user must know about ``plan`` itself.
 
     ``plan_default`` for each default the reader filled in, the reader's own warnings
-    (``markups_skipped``), and ``no_landmarks`` when nothing is protected: the drill then
-    stops only at the planned depth or where the volume ends.
+    (``markups_skipped``, ``implant_protocol``), ``final_drill_mismatch`` when the final drill
+    does not suit the implant (:func:`~ctdrill.imaging.plan.protocol.final_drill_warnings`),
+    and ``no_landmarks`` when nothing is protected: the drill then stops only at the planned
+    depth or where the volume ends.
     """
     out = [("plan_default", note) for note in plan.notes]
     out += list(plan.warnings)
+    out += final_drill_warnings(plan)
     if not plan.landmarks:
         out.append(
             (

@@ -1,32 +1,40 @@
-"""A union of voxel boxes reduced exactly to segments for the drill-solid distance.
+"""A union of voxel boxes reduced exactly to segments for the distance to a solid on an axis.
 
 A labelled voxel is a box of anatomy: the parallelepiped ``affine @ ([i, j, k] + [-1/2, 1/2]^3)``
-on any grid (oblique and sheared affines included). The signed distance ``sd`` from a point
-to the drill solid is convex, and the solid is a body of revolution around the drill axis.
-Where does ``sd`` reach its minimum over the union ``U`` of the boxes?
+on any grid (oblique and sheared affines included). The solid (the swept drill, an implant
+body) is convex and a body of revolution around the trajectory's axis, so the signed distance
+``sd`` from a point to it is convex and unchanged by rotations about the axis and by the
+reflection in any plane through the axis. Where does ``sd`` reach its minimum over the union
+``U`` of the boxes? Two facts, for a convex ``sd`` with these symmetries:
 
-- In the interior of ``U`` only at a global minimiser of ``sd``: a point of the axis (the
-  solid's medial axis, ``sd = -R``). Candidate: the **axis chords** ``axis ∩ box``.
-- In the relative interior of an exposed face (between a labelled and an unlabelled voxel):
-  every subgradient of ``sd`` there, and so the face normal, lies in the meridian plane of
-  the point (outside: the nearest solid point is in that plane; inside: the nearest surface
-  point, or both of them on the medial cone where the cylinder and the cone are equally
-  near). A plane through the axis that contains the face normal is perpendicular to the
-  face and cuts it along the orthogonal projection of the axis. Candidate: the **axis
-  shadow** on each exposed face, clipped to the face.
-- On an edge of ``U`` (a grid edge with one to three of its four voxels labelled), vertices
-  included. Candidate: every **exposed edge**.
+- **Rotation.** For a point ``p``, its half-turn ``p'`` about the axis has ``sd(p') = sd(p)``,
+  so their midpoint, the foot of ``p`` on the axis, has ``sd <= sd(p)``. Along the segment
+  from ``p`` to its foot ``sd`` never exceeds ``sd(p)`` (convexity): either the foot is in
+  ``U`` (on an **axis chord** ``axis ∩ box``) or the segment leaves ``U`` through its
+  boundary, at a point no worse than ``p``. So the minimum over ``U`` is reached on the axis
+  chords or on the boundary of ``U``: its exposed faces (between a labelled and an unlabelled
+  voxel), their edges and vertices.
+- **Reflection.** On an exposed face's plane, the reflection in the plane through the axis
+  that contains the face normal maps the face plane to itself and keeps ``sd``; it fixes the
+  line where the two planes meet, the orthogonal projection of the axis on the face plane
+  (the **axis shadow**). For ``p`` on the face, the midpoint of ``p`` and its mirror lies on
+  the shadow with ``sd`` no larger, and along the segment to it ``sd`` never exceeds
+  ``sd(p)``: either the midpoint is in the face (on the shadow **clipped to the face**) or the
+  segment leaves the face through one of its edges. (A face normal along the axis has every
+  plane through the axis as such a plane: its shadow is the axis' foot point, a chord end.)
+- So the minimum over ``U`` is the minimum over the axis chords, the clipped axis shadows and
+  every **exposed edge** (a grid edge with one to three of its four voxels labelled).
 
-So the minimum over ``U`` equals the minimum over these segments, all of which lie in ``U``
-(so none reports less than the truth), and none depends on the tip depth: they are computed
-once per drill axis and measured with :func:`ctdrill.imaging.plan.distance.segments_distance_mm`.
+All these segments lie in ``U`` (none reports less than the truth) and none depends on the
+depth the solid is placed at, nor on its shape: they are computed once per axis and measured
+with :func:`ctdrill.imaging.plan.distance.segments_distance_mm`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ctdrill.imaging.plan.distance import DrillSolid
+from ctdrill.imaging.plan.distance import AxialSolid
 
 _HALF = 0.5
 
@@ -103,15 +111,15 @@ def exposed_face_centres(mask: np.ndarray) -> list[tuple[int, np.ndarray]]:
 
 
 def voxel_union_segments(
-    mask: np.ndarray, affine_lps: np.ndarray, solid: DrillSolid
+    mask: np.ndarray, affine_lps: np.ndarray, solid: AxialSolid
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Segments on which the drill solid's signed distance to the voxel union is minimal.
+    """Segments on which a solid's signed distance to the voxel union is minimal.
 
     Parameters
     ----------
     mask : (slices, rows, cols) bool, the labelled voxels.
     affine_lps : (4, 4) ``(i=col, j=row, k=slice, 1)`` to LPS mm; its 3x3 part invertible.
-    solid : the drill (only its axis is used).
+    solid : the drill or implant body (only its axis is used).
 
     Returns
     -------

@@ -17,7 +17,7 @@ from ctdrill.imaging.plan.landmarks import (
     PointLandmark,
 )
 from ctdrill.imaging.plan.settings import format_settings
-from ctdrill.imaging.plan.slicer import CURVE_POLYLINE, IMPLANT_SETTINGS
+from ctdrill.imaging.plan.slicer import CURVE_POLYLINE, IMPLANT_DRILLS_SETTING, IMPLANT_SETTINGS
 from ctdrill.imaging.plan.types import (
     _SLICER_SCHEMA,
     PLAN_FORMAT,
@@ -79,15 +79,17 @@ def _shared(plans: tuple[Plan, ...]) -> Plan:
 
 
 def _trajectory_json(plan: Plan) -> dict[str, Any]:
-    """The trajectory keys of ``plan`` (entry, target, drills, implant, settings)."""
+    """The trajectory keys of ``plan`` (entry, target as drawn, drills, implant, settings)."""
     return {
         "entry_mm": plan.entry_lps.tolist(),
-        "target_mm": plan.target_lps.tolist(),
+        "target_mm": plan.planned_target_lps.tolist(),
         **drills_json(plan),
         **({} if plan.implant is None else {"implant": plan.implant.to_json()}),
         "feed_mm_s": plan.feed_mm_s,
         "calibration": plan.calibration,
         "margin_mm": plan.margin_mm,
+        "min_wall_mm": plan.min_wall_mm,
+        **({} if plan.site is None else {"site": plan.site}),
     }
 
 
@@ -193,9 +195,13 @@ def _curve_control_points(pts: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
 
 
 def _line_settings(plan: Plan) -> dict[str, Any]:
-    """The Line's settings: name, drills, implant, feed, calibration, margin, series."""
+    """The Line's settings: name, drills, implant, feed, calibration, margin, wall, site,
+    series."""
     drills = drills_json(plan)
     implant = {} if plan.implant is None else plan.implant.to_json()
+    protocol = (
+        {IMPLANT_DRILLS_SETTING: json.dumps(implant["drills"])} if "drills" in implant else {}
+    )
     return (
         {
             "name": plan.name,
@@ -206,11 +212,14 @@ def _line_settings(plan: Plan) -> dict[str, Any]:
             ),
         }
         | {key: implant[field] for key, field in IMPLANT_SETTINGS.items() if implant}
+        | protocol
         | {
             "feed_mm_s": plan.feed_mm_s,
             "calibration": plan.calibration,
             "margin_mm": plan.margin_mm,
+            "min_wall_mm": plan.min_wall_mm,
         }
+        | ({} if plan.site is None else {"site": plan.site})
         | ({} if plan.series_uid_sha256 is None else {SERIES_HASH_KEY: plan.series_uid_sha256})
     )
 
@@ -230,7 +239,7 @@ def markups_document(plans: Plan | tuple[Plan, ...]) -> dict[str, Any]:
         _markup(
             "Line",
             p.name,
-            np.stack([p.entry_lps, p.target_lps]),
+            np.stack([p.entry_lps, p.planned_target_lps]),
             [("entry", format_settings(_line_settings(p))), ("target", "")],
         )
         for p in seq

@@ -244,6 +244,10 @@ def test_plan_places_a_library_implant_or_one_of_the_users_file(tmp_path: Path) 
         "length_mm": 8.0,
         "apex_diameter_mm": 3.3,
         "apex": "flat",
+        "drills": [  # its generic drilling protocol travels with it
+            {"diameter_mm": 2.0, "tip_length_mm": 0.6},
+            {"diameter_mm": 2.7, "tip_length_mm": 0.8},
+        ],
     }
     mine = tmp_path / "mine.json"
     item = {"name": "ours", "diameter_mm": 4.5, "length_mm": 9, "apex_diameter_mm": 3.5}

@@ -79,7 +79,7 @@ def test_written_markups_validate_and_keep_settings_in_control_points(tmp_path: 
     entry = doc["markups"][0]["controlPoints"][0]
     assert entry["description"] == (
         'name="implant 36" diameter_mm=3.5 tip_length_mm=0.8 blades=3 rpm=1200.5 '
-        'feed_mm_s=0.55 calibration="pine-wood-paper" margin_mm=2.5'
+        'feed_mm_s=0.55 calibration="pine-wood-paper" margin_mm=2.5 min_wall_mm=1.5'
     )
 
 
