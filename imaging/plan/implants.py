@@ -147,7 +147,7 @@ class ImplantSpec:
 
         bad = protocol_error(self.drills)
         if bad is not None:
-            raise ImplantInputError(f"implant {self.name!r}: {bad[0]} {bad[1]}")
+            raise ImplantInputError(f"implant {self.name!r}: {bad}")
 
     @property
     def size_text(self) -> str:

@@ -154,23 +154,20 @@ def final_drill_warnings(plan: Plan) -> list[tuple[str, str]]:
     return [(MISMATCH_CODE, head + what)]
 
 
-def protocol_error(drills: tuple[DrillSpec, ...]) -> tuple[str, str] | None:
-    """``(field, what is wrong)`` for an invalid drilling protocol (``drills[i].key`` or
-    ``drills``), or None; an empty protocol is valid (none given)."""
+def protocol_error(drills: tuple[DrillSpec, ...]) -> str | None:
+    """What is wrong with a drilling protocol, starting with the field (``drills[1].diameter_mm
+    must ...``), or None; an empty protocol is valid (none given)."""
     for i, d in enumerate(drills):
         for key, value, top in (
             ("diameter_mm", d.diameter_mm, MAX_IMPLANT_DIAMETER_MM),
             ("tip_length_mm", d.tip_length_mm, MAX_PROTOCOL_TIP_MM),
         ):
             if not _finite_positive(value):
-                return f"drills[{i}].{key}", "must be a positive number (mm)"
+                return f"drills[{i}].{key} must be a positive number (mm)"
             if not float(value) <= top:
-                return f"drills[{i}].{key}", f"must be at most {top:g} mm (check the units)"
-    if drills:
-        problem = sequence_error(drills)
-        if problem is not None:
-            return "drills", problem.strip()
-    return None
+                return f"drills[{i}].{key} must be at most {top:g} mm (check the units)"
+    problem = sequence_error(drills) if drills else None
+    return None if problem is None else "drills" + problem
 
 
 def protocol_json(drills: tuple[DrillSpec, ...]) -> list[dict[str, float]]:
@@ -208,7 +205,5 @@ def protocol_from_json(raw: object, *, where: str, source: str) -> tuple[DrillSp
     drills = tuple(out)
     problem = protocol_error(drills)
     if problem is not None:
-        raise ImplantInputError(
-            f"{source}: {where}{problem[0].removeprefix('drills')} {problem[1]}"
-        )
+        raise ImplantInputError(f"{source}: {where}{problem.removeprefix('drills')}")
     return drills

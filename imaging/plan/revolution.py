@@ -110,13 +110,13 @@ class Meridian:
                     below |= (u >= u0) & (u <= u1) & (rho * du <= r0 * du + dr * pu)
             else:
                 (uc, a), (c0, s0) = p.a, p.b
-                du = u - uc
-                radial = np.hypot(du, rho)
+                rel = u - uc
+                radial = np.hypot(rel, rho)
                 on_arc = np.abs(radial - a)
-                ends = np.minimum(np.hypot(du - a * c0, rho - a * s0), np.hypot(du - a, rho))
+                ends = np.minimum(np.hypot(rel - a * c0, rho - a * s0), np.hypot(rel - a, rho))
                 # Polar angle <= theta0 (the point faces the arc), without atan2.
-                d = np.where(du * s0 - rho * c0 >= 0.0, on_arc, ends)
-                below |= (du >= a * c0) & (radial <= a)
+                d = np.where(rel * s0 - rho * c0 >= 0.0, on_arc, ends)
+                below |= (rel >= a * c0) & (radial <= a)
             dist = np.minimum(dist, d)
         out: np.ndarray = np.where(below, -dist, dist)
         return out
