@@ -47,6 +47,9 @@ _BISECT_STEPS = 48
 _ZERO_MM = 1e-9
 #: Points per projection chunk (bounded memory: chunk x grid evaluations at once).
 _PROJECT_CHUNK = 2048
+#: An arch whose centroid lies within this distance (mm) of its own normal line is straight
+#: there: it has no inside, so no buccal or lingual side.
+STRAIGHT_MM = 1e-6
 
 
 class ArchInputError(ImagingInputError):
@@ -224,6 +227,18 @@ class ArchCurve:
             t_out[start + rows] = np.sum((sub - org) * nrm[:, :2], axis=1)
         return s_out, t_out
 
+    def buccal_normal_xy(self, s_mm: float) -> np.ndarray | None:
+        """(2,) the unit normal at arc ``s_mm`` that points to the **buccal** side: away from
+        the centroid of the arch (which lies on the concave, lingual side of any curved arch
+        or arc of one); None where the arch is straight (its centroid on the normal line)."""
+        centroid = np.mean(self.point_xy(self.grid_mm(1.0)), axis=0)
+        _, _, normal = self.frame(np.array([s_mm]))
+        inward = float((centroid - self.point_xy(np.array([s_mm]))[0]) @ normal[0, :2])
+        if abs(inward) < STRAIGHT_MM:
+            return None
+        out: np.ndarray = -normal[0, :2] if inward > 0.0 else normal[0, :2]
+        return out
+
     def min_radius_mm(self, step_mm: float = _ROOT_GRID_MM) -> float:
         """Smallest radius of curvature of the smoothed normals (mm): slab half-thicknesses
         beyond it fold (inf for a straight arch)."""
@@ -261,3 +276,17 @@ def arc_position_mm(
             "ends; extend the arch past the implant site"
         )
     return float(s[0])
+
+
+def buccal_normal_lps(
+    arch_lps: np.ndarray, point_lps: np.ndarray, *, window_mm: float = TANGENT_WINDOW_MM
+) -> np.ndarray | None:
+    """(3,) horizontal unit vector to the buccal side of the arch at the panorama column
+    through ``point_lps`` (:meth:`ArchCurve.buccal_normal_xy`); None when the point lies
+    beyond the arch's ends or the arch is straight there."""
+    curve = ArchCurve(np.asarray(arch_lps), window_mm)
+    s, _ = curve.project(np.asarray(point_lps, dtype=np.float64).reshape(1, 3))
+    if not np.isfinite(s[0]):
+        return None
+    xy = curve.buccal_normal_xy(float(s[0]))
+    return None if xy is None else np.array([xy[0], xy[1], 0.0])

@@ -30,8 +30,6 @@ from ctdrill.imaging.volume import CTVolume
 #: |axis component across the bucco-lingual normal| below which the cross-section is refused.
 _DEGENERATE_AXIS = 1e-3
 _EZ = np.array([0.0, 0.0, 1.0])
-#: An arch whose centroid lies within this distance (mm) of its own normal line is straight.
-_STRAIGHT_MM = 1e-6
 
 
 def cross_section(
@@ -180,8 +178,7 @@ def _lps_letter(direction: np.ndarray) -> str:
 def _column_letters(curve: ArchCurve, s: float, col: np.ndarray) -> tuple[str, str]:
     """Buccal (away from the arch's centroid) and lingual sides of the image; a straight arch
     has no inside, so its sides get the patient directions (``R L A P``) instead."""
-    centroid = np.mean(curve.point_xy(curve.grid_mm(1.0)), axis=0)
-    inward = float((centroid - curve.point_xy(np.array([s]))[0]) @ col[:2])
-    if abs(inward) < _STRAIGHT_MM:
+    buccal = curve.buccal_normal_xy(s)
+    if buccal is None:
         return (_lps_letter(-col), _lps_letter(col))
-    return ("B", "Li") if inward > 0.0 else ("Li", "B")
+    return ("B", "Li") if float(buccal @ col[:2]) < 0.0 else ("Li", "B")

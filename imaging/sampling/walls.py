@@ -1,0 +1,392 @@
+"""The bone walls around an implant body, read from the CT's own samples.
+
+For every depth along the body (platform to apex) and every direction perpendicular to its
+axis, the **wall** is the distance from the implant's surface outward, along that direction,
+to where bone ends: the first point whose CT number falls below the lower edge of Misch D4
+(:data:`~ctdrill.imaging.misch.BONE_HU`, 150 HU). CT numbers are trilinear samples
+(:meth:`~ctdrill.imaging.volume.CTVolume.sample`), as everywhere else.
+
+- **Outside the CT is unknown, never bone.** A direction whose ray leaves the CT (or reaches
+  padding) before bone ends has no wall: it counts in ``unknown_fraction``, not in the
+  minimum, and the warning ``bone_walls_unknown`` says so. A surface point outside the CT is
+  unknown too (neither bone nor a perforation).
+- **Rays.** Each ray is sampled every ``ray_step_mm`` out to ``max_wall_mm``; the first sample
+  below the edge brackets the crossing, which is then bisected to :data:`BISECT_TOL_MM` (the
+  trilinear crossing itself, not the step). A surface point below the edge has a wall of 0. A
+  ray still in bone at ``max_wall_mm`` reads ``max_wall_mm`` ("at least"; ``capped``).
+- **Sides.** With a dental arch the angular grid starts at the arch's buccal normal
+  (:func:`~ctdrill.imaging.sampling.arch.buccal_normal_lps`) projected perpendicular to the
+  axis; ``buccal_mm`` is the thinnest wall over the directions within 90 deg of it,
+  ``lingual_mm`` over those within 90 deg of its opposite. Without an arch (or where it is
+  straight or ends before the implant) both are None.
+- **Perforation.** Any surface point more than :data:`PERFORATION_DEPTH_MM` below the
+  platform (the side, the apex, the flat apex face) whose CT number is below the edge lies
+  outside bone: ``cortical_perforation``, reported with where it starts and which way.
+
+Discretisation defaults (:data:`DEPTH_STEP_MM`, :data:`N_ANGLES`, :func:`ray_step_mm`) were
+chosen by measured cost against error (docs/plan.md, "Bone walls").
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ctdrill.imaging.misch import BONE_HU
+from ctdrill.imaging.plan.implants import ImplantPlacement, implant_placement
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.sampling.arch import buccal_normal_lps
+from ctdrill.imaging.volume import CTVolume
+
+#: Surface points deeper than this below the platform must lie in bone, mm (above it the
+#: platform may stand at or over a rounded crest).
+PERFORATION_DEPTH_MM = 1.0
+#: Depth step along the body, mm (the apex and platform always sampled).
+DEPTH_STEP_MM = 0.25
+#: Directions around the axis (every 5 deg).
+N_ANGLES = 72
+#: Ray step as a fraction of the CT's smallest voxel spacing (see :func:`ray_step_mm`).
+RAY_STEP_VOXELS = 0.125
+#: Walls are followed this far from the surface, mm (thicker walls read "at least" this).
+MAX_WALL_MM = 10.0
+#: The crossing of the bone edge is bisected to this, mm.
+BISECT_TOL_MM = 1e-4
+#: Rays marched per chunk of steps (bounded memory; unresolved rays only).
+_CHUNK_STEPS = 16
+
+
+def ray_step_mm(volume: CTVolume) -> float:
+    """The default ray step: :data:`RAY_STEP_VOXELS` of the CT's smallest spacing, mm (a
+    non-bone gap one voxel wide dips below the edge over about two voxels, so it is not
+    stepped over)."""
+    return RAY_STEP_VOXELS * min(volume.spacing_mm)
+
+
+@dataclass(frozen=True, eq=False)
+class Perforation:
+    """Where the implant surface leaves bone (below the perforation depth).
+
+    Attributes
+    ----------
+    depth_mm : (shallowest, deepest) exposed depth from the entry along the trajectory, mm.
+    below_platform_mm : the same below the platform, mm.
+    point_lps : (3,) the shallowest exposed surface point.
+    direction_lps : (3,) unit mean outward direction of the exposed side points (the axis
+        direction when only the apex is exposed).
+    fraction : exposed share of the surface samples below the perforation depth.
+    """
+
+    depth_mm: tuple[float, float]
+    below_platform_mm: tuple[float, float]
+    point_lps: np.ndarray
+    direction_lps: np.ndarray
+    fraction: float
+
+    def to_json(self) -> dict[str, Any]:
+        """The perforation as summaries write it."""
+        return {
+            "depth_mm": list(self.depth_mm),
+            "below_platform_mm": list(self.below_platform_mm),
+            "point_lps": self.point_lps.tolist(),
+            "direction_lps": self.direction_lps.tolist(),
+            "fraction": self.fraction,
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class BoneWalls:
+    """The walls around one implant (see the module docstring); lengths in mm, LPS.
+
+    Attributes
+    ----------
+    min_mm : the thinnest known wall (None when no direction is known).
+    depth_mm : its depth from the entry along the trajectory; ``below_platform_mm`` the same
+        from the platform.
+    direction_lps : (3,) its outward direction.
+    buccal_mm, lingual_mm : thinnest wall on each side of the arch (None without one).
+    buccal_lps : (3,) the buccal direction used (perpendicular to the axis), or None.
+    capped : ``min_mm`` is :data:`MAX_WALL_MM`: every known wall is at least that.
+    unknown_fraction : share of the rays whose wall is unknown (the CT ends first).
+    perforation : where the surface leaves bone, or None.
+    depth_grid_mm : (D,) sampled depths from the entry; ``directions_lps`` (A, 3) the rays.
+    wall_mm : (D, A) each ray's wall (NaN unknown; ``max_wall_mm`` capped).
+    """
+
+    min_mm: float | None
+    depth_mm: float | None
+    below_platform_mm: float | None
+    direction_lps: np.ndarray | None
+    buccal_mm: float | None
+    lingual_mm: float | None
+    buccal_lps: np.ndarray | None
+    capped: bool
+    unknown_fraction: float
+    perforation: Perforation | None
+    depth_grid_mm: np.ndarray
+    directions_lps: np.ndarray
+    wall_mm: np.ndarray
+
+    def to_json(self) -> dict[str, Any]:
+        """``bone_walls`` as a summary writes it (numbers in mm, directions LPS)."""
+        return {
+            "min_mm": self.min_mm,
+            "depth_mm": self.depth_mm,
+            "below_platform_mm": self.below_platform_mm,
+            "direction_lps": None if self.direction_lps is None else self.direction_lps.tolist(),
+            "buccal_mm": self.buccal_mm,
+            "lingual_mm": self.lingual_mm,
+            "capped": self.capped,
+            "unknown_fraction": self.unknown_fraction,
+            "perforation": None if self.perforation is None else self.perforation.to_json(),
+            "bone_hu": BONE_HU,
+        }
+
+
+def plan_bone_walls(volume: CTVolume, plan: Plan, **options: Any) -> BoneWalls | None:
+    """:func:`bone_walls` of ``plan``'s implant with its arch; None without an implant."""
+    place = implant_placement(plan)
+    if place is None:
+        return None
+    return bone_walls(volume, place, arch_lps=plan.arch_lps, **options)
+
+
+def _frame(axis: np.ndarray, towards: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Unit ``e1, e2`` perpendicular to ``axis``: ``e1`` along ``towards`` projected off the
+    axis when it has a usable part, else along the world axis least aligned with ``axis``."""
+    if towards is not None:
+        e1 = towards - (towards @ axis) * axis
+        if np.linalg.norm(e1) > 1e-6:
+            e1 = e1 / np.linalg.norm(e1)
+            return e1, np.cross(axis, e1)
+    ref = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    e1 = ref - (ref @ axis) * axis
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(axis, e1)
+
+
+def bone_walls(
+    volume: CTVolume,
+    placement: ImplantPlacement,
+    *,
+    arch_lps: np.ndarray | None = None,
+    depth_step_mm: float = DEPTH_STEP_MM,
+    n_angles: int = N_ANGLES,
+    ray_step: float | None = None,
+    max_wall_mm: float = MAX_WALL_MM,
+) -> BoneWalls:
+    """The bone walls around ``placement``'s body on ``volume`` (module docstring).
+
+    Parameters
+    ----------
+    volume : the CT (HU).
+    placement : the implant where the plan puts it.
+    arch_lps : (K, 3) the dental arch (for buccal and lingual), or None.
+    depth_step_mm, n_angles : depth step along the body (mm) and directions around it.
+    ray_step : ray step, mm (default :func:`ray_step_mm`).
+    max_wall_mm : how far each ray is followed, mm.
+    """
+    if not (depth_step_mm > 0.0 and n_angles >= 4 and max_wall_mm > 0.0):
+        raise ValueError("bone walls: depth step and max wall must be > 0, n_angles >= 4")
+    spec, axis = placement.spec, placement.axis_lps
+    step = ray_step_mm(volume) if ray_step is None else float(ray_step)
+    buccal = None if arch_lps is None else buccal_normal_lps(arch_lps, placement.platform_lps)
+    e1, e2 = _frame(axis, buccal)
+    theta = 2.0 * np.pi * np.arange(n_angles) / n_angles
+    dirs = np.cos(theta)[:, None] * e1 + np.sin(theta)[:, None] * e2  # (A, 3)
+    n_d = max(2, math.ceil(spec.length_mm / depth_step_mm) + 1)
+    s = np.linspace(0.0, spec.length_mm, n_d)  # below the platform
+    r = np.array([spec.radius_at_mm(float(v)) for v in s])
+    surface = (
+        placement.platform_lps + s[:, None, None] * axis + r[:, None, None] * dirs[None, :, :]
+    )  # (D, A, 3)
+    wall, unknown = _march(volume, surface, dirs, step, max_wall_mm)
+    known = ~unknown
+    depth = placement.platform_depth_mm + s
+    out: dict[str, Any] = {"min_mm": None, "depth_mm": None, "below_platform_mm": None}
+    direction = None
+    if known.any():
+        flat = np.where(known, wall, np.inf)
+        d, a = np.unravel_index(int(np.argmin(flat)), flat.shape)
+        out = {
+            "min_mm": float(wall[d, a]),
+            "depth_mm": float(depth[d]),
+            "below_platform_mm": float(s[d]),
+        }
+        direction = dirs[a].copy()
+    sides: dict[str, float | None] = {"buccal": None, "lingual": None}
+    buccal_perp = None
+    if buccal is not None and np.linalg.norm(buccal - (buccal @ axis) * axis) > 1e-6:
+        buccal_perp = e1
+        cos_b = dirs @ e1
+        for name, cols in (("buccal", cos_b > 1e-9), ("lingual", cos_b < -1e-9)):
+            part = np.where(known[:, cols], wall[:, cols], np.inf)
+            sides[name] = float(part.min()) if np.isfinite(part).any() else None
+    perforation = _perforation(volume, placement, s, r, dirs, surface)
+    return BoneWalls(
+        min_mm=out["min_mm"],
+        depth_mm=out["depth_mm"],
+        below_platform_mm=out["below_platform_mm"],
+        direction_lps=direction,
+        buccal_mm=sides["buccal"],
+        lingual_mm=sides["lingual"],
+        buccal_lps=buccal_perp,
+        capped=out["min_mm"] is not None and out["min_mm"] >= max_wall_mm,
+        unknown_fraction=float(unknown.mean()),
+        perforation=perforation,
+        depth_grid_mm=depth,
+        directions_lps=dirs,
+        wall_mm=np.where(unknown, np.nan, wall),
+    )
+
+
+def _march(
+    volume: CTVolume, origin: np.ndarray, dirs: np.ndarray, step: float, max_wall_mm: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each ray's wall (D, A) and whether it is unknown (D, A): see the module docstring."""
+    shape = origin.shape[:2]
+    o = origin.reshape(-1, 3)
+    v = np.broadcast_to(dirs[None, :, :], origin.shape).reshape(-1, 3)
+    n = len(o)
+    wall = np.full(n, max_wall_mm)
+    unknown = np.zeros(n, dtype=bool)
+    lo = np.zeros(n)  # last distance known to be in bone
+    hi = np.full(n, np.nan)  # first distance known not to be
+    open_ = np.arange(n)
+    n_steps = math.ceil(max_wall_mm / step)
+    k0 = 0
+    while open_.size and k0 <= n_steps:
+        ks = np.arange(k0, min(k0 + _CHUNK_STEPS, n_steps + 1))
+        t = np.minimum(ks * step, max_wall_mm)
+        pts = o[open_, None, :] + t[None, :, None] * v[open_, None, :]
+        hu = volume.sample(pts, outside_hu=np.nan)  # (m, k)
+        below = hu < BONE_HU
+        gone = np.isnan(hu)
+        stop = below | gone
+        hit = stop.any(axis=1)
+        first = np.argmax(stop, axis=1)
+        rows, firsts = open_[hit], first[hit]
+        lost = gone[hit, firsts]
+        unknown[rows[lost]] = True
+        found, kf = rows[~lost], firsts[~lost]
+        hi[found] = t[kf]
+        lo[found] = np.where(kf > 0, t[np.maximum(kf - 1, 0)], lo[found])
+        at_surface = (ks[kf] == 0) if kf.size else np.zeros(0, dtype=bool)
+        wall[found[at_surface]] = 0.0
+        if not hit.all():
+            lo[open_[~hit]] = t[-1]
+        open_ = open_[~hit]
+        k0 = int(ks[-1]) + 1
+    refine = np.flatnonzero(np.isfinite(hi) & (hi > 0.0))
+    a, b = lo[refine], hi[refine]
+    while refine.size and float(np.max(b - a)) > BISECT_TOL_MM:
+        mid = 0.5 * (a + b)
+        hu = volume.sample(o[refine] + mid[:, None] * v[refine], outside_hu=np.nan)
+        bone = hu >= BONE_HU  # NaN (padding between two known samples): not bone
+        a = np.where(bone, mid, a)
+        b = np.where(bone, b, mid)
+    wall[refine] = 0.5 * (a + b)
+    return wall.reshape(shape), unknown.reshape(shape)
+
+
+def _perforation(
+    volume: CTVolume,
+    placement: ImplantPlacement,
+    s: np.ndarray,
+    r: np.ndarray,
+    dirs: np.ndarray,
+    surface: np.ndarray,
+) -> Perforation | None:
+    """Exposed surface points deeper than :data:`PERFORATION_DEPTH_MM` (side and apex)."""
+    spec, axis = placement.spec, placement.axis_lps
+    deep = s > PERFORATION_DEPTH_MM
+    side = surface[deep].reshape(-1, 3)
+    side_s = np.repeat(s[deep], len(dirs))
+    side_dir = np.tile(dirs, (int(deep.sum()), 1))
+    parts_p, parts_s, parts_d = [side], [side_s], [side_dir]
+    apex_r = spec.apex_diameter_mm / 2.0
+    if spec.apex == "flat" and spec.length_mm > PERFORATION_DEPTH_MM:
+        radii = apex_r * np.array([0.0, 1.0 / 3.0, 2.0 / 3.0])
+        face = placement.apex_lps + radii[:, None, None] * dirs[None, :, :]
+        parts_p.append(face.reshape(-1, 3))
+        parts_s.append(np.full(face.shape[0] * face.shape[1], spec.length_mm))
+        parts_d.append(np.broadcast_to(axis, (face.shape[0] * face.shape[1], 3)))
+    pts = np.concatenate(parts_p)
+    if len(pts) == 0:
+        return None
+    ss, out_dirs = np.concatenate(parts_s), np.concatenate(parts_d)
+    hu = volume.sample(pts, outside_hu=np.nan)
+    exposed = hu < BONE_HU  # NaN: unknown, not exposed
+    if not exposed.any():
+        return None
+    first = int(np.argmin(np.where(exposed, ss, np.inf)))
+    lat = out_dirs[exposed] - (out_dirs[exposed] @ axis)[:, None] * axis
+    mean = lat.sum(axis=0)
+    norm = float(np.linalg.norm(mean))
+    direction = mean / norm if norm > 1e-9 * len(lat) else axis.copy()
+    below = (float(ss[exposed].min()), float(ss[exposed].max()))
+    return Perforation(
+        depth_mm=(placement.platform_depth_mm + below[0], placement.platform_depth_mm + below[1]),
+        below_platform_mm=below,
+        point_lps=pts[first].copy(),
+        direction_lps=direction,
+        fraction=float(exposed.mean()),
+    )
+
+
+def bone_wall_warnings(
+    walls: BoneWalls, *, min_wall_mm: float, label: str
+) -> list[tuple[str, str]]:
+    """``thin_wall``, ``cortical_perforation`` and ``bone_walls_unknown`` for ``walls``
+    (``label`` names the plan and implant in the messages)."""
+    out: list[tuple[str, str]] = []
+    if walls.min_mm is not None and walls.min_mm < min_wall_mm:
+        assert walls.direction_lps is not None and walls.below_platform_mm is not None
+        sides = ", ".join(
+            f"{name} {value:.1f} mm"
+            for name, value in (("buccal", walls.buccal_mm), ("lingual", walls.lingual_mm))
+            if value is not None
+        )
+        out.append(
+            (
+                "thin_wall",
+                f"{label}: the thinnest bone wall around the implant is {walls.min_mm:.1f} mm, "
+                f"under {min_wall_mm:g} mm, {walls.below_platform_mm:.1f} mm below the platform "
+                f"towards {_lps_text(walls.direction_lps)}" + (f" ({sides})" if sides else ""),
+            )
+        )
+    p = walls.perforation
+    if p is not None:
+        out.append(
+            (
+                "cortical_perforation",
+                f"{label}: the implant surface lies outside bone (below {BONE_HU:g} HU) from "
+                f"{p.below_platform_mm[0]:.1f} to {p.below_platform_mm[1]:.1f} mm below the "
+                f"platform, towards {_lps_text(p.direction_lps)} ({100 * p.fraction:.0f} % of "
+                "the surface deeper than "
+                f"{PERFORATION_DEPTH_MM:g} mm): the implant perforates the cortical plate",
+            )
+        )
+    if walls.unknown_fraction > 0.0:
+        out.append(
+            (
+                "bone_walls_unknown",
+                f"{label}: {100 * walls.unknown_fraction:.0f} % of the directions around the "
+                "implant leave the CT before bone ends; outside the CT counts as unknown, never "
+                "as bone, so the walls there are not measured",
+            )
+        )
+    return out
+
+
+def _lps_text(direction: np.ndarray) -> str:
+    """``"L 0.71 P 0.71"``-style patient direction of a unit vector (its main components)."""
+    letters = (("R", "L"), ("A", "P"), ("I", "S"))
+    parts = [
+        f"{letters[i][int(direction[i] > 0)]} {abs(float(direction[i])):.2f}"
+        for i in np.argsort(-np.abs(direction))
+        if abs(float(direction[i])) >= 0.1
+    ]
+    return " ".join(parts)
