@@ -21,6 +21,7 @@ WARNING_CODES: tuple[str, ...] = (
     "files_skipped",
     "files_unreadable",
     "single_slice",
+    "coarse_voxels",
 )
 
 

@@ -28,6 +28,7 @@ from ctdrill.imaging.dicom.geometry import (
 from ctdrill.imaging.dicom.identity import matches_series, series_label
 from ctdrill.imaging.dicom.pixels import padding_mask, read_stored, rescale, stored_dtype, to_hu
 from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.resolution import coarse_voxels_warning, grid_sampling_mm
 from ctdrill.imaging.volume import CTVolume, LoadWarning, SeriesInfo
 
 DEFAULT_MAX_BYTES = 2 * 1024**3
@@ -413,6 +414,8 @@ def load_series(
         )
     n_files = len({h.path for h in ordered})
     info = _info(ordered, n_files, not (not_hu or no_rescale), geom.tilt_deg)
+    sampling = grid_sampling_mm(geom.affine_lps, geom.positions_mm, info.slice_thickness_mm)
+    warnings += [w for w in (coarse_voxels_warning(*sampling),) if w is not None]
     return CTVolume(
         hu=hu,
         affine_lps=geom.affine_lps,

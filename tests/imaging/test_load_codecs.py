@@ -85,7 +85,7 @@ def test_ct_small_loads_as_one_slice() -> None:
     ds = pydicom.dcmread(path)
     expected = ds.pixel_array.astype(float) * float(ds.RescaleSlope) + float(ds.RescaleIntercept)
     np.testing.assert_array_equal(v.hu[0], expected)
-    assert v.warning_codes == ("single_slice",)
+    assert v.warning_codes == ("single_slice", "coarse_voxels")  # 5 mm thick
     np.testing.assert_allclose(v.affine_lps[:3, 3], [float(x) for x in ds.ImagePositionPatient])
 
 

@@ -51,7 +51,7 @@ def _check_ipp_matches(v: CTVolume, folder: Path, *, uniform: bool) -> None:
 
 def test_ge_head_tilt_variable_spacing_padding(shared_data: Path) -> None:
     v = load_series(shared_data / GE)
-    assert set(v.warning_codes) == {"gantry_tilt", "nonuniform_spacing", "padding"}
+    assert set(v.warning_codes) == {"gantry_tilt", "nonuniform_spacing", "padding", "coarse_voxels"}
     assert v.dims == (512, 512, 28)
     assert v.info.gantry_tilt_deg == pytest.approx(18.5, abs=0.05)
     steps = np.round(np.diff(v.slice_positions_mm), 2)
@@ -70,6 +70,7 @@ def test_philips_mixed_folder_picks_the_58_slice_series(shared_data: Path) -> No
         "localizer_dropped",
         "files_skipped",
         "gantry_tilt",
+        "coarse_voxels",
     )
     assert v.dims == (512, 512, 58)
     assert v.info.gantry_tilt_deg == pytest.approx(16.5, abs=0.05)
@@ -94,9 +95,11 @@ def test_philips_mixed_folder_other_series_by_uid(shared_data: Path) -> None:
     _check_ipp_matches(v, shared_data / MIXED, uniform=True)
 
 
-def test_philips_notilt_is_clean(shared_data: Path) -> None:
+def test_philips_notilt_is_clean_but_coarse(shared_data: Path) -> None:
     v = load_series(shared_data / NOTILT)
-    assert v.warnings == ()
+    assert v.warning_codes == ("coarse_voxels",)  # 5 mm slices: nothing else to say
+    assert "slice step 5 mm, slice thickness 5 mm" in v.warnings[0].message
+    assert "+-2.5 mm" in v.warnings[0].message and "whole millimetres" in v.warnings[0].message
     assert v.dims == (512, 512, 28)
     np.testing.assert_allclose(v.spacing_mm, (0.451171875, 0.451171875, 5.0), atol=1e-6)
     assert (v.hu.min(), v.hu.max()) == (-1024, 782)
@@ -106,7 +109,7 @@ def test_philips_notilt_is_clean(shared_data: Path) -> None:
 
 def test_dcmqi_feet_first_padding_ordered_by_position(shared_data: Path) -> None:
     v = load_series(shared_data / DCMQI)
-    assert v.warning_codes == ("padding",)
+    assert v.warning_codes == ("padding", "coarse_voxels")
     assert v.valid is not None
     np.testing.assert_array_equal(v.hu[~v.valid], -3024)
     assert (v.hu[v.valid].min(), v.hu[v.valid].max()) == (-1024, 1381)
@@ -131,7 +134,7 @@ def test_dicom2nifti_geometry_cases(
     shared_data: Path, case: str, codes: set[str], tilt: float
 ) -> None:
     v = load_series(shared_data / EDGE / case)
-    assert set(v.warning_codes) == codes
+    assert set(v.warning_codes) == codes | {"coarse_voxels"}
     assert v.info.gantry_tilt_deg == pytest.approx(tilt, abs=0.05)
     assert v.hu.shape[0] == 4
 
@@ -143,7 +146,7 @@ def test_dicom2nifti_same_position_is_not_a_volume(shared_data: Path) -> None:
 
 def test_enhanced_ct_multiframe_loads_with_not_hu(shared_data: Path) -> None:
     v = load_series(shared_data / SINGLE / "pydicom_data_repo")
-    assert v.warning_codes == ("not_hu",)
+    assert v.warning_codes == ("not_hu", "coarse_voxels")  # 10 mm apart
     assert not v.info.is_hu and v.info.rescale_type == "US"
     assert v.dims == (512, 512, 2)
     np.testing.assert_allclose(v.spacing_mm, (0.388672, 0.388672, 10.0), atol=1e-6)
@@ -155,7 +158,7 @@ def test_enhanced_ct_multiframe_loads_with_not_hu(shared_data: Path) -> None:
 
 def test_rt_planning_single_slice_is_marked(shared_data: Path) -> None:
     v = load_series(shared_data / SINGLE / "dicompyler_core")
-    assert v.warning_codes == ("single_slice",) and not v.is_volume
+    assert v.warning_codes == ("single_slice", "coarse_voxels") and not v.is_volume
     assert (v.hu.min(), v.hu.max()) == (-1000, 1457)
     assert v.spacing_mm[2] == pytest.approx(3.0)
 
@@ -167,5 +170,5 @@ def test_colour_pictures_are_refused(shared_data: Path) -> None:
 
 def test_whole_single_slice_folder_picks_the_multiframe(shared_data: Path) -> None:
     v = load_series(shared_data / SINGLE)
-    assert v.warning_codes == ("multiple_series", "files_skipped", "not_hu")
+    assert v.warning_codes == ("multiple_series", "files_skipped", "not_hu", "coarse_voxels")
     assert v.hu.shape[0] == 2

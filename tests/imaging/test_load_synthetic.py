@@ -32,16 +32,16 @@ def _same_field(a: np.ndarray, b: np.ndarray, aff: np.ndarray, loaded_aff: np.nd
 
 
 def test_oblique_non_square_exact(tmp_path: Path) -> None:
-    aff = affine((0.35, 0.9, 1.25), rot=rotation(20, 35, -15), origin_lps=(3.0, -4.0, 5.0))
+    aff = affine((0.35, 0.45, 1.25), rot=rotation(20, 35, -15), origin_lps=(3.0, -4.0, 5.0))
     hu = linear_hu(SHAPE)
     write(tmp_path, hu, aff, shuffle_names=True, instance_numbers=[5, 1, 4, 2, 3])
     v = load_series(tmp_path)
     np.testing.assert_allclose(v.affine_lps, aff, atol=1e-9)
     np.testing.assert_array_equal(v.hu, hu)
     assert v.hu.dtype == np.int16 and v.valid is None
-    assert v.warnings == ()
+    assert v.warnings == ()  # 1.25 mm slices are not coarse yet (the limit is "above 1.25")
     assert v.dims == (7, 6, 5)
-    np.testing.assert_allclose(v.spacing_mm, (0.35, 0.9, 1.25), rtol=1e-9)
+    np.testing.assert_allclose(v.spacing_mm, (0.35, 0.45, 1.25), rtol=1e-9)
 
 
 def test_gantry_tilt_gives_the_exact_sheared_affine(tmp_path: Path) -> None:
@@ -49,7 +49,7 @@ def test_gantry_tilt_gives_the_exact_sheared_affine(tmp_path: Path) -> None:
     write(tmp_path, linear_hu(SHAPE), aff, gantry_tilt_deg=18.5)
     v = load_series(tmp_path)
     np.testing.assert_allclose(v.affine_lps, aff, atol=1e-9)
-    assert v.warning_codes == ("gantry_tilt",)
+    assert v.warning_codes == ("gantry_tilt", "coarse_voxels")  # 2 mm slices
     assert v.info.gantry_tilt_deg == pytest.approx(18.5, abs=1e-6)
     np.testing.assert_allclose(np.diff(v.slice_positions_mm), 2.0, atol=1e-9)
 
@@ -57,7 +57,7 @@ def test_gantry_tilt_gives_the_exact_sheared_affine(tmp_path: Path) -> None:
 def test_tilt_detected_without_the_tilt_tag(tmp_path: Path) -> None:
     write(tmp_path, linear_hu(SHAPE), affine((0.5, 0.5, 2.0), tilt_deg=-7.0))
     v = load_series(tmp_path)
-    assert v.warning_codes == ("gantry_tilt",)
+    assert v.warning_codes == ("gantry_tilt", "coarse_voxels")
     assert v.info.gantry_tilt_deg == pytest.approx(7.0, abs=1e-6)
 
 
@@ -195,7 +195,7 @@ def test_one_slice_loads_but_is_not_a_volume(tmp_path: Path) -> None:
     write(tmp_path, linear_hu((1, 6, 7)), affine((0.5, 0.5, 1.0)), slice_thickness_mm=2.5)
     v = load_series(tmp_path)
     assert not v.is_volume
-    assert v.warning_codes == ("single_slice",)
+    assert v.warning_codes == ("single_slice", "coarse_voxels")  # 2.5 mm thick
     assert v.spacing_mm[2] == pytest.approx(2.5)
 
 

@@ -1,8 +1,8 @@
 """Building blocks of the hard-input corpus: outcomes, cases and a synthetic CT series.
 
-The base series is 8 slices of 12 x 10 voxels (0.6 mm rows, 0.5 mm columns, 1 mm slices) with a
-distinct HU per voxel, written with pydicom (CT Image Storage, explicit VR little endian) under
-names unrelated to the slice order and InstanceNumbers against it.
+The base series is 8 slices of 12 x 10 voxels (0.4 mm rows, 0.5 mm columns, 1 mm slices: not
+coarse) with a distinct HU per voxel, written with pydicom (CT Image Storage, explicit VR little
+endian) under names unrelated to the slice order and InstanceNumbers against it.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ PHI: dict[str, str] = {
 
 #: Geometry of the synthetic base series.
 COLS, ROWS, SLICES = 10, 12, 8
-COL_SPACING_MM, ROW_SPACING_MM, SLICE_SPACING_MM = 0.5, 0.6, 1.0
+COL_SPACING_MM, ROW_SPACING_MM, SLICE_SPACING_MM = 0.5, 0.4, 1.0
 ORIGIN_LPS = (-20.0, -30.0, 40.0)
 INTERCEPT = -1024.0
 

@@ -8,7 +8,9 @@ from tests.robustness.corpus_base import REFUSE, SHARED_DATA, Case, Expect, load
 
 
 def real_cases(data: Path = SHARED_DATA) -> list[Case]:
-    """The real series of ``../shared/data`` with the outcomes its README states."""
+    """The real series of ``../shared/data`` with the outcomes its README states (and
+    ``coarse_voxels``: every one of them has slices or pixels coarser than implant planning
+    needs, ``imaging/resolution.py``)."""
     d2n = data / "dicom2nifti_ct_geometry_edgecases"
     single = data / "single_slice_ct"
     # Every real folder holds SOURCE.txt / JSON beside the DICOM files.
@@ -17,7 +19,15 @@ def real_cases(data: Path = SHARED_DATA) -> list[Case]:
         (
             "real_ge_head_tilt_varspacing",
             data / "dcmqa_ct_GE_head_gantrytilt_varspacing",
-            (load("gantry_tilt", "nonuniform_spacing", "padding", optional=skipped),),
+            (
+                load(
+                    "gantry_tilt",
+                    "nonuniform_spacing",
+                    "padding",
+                    "coarse_voxels",
+                    optional=skipped,
+                ),
+            ),
             "real: geometry",
         ),
         (
@@ -29,6 +39,7 @@ def real_cases(data: Path = SHARED_DATA) -> list[Case]:
                     "localizer_dropped",
                     "files_skipped",
                     "gantry_tilt",
+                    "coarse_voxels",
                     optional=["padding"],
                 ),
             ),
@@ -37,31 +48,31 @@ def real_cases(data: Path = SHARED_DATA) -> list[Case]:
         (
             "real_philips_notilt",
             data / "dcmqa_ct_Philips_phantom_notilt_5mm",
-            (load(optional=skipped),),
-            "real: clean",
+            (load("coarse_voxels", optional=skipped),),
+            "real: clean but for its 5 mm slices",
         ),
         (
             "real_ge_abdomen_3slice",
             data / "dcmqi_ct_3slice_GE_abdomen",
-            (load("padding", optional=skipped),),
+            (load("padding", "coarse_voxels", optional=skipped),),
             "real: implicit VR, feet first",
         ),
         (
             "real_siemens_tilt_iop_only",
             d2n / "gantrytilting_siemens_14deg",
-            (load("gantry_tilt"),),
+            (load("gantry_tilt", "coarse_voxels"),),
             "real: geometry",
         ),
         (
             "real_ge_missing_slice",
             d2n / "sliceincrement_ge_missing_slice",
-            (load("slice_gap", optional=["nonuniform_spacing"]),),
+            (load("slice_gap", "coarse_voxels", optional=["nonuniform_spacing"]),),
             "real: geometry",
         ),
         (
             "real_siemens_tilt_missing_slice",
             d2n / "sliceincrement_siemens_tilt_missing_slice",
-            (load("gantry_tilt", "slice_gap", optional=["nonuniform_spacing"]),),
+            (load("gantry_tilt", "slice_gap", "coarse_voxels", optional=["nonuniform_spacing"]),),
             "real: geometry",
         ),
         (
@@ -73,7 +84,7 @@ def real_cases(data: Path = SHARED_DATA) -> list[Case]:
         (
             "real_enhanced_ct_multiframe",
             single / "pydicom_data_repo",
-            (load("not_hu", optional=skipped),),
+            (load("not_hu", "coarse_voxels", optional=skipped),),
             "real: multi-frame",
         ),
         (
@@ -85,7 +96,7 @@ def real_cases(data: Path = SHARED_DATA) -> list[Case]:
         (
             "real_rt_planning_single_slice",
             single / "dicompyler_core",
-            (REFUSE, load("single_slice", optional=skipped)),
+            (REFUSE, load("single_slice", "coarse_voxels", optional=skipped)),
             "real: not a volume",
         ),
     ]
