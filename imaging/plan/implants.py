@@ -337,7 +337,7 @@ class ImplantPlacement:
 def implant_placement(plan: Plan) -> ImplantPlacement | None:
     """Where ``plan``'s implant sits: apex at the plan's target
     (:attr:`~ctdrill.imaging.plan.types.Plan.planned_target_lps`; a drill's view,
-    ``plan.for_drill(k)``, drills beyond it), platform ``length_mm`` back along the axis; None
+    ``plan.drilled(k)``, drills beyond it), platform ``length_mm`` back along the axis; None
     when the plan has no implant."""
     spec = plan.implant
     if spec is None:

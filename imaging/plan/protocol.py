@@ -3,7 +3,7 @@
 A protocol (``ImplantSpec.drills``) lists the drills in drilling order, the last one sized for
 the implant, each with its tip length. The plan's target stays the implant's apex: each drill's
 full diameter reaches it, so the drill's tip goes beyond by its own tip length, and that tip
-depth is the drill's planned depth (``Plan.for_drill(k)``), checked against every margin.
+depth is the drill's planned depth (``Plan.drilled(k)``), checked against every margin.
 
 **The generic rule** (:func:`generic_protocol`, the protocols of the generic library): manufacturers
 publish sequences that start with a pilot drill of about 2 mm and widen in steps of 0.5-0.8 mm
@@ -130,8 +130,9 @@ def final_drill_warnings(plan: Plan) -> list[tuple[str, str]]:
     """``final_drill_mismatch`` when ``plan``'s final drill is wider than its implant, or
     narrower than both its apex diameter and its diameter less :data:`MAX_UNDERSIZE_MM`.
 
-    A drill's view of a sequence (``plan.for_drill(k)``, ``overdrill_mm > 0``) holds one drill
-    of it, not the final one: it reports nothing (the whole plan does)."""
+    Call it on the whole plan (its :attr:`~ctdrill.imaging.plan.types.Plan.drills`), not on
+    one drill's plan (``for_drill(k)``, ``drilled(k)``); a drilled view (``overdrill_mm >
+    0``) reports nothing."""
     spec = plan.implant
     if spec is None or plan.overdrill_mm > 0.0:
         return []

@@ -38,7 +38,6 @@ from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.landmarks import (
     Landmark,
 )
-from ctdrill.imaging.plan.protocol import final_drill_warnings
 from ctdrill.imaging.plan.site import site_error
 
 PLAN_FORMAT = "ctdrill-plan/1"
@@ -115,8 +114,8 @@ class Plan:
     site : the implant site, an FDI tooth number 11-48 (:mod:`ctdrill.imaging.plan.site`),
         or None.
     overdrill_mm : how far ``target_lps`` lies beyond the plan's target (the implant's apex,
-        :attr:`planned_target_lps`): 0 for a plan as drawn; in a drill's view of an implant
-        plan (:meth:`for_drill`) the drill's tip length, so that the drill's full diameter
+        :attr:`planned_target_lps`): 0 for a plan as drawn; for a drill as it is drilled for
+        the implant (:meth:`drilled`) the drill's tip length, so that the drill's full diameter
         reaches the apex and its tip goes beyond.
     """
 
@@ -168,7 +167,9 @@ class Plan:
                 raise PlanInputError(f"plan {self.name!r}: site {bad}, got {self.site!r}")
             object.__setattr__(self, "site", int(self.site))
         over = self.overdrill_mm
-        if not (0.0 <= over < self.planned_depth_mm) or (over > 0.0 and self.implant is None):
+        if not over >= 0.0 or (
+            over > 0.0 and (self.implant is None or not over < self.planned_depth_mm)
+        ):
             raise PlanInputError(
                 f"plan {self.name!r}: overdrill_mm must be >= 0, shorter than the path, and 0 "
                 "without an implant"
@@ -196,12 +197,21 @@ class Plan:
 
     def for_drill(self, index: int) -> Plan:
         """The single-drill plan of drill ``index`` (0-based) of the sequence: the same axis,
-        landmarks and settings with that drill alone (its own clearance and stop).
+        target, landmarks and settings with that drill alone (its own clearance and stop).
 
-        With an implant, the plan's target is the implant's apex and the drill's full
-        diameter reaches it: its tip goes beyond by the drill's tip length, so the drill's
-        ``target_lps`` (its planned tip position) and ``planned_depth_mm`` are the apex's plus
-        that tip length (:attr:`overdrill_mm`); without an implant the target is the tip's.
+        Its tip is planned at the plan's target. With an implant, the drill as it is drilled
+        for the implant (its tip beyond the apex) is :meth:`drilled`.
+        """
+        return replace(self, drill=self.drills[index], earlier_drills=())
+
+    def drilled(self, index: int) -> Plan:
+        """Drill ``index`` (0-based) alone, as it is drilled for the plan's implant.
+
+        The plan's target is the implant's apex and the drill's full diameter reaches it: its
+        tip goes beyond by the drill's tip length, so the result's ``target_lps`` (the planned
+        tip position) and ``planned_depth_mm`` are the apex's plus that tip length
+        (:attr:`overdrill_mm`), while :attr:`planned_target_lps` and the implant's placement
+        stay at the apex. Without an implant it is :meth:`for_drill`.
         """
         drill = self.drills[index]
         if self.implant is None:
@@ -211,8 +221,8 @@ class Plan:
         return replace(self, drill=drill, earlier_drills=(), target_lps=tip, overdrill_mm=over)
 
     def drill_depths_mm(self) -> tuple[float, ...]:
-        """Each drill's planned depth (its tip's, :meth:`for_drill`), in drilling order, mm."""
-        return tuple(self.for_drill(k).planned_depth_mm for k in range(len(self.drills)))
+        """Each drill's planned depth (its tip's, :meth:`drilled`), in drilling order, mm."""
+        return tuple(self.drilled(k).planned_depth_mm for k in range(len(self.drills)))
 
     @property
     def planned_depth_mm(self) -> float:
@@ -319,14 +329,13 @@ def plan_warnings(plan: Plan) -> tuple[tuple[str, str], ...]:
     """``(code, message)`` of everything the user must know about ``plan`` itself.
 
     ``plan_default`` for each default the reader filled in, the reader's own warnings
-    (``markups_skipped``, ``implant_protocol``), ``final_drill_mismatch`` when the final drill
-    does not suit the implant (:func:`~ctdrill.imaging.plan.protocol.final_drill_warnings`),
-    and ``no_landmarks`` when nothing is protected: the drill then stops only at the planned
-    depth or where the volume ends.
+    (``markups_skipped``, ``implant_protocol``), and ``no_landmarks`` when nothing is
+    protected: the drill then stops only at the planned depth or where the volume ends.
+    (Whether the final drill suits the implant is a check of the whole plan, not of one
+    drill's plan: :func:`~ctdrill.imaging.plan.protocol.final_drill_warnings`.)
     """
     out = [("plan_default", note) for note in plan.notes]
     out += list(plan.warnings)
-    out += final_drill_warnings(plan)
     if not plan.landmarks:
         out.append(
             (

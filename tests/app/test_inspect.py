@@ -38,12 +38,13 @@ def test_json_keys_and_exact_values(tmp_path: Path, capsys: pytest.CaptureFixtur
     raw = _json([str(tmp_path), "--include-phi"], capsys)
     assert raw["series_uid"] == w.series_uid and raw["series_uid_sha256"] == digest
     assert raw["include_phi"] is True
-    assert data["warnings"] == [
-        {
-            "code": "padding",
-            "message": "1 padding voxels (PixelPaddingValue [-3000]) masked invalid",
-        }
-    ]
+    assert data["warnings"][0] == {
+        "code": "padding",
+        "message": "1 padding voxels (PixelPaddingValue [-3000]) masked invalid",
+    }
+    (coarse,) = data["warnings"][1:]  # 2 mm slices, 0.75 mm rows
+    assert coarse["code"] == "coarse_voxels"
+    assert "slice step 2 mm, in-plane spacing 0.75 mm" in coarse["message"]
     assert data["slice_count"] == 4 and data["modality"] == "CT" and data["is_hu"] is True
 
 
@@ -54,7 +55,13 @@ def test_real_mixed_folder_and_series_option(
     data = _json([str(folder)], capsys)
     assert data["dims"] == [512, 512, 58]
     codes = [w["code"] for w in data["warnings"]]  # type: ignore[attr-defined]
-    assert codes == ["multiple_series", "localizer_dropped", "files_skipped", "gantry_tilt"]
+    assert codes == [
+        "multiple_series",
+        "localizer_dropped",
+        "files_skipped",
+        "gantry_tilt",
+        "coarse_voxels",
+    ]
     series = data["series"]
     assert [s["slices"] for s in series] == [58, 54]  # type: ignore[attr-defined]
     other = series[1]["series_uid"]  # type: ignore[index]

@@ -30,9 +30,12 @@ def real_report(
 
 
 def test_pages_of_two_implants_on_a_real_head(real_report: tuple[list[str], Path]) -> None:
-    pages, _ = real_report
-    # summary, panoramic, 2 cross-sections, 3D view, 3 curves pages (front; left's 2 drills)
-    assert len(pages) == 8
+    everything, _ = real_report
+    # summary, its warnings continued (the 5 mm slices' coarse_voxels), panoramic,
+    # 2 cross-sections, 3D view, 3 curves pages (front; left's 2 drills)
+    assert len(everything) == 9
+    assert "warning [coarse_voxels]: coarse voxels: slice step 5 mm" in everything[1]
+    pages = [everything[0], *everything[2:]]
     assert "Panoramic reformat along the dental arch" in pages[1]
     assert "No dental arch" not in " ".join(pages)
     assert "Cross-section: front" in pages[2] and "Cross-section: left, drill 2 of 2" in pages[3]

@@ -94,7 +94,7 @@ def test_a_plan_without_drills_drills_its_implants_protocol_and_says_so(tmp_path
     assert plan.drills == spec.drills
     assert plan.notes == ()  # not the default drill
     codes = [c for c, _ in plan_warnings(plan)]
-    assert codes.count("implant_protocol") == 1 and "final_drill_mismatch" not in codes
+    assert codes.count("implant_protocol") == 1 and final_drill_warnings(plan) == []
     note = dict(plan_warnings(plan))["implant_protocol"]
     assert "plan.json" in note and "2 -> 2.8 -> 3.5 mm" in note and "its protocol" in note
     # an implant without a protocol (a plan written before protocols): the generic one
@@ -116,7 +116,7 @@ def test_each_drill_reaches_the_apex_and_its_tip_beyond() -> None:
     assert plan.planned_depth_mm == pytest.approx(depth)  # the plan's target is the apex
     assert plan.drill_depths_mm() == pytest.approx((depth + 0.6, depth + 0.8, depth + 1.0))
     for k, tip in enumerate((0.6, 0.8, 1.0)):
-        view = plan.for_drill(k)
+        view = plan.drilled(k)
         assert view.drills == (plan.drills[k],)
         assert view.planned_depth_mm == pytest.approx(depth + tip)
         np.testing.assert_allclose(view.target_lps, apex + tip * plan.direction, atol=1e-12)
@@ -125,12 +125,13 @@ def test_each_drill_reaches_the_apex_and_its_tip_beyond() -> None:
         assert place is not None
         np.testing.assert_allclose(place.apex_lps, apex, atol=1e-12)  # the implant stays
         assert place.apex_depth_mm == pytest.approx(depth)
-        assert view.for_drill(0).planned_depth_mm == pytest.approx(depth + tip)  # idempotent
+        assert view.drilled(0).planned_depth_mm == pytest.approx(depth + tip)  # idempotent
+        assert plan.for_drill(k).planned_depth_mm == pytest.approx(depth)  # the tip at the target
     # without an implant the target is the drill's tip, as before
     plain = Plan(entry, apex).with_drills(generic_protocol(4.1))
     assert plain.drill_depths_mm() == pytest.approx((depth,) * 3)
-    # a view written to a file keeps the plan's target: the apex
-    written = plan.for_drill(1)
+    # a drilled view made a sequence again, or written, keeps the plan's target: the apex
+    written = plan.drilled(1)
     assert written.with_drills(written.drills).planned_depth_mm == pytest.approx(depth)
 
 
@@ -156,13 +157,14 @@ def test_a_final_drill_that_does_not_suit_the_implant_is_reported(
 ) -> None:
     seq = tuple(DrillSpec(diameter_mm=d) for d in drills)
     plan = Plan(np.zeros(3), np.array([0.0, 0.0, -12.0]), implant=spec, name="36").with_drills(seq)
-    found = [m for c, m in plan_warnings(plan) if c == "final_drill_mismatch"]
+    found = [m for c, m in final_drill_warnings(plan) if c == "final_drill_mismatch"]
     if word is None:
         assert found == []
     else:
         assert len(found) == 1 and word in found[0] and f"({drills[-1]:g} mm)" in found[0]
-    # a drill's view holds one drill of the sequence: it reports nothing of the final drill
-    assert final_drill_warnings(plan.for_drill(0)) == []
+    assert [m for c, m in plan_warnings(plan) if c == "final_drill_mismatch"] == []
+    # a drilled view holds one drill of the sequence: it reports nothing of the final drill
+    assert final_drill_warnings(plan.drilled(0)) == []
 
 
 def test_protocols_in_a_user_library_are_checked(tmp_path: Path) -> None:
@@ -228,7 +230,7 @@ def test_min_wall_site_and_protocol_round_trip(tmp_path: Path, suffix: str) -> N
         again = load_plan_set(saved)[0]
         assert (again.min_wall_mm, again.site, again.drills) == (1.8, 36, plan.drills)
     # a drill's view is written as the plan it belongs to: the target is the apex
-    save_plan(plan.for_drill(2), path)
+    save_plan(plan.drilled(2), path)
     np.testing.assert_allclose(load_plan(path).target_lps, plan.target_lps, atol=1e-12)
 
 
