@@ -110,7 +110,7 @@ def protocol_note(label: str, spec: ImplantSpec) -> str:
     whose = "the generic protocol for its size" if generic else "its protocol"
     return (
         f"{label} gives no drill; drilling {whose} for implant {spec.name!r} "
-        f"({spec.size_text}): {sizes} mm, each drill's tip {_tips(drills)} mm beyond the apex"
+        f"({spec.size_text}): {sizes} mm (tips {_tips(drills)} mm)"
     )
 
 
