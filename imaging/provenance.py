@@ -7,7 +7,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-#: Warning codes a load may report (DESIGN.md section 4, plus ``single_slice``).
+#: Warning codes a load may report (DESIGN.md section 4, plus ``single_slice`` and, for a NIfTI
+#: file whose qform and sform place voxels apart, ``qform_sform_differ``).
 WARNING_CODES: tuple[str, ...] = (
     "slice_gap",
     "nonuniform_spacing",
@@ -22,6 +23,7 @@ WARNING_CODES: tuple[str, ...] = (
     "files_unreadable",
     "single_slice",
     "coarse_voxels",
+    "qform_sform_differ",
 )
 
 
@@ -77,3 +79,6 @@ class SeriesInfo:
     gantry_tilt_deg: float = 0.0
     #: True once :func:`ctdrill.imaging.resample_uniform_slices` interpolated an irregular stack.
     resampled: bool = False
+    #: The file format the volume was read from: ``DICOM``, ``NIfTI-1``, ``NIfTI-2``, ``NRRD``
+    #: or ``MetaImage`` (:func:`ctdrill.imaging.load_ct`).
+    source_format: str = "DICOM"

@@ -1,57 +1,79 @@
 """Segmentations and labelmaps as landmarks, each on its own grid, in LPS.
 
 A mask landmark (``{"kind": "mask", "path": ..., "segment": NAME}`` or ``"label": N`` in a
-plan, or the file itself given as a plan input) is read from:
+plan, or the file itself given as a plan input) is read from (the format by the file's content,
+:func:`mask_format`, not its name):
 
 - ``.npy``: a labelmap (slices, rows, cols) on the CT grid (or on ``affine_lps`` given in the
   plan); the header's shape x item size is checked against :data:`MAX_MASK_BYTES` before
   anything is allocated, and a ``.npz`` (zip) or any non-NPY file is refused.
-- ``.seg.nrrd``: a 3D Slicer segmentation (pynrrd). Every segment is a landmark named by its
-  ``SegmentN_Name``; its voxels are those of its layer equal to its ``SegmentN_LabelValue``.
-- ``.nrrd``: a labelmap (pynrrd); ``space`` may be LPS or RAS (converted).
-- ``.nii`` / ``.nii.gz``: a labelmap (nibabel). NIfTI coordinates are RAS: the affine
-  (nibabel's ``img.affine``: the sform when set, else the qform) is converted to LPS.
-- ``.dcm``: a DICOM Segmentation (SEG) object, read with pydicom (see :mod:`.dicomseg`).
+- a 3D Slicer segmentation (``.seg.nrrd``: a NRRD with ``SegmentN_`` fields): every segment is a
+  landmark named by its ``SegmentN_Name``; its voxels are those of its layer equal to its
+  ``SegmentN_LabelValue``.
+- a labelmap in NRRD (``.nrrd``, ``.nhdr``), NIfTI (``.nii``, ``.nii.gz``) or MetaImage
+  (``.mha``, ``.mhd``): one landmark per label value.
+- a DICOM Segmentation (SEG) object, read with pydicom (:mod:`.dicomseg`).
 
-Each gives ``MaskLandmark(name, mask, affine_lps)`` with ``mask`` (k, j, i) and ``affine_lps``
-mapping ``(i, j, k, 1)`` to LPS mm, so the mask need not lie on the CT grid. Every file is
-checked to be a regular file of bounded size before it is opened (:mod:`ctdrill.safeio`).
+The volume formats are read by :mod:`ctdrill.imaging.volumes`, the CT's own readers: geometry
+exact or refused under one set of rules (:mod:`ctdrill.imaging.volumes.grid`), sizes checked
+before anything is allocated or inflated, and a NIfTI whose qform and sform disagree refused (a
+canal must not move with a reader's choice). Each gives ``MaskLandmark(name, mask,
+affine_lps)`` with ``mask`` (k, j, i) and ``affine_lps`` mapping ``(i, j, k, 1)`` to LPS mm, so
+the mask need not lie on the CT grid. At most :data:`MAX_SEGMENTS` segments or label values are
+read from one file, and the masks of a file given whole as a plan input hold at most
+:data:`MAX_MASK_BYTES` together.
 """
 
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from ctdrill.imaging.plan.landmarks import LandmarkInputError, MaskLandmark, load_mask_file
 from ctdrill.imaging.plan.read import PlanParts
+from ctdrill.imaging.volumes.bounded import declared_bytes
+from ctdrill.imaging.volumes.sniff import read_volume_file, volume_format
+from ctdrill.imaging.volumes.types import VolumeData
 from ctdrill.safeio import regular_file_size
 
 #: Largest mask accepted, bytes of voxel data as declared by the file's header.
 MAX_MASK_BYTES = 1 << 30
 #: Largest segmentation file read, bytes.
 MAX_MASK_FILE_BYTES = 1 << 30
-#: LPS from RAS (and back): x and y negated.
-RAS_TO_LPS = np.diag([-1.0, -1.0, 1.0, 1.0])
+#: Most segments (or label values) read from one file (TotalSegmentator writes 117).
+MAX_SEGMENTS = 1000
+_SEGMENT_KEY = re.compile(r"Segment\d+_ID")
+_SUFFIXES = (".seg.nrrd", ".nii.gz", ".nrrd", ".nhdr", ".nii", ".mha", ".mhd", ".npy", ".dcm")
 
 
 def _suffix(path: Path) -> str:
     name = path.name.lower()
-    for suffix in (".seg.nrrd", ".nii.gz", ".nrrd", ".nii", ".npy", ".dcm"):
+    for suffix in _SUFFIXES:
         if name.endswith(suffix):
             return suffix
     return path.suffix.lower()
 
 
 class Labels:
-    """The labelled masks of one file: ``(name, label value or None, mask, affine_lps)``."""
+    """The labelled masks of one file: ``(name, label value, array, affine_lps)``.
 
-    def __init__(self, path: Path) -> None:
+    The mask of an entry is ``array == value`` (``array`` itself when it is bool), made only
+    when asked for; ``named``: the entries are named segments (Slicer, DICOM SEG), not label
+    values.
+    """
+
+    def __init__(self, path: Path, *, named: bool = False) -> None:
         self.path = path
+        self.named = named
         self.items: list[tuple[str, int | None, np.ndarray, np.ndarray | None]] = []
+
+
+def _mask_of(arr: np.ndarray, value: int | None) -> np.ndarray:
+    mask: np.ndarray = arr.astype(bool) if arr.dtype == np.bool_ else arr == value
+    return mask
 
 
 def _bounded(path: Path) -> int:
@@ -64,16 +86,16 @@ def _bounded(path: Path) -> int:
     return size
 
 
-def _check_voxels(path: Path, shape: tuple[int, ...], itemsize: int) -> None:
+def check_mask_voxels(path: Path, shape: tuple[int, ...], itemsize: int, field: str) -> None:
     """Refuse a declared size beyond :data:`MAX_MASK_BYTES` before allocating it."""
-    if any(int(n) < 0 for n in shape):
-        raise LandmarkInputError(f"{path}: the header declares a negative size {shape}")
-    total = int(np.prod([int(n) for n in shape], dtype=object)) * int(itemsize)
-    if total > MAX_MASK_BYTES:
-        raise LandmarkInputError(
-            f"{path}: the header declares {shape} voxels of {itemsize} bytes ({total} bytes), "
-            f"more than the {MAX_MASK_BYTES} accepted; crop or resample the segmentation"
-        )
+    declared_bytes(
+        tuple(int(n) for n in shape),
+        itemsize,
+        max_bytes=MAX_MASK_BYTES,
+        where=str(path),
+        error=LandmarkInputError,
+        field=field,
+    )
 
 
 def _integer_labels(path: Path, arr: np.ndarray) -> np.ndarray:
@@ -109,7 +131,10 @@ def read_npy(path: Path) -> np.ndarray:
                 raise ValueError(f"unsupported .npy version {version}")
             if dtype.hasobject:
                 raise ValueError("object arrays are not labelmaps")
-            _check_voxels(path, tuple(shape), dtype.itemsize)
+            if any(int(n) < 0 for n in shape):
+                raise ValueError(f"the header declares a negative size {shape}")
+            if 0 not in shape:
+                check_mask_voxels(path, tuple(shape), dtype.itemsize, "the header")
             data_bytes = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
             if data_bytes > size - fh.tell():
                 raise ValueError(
@@ -130,141 +155,77 @@ def read_npy(path: Path) -> np.ndarray:
     return arr
 
 
-# --------------------------------------------------------------------------- NRRD
+# --------------------------------------------------------------------------- volume files
 
 
-def _nrrd(path: Path) -> tuple[np.ndarray, dict[str, Any]]:
-    """NRRD data in C order (slowest axis first) and its header, bounded before reading."""
-    import nrrd
-
+def mask_format(path: Path) -> str:
+    """``npy``, ``dicom``, ``nifti``, ``nrrd`` or ``metaimage``: the mask file's format by its
+    content (:func:`ctdrill.imaging.volumes.sniff.volume_format`)."""
     _bounded(path)
+    if _suffix(path) == ".npy":
+        return "npy"
     try:
         with open(path, "rb") as fh:
-            header = nrrd.read_header(fh)
-            if "data file" in header or "datafile" in header:
-                raise LandmarkInputError(
-                    f"{path}: a detached NRRD (data file field) is not read; save the "
-                    "segmentation as a single .nrrd / .seg.nrrd file"
-                )
-            sizes = tuple(int(n) for n in np.atleast_1d(header.get("sizes", [])))
-            dtype = np.dtype(nrrd.reader._determine_datatype(header))
-            _check_voxels(path, sizes, dtype.itemsize)
-            data = nrrd.read_data(header, fh, str(path), index_order="C")
-    except LandmarkInputError:
-        raise
-    except (nrrd.NRRDError, OSError, ValueError, KeyError, EOFError) as exc:
-        raise LandmarkInputError(f"{path}: not a readable NRRD file ({exc})") from exc
-    return np.asarray(data), header
+            if fh.read(6) == b"\x93NUMPY":
+                return "npy"
+    except OSError as exc:
+        raise LandmarkInputError(f"{path}: cannot read the mask file ({exc})") from exc
+    return volume_format(path, error=LandmarkInputError, what="mask file")
 
 
-def _nrrd_affine(path: Path, header: dict[str, Any], n_spatial: int) -> np.ndarray:
-    """LPS affine of the last three (spatial) axes of a NRRD header."""
-    space = str(header.get("space", "")).lower()
-    if space in ("left-posterior-superior", "lps"):
-        flip = np.eye(4)
-    elif space in ("right-anterior-superior", "ras"):
-        flip = RAS_TO_LPS
-    else:
+def _segment_count(path: Path, fields: dict[str, str]) -> int:
+    """How many ``SegmentN_`` entries a NRRD header holds (0: a plain labelmap)."""
+    ids = [k for k in fields if _SEGMENT_KEY.fullmatch(k)]
+    if len(ids) > MAX_SEGMENTS:
         raise LandmarkInputError(
-            f"{path}: NRRD space {header.get('space')!r} is not LPS or RAS; ctdrill needs the "
-            "segmentation in patient coordinates"
+            f"{path}: the header declares {len(ids)} segments, more than the {MAX_SEGMENTS} "
+            "read; export the segments you mean to protect"
         )
-    dirs = np.asarray(header.get("space directions"), dtype=np.float64)
-    origin = np.asarray(header.get("space origin", [np.nan] * 3), dtype=np.float64)
-    if dirs.ndim != 2 or dirs.shape[1] != 3 or n_spatial != 3:
-        raise LandmarkInputError(f"{path}: expected 3 spatial axes with space directions")
-    spatial = dirs[-3:]
-    if not (np.all(np.isfinite(spatial)) and np.all(np.isfinite(origin))):
-        raise LandmarkInputError(f"{path}: space directions or origin missing or not finite")
-    affine = np.eye(4)
-    affine[:3, :3] = spatial.T  # columns: the i, j, k steps (file axis order, fastest first)
-    affine[:3, 3] = origin
-    out: np.ndarray = flip @ affine
-    return out
-
-
-def read_labelmap_nrrd(path: Path) -> Labels:
-    """A ``.nrrd`` labelmap: one entry per label value present."""
-    data, header = _nrrd(path)
-    if data.ndim != 3:
-        raise LandmarkInputError(
-            f"{path}: expected a 3-D labelmap, got {data.ndim} axes (a .seg.nrrd with "
-            "several layers must be named .seg.nrrd)"
-        )
-    labels = Labels(path)
-    arr = _integer_labels(path, data)
-    affine = _nrrd_affine(path, header, 3)
-    for value in _values(arr):
-        labels.items.append((f"{_stem(path)} label {value}", value, arr, affine))
-    return labels
-
-
-def read_seg_nrrd(path: Path) -> Labels:
-    """A 3D Slicer ``.seg.nrrd``: one entry per segment, named by its ``SegmentN_Name``."""
-    data, header = _nrrd(path)
-    if data.ndim == 3:
-        layers = data[None]
-    elif data.ndim == 4:
-        # Slicer writes the layers as the first (fastest) file axis, kind "list": in C order
-        # it is the last axis, (k, j, i, layer).
-        layers = np.moveaxis(data, -1, 0)
-    else:
-        raise LandmarkInputError(f"{path}: expected 3 or 4 axes, got {data.ndim}")
-    affine = _nrrd_affine(path, header, 3)
-    labels = Labels(path)
     n = 0
-    while f"Segment{n}_ID" in header or f"Segment{n}_Name" in header:
-        name = str(header.get(f"Segment{n}_Name", f"segment {n}")).strip() or f"segment {n}"
+    while n <= MAX_SEGMENTS and (f"Segment{n}_ID" in fields or f"Segment{n}_Name" in fields):
+        n += 1
+    return n
+
+
+def _slicer_labels(path: Path, vol: VolumeData, n_segments: int) -> Labels:
+    """A 3D Slicer segmentation: one entry per segment, named by its ``SegmentN_Name``."""
+    layers = vol.data if vol.data.ndim == 4 else vol.data[None]
+    labels = Labels(path, named=True)
+    fields = vol.fields
+    for n in range(n_segments):
+        name = fields.get(f"Segment{n}_Name", "").strip() or f"segment {n}"
         try:
-            value = int(header.get(f"Segment{n}_LabelValue", 1))
-            layer = int(header.get(f"Segment{n}_Layer", 0))
+            value = int(fields.get(f"Segment{n}_LabelValue", "1"))
+            layer = int(fields.get(f"Segment{n}_Layer", "0"))
         except ValueError as exc:
             raise LandmarkInputError(f"{path}: Segment{n} has a malformed label or layer") from exc
         if not 0 <= layer < len(layers):
             raise LandmarkInputError(f"{path}: Segment{n}_Layer {layer} is not a layer")
-        labels.items.append((name, value, layers[layer] == value, affine))
-        n += 1
-    if n == 0:
+        labels.items.append((name, value, layers[layer], vol.affine_lps))
+    return labels
+
+
+def _labelmap(path: Path, vol: VolumeData) -> Labels:
+    """A labelmap: one entry per label value present."""
+    if vol.data.ndim != 3:
         raise LandmarkInputError(
-            f"{path}: no SegmentN_Name fields: not a 3D Slicer segmentation; name it .nrrd "
-            "to read it as a labelmap"
+            f"{path}: expected a 3-D labelmap, got {vol.data.ndim} axes (several layers are "
+            "read from a 3D Slicer segmentation, with its SegmentN fields)"
         )
-    return labels
-
-
-# --------------------------------------------------------------------------- NIfTI
-
-
-def read_nifti(path: Path) -> Labels:
-    """A NIfTI labelmap (RAS world, converted to LPS): one entry per label value present."""
-    import nibabel
-
-    _bounded(path)
-    try:
-        img: Any = nibabel.load(str(path))
-        shape = tuple(int(n) for n in img.shape)
-        _check_voxels(path, shape, np.dtype(img.get_data_dtype()).itemsize)
-        while len(shape) > 3 and shape[-1] == 1:
-            shape = shape[:-1]
-        if len(shape) != 3:
-            raise LandmarkInputError(f"{path}: expected a 3-D labelmap, got shape {img.shape}")
-        data = np.asarray(img.dataobj).reshape(shape)
-        affine_ras = np.asarray(img.affine, dtype=np.float64)
-    except LandmarkInputError:
-        raise
-    except Exception as exc:  # nibabel raises many types for bad files
-        raise LandmarkInputError(f"{path}: not a readable NIfTI file ({exc})") from exc
-    if not np.all(np.isfinite(affine_ras)):
-        raise LandmarkInputError(f"{path}: the NIfTI affine is not finite")
-    arr = _integer_labels(path, np.ascontiguousarray(data.transpose(2, 1, 0)))
+    data = vol.data
+    if vol.scale is not None:
+        data = data * vol.scale[0] + vol.scale[1]
+    arr = _integer_labels(path, data)
+    values = _values(arr)
+    if len(values) > MAX_SEGMENTS:
+        raise LandmarkInputError(
+            f"{path}: {len(values)} label values, more than the {MAX_SEGMENTS} read; is this a "
+            "labelmap? (a CT or a probability map is not)"
+        )
     labels = Labels(path)
-    affine = RAS_TO_LPS @ affine_ras
-    for value in _values(arr):
-        labels.items.append((f"{_stem(path)} label {value}", value, arr, affine))
+    for value in values:
+        labels.items.append((f"{_stem(path)} label {value}", value, arr, vol.affine_lps))
     return labels
-
-
-# --------------------------------------------------------------------------- all formats
 
 
 def _stem(path: Path) -> str:
@@ -274,27 +235,33 @@ def _stem(path: Path) -> str:
 
 
 def _values(arr: np.ndarray) -> list[int]:
-    values = [int(v) for v in np.unique(arr) if v != 0]
-    return values
+    return [int(v) for v in np.unique(arr) if v != 0]
 
 
 def read_labels(path: Path) -> Labels:
-    """Every labelled mask of a segmentation or labelmap file (not ``.npy``)."""
-    suffix = _suffix(path)
-    if suffix == ".seg.nrrd":
-        return read_seg_nrrd(path)
-    if suffix == ".nrrd":
-        return read_labelmap_nrrd(path)
-    if suffix in (".nii", ".nii.gz"):
-        return read_nifti(path)
-    if suffix == ".dcm":
+    """Every labelled mask of a segmentation or labelmap file (not ``.npy``), by content."""
+    kind = mask_format(path)
+    if kind == "npy":
+        raise LandmarkInputError(
+            f"{path}: a .npy labelmap has no geometry of its own; name it in a plan as a mask "
+            "landmark (kind mask, path, label) on the CT grid"
+        )
+    if kind == "dicom":
         from ctdrill.imaging.plan.dicomseg import read_dicom_seg
 
         return read_dicom_seg(path)
-    raise LandmarkInputError(
-        f"{path}: masks are read from .npy, .seg.nrrd, .nrrd, .nii, .nii.gz or DICOM SEG "
-        "(.dcm) files"
+    vol = read_volume_file(
+        path,
+        max_bytes=MAX_MASK_BYTES,
+        error=LandmarkInputError,
+        refuse_ambiguous=True,
+        layers=True,
+        kind=kind,
     )
+    n_segments = _segment_count(path, vol.fields) if vol.format == "NRRD" else 0
+    if n_segments:
+        return _slicer_labels(path, vol, n_segments)
+    return _labelmap(path, vol)
 
 
 def mask_landmark(
@@ -308,8 +275,7 @@ def mask_landmark(
     source: str,
 ) -> MaskLandmark:
     """The mask landmark a plan names: ``label`` and/or ``segment`` choose what is taken."""
-    _bounded(path)  # a missing file, FIFO or device is named before its suffix
-    if _suffix(path) == ".npy":
+    if mask_format(path) == "npy":  # a missing file, FIFO or device is named first
         if segment is not None:
             raise LandmarkInputError(f"{path}: a .npy labelmap has no named segments; use label")
         mask = load_mask_file(path, label=label)
@@ -334,7 +300,7 @@ def mask_landmark(
     first = chosen[0]
     mask = np.zeros(first[2].shape, dtype=bool)
     for _, value, arr, _ in chosen:
-        mask |= arr.astype(bool) if arr.dtype == np.bool_ else arr == value
+        mask |= _mask_of(arr, value)
     return _nonempty(path, name, mask, first[3], margin_mm, source, label, segment)
 
 
@@ -366,23 +332,29 @@ def _nonempty(
 def segmentation_parts(path: Path) -> PlanParts:
     """A segmentation or labelmap given as a plan input: every segment/label a landmark."""
     labels = read_labels(path)
+    need = sum(int(arr.size) for _, _, arr, _ in labels.items)
+    if need > MAX_MASK_BYTES:
+        raise LandmarkInputError(
+            f"{path}: its {len(labels.items)} segments would need {need} bytes of masks, more "
+            f"than the {MAX_MASK_BYTES} accepted; name the ones to protect in a plan (kind "
+            "mask, path, segment or label)"
+        )
     source = os.fspath(path.resolve())
     out = []
     empty = []
     for name, value, arr, affine in labels.items:
-        mask = arr.astype(bool) if arr.dtype == np.bool_ else arr == value
+        mask = _mask_of(arr, value)
         if not mask.any():
             empty.append(name)  # Slicer keeps a segment with no voxel: nothing to protect
             continue
-        is_seg = _suffix(path) in (".seg.nrrd", ".dcm")
         out.append(
             MaskLandmark(
                 name,
                 mask,
                 affine_lps=affine,
                 source=source,
-                label=None if is_seg else value,
-                segment=name if is_seg else None,
+                label=None if labels.named else value,
+                segment=name if labels.named else None,
             )
         )
     if not out:

@@ -323,9 +323,10 @@ def test_nrrd_header_declaring_a_huge_volume_is_refused(tmp_path: Path) -> None:
         load_plan(_plan_with(tmp_path, {"kind": "mask", "path": "bomb.nrrd"}))
     path.write_bytes(
         b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n"
-        b"data file: /dev/zero\n\n"
+        b"space: left-posterior-superior\nspace directions: (1,0,0) (0,1,0) (0,0,1)\n"
+        b"space origin: (0,0,0)\ndata file: /dev/zero\n\n"
     )
-    with pytest.raises(LandmarkInputError, match="detached NRRD"):
+    with pytest.raises(LandmarkInputError, match="/dev/zero: the NRRD data file is a device"):
         load_plan(_plan_with(tmp_path, {"kind": "mask", "path": "bomb.nrrd"}))
 
 
