@@ -1,4 +1,5 @@
-"""ctdrill imaging: DICOM CT series -> :class:`CTVolume` (LPS mm), sampling, plans, safety.
+"""ctdrill imaging: CT (DICOM, NIfTI, NRRD, MetaImage) -> :class:`CTVolume` (LPS mm), sampling,
+plans, safety.
 
 The names below are re-exported lazily (PEP 562): ``from ctdrill.imaging import load_series``
 imports :mod:`ctdrill.imaging.dicom.series` (and pydicom) only then, so ``import
@@ -37,6 +38,7 @@ if TYPE_CHECKING:
     )
     from ctdrill.imaging.sampling.lip import LipSamples, lip_ring_points, sample_lip_rings
     from ctdrill.imaging.volume import WARNING_CODES, CTVolume, LoadWarning, SeriesInfo
+    from ctdrill.imaging.volumes.load import load_ct
 
 #: public name -> the module that defines it (imported on first access)
 _EXPORTS: dict[str, str] = {
@@ -60,6 +62,7 @@ _EXPORTS: dict[str, str] = {
     "clearance_profile_mm": "ctdrill.imaging.plan.safety",
     "lip_ring_points": "ctdrill.imaging.sampling.lip",
     "list_series": "ctdrill.imaging.dicom.series",
+    "load_ct": "ctdrill.imaging.volumes.load",
     "load_plan": "ctdrill.imaging.plan.types",
     "load_plans": "ctdrill.imaging.plan.types",
     "load_series": "ctdrill.imaging.dicom.series",
@@ -92,6 +95,7 @@ __all__ = [
     "clearance_profile_mm",
     "lip_ring_points",
     "list_series",
+    "load_ct",
     "load_plan",
     "load_plans",
     "load_series",

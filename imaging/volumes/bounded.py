@@ -194,7 +194,9 @@ def fill_array(
     codec : ``raw``, ``gzip``, ``zlib`` or ``bzip2``.
     skip : bytes dropped first (after decompression for a compressed stream).
     """
-    view = memoryview(out).cast("B")
+    if not out.flags.c_contiguous:  # a reshape would fill a copy
+        raise ValueError("fill_array needs a C-contiguous array")
+    view = out.reshape(-1).view(np.uint8).data
     if codec == "raw":
         if skip:
             fh.seek(skip, 1)
@@ -223,7 +225,7 @@ def read_text_header(fh: IO[bytes], *, where: str, error: ErrorType, end: bytes)
     """
     head = fh.read(MAX_HEADER_BYTES + 1)
     offset = 0
-    lines = []
+    lines: list[bytes] = []
     for raw in head.splitlines(keepends=True):
         if not raw.endswith(b"\n") and offset + len(raw) > MAX_HEADER_BYTES:
             break

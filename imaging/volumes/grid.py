@@ -70,6 +70,15 @@ def grid_distance_mm(a: np.ndarray, b: np.ndarray, shape_kji: tuple[int, ...]) -
     return dist if np.isfinite(dist) else float("inf")
 
 
+def column_lengths(matrix: np.ndarray) -> np.ndarray:
+    """Euclidean length of each column, without overflow for huge entries (1e300 stays 1e300)."""
+    m = np.asarray(matrix, dtype=np.float64)
+    scale = np.max(np.abs(m), axis=0)
+    safe = np.where(scale > 0, scale, 1.0)
+    out: np.ndarray = np.linalg.norm(m / safe, axis=0) * scale
+    return out
+
+
 def tilt_deg(affine_lps: np.ndarray) -> float:
     """Angle between the affine's k column and the normal of its i and j columns, degrees."""
     a = np.asarray(affine_lps, dtype=np.float64)[:3, :3]
@@ -135,14 +144,14 @@ def check_grid(
     a = np.asarray(affine_lps, dtype=np.float64)
     if a.shape != (4, 4) or not np.all(np.isfinite(a)):
         raise error(f"{where}: {field} is not finite ({_fmt(a[:3])}); the geometry cannot be known")
-    spacing = np.linalg.norm(a[:3, :3], axis=0)
+    spacing = column_lengths(a[:3, :3])
     for axis, sp in zip("ijk", spacing, strict=True):
         if not MIN_SPACING_MM <= sp <= MAX_SPACING_MM:
             raise error(
                 f"{where}: {field}: the voxel spacing along {axis} is {sp:.6g} mm, outside "
                 f"{MIN_SPACING_MM:g}..{MAX_SPACING_MM:g} mm; the geometry is damaged"
             )
-    e_i, e_j = a[:3, 0] / spacing[0], a[:3, 1] / spacing[1]
+    e_i, e_j = a[:3, 0] / spacing[0], a[:3, 1] / spacing[1]  # spacing >= MIN_SPACING_MM
     cos = float(e_i @ e_j)
     if abs(cos) > ORIENTATION_TOL:
         raise error(

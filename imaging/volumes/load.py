@@ -61,7 +61,9 @@ def content_uid(hu: np.ndarray, affine_lps: np.ndarray) -> str:
     h = hashlib.sha256(b"ctdrill-volume/1\0")
     h.update(repr(tuple(int(n) for n in hu.shape)).encode() + b"\0" + str(hu.dtype).encode())
     h.update(np.ascontiguousarray(affine_lps, dtype="<f8").tobytes())
-    h.update(memoryview(np.ascontiguousarray(hu, dtype=hu.dtype.newbyteorder("<"))).cast("B"))
+    h.update(
+        np.ascontiguousarray(hu, dtype=hu.dtype.newbyteorder("<")).reshape(-1).view(np.uint8).data
+    )
     return CONTENT_UID_PREFIX + h.hexdigest()
 
 

@@ -66,7 +66,7 @@ def nifti_header_bytes(head: bytes) -> int | None:
     return None
 
 
-def _open(path: Path, fh: IO[bytes]) -> tuple[IO[bytes], str]:
+def _open(path: Path, fh: IO[bytes]) -> tuple[Any, str]:
     """A stream of the header's bytes and the codec of the file (``raw`` or ``gzip``)."""
     fh.seek(0)
     if fh.read(2) == b"\x1f\x8b":
@@ -133,7 +133,8 @@ def _geometry(
     for which in ("sform", "qform"):
         affine, code = _coded(path, hdr, which, error)
         if affine is not None:
-            lps = RAS_TO_LPS @ scale @ affine
+            with np.errstate(all="ignore"):  # a non-finite field is refused by check_grid
+                lps = RAS_TO_LPS @ scale @ affine
             field = f"{which} ({which}_code {code})"
             found[which] = (
                 lps,

@@ -69,6 +69,15 @@ def read_nrrd_header(path: Path, fh: IO[bytes], error: ErrorType) -> tuple[dict[
     text, offset = read_text_header(fh, where=str(path), error=error, end=b"")
     if not text.startswith("NRRD000"):
         raise error(f"{path}: not a NRRD file (no NRRD000x magic line)")
+    for line in text.splitlines():
+        key, _, value = line.partition(":")
+        if key.strip().lower() in ("data file", "datafile") and (
+            value.strip().upper().startswith("LIST") or "%" in value
+        ):
+            raise error(
+                f"{path}: data file {value.strip()!r} names several files (LIST or a pattern); "
+                "save the volume as one .nrrd file"
+            )
     try:
         header = nrrd.read_header(text.splitlines())
     except (nrrd.NRRDError, ValueError, TypeError, KeyError, IndexError) as exc:
