@@ -22,7 +22,7 @@ from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
 from ctdrill.app.pipeline import plan_calibration_key, plan_path, with_set_warnings
 from ctdrill.app.sequence import SequenceResult, plan_sequence
 from ctdrill.app.sequence_export import sequence_files, sequence_jobs
-from ctdrill.imaging import load_series
+from ctdrill.imaging import load_ct
 from ctdrill.imaging.plan.types import Plan, load_plan_set, plan_warnings
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.band import HuUncertainty
@@ -138,7 +138,7 @@ def prepare_case(
     manual_hu = hu_uncertainty_option(hu_sigma)
     plans = list(with_set_warnings(load_plan_set(plan_paths)))
     per_file = Counter(plan.source for plan in plans)
-    volume, grey_map = map_volume(load_series(dicom, series_uid=series_uid), grey)
+    volume, grey_map = map_volume(load_ct(dicom, series_uid=series_uid), grey)
     hu_unc = hu_uncertainty(grey_map, manual_hu)
     cache: dict[str, Calibration] = {}
     override = load_calibration(calibration) if calibration is not None else None
@@ -172,7 +172,13 @@ def prepare_case(
             continue
         result = plan_path(volume, plan, cal, interpolate_gaps=interpolate_gaps)
         jobs.append(ExportJob(result=result, subdir=sub))
-    patient = read_patient_fields(dicom, volume.info.series_uid) if include_phi else None
+    patient = None
+    if include_phi:
+        patient = (
+            read_patient_fields(dicom, volume.info.series_uid)
+            if volume.info.source_format == "DICOM"
+            else {"description": volume.info.series_description}  # NIfTI descrip, NRRD content
+        )
     return PreparedCase(
         volume=volume,
         plans=tuple(plans),

@@ -42,7 +42,7 @@ from ctdrill.haptics.run import SessionResult, run_session
 from ctdrill.haptics.serial_device import SerialDevice
 from ctdrill.haptics.session import SessionCsv, parse_fault, parse_operator
 from ctdrill.haptics.sim import SimulatedDevice
-from ctdrill.imaging import load_series
+from ctdrill.imaging import load_ct
 from ctdrill.imaging.dicom.grey import GreyToHu
 from ctdrill.imaging.plan.types import load_one_plan
 from ctdrill.model.band import HuUncertainty
@@ -86,7 +86,7 @@ def load_table(
     ``trajectory`` picks one of several by name or number (``load_one_plan``); ``exam``
     uploads the exam's table (:func:`ctdrill.app.trainee.exam.exam_setup`).
     """
-    volume, grey_map = map_volume(load_series(dicom), grey)
+    volume, grey_map = map_volume(load_ct(dicom), grey)
     plan = load_one_plan(
         [plan_file] if isinstance(plan_file, Path) else plan_file, trajectory=trajectory
     )

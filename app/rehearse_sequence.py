@@ -35,7 +35,7 @@ from ctdrill.app.sequence import drill_folder, drill_path, hole_json, plan_seque
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import FaultSpec, Operator, SessionCsv
-from ctdrill.imaging import load_series
+from ctdrill.imaging import load_ct
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.model.band import HuUncertainty
 
@@ -70,7 +70,7 @@ def rehearse_sequence(
     ``open_device``, ``summarise`` (the single rehearsal's summary) and ``to_json`` are
     :mod:`ctdrill.app.rehearse`'s, so one drill's records are exactly a rehearsal's.
     """
-    volume, grey_map = map_volume(load_series(dicom), grey)
+    volume, grey_map = map_volume(load_ct(dicom), grey)
     hu = hu_uncertainty(grey_map, manual_hu)
     calibration = plan_calibration(plan)
     options = {"interpolate_gaps": interpolate_gaps}

@@ -1,11 +1,12 @@
-"""The batch manifest: a CSV file with columns ``dicom, plan`` (and an optional ``id``).
+"""The batch manifest: a CSV file with columns ``ct`` (or ``dicom``), ``plan`` (and an optional
+``id``).
 
 Paths are relative to the manifest's folder (absolute paths are kept). Each data row is one
-case: a DICOM series folder and a plan (a file or a folder of plans, as ``--plan`` takes).
-``id`` names the row's output folder (default: the row number); ids must be unique and are
-kept to letters, digits, ``._-``. A manifest that cannot be read as such is bad input (one
-``error:`` line, exit 2); a row whose files are missing or bad is a failed row, reported in
-the status table while the others run.
+case: a CT (a DICOM series folder or file, a NIfTI, NRRD or MetaImage file) and a plan (a
+file or a folder of plans, as ``--plan`` takes). ``id`` names the row's output folder
+(default: the row number); ids must be unique and are kept to letters, digits, ``._-``. A
+manifest that cannot be read as such is bad input (one ``error:`` line, exit 2); a row whose
+files are missing or bad is a failed row, reported in the status table while the others run.
 """
 
 from __future__ import annotations
@@ -21,6 +22,9 @@ from ctdrill.safeio import read_bytes_bounded
 
 REQUIRED_COLUMNS = ("dicom", "plan")
 OPTIONAL_COLUMNS = ("id",)
+#: The CT column may be named ``ct`` (a DICOM folder or a NIfTI, NRRD or MetaImage file, as
+#: ``--ct`` takes); it is read as ``dicom``.
+CT_COLUMN = "ct"
 #: A manifest is a small text file; a larger one is refused before it is read.
 MAX_MANIFEST_BYTES = 64 * 1024 * 1024
 _ID = re.compile(r"^[A-Za-z0-9._-]+$")
@@ -69,13 +73,19 @@ def read_manifest(path: Path) -> list[ManifestRow]:
     if not rows:
         raise ManifestError(f"{path}: empty; it needs a header line 'dicom,plan' and rows")
     header = [h.strip() for h in rows[0]]
+    if CT_COLUMN in header:
+        if "dicom" in header:
+            raise ManifestError(f"{path}: columns ct and dicom both name the CT; keep one")
+        header[header.index(CT_COLUMN)] = "dicom"
     missing = [c for c in REQUIRED_COLUMNS if c not in header]
     unknown = [c for c in header if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
     if missing or unknown:
         what = f"missing column(s) {', '.join(missing)}" if missing else ""
         if unknown:
             what += ("; " if what else "") + f"unknown column(s) {', '.join(map(repr, unknown))}"
-        raise ManifestError(f"{path}: {what}; the header must name dicom, plan (and optionally id)")
+        raise ManifestError(
+            f"{path}: {what}; the header must name ct (or dicom), plan (and optionally id)"
+        )
     if len(set(header)) != len(header):
         raise ManifestError(f"{path}: a column is named twice in the header {header}")
     col = {name: header.index(name) for name in header}

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.commands.options import (
+    add_ct_option,
     add_grey_map_options,
     add_hu_sigma_option,
     add_interpolate_gaps_option,
@@ -35,7 +36,7 @@ def register(subparsers: Any) -> None:
             "--include-phi."
         ),
     )
-    p.add_argument("--dicom", type=Path, required=True, metavar="DIR", help="DICOM CT folder")
+    add_ct_option(p, required=True)
     add_plan_option(p, required=True)
     p.add_argument("--out", type=Path, required=True, metavar="OUT", help="output folder")
     add_override_options(p)

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.commands.options import (
+    add_ct_option,
     add_hu_sigma_option,
     add_implants_option,
     add_plan_option,
@@ -83,7 +84,7 @@ def register(subparsers: Any) -> None:
         help="open the desktop window",
         description="Open the ctdrill window: plan on the CT, see force and clearance, rehearse.",
     )
-    p.add_argument("--dicom", type=Path, help="DICOM folder to open")
+    add_ct_option(p, required=False)
     add_plan_option(p, required=False)
     add_hu_sigma_option(p)
     add_implants_option(p)
@@ -97,7 +98,9 @@ def register(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     """Validate the arguments, then run the window."""
     if args.dicom is not None and not args.dicom.exists():
-        raise AppInputError(f"--dicom {args.dicom}: no such folder; give a DICOM series folder")
+        raise AppInputError(
+            f"--ct {args.dicom}: no such folder or file; give a DICOM folder or a CT file"
+        )
     for plan in args.plan or ():
         if not plan.exists():
             raise AppInputError(f"--plan {plan}: no such file; give a plan JSON or .mrk.json")

@@ -1,4 +1,5 @@
-"""``ctdrill inspect DIR``: load a DICOM CT series and describe its geometry, HU and warnings."""
+"""``ctdrill inspect PATH`` (or ``--ct PATH``): load a CT (a DICOM series, or a NIfTI, NRRD or
+MetaImage file) and describe its geometry, HU and warnings."""
 
 from __future__ import annotations
 
@@ -8,17 +9,19 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.commands.options import add_series_option
+from ctdrill.app.commands.options import CT_HELP, add_series_option
+from ctdrill.app.errors import AppInputError
 
 
 def register(subparsers: Any) -> None:
     """Add the ``inspect`` subcommand."""
     p = subparsers.add_parser(
         "inspect",
-        help="describe a DICOM CT series (geometry, HU range, warnings)",
-        description="Load a DICOM CT series and print its geometry, HU range and load warnings.",
+        help="describe a CT: DICOM series, NIfTI, NRRD, MetaImage (geometry, HU range, warnings)",
+        description="Load a CT and print its geometry, HU range and load warnings.",
     )
-    p.add_argument("dicom", type=Path, metavar="DIR", help="DICOM folder (or one file)")
+    p.add_argument("dicom", type=Path, nargs="?", metavar="PATH", help=CT_HELP)
+    p.add_argument("--ct", type=Path, default=None, metavar="PATH", help="the same as PATH")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
     add_series_option(p)
     p.add_argument(
@@ -32,11 +35,16 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load, describe, print."""
-    from ctdrill.imaging import list_series, load_series
+    from ctdrill.imaging import load_ct
     from ctdrill.imaging.dicom.report import format_report, volume_report
+    from ctdrill.imaging.volumes.load import listed_series
 
-    volume = load_series(args.dicom, series_uid=args.series)
-    report = volume_report(volume, series=list_series(args.dicom), include_phi=args.include_phi)
+    if (args.dicom is None) == (args.ct is None):
+        raise AppInputError("inspect: name the CT once, as PATH or as --ct PATH")
+    path = args.dicom if args.ct is None else args.ct
+    volume = load_ct(path, series_uid=args.series)
+    series = listed_series(path, volume)
+    report = volume_report(volume, series=series, include_phi=args.include_phi)
     if args.json:
         sys.stdout.write(json.dumps(report, indent=1) + "\n")
     else:

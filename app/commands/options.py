@@ -24,6 +24,26 @@ def add_plan_option(parser: argparse.ArgumentParser, *, required: bool) -> None:
     )
 
 
+#: What ``--ct`` takes, for the commands' help.
+CT_HELP = (
+    "the CT: a DICOM folder or file, or a NIfTI (.nii, .nii.gz), NRRD (.nrrd, .nhdr) or "
+    "MetaImage (.mha, .mhd) file, its type read from the content (--dicom is the same option)"
+)
+
+
+def add_ct_option(parser: argparse.ArgumentParser, *, required: bool) -> None:
+    """``--ct PATH`` (and its older name ``--dicom``): the CT a command reads (docs/volumes.md)."""
+    parser.add_argument(
+        "--ct",
+        "--dicom",
+        dest="dicom",
+        type=Path,
+        required=required,
+        metavar="PATH",
+        help=CT_HELP,
+    )
+
+
 def add_series_option(parser: argparse.ArgumentParser) -> None:
     """``--series UID|HASH``: which series of a folder holding several to load."""
     parser.add_argument(

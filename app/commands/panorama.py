@@ -7,7 +7,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.commands.options import add_grey_map_options, add_plan_option, add_series_option
+from ctdrill.app.commands.options import (
+    add_ct_option,
+    add_grey_map_options,
+    add_plan_option,
+    add_series_option,
+)
 
 
 def register(subparsers: Any) -> None:
@@ -25,7 +30,7 @@ def register(subparsers: Any) -> None:
             "-1000 HU. See docs/panorama.md."
         ),
     )
-    p.add_argument("--dicom", type=Path, required=True, metavar="DIR", help="DICOM CT folder")
+    add_ct_option(p, required=True)
     add_plan_option(p, required=True)
     p.add_argument("--out", type=Path, required=True, metavar="OUT", help="output folder")
     add_series_option(p)
@@ -75,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.grey_option import map_volume, parse_grey_options
     from ctdrill.app.reformat.draw import DEFAULT_LEVEL_HU, DEFAULT_WIDTH_HU
     from ctdrill.app.reformat.export import ReformatOptions, export_panorama, finite_or_none
-    from ctdrill.imaging.dicom.series import load_series
+    from ctdrill.imaging import load_ct
     from ctdrill.imaging.plan.types import load_plan_set
 
     width_hu = DEFAULT_WIDTH_HU if args.width_hu is None else args.width_hu
@@ -96,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     )
     grey = parse_grey_options(args.grey_to_hu, args.grey_ref)
     plans = load_plan_set(args.plan)
-    volume, _map = map_volume(load_series(args.dicom, series_uid=args.series), grey)
+    volume, _map = map_volume(load_ct(args.dicom, series_uid=args.series), grey)
     written = export_panorama(volume, plans, args.plan, args.out, options)
     for path in written:
         sys.stdout.write(f"wrote {path}\n")

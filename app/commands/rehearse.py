@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.commands.options import (
+    add_ct_option,
     add_grey_map_options,
     add_hu_sigma_option,
     add_interpolate_gaps_option,
@@ -31,7 +32,7 @@ def register(subparsers: Any) -> None:
             "OUT/drill_2/ ... with a summary.json listing them."
         ),
     )
-    p.add_argument("--dicom", type=Path, required=True, help="CT series folder")
+    add_ct_option(p, required=True)
     add_plan_option(p, required=True)
     p.add_argument(
         "--trajectory",

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.commands.options import (
+    add_ct_option,
     add_grey_map_options,
     add_hu_sigma_option,
     add_interpolate_gaps_option,
@@ -34,7 +35,7 @@ def register(subparsers: Any) -> None:
             "--include-phi. See docs/report.md."
         ),
     )
-    p.add_argument("--dicom", type=Path, required=True, metavar="DIR", help="DICOM CT folder")
+    add_ct_option(p, required=True)
     add_plan_option(p, required=True)
     p.add_argument("--out", type=Path, required=True, metavar="PDF", help="the report to write")
     add_override_options(p)

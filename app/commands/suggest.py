@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.commands.options import (
+    add_ct_option,
     add_interpolate_gaps_option,
     add_plan_option,
     add_series_option,
@@ -51,7 +52,7 @@ def register(subparsers: Any) -> None:
             "docs/suggest.md."
         ),
     )
-    p.add_argument("--dicom", type=Path, required=True, metavar="DIR", help="DICOM CT folder")
+    add_ct_option(p, required=True)
     add_plan_option(p, required=True)
     p.add_argument("--out", type=Path, required=True, metavar="OUT", help="output folder")
     p.add_argument(
@@ -109,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.search.suggest import suggest
     from ctdrill.app.search.suggest_write import summary_lines, write_suggestion
     from ctdrill.app.search.warmup import SLOW_PATH_NOTE, kernels_ready
-    from ctdrill.imaging import load_series
+    from ctdrill.imaging import load_ct
     from ctdrill.imaging.plan.types import load_plan_set
 
     space = SearchSpace(
@@ -126,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
         )
     plan = plans[args.trajectory - 1]
     calibration = plan_calibration(plan)
-    volume = load_series(args.dicom, series_uid=args.series)
+    volume = load_ct(args.dicom, series_uid=args.series)
     result = suggest(
         volume, plan, calibration, space, objective, interpolate_gaps=args.interpolate_gaps
     )

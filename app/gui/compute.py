@@ -14,7 +14,7 @@ import pyvista as pv
 
 from ctdrill.app.gui.slices import VIEWS, SliceImage, reslice, volume_center_lps
 from ctdrill.app.gui.surface import DISPLAY_TRIANGLES, bone_surface, display_block
-from ctdrill.imaging import CTVolume, load_series
+from ctdrill.imaging import CTVolume, load_ct
 from ctdrill.imaging.dicom.series import SeriesSummary, list_series
 from ctdrill.imaging.plan.types import Plan
 
@@ -63,7 +63,7 @@ def load_case(
         series = list_series(str(path))
         if len(series) > 1:
             return SeriesChoice(path=str(path), series=series)
-    volume = load_series(str(path), series_uid=series_uid)
+    volume = load_ct(str(path), series_uid=series_uid)
     surface = volume_surface(volume, iso_hu=iso_hu, max_dim=max_dim, max_triangles=FIRST_TRIANGLES)
     return Loaded(path=str(path), volume=volume, surface=surface, iso_hu=iso_hu)
 

@@ -37,6 +37,7 @@ def build_menus(window: MainWindow) -> QMenu:
     _action(
         window, file_menu, "Open DICOM folder...", lambda: open_folder_dialog(window), keys.Open
     )
+    _action(window, file_menu, "Open CT file...", lambda: open_ct_file_dialog(window))
     recent = file_menu.addMenu("Open recent")
     _action(window, file_menu, "Open plan...", lambda: open_plan_dialog(window), "Ctrl+Shift+O")
     _action(window, file_menu, "Save plan...", lambda: save_plan_dialog(window), keys.Save)
@@ -90,6 +91,17 @@ def open_folder_dialog(window: MainWindow) -> None:
     """Ask for a DICOM folder (starting at the most recent one) and open it."""
     start = (window.recent_folders() or [str(Path.home())])[0]
     path = QFileDialog.getExistingDirectory(window, "Open DICOM folder", start)
+    if path:
+        window.open_folder(path)
+
+
+#: The CT files the file dialog offers (the type is read from the content: docs/volumes.md).
+CT_FILE_FILTER = "CT volumes (*.nii *.nii.gz *.nrrd *.nhdr *.mha *.mhd *.dcm);;All files (*)"
+
+
+def open_ct_file_dialog(window: MainWindow) -> None:
+    """Ask for a CT file (NIfTI, NRRD, MetaImage or one DICOM file) and open it."""
+    path, _ = QFileDialog.getOpenFileName(window, "Open CT file", "", CT_FILE_FILTER)
     if path:
         window.open_folder(path)
 

@@ -19,7 +19,9 @@ def volume_report(
     """JSON-ready facts about ``volume`` (no patient identifiers unless ``include_phi``).
 
     ``series_uid`` is the SHA-256 of the SeriesInstanceUID (as plans record it; the raw UID
-    only with ``include_phi``), ``series_uid_sha256`` always, ``include_phi`` says which; the
+    only with ``include_phi``; for a NIfTI, NRRD or MetaImage file the UID is ``sha256:`` + the
+    volume's content hash, :func:`ctdrill.imaging.volumes.load.content_uid`),
+    ``series_uid_sha256`` always, ``include_phi`` says which; the
     free-text study and series descriptions (which often hold a name) appear only with
     ``include_phi`` (:mod:`ctdrill.imaging.dicom.identity`).
 
@@ -72,6 +74,7 @@ def volume_report(
         "slice_origins_lps": [[float(v) for v in o] for o in volume.slice_origins_lps],
         "voxel_axes_lps": [[float(v) for v in volume.affine_lps[:3, c]] for c in (0, 1)],
         "info": {
+            "format": info.source_format,
             "manufacturer": info.manufacturer,
             "model": info.model,
             "kvp": info.kvp,
@@ -114,8 +117,14 @@ def format_report(report: dict[str, Any]) -> str:
         name = report["series_uid"]
     else:
         name = f"{report['series_uid_sha256'][:SHORT_HASH]} (SHA-256 of the UID; --include-phi)"
+    fmt = report["info"].get("format", "DICOM")
+    source = (
+        f"{report['modality']}, {report['info']['n_files']} files"
+        if fmt == "DICOM"
+        else f"{fmt} file, content hash"
+    )
     lines = [
-        f"series     {name} ({report['modality']}, {report['info']['n_files']} files)",
+        f"series     {name} ({source})",
         f"dims       {c} cols x {r} rows x {s} slices ({report['dtype']})",
         f"spacing    {sx:g} x {sy:g} x {sz:g} mm (col, row, slice"
         + ("" if report["regular"] else ": the nominal step")

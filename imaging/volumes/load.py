@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import hashlib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -153,6 +154,17 @@ def ct_volume(path: str | Path, vol: VolumeData, *, max_bytes: int = DEFAULT_MAX
     return CTVolume(
         hu=hu, affine_lps=vol.affine_lps, valid=valid, info=info, warnings=tuple(warnings)
     )
+
+
+def listed_series(path: str | Path, volume: CTVolume) -> tuple[Any, ...]:
+    """What ``ctdrill inspect`` lists: every DICOM series under ``path``, or the file's one
+    volume (``SeriesSummary`` of :mod:`ctdrill.imaging.dicom.series`)."""
+    from ctdrill.imaging.dicom.series import SeriesSummary, list_series
+
+    if volume.info.source_format == "DICOM":
+        return list_series(path)
+    slices, rows, cols = volume.hu.shape
+    return (SeriesSummary(volume.info.series_uid, slices, slices, rows, cols, ""),)
 
 
 def load_ct(
