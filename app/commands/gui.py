@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     """Validate the arguments, then run the window."""
     if args.dicom is not None and not args.dicom.exists():
         raise AppInputError(
-            f"--ct {args.dicom}: no such folder or file; give a DICOM folder or a CT file"
+            f"--ct/--dicom {args.dicom}: no such folder or file; give a DICOM folder or a CT file"
         )
     for plan in args.plan or ():
         if not plan.exists():

@@ -93,9 +93,16 @@ def check_volume(volume: CTVolume) -> None:
     if not volume.info.is_hu:
         raise PathInputError(
             f"series {series_label(volume.info.series_uid)}: voxel values are not Hounsfield units "
-            f"(RescaleType {volume.info.rescale_type or 'missing'}); calibrate the grey values "
-            "to HU before computing forces"
+            f"({_not_hu_cause(volume)}); map the grey values to HU before computing forces "
+            "(--grey-to-hu SLOPE,INTERCEPT or --grey-ref regions)"
         )
+
+
+def _not_hu_cause(volume: CTVolume) -> str:
+    """Why the loader took the values for grey values: DICOM's RescaleType, or a file's range."""
+    if volume.info.source_format == "DICOM":
+        return f"RescaleType {volume.info.rescale_type or 'missing'}"
+    return f"a {volume.info.source_format} file whose values look like grey values (not_hu)"
 
 
 def require_grid_for_masks(
