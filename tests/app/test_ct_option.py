@@ -334,3 +334,25 @@ def test_every_command_takes_a_ct_file(case: dict[str, Any], tmp_path: Path) -> 
     assert "columns ct and dicom" in one_error_line(
         *run_cli(["batch", str(manifest), "--out", str(tmp_path / "b2")])[::2]
     )
+
+
+def test_the_real_head_ct_exports_and_draws_its_panoramic(tmp_path: Path) -> None:
+    """The VTK head CT (NIfTI) with tests/data/headsq_quarter.plan.json: a drill into the real
+    mandible, and the panoramic along the arch fitted to it."""
+    from tests.conftest import ROOT, SHARED_DATA
+
+    head = str(SHARED_DATA / "vtk_headsq_quarter" / "headsq_quarter.nii.gz")
+    plan = str(ROOT / "tests" / "data" / "headsq_quarter.plan.json")
+    code, _, err = run_cli(["export", "--ct", head, "--plan", plan, "--out", str(tmp_path / "e")])
+    assert code == 0, err
+    summary = json.loads((tmp_path / "e" / "summary.json").read_text())
+    assert summary["stop_reason"] == "planned_depth" and summary["stop_depth_mm"] == 12.0
+    rows = list(csv.DictReader((tmp_path / "e" / "profile.csv").open()))
+    bone = [float(r["hu"]) for r in rows if float(r["depth_mm"]) >= 2.0]
+    assert min(bone) > 300.0  # in the mandible from 2 mm on
+    code, _, err = run_cli(["panorama", "--ct", head, "--plan", plan, "--out", str(tmp_path / "p")])
+    assert code == 0, err
+    with np.load(tmp_path / "p" / "panorama.npz") as z:
+        hu, lps = z["hu"], z["lps"]
+    body = int(np.argmin(np.abs(lps[:, 0, 2] + 117.0)))  # the mandible's body, z = -117 mm
+    assert (hu[body] > 300.0).mean() >= 0.95
