@@ -43,6 +43,8 @@ if TYPE_CHECKING:
     from ctdrill.imaging.plan.segmentation import Labels
 
 SEG_SOP_CLASS = "1.2.840.10008.5.1.4.1.1.66.4"
+#: Most frames read from one SEG (117 segments of a 600-slice CT make 70 200).
+MAX_SEG_FRAMES = 200_000
 #: Positions within this of the slice grid are on it, mm.
 GRID_TOLERANCE_MM = 1e-3
 
@@ -126,6 +128,13 @@ def read_dicom_seg(path: Path) -> Labels:
     rows, cols = _whole(path, ds, "Rows", "the header"), _whole(path, ds, "Columns", "the header")
     n_frames = _whole(path, ds, "NumberOfFrames", "the header") if "NumberOfFrames" in ds else 1
     check_mask_voxels(path, (n_frames, rows, cols), 1, "NumberOfFrames x Rows x Columns")
+    per_frame = ds.get("PerFrameFunctionalGroupsSequence")
+    if n_frames > MAX_SEG_FRAMES or (per_frame is not None and len(per_frame) != n_frames):
+        held = "none" if per_frame is None else len(per_frame)
+        raise LandmarkInputError(
+            f"{path}: NumberOfFrames {n_frames} (at most {MAX_SEG_FRAMES}) against "
+            f"PerFrameFunctionalGroupsSequence items {held}: a SEG gives one item per frame"
+        )
     segments = ds.get("SegmentSequence")
     if not segments:
         raise LandmarkInputError(

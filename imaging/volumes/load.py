@@ -24,6 +24,7 @@ here, where the file's values become a :class:`~ctdrill.imaging.volume.CTVolume`
 from __future__ import annotations
 
 import hashlib
+import os
 from pathlib import Path
 from typing import Any
 
@@ -156,6 +157,28 @@ def ct_volume(path: str | Path, vol: VolumeData, *, max_bytes: int = DEFAULT_MAX
     )
 
 
+#: Names of volume files, for the hint when a folder given as a DICOM series holds one.
+_VOLUME_SUFFIXES = (".nii", ".nii.gz", ".nrrd", ".nhdr", ".mha", ".mhd")
+#: Folder entries looked at for that hint.
+_HINT_ENTRIES = 1000
+
+
+def _volume_file_in(folder: Path) -> str | None:
+    """The name of a volume file at the top of ``folder`` (a few entries looked at), or None."""
+    if not folder.is_dir():
+        return None
+    try:
+        with os.scandir(folder) as entries:
+            for n, entry in enumerate(entries):
+                if n >= _HINT_ENTRIES:
+                    break
+                if entry.name.lower().endswith(_VOLUME_SUFFIXES) and entry.is_file():
+                    return entry.name
+    except OSError:
+        return None
+    return None
+
+
 def listed_series(path: str | Path, volume: CTVolume) -> tuple[Any, ...]:
     """What ``ctdrill inspect`` lists: every DICOM series under ``path``, or the file's one
     volume (``SeriesSummary`` of :mod:`ctdrill.imaging.dicom.series`)."""
@@ -194,9 +217,15 @@ def load_ct(
     """
     kind = volume_format(path, error=VolumeFileError)
     if kind == "dicom":
-        from ctdrill.imaging.dicom.series import load_series
+        from ctdrill.imaging.dicom.series import SeriesInputError, load_series
 
-        return load_series(path, series_uid=series_uid, max_bytes=max_bytes)
+        try:
+            return load_series(path, series_uid=series_uid, max_bytes=max_bytes)
+        except SeriesInputError as exc:
+            hint = _volume_file_in(Path(path))
+            if hint is None:
+                raise
+            raise VolumeFileError(f"{exc}; the folder holds {hint}: give the file itself") from exc
     vol = read_volume_file(path, max_bytes=max_bytes, error=VolumeFileError, kind=kind)
     volume = ct_volume(path, vol, max_bytes=max_bytes)
     if series_uid is not None:

@@ -211,6 +211,14 @@ def _gigabyte_spacing(ds: Any) -> None:
     last.ImagePositionPatient = [x, y, z + 1000.0]
 
 
+def _frames_without_items(ds: Any) -> None:
+    ds.NumberOfFrames = int(ds.NumberOfFrames) + 1
+
+
+def _frames_terabytes(ds: Any) -> None:
+    ds.NumberOfFrames = 10**9
+
+
 SEG_LIES: dict[str, tuple[Callable[[Any], None], str]] = {
     "iop_scaled_x10": (_iop_scaled_x10, r"ImageOrientationPatient: direction 1 has length 10"),
     "iop_skewed": (_iop_skewed, r"ImageOrientationPatient: directions 1 and 2 are not perp"),
@@ -228,6 +236,8 @@ SEG_LIES: dict[str, tuple[Callable[[Any], None], str]] = {
     "zero_spacing": (_zero_spacing, r"PixelSpacing must be positive"),
     "empty_segment_number": (_empty_segment_number, r"segment item 1: SegmentNumber is missing"),
     "no_rows": (_no_rows, r"Rows is missing"),
+    "frames_without_items": (_frames_without_items, r"PerFrameFunctionalGroupsSequence items"),
+    "frames_terabytes": (_frames_terabytes, r"NumberOfFrames x Rows x Columns declares .* more"),
     "gigabyte_spacing": (
         _gigabyte_spacing,
         r"SpacingBetweenSlices 0\.00125 mm \(\d{6} slices\).*more than",

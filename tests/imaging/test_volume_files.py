@@ -216,3 +216,11 @@ def test_series_option_must_name_the_file(tmp_path: Path) -> None:
     assert load_ct(path, series_uid=series_label(uid)).info.series_uid == uid
     with pytest.raises(VolumeFileError, match="the file holds one volume"):
         load_ct(path, series_uid="0123456789ab")
+
+
+def test_a_folder_holding_a_volume_file_says_so(tmp_path: Path) -> None:
+    write_nifti(tmp_path / "ct.nii.gz", ramp(SHAPE), AFFINE)
+    with pytest.raises(
+        VolumeFileError, match=r"no CT image series.*holds ct\.nii\.gz: give the file"
+    ):
+        load_ct(tmp_path)
