@@ -68,6 +68,17 @@ def load_case(
     return Loaded(path=str(path), volume=volume, surface=surface, iso_hu=iso_hu)
 
 
+def is_volume_file(path: Path) -> bool:
+    """True for a NIfTI, NRRD or MetaImage file (by content), which opens as the CT itself."""
+    from ctdrill.imaging.errors import ImagingInputError
+    from ctdrill.imaging.volumes.sniff import volume_format
+
+    try:
+        return volume_format(path, error=ImagingInputError) != "dicom"
+    except ImagingInputError:
+        return False
+
+
 def volume_surface(
     volume: CTVolume,
     *,

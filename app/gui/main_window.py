@@ -320,14 +320,15 @@ class MainWindow(QMainWindow):
             break
 
     def open_dropped(self, path: str) -> None:
-        """A folder opens as a series, a ``.json`` as a plan, any other file its folder."""
+        """A folder opens as a series, a ``.json`` as a plan, a NIfTI, NRRD or MetaImage file
+        as the CT, any other file its folder."""
         p = Path(path)
         if p.is_dir():
             self.open_folder(p)
         elif p.name.lower().endswith(".json"):
             self.open_plan(p)
         elif p.is_file():
-            self.open_folder(p.parent)
+            self.open_folder(p if compute.is_volume_file(p) else p.parent)
 
     # ------------------------------------------------------------------ results
     def _path_changed(self, view: PathView | None) -> None:

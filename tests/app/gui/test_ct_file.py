@@ -12,7 +12,7 @@ from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.imaging import load_series
 from ctdrill.imaging.phantom.io import PhantomCase
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
-from tests.imaging.volume_writers import write_nifti
+from tests.imaging.volume_writers import write_nifti, write_nrrd
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
 
@@ -32,3 +32,13 @@ def test_a_nifti_file_opens_like_its_dicom_series(
     np.testing.assert_array_equal(volume.hu, series.hu)
     assert window.doc.path is not None
     assert window.doc.path.result.stop_depth_mm == pytest.approx(dicom_stop, abs=1e-6)
+
+
+def test_a_dropped_volume_file_opens_itself(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase, tmp_path: Path
+) -> None:
+    series = load_series(phantom_case.ct_dir)
+    nrrd_file = write_nrrd(tmp_path / "dropped.nrrd", series.hu, series.affine_lps)
+    with qtbot.waitSignal(window.doc.volume_changed, timeout=LOAD_TIMEOUT_MS):
+        window.open_dropped(str(nrrd_file))
+    assert window.doc.volume is not None and window.doc.volume.info.source_format == "NRRD"
