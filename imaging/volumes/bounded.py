@@ -166,7 +166,7 @@ def _inflate(
         start = max(0, skip - pos)
         if start < len(chunk):
             at = pos + start - skip
-            out[at : at + len(chunk) - start] = chunk[start:]
+            out[at : at + len(chunk) - start] = memoryview(chunk)[start:]  # no copy of a slice
         pos += len(chunk)
     if pos >= total and _more_output(dec, pending, fh, codec):
         raise error(
