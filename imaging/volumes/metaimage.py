@@ -129,7 +129,8 @@ def _geometry(
     return affine, tilt
 
 
-def _data_file(path: Path, fields: dict[str, str], error: ErrorType) -> Path | None:
+def metaimage_data_file(path: Path, fields: dict[str, str], error: ErrorType) -> Path | None:
+    """The data file ``ElementDataFile`` names (a regular file), or None for LOCAL data."""
     name = fields.get("ElementDataFile", "").strip()
     if name.upper() == "LOCAL":
         return None
@@ -141,6 +142,13 @@ def _data_file(path: Path, fields: dict[str, str], error: ErrorType) -> Path | N
     target = Path(name) if os.path.isabs(name) else path.parent / name
     regular_file_size(target, what="MetaImage data file", error=error)
     return target
+
+
+def header_fields(path: Path, error: ErrorType) -> dict[str, str]:
+    """The header's ``Key = Value`` fields (up to ``ElementDataFile``)."""
+    with open(path, "rb") as fh:
+        text, _ = read_text_header(fh, where=str(path), error=error, end=b"ElementDataFile")
+    return _fields(path, text, error)
 
 
 def read_metaimage(path: Path, *, max_bytes: int, error: ErrorType) -> VolumeData:
@@ -182,7 +190,7 @@ def read_metaimage(path: Path, *, max_bytes: int, error: ErrorType) -> VolumeDat
         )
         affine, tilt = _geometry(path, fields, shape_kji, error)
         codec = "zlib" if _flag(fields, "CompressedData") else "raw"
-        source = _data_file(path, fields, error)
+        source = metaimage_data_file(path, fields, error)
         with open(source, "rb") if source is not None else fh as stream:
             skip = _header_size(path, fields, source is not None, error)
             if skip == -1 and codec == "raw":

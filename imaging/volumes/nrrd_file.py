@@ -92,7 +92,8 @@ def _field(header: dict[str, Any], *names: str) -> Any:
     return None
 
 
-def _data_file(path: Path, header: dict[str, Any], error: ErrorType) -> Path | None:
+def data_file(path: Path, header: dict[str, Any], error: ErrorType) -> Path | None:
+    """The detached data file a header names (a regular file), or None for attached data."""
     name = _field(header, "data file", "datafile")
     if name is None:
         return None
@@ -220,7 +221,7 @@ def read_nrrd(path: Path, *, max_bytes: int, error: ErrorType, layers: bool = Fa
         affine, tilt = _affine(path, header, spatial, shape_kji, error)
         if encoding not in _CODECS and encoding not in _ASCII:
             raise error(f"{path}: encoding {encoding!r} is not read; save it raw, gzip or bzip2")
-        source = _data_file(path, header, error)
+        source = data_file(path, header, error)
         with open(source, "rb") if source is not None else fh as stream:
             if source is None:
                 stream.seek(offset)

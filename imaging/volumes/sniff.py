@@ -82,6 +82,27 @@ def _dicom_without_preamble(head: bytes) -> bool:
     return len(head) >= 8 and head[1:2] == b"\x00" and head[0] in (0x02, 0x08) and head[3] == 0
 
 
+def files_read(path: str | Path, *, error: ErrorType) -> tuple[Path, ...]:
+    """The files a volume file's read opens: the file, and the data file of a detached NRRD
+    (``.nhdr``) or MetaImage (``.mhd``) header. For a DICOM folder or file: ``(path,)`` (the
+    caller walks a folder). A fingerprint of the inputs (``ctdrill batch``) covers these."""
+    p = Path(path)
+    kind = volume_format(p, error=error)
+    if kind == "nrrd":
+        from ctdrill.imaging.volumes.nrrd_file import data_file, read_nrrd_header
+
+        with open(p, "rb") as fh:
+            header, _ = read_nrrd_header(p, fh, error)
+        extra = data_file(p, header, error)
+    elif kind == "metaimage":
+        from ctdrill.imaging.volumes.metaimage import header_fields, metaimage_data_file
+
+        extra = metaimage_data_file(p, header_fields(p, error), error)
+    else:
+        extra = None
+    return (p,) if extra is None else (p, extra)
+
+
 def read_volume_file(
     path: str | Path,
     *,

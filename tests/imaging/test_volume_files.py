@@ -224,3 +224,14 @@ def test_a_folder_holding_a_volume_file_says_so(tmp_path: Path) -> None:
         VolumeFileError, match=r"no CT image series.*holds ct\.nii\.gz: give the file"
     ):
         load_ct(tmp_path)
+
+
+def test_files_read_name_a_detached_data_file(tmp_path: Path) -> None:
+    from ctdrill.imaging.volumes.sniff import files_read
+
+    nhdr = write_nrrd(tmp_path / "a.nhdr", ramp(SHAPE), AFFINE, detached=True)
+    mhd = write_mha(tmp_path / "b.mhd", ramp(SHAPE), AFFINE)
+    nii = write_nifti(tmp_path / "c.nii", ramp(SHAPE), AFFINE)
+    assert [p.name for p in files_read(nhdr, error=VolumeFileError)] == ["a.nhdr", "a.raw.gz"]
+    assert [p.name for p in files_read(mhd, error=VolumeFileError)] == ["b.mhd", "b.raw"]
+    assert files_read(nii, error=VolumeFileError) == (nii,)
