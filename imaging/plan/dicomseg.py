@@ -170,9 +170,12 @@ def read_dicom_seg(path: Path) -> Labels:
     except Exception as exc:  # pydicom's decoders raise many types
         raise LandmarkInputError(f"{path}: the SEG pixel data cannot be decoded ({exc})") from exc
     labels = Labels(path, named=True)
+    frames_of: dict[int, list[int]] = {}
+    for f, number in enumerate(referenced):
+        frames_of.setdefault(number, []).append(f)
     for seg, number in zip(segments, numbers, strict=True):
         name = str(seg.get("SegmentLabel", "") or "").strip() or f"segment {number}"
-        idx = [f for f in range(n_frames) if referenced[f] == number]
+        idx = frames_of.get(number, [])
         if not idx:
             continue
         mask, affine = _segment_volume(path, ds, frames, idx, name)
