@@ -31,7 +31,7 @@ from ctdrill.imaging.plan.types import Plan, PlanInputError
 #: saves volumes, the CT itself included, as ``.nrrd``).
 FOLDER_SEGMENTATIONS = (".seg.nrrd",)
 #: Label files accepted when named explicitly.
-LABEL_SUFFIXES = (".seg.nrrd", ".nrrd", ".nii.gz", ".nii", ".dcm")
+LABEL_SUFFIXES = (".seg.nrrd", ".nrrd", ".nhdr", ".nii.gz", ".nii", ".mha", ".mhd", ".dcm")
 
 _T = TypeVar("_T")
 

@@ -235,3 +235,23 @@ def test_files_read_name_a_detached_data_file(tmp_path: Path) -> None:
     assert [p.name for p in files_read(nhdr, error=VolumeFileError)] == ["a.nhdr", "a.raw.gz"]
     assert [p.name for p in files_read(mhd, error=VolumeFileError)] == ["b.mhd", "b.raw"]
     assert files_read(nii, error=VolumeFileError) == (nii,)
+
+
+def test_a_metaimage_label_map_is_a_plan_input(tmp_path: Path) -> None:
+    import json
+
+    from ctdrill.imaging.plan.landmarks import MaskLandmark
+    from ctdrill.imaging.plan.types import load_plan_set
+
+    labels = np.zeros(SHAPE, dtype=np.uint8)
+    labels[1:3, 2, 1:6] = 3  # a ToothFairy2-style left-canal label
+    write_mha(tmp_path / "labels.mha", labels, AFFINE, compress=True)
+    plan = tmp_path / "plan.json"
+    plan.write_text(
+        json.dumps({"format": "ctdrill-plan/1", "entry_mm": [0, 0, 10], "target_mm": [0, 0, 0]})
+    )
+    (p,) = load_plan_set([plan, tmp_path / "labels.mha"])
+    (lm,) = p.landmarks
+    assert isinstance(lm, MaskLandmark) and lm.name == "labels label 3" and lm.label == 3
+    np.testing.assert_array_equal(lm.mask, labels == 3)
+    np.testing.assert_allclose(lm.affine_lps, AFFINE, atol=1e-12)
