@@ -25,12 +25,14 @@ from __future__ import annotations
 
 import hashlib
 import os
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ctdrill.imaging.provenance import LoadWarning, SeriesInfo
+from ctdrill.imaging.resolution import coarse_voxels_warning, volume_sampling_mm
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.imaging.volumes.grid import TILT_REPORT_DEG
 from ctdrill.imaging.volumes.sniff import read_volume_file, volume_format
@@ -152,9 +154,9 @@ def ct_volume(path: str | Path, vol: VolumeData, *, max_bytes: int = DEFAULT_MAX
         gantry_tilt_deg=vol.tilt_deg,
         source_format=vol.format,
     )
-    return CTVolume(
-        hu=hu, affine_lps=vol.affine_lps, valid=valid, info=info, warnings=tuple(warnings)
-    )
+    volume = CTVolume(hu=hu, affine_lps=vol.affine_lps, valid=valid, info=info)
+    coarse = coarse_voxels_warning(*volume_sampling_mm(volume))  # the DICOM loader's rule
+    return replace(volume, warnings=(*warnings, *(() if coarse is None else (coarse,))))
 
 
 #: Names of volume files, for the hint when a folder given as a DICOM series holds one.

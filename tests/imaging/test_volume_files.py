@@ -70,7 +70,8 @@ def test_voxels_and_every_corner_agree_with_simpleitk(tmp_path: Path, kind: str)
         np.testing.assert_allclose(ours, sitk_corners_lps(path, ijk), rtol=0, atol=CORNER_TOL_MM)
     # and where they were written (float32 NIfTI fields round at ~1e-6 of a value)
     np.testing.assert_allclose(ours, corners_lps(AFFINE, ijk), rtol=0, atol=2e-5)
-    assert volume.info.is_hu and volume.warning_codes == ()
+    # the grid's 0.75-1.25 mm voxels are coarse for implant planning (the DICOM loader's rule)
+    assert volume.info.is_hu and volume.warning_codes == ("coarse_voxels",)
     assert volume.info.series_uid.startswith(CONTENT_UID_PREFIX)
 
 
@@ -182,7 +183,7 @@ def test_qform_and_sform(tmp_path: Path) -> None:
     # only the qform coded: the qform
     v = load_ct(write_nifti(tmp_path / "q.nii", data, AFFINE, sform_code=0, qform_lps=moved))
     np.testing.assert_allclose(v.affine_lps, moved, atol=2e-5)
-    assert v.warning_codes == ()
+    assert v.warning_codes == ("coarse_voxels",)
     with pytest.raises(VolumeFileError, match="qform_code and sform_code are both 0"):
         load_ct(write_nifti(tmp_path / "none.nii", data, AFFINE, sform_code=0, qform_code=0))
 
