@@ -6,9 +6,12 @@ Per tick, from the encoder depth of the master and its velocity estimate:
 2. finite checks on the inputs and on the force command (non-finite -> safe state);
 3. the cutting law (:mod:`ctdrill.model.cutting`) on the uploaded table: the front (deepest drill
    depth) yields to the hand, never past the stop depth; vibration from the device clock while
-   the front advances; once the front has reached the stop depth, a stiff wall (20 N/mm on top
-   of the coupling) anchored where the master was at that moment, so the force stays continuous,
-   and following the master back whenever it retreats (down to the stop depth itself);
+   the front advances; once the front has reached the stop depth, a rigid wall (200 N/mm and
+   0.4 N s/mm on top of the coupling) anchored where the master was at that moment, so the force
+   stays continuous; the anchor then glides to the stop depth at 20 mm/s, carrying the hand back
+   to the stopped drill, and follows the master back whenever it retreats (down to the stop
+   depth itself), so a push up to the peak force holds the hand within
+   :data:`WALL_HOLD_MM` of the drill;
 4. force limits: 78 N peak, and an I^2t thermal model that limits the force to the continuous
    rating (20 N) once ``thermal_budget_n2_s`` of excess ``F^2 - Fc^2`` has accumulated, until it
    has cooled to half.
@@ -41,8 +44,19 @@ CONTINUOUS_FORCE_N = 20.0
 #: Excess ``F^2 - Fc^2`` integrated before the thermal limit engages: 1 s at the peak force.
 THERMAL_BUDGET_N2_S = PEAK_FORCE_N**2 - CONTINUOUS_FORCE_N**2
 WATCHDOG_S = 0.050
-#: Stiffness of the wall rendered beyond the stop depth, N/mm (on top of the cut coupling).
-STOP_WALL_N_PER_MM = 20.0
+#: Stiffness of the wall rendered beyond the stop's anchor, N/mm (on top of the cut coupling):
+#: with the coupling, 211 N/mm hold the peak force 0.37 mm past the stop
+#: (docs/haptics-stability.md: stable with a 7.6x margin).
+STOP_WALL_N_PER_MM = 200.0
+#: The wall's own damping beyond its anchor, N s/mm (on top of the coupling's): it damps the
+#: 178 Hz mode of the stiff wall (damping ratio 0.24, 0.05 without it).
+STOP_WALL_DAMPING_N_S_PER_MM = 0.4
+#: Speed at which the wall's anchor glides from where the master met it to the stop depth,
+#: mm/s: the hand is carried back to the stopped drill (7.1 mm at the peak force in 0.35 s).
+STOP_GLIDE_MM_S = 20.0
+#: A push up to the peak force is held within this of the stopped drill, mm (once the anchor
+#: has glided to the stop; the summary names the force limit when the device could not).
+WALL_HOLD_MM = 0.5
 #: ARM is refused while the coupling would render more than this on arming, N.
 ARM_MAX_FORCE_N = 5.0
 
@@ -73,6 +87,8 @@ class Renderer:
         stiffness_n_per_mm: float = DEFAULT_STIFFNESS_N_PER_MM,
         damping_n_s_per_mm: float = DEFAULT_DAMPING_N_S_PER_MM,
         stop_wall_n_per_mm: float = STOP_WALL_N_PER_MM,
+        stop_wall_damping_n_s_per_mm: float = STOP_WALL_DAMPING_N_S_PER_MM,
+        stop_glide_mm_s: float = STOP_GLIDE_MM_S,
     ) -> None:
         self.dt_s = 1.0 / tick_hz
         self.peak_force_n = peak_force_n
@@ -82,6 +98,8 @@ class Renderer:
         self.k = stiffness_n_per_mm
         self.b = damping_n_s_per_mm
         self.k_stop = stop_wall_n_per_mm
+        self.b_stop = stop_wall_damping_n_s_per_mm
+        self.glide_mm = stop_glide_mm_s * self.dt_s
         self.state = int(DeviceState.IDLE)
         self.faults = 0
         self.new_faults = 0
@@ -230,11 +248,20 @@ class Renderer:
         anchor = self.stop_anchor_mm
         if new_front >= stop and anchor == math.inf:
             anchor = master_mm if master_mm > stop else stop  # continuous on reaching the stop
-        elif anchor != math.inf and master_mm < anchor:
-            anchor = master_mm if master_mm > stop else stop  # follows a retreat to the stop
+        elif anchor != math.inf:
+            # follows a retreat, else glides to the stop (the hand is carried to the drill)
+            anchor = master_mm if master_mm < anchor else anchor - self.glide_mm
+            if anchor < stop:
+                anchor = stop
         self.stop_anchor_mm = anchor
         if master_mm > anchor:
-            force += self.k_stop * (master_mm - self.stop_anchor_mm)
+            # spring and damper, the damper within the spring's force: the wall starts from 0
+            # on contact at any speed, and never pulls
+            spring = self.k_stop * (master_mm - anchor)
+            damper = self.b_stop * master_v_mm_s
+            force += spring + (
+                damper if -spring < damper < spring else math.copysign(spring, damper)
+            )
         self.front_mm = new_front
         self.drill_mm = master_mm if master_mm < new_front else new_front
         self.state = int(DeviceState.STOPPED if new_front >= stop else DeviceState.CUTTING)

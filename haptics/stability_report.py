@@ -16,7 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from ctdrill.haptics.renderer import PEAK_FORCE_N, STOP_WALL_N_PER_MM
+from ctdrill.haptics.renderer import (
+    PEAK_FORCE_N,
+    STOP_GLIDE_MM_S,
+    STOP_WALL_DAMPING_N_S_PER_MM,
+    STOP_WALL_N_PER_MM,
+)
 from ctdrill.haptics.stability import (
     Loop,
     colgate_terms,
@@ -29,6 +34,9 @@ from ctdrill.model.cutting import DEFAULT_DAMPING_N_S_PER_MM, DEFAULT_STIFFNESS_
 
 #: The coupling before this analysis: the paper's position gain on the master mass (Table 4).
 PREVIOUS_STIFFNESS_N_PER_MM = 0.5 * 6400.0 / 1000.0
+#: The stop wall before the rigid one: 20 N/mm, no damper of its own, anchored where the master
+#: met it (no glide).
+PREVIOUS_WALL_N_PER_MM = 20.0
 #: Operator forces simulated for the passivity table, N (0 to the device's peak).
 REPORT_PUSHES_N = (0.0, 4.0, 10.0, 30.0, 60.0, 70.0, PEAK_FORCE_N)
 #: The hand push whose offset past the stopped drill the issue quotes, N.
@@ -55,9 +63,16 @@ def _pole_row(name: str, loop: Loop) -> dict[str, Any]:
     }
 
 
-def _hand_offset_mm(stiffness_n_per_mm: float) -> float:
-    """Where a 30 N hand holds the master past the stop once settled, mm."""
-    run = simulate_push(OFFSET_PUSH_N, stiffness_n_per_mm=stiffness_n_per_mm)
+def _hand_offset_mm(stiffness_n_per_mm: float, wall: tuple[float, float, float]) -> float:
+    """Where a 30 N hand holds the master past the stop once settled, mm; ``wall`` is the stop
+    wall's stiffness (N/mm), damping (N s/mm) and glide speed (mm/s)."""
+    run = simulate_push(
+        OFFSET_PUSH_N,
+        stiffness_n_per_mm=stiffness_n_per_mm,
+        stop_wall_n_per_mm=wall[0],
+        stop_wall_damping_n_s_per_mm=wall[1],
+        stop_glide_mm_s=wall[2],
+    )
     return float(run.master_mm[-1]) - 1.0
 
 
@@ -66,12 +81,14 @@ def coupling_report() -> dict[str, Any]:
     k = DEFAULT_STIFFNESS_N_PER_MM
     b = DEFAULT_DAMPING_N_S_PER_MM
     wall = k + STOP_WALL_N_PER_MM
+    wall_b = b + STOP_WALL_DAMPING_N_S_PER_MM
+    old_wall = k + PREVIOUS_WALL_N_PER_MM
     rows = [
         _pole_row("at rest (front fixed, F < S0)", Loop(k, b)),
-        _pole_row("at the stop (coupling + wall)", Loop(wall, b)),
+        _pole_row("at the stop (coupling + wall)", Loop(wall, wall_b)),
         _pole_row(
             "at the stop, FEED hand (5 N/mm, 0.05 N s/mm)",
-            Loop(wall, b, hand_stiffness_n_per_mm=FEED_HAND[0], hand_damping_n_s_per_mm=0.05),
+            Loop(wall, wall_b, hand_stiffness_n_per_mm=FEED_HAND[0], hand_damping_n_s_per_mm=0.05),
         ),
         *(
             _pole_row(
@@ -80,11 +97,15 @@ def coupling_report() -> dict[str, Any]:
             )
             for s0 in CUT_S0_N
         ),
+        _pole_row("at the stop without the wall's damper", Loop(wall, b)),
         _pole_row(
-            f"previous {PREVIOUS_STIFFNESS_N_PER_MM:g} N/mm, at the stop",
-            Loop(PREVIOUS_STIFFNESS_N_PER_MM + STOP_WALL_N_PER_MM, b),
+            f"previous wall ({PREVIOUS_WALL_N_PER_MM:g} N/mm), at the stop", Loop(old_wall, b)
         ),
-        _pole_row("at the stop, semi-implicit Euler plant", Loop(wall, b, zoh_plant=False)),
+        _pole_row(
+            f"previous {PREVIOUS_STIFFNESS_N_PER_MM:g} N/mm coupling, at the stop",
+            Loop(PREVIOUS_STIFFNESS_N_PER_MM + PREVIOUS_WALL_N_PER_MM, b),
+        ),
+        _pole_row("at the stop, semi-implicit Euler plant", Loop(wall, wall_b, zoh_plant=False)),
     ]
     wall_limit = rows[1]["limit_n_per_mm"]
     pushes = []
@@ -95,9 +116,11 @@ def coupling_report() -> dict[str, Any]:
                 "push_n": push,
                 "final_force_n": float(run.force_n[-1]),
                 "max_force_n": float(run.force_n.max()),
+                "hand_past_drill_mm": float(run.master_mm[-1] - run.front_mm[-1]),
                 "settled_range_mm": run.settled_range_mm(),
                 "min_energy_in_j": float(run.energy_in_j.min()),
                 "min_dissipated_j": None if run.clipped else float(run.dissipated_j.min()),
+                "glide_j": float(run.glide_j[-1]),
                 "clipped": run.clipped,
             }
         )
@@ -119,16 +142,24 @@ def coupling_report() -> dict[str, Any]:
                     "peak_limit": run.clipped,
                 }
             )
+    previous = (PREVIOUS_WALL_N_PER_MM, 0.0, 0.0)
+    now = (STOP_WALL_N_PER_MM, STOP_WALL_DAMPING_N_S_PER_MM, STOP_GLIDE_MM_S)
     return {
         "stiffness_n_per_mm": k,
         "damping_n_s_per_mm": b,
         "stop_wall_n_per_mm": STOP_WALL_N_PER_MM,
+        "stop_wall_damping_n_s_per_mm": STOP_WALL_DAMPING_N_S_PER_MM,
         "poles": rows,
-        "colgate_at_stop": colgate_terms(wall, b, 1e-4),
-        "hand_offset_mm": {
-            PREVIOUS_STIFFNESS_N_PER_MM: _hand_offset_mm(PREVIOUS_STIFFNESS_N_PER_MM),
-            k: _hand_offset_mm(k),
-        },
+        "colgate_at_stop": colgate_terms(wall, wall_b, 1e-4),
+        "hand_offset_mm": [
+            (
+                PREVIOUS_STIFFNESS_N_PER_MM,
+                previous,
+                _hand_offset_mm(PREVIOUS_STIFFNESS_N_PER_MM, previous),
+            ),
+            (k, previous, _hand_offset_mm(k, previous)),
+            (k, now, _hand_offset_mm(k, now)),
+        ],
         "pushes": pushes,
         "beyond_limit": beyond,
     }
@@ -164,22 +195,25 @@ def report_markdown(report: dict[str, Any]) -> str:
         f"K T / 2 + |B| = {_g(c['required_b_n_s_per_mm'], 3)} N s/mm of physical damping "
         "required; the master has none (the DOB cancels its friction).",
         "",
-        "| coupling (N/mm) | 30 N hand past the stopped drill (mm) |",
-        "|---|---|",
+        "| coupling (N/mm) | stop wall (N/mm, N s/mm, glide mm/s) "
+        "| 30 N hand past the stopped drill (mm) |",
+        "|---|---|---|",
     ]
-    for k, offset in report["hand_offset_mm"].items():
-        lines.append(f"| {_g(k)} | {offset:.2f} |")
+    for k, (kw, bw, glide), offset in report["hand_offset_mm"]:
+        lines.append(f"| {_g(k)} | {_g(kw)}, {_g(bw)}, {_g(glide)} | {offset:.2f} |")
     lines += [
         "",
-        "| push (N) | final force (N) | max force (N) | motion in the last 0.1 s (mm) "
-        "| min E(n) (J) | min D(n) (J) | force limit acted |",
-        "|---|---|---|---|---|---|---|",
+        "| push (N) | final force (N) | max force (N) | hand past the drill (mm) "
+        "| motion in the last 0.1 s (mm) | min E(n) (J) | min D(n) (J) | G (J) "
+        "| force limit acted |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for p in report["pushes"]:
         lines.append(
             f"| {_g(p['push_n'])} | {p['final_force_n']:.2f} | {p['max_force_n']:.2f} "
-            f"| {_g(p['settled_range_mm'], 3)} | {_g(p['min_energy_in_j'], 3)} "
-            f"| {_g(p['min_dissipated_j'], 3)} | {_g(p['clipped'])} |"
+            f"| {p['hand_past_drill_mm']:.3f} | {_g(p['settled_range_mm'], 3)} "
+            f"| {_g(p['min_energy_in_j'], 3)} | {_g(p['min_dissipated_j'], 3)} "
+            f"| {_g(p['glide_j'], 3)} | {_g(p['clipped'])} |"
         )
     lines += [
         "",

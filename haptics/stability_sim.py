@@ -13,6 +13,13 @@ penetration, the stop wall beyond its anchor) store ``V(n)``. A passive coupling
 back more than it took: ``E(n) >= 0``, and, while no force limit clips the springs,
 ``D(n) = E(n) - V(n) >= 0`` (what the damper and the material dissipated, less what sampling
 generated: a held spring force generates ``K dx^2 / 2`` per tick).
+
+The stop wall's anchor glides from where the master met it to the stop depth (the hand is
+carried back to the stopped drill): a commanded motion of the wall's reference, not feedback.
+The energy it puts into the wall, ``G(n) = sum F_w,j (a_j - a_{j+1})`` (the wall's force,
+at most the rendered one, times the anchor's step), is booked separately: it is bounded (at
+most the force times the glide, once per stop) and the books show that the coupling gives back
+no more than it took even so.
 """
 
 from __future__ import annotations
@@ -26,7 +33,12 @@ from ctdrill.haptics.emulator import DeviceEmulator
 from ctdrill.haptics.plant import ForceController, MasterPlant
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import Fault, OperatorKind, SimOperator
-from ctdrill.haptics.renderer import Renderer
+from ctdrill.haptics.renderer import (
+    STOP_GLIDE_MM_S,
+    STOP_WALL_DAMPING_N_S_PER_MM,
+    STOP_WALL_N_PER_MM,
+    Renderer,
+)
 from ctdrill.model.cutting import DEFAULT_DAMPING_N_S_PER_MM, DEFAULT_STIFFNESS_N_PER_MM
 
 
@@ -42,6 +54,8 @@ class PushRun:
         ``E(n)``: energy the coupling absorbed so far, J.
     stored_j : ndarray
         ``V(n)``: energy in the coupling's springs, J.
+    glide_j : ndarray
+        ``G(n)``: energy the stop anchor's glide put into the wall so far, J.
     stop_reached_s : float
         When the front reached the stop depth, s (nan: never).
     faults : int
@@ -57,6 +71,7 @@ class PushRun:
     hand_n: np.ndarray
     energy_in_j: np.ndarray
     stored_j: np.ndarray
+    glide_j: np.ndarray
     stop_reached_s: float
     faults: int
     clipped: bool
@@ -84,18 +99,25 @@ def simulate_push(
     stiffness_n_per_mm: float = DEFAULT_STIFFNESS_N_PER_MM,
     damping_n_s_per_mm: float = DEFAULT_DAMPING_N_S_PER_MM,
     coulomb_n: float | None = None,
+    stop_wall_n_per_mm: float = STOP_WALL_N_PER_MM,
+    stop_wall_damping_n_s_per_mm: float = STOP_WALL_DAMPING_N_S_PER_MM,
+    stop_glide_mm_s: float = STOP_GLIDE_MM_S,
 ) -> PushRun:
     """Simulate a hand pushing ``push_n`` from ``step_at_s`` on a slab of ``S0 = s0_n`` from
     depth 0 whose stop is at ``stop_depth_mm``; the master starts at rest at the surface.
 
     ``coulomb_n`` replaces the Coulomb friction of plant and friction model (None: the
-    paper's 1.0 N); the stiffness and damping those of the renderer's coupling.
+    paper's 1.0 N); the stiffness and damping those of the renderer's coupling, the
+    ``stop_*`` values those of its stop wall (stiffness, damping, the anchor's glide speed).
     """
     emu = DeviceEmulator(nonce_seed=0)
     emu.renderer = Renderer(
         tick_hz=emu.tick_hz,
         stiffness_n_per_mm=stiffness_n_per_mm,
         damping_n_s_per_mm=damping_n_s_per_mm,
+        stop_wall_n_per_mm=stop_wall_n_per_mm,
+        stop_wall_damping_n_s_per_mm=stop_wall_damping_n_s_per_mm,
+        stop_glide_mm_s=stop_glide_mm_s,
         watchdog_s=math.inf,
     )
     if coulomb_n is not None:
@@ -113,8 +135,9 @@ def simulate_push(
     if r.arm(0.0, emu.plant.encoder_mm()) is not None:
         raise AssertionError("the renderer refused to arm at the surface")
     n = round(duration_s * emu.tick_hz)
-    out = np.zeros((7, n))
+    out = np.zeros((8, n))
     energy = 0.0
+    glide = 0.0
     stop_at = math.nan
     k_n_per_m = stiffness_n_per_mm * 1e3
     wall_n_per_m = r.k_stop * 1e3
@@ -123,6 +146,7 @@ def simulate_push(
         if emu.now_s >= step_at_s - 1e-12 and emu.operator_kind != OperatorKind.PUSH:
             emu._set_operator(SimOperator(int(OperatorKind.PUSH), push_n))
         x0 = emu.plant.x_m
+        anchor0 = r.stop_anchor_mm
         emu.control_tick()
         x1 = emu.plant.x_m
         force = r.force_cmd_n
@@ -132,9 +156,13 @@ def simulate_push(
         beyond_m = x1 - r.stop_anchor_mm * 1e-3
         if beyond_m > 0.0:
             stored += 0.5 * wall_n_per_m * beyond_m * beyond_m
+            if math.isfinite(anchor0) and r.stop_anchor_mm < anchor0:  # the anchor glided
+                # the wall's force on the glide (the spring's, at most what was rendered)
+                pushed_n = min(wall_n_per_m * beyond_m, force)
+                glide += pushed_n * (anchor0 - r.stop_anchor_mm) * 1e-3
         if math.isnan(stop_at) and r.front_mm >= stop_depth_mm:
             stop_at = emu.now_s
-        out[:, i] = (emu.now_s, x1 * 1e3, r.front_mm, force, emu.hand_n, energy, stored)
+        out[:, i] = (emu.now_s, x1 * 1e3, r.front_mm, force, emu.hand_n, energy, stored, glide)
     return PushRun(
         time_s=out[0],
         master_mm=out[1],
@@ -143,6 +171,7 @@ def simulate_push(
         hand_n=out[4],
         energy_in_j=out[5],
         stored_j=out[6],
+        glide_j=out[7],
         stop_reached_s=stop_at,
         faults=r.faults,
         clipped=bool(r.faults & (Fault.PEAK_LIMIT | Fault.THERMAL_LIMIT)),

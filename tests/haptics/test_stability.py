@@ -1,4 +1,5 @@
-"""Stability and passivity of the coupled master at 11 N/mm (docs/haptics-stability.md)."""
+"""Stability and passivity of the coupled master: the 11 N/mm coupling and the rigid stop wall
+(docs/haptics-stability.md)."""
 
 from __future__ import annotations
 
@@ -14,7 +15,13 @@ from ctdrill.haptics.emulator import DeviceEmulator
 from ctdrill.haptics.plant import ENCODER_M, TRAVEL_MM, ForceController, MasterPlant
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import OperatorKind, SimOperator
-from ctdrill.haptics.renderer import PEAK_FORCE_N, STOP_WALL_N_PER_MM, Renderer
+from ctdrill.haptics.renderer import (
+    PEAK_FORCE_N,
+    STOP_WALL_DAMPING_N_S_PER_MM,
+    STOP_WALL_N_PER_MM,
+    WALL_HOLD_MM,
+    Renderer,
+)
 from ctdrill.haptics.stability import (
     Loop,
     closed_loop_matrix,
@@ -31,10 +38,11 @@ from tests.conftest import ROOT
 K = DEFAULT_STIFFNESS_N_PER_MM
 B = DEFAULT_DAMPING_N_S_PER_MM
 WALL = K + STOP_WALL_N_PER_MM
+WALL_B = B + STOP_WALL_DAMPING_N_S_PER_MM
 
 
 def _wall_limit() -> float:
-    return stiffness_limit_n_per_mm(Loop(WALL, B))
+    return stiffness_limit_n_per_mm(Loop(WALL, WALL_B))
 
 
 @pytest.mark.parametrize("encoder_m", [ENCODER_M, 1e-15])
@@ -72,7 +80,7 @@ def test_the_linear_model_is_the_simulated_tick(
 
 
 def test_the_matrix_is_the_tick_applied_to_the_basis() -> None:
-    loop = Loop(WALL, B)
+    loop = Loop(WALL, WALL_B)
     a = closed_loop_matrix(loop)
     assert a.shape == (7, 7)
     s = np.array([1e-4, -2e-3, 5e-5, 0.3, -0.2, 1.5, 1e-3, 0.0])
@@ -91,10 +99,11 @@ def test_poles_predict_where_the_simulation_goes_unstable() -> None:
     assert above.settled_range_mm() > 1.0 and above.clipped
     assert below.dissipated_j.min() > -1e-4
     assert above.dissipated_j.min() < -0.1
-    # With the master's 1 N Coulomb friction the loop is more stable than the linear model
-    # (friction dissipates): it still settles at 1.25x, and has gone unstable by 2x the limit,
-    # where the coupling even returns more energy than it took (E(n) < 0).
-    assert simulate_push(30.0, stiffness_n_per_mm=1.25 * limit - 20.0).settled_range_mm() == 0.0
+    # With the master's 1 N Coulomb friction too: settled at 0.8x, ringing at 1.25x (the wall's
+    # damper, not friction, is what keeps the stiff wall stable), and by 2x the coupling even
+    # returns more energy than it took (E(n) < 0).
+    assert simulate_push(30.0, stiffness_n_per_mm=0.8 * limit - 200.0).settled_range_mm() == 0.0
+    assert simulate_push(30.0, stiffness_n_per_mm=1.25 * limit - 200.0).settled_range_mm() > 0.5
     far = simulate_push(30.0, stiffness_n_per_mm=2.0 * limit - STOP_WALL_N_PER_MM)
     assert far.settled_range_mm() > 1.0 and far.energy_in_j.min() < -0.01
 
@@ -102,7 +111,7 @@ def test_poles_predict_where_the_simulation_goes_unstable() -> None:
 def test_the_semi_implicit_plant_hid_the_limit() -> None:
     # Semi-implicit Euler conserves a sampled spring's energy (symplectic): its limit is the
     # integrator's omega T = 2, two hundred times the exact (zero-order-hold) plant's.
-    symplectic = stiffness_limit_n_per_mm(Loop(WALL, B, zoh_plant=False))
+    symplectic = stiffness_limit_n_per_mm(Loop(WALL, WALL_B, zoh_plant=False))
     assert symplectic > 100.0 * _wall_limit()
 
 
@@ -117,12 +126,23 @@ def test_the_paper_stiffness_is_stable_with_margin_at_every_operating_point(
     assert report["stiffness_n_per_mm"] == 11.0
     for row in report["poles"]:
         assert row["spectral_radius"] < 1.0, row
-        assert row["margin"] > 10.0, row
-        assert row["damping_ratio"] > 0.25, row
-    assert report["hand_offset_mm"][11.0] == pytest.approx(30.0 / 11.0, abs=0.05)
-    assert report["hand_offset_mm"][3.2] > 8.5  # the issue's "about 9 mm" before
-    # Without its damper the wall is unstable (the DOB leaves the master no damping of its own).
+        if row["operating point"].startswith(("previous", "at the stop without")):
+            continue  # designs compared against, not rendered
+        # room for what the model lacks (a resonance, an amplifier's lag): 7.5x at the wall
+        assert row["margin"] > 7.0, row
+        assert row["damping_ratio"] > 0.2, row
+    offsets = {(k, wall[0]): mm for k, wall, mm in report["hand_offset_mm"]}
+    assert offsets[(11.0, 20.0)] == pytest.approx(30.0 / 11.0, abs=0.05)
+    assert offsets[(3.2, 20.0)] > 8.5  # the issue's "about 9 mm" before
+    # now the wall holds the hand at 30 N / (11 + 200) N/mm past the stopped drill
+    assert offsets[(11.0, STOP_WALL_N_PER_MM)] == pytest.approx(30.0 / WALL, abs=0.01)
+    # Without its dampers the wall is unstable (the DOB leaves the master no damping of its
+    # own); without the wall's own damper the stiff wall rings (damping ratio 0.05).
     assert spectral_radius(Loop(WALL, 0.0)) > 1.0
+    undamped = next(
+        r for r in report["poles"] if "without the wall's damper" in r["operating point"]
+    )
+    assert undamped["damping_ratio"] < 0.1
 
 
 def test_colgate_terms() -> None:
@@ -149,7 +169,7 @@ def test_stable_and_passive_over_operator_forces(push_n: float, step_at_s: float
     assert run.force_n.max() <= PEAK_FORCE_N
     assert run.energy_in_j.min() >= 0.0
     if push_n < PEAK_FORCE_N:
-        assert not run.clipped or push_n >= 70.0  # 70 N overshoots the peak on impact only
+        assert not run.clipped or push_n >= 60.0  # 60 N overshoots the peak on impact only
         if not run.clipped:
             assert run.dissipated_j.min() > -1e-6
         assert run.settled_range_mm() < 1e-3 or 4.0 < push_n < 6.0  # slow cut still going
@@ -158,11 +178,14 @@ def test_stable_and_passive_over_operator_forces(push_n: float, step_at_s: float
             assert run.front_mm[-1] < 0.05
             assert run.front_mm[-1] - run.front_mm[-int(0.2 / 1e-4)] < 1e-4
             assert run.force_n[-1] == pytest.approx(push_n, abs=1.0)
-        elif push_n >= 6.0:  # at the stop, the wall holds the hand
+        elif push_n >= 6.0:  # at the stop, the rigid wall holds the hand at the drill
             assert run.front_mm[-1] == 1.0
             assert run.force_n[-1] == pytest.approx(push_n, abs=1.0)
             offset = run.master_mm[-1] - 1.0
-            assert offset == pytest.approx(push_n / K, abs=0.15 + 1.0 / K)
+            assert offset == pytest.approx(push_n / WALL, abs=1.0 / WALL)
+            assert offset < WALL_HOLD_MM
+            # the anchor's glide carried the hand back: bounded, at most the force times F/k
+            assert 0.0 < run.glide_j[-1] <= push_n * 1e-3 * push_n / K
         # the oscillation after the impact decays: the last 0.1 s moves less than the first
         n = int(0.1 / 1e-4)
         i0 = int(step_at_s / 1e-4)
@@ -171,6 +194,7 @@ def test_stable_and_passive_over_operator_forces(push_n: float, step_at_s: float
     else:  # at the peak force the wall cannot hold: the master drifts on, bounded by travel
         assert run.clipped
         assert run.force_n[-1] == PEAK_FORCE_N
+        assert run.master_mm[-1] - 1.0 > WALL_HOLD_MM
 
 
 def test_the_document_carries_the_computed_numbers(report: dict[str, Any]) -> None:
