@@ -26,6 +26,7 @@ import numpy as np
 from ctdrill.haptics.plant import COULOMB_N
 from ctdrill.haptics.predict import PushPrediction, predict_push
 from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.renderer import WALL_HOLD_MM
 from ctdrill.model.cutting import steady_feed_mm_s
 from ctdrill.model.force import feed_factor_scalar
 
@@ -271,24 +272,47 @@ def push_summary(
         "push_too_weak_at_mm": pred.stall_depth_mm,
         "push_too_weak_s0_n": pred.stall_s0_n,
     }
-    if session.get("final_state") == "stopped" and session.get("final_master_mm") is not None:
-        out["hand_past_drill_mm"] = max(
-            float(session["final_master_mm"]) - float(session["final_drill_mm"]), 0.0
-        )
     return out
 
 
+#: Device limits that can let a push through the stop's wall, the likeliest cause first.
+WALL_LIMITS = ("thermal_limit", "peak_limit", "travel_limit")
+
+
+def wall_summary(session: dict[str, Any]) -> dict[str, Any]:
+    """The stop's account for a session that ended at the stop (empty otherwise):
+    ``hand_past_drill_mm`` (the hand's final offset past the stopped drill), ``wall_held``
+    (within :data:`ctdrill.haptics.renderer.WALL_HOLD_MM`) and ``wall_limit``: when the wall did
+    not hold, the device limit the session raised that let the hand through (the thermal
+    limit's continuous rating, the peak force, the travel's end stop), else None."""
+    if session.get("final_state") != "stopped" or session.get("final_master_mm") is None:
+        return {}
+    past = max(float(session["final_master_mm"]) - float(session["final_drill_mm"]), 0.0)
+    held = past <= WALL_HOLD_MM
+    raised = {
+        name
+        for event in session.get("faults", [])
+        if event.get("source") == "device"
+        for name in event.get("flags", [])
+    }
+    limit = None if held else next((name for name in WALL_LIMITS if name in raised), None)
+    return {"hand_past_drill_mm": past, "wall_held": held, "wall_limit": limit}
+
+
 def readout_lines(summary: dict[str, Any]) -> str:
-    """The CLI's lines on the forces and the time to the stop (empty unless ``push:N``)."""
-    if "push_n" not in summary:
-        return ""
-    push = summary["push_n"]
-    lines = [f"push {push:g} N: {summary['time_to_stop_note']}"]
+    """The CLI's lines on the forces and the time to the stop (``push:N``) and on the stop's
+    wall (a session that ended at the stop)."""
+    lines = []
+    if "push_n" in summary:
+        lines.append(f"push {summary['push_n']:g} N: {summary['time_to_stop_note']}")
     if summary.get("hand_past_drill_mm") is not None:
         hand = summary.get("final_hand_est_n")
         hand_text = "" if hand is None else f", the device reads the hand at {hand:.1f} N"
-        lines.append(
+        line = (
             f"at the stop the wall holds {summary['final_force_cmd_n']:.1f} N{hand_text}; the "
             f"hand sits {summary['hand_past_drill_mm']:.2f} mm past the stopped drill"
         )
+        if summary.get("wall_limit") is not None:
+            line += f" (the device's {summary['wall_limit'].replace('_', ' ')} let it through)"
+        lines.append(line)
     return "".join(line + "\n" for line in lines)

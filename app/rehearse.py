@@ -25,7 +25,7 @@ from ctdrill.app.errors import AppInputError
 from ctdrill.app.export_band import band_summary, hu_uncertainty_option, path_band
 from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
 from ctdrill.app.pipeline import PathResult, binding_landmark_doc, plan_calibration, plan_path
-from ctdrill.app.readout import push_summary
+from ctdrill.app.readout import push_summary, wall_summary
 from ctdrill.app.records import atomic_output_dir, write_file
 from ctdrill.app.trainee.exam import (
     ExamSetup,
@@ -128,8 +128,9 @@ def rehearsal_summary(
     clearance, calibration, how it was obtained, the force band at the peak at the plan's feed
     with ``hu`` (``--hu-sigma``), warnings), how the session was run, and for a ``push:N``
     operator the readouts of :func:`ctdrill.app.readout.push_summary` (the model's time to the
-    stop against the session's, a push too weak to cut, the hand's offset past the stopped
-    drill); then ``exam`` (exam mode: the stop and why there, or ``{"enabled": false}``),
+    stop against the session's, a push too weak to cut); at the stop the wall's account
+    (:func:`ctdrill.app.readout.wall_summary`: the hand's offset past the stopped drill, the
+    limit that let it through); then ``exam`` (exam mode: the stop and why there, or ``{"enabled": false}``),
     ``plan_sha256``, ``recorded_at`` (UTC) and the session's ``assessment``
     (:meth:`ctdrill.haptics.assessment.Assessment.to_json`), when given."""
     summary = dict(session.to_json() if isinstance(session, SessionResult) else session)
@@ -159,6 +160,7 @@ def rehearsal_summary(
         }
     )
     summary.update(push_summary(summary, table, operator, duration_s))
+    summary.update(wall_summary(summary))
     summary["exam"] = {"enabled": False} if exam is None else exam.to_json()
     summary["plan_sha256"] = plan_hash(path.plan)
     summary["recorded_at"] = datetime.now(UTC).isoformat(timespec="seconds")
@@ -168,8 +170,19 @@ def rehearsal_summary(
 
 
 def summary_json(summary: dict[str, Any]) -> str:
-    """``summary.json``'s text."""
-    return json.dumps(summary, indent=2) + "\n"
+    """``summary.json``'s text: valid JSON, a number that is not finite written as null (the
+    host records no untrusted telemetry; this keeps any other value from breaking the file)."""
+    return json.dumps(_finite(summary), indent=2, allow_nan=False) + "\n"
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value
 
 
 def rehearse(

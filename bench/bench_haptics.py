@@ -35,7 +35,9 @@ SLAB = ProfileTable.slab(
     s0_n=4.0, s1_n=0.25, s2_n=0.125, top_mm=0.0, bottom_mm=40.0, stop_depth_mm=30.0
 )
 #: Bytes of one TELEMETRY frame on the wire (COBS and the delimiter included).
-TELEMETRY_WIRE_BYTES = len(encode(Telemetry(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0), seq=1, session=1))
+TELEMETRY_WIRE_BYTES = len(
+    encode(Telemetry(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0, 0), seq=1, session=1)
+)
 STATS = re.compile(
     r"(\d+) ticks, (\d+) wakeups, (\d+) overruns, (\d+) resyncs \((\d+) ms slipped\); "
     r"per-tick lateness p50 (\d+) us, "

@@ -76,6 +76,12 @@ class Fault(IntEnum):
     TRAVEL_LIMIT = 1 << 7
 
 
+#: Every state and every fault bit this protocol defines (anything else is a device the host
+#: cannot interpret: it ends the session).
+KNOWN_STATES: frozenset[int] = frozenset(int(s) for s in DeviceState)
+KNOWN_FAULT_BITS: int = sum(int(f) for f in Fault)
+
+
 class NakReason(IntEnum):
     """Why the device refused a command (NAK body)."""
 
@@ -92,6 +98,7 @@ class NakReason(IntEnum):
     NOT_RETRACTED = 11
     BAD_SESSION = 12
     STALE_SEQUENCE = 13
+    BAD_HEADER = 14
 
 
 class OperatorKind(IntEnum):

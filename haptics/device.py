@@ -22,7 +22,15 @@ class DeviceError(HapticsInputError):
 
 
 class DeviceRefused(DeviceError):
-    """The device answered a command with NAK (it did not carry it out)."""
+    """The device answered a command with NAK (it did not carry it out).
+
+    ``reason`` is the NAK's reason code (:class:`ctdrill.haptics.protocol.NakReason`), or None
+    when the host refused on its own.
+    """
+
+    def __init__(self, message: str, *, reason: int | None = None) -> None:
+        super().__init__(message)
+        self.reason = reason
 
 
 @dataclass(frozen=True)
@@ -53,6 +61,8 @@ class TelemetrySample:
         :class:`ctdrill.haptics.protocol.Fault` bits.
     overruns : int
         Control ticks the device ran late.
+    table_crc32 : int
+        CRC-32 of the table the device holds (0: none).
     """
 
     time_s: float
@@ -65,6 +75,7 @@ class TelemetrySample:
     state: int
     faults: int
     overruns: int
+    table_crc32: int = 0
 
 
 class Device(Protocol):
@@ -79,7 +90,8 @@ class Device(Protocol):
         ...
 
     def arm(self) -> None:
-        """Start rendering (the only way out of a latched safe state)."""
+        """Start rendering the table uploaded in this session (the only way out of a latched
+        safe state)."""
         ...
 
     def disarm(self) -> None:
@@ -113,6 +125,10 @@ class Device(Protocol):
 
     def lost_session(self) -> bool:
         """True once the device sent telemetry without the session (it rebooted)."""
+        ...
+
+    def untrusted(self) -> str | None:
+        """Why the host stopped trusting the device's reports, or None."""
         ...
 
     def wait(self, duration_s: float) -> None:

@@ -8,9 +8,13 @@ Deterministic for a given ``nonce_seed``: the only state is what it was sent and
 it ran (without a seed, session nonces come from the operating system's random source).
 
 Frames from the host are accepted (and feed the watchdog) only when they decode, are of a
-host->device type, and, except HELLO, carry the current session's nonce and a sequence number
-above the last accepted one: a looped-back line, a replayed frame or a frame of an earlier
-session is rejected and never keeps the device armed.
+host->device type with ``time_us`` 0, and, except HELLO, carry the current session's nonce and
+a sequence number after the last accepted one (serial-number arithmetic): a looped-back line, a
+replayed frame or a frame of an earlier session is rejected and never keeps the device armed.
+STOP and DISARM are the exception that makes the device safer: they are carried out whatever
+their session and sequence (an emergency stop from any host), without feeding the watchdog
+unless they are also the session's next frame. ARM needs a table uploaded in this session and
+names it by its CRC-32; TELEMETRY names the table the device holds.
 """
 
 from __future__ import annotations
@@ -52,6 +56,7 @@ from ctdrill.haptics.protocol import (
     VersionError,
     encode,
     profile_crc32,
+    seq_after,
 )
 from ctdrill.haptics.renderer import (
     CONTINUOUS_FORCE_N,
@@ -114,6 +119,9 @@ class DeviceEmulator:
         self.session = 0
         #: The sequence number of the last accepted host frame of this session.
         self.host_seq = 0
+        #: CRC-32 of the installed table (0: none) and the session that uploaded it.
+        self.table_crc32 = 0
+        self.table_session = 0
 
     @property
     def now_s(self) -> float:
@@ -122,12 +130,14 @@ class DeviceEmulator:
 
     # ------------------------------------------------------------ I/O
 
-    def _send(self, message: Message) -> None:
+    def _send(self, message: Message, *, session: int | None = None) -> None:
+        """Frame ``message`` with the device's next seq (one counter since power-on, wrapping)
+        and the current session, or ``session`` (the reply to a STOP or DISARM of another)."""
         self._seq = (self._seq + 1) & 0xFFFFFFFF
         self._out += encode(
             message,
             seq=self._seq,
-            session=self.session,
+            session=self.session if session is None else session,
             time_us=self.ticks * 1_000_000 // self.tick_hz,
         )
 
@@ -161,25 +171,41 @@ class DeviceEmulator:
         self._send(Nak(mtype, seq, int(reason)))
 
     def _accept(self, packet: Packet) -> None:
-        """A decoded frame: check direction, session and sequence, then handle it."""
+        """A decoded frame: check direction, header, session and sequence, then handle it."""
         msg = packet.message
         if msg.TYPE in DEVICE_TYPES:
             self.frames_rejected += 1  # looped back (or a confused host): dropped, no reply
             return
+        if packet.time_us != 0:  # a host frame has no clock: no free bytes in its header
+            self.frames_rejected += 1
+            self._send(Nak(int(msg.TYPE), packet.seq, int(NakReason.BAD_HEADER)))
+            return
         if isinstance(msg, Hello):
             self._hello(packet.seq, msg)
             return
-        if self.session == 0 or packet.session != self.session:
-            self.frames_rejected += 1
-            self._send(Nak(int(msg.TYPE), packet.seq, int(NakReason.BAD_SESSION)))
+        current = self.session != 0 and packet.session == self.session
+        if current and seq_after(packet.seq, self.host_seq):
+            self.host_seq = packet.seq
+            self.renderer.host_frame(self.now_s)
+            self._handle(packet)
             return
-        if packet.seq <= self.host_seq:
-            self.frames_rejected += 1
-            self._send(Nak(int(msg.TYPE), packet.seq, int(NakReason.STALE_SEQUENCE)))
+        if isinstance(msg, Stop | Disarm):  # the safe direction: from any host, any seq
+            self._safe_command(msg, packet)
             return
-        self.host_seq = packet.seq
-        self.renderer.host_frame(self.now_s)
-        self._handle(packet)
+        self.frames_rejected += 1
+        reason = NakReason.STALE_SEQUENCE if current else NakReason.BAD_SESSION
+        self._send(Nak(int(msg.TYPE), packet.seq, int(reason)))
+
+    def _safe_command(self, msg: Stop | Disarm, packet: Packet) -> None:
+        """STOP or DISARM outside the session's sequence: carried out, acknowledged in the
+        sender's session (so that it knows its answer), the watchdog not fed."""
+        if isinstance(msg, Stop):
+            self.renderer.host_stop(self.now_s)
+        else:
+            self.renderer.disarm()
+        self._send(Ack(int(msg.TYPE), packet.seq), session=packet.session)
+        if self.renderer.new_faults:
+            self._report_faults()
 
     def _hello(self, seq: int, msg: Hello) -> None:
         """HELLO: a new session (nonce, sequences), the device disarmed; VERSION and LIMITS."""
@@ -189,7 +215,6 @@ class DeviceEmulator:
             return
         self.session = self._nonces.randrange(1, 1 << 32)
         self.host_seq = seq
-        self._seq = 0
         self._upload = None
         self.renderer.disarm()  # an armed session ends with its host (safe stays latched)
         self.renderer.host_frame(self.now_s)
@@ -238,6 +263,7 @@ class DeviceEmulator:
             if msg.depth_step_mm <= 0.0 or min(values[1:]) < 0.0:
                 return NakReason.BAD_VALUE
             r.clear()
+            self.table_crc32 = self.table_session = 0
             self._upload, self._rows = msg, []
             return None
         if isinstance(msg, ProfileChunk):
@@ -263,8 +289,13 @@ class DeviceEmulator:
             if profile_crc32(begin, self._rows) != msg.crc32:
                 return NakReason.PROFILE_CRC
             r.load(begin, self._rows)
+            self.table_crc32, self.table_session = msg.crc32, self.session
             return None
         if isinstance(msg, Arm):
+            if not r.has_profile or self.table_session != self.session:
+                return NakReason.NOT_READY  # no table uploaded in this session
+            if msg.table_crc32 != self.table_crc32:
+                return NakReason.PROFILE_CRC  # not the table the host means
             refused = r.arm(now, self.plant.encoder_mm())
             if refused is None:
                 self._boot_fault = 0
@@ -305,6 +336,7 @@ class DeviceEmulator:
         self.session = 0
         self.host_seq = 0
         self._seq = 0
+        self.table_crc32 = self.table_session = 0
 
     def _report_faults(self) -> None:
         r = self.renderer
@@ -370,5 +402,6 @@ class DeviceEmulator:
                 r.state,
                 faults,
                 min(self.overruns, 0xFFFF),
+                self.table_crc32,
             )
         )

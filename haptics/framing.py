@@ -1,4 +1,4 @@
-"""Byte-level framing of the device protocol: COBS, CRC-16/CCITT-FALSE, CRC-32, typed errors.
+"""Byte-level framing of the device protocol: COBS, CRC-32C (frames), CRC-32 (tables), typed errors.
 
 See :mod:`ctdrill.haptics.protocol` for the frame layout and docs/protocol.md for the specification.
 """
@@ -13,7 +13,7 @@ from ctdrill.haptics.errors import HapticsInputError
 class ProtocolError(HapticsInputError):
     """A frame that cannot be accepted; the message says what is wrong with it.
 
-    ``header`` is ``(type, seq, session)`` when the frame's header could be read (its CRC-16
+    ``header`` is ``(type, seq, session)`` when the frame's header could be read (its CRC-32C
     and version are right), else None.
     """
 
@@ -27,7 +27,7 @@ class FramingError(ProtocolError):
 
 
 class ChecksumError(ProtocolError):
-    """The frame's CRC-16 does not match its content."""
+    """The frame's CRC-32C does not match its content."""
 
 
 class MessageError(ProtocolError):
@@ -42,25 +42,27 @@ class VersionError(MessageError):
     """A frame of another protocol version."""
 
 
-def _crc16_table() -> tuple[int, ...]:
+def _crc32c_table() -> tuple[int, ...]:
     table = []
     for byte in range(256):
-        crc = byte << 8
+        crc = byte
         for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else (crc << 1)
-        table.append(crc & 0xFFFF)
+            crc = (crc >> 1) ^ 0x82F63B78 if crc & 1 else crc >> 1
+        table.append(crc)
     return tuple(table)
 
 
-_CRC16 = _crc16_table()
+_CRC32C = _crc32c_table()
 
 
-def crc16_ccitt_false(data: bytes) -> int:
-    """CRC-16/CCITT-FALSE of ``data`` (poly 0x1021, init 0xFFFF); ``b"123456789"`` -> 0x29B1."""
-    crc = 0xFFFF
+def crc32c(data: bytes) -> int:
+    """CRC-32C (Castagnoli, iSCSI: poly 0x1EDC6F41 reflected, init and final XOR 0xFFFFFFFF);
+    ``b"123456789"`` -> 0xE3069283."""
+    crc = 0xFFFFFFFF
+    table = _CRC32C
     for byte in data:
-        crc = ((crc << 8) & 0xFFFF) ^ _CRC16[(crc >> 8) ^ byte]
-    return crc
+        crc = (crc >> 8) ^ table[(crc ^ byte) & 0xFF]
+    return crc ^ 0xFFFFFFFF
 
 
 def crc32(data: bytes, value: int = 0) -> int:

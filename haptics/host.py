@@ -1,10 +1,16 @@
 """Host-side protocol logic shared by the simulated and the serial device.
 
 The host accepts a device frame only when it is of a device->host type and carries the session
-nonce that the device's VERSION announced and a sequence number above the last accepted one:
-its own frames echoed by a looped-back line, stale or replayed device frames and telemetry
-queued before the session are dropped (counted in ``rejected_frames``). Telemetry and fault
-reports from before the ARM's acknowledgement are not part of the session and are discarded.
+nonce that the device's VERSION announced and a sequence number after the last accepted one
+(serial-number arithmetic): its own frames echoed by a looped-back line, stale or replayed
+device frames and telemetry queued before the session are dropped (counted in
+``rejected_frames``). Telemetry and fault reports from before the ARM's acknowledgement are not
+part of the session and are discarded.
+
+It holds the device to its own bounds (:mod:`ctdrill.haptics.limits`): VERSION and LIMITS
+outside them are refused at HELLO. A FAULT report with a flag or a state this protocol does not
+define makes the device untrusted (:meth:`HostDevice.untrusted`); the telemetry itself is judged
+by :class:`ctdrill.haptics.watch.TelemetryWatch`.
 """
 
 from __future__ import annotations
@@ -12,7 +18,9 @@ from __future__ import annotations
 import random
 from typing import Protocol
 
+from ctdrill.haptics.codes import KNOWN_FAULT_BITS, KNOWN_STATES
 from ctdrill.haptics.device import DeviceError, DeviceInfo, DeviceRefused, TelemetrySample
+from ctdrill.haptics.limits import device_info_problem, table_problem
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import (
     HOST_TYPES,
@@ -29,12 +37,14 @@ from ctdrill.haptics.protocol import (
     Nak,
     NakReason,
     Packet,
+    ProfileEnd,
     SimOperator,
     SimReset,
     Stop,
     Telemetry,
     Version,
     encode,
+    seq_after,
 )
 
 #: Unclaimed replies and NAKs kept (the oldest are dropped).
@@ -109,12 +119,16 @@ class HostDevice:
         self.nak_count = 0
         self.rejected_frames = 0
         self.session_lost = False
+        self._untrusted: str | None = None
+        self._info: DeviceInfo | None = None
+        #: CRC-32 of the table uploaded in this session (ARM names it; 0: none yet).
+        self.table_crc32 = 0
 
     # ------------------------------------------------------------ plumbing
 
     def send(self, message: Message) -> int:
         """Send one message in this session; returns its sequence number."""
-        self._seq += 1
+        self._seq = (self._seq + 1) & 0xFFFFFFFF
         self.transport.write(encode(message, seq=self._seq, session=self.session))
         return self._seq
 
@@ -131,7 +145,11 @@ class HostDevice:
                 self.session, self._device_seq = item.session, item.seq  # a new session
                 self._replies.append((msg, item.seq))
                 continue
-            if self.session == 0 or item.session != self.session or item.seq <= self._device_seq:
+            if (
+                self.session == 0
+                or item.session != self.session
+                or not seq_after(item.seq, self._device_seq)
+            ):
                 self.rejected_frames += 1
                 if item.session == 0 and self.session:  # the device is up without our session
                     if isinstance(msg, Telemetry):
@@ -157,11 +175,20 @@ class HostDevice:
                     msg.state,
                     msg.faults,
                     msg.overruns,
+                    msg.table_crc32,
                 )
             )
             return
         if isinstance(msg, FaultReport):
             self.fault_reports.append((t, msg))
+            del self.fault_reports[:-MAX_KEPT]
+            unknown = msg.faults & ~KNOWN_FAULT_BITS
+            if self._untrusted is None and (unknown or msg.state not in KNOWN_STATES):
+                self._untrusted = (
+                    f"the device sent a FAULT report with an undefined flag 0x{unknown:04x}"
+                    if unknown
+                    else f"the device sent a FAULT report with an undefined state {msg.state}"
+                )
             return
         if isinstance(msg, Nak):
             self.nak_count += 1
@@ -203,7 +230,7 @@ class HostDevice:
     def command(self, message: Message) -> None:
         """Send a command and wait for its ACK; :class:`DeviceError` on NAK or timeout."""
         if isinstance(message, Arm):
-            self._arm_seq = self._seq + 1
+            self._arm_seq = (self._seq + 1) & 0xFFFFFFFF
         seq = self.send(message)
         name = message.TYPE.name
         deadline = self.transport.clock_s() + self.timeout_s
@@ -220,7 +247,8 @@ class HostDevice:
                         known = {int(r): r.name for r in NakReason}
                         reason = known.get(msg.reason, f"reason {msg.reason}")
                         raise DeviceRefused(
-                            f"device on {self.transport.name} refused {name} ({reason})"
+                            f"device on {self.transport.name} refused {name} ({reason})",
+                            reason=msg.reason,
                         )
                     return
             if self.transport.clock_s() >= deadline:
@@ -236,7 +264,9 @@ class HostDevice:
         """HELLO -> VERSION + LIMITS: a new session.
 
         What the link buffered before (telemetry the device streamed since power-on) is
-        discarded; the VERSION that echoes this HELLO's token sets the session nonce.
+        discarded; the VERSION that echoes this HELLO's token sets the session nonce. VERSION
+        and LIMITS outside the host's bounds (:mod:`ctdrill.haptics.limits`) are refused
+        (:class:`DeviceError`): nothing is uploaded to such a device.
         """
         self.transport.read()  # flush: nothing before our HELLO belongs to the session
         self._reader = FrameReader()
@@ -244,21 +274,39 @@ class HostDevice:
         self._telemetry.clear()
         self.fault_reports.clear()
         self.session, self._device_seq, self.session_lost = 0, 0, False
+        self._untrusted, self._info, self.table_crc32 = None, None, 0
         self._token = self._tokens.randrange(1 << 32)
         self.send(Hello(host_token=self._token))
         (version,) = self._await("HELLO", Version)
         (limits,) = self._await("HELLO", Limits)
         assert isinstance(version, Version) and isinstance(limits, Limits)
-        return DeviceInfo(version, limits)
+        problem = device_info_problem(version, limits)
+        if problem is not None:
+            raise DeviceError(
+                f"device on {self.transport.name} announced {problem}: refused; check that it "
+                "is a ctdrill haptic master (docs/protocol.md section 2.5)"
+            )
+        self._info = DeviceInfo(version, limits)
+        return self._info
 
     def upload_profile(self, table: ProfileTable) -> None:
-        """Send BEGIN, the chunks and END; each is acknowledged, END only if the CRC matches."""
+        """Send BEGIN, the chunks and END; each is acknowledged, END only if the CRC matches.
+
+        A table that does not fit the device's LIMITS is refused before anything is sent.
+        """
+        if self._info is not None:
+            problem = table_problem(self._info.limits, table.n_steps, table.stop_depth_mm)
+            if problem is not None:
+                raise DeviceError(f"device on {self.transport.name}: {problem}")
+        self.table_crc32 = 0
         for message in table.upload_messages():
             self.command(message)
+            if isinstance(message, ProfileEnd):
+                self.table_crc32 = message.crc32
 
     def arm(self) -> None:
-        """ARM (needs a verified table)."""
-        self.command(Arm())
+        """ARM the table uploaded in this session (named by its CRC-32)."""
+        self.command(Arm(self.table_crc32))
 
     def disarm(self) -> None:
         """DISARM."""
@@ -284,6 +332,12 @@ class HostDevice:
         """True once telemetry arrived without our session (the device rebooted)."""
         self._pump()
         return self.session_lost
+
+    def untrusted(self) -> str | None:
+        """Why the host stopped trusting the device's reports (a FAULT report with a flag or
+        state this protocol does not define), or None."""
+        self._pump()
+        return self._untrusted
 
     def write_raw(self, data: bytes) -> None:
         """Raw bytes to the device."""

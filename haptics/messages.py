@@ -13,8 +13,10 @@ from typing import Any, ClassVar
 
 from ctdrill.haptics.codes import MsgType
 
-#: Protocol version in every header and in HELLO/VERSION (2: session nonce, 32-bit sequences).
-PROTOCOL_VERSION = 2
+#: Protocol version in every header and in HELLO/VERSION (2: session nonce, 32-bit sequences;
+#: 3: CRC-32C frames, host time_us 0, serial-number sequences, session-free STOP and DISARM,
+#: ARM and TELEMETRY name the table).
+PROTOCOL_VERSION = 3
 #: Rows per PROFILE_CHUNK.
 MAX_CHUNK_ROWS = 16
 ROW = struct.Struct("<fff")
@@ -101,15 +103,18 @@ class ProfileEnd:
 
 @dataclass(frozen=True)
 class Arm:
-    """host->device: start rendering (the only command that leaves the latched safe state)."""
+    """host->device: start rendering the table whose CRC-32 is ``table_crc32`` (uploaded in
+    this session); the only command that leaves the latched safe state."""
 
     TYPE: ClassVar[MsgType] = MsgType.ARM
-    FMT: ClassVar[struct.Struct] = struct.Struct("<")
+    FMT: ClassVar[struct.Struct] = struct.Struct("<I")
+    table_crc32: int
 
 
 @dataclass(frozen=True)
 class Disarm:
-    """host->device: zero force, idle (the safe state stays latched: DISARM does not leave it)."""
+    """host->device: zero force, idle (the safe state stays latched: DISARM does not leave it);
+    accepted from any host, whatever its session and sequence."""
 
     TYPE: ClassVar[MsgType] = MsgType.DISARM
     FMT: ClassVar[struct.Struct] = struct.Struct("<")
@@ -125,7 +130,8 @@ class Heartbeat:
 
 @dataclass(frozen=True)
 class Stop:
-    """host->device: emergency stop; the device latches its safe state."""
+    """host->device: emergency stop; the device latches its safe state. Accepted from any
+    host, whatever its session and sequence."""
 
     TYPE: ClassVar[MsgType] = MsgType.STOP
     FMT: ClassVar[struct.Struct] = struct.Struct("<")
@@ -151,10 +157,11 @@ class SimReset:
 
 @dataclass(frozen=True)
 class Telemetry:
-    """device->host, every 1 ms: the renderer's state at tick ``tick``."""
+    """device->host, every 1 ms: the renderer's state at tick ``tick`` and the CRC-32 of the
+    table it holds (0: none)."""
 
     TYPE: ClassVar[MsgType] = MsgType.TELEMETRY
-    FMT: ClassVar[struct.Struct] = struct.Struct("<IfffffBHH")
+    FMT: ClassVar[struct.Struct] = struct.Struct("<IfffffBHHI")
     tick: int
     master_mm: float
     drill_mm: float
@@ -164,6 +171,7 @@ class Telemetry:
     state: int
     faults: int
     overruns: int
+    table_crc32: int
 
 
 @dataclass(frozen=True)

@@ -190,6 +190,11 @@ class ProfileTable:
             stop_depth_mm=self.stop_depth_mm,
         )
 
+    @property
+    def crc32(self) -> int:
+        """The table's CRC-32 as the device checks it (PROFILE_END), names it (ARM, TELEMETRY)."""
+        return profile_crc32(self.begin_message(), self.rows())
+
     def upload_messages(self) -> Iterator[ProfileBegin | ProfileChunk | ProfileEnd]:
         """PROFILE_BEGIN, the chunks in order, PROFILE_END with the table CRC-32."""
         begin = self.begin_message()

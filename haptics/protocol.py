@@ -1,13 +1,16 @@
 """The host <-> device binary protocol (docs/protocol.md): pure encode/decode, no I/O.
 
-A frame on the wire is ``COBS(header + body + crc16) + b"\\x00"``:
+A frame on the wire is ``COBS(header + body + crc32c) + b"\\x00"``:
 
 * header, 18 bytes little-endian: ``version u8, type u8, seq u32, session u32, time_us u64``
   (the sender's sequence number, the session nonce the device chose at HELLO, the device
-  clock in microseconds for device->host frames and 0 from the host);
+  clock in microseconds for device->host frames and 0 from the host, which the device checks);
 * body: the message's fixed little-endian layout (``PROFILE_CHUNK`` carries 1..16 rows);
-* ``crc16``: CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, xorout 0; check value
-  ``0x29B1`` for ``b"123456789"``) over header + body, appended little-endian.
+* ``crc32c``: CRC-32C (Castagnoli; check value ``0xE3069283`` for ``b"123456789"``) over
+  header + body, appended little-endian.
+
+Sequence numbers compare in serial-number arithmetic (RFC 1982, 32 bits: :func:`seq_after`),
+so they wrap from 0xFFFFFFFF to 0.
 
 A decoded frame is at most :data:`MAX_DECODED` bytes. The messages are in
 :mod:`ctdrill.haptics.messages`; this module only encodes and decodes. The profile table is
@@ -39,8 +42,8 @@ from ctdrill.haptics.framing import (
     VersionError,
     cobs_decode,
     cobs_encode,
-    crc16_ccitt_false,
     crc32,
+    crc32c,
 )
 from ctdrill.haptics.messages import (
     FIXED,
@@ -67,7 +70,7 @@ from ctdrill.haptics.messages import (
 )
 
 HEADER = struct.Struct("<BBIIQ")
-CRC = struct.Struct("<H")
+CRC = struct.Struct("<I")
 #: Largest decoded frame (header + body + crc), bytes; COBS adds at most 2 more, then 0x00.
 MAX_DECODED = 254
 
@@ -99,7 +102,7 @@ def _body(message: Message) -> bytes:
 
 
 def encode(message: Message, *, seq: int, session: int = 0, time_us: int = 0) -> bytes:
-    """One frame on the wire: ``COBS(header + body + crc16) + b"\\x00"``.
+    """One frame on the wire: ``COBS(header + body + crc32c) + b"\\x00"``.
 
     ``seq`` (u32) is the sender's sequence number, ``session`` the session nonce (0 before
     HELLO), ``time_us`` the device clock (0 from the host).
@@ -109,7 +112,7 @@ def encode(message: Message, *, seq: int, session: int = 0, time_us: int = 0) ->
     except struct.error as exc:
         raise MessageError(f"{message.TYPE.name}: header field out of range ({exc})") from exc
     raw = header + _body(message)
-    raw += CRC.pack(crc16_ccitt_false(raw))
+    raw += CRC.pack(crc32c(raw))
     if len(raw) > MAX_DECODED:
         raise MessageError(f"{message.TYPE.name}: frame of {len(raw)} bytes exceeds {MAX_DECODED}")
     return cobs_encode(raw) + b"\x00"
@@ -131,8 +134,8 @@ def decode(frame: bytes) -> Packet:
     if len(raw) < HEADER.size + CRC.size:
         raise FramingError(f"frame of {len(raw)} bytes is shorter than header + crc")
     (crc,) = CRC.unpack_from(raw, len(raw) - CRC.size)
-    if crc != crc16_ccitt_false(raw[: -CRC.size]):
-        raise ChecksumError("CRC-16 mismatch")
+    if crc != crc32c(raw[: -CRC.size]):
+        raise ChecksumError("CRC-32C mismatch")
     version, mtype, seq, session, time_us = HEADER.unpack_from(raw)
     if version != PROTOCOL_VERSION:
         raise VersionError(f"protocol version {version}, expected {PROTOCOL_VERSION}")
@@ -161,6 +164,12 @@ def decode(frame: bytes) -> Packet:
             )
         message = cls(*cls.FMT.unpack(body))
     return Packet(seq=seq, session=session, time_us=time_us, message=message)
+
+
+def seq_after(seq: int, last: int) -> bool:
+    """``seq`` comes after ``last`` in 32-bit serial-number arithmetic (RFC 1982): ahead by
+    1 .. 2^31 - 1 modulo 2^32 (so 0 comes after 0xFFFFFFFF)."""
+    return 0 < (seq - last) & 0xFFFFFFFF < 0x80000000
 
 
 def profile_crc32(begin: ProfileBegin, rows: Sequence[tuple[float, float, float]]) -> int:
@@ -254,9 +263,10 @@ __all__ = [
     "VersionError",
     "cobs_decode",
     "cobs_encode",
-    "crc16_ccitt_false",
     "crc32",
+    "crc32c",
     "decode",
     "encode",
     "profile_crc32",
+    "seq_after",
 ]

@@ -9,8 +9,12 @@ The host does not trust the device to be right: every block it checks the teleme
 (:class:`ctdrill.haptics.watch.TelemetryWatch`) and ends the session when
 
 * the device reports the drill beyond the stop depth by more than the encoder tolerance
-  (0.1 um plus the float32 rounding of the stop depth), or a non-finite position;
-* no telemetry arrived for more than 2 device watchdog periods;
+  (0.1 um plus the float32 rounding of the stop depth);
+* it reports what the host cannot trust: a non-finite number, a state or fault flag the
+  protocol does not define, another table, device time that does not advance with its ticks
+  or runs ahead of the host's clock (such a report is not recorded);
+* no telemetry arrived for longer than the host's own bound (at most 100 ms, whatever the
+  device announced);
 * the device raised a fault (its watchdog, a non-finite value, a host stop, a reset),
   left the armed states (safe or idle) or came back without the session (rebooted);
 * the host's own step failed (a write or read error, a sink that cannot write, an ARM or
@@ -35,6 +39,7 @@ from ctdrill.haptics.device import Device, DeviceError, DeviceRefused, Telemetry
 from ctdrill.haptics.hands import Hand, hand_for
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import DeviceState, OperatorKind
+from ctdrill.haptics.retract import arm_retracted
 from ctdrill.haptics.session import (
     STATE_NAMES,
     FaultSpec,
@@ -72,6 +77,8 @@ class SessionResult:
     final_drill_mm: float | None = None
     final_force_cmd_n: float | None = None
     final_hand_est_n: float | None = None
+    #: How the handle a previous session left deep was retracted before ARM (None: it was not).
+    retraction: dict[str, float] | None = None
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dict."""
@@ -93,6 +100,7 @@ class SessionResult:
             "final_drill_mm": self.final_drill_mm,
             "final_force_cmd_n": self.final_force_cmd_n,
             "final_hand_est_n": self.final_hand_est_n,
+            "retraction": self.retraction,
         }
 
 
@@ -127,6 +135,7 @@ class _Loop:
         self.prev_faults = 0
         self.rate_first: tuple[int, float] | None = None
         self.rate_last: tuple[int, float] | None = None
+        self.watch: TelemetryWatch | None = None
 
     def now(self) -> float:
         return self.device.clock_s() - self.start
@@ -229,10 +238,12 @@ class _Loop:
             "message": message,
         }
         if self.link_up:
+            sent_s = self.device.clock_s()
             for name, step in (("stop", self.device.stop), ("disarm", self.device.disarm)):
                 try:
                     step()
                     event[f"{name}_acknowledged"] = True
+                    event[f"{name}_acknowledged_after_s"] = round(self.device.clock_s() - sent_s, 4)
                 except (DeviceError, OSError) as exc:
                     event[f"{name}_acknowledged"] = False
                     event[f"{name}_error"] = str(exc)
@@ -244,7 +255,9 @@ class _Loop:
         self.result.outcome = outcome
         self.result.reason = f"{kind}: {message}"
         with contextlib.suppress(DeviceError, OSError, ValueError):
-            self.take(self.device.poll())  # the device's last words (its safe state)
+            watch = self.watch or TelemetryWatch(self.result.stop_depth_mm, self.device.clock_s())
+            # the device's last words (its safe state), as far as they can be trusted
+            self.take(watch.trusted(self.device.poll(), self.device.clock_s()))
         self.finish()
 
     def run(
@@ -269,13 +282,17 @@ class _Loop:
             self.send(now)
             device.wait(block_s)
             samples = device.poll()
-            self.take(samples)
-            found = watch.check(samples, device.clock_s(), device.lost_session())
+            found = watch.check(
+                samples, device.clock_s(), device.lost_session(), device.untrusted()
+            )
+            self.take(samples if found is None else samples[: found.recorded])
             if found is not None:
-                kind, message, sample = found
-                if sample is not None and self.t0_device is not None:
-                    message += f" at {sample.time_s - self.t0_device:.4f} s"
-                self.abort(kind, message)
+                message = found.message
+                if found.sample is not None and found.recorded and self.t0_device is not None:
+                    message += f" at {samples[found.recorded - 1].time_s - self.t0_device:.4f} s"
+                else:  # nothing the device said can date it: the host's clock does
+                    message += f" (host clock {self.now():.4f} s into the session)"
+                self.abort(found.kind, message)
                 return
         self.finish()
         if self.link_up:
@@ -303,6 +320,7 @@ def run_session(
     until: Callable[[], bool] | None = None,
     on_samples: Callable[[list[TelemetrySample]], None] | None = None,
     hand: Hand | None = None,
+    notice: Callable[[str], None] | None = None,
 ) -> SessionResult:
     """Run one rehearsal on ``device``; rows go to ``sink`` block by block.
 
@@ -332,6 +350,9 @@ def run_session(
     hand : Hand, optional
         Who drives the session (:mod:`ctdrill.haptics.hands`); default: the hand that carries
         out ``operator`` (:func:`~ctdrill.haptics.hands.hand_for`).
+    notice : callable, optional
+        Receives a line when the host must retract a handle a previous session left deep
+        before it can arm (:func:`ctdrill.haptics.retract.arm_retracted`).
 
     Returns
     -------
@@ -342,7 +363,8 @@ def run_session(
     Raises
     ------
     DeviceError
-        Before ARM (no answer, a refused upload, a refused ARM): nothing was armed.
+        Before ARM (no answer, VERSION or LIMITS outside the host's bounds, a refused upload, a
+        refused ARM, a handle not retracted): nothing was armed.
     """
     if not (math.isfinite(duration_s) and duration_s > 0.0):
         raise SessionInputError(f"--duration-s must be > 0, got {duration_s}")
@@ -353,14 +375,22 @@ def run_session(
     driver = hand if hand is not None else hand_for(operator, table)
     loop = _Loop(device, operator, faults, seed, result, sink, on_samples, driver)
     try:
-        device.arm()
+        retraction = arm_retracted(device, notice=notice)
     except DeviceRefused:
         raise  # NAK: the device did not arm
     except (DeviceError, OSError) as exc:  # the ARM may have reached the device: end it safely
         loop.abort("host_error", f"ARM was not acknowledged: {exc}")
         return result
+    result.retraction = None if retraction is None else retraction.to_json()
     loop.start = device.clock_s()
-    watch = TelemetryWatch(result.stop_depth_mm, info.limits.watchdog_ms / 1000.0, device.clock_s())
+    watch = TelemetryWatch(
+        result.stop_depth_mm,
+        device.clock_s(),
+        watchdog_ms=info.limits.watchdog_ms,
+        tick_rate_hz=info.version.tick_rate_hz,
+        table_crc32=table.crc32,
+    )
+    loop.watch = watch
     try:
         loop.run(duration_s, block_s, watch, should_stop, until)
     except KeyboardInterrupt:

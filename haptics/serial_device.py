@@ -1,4 +1,8 @@
-"""A device on a serial link (``serial.serial_for_url``): hardware, a pty, or ``loop://``."""
+"""A device on a serial link (``serial.serial_for_url``): hardware, a pty, or ``loop://``.
+
+A port is opened exclusively (an advisory ``flock``, pyserial's ``exclusive``): a second
+ctdrill on the same device is refused ("in use") instead of interleaving its frames.
+"""
 
 from __future__ import annotations
 
@@ -17,9 +21,17 @@ class SerialLink:
 
     def __init__(self, url: str, *, baudrate: int = BAUDRATE) -> None:
         self.name = url
+        exclusive = None if "://" in url else True  # URLs (loop://) have no lock
         try:
-            self.port = serial.serial_for_url(url, baudrate=baudrate, timeout=0, write_timeout=1.0)
+            self.port = serial.serial_for_url(
+                url, baudrate=baudrate, timeout=0, write_timeout=1.0, exclusive=exclusive
+            )
         except (serial.SerialException, OSError, ValueError) as exc:
+            if "exclusively lock" in str(exc):
+                raise DeviceError(
+                    f"serial port {url!r} is in use by another program (another ctdrill "
+                    "session?); close it and try again"
+                ) from exc
             raise DeviceError(
                 f"cannot open serial port {url!r}: {exc}; check the path (or start "
                 "'ctdrill emulate --pty-link PATH') and permissions"

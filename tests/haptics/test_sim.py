@@ -28,7 +28,7 @@ from ctdrill.haptics.protocol import (
     Telemetry,
     cobs_decode,
     cobs_encode,
-    crc16_ccitt_false,
+    crc32c,
 )
 from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import parse_operator
@@ -207,17 +207,17 @@ def test_garbage_and_corrupt_frames_are_refused_without_effect() -> None:
     for m in table.upload_messages():
         wire.send(m)
     wire.packets()
-    arm = bytearray(cobs_decode(wire.frame(Arm())[:-1]))
+    arm = bytearray(cobs_decode(wire.frame(Arm(table.crc32))[:-1]))
     arm[-1] ^= 0xFF  # corrupt CRC: must not arm
     emu.receive(cobs_encode(bytes(arm)) + b"\x00")
     emu.receive(bytes(range(256)) * 3 + b"\x00")
-    raw = bytearray(cobs_decode(wire.frame(Arm())[:-1]))
-    raw[1] = 0x23  # STOP's type with a 1-byte body: wrong length
-    raw[-2:-2] = b"\x07"
-    raw[-2:] = struct.pack("<H", crc16_ccitt_false(bytes(raw[:-2])))
+    raw = bytearray(cobs_decode(wire.frame(Arm(table.crc32))[:-1]))
+    raw[1] = 0x23  # STOP's type with a 5-byte body: wrong length
+    raw[-4:-4] = b"\x07"
+    raw[-4:] = struct.pack("<I", crc32c(bytes(raw[:-4])))
     emu.receive(cobs_encode(bytes(raw)) + b"\x00")
     # a valid TELEMETRY frame sent to the device: wrong direction, dropped without a reply
-    emu.receive(wire.frame(Telemetry(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0)))
+    emu.receive(wire.frame(Telemetry(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0, 0)))
     emu.run_ticks(100)
     assert emu.renderer.state == DeviceState.IDLE
     naks = [p.message for p in wire.packets() if isinstance(p.message, Nak)]

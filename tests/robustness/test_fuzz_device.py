@@ -64,7 +64,7 @@ def hostile_message(draw: st.DrawFn) -> object:
     """One host command with arbitrary field values (framing and CRC are right)."""
     from ctdrill.haptics import protocol as p
 
-    kind = draw(st.sampled_from(["begin", "chunk", "end", "operator", "device-type"]))
+    kind = draw(st.sampled_from(["begin", "chunk", "end", "operator", "arm", "device-type"]))
     if kind == "begin":
         return p.ProfileBegin(draw(u16), *[draw(hostile_floats) for _ in range(5)])
     if kind == "chunk":
@@ -74,6 +74,8 @@ def hostile_message(draw: st.DrawFn) -> object:
         return p.ProfileEnd(draw(u16), draw(st.integers(0, 0xFFFFFFFF)))
     if kind == "operator":
         return p.SimOperator(draw(st.integers(0, 255)), draw(hostile_floats))
+    if kind == "arm":  # an ARM naming some table, most likely not the loaded one
+        return p.Arm(draw(st.integers(0, 0xFFFFFFFF)))
     return p.Ack(draw(st.integers(0, 255)), draw(u16))  # a device->host type sent to the device
 
 
@@ -97,26 +99,30 @@ def actions(draw: st.DrawFn) -> list[tuple[str, object]]:
     from ctdrill.haptics import protocol as p
 
     simple = {
-        "arm": p.Arm(),
         "disarm": p.Disarm(),
         "stop": p.Stop(),
         "heartbeat": p.Heartbeat(),
         "reset": p.SimReset(),
     }
-    out: list[tuple[str, object]] = [("send", m) for m in draw(valid_upload())]
-    out += [("send", p.Arm()), ("send", draw(hands)), ("tick", draw(st.integers(200, 1500)))]
+    upload = draw(valid_upload())
+    crc = upload[-1].crc32  # ARM names the table uploaded last
+    out: list[tuple[str, object]] = [("send", m) for m in upload]
+    out += [("send", p.Arm(crc)), ("send", draw(hands)), ("tick", draw(st.integers(200, 1500)))]
     for _ in range(draw(st.integers(1, 12))):
         choice = draw(st.sampled_from(["tick", "tick", "upload", "hostile", "simple", "push"]))
         if choice == "tick":
             out.append(("tick", draw(st.integers(1, 1500))))
         elif choice == "upload":
-            out += [("send", m) for m in draw(valid_upload())]
+            upload = draw(valid_upload())
+            crc = upload[-1].crc32
+            out += [("send", m) for m in upload]
         elif choice == "hostile":
             out.append(("send", draw(hostile_message())))
         elif choice == "push":
             out.append(("send", draw(hands)))
         else:
-            out.append(("send", simple[draw(st.sampled_from(sorted(simple)))]))
+            name = draw(st.sampled_from([*sorted(simple), "arm"]))
+            out.append(("send", p.Arm(crc) if name == "arm" else simple[name]))
     return out
 
 

@@ -25,7 +25,7 @@ def valid_frames() -> list[bytes]:
         p.ProfileBegin(3, 0.05, 0.25, 30.0, 60.0, 4.5),
         p.ProfileChunk(0, ((1.0, 0.1, 0.05), (2.0, 0.2, 0.1), (3.0, 0.3, 0.15))),
         p.ProfileEnd(3, 0xDEADBEEF),
-        p.Telemetry(7, 1.0, 0.9, 0.4, 3.2, 3.1, 2, 0, 0),
+        p.Telemetry(7, 1.0, 0.9, 0.4, 3.2, 3.1, 2, 0, 0, 0xCAFE),
         p.Ack(0x10, 5),
         p.Nak(0x11, 6, 1),
     ]

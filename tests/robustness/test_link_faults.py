@@ -107,7 +107,7 @@ def _armed_emulator() -> tuple[DeviceEmulator, Wire]:
     wire.hello()
     for m in SLAB.upload_messages():
         wire.send(m)
-    wire.send(Arm())
+    wire.send(Arm(SLAB.crc32))
     wire.packets()
     return emu, wire
 
@@ -142,8 +142,8 @@ def test_replayed_or_foreign_frames_do_not_keep_it_armed() -> None:
     beat = wire.frame(Heartbeat())
     emu.receive(beat)  # accepted once
     last_host = emu.now_s
-    assert len(beat) == 22
-    assert _ticks_until_safe(emu, beat, 0.3) is not None  # the same 22 bytes every 10 ms
+    assert len(beat) == 24
+    assert _ticks_until_safe(emu, beat, 0.3) is not None  # the same 24 bytes every 10 ms
     assert emu.renderer.safe_since_s - last_host <= WATCHDOG_S + 1e-4
     naks = {p.message for p in wire.packets() if isinstance(p.message, Nak)}
     assert naks == {Nak(0x22, wire.seq, NakReason.STALE_SEQUENCE)}
@@ -162,7 +162,9 @@ def test_a_replayed_hello_only_disarms() -> None:
     emu.receive(encode(Hello(host_token=0x5EED), seq=1))  # the session's HELLO, replayed
     assert emu.renderer.state == DeviceState.IDLE and emu.renderer.force_cmd_n == 0.0
     assert emu.session not in (0, old)
-    wire.send(Arm())  # the old session's frames are refused: it cannot be re-armed by them
+    wire.send(
+        Arm(SLAB.crc32)
+    )  # the old session's frames are refused: it cannot be re-armed by them
     naks = [p.message for p in wire.packets() if isinstance(p.message, Nak)]
     assert naks == [Nak(0x20, wire.seq, NakReason.BAD_SESSION)]
     assert emu.renderer.state == DeviceState.IDLE
@@ -182,7 +184,7 @@ def test_safe_is_latched_until_arm() -> None:
     assert emu.renderer.state == DeviceState.SAFE
     for m in SLAB.upload_messages():
         wire.send(m)
-    wire.send(Arm())
+    wire.send(Arm(SLAB.crc32))
     emu.run_ticks(10)
     assert emu.renderer.state == DeviceState.CUTTING and emu.renderer.faults == 0
 
@@ -193,7 +195,7 @@ def test_safe_is_latched_until_arm() -> None:
 class _LyingEmulator(DeviceEmulator):
     """A device whose telemetry reports the drill wherever the hand is (no stop)."""
 
-    def _send(self, message: Message) -> None:
+    def _send(self, message: Message, *, session: int | None = None) -> None:
         if isinstance(message, Telemetry):
             message = Telemetry(
                 message.tick,
@@ -205,8 +207,9 @@ class _LyingEmulator(DeviceEmulator):
                 message.state,
                 message.faults,
                 message.overruns,
+                message.table_crc32,
             )
-        super()._send(message)
+        super()._send(message, session=session)
 
 
 class _BrokenLink(SimLink):
@@ -302,6 +305,7 @@ def _raw(s: TelemetrySample) -> Telemetry:
         s.state,
         s.faults,
         s.overruns,
+        s.table_crc32,
     )
 
 
@@ -327,7 +331,7 @@ def test_a_replayed_heartbeat_over_a_pty_does_not_keep_it_armed(tmp_path: Path) 
             end = time.monotonic() + 20.0
             raw = [_raw(t) for t in tel]
             while time.monotonic() < end and not _safe_for(raw, AFTER_TICKS):
-                dev.write_raw(beat)  # the same 22 bytes every 10 ms
+                dev.write_raw(beat)  # the same 24 bytes every 10 ms
                 dev.wait(0.01)
                 raw += [_raw(t) for t in dev.poll()]
         finally:
