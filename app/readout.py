@@ -275,28 +275,29 @@ def push_summary(
     return out
 
 
-#: Device limits that can let a push through the stop's wall, the likeliest cause first.
-WALL_LIMITS = ("thermal_limit", "peak_limit", "travel_limit")
+#: Device limits that can let a push through the stop's wall.
+WALL_LIMITS = ("peak_limit", "thermal_limit", "travel_limit")
 
 
 def wall_summary(session: dict[str, Any]) -> dict[str, Any]:
     """The stop's account for a session that ended at the stop (empty otherwise):
     ``hand_past_drill_mm`` (the hand's final offset past the stopped drill), ``wall_held``
-    (within :data:`ctdrill.haptics.renderer.WALL_HOLD_MM`) and ``wall_limit``: when the wall did
-    not hold, the device limit the session raised that let the hand through (the thermal
-    limit's continuous rating, the peak force, the travel's end stop), else None."""
+    (within :data:`ctdrill.haptics.renderer.WALL_HOLD_MM`) and ``wall_limits``: when the wall
+    did not hold, the device limits the session raised that let the hand through, in the order
+    raised (the peak force, the thermal limit's continuous rating, the travel's end stop), else
+    None."""
     if session.get("final_state") != "stopped" or session.get("final_master_mm") is None:
         return {}
     past = max(float(session["final_master_mm"]) - float(session["final_drill_mm"]), 0.0)
     held = past <= WALL_HOLD_MM
-    raised = {
+    raised = [
         name
         for event in session.get("faults", [])
         if event.get("source") == "device"
         for name in event.get("flags", [])
-    }
-    limit = None if held else next((name for name in WALL_LIMITS if name in raised), None)
-    return {"hand_past_drill_mm": past, "wall_held": held, "wall_limit": limit}
+        if name in WALL_LIMITS
+    ]
+    return {"hand_past_drill_mm": past, "wall_held": held, "wall_limits": None if held else raised}
 
 
 def readout_lines(summary: dict[str, Any]) -> str:
@@ -312,7 +313,8 @@ def readout_lines(summary: dict[str, Any]) -> str:
             f"at the stop the wall holds {summary['final_force_cmd_n']:.1f} N{hand_text}; the "
             f"hand sits {summary['hand_past_drill_mm']:.2f} mm past the stopped drill"
         )
-        if summary.get("wall_limit") is not None:
-            line += f" (the device's {summary['wall_limit'].replace('_', ' ')} let it through)"
+        if summary.get("wall_limits"):
+            names = " then ".join(n.replace("_", " ") for n in summary["wall_limits"])
+            line += f" (the device's {names} let it through)"
         lines.append(line)
     return "".join(line + "\n" for line in lines)

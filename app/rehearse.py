@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -200,11 +200,13 @@ def rehearse(
     grey: GreyMapSpec | None = None,
     trajectory: str | None = None,
     exam: bool = False,
+    notice: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Run one rehearsal and write ``OUT/session.csv`` and ``OUT/summary.json`` (whole).
 
     ``trajectory`` picks one trajectory of several plan files by name or number; ``exam``
-    removes the margin's wall (simulator only: refused with any other device; docs/rehearse.md).
+    removes the margin's wall (simulator only: refused with any other device; docs/rehearse.md);
+    ``notice`` receives a line when the host retracts a handle a previous session left deep.
 
     A plan with a drill sequence runs one session per drill
     (:mod:`ctdrill.app.rehearse_sequence`: ``OUT/drill_k/`` and a listing ``summary.json``).
@@ -260,6 +262,7 @@ def rehearse(
                     seed=seed,
                     sink=csv_out.write,
                     on_samples=assessor.add,
+                    notice=notice,
                 )
             finally:
                 csv_out.close()

@@ -49,6 +49,9 @@ from ctdrill.haptics.protocol import (
 
 #: Unclaimed replies and NAKs kept (the oldest are dropped).
 MAX_KEPT = 256
+#: STOP and DISARM are sent again this often until acknowledged, s (the device obeys them
+#: whatever their seq: docs/protocol.md section 2.6).
+RESEND_S = 0.1
 
 
 class Transport(Protocol):
@@ -227,36 +230,47 @@ class HostDevice:
                 )
             self.transport.wait(self.poll_s)
 
-    def command(self, message: Message) -> None:
-        """Send a command and wait for its ACK; :class:`DeviceError` on NAK or timeout."""
-        if isinstance(message, Arm):
-            self._arm_seq = (self._seq + 1) & 0xFFFFFFFF
-        seq = self.send(message)
+    def command(self, message: Message, *, resend_s: float | None = None) -> None:
+        """Send a command and wait for its ACK; :class:`DeviceError` on NAK or timeout.
+
+        With ``resend_s`` the command is sent again (with a new seq) every ``resend_s`` until
+        one of its copies is answered: for STOP and DISARM, which the device obeys whatever
+        their seq, so a copy lost to noise costs ``resend_s``, not the whole timeout.
+        """
         name = message.TYPE.name
         deadline = self.transport.clock_s() + self.timeout_s
+        sent: set[int] = set()
         while True:
-            self._pump()
-            for i, (msg, _rseq) in enumerate(self._replies):
-                if (
-                    isinstance(msg, Ack | Nak)
-                    and msg.acked_seq == seq
-                    and msg.acked_type == message.TYPE
-                ):
-                    del self._replies[i]
-                    if isinstance(msg, Nak):
-                        known = {int(r): r.name for r in NakReason}
-                        reason = known.get(msg.reason, f"reason {msg.reason}")
-                        raise DeviceRefused(
-                            f"device on {self.transport.name} refused {name} ({reason})",
-                            reason=msg.reason,
-                        )
-                    return
-            if self.transport.clock_s() >= deadline:
-                raise DeviceError(
-                    f"device on {self.transport.name} did not acknowledge {name} within "
-                    f"{self.timeout_s:g} s; check the link"
-                )
-            self.transport.wait(self.poll_s)
+            if isinstance(message, Arm):
+                self._arm_seq = (self._seq + 1) & 0xFFFFFFFF
+            sent.add(self.send(message))
+            again = deadline if resend_s is None else self.transport.clock_s() + resend_s
+            while True:
+                self._pump()
+                for i, (msg, _rseq) in enumerate(self._replies):
+                    if (
+                        isinstance(msg, Ack | Nak)
+                        and msg.acked_seq in sent
+                        and msg.acked_type == message.TYPE
+                    ):
+                        del self._replies[i]
+                        if isinstance(msg, Nak):
+                            known = {int(r): r.name for r in NakReason}
+                            reason = known.get(msg.reason, f"reason {msg.reason}")
+                            raise DeviceRefused(
+                                f"device on {self.transport.name} refused {name} ({reason})",
+                                reason=msg.reason,
+                            )
+                        return
+                now = self.transport.clock_s()
+                if now >= deadline:
+                    raise DeviceError(
+                        f"device on {self.transport.name} did not acknowledge {name} within "
+                        f"{self.timeout_s:g} s; check the link"
+                    )
+                if now >= again:
+                    break
+                self.transport.wait(self.poll_s)
 
     # ------------------------------------------------------------ Device API
 
@@ -309,12 +323,12 @@ class HostDevice:
         self.command(Arm(self.table_crc32))
 
     def disarm(self) -> None:
-        """DISARM."""
-        self.command(Disarm())
+        """DISARM (re-sent every :data:`RESEND_S` until acknowledged)."""
+        self.command(Disarm(), resend_s=RESEND_S)
 
     def stop(self) -> None:
-        """STOP (latched safe state)."""
-        self.command(Stop())
+        """STOP (latched safe state; re-sent every :data:`RESEND_S` until acknowledged)."""
+        self.command(Stop(), resend_s=RESEND_S)
 
     def heartbeat(self) -> None:
         """HEARTBEAT (not acknowledged)."""

@@ -288,8 +288,9 @@ class _Loop:
             self.take(samples if found is None else samples[: found.recorded])
             if found is not None:
                 message = found.message
-                if found.sample is not None and found.recorded and self.t0_device is not None:
-                    message += f" at {samples[found.recorded - 1].time_s - self.t0_device:.4f} s"
+                dated = found.recorded and samples[found.recorded - 1] is found.sample
+                if dated and found.sample is not None and self.t0_device is not None:
+                    message += f" at {found.sample.time_s - self.t0_device:.4f} s"
                 else:  # nothing the device said can date it: the host's clock does
                     message += f" (host clock {self.now():.4f} s into the session)"
                 self.abort(found.kind, message)

@@ -92,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
         grey=parse_grey_options(args.grey_to_hu, args.grey_ref),
         trajectory=args.trajectory,
         exam=args.exam,
+        notice=lambda line: print(line, flush=True),
     )
     if s.get("format") == "ctdrill-rehearsal-sequence/1":
         from ctdrill.app.rehearse_sequence import sequence_lines

@@ -195,7 +195,7 @@ def test_rehearse_prints_and_records_the_readouts(
     assert summary["time_to_stop_s"] == pytest.approx(summary["model_time_to_stop_s"], rel=0.03)
     # the rigid wall: 20 N rests 20 / (11 + 200) N/mm past the stopped drill
     assert summary["hand_past_drill_mm"] == pytest.approx(20.0 / 211.0, abs=0.02)
-    assert summary["wall_held"] is True and summary["wall_limit"] is None
+    assert summary["wall_held"] is True and summary["wall_limits"] is None
     assert "push 20 N: reached the stop after" in out and ": agrees" in out
     assert "hand sits" in out and "past the stopped drill" in out
     assert (

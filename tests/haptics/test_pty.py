@@ -1,19 +1,26 @@
-"""A pty round trip: ``ctdrill emulate --pty-link`` in a subprocess, SerialDevice on the link."""
+"""A pty round trip: ``ctdrill emulate --pty-link`` in a subprocess, SerialDevice on the link:
+the device's safety, a second rehearsal on the same emulator, the exclusive port, an emergency
+stop after another host took the session."""
 
 from __future__ import annotations
 
 import itertools
+import json
+import os
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from ctdrill.app.cli import main
 from ctdrill.haptics.device import DeviceError
 from ctdrill.haptics.profile_table import ProfileTable
-from ctdrill.haptics.protocol import DeviceState, Fault, OperatorKind
+from ctdrill.haptics.protocol import DeviceState, Fault, Hello, OperatorKind, encode
 from ctdrill.haptics.serial_device import SerialDevice
-from tests.haptics.emulator_process import emulator_on_pty
+from tests.haptics.emulator_process import ROOT, emulator_on_pty
+
+DEMO = ROOT / "assets" / "demo"
 
 
 @pytest.fixture
@@ -67,3 +74,91 @@ def test_round_trip_and_safety_over_a_pty(emulator: Path) -> None:
         assert idle[-1].state == DeviceState.IDLE and idle[-1].force_cmd_n == 0.0
     finally:
         dev.close()
+
+
+def _rehearse(link: Path, out: Path, operator: str, duration: str) -> int:
+    return main(
+        [
+            "rehearse",
+            "--dicom",
+            str(DEMO / "ct"),
+            "--plan",
+            str(DEMO / "plan.json"),
+            "--out",
+            str(out),
+            "--operator",
+            operator,
+            "--duration-s",
+            duration,
+            "--device",
+            f"serial:{link}",
+        ]
+    )
+
+
+@pytest.mark.timeout(120)
+def test_a_second_rehearsal_on_the_same_emulator_works(
+    emulator: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The first session cuts to the stop and ends; the simulated hand keeps pushing the disarmed
+    # master to the end of its travel. The second finds the handle deep (ARM would be refused
+    # NOT_RETRACTED), retracts it, arms and cuts to the stop again; a third pulls back (push:-10),
+    # after the same retraction. None is refused.
+    first, second, back = tmp_path / "first", tmp_path / "second", tmp_path / "back"
+    assert _rehearse(emulator, first, "push:30", "0.8") == 0, capsys.readouterr().err
+    a = json.loads((first / "summary.json").read_text())
+    assert a["time_to_stop_s"] is not None and a["retraction"] is None
+    assert _rehearse(emulator, second, "push:30", "0.8") == 0, capsys.readouterr().err
+    out = capsys.readouterr().out
+    b = json.loads((second / "summary.json").read_text())
+    assert b["retraction"]["from_mm"] > a["stop_depth_mm"] and b["retraction"]["to_mm"] <= 0.0
+    assert "retracting it" in out
+    assert b["time_to_stop_s"] is not None and b["max_drill_mm"] <= b["stop_depth_mm"]
+    assert b["wall_held"] is True  # 30 N rests 0.14 mm past the stopped drill
+    assert _rehearse(emulator, back, "push:-10", "0.3") == 0, capsys.readouterr().err
+    c = json.loads((back / "summary.json").read_text())
+    assert c["complete"] is True and c["final_master_mm"] < 0.0 and c["max_drill_mm"] <= 0.5
+
+
+@pytest.mark.timeout(60)
+def test_the_port_is_opened_exclusively(
+    emulator: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    first = SerialDevice(str(emulator))
+    try:
+        with pytest.raises(DeviceError, match="in use by another program"):
+            SerialDevice(str(emulator))
+        assert _rehearse(emulator, tmp_path / "out", "push:20", "0.5") == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "in use by another program" in err
+        assert not (tmp_path / "out").exists()
+    finally:
+        first.close()
+    SerialDevice(str(emulator)).close()  # released with the first
+
+
+@pytest.mark.timeout(60)
+def test_an_emergency_stop_works_after_another_host_took_the_session(emulator: Path) -> None:
+    # Host A is armed and pushing; another program (no lock: a console, a stray script) opens
+    # the port and sends HELLO: the device is now in its session. A's STOP and DISARM are still
+    # obeyed and acknowledged in A's session (version 2 refused them BAD_SESSION).
+    table = ProfileTable.slab(s0_n=4.0, top_mm=0.0, bottom_mm=30.0, stop_depth_mm=20.0)
+    dev = SerialDevice(str(emulator))
+    other = os.open(os.readlink(emulator), os.O_RDWR | os.O_NOCTTY)
+    try:
+        dev.hello()
+        dev.upload_profile(table)
+        dev.arm()
+        assert _beat(dev, 0.3, 20.0)[-1].state == DeviceState.CUTTING
+        os.write(other, encode(Hello(host_token=0xCAFE), seq=1))  # the other host's session
+        _beat(dev, 0.05, 20.0)  # A's own frames are now refused (BAD_SESSION, in B's session)
+        dev.stop()  # acknowledged in A's session: no DeviceError
+        dev.disarm()
+        dev.hello()  # A looks again: the stop is latched, whoever holds the session
+        dev.wait(0.05)
+        samples = dev.poll()
+    finally:
+        os.close(other)
+        dev.close()
+    assert samples and samples[-1].state == DeviceState.SAFE
+    assert samples[-1].faults & Fault.HOST_STOP and samples[-1].force_cmd_n == 0.0
