@@ -26,7 +26,7 @@ import numpy as np
 from ctdrill.haptics.plant import COULOMB_N
 from ctdrill.haptics.predict import PushPrediction, predict_push
 from ctdrill.haptics.profile_table import ProfileTable
-from ctdrill.haptics.renderer import WALL_HOLD_MM
+from ctdrill.haptics.renderer import CONTINUOUS_FORCE_N, PEAK_FORCE_N, WALL_HOLD_MM
 from ctdrill.model.cutting import steady_feed_mm_s
 from ctdrill.model.force import feed_factor_scalar
 
@@ -277,19 +277,22 @@ def push_summary(
 
 #: Device limits that can let a push through the stop's wall.
 WALL_LIMITS = ("peak_limit", "thermal_limit", "travel_limit")
+#: A rendered force this close to a limit is at it, N.
+AT_LIMIT_N = 0.01
 
 
 def wall_summary(session: dict[str, Any]) -> dict[str, Any]:
     """The stop's account for a session that ended at the stop (empty otherwise):
     ``hand_past_drill_mm`` (the hand's final offset past the stopped drill), ``wall_held``
     (within :data:`ctdrill.haptics.renderer.WALL_HOLD_MM`) and ``wall_limits``: when the wall
-    did not hold, the device limits the session raised that let the hand through, in the order
-    raised (the peak force, the thermal limit's continuous rating, the travel's end stop), else
-    None."""
+    did not hold, the device limits that let the hand through at the end, read from the force
+    the device rendered last: its 20 N continuous rating once the thermal limit acted, its 78 N
+    peak, and the travel's end stop where the stage came to rest (None when the wall held)."""
     if session.get("final_state") != "stopped" or session.get("final_master_mm") is None:
         return {}
     past = max(float(session["final_master_mm"]) - float(session["final_drill_mm"]), 0.0)
-    held = past <= WALL_HOLD_MM
+    if past <= WALL_HOLD_MM:
+        return {"hand_past_drill_mm": past, "wall_held": True, "wall_limits": None}
     raised = [
         name
         for event in session.get("faults", [])
@@ -297,7 +300,15 @@ def wall_summary(session: dict[str, Any]) -> dict[str, Any]:
         for name in event.get("flags", [])
         if name in WALL_LIMITS
     ]
-    return {"hand_past_drill_mm": past, "wall_held": held, "wall_limits": None if held else raised}
+    force = float(session.get("final_force_cmd_n") or 0.0)
+    limits = []
+    if "thermal_limit" in raised and force <= CONTINUOUS_FORCE_N + AT_LIMIT_N:
+        limits.append("thermal_limit")
+    elif force >= PEAK_FORCE_N - AT_LIMIT_N:
+        limits.append("peak_limit")
+    if "travel_limit" in raised:
+        limits.append("travel_limit")
+    return {"hand_past_drill_mm": past, "wall_held": False, "wall_limits": limits or raised}
 
 
 def readout_lines(summary: dict[str, Any]) -> str:

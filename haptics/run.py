@@ -6,19 +6,11 @@ let the block's time pass (:meth:`Device.wait`), read the telemetry and hand the
 simulator (device time, deterministic for a given seed) and a serial device (real time).
 
 The host does not trust the device to be right: every block it checks the telemetry
-(:class:`ctdrill.haptics.watch.TelemetryWatch`) and ends the session when
-
-* the device reports the drill beyond the stop depth by more than the encoder tolerance
-  (0.1 um plus the float32 rounding of the stop depth);
-* it reports what the host cannot trust: a non-finite number, a state or fault flag the
-  protocol does not define, another table, device time that does not advance with its ticks
-  or runs ahead of the host's clock (such a report is not recorded);
-* no telemetry arrived for longer than the host's own bound (at most 100 ms, whatever the
-  device announced);
-* the device raised a fault (its watchdog, a non-finite value, a host stop, a reset),
-  left the armed states (safe or idle) or came back without the session (rebooted);
-* the host's own step failed (a write or read error, a sink that cannot write, an ARM or
-  DISARM that was not acknowledged).
+(:class:`ctdrill.haptics.watch.TelemetryWatch`: a report it cannot trust, which is not
+recorded, the drill past the stop, a fault, a device silent for longer than the host's own
+bound or back without the session) and ends the session on the first finding, or when its own
+step failed (a write or read error, a sink that cannot write, an ARM or DISARM that was not
+acknowledged).
 
 It then sends STOP and DISARM (unless an injected ``link-loss`` cut the line), records the
 event in ``faults`` and returns a result with ``complete = False``, ``outcome = "fault"`` and
@@ -287,13 +279,7 @@ class _Loop:
             )
             self.take(samples if found is None else samples[: found.recorded])
             if found is not None:
-                message = found.message
-                dated = found.recorded and samples[found.recorded - 1] is found.sample
-                if dated and found.sample is not None and self.t0_device is not None:
-                    message += f" at {found.sample.time_s - self.t0_device:.4f} s"
-                else:  # nothing the device said can date it: the host's clock does
-                    message += f" (host clock {self.now():.4f} s into the session)"
-                self.abort(found.kind, message)
+                self.abort(found.kind, found.dated(self.t0_device, self.now()))
                 return
         self.finish()
         if self.link_up:
@@ -384,13 +370,7 @@ def run_session(
         return result
     result.retraction = None if retraction is None else retraction.to_json()
     loop.start = device.clock_s()
-    watch = TelemetryWatch(
-        result.stop_depth_mm,
-        device.clock_s(),
-        watchdog_ms=info.limits.watchdog_ms,
-        tick_rate_hz=info.version.tick_rate_hz,
-        table_crc32=table.crc32,
-    )
+    watch = TelemetryWatch.for_session(info, result.stop_depth_mm, table.crc32, device.clock_s())
     loop.watch = watch
     try:
         loop.run(duration_s, block_s, watch, should_stop, until)

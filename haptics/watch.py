@@ -25,7 +25,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from ctdrill.haptics.codes import KNOWN_FAULT_BITS, KNOWN_STATES
-from ctdrill.haptics.device import TelemetrySample
+from ctdrill.haptics.device import DeviceInfo, TelemetrySample
 from ctdrill.haptics.limits import silence_bound_s
 from ctdrill.haptics.plant import ENCODER_M
 from ctdrill.haptics.protocol import DeviceState, Fault
@@ -74,12 +74,23 @@ class Finding:
         How many of the checked samples the session may record: those before ``sample``, and
         ``sample`` itself when it was well formed (a drill past the stop is recorded; a NaN
         is not).
+    trusted : bool
+        ``sample`` itself can be trusted (False: it is the report the host could not trust).
     """
 
     kind: str
     message: str
     sample: TelemetrySample | None
     recorded: int
+    trusted: bool = True
+
+    def dated(self, t0_device_s: float | None, session_s: float) -> str:
+        """The message with when it happened: the sample's session time (device clock from
+        ``t0_device_s``) when it was recorded, else ``session_s`` on the host's clock."""
+        s = self.sample
+        if s is not None and self.trusted and t0_device_s is not None:
+            return f"{self.message} at {s.time_s - t0_device_s:.4f} s"
+        return f"{self.message} (host clock {session_s:.4f} s into the session)"
 
 
 class TelemetryWatch:
@@ -98,6 +109,19 @@ class TelemetryWatch:
     table_crc32 : int, optional
         CRC-32 of the uploaded table: telemetry naming another table ends the session.
     """
+
+    @classmethod
+    def for_session(
+        cls, info: DeviceInfo, stop_depth_mm: float, table_crc32: int, clock_s: float
+    ) -> TelemetryWatch:
+        """The watch of a session armed at ``clock_s`` on a device that announced ``info``."""
+        return cls(
+            stop_depth_mm,
+            clock_s,
+            watchdog_ms=info.limits.watchdog_ms,
+            tick_rate_hz=info.version.tick_rate_hz,
+            table_crc32=table_crc32,
+        )
 
     def __init__(
         self,
@@ -187,7 +211,7 @@ class TelemetryWatch:
         for i, s in enumerate(samples):
             bad = self.malformed(s, clock_s)
             if bad is not None:
-                return Finding(bad[0], bad[1], s, i)
+                return Finding(bad[0], bad[1], s, i, trusted=False)
             if s.drill_mm > self.limit_mm:
                 return Finding(
                     "drill_past_stop",
