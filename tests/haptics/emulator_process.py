@@ -10,6 +10,25 @@ from contextlib import contextmanager
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+DEMO = ROOT / "assets" / "demo"
+
+
+def demo_rehearsal(out: Path, operator: str, duration_s: str, *extra: str) -> list[str]:
+    """``ctdrill rehearse`` arguments for the demo phantom and plan into ``out``."""
+    return [
+        "rehearse",
+        "--dicom",
+        str(DEMO / "ct"),
+        "--plan",
+        str(DEMO / "plan.json"),
+        "--out",
+        str(out),
+        "--operator",
+        operator,
+        "--duration-s",
+        duration_s,
+        *extra,
+    ]
 
 
 @contextmanager

@@ -18,9 +18,7 @@ from ctdrill.haptics.device import DeviceError
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import DeviceState, Fault, Hello, OperatorKind, encode
 from ctdrill.haptics.serial_device import SerialDevice
-from tests.haptics.emulator_process import ROOT, emulator_on_pty
-
-DEMO = ROOT / "assets" / "demo"
+from tests.haptics.emulator_process import demo_rehearsal, emulator_on_pty
 
 
 @pytest.fixture
@@ -77,23 +75,7 @@ def test_round_trip_and_safety_over_a_pty(emulator: Path) -> None:
 
 
 def _rehearse(link: Path, out: Path, operator: str, duration: str) -> int:
-    return main(
-        [
-            "rehearse",
-            "--dicom",
-            str(DEMO / "ct"),
-            "--plan",
-            str(DEMO / "plan.json"),
-            "--out",
-            str(out),
-            "--operator",
-            operator,
-            "--duration-s",
-            duration,
-            "--device",
-            f"serial:{link}",
-        ]
-    )
+    return main(demo_rehearsal(out, operator, duration, "--device", f"serial:{link}"))
 
 
 @pytest.mark.timeout(120)

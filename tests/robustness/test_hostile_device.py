@@ -29,10 +29,9 @@ from ctdrill.haptics.protocol import DeviceState, Fault
 from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import parse_operator
 from ctdrill.haptics.sim import SimLink
-from tests.haptics.emulator_process import ROOT
+from tests.haptics.emulator_process import DEMO, demo_rehearsal
 from tests.haptics.hostile import HELLO_LIES, TELEMETRY_LIES, HostileEmulator
 
-DEMO = ROOT / "assets" / "demo"
 SLAB = ProfileTable.slab(s0_n=4.0, top_mm=0.0, bottom_mm=30.0, stop_depth_mm=20.0)
 
 
@@ -65,21 +64,8 @@ def _behind(monkeypatch: pytest.MonkeyPatch, lie: str) -> HostileEmulator:
     return emu
 
 
-def _args(out: Path, *extra: str) -> list[str]:
-    return [
-        "rehearse",
-        "--dicom",
-        str(DEMO / "ct"),
-        "--plan",
-        str(DEMO / "plan.json"),
-        "--out",
-        str(out),
-        "--operator",
-        "push:20",
-        "--duration-s",
-        "1",
-        *extra,
-    ]
+def _args(out: Path) -> list[str]:
+    return demo_rehearsal(out, "push:20", "1")
 
 
 def check_fault_records(out: Path, kind: str) -> dict[str, Any]:

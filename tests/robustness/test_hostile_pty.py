@@ -22,11 +22,9 @@ import pytest
 
 from ctdrill.app.cli import main
 from ctdrill.haptics.protocol import DeviceState, Fault
-from tests.haptics.emulator_process import ROOT
+from tests.haptics.emulator_process import ROOT, demo_rehearsal
 from tests.haptics.hostile import TELEMETRY_LIES
 from tests.robustness.test_hostile_device import check_fault_records
-
-DEMO = ROOT / "assets" / "demo"
 
 
 @contextmanager
@@ -59,23 +57,7 @@ def test_a_lying_device_on_a_pty_ends_the_rehearsal_with_exit_3(
 ) -> None:
     link, out, report = tmp_path / "dev", tmp_path / "out", tmp_path / "report.json"
     with hostile_process(link, lie, report):
-        code = main(
-            [
-                "rehearse",
-                "--dicom",
-                str(DEMO / "ct"),
-                "--plan",
-                str(DEMO / "plan.json"),
-                "--out",
-                str(out),
-                "--operator",
-                "push:20",
-                "--duration-s",
-                "3",
-                "--device",
-                f"serial:{link}",
-            ]
-        )
+        code = main(demo_rehearsal(out, "push:20", "3", "--device", f"serial:{link}"))
     err = capsys.readouterr().err
     assert code == 3, err
     assert err.count("error:") == 1 and "Traceback" not in err

@@ -42,28 +42,14 @@ from ctdrill.haptics.protocol import (
 from ctdrill.haptics.renderer import WATCHDOG_S
 from ctdrill.haptics.serial_device import SerialDevice
 from ctdrill.haptics.sim import SimLink
-from tests.haptics.emulator_process import ROOT, emulator_process
+from tests.haptics.emulator_process import ROOT, demo_rehearsal, emulator_process
 from tests.haptics.wire import Wire
 
-DEMO = ROOT / "assets" / "demo"
 SLAB = ProfileTable.slab(s0_n=4.0, top_mm=0.0, bottom_mm=30.0, stop_depth_mm=20.0)
 
 
 def _rehearse_args(out: Path, *extra: str, duration: str = "2") -> list[str]:
-    return [
-        "rehearse",
-        "--dicom",
-        str(DEMO / "ct"),
-        "--plan",
-        str(DEMO / "plan.json"),
-        "--out",
-        str(out),
-        "--operator",
-        "push:20",
-        "--duration-s",
-        duration,
-        *extra,
-    ]
+    return demo_rehearsal(out, "push:20", duration, *extra)
 
 
 def _armed_pushing(dev: SerialDevice, seconds: float, force_n: float = 20.0) -> None:
