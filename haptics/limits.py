@@ -47,8 +47,8 @@ LIMITS_BOUNDS = (
         "hand after its host is gone",
     ),
     Bound("max_profile_steps", 1, 4096, "rows", "the table's u16 index, 48 KiB"),
-    Bound("travel_min_mm", -1000.0, 0.0, "mm", "the entry point (depth 0) within travel"),
-    Bound("travel_max_mm", 1.0, 1000.0, "mm", "the entry point (depth 0) within travel"),
+    Bound("travel_min_mm", -500.0, 0.0, "mm", "the entry point (depth 0) within travel"),
+    Bound("travel_max_mm", 1.0, 500.0, "mm", "the entry point (depth 0) within travel"),
 )
 
 

@@ -3,8 +3,8 @@
 The device is :mod:`tests.haptics.hostile` in a process of its own on a pty (real time); the
 host is ``ctdrill rehearse --device serial:PTY``. Each class (a number that is not finite, an
 undefined state, device time jumping near 2^64) ends with exit 3, a whole and valid
-``summary.json``, and the STOP reaching the device, which measures on its own clock how long
-after its first lie it was stopped (printed; the assertions do not depend on it).
+``summary.json``, and the STOP reaching the device after its first lie (the device measures
+how long after on its own clock; the assertions do not depend on it).
 """
 
 from __future__ import annotations
@@ -65,11 +65,5 @@ def test_a_lying_device_on_a_pty_ends_the_rehearsal_with_exit_3(
     device: dict[str, Any] = json.loads(report.read_text())
     assert device["state"] == DeviceState.SAFE and device["faults"] & Fault.HOST_STOP
     assert device["first_lie_at"] is not None and device["stop_at"] is not None
-    to_safe_ms = (device["stop_at"] - device["first_lie_at"]) * 1e3
-    host = summary["faults"][-1]
-    with capsys.disabled():
-        print(
-            f"\n{lie}: STOP reached the device {to_safe_ms:.1f} ms after its first lie; "
-            f"acknowledged {host['stop_acknowledged_after_s'] * 1e3:.1f} ms after it was sent"
-        )
-    assert to_safe_ms > 0.0
+    assert device["stop_at"] > device["first_lie_at"]  # (how long after: docs/protocol.md)
+    assert summary["faults"][-1]["stop_acknowledged_after_s"] >= 0.0
