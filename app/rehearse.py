@@ -130,8 +130,8 @@ def rehearsal_summary(
     operator the readouts of :func:`ctdrill.app.readout.push_summary` (the model's time to the
     stop against the session's, a push too weak to cut); at the stop the wall's account
     (:func:`ctdrill.app.readout.wall_summary`: the hand's offset past the stopped drill, the
-    limit that let it through); then ``exam`` (exam mode: the stop and why there, or ``{"enabled": false}``),
-    ``plan_sha256``, ``recorded_at`` (UTC) and the session's ``assessment``
+    limit that let it through); then ``exam`` (exam mode: the stop and why there, or
+    ``{"enabled": false}``), ``plan_sha256``, ``recorded_at`` (UTC) and the session's ``assessment``
     (:meth:`ctdrill.haptics.assessment.Assessment.to_json`), when given."""
     summary = dict(session.to_json() if isinstance(session, SessionResult) else session)
     summary.update(
