@@ -24,6 +24,8 @@ from ctdrill.app.calibration_info import calibration_fields
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.export_band import band_summary, hu_uncertainty_option, path_band
 from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
+from ctdrill.app.igtl.frames import StreamGeometry, parse_target, refuse_igtl_sequence
+from ctdrill.app.igtl.stream import IgtlStream
 from ctdrill.app.pipeline import PathResult, binding_landmark_doc, plan_calibration, plan_path
 from ctdrill.app.readout import push_summary, wall_summary
 from ctdrill.app.records import atomic_output_dir, write_file
@@ -201,12 +203,17 @@ def rehearse(
     trajectory: str | None = None,
     exam: bool = False,
     notice: Callable[[str], None] | None = None,
+    igtl: str | None = None,
+    on_warning: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Run one rehearsal and write ``OUT/session.csv`` and ``OUT/summary.json`` (whole).
 
     ``trajectory`` picks one trajectory of several plan files by name or number; ``exam``
     removes the margin's wall (simulator only: refused with any other device; docs/rehearse.md);
     ``notice`` receives a line when the host retracts a handle a previous session left deep.
+    ``igtl`` (``HOST:PORT``) streams the session to an OpenIGTLink server
+    (:mod:`ctdrill.app.igtl`, docs/slicer.md; the simulator then runs at the wall clock's
+    pace): ``summary.json`` gains ``igtl``; a failed connection is one call of ``on_warning``.
 
     A plan with a drill sequence runs one session per drill
     (:mod:`ctdrill.app.rehearse_sequence`: ``OUT/drill_k/`` and a listing ``summary.json``).
@@ -219,11 +226,14 @@ def rehearse(
     op = parse_operator(operator)
     manual_hu = hu_uncertainty_option(hu_sigma)
     fault_specs = [parse_fault(f) for f in faults]
+    target = None if igtl is None else parse_target(igtl)
     if exam:
         refuse_exam_device(device)
     whole = load_one_plan([plan] if isinstance(plan, Path) else plan, trajectory=trajectory)
     if exam:
         refuse_exam_sequence(whole)
+    if target is not None:
+        refuse_igtl_sequence(whole)
     if len(whole.drills) > 1:  # a drill sequence: one session per drill
         from ctdrill.app.rehearse_sequence import rehearse_sequence
 
@@ -250,6 +260,10 @@ def rehearse(
     assessor = Assessor(loaded.context, loaded.table)
     with atomic_output_dir(out) as stage:
         dev = open_device(device, seed=seed)
+        stream = None
+        if target is not None:
+            geometry = StreamGeometry.of_plan(loaded.path.plan)
+            stream = IgtlStream(target, geometry, on_warning=on_warning, pace=device == "sim")
         try:
             csv_out = SessionCsv(stage / "session.csv")
             try:
@@ -261,13 +275,14 @@ def rehearse(
                     faults=fault_specs,
                     seed=seed,
                     sink=csv_out.write,
-                    on_samples=assessor.add,
+                    on_samples=assessor.add if stream is None else stream.chained(assessor.add),
                     notice=notice,
                 )
             finally:
                 csv_out.close()
         finally:
             dev.close()
+            streamed = None if stream is None else stream.close().to_json()
         summary = rehearsal_summary(
             result,
             loaded.path,
@@ -281,6 +296,8 @@ def rehearse(
             assessment=assessor.result().to_json(),
             exam=loaded.exam,
         )
+        if streamed is not None:
+            summary["igtl"] = streamed
         write_file(stage / "summary.json", summary_json(summary))
     return summary
 

@@ -64,6 +64,14 @@ def register(subparsers: Any) -> None:
         "planned depth, so the drill can enter the margin zone and the canal; the summary's "
         "assessment records any breach (docs/rehearse.md)",
     )
+    p.add_argument(
+        "--igtl",
+        metavar="HOST:PORT",
+        help="stream the session live to an OpenIGTLink server, e.g. 3D Slicer's "
+        "OpenIGTLinkIF on localhost:18944: transforms DrillTip and Implant (RAS), the "
+        "forces as JSON in the string Forces; the simulator then runs at the wall clock's "
+        "pace; summary.json igtl says what was sent (docs/slicer.md)",
+    )
     add_interpolate_gaps_option(p)
     add_hu_sigma_option(p)
     add_grey_map_options(p)
@@ -93,6 +101,8 @@ def run(args: argparse.Namespace) -> int:
         trajectory=args.trajectory,
         exam=args.exam,
         notice=lambda line: print(line, flush=True),
+        igtl=args.igtl,
+        on_warning=_warn,
     )
     if s.get("format") == "ctdrill-rehearsal-sequence/1":
         from ctdrill.app.rehearse_sequence import sequence_lines
@@ -107,6 +117,10 @@ def run(args: argparse.Namespace) -> int:
         from ctdrill.app.trainee.words import assessment_line
 
         sys.stdout.write(assessment_line(s) + "\n")
+    if "igtl" in s:
+        from ctdrill.app.igtl.stream import stream_line
+
+        sys.stdout.write(stream_line(s["igtl"]) + "\n")
     grey = grey_line(s)
     if grey is not None:
         sys.stdout.write(grey + "\n")
@@ -119,6 +133,11 @@ def run(args: argparse.Namespace) -> int:
     if code != 0:
         sys.stderr.write(f"error: {ending_message(s)}; see {args.out}/summary.json\n")
     return code
+
+
+def _warn(message: str) -> None:
+    sys.stderr.write(f"warning: {message}\n")
+    sys.stderr.flush()
 
 
 def _single_line(s: dict[str, Any], out: Path) -> None:

@@ -1,0 +1,286 @@
+"""The OpenIGTLink sender: a thread of its own behind a latest-value slot.
+
+The session's host loop calls :meth:`IgtlStream.observe` with each block's telemetry (its
+``on_samples`` observer, every 10 ms): that stores the block's newest sample in a one-frame
+slot and returns (a lock and a notify; no packing, no socket). The sender thread connects
+(once, with a timeout), then takes the newest frame from the slot, packs it
+(:func:`ctdrill.app.igtl.frames.frame_messages`) and sends it whole. A frame replaced in the
+slot before the sender took it is *dropped*: a slow peer gets fewer, newer frames, never a
+queue of old ones. The socket's send buffer is kept small (``SEND_BUFFER_BYTES``) so the
+kernel does not queue seconds of old poses either.
+
+Failures never reach the session: a refused or failed connection, a lost one, or a peer that
+accepts nothing for ``STALL_TIMEOUT_S`` (it stopped reading) ends the streaming with one
+warning (``on_warning``) and the reason in :class:`StreamReport` ``error``; the session goes
+on. Pyigtl (its message classes) packs the messages; the socket is ours, so that a dead peer
+costs bounded time and is reported once.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import socket
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from ctdrill.app.igtl.frames import (
+    DRILL_TIP,
+    FORCES,
+    IMPLANT,
+    IgtlTarget,
+    StreamGeometry,
+    frame_messages,
+)
+from ctdrill.haptics.device import TelemetrySample
+
+#: Connecting gives up after this long, s.
+CONNECT_TIMEOUT_S = 2.0
+#: A send that cannot hand its bytes to the kernel for this long means the peer stopped
+#: reading, s: the stream ends (a lost connection).
+STALL_TIMEOUT_S = 2.0
+#: The socket's send buffer (the kernel doubles it): about 0.2 s of frames at 100 Hz.
+SEND_BUFFER_BYTES = 8192
+#: ``Implant`` (a fixed pose) is sent with the first frame and then at this period, s.
+IMPLANT_PERIOD_S = 1.0
+#: :meth:`IgtlStream.close` waits this long for the last frame, s; a sender still blocked
+#: then is cut off (its peer stalled).
+CLOSE_GRACE_S = 0.5
+
+
+@dataclass
+class StreamReport:
+    """What a stream did (``summary.json`` ``igtl``).
+
+    Attributes
+    ----------
+    host, port : the server.
+    connected : the connection was made.
+    frames : frames the session offered (one per telemetry block, 100 Hz of session time).
+    sent : frames sent whole (``DrillTip`` and ``Forces``, with ``Implant`` when due).
+    dropped : ``frames - sent``: replaced in the slot by a newer one before the sender took
+        it, or offered when there was no connection.
+    send_rate_hz : ``(sent - 1) / span`` of the sent frames' header timestamps (None: fewer
+        than two sent).
+    messages : messages sent per name.
+    error : why streaming stopped early (None: it did not).
+    """
+
+    host: str
+    port: int
+    connected: bool = False
+    frames: int = 0
+    sent: int = 0
+    dropped: int = 0
+    send_rate_hz: float | None = None
+    messages: dict[str, int] = field(default_factory=lambda: {DRILL_TIP: 0, FORCES: 0, IMPLANT: 0})
+    error: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready dict, in the attributes' order."""
+        return {
+            "host": self.host,
+            "port": self.port,
+            "connected": self.connected,
+            "frames": self.frames,
+            "sent": self.sent,
+            "dropped": self.dropped,
+            "send_rate_hz": self.send_rate_hz,
+            "messages": dict(self.messages),
+            "error": self.error,
+        }
+
+
+class IgtlStream:
+    """Streams a session's frames to one OpenIGTLink server (module docstring).
+
+    Parameters
+    ----------
+    target : the server (:func:`ctdrill.app.igtl.frames.parse_target`).
+    geometry : the plan's axis and implant.
+    on_warning : called once, from the sender thread, with the line to show when streaming
+        fails (``OpenIGTLink HOST:PORT: ...; the session goes on without streaming``).
+    pace : keep the session at the wall clock's pace (:meth:`observe` sleeps while the
+        session's time runs ahead of it): the simulator otherwise runs many times faster
+        than real time, which no viewer can follow. Never for a real device.
+    """
+
+    def __init__(
+        self,
+        target: IgtlTarget,
+        geometry: StreamGeometry,
+        *,
+        on_warning: Callable[[str], None] | None = None,
+        pace: bool = False,
+        stall_timeout_s: float = STALL_TIMEOUT_S,
+        connect_timeout_s: float = CONNECT_TIMEOUT_S,
+        send_buffer_bytes: int = SEND_BUFFER_BYTES,
+    ) -> None:
+        import pyigtl  # noqa: F401  (lazily, here: not inside the session's first block)
+
+        self.target = target
+        self.geometry = geometry
+        self.on_warning = on_warning
+        self.pace = pace
+        self.stall_timeout_s = stall_timeout_s
+        self.connect_timeout_s = connect_timeout_s
+        self.send_buffer_bytes = send_buffer_bytes
+        self.report = StreamReport(target.host, target.port)
+        self._cond = threading.Condition()
+        self._slot: tuple[float, float, TelemetrySample] | None = None
+        self._closing = False
+        self._sock: socket.socket | None = None
+        self._t0: float | None = None
+        self._wall0 = 0.0
+        self._stamps = (math.nan, math.nan)  # first and last sent header timestamps
+        self._thread = threading.Thread(target=self._run, name="ctdrill-igtl", daemon=True)
+        self._thread.start()
+
+    # ------------------------------------------------------------------ session side
+    def observe(self, samples: Sequence[TelemetrySample]) -> None:
+        """A block's telemetry (the session's ``on_samples``): offer its newest sample."""
+        if not samples:
+            return
+        if self._t0 is None:
+            self._t0 = samples[0].time_s  # the session's time 0, as session.csv's
+            self._wall0 = time.monotonic()
+        sample = samples[-1]
+        t = sample.time_s - self._t0
+        if math.isfinite(sample.drill_mm):
+            with self._cond:
+                self._slot = (time.time(), t, sample)
+                self.report.frames += 1
+                self._cond.notify()
+        if self.pace:
+            ahead = t - (time.monotonic() - self._wall0)
+            if ahead > 0.0:
+                time.sleep(ahead)
+
+    def chained(self, first: Callable[[list[TelemetrySample]], None]) -> Callable[..., None]:
+        """An ``on_samples`` observer calling ``first``, then :meth:`observe`."""
+
+        def both(samples: list[TelemetrySample]) -> None:
+            first(samples)
+            self.observe(samples)
+
+        return both
+
+    def close(self) -> StreamReport:
+        """Send the last frame (waiting at most ``CLOSE_GRACE_S``), close, and report."""
+        with self._cond:
+            self._closing = True
+            self._cond.notify()
+        self._thread.join(CLOSE_GRACE_S)
+        if self._thread.is_alive():  # blocked in a send to a peer that does not read
+            self._fail(
+                f"the server stopped reading (the last frame was not taken within "
+                f"{CLOSE_GRACE_S:g} s of the session's end)"
+            )
+            sock = self._sock
+            if sock is not None:
+                with contextlib.suppress(OSError):
+                    sock.shutdown(socket.SHUT_RDWR)
+            self._thread.join(CLOSE_GRACE_S)
+        with self._cond:
+            report = self.report
+            report.dropped = report.frames - report.sent
+            span = self._stamps[1] - self._stamps[0]
+            if report.sent >= 2 and span > 0.0:
+                report.send_rate_hz = round((report.sent - 1) / span, 1)
+        return report
+
+    # ------------------------------------------------------------------ sender thread
+    def _fail(self, what: str) -> None:
+        with self._cond:
+            if self.report.error is not None:
+                return
+            self.report.error = what
+        if self.on_warning is not None:
+            self.on_warning(
+                f"OpenIGTLink {self.target.text}: {what}; the session goes on without streaming"
+            )
+
+    def _connect(self) -> socket.socket | None:
+        try:
+            infos = socket.getaddrinfo(self.target.host, self.target.port, type=socket.SOCK_STREAM)
+        except OSError as exc:
+            self._fail(f"cannot resolve the host ({exc})")
+            return None
+        problem: OSError | None = None
+        for family, kind, proto, _name, address in infos:
+            sock = socket.socket(family, kind, proto)
+            self._sock = sock
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, self.send_buffer_bytes)
+                sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                sock.settimeout(self.connect_timeout_s)
+                sock.connect(address)
+            except OSError as exc:
+                problem = exc
+                sock.close()
+                continue
+            sock.settimeout(self.stall_timeout_s)
+            return sock
+        why = "refused" if isinstance(problem, ConnectionRefusedError) else str(problem)
+        self._fail(
+            f"cannot connect ({why}: is 3D Slicer's OpenIGTLinkIF connector started as a "
+            f"server on port {self.target.port}?)"
+        )
+        return None
+
+    def _take(self) -> tuple[float, float, TelemetrySample] | None:
+        with self._cond:
+            while self._slot is None and not self._closing:
+                self._cond.wait()
+            item, self._slot = self._slot, None
+            return item
+
+    def _run(self) -> None:
+        sock = self._connect()
+        if sock is None:
+            return
+        self.report.connected = True
+        next_implant = -math.inf
+        try:
+            while (item := self._take()) is not None:
+                stamp, t, sample = item
+                due = stamp >= next_implant
+                messages = frame_messages(
+                    self.geometry, sample, t, timestamp=stamp, with_implant=due
+                )
+                try:
+                    sock.sendall(b"".join(m.pack() for m in messages))
+                except TimeoutError:
+                    self._fail(
+                        f"the server stopped reading (nothing taken for {self.stall_timeout_s:g} s)"
+                    )
+                    return
+                except OSError as exc:
+                    self._fail(f"the connection was lost ({exc})")
+                    return
+                if due:
+                    next_implant = stamp + IMPLANT_PERIOD_S
+                with self._cond:
+                    self.report.sent += 1
+                    for m in messages:
+                        self.report.messages[m.device_name] += 1
+                    first = self._stamps[0] if self.report.sent > 1 else stamp
+                    self._stamps = (first, stamp)
+        finally:
+            with contextlib.suppress(OSError):
+                sock.close()
+
+
+def stream_line(report: dict[str, Any]) -> str:
+    """One line on a finished stream (``summary.json`` ``igtl``)."""
+    where = IgtlTarget(report["host"], report["port"]).text
+    rate = report.get("send_rate_hz")
+    at = "" if rate is None else f" at {rate:g} Hz"
+    line = (
+        f"OpenIGTLink {where}: sent {report['sent']} of {report['frames']} frames{at} "
+        f"({report['dropped']} dropped)"
+    )
+    return line if report.get("error") is None else f"{line}; stopped: {report['error']}"
