@@ -16,6 +16,7 @@ from serial.tools import list_ports
 
 from ctdrill.app.export import DEFAULT_RATE_HZ, ExportJob, write_exports
 from ctdrill.app.gui.session_process import SessionJob, run_job
+from ctdrill.app.igtl.frames import IgtlTarget, StreamSetup
 from ctdrill.app.pipeline import PathResult
 from ctdrill.app.readout import push_of
 from ctdrill.app.rehearse import rehearsal_summary, summary_json
@@ -84,6 +85,7 @@ class RehearsalRun:
         end_at_stop: bool = False,
         exam: ExamSetup | None = None,
         live: bool = False,
+        igtl: IgtlTarget | None = None,
     ) -> None:
         self.result = result
         self.device_spec = device_spec
@@ -115,6 +117,11 @@ class RehearsalRun:
         self.cancelled = False
         #: The series' HU uncertainty for the summary's force band (the window's, if any).
         self.hu: HuUncertainty | None = None
+        #: The OpenIGTLink stream's server, its warning once it failed, and its report
+        #: (``summary.json`` ``igtl``) once the session ended.
+        self.igtl_target = igtl
+        self.igtl_warning: str | None = None
+        self.igtl: dict[str, Any] | None = None
         self._record = record
         self._latest: Telemetry | None = None
         self._hand_n: float | None = None
@@ -136,6 +143,7 @@ class RehearsalRun:
             end_at_stop=end_at_stop,
             context=assessment_context(result, None if exam is None else exam.path),
             live=live,
+            igtl=None if igtl is None else StreamSetup.of_plan(igtl, result.plan),
         )
         self._process = ctx.Process(
             target=run_job,
@@ -158,12 +166,14 @@ class RehearsalRun:
         end_at_stop: bool = False,
         exam: ExamSetup | None = None,
         live: bool = False,
+        igtl: IgtlTarget | None = None,
     ) -> RehearsalRun:
         """Start a session on ``device`` (``simulator`` or ``serial:PORT``): upload, arm and
         run, with a simulated hand pushing ``push_n`` newtons (simulator and emulator); with
         ``live`` the push follows :meth:`set_push` and :meth:`retract` while it runs; with
         ``end_at_stop`` the session ends once the device holds its auto-stop; with ``exam``
-        (simulator only) the exam's table is uploaded instead of the margin's."""
+        (simulator only) the exam's table is uploaded instead of the margin's; with ``igtl``
+        the session streams to that OpenIGTLink server (docs/slicer.md)."""
         if not (np.isfinite(push_n) and push_n >= 0.0):
             raise ValueError(f"simulated push: give a force >= 0 N, got {push_n}")
         if exam is not None and device != SIMULATOR:
@@ -179,6 +189,7 @@ class RehearsalRun:
             end_at_stop=end_at_stop,
             exam=exam,
             live=live,
+            igtl=igtl,
         )
         run._process.start()
         return run
@@ -238,6 +249,10 @@ class RehearsalRun:
                     self._latest = replace(self._latest, state=str(payload))
             elif kind == "assessment":
                 self.assessment = payload
+            elif kind == "warning":
+                self.igtl_warning = str(payload)
+            elif kind == "igtl":
+                self.igtl = payload
             else:
                 self._ended = True
                 if kind in ("done", "fault", "cancelled"):
@@ -307,6 +322,8 @@ class RehearsalRun:
             exam=self.exam,
         )
         summary.update({"cancelled": self.cancelled, "recorded_rows": len(self.rows)})
+        if self.igtl is not None:
+            summary["igtl"] = self.igtl
         if not self.running:
             self._summary = summary
         return summary

@@ -29,6 +29,7 @@ from PySide6.QtWidgets import (
     QHBoxLayout,
     QLabel,
     QLayout,
+    QLineEdit,
     QPushButton,
     QScrollArea,
     QVBoxLayout,
@@ -47,11 +48,18 @@ from ctdrill.app.gui.rehearsal_words import (
 )
 from ctdrill.app.gui.results import PathView, block_reason, stop_explanation
 from ctdrill.app.gui.sound import VibrationSound
+from ctdrill.app.igtl.frames import SLICER_PORT, parse_target
+from ctdrill.app.igtl.stream import stream_line
 from ctdrill.app.pipeline import PathResult
 from ctdrill.app.trainee.exam import exam_setup
 from ctdrill.app.trainee.words import assessment_line
 from ctdrill.haptics.profile_table import ProfileTable
 
+IGTL_TIP = (
+    "HOST:PORT of an OpenIGTLink server, e.g. 3D Slicer's OpenIGTLinkIF connector on "
+    f"localhost:{SLICER_PORT}: the session streams the transforms DrillTip and Implant and the "
+    "forces (text Forces, JSON). Empty: off. docs/slicer.md says how to watch it in Slicer."
+)
 #: Telemetry poll period, ms (30 Hz display).
 POLL_MS = 33
 SOUND_TIP = (
@@ -116,6 +124,10 @@ class RehearsalPanel(QWidget):
         self.record = QCheckBox("record the session")
         self.record.setChecked(True)
         form.addRow(self.record)
+        self.igtl = QLineEdit()
+        self.igtl.setPlaceholderText(f"off (e.g. localhost:{SLICER_PORT})")
+        self.igtl.setToolTip(IGTL_TIP)
+        form.addRow("stream to Slicer", self.igtl)
         outer.addWidget(dev)
 
         buttons = QHBoxLayout()
@@ -212,6 +224,7 @@ class RehearsalPanel(QWidget):
         self.connect_button.setEnabled(not running and not self.blocked and self.result is not None)
         self.stop_button.setEnabled(running)
         self.device.setEnabled(not running)
+        self.igtl.setEnabled(not running)
         simulator = (self.device.currentText() or SIMULATOR) == SIMULATOR
         self.exam.setEnabled(simulator and not running)
         if not simulator:
@@ -262,6 +275,8 @@ class RehearsalPanel(QWidget):
             return
         device = self.device.currentText() or SIMULATOR
         try:
+            igtl_text = self.igtl.text().strip()
+            igtl = parse_target(igtl_text, option="stream to Slicer") if igtl_text else None
             exam = None
             if self.exam.isChecked() and device == SIMULATOR:
                 exam = exam_setup(doc.volume, doc.plan, self.result)
@@ -276,6 +291,7 @@ class RehearsalPanel(QWidget):
                 end_at_stop=exam is None,
                 exam=exam,
                 live=True,
+                igtl=igtl,
             )
             self.run.hu = doc.hu_uncertainty
         except (AppInputError, ValueError, OSError) as exc:
@@ -290,7 +306,8 @@ class RehearsalPanel(QWidget):
             if exam is not None
             else f"the device stops the drill at {stop_explanation(self.result)}"
         )
-        self.message.setText(f"armed on {device}; {where}")
+        streaming = "" if igtl is None else f"; streaming to OpenIGTLink {igtl.text}"
+        self.message.setText(f"armed on {device}; {where}{streaming}")
         self._predict()
         if self.sound_box.isChecked():
             self._start_sound()
@@ -315,6 +332,9 @@ class RehearsalPanel(QWidget):
         tel = run.latest()
         if tel is not None:
             self.show_telemetry(tel)
+        warning = run.igtl_warning
+        if warning is not None and not self.message.text().endswith(warning):
+            self.message.setText(f"{self.message.text()}\nwarning: {warning}")
         if ended and self._reported is not run:
             self._ended(run, tel)
 
@@ -333,6 +353,8 @@ class RehearsalPanel(QWidget):
         debrief = debrief_of(run)
         if debrief is not None:
             text += f" {assessment_line(debrief.summary)}; see the Debrief page."
+        if run.igtl is not None:
+            text += f"\n{stream_line(run.igtl)}"
         self.message.setText(text)
         self.timing_label.setText(timing_text(run))
         if run.session is not None and run.session.get("final_state") == "stopped":

@@ -13,6 +13,9 @@ separate interpreter, and talks to the window through a queue:
   after STOP and DISARM: ``summary["reason"]`` says which), ``("cancelled", summary)`` (the
   stop event was set: the device was sent STOP and DISARM) or ``("error", message)`` (before
   ARM: nothing was armed);
+- with ``SessionJob.igtl``, ``("warning", line)`` once if the OpenIGTLink stream fails
+  (:mod:`ctdrill.app.igtl`) and, before the end, ``("igtl", report)`` (``summary.json``
+  ``igtl``);
 - before that, ``("state", name)``: the state the device reports once the session disarmed
   it (the window's readouts show it), and ``("assessment", fields)``: the session's
   assessment (:class:`ctdrill.haptics.assessment.Assessment`), when it was armed.
@@ -30,6 +33,7 @@ import traceback
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from ctdrill.app.igtl.frames import StreamSetup
 from ctdrill.app.rehearse import open_device
 from ctdrill.haptics.assessment import AssessmentContext, Assessor
 from ctdrill.haptics.device import TelemetrySample
@@ -69,6 +73,7 @@ class SessionJob:
     realtime : pace the simulator to the wall clock (a real device is never paced).
     end_at_stop : end the session (complete, disarmed) once the device has held its auto-stop
         for ``AUTO_STOP_HOLD_S``: the drill can go no deeper, the window offers the export.
+    igtl : stream the session to an OpenIGTLink server (None: no streaming).
     """
 
     table: ProfileTable
@@ -79,6 +84,7 @@ class SessionJob:
     end_at_stop: bool = False
     context: AssessmentContext | None = None
     live: bool = False
+    igtl: StreamSetup | None = None
 
 
 def run_job(
@@ -100,6 +106,13 @@ def run_job(
     if job.live and push is not None and retract is not None:
         hand = LiveHand(lambda: float(push.value), lambda: bool(retract.value))
     assessor = None if job.context is None else Assessor(job.context, job.table)
+    stream = None
+    if job.igtl is not None:
+        from ctdrill.app.igtl.stream import IgtlStream
+
+        stream = IgtlStream(
+            job.igtl.target, job.igtl.geometry, on_warning=lambda m: out.put(("warning", m))
+        )
     wall0 = time.monotonic()
     stopped_at: list[float] = []  # session time of the first auto-stop row
     done = [False]
@@ -128,6 +141,8 @@ def run_job(
         out.put(("hand", block[-1].force_est_n))
         if assessor is not None:
             assessor.add(block)
+        if stream is not None:
+            stream.observe(block)
 
     try:
         result = run_session(
@@ -149,6 +164,8 @@ def run_job(
                 out.put(("state", STATE_NAMES.get(states[-1], "?")))
         if assessor is not None and assessor.t0 is not None:
             out.put(("assessment", assessor.result().to_json()))
+        if stream is not None:
+            out.put(("igtl", stream.close().to_json()))
         out.put((kind, result.to_json()))
     except (ValueError, OSError) as exc:  # before ARM: a device that does not answer
         out.put(("error", str(exc) or type(exc).__name__))
@@ -157,3 +174,5 @@ def run_job(
         out.put(("error", f"internal error: {exc!r}"))
     finally:
         device.close()
+        if stream is not None:
+            stream.close()

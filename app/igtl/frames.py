@@ -151,6 +151,19 @@ class StreamGeometry:
         return to_ras(pose_lps(self.direction_lps, self.implant_apex_lps))
 
 
+@dataclass(frozen=True)
+class StreamSetup:
+    """What a session streams and where (picklable: the window's session process gets it)."""
+
+    target: IgtlTarget
+    geometry: StreamGeometry
+
+    @classmethod
+    def of_plan(cls, target: IgtlTarget, plan: Plan) -> StreamSetup:
+        """``target`` and the axis and implant of ``plan``."""
+        return cls(target, StreamGeometry.of_plan(plan))
+
+
 def _triple(v: Any) -> tuple[float, float, float]:
     a = np.asarray(v, dtype=np.float64).reshape(3)
     return (float(a[0]), float(a[1]), float(a[2]))

@@ -1,20 +1,18 @@
 """``ctdrill rehearse --igtl``: a rehearsal watched through a real OpenIGTLink socket.
 
-The server is pyigtl's own (``OpenIGTLinkServer``) on a free loopback port; it keeps only
-the newest message per name, so the test records every message it stores.
+The server is pyigtl's own (``OpenIGTLinkServer``) on a free loopback port
+(:mod:`tests.app.igtl_server`), recording every message.
 """
 
 from __future__ import annotations
 
 import csv
 import json
-import signal
 import socket
 import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -23,6 +21,7 @@ from ctdrill.app.cli import main
 from ctdrill.app.igtl.frames import IgtlTarget, StreamGeometry
 from ctdrill.app.igtl.stream import IgtlStream
 from ctdrill.haptics.device import TelemetrySample
+from tests.app.igtl_server import Recorder, free_port, igtl_server
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "assets" / "demo"
@@ -38,44 +37,10 @@ FIELDS = {
 }
 
 
-class _Recorder(dict[str, Any]):
-    """pyigtl's incoming-message store, keeping every message in arrival order too."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.log: list[Any] = []
-
-    def __setitem__(self, key: str, value: Any) -> None:
-        self.log.append(value)
-        super().__setitem__(key, value)
-
-    def wait_for(self, count: int, *, timeout_s: float = 10.0) -> list[Any]:
-        end = time.monotonic() + timeout_s
-        while len(self.log) < count and time.monotonic() < end:
-            time.sleep(0.01)
-        return list(self.log)
-
-
 @pytest.fixture
-def igtl_server() -> Iterator[tuple[int, _Recorder]]:
-    import pyigtl
-
-    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    server = pyigtl.OpenIGTLinkServer(port=0, local_server=True)  # installs signal handlers
-    received = _Recorder()
-    server.incoming_messages = received
-    try:
-        yield server.server_address[1], received
-    finally:
-        server.stop()
-        for sig, handler in handlers.items():
-            signal.signal(sig, handler)
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+def server() -> Iterator[tuple[int, Recorder]]:
+    with igtl_server() as running:
+        yield running
 
 
 def _rehearse(out: Path, igtl: str, duration: str) -> int:
@@ -103,9 +68,9 @@ def _warnings(err: str) -> list[str]:
 
 
 def test_a_rehearsal_streams_poses_and_forces_that_match_the_session(
-    tmp_path: Path, igtl_server: tuple[int, _Recorder], capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, server: tuple[int, Recorder], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    port, received = igtl_server
+    port, received = server
     duration_s = 1.5  # the push reaches the stop at 0.97 s: cutting, then the wall
     assert _rehearse(tmp_path / "out", f"127.0.0.1:{port}", str(duration_s)) == 0
     assert not _warnings(capsys.readouterr().err)
@@ -172,7 +137,7 @@ def test_a_rehearsal_streams_poses_and_forces_that_match_the_session(
 def test_a_refused_connection_warns_once_and_the_session_goes_on(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    port = _free_port()  # nothing listens there
+    port = free_port()  # nothing listens there
     assert _rehearse(tmp_path / "out", f"127.0.0.1:{port}", "0.3") == 0
     captured = capsys.readouterr()
     assert len(_warnings(captured.err)) == 1 and "refused" in captured.err
@@ -182,7 +147,7 @@ def test_a_refused_connection_warns_once_and_the_session_goes_on(
     igtl = summary["igtl"]
     assert igtl["connected"] is False and igtl["sent"] == 0 and "refused" in igtl["error"]
     assert igtl["dropped"] == igtl["frames"] == 30
-    assert f"sent 0 of 30 frames (30 dropped); stopped: cannot connect" in captured.out
+    assert "sent 0 of 30 frames (30 dropped); stopped: cannot connect" in captured.out
 
 
 class _StalledPeer:
