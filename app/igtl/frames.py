@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -140,9 +141,17 @@ class StreamGeometry:
         """(3,) the drill tip at ``depth_mm`` along the axis, LPS mm."""
         return np.add(self.entry_lps, depth_mm * np.asarray(self.direction_lps))
 
+    @cached_property
+    def _entry_pose_ras(self) -> np.ndarray:
+        """(4, 4) the pose at depth 0 (made once: the axis frame is the session's)."""
+        return to_ras(pose_lps(self.direction_lps, self.entry_lps))
+
     def tip_pose_ras(self, depth_mm: float) -> np.ndarray:
-        """(4, 4) ``DrillTip``: the tip's pose at ``depth_mm``, RAS mm."""
-        return to_ras(pose_lps(self.direction_lps, self.tip_lps(depth_mm)))
+        """(4, 4) ``DrillTip``: the tip's pose at ``depth_mm``, RAS mm (the pose at the entry
+        moved along its own z, the drill axis)."""
+        pose = self._entry_pose_ras.copy()
+        pose[:3, 3] += depth_mm * pose[:3, 2]
+        return pose
 
     def implant_pose_ras(self) -> np.ndarray | None:
         """(4, 4) ``Implant``: the implant's pose (origin at its apex), RAS mm; None without."""

@@ -2,9 +2,10 @@
 
 The session's host loop calls :meth:`IgtlStream.observe` with each block's telemetry (its
 ``on_samples`` observer, every 10 ms): that stores the block's newest sample in a one-frame
-slot and returns (a lock and a notify; no packing, no socket). The sender thread connects
-(once, with a timeout), then takes the newest frame from the slot, packs it
-(:func:`ctdrill.app.igtl.frames.frame_messages`) and sends it whole. A frame replaced in the
+slot and returns (one reference stored: no lock, no wake-up, no packing, no socket). The
+sender thread connects (once, with a timeout), then looks at the slot ``MAX_RATE_HZ`` times a
+second and sends a frame it has not sent yet, packed whole
+(:func:`ctdrill.app.igtl.frames.frame_messages`). A frame replaced in the
 slot before the sender took it is *dropped*: a slow peer gets fewer, newer frames, never a
 queue of old ones. The socket's send buffer is kept small (``SEND_BUFFER_BYTES``) so the
 kernel does not queue seconds of old poses either.
@@ -48,7 +49,11 @@ SEND_BUFFER_BYTES = 8192
 IMPLANT_PERIOD_S = 1.0
 #: :meth:`IgtlStream.close` waits this long for the last frame, s; a sender still blocked
 #: then is cut off (its peer stalled).
-CLOSE_GRACE_S = 0.5
+CLOSE_GRACE_S = 0.25
+#: The sender looks for a new frame this often, Hz: the most frames it sends a second. No
+#: viewer draws faster, and an unpaced simulator offers thousands a second (a sender busy
+#: packing them would take the interpreter from the session's loop).
+MAX_RATE_HZ = 200.0
 
 
 @dataclass
@@ -129,9 +134,11 @@ class IgtlStream:
         self.connect_timeout_s = connect_timeout_s
         self.send_buffer_bytes = send_buffer_bytes
         self.report = StreamReport(target.host, target.port)
-        self._cond = threading.Condition()
+        #: The newest frame ``(header timestamp, session time, sample)``: written by the
+        #: session only (one reference store), read by the sender only.
         self._slot: tuple[float, float, TelemetrySample] | None = None
         self._closing = False
+        self._error_lock = threading.Lock()
         self._sock: socket.socket | None = None
         self._t0: float | None = None
         self._wall0 = 0.0
@@ -141,7 +148,11 @@ class IgtlStream:
 
     # ------------------------------------------------------------------ session side
     def observe(self, samples: Sequence[TelemetrySample]) -> None:
-        """A block's telemetry (the session's ``on_samples``): offer its newest sample."""
+        """A block's telemetry (the session's ``on_samples``): offer its newest sample.
+
+        No lock and no wake-up call: one reference stored where the sender finds it at its
+        next poll (every ``1 / MAX_RATE_HZ``).
+        """
         if not samples:
             return
         if self._t0 is None:
@@ -150,10 +161,8 @@ class IgtlStream:
         sample = samples[-1]
         t = sample.time_s - self._t0
         if math.isfinite(sample.drill_mm):
-            with self._cond:
-                self._slot = (time.time(), t, sample)
-                self.report.frames += 1
-                self._cond.notify()
+            self._slot = (time.time(), t, sample)
+            self.report.frames += 1
         if self.pace:
             ahead = t - (time.monotonic() - self._wall0)
             if ahead > 0.0:
@@ -170,31 +179,31 @@ class IgtlStream:
 
     def close(self) -> StreamReport:
         """Send the last frame (waiting at most ``CLOSE_GRACE_S``), close, and report."""
-        with self._cond:
-            self._closing = True
-            self._cond.notify()
+        self._closing = True
         self._thread.join(CLOSE_GRACE_S)
-        if self._thread.is_alive():  # blocked in a send to a peer that does not read
-            self._fail(
-                f"the server stopped reading (the last frame was not taken within "
-                f"{CLOSE_GRACE_S:g} s of the session's end)"
-            )
+        if self._thread.is_alive():  # blocked connecting, or sending to a peer that does not read
+            if not self.report.connected:
+                self._fail(f"no connection within the session ({self.connect_timeout_s:g} s)")
+            else:
+                self._fail(
+                    f"the server stopped reading (the last frame was not taken within "
+                    f"{CLOSE_GRACE_S:g} s of the session's end)"
+                )
             sock = self._sock
             if sock is not None:
                 with contextlib.suppress(OSError):
                     sock.shutdown(socket.SHUT_RDWR)
             self._thread.join(CLOSE_GRACE_S)
-        with self._cond:
-            report = self.report
-            report.dropped = report.frames - report.sent
-            span = self._stamps[1] - self._stamps[0]
-            if report.sent >= 2 and span > 0.0:
-                report.send_rate_hz = round((report.sent - 1) / span, 1)
+        report = self.report
+        report.dropped = report.frames - report.sent
+        span = self._stamps[1] - self._stamps[0]
+        if report.sent >= 2 and span > 0.0:
+            report.send_rate_hz = round((report.sent - 1) / span, 1)
         return report
 
     # ------------------------------------------------------------------ sender thread
     def _fail(self, what: str) -> None:
-        with self._cond:
+        with self._error_lock:
             if self.report.error is not None:
                 return
             self.report.error = what
@@ -231,47 +240,53 @@ class IgtlStream:
         )
         return None
 
-    def _take(self) -> tuple[float, float, TelemetrySample] | None:
-        with self._cond:
-            while self._slot is None and not self._closing:
-                self._cond.wait()
-            item, self._slot = self._slot, None
-            return item
-
     def _run(self) -> None:
         sock = self._connect()
         if sock is None:
             return
         self.report.connected = True
+        sent: tuple[float, float, TelemetrySample] | None = None
         next_implant = -math.inf
         try:
-            while (item := self._take()) is not None:
-                stamp, t, sample = item
-                due = stamp >= next_implant
-                messages = frame_messages(
-                    self.geometry, sample, t, timestamp=stamp, with_implant=due
-                )
-                try:
-                    sock.sendall(b"".join(m.pack() for m in messages))
-                except TimeoutError:
-                    self._fail(
-                        f"the server stopped reading (nothing taken for {self.stall_timeout_s:g} s)"
-                    )
+            while True:
+                closing = self._closing  # read before the slot: the last frame still goes
+                item = self._slot
+                if item is not None and item is not sent:
+                    sent = item
+                    due = item[0] >= next_implant
+                    if not self._send(sock, item, with_implant=due):
+                        return
+                    if due:
+                        next_implant = item[0] + IMPLANT_PERIOD_S
+                if closing:
                     return
-                except OSError as exc:
-                    self._fail(f"the connection was lost ({exc})")
-                    return
-                if due:
-                    next_implant = stamp + IMPLANT_PERIOD_S
-                with self._cond:
-                    self.report.sent += 1
-                    for m in messages:
-                        self.report.messages[m.device_name] += 1
-                    first = self._stamps[0] if self.report.sent > 1 else stamp
-                    self._stamps = (first, stamp)
+                time.sleep(1.0 / MAX_RATE_HZ)
         finally:
             with contextlib.suppress(OSError):
                 sock.close()
+
+    def _send(
+        self, sock: socket.socket, item: tuple[float, float, TelemetrySample], *, with_implant: bool
+    ) -> bool:
+        """Send one frame whole; False (and the stream's error) when the peer failed."""
+        stamp, t, sample = item
+        messages = frame_messages(
+            self.geometry, sample, t, timestamp=stamp, with_implant=with_implant
+        )
+        try:
+            sock.sendall(b"".join(m.pack() for m in messages))
+        except TimeoutError:
+            self._fail(f"the server stopped reading (nothing taken for {self.stall_timeout_s:g} s)")
+            return False
+        except OSError as exc:
+            self._fail(f"the connection was lost ({exc})")
+            return False
+        report = self.report
+        report.sent += 1
+        for m in messages:
+            report.messages[m.device_name] += 1
+        self._stamps = (self._stamps[0] if report.sent > 1 else stamp, stamp)
+        return True
 
 
 def stream_line(report: dict[str, Any]) -> str:
