@@ -161,9 +161,9 @@ def _paced_row(label: str, r: dict[str, Any], received: np.ndarray | None) -> li
 
 
 def run(quick: bool) -> Section:
-    """Measure and report (quick: short sessions, two repeats)."""
+    """Measure and report (quick: short sessions, one repeat)."""
     loaded = load_table(DEMO / "ct", DEMO / "plan.json")
-    paced_s, unpaced_s, repeats = (0.5, 0.5, 2) if quick else (5.0, 3.0, 5)
+    paced_s, unpaced_s, repeats = (0.3, 0.3, 1) if quick else (5.0, 3.0, 5)
 
     def stalled(duration_s: float, pace: bool) -> dict[str, Any]:
         peer = _StalledPeer()
