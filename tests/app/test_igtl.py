@@ -241,3 +241,28 @@ def test_a_peer_that_hangs_up_ends_the_stream_with_one_warning() -> None:
     report = stream.close()
     assert report.connected and report.error is not None and "lost" in report.error
     assert len(warnings) == 1 and report.dropped == report.frames - report.sent > 0
+
+
+def test_bad_igtl_values_and_a_drill_sequence_are_one_error_line_before_anything_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from ctdrill.imaging.plan.types import DrillSpec, load_plan, save_plan
+
+    for value, says in (("localhost", "no port"), ("localhost:70000", "1..65535")):
+        assert _rehearse(tmp_path / "out", value, "1") == 2
+        err = capsys.readouterr().err.splitlines()
+        assert len(err) == 1 and err[0].startswith(f"error: --igtl '{value}': ") and says in err[0]
+    drills = (DrillSpec(diameter_mm=2.0, tip_length_mm=0.6), DrillSpec(3.0, tip_length_mm=0.9))
+    save_plan(load_plan(DEMO / "plan.json").with_drills(drills), tmp_path / "seq.plan.json")
+    code = main(
+        [
+            "rehearse",
+            *("--dicom", str(DEMO / "ct"), "--plan", str(tmp_path / "seq.plan.json")),
+            *("--out", str(tmp_path / "out"), "--operator", "push:20", "--duration-s", "1"),
+            *("--igtl", f"127.0.0.1:{free_port()}"),
+        ]
+    )
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2 and len(err) == 1 and "drill sequence" in err[0]
+    assert err[0].startswith("error: --igtl: plan ")
+    assert not (tmp_path / "out").exists()
