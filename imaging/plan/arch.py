@@ -9,23 +9,28 @@ Rules (:func:`arch_error`): at least 2 points, at most :data:`MAX_ARCH_POINTS`, 
 coordinate finite and within the plan's coordinate limit, consecutive points distinct (a
 repeated point has no direction, so no perpendicular).
 
-In 3D Slicer the arch is a **Curve** markup whose name or first control point's description
-says ``arch`` (the word, any case); see :mod:`ctdrill.imaging.plan.slicer`.
+In 3D Slicer the arch is a **Curve** markup marked by an explicit setting, never by a word
+somewhere in its name (:func:`is_arch_curve`; a canal named "IAN canal below the arch" stays a
+canal); see :mod:`ctdrill.imaging.plan.slicer`.
 """
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
+
+from ctdrill.imaging.plan.settings import free_text
 
 #: Most points an arch may hold (a hand-drawn arch has tens; a Slicer spline of 2000
 #: control points, sampled 10 per segment, stays below it).
 MAX_ARCH_POINTS = 20_001
 #: Consecutive arch points closer than this (mm) are refused as repeated.
 MIN_ARCH_STEP_MM = 1e-6
-#: The word that makes a Slicer Curve the arch.
-ARCH_WORD = re.compile(r"\barch\b", re.IGNORECASE)
+#: The description that makes a Slicer Curve the arch: its free text (the words that are not
+#: ``key=value`` settings) is exactly this word, any case.
+ARCH_ROLE = "arch"
+#: The name the markups writer gives the arch Curve; a Curve whose description holds no
+#: setting and no other word and whose name is exactly this (any case) is the arch too.
+ARCH_MARKUP_NAME = "dental arch"
 
 
 def arch_error(points: object, max_coord_mm: float) -> str | None:
@@ -59,7 +64,23 @@ def arch_error(points: object, max_coord_mm: float) -> str | None:
     return None
 
 
-def is_arch_label(*texts: object) -> bool:
-    """True when any of ``texts`` (a markup's name, a control point's description) says
-    ``arch`` as a word, in any case."""
-    return any(isinstance(t, str) and ARCH_WORD.search(t) is not None for t in texts)
+def is_arch_curve(description: object, name: object) -> bool:
+    """True when a Slicer Curve is the dental arch, from explicit settings only.
+
+    Parameters
+    ----------
+    description : its first placed control point's description (Slicer keeps it).
+    name : its markup name (Slicer's node name).
+
+    The arch is the Curve whose description's free text is exactly :data:`ARCH_ROLE`
+    (``arch``, any case; settings such as ``curve=polyline`` may follow), or whose name is
+    exactly :data:`ARCH_MARKUP_NAME` while its description is empty. A word inside a name or
+    a ``name=`` setting never makes a Curve the arch, so a canal is never taken for it.
+    """
+    text = description if isinstance(description, str) else ""
+    words = free_text(text).split()
+    if [w.lower() for w in words] == [ARCH_ROLE]:
+        return True
+    if text.strip():
+        return False
+    return isinstance(name, str) and " ".join(name.split()).lower() == ARCH_MARKUP_NAME

@@ -66,6 +66,11 @@ def parse_settings(text: str) -> dict[str, Any]:
     return out
 
 
+def free_text(text: str) -> str:
+    """``text`` without its ``key=value`` settings: the free words (Slicer roles, notes)."""
+    return _SETTING.sub(" ", text)
+
+
 def format_settings(settings: dict[str, Any]) -> str:
     """``key=value`` words, in the given order; text quoted as JSON, numbers exactly (repr)."""
     words = []

@@ -5,10 +5,13 @@ What is read, as 3D Slicer 5 writes it (``vtkMRMLMarkupsJsonStorageNode``):
 
 - ``Line`` markups are trajectories (control point 1 the entry, 2 the target); ``Curve``
   markups canals (centreline: Slicer's spline, :mod:`ctdrill.imaging.plan.curve`), except
-  the one whose name or first control point's description says ``arch`` (the word, any
-  case): that Curve is the dental arch (:mod:`ctdrill.imaging.plan.arch`), the polyline
-  Slicer draws (its spline; ``curve=polyline`` keeps the straight segments), at most one a
-  file;
+  the one marked as the dental arch by an explicit setting
+  (:func:`ctdrill.imaging.plan.arch.is_arch_curve`: its first placed control point's
+  description is the word ``arch``, optionally with ``curve=``; or it has no description and
+  is named exactly ``dental arch``), never by a word inside a name: that Curve is the arch
+  (:mod:`ctdrill.imaging.plan.arch`), the polyline Slicer draws (its spline;
+  ``curve=polyline`` keeps the straight segments), at most one a file. A canal is never
+  taken for the arch; an arch Curve given a canal's setting (``radius_mm``) is refused;
   ``Fiducial`` (point list) markups point landmarks, one per control point. Any other type
   (``ROI``, ``Plane``, ``Angle``, ``ClosedCurve``, ...) is skipped with a ``markups_skipped``
   warning naming it.
@@ -37,7 +40,12 @@ from typing import Any
 
 import numpy as np
 
-from ctdrill.imaging.plan.arch import is_arch_label
+from ctdrill.imaging.plan.arch import (
+    ARCH_MARKUP_NAME,
+    ARCH_ROLE,
+    MAX_ARCH_POINTS,
+    is_arch_curve,
+)
 from ctdrill.imaging.plan.curve import slicer_curve
 from ctdrill.imaging.plan.drill_spec import _DRILL_KEYS
 from ctdrill.imaging.plan.drills import drill_from, drills_field, no_drill_note
@@ -72,6 +80,7 @@ from ctdrill.imaging.plan.types import (
     SERIES_HASH_KEY,
     DrillSpec,
     Plan,
+    PlanInputError,
 )
 
 #: Markup types read; every other type is skipped with a warning.
@@ -107,9 +116,10 @@ ARCH_KEYS = frozenset({"name", "curve"})
 POINT_KEYS = frozenset({"name", "margin_mm"})
 #: ``curve=`` values: Slicer's spline (default) or the straight segments between the points.
 CURVE_SPLINE, CURVE_POLYLINE = "spline", "polyline"
-#: Most control points a Curve may hold: its centreline has 10 samples per segment, and
-#: 20 000 points (200 000 samples) is far beyond a hand-placed canal (tens of points).
-MAX_CURVE_POINTS = 20_000
+#: Most control points a Curve may hold (a canal or the arch): the arch's own cap, so that
+#: every polyline the writer stores as control points reads back (a hand-placed canal has
+#: tens of points; its spline has 10 samples per segment).
+MAX_CURVE_POINTS = MAX_ARCH_POINTS
 
 
 def parse_slicer(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
@@ -135,7 +145,7 @@ def parse_slicer(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
         pts, cps = _placed_points(ctx, mk, where, system, _units_mm(ctx, mk, where))
         if mtype == "Line":
             lines.append(_line(ctx, mk, where, pts, cps, one_line, len(lines)))
-        elif mtype == "Curve" and _is_arch(mk, cps):
+        elif mtype == "Curve" and _is_arch(ctx, mk, cps, only):
             if arch is not None:
                 raise ctx.fail(
                     where,
@@ -159,10 +169,13 @@ def parse_slicer(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
     return ctx.parts(tuple(lines), tuple(landmarks), None if arch is None else arch[0])
 
 
-def _is_arch(mk: dict[str, Any], cps: list[tuple[int, dict[str, Any]]]) -> bool:
-    """A Curve named ``arch``, or whose first placed point's description says it."""
+def _is_arch(
+    ctx: _Ctx, mk: dict[str, Any], cps: list[tuple[int, dict[str, Any]]], only: bool
+) -> bool:
+    """The Curve is the arch by its first placed point's description or, without one, by its
+    name (the markup's, else the file's stem): :func:`is_arch_curve`."""
     first = cps[0][1].get("description") if cps else None
-    return is_arch_label(mk.get("name"), first)
+    return is_arch_curve(first, _name(ctx, {}, mk, only))
 
 
 def _arch(
@@ -173,7 +186,14 @@ def _arch(
     cps: list[tuple[int, dict[str, Any]]],
 ) -> np.ndarray:
     """The arch polyline of an arch Curve: Slicer's spline, or the points (``curve=polyline``)."""
-    settings = _settings(ctx, mk, cps[0] if cps else None, where, ARCH_KEYS)
+    try:
+        settings = _settings(ctx, mk, cps[0] if cps else None, where, ARCH_KEYS)
+    except PlanInputError as exc:
+        raise PlanInputError(
+            f"{exc} (this Curve is the dental arch: its description says {ARCH_ROLE!r} or it "
+            f"is named {ARCH_MARKUP_NAME!r}; a canal's description gives its settings, not "
+            "that word)"
+        ) from None
     if len(pts) > MAX_CURVE_POINTS:
         raise ctx.fail(
             f"{where}.controlPoints",

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill.imaging.plan.arch import ARCH_MARKUP_NAME, ARCH_ROLE
 from ctdrill.imaging.plan.curve import POINTS_PER_SEGMENT, slicer_curve
 from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
@@ -17,7 +18,12 @@ from ctdrill.imaging.plan.landmarks import (
     PointLandmark,
 )
 from ctdrill.imaging.plan.settings import format_settings
-from ctdrill.imaging.plan.slicer import CURVE_POLYLINE, IMPLANT_DRILLS_SETTING, IMPLANT_SETTINGS
+from ctdrill.imaging.plan.slicer import (
+    CURVE_POLYLINE,
+    IMPLANT_DRILLS_SETTING,
+    IMPLANT_SETTINGS,
+    MAX_CURVE_POINTS,
+)
 from ctdrill.imaging.plan.types import (
     _SLICER_SCHEMA,
     PLAN_FORMAT,
@@ -25,9 +31,6 @@ from ctdrill.imaging.plan.types import (
     Plan,
     PlanInputError,
 )
-
-#: The name the markups writer gives the arch Curve (the word ``arch`` marks it).
-ARCH_MARKUP_NAME = "dental arch"
 
 
 def drills_json(plan: Plan) -> dict[str, Any]:
@@ -248,6 +251,12 @@ def markups_document(plans: Plan | tuple[Plan, ...]) -> dict[str, Any]:
         margin = {} if lm.margin_mm is None else {"margin_mm": lm.margin_mm}
         if isinstance(lm, CanalLandmark):
             ctrl, extra = _curve_control_points(lm.points_lps)
+            if len(ctrl) > MAX_CURVE_POINTS:
+                raise PlanInputError(
+                    f"canal {lm.name!r} has {len(ctrl)} points, more than the "
+                    f"{MAX_CURVE_POINTS} a Slicer Curve may hold; save the plan as "
+                    "ctdrill-plan/1 JSON or resample the canal"
+                )
             desc = format_settings({"name": lm.name, "radius_mm": lm.radius_mm, **margin, **extra})
             cps = [(f"{lm.name}-{i + 1}", desc if i == 0 else "") for i in range(len(ctrl))]
             markups.append(_markup("Curve", lm.name, ctrl, cps))
@@ -261,7 +270,7 @@ def markups_document(plans: Plan | tuple[Plan, ...]) -> dict[str, Any]:
             )
     if plan.arch_lps is not None:
         ctrl, extra = _curve_control_points(plan.arch_lps)
-        desc = ("arch " + format_settings(extra)).strip()
+        desc = (f"{ARCH_ROLE} " + format_settings(extra)).strip()
         cps = [(f"arch-{i + 1}", desc if i == 0 else "") for i in range(len(ctrl))]
         markups.append(_markup("Curve", ARCH_MARKUP_NAME, ctrl, cps))
     return {"@schema": _SLICER_SCHEMA, "markups": markups}

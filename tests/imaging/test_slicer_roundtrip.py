@@ -351,7 +351,6 @@ def test_a_curve_of_too_many_points_is_refused(tmp_path: Path) -> None:
     mk = slicer_markup("Curve", [{"position": p} for p in pts])
     path = tmp_path / "c.mrk.json"
     path.write_text(json.dumps(slicer_document(mk)))
-    with pytest.raises(
-        PlanInputError, match=rf"of a Curve hold {n} placed points, more than the 20000"
-    ):
+    expected = rf"of a Curve hold {n} placed points, more than the {MAX_CURVE_POINTS}"
+    with pytest.raises(PlanInputError, match=expected):
         load_plan_set([path])
