@@ -3,8 +3,10 @@
 Every room reads files a user names (plans, markups, masks, calibration sets, recordings,
 operator scripts). A path that is a FIFO blocks ``open`` forever; ``/dev/zero`` reads until
 memory runs out; a JSON document nested 1000 deep raises ``RecursionError`` and an integer of
-4300+ digits ``ValueError`` from the standard library. These helpers refuse each of them with
-the caller's own input-error type, naming the file and what to do, before anything is read.
+4300+ digits ``ValueError`` from the standard library; a key given twice in one object silently
+takes its last value (a ``margin_mm`` of 2.0 then 0.0 ran with 0). These helpers refuse each of
+them with the caller's own input-error type, naming the file and what to do, before anything
+is used.
 
 This module belongs to no room: ``imaging``, ``model``, ``haptics`` and ``app`` all use it, and
 it imports nothing of theirs.
@@ -99,7 +101,8 @@ def load_json(
 
     Returns
     -------
-    The parsed document (``dict``, ``list``, ...). ``NaN`` and ``Infinity`` are refused.
+    The parsed document (``dict``, ``list``, ...). ``NaN`` and ``Infinity`` are refused, and
+    so is a key given twice in one object (the message names the key and the file).
     """
     data = read_bytes_bounded(path, what=what, error=error, max_bytes=max_bytes)
     try:
@@ -126,7 +129,13 @@ def loads_json(
         raise ValueError(f"{name} is not a JSON number")
 
     try:
-        return json.loads(text, parse_constant=_constant)
+        return json.loads(text, parse_constant=_constant, object_pairs_hook=_unique_keys)
+    except DuplicateKeyError as exc:
+        raise error(
+            f"{where}: the {what} gives the key {exc.key!r} twice in one object "
+            f"({_short(exc.first)}, then {_short(exc.second)}); JSON readers disagree on which "
+            "one counts, so keep one"
+        ) from None
     except json.JSONDecodeError as exc:
         raise error(
             f"{where}: the {what} is not valid JSON (line {exc.lineno}, column {exc.colno}: "
@@ -135,6 +144,30 @@ def loads_json(
     except (ValueError, RecursionError) as exc:
         # ValueError: an integer beyond the interpreter's digit limit, NaN/Infinity.
         raise error(f"{where}: the {what} holds a value that cannot be read ({exc})") from exc
+
+
+class DuplicateKeyError(ValueError):
+    """A JSON object gives one key twice (raised while parsing)."""
+
+    def __init__(self, key: str, first: object, second: object) -> None:
+        super().__init__(f"key {key!r} given twice")
+        self.key, self.first, self.second = key, first, second
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """``object_pairs_hook`` building an object, refusing a key given twice."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise DuplicateKeyError(key, out[key], value)
+        out[key] = value
+    return out
+
+
+def _short(value: object, limit: int = 40) -> str:
+    """A value for a message: its JSON text, cut to ``limit`` characters."""
+    text = json.dumps(value, ensure_ascii=False)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def json_nesting_depth(text: str) -> int:

@@ -82,6 +82,7 @@ from ctdrill.imaging.plan.types import (
     Plan,
     PlanInputError,
 )
+from ctdrill.safeio import loads_json
 
 #: Markup types read; every other type is skipped with a warning.
 READ_TYPES = ("Line", "Curve", "Fiducial")
@@ -326,10 +327,18 @@ def _line_drills(
             "drills for a sequence, not both",
         )
     raw = settings["drills"]
-    try:
-        value = json.loads(raw) if isinstance(raw, str) else raw
-    except json.JSONDecodeError:
-        value = raw
+    value = raw
+    if isinstance(raw, str):
+        try:
+            value = loads_json(
+                raw,
+                where=f"{ctx.path.name}: {fp}: setting drills",
+                what="value",
+                error=PlanInputError,
+            )
+        except PlanInputError as exc:
+            if not isinstance(exc.__cause__, json.JSONDecodeError):
+                raise  # a duplicate key, a huge number: named as such
     if not isinstance(value, list):
         raise ctx.fail(
             f"{fp}: setting drills",
