@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ctdrill.app.calibration_info import calibration_fields, calibration_line
+from ctdrill.app.csv_cells import text_cell
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.export_band import BAND_COLUMNS, band_line, band_summary, path_band
 from ctdrill.app.export_defaults import DEFAULT_RATE_HZ as DEFAULT_RATE_HZ
@@ -126,7 +127,7 @@ def force_csv(series: ForceSeries, calibration: str) -> str:
         (series.force_n, 5),
         (series.clearance_mm, 4),
     ]
-    return fixed_csv(FORCE_COLUMNS, columns, tail=calibration)
+    return fixed_csv(FORCE_COLUMNS, columns, tail=text_cell(calibration))
 
 
 def profile_csv(result: PathResult, band: ForceBand | None = None) -> str:
@@ -148,7 +149,7 @@ def profile_csv(result: PathResult, band: ForceBand | None = None) -> str:
         _fmt(sk[1], 5),
         _fmt(result.min_clearance_per_depth_mm, 4),
         misch_class(prof.hu_mean).tolist(),
-        [prof.calibration] * len(prof.depth_mm),
+        [text_cell(prof.calibration)] * len(prof.depth_mm),
         *(
             [empty] * 3
             if band is None

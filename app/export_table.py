@@ -11,11 +11,10 @@ drill's own summary.
 
 from __future__ import annotations
 
-import csv
-import io
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from typing import Any
 
+from ctdrill.app.csv_cells import csv_table
 from ctdrill.imaging.misch import MISCH_CLASSES
 
 #: Name of the table in the output folder.
@@ -53,6 +52,21 @@ TABLE_COLUMNS: tuple[str, ...] = (
     "target_z_mm",
     "series_uid_sha256",
     "warnings",
+)
+
+
+#: Columns of text (names, paths, codes); every other column holds numbers or booleans.
+TEXT_COLUMNS: frozenset[str] = frozenset(
+    {
+        "trajectory",
+        "plan_file",
+        "folder",
+        "stop_reason",
+        "binding_landmark",
+        "calibration",
+        "series_uid_sha256",
+        "warnings",
+    }
 )
 
 
@@ -106,13 +120,14 @@ def table_row(doc: Mapping[str, Any], folder: str) -> dict[str, str]:
     return {k: _cell(values[k]) for k in TABLE_COLUMNS}
 
 
-def table_csv(rows: Iterable[Mapping[str, str]], columns: Sequence[str] = TABLE_COLUMNS) -> str:
-    """CSV text of ``rows`` (dicts keyed by ``columns``) with a header line."""
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(columns), lineterminator="\n", extrasaction="raise")
-    w.writeheader()
-    w.writerows(rows)
-    return buf.getvalue()
+def table_csv(
+    rows: Iterable[Mapping[str, str]],
+    columns: Sequence[str] = TABLE_COLUMNS,
+    text_columns: Collection[str] = TEXT_COLUMNS,
+) -> str:
+    """CSV text of ``rows`` (dicts keyed by ``columns``) with a header line; text cells that a
+    spreadsheet would run as a formula are neutralised (:mod:`ctdrill.app.csv_cells`)."""
+    return csv_table(rows, columns, text_columns=text_columns)
 
 
 def table_lines(rows: Iterable[Mapping[str, str]]) -> list[str]:

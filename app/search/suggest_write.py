@@ -11,6 +11,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from ctdrill.app.csv_cells import text_cell
 from ctdrill.app.records import OUTPUT_NAMES, atomic_output_dir, printable, write_file
 from ctdrill.app.search.candidates import SURFACE_SEARCH_MM
 from ctdrill.app.search.suggest import Suggestion
@@ -73,10 +74,10 @@ def candidates_csv(s: Suggestion) -> str:
                 _num(float(s.max_safe_depth_mm[i])),
                 str(bool(s.max_safe_depth_capped[i])).lower(),
                 _num(float(s.min_clearance_mm[i])),
-                printable(s.binding[i]),
-                s.stop_reason[i],
+                text_cell(printable(s.binding[i])),
+                text_cell(s.stop_reason[i]),
                 str(bool(s.feasible[i])).lower(),
-                printable(s.reason[i]),
+                text_cell(printable(s.reason[i])),
             ]
         )
     return buf.getvalue()

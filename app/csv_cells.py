@@ -1,0 +1,68 @@
+"""Cells of every CSV table ctdrill writes, safe to open in a spreadsheet.
+
+A spreadsheet runs a cell that starts with ``=``, ``+``, ``-`` or ``@`` as a formula
+(``=HYPERLINK(...)``, ``+cmd|' /C calc'!A0``, ``@SUM(...)``), and a leading tab or carriage
+return can hide one. Row ids, trajectory and landmark names, plan paths, calibration names
+and error lines come from users' files, so every text cell that starts with one of
+:data:`FORMULA_STARTS` is written with a single quote in front, as OWASP's CSV-injection
+guidance says (the quote shows; nothing runs). Numbers stay numbers: in a numeric column a
+decimal number (``-12.5``, ``1e-05``) is written as it is; anything else there is text and
+neutralised the same way. Quotes, commas and newlines inside cells are quoted by
+:mod:`csv`.
+
+Every table goes through :func:`text_cell` / :func:`number_cell` (``status.csv``,
+``trajectories.csv`` of an export and of a batch, ``candidates.csv``, the text columns of
+``force.csv`` and ``profile.csv``).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from collections.abc import Collection, Iterable, Mapping, Sequence
+
+#: First characters that make a spreadsheet read a cell as a formula (OWASP).
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+#: What a neutralised cell starts with.
+NEUTRAL_PREFIX = "'"
+#: A decimal number as ctdrill writes one (no spaces, no thousands separators).
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+
+
+def text_cell(text: str) -> str:
+    """``text`` as a CSV cell that no spreadsheet runs: quoted with ``'`` when it starts
+    with one of :data:`FORMULA_STARTS`."""
+    return NEUTRAL_PREFIX + text if text.startswith(FORMULA_STARTS) else text
+
+
+def number_cell(text: str) -> str:
+    """A numeric column's cell: a decimal number as it is, anything else as :func:`text_cell`."""
+    return text if _NUMBER.fullmatch(text) else text_cell(text)
+
+
+def csv_table(
+    rows: Iterable[Mapping[str, str]],
+    columns: Sequence[str],
+    *,
+    text_columns: Collection[str],
+) -> str:
+    """CSV text of ``rows`` (dicts keyed by ``columns``) with a header line.
+
+    Cells of ``text_columns`` go through :func:`text_cell`, every other cell through
+    :func:`number_cell` (so a column not declared text is still never a formula).
+    """
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(columns)
+    for row in rows:
+        extra = set(row) - set(columns)
+        if extra:
+            raise ValueError(f"cells outside the table's columns: {sorted(extra)}")
+        w.writerow(
+            [
+                text_cell(row.get(c, "")) if c in text_columns else number_cell(row.get(c, ""))
+                for c in columns
+            ]
+        )
+    return buf.getvalue()
