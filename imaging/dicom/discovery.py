@@ -13,6 +13,7 @@ types (:class:`SliceHeader`, :class:`Skipped`, :class:`ScanResult`) live in
 
 from __future__ import annotations
 
+import collections
 import os
 import stat
 import struct
@@ -47,6 +48,70 @@ _LONG_VRS = {b"OB", b"OW", b"OF", b"OD", b"OL", b"OV", b"UN", b"SQ", b"UC", b"UR
 
 class DiscoveryInputError(ImagingInputError):
     """The path holds no readable DICOM image."""
+
+
+#: A DICOM file this many levels below a folder (or less) makes it a series folder
+#: (PATIENT/STUDY/SERIES/IM: level 3; a DICOMDIR: level 1).
+NEAR_TOP_LEVELS = 4
+#: A folder holding more entries than this (files and folders, on its own file system)
+#: without a DICOM file near the top is refused: a file-system root or a home folder.
+MAX_ENTRIES_WITHOUT_DICOM = 20_000
+#: Most files whose first bytes the check reads.
+MAX_FILES_EXAMINED = 2_000
+
+
+def check_series_folder(path: Path) -> None:
+    """Refuse a folder that is not a series folder, before walking all of it.
+
+    The folder is examined breadth first, on its own file system (links to folders and other
+    mounts are not entered, as ``find -xdev``). A non-empty regular file at most
+    :data:`NEAR_TOP_LEVELS` levels down that starts like DICOM (:func:`_looks_like_dicom`;
+    the first :data:`MAX_FILES_EXAMINED` files are read) makes it a series folder. Without
+    one, a folder of more than :data:`MAX_ENTRIES_WITHOUT_DICOM` entries is refused: ``/``
+    or a home folder would otherwise be walked whole (150 s and more); a smaller one is left
+    to the scan, which says what it found.
+
+    Raises
+    ------
+    DiscoveryInputError
+        More than :data:`MAX_ENTRIES_WITHOUT_DICOM` entries and no DICOM file near the top.
+    """
+    if not path.is_dir():
+        return
+    device = path.stat().st_dev
+    queue = collections.deque([(path, 1)])
+    read = entries = 0
+    while queue:
+        folder, level = queue.popleft()
+        try:
+            with os.scandir(folder) as it:
+                listed = sorted(it, key=lambda e: e.name)
+        except OSError:
+            continue  # an unreadable folder: the scan reports it (files_unreadable)
+        for entry in listed:
+            entries += 1
+            if entries > MAX_ENTRIES_WITHOUT_DICOM:
+                raise DiscoveryInputError(
+                    f"{path}: not a series folder: it holds more than "
+                    f"{MAX_ENTRIES_WITHOUT_DICOM} files and folders and no DICOM file in its "
+                    f"top {NEAR_TOP_LEVELS} levels; name the folder of one series (or one of "
+                    "its files)"
+                )
+            try:
+                if entry.is_dir(follow_symlinks=False):
+                    if entry.stat(follow_symlinks=False).st_dev == device:
+                        queue.append((Path(entry.path), level + 1))
+                elif (
+                    level <= NEAR_TOP_LEVELS
+                    and read < MAX_FILES_EXAMINED
+                    and entry.is_file()
+                    and entry.stat().st_size > 0
+                ):
+                    read += 1
+                    if _looks_like_dicom(Path(entry.path)) is not False:
+                        return
+            except OSError:
+                pass
 
 
 def iter_files(path: Path, unreadable: list[Path] | None = None) -> Iterator[Path]:
@@ -226,6 +291,7 @@ def scan(path: str | Path) -> ScanResult:
     root = Path(path)
     if not root.exists():
         raise DiscoveryInputError(f"{root}: no such file or folder; give a DICOM series folder")
+    check_series_folder(root)
     headers: list[SliceHeader] = []
     skipped: list[Skipped] = []
     not_dicom: list[Path] = []
