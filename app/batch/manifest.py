@@ -4,15 +4,24 @@
 Paths are relative to the manifest's folder (absolute paths are kept). Each data row is one
 case: a CT (a DICOM series folder or file, a NIfTI, NRRD or MetaImage file) and a plan (a
 file or a folder of plans, as ``--plan`` takes). ``id`` names the row's output folder
-(default: the row number); ids must be unique and are kept to letters, digits, ``._-``. A
-manifest that cannot be read as such is bad input (one ``error:`` line, exit 2); a row whose
-files are missing or bad is a failed row, reported in the status table while the others run.
+(default: the row number); ids are kept to letters, digits, ``._-``, at most
+:data:`MAX_ID_CHARS` characters, must not start with ``.`` (the batch's own staging and
+removal names do) and must be unique ignoring case (two folders on a case-insensitive file
+system). A manifest that cannot be read as such is bad input (one ``error:`` line, exit 2); a
+row whose files are missing or bad is a failed row, reported in the status table while the
+others run.
+
+Outputs name a row's files by :func:`display_path`: relative to the manifest's folder, or,
+for a path outside it, by a hash (no user's or patient's folder name in ``status.csv``,
+``trajectories.csv``, ``batch.json``).
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,11 +36,18 @@ OPTIONAL_COLUMNS = ("id",)
 CT_COLUMN = "ct"
 #: A manifest is a small text file; a larger one is refused before it is read.
 MAX_MANIFEST_BYTES = 64 * 1024 * 1024
-_ID = re.compile(r"^[A-Za-z0-9._-]+$")
+#: An id: letters, digits, ``._-``, not starting with ``.`` (hidden names are the runner's).
+_ID = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9._-]*$")
+#: Longest id (a folder name, with room for the staging names built from it).
+MAX_ID_CHARS = 100
 
 
 class ManifestError(AppInputError):
     """The manifest cannot be read (exit 2)."""
+
+
+class BatchInputError(AppInputError):
+    """Bad batch options, scheduler or output folder (exit 2)."""
 
 
 @dataclass(frozen=True)
@@ -41,8 +57,8 @@ class ManifestRow:
     Attributes
     ----------
     row : 1-based number of the data row (the header is row 0).
-    dicom, plan : the cells as written in the manifest.
-    dicom_path, plan_path : resolved against the manifest's folder.
+    dicom, plan : the cells as outputs show them (:func:`display_path`).
+    dicom_path, plan_path : resolved against the manifest's folder (absolute).
     row_id : the output folder's name (``id`` or the zero-padded row number).
     """
 
@@ -107,24 +123,64 @@ def read_manifest(path: Path) -> list[ManifestRow]:
             if not cells[name]:
                 raise ManifestError(f"{path}: row {n}: column {name} is empty")
         row_id = cells.get("id") or f"{n:0{width}d}"
-        if not _ID.match(row_id) or row_id in (".", ".."):
+        if not _ID.match(row_id) or len(row_id) > MAX_ID_CHARS:
             raise ManifestError(
-                f"{path}: row {n}: id {row_id!r} must be letters, digits, '.', '_' or '-'"
+                f"{path}: row {n}: id {row_id!r} must be letters, digits, '.', '_' or '-', "
+                f"not start with '.', at most {MAX_ID_CHARS} characters"
             )
-        if row_id in seen:
+        key = row_id.casefold()
+        if key in seen:
             raise ManifestError(
-                f"{path}: rows {seen[row_id]} and {n} have the same id {row_id!r}; "
-                "ids name the output folders and must be unique"
+                f"{path}: rows {seen[key]} and {n} have the same id {row_id!r} (ignoring "
+                "case); ids name the output folders and must be unique"
             )
-        seen[row_id] = n
+        seen[key] = n
+        dicom_path = Path(os.path.abspath(base / cells["dicom"]))
+        plan_path = Path(os.path.abspath(base / cells["plan"]))
         out.append(
             ManifestRow(
                 row=n,
-                dicom=cells["dicom"],
-                plan=cells["plan"],
-                dicom_path=(base / cells["dicom"]).absolute(),
-                plan_path=(base / cells["plan"]).absolute(),
+                dicom=display_path(dicom_path, base),
+                plan=display_path(plan_path, base),
+                dicom_path=dicom_path,
+                plan_path=plan_path,
                 row_id=row_id,
             )
         )
     return out
+
+
+#: How a path outside the manifest's folder is shown: this prefix and 16 hex digits of the
+#: SHA-256 of its absolute path (the same path, the same name; no folder names).
+HASHED_PATH_PREFIX = "sha256:"
+
+
+def display_path(path: Path, base: Path) -> str:
+    """``path`` as outputs show it: relative to ``base`` (the manifest's folder, POSIX
+    separators) when inside it, else :data:`HASHED_PATH_PREFIX` and a hash."""
+    absolute = os.path.abspath(path)
+    rel = os.path.relpath(absolute, os.path.abspath(base))
+    if rel != os.pardir and not rel.startswith(os.pardir + os.sep) and not os.path.isabs(rel):
+        return Path(rel).as_posix()
+    digest = hashlib.sha256(os.fsencode(absolute)).hexdigest()[:16]
+    return f"{HASHED_PATH_PREFIX}{digest}"
+
+
+def redact_paths(text: str, rows: list[tuple[Path, str]], base: Path) -> str:
+    """``text`` with the absolute paths it names shown as :func:`display_path` shows them.
+
+    ``rows``: (absolute path, its display) of the row's series and plan, longest first
+    replaced, so a file inside either is named through it; then the manifest's folder
+    becomes relative, and any other absolute path left is hashed whole.
+    """
+    known = sorted(rows, key=lambda r: len(str(r[0])), reverse=True)
+    for path, shown in known:
+        text = text.replace(str(path), shown)
+    prefix = os.path.abspath(base) + os.sep
+    text = text.replace(prefix, "")
+    return _ABSOLUTE.sub(lambda m: display_path(Path(m.group(0)), base), text)
+
+
+#: An absolute POSIX path in a message: a ``/`` that starts a word, up to a space, a quote,
+#: a colon, a comma or a semicolon.
+_ABSOLUTE = re.compile(r"(?<![\w.~/])/[^\s:,;'\"()]+")

@@ -1,5 +1,6 @@
-"""The batch's progress on stderr: a ``rich`` progress bar on a terminal (rows done, elapsed
-and remaining time), one plain line per finished row otherwise (logs, CI, pipes)."""
+"""The batch's progress on stdout (stderr is kept for ``error:`` lines): a ``rich`` progress
+bar on a terminal (rows done, elapsed and remaining time), one plain line per finished row
+otherwise (logs, CI, pipes)."""
 
 from __future__ import annotations
 

@@ -9,14 +9,18 @@ Output folder ``DIR``:
 - ``trajectories.csv``: every trajectory of every row that is ok, the columns of
   :mod:`ctdrill.app.export_table` after ``row, id, dicom, plan`` (``folder`` relative to
   ``DIR``);
-- ``batch.json``: the manifest, the options, the counts.
+- ``batch.json``: the manifest's name and hash, the options, the counts.
 
-The three tables are written (atomically) when the batch ends, also after Ctrl-C.
+No absolute path reaches these three files: a row's paths are shown relative to the manifest,
+or hashed when outside its folder (:func:`ctdrill.app.batch.manifest.display_path`), and so
+are the paths error lines name; text cells that a spreadsheet would run are neutralised
+(:mod:`ctdrill.app.csv_cells`). The tables are written (atomically) when the batch ends,
+also after Ctrl-C, with what is true then: a row whose output is complete is ``ok``.
 """
 
 from __future__ import annotations
 
-import csv
+import hashlib
 import json
 import os
 import re
@@ -24,48 +28,47 @@ import shutil
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from ctdrill.app.batch.manifest import ManifestRow
+from ctdrill.app.batch.manifest import (
+    BatchInputError,
+    ManifestRow,
+    display_path,
+    redact_paths,
+)
 from ctdrill.app.batch.task import (
     REMOVED_TAG,
+    ROW_MARKER,
     ExportOptions,
     RowOutcome,
     RowTask,
     fingerprint,
     is_complete,
     one_line,
-    run_row,
 )
-from ctdrill.app.errors import AppInputError
-from ctdrill.app.export_table import TABLE_COLUMNS, TABLE_NAME, table_csv, table_row
+from ctdrill.app.batch.workers import NOT_RUN, Interrupt, run_processes, run_serial
+from ctdrill.app.export_table import TABLE_COLUMNS, TABLE_NAME, TEXT_COLUMNS, table_csv, table_row
 from ctdrill.app.records import atomic_write_text, clean_leftovers
 from ctdrill.app.sequence_export import SEQUENCE_FORMAT
+from ctdrill.safeio import load_json
+
+__all__ = ["BatchInputError", "BatchReport", "run_batch"]
 
 STATUS_NAME = "status.csv"
 BATCH_NAME = "batch.json"
 ROWS_DIR = "rows"
 STATUS_COLUMNS = ("row", "id", "dicom", "plan", "status", "folder", "seconds", "resumed")
+STATUS_TEXT = frozenset({"id", "dicom", "plan", "status", "folder", "resumed"})
 COHORT_COLUMNS = ("row", "id", "dicom", "plan", *TABLE_COLUMNS)
+COHORT_TEXT = frozenset({"id", "dicom", "plan"}) | TEXT_COLUMNS
 #: Exit code of a batch that ran with some rows failed (0: all ok; 2: bad input; 1: a bug).
 EXIT_ROWS_FAILED = 4
-
-if TYPE_CHECKING:
-    from multiprocessing.context import BaseContext
+#: Exit code of a batch stopped by Ctrl-C (its tables written).
+EXIT_INTERRUPTED = 130
+#: Largest summary read back from a row folder.
+MAX_SUMMARY_BYTES = 64 * 1024 * 1024
 
 Progress = Callable[[int, int, RowOutcome], None]
-#: Modules the forkserver imports once for every worker it forks.
-PRELOAD = (
-    "ctdrill.app.batch.task",
-    "ctdrill.app.export_run",
-    "ctdrill.app.export_plot",
-    "matplotlib.figure",
-    "matplotlib.backends.backend_agg",
-)
-
-
-class BatchInputError(AppInputError):
-    """Bad batch options or output folder (exit 2)."""
 
 
 @dataclass(frozen=True)
@@ -74,19 +77,27 @@ class BatchReport:
 
     outcomes: tuple[RowOutcome, ...]
     out_dir: Path
+    interrupted: bool = False
 
     @property
     def failed(self) -> tuple[RowOutcome, ...]:
-        """The rows that failed."""
+        """The rows that failed (or were not run)."""
         return tuple(o for o in self.outcomes if not o.ok)
+
+    @property
+    def not_run(self) -> tuple[RowOutcome, ...]:
+        """The rows Ctrl-C kept from running."""
+        return tuple(o for o in self.outcomes if o.status == NOT_RUN)
 
     def summary_line(self) -> str:
         """``batch: N rows: K ok (R resumed), F failed; status in DIR/status.csv``."""
         n_ok = sum(o.ok for o in self.outcomes)
         resumed = sum(o.resumed for o in self.outcomes)
+        failed = len(self.failed) - len(self.not_run)
+        extra = f", {len(self.not_run)} not run (interrupted)" if self.not_run else ""
         return (
             f"batch: {len(self.outcomes)} rows: {n_ok} ok ({resumed} resumed), "
-            f"{len(self.failed)} failed; status in {self.out_dir / STATUS_NAME}"
+            f"{failed} failed{extra}; status in {self.out_dir / STATUS_NAME}"
         )
 
 
@@ -108,16 +119,26 @@ def _check_out_dir(out: Path) -> None:
         )
 
 
+def _complete(r: ManifestRow, out: Path, fp: str | None, base: Path) -> bool:
+    """The row's folder is complete for ``fp`` and its tables can be read."""
+    if not is_complete(out / ROWS_DIR / r.row_id, fp, base):
+        return False
+    try:
+        _row_trajectories(r, out)
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    return True
+
+
 def plan_tasks(
-    rows: Sequence[ManifestRow], out: Path, options: ExportOptions
+    rows: Sequence[ManifestRow], out: Path, options: ExportOptions, base: Path
 ) -> tuple[list[RowTask], list[RowOutcome]]:
     """Split the rows into tasks to run and outcomes of rows already complete (resume)."""
     tasks: list[RowTask] = []
     done: list[RowOutcome] = []
     for r in rows:
-        folder = out / ROWS_DIR / r.row_id
         fp = fingerprint(r.dicom_path, r.plan_path, options)
-        if is_complete(folder, fp):
+        if _complete(r, out, fp, base):
             done.append(RowOutcome(row=r.row, status="ok", seconds=0.0, resumed=True))
             continue
         tasks.append(
@@ -128,124 +149,26 @@ def plan_tasks(
                 plan=r.plan,
                 dicom_path=str(r.dicom_path),
                 plan_path=str(r.plan_path),
-                out_dir=str(folder),
+                out_dir=str(out / ROWS_DIR / r.row_id),
                 options=options,
                 fingerprint=fp,
+                base=str(base),
             )
         )
     return tasks, done
 
 
-def run_serial(tasks: Sequence[RowTask], on_done: Callable[[RowOutcome], None]) -> None:
-    """Run the tasks one after another in this process."""
-    for task in tasks:
-        on_done(run_row(task))
-
-
-def run_processes(
-    tasks: Sequence[RowTask], workers: int, on_done: Callable[[RowOutcome], None]
-) -> None:
-    """Run the tasks on a pool of ``workers`` processes.
-
-    Workers are forked from a ``forkserver`` (a fresh interpreter that has imported the
-    export once, :data:`PRELOAD`), so no state or thread of this process is copied into them
-    and each starts without importing NumPy, SciPy and matplotlib again (a 4-case batch on
-    2 workers took 6 s instead of 11 s with ``spawn`` here); ``spawn`` where there is no
-    forkserver.
-
-    A worker process that dies (killed, out of memory, a crash in a library) breaks the
-    pool: the rows it held are run again each in a pool of its own, and a row that kills
-    that one too is reported failed; the batch goes on.
-    """
-    import multiprocessing
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-    from concurrent.futures.process import BrokenProcessPool
-
-    ctx: BaseContext
-    if "forkserver" in multiprocessing.get_all_start_methods():
-        server = multiprocessing.get_context("forkserver")
-        server.set_forkserver_preload(list(PRELOAD))
-        ctx = server
-    else:
-        ctx = multiprocessing.get_context("spawn")
-    broken: list[RowTask] = []
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        pending = {pool.submit(run_row, t): t for t in tasks}
-        while pending:
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in finished:
-                task = pending.pop(fut)
-                try:
-                    on_done(fut.result())
-                except BrokenProcessPool:
-                    broken.append(task)
-    for task in broken:
-        with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as alone:
-            try:
-                outcome = alone.submit(run_row, task).result()
-            except BrokenProcessPool:
-                outcome = RowOutcome(
-                    row=task.row,
-                    status="error: the worker process running this row died (killed, out of "
-                    "memory or crashed); run the row alone with ctdrill export to see why",
-                    seconds=0.0,
-                )
-        on_done(outcome)
-
-
-def connect(address: str) -> Any:
-    """A dask.distributed ``Client`` of the scheduler at ``address``; bad input when
-    dask.distributed is missing or the scheduler cannot be reached (10 s)."""
-    try:
-        from distributed import Client
-    except ImportError:
-        raise BatchInputError(
-            "--scheduler needs dask.distributed, which is not installed: "
-            "pip install 'ctdrill[cluster]'"
-        ) from None
-    try:
-        return Client(address, timeout="10s")
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise BatchInputError(
-            f"--scheduler {address}: cannot connect ({one_line(str(exc))}); start one with "
-            "'dask scheduler' and give its address (tcp://HOST:8786)"
-        ) from None
-
-
-def run_dask(tasks: Sequence[RowTask], client: Any, on_done: Callable[[RowOutcome], None]) -> None:
-    """Run the tasks on the dask.distributed cluster of ``client`` (closed at the end).
-
-    Workers write the rows' folders themselves: every path must mean the same on them as
-    here (a shared file system mounted at the same place; ``docs/batch.md``).
-    """
-    from distributed import as_completed
-
-    with client:
-        futures = client.map(run_row, list(tasks), pure=False)
-        row_of = {f.key: t for f, t in zip(futures, tasks, strict=True)}
-        for fut in as_completed(futures):
-            task = row_of[fut.key]
-            try:
-                outcome = fut.result()
-            except Exception as exc:  # KilledWorker, a lost connection: the row failed
-                outcome = RowOutcome(
-                    row=task.row,
-                    status=one_line(
-                        f"error: the cluster could not run this row: {type(exc).__name__}: {exc}"
-                    ),
-                    seconds=0.0,
-                )
-            on_done(outcome)
-
-
 def _clean_leftovers(rows: Sequence[ManifestRow], rows_dir: Path) -> None:
-    """Remove what killed runs left in ``rows/``: staging folders of a row's swap (those of a
-    live process stay: :func:`ctdrill.app.records.clean_leftovers`) and failed rows' old
-    folders being removed."""
+    """Remove what killed runs left in ``rows/``: staging folders of a row's swap and a
+    marker's temporary file (those of a live process stay:
+    :func:`ctdrill.app.records.clean_leftovers`) and failed rows' old folders being removed.
+    Row ids never start with ``.``, so no row folder is taken for one of these."""
     for r in rows:
         clean_leftovers(rows_dir / r.row_id)
+        if (rows_dir / r.row_id).is_dir():
+            clean_leftovers(rows_dir / r.row_id / ROW_MARKER)
     for p in rows_dir.iterdir():
-        if REMOVED_TAG in p.name and p.name.startswith("."):
+        if p.name.startswith(".") and REMOVED_TAG in p.name:
             shutil.rmtree(p, ignore_errors=True)
 
 
@@ -262,16 +185,22 @@ def run_batch(
     """Export every row not already complete, then write the three tables.
 
     ``workers`` 1 runs in this process; more use a process pool; ``scheduler`` a Dask
-    cluster (``workers`` is then the cluster's business).
+    cluster (``workers`` is then the cluster's business). Ctrl-C stops the batch
+    (:class:`ctdrill.app.batch.workers.Interrupt`): the report says ``interrupted`` and the
+    tables record which rows are complete.
     """
     if workers < 1:
         raise BatchInputError(f"--workers must be 1 or more, got {workers}")
     _check_out_dir(out)
-    client = connect(scheduler) if scheduler is not None else None
+    client = None
+    if scheduler is not None:
+        from ctdrill.app.batch.cluster import connect
+
+        client = connect(scheduler)
+    base = Path(os.path.abspath(manifest)).parent
     rows_dir = out / ROWS_DIR
     rows_dir.mkdir(parents=True, exist_ok=True)
     _clean_leftovers(rows, rows_dir)
-    tasks, done = plan_tasks(rows, out, options)
     outcomes: dict[int, RowOutcome] = {}
 
     def on_done(o: RowOutcome) -> None:
@@ -279,18 +208,25 @@ def run_batch(
         if progress is not None:
             progress(len(outcomes), len(rows), o)
 
-    for o in done:
-        on_done(o)
-    try:
-        if client is not None:
-            run_dask(tasks, client, on_done)
-        elif workers == 1 or len(tasks) <= 1:
-            run_serial(tasks, on_done)
-        else:
-            run_processes(tasks, min(workers, len(tasks)), on_done)
-    finally:
-        report = _finish(manifest, rows, out, options, outcomes)
-    return report
+    with Interrupt() as stop:
+        try:
+            tasks, done = plan_tasks(rows, out, options, base)
+            for o in done:
+                on_done(o)
+            if stop.stopping:
+                tasks = []
+            if client is not None:
+                from ctdrill.app.batch.cluster import run_dask
+
+                run_dask(tasks, client, on_done, stop)
+            elif workers == 1 or len(tasks) <= 1:
+                run_serial(tasks, on_done, stop)
+            else:
+                run_processes(tasks, min(workers, len(tasks)), on_done, stop)
+        except KeyboardInterrupt:  # a second Ctrl-C outside a row
+            stop.count = max(stop.count, 2)
+        report = _finish(manifest, rows, out, options, outcomes, base)
+    return replace(report, interrupted=stop.stopping)
 
 
 def _finish(
@@ -299,21 +235,28 @@ def _finish(
     out: Path,
     options: ExportOptions,
     outcomes: dict[int, RowOutcome],
+    base: Path,
 ) -> BatchReport:
-    """Write ``status.csv``, ``trajectories.csv`` and ``batch.json`` (rows not run: ``error:
-    not run (the batch was interrupted)``)."""
+    """Write ``status.csv``, ``trajectories.csv`` and ``batch.json``.
+
+    A row without an outcome (Ctrl-C) whose folder is complete for its inputs is ``ok``; the
+    others are ``error: not run (the batch was interrupted)``.
+    """
     final: list[RowOutcome] = []
     status_rows: list[dict[str, str]] = []
     cohort: list[dict[str, str]] = []
     for r in rows:
-        o = outcomes.get(r.row) or RowOutcome(
-            row=r.row, status="error: not run (the batch was interrupted)", seconds=0.0
-        )
+        o = outcomes.get(r.row)
+        if o is None:
+            fp = fingerprint(r.dicom_path, r.plan_path, options)
+            ok = _complete(r, out, fp, base)
+            o = RowOutcome(row=r.row, status="ok" if ok else NOT_RUN, seconds=0.0)
         if o.ok:
             try:
                 cohort += _row_trajectories(r, out)
-            except (OSError, ValueError, KeyError) as exc:
+            except (OSError, ValueError, KeyError, TypeError) as exc:
                 o = replace(o, status=one_line(f"error: its output cannot be read: {exc}"))
+        o = replace(o, status=_shown(o.status, r, base))
         final.append(o)
         status_rows.append(
             {
@@ -327,35 +270,65 @@ def _finish(
                 "resumed": "true" if o.resumed else "false",
             }
         )
-    atomic_write_text(out / STATUS_NAME, table_csv(status_rows, STATUS_COLUMNS))
-    atomic_write_text(out / TABLE_NAME, table_csv(cohort, COHORT_COLUMNS))
+    atomic_write_text(out / STATUS_NAME, table_csv(status_rows, STATUS_COLUMNS, STATUS_TEXT))
+    atomic_write_text(out / TABLE_NAME, table_csv(cohort, COHORT_COLUMNS, COHORT_TEXT))
     doc = {
         "format": "ctdrill-batch/1",
-        "manifest": str(manifest),
-        "options": asdict(options),
+        "manifest": manifest.name,
+        "manifest_sha256": _file_sha256(manifest),
+        "options": _shown_options(options, base),
         "rows": len(rows),
         "ok": sum(o.ok for o in final),
         "resumed": sum(o.resumed for o in final),
-        "failed": sum(not o.ok for o in final),
+        "failed": sum(not o.ok and o.status != NOT_RUN for o in final),
+        "not_run": sum(o.status == NOT_RUN for o in final),
     }
     atomic_write_text(out / BATCH_NAME, json.dumps(doc, indent=2) + "\n")
     return BatchReport(outcomes=tuple(final), out_dir=out)
 
 
+def _shown(status: str, r: ManifestRow, base: Path) -> str:
+    """A status line naming the row's files as the tables show them (no absolute path)."""
+    return redact_paths(status, [(r.dicom_path, r.dicom), (r.plan_path, r.plan)], base)
+
+
+def _shown_options(options: ExportOptions, base: Path) -> dict[str, Any]:
+    doc = asdict(options)
+    cal = options.calibration
+    if cal is not None and (os.sep in cal or cal.lower().endswith(".json")):
+        doc["calibration"] = display_path(Path(cal), base)
+    return doc
+
+
+def _file_sha256(path: Path) -> str | None:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def _summary(path: Path) -> dict[str, Any]:
+    doc = load_json(path, what="row summary", error=ValueError, max_bytes=MAX_SUMMARY_BYTES)
+    if not isinstance(doc, dict):
+        raise ValueError(f"{path}: not a summary document")
+    return doc
+
+
 def _row_trajectories(r: ManifestRow, out: Path) -> list[dict[str, str]]:
     """The cohort table's rows of one complete row folder."""
+    import csv
+
     folder = out / ROWS_DIR / r.row_id
     rel = f"{ROWS_DIR}/{r.row_id}"
     head = {"row": str(r.row), "id": r.row_id, "dicom": r.dicom, "plan": r.plan}
     summary = folder / "summary.json"
     if summary.is_file():
-        doc = json.loads(summary.read_text(encoding="utf-8"))
+        doc = _summary(summary)
         if doc.get("format") != SEQUENCE_FORMAT:
             return [{**head, **table_row(doc, rel)}]
         rows = []  # a drill sequence: one row per drill, from the drill's own summary
         for drill in doc["drills"]:
-            sub = folder / drill["folder"] / "summary.json"
-            one = json.loads(sub.read_text(encoding="utf-8"))
+            one = _summary(folder / drill["folder"] / "summary.json")
             rows.append({**head, **table_row(one, f"{rel}/{drill['folder']}")})
         return rows
     with (folder / TABLE_NAME).open(newline="", encoding="utf-8") as fh:
@@ -380,6 +353,7 @@ def default_workers() -> int:
 
 
 def outcome_lines(report: BatchReport, rows: Iterable[ManifestRow]) -> list[str]:
-    """One terminal line per failed row: ``row N (id): error: ...``."""
+    """One terminal line per failed row: ``row N (id): error: ...`` (not the rows Ctrl-C kept
+    from running: the summary counts them)."""
     ids = {r.row: r.row_id for r in rows}
-    return [f"row {o.row} ({ids[o.row]}): {o.status}" for o in report.failed]
+    return [f"row {o.row} ({ids[o.row]}): {o.status}" for o in report.failed if o.status != NOT_RUN]

@@ -2,18 +2,13 @@
 
 A row's output folder ``DIR/rows/<id>/`` is written by :func:`ctdrill.app.export_run.export_case`
 in one atomic swap, together with ``batch-row.json`` (:data:`ROW_MARKER`), which records the
-row's **input fingerprint**. A row is *complete* when that folder exists and its marker holds
-the fingerprint of the row's inputs now: the folder cannot exist half-written (the swap), and
-a changed input (another series, an edited plan, other export options, another ctdrill
-version) changes the fingerprint, so the row is redone.
-
-The fingerprint (SHA-256) covers: the options that shape the files, the ctdrill version, and
-every file under the row's DICOM folder and plan path (a file or a folder) by relative path,
-size and modification time (nanoseconds), plus the content of the plan files of up to
-:data:`HASHED_PLAN_BYTES` each (plans are small; an edit that keeps the size and the
-timestamp is still seen). A calibration given as a file (``--calibration PATH``) counts the
-same way. Files a plan names outside its own folder (a mask landmark's ``path``) are not
-fingerprinted: touch the plan when such a file changes.
+row's input fingerprint and the identities of the other files it read; once the swap is done
+the worker seals the marker with the size and SHA-256 of every file the row wrote (an atomic
+rewrite). A row is *complete* when that folder exists and its sealed marker agrees with the
+inputs now and with the files there (:mod:`ctdrill.app.batch.inputs`): a changed input (the
+series, the plan, a mask or calibration the plan names, the options, the ctdrill version)
+or a damaged output (a truncated ``summary.json``) makes the row run again. A kill between
+the swap and the seal leaves an unsealed marker: the row is redone.
 """
 
 from __future__ import annotations
@@ -28,16 +23,26 @@ from pathlib import Path
 from typing import Any
 
 import ctdrill
+from ctdrill.app.batch.inputs import (
+    add_tree,
+    input_records,
+    inputs_unchanged,
+    output_digests,
+    outputs_intact,
+    row_inputs,
+)
+from ctdrill.app.errors import AppInputError
 from ctdrill.app.grey_option import GreyMapSpec
+from ctdrill.safeio import load_json
 
 #: The marker written last (in the same swap) into a row's output folder.
 ROW_MARKER = "batch-row.json"
-ROW_FORMAT = "ctdrill-batch-row/1"
+ROW_FORMAT = "ctdrill-batch-row/2"
 #: Tag of a failed row's earlier folder while it is removed (a leftover after a kill is
 #: removed by the next batch).
 REMOVED_TAG = "ctdrill-batch-removed"
-#: Plan files up to this size are hashed by content as well.
-HASHED_PLAN_BYTES = 4 * 1024 * 1024
+#: Largest row marker read back (a marker lists a row's files: a few kB).
+MAX_MARKER_BYTES = 16 * 1024 * 1024
 
 
 @dataclass(frozen=True)
@@ -56,7 +61,12 @@ class ExportOptions:
 
 @dataclass(frozen=True)
 class RowTask:
-    """Everything a worker needs for one row (plain data: it crosses process boundaries)."""
+    """Everything a worker needs for one row (plain data: it crosses process boundaries).
+
+    ``dicom`` and ``plan`` are the cells as shown in the outputs (relative to the manifest
+    or hashed: :func:`ctdrill.app.batch.manifest.display_path`); ``base`` is the manifest's
+    folder, against which the marker records the other inputs.
+    """
 
     row: int
     row_id: str
@@ -67,6 +77,7 @@ class RowTask:
     out_dir: str
     options: ExportOptions
     fingerprint: str | None
+    base: str = "."
 
 
 @dataclass(frozen=True)
@@ -84,65 +95,73 @@ class RowOutcome:
         return self.status == "ok"
 
 
-def _walk(root: Path) -> list[Path]:
-    if root.is_file():
-        return [root]
-    out: list[Path] = []
-    for dirpath, dirnames, filenames in os.walk(root):
-        dirnames.sort()
-        out += [Path(dirpath) / f for f in sorted(filenames)]
-    return out
-
-
-def _add_tree(h: Any, kind: str, root: Path, *, hash_content: bool) -> None:
-    for path in _walk(root):
-        st = path.stat()
-        rel = path.relative_to(root).as_posix() if path != root else path.name
-        h.update(f"{kind}\0{rel}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
-        if hash_content and st.st_size <= HASHED_PLAN_BYTES:
-            h.update(hashlib.sha256(path.read_bytes()).digest())
-
-
 def fingerprint(dicom: Path, plan: Path, options: ExportOptions) -> str | None:
-    """The row's input fingerprint (see the module docstring); None when an input cannot be
-    read (the row then runs and reports why)."""
+    """The row's input fingerprint (:mod:`ctdrill.app.batch.inputs`, 1): the options, the
+    ctdrill version, the series by relative path, size and modification time of each file,
+    the plan path by content; None when an input cannot be read or the series path is not a
+    series folder (the row then runs and reports why)."""
+    from ctdrill.imaging.dicom.discovery import check_series_folder
+    from ctdrill.imaging.errors import ImagingInputError
+
     h = hashlib.sha256()
     head = {"format": ROW_FORMAT, "ctdrill": ctdrill.__version__, "options": asdict(options)}
     h.update(json.dumps(head, sort_keys=True).encode())
     try:
         if not dicom.exists() or not plan.exists():
             return None
-        _add_tree(h, "dicom", dicom, hash_content=False)
-        _add_tree(h, "plan", plan, hash_content=True)
-        if options.calibration is not None and Path(options.calibration).is_file():
-            _add_tree(h, "calibration", Path(options.calibration), hash_content=True)
-    except OSError:
+        check_series_folder(dicom)  # "/" is refused before it is walked
+        add_tree(h, "dicom", dicom, hash_content=False)
+        add_tree(h, "plan", plan, hash_content=True)
+    except (OSError, ImagingInputError):
         return None
     return h.hexdigest()
 
 
-def marker_json(task: RowTask) -> str:
-    """The row marker's text."""
-    doc = {
+def marker_doc(task: RowTask, inputs: list[list[str]] | None) -> dict[str, Any]:
+    """The row marker before the seal (no ``outputs``: an unsealed row is not complete)."""
+    return {
         "format": ROW_FORMAT,
         "row": task.row,
         "id": task.row_id,
         "dicom": task.dicom,
         "plan": task.plan,
         "fingerprint": task.fingerprint,
+        "inputs": inputs,
     }
-    return json.dumps(doc, indent=2) + "\n"
 
 
-def is_complete(out_dir: Path, fp: str | None) -> bool:
-    """The row's folder holds a whole output made from inputs with fingerprint ``fp``."""
+def _read_marker(out_dir: Path) -> dict[str, Any] | None:
+    try:
+        doc = load_json(
+            out_dir / ROW_MARKER, what="row marker", error=AppInputError, max_bytes=MAX_MARKER_BYTES
+        )
+    except AppInputError:
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def is_complete(out_dir: Path, fp: str | None, base: Path) -> bool:
+    """The row's folder holds a whole, sealed output made from inputs with fingerprint ``fp``
+    whose other inputs (recorded against ``base``, the manifest's folder) are unchanged."""
     if fp is None:
         return False
-    try:
-        doc = json.loads((out_dir / ROW_MARKER).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return False
-    return isinstance(doc, dict) and doc.get("fingerprint") == fp
+    doc = _read_marker(out_dir)
+    return (
+        doc is not None
+        and doc.get("format") == ROW_FORMAT
+        and doc.get("fingerprint") == fp
+        and inputs_unchanged(doc.get("inputs"), base)
+        and outputs_intact(doc.get("outputs"), out_dir)
+    )
+
+
+def seal_row(out_dir: Path, doc: dict[str, Any]) -> None:
+    """Rewrite the row's marker (atomically) with the size and SHA-256 of every file the row
+    wrote."""
+    from ctdrill.app.records import atomic_write_text
+
+    sealed = {**doc, "outputs": output_digests(out_dir, skip=ROW_MARKER)}
+    atomic_write_text(out_dir / ROW_MARKER, json.dumps(sealed, indent=2) + "\n")
 
 
 def one_line(text: str) -> str:
@@ -163,6 +182,14 @@ def run_row(task: RowTask) -> RowOutcome:
 
     t0 = time.perf_counter()
     opts = task.options
+    base = Path(task.base)
+    try:
+        inputs: list[list[str]] | None = input_records(
+            row_inputs(Path(task.plan_path), opts.calibration), base
+        )
+    except Exception:  # the export below reports why; an unsealed row is never complete
+        inputs = None
+    doc = marker_doc(task, inputs)
     try:
         export_case(
             Path(task.dicom_path),
@@ -176,8 +203,10 @@ def run_row(task: RowTask) -> RowOutcome:
             per_trajectory=opts.per_trajectory,
             hu_sigma=opts.hu_sigma,
             grey=opts.grey,
-            extra_files={ROW_MARKER: marker_json(task)},
+            extra_files={ROW_MARKER: json.dumps(doc, indent=2) + "\n"},
         )
+        if inputs is not None:
+            seal_row(Path(task.out_dir), doc)
         status = "ok"
     except INPUT_ERRORS as exc:
         status = one_line(f"error: {exc}")

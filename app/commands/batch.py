@@ -71,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.batch.manifest import read_manifest
     from ctdrill.app.batch.progress import make_progress
     from ctdrill.app.batch.run import (
+        EXIT_INTERRUPTED,
         EXIT_ROWS_FAILED,
         BatchInputError,
         default_workers,
@@ -97,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
         grey=parse_grey_options(args.grey_to_hu, args.grey_ref),
     )
     workers = default_workers() if args.workers is None else args.workers
-    with make_progress(sys.stderr, {r.row: r.row_id for r in rows}) as progress:
+    with make_progress(sys.stdout, {r.row: r.row_id for r in rows}) as progress:
         report = run_batch(
             args.manifest,
             rows,
@@ -107,7 +108,13 @@ def run(args: argparse.Namespace) -> int:
             scheduler=args.scheduler,
             progress=progress,
         )
+    sys.stdout.write(report.summary_line() + "\n")
     for line in outcome_lines(report, rows):
         sys.stderr.write(line + "\n")
-    sys.stdout.write(report.summary_line() + "\n")
+    if report.interrupted:
+        sys.stderr.write(
+            f"error: interrupted: {len(report.not_run)} rows not run, the others recorded in "
+            f"{report.out_dir / 'status.csv'}; run the same command again to resume\n"
+        )
+        return EXIT_INTERRUPTED
     return EXIT_ROWS_FAILED if report.failed else 0

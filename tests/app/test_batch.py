@@ -125,8 +125,10 @@ def test_status_table_cohort_table_and_exit_code(tmp_path: Path) -> None:
         ["batch", str(manifest), "--out", str(out), "--workers", "1", "--no-plot", *FAST]
     )
     assert code == EXIT_ROWS_FAILED, err
-    assert stdout == f"batch: 3 rows: 2 ok (0 resumed), 1 failed; status in {out / 'status.csv'}\n"
-    assert "row 2 (0002): error: " in err and "missing.json" in err
+    *progress, last = stdout.splitlines()
+    assert last == f"batch: 3 rows: 2 ok (0 resumed), 1 failed; status in {out / 'status.csv'}"
+    assert [line[:11] for line in progress] == ["batch [1/3]", "batch [2/3]", "batch [3/3]"]
+    assert err.startswith("row 2 (0002): error: ") and "missing.json" in err
     status = _csv(out / "status.csv")
     assert tuple(status[0]) == STATUS_COLUMNS
     assert [(s["row"], s["id"], s["status"][:6], s["folder"]) for s in status] == [

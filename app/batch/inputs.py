@@ -1,0 +1,158 @@
+"""What a row reads and what it wrote: the identities that make a row's output "complete".
+
+A row is complete (``docs/batch.md``, "Resume") when three things hold:
+
+1. its **fingerprint** (:func:`fingerprint`, computed before the row runs) is unchanged:
+   SHA-256 over the export options, the ctdrill version, the series by a cheap identity
+   (every file under the row's ``dicom`` path by relative path, size and modification time
+   in nanoseconds) and the plan path (a file or a folder) by content;
+2. every **input the row read** besides those is unchanged: the mask files and the
+   calibration sets its plans name (a bundled set too), recorded by the worker before it
+   exports (:func:`row_inputs`), each by :func:`file_identity`;
+3. every **output** it wrote is there as written: the marker lists each file's size and
+   SHA-256 (:func:`output_digests`), checked at resume (:func:`outputs_intact`), so a
+   truncated or damaged ``summary.json`` is redone instead of failing forever.
+
+Small files are identified by content (:data:`HASHED_BYTES`): an edit that keeps the size
+and the timestamp is seen, a ``touch`` or a copy is not a change. Larger ones by size and
+modification time.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+#: Files up to this size are identified by their content (plans, masks, calibration sets,
+#: the row's outputs); larger ones by size and modification time.
+HASHED_BYTES = 4 * 1024 * 1024
+
+
+def file_identity(path: Path) -> str:
+    """``size:sha256`` of a file up to :data:`HASHED_BYTES`, else ``size:mtime_ns`` (a folder:
+    its tree's :func:`tree_identity`)."""
+    if path.is_dir():
+        h = hashlib.sha256()
+        add_tree(h, "tree", path, hash_content=True)
+        return "tree:" + h.hexdigest()
+    st = path.stat()
+    if st.st_size <= HASHED_BYTES:
+        return f"{st.st_size}:sha256:{_sha256(path)}"
+    return f"{st.st_size}:mtime_ns:{st.st_mtime_ns}"
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _walk(root: Path) -> list[Path]:
+    if not root.is_dir():
+        return [root]
+    out: list[Path] = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames.sort()
+        out += [Path(dirpath) / f for f in sorted(filenames)]
+    return out
+
+
+def add_tree(h: Any, kind: str, root: Path, *, hash_content: bool) -> None:
+    """Feed ``h`` every file under ``root`` (or ``root`` itself): relative path, size, and
+    its content (``hash_content``, files up to :data:`HASHED_BYTES`) or else its
+    modification time."""
+    for path in _walk(root):
+        st = path.stat()
+        rel = path.relative_to(root).as_posix() if path != root else path.name
+        h.update(f"{kind}\0{rel}\0{st.st_size}\0".encode())
+        if hash_content and st.st_size <= HASHED_BYTES:
+            h.update(_sha256(path).encode())
+        else:
+            h.update(str(st.st_mtime_ns).encode())
+        h.update(b"\n")
+
+
+def row_inputs(plan: Path, calibration: str | None) -> list[Path]:
+    """Every file a row reads besides its series and plan path: the mask files of its plans'
+    landmarks and the calibration sets it uses (``calibration``, the ``--calibration``
+    override, or each plan's own, a bundled set included).
+
+    Raises the readers' input errors for a plan or calibration that cannot be read (the
+    row's export then reports the same).
+    """
+    from ctdrill.app.pipeline import plan_calibration_key
+    from ctdrill.imaging.plan.types import load_plan_set
+    from ctdrill.model.calibration import resolve_calibration_path
+
+    plans = load_plan_set([plan])
+    found: dict[str, Path] = {}
+    for p in plans:
+        for lm in p.landmarks:
+            source = getattr(lm, "source", "")  # a mask landmark's file
+            if source:
+                found.setdefault(os.path.abspath(source), Path(source))
+        key = calibration if calibration is not None else plan_calibration_key(p)
+        cal = resolve_calibration_path(key)
+        found.setdefault(os.path.abspath(cal), cal)
+    return list(found.values())
+
+
+def input_records(paths: Sequence[Path], base: Path) -> list[list[str]]:
+    """``[path relative to base, identity]`` of each input (the marker's ``inputs``)."""
+    return [[os.path.relpath(os.path.abspath(p), base), file_identity(p)] for p in paths]
+
+
+def inputs_unchanged(records: object, base: Path) -> bool:
+    """Every recorded input still has its identity (False for a malformed record)."""
+    if not isinstance(records, list):
+        return False
+    for rec in records:
+        if not (isinstance(rec, list) and len(rec) == 2 and all(isinstance(x, str) for x in rec)):
+            return False
+        try:
+            if file_identity(base / rec[0]) != rec[1]:
+                return False
+        except OSError:
+            return False
+    return True
+
+
+def output_digests(folder: Path, *, skip: str) -> list[list[Any]]:
+    """``[relative path, size, sha256]`` of every file under ``folder`` but ``skip``."""
+    out: list[list[Any]] = []
+    for path in _walk(folder):
+        rel = path.relative_to(folder).as_posix()
+        if rel == skip:
+            continue
+        out.append([rel, path.stat().st_size, _sha256(path)])
+    return out
+
+
+def outputs_intact(records: object, folder: Path) -> bool:
+    """Every recorded output is there with its size and content (False when none is)."""
+    if not isinstance(records, list) or not records:
+        return False
+    for rec in records:
+        if not (
+            isinstance(rec, list)
+            and len(rec) == 3
+            and isinstance(rec[0], str)
+            and isinstance(rec[1], int)
+            and isinstance(rec[2], str)
+        ):
+            return False
+        rel = Path(rec[0])
+        if rel.is_absolute() or ".." in rel.parts:
+            return False
+        path = folder / rel
+        try:
+            if not path.is_file() or path.stat().st_size != rec[1] or _sha256(path) != rec[2]:
+                return False
+        except OSError:
+            return False
+    return True
