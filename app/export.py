@@ -39,6 +39,7 @@ from ctdrill.app.text_progress import TextProgress as TextProgress
 from ctdrill.imaging.misch import misch_class
 from ctdrill.model.band import ForceBand, HuUncertainty
 from ctdrill.model.profile import force_series_n
+from ctdrill.numtext import number_text
 
 FORCE_COLUMNS = ("time_s", "depth_mm", "hu", "s_t", "force_n", "clearance_mm", "calibration")
 PROFILE_COLUMNS = (
@@ -70,6 +71,10 @@ class ForceSeries:
     clearance_mm: np.ndarray
 
 
+#: Most rows of a force.csv (at 1000 Hz, 14 hours of drilling).
+MAX_FORCE_SAMPLES = 50_000_000
+
+
 def force_time_series(result: PathResult, *, feed_mm_s: float, rate_hz: float) -> ForceSeries:
     """Constant-feed time series from depth 0 to the stop depth.
 
@@ -85,11 +90,17 @@ def force_time_series(result: PathResult, *, feed_mm_s: float, rate_hz: float) -
     """
     _check_positive(feed_mm_s, "--feed-mm-s (feed_mm_s)")
     _check_positive(rate_hz, "--rate-hz")
-    n = math.floor(result.stop_depth_mm / feed_mm_s * rate_hz + 1e-9) + 1
-    if n > 50_000_000:
+    samples = result.stop_depth_mm / feed_mm_s * rate_hz
+    if not samples < MAX_FORCE_SAMPLES:
+        plan = result.plan
+        whose = f"plan {plan.name!r}: feed_mm_s" if feed_mm_s == plan.feed_mm_s else "--feed-mm-s"
         raise ExportInputError(
-            f"--rate-hz {rate_hz:g} at {feed_mm_s:g} mm/s gives {n} samples; lower the rate"
+            f"{whose} {number_text(feed_mm_s)} mm/s at --rate-hz {number_text(rate_hz)} gives "
+            f"{number_text(samples, 3)} force.csv samples to the stop at "
+            f"{number_text(result.stop_depth_mm, 4)} mm, more than the {MAX_FORCE_SAMPLES} "
+            "accepted; give a feed in mm/s (0.4 is typical) or lower --rate-hz"
         )
+    n = math.floor(samples + 1e-9) + 1
     t = np.arange(n, dtype=np.float64) / rate_hz
     x = np.minimum(feed_mm_s * t, result.stop_depth_mm)
     prof = result.profile

@@ -144,7 +144,7 @@ def prepare_case(
     override = load_calibration(calibration) if calibration is not None else None
     jobs: list[ExportJob] = []
     sequences: list[tuple[SequenceResult, str]] = []
-    seen: dict[str, str] = {}
+    seen: dict[str, tuple[str, str]] = {}
     for n, plan in enumerate(plans):
         if progress is not None:
             progress(n, len(plans), plan.name)
@@ -160,11 +160,13 @@ def prepare_case(
             plans[n] = plan
         sub = "" if len(plans) == 1 else _subdir(_stem(plan, per_file[plan.source]))
         if sub in seen:
+            first, source = seen[sub]
             raise AppInputError(
-                f"--plan: two trajectories are named {plan.name!r} ({seen[sub]} and "
-                f"{plan.source}); rename one so their outputs do not overwrite each other"
+                f"--plan: trajectories {first!r} ({Path(source).name}) and {plan.name!r} "
+                f"({Path(plan.source).name}) would both write the output folder {sub!r}; "
+                "rename one so their outputs do not overwrite each other"
             )
-        seen[sub] = plan.source
+        seen[sub] = (plan.name, plan.source)
         if len(plan.drills) > 1:  # a drill sequence: OUT[/plan]/drill_k/ + summary.json
             seq = plan_sequence(volume, plan, cal, interpolate_gaps=interpolate_gaps)
             sequences.append((seq, sub))

@@ -23,6 +23,7 @@ from ctdrill.imaging.dicom.grey import (
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.band import HuUncertainty
+from ctdrill.numtext import number_text
 
 _REF_RE = re.compile(r"^\s*([^=]+)=\s*(\S+)\s*$")
 
@@ -70,6 +71,13 @@ def parse_grey_options(
     return GreyMapSpec(regions=tuple(regions))
 
 
+def _option(spec: GreyMapSpec) -> str:
+    """The option that gave ``spec``, with its values."""
+    if spec.given is not None:
+        return "--grey-to-hu " + ",".join(number_text(v) for v in spec.given)
+    return "--grey-ref"
+
+
 def build_grey_map(volume: CTVolume, spec: GreyMapSpec) -> GreyToHu:
     """The map of ``spec`` on ``volume`` (regions measured on its values as loaded)."""
     try:
@@ -86,7 +94,10 @@ def map_volume(volume: CTVolume, spec: GreyMapSpec | None) -> tuple[CTVolume, Gr
     if spec is None:
         return volume, None
     grey_map = build_grey_map(volume, spec)
-    return apply_grey_map(volume, grey_map), grey_map
+    try:
+        return apply_grey_map(volume, grey_map), grey_map
+    except ImagingInputError as exc:
+        raise AppInputError(f"{_option(spec)}: {exc}") from None
 
 
 def hu_uncertainty(grey_map: GreyToHu | None, manual: HuUncertainty | None) -> HuUncertainty | None:

@@ -1,4 +1,8 @@
-"""A progress bar for commands that run several jobs (``ctdrill export``, ``ctdrill report``)."""
+"""A progress bar for commands that run several jobs (``ctdrill export``, ``ctdrill report``).
+
+It goes to stdout: stderr is kept for ``error:`` and warning lines, so a refusal is the one
+line there (a bar drawn before it would be a second).
+"""
 
 from __future__ import annotations
 
@@ -11,7 +15,7 @@ class TextProgress:
     one line per step otherwise. :meth:`close` ends a bar left unfinished (on error)."""
 
     def __init__(
-        self, stream: TextIO = sys.stderr, *, width: int = 30, label: str = "export"
+        self, stream: TextIO = sys.stdout, *, width: int = 30, label: str = "export"
     ) -> None:
         self.stream = stream
         self.width = width

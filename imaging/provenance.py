@@ -8,7 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 #: Warning codes a load may report (DESIGN.md section 4, plus ``single_slice`` and, for a NIfTI
-#: file whose qform and sform place voxels apart, ``qform_sform_differ``).
+#: file whose qform and sform place voxels apart, ``qform_sform_differ``), and
+#: ``grey_map_on_hu`` (a grey-to-HU map applied to a series already in HU).
 WARNING_CODES: tuple[str, ...] = (
     "slice_gap",
     "nonuniform_spacing",
@@ -24,6 +25,7 @@ WARNING_CODES: tuple[str, ...] = (
     "single_slice",
     "coarse_voxels",
     "qform_sform_differ",
+    "grey_map_on_hu",
 )
 
 

@@ -87,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.export_table import TABLE_NAME, table_lines
     from ctdrill.app.grey_option import parse_grey_options
 
-    progress = TextProgress(sys.stderr)
+    progress = TextProgress(sys.stdout)
     try:
         written = export_case(
             args.dicom,

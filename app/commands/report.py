@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.report.build import Timings, write_report
     from ctdrill.app.text_progress import TextProgress
 
-    progress = TextProgress(sys.stderr, label="report")
+    progress = TextProgress(sys.stdout, label="report")
     timings = Timings()
     try:
         path, n_pages = write_report(

@@ -22,11 +22,17 @@ import numpy as np
 
 from ctdrill.hu import AIR_HU
 from ctdrill.imaging.errors import ImagingInputError
-from ctdrill.imaging.volume import CTVolume
+from ctdrill.imaging.volume import CTVolume, LoadWarning
+from ctdrill.numtext import number_text
 
 Cov2 = tuple[tuple[float, float], tuple[float, float]]
 #: Most voxels a sphere region may hold (a typo in the radius must not allocate the scan twice).
 MAX_REGION_VOXELS = 2_000_000
+#: Largest magnitude of a mapped CT number, HU: beyond any material (metal on an extended CT
+#: scale reaches a few 10 000 HU; a CBCT's 16-bit grey values under a unit slope stay below);
+#: a map sending a series past it is a typo (``1e300,0``), refused before anything is
+#: computed (float32 would hold inf, and the force law NaN).
+MAX_MAPPED_HU = 100_000.0
 
 
 @dataclass(frozen=True)
@@ -189,10 +195,60 @@ def grey_map_from_regions(regions: Sequence[GreyRegion]) -> GreyToHu:
     )
 
 
+def mapped_range_error(volume: CTVolume, grey_map: GreyToHu) -> str | None:
+    """Why ``grey_map`` cannot be applied to ``volume``, or None: the HU it gives the
+    volume's values (valid voxels) must lie within :data:`MAX_MAPPED_HU` of 0."""
+    values = volume.hu if volume.valid is None else volume.hu[volume.valid]
+    if values.size == 0:
+        return None
+    ends = np.array([float(values.min()), float(values.max())])
+    with np.errstate(over="ignore", invalid="ignore"):
+        mapped = ends * grey_map.slope + grey_map.intercept
+    if np.all(np.isfinite(mapped)) and np.all(np.abs(mapped) <= MAX_MAPPED_HU):
+        return None
+    lo, hi = sorted(float(v) for v in mapped)
+    return (
+        f"HU = {number_text(grey_map.slope)} x grey + {number_text(grey_map.intercept)} sends "
+        f"the series' values {number_text(ends[0])}..{number_text(ends[1])} to "
+        f"{number_text(lo, 3)}..{number_text(hi, 3)} HU, beyond the +/-"
+        f"{number_text(MAX_MAPPED_HU)} HU any material has; check the slope and intercept"
+    )
+
+
+def _rescale(volume: CTVolume) -> str:
+    kind = volume.info.rescale_type
+    return f" (RescaleType {kind})" if kind else ""
+
+
 def apply_grey_map(volume: CTVolume, grey_map: GreyToHu) -> CTVolume:
     """The volume in HU: ``float32(slope x value + intercept)`` of the values as loaded;
-    ``info.is_hu`` True, ``rescale_type`` naming the map, the ``not_hu`` warning removed."""
+    ``info.is_hu`` True, ``rescale_type`` naming the map, the ``not_hu`` warning removed.
+
+    A series already in HU (``info.is_hu``) is mapped as asked, with the warning
+    ``grey_map_on_hu`` (a map for grey values applied to HU is usually a mistake).
+
+    Raises
+    ------
+    ImagingInputError
+        The map sends the volume's values beyond :data:`MAX_MAPPED_HU`
+        (:func:`mapped_range_error`).
+    """
+    problem = mapped_range_error(volume, grey_map)
+    if problem is not None:
+        raise ImagingInputError(f"grey-to-HU map: {problem}")
     hu = (volume.hu.astype(np.float64) * grey_map.slope + grey_map.intercept).astype(np.float32)
+    warnings = tuple(w for w in volume.warnings if w.code != "not_hu")
+    if volume.info.is_hu:
+        warnings += (
+            LoadWarning(
+                "grey_map_on_hu",
+                f"the series is already in HU{_rescale(volume)} and the "
+                f"grey-to-HU map HU = {number_text(grey_map.slope)} x value + "
+                f"{number_text(grey_map.intercept)} was applied to it as asked; a map for "
+                "grey values (CBCT) changes HU that were right: drop --grey-to-hu/--grey-ref "
+                "unless this is meant",
+            ),
+        )
     info = replace(
         volume.info,
         is_hu=True,
@@ -203,7 +259,7 @@ def apply_grey_map(volume: CTVolume, grey_map: GreyToHu) -> CTVolume:
         affine_lps=volume.affine_lps,
         valid=volume.valid,
         info=info,
-        warnings=tuple(w for w in volume.warnings if w.code != "not_hu"),
+        warnings=warnings,
         slice_positions_mm=volume.slice_positions_mm,
     )
 

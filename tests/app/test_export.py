@@ -344,7 +344,8 @@ def test_several_plans_one_load_subfolders_and_progress(tmp_path: Path) -> None:
         ]
     )
     assert code == 0, err
-    assert "export [" in err and "2/2" in err  # one line per step: stderr is not a terminal
+    assert "export [" in stdout and "2/2" in stdout  # one line per step: not a terminal
+    assert "export [" not in err  # stderr is kept for error and warning lines
     _, table = _rows(out / "trajectories.csv")
     for stem, row in zip(("a", "b"), table, strict=True):
         s = json.loads((out / stem / "summary.json").read_text(encoding="utf-8"))

@@ -187,7 +187,9 @@ def test_several_trajectories_and_a_drill_sequence_each_get_their_rows_and_pages
     assert code == 0
     pages = pdf_pages(tmp_path / "r.pdf")
     n = len(pages)
-    assert out == f"wrote {tmp_path / 'r.pdf'} ({n} pages)\n"
+    *progress, last = out.splitlines()  # the progress bar on stdout, then the file
+    assert last == f"wrote {tmp_path / 'r.pdf'} ({n} pages)"
+    assert [line[:8] for line in progress] == ["report [", "report ["] and err == ""
     titles = [p for p in pages if "Cross-section: " in p]
     assert len(titles) == 2
     assert "Cross-section: plan" in titles[0] and "Cross-section: second, drill 2 of 2" in titles[1]

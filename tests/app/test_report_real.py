@@ -23,7 +23,7 @@ def real_report(
     common = ["--dicom", str(shared_data / PHILIPS), "--plan", str(plan)]
     code, out, err = run_cli(["report", *common, "--out", str(root / "r.pdf")])
     assert code == 0 and "Traceback" not in err, err
-    assert out.startswith(f"wrote {root / 'r.pdf'}")
+    assert out.splitlines()[-1].startswith(f"wrote {root / 'r.pdf'}")  # after the progress
     code, _, err = run_cli(["export", *common, "--per-trajectory", "--out", str(root / "x")])
     assert code == 0, err
     return pdf_pages(root / "r.pdf"), root / "x"
