@@ -21,7 +21,7 @@ from ctdrill.app.export_run import PreparedCase, prepare_case
 from ctdrill.app.grey_option import GreyMapSpec
 from ctdrill.app.records import atomic_write_bytes, printable
 from ctdrill.app.report.curves import curves_page
-from ctdrill.app.report.entries import Entry, report_entries
+from ctdrill.app.report.entries import Entry, drawn_entries, report_entries
 from ctdrill.app.report.layout import TextPages
 from ctdrill.app.report.summary import summary_pages
 from ctdrill.app.report.timing import Timings
@@ -61,7 +61,7 @@ def report_pages(
         views = view_pages
     views(pages, case, entries, t)
     t0 = time.perf_counter()
-    for entry in entries:
+    for entry in drawn_entries(entries):
         curves_page(pages.figure(), entry)
     t.add("curves", time.perf_counter() - t0)
     return pages.finish()

@@ -8,6 +8,7 @@ read from these.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -15,6 +16,12 @@ from ctdrill.app.export import ForceSeries, job_summary
 from ctdrill.app.export_run import PreparedCase
 from ctdrill.app.pipeline import PathResult
 from ctdrill.model.band import ForceBand
+
+#: Most trajectories that get their own pages (a cross-section and the curves); the summary's
+#: table and lines, the panorama and the 3D view cover every one. Pages are the report's cost
+#: (a 64-trajectory report drew 346 pages in 6 minutes), so a plan of more trajectories is
+#: reported with pages for the first ones and a note naming the others.
+MAX_DRAWN_TRAJECTORIES = 12
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,3 +73,33 @@ def report_entries(
             label += f", drill {index[0]} of {index[1]}"
         out.append(Entry(job.result, series, band, doc, label, index))
     return out
+
+
+def drawn_entries(entries: Sequence[Entry]) -> list[Entry]:
+    """The entries of the first :data:`MAX_DRAWN_TRAJECTORIES` trajectories (every drill of
+    a sequence with its trajectory), in order."""
+    names: list[str] = []
+    out = []
+    for e in entries:
+        name = e.result.plan.name
+        if name not in names:
+            if len(names) == MAX_DRAWN_TRAJECTORIES:
+                continue
+            names.append(name)
+        out.append(e)
+    return out
+
+
+def undrawn_note(entries: Sequence[Entry]) -> str | None:
+    """What the summary says when some trajectories get no pages of their own (else None)."""
+    every = list(dict.fromkeys(e.result.plan.name for e in entries))
+    if len(every) <= MAX_DRAWN_TRAJECTORIES:
+        return None
+    rest = every[MAX_DRAWN_TRAJECTORIES:]
+    shown = ", ".join(rest[:10]) + (f" and {len(rest) - 10} more" if len(rest) > 10 else "")
+    return (
+        f"Cross-section and curve pages are drawn for the first {MAX_DRAWN_TRAJECTORIES} of "
+        f"{len(every)} trajectories; the table and the lines cover all, the panorama and the 3D "
+        f"view draw all. Without pages: {shown}. For their pages, report them from a plan "
+        "that holds them (ctdrill report --plan with those files)."
+    )

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from ctdrill.app.export import summary_lines
-from ctdrill.app.report.entries import Entry
+from ctdrill.app.report.entries import Entry, undrawn_note
 from ctdrill.app.report.layout import Column, TextPages
 from ctdrill.imaging.volume import CTVolume
 
@@ -129,6 +129,11 @@ def _series_id(doc: dict[str, Any]) -> str:
     return f"SHA-256 of the UID {sha[:16]}..." if isinstance(sha, str) else "-"
 
 
+#: Most warnings written in full under a trajectory (a plan of many implants packed close
+#: together gives one implants_too_close line per neighbour: the square of their number).
+MAX_WARNING_LINES = 12
+
+
 def summary_pages(
     pages: TextPages,
     volume: CTVolume,
@@ -145,6 +150,10 @@ def summary_pages(
     pages.gap(0.15)
     pages.table(COLUMNS, [table_row(e) for e in entries])
     pages.gap(0.1)
+    note = undrawn_note(entries)
+    if note is not None:
+        pages.paragraph(note, size_pt=9.0, bold=True)
+        pages.gap(0.1)
     pages.paragraph(
         "Depths are the drill tip's from the entry point along the axis; clearance is the "
         "signed distance from the drill to a landmark's surface (negative: inside it). The "
@@ -156,7 +165,20 @@ def summary_pages(
     pages.gap(0.2)
     for entry in entries:
         pages.paragraph(entry.label, size_pt=10.0, bold=True, keep_with_next_in=0.3)
-        for line in summary_lines(entry.doc):
+        warned = 0
+        lines = summary_lines(entry.doc)
+        for line in lines:
             warn = line.startswith("warning [")
+            warned += warn
+            if warn and warned > MAX_WARNING_LINES:
+                continue
             pages.paragraph(line, size_pt=8.5, colour="#a01010" if warn else "k", indent_in=0.15)
+        if warned > MAX_WARNING_LINES:
+            pages.paragraph(
+                f"... and {warned - MAX_WARNING_LINES} more warnings: every one is in this "
+                "trajectory's summary.json (ctdrill export --per-trajectory)",
+                size_pt=8.5,
+                colour="#a01010",
+                indent_in=0.15,
+            )
         pages.gap(0.12)

@@ -21,7 +21,7 @@ from matplotlib.figure import Figure
 
 from ctdrill.app.export_run import PreparedCase
 from ctdrill.app.records import printable
-from ctdrill.app.report.entries import Entry
+from ctdrill.app.report.entries import Entry, drawn_entries
 from ctdrill.app.report.layout import MARGIN_IN, PAGE_IN, TextPages, wrap
 from ctdrill.app.report.summary import STOP_WORDS
 from ctdrill.app.report.timing import Timings
@@ -40,6 +40,12 @@ NO_ARCH = (
 NOT_DRAWN = "Not drawn: {reason}. The rest of the report is unaffected."
 #: The 3D view's size in pixels (about 115 per inch across the page).
 VIEW3D_PX = (1200, 720)
+#: A cross-section page draws its own trajectory and at most this many others: the nearest
+#: whose axes come within :data:`NEIGHBOUR_MM` of its axis (the ones that can reach its thin
+#: slab). The panorama draws every one. So the report's work grows with the number of
+#: trajectories, not with its square (300 implants took over 150 s).
+MAX_NEIGHBOURS = 8
+NEIGHBOUR_MM = 15.0
 
 
 def _final_entries(entries: Sequence[Entry]) -> list[Entry]:
@@ -104,20 +110,38 @@ def view_pages(
             _message(fig, "Panoramic reformat", NOT_DRAWN.format(reason=exc))
     timings.add("panoramic", time.perf_counter() - t0)
     t0 = time.perf_counter()
-    for entry in finals:
+    for entry in drawn_entries(finals):
         fig = pages.figure()
         title = f"Cross-section: {entry.label}"
         if arch is None:
             _message(fig, title, NO_ARCH)
             continue
         try:
-            cross_section_page(fig, case, entry, np.asarray(arch), finals)
+            cross_section_page(fig, case, entry, np.asarray(arch), neighbours(entry, finals))
         except ImagingInputError as exc:
             _message(fig, title, NOT_DRAWN.format(reason=exc))
     timings.add("cross-sections", time.perf_counter() - t0)
     t0 = time.perf_counter()
     view3d_page(pages.figure(), case, finals)
     timings.add("3D view", time.perf_counter() - t0)
+
+
+def neighbours(entry: Entry, entries: Sequence[Entry]) -> list[Entry]:
+    """``entry`` and at most :data:`MAX_NEIGHBOURS` others of ``entries``: the nearest whose
+    axis (entry to target) comes within :data:`NEIGHBOUR_MM` of ``entry``'s, in order."""
+    from ctdrill.imaging.plan.implant_checks import segment_distance_mm
+
+    own = entry.result.plan
+    near = []
+    for k, other in enumerate(entries):
+        if other is entry:
+            continue
+        plan = other.result.plan
+        d = segment_distance_mm(own.entry_lps, own.target_lps, plan.entry_lps, plan.target_lps)
+        if d <= NEIGHBOUR_MM:
+            near.append((d, k))
+    keep = {k for _, k in sorted(near)[:MAX_NEIGHBOURS]}
+    return [e for k, e in enumerate(entries) if e is entry or k in keep]
 
 
 def panorama_page(

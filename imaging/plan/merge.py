@@ -10,7 +10,9 @@ The inputs (``--plan`` repeated, or a folder) are read in order (a folder's ``*.
   naming both files (a Curve and a segment may share a name: both are kept);
 - the dental arch (``arch_mm``, an arch Curve) is shared by every trajectory too; two files
   giving different arches are refused naming both;
-- at least one trajectory is required.
+- at least one trajectory is required, at most
+  :data:`~ctdrill.imaging.plan.types.MAX_TRAJECTORIES` in all (counted as the files are read:
+  a folder of thousands of plans is refused at the first file past the limit).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ import numpy as np
 
 from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.read import PlanParts, read_parts
-from ctdrill.imaging.plan.types import Plan, PlanInputError
+from ctdrill.imaging.plan.types import MAX_TRAJECTORIES, Plan, PlanInputError
 
 #: Segmentation files a folder contributes (plain ``.nrrd`` is not taken from a folder: Slicer
 #: saves volumes, the CT itself included, as ``.nrrd``).
@@ -77,7 +79,17 @@ def load_merged(paths: Sequence[str | os.PathLike[str]]) -> tuple[Plan, ...]:
     files = plan_inputs(paths)
     if not files:
         raise PlanInputError("no plan file given; name a plan file or a folder of them")
-    return merge_parts([read_input(f) for f in files])
+    parts: list[PlanParts] = []
+    names: set[str] = set()
+    for f in files:
+        parts.append(read_input(f))
+        names.update(p.name for p in parts[-1].trajectories)
+        if len(names) > MAX_TRAJECTORIES:
+            raise PlanInputError(
+                f"{f.name}: the plan files hold more than the {MAX_TRAJECTORIES} trajectories a "
+                "plan may hold (counted up to this file); split the case into several plans"
+            )
+    return merge_parts(parts)
 
 
 def merge_parts(parts: Sequence[PlanParts]) -> tuple[Plan, ...]:

@@ -41,6 +41,7 @@ from ctdrill.imaging.plan.types import (
     DEFAULT_FEED_MM_S,
     DEFAULT_MARGIN_MM,
     DEFAULT_MIN_WALL_MM,
+    MAX_TRAJECTORIES,
     PLAN_FORMAT,
     SERIES_HASH_KEY,
     Plan,
@@ -145,6 +146,12 @@ def parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
     raw = doc["trajectories"]
     if not isinstance(raw, list) or not raw:
         raise ctx.fail("trajectories", "must be a non-empty list of trajectory objects", raw)
+    if len(raw) > MAX_TRAJECTORIES:
+        raise ctx.fail(
+            "trajectories",
+            f"lists {len(raw)} trajectories, more than the {MAX_TRAJECTORIES} a plan may hold; "
+            "split the case into several plans",
+        )
     plans: list[Plan] = []
     for i, item in enumerate(raw):
         where = f"trajectories[{i}]"

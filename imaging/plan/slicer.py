@@ -77,6 +77,7 @@ from ctdrill.imaging.plan.types import (
     DEFAULT_FEED_MM_S,
     DEFAULT_MARGIN_MM,
     DEFAULT_MIN_WALL_MM,
+    MAX_TRAJECTORIES,
     SERIES_HASH_KEY,
     DrillSpec,
     Plan,
@@ -129,7 +130,14 @@ def parse_slicer(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
     if not isinstance(markups, list) or not markups:
         raise ctx.fail("markups", "must be a non-empty list of Slicer markups", markups)
     only = len(markups) == 1
-    one_line = sum(isinstance(m, dict) and m.get("type") == "Line" for m in markups) == 1
+    n_lines = sum(isinstance(m, dict) and m.get("type") == "Line" for m in markups)
+    one_line = n_lines == 1
+    if n_lines > MAX_TRAJECTORIES:
+        raise ctx.fail(
+            "markups",
+            f"hold {n_lines} Line markups (trajectories), more than the {MAX_TRAJECTORIES} a "
+            "plan may hold; split the case into several plans",
+        )
     lines: list[Plan] = []
     landmarks: list[Landmark] = []
     skipped: list[str] = []

@@ -57,6 +57,11 @@ DEFAULT_MIN_WALL_MM = CLINICAL_MIN_WALL_MM
 SERIES_HASH_KEY = "series_uid_sha256"
 _SERIES_HASH_RE = re.compile(r"[0-9a-f]{64}")
 DEFAULT_FEED_MM_S = 0.4
+#: Most trajectories a plan (one file, or the files merged into one plan) may hold: a full
+#: mouth has 32 teeth; twice that leaves room for alternatives. Work grows with it (each
+#: trajectory is a path, a table row, a report page and with --per-trajectory ~2 MB of files),
+#: so more is refused when read and when written, naming the count.
+MAX_TRAJECTORIES = 64
 _SLICER_SCHEMA = (
     "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/"
     "Resources/Schema/markups-schema-v1.0.3.json#"

@@ -26,6 +26,7 @@ from ctdrill.imaging.plan.slicer import (
 )
 from ctdrill.imaging.plan.types import (
     _SLICER_SCHEMA,
+    MAX_TRAJECTORIES,
     PLAN_FORMAT,
     SERIES_HASH_KEY,
     Plan,
@@ -46,6 +47,11 @@ def _shared(plans: tuple[Plan, ...]) -> Plan:
     (a file holds one set of each) and that names are unique."""
     if not plans:
         raise PlanInputError("no trajectory to write; a plan file holds at least one")
+    if len(plans) > MAX_TRAJECTORIES:
+        raise PlanInputError(
+            f"{len(plans)} trajectories to write, more than the {MAX_TRAJECTORIES} a plan may "
+            "hold; split the case into several plans"
+        )
     first = plans[0]
     names: set[str] = set()
     for p in plans:
