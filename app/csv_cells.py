@@ -7,8 +7,8 @@ and error lines come from users' files, so every text cell that starts with one 
 :data:`FORMULA_STARTS` is written with a single quote in front, as OWASP's CSV-injection
 guidance says (the quote shows; nothing runs). Numbers stay numbers: in a numeric column a
 decimal number (``-12.5``, ``1e-05``) is written as it is; anything else there is text and
-neutralised the same way. Quotes, commas and newlines inside cells are quoted by
-:mod:`csv`.
+neutralised the same way. Quotes, commas and line breaks inside cells are quoted by
+:mod:`csv` (a carriage return is written as a line feed, which it quotes).
 
 Every table goes through :func:`text_cell` / :func:`number_cell` (``status.csv``,
 ``trajectories.csv`` of an export and of a batch, ``candidates.csv``, the text columns of
@@ -32,8 +32,12 @@ _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 
 def text_cell(text: str) -> str:
     """``text`` as a CSV cell that no spreadsheet runs: quoted with ``'`` when it starts
-    with one of :data:`FORMULA_STARTS`."""
-    return NEUTRAL_PREFIX + text if text.startswith(FORMULA_STARTS) else text
+    with one of :data:`FORMULA_STARTS`; a carriage return inside it becomes a line feed (the
+    :mod:`csv` writer quotes a cell holding a line feed, not one holding a lone carriage
+    return, which readers take for the end of the row: a forged row)."""
+    risky = text.startswith(FORMULA_STARTS)
+    text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return NEUTRAL_PREFIX + text if risky else text
 
 
 def number_cell(text: str) -> str:

@@ -75,7 +75,9 @@ class ForceSeries:
 MAX_FORCE_SAMPLES = 50_000_000
 
 
-def force_time_series(result: PathResult, *, feed_mm_s: float, rate_hz: float) -> ForceSeries:
+def force_time_series(
+    result: PathResult, *, feed_mm_s: float, rate_hz: float, feed_option: bool = False
+) -> ForceSeries:
     """Constant-feed time series from depth 0 to the stop depth.
 
     Parameters
@@ -83,6 +85,7 @@ def force_time_series(result: PathResult, *, feed_mm_s: float, rate_hz: float) -
     result : the path.
     feed_mm_s : feed, mm/s (> 0).
     rate_hz : sample rate, Hz (> 0).
+    feed_option : the feed is ``--feed-mm-s``'s (messages name it), not the plan's.
 
     Returns
     -------
@@ -93,7 +96,7 @@ def force_time_series(result: PathResult, *, feed_mm_s: float, rate_hz: float) -
     samples = result.stop_depth_mm / feed_mm_s * rate_hz
     if not samples < MAX_FORCE_SAMPLES:
         plan = result.plan
-        whose = f"plan {plan.name!r}: feed_mm_s" if feed_mm_s == plan.feed_mm_s else "--feed-mm-s"
+        whose = "--feed-mm-s" if feed_option else f"plan {plan.name!r}: feed_mm_s"
         raise ExportInputError(
             f"{whose} {number_text(feed_mm_s)} mm/s at --rate-hz {number_text(rate_hz)} gives "
             f"{number_text(samples, 3)} force.csv samples to the stop at "
@@ -305,7 +308,9 @@ def job_summary(
     ``feed_mm_s`` None uses the plan's feed; the other parameters are :func:`write_exports`'.
     """
     feed = result.plan.feed_mm_s if feed_mm_s is None else feed_mm_s
-    series = force_time_series(result, feed_mm_s=feed, rate_hz=rate_hz)
+    series = force_time_series(
+        result, feed_mm_s=feed, rate_hz=rate_hz, feed_option=feed_mm_s is not None
+    )
     band = path_band(result, feed, hu_uncertainty)
     doc = summary(
         result,

@@ -86,7 +86,9 @@ def sequence_summary(
     docs = []
     for step in seq.steps:
         feed = step.plan.feed_mm_s if feed_mm_s is None else feed_mm_s
-        series = force_time_series(step, feed_mm_s=feed, rate_hz=rate_hz)
+        series = force_time_series(
+            step, feed_mm_s=feed, rate_hz=rate_hz, feed_option=feed_mm_s is not None
+        )
         docs.append(
             summary(
                 step,

@@ -68,6 +68,7 @@ def test_regions_recover_the_map_and_the_hu_export(cbct: Path, tmp_path: Path) -
     assert g["intercept"] == pytest.approx(-1015.0, abs=1e-6)
     assert [r["known_hu"] for r in g["regions"]] == pytest.approx(known)
     assert "not_hu" not in [w["code"] for w in s["warnings"]]
+    assert "grey_map_on_hu" not in [w["code"] for w in s["warnings"]]  # grey values: as meant
     assert "grey-to-HU map: HU = 0.5 x grey + -1015" in stdout
     # its uncertainty (from the regions' grey SDs) enters the band
     assert s["hu_uncertainty"]["source"] == "grey-to-HU map"

@@ -123,3 +123,44 @@ def test_rehearse_writes_no_identifier(series_with_phi: Path, tmp_path: Path) ->
     assert {"session.csv", "summary.json"} <= {p.name for p in out.iterdir()}
     assert files_leaking(out) == {}
     assert not leaks((run.stdout + run.stderr).encode())
+
+
+def test_batch_tables_carry_no_absolute_path_nor_the_patients_folder(
+    series_with_phi: Path, tmp_path: Path
+) -> None:
+    """A manifest naming the series and a plan by absolute paths inside a folder named after
+    the patient (and a row whose error names a missing file there): ``status.csv``,
+    ``trajectories.csv`` and ``batch.json`` show paths relative to the manifest or hashed."""
+    plan_dir = series_with_phi.parent / f"{PATIENT_FOLDER}_plans"
+    plan_dir.mkdir(exist_ok=True)
+    plan = plan_dir / "plan.json"
+    plan.write_bytes((DEMO / "plan.json").read_bytes())
+    cohort = tmp_path / "cohort"
+    cohort.mkdir()
+    (cohort / "local.json").write_bytes((DEMO / "plan.json").read_bytes())
+    manifest = cohort / "manifest.csv"
+    manifest.write_text(
+        "id,dicom,plan\n"
+        f"a,{series_with_phi},{plan}\n"
+        f"b,{series_with_phi},{plan_dir / 'missing.json'}\n"
+        f"c,{series_with_phi},local.json\n",
+        encoding="utf-8",
+    )
+    out = tmp_path / "out"
+    calibration = plan_dir / "cal.json"
+    calibration.write_bytes(
+        (ROOT / "assets" / "calibration" / "bone-illustrative.json").read_bytes()
+    )
+    fast = ["--no-plot", "--rate-hz", "100", "--calibration", str(calibration)]
+    run = run_cli_in_process(["batch", str(manifest), "--out", str(out), *fast])
+    assert run.code == 4, run  # row b fails: its plan is missing
+    roots = {str(series_with_phi.parent), str(tmp_path), str(ROOT)}
+    for name in ("status.csv", "trajectories.csv", "batch.json"):
+        text = (out / name).read_text(encoding="utf-8")
+        assert not leaks(text.encode()), (name, leaks(text.encode()))
+        assert not [r for r in roots if r in text], (name, text)
+    status = (out / "status.csv").read_text(encoding="utf-8")
+    assert "local.json" in status and "sha256:" in status  # inside: relative; outside: hashed
+    rows = status.splitlines()
+    hashed = rows[2].split(",")[3]
+    assert hashed.startswith("sha256:") and f"{hashed}: plan file not found" in rows[2]
