@@ -75,8 +75,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``ctdrill`` with ``argv`` (default: ``sys.argv[1:]``) and return the exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except KeyboardInterrupt:  # Ctrl-C while the command starts: no traceback either
+        sys.stderr.write("error: interrupted\n")
+        return 130
     _ignore_file_size_signal()
     try:
         code: int = args.func(args)
