@@ -263,7 +263,9 @@ def test_killed_batch_resumes_where_it_stopped(tmp_path: Path) -> None:
     cmd += ["--workers", "1", "--no-plot", *FAST]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     deadline = time.monotonic() + 240
-    while not (out / "rows" / "0001" / ROW_MARKER).exists():
+    marker = out / "rows" / "0001" / ROW_MARKER
+    # row 1 is complete once its marker is sealed with its outputs (docs/batch.md, Resume)
+    while not (marker.exists() and '"outputs"' in marker.read_text(encoding="utf-8")):
         assert proc.poll() is None, proc.communicate()
         assert time.monotonic() < deadline
         time.sleep(0.02)
