@@ -2,13 +2,15 @@
 
 A row is complete (``docs/batch.md``, "Resume") when three things hold:
 
-1. its **fingerprint** (:func:`fingerprint`, computed before the row runs) is unchanged:
-   SHA-256 over the export options, the ctdrill version, the series by a cheap identity
-   (every file under the row's ``dicom`` path by relative path, size and modification time
-   in nanoseconds) and the plan path (a file or a folder) by content;
-2. every **input the row read** besides those is unchanged: the mask files and the
-   calibration sets its plans name (a bundled set too), recorded by the worker before it
-   exports (:func:`row_inputs`), each by :func:`file_identity`;
+1. its **fingerprint** (:func:`ctdrill.app.batch.task.fingerprint`, computed before the row
+   runs) is unchanged: SHA-256 over the export options, the ctdrill version, the CT by a
+   cheap identity (every file under the row's DICOM folder, or the volume file and a
+   detached header's data file: :func:`volume_files`, by relative path, size and
+   modification time in nanoseconds) and the plan path (a file or a folder) by content;
+2. every **input the row read** besides those is unchanged: the mask files (a detached
+   header's data file too) and the calibration sets its plans name (a bundled set too),
+   recorded by the worker before it exports (:func:`row_inputs`), each by
+   :func:`file_identity`;
 3. every **output** it wrote is there as written: the marker lists each file's size and
    SHA-256 (:func:`output_digests`), checked at resume (:func:`outputs_intact`), so a
    truncated or damaged ``summary.json`` is redone instead of failing forever.
@@ -77,6 +79,22 @@ def add_tree(h: Any, kind: str, root: Path, *, hash_content: bool) -> None:
         h.update(b"\n")
 
 
+def volume_files(path: Path) -> tuple[Path, ...]:
+    """The files reading ``path`` opens: a NIfTI, NRRD or MetaImage file and, for a detached
+    header (``.nhdr``, ``.mhd``), its data file
+    (:func:`ctdrill.imaging.volumes.sniff.files_read`); ``(path,)`` for a folder or any other
+    file (a DICOM file, a ``.npy`` mask)."""
+    if path.is_dir():
+        return (path,)
+    from ctdrill.imaging.errors import ImagingInputError
+    from ctdrill.imaging.volumes.sniff import files_read
+
+    try:
+        return files_read(path, error=ImagingInputError)
+    except (ImagingInputError, OSError):
+        return (path,)
+
+
 def row_inputs(plan: Path, calibration: str | None) -> list[Path]:
     """Every file a row reads besides its series and plan path: the mask files of its plans'
     landmarks and the calibration sets it uses (``calibration``, the ``--calibration``
@@ -94,8 +112,8 @@ def row_inputs(plan: Path, calibration: str | None) -> list[Path]:
     for p in plans:
         for lm in p.landmarks:
             source = getattr(lm, "source", "")  # a mask landmark's file
-            if source:
-                found.setdefault(os.path.abspath(source), Path(source))
+            for f in volume_files(Path(source)) if source else ():
+                found.setdefault(os.path.abspath(f), f)
         key = calibration if calibration is not None else plan_calibration_key(p)
         cal = resolve_calibration_path(key)
         found.setdefault(os.path.abspath(cal), cal)

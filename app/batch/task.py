@@ -30,6 +30,7 @@ from ctdrill.app.batch.inputs import (
     output_digests,
     outputs_intact,
     row_inputs,
+    volume_files,
 )
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.grey_option import GreyMapSpec
@@ -110,7 +111,8 @@ def fingerprint(dicom: Path, plan: Path, options: ExportOptions) -> str | None:
         if not dicom.exists() or not plan.exists():
             return None
         check_series_folder(dicom)  # "/" is refused before it is walked
-        add_tree(h, "dicom", dicom, hash_content=False)
+        for f in volume_files(dicom):  # a folder, or a volume file and its data file
+            add_tree(h, "dicom", f, hash_content=False)
         add_tree(h, "plan", plan, hash_content=True)
     except (OSError, ImagingInputError):
         return None

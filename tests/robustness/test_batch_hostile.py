@@ -571,3 +571,26 @@ def test_tls_works_with_certificates_from_dasks_configuration(tmp_path: Path) ->
         run = _batch(manifest, tmp_path / "out", "--scheduler", cluster.scheduler_address)
     assert run.code == 0, run
     assert "2 ok (0 resumed)" in run.stdout
+
+
+def test_a_detached_data_file_of_the_ct_or_of_a_mask_is_an_input(tmp_path: Path) -> None:
+    """A ``.nhdr``/``.mhd`` header names its voxels' file: replacing that file (the header
+    untouched) changes the CT's fingerprint, and a mask's is recorded among the row's inputs."""
+    from ctdrill.app.batch.inputs import row_inputs, volume_files
+    from ctdrill.app.batch.task import fingerprint
+    from tests.imaging.volume_writers import ramp, write_mha, write_nrrd
+
+    affine = np.diag([0.5, 0.5, 0.5, 1.0])
+    ct = write_nrrd(tmp_path / "ct.nhdr", ramp((4, 5, 6)), affine, detached=True)
+    assert [p.name for p in volume_files(ct)] == ["ct.nhdr", "ct.raw.gz"]
+    plan = DEMO / "plan.json"
+    before = fingerprint(ct, plan, OPTIONS)
+    write_nrrd(tmp_path / "other.nhdr", ramp((4, 5, 6), lo=-900), affine, detached=True)
+    (tmp_path / "other.raw.gz").replace(tmp_path / "ct.raw.gz")
+    assert fingerprint(ct, plan, OPTIONS) not in (before, None)
+    write_mha(tmp_path / "nerve.mhd", np.ones((3, 3, 3), dtype=np.uint8), affine)
+    doc = json.loads(plan.read_text(encoding="utf-8"))
+    doc["landmarks"] = [{"name": "nerve", "kind": "mask", "path": "nerve.mhd", "label": 1}]
+    (tmp_path / "plan.json").write_text(json.dumps(doc), encoding="utf-8")
+    names = {p.name for p in row_inputs(tmp_path / "plan.json", None)}
+    assert {"nerve.mhd", "nerve.raw", "bone-illustrative.json"} <= names
