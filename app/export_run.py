@@ -23,7 +23,8 @@ from ctdrill.app.pipeline import plan_calibration_key, plan_path, with_set_warni
 from ctdrill.app.sequence import SequenceResult, plan_sequence
 from ctdrill.app.sequence_export import sequence_files, sequence_jobs
 from ctdrill.imaging import load_ct
-from ctdrill.imaging.plan.types import Plan, load_plan_set, plan_warnings
+from ctdrill.imaging.plan.load import load_plan_set
+from ctdrill.imaging.plan.types import Plan, plan_warnings
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.band import HuUncertainty
 from ctdrill.model.calibration import Calibration, load_calibration

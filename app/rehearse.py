@@ -46,7 +46,7 @@ from ctdrill.haptics.session import SessionCsv, parse_fault, parse_operator
 from ctdrill.haptics.sim import SimulatedDevice
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.dicom.grey import GreyToHu
-from ctdrill.imaging.plan.types import load_one_plan
+from ctdrill.imaging.plan.load import load_one_plan
 from ctdrill.model.band import HuUncertainty
 
 #: Exit code of a session that ended on a device fault or a host error (STOP, DISARM sent).

@@ -25,7 +25,7 @@ from ctdrill.app.export import ExportJob, force_csv, force_time_series, write_ex
 from ctdrill.app.export_plot import force_png
 from ctdrill.app.pipeline import plan_path
 from ctdrill.imaging import load_series
-from ctdrill.imaging.plan.types import load_plan
+from ctdrill.imaging.plan.load import load_plan
 from ctdrill.model.calibration import load_calibration
 
 ROOT = Path(__file__).resolve().parents[1]

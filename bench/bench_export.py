@@ -25,8 +25,9 @@ from bench.report import Section, table, time_it
 from ctdrill.app.export import ExportJob, write_exports
 from ctdrill.app.pipeline import depth_grid_mm, grid_bracket, plan_path
 from ctdrill.imaging import load_series
+from ctdrill.imaging.plan.load import load_plan
 from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm
-from ctdrill.imaging.plan.types import DrillSpec, Plan, load_plan
+from ctdrill.imaging.plan.types import DrillSpec, Plan
 from ctdrill.imaging.sampling.lip import (
     DEFAULT_N_ANGLES,
     DEFAULT_N_RINGS,

@@ -29,7 +29,9 @@ from ctdrill.imaging import load_series
 from ctdrill.imaging.dicom.series import list_series
 from ctdrill.imaging.phantom.writer import write_series
 from ctdrill.imaging.plan.landmarks import CanalLandmark
-from ctdrill.imaging.plan.types import Plan, load_plan, save_plan
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.plan.write import save_plan
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "assets" / "demo"

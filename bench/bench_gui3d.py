@@ -27,7 +27,8 @@ from scipy import ndimage
 
 from bench.report import Section, Timing, headline_row, table
 from ctdrill.imaging.phantom.writer import write_series
-from ctdrill.imaging.plan.types import Plan, save_plan
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.plan.write import save_plan
 
 #: Heartbeat interval, ms.
 TICK_MS = 10

@@ -17,7 +17,8 @@ from ctdrill.app.pipeline import plan_calibration, plan_path
 from ctdrill.app.search.evaluate import BatchResult, evaluate_batch
 from ctdrill.app.search.warmup import search_kernels
 from ctdrill.imaging.dicom.series import load_series
-from ctdrill.imaging.plan.types import Plan, load_plan
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.types import Plan
 from ctdrill.resources import asset
 
 #: Goal of issue 17: 1000 candidates of the demo plan in at most this, seconds.

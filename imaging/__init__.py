@@ -27,15 +27,10 @@ if TYPE_CHECKING:
     from ctdrill.imaging.phantom.io import PhantomCase, write_phantom
     from ctdrill.imaging.phantom.mandible import Phantom, make_mandible_phantom
     from ctdrill.imaging.plan.landmarks import CanalLandmark, MaskLandmark, PointLandmark
+    from ctdrill.imaging.plan.load import load_plan, load_plans
     from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm
-    from ctdrill.imaging.plan.types import (
-        DrillSpec,
-        Plan,
-        PlanInputError,
-        load_plan,
-        load_plans,
-        save_plan,
-    )
+    from ctdrill.imaging.plan.types import DrillSpec, Plan, PlanInputError
+    from ctdrill.imaging.plan.write import save_plan
     from ctdrill.imaging.sampling.lip import LipSamples, lip_ring_points, sample_lip_rings
     from ctdrill.imaging.volume import WARNING_CODES, CTVolume, LoadWarning, SeriesInfo
     from ctdrill.imaging.volumes.load import load_ct
@@ -63,14 +58,14 @@ _EXPORTS: dict[str, str] = {
     "lip_ring_points": "ctdrill.imaging.sampling.lip",
     "list_series": "ctdrill.imaging.dicom.series",
     "load_ct": "ctdrill.imaging.volumes.load",
-    "load_plan": "ctdrill.imaging.plan.types",
-    "load_plans": "ctdrill.imaging.plan.types",
+    "load_plan": "ctdrill.imaging.plan.load",
+    "load_plans": "ctdrill.imaging.plan.load",
     "load_series": "ctdrill.imaging.dicom.series",
     "make_mandible_phantom": "ctdrill.imaging.phantom.mandible",
     "max_safe_depth_mm": "ctdrill.imaging.plan.safety",
     "resample_uniform_slices": "ctdrill.imaging.dicom.resample",
     "sample_lip_rings": "ctdrill.imaging.sampling.lip",
-    "save_plan": "ctdrill.imaging.plan.types",
+    "save_plan": "ctdrill.imaging.plan.write",
     "write_phantom": "ctdrill.imaging.phantom.io",
 }
 

@@ -122,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
     hu = hu_uncertainty_option(args.hu_sigma)
     plans: tuple[Any, ...] = ()
     if args.plan is not None:  # a plan that cannot be read is refused before any window
-        from ctdrill.imaging.plan.types import load_plan_set
+        from ctdrill.imaging.plan.load import load_plan_set
 
         plans = load_plan_set(args.plan)  # every trajectory: the first is current
     library = None

@@ -81,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.reformat.draw import DEFAULT_LEVEL_HU, DEFAULT_WIDTH_HU
     from ctdrill.app.reformat.export import ReformatOptions, export_panorama, finite_or_none
     from ctdrill.imaging import load_ct
-    from ctdrill.imaging.plan.types import load_plan_set
+    from ctdrill.imaging.plan.load import load_plan_set
 
     width_hu = DEFAULT_WIDTH_HU if args.width_hu is None else args.width_hu
     level_hu = DEFAULT_LEVEL_HU if args.level_hu is None else args.level_hu

@@ -53,7 +53,9 @@ def run(args: argparse.Namespace) -> int:
     """Merge, convert, write; print what was written and the plan's warnings (those the plan
     alone shows: ``implant_above_entry``, ``implants_too_close`` among them)."""
     from ctdrill.app.errors import AppInputError
-    from ctdrill.imaging.plan.types import load_plan_set, plan_warnings, write_plans
+    from ctdrill.imaging.plan.load import load_plan_set
+    from ctdrill.imaging.plan.types import plan_warnings
+    from ctdrill.imaging.plan.write import write_plans
 
     out: Path = args.out
     if not out.name.lower().endswith(".json"):

@@ -111,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.search.suggest_write import summary_lines, write_suggestion
     from ctdrill.app.search.warmup import SLOW_PATH_NOTE, kernels_ready
     from ctdrill.imaging import load_ct
-    from ctdrill.imaging.plan.types import load_plan_set
+    from ctdrill.imaging.plan.load import load_plan_set
 
     space = SearchSpace(
         radius_mm=args.radius_mm, cone_deg=args.cone_deg, count=args.count, seed=args.seed

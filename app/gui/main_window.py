@@ -45,7 +45,9 @@ from ctdrill.app.gui.view3d import View3D
 from ctdrill.app.gui.views import VIEWS, build_views
 from ctdrill.app.gui.workers import StepQueue
 from ctdrill.imaging import CTVolume
-from ctdrill.imaging.plan.types import Plan, load_plan_set, write_plans
+from ctdrill.imaging.plan.load import load_plan_set
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.plan.write import write_plans
 
 #: On close, how long to let a running load or computation finish, ms.
 CLOSE_WAIT_MS = 5000
@@ -268,7 +270,7 @@ class MainWindow(QMainWindow):
 
     def open_plan(self, path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]) -> bool:
         """Read a plan (ctdrill-plan/1, Slicer markups, segmentations; several files or a
-        folder merge, :func:`~ctdrill.imaging.plan.types.load_plan_set`) with every trajectory
+        folder merge, :func:`~ctdrill.imaging.plan.load.load_plan_set`) with every trajectory
         it holds, and show it (the first trajectory current); a plan that cannot be read is an
         error dialog (the plan shown stays). Returns True when the plan is shown."""
         paths = [path] if isinstance(path, str | os.PathLike) else list(path)

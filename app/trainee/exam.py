@@ -28,7 +28,8 @@ from ctdrill.app.pipeline import (
 )
 from ctdrill.haptics.assessment import AssessmentContext
 from ctdrill.haptics.profile_table import ProfileTable
-from ctdrill.imaging.plan.types import Plan, plan_to_dict
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.plan.write import plan_to_dict
 from ctdrill.imaging.volume import CTVolume
 
 #: How far beyond the planned depth an exam's table (and its stop) reaches, mm: past a canal

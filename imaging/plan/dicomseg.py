@@ -32,15 +32,18 @@ from __future__ import annotations
 import io
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from ctdrill.imaging.plan.landmarks import LandmarkInputError
+from ctdrill.imaging.plan.labels import (
+    MAX_MASK_FILE_BYTES,
+    MAX_SEGMENTS,
+    Labels,
+    check_mask_voxels,
+)
+from ctdrill.imaging.plan.landmark_base import LandmarkInputError
 from ctdrill.imaging.volumes.grid import check_direction_cosines, check_grid
-
-if TYPE_CHECKING:
-    from ctdrill.imaging.plan.segmentation import Labels
 
 SEG_SOP_CLASS = "1.2.840.10008.5.1.4.1.1.66.4"
 #: Most frames read from one SEG (117 segments of a 600-slice CT make 70 200).
@@ -96,7 +99,6 @@ def _dataset(path: Path) -> Any:
     import pydicom
     from pydicom.errors import InvalidDicomError
 
-    from ctdrill.imaging.plan.segmentation import MAX_MASK_FILE_BYTES
     from ctdrill.safeio import read_bytes_bounded
 
     data = read_bytes_bounded(
@@ -111,8 +113,7 @@ def _dataset(path: Path) -> Any:
 
 
 def read_dicom_seg(path: Path) -> Labels:
-    """Every segment of a DICOM SEG file (``Labels`` of :mod:`.segmentation`)."""
-    from ctdrill.imaging.plan.segmentation import MAX_SEGMENTS, Labels, check_mask_voxels
+    """Every segment of a DICOM SEG file."""
 
     ds = _dataset(path)
     if str(ds.get("SOPClassUID", "")) != SEG_SOP_CLASS:
@@ -201,7 +202,6 @@ def _segment_volume(
     path: Path, ds: Any, frames: np.ndarray, idx: list[int], name: str
 ) -> tuple[np.ndarray, np.ndarray]:
     """One segment's frames on a regular slice grid: mask (k, j, i) bool and affine_lps."""
-    from ctdrill.imaging.plan.segmentation import check_mask_voxels
 
     iop = _orientation(path, ds, idx[0])
     where = f"frame {idx[0] + 1} (PixelMeasuresSequence)"

@@ -38,7 +38,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -46,9 +46,6 @@ from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.drill_spec import DrillSpec
 from ctdrill.resources import asset
 from ctdrill.safeio import load_json
-
-if TYPE_CHECKING:
-    from ctdrill.imaging.plan.types import Plan
 
 IMPLANTS_FORMAT = "ctdrill-implants/1"
 #: The library shipped with ctdrill (generic sizes, no brand).
@@ -334,7 +331,27 @@ class ImplantPlacement:
         return out
 
 
-def implant_placement(plan: Plan) -> ImplantPlacement | None:
+class PlacedTrajectory(Protocol):
+    """What :func:`implant_placement` reads of a trajectory (a
+    :class:`~ctdrill.imaging.plan.types.Plan` is one; the plan types sit above this module)."""
+
+    @property
+    def implant(self) -> ImplantSpec | None: ...
+
+    @property
+    def planned_target_lps(self) -> np.ndarray: ...
+
+    @property
+    def direction(self) -> np.ndarray: ...
+
+    @property
+    def planned_depth_mm(self) -> float: ...
+
+    @property
+    def overdrill_mm(self) -> float: ...
+
+
+def implant_placement(plan: PlacedTrajectory) -> ImplantPlacement | None:
     """Where ``plan``'s implant sits: apex at the plan's target
     (:attr:`~ctdrill.imaging.plan.types.Plan.planned_target_lps`; a drill's view,
     ``plan.drilled(k)``, drills beyond it), platform ``length_mm`` back along the axis; None

@@ -35,7 +35,7 @@ from ctdrill.imaging.plan.landmark_base import (
     frozen_array,
     margin_item,
 )
-from ctdrill.imaging.plan.mask import MaskLandmark, load_mask_file
+from ctdrill.imaging.plan.mask import MaskLandmark
 
 __all__ = [
     "DEFAULT_CANAL_RADIUS_MM",
@@ -47,7 +47,6 @@ __all__ = [
     "MaskLandmark",
     "PointLandmark",
     "bind_to_grid",
-    "load_mask_file",
 ]
 
 

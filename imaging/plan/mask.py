@@ -1,15 +1,15 @@
 """Labelmap landmarks: each labelled voxel a box of anatomy, measured exactly on any grid.
 
 Part of the landmark kinds (:mod:`ctdrill.imaging.plan.landmarks` re-exports
-:class:`MaskLandmark` and :func:`load_mask_file`); the exact distance to the voxel union
-is :mod:`ctdrill.imaging.plan.voxels`.
+:class:`MaskLandmark`); the exact distance to the voxel union is
+:mod:`ctdrill.imaging.plan.voxels`. Mask files are read by :mod:`ctdrill.imaging.plan.segmentation`
+(above the landmark kinds: a value type reads no file).
 """
 
 from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -173,33 +173,3 @@ class MaskLandmark:
                 "(slices, rows, cols); resample the mask onto the CT or give its affine_lps"
             )
         return replace(self, affine_lps=affine_lps)
-
-
-def load_mask_file(path: Path, *, label: int | None = None) -> np.ndarray:
-    """Read a labelmap ``.npy`` (slices, rows, cols) as a bool mask.
-
-    ``label`` selects one label value; ``None`` takes every non-zero voxel. The file is
-    checked (regular, bounded, an NPY header whose size fits) before the array is allocated
-    (:func:`ctdrill.imaging.plan.segmentation.read_npy`); other formats are read by
-    :func:`ctdrill.imaging.plan.segmentation.mask_landmark`.
-    """
-    if path.suffix.lower() != ".npy":
-        raise LandmarkInputError(
-            f"{path}: mask landmarks are read from NumPy .npy labelmaps on the CT grid "
-            "(slices, rows, cols); convert the segmentation to .npy"
-        )
-    from ctdrill.imaging.plan.segmentation import read_npy
-
-    arr = read_npy(path)
-    if arr.ndim != 3:
-        raise LandmarkInputError(
-            f"{path}: expected a 3-D labelmap (slices, rows, cols), got shape {arr.shape}"
-        )
-    if not (np.issubdtype(arr.dtype, np.integer) or arr.dtype == np.bool_):
-        raise LandmarkInputError(f"{path}: labelmap must be integer or bool, got {arr.dtype}")
-    mask: np.ndarray = arr != 0 if label is None else arr == label
-    if not mask.any():
-        raise LandmarkInputError(
-            f"{path}: the mask is empty" + ("" if label is None else f" for label {label}")
-        )
-    return mask

@@ -1,7 +1,8 @@
 """One plan from several files: 3D Slicer saves one markup per file.
 
 The inputs (``--plan`` repeated, or a folder) are read in order (a folder's ``*.json`` /
-``*.mrk.json`` plan files and ``*.seg.nrrd`` segmentations, sorted by name) and merged:
+``*.mrk.json`` plan files and ``*.seg.nrrd`` segmentations, sorted by name:
+:func:`ctdrill.imaging.plan.load.load_plan_set`) and their parts merged here:
 
 - every trajectory (a ``ctdrill-plan/1`` file, a Line markup) becomes one plan;
 - every landmark of every file protects every trajectory;
@@ -17,7 +18,6 @@ The inputs (``--plan`` repeated, or a folder) are read in order (a folder's ``*.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterable, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -26,70 +26,10 @@ from typing import TypeVar
 import numpy as np
 
 from ctdrill.imaging.plan.landmarks import Landmark
-from ctdrill.imaging.plan.read import PlanParts, read_parts
-from ctdrill.imaging.plan.types import MAX_TRAJECTORIES, Plan, PlanInputError
-
-#: Segmentation files a folder contributes (plain ``.nrrd`` is not taken from a folder: Slicer
-#: saves volumes, the CT itself included, as ``.nrrd``).
-FOLDER_SEGMENTATIONS = (".seg.nrrd",)
-#: Label files accepted when named explicitly.
-LABEL_SUFFIXES = (".seg.nrrd", ".nrrd", ".nhdr", ".nii.gz", ".nii", ".mha", ".mhd", ".dcm")
+from ctdrill.imaging.plan.read import PlanParts
+from ctdrill.imaging.plan.types import Plan, PlanInputError
 
 _T = TypeVar("_T")
-
-
-def _lower(path: Path) -> str:
-    return path.name.lower()
-
-
-def plan_inputs(paths: Sequence[str | os.PathLike[str]]) -> list[Path]:
-    """The files named by ``paths``: files as given, folders expanded (see module doc)."""
-    out: list[Path] = []
-    for raw in paths:
-        p = Path(raw)
-        if p.is_dir():
-            found = sorted(
-                q
-                for q in p.iterdir()
-                if q.is_file()
-                and (_lower(q).endswith(".json") or _lower(q).endswith(FOLDER_SEGMENTATIONS))
-            )
-            if not found:
-                raise PlanInputError(
-                    f"{p}: the folder holds no plan file (.json, .mrk.json) or segmentation "
-                    "(.seg.nrrd); name the plan files"
-                )
-            out.extend(found)
-        else:
-            out.append(p)
-    return out
-
-
-def read_input(path: Path) -> PlanParts:
-    """One input file's parts: a plan file, or a segmentation/labelmap file of landmarks."""
-    if _lower(path).endswith(LABEL_SUFFIXES) and not _lower(path).endswith(".json"):
-        from ctdrill.imaging.plan.segmentation import segmentation_parts
-
-        return segmentation_parts(path)
-    return read_parts(path)
-
-
-def load_merged(paths: Sequence[str | os.PathLike[str]]) -> tuple[Plan, ...]:
-    """Read and merge every input of ``paths`` (see module doc)."""
-    files = plan_inputs(paths)
-    if not files:
-        raise PlanInputError("no plan file given; name a plan file or a folder of them")
-    parts: list[PlanParts] = []
-    names: set[str] = set()
-    for f in files:
-        parts.append(read_input(f))
-        names.update(p.name for p in parts[-1].trajectories)
-        if len(names) > MAX_TRAJECTORIES:
-            raise PlanInputError(
-                f"{f.name}: the plan files hold more than the {MAX_TRAJECTORIES} trajectories a "
-                "plan may hold (counted up to this file); split the case into several plans"
-            )
-    return merge_parts(parts)
 
 
 def merge_parts(parts: Sequence[PlanParts]) -> tuple[Plan, ...]:

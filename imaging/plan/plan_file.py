@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill.imaging.plan.drills import drills_field
 from ctdrill.imaging.plan.landmarks import (
     DEFAULT_CANAL_RADIUS_MM,
     CanalLandmark,
@@ -180,8 +181,6 @@ def _trajectory(
             raise ctx.fail(pre + key, "is missing; add [x, y, z] in mm")
     entry = _to_lps(ctx.point(obj["entry_mm"], pre + "entry_mm"), system)
     target = _to_lps(ctx.point(obj["target_mm"], pre + "target_mm"), system)
-    from ctdrill.imaging.plan.drills import drills_field  # it reads with this module's _Ctx
-
     implant = ctx.implant(obj["implant"], pre + "implant") if "implant" in obj else None
     drills = drills_field(ctx, obj, where, implant)
     feed = ctx.number(obj, "feed_mm_s", where, default=DEFAULT_FEED_MM_S, positive=True)

@@ -1,13 +1,16 @@
-"""Reading plan documents: ``ctdrill-plan/1`` JSON and 3D Slicer markups, validated, to LPS.
+"""What the plan readers share: a file's parts, field validation with messages naming the
+field path, LPS conversion and the trajectory builder.
 
-The formats are described in :mod:`ctdrill.imaging.plan.types`; this module holds the parsers behind
-:func:`ctdrill.imaging.plan.types.load_plans`.
+The formats are described in :mod:`ctdrill.imaging.plan.types`; the readers built on this
+module are :mod:`~ctdrill.imaging.plan.plan_file` (``ctdrill-plan/1``),
+:mod:`~ctdrill.imaging.plan.slicer` (3D Slicer markups) and
+:mod:`~ctdrill.imaging.plan.segmentation` (mask files), dispatched by
+:mod:`ctdrill.imaging.plan.load`.
 """
 
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,7 +27,6 @@ from ctdrill.imaging.plan.types import (
     _MAX_COORD_MM,
     _MAXIMA,
     DEFAULT_MIN_WALL_MM,
-    PLAN_FORMAT,
     DrillSpec,
     Plan,
     PlanInputError,
@@ -260,44 +262,3 @@ def _stem(path: Path) -> str:
         if name.lower().endswith(suffix):
             return name[: -len(suffix)]
     return path.stem
-
-
-def read_parts(path: str | os.PathLike[str]) -> PlanParts:
-    """Read one plan file's trajectories and landmarks, converted to LPS and validated.
-
-    A ``ctdrill-plan/1`` file holds one trajectory (or several in ``trajectories``), its
-    landmarks and arch; a Slicer ``.mrk.json``
-    holds any number of Line markups (trajectories) and Curve/Fiducial markups (landmarks),
-    possibly none of either (3D Slicer saves one markup per file).
-
-    Raises
-    ------
-    PlanInputError
-        Naming the file and the field path (``plan.json: drill.diameter_mm must be ...``).
-    """
-    p = Path(path)
-    ctx = _Ctx(p)
-    doc = _read_json(p)
-    if not isinstance(doc, dict):
-        raise ctx.fail("(top level)", "must be a JSON object", type(doc).__name__)
-    if "markups" in doc and "format" not in doc:
-        from ctdrill.imaging.plan.slicer import parse_slicer
-
-        return parse_slicer(ctx, doc)
-    if "format" not in doc:
-        raise ctx.fail(
-            "format",
-            f'is missing; a plan starts with "format": "{PLAN_FORMAT}" '
-            "(or is a 3D Slicer .mrk.json with markups)",
-        )
-    from ctdrill.imaging.plan.plan_file import parse_ctdrill
-
-    return parse_ctdrill(ctx, doc)
-
-
-def read_plans(path: str | os.PathLike[str]) -> tuple[Plan, ...]:
-    """Every trajectory of one plan file, each with the file's landmarks (see
-    :func:`read_parts`); a file without a trajectory is refused."""
-    from ctdrill.imaging.plan.merge import merge_parts
-
-    return merge_parts([read_parts(path)])

@@ -14,9 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ctdrill.imaging.plan.clinical import CLINICAL_MARGIN_MM
 from ctdrill.imaging.plan.distance import SEGMENT_TOL_MM, DrillSolid
 from ctdrill.imaging.plan.landmarks import Landmark
-from ctdrill.imaging.plan.types import CLINICAL_MARGIN_MM, Plan
+from ctdrill.imaging.plan.types import Plan
 
 #: Tolerance of :func:`safe_depth`, mm.
 SAFE_DEPTH_TOL_MM = 1e-3

@@ -32,19 +32,19 @@ from pathlib import Path
 
 import numpy as np
 
-from ctdrill.imaging.plan.landmarks import LandmarkInputError, MaskLandmark, load_mask_file
+from ctdrill.imaging.plan.labels import (
+    MAX_MASK_BYTES,
+    MAX_SEGMENTS,
+    Labels,
+    bounded_file_size,
+    check_mask_voxels,
+    mask_of,
+)
+from ctdrill.imaging.plan.landmarks import LandmarkInputError, MaskLandmark
 from ctdrill.imaging.plan.read import PlanParts
-from ctdrill.imaging.volumes.bounded import declared_bytes
 from ctdrill.imaging.volumes.sniff import read_volume_file, volume_format
 from ctdrill.imaging.volumes.types import VolumeData
-from ctdrill.safeio import regular_file_size
 
-#: Largest mask accepted, bytes of voxel data as declared by the file's header.
-MAX_MASK_BYTES = 1 << 30
-#: Largest segmentation file read, bytes.
-MAX_MASK_FILE_BYTES = 1 << 30
-#: Most segments (or label values) read from one file (TotalSegmentator writes 117).
-MAX_SEGMENTS = 1000
 _SEGMENT_KEY = re.compile(r"Segment\d+_ID")
 _SUFFIXES = (".seg.nrrd", ".nii.gz", ".nrrd", ".nhdr", ".nii", ".mha", ".mhd", ".npy", ".dcm")
 
@@ -55,47 +55,6 @@ def _suffix(path: Path) -> str:
         if name.endswith(suffix):
             return suffix
     return path.suffix.lower()
-
-
-class Labels:
-    """The labelled masks of one file: ``(name, label value, array, affine_lps)``.
-
-    The mask of an entry is ``array == value`` (``array`` itself when it is bool), made only
-    when asked for; ``named``: the entries are named segments (Slicer, DICOM SEG), not label
-    values.
-    """
-
-    def __init__(self, path: Path, *, named: bool = False) -> None:
-        self.path = path
-        self.named = named
-        self.items: list[tuple[str, int | None, np.ndarray, np.ndarray | None]] = []
-
-
-def _mask_of(arr: np.ndarray, value: int | None) -> np.ndarray:
-    mask: np.ndarray = arr.astype(bool) if arr.dtype == np.bool_ else arr == value
-    return mask
-
-
-def _bounded(path: Path) -> int:
-    size = regular_file_size(path, what="mask file", error=LandmarkInputError)
-    if size > MAX_MASK_FILE_BYTES:
-        raise LandmarkInputError(
-            f"{path}: the mask file holds {size} bytes, more than the {MAX_MASK_FILE_BYTES} "
-            "accepted; check that this is the right file"
-        )
-    return size
-
-
-def check_mask_voxels(path: Path, shape: tuple[int, ...], itemsize: int, field: str) -> None:
-    """Refuse a declared size beyond :data:`MAX_MASK_BYTES` before allocating it."""
-    declared_bytes(
-        tuple(int(n) for n in shape),
-        itemsize,
-        max_bytes=MAX_MASK_BYTES,
-        where=str(path),
-        error=LandmarkInputError,
-        field=field,
-    )
 
 
 def _integer_labels(path: Path, arr: np.ndarray) -> np.ndarray:
@@ -118,7 +77,7 @@ def _integer_labels(path: Path, arr: np.ndarray) -> np.ndarray:
 
 def read_npy(path: Path) -> np.ndarray:
     """A ``.npy`` labelmap, its header checked before the data is allocated."""
-    size = _bounded(path)
+    size = bounded_file_size(path)
     fmt = np.lib.format
     try:
         with open(path, "rb") as fh:
@@ -155,13 +114,40 @@ def read_npy(path: Path) -> np.ndarray:
     return arr
 
 
+def load_mask_file(path: Path, *, label: int | None = None) -> np.ndarray:
+    """Read a labelmap ``.npy`` (slices, rows, cols) as a bool mask.
+
+    ``label`` selects one label value; ``None`` takes every non-zero voxel. The file is
+    checked (regular, bounded, an NPY header whose size fits) before the array is allocated
+    (:func:`read_npy`); other formats are read by :func:`mask_landmark`.
+    """
+    if path.suffix.lower() != ".npy":
+        raise LandmarkInputError(
+            f"{path}: mask landmarks are read from NumPy .npy labelmaps on the CT grid "
+            "(slices, rows, cols); convert the segmentation to .npy"
+        )
+    arr = read_npy(path)
+    if arr.ndim != 3:
+        raise LandmarkInputError(
+            f"{path}: expected a 3-D labelmap (slices, rows, cols), got shape {arr.shape}"
+        )
+    if not (np.issubdtype(arr.dtype, np.integer) or arr.dtype == np.bool_):
+        raise LandmarkInputError(f"{path}: labelmap must be integer or bool, got {arr.dtype}")
+    mask: np.ndarray = arr != 0 if label is None else arr == label
+    if not mask.any():
+        raise LandmarkInputError(
+            f"{path}: the mask is empty" + ("" if label is None else f" for label {label}")
+        )
+    return mask
+
+
 # --------------------------------------------------------------------------- volume files
 
 
 def mask_format(path: Path) -> str:
     """``npy``, ``dicom``, ``nifti``, ``nrrd`` or ``metaimage``: the mask file's format by its
     content (:func:`ctdrill.imaging.volumes.sniff.volume_format`)."""
-    _bounded(path)
+    bounded_file_size(path)
     if _suffix(path) == ".npy":
         return "npy"
     try:
@@ -300,7 +286,7 @@ def mask_landmark(
     first = chosen[0]
     mask = np.zeros(first[2].shape, dtype=bool)
     for _, value, arr, _ in chosen:
-        mask |= _mask_of(arr, value)
+        mask |= mask_of(arr, value)
     return _nonempty(path, name, mask, first[3], margin_mm, source, label, segment)
 
 
@@ -343,7 +329,7 @@ def segmentation_parts(path: Path) -> PlanParts:
     out = []
     empty = []
     for name, value, arr, affine in labels.items:
-        mask = _mask_of(arr, value)
+        mask = mask_of(arr, value)
         if not mask.any():
             empty.append(name)  # Slicer keeps a segment with no voxel: nothing to protect
             continue

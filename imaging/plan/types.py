@@ -14,24 +14,27 @@ on a curve, ``diameter_mm=2.0 tip_length_mm=0.6 blades=2 rpm=900 feed_mm_s=0.4
 calibration="NAME" margin_mm=2.0`` on the line; a curve without ``radius_mm`` gets
 :data:`~ctdrill.imaging.plan.landmarks.DEFAULT_CANAL_RADIUS_MM` (1.2 mm, a ``plan_default``
 note) and the drill defaults are those of :class:`DrillSpec`. Slicer saves one markup per file:
-several files (or a folder) merge into plans (:func:`load_plan_set`,
-:mod:`ctdrill.imaging.plan.merge`).
+several files (or a folder) merge into plans (:mod:`ctdrill.imaging.plan.merge`).
+
+This module holds the value types and the format's constants only; files are read by
+:mod:`ctdrill.imaging.plan.load` (:func:`~ctdrill.imaging.plan.load.load_plan`,
+``load_plans``, ``load_plan_set``, ``load_one_plan``) and written by
+:mod:`ctdrill.imaging.plan.write` (``save_plan``, ``write_plans``, ``plan_to_dict``,
+``plan_to_markups``), both above it.
 """
 
 from __future__ import annotations
 
 import hashlib
-import os
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.arch import arch_error
+from ctdrill.imaging.plan.clinical import CLINICAL_MARGIN_MM, CLINICAL_MIN_WALL_MM
 from ctdrill.imaging.plan.drill_spec import MAX_DRILLS as MAX_DRILLS
 from ctdrill.imaging.plan.drill_spec import DrillSpec, sequence_error
 from ctdrill.imaging.plan.implants import ImplantSpec
@@ -44,14 +47,9 @@ PLAN_FORMAT = "ctdrill-plan/1"
 #: Calibration used when a plan names none (patient CT): the literature fit, with its covariance
 #: (docs/model.md). ``bone-illustrative`` stays available by name.
 DEFAULT_CALIBRATION = "bone-literature"
-#: Clinical safety margin to the inferior alveolar nerve canal, mm (DESIGN.md section 5): its
-#: one owner. Margins below it are reported (warning ``margin_below_clinical``).
-CLINICAL_MARGIN_MM = 2.0
+#: A plan's safety margin when it gives none: the clinical margin.
 DEFAULT_MARGIN_MM = CLINICAL_MARGIN_MM
-#: Thinnest bone wall to keep around an implant, mm (DESIGN.md section 5: at least 1.5 mm of
-#: bone around the implant, buccal above all): its one owner, the default of ``min_wall_mm``.
-#: Thinner walls are reported (warning ``thin_wall``).
-CLINICAL_MIN_WALL_MM = 1.5
+#: A trajectory's thinnest bone wall when it gives no ``min_wall_mm``: the clinical one.
 DEFAULT_MIN_WALL_MM = CLINICAL_MIN_WALL_MM
 #: Plan key recording the series a plan was made on: :func:`series_uid_hash` of its UID.
 SERIES_HASH_KEY = "series_uid_sha256"
@@ -274,62 +272,6 @@ def is_series_hash(value: object) -> bool:
     return isinstance(value, str) and _SERIES_HASH_RE.fullmatch(value) is not None
 
 
-# --------------------------------------------------------------------------- public API
-
-
-def load_plans(path: str | os.PathLike[str]) -> tuple[Plan, ...]:
-    """Read every trajectory of a plan file, converted to LPS and validated.
-
-    A ``ctdrill-plan/1`` file holds one trajectory, or several in ``trajectories``; a Slicer
-    ``.mrk.json`` holds one per Line markup (all sharing the file's landmarks and arch).
-
-    Raises
-    ------
-    PlanInputError
-        Naming the file and the field path (``plan.json: drill.diameter_mm must be ...``).
-    """
-    from ctdrill.imaging.plan.read import read_plans
-
-    return read_plans(path)
-
-
-def load_plan_set(paths: Sequence[str | os.PathLike[str]]) -> tuple[Plan, ...]:
-    """Read several plan files (or folders of them) and merge them into plans.
-
-    Every file's landmarks protect every trajectory; a trajectory or landmark given by two
-    files must agree (see :mod:`ctdrill.imaging.plan.merge`).
-    """
-    from ctdrill.imaging.plan.merge import load_merged
-
-    return load_merged(paths)
-
-
-def load_one_plan(paths: Sequence[str | os.PathLike[str]], trajectory: str | None = None) -> Plan:
-    """:func:`load_plan_set` for commands that drill one trajectory (rehearse).
-
-    ``trajectory`` picks one of several by its name, or by its number (1-based, in the order
-    :func:`load_plan_set` gives them); None requires the files to hold exactly one.
-    """
-    plans = load_plan_set(paths)
-    names = ", ".join(f"{i + 1}: {p.name!r}" for i, p in enumerate(plans))
-    if trajectory is not None:
-        for p in plans:
-            if p.name == trajectory:
-                return p
-        if trajectory.strip().isdigit() and 1 <= int(trajectory) <= len(plans):
-            return plans[int(trajectory) - 1]
-        raise PlanInputError(
-            f"--trajectory {trajectory!r}: the plan files hold no trajectory of that name or "
-            f"number; they hold {names}"
-        )
-    if len(plans) != 1:
-        raise PlanInputError(
-            f"the plan files hold {len(plans)} trajectories ({names}); pick one with "
-            "--trajectory NAME (or its number)"
-        )
-    return plans[0]
-
-
 def plan_warnings(plan: Plan) -> tuple[tuple[str, str], ...]:
     """``(code, message)`` of everything the user must know about ``plan`` itself.
 
@@ -351,61 +293,3 @@ def plan_warnings(plan: Plan) -> tuple[tuple[str, str], ...]:
             )
         )
     return tuple(out)
-
-
-def load_plan(path: str | os.PathLike[str]) -> Plan:
-    """Read a plan file holding exactly one trajectory (see :func:`load_plans`)."""
-    plans = load_plans(path)
-    if len(plans) != 1:
-        raise PlanInputError(
-            f"{Path(path).name}: holds {len(plans)} trajectories (Line markups); "
-            "keep one or load them with load_plans()"
-        )
-    return plans[0]
-
-
-def plan_to_dict(plan: Plan) -> dict[str, Any]:
-    """The ``ctdrill-plan/1`` document of ``plan`` (LPS); mask paths are kept as given."""
-    from ctdrill.imaging.plan.write import plan_document
-
-    return plan_document(plan)
-
-
-def plan_to_markups(plan: Plan | Sequence[Plan]) -> dict[str, Any]:
-    """The 3D Slicer markups document of ``plan`` (LPS; settings in descriptions), or of
-    several trajectories sharing their landmarks and arch (one Line each)."""
-    from ctdrill.imaging.plan.write import markups_document
-
-    return markups_document(plan if isinstance(plan, Plan) else tuple(plan))
-
-
-def save_plan(plan: Plan, path: str | os.PathLike[str], *, series_uid: str | None = None) -> None:
-    """Write ``plan`` atomically: Slicer markups if ``path`` ends in ``.mrk.json``, else
-    ``ctdrill-plan/1`` JSON (LPS).
-
-    ``series_uid`` (the SeriesInstanceUID the plan was made on) is recorded hashed
-    (:func:`series_uid_hash`); without it the plan keeps the hash it has, if any.
-    """
-    write_plans((plan,), path, series_uid=series_uid)
-
-
-def write_plans(
-    plans: Sequence[Plan], path: str | os.PathLike[str], *, series_uid: str | None = None
-) -> None:
-    """Write every trajectory of ``plans`` into one file, atomically (written aside, then
-    renamed): Slicer markups (one Line each) if ``path`` ends in ``.mrk.json``, else
-    ``ctdrill-plan/1`` (one trajectory: the single form; several: ``trajectories``).
-
-    The plans must share their landmarks and arch (a file holds one set of each) and their
-    series hash; ``series_uid`` records one for all of them.
-
-    Raises
-    ------
-    PlanInputError
-        No plan, names not unique, landmarks/arch/series that differ between the plans.
-    """
-    from ctdrill.imaging.plan.write import write_plan_file
-
-    if series_uid is not None:
-        plans = [replace(p, series_uid_sha256=series_uid_hash(series_uid)) for p in plans]
-    write_plan_file(tuple(plans), Path(path))

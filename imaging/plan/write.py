@@ -1,10 +1,16 @@
-"""Writing plans: the ``ctdrill-plan/1`` document and the 3D Slicer markups document."""
+"""Writing plans: the ``ctdrill-plan/1`` document and the 3D Slicer markups document.
+
+The entry points: :func:`save_plan`, :func:`write_plans` (files, atomically),
+:func:`plan_to_dict` and :func:`plan_to_markups` (documents).
+"""
 
 from __future__ import annotations
 
 import json
 import os
 import tempfile
+from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +37,7 @@ from ctdrill.imaging.plan.types import (
     SERIES_HASH_KEY,
     Plan,
     PlanInputError,
+    series_uid_hash,
 )
 
 
@@ -280,3 +287,45 @@ def markups_document(plans: Plan | tuple[Plan, ...]) -> dict[str, Any]:
         cps = [(f"arch-{i + 1}", desc if i == 0 else "") for i in range(len(ctrl))]
         markups.append(_markup("Curve", ARCH_MARKUP_NAME, ctrl, cps))
     return {"@schema": _SLICER_SCHEMA, "markups": markups}
+
+
+def plan_to_dict(plan: Plan) -> dict[str, Any]:
+    """The ``ctdrill-plan/1`` document of ``plan`` (LPS); mask paths are kept as given."""
+    return plan_document(plan)
+
+
+def plan_to_markups(plan: Plan | Sequence[Plan]) -> dict[str, Any]:
+    """The 3D Slicer markups document of ``plan`` (LPS; settings in descriptions), or of
+    several trajectories sharing their landmarks and arch (one Line each)."""
+    return markups_document(plan if isinstance(plan, Plan) else tuple(plan))
+
+
+def save_plan(plan: Plan, path: str | os.PathLike[str], *, series_uid: str | None = None) -> None:
+    """Write ``plan`` atomically: Slicer markups if ``path`` ends in ``.mrk.json``, else
+    ``ctdrill-plan/1`` JSON (LPS).
+
+    ``series_uid`` (the SeriesInstanceUID the plan was made on) is recorded hashed
+    (:func:`~ctdrill.imaging.plan.types.series_uid_hash`); without it the plan keeps the hash
+    it has, if any.
+    """
+    write_plans((plan,), path, series_uid=series_uid)
+
+
+def write_plans(
+    plans: Sequence[Plan], path: str | os.PathLike[str], *, series_uid: str | None = None
+) -> None:
+    """Write every trajectory of ``plans`` into one file, atomically (written aside, then
+    renamed): Slicer markups (one Line each) if ``path`` ends in ``.mrk.json``, else
+    ``ctdrill-plan/1`` (one trajectory: the single form; several: ``trajectories``).
+
+    The plans must share their landmarks and arch (a file holds one set of each) and their
+    series hash; ``series_uid`` records one for all of them.
+
+    Raises
+    ------
+    PlanInputError
+        No plan, names not unique, landmarks/arch/series that differ between the plans.
+    """
+    if series_uid is not None:
+        plans = [replace(p, series_uid_sha256=series_uid_hash(series_uid)) for p in plans]
+    write_plan_file(tuple(plans), Path(path))

@@ -20,7 +20,8 @@ import pytest
 from ctdrill.app.batch.run import COHORT_COLUMNS, EXIT_ROWS_FAILED, STATUS_COLUMNS
 from ctdrill.app.batch.task import ROW_MARKER
 from ctdrill.app.cli import main
-from ctdrill.imaging.plan.types import load_plan, save_plan
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.write import save_plan
 from tests.conftest import ASSETS
 
 DEMO = ASSETS / "demo"

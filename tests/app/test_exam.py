@@ -15,7 +15,7 @@ from ctdrill.haptics.assessment import ASSESSMENT_FIELDS, Assessment, Assessor
 from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import parse_operator
 from ctdrill.haptics.sim import SimulatedDevice
-from ctdrill.imaging.plan.types import load_one_plan
+from ctdrill.imaging.plan.load import load_one_plan
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "assets" / "demo"

@@ -18,7 +18,9 @@ import pytest
 from ctdrill.app.cli import main
 from ctdrill.app.export import FORCE_COLUMNS, PROFILE_COLUMNS, misch_class
 from ctdrill.imaging import load_series
-from ctdrill.imaging.plan.types import load_plan, save_plan, series_uid_hash
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.types import series_uid_hash
+from ctdrill.imaging.plan.write import save_plan
 from tests.conftest import ASSETS
 
 DEMO = ASSETS / "demo"

@@ -166,7 +166,7 @@ def test_the_gui_force_plot_band_takes_the_hu_sigma(tmp_path: Path) -> None:
     from ctdrill.app.export_band import hu_uncertainty_option
     from ctdrill.app.gui.results import compute_path_view
     from ctdrill.imaging import load_series
-    from ctdrill.imaging.plan.types import load_plan
+    from ctdrill.imaging.plan.load import load_plan
 
     plan = json.loads((DEMO / "plan.json").read_text("utf-8"))
     plan["calibration"] = "bone-literature"

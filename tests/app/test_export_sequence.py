@@ -10,7 +10,9 @@ from pathlib import Path
 import pytest
 
 from ctdrill.app.cli import main
-from ctdrill.imaging.plan.types import DrillSpec, load_plan, save_plan
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.types import DrillSpec
+from ctdrill.imaging.plan.write import save_plan
 from tests.conftest import ASSETS
 
 DEMO = ASSETS / "demo"

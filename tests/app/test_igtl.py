@@ -252,7 +252,9 @@ def test_a_peer_that_hangs_up_ends_the_stream_with_one_warning() -> None:
 def test_bad_igtl_values_and_a_drill_sequence_are_one_error_line_before_anything_runs(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from ctdrill.imaging.plan.types import DrillSpec, load_plan, save_plan
+    from ctdrill.imaging.plan.load import load_plan
+    from ctdrill.imaging.plan.types import DrillSpec
+    from ctdrill.imaging.plan.write import save_plan
 
     for value, says in (("localhost", "no port"), ("localhost:70000", "1..65535")):
         assert _rehearse(tmp_path / "out", value, "1") == 2

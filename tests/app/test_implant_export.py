@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from ctdrill.app.cli import main
-from ctdrill.imaging.plan.types import load_plan, write_plans
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.write import write_plans
 from tests.conftest import ASSETS
 
 DEMO = ASSETS / "demo"

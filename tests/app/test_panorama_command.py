@@ -10,7 +10,7 @@ import pytest
 
 from ctdrill.app.cli import main
 from ctdrill.imaging.dicom.series import load_series
-from ctdrill.imaging.plan.types import load_plan_set
+from ctdrill.imaging.plan.load import load_plan_set
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO_CT = ROOT / "assets" / "demo" / "ct"

@@ -12,7 +12,8 @@ import pytest
 
 from ctdrill.app.pipeline import PathInputError, plan_calibration, plan_calibration_key, plan_path
 from ctdrill.imaging.plan.landmarks import CanalLandmark, MaskLandmark
-from ctdrill.imaging.plan.types import DrillSpec, Plan, load_plan, series_uid_hash
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.types import DrillSpec, Plan, series_uid_hash
 from ctdrill.imaging.volume import CTVolume, SeriesInfo
 from ctdrill.model.calibration import load_calibration
 from ctdrill.model.layered import layered_profile

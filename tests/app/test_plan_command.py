@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from ctdrill.app.cli import main
-from ctdrill.imaging.plan.types import load_plan, load_plan_set, save_plan
+from ctdrill.imaging.plan.load import load_plan, load_plan_set
+from ctdrill.imaging.plan.write import save_plan
 from tests.conftest import ASSETS
 from tests.imaging.slicer_files import slicer_save, validate_markups
 
@@ -210,7 +211,7 @@ def test_plan_keeps_every_trajectory_the_arch_and_the_implants(tmp_path: Path) -
     )
     first = replace(demo, name="first")
     mrk = tmp_path / "two.mrk.json"
-    from ctdrill.imaging.plan.types import write_plans
+    from ctdrill.imaging.plan.write import write_plans
 
     write_plans([first, second], mrk)
     out_json = tmp_path / "two.json"
@@ -275,7 +276,7 @@ def test_plan_reports_implants_too_close_and_above_the_entry(tmp_path: Path) -> 
         demo, name="near", entry_lps=demo.entry_lps + shift, target_lps=demo.target_lps + shift
     )
     from ctdrill.imaging.plan.implants import ImplantSpec
-    from ctdrill.imaging.plan.types import write_plans
+    from ctdrill.imaging.plan.write import write_plans
 
     long = ImplantSpec("long", 4.1, 13.0, 2.9, "round")  # 1 mm longer than the planned depth
     src = tmp_path / "two.json"

@@ -17,7 +17,7 @@ from ctdrill.app.pipeline import plan_calibration, plan_path
 from ctdrill.app.reformat.draw import FONT_PT, draw_reformat
 from ctdrill.app.reformat.overlay import body_overlay, drill_profile_mm, tube_overlay
 from ctdrill.imaging.phantom.mandible import make_mandible_phantom
-from ctdrill.imaging.plan.read import read_plans
+from ctdrill.imaging.plan.load import load_plans
 from ctdrill.imaging.sampling.reformat import cross_section, panorama
 from ctdrill.imaging.volume import CTVolume, SeriesInfo
 
@@ -87,7 +87,7 @@ def test_draw_demo_panorama_and_cross_section(tmp_path: Path) -> None:
     vol = CTVolume(hu=ph.hu, affine_lps=ph.affine_lps, valid=None, info=SeriesInfo(series_uid="1"))
     plan_file = tmp_path / "plan.json"
     plan_file.write_text(json.dumps(ph.plan))
-    plans = read_plans(plan_file)
+    plans = load_plans(plan_file)
     plan = plans[0]
     assert plan.arch_lps is not None and plan.implant is not None
     pano = panorama(vol, plan.arch_lps, slab_mm=4.0)

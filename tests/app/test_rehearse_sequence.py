@@ -14,7 +14,9 @@ from ctdrill.app.cli import main
 from ctdrill.app.pipeline import plan_calibration, plan_path
 from ctdrill.app.sequence import drill_path
 from ctdrill.imaging import load_series
-from ctdrill.imaging.plan.types import DrillSpec, load_plan, save_plan
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.types import DrillSpec
+from ctdrill.imaging.plan.write import save_plan
 from ctdrill.model.profile import force_series_n
 
 ROOT = Path(__file__).resolve().parents[2]

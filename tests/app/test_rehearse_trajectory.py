@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from ctdrill.app.cli import main
-from ctdrill.imaging.plan.types import load_plan, write_plans
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.write import write_plans
 from tests.conftest import ASSETS
 
 DEMO = ASSETS / "demo"

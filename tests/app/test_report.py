@@ -168,7 +168,9 @@ def test_several_trajectories_and_a_drill_sequence_each_get_their_rows_and_pages
 
     import numpy as np
 
-    from ctdrill.imaging.plan.types import DrillSpec, load_plan, save_plan
+    from ctdrill.imaging.plan.load import load_plan
+    from ctdrill.imaging.plan.types import DrillSpec
+    from ctdrill.imaging.plan.write import save_plan
 
     demo = load_plan(DEMO / "plan.json")
     shift = np.array([0.0, 6.0, 0.0])
@@ -219,7 +221,8 @@ def test_several_trajectories_and_a_drill_sequence_each_get_their_rows_and_pages
 def test_a_plan_without_an_arch_gets_its_report_saying_how_to_add_one(tmp_path: Path) -> None:
     from dataclasses import replace
 
-    from ctdrill.imaging.plan.types import load_plan, save_plan
+    from ctdrill.imaging.plan.load import load_plan
+    from ctdrill.imaging.plan.write import save_plan
 
     plan = replace(load_plan(DEMO / "plan.json"), arch_lps=None)
     save_plan(plan, tmp_path / "no_arch.json")
@@ -242,7 +245,8 @@ def test_a_reformat_the_plan_cannot_give_is_said_on_its_page(tmp_path: Path) -> 
 
     import numpy as np
 
-    from ctdrill.imaging.plan.types import load_plan, save_plan
+    from ctdrill.imaging.plan.load import load_plan
+    from ctdrill.imaging.plan.write import save_plan
 
     demo = load_plan(DEMO / "plan.json")
     across = replace(

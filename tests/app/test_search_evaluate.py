@@ -17,7 +17,8 @@ from ctdrill.imaging.dicom.series import load_series
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.distance import SEGMENT_TOL_MM
 from ctdrill.imaging.plan.landmarks import CanalLandmark, MaskLandmark, PointLandmark
-from ctdrill.imaging.plan.types import Plan, load_plan
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.lip import ring_radii_mm
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.calibration import Calibration, load_calibration

@@ -18,9 +18,9 @@ from ctdrill.imaging.plan.landmarks import (
     MaskLandmark,
     PointLandmark,
     bind_to_grid,
-    load_mask_file,
 )
 from ctdrill.imaging.plan.safety import safe_depth
+from ctdrill.imaging.plan.segmentation import load_mask_file
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.plan.write import plan_document
 

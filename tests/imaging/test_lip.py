@@ -8,7 +8,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ctdrill.imaging import load_series
-from ctdrill.imaging.plan.types import DrillSpec, load_plan
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.types import DrillSpec
 from ctdrill.imaging.sampling.lip import (
     LipInputError,
     axis_basis,

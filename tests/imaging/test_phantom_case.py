@@ -14,8 +14,8 @@ from ctdrill.imaging import load_series
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.phantom.io import write_phantom
 from ctdrill.imaging.phantom.mandible import Phantom, make_mandible_phantom
+from ctdrill.imaging.plan.load import load_plan
 from ctdrill.imaging.plan.safety import max_safe_depth_mm
-from ctdrill.imaging.plan.types import load_plan
 from tests.conftest import ASSETS
 
 DEMO = ASSETS / "demo"

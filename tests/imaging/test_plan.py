@@ -18,14 +18,9 @@ from ctdrill.imaging.plan.landmarks import (
     PointLandmark,
     bind_to_grid,
 )
-from ctdrill.imaging.plan.types import (
-    DrillSpec,
-    Plan,
-    PlanInputError,
-    load_plan,
-    load_plans,
-    save_plan,
-)
+from ctdrill.imaging.plan.load import load_plan, load_plans
+from ctdrill.imaging.plan.types import DrillSpec, Plan, PlanInputError
+from ctdrill.imaging.plan.write import save_plan
 from tests.imaging.slicer_files import validate_markups
 
 BASE: dict[str, Any] = {

@@ -13,15 +13,9 @@ import pytest
 from ctdrill.imaging.plan.curve import slicer_curve
 from ctdrill.imaging.plan.implants import ImplantSpec, load_implant_library
 from ctdrill.imaging.plan.landmarks import CanalLandmark, PointLandmark
-from ctdrill.imaging.plan.types import (
-    DrillSpec,
-    Plan,
-    PlanInputError,
-    load_plan_set,
-    load_plans,
-    plan_to_markups,
-    write_plans,
-)
+from ctdrill.imaging.plan.load import load_plan_set, load_plans
+from ctdrill.imaging.plan.types import DrillSpec, Plan, PlanInputError
+from ctdrill.imaging.plan.write import plan_to_markups, write_plans
 from tests.imaging.slicer_files import (
     slicer_control_point,
     slicer_document,

@@ -9,17 +9,9 @@ from typing import Any
 
 import pytest
 
-from ctdrill.imaging.plan.types import (
-    MAX_DRILLS,
-    DrillSpec,
-    Plan,
-    PlanInputError,
-    load_plan,
-    load_plan_set,
-    plan_to_dict,
-    plan_to_markups,
-    save_plan,
-)
+from ctdrill.imaging.plan.load import load_plan, load_plan_set
+from ctdrill.imaging.plan.types import MAX_DRILLS, DrillSpec, Plan, PlanInputError
+from ctdrill.imaging.plan.write import plan_to_dict, plan_to_markups, save_plan
 from tests.imaging.slicer_files import slicer_save, validate_markups
 
 PILOT = DrillSpec(diameter_mm=2.0, tip_length_mm=0.6, blades=2, rpm=900.0)

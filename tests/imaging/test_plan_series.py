@@ -9,14 +9,9 @@ import numpy as np
 import pytest
 
 from ctdrill.imaging.plan.landmarks import CanalLandmark
-from ctdrill.imaging.plan.types import (
-    SERIES_HASH_KEY,
-    Plan,
-    PlanInputError,
-    load_plan,
-    save_plan,
-    series_uid_hash,
-)
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.types import SERIES_HASH_KEY, Plan, PlanInputError, series_uid_hash
+from ctdrill.imaging.plan.write import save_plan
 from tests.conftest import ASSETS
 
 UID = "1.2.826.0.1.3680043.8.498.12345678901234567890"

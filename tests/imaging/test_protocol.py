@@ -19,6 +19,7 @@ from ctdrill.imaging.plan.implants import (
     implant_placement,
     load_implant_library,
 )
+from ctdrill.imaging.plan.load import load_plan, load_plan_set
 from ctdrill.imaging.plan.protocol import (
     FINAL_UNDERSIZE_MM,
     MAX_STEP_MM,
@@ -33,12 +34,9 @@ from ctdrill.imaging.plan.types import (
     DrillSpec,
     Plan,
     PlanInputError,
-    load_plan,
-    load_plan_set,
-    plan_to_markups,
     plan_warnings,
-    save_plan,
 )
+from ctdrill.imaging.plan.write import plan_to_markups, save_plan
 from tests.imaging.slicer_files import slicer_save, validate_markups
 
 TAPERED = ImplantSpec("tapered 4.1 x 10", 4.1, 10.0, 2.9, "round")

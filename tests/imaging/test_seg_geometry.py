@@ -27,8 +27,8 @@ import pytest
 from ctdrill.app.cli import main
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.landmarks import LandmarkInputError
+from ctdrill.imaging.plan.load import load_plan
 from ctdrill.imaging.plan.safety import safe_depth
-from ctdrill.imaging.plan.types import load_plan
 from tests.conftest import ASSETS
 from tests.imaging.volume_writers import write_nifti, write_nrrd
 

@@ -16,9 +16,12 @@ import numpy as np
 import pydicom
 import pytest
 
+from ctdrill.imaging.plan.labels import MAX_MASK_BYTES
 from ctdrill.imaging.plan.landmarks import LandmarkInputError, MaskLandmark
-from ctdrill.imaging.plan.segmentation import MAX_MASK_BYTES, read_npy
-from ctdrill.imaging.plan.types import PlanInputError, load_plan, load_plan_set, save_plan
+from ctdrill.imaging.plan.load import load_plan, load_plan_set
+from ctdrill.imaging.plan.segmentation import read_npy
+from ctdrill.imaging.plan.types import PlanInputError
+from ctdrill.imaging.plan.write import save_plan
 from tests.conftest import ASSETS
 
 #: A rotated (axes permuted and flipped), anisotropic grid (LPS): columns are the i, j, k

@@ -10,17 +10,10 @@ import pytest
 
 from ctdrill.imaging.plan.curve import POINTS_PER_SEGMENT, slicer_curve
 from ctdrill.imaging.plan.landmarks import CanalLandmark, PointLandmark
+from ctdrill.imaging.plan.load import load_plan, load_plan_set
 from ctdrill.imaging.plan.slicer import MAX_CURVE_POINTS
-from ctdrill.imaging.plan.types import (
-    DrillSpec,
-    Plan,
-    PlanInputError,
-    load_plan,
-    load_plan_set,
-    plan_to_markups,
-    plan_warnings,
-    save_plan,
-)
+from ctdrill.imaging.plan.types import DrillSpec, Plan, PlanInputError, plan_warnings
+from ctdrill.imaging.plan.write import plan_to_markups, save_plan
 from tests.imaging.slicer_files import (
     slicer_control_point,
     slicer_document,

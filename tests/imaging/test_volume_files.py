@@ -242,7 +242,7 @@ def test_a_metaimage_label_map_is_a_plan_input(tmp_path: Path) -> None:
     import json
 
     from ctdrill.imaging.plan.landmarks import MaskLandmark
-    from ctdrill.imaging.plan.types import load_plan_set
+    from ctdrill.imaging.plan.load import load_plan_set
 
     labels = np.zeros(SHAPE, dtype=np.uint8)
     labels[1:3, 2, 1:6] = 3  # a ToothFairy2-style left-canal label

@@ -151,7 +151,7 @@ def dicom_campaign(n: int, rng: random.Random) -> dict[str, Counter[str]]:
 def json_campaign(n: int, rng: random.Random) -> dict[str, Counter[str]]:
     """``n`` mutated documents per JSON reader; outcome counts per reader."""
     from ctdrill.imaging import ImagingInputError
-    from ctdrill.imaging.plan.types import load_plans
+    from ctdrill.imaging.plan.load import load_plans
     from ctdrill.model import ModelInputError, load_calibration
 
     targets: list[tuple[str, Any, str, Callable[[Path], object], type[BaseException]]] = [

@@ -71,7 +71,7 @@ def test_force_path_gives_force_map_or_clean_refusal(
     from ctdrill.app.errors import AppInputError
     from ctdrill.app.pipeline import plan_path as force_path
     from ctdrill.imaging import ImagingInputError, load_series
-    from ctdrill.imaging.plan.types import load_plan
+    from ctdrill.imaging.plan.load import load_plan
     from ctdrill.model import load_calibration
 
     case = cases[name]

@@ -167,7 +167,7 @@ def test_known_bug_matches_module_and_function(
     """The fuzzers' tolerance is exact: the bug's module and function, nothing wider."""
     import tests.robustness.test_found_bugs as registry
     from ctdrill.imaging import ImagingInputError
-    from ctdrill.imaging.plan.types import load_plan
+    from ctdrill.imaging.plan.load import load_plan
 
     bad = tmp_path / "bad-format.json"
     bad.write_text('{"format": "ctdrill-plan/9"}', encoding="utf-8")

@@ -34,7 +34,7 @@ pytestmark = [pytest.mark.fuzz, pytest.mark.timeout(FUZZ_TIMEOUT_S)]
 def check_plan_text(text: str, suffix: str) -> None:
     """Load a plan text: a Plan with finite, sane fields, or a PlanInputError."""
     from ctdrill.imaging import ImagingInputError
-    from ctdrill.imaging.plan.types import load_plans
+    from ctdrill.imaging.plan.load import load_plans
 
     with tempfile.TemporaryDirectory() as tmp:
         path = write_text(Path(tmp) / f"plan{suffix}", text)
@@ -71,7 +71,7 @@ def check_plan_text(text: str, suffix: str) -> None:
 
 def test_seed_plans_load() -> None:
     """The seeds are valid, so the fuzzing starts from accepted documents."""
-    from ctdrill.imaging.plan.types import load_plan, load_plans
+    from ctdrill.imaging.plan.load import load_plan, load_plans
 
     with tempfile.TemporaryDirectory() as tmp:
         plan = load_plan(write_text(Path(tmp) / "p.json", json.dumps(SEED_PLAN)))

@@ -47,7 +47,7 @@ def run_plan_text(text: str) -> str:
     from ctdrill.app.errors import AppInputError
     from ctdrill.app.pipeline import plan_path
     from ctdrill.imaging import ImagingInputError
-    from ctdrill.imaging.plan.types import load_plan
+    from ctdrill.imaging.plan.load import load_plan
     from ctdrill.model import ModelInputError, load_calibration
 
     errors = (AppInputError, ImagingInputError, ModelInputError)

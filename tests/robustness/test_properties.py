@@ -135,7 +135,7 @@ def test_profile_and_force_finite_for_any_int16_lip(
 def demo_case() -> tuple[object, object, object]:
     """The bundled demo phantom, its plan and calibration."""
     from ctdrill.imaging import load_series
-    from ctdrill.imaging.plan.types import load_plan
+    from ctdrill.imaging.plan.load import load_plan
     from ctdrill.model import load_calibration
 
     plan = load_plan(ROOT / "assets" / "demo" / "plan.json")

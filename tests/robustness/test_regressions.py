@@ -75,7 +75,7 @@ def _plan(**changes: object) -> dict[str, object]:
 def test_plan_with_integer_beyond_float_range_is_refused(tmp_path: Path) -> None:
     """plan-int-overflow: an integer 10**400 in ``entry_mm`` -> OverflowError (math.isfinite)."""
     from ctdrill.imaging import ImagingInputError
-    from ctdrill.imaging.plan.types import load_plan
+    from ctdrill.imaging.plan.load import load_plan
 
     with pytest.raises(ImagingInputError):
         load_plan(_write(tmp_path, "p.json", _plan(entry_mm=[10**400, 0, 0])))
@@ -86,7 +86,7 @@ def test_plan_with_integer_beyond_float_range_is_refused(tmp_path: Path) -> None
 def test_plan_with_list_as_landmark_kind_is_refused(tmp_path: Path) -> None:
     """plan-kind-unhashable: ``"kind": ["canal"]`` -> TypeError: unhashable type: 'list'."""
     from ctdrill.imaging import ImagingInputError
-    from ctdrill.imaging.plan.types import load_plan
+    from ctdrill.imaging.plan.load import load_plan
 
     plan = _plan()
     plan["landmarks"] = [{"name": "c", "kind": ["canal"], "points_mm": [[0, 0, 0], [1, 0, 0]]}]

@@ -12,7 +12,7 @@ import pytest
 from ctdrill.app.gui.meshes import implant_mesh, revolution_mesh
 from ctdrill.app.gui.scene_plans import implant_geometry, plans_scene
 from ctdrill.imaging.plan.implants import ImplantSpec, implant_placement
-from ctdrill.imaging.plan.types import load_plans
+from ctdrill.imaging.plan.load import load_plans
 
 ROOT = Path(__file__).resolve().parents[3]
 RES = 40

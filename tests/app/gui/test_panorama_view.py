@@ -174,7 +174,8 @@ def test_another_trajectory_puts_the_cross_section_on_its_implant(
 def test_without_an_arch_the_page_says_how_to_draw_one_and_undo_removes_it(
     qtbot: QtBot, window: MainWindow, tmp_path: Path
 ) -> None:
-    from ctdrill.imaging.plan.types import load_plan_set, write_plans
+    from ctdrill.imaging.plan.load import load_plan_set
+    from ctdrill.imaging.plan.write import write_plans
 
     demo = load_plan_set([DEMO_PLAN])[0]
     arch = demo.arch_lps

@@ -140,7 +140,7 @@ def test_pick_an_implant_from_the_library_and_undo_it(
 def test_save_writes_every_trajectory_and_reopening_gives_them_back(
     qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase, tmp_path: Path
 ) -> None:
-    from ctdrill.imaging.plan.types import load_plan_set
+    from ctdrill.imaging.plan.load import load_plan_set
 
     open_case(qtbot, window, phantom_case)
     window.plan_panel.trajectories.add.click()
@@ -168,7 +168,8 @@ def test_gui_command_loads_every_trajectory_of_repeated_plan_options(
     from ctdrill.app.commands import gui as gui_command
     from ctdrill.app.gui import app as gui_app
     from ctdrill.imaging.plan.implants import load_implant_library
-    from ctdrill.imaging.plan.types import load_plan_set, write_plans
+    from ctdrill.imaging.plan.load import load_plan_set
+    from ctdrill.imaging.plan.write import write_plans
 
     demo = load_plan_set([DEMO_PLAN])[0]
     write_plans([replace(demo, name="a"), replace(demo, name="b")], tmp_path / "ab.json")

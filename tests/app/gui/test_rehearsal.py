@@ -17,7 +17,7 @@ from ctdrill.app.gui.rehearsal import SIMULATOR, clearance_at_mm, device_choices
 from ctdrill.app.pipeline import plan_path
 from ctdrill.imaging import load_series
 from ctdrill.imaging.phantom.io import PhantomCase
-from ctdrill.imaging.plan.types import load_plan
+from ctdrill.imaging.plan.load import load_plan
 from ctdrill.model import load_calibration
 from tests.app.gui.helpers import open_case
 from tests.haptics.emulator_process import emulator_on_pty

@@ -12,7 +12,7 @@ from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.imaging.phantom.io import PhantomCase
-from ctdrill.imaging.plan.types import load_plan
+from ctdrill.imaging.plan.load import load_plan
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 from tests.imaging.slicer_files import slicer_save, validate_markups
 

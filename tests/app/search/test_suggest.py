@@ -19,7 +19,8 @@ from ctdrill.app.search.suggest import Suggestion, suggest
 from ctdrill.app.search.suggest_write import CSV_COLUMNS, write_suggestion
 from ctdrill.imaging.misch import BONE_HU, CORTICAL_HU
 from ctdrill.imaging.plan.landmarks import PointLandmark
-from ctdrill.imaging.plan.types import load_plan, series_uid_hash
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.types import series_uid_hash
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.calibration import Calibration, load_calibration
 from tests.app.search import columns

@@ -13,7 +13,8 @@ import pytest
 from ctdrill.app.cli import main
 from ctdrill.imaging.phantom.writer import write_series
 from ctdrill.imaging.plan.landmarks import PointLandmark
-from ctdrill.imaging.plan.types import load_plan, plan_to_markups, save_plan
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.write import plan_to_markups, save_plan
 from tests.app.search import columns
 
 
