@@ -5,22 +5,56 @@ from __future__ import annotations
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from PySide6.QtGui import QAction, QKeySequence
-from PySide6.QtWidgets import QFileDialog, QMenu
+from PySide6.QtWidgets import QFileDialog, QMenu, QMenuBar, QWidget
 
+from ctdrill.app.gui.document import Document
 from ctdrill.app.gui.scene import SURFACE_PRESETS
 from ctdrill.app.gui.slices import WINDOW_PRESETS
 
-if TYPE_CHECKING:
-    from ctdrill.app.gui.main_window import MainWindow
+
+class MenuWindow(Protocol):
+    """What the menus use of the main window (:class:`ctdrill.app.gui.main_window.MainWindow`,
+    which builds them): its document, the actions the menus set, and one method per item."""
+
+    undo_action: QAction
+    redo_action: QAction
+    recent_menu: QMenu
+
+    @property
+    def doc(self) -> Document: ...
+
+    def window(self) -> QWidget: ...  # the window itself: the actions' and dialogs' parent
+
+    def menuBar(self) -> QMenuBar: ...
+
+    def close(self) -> bool: ...
+
+    def recent_folders(self) -> list[str]: ...
+
+    def open_folder(self, path: str) -> None: ...
+
+    def open_plan(self, path: str) -> bool: ...
+
+    def save_plan(self, path: str) -> None: ...
+
+    def save_screenshot(self, path: str) -> None: ...
+
+    def set_surface_preset(self, iso_hu: float) -> None: ...
+
+    def set_window_preset(self, label: str) -> None: ...
+
+    def refocus(self) -> None: ...
+
+    def suggest_axes(self) -> bool: ...
 
 
 def _action(
-    window: MainWindow, menu: QMenu, text: str, slot: Callable[[], Any], shortcut: Any = None
+    window: MenuWindow, menu: QMenu, text: str, slot: Callable[[], Any], shortcut: Any = None
 ) -> QAction:
-    action = QAction(text, window)
+    action = QAction(text, window.window())
     if shortcut is not None:
         action.setShortcut(shortcut)
     action.triggered.connect(lambda _checked=False: slot())
@@ -28,7 +62,7 @@ def _action(
     return action
 
 
-def build_menus(window: MainWindow) -> QMenu:
+def build_menus(window: MenuWindow) -> QMenu:
     """File, Edit, View and Plan menus; returns the "Open recent" submenu (filled by
     :func:`fill_recent`)."""
     bar = window.menuBar()
@@ -65,7 +99,7 @@ def build_menus(window: MainWindow) -> QMenu:
     return recent
 
 
-def name_history_actions(window: MainWindow) -> None:
+def name_history_actions(window: MenuWindow) -> None:
     """Edit > Undo / Redo say which edit they revert or repeat, enabled only when they can
     (never while a rehearsal locks the plan)."""
     doc = window.doc
@@ -77,7 +111,7 @@ def name_history_actions(window: MainWindow) -> None:
         action.setEnabled(name is not None and not doc.rehearsing)
 
 
-def fill_recent(window: MainWindow) -> None:
+def fill_recent(window: MenuWindow) -> None:
     """Rebuild "Open recent" from the window's recent-folder list."""
     menu = window.recent_menu
     menu.clear()
@@ -87,10 +121,10 @@ def fill_recent(window: MainWindow) -> None:
     menu.setEnabled(bool(folders))
 
 
-def open_folder_dialog(window: MainWindow) -> None:
+def open_folder_dialog(window: MenuWindow) -> None:
     """Ask for a DICOM folder (starting at the most recent one) and open it."""
     start = (window.recent_folders() or [str(Path.home())])[0]
-    path = QFileDialog.getExistingDirectory(window, "Open DICOM folder", start)
+    path = QFileDialog.getExistingDirectory(window.window(), "Open DICOM folder", start)
     if path:
         window.open_folder(path)
 
@@ -99,35 +133,40 @@ def open_folder_dialog(window: MainWindow) -> None:
 CT_FILE_FILTER = "CT volumes (*.nii *.nii.gz *.nrrd *.nhdr *.mha *.mhd *.dcm);;All files (*)"
 
 
-def open_ct_file_dialog(window: MainWindow) -> None:
+def open_ct_file_dialog(window: MenuWindow) -> None:
     """Ask for a CT file (NIfTI, NRRD, MetaImage or one DICOM file) and open it."""
-    path, _ = QFileDialog.getOpenFileName(window, "Open CT file", "", CT_FILE_FILTER)
+    path, _ = QFileDialog.getOpenFileName(window.window(), "Open CT file", "", CT_FILE_FILTER)
     if path:
         window.open_folder(path)
 
 
-def open_plan_dialog(window: MainWindow) -> None:
+def open_plan_dialog(window: MenuWindow) -> None:
     """Ask for a plan file and open it."""
     path, _ = QFileDialog.getOpenFileName(
-        window, "Open plan", "", "Plans (*.json *.mrk.json);;All files (*)"
+        window.window(), "Open plan", "", "Plans (*.json *.mrk.json);;All files (*)"
     )
     if path:
         window.open_plan(path)
 
 
-def save_plan_dialog(window: MainWindow) -> None:
+def save_plan_dialog(window: MenuWindow) -> None:
     """Ask where to save the plan (``.mrk.json``: 3D Slicer markups)."""
     if not window.doc.plans:
         return
     path, _ = QFileDialog.getSaveFileName(
-        window, "Save plan", "plan.json", "ctdrill plan (*.json);;3D Slicer markups (*.mrk.json)"
+        window.window(),
+        "Save plan",
+        "plan.json",
+        "ctdrill plan (*.json);;3D Slicer markups (*.mrk.json)",
     )
     if path:
         window.save_plan(path)
 
 
-def screenshot_dialog(window: MainWindow) -> None:
+def screenshot_dialog(window: MenuWindow) -> None:
     """Ask where to save a screenshot of the window."""
-    path, _ = QFileDialog.getSaveFileName(window, "Save screenshot", "ctdrill.png", "PNG (*.png)")
+    path, _ = QFileDialog.getSaveFileName(
+        window.window(), "Save screenshot", "ctdrill.png", "PNG (*.png)"
+    )
     if path:
         window.save_screenshot(path)

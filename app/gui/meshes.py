@@ -3,13 +3,27 @@ tube and its margin envelope, and an implant body as a solid of revolution of it
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import pyvista as pv
 
-if TYPE_CHECKING:
-    from ctdrill.app.gui.scene import LandmarkGeometry
+
+class DrawnLandmark(Protocol):
+    """What :func:`landmark_meshes` reads of a landmark
+    (:class:`ctdrill.app.gui.scene.LandmarkGeometry` is one)."""
+
+    @property
+    def points_lps(self) -> np.ndarray: ...
+
+    @property
+    def radius_mm(self) -> float: ...
+
+    @property
+    def margin_mm(self) -> float: ...
+
+    @property
+    def cloud(self) -> bool: ...
 
 
 def drill_mesh(
@@ -50,7 +64,7 @@ def drill_mesh(
     return out
 
 
-def landmark_meshes(landmark: LandmarkGeometry) -> tuple[pv.PolyData, pv.PolyData | None]:
+def landmark_meshes(landmark: DrawnLandmark) -> tuple[pv.PolyData, pv.PolyData | None]:
     """(body, margin envelope): the canal tube (or point sphere) and the tube grown by the
     margin; a surface cloud (a mask landmark's) is drawn as points, without an envelope."""
     pts = np.atleast_2d(np.asarray(landmark.points_lps, dtype=np.float64))

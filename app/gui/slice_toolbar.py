@@ -3,7 +3,7 @@ arch), and "Centre on drill"."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from PySide6.QtWidgets import (
     QButtonGroup,
@@ -17,8 +17,16 @@ from PySide6.QtWidgets import (
 
 from ctdrill.app.gui.slices import WINDOW_PRESETS
 
-if TYPE_CHECKING:
-    from ctdrill.app.gui.slice_grid import SliceGrid
+
+class ToolbarTarget(Protocol):
+    """What the toolbar's controls call (:class:`ctdrill.app.gui.slice_grid.SliceGrid`)."""
+
+    def set_window_preset(self, label: str) -> None: ...
+
+    def set_mode(self, mode: str) -> None: ...
+
+    def centre_on_drill(self) -> None: ...
+
 
 #: The tools, with their button text and tooltip.
 TOOLS: dict[str, tuple[str, str]] = {
@@ -38,7 +46,7 @@ TOOLS: dict[str, tuple[str, str]] = {
 class SliceToolbar(QWidget):
     """One row above the slice views."""
 
-    def __init__(self, grid: SliceGrid) -> None:
+    def __init__(self, grid: ToolbarTarget) -> None:
         super().__init__()
         self.grid = grid
         lay = QHBoxLayout(self)

@@ -13,14 +13,13 @@ right click on a vertex or Delete over it removes it. The canvas reports each ed
 from __future__ import annotations
 
 import contextlib
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from ctdrill.app.gui.sections import in_plane_distance_mm
-
-if TYPE_CHECKING:
-    from ctdrill.app.gui.slice_view import SliceCanvas
+from ctdrill.app.gui.slice_scene import OverlayScene
+from ctdrill.app.gui.slices import SliceImage
 
 #: Pick radius for a handle, an arch vertex or segment, display pixels.
 PICK_PX = 10.0
@@ -55,10 +54,37 @@ def insert_index(points_px: np.ndarray, click_px: np.ndarray, pick_px: float) ->
     return best
 
 
-class ToolState:
-    """The distance measurement and the arch editing of one :class:`SliceCanvas`."""
+class ToolCanvas(Protocol):
+    """What the tools use of their canvas (:class:`ctdrill.app.gui.slice_view.SliceCanvas`,
+    which holds a :class:`ToolState`)."""
 
-    def __init__(self, canvas: SliceCanvas) -> None:
+    @property
+    def image(self) -> SliceImage | None: ...
+
+    @property
+    def ax(self) -> Any: ...
+
+    @property
+    def scene(self) -> OverlayScene: ...
+
+    @property
+    def mode(self) -> str: ...
+
+    @property
+    def view(self) -> str: ...
+
+    @property
+    def arch_edited(self) -> Any: ...
+
+    def display_of(self, uv_mm: np.ndarray) -> np.ndarray: ...
+
+    def draw_idle(self) -> None: ...
+
+
+class ToolState:
+    """The distance measurement and the arch editing of one canvas."""
+
+    def __init__(self, canvas: ToolCanvas) -> None:
         self.canvas = canvas
         #: Ends of the measurement placed so far (0, 1 or 2), LPS mm.
         self.measure_lps: list[np.ndarray] = []
