@@ -26,6 +26,7 @@ import numpy as np
 from scipy import ndimage
 
 from bench.report import Section, Timing, headline_row, table
+from ctdrill.imaging.display import BONE_SURFACE_HU
 from ctdrill.imaging.phantom.writer import write_series
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.plan.write import save_plan
@@ -183,7 +184,7 @@ def _plain_contour_on_ui_thread(window: object) -> tuple[float, int]:
     nk, nj, ni = volume.hu.shape
     grid = pv.ImageData(dimensions=(ni, nj, nk))
     grid.point_data["hu"] = np.asarray(volume.hu, dtype=np.float32).ravel()
-    surf = grid.contour([300.0], scalars="hu", method="flying_edges")
+    surf = grid.contour([BONE_SURFACE_HU], scalars="hu", method="flying_edges")
     actor = plotter.add_mesh(surf, color="white", smooth_shading=True, opacity=0.45, render=False)
     plotter.render()
     dt = time.perf_counter() - t0

@@ -16,6 +16,7 @@ from ctdrill.app.gui.slices import VIEWS, SliceImage, reslice, volume_center_lps
 from ctdrill.app.gui.surface import DISPLAY_TRIANGLES, bone_surface, display_block
 from ctdrill.imaging import CTVolume, load_ct
 from ctdrill.imaging.dicom.series import SeriesSummary, list_series
+from ctdrill.imaging.display import BONE_SURFACE_HU
 from ctdrill.imaging.plan.types import Plan
 
 #: Triangles of the first bone surface a series opens with (cheap to compute and to draw on
@@ -49,7 +50,7 @@ def load_case(
     path: str | os.PathLike[str],
     *,
     series_uid: str | None = None,
-    iso_hu: float = 300.0,
+    iso_hu: float = BONE_SURFACE_HU,
     max_dim: int | None = SURFACE_MAX_DIM,
     ask_series: bool = False,
 ) -> Loaded | SeriesChoice:
@@ -82,7 +83,7 @@ def is_volume_file(path: Path) -> bool:
 def volume_surface(
     volume: CTVolume,
     *,
-    iso_hu: float = 300.0,
+    iso_hu: float = BONE_SURFACE_HU,
     max_dim: int | None = SURFACE_MAX_DIM,
     max_triangles: int | None = DISPLAY_TRIANGLES,
 ) -> pv.PolyData:

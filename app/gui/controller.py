@@ -18,6 +18,7 @@ from ctdrill.app.gui.workers import Debouncer, Runner
 from ctdrill.app.pipeline import plan_calibration
 from ctdrill.app.search.candidates import SearchSpace
 from ctdrill.app.search.suggest import Suggestion, suggest
+from ctdrill.imaging.display import BONE_SURFACE_HU
 from ctdrill.imaging.plan.types import Plan
 
 #: Delay between the last plan edit and the recomputation, ms.
@@ -41,7 +42,7 @@ class Controller(QObject):
     def __init__(self, doc: Document, parent: QObject | None = None) -> None:
         super().__init__(parent)
         self.doc = doc
-        self.iso_hu = 300.0
+        self.iso_hu = BONE_SURFACE_HU
         self.load_runner = Runner(self._loaded, self._fail("load"), parent=self)
         self.path_runner = Runner(self._path_done, self._path_failed, parent=self)
         self.surface_runner = Runner(doc.set_surface, self._fail("surface"), parent=self)

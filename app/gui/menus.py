@@ -11,8 +11,7 @@ from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QFileDialog, QMenu, QMenuBar, QWidget
 
 from ctdrill.app.gui.document import Document
-from ctdrill.app.gui.scene import SURFACE_PRESETS
-from ctdrill.app.gui.slices import WINDOW_PRESETS
+from ctdrill.imaging.display import SURFACE_PRESETS, WINDOW_PRESETS
 
 
 class MenuWindow(Protocol):

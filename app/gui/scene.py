@@ -26,14 +26,6 @@ from ctdrill.app.gui.camera import (
 from ctdrill.app.gui.meshes import drill_mesh, implant_mesh, landmark_meshes, unit
 from ctdrill.app.gui.surface import bone_surface as bone_surface
 
-#: Bone iso-surface presets, HU.
-SURFACE_PRESETS: dict[str, float] = {
-    "CT bone (300 HU)": 300.0,
-    "CBCT bone (500 HU)": 500.0,
-    "cortical (1000 HU)": 1000.0,
-    "soft tissue (-300 HU)": -300.0,
-}
-
 #: Colours (RGB 0..1) by clearance state.
 CLEARANCE_COLOURS: dict[str, tuple[float, float, float]] = {
     "safe": (0.20, 0.70, 0.30),

@@ -32,9 +32,10 @@ from ctdrill.app.gui.slice_scene import overlay_scene
 from ctdrill.app.gui.slice_toolbar import SliceToolbar
 from ctdrill.app.gui.slice_tools import edit_arch
 from ctdrill.app.gui.slice_view import SliceCanvas
-from ctdrill.app.gui.slices import VIEWS, WINDOW_PRESETS, SliceImage, reslice, volume_center_lps
+from ctdrill.app.gui.slices import VIEWS, SliceImage, reslice, volume_center_lps
 from ctdrill.app.gui.workers import Runner
 from ctdrill.imaging import CTVolume
+from ctdrill.imaging.display import WINDOW_PRESETS
 from ctdrill.imaging.plan.types import Plan
 
 #: What the trajectory view says before a trajectory exists.

@@ -15,7 +15,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from ctdrill.app.gui.slices import WINDOW_PRESETS
+from ctdrill.imaging.display import WINDOW_PRESETS
 
 
 class ToolbarTarget(Protocol):

@@ -23,14 +23,6 @@ ViewName = Literal["axial", "coronal", "sagittal", "trajectory"]
 #: The four slice views in the order the window shows them.
 VIEWS: tuple[ViewName, ...] = ("axial", "coronal", "sagittal", "trajectory")
 
-#: Window/level presets, (level_hu, width_hu).
-WINDOW_PRESETS: dict[str, tuple[float, float]] = {
-    "bone": (500.0, 2000.0),
-    "implant planning": (800.0, 3000.0),
-    "soft tissue": (40.0, 400.0),
-    "CBCT": (1000.0, 4000.0),
-}
-
 
 class Sampleable(Protocol):
     """What reslicing needs from a volume (``ctdrill.imaging.CTVolume`` provides it)."""

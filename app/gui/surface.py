@@ -23,6 +23,7 @@ from vtkmodules.vtkCommonCore import vtkSMPTools
 from vtkmodules.vtkFiltersCore import vtkFlyingEdges3D
 
 from ctdrill.hu import AIR_HU
+from ctdrill.imaging.display import BONE_SURFACE_HU
 
 #: Triangles per piece the 3D view adds in one event-loop pass (see ``surface_piece``).
 PIECE_TRIANGLES = 30_000
@@ -137,7 +138,7 @@ def display_block(
     hu: np.ndarray,
     spacing_mm: tuple[float, float, float],
     *,
-    iso_hu: float = 300.0,
+    iso_hu: float = BONE_SURFACE_HU,
     valid: np.ndarray | None = None,
     outside_hu: float = AIR_HU,
     merge_slices: bool = True,
@@ -186,7 +187,7 @@ def bone_surface(
     hu: np.ndarray,
     affine_lps: np.ndarray,
     *,
-    iso_hu: float = 300.0,
+    iso_hu: float = BONE_SURFACE_HU,
     max_dim: int | None = None,
     valid: np.ndarray | None = None,
     outside_hu: float = AIR_HU,

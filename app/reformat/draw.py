@@ -19,7 +19,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from matplotlib import patheffects
 
-from ctdrill.app.gui.slices import WINDOW_PRESETS
 from ctdrill.app.reformat.overlay import (
     BodyOverlay,
     TubeOverlay,
@@ -28,6 +27,7 @@ from ctdrill.app.reformat.overlay import (
     tube_overlay,
 )
 from ctdrill.app.reformat.placement import implant_body
+from ctdrill.imaging.display import WINDOW_PRESETS
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.reformat import Reformat
 
@@ -36,7 +36,7 @@ if TYPE_CHECKING:
 
     from ctdrill.app.pipeline import PathResult
 
-#: Default window: the slice views' implant-planning preset (one owner of the presets).
+#: Default window: the implant-planning preset (the slice views offer it too).
 DEFAULT_LEVEL_HU, DEFAULT_WIDTH_HU = WINDOW_PRESETS["implant planning"]
 #: Smallest font, pt.
 FONT_PT = 10.0

@@ -19,8 +19,9 @@ from pytestqt.qtbot import QtBot
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.slice_nav import WL_HU_PER_PX, cursor_text, slice_stack
 from ctdrill.app.gui.slice_view import SliceCanvas
-from ctdrill.app.gui.slices import WINDOW_PRESETS, window_to_uint8
+from ctdrill.app.gui.slices import window_to_uint8
 from ctdrill.imaging import load_series
+from ctdrill.imaging.display import WINDOW_PRESETS
 from ctdrill.imaging.phantom.io import PhantomCase
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 
