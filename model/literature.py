@@ -7,15 +7,16 @@ support). No study gives thrust against CT number, so the DC law
 - **density exponent n**: drilling torque at four Misch classes in bovine rib (D2-D5;
   :data:`TORQUE_KEYS`), ``log10 T = a_T + n log10 C'``, with a nuisance level ``a_T`` (torque is
   not thrust; only the slope is shared: both are assumed proportional to the material's specific
-  cutting pressure). Each class gets its midpoint HU (:data:`MISCH_HU_RANGES`, an assignment the
-  study does not report) and the class width enters as an HU error ``width / sqrt(12)`` through
-  the slope (effective variance), beside the standard error of the mean torque (SD / sqrt(sites)).
+  cutting pressure). Each class gets its midpoint HU (:func:`class_hu_ranges` of the Misch
+  bands the caller passes, an assignment the study does not report) and the class width enters
+  as an HU error ``width / sqrt(12)`` through the slope (effective variance), beside the
+  standard error of the mean torque (SD / sqrt(sites)).
 - **level b0 and feed sensitivity Ke**: the cortical thrust points whose drill diameter, feed and
   speed are all stated (:data:`THRUST_KEYS`), each converted to the reference drill
   (:data:`REF_DIAMETER_MM`, :data:`REF_RPM`): thrust x ``(D_ref / D)^p`` (``p`` =
   :data:`DIAMETER_EXPONENT`: thrust proportional to lip length at a given feed per revolution),
   and the feed as the feed at ``REF_RPM`` with the same feed per revolution,
-  ``v_eq = v REF_RPM / rpm``; cortical bone gets the HU :data:`CORTICAL_HU_RANGE` midpoint.
+  ``v_eq = v REF_RPM / rpm``; cortical bone gets the midpoint of the densest class's range.
   Their scatter (different bones, species, studies) sets their weight: one common log10 SD
   estimated from the residuals.
 
@@ -26,6 +27,10 @@ Harmonics are not in the data: they keep the pine-wood exponents and the pine-wo
 ``Bk / A0`` at ``C' = 300``, anchored at the cortical assignment (as ``bone-illustrative``).
 Every row of the file is either used or excluded with a reason (:data:`EXCLUDED`); a row in
 neither is refused, so a new point is never silently ignored.
+
+The Misch bands and where bone begins are imaging's rules (:mod:`ctdrill.imaging.misch`, their
+one owner); ``model`` does not import ``imaging``, so :func:`fit_literature` takes them as
+arguments from its caller in ``app`` (``ctdrill calibrate --literature``).
 """
 
 from __future__ import annotations
@@ -40,10 +45,10 @@ import numpy as np
 
 from ctdrill.hu import AIR_HU
 from ctdrill.model.literature_data import (
-    CORTICAL_HU_RANGE,
     DIAMETER_EXPONENT,
     EXCLUDED,
-    MISCH_HU_RANGES,
+    OPEN_HIGH_HU,
+    OPEN_LOW_HU,
     REF_DIAMETER_MM,
     REF_RPM,
     SET_NAME,
@@ -53,14 +58,15 @@ from ctdrill.model.literature_data import (
     LiteratureError,
     ThrustPoint,
     TorquePoint,
+    class_hu_ranges,
     read_literature,
 )
 
 __all__ = [
-    "CORTICAL_HU_RANGE",
     "DIAMETER_EXPONENT",
     "EXCLUDED",
-    "MISCH_HU_RANGES",
+    "OPEN_HIGH_HU",
+    "OPEN_LOW_HU",
     "REF_DIAMETER_MM",
     "REF_RPM",
     "SET_NAME",
@@ -70,12 +76,15 @@ __all__ = [
     "LiteratureError",
     "ThrustPoint",
     "TorquePoint",
+    "class_hu_ranges",
     "converted_thrust",
     "fit_literature",
     "read_literature",
 ]
 
 _LN10 = math.log(10.0)
+#: Width of the set's gate ramp, HU (as bone-illustrative).
+GATE_WIDTH_HU = 50.0
 
 
 @dataclass(frozen=True)
@@ -108,12 +117,14 @@ class _Solution:
     residuals_torque: np.ndarray  # in log10 units
 
 
-def _solve(data: LiteratureData, a: Assumptions) -> _Solution:
+def _solve(
+    data: LiteratureData, a: Assumptions, classes: Mapping[str, tuple[float, float]]
+) -> _Solution:
     from scipy.optimize import least_squares  # 0.7 s to import: only the fit needs it
 
     lt = np.array([math.log10(t.torque_ncm) for t in data.torque])
-    cp_t = np.array([sum(MISCH_HU_RANGES[t.misch]) / 2.0 - AIR_HU for t in data.torque])
-    sd_hu_t = np.array([_uniform_sd(*MISCH_HU_RANGES[t.misch]) for t in data.torque])
+    cp_t = np.array([sum(classes[t.misch]) / 2.0 - AIR_HU for t in data.torque])
+    sd_hu_t = np.array([_uniform_sd(*classes[t.misch]) for t in data.torque])
     sem_log = np.array([t.sd_ncm / t.torque_ncm / math.sqrt(t.sites) / _LN10 for t in data.torque])
     conv = [converted_thrust(p, a.diameter_exponent) for p in data.thrust]
     lf = np.log10([c[0] for c in conv])
@@ -195,8 +206,19 @@ def _harmonics(anchor_c_prime: float, a0_at_anchor_n: float) -> list[dict[str, A
     return out
 
 
-def fit_literature(path: str | Path) -> dict[str, Any]:
+def fit_literature(
+    path: str | Path, *, bands_hu: Sequence[tuple[str, float, float]], gate_hu: float
+) -> dict[str, Any]:
     """Fit ``bone-literature`` to the literature file; the set's JSON document.
+
+    Parameters
+    ----------
+    path : the literature file (``bone_force_points.csv``).
+    bands_hu : the bone-density classes ``(class, low HU, high HU)``, densest first, outer ends
+        open: :data:`ctdrill.imaging.misch.MISCH_BANDS_HU`. The torque points name them; the
+        densest is cortical bone (:func:`class_hu_ranges` closes the open ends).
+    gate_hu : where bone begins, HU (:data:`ctdrill.imaging.misch.BONE_HU`): the set's gate,
+        below which nothing is cut.
 
     The document is a calibration set (:func:`ctdrill.model.calibration.calibration_from_dict`
     loads it) with ``fit`` (value, standard error and % per parameter), ``covariance`` of
@@ -204,12 +226,14 @@ def fit_literature(path: str | Path) -> dict[str, Any]:
     point used with its conversion and residual, every point excluded with its reason, the
     assumptions and checks against points not fitted).
     """
-    data = read_literature(path)
-    cort_mid = sum(CORTICAL_HU_RANGE) / 2.0
+    classes = class_hu_ranges(bands_hu)
+    cortical = bands_hu[0][0]
+    data = read_literature(path, classes)
+    cort_mid = sum(classes[cortical]) / 2.0
     base = Assumptions(cort_mid, DIAMETER_EXPONENT[0])
-    sol = _solve(data, base)
+    sol = _solve(data, base, classes)
     shifts = {
-        "cortical_hu": (_uniform_sd(*CORTICAL_HU_RANGE), "cortical HU"),
+        "cortical_hu": (_uniform_sd(*classes[cortical]), "cortical HU"),
         "diameter_exponent": (DIAMETER_EXPONENT[1], "diameter exponent"),
     }
     cov_sys = np.zeros((3, 3))
@@ -219,7 +243,7 @@ def fit_literature(path: str | Path) -> dict[str, Any]:
         def refit(delta: float, field: str = field) -> np.ndarray:
             kw = {"cortical_hu": base.cortical_hu, "diameter_exponent": base.diameter_exponent}
             kw[field] += delta
-            return _solve(data, Assumptions(**kw)).theta[:3]
+            return _solve(data, Assumptions(**kw), classes).theta[:3]
 
         d = (refit(sd) - refit(-sd)) / 2.0
         cov_sys += np.outer(d, d)
@@ -241,10 +265,10 @@ def fit_literature(path: str | Path) -> dict[str, Any]:
         f"thrust points and {len(data.torque)} Misch-class drilling torques in "
         f"{data.file_name} (sha256 {data.sha256[:12]}); a literature fit, not measured with "
         "this drill",
-        "c_prime_range": [0.0 - AIR_HU, CORTICAL_HU_RANGE[1] - AIR_HU],
+        "c_prime_range": [OPEN_LOW_HU - AIR_HU, OPEN_HIGH_HU - AIR_HU],
         "feed_range_mm_s": [_sig(min(veqs), 4), _sig(max(veqs), 4)],
-        "gate_hu": 150.0,
-        "gate_width_hu": 50.0,
+        "gate_hu": gate_hu,
+        "gate_width_hu": GATE_WIDTH_HU,
         "a0": {"b0": _sig(b0), "n": _sig(n), "ke": _sig(ke)},
         "harmonics": _harmonics(anchor_cp, a0_anchor),
         "fit": {
@@ -259,7 +283,7 @@ def fit_literature(path: str | Path) -> dict[str, Any]:
             "parameters": list(names),
             "matrix": [[_sig(float(v), 8) for v in row] for row in cov],
         },
-        "provenance": _provenance(data, sol, base, sys_se, conv),
+        "provenance": _provenance(data, sol, base, sys_se, conv, classes, cortical, gate_hu),
     }
     return doc
 
@@ -270,8 +294,14 @@ def _provenance(
     base: Assumptions,
     sys_se: Mapping[str, Mapping[str, float]],
     conv: Sequence[tuple[float, float]],
+    classes: Mapping[str, tuple[float, float]],
+    cortical: str,
+    gate_hu: float,
 ) -> dict[str, Any]:
     b0, n, ke, at = (float(v) for v in sol.theta)
+    lo_hu, hi_hu = classes[cortical]
+    torque_classes = list(dict.fromkeys(t.misch for t in data.torque))
+    midpoints = ", ".join(f"{c} {sum(classes[c]) / 2.0:g}" for c in torque_classes)
     cov_stat = sol.cov[:3, :3]
 
     def a0(hu: float, v: float) -> float:
@@ -298,10 +328,10 @@ def _provenance(
             "length at a given feed per revolution; the SD is a judgement, propagated)",
             f"feed per revolution: v_eq = v x {REF_RPM:g} / rpm, the feed at {REF_RPM:g} rpm "
             "with the study's feed per revolution; Ke applies to v_eq",
-            f"HU of cortical bone: {base.cortical_hu:g} (midpoint of {CORTICAL_HU_RANGE[0]:g}-"
-            f"{CORTICAL_HU_RANGE[1]:g} HU, Misch D1 to dense cortical bone; none of the studies "
+            f"HU of cortical bone: {base.cortical_hu:g} (midpoint of {lo_hu:g}-"
+            f"{hi_hu:g} HU, Misch {cortical} to dense cortical bone; none of the studies "
             "reports HU) +- width / sqrt(12), propagated by refitting",
-            "HU of a Misch class: its midpoint (D2 1050, D3 600, D4 250, D5 75; the study "
+            f"HU of a Misch class: its midpoint ({midpoints}; the study "
             "reports classes, not HU) with SD width / sqrt(12) entering through the slope",
             "torque for thrust: only the slope n is taken from torque (its level a_T is a "
             "separate parameter): both assumed proportional to the specific cutting pressure",
@@ -326,7 +356,7 @@ def _provenance(
                 "torque_ncm": t.torque_ncm,
                 "sem_ncm": _sig(t.sd_ncm / math.sqrt(t.sites), 4),
                 "misch": t.misch,
-                "hu_assigned": sum(MISCH_HU_RANGES[t.misch]) / 2.0,
+                "hu_assigned": sum(classes[t.misch]) / 2.0,
                 "residual_log10": _sig(float(r), 4),
             }
             for t, r in zip(data.torque, sol.residuals_torque, strict=True)
@@ -357,7 +387,7 @@ def _provenance(
         ],
         "harmonics": "not in the literature data: pine-wood exponents and the pine-wood ratios "
         "Bk / A0 at C' = 300, anchored at the cortical assignment; no uncertainty given",
-        "gate": "150 +- 25 HU as bone-illustrative: below it (soft tissue, the canal's contents) "
-        "nothing is cut; D5 bone (< 150 HU) is therefore mostly not cut, although its torque "
-        "point informs the slope",
+        "gate": f"{gate_hu:g} +- {GATE_WIDTH_HU / 2.0:g} HU as bone-illustrative: below it (soft "
+        f"tissue, the canal's contents) nothing is cut; {list(classes)[-1]} bone (< {gate_hu:g} "
+        "HU) is therefore mostly not cut, although its torque point informs the slope",
     }

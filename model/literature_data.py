@@ -12,7 +12,7 @@ import hashlib
 import io
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,16 +25,12 @@ REF_DIAMETER_MM: float = 2.0
 REF_RPM: float = 900.0
 #: Thrust scales as diameter^p at a given feed per revolution (p = 1: lip length), +- SD.
 DIAMETER_EXPONENT: tuple[float, float] = (1.0, 0.2)
-#: HU assigned to cortical bone (the thrust studies report none): Misch D1 (> 1250 HU) up to
-#: 2000 HU, dense cortical bone on clinical CT; its midpoint +- width / sqrt(12).
-CORTICAL_HU_RANGE: tuple[float, float] = (1250.0, 2000.0)
-#: Misch classes (DESIGN.md section 5) as HU ranges; D5 "< 150" taken as 0-150.
-MISCH_HU_RANGES: Mapping[str, tuple[float, float]] = {
-    "D2": (850.0, 1250.0),
-    "D3": (350.0, 850.0),
-    "D4": (150.0, 350.0),
-    "D5": (0.0, 150.0),
-}
+#: Where the fit closes the open ends of the bone-density classes, HU: the least dense class
+#: (Misch D5, "< 150") starts at water, 0 HU; the densest (D1, "> 1250", the HU assigned to
+#: cortical bone, which the thrust studies do not report) ends at 2000 HU, dense cortical bone
+#: on clinical CT. A class gets its range's midpoint +- width / sqrt(12).
+OPEN_LOW_HU: float = 0.0
+OPEN_HIGH_HU: float = 2000.0
 #: Cortical thrust points with diameter, feed and speed stated, and why each is used.
 THRUST_KEYS: Mapping[str, str] = {
     "MacAvelia2012_human_1000": "human cortical femur, 3.2 mm, 2 mm/s, 1000 rpm",
@@ -74,6 +70,37 @@ _SITES_RE = re.compile(r"n\s*=\s*(\d+)\s*sites")
 
 class LiteratureError(ModelInputError):
     """The literature file is missing, unreadable or lacks a point the fit needs."""
+
+
+def class_hu_ranges(
+    bands_hu: Sequence[tuple[str, float, float]],
+) -> dict[str, tuple[float, float]]:
+    """The density classes as closed HU ranges: ``bands_hu`` (``(class, low HU, high HU)``,
+    densest first, the outer ends open, as :data:`ctdrill.imaging.misch.MISCH_BANDS_HU`: the
+    bands' one owner, which the caller passes in) with the open ends closed at
+    :data:`OPEN_LOW_HU` and :data:`OPEN_HIGH_HU`.
+
+    Raises
+    ------
+    LiteratureError
+        Bands that are not densest first, adjoining, with only the outer ends open.
+    """
+    if not bands_hu:
+        raise LiteratureError("no density classes given")
+    ranges: dict[str, tuple[float, float]] = {}
+    for i, (name, lo, hi) in enumerate(bands_hu):
+        first, last = i == 0, i == len(bands_hu) - 1
+        if (math.isinf(hi) and not first) or (math.isinf(lo) and not last) or not lo < hi:
+            raise LiteratureError(f"density class {name!r}: HU band ({lo:g}, {hi:g}) out of order")
+        if not last and bands_hu[i + 1][2] != lo:
+            raise LiteratureError(
+                f"density classes {name!r} and {bands_hu[i + 1][0]!r} do not adjoin"
+            )
+        ranges[name] = (
+            OPEN_LOW_HU if math.isinf(lo) else lo,
+            OPEN_HIGH_HU if math.isinf(hi) else hi,
+        )
+    return ranges
 
 
 @dataclass(frozen=True)
@@ -119,14 +146,17 @@ def _float(row: Mapping[str, str], col: str, path: Path) -> float:
     return value
 
 
-def read_literature(path: str | Path) -> LiteratureData:
+def read_literature(path: str | Path, classes: Collection[str]) -> LiteratureData:
     """Parse ``bone_force_points.csv``: the fitted points and every other row's exclusion.
+
+    ``classes`` are the density classes a torque point may name (the Misch classes).
 
     Raises
     ------
     LiteratureError
         The file is unreadable, lacks a column or a point of :data:`THRUST_KEYS` /
-        :data:`TORQUE_KEYS`, or holds a row neither used nor excluded.
+        :data:`TORQUE_KEYS`, names a class not in ``classes``, or holds a row neither used nor
+        excluded.
     """
     p = Path(path)
     raw = read_bytes_bounded(
@@ -161,7 +191,7 @@ def read_literature(path: str | Path) -> LiteratureData:
             raise LiteratureError(f"{p}: no row {key!r}; the fit needs it")
         m, s = _TORQUE_RE.search(r["derived_note"]), _SITES_RE.search(r.get("material", ""))
         misch = (r.get("density_value") or "").strip()
-        if m is None or s is None or misch not in MISCH_HU_RANGES:
+        if m is None or s is None or misch not in classes:
             raise LiteratureError(
                 f"{p}: row {key!r}: torque 'T±SD N·cm', 'n=N sites' or Misch class not found"
             )

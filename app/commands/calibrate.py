@@ -138,10 +138,12 @@ def format_literature(doc: dict[str, Any]) -> str:
 
 def _run_literature(args: argparse.Namespace) -> int:
     from ctdrill.app.records import atomic_write_text
+    from ctdrill.imaging.misch import BONE_HU, MISCH_BANDS_HU
     from ctdrill.model.calibration import calibration_from_dict
     from ctdrill.model.literature import fit_literature
 
-    doc = fit_literature(args.literature)
+    # the bands and the bone edge are imaging's (imaging/misch.py); the model takes them here
+    doc = fit_literature(args.literature, bands_hu=MISCH_BANDS_HU, gate_hu=BONE_HU)
     text = json.dumps(doc, indent=2, ensure_ascii=False) + "\n"
     calibration_from_dict(json.loads(text), source_path=args.out)
     atomic_write_text(args.out, text, what="--out")

@@ -13,15 +13,16 @@ import numpy as np
 import pytest
 
 from ctdrill.hu import AIR_HU
-from ctdrill.imaging.misch import MISCH_BANDS_HU
+from ctdrill.imaging.misch import BONE_HU, MISCH_BANDS_HU, MISCH_CLASSES
 from ctdrill.model.calibration import CALIBRATION_DIR, load_calibration
 from ctdrill.model.literature import (
-    CORTICAL_HU_RANGE,
     EXCLUDED,
-    MISCH_HU_RANGES,
+    OPEN_HIGH_HU,
+    OPEN_LOW_HU,
     THRUST_KEYS,
     TORQUE_KEYS,
     LiteratureError,
+    class_hu_ranges,
     converted_thrust,
     fit_literature,
     read_literature,
@@ -35,7 +36,7 @@ LITERATURE = SHARED / "literature" / "bone_force_points.csv"
 @pytest.fixture(scope="module")
 def fitted() -> dict[str, Any]:
     assert LITERATURE.is_file(), f"literature data missing: {LITERATURE}"
-    return fit_literature(LITERATURE)
+    return fit_literature(LITERATURE, bands_hu=MISCH_BANDS_HU, gate_hu=BONE_HU)
 
 
 def test_committed_set_is_reproduced_by_the_fit(fitted: dict[str, Any]) -> None:
@@ -58,7 +59,7 @@ def test_set_loads_with_its_covariance_and_standard_errors(fitted: dict[str, Any
 
 
 def test_every_row_is_used_or_excluded_with_a_reason() -> None:
-    data = read_literature(LITERATURE)
+    data = read_literature(LITERATURE, MISCH_CLASSES)
     with LITERATURE.open(encoding="utf-8") as fh:
         keys = [r["source_key"] for r in csv.DictReader(fh)]
     used = {p.key for p in data.thrust} | {t.key for t in data.torque}
@@ -79,7 +80,7 @@ def test_an_unclassified_row_is_refused(tmp_path: Path) -> None:
     path = tmp_path / "points.csv"
     path.write_text(buf.getvalue(), "utf-8")
     with pytest.raises(LiteratureError, match=r"NewStudy2030.*neither fitted nor excluded"):
-        read_literature(path)
+        read_literature(path, MISCH_CLASSES)
     missing = tmp_path / "missing.csv"
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=list(rows[0]))
@@ -87,11 +88,11 @@ def test_an_unclassified_row_is_refused(tmp_path: Path) -> None:
     w.writerows([r for r in rows if r["source_key"] != "HSBD2020_JBSMSE"])
     missing.write_text(buf.getvalue(), "utf-8")
     with pytest.raises(LiteratureError, match=r"HSBD2020_JBSMSE.*the fit needs it"):
-        read_literature(missing)
+        read_literature(missing, MISCH_CLASSES)
 
 
 def test_conversions_by_hand() -> None:
-    data = read_literature(LITERATURE)
+    data = read_literature(LITERATURE, MISCH_CLASSES)
     mac = next(p for p in data.thrust if p.key == "MacAvelia2012_human_1000")
     assert converted_thrust(mac, 1.0) == pytest.approx((198.4 * 2.0 / 3.2, 2.0 * 900 / 1000))
     pig = next(p for p in data.thrust if p.key == "PorcineFemur2014_max")
@@ -100,19 +101,47 @@ def test_conversions_by_hand() -> None:
     assert (d2.misch, d2.torque_ncm, d2.sd_ncm, d2.sites) == ("D2", 11.2, 3.2, 87)
 
 
-def test_misch_ranges_are_the_imaging_bands() -> None:
-    bands = {name: (lo, hi) for name, lo, hi in MISCH_BANDS_HU}
-    for name, (lo, hi) in MISCH_HU_RANGES.items():
-        band = bands[name]
-        assert hi == band[1] and (lo == band[0] or (name == "D5" and lo == 0.0))
-    assert CORTICAL_HU_RANGE[0] == bands["D1"][0]
+def test_class_ranges_close_the_open_ends_of_the_bands_given() -> None:
+    ranges = class_hu_ranges(MISCH_BANDS_HU)
+    assert ranges == {
+        "D1": (1250.0, OPEN_HIGH_HU),
+        "D2": (850.0, 1250.0),
+        "D3": (350.0, 850.0),
+        "D4": (150.0, 350.0),
+        "D5": (OPEN_LOW_HU, 150.0),
+    }
+    inf = math.inf
+    assert class_hu_ranges((("A", 100.0, inf), ("B", -inf, 100.0))) == {
+        "A": (100.0, OPEN_HIGH_HU),
+        "B": (OPEN_LOW_HU, 100.0),
+    }
+    with pytest.raises(LiteratureError, match="do not adjoin"):
+        class_hu_ranges((("A", 100.0, inf), ("B", -inf, 90.0)))
+    with pytest.raises(LiteratureError, match="out of order"):
+        class_hu_ranges((("B", -inf, 100.0), ("A", 100.0, inf)))
+
+
+def test_the_fit_takes_the_bands_and_the_gate_it_is_given() -> None:
+    # the bands are imaging's (imaging/misch.py); moving the D3/D4 edge moves the HU the D3
+    # and D4 torque points are assigned, and the gate is the one passed in
+    moved = tuple(
+        (name, 400.0 if lo == 350.0 else lo, 400.0 if hi == 350.0 else hi)
+        for name, lo, hi in MISCH_BANDS_HU
+    )
+    doc = fit_literature(LITERATURE, bands_hu=moved, gate_hu=BONE_HU + 10.0)
+    hu = {p["misch"]: p["hu_assigned"] for p in doc["provenance"]["points_used"] if "misch" in p}
+    assert hu == {"D2": 1050.0, "D3": 625.0, "D4": 275.0, "D5": 75.0}
+    assert doc["gate_hu"] == BONE_HU + 10.0
+    with pytest.raises(LiteratureError, match=r"BovineRib_torque_D2.*Misch class"):
+        fit_literature(LITERATURE, bands_hu=moved[2:], gate_hu=BONE_HU)
 
 
 def test_cortical_assignment_moves_the_level_by_n_dlog10_c(fitted: dict[str, Any]) -> None:
     # Only the thrust points carry the cortical HU, and n comes from the torque slope alone, so
     # shifting the assignment by one SD moves b0 by n * d log10 C' and nothing else.
-    sd = (CORTICAL_HU_RANGE[1] - CORTICAL_HU_RANGE[0]) / math.sqrt(12.0)
-    mid = sum(CORTICAL_HU_RANGE) / 2.0 - AIR_HU
+    lo, hi = class_hu_ranges(MISCH_BANDS_HU)["D1"]
+    sd = (hi - lo) / math.sqrt(12.0)
+    mid = (lo + hi) / 2.0 - AIR_HU
     n = fitted["a0"]["n"]
     expected = n * (math.log10(mid + sd) - math.log10(mid - sd)) / 2.0
     got = fitted["provenance"]["stderr_systematic"]["cortical_hu"]
@@ -121,6 +150,6 @@ def test_cortical_assignment_moves_the_level_by_n_dlog10_c(fitted: dict[str, Any
 
 
 def test_excluded_reasons_cover_every_prefix_used() -> None:
-    data = read_literature(LITERATURE)
+    data = read_literature(LITERATURE, MISCH_CLASSES)
     prefixes = {next(p for p in EXCLUDED if k.startswith(p)) for k, _ in data.excluded}
     assert prefixes == set(EXCLUDED)
