@@ -28,6 +28,7 @@ from ctdrill.haptics.protocol import OperatorKind, Telemetry, encode
 from ctdrill.haptics.renderer import Renderer
 from ctdrill.haptics.serial_device import SerialDevice
 from ctdrill.haptics.sim import SimulatedDevice
+from ctdrill.haptics.tick import TICK_S
 from ctdrill.model.profile import Profile, force_n
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -55,7 +56,7 @@ def _per_tick_costs(n: int, repeats: int) -> list[list[str]]:
         r = renderer
         t = state["t"]
         for _ in range(n):
-            t += 1e-4
+            t += TICK_S
             r.last_host_s = t
             r.tick(t, t * 1.0, 1.0)  # cutting at 1 mm/s
         state["t"] = t
@@ -77,7 +78,7 @@ def _per_tick_costs(n: int, repeats: int) -> list[list[str]]:
     def run_law() -> None:
         t = 0.0
         for _ in range(n):
-            t += 1e-4
+            t += TICK_S
             force_n(profile, t, 1.0, t)
 
     def armed_emulator() -> DeviceEmulator:

@@ -62,10 +62,10 @@ from ctdrill.haptics.renderer import (
     CONTINUOUS_FORCE_N,
     PEAK_FORCE_N,
     THERMAL_BUDGET_N2_S,
-    TICK_HZ,
     WATCHDOG_S,
     Renderer,
 )
+from ctdrill.haptics.tick import TICK_HZ
 
 FW_VERSION = (0, 1, 0)
 #: Telemetry every this many ticks (1 kHz at 10 kHz).
@@ -73,8 +73,11 @@ TELEMETRY_EVERY = 10
 #: The simulated hand in FEED mode: a stiff spring-damper to a reference moving at the feed.
 HAND_STIFFNESS_N_PER_MM = 5.0
 HAND_DAMPING_N_S_PER_MM = 0.05
-HAND_MAX_N = 78.0
-MAX_FEED_MM_S = 200.0
+#: The simulated hand's bounds (SIM_OPERATOR values beyond them are clamped; ``--operator``
+#: and operator scripts are refused beyond them): it pushes at most the device's peak force,
+#: and feeds at most 200 mm/s.
+HAND_MAX_N = PEAK_FORCE_N
+HAND_MAX_FEED_MM_S = 200.0
 
 
 class DeviceEmulator:
@@ -310,8 +313,9 @@ class DeviceEmulator:
 
     def _set_operator(self, msg: SimOperator) -> NakReason | None:
         """The simulated hand: PUSH N (negative pulls the handle back), FEED mm/s (negative
-        retracts), NONE (no hand). Values beyond +-78 N / +-200 mm/s are clamped; NaN, inf
-        or an unknown kind are refused and the hand keeps its previous input."""
+        retracts), NONE (no hand). Values beyond :data:`HAND_MAX_N` / :data:`HAND_MAX_FEED_MM_S`
+        are clamped; NaN, inf or an unknown kind are refused and the hand keeps its previous
+        input."""
         if msg.kind not in tuple(OperatorKind):
             return NakReason.BAD_VALUE
         if not math.isfinite(msg.value):
@@ -321,7 +325,7 @@ class DeviceEmulator:
         ):
             self._feed_ref_mm = self.plant.position_mm
         self.operator_kind = msg.kind
-        limit = HAND_MAX_N if msg.kind == OperatorKind.PUSH else MAX_FEED_MM_S
+        limit = HAND_MAX_N if msg.kind == OperatorKind.PUSH else HAND_MAX_FEED_MM_S
         self.operator_value = max(-limit, min(limit, msg.value))
         return None
 

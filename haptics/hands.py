@@ -27,10 +27,11 @@ from typing import Protocol
 import numpy as np
 
 from ctdrill.haptics.device import TelemetrySample
+from ctdrill.haptics.emulator import HAND_MAX_N
 from ctdrill.haptics.plant import COULOMB_N
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import DeviceState, OperatorKind
-from ctdrill.haptics.session import MAX_HAND_N, HumanSpec, Operator
+from ctdrill.haptics.session import HumanSpec, Operator
 
 #: A breakthrough: ``S0`` falls below this fraction of its running peak ...
 BREAKTHROUGH_RATIO = 0.5
@@ -140,7 +141,7 @@ class HumanHand:
         if self.release_s is not None and t_s >= self.release_s - 1e-9:
             return int(OperatorKind.PUSH), 0.0
         force = self.spec.force_n + self._noise_at(t_s)
-        return int(OperatorKind.PUSH), max(-MAX_HAND_N, min(MAX_HAND_N, force))
+        return int(OperatorKind.PUSH), max(-HAND_MAX_N, min(HAND_MAX_N, force))
 
     def observe(self, t_s: float, sample: TelemetrySample) -> None:
         if self.cue is not None:
@@ -179,7 +180,7 @@ class LiveHand:
             return int(OperatorKind.PUSH), 0.0
         push = float(self._push_n())
         push = push if math.isfinite(push) else 0.0
-        return int(OperatorKind.PUSH), max(-MAX_HAND_N, min(MAX_HAND_N, push))
+        return int(OperatorKind.PUSH), max(-HAND_MAX_N, min(HAND_MAX_N, push))
 
     def observe(self, t_s: float, sample: TelemetrySample) -> None:
         self.master_mm = sample.master_mm

@@ -17,7 +17,11 @@ from __future__ import annotations
 
 import math
 
-MASS_KG = 0.5
+from ctdrill.haptics.tick import TICK_S
+from ctdrill.model.cutting import MASTER_MASS_KG
+
+#: The master's mass, kg (Table 4; owned by :mod:`ctdrill.model.cutting`).
+MASS_KG = MASTER_MASS_KG
 KT_N_PER_A = 33.0
 COULOMB_N = 1.0
 ENCODER_M = 0.1e-6
@@ -124,7 +128,7 @@ class ForceController:
         self,
         *,
         start_mm: float = 0.0,
-        dt_s: float = 1e-4,
+        dt_s: float = TICK_S,
         mass_kg: float = MASS_KG,
         kt_n_per_a: float = KT_N_PER_A,
         kf: float = KF,

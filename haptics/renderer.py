@@ -31,6 +31,7 @@ import math
 from collections.abc import Sequence
 
 from ctdrill.haptics.protocol import DeviceState, Fault, NakReason, ProfileBegin
+from ctdrill.haptics.tick import TICK_HZ
 from ctdrill.model.cutting import (
     DEFAULT_DAMPING_N_S_PER_MM,
     DEFAULT_STIFFNESS_N_PER_MM,
@@ -38,7 +39,6 @@ from ctdrill.model.cutting import (
     resistance_n,
 )
 
-TICK_HZ = 10_000
 PEAK_FORCE_N = 78.0
 CONTINUOUS_FORCE_N = 20.0
 #: Excess ``F^2 - Fc^2`` integrated before the thermal limit engages: 1 s at the peak force.

@@ -3,10 +3,10 @@
 The host loop that runs a session is :func:`ctdrill.haptics.run.run_session`.
 
 Operators (``--operator``): ``push:N`` constant hand force N newtons; ``feed:V`` the hand
-moves at a constant feed V mm/s (a stiff hand, its force capped at 78 N); ``script:FILE`` a CSV
-``time_s,force_n`` (linear between rows, held after the last);
-``human:force=N,react_ms=T[,noise_n=S,seed=K]`` a person (:class:`HumanSpec`; what it does in a
-session: :class:`ctdrill.haptics.hands.HumanHand`).
+moves at a constant feed V mm/s (a stiff hand, its force capped at the device's peak force,
+:data:`~ctdrill.haptics.emulator.HAND_MAX_N`); ``script:FILE`` a CSV ``time_s,force_n`` (linear
+between rows, held after the last); ``human:force=N,react_ms=T[,noise_n=S,seed=K]`` a person
+(:class:`HumanSpec`; what it does in a session: :class:`ctdrill.haptics.hands.HumanHand`).
 
 Faults (``--fault``, repeatable): ``link-loss@T`` the host's frames stop reaching the device
 from T s on; ``garbage@T`` 64 random bytes (from the seed) on the link at T; ``delay@T:MS`` the
@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
+from ctdrill.haptics.emulator import HAND_MAX_FEED_MM_S, HAND_MAX_N
 from ctdrill.haptics.errors import HapticsInputError
 from ctdrill.haptics.protocol import DeviceState
 from ctdrill.safeio import read_bytes_bounded
@@ -32,7 +33,6 @@ from ctdrill.safeio import read_bytes_bounded
 SESSION_COLUMNS = ("time_s", "master_mm", "drill_mm", "force_cmd_n", "state")
 STATE_NAMES = {int(s): s.name.lower() for s in DeviceState}
 FAULT_KINDS = ("link-loss", "garbage", "delay", "reset")
-MAX_HAND_N = 78.0
 #: Largest operator script read, bytes, and its most rows (1 kHz for over 16 minutes).
 MAX_SCRIPT_BYTES = 64 * 1024 * 1024
 MAX_SCRIPT_ROWS = 1_000_000
@@ -56,7 +56,8 @@ class HumanSpec:
     Attributes
     ----------
     force_n : float
-        The push while the hand holds on, N (0 < force <= 78).
+        The push while the hand holds on, N (0 < force <=
+        :data:`~ctdrill.haptics.emulator.HAND_MAX_N`).
     react_ms : float
         Reaction time: the hand lets go this long after it feels a breakthrough or meets the
         wall, ms.
@@ -157,9 +158,9 @@ def load_script(path: Path) -> tuple[tuple[float, float], ...]:
         f = _number(row[1], f"force_n at line {lineno}", f"operator script {path}")
         if rows and t <= rows[-1][0]:
             raise SessionInputError(f"operator script {path}:{lineno}: time_s must increase")
-        if abs(f) > MAX_HAND_N:
+        if abs(f) > HAND_MAX_N:
             raise SessionInputError(
-                f"operator script {path}:{lineno}: |force_n| must be <= {MAX_HAND_N:g} N"
+                f"operator script {path}:{lineno}: |force_n| must be <= {HAND_MAX_N:g} N"
             )
         rows.append((t, f))
     if not rows:
@@ -199,9 +200,9 @@ def parse_human(spec: str) -> HumanSpec:
             raise SessionInputError(
                 f"--operator {spec!r}: field {key} is missing ({HUMAN_GRAMMAR})"
             )
-    force = _bounded(fields["force"], "force", spec, 0.0, MAX_HAND_N, open_low=True)
+    force = _bounded(fields["force"], "force", spec, 0.0, HAND_MAX_N, open_low=True)
     react = _bounded(fields["react_ms"], "react_ms", spec, 0.0, MAX_REACT_MS, open_low=False)
-    noise = _bounded(fields.get("noise_n", "0"), "noise_n", spec, 0.0, MAX_HAND_N, open_low=False)
+    noise = _bounded(fields.get("noise_n", "0"), "noise_n", spec, 0.0, HAND_MAX_N, open_low=False)
     seed_text = fields.get("seed", "0")
     if not seed_text.isdigit() or len(seed_text) > 18:
         raise SessionInputError(
@@ -225,10 +226,12 @@ def parse_operator(spec: str) -> Operator:
     if kind == "script":
         return Operator("script", script=load_script(Path(arg)), spec=spec)
     value = _number(arg, "the value", f"--operator {spec!r}")
-    if kind == "push" and abs(value) > MAX_HAND_N:
-        raise SessionInputError(f"--operator {spec!r}: force must be within +-{MAX_HAND_N:g} N")
-    if kind == "feed" and abs(value) > 200.0:
-        raise SessionInputError(f"--operator {spec!r}: feed must be within +-200 mm/s")
+    if kind == "push" and abs(value) > HAND_MAX_N:
+        raise SessionInputError(f"--operator {spec!r}: force must be within +-{HAND_MAX_N:g} N")
+    if kind == "feed" and abs(value) > HAND_MAX_FEED_MM_S:
+        raise SessionInputError(
+            f"--operator {spec!r}: feed must be within +-{HAND_MAX_FEED_MM_S:g} mm/s"
+        )
     return Operator(kind, value=value, spec=spec)
 
 

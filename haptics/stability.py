@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from ctdrill.haptics.plant import G_DOB, G_RFOB, G_VEL, KF, KT_N_PER_A, MASS_KG
+from ctdrill.haptics.tick import TICK_S
 
 #: State names of :func:`closed_loop_matrix`, in order.
 STATE = ("x_m", "v_m_s", "zv_m", "yd_n", "yr_n", "u_n", "ve_m_s", "front_m")
@@ -67,7 +68,7 @@ class Loop:
     material_damping_n_s_per_mm: float | None = None
     hand_stiffness_n_per_mm: float = 0.0
     hand_damping_n_s_per_mm: float = 0.0
-    dt_s: float = 1e-4
+    dt_s: float = TICK_S
     zoh_plant: bool = True
     mass_kg: float = MASS_KG
     kt_n_per_a: float = KT_N_PER_A

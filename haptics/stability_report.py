@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill.haptics.emulator import HAND_DAMPING_N_S_PER_MM, HAND_STIFFNESS_N_PER_MM
 from ctdrill.haptics.renderer import (
     PEAK_FORCE_N,
     STOP_GLIDE_MM_S,
@@ -30,10 +31,16 @@ from ctdrill.haptics.stability import (
     stiffness_limit_n_per_mm,
 )
 from ctdrill.haptics.stability_sim import simulate_push
-from ctdrill.model.cutting import DEFAULT_DAMPING_N_S_PER_MM, DEFAULT_STIFFNESS_N_PER_MM
+from ctdrill.haptics.tick import TICK_S
+from ctdrill.model.cutting import (
+    DEFAULT_DAMPING_N_S_PER_MM,
+    DEFAULT_STIFFNESS_N_PER_MM,
+    MASTER_KP_PER_S2,
+    MASTER_MASS_KG,
+)
 
 #: The coupling before this analysis: the paper's position gain on the master mass (Table 4).
-PREVIOUS_STIFFNESS_N_PER_MM = 0.5 * 6400.0 / 1000.0
+PREVIOUS_STIFFNESS_N_PER_MM = MASTER_MASS_KG * MASTER_KP_PER_S2 / 1000.0
 #: The stop wall before the rigid one: 20 N/mm, no damper of its own, anchored where the master
 #: met it (no glide).
 PREVIOUS_WALL_N_PER_MM = 20.0
@@ -42,7 +49,7 @@ REPORT_PUSHES_N = (0.0, 4.0, 10.0, 30.0, 60.0, 70.0, PEAK_FORCE_N)
 #: The hand push whose offset past the stopped drill the issue quotes, N.
 OFFSET_PUSH_N = 30.0
 #: The simulator's hand in FEED mode (:mod:`ctdrill.haptics.emulator`), N/mm and N s/mm.
-FEED_HAND = (5.0, 0.05)
+FEED_HAND = (HAND_STIFFNESS_N_PER_MM, HAND_DAMPING_N_S_PER_MM)
 #: Cutting operating points: ``S0`` (N) with ``Ke = 0.25`` per (mm/s).
 CUT_S0_N = (2.0, 8.0, 20.0)
 CUT_KE = 0.25
@@ -88,7 +95,12 @@ def coupling_report() -> dict[str, Any]:
         _pole_row("at the stop (coupling + wall)", Loop(wall, wall_b)),
         _pole_row(
             "at the stop, FEED hand (5 N/mm, 0.05 N s/mm)",
-            Loop(wall, wall_b, hand_stiffness_n_per_mm=FEED_HAND[0], hand_damping_n_s_per_mm=0.05),
+            Loop(
+                wall,
+                wall_b,
+                hand_stiffness_n_per_mm=FEED_HAND[0],
+                hand_damping_n_s_per_mm=FEED_HAND[1],
+            ),
         ),
         *(
             _pole_row(
@@ -150,7 +162,7 @@ def coupling_report() -> dict[str, Any]:
         "stop_wall_n_per_mm": STOP_WALL_N_PER_MM,
         "stop_wall_damping_n_s_per_mm": STOP_WALL_DAMPING_N_S_PER_MM,
         "poles": rows,
-        "colgate_at_stop": colgate_terms(wall, wall_b, 1e-4),
+        "colgate_at_stop": colgate_terms(wall, wall_b, TICK_S),
         "hand_offset_mm": [
             (
                 PREVIOUS_STIFFNESS_N_PER_MM,

@@ -34,12 +34,16 @@ import math
 
 from ctdrill.model.force import feed_at_factor_mm_s
 
-#: Nominal master mass (paper, Table 4), kg.
+#: Nominal master mass (paper, Table 4), kg: the one owner (the simulated master,
+#: :mod:`ctdrill.haptics.plant`, is this mass).
 MASTER_MASS_KG = 0.5
+#: The master's position and velocity gains (paper, Table 4), 1/s^2 and 1/s.
+MASTER_KP_PER_S2 = 6400.0
+MASTER_KV_PER_S = 160.0
 #: Coupling stiffness master-front: the paper's master (Table 1), N/mm.
 DEFAULT_STIFFNESS_N_PER_MM = 11.0
 #: Coupling damping master-front, ``Mn * Kv``, N s/mm.
-DEFAULT_DAMPING_N_S_PER_MM = MASTER_MASS_KG * 160.0 / 1000.0
+DEFAULT_DAMPING_N_S_PER_MM = MASTER_MASS_KG * MASTER_KV_PER_S / 1000.0
 
 
 def equilibrium_penetration_mm(

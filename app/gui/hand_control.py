@@ -22,7 +22,7 @@ from PySide6.QtGui import (
 )
 from PySide6.QtWidgets import QSizePolicy, QWidget
 
-from ctdrill.haptics.session import MAX_HAND_N
+from ctdrill.haptics.emulator import HAND_MAX_N
 
 #: The bar's full scale, N (the device takes up to 78 N; a drilling hand stays far below).
 SCALE_N = 40.0
@@ -57,7 +57,7 @@ class HandControl(QWidget):
     # ------------------------------------------------------------------ state
     def set_push(self, push_n: float, *, emit: bool = True) -> None:
         """Set the push (clamped to 0..78 N); ``emit``: tell the session."""
-        push = min(max(float(push_n), 0.0), MAX_HAND_N)
+        push = min(max(float(push_n), 0.0), HAND_MAX_N)
         changed = push != self.push_n or self.retracting
         self.push_n = push
         self.retracting = False
