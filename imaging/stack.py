@@ -10,11 +10,17 @@ IOP normal, mm). The *nominal step* is the median of the steps ``p_{k+1} - p_k``
 - A stack is **regular** when one (4, 4) affine with the nominal step places every slice within
   :data:`AFFINE_TOL_MM` (and within STEP_RTOL of a step) of its true position; only then is
   ``affine_lps`` a true description of the whole stack (``ctdrill inspect`` says ``regular``).
+
+Importing this module loads no NumPy (the functions import it): the CLI's help quotes
+:data:`GAP_FACTOR`.
 """
 
 from __future__ import annotations
 
-import numpy as np
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
 
 #: Relative tolerance on a slice step before it counts as irregular.
 STEP_RTOL = 0.01
@@ -26,17 +32,23 @@ AFFINE_TOL_MM = 0.01
 
 
 def _steps(positions_mm: np.ndarray) -> np.ndarray:
+    import numpy as np
+
     return np.diff(np.asarray(positions_mm, dtype=np.float64).reshape(-1))
 
 
 def nominal_step_mm(positions_mm: np.ndarray) -> float:
     """Median slice step, mm (signed as the positions run; 0.0 for fewer than 2 slices)."""
+    import numpy as np
+
     steps = _steps(positions_mm)
     return float(np.median(steps)) if steps.size else 0.0
 
 
 def irregular_steps(positions_mm: np.ndarray) -> np.ndarray:
     """(S-1,) bool: step ``k -> k+1`` differs from the nominal step by more than STEP_RTOL."""
+    import numpy as np
+
     steps = _steps(positions_mm)
     if steps.size == 0:
         return np.zeros(0, dtype=bool)
@@ -47,6 +59,8 @@ def irregular_steps(positions_mm: np.ndarray) -> np.ndarray:
 
 def wide_steps(positions_mm: np.ndarray) -> np.ndarray:
     """(S-1,) bool: step ``k -> k+1`` is wider than GAP_FACTOR nominal steps (a drill gap)."""
+    import numpy as np
+
     steps = _steps(positions_mm)
     if steps.size == 0:
         return np.zeros(0, dtype=bool)
@@ -57,6 +71,8 @@ def wide_steps(positions_mm: np.ndarray) -> np.ndarray:
 
 def affine_residual_mm(positions_mm: np.ndarray) -> float:
     """Largest distance between ``p_k`` and ``p_0 + k * nominal step``, mm (0 for one slice)."""
+    import numpy as np
+
     pos = np.asarray(positions_mm, dtype=np.float64).reshape(-1)
     if pos.size < 2:
         return 0.0
@@ -76,6 +92,8 @@ def piecewise_linear(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.ndarra
 
     NaN stays NaN and infinities stay infinite (so such points remain outside any hull).
     """
+    import numpy as np
+
     xv = np.asarray(x, dtype=np.float64)
     out = np.asarray(np.interp(xv, xp, fp), dtype=np.float64)
     if xp.size < 2:

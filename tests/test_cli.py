@@ -85,6 +85,7 @@ LIGHT_FIRST_PARTY = {
     "ctdrill.imaging.errors",
     "ctdrill.imaging.phantom",
     "ctdrill.imaging.phantom.classes",
+    "ctdrill.imaging.stack",
     "ctdrill.lazy",
     "ctdrill.model",
     "ctdrill.model.errors",

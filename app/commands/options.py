@@ -1,10 +1,13 @@
-"""Options several commands share, defined once (standard library only: ``--help`` stays light)."""
+"""Options several commands share, defined once (standard library and numpy-free rules only:
+``--help`` stays light)."""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from ctdrill.imaging.stack import GAP_FACTOR
 
 if TYPE_CHECKING:
     from ctdrill.imaging.plan.implants import ImplantSpec
@@ -70,7 +73,8 @@ def add_interpolate_gaps_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--interpolate-gaps",
         action="store_true",
-        help="interpolate HU across slice gaps (steps over 1.5 x the nominal slice step) the "
+        help=f"interpolate HU across slice gaps (steps over {GAP_FACTOR:g} x the nominal slice "
+        "step) the "
         "drill crosses, instead of refusing; summary.json then states them (interpolated_gaps) "
         "with warning gap_interpolated",
     )

@@ -26,7 +26,7 @@ VIEW_AXIS: dict[str, tuple[int, str]] = {
 }
 #: Two plane families are parallel when their unit normals differ by less than this.
 PARALLEL_TOL = 1e-6
-#: A position within this distance of a voxel plane is on it, mm.
+#: A position within this distance of a plane is on it, mm (voxel planes, a measurement's ends).
 ON_PLANE_MM = 1e-6
 #: Window/level change per pixel of a drag, HU.
 WL_HU_PER_PX = 4.0

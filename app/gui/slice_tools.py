@@ -18,13 +18,12 @@ from typing import Any, Protocol
 import numpy as np
 
 from ctdrill.app.gui.sections import in_plane_distance_mm
+from ctdrill.app.gui.slice_nav import ON_PLANE_MM
 from ctdrill.app.gui.slice_scene import OverlayScene
 from ctdrill.app.gui.slices import SliceImage
 
 #: Pick radius for a handle, an arch vertex or segment, display pixels.
 PICK_PX = 10.0
-#: A measured end lies on the shown plane when within this distance of it, mm.
-ON_PLANE_MM = 1e-6
 MEASURE_COLOUR = "#80ff80"
 
 
