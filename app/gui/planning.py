@@ -17,6 +17,7 @@ from ctdrill.app.errors import AppInputError
 from ctdrill.app.gui.results import PathView, binding_index, plan_violation
 from ctdrill.app.gui.scene import CandidateLine, LandmarkGeometry, SceneInput
 from ctdrill.imaging.plan.landmarks import (
+    DEFAULT_CANAL_RADIUS_MM,
     CanalLandmark,
     Landmark,
 )
@@ -60,7 +61,11 @@ def set_landmark_margin(plan: Plan, index: int, margin_mm: float | None) -> Plan
 
 
 def add_canal_point(
-    plan: Plan, point_lps: np.ndarray, *, name: str = "canal", radius_mm: float = 1.2
+    plan: Plan,
+    point_lps: np.ndarray,
+    *,
+    name: str = "canal",
+    radius_mm: float = DEFAULT_CANAL_RADIUS_MM,
 ) -> Plan:
     """Append a point to the canal called ``name`` (creating it if missing).
 

@@ -37,6 +37,7 @@ from ctdrill.imaging.phantom.field import (
     streak_hu,
     voxel_centres_lps,
 )
+from ctdrill.imaging.plan.clinical import CLINICAL_MARGIN_MM
 from ctdrill.imaging.plan.implants import load_implant_library
 
 __all__ = [
@@ -275,7 +276,7 @@ def make_mandible_phantom(
     hu = np.clip(np.rint(field_hu), HU_MIN, HU_MAX).astype(np.int16)
 
     centerline = _canal_centerline(geom, affine, dims)
-    margin_mm = 2.0
+    margin_mm = CLINICAL_MARGIN_MM
     max_safe = geom.half_height_mm - geom.canal_w_mm - geom.canal_radius_mm - margin_mm
     planned_depth = round(max_safe + 1.2, 6)
     entry = np.array([site_x, site_y, geom.crest_z_mm])
