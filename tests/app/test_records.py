@@ -108,7 +108,10 @@ def _dead_pid() -> int:
 def test_leftovers_of_dead_writers_are_cleaned_live_ones_kept_old_restored(tmp_path: Path) -> None:
     out = tmp_path / "out"
     dead = _dead_pid()
-    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    # alive until killed (it waits for its stdin), however long the test takes
+    sleeper = subprocess.Popen(
+        [sys.executable, "-c", "import sys; sys.stdin.read()"], stdin=subprocess.PIPE
+    )
     try:
         stale = tmp_path / f".out.ctdrill-new-{dead}-00aa"
         live = tmp_path / f".out.ctdrill-new-{sleeper.pid}-00bb"
@@ -167,21 +170,28 @@ def test_kill_9_at_random_moments_leaves_the_old_or_the_new_folder_whole(tmp_pat
     n_files, size = 12, 400_000  # 4.8 MB per generation
     rng = random.Random(15)
     gen, kills, seen = 0, 0, set()
-    for _ in range(14):
+    # Each writer is killed after it reports ``done`` finished generations (an event, read from
+    # its output) and a random moment more: during start-up, a write, a swap or a clean-up.
+    plan = [rng.choice((0, 1, 1, 2)) for _ in range(14)]
+    for done in plan:
         proc = subprocess.Popen(
             [sys.executable, "-c", WRITER, str(out), str(n_files), str(size), str(gen)],
             stdout=subprocess.PIPE,
             text=True,
         )
-        time.sleep(rng.uniform(0.05, 1.2))
-        assert proc.poll() is None, "the writer died on its own"
+        assert proc.stdout is not None
+        for _ in range(done):
+            line = proc.stdout.readline()
+            assert line.strip().isdigit(), f"the writer died on its own: {proc.communicate()}"
+        time.sleep(rng.uniform(0.0, 0.4))
         proc.send_signal(signal.SIGKILL)
         proc.communicate()
         kills += 1
         if out.exists():
             gen = _check_whole(out, n_files, size)
             seen.add(gen)
-    assert kills == 14 and len(seen) >= 3, seen  # the writer completed several generations
+    # every writer that reported a generation left a newer whole one than the writer before
+    assert kills == 14 and len(seen) >= sum(d > 0 for d in plan), (seen, plan)
     # the next write cleans every leftover of the killed writers
     names = {f"force{i}.csv" for i in range(n_files)} | {"summary.json"}
     with atomic_output_dir(out, owned_names=names) as stage:

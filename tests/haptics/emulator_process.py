@@ -5,9 +5,15 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
+
+from ctdrill.haptics.device import TelemetrySample
+from ctdrill.haptics.protocol import OperatorKind
+from ctdrill.haptics.serial_device import SerialDevice
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "assets" / "demo"
@@ -64,3 +70,61 @@ def emulator_on_pty(link: Path) -> Iterator[Path]:
     """:func:`emulator_process`, yielding the link."""
     with emulator_process(link):
         yield link
+
+
+#: How long a wait for the device may run before the test fails as hung, s of wall time (a
+#: guard only: every check counts device ticks).
+HANG_GUARD_S = 30.0
+
+
+@dataclass
+class Beats:
+    """Telemetry received while the host beat, and the host's largest gap between heartbeats
+    (s of its own clock): a gap near the 50 ms watchdog trips the device legitimately."""
+
+    samples: list[TelemetrySample] = field(default_factory=list)
+    max_gap_s: float = 0.0
+
+    def span_ticks(self) -> int:
+        """Device ticks between the first and the last sample."""
+        return self.samples[-1].tick - self.samples[0].tick if self.samples else 0
+
+
+def beat(
+    dev: SerialDevice,
+    force_n: float,
+    ticks: int,
+    until: Callable[[list[TelemetrySample]], bool] = lambda _s: True,
+) -> Beats:
+    """Heartbeat and push ``force_n`` every 10 ms until the telemetry spans ``ticks`` device
+    ticks and ``until(samples)`` holds: waits counted in device time, which a loaded host slows
+    down together with the device, never in wall time."""
+    out = Beats()
+    guard = time.monotonic() + HANG_GUARD_S
+    last = time.monotonic()
+    while not (out.span_ticks() >= ticks and until(out.samples)):
+        if time.monotonic() > guard:
+            states = sorted({s.state for s in out.samples[-50:]})
+            raise AssertionError(
+                f"no {ticks} ticks of telemetry meeting the condition within {HANG_GUARD_S} s "
+                f"(got {out.span_ticks()} ticks, last states {states}, host gap "
+                f"{out.max_gap_s * 1e3:.0f} ms)"
+            )
+        dev.heartbeat()
+        now = time.monotonic()
+        out.max_gap_s, last = max(out.max_gap_s, now - last), now
+        dev.set_operator(int(OperatorKind.PUSH), force_n)
+        dev.wait(0.01)
+        out.samples += dev.poll()
+    return out
+
+
+def silent(dev: SerialDevice, until: Callable[[list[TelemetrySample]], bool]) -> list:
+    """Telemetry read without sending anything, until ``until(samples)`` holds."""
+    samples: list[TelemetrySample] = []
+    guard = time.monotonic() + HANG_GUARD_S
+    while not until(samples):
+        assert time.monotonic() < guard, f"the device did not get there within {HANG_GUARD_S} s"
+        dev.wait(0.01)
+        samples += dev.poll()
+    return samples

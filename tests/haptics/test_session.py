@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
-import time
+import math
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -140,15 +142,30 @@ def test_bad_duration() -> None:
         run_session(SimulatedDevice(), TABLE, parse_operator("push:1"), 0.0)
 
 
+class _CountingRows(tuple[tuple[float, float], ...]):
+    """A script's rows that count how many times a row is read."""
+
+    reads = 0
+
+    def __getitem__(self, index: Any) -> Any:
+        type(self).reads += 1
+        return super().__getitem__(index)
+
+
 def test_a_long_script_costs_log_time_per_block(tmp_path: Path) -> None:
-    # 200 000 rows (a 1M-row script made the host's 10 ms blocks late: a linear scan per block)
+    # 200 000 rows (a 1M-row script made the host's 10 ms blocks late: a linear scan per block):
+    # each lookup reads O(log n) rows, counted (not timed)
+    n = 200_000
     script = tmp_path / "long.csv"
-    script.write_text(
-        "time_s,force_n\n" + "".join(f"{i * 1e-3:.3f},{i % 50}\n" for i in range(200_000))
-    )
+    script.write_text("time_s,force_n\n" + "".join(f"{i * 1e-3:.3f},{i % 50}\n" for i in range(n)))
     op = parse_operator(f"script:{script}")
-    start = time.perf_counter()
-    values = [op.force_at_n(t) for t in (0.0005, 99.9995, 150.0, 199.9994, 250.0)]
-    assert time.perf_counter() - start < 0.01
+    op = replace(op, script=_CountingRows(op.script))
+    values, reads = [], []
+    for t in (0.0005, 99.9995, 150.0, 199.9994, 250.0):
+        _CountingRows.reads = 0
+        values.append(op.force_at_n(t))
+        reads.append(_CountingRows.reads)
+    # a binary search reads ceil(log2(n + 1)) rows, then the two it interpolates between
+    assert max(reads) <= math.ceil(math.log2(n + 1)) + 4, reads
     # row i: (i ms, i % 50 N), linear between rows, held after the last (199.999 s, 49 N)
     assert values == pytest.approx([0.5, 24.5, 0.0, 49.0, 49.0])

@@ -34,7 +34,6 @@ from ctdrill.haptics.protocol import (
     Message,
     Nak,
     NakReason,
-    OperatorKind,
     Packet,
     Telemetry,
     encode,
@@ -42,7 +41,7 @@ from ctdrill.haptics.protocol import (
 from ctdrill.haptics.renderer import WATCHDOG_S
 from ctdrill.haptics.serial_device import SerialDevice
 from ctdrill.haptics.sim import SimLink
-from tests.haptics.emulator_process import ROOT, demo_rehearsal, emulator_process
+from tests.haptics.emulator_process import ROOT, beat, demo_rehearsal, emulator_process
 from tests.haptics.wire import Wire
 
 SLAB = ProfileTable.slab(s0_n=4.0, top_mm=0.0, bottom_mm=30.0, stop_depth_mm=20.0)
@@ -52,17 +51,17 @@ def _rehearse_args(out: Path, *extra: str, duration: str = "2") -> list[str]:
     return demo_rehearsal(out, "push:20", duration, *extra)
 
 
-def _armed_pushing(dev: SerialDevice, seconds: float, force_n: float = 20.0) -> None:
+def _armed_pushing(dev: SerialDevice, ticks: int, force_n: float = 20.0) -> None:
+    """Arm and push for ``ticks`` of device time; the device is then cutting."""
     dev.hello()
     dev.upload_profile(SLAB)
     dev.arm()
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        dev.heartbeat()
-        dev.set_operator(int(OperatorKind.PUSH), force_n)
-        dev.wait(0.01)
-    samples = dev.poll()
-    assert samples and samples[-1].state == DeviceState.CUTTING and samples[-1].force_cmd_n > 5.0
+    pushed = beat(dev, force_n, ticks)
+    last = pushed.samples[-1]
+    assert last.state == DeviceState.CUTTING and last.force_cmd_n > 5.0, (
+        last,
+        f"the host's largest heartbeat gap {pushed.max_gap_s:.3f} s (watchdog {WATCHDOG_S} s)",
+    )
 
 
 def _telemetry(data: bytes) -> list[Telemetry]:
@@ -263,7 +262,7 @@ def test_a_looped_back_pty_line_never_keeps_the_device_rendering(tmp_path: Path)
     with emulator_process(tmp_path / "dev") as proc:
         dev = SerialDevice(str(tmp_path / "dev"))
         try:
-            _armed_pushing(dev, 0.3)
+            _armed_pushing(dev, 3000)
             port = dev.transport.port  # the host is gone; its port echoes the device
             seen = b""
             end = time.monotonic() + 20.0
@@ -310,7 +309,7 @@ def test_a_replayed_heartbeat_over_a_pty_does_not_keep_it_armed(tmp_path: Path) 
     with emulator_process(tmp_path / "dev"):
         dev = SerialDevice(str(tmp_path / "dev"))
         try:
-            _armed_pushing(dev, 0.3)
+            _armed_pushing(dev, 3000)
             beat = encode(Heartbeat(), seq=dev._seq, session=dev.session)  # the last one sent
             tel = dev.poll()
             first = tel[-1].tick if tel else 0
@@ -419,13 +418,18 @@ def test_a_killed_host_leaves_no_force_and_the_previous_session(tmp_path: Path) 
         _wait_armed(out)
         host.kill()
         host.wait(timeout=10)
-        time.sleep(0.1)  # the watchdog's 50 ms, and then some
         dev = SerialDevice(str(link))  # read the device's own telemetry, no HELLO
         try:
-            time.sleep(0.05)
-            tel = _telemetry(dev.transport.read())
+            # until it has been safe for AFTER_TICKS of device time (the watchdog's 50 ms and
+            # more, however slowly a loaded host runs the emulator)
+            seen, tel = b"", []
+            end = time.monotonic() + 20.0
+            while time.monotonic() < end and not _safe_for(tel, AFTER_TICKS):
+                dev.wait(0.01)
+                seen += dev.transport.read()
+                tel = _telemetry(seen)
         finally:
             dev.close()
-    assert tel and all(t.state == DeviceState.SAFE and t.force_cmd_n == 0.0 for t in tel[-20:])
+    assert _safe_for(tel, AFTER_TICKS)  # every sample since the first safe one: no force
     assert tel[-1].faults & Fault.WATCHDOG
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # untouched

@@ -95,7 +95,17 @@ def test_the_series_tab_shows_every_warning_whole(
     box = panel.warnings_list
     for width in (900, 340):  # wide, then as narrow as the tab gets
         window.tabs.setFixedWidth(width)
-        qtbot.wait(100)
+
+        def laid_out(width: int = width) -> bool:
+            """The list has taken the tab's new width and wrapped its items to it."""
+            view_w = box.viewport().width()
+            return view_w <= width and all(
+                box.visualItemRect(box.item(row)).width() <= view_w
+                and box.visualItemRect(box.item(row)).height() >= box.text_height(row)
+                for row in range(box.count())
+            )
+
+        qtbot.waitUntil(laid_out, timeout=10_000)  # the layout runs on the event loop
         assert box.count() == len(warnings)
         view_w = box.viewport().width()
         for row in range(box.count()):
