@@ -71,6 +71,10 @@ class SessionResult:
     final_hand_est_n: float | None = None
     #: How the handle a previous session left deep was retracted before ARM (None: it was not).
     retraction: dict[str, float] | None = None
+    #: The longest interval between two heartbeats the host sent, s (host clock): near the
+    #: device's watchdog it says the host itself was late (a machine too busy to run it),
+    #: beyond it with an injected ``delay`` or ``link-loss``.
+    max_heartbeat_gap_s: float = 0.0
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dict."""
@@ -93,6 +97,7 @@ class SessionResult:
             "final_force_cmd_n": self.final_force_cmd_n,
             "final_hand_est_n": self.final_hand_est_n,
             "retraction": self.retraction,
+            "max_heartbeat_gap_s": self.max_heartbeat_gap_s,
         }
 
 
@@ -128,6 +133,7 @@ class _Loop:
         self.rate_first: tuple[int, float] | None = None
         self.rate_last: tuple[int, float] | None = None
         self.watch: TelemetryWatch | None = None
+        self.last_beat_s: float | None = None
 
     def now(self) -> float:
         return self.device.clock_s() - self.start
@@ -167,6 +173,11 @@ class _Loop:
         self.held.clear()
         self.device.heartbeat()
         self.device.set_operator(kind, value)
+        beat_s = self.device.clock_s()
+        if self.last_beat_s is not None:
+            gap = beat_s - self.last_beat_s
+            self.result.max_heartbeat_gap_s = max(self.result.max_heartbeat_gap_s, gap)
+        self.last_beat_s = beat_s
 
     def take(self, samples: list[TelemetrySample]) -> None:
         """Log a block's telemetry: rows to the sink, maxima, raised flags."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import functools
 import importlib
 import json
 import subprocess
@@ -197,6 +198,7 @@ def _imports(path: Path, known: set[str], name: str | None = None) -> set[str]:
     return deps
 
 
+@functools.cache
 def _import_graph() -> dict[str, set[str]]:
     modules = _first_party_modules()
     known = set(modules)

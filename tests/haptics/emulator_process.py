@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import signal
 import subprocess
 import sys
@@ -12,7 +13,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ctdrill.haptics.device import TelemetrySample
-from ctdrill.haptics.protocol import OperatorKind
+from ctdrill.haptics.protocol import DeviceState, Fault, OperatorKind
+from ctdrill.haptics.realtime import RESYNC_S
+from ctdrill.haptics.renderer import WATCHDOG_S
 from ctdrill.haptics.serial_device import SerialDevice
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -38,11 +41,12 @@ def demo_rehearsal(out: Path, operator: str, duration_s: str, *extra: str) -> li
 
 
 @contextmanager
-def emulator_process(link: Path) -> Iterator[subprocess.Popen[str]]:
+def emulator_process(link: Path, *, killed: bool = False) -> Iterator[subprocess.Popen[str]]:
     """Run the device emulator linked at ``link`` (a serial port stand-in); yield its process.
 
     On exit it is stopped with SIGTERM (after SIGCONT, should a test have frozen it) and must
-    end cleanly: exit code 0, its closing report on stderr, and the link removed.
+    end cleanly: exit code 0, its closing report on stderr, and the link removed (unless the
+    case ``killed`` it).
     """
     proc = subprocess.Popen(
         [sys.executable, "-m", "ctdrill.app.cli", "emulate", "--pty-link", str(link)],
@@ -57,9 +61,12 @@ def emulator_process(link: Path) -> Iterator[subprocess.Popen[str]]:
         assert line.startswith(f"emulating on {link} -> /dev/pts/"), line
         yield proc
     finally:
-        proc.send_signal(signal.SIGCONT)
-        proc.send_signal(signal.SIGTERM)
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGCONT)
+            proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=10)
+    if killed:
+        return
     assert proc.returncode == 0, err
     assert "emulator stopped" in err
     assert not link.exists() and not link.is_symlink()  # the link is cleaned up
@@ -75,6 +82,45 @@ def emulator_on_pty(link: Path) -> Iterator[Path]:
 #: How long a wait for the device may run before the test fails as hung, s of wall time (a
 #: guard only: every check counts device ticks).
 HANG_GUARD_S = 30.0
+#: The longest host heartbeat gap that cannot trip the device's watchdog: the emulator reads the
+#: host's bytes within :data:`~ctdrill.haptics.realtime.RESYNC_S` of their arrival (a longer
+#: stall of its own slips its clock), so a device-time gap over the watchdog needs a host gap
+#: over ``WATCHDOG_S - RESYNC_S``.
+HOST_ON_TIME_S = WATCHDOG_S - RESYNC_S
+#: Runs of a real-time case before a host too busy to keep its heartbeats fails it.
+REAL_TIME_ATTEMPTS = 3
+
+
+class HostLate(Exception):
+    """The host (this test, or the rehearsal it runs) was starved past the device's watchdog:
+    the device went safe, as it must, and the run says nothing about the link. Run again."""
+
+
+def host_late(tripped: bool, max_gap_s: float) -> bool:
+    """A watchdog trip that the host's own heartbeat gap explains."""
+    return tripped and max_gap_s > HOST_ON_TIME_S
+
+
+def with_fresh_emulator(
+    tmp_path: Path,
+    case: Callable[[Path, subprocess.Popen[str]], None],
+    *,
+    killed: bool = False,
+) -> None:
+    """Run ``case(link, emulator process)`` against a new emulator, again (at most
+    :data:`REAL_TIME_ATTEMPTS` times) when it raises :class:`HostLate`: on a loaded machine a
+    real-time case may lose a run to the scheduler, never to a bug (a trip with the host on
+    time fails at once). ``killed``: the case kills the emulator (no clean exit expected)."""
+    late: list[str] = []
+    for attempt in range(REAL_TIME_ATTEMPTS):
+        link = tmp_path / f"ctdrill-device-{attempt}"
+        try:
+            with emulator_process(link, killed=killed) as proc:
+                case(link, proc)
+            return
+        except HostLate as exc:
+            late.append(str(exc))
+    raise AssertionError(f"the host was late in every run: {late}")
 
 
 @dataclass
@@ -95,10 +141,13 @@ def beat(
     force_n: float,
     ticks: int,
     until: Callable[[list[TelemetrySample]], bool] = lambda _s: True,
+    *,
+    trip_expected: bool = False,
 ) -> Beats:
     """Heartbeat and push ``force_n`` every 10 ms until the telemetry spans ``ticks`` device
     ticks and ``until(samples)`` holds: waits counted in device time, which a loaded host slows
-    down together with the device, never in wall time."""
+    down together with the device, never in wall time. A watchdog trip that the host's own
+    heartbeat gap explains raises :class:`HostLate` unless ``trip_expected``."""
     out = Beats()
     guard = time.monotonic() + HANG_GUARD_S
     last = time.monotonic()
@@ -116,6 +165,15 @@ def beat(
         dev.set_operator(int(OperatorKind.PUSH), force_n)
         dev.wait(0.01)
         out.samples += dev.poll()
+        tripped = any(  # the watchdog tripped during this beat
+            a.state != DeviceState.SAFE
+            and b.state == DeviceState.SAFE
+            and b.faults & Fault.WATCHDOG
+            for a, b in itertools.pairwise(out.samples)
+        )
+        gap = max(out.max_gap_s, time.monotonic() - last)  # the beat not yet sent counts
+        if not trip_expected and host_late(tripped, gap):
+            raise HostLate(f"heartbeat gap {gap * 1e3:.0f} ms")
     return out
 
 

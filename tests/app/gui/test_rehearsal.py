@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
-from collections.abc import Iterator
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +20,7 @@ from ctdrill.imaging.phantom.io import PhantomCase
 from ctdrill.imaging.plan.load import load_plan
 from ctdrill.model import load_calibration
 from tests.app.gui.helpers import open_case
-from tests.haptics.emulator_process import emulator_on_pty
+from tests.haptics.emulator_process import HostLate, host_late, with_fresh_emulator
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
 
@@ -182,16 +182,9 @@ def test_a_silent_serial_device_is_reported_and_the_panel_recovers(
     assert panel.connect_button.isEnabled() and not panel.stop_button.isEnabled()
 
 
-@pytest.fixture
-def emulator_link(tmp_path: Path) -> Iterator[Path]:
-    """``ctdrill emulate`` on a pseudo-terminal linked at a path (a serial port stand-in)."""
-    with emulator_on_pty(tmp_path / "ctdrill-device") as link:
-        yield link
-
-
-@pytest.mark.timeout(90)
+@pytest.mark.timeout(240)
 def test_rehearsal_over_a_serial_port_reaches_the_auto_stop(
-    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase, emulator_link: Path
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase, tmp_path: Path
 ) -> None:
     open_case(qtbot, window, phantom_case)
     panel = window.rehearsal
@@ -199,17 +192,26 @@ def test_rehearsal_over_a_serial_port_reaches_the_auto_stop(
     # about 1 s of device time even when a busy machine makes the emulator's clock slip.
     panel.duration_s = 20.0
     panel.hand.set_push(30.0)
-    panel.device.addItem(f"serial:{emulator_link}")
-    panel.device.setCurrentText(f"serial:{emulator_link}")
-    with qtbot.waitSignal(panel.finished, timeout=60_000):
-        panel.start()
-    run = panel.run
-    assert run is not None and run.error == "" and run.session is not None
-    stop = window.view.curves.stop_depth_mm if window.view is not None else np.nan
-    drill = np.array([r[2] for r in run.rows])
-    states = [r[4] for r in run.rows]
-    assert "stopped" in states
-    assert drill.max() == pytest.approx(stop, abs=0.05)
-    assert run.session["tick_rate_hz"] > 1000.0
-    assert run.session["final_state"] == "stopped"  # ended at the auto-stop, not at 20 s
-    assert run.rows[-1][0] < run.rows[states.index("stopped")][0] + 0.5
+
+    def case(link: Path, _emulator: subprocess.Popen[str]) -> None:
+        panel.device.addItem(f"serial:{link}")
+        panel.device.setCurrentText(f"serial:{link}")
+        with qtbot.waitSignal(panel.finished, timeout=60_000):
+            panel.start()
+        run = panel.run
+        assert run is not None and run.session is not None, None if run is None else run.error
+        # the host process starved past the watchdog (a loaded machine): a fresh run
+        reason, gap = run.session["reason"] or "", run.session["max_heartbeat_gap_s"]
+        if host_late("raised watchdog" in reason, gap):
+            raise HostLate(f"{reason} (host heartbeat gap {gap * 1e3:.0f} ms)")
+        assert run.error == ""
+        stop = window.view.curves.stop_depth_mm if window.view is not None else np.nan
+        drill = np.array([r[2] for r in run.rows])
+        states = [r[4] for r in run.rows]
+        assert "stopped" in states
+        assert drill.max() == pytest.approx(stop, abs=0.05)
+        assert run.session["tick_rate_hz"] > 1000.0
+        assert run.session["final_state"] == "stopped"  # ended at the auto-stop, not at 20 s
+        assert run.rows[-1][0] < run.rows[states.index("stopped")][0] + 0.5
+
+    with_fresh_emulator(tmp_path, case)
