@@ -13,6 +13,7 @@ from PySide6.QtWidgets import QSizePolicy, QWidget
 
 from ctdrill.app.readout import GAUGE_FORCES
 from ctdrill.haptics.renderer import CONTINUOUS_FORCE_N
+from ctdrill.imaging.plan.clinical import CLINICAL_MARGIN_MM
 
 #: Colours of the gauge's forces (:data:`ctdrill.app.readout.GAUGE_FORCES`).
 FORCE_COLOURS = {"hand": "#1e88e5", "cutting": "#2e7d32", "wall": "#c62828"}
@@ -84,7 +85,7 @@ class DepthGauge(QWidget):
         self.setMinimumSize(150, 230)
         self.depth_mm = np.zeros(0)
         self.clearance_mm = np.zeros(0)
-        self.margin_mm = 2.0
+        self.margin_mm = CLINICAL_MARGIN_MM  # until set_path gives the plan's
         self.planned_mm = 0.0
         self.stop_mm = 0.0
         self.drill_mm = 0.0

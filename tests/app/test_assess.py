@@ -146,14 +146,22 @@ def test_bad_input_is_one_error_line_and_nothing_is_lost(
     other = _variant(real_session, tmp_path / "other", "2030-01-02T00:00:00+00:00")
     assert _assess(other, old, "--db", db, "--trainee", "carol") == 2
     assert "no assessment" in _one_error(capsys) and _rows(db) == before
-    # locked by another program: refused within the lock timeout
+    # locked by another program: refused once the lock timeout it gives SQLite has passed
+    # (the timeout is read from the connection made, not timed: a loaded host is slower)
     monkeypatch.setattr(record_module, "LOCK_TIMEOUT_S", 0.2)
     holder = sqlite3.connect(db, isolation_level=None)
     holder.execute("BEGIN EXCLUSIVE")
+    timeouts: list[float] = []
+    connect = sqlite3.connect
+
+    def recording_connect(*args: Any, **kwargs: Any) -> sqlite3.Connection:
+        timeouts.append(kwargs.get("timeout", 5.0))  # 5.0: sqlite3's own default
+        return connect(*args, **kwargs)
+
+    monkeypatch.setattr(record_module.sqlite3, "connect", recording_connect)
     try:
-        start = time.monotonic()
         assert _assess(other, "--db", db, "--trainee", "carol") == 2
-        assert time.monotonic() - start < 5.0
+        assert timeouts and set(timeouts) == {0.2}
         assert "locked" in _one_error(capsys)
     finally:
         holder.execute("ROLLBACK")
@@ -187,14 +195,14 @@ def test_bad_input_is_one_error_line_and_nothing_is_lost(
 
 
 KILLED_MID_TRANSACTION = """
-import pathlib, sys, time
+import pathlib, sys, threading
 from ctdrill.app.trainee import record
 store_trace = record.TraineeRecord._store_trace
 
 def stall(self, cur, key, trace):
     store_trace(self, cur, key, trace)  # the row and its trace written, not committed
     pathlib.Path(sys.argv[1]).write_text("in the transaction")
-    time.sleep(120)
+    threading.Event().wait()  # until killed, however long the test takes to do it
 
 record.TraineeRecord._store_trace = stall
 from ctdrill.app.cli import main

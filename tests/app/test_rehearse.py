@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import csv
+import itertools
 import json
+import subprocess
 from pathlib import Path
 
 import pytest
 
 from ctdrill.app.cli import main
-from tests.haptics.emulator_process import emulator_on_pty
+from ctdrill.haptics.tick import TICK_HZ
+from tests.haptics.emulator_process import HostLate, host_late, with_fresh_emulator
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "assets" / "demo"
@@ -146,14 +149,24 @@ def test_bad_input_is_one_error_line_and_exit_2(
     assert "Traceback" not in err
 
 
-@pytest.mark.timeout(60)
+@pytest.mark.timeout(180)
 def test_rehearse_over_a_serial_link_to_the_emulator(tmp_path: Path) -> None:
-    out = tmp_path / "out"
-    with emulator_on_pty(tmp_path / "dev") as link:
-        assert _rehearse(out, "--device", f"serial:{link}", duration="1") == 0
-    summary = json.loads((out / "summary.json").read_text())
-    rows = _rows(out / "session.csv")
-    assert len(rows) > 300  # real time: about 1000 rows, fewer if the machine is busy
-    assert summary["max_drill_mm"] <= summary["stop_depth_mm"]
-    assert 5_000.0 < summary["tick_rate_hz"] < 15_000.0  # device time keeps up with real time
-    assert summary["device"] == f"serial:{link}"
+    def case(link: Path, _emulator: subprocess.Popen[str]) -> None:
+        out = link.with_name(f"{link.name}-out")
+        code = _rehearse(out, "--device", f"serial:{link}", duration="1")
+        summary = json.loads((out / "summary.json").read_text())
+        reason, gap = summary["reason"] or "", summary["max_heartbeat_gap_s"]
+        if host_late("raised watchdog" in reason, gap):  # a loaded machine starved this host
+            raise HostLate(f"{reason} (host heartbeat gap {gap * 1e3:.0f} ms)")
+        assert code == 0, reason
+        rows = _rows(out / "session.csv")
+        # real time: about 1000 rows of telemetry, fewer when a busy machine slows the
+        # emulator's clock; never one missing (1 kHz of device time) and never ahead of the
+        # host's clock by more than the emulator's catch-up of a stall
+        times = [float(r["time_s"]) for r in rows]
+        assert len(rows) > 1 and all(abs(b - a - 1e-3) < 1e-6 for a, b in itertools.pairwise(times))
+        assert summary["max_drill_mm"] <= summary["stop_depth_mm"]
+        assert 0.0 < summary["tick_rate_hz"] < 1.5 * TICK_HZ
+        assert summary["device"] == f"serial:{link}"
+
+    with_fresh_emulator(tmp_path, case)
