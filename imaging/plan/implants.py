@@ -43,7 +43,13 @@ from typing import Any, Protocol
 import numpy as np
 
 from ctdrill.imaging.errors import ImagingInputError
-from ctdrill.imaging.plan.drill_spec import DrillSpec
+from ctdrill.imaging.plan.drill_spec import (
+    PROTOCOL_DRILL_KEYS,
+    DrillSpec,
+    positive_finite,
+    protocol_error,
+    protocol_json,
+)
 from ctdrill.resources import asset
 from ctdrill.safeio import load_json
 
@@ -72,15 +78,6 @@ class ImplantInputError(ImagingInputError):
     """A bad implant or implant library; the message names the file and field."""
 
 
-def _finite_positive(value: object) -> bool:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return False
-    try:
-        return math.isfinite(float(value)) and float(value) > 0.0
-    except OverflowError:
-        return False
-
-
 def spec_error(
     name: object, diameter_mm: object, length_mm: object, apex_diameter_mm: object, apex: object
 ) -> tuple[str, str] | None:
@@ -92,7 +89,7 @@ def spec_error(
         ("length_mm", length_mm, MAX_IMPLANT_LENGTH_MM),
         ("apex_diameter_mm", apex_diameter_mm, MAX_IMPLANT_DIAMETER_MM),
     ):
-        if not _finite_positive(value):
+        if not positive_finite(value):
             return key, "must be a positive number (mm)"
         if not float(value) <= top:  # type: ignore[arg-type]
             return key, f"must be at most {top:g} mm (check the units)"
@@ -140,9 +137,7 @@ class ImplantSpec:
         for key in ("diameter_mm", "length_mm", "apex_diameter_mm"):
             object.__setattr__(self, key, float(getattr(self, key)))
         object.__setattr__(self, "drills", tuple(self.drills))
-        from ctdrill.imaging.plan.protocol import protocol_error  # it imports this module
-
-        bad = protocol_error(self.drills)
+        bad = protocol_error(self.drills, max_diameter_mm=MAX_IMPLANT_DIAMETER_MM)
         if bad is not None:
             raise ImplantInputError(f"implant {self.name!r}: {bad}")
 
@@ -167,8 +162,6 @@ class ImplantSpec:
             "apex": self.apex,
         }
         if self.drills:
-            from ctdrill.imaging.plan.protocol import protocol_json
-
             out[PROTOCOL_KEY] = protocol_json(self.drills)
         return out
 
@@ -230,14 +223,46 @@ def implant_from_json(raw: object, *, where: str, source: str) -> ImplantSpec:
         raise ImplantInputError(
             f"{source}: {where}.{problem[0]} {problem[1]}, got {raw[problem[0]]!r}"
         )
-    from ctdrill.imaging.plan.protocol import protocol_from_json
-
     drills = (
         protocol_from_json(raw[PROTOCOL_KEY], where=f"{where}.{PROTOCOL_KEY}", source=source)
         if PROTOCOL_KEY in raw
         else ()
     )
     return ImplantSpec(**{k: raw[k] for k in IMPLANT_KEYS}, drills=drills)
+
+
+def protocol_from_json(raw: object, *, where: str, source: str) -> tuple[DrillSpec, ...]:
+    """A drilling protocol (a non-empty list of ``{"diameter_mm", "tip_length_mm"}`` in
+    drilling order, diameters increasing), refused naming ``source: where[i].field``."""
+    if not isinstance(raw, list) or not raw:
+        raise ImplantInputError(
+            f"{source}: {where} must be a non-empty list of drills "
+            '({"diameter_mm": ..., "tip_length_mm": ...}) in drilling order'
+        )
+    out = []
+    for i, item in enumerate(raw):
+        fi = f"{where}[{i}]"
+        if not isinstance(item, dict):
+            raise ImplantInputError(f"{source}: {fi} must be a drill object, got {item!r}")
+        extra = sorted(set(item) - set(PROTOCOL_DRILL_KEYS))
+        if extra:
+            raise ImplantInputError(
+                f"{source}: {fi}.{extra[0]} is not a known field (known: "
+                f"{', '.join(PROTOCOL_DRILL_KEYS)})"
+            )
+        for key in PROTOCOL_DRILL_KEYS:
+            if key not in item:
+                raise ImplantInputError(f"{source}: {fi}.{key} is missing; add it")
+            if not positive_finite(item[key]):
+                raise ImplantInputError(
+                    f"{source}: {fi}.{key} must be a positive number (mm), got {item[key]!r}"
+                )
+        out.append(DrillSpec(float(item["diameter_mm"]), float(item["tip_length_mm"])))
+    drills = tuple(out)
+    problem = protocol_error(drills, max_diameter_mm=MAX_IMPLANT_DIAMETER_MM)
+    if problem is not None:
+        raise ImplantInputError(f"{source}: {where}{problem.removeprefix('drills')}")
+    return drills
 
 
 def read_library_file(path: str | os.PathLike[str]) -> tuple[ImplantSpec, ...]:

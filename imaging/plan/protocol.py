@@ -31,13 +31,8 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-from ctdrill.imaging.plan.drill_spec import DrillSpec, sequence_error
-from ctdrill.imaging.plan.implants import (
-    MAX_IMPLANT_DIAMETER_MM,
-    ImplantInputError,
-    ImplantSpec,
-    _finite_positive,
-)
+from ctdrill.imaging.plan.drill_spec import DrillSpec
+from ctdrill.imaging.plan.implants import ImplantSpec
 
 if TYPE_CHECKING:
     from ctdrill.imaging.plan.types import Plan
@@ -55,10 +50,6 @@ MAX_UNDERSIZE_MM = 0.8
 POINT_ANGLE_DEG = 120.0
 #: Generic diameters and tip lengths are rounded to this, mm.
 ROUND_MM = 0.1
-#: Keys of one drill of a protocol, both required.
-PROTOCOL_DRILL_KEYS = ("diameter_mm", "tip_length_mm")
-#: Largest accepted tip length of a protocol drill, mm (beyond: a unit error).
-MAX_PROTOCOL_TIP_MM = 5.0
 #: The warning code of a plan whose final drill does not suit its implant.
 MISMATCH_CODE = "final_drill_mismatch"
 #: The code of the note saying a plan drills its implant's protocol.
@@ -153,58 +144,3 @@ def final_drill_warnings(plan: Plan) -> list[tuple[str, str]]:
     else:
         return []
     return [(MISMATCH_CODE, head + what)]
-
-
-def protocol_error(drills: tuple[DrillSpec, ...]) -> str | None:
-    """What is wrong with a drilling protocol, starting with the field (``drills[1].diameter_mm
-    must ...``), or None; an empty protocol is valid (none given)."""
-    for i, d in enumerate(drills):
-        for key, value, top in (
-            ("diameter_mm", d.diameter_mm, MAX_IMPLANT_DIAMETER_MM),
-            ("tip_length_mm", d.tip_length_mm, MAX_PROTOCOL_TIP_MM),
-        ):
-            if not _finite_positive(value):
-                return f"drills[{i}].{key} must be a positive number (mm)"
-            if not float(value) <= top:
-                return f"drills[{i}].{key} must be at most {top:g} mm (check the units)"
-    problem = sequence_error(drills) if drills else None
-    return None if problem is None else "drills" + problem
-
-
-def protocol_json(drills: tuple[DrillSpec, ...]) -> list[dict[str, float]]:
-    """A protocol as implant objects write it: ``diameter_mm`` and ``tip_length_mm`` each."""
-    return [{"diameter_mm": d.diameter_mm, "tip_length_mm": d.tip_length_mm} for d in drills]
-
-
-def protocol_from_json(raw: object, *, where: str, source: str) -> tuple[DrillSpec, ...]:
-    """A drilling protocol (a non-empty list of ``{"diameter_mm", "tip_length_mm"}`` in
-    drilling order, diameters increasing), refused naming ``source: where[i].field``."""
-    if not isinstance(raw, list) or not raw:
-        raise ImplantInputError(
-            f"{source}: {where} must be a non-empty list of drills "
-            '({"diameter_mm": ..., "tip_length_mm": ...}) in drilling order'
-        )
-    out = []
-    for i, item in enumerate(raw):
-        fi = f"{where}[{i}]"
-        if not isinstance(item, dict):
-            raise ImplantInputError(f"{source}: {fi} must be a drill object, got {item!r}")
-        extra = sorted(set(item) - set(PROTOCOL_DRILL_KEYS))
-        if extra:
-            raise ImplantInputError(
-                f"{source}: {fi}.{extra[0]} is not a known field (known: "
-                f"{', '.join(PROTOCOL_DRILL_KEYS)})"
-            )
-        for key in PROTOCOL_DRILL_KEYS:
-            if key not in item:
-                raise ImplantInputError(f"{source}: {fi}.{key} is missing; add it")
-            if not _finite_positive(item[key]):
-                raise ImplantInputError(
-                    f"{source}: {fi}.{key} must be a positive number (mm), got {item[key]!r}"
-                )
-        out.append(DrillSpec(float(item["diameter_mm"]), float(item["tip_length_mm"])))
-    drills = tuple(out)
-    problem = protocol_error(drills)
-    if problem is not None:
-        raise ImplantInputError(f"{source}: {where}{problem.removeprefix('drills')}")
-    return drills
