@@ -29,7 +29,9 @@ from ctdrill.haptics.device import DeviceInfo, TelemetrySample
 from ctdrill.haptics.limits import silence_bound_s
 from ctdrill.haptics.plant import ENCODER_M
 from ctdrill.haptics.protocol import DeviceState, Fault
+from ctdrill.haptics.renderer import WATCHDOG_S
 from ctdrill.haptics.session import STATE_NAMES
+from ctdrill.haptics.tick import TICK_HZ
 
 #: Fault flags that end a session (the limits PEAK, THERMAL and TRAVEL are logged only).
 ABORT_FLAGS = int(Fault.WATCHDOG | Fault.NONFINITE | Fault.HOST_STOP | Fault.PROFILE_INVALID)
@@ -128,8 +130,8 @@ class TelemetryWatch:
         stop_depth_mm: float,
         clock_s: float,
         *,
-        watchdog_ms: int = 50,
-        tick_rate_hz: int = 10_000,
+        watchdog_ms: int = round(WATCHDOG_S * 1000),
+        tick_rate_hz: int = TICK_HZ,
         table_crc32: int | None = None,
     ) -> None:
         self.stop_depth_mm = stop_depth_mm

@@ -14,6 +14,7 @@ import itertools
 import json
 import os
 import subprocess
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -28,6 +29,7 @@ from ctdrill.haptics.tick import TICK_HZ
 from tests.haptics.emulator_process import (
     beat,
     demo_rehearsal,
+    emulator_on_pty,
     silent,
     with_fresh_emulator,
 )
