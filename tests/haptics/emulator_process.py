@@ -141,13 +141,11 @@ def beat(
     force_n: float,
     ticks: int,
     until: Callable[[list[TelemetrySample]], bool] = lambda _s: True,
-    *,
-    trip_expected: bool = False,
 ) -> Beats:
     """Heartbeat and push ``force_n`` every 10 ms until the telemetry spans ``ticks`` device
     ticks and ``until(samples)`` holds: waits counted in device time, which a loaded host slows
     down together with the device, never in wall time. A watchdog trip that the host's own
-    heartbeat gap explains raises :class:`HostLate` unless ``trip_expected``."""
+    heartbeat gap explains raises :class:`HostLate`."""
     out = Beats()
     guard = time.monotonic() + HANG_GUARD_S
     last = time.monotonic()
@@ -172,7 +170,7 @@ def beat(
             for a, b in itertools.pairwise(out.samples)
         )
         gap = max(out.max_gap_s, time.monotonic() - last)  # the beat not yet sent counts
-        if not trip_expected and host_late(tripped, gap):
+        if host_late(tripped, gap):
             raise HostLate(f"heartbeat gap {gap * 1e3:.0f} ms")
     return out
 
