@@ -104,7 +104,7 @@ def row_inputs(plan: Path, calibration: str | None) -> list[Path]:
     row's export then reports the same).
     """
     from ctdrill.app.pipeline import plan_calibration_key
-    from ctdrill.imaging.plan.types import load_plan_set
+    from ctdrill.imaging.plan.load import load_plan_set
     from ctdrill.model.calibration import resolve_calibration_path
 
     plans = load_plan_set([plan])

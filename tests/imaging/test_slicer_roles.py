@@ -14,14 +14,10 @@ from hypothesis import strategies as st
 
 from ctdrill.imaging.plan.arch import ARCH_MARKUP_NAME, is_arch_curve
 from ctdrill.imaging.plan.landmarks import CanalLandmark, PointLandmark
+from ctdrill.imaging.plan.load import load_plan_set
 from ctdrill.imaging.plan.slicer import MAX_CURVE_POINTS
-from ctdrill.imaging.plan.types import (
-    Plan,
-    PlanInputError,
-    load_plan_set,
-    plan_to_markups,
-    save_plan,
-)
+from ctdrill.imaging.plan.types import Plan, PlanInputError
+from ctdrill.imaging.plan.write import plan_to_markups, save_plan
 from tests.conftest import ASSETS
 from tests.imaging.slicer_files import slicer_control_point, slicer_document, slicer_markup
 from tests.robustness.outcomes import run_cli_in_process

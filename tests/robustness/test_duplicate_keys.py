@@ -21,7 +21,9 @@ from ctdrill.imaging.plan.implants import (
     ImplantInputError,
     load_implant_library,
 )
-from ctdrill.imaging.plan.types import PlanInputError, load_plan, plan_to_markups
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.types import PlanInputError
+from ctdrill.imaging.plan.write import plan_to_markups
 from ctdrill.model.calibration import CalibrationError, load_calibration
 from ctdrill.safeio import loads_json
 from tests.conftest import ASSETS

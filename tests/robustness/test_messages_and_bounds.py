@@ -27,15 +27,9 @@ from hypothesis import strategies as st
 
 from ctdrill.app.report.entries import MAX_DRAWN_TRAJECTORIES, drawn_entries, undrawn_note
 from ctdrill.app.report.views import MAX_NEIGHBOURS, NEIGHBOUR_MM, neighbours
-from ctdrill.imaging.plan.types import (
-    MAX_TRAJECTORIES,
-    Plan,
-    PlanInputError,
-    load_plan,
-    load_plan_set,
-    plan_to_markups,
-    write_plans,
-)
+from ctdrill.imaging.plan.load import load_plan, load_plan_set
+from ctdrill.imaging.plan.types import MAX_TRAJECTORIES, Plan, PlanInputError
+from ctdrill.imaging.plan.write import plan_to_markups, write_plans
 from ctdrill.numtext import number_text
 from tests.conftest import ASSETS
 from tests.robustness.outcomes import CliRun, error_line_problems, run_cli_in_process
