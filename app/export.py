@@ -33,9 +33,9 @@ from ctdrill.app.export_defaults import DEFAULT_RATE_HZ as DEFAULT_RATE_HZ
 from ctdrill.app.export_fields import hu_grading, implant_json, interpolated_gaps_json
 from ctdrill.app.fixedtext import fixed_csv
 from ctdrill.app.grey_option import grey_line
-from ctdrill.app.pipeline import PathResult
 from ctdrill.app.records import printable
 from ctdrill.app.text_progress import TextProgress as TextProgress
+from ctdrill.engine.path import PathResult
 from ctdrill.imaging.misch import misch_class
 from ctdrill.model.band import ForceBand, HuUncertainty
 from ctdrill.model.profile import force_series_n
@@ -254,7 +254,7 @@ def summary(
         "warnings": [{"code": w.code, "message": w.message} for w in result.warnings],
     }
     if result.inner_holes:  # a drill of a sequence: the holes its profile cut around
-        from ctdrill.app.sequence import hole_json
+        from ctdrill.engine.sequence import hole_json
 
         doc["inner_holes"] = [hole_json(h) for h in result.inner_holes]
     if patient is not None:

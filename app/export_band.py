@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.app.pipeline import PathResult
+from ctdrill.engine.path import PathResult
 from ctdrill.model.band import BAND_LEVEL, ForceBand, HuUncertainty, force_band, lip_sensitivity
 
 #: Largest --hu-sigma accepted, HU: beyond it the CT numbers carry no information.

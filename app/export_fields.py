@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ctdrill.app.pipeline import PathResult
+from ctdrill.engine.path import PathResult
 from ctdrill.imaging.misch import MISCH_CLASSES, misch_class
 
 #: Equal segments of the path the summary gives the mean HU of.

@@ -26,8 +26,8 @@ from typing import IO, TYPE_CHECKING
 
 import numpy as np
 
-from ctdrill.app.pipeline import PathResult
 from ctdrill.app.records import printable
+from ctdrill.engine.path import PathResult
 from ctdrill.imaging.misch import MISCH_BANDS_HU
 
 if TYPE_CHECKING:

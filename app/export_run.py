@@ -19,9 +19,9 @@ from ctdrill.app.errors import AppInputError
 from ctdrill.app.export import DEFAULT_RATE_HZ, ExportInputError, ExportJob, write_exports
 from ctdrill.app.export_band import hu_uncertainty_option
 from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
-from ctdrill.app.pipeline import plan_calibration_key, plan_path, with_set_warnings
-from ctdrill.app.sequence import SequenceResult, plan_sequence
 from ctdrill.app.sequence_export import sequence_files, sequence_jobs
+from ctdrill.engine.path import plan_calibration_key, plan_path, with_set_warnings
+from ctdrill.engine.sequence import SequenceResult, plan_sequence
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.plan.types import Plan, load_plan_set, plan_warnings
 from ctdrill.imaging.volume import CTVolume

@@ -26,7 +26,6 @@ from ctdrill.app.export_band import band_summary, hu_uncertainty_option, path_ba
 from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
 from ctdrill.app.igtl.frames import StreamGeometry, parse_target, refuse_igtl_sequence
 from ctdrill.app.igtl.stream import IgtlStream
-from ctdrill.app.pipeline import PathResult, binding_landmark_doc, plan_calibration, plan_path
 from ctdrill.app.readout import push_summary, wall_summary
 from ctdrill.app.records import atomic_output_dir, write_file
 from ctdrill.app.trainee.exam import (
@@ -37,6 +36,7 @@ from ctdrill.app.trainee.exam import (
     refuse_exam_device,
     refuse_exam_sequence,
 )
+from ctdrill.engine.path import PathResult, binding_landmark_doc, plan_calibration, plan_path
 from ctdrill.haptics.assessment import AssessmentContext, Assessor
 from ctdrill.haptics.device import Device
 from ctdrill.haptics.profile_table import ProfileTable

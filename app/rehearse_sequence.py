@@ -1,7 +1,7 @@
 """Rehearsing a drill sequence: one device session per drill, in drilling order.
 
 A plan with ``drills`` (pilot 2.0 mm, then 2.8, 3.5 ...) rehearses as the surgeon drills it:
-drill ``k`` gets its own table (its own profile and stop depth, :mod:`ctdrill.app.sequence`),
+drill ``k`` gets its own table (its own profile and stop depth, :mod:`ctdrill.engine.sequence`),
 the device is opened, armed with it, driven by the same operator for ``duration_s`` and
 closed: **one session per drill** (a drill change is a new upload and ARM, as on the real
 device). The hole drill ``k`` leaves for the next is as deep as its tip **actually reached**
@@ -29,9 +29,9 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
-from ctdrill.app.pipeline import PathResult, plan_calibration
 from ctdrill.app.records import atomic_output_dir, write_file
-from ctdrill.app.sequence import drill_folder, drill_path, hole_json, plan_sequence
+from ctdrill.engine.path import PathResult, plan_calibration
+from ctdrill.engine.sequence import drill_folder, drill_path, hole_json, plan_sequence
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import FaultSpec, Operator, SessionCsv

@@ -17,7 +17,7 @@ from typing import Any
 from ctdrill.app.calibration_info import calibration_line
 from ctdrill.app.export import ExportJob, force_time_series, summary
 from ctdrill.app.export_band import band_summary, path_band
-from ctdrill.app.sequence import SequenceResult, drill_folder, hole_json
+from ctdrill.engine.sequence import SequenceResult, drill_folder, hole_json
 from ctdrill.model.band import HuUncertainty
 
 SEQUENCE_FORMAT = "ctdrill-sequence/1"

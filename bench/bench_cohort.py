@@ -23,7 +23,7 @@ from ctdrill.app.batch.run import default_workers, run_batch
 from ctdrill.app.batch.task import ExportOptions
 from ctdrill.app.export import ExportJob, force_csv, force_time_series, write_exports
 from ctdrill.app.export_plot import force_png
-from ctdrill.app.pipeline import plan_path
+from ctdrill.engine.path import plan_path
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.types import load_plan
 from ctdrill.model.calibration import load_calibration

@@ -23,7 +23,7 @@ from scipy import ndimage
 
 from bench.report import Section, table, time_it
 from ctdrill.app.export import ExportJob, write_exports
-from ctdrill.app.pipeline import depth_grid_mm, grid_bracket, plan_path
+from ctdrill.engine.path import depth_grid_mm, grid_bracket, plan_path
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm
 from ctdrill.imaging.plan.types import DrillSpec, Plan, load_plan

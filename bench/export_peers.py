@@ -13,7 +13,7 @@ import io
 from typing import IO
 
 from ctdrill.app.export import FORCE_COLUMNS, ForceSeries
-from ctdrill.app.pipeline import PathResult
+from ctdrill.engine.path import PathResult
 from ctdrill.imaging.misch import MISCH_BANDS_HU
 
 _MISCH_COLOURS = {"D1": "#5b3a29", "D2": "#8c6239", "D3": "#c69c6d", "D4": "#e8d4b0"}

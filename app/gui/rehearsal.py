@@ -17,10 +17,10 @@ from serial.tools import list_ports
 from ctdrill.app.export import DEFAULT_RATE_HZ, ExportJob, write_exports
 from ctdrill.app.gui.session_process import SessionJob, run_job
 from ctdrill.app.igtl.frames import IgtlTarget, StreamSetup
-from ctdrill.app.pipeline import PathResult
 from ctdrill.app.readout import push_of
 from ctdrill.app.rehearse import rehearsal_summary, summary_json
 from ctdrill.app.trainee.exam import ExamSetup, assessment_context
+from ctdrill.engine.path import PathResult
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.session import Row, session_csv_text
 from ctdrill.model.band import HuUncertainty

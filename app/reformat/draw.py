@@ -34,7 +34,7 @@ from ctdrill.imaging.sampling.reformat import Reformat
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
-    from ctdrill.app.pipeline import PathResult
+    from ctdrill.engine.path import PathResult
 
 #: Default window: the slice views' implant-planning preset (one owner of the presets).
 DEFAULT_LEVEL_HU, DEFAULT_WIDTH_HU = WINDOW_PRESETS["implant planning"]

@@ -14,7 +14,7 @@ from typing import Any
 
 from ctdrill.app.export import ForceSeries, job_summary
 from ctdrill.app.export_run import PreparedCase
-from ctdrill.app.pipeline import PathResult
+from ctdrill.engine.path import PathResult
 from ctdrill.model.band import ForceBand
 
 #: Most trajectories that get their own pages (a cross-section and the curves); the summary's

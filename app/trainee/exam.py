@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.app.pipeline import (
+from ctdrill.engine.path import (
     MAX_PLANNED_DEPTH_MM,
     PathInputError,
     PathResult,

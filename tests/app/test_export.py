@@ -453,7 +453,7 @@ def test_one_refused_plan_writes_nothing(tmp_path: Path) -> None:
 
 def test_edge_cases_no_landmark_and_a_stop_at_the_entry(tmp_path: Path) -> None:
     from ctdrill.app.export import ExportJob, write_exports
-    from ctdrill.app.pipeline import plan_path
+    from ctdrill.engine.path import plan_path
     from ctdrill.imaging.plan.landmarks import PointLandmark
     from ctdrill.imaging.plan.types import Plan
     from ctdrill.imaging.volume import CTVolume, SeriesInfo

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ctdrill.app.pipeline import PathInputError, plan_calibration, plan_calibration_key, plan_path
+from ctdrill.engine.path import PathInputError, plan_calibration, plan_calibration_key, plan_path
 from ctdrill.imaging.plan.landmarks import CanalLandmark, MaskLandmark
 from ctdrill.imaging.plan.types import DrillSpec, Plan, load_plan, series_uid_hash
 from ctdrill.imaging.volume import CTVolume, SeriesInfo

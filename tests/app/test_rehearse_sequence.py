@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from ctdrill.app.cli import main
-from ctdrill.app.pipeline import plan_calibration, plan_path
-from ctdrill.app.sequence import drill_path
+from ctdrill.engine.path import plan_calibration, plan_path
+from ctdrill.engine.sequence import drill_path
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.types import DrillSpec, load_plan, save_plan
 from ctdrill.model.profile import force_series_n
@@ -127,7 +127,7 @@ def test_gui_shows_the_final_drill_around_the_earlier_holes(
     """The window computes a sequence's final drill as the export's last folder and says
     which drill it is where it explains the auto-stop."""
     from ctdrill.app.gui.results import compute_path_view, stop_explanation
-    from ctdrill.app.sequence import plan_sequence
+    from ctdrill.engine.sequence import plan_sequence
 
     plan_file = rehearsed[0]
     plan = load_plan(plan_file)

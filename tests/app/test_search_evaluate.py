@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from ctdrill import jit
-from ctdrill.app.pipeline import PathInputError, plan_calibration, plan_path
-from ctdrill.app.search.evaluate import BatchResult, evaluate_batch
 from ctdrill.app.search.warmup import search_kernels
+from ctdrill.engine.batch import BatchResult, evaluate_batch
+from ctdrill.engine.path import PathInputError, plan_calibration, plan_path
 from ctdrill.imaging.dicom.series import load_series
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.distance import SEGMENT_TOL_MM

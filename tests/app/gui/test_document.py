@@ -11,7 +11,7 @@ from ctdrill.app.gui.document import LOCKED_MESSAGE, Document
 from ctdrill.app.gui.results import path_view
 from ctdrill.app.gui.series_panel import unique_warnings
 from ctdrill.app.gui.views import VIEWS
-from ctdrill.app.pipeline import plan_path
+from ctdrill.engine.path import plan_path
 from ctdrill.imaging import LoadWarning
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.model import load_calibration

@@ -266,7 +266,7 @@ def plan_path(
     inner_holes : holes left along this axis by the earlier, narrower drills of a sequence
         (:mod:`ctdrill.imaging.sampling.annulus`): the force counts only the lip outside them.
         Clearance, stop and the volume checks are this drill's own, on its whole solid. Empty
-        (a single drill): the full lip, exactly as before. :mod:`ctdrill.app.sequence` runs a
+        (a single drill): the full lip, exactly as before. :mod:`ctdrill.engine.sequence` runs a
         whole sequence.
 
     Returns

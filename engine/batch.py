@@ -2,7 +2,7 @@
 
 :func:`evaluate_batch` takes ``N`` candidate axes (entry and target points, LPS mm) that share
 one plan's drill, landmarks, margins and calibration, and returns a :class:`BatchResult` whose
-row ``n`` holds what :func:`ctdrill.app.pipeline.plan_path` computes for the plan with that
+row ``n`` holds what :func:`ctdrill.engine.path.plan_path` computes for the plan with that
 entry and target: the force profile (every :class:`~ctdrill.model.profile.Profile` array), the
 clearance to every landmark at every depth, the max safe depth (capped or not, and the
 binding landmark), the plan clearance, the out-of-volume depth, the stop depth and its reason.
@@ -20,11 +20,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ctdrill.app.pipeline import (
+from ctdrill.engine.path import (
     DEFAULT_DEPTH_STEP_MM,
     PathInputError,
 )
-from ctdrill.app.search.rows import clearances_each, gap_checks, row_checks
+from ctdrill.engine.rows import clearances_each, gap_checks, row_checks
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.clearance_batch import (
     STOP_REASONS,
@@ -60,7 +60,7 @@ CHUNK_ROWS = 256
 
 @dataclass(frozen=True, eq=False)
 class BatchResult:
-    """What :func:`~ctdrill.app.pipeline.plan_path` computes, for ``N`` trajectories at once.
+    """What :func:`~ctdrill.engine.path.plan_path` computes, for ``N`` trajectories at once.
 
     Rows of different planned depths have different depth counts: per-depth arrays have
     ``D = max(n_depths)`` columns and NaN past a row's own ``n_depths[n]``. Refused rows
@@ -220,7 +220,7 @@ def evaluate_batch(
         raise PathInputError(
             f"plan {plan.name!r} drills a sequence ({sizes} mm): evaluate_batch computes one "
             "drill on a full lip, not a drill cutting around earlier holes; pass "
-            "plan.for_drill(k) for drill k alone (app.sequence computes the sequence's forces)"
+            "plan.for_drill(k) for drill k alone (plan_sequence computes a sequence's forces)"
         )
     entries, targets = check_batch_arguments(
         volume,

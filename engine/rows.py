@@ -1,4 +1,4 @@
-"""``plan_path``'s per-trajectory steps for :func:`ctdrill.app.search.evaluate.evaluate_batch`:
+"""``plan_path``'s per-trajectory steps for :func:`ctdrill.engine.batch.evaluate_batch`:
 the checks before sampling (with the same refusal messages) and the clearance path used when
 the compiled kernel is not available."""
 
@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ctdrill.app.pipeline import (
+from ctdrill.engine.path import (
     MAX_COORDINATE_MM,
     MAX_PLANNED_DEPTH_MM,
     grid_bracket,
