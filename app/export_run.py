@@ -20,7 +20,8 @@ from ctdrill.app.export import DEFAULT_RATE_HZ, ExportInputError, ExportJob, wri
 from ctdrill.app.export_band import hu_uncertainty_option
 from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
 from ctdrill.app.sequence_export import sequence_files, sequence_jobs
-from ctdrill.engine.path import plan_calibration_key, plan_path, with_set_warnings
+from ctdrill.engine.path import plan_path
+from ctdrill.engine.plans import plan_calibration_key, with_set_warnings
 from ctdrill.engine.sequence import SequenceResult, plan_sequence
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.plan.types import Plan, load_plan_set, plan_warnings

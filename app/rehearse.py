@@ -36,7 +36,8 @@ from ctdrill.app.trainee.exam import (
     refuse_exam_device,
     refuse_exam_sequence,
 )
-from ctdrill.engine.path import PathResult, binding_landmark_doc, plan_calibration, plan_path
+from ctdrill.engine.path import PathResult, binding_landmark_doc, plan_path
+from ctdrill.engine.plans import plan_calibration
 from ctdrill.haptics.assessment import AssessmentContext, Assessor
 from ctdrill.haptics.device import Device
 from ctdrill.haptics.profile_table import ProfileTable

@@ -30,7 +30,8 @@ from typing import Any
 
 from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
 from ctdrill.app.records import atomic_output_dir, write_file
-from ctdrill.engine.path import PathResult, plan_calibration
+from ctdrill.engine.path import PathResult
+from ctdrill.engine.plans import plan_calibration
 from ctdrill.engine.sequence import drill_folder, drill_path, hole_json, plan_sequence
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session

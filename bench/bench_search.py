@@ -15,7 +15,8 @@ from bench.report import ROOT, Section, Timing, headline_row, table, time_it, ti
 from ctdrill import jit
 from ctdrill.app.search.warmup import search_kernels
 from ctdrill.engine.batch import BatchResult, evaluate_batch
-from ctdrill.engine.path import plan_calibration, plan_path
+from ctdrill.engine.path import plan_path
+from ctdrill.engine.plans import plan_calibration
 from ctdrill.imaging.dicom.series import load_series
 from ctdrill.imaging.plan.types import Plan, load_plan
 from ctdrill.resources import asset

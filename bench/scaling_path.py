@@ -19,7 +19,8 @@ from scipy import ndimage
 from bench.bench_export import candidates as export_candidates
 from bench.report import Timing, figure_path, profile_top, time_it, time_pair
 from ctdrill.app.export import ExportJob, write_exports
-from ctdrill.engine.path import DEFAULT_DEPTH_STEP_MM, depth_grid_mm, plan_path
+from ctdrill.engine.grid import DEFAULT_DEPTH_STEP_MM, depth_grid_mm
+from ctdrill.engine.path import plan_path
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm

@@ -179,7 +179,10 @@ def row_spans(rows: np.ndarray, parts: int | None = None) -> list[tuple[int, int
     """``rows`` (indices) as half-open spans of consecutive rows, each run cut in up to
     ``parts`` (default: the CPUs, at most 8) near-equal pieces for worker threads."""
     parts = max(1, min(8, cpus())) if parts is None else parts
-    uniq = np.unique(np.asarray(rows, dtype=np.int64))
+    rows = np.asarray(rows, dtype=np.int64)
+    if rows.size == 1:  # the single trajectory: no sorting, no threads
+        return [(int(rows[0]), int(rows[0]) + 1)]
+    uniq = np.unique(rows)
     if uniq.size == 0:
         return []
     breaks = np.flatnonzero(np.diff(uniq) != 1) + 1

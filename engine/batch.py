@@ -1,61 +1,46 @@
-"""Many trajectories of one plan over one CT: the answers of ``plan_path``, in one batch.
+"""Many trajectories of one plan over one CT, in one batch: the engine's path.
 
-:func:`evaluate_batch` takes ``N`` candidate axes (entry and target points, LPS mm) that share
-one plan's drill, landmarks, margins and calibration, and returns a :class:`BatchResult` whose
-row ``n`` holds what :func:`ctdrill.engine.path.plan_path` computes for the plan with that
-entry and target: the force profile (every :class:`~ctdrill.model.profile.Profile` array), the
-clearance to every landmark at every depth, the max safe depth (capped or not, and the
-binding landmark), the plan clearance, the out-of-volume depth, the stop depth and its reason.
-A trajectory that ``plan_path`` would refuse (a slice gap crossed without
-``interpolate_gaps``, padding touched, an entry outside the scan, a degenerate axis...) gets
-that message in :attr:`BatchResult.refusal` and NaN in its rows: one bad candidate never
-stops the batch. Problems of the volume or of the arguments themselves (a single slice,
-values not HU, a bad depth step) concern every row and raise once.
+:func:`evaluate_rows` is the one engine. It takes ``N`` candidate axes (entry and target
+points, LPS mm) that share one plan's drill, landmarks, margins and calibration, and runs the
+path's stages on every row at once: the checks before sampling (:mod:`ctdrill.engine.checks`:
+coordinates, depth, masks, the volume edge, slice gaps), the depth grid
+(:mod:`ctdrill.engine.grid`), the lip and its force profile (:mod:`ctdrill.engine.lips`:
+padding), then clearance, safe depth and stop (:mod:`ctdrill.engine.clearance`). The single
+trajectory (:func:`ctdrill.engine.path.plan_path`) is its one-row case; :func:`evaluate_batch`
+returns its :class:`BatchResult`.
+
+A trajectory the engine refuses (a slice gap crossed without ``interpolate_gaps``, padding
+touched, an entry outside the scan, a degenerate axis...) gets that message in
+:attr:`BatchResult.refusal` and NaN in its rows: one bad candidate never stops the batch.
+Problems of the volume or of the arguments themselves (a single slice, values not HU, a bad
+depth step) concern every row and raise once.
+
+A new per-trajectory quantity is one more stage here, filling one more ``(N, ...)`` array of
+:class:`BatchResult` (and of :class:`~ctdrill.engine.path.PathResult` for its row); a new
+warning is one check in :mod:`ctdrill.engine.path_warnings`.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ctdrill.engine.path import (
-    DEFAULT_DEPTH_STEP_MM,
-    PathInputError,
-)
-from ctdrill.engine.rows import clearances_each, gap_checks, row_checks
-from ctdrill.imaging.errors import ImagingInputError
-from ctdrill.imaging.plan.clearance_batch import (
-    STOP_REASONS,
-    evaluate_clearances,
-)
+from ctdrill.engine import refusals
+from ctdrill.engine.checks import check_arguments, check_rows
+from ctdrill.engine.clearance import evaluate_stops
+from ctdrill.engine.grid import DEFAULT_DEPTH_STEP_MM, depth_grids
+from ctdrill.engine.lips import sample_rows
+from ctdrill.imaging.plan.clearance_batch import ClearanceField
 from ctdrill.imaging.plan.safety import margins_mm
 from ctdrill.imaging.plan.types import Plan
-from ctdrill.imaging.sampling.lip import (
-    DEFAULT_N_ANGLES,
-    DEFAULT_N_RINGS,
-    axis_basis,
-    ring_radii_mm,
-    sample_lip_rings,
-)
-from ctdrill.imaging.sampling.lip_batch import sample_lips
-from ctdrill.imaging.sampling.path import (
-    check_padding,
-    check_volume,
-)
-from ctdrill.imaging.stack import wide_steps
+from ctdrill.imaging.sampling.annulus import Hole
+from ctdrill.imaging.sampling.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS, LipSamples
+from ctdrill.imaging.sampling.path import SliceGap
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.calibration import Calibration, harmonic_freqs_hz
-from ctdrill.model.profile_batch import build_profiles
 
-__all__ = ["BatchResult", "evaluate_batch"]
-
-#: Most trajectories one call accepts (memory: a row is ~50 kB at the default grid).
-MAX_BATCH = 200_000
-#: Rows sampled and integrated per pass (bounds the float32 ring-sample buffer: 256 rows of a
-#: 16 mm path at the default lip are ~18 MB, reused).
-CHUNK_ROWS = 256
+__all__ = ["BatchResult", "RowsRun", "evaluate_batch", "evaluate_rows"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,41 +126,118 @@ class BatchResult:
         return replace(plan, entry_lps=self.entries_lps[index], target_lps=self.targets_lps[index])
 
 
-def _points(value: np.ndarray, name: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise PathInputError(f"{name}: expected an (N, 3) array of LPS mm, got shape {arr.shape}")
-    return arr
+@dataclass(frozen=True, eq=False)
+class RowsRun:
+    """What :func:`evaluate_rows` computed, with what the single path reads of its row.
+
+    Attributes
+    ----------
+    batch : the per-row arrays.
+    plan : the plan with its landmarks bound to the CT grid.
+    errors : per row, None or the refusal (the exception the single path raises).
+    gaps : per row, the slice gaps the lip reaches into (interpolated on request).
+    lips : the ring samples of the rows asked to keep them.
+    """
+
+    batch: BatchResult
+    plan: Plan
+    errors: list[Exception | None]
+    gaps: list[tuple[SliceGap, ...]]
+    lips: dict[int, LipSamples]
 
 
-def check_batch_arguments(
+def evaluate_rows(
     volume: CTVolume,
+    plan: Plan,
     entries_lps: np.ndarray,
     targets_lps: np.ndarray,
+    calibration: Calibration,
     *,
-    depth_step_mm: float,
-    n_rings: int,
-    n_angles: int,
-) -> tuple[np.ndarray, np.ndarray]:
-    """The ``(N, 3)`` entries and targets; raise for what concerns every row at once."""
-    entries = _points(entries_lps, "entries_lps")
-    targets = _points(targets_lps, "targets_lps")
-    if entries.shape != targets.shape:
-        raise PathInputError(
-            f"entries_lps {entries.shape} and targets_lps {targets.shape}: give one target "
-            "per entry"
-        )
-    if entries.shape[0] > MAX_BATCH:
-        raise PathInputError(
-            f"entries_lps: {entries.shape[0]} trajectories exceed {MAX_BATCH} per call; "
-            "evaluate them in several batches"
-        )
-    if not (math.isfinite(depth_step_mm) and depth_step_mm > 0.0):
-        raise PathInputError(f"depth_step_mm must be a positive number, got {depth_step_mm!r}")
-    ring_radii_mm(2.0, n_rings)  # refuses a bad count with the sampler's own message
-    ring_radii_mm(2.0, n_angles)
-    check_volume(volume)
-    return entries, targets
+    depth_step_mm: float = DEFAULT_DEPTH_STEP_MM,
+    n_rings: int = DEFAULT_N_RINGS,
+    n_angles: int = DEFAULT_N_ANGLES,
+    interpolate_gaps: bool = False,
+    holes: tuple[Hole, ...] = (),
+    keep_lips: bool = False,
+) -> RowsRun:
+    """The engine on ``N`` rows (see the module docstring); ``holes`` are the earlier drills'
+    of a sequence (shared along every axis: the profile counts the lip outside them),
+    ``keep_lips`` keeps each row's ring samples."""
+    entries, targets = check_arguments(
+        volume,
+        entries_lps,
+        targets_lps,
+        depth_step_mm=depth_step_mm,
+        n_rings=n_rings,
+        n_angles=n_angles,
+    )
+    freqs = harmonic_freqs_hz(calibration, blades=plan.drill.blades, rpm=plan.drill.rpm)
+    checks = check_rows(volume, plan, entries, targets, interpolate_gaps=interpolate_gaps)
+    if len(checks.landmarks) != len(plan.landmarks) or any(
+        a is not b for a, b in zip(checks.landmarks, plan.landmarks, strict=True)
+    ):
+        plan = replace(plan, landmarks=checks.landmarks)
+    errors = checks.errors
+    planned, oov = checks.planned_mm, checks.out_of_volume_mm
+    ok_rows = checks.ok_rows()
+    n_dep, depth = depth_grids(planned, depth_step_mm, ok_rows)
+    lips = sample_rows(
+        volume,
+        plan,
+        calibration,
+        entries,
+        targets,
+        depth,
+        n_dep,
+        ok_rows,
+        errors,
+        n_rings=n_rings,
+        n_angles=n_angles,
+        n_harmonics=freqs.shape[0],
+        holes=tuple(holes),
+        keep=keep_lips,
+    )
+    ok_rows = np.array([i for i in ok_rows.tolist() if errors[i] is None], dtype=np.int64)
+    margins = margins_mm(plan)
+    field = ClearanceField.prepare(
+        plan.landmarks, plan.drill.radius_mm, plan.drill.tip_length_mm, entries, targets, ok_rows
+    )
+    stops = evaluate_stops(field, margins, depth, n_dep, planned, oov, ok_rows)
+    bad = np.array([e is not None for e in errors], dtype=bool)
+    arrays = (depth, lips.s_t, lips.hu_mean, lips.s0_n, lips.disc_hu, lips.sk_n, stops.clearance_mm)
+    for arr in arrays:
+        arr[bad] = np.nan
+    for arr in (n_dep, lips.n_clipped, lips.n_samples):
+        arr[bad] = 0
+    oov[bad] = np.nan
+    batch = BatchResult(
+        entries_lps=entries.copy(),
+        targets_lps=targets.copy(),
+        planned_depth_mm=planned,
+        n_depths=n_dep,
+        depth_mm=depth,
+        disc_hu=lips.disc_hu,
+        hu_mean=lips.hu_mean,
+        s_t=lips.s_t,
+        s0_n=lips.s0_n,
+        sk_n=lips.sk_n,
+        freqs_hz=freqs,
+        ke_per_mm_s=calibration.ke_per_mm_s,
+        n_clipped=lips.n_clipped,
+        n_samples=lips.n_samples,
+        clearance_mm=stops.clearance_mm,
+        margins_mm=margins,
+        max_safe_depth_mm=np.where(bad, np.nan, stops.max_safe_depth_mm),
+        max_safe_depth_capped=stops.capped & ~bad,
+        binding_landmark=np.where(bad, -1, stops.binding),
+        plan_clearance_mm=np.where(bad, np.nan, stops.plan_clearance_mm),
+        out_of_volume_depth_mm=oov,
+        stop_depth_mm=np.where(bad, np.nan, stops.stop_depth_mm),
+        stop_reason=np.where(bad, "", stops.stop_reason).astype(object),
+        stop_clearance_mm=np.where(bad[:, None], np.nan, stops.stop_clearance_mm),
+        refusal=tuple(None if e is None else str(e) for e in errors),
+    )
+    return RowsRun(batch, plan, errors, checks.gaps, lips.lips)
 
 
 def evaluate_batch(
@@ -203,10 +265,10 @@ def evaluate_batch(
     Returns
     -------
     BatchResult
-        Row ``n`` equal (to 1e-9) to ``plan_path`` on ``plan`` with that entry and target, or
-        the message ``plan_path`` refuses it with. The compiled kernels run when their cache
-        is present (``python -m ctdrill.app.search.warmup``); otherwise the per-trajectory
-        functions of ``plan_path`` run row by row, with the same answers.
+        Row ``n`` is ``plan_path`` on ``plan`` with that entry and target (the same engine),
+        or the message ``plan_path`` refuses it with. The compiled kernels run when their
+        cache is present (``python -m ctdrill.app.search.warmup``); otherwise the NumPy
+        path, with the same answers.
 
     Raises
     ------
@@ -216,169 +278,15 @@ def evaluate_batch(
         values not HU).
     """
     if plan.earlier_drills:
-        sizes = ", ".join(f"{d.diameter_mm:g}" for d in plan.drills)
-        raise PathInputError(
-            f"plan {plan.name!r} drills a sequence ({sizes} mm): evaluate_batch computes one "
-            "drill on a full lip, not a drill cutting around earlier holes; pass "
-            "plan.for_drill(k) for drill k alone (plan_sequence computes a sequence's forces)"
-        )
-    entries, targets = check_batch_arguments(
+        raise refusals.drill_sequence(plan)
+    return evaluate_rows(
         volume,
+        plan,
         entries_lps,
         targets_lps,
+        calibration,
         depth_step_mm=depth_step_mm,
         n_rings=n_rings,
         n_angles=n_angles,
-    )
-    freqs = harmonic_freqs_hz(calibration, blades=plan.drill.blades, rpm=plan.drill.rpm)
-    n = entries.shape[0]
-    planned = np.array(
-        [float(np.linalg.norm(t - e)) for e, t in zip(entries, targets, strict=True)]
-    )
-    refusal: list[str | None] = [None] * n
-    landmarks, oov = row_checks(volume, plan, entries, targets, planned, refusal)
-    gaps_possible = bool(np.any(wide_steps(volume.slice_positions_mm)))
-    plan = replace(plan, landmarks=landmarks)
-    if gaps_possible:
-        gap_checks(volume, plan, entries, targets, planned, oov, refusal, interpolate_gaps)
-    ok_rows = np.array([i for i in range(n) if refusal[i] is None], dtype=np.int64)
-    n_dep = np.zeros(n, dtype=np.int64)
-    steps = np.zeros(n)
-    for i in ok_rows.tolist():
-        n_dep[i] = max(2, math.ceil(planned[i] / depth_step_mm - 1e-9) + 1)
-    d_max = int(n_dep.max()) if n else 0
-    depth = np.full((n, d_max), np.nan)
-    for m in np.unique(n_dep[ok_rows]).tolist():
-        rows = ok_rows[n_dep[ok_rows] == m]
-        steps[rows] = planned[rows] / (m - 1)  # np.linspace(0, planned, m), row by row
-        depth[rows, :m] = np.arange(m, dtype=np.float64)[None, :] * steps[rows, None] + 0.0
-        depth[rows, m - 1] = planned[rows]
-    bases = np.zeros((n, 3, 3))
-    for i in ok_rows.tolist():
-        bases[i] = axis_basis(entries[i], targets[i])
-    radii = ring_radii_mm(plan.drill.diameter_mm, n_rings)
-    ring_w = np.full(n_rings, 1.0 / n_rings)
-    area_w = radii / radii.sum()
-    n_k = freqs.shape[0]
-    s_t, hu_mean, s0, disc = (np.full((n, d_max), np.nan) for _ in range(4))
-    sk = np.full((n, n_k, d_max), np.nan)
-    n_clipped = np.zeros(n, dtype=np.int64)
-    n_samples = np.zeros(n, dtype=np.int64)
-    buf = np.empty((min(CHUNK_ROWS, max(n, 1)), d_max, n_rings, n_angles), dtype=np.float32)
-    for start in range(0, ok_rows.size, CHUNK_ROWS):
-        rows = ok_rows[start : start + CHUNK_ROWS]
-        local = np.arange(rows.size)
-        chunk = buf[: rows.size]
-        if volume.valid is None:
-            sample_lips(
-                volume,
-                entries[rows],
-                targets[rows],
-                bases[rows],
-                depth[rows],
-                n_dep[rows],
-                plan.drill,
-                n_rings=n_rings,
-                n_angles=n_angles,
-                out=chunk,
-            )
-        else:  # padding: the per-trajectory sampler and its padding check
-            for j, i in enumerate(rows.tolist()):
-                m = int(n_dep[i])
-                lip = sample_lip_rings(
-                    volume,
-                    entries[i],
-                    targets[i],
-                    depth[i, :m],
-                    plan.drill,
-                    n_rings=n_rings,
-                    n_angles=n_angles,
-                )
-                try:
-                    check_padding(
-                        volume,
-                        entries[i],
-                        targets[i],
-                        plan.drill,
-                        lip,
-                        n_rings,
-                        n_angles,
-                        name=plan.name,
-                    )
-                except ImagingInputError as exc:
-                    refusal[i] = str(exc)
-                chunk[j, :m] = lip.hu
-        prof = build_profiles(
-            chunk,
-            depth[rows],
-            n_dep[rows],
-            ring_w,
-            calibration,
-            blades=plan.drill.blades,
-            rpm=plan.drill.rpm,
-            alt_weights=area_w,
-            rows=local,
-        )
-        s_t[rows], hu_mean[rows], s0[rows] = prof.s_t, prof.hu_mean, prof.s0_n
-        sk[rows], disc[rows] = prof.sk_n, prof.hu_mean_alt
-        n_clipped[rows], n_samples[rows] = prof.n_clipped, prof.n_samples
-    ok_rows = np.array([i for i in ok_rows.tolist() if refusal[i] is None], dtype=np.int64)
-    margins = margins_mm(plan)
-    oov_or_inf = np.where(np.isnan(oov), np.inf, oov)
-    clear = evaluate_clearances(
-        plan.landmarks,
-        margins,
-        plan.drill.radius_mm,
-        plan.drill.tip_length_mm,
-        entries,
-        targets,
-        depth,
-        n_dep,
-        planned,
-        oov_or_inf,
-        ok_rows,
-    )
-    if clear is None:
-        clear = clearances_each(plan, entries, targets, depth, n_dep, oov_or_inf, ok_rows)
-    bad = np.array([r is not None for r in refusal], dtype=bool)
-    n_l = len(plan.landmarks)
-    for arr in (depth, s_t, hu_mean, s0, disc, sk):
-        arr[bad] = np.nan
-    n_dep[bad] = 0
-    n_clipped[bad] = 0
-    n_samples[bad] = 0
-    plan_clear = np.full(n, np.nan)
-    if n_l:
-        for i in ok_rows.tolist():
-            plan_clear[i] = float(clear.clearance_mm[i, n_dep[i] - 1].min())
-    reason = np.full(n, "", dtype=object)
-    for i in ok_rows.tolist():
-        reason[i] = STOP_REASONS[int(clear.stop_reason[i])]
-    oov[bad] = np.nan
-    return BatchResult(
-        entries_lps=entries.copy(),
-        targets_lps=targets.copy(),
-        planned_depth_mm=planned,
-        n_depths=n_dep,
-        depth_mm=depth,
-        disc_hu=disc,
-        hu_mean=hu_mean,
-        s_t=s_t,
-        s0_n=s0,
-        sk_n=sk,
-        freqs_hz=freqs,
-        ke_per_mm_s=calibration.ke_per_mm_s,
-        n_clipped=n_clipped,
-        n_samples=n_samples,
-        clearance_mm=clear.clearance_mm,
-        margins_mm=margins,
-        max_safe_depth_mm=clear.max_safe_depth_mm,
-        max_safe_depth_capped=clear.capped,
-        binding_landmark=clear.binding,
-        plan_clearance_mm=plan_clear,
-        out_of_volume_depth_mm=oov,
-        stop_depth_mm=clear.stop_depth_mm,
-        stop_reason=reason,
-        stop_clearance_mm=clear.stop_clearance_mm,
-        refusal=tuple(refusal),
-    )
+        interpolate_gaps=interpolate_gaps,
+    ).batch

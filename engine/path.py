@@ -1,77 +1,42 @@
 """One trajectory through one CT: lip samples, force profile, clearance, stop depth.
 
 :func:`plan_path` is the single headless entry point used by the export, the rehearsal and the
-GUI. It orchestrates; the volume-side checks live in :mod:`ctdrill.imaging.sampling.path` and refuse
-(``PathInputError``, exit code 2) a volume that cannot carry a force map safely *on the drill
+GUI. It is the one-row case of the engine (:func:`ctdrill.engine.batch.evaluate_rows`), which
+refuses (``PathInputError``, exit code 2) what cannot carry a force map safely *on the drill
 path*: a single slice, values that are not HU, a slice gap (a step wider than 1.5 nominal
 steps) reached by the drill lip unless ``interpolate_gaps`` asks to interpolate across it (then
 warning ``gap_interpolated`` and :attr:`PathResult.interpolated_gaps`), padding touched by the
-drill, an entry point outside the scanned volume. Sampling uses every slice's true position, so
-irregular steps narrower than a gap are exact. The warnings of a path are gathered here once,
-each code + message once.
+lip in contact, an entry point outside the scanned volume (the part of the drill *behind* the
+entry may leave the scan: nothing is cut there; docs/geometry.md). Sampling uses every slice's
+true position, so irregular steps narrower than a gap are exact. The warnings of a path are
+gathered once (:mod:`ctdrill.engine.path_warnings`), each code + message once.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
-from ctdrill.imaging.plan.implant_checks import implant_warnings, implants_too_close
-from ctdrill.imaging.plan.landmarks import Landmark, bind_to_grid
-from ctdrill.imaging.plan.safety import (
-    clearance_profile_mm,
-    margin_warnings,
-    margins_mm,
-    safe_depth,
-)
-from ctdrill.imaging.plan.types import Plan, plan_warnings, series_uid_hash
-from ctdrill.imaging.sampling.annulus import Hole, holes_on_grid
-from ctdrill.imaging.sampling.lip import (
-    DEFAULT_N_ANGLES,
-    DEFAULT_N_RINGS,
-    LipSamples,
-    sample_lip_rings,
-)
-from ctdrill.imaging.sampling.path import (
-    PathInputError,
-    SliceGap,
-    check_padding,
-    check_volume,
-    crossed_gaps,
-    out_of_volume_depth_mm,
-    require_grid_for_masks,
-)
+from ctdrill.engine.batch import RowsRun, evaluate_rows
+from ctdrill.engine.grid import DEFAULT_DEPTH_STEP_MM
+from ctdrill.engine.path_warnings import path_warnings
+from ctdrill.imaging.plan.landmarks import Landmark
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.sampling.annulus import Hole
+from ctdrill.imaging.sampling.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS, LipSamples
+from ctdrill.imaging.sampling.path import PathInputError, SliceGap
 from ctdrill.imaging.volume import CTVolume, LoadWarning
-from ctdrill.model.calibration import Calibration, load_calibration
-from ctdrill.model.force import feed_outside_model
-from ctdrill.model.profile import Profile, build_profile
-
-#: Default depth step of the profile, mm: trilinear sampling is converged at 0.05 mm on
-#: 0.3 mm voxels (DESIGN.md section 6); steps above a third of a voxel add error.
-DEFAULT_DEPTH_STEP_MM = 0.05
-#: Longest trajectory accepted, mm: far beyond any dental drill, short enough to bound memory.
-MAX_PLANNED_DEPTH_MM = 200.0
-
-#: Largest coordinate magnitude accepted in a plan, mm (the plan reader's bound).
-MAX_COORDINATE_MM = 1e5
-
-STOP_REASONS = ("planned_depth", "margin", "out_of_volume")
-
+from ctdrill.model.calibration import Calibration
+from ctdrill.model.profile import Profile
 
 __all__ = [
     "PathInputError",
     "PathResult",
     "SliceGap",
-    "dedupe_warnings",
-    "depth_grid_mm",
-    "plan_calibration",
-    "plan_calibration_key",
+    "binding_landmark_doc",
     "plan_path",
-    "with_set_warnings",
 ]
 
 
@@ -177,70 +142,6 @@ def binding_landmark_doc(result: PathResult) -> dict[str, object] | None:
     }
 
 
-def with_set_warnings(plans: Sequence[Plan]) -> tuple[Plan, ...]:
-    """``plans`` each carrying the warnings only the whole set shows (``implants_too_close``,
-    :func:`~ctdrill.imaging.plan.implant_checks.implants_too_close`) in ``Plan.warnings``, so
-    that :func:`plan_path` reports them with the rest; call it where a command sees every
-    trajectory of a plan set, after its last edit."""
-    seq = tuple(plans)
-    extra = implants_too_close(seq)
-    return tuple(
-        replace(p, warnings=(*p.warnings, *extra[p.name])) if p.name in extra else p for p in seq
-    )
-
-
-def depth_grid_mm(planned_depth_mm: float, step_mm: float) -> np.ndarray:
-    """(D,) uniform depths from 0 to ``planned_depth_mm`` with a step <= ``step_mm``."""
-    n = max(2, math.ceil(planned_depth_mm / step_mm - 1e-9) + 1)
-    return np.linspace(0.0, planned_depth_mm, n)
-
-
-def dedupe_warnings(warnings: list[LoadWarning]) -> tuple[LoadWarning, ...]:
-    """``warnings`` in order, each (code, message) once."""
-    seen: set[tuple[str, str]] = set()
-    out: list[LoadWarning] = []
-    for w in warnings:
-        if (w.code, w.message) not in seen:
-            seen.add((w.code, w.message))
-            out.append(w)
-    return tuple(out)
-
-
-def grid_bracket(
-    depth: np.ndarray, clearance: np.ndarray, margins: np.ndarray
-) -> tuple[float, float] | None:
-    """The grid step where the margin is first violated (max_safe_depth_mm checks it)."""
-    if clearance.shape[1] == 0:
-        return None
-    bad = np.flatnonzero(np.any(clearance < margins[None, :], axis=1))
-    if bad.size == 0 or bad[0] == 0:
-        return None
-    return float(depth[bad[0] - 1]), float(depth[bad[0]])
-
-
-def plan_calibration_key(plan: Plan) -> str:
-    """What to pass to :func:`ctdrill.model.load_calibration` for the plan's set: a bundled name as
-    written, a path relative to the plan file resolved beside it."""
-    key = plan.calibration
-    candidate = Path(key)
-    if plan.source and not candidate.is_absolute() and ("/" in key or key.endswith(".json")):
-        beside = Path(plan.source).parent / candidate
-        if beside.is_file():
-            key = str(beside)
-    return key
-
-
-def plan_calibration(plan: Plan) -> Calibration:
-    """The plan's calibration set (see :func:`plan_calibration_key`).
-
-    Raises
-    ------
-    model.calibration.CalibrationError
-        The set is missing or invalid (the message names the file and field).
-    """
-    return load_calibration(plan_calibration_key(plan))
-
-
 def plan_path(
     volume: CTVolume,
     plan: Plan,
@@ -266,8 +167,8 @@ def plan_path(
     inner_holes : holes left along this axis by the earlier, narrower drills of a sequence
         (:mod:`ctdrill.imaging.sampling.annulus`): the force counts only the lip outside them.
         Clearance, stop and the volume checks are this drill's own, on its whole solid. Empty
-        (a single drill): the full lip, exactly as before. :mod:`ctdrill.engine.sequence` runs a
-        whole sequence.
+        (a single drill): the full lip, exactly as before. :mod:`ctdrill.engine.sequence` runs
+        a whole sequence.
 
     Returns
     -------
@@ -278,135 +179,78 @@ def plan_path(
     PathInputError
         When the CT cannot carry a force map along the path (see the module docstring).
     """
-    if not (math.isfinite(depth_step_mm) and depth_step_mm > 0.0):
-        raise PathInputError(f"depth_step_mm must be a positive number, got {depth_step_mm!r}")
-    coords = [plan.entry_lps, plan.target_lps]
-    coords += [lm.control_points_lps() for lm in plan.landmarks]
-    if not all(np.all(np.abs(c) <= MAX_COORDINATE_MM) for c in coords):
-        raise PathInputError(
-            f"plan {plan.name!r}: a coordinate is not finite or beyond {MAX_COORDINATE_MM:g} mm; "
-            "check the plan's points (units are mm)"
-        )
-    if not plan.planned_depth_mm <= MAX_PLANNED_DEPTH_MM:
-        raise PathInputError(
-            f"plan {plan.name!r}: planned depth {plan.planned_depth_mm:.6g} mm exceeds "
-            f"{MAX_PLANNED_DEPTH_MM:g} mm; check the entry and target (units are mm)"
-        )
-    check_volume(volume)
-    require_grid_for_masks(volume, plan.landmarks, name=plan.name)
-    landmarks = bind_to_grid(plan.landmarks, volume.affine_lps, tuple(volume.hu.shape))
-    plan = replace(plan, landmarks=landmarks)
-    depth = depth_grid_mm(plan.planned_depth_mm, depth_step_mm)
-    entry, target, drill = plan.entry_lps, plan.target_lps, plan.drill
-    oov = out_of_volume_depth_mm(
-        volume, entry, target, drill, plan.planned_depth_mm, name=plan.name
+    run = evaluate_rows(
+        volume,
+        plan,
+        plan.entry_lps[None, :],
+        plan.target_lps[None, :],
+        calibration,
+        depth_step_mm=depth_step_mm,
+        n_rings=n_rings,
+        n_angles=n_angles,
+        interpolate_gaps=interpolate_gaps,
+        holes=tuple(inner_holes),
+        keep_lips=True,
     )
-    gaps = crossed_gaps(volume, entry, target, drill, plan.planned_depth_mm if oov is None else oov)
-    if gaps and not interpolate_gaps:
-        raise PathInputError(
-            f"plan {plan.name!r}: the drill lip crosses "
-            + (f"{len(gaps)} slice gaps, the first: " if len(gaps) > 1 else "")
-            + f"{gaps[0].describe()}; the CT holds no "
-            "slice there: plan away from it, or interpolate across it explicitly "
-            "(--interpolate-gaps; the summary then says so)"
-        )
-    warnings = list(volume.warnings)
-    warnings += [LoadWarning(code, message) for code, message in plan_warnings(plan)]
-    warnings += [
-        LoadWarning(
-            "gap_interpolated",
-            f"plan {plan.name!r}: the drill lip crosses {gap.describe()}; HU there are "
-            "interpolated linearly between the two real slices, as asked",
-        )
-        for gap in gaps
-    ]
-    holes = tuple(inner_holes)
-    on_grid = holes_on_grid(holes, depth)
-    lip = sample_lip_rings(
-        volume, entry, target, depth, drill, n_rings=n_rings, n_angles=n_angles, holes=on_grid
+    if run.errors[0] is not None:
+        raise run.errors[0]
+    result = path_row(
+        run, 0, calibration, interpolate_gaps=interpolate_gaps, inner_holes=tuple(inner_holes)
     )
-    check_padding(
-        volume, entry, target, drill, lip, n_rings, n_angles, name=plan.name, holes=on_grid
-    )
-    profile = build_profile(
-        lip.hu, lip.ring_weights, depth, calibration, blades=plan.drill.blades, rpm=plan.drill.rpm
-    )
-    clearance = clearance_profile_mm(plan, plan.landmarks, depth)
-    margins = margins_mm(plan)
-    safe = safe_depth(plan, bracket_mm=grid_bracket(depth, clearance, margins))
-    max_safe = safe.depth_mm
-    candidates = [
-        (plan.planned_depth_mm, "planned_depth"),
-        (max_safe, "margin"),
-        (math.inf if oov is None else oov, "out_of_volume"),
-    ]
-    stop_depth, stop_reason = min(candidates, key=lambda c: c[0])  # ties: first listed wins
-    stop_clearance = clearance_profile_mm(plan, plan.landmarks, np.array([stop_depth]))[0]
-    binding = safe.binding
-    if binding is None and plan.landmarks:
-        binding = int(np.argmin(stop_clearance))
-    plan_clearance = clearance[-1] if plan.landmarks else np.empty(0)
-    warnings += [
-        LoadWarning(code, msg) for code, msg in margin_warnings(plan, plan_clearance, margins)
-    ]
-    if plan.series_uid_sha256 is not None and plan.series_uid_sha256 != series_uid_hash(
-        volume.info.series_uid
+    return replace(result, warnings=path_warnings(volume, result))
+
+
+def path_row(
+    run: RowsRun,
+    index: int,
+    calibration: Calibration,
+    *,
+    interpolate_gaps: bool,
+    inner_holes: tuple[Hole, ...] = (),
+) -> PathResult:
+    """Row ``index`` of ``run`` (computed with its lip kept) as a :class:`PathResult`, without
+    its warnings (:func:`~ctdrill.engine.path_warnings.path_warnings` gives them)."""
+    b = run.batch
+    i = index
+    m = int(b.n_depths[i])
+    depth = b.depth_mm[i, :m]
+    plan = run.plan
+    if not np.array_equal(plan.entry_lps, b.entries_lps[i]) or not np.array_equal(
+        plan.target_lps, b.targets_lps[i]
     ):
-        warnings.append(
-            LoadWarning(
-                "plan_other_series",
-                f"plan {plan.name!r} was made on another series than the one loaded (its "
-                "recorded series hash differs): check that the CT and the plan belong together",
-            )
-        )
-    if calibration.illustrative:
-        warnings.append(
-            LoadWarning(
-                "calibration_illustrative",
-                f"calibration {calibration.name!r} is illustrative (not measured on bone): "
-                "forces show the pattern, not validated magnitudes",
-            )
-        )
-    feed_note = feed_outside_model(plan.feed_mm_s, calibration)
-    if feed_note is not None:
-        warnings.append(LoadWarning("feed_outside_model", f"plan {plan.name!r}: {feed_note}"))
-    if profile.n_clipped:
-        warnings.append(
-            LoadWarning(
-                "extrapolated",
-                f"{profile.n_clipped} of {profile.n_samples} cut lip samples lie outside the "
-                f"calibration's C' range {list(calibration.c_prime_range)}; clipped to it",
-            )
-        )
-    warnings += [
-        LoadWarning(code, msg)
-        for code, msg in implant_warnings(plan, float(stop_depth), stop_reason)
-    ]
-    if stop_reason == "out_of_volume":
-        warnings.append(
-            LoadWarning(
-                "out_of_volume",
-                f"plan {plan.name!r}: the drill leaves the CT volume at {stop_depth:.3f} mm, "
-                f"before the planned depth {plan.planned_depth_mm:.3f} mm",
-            )
-        )
+        plan = b.plan_for(plan, i)
+    profile = Profile(
+        depth_mm=depth,
+        s0_n=b.s0_n[i, :m],
+        sk_n=b.sk_n[i, :, :m],
+        freqs_hz=b.freqs_hz,
+        s_t=b.s_t[i, :m],
+        hu_mean=b.hu_mean[i, :m],
+        ke_per_mm_s=b.ke_per_mm_s,
+        n_clipped=int(b.n_clipped[i]),
+        n_samples=int(b.n_samples[i]),
+        calibration=calibration.name,
+    )
+    binding = int(b.binding_landmark[i])
+    oov = float(b.out_of_volume_depth_mm[i])
+    plan_clear = float(b.plan_clearance_mm[i])
     return PathResult(
         plan=plan,
         depth_mm=depth,
-        lip=lip,
+        lip=run.lips[i],
         profile=profile,
         calibration=calibration,
-        clearance_mm=clearance,
-        margins_mm=margins,
-        max_safe_depth_mm=max_safe,
-        max_safe_depth_capped=safe.capped,
-        binding_landmark=binding,
-        plan_clearance_mm=float(plan_clearance.min()) if plan_clearance.size else None,
-        out_of_volume_depth_mm=oov,
-        stop_depth_mm=float(stop_depth),
-        stop_reason=stop_reason,
-        stop_clearance_mm=stop_clearance,
-        warnings=dedupe_warnings(warnings),
-        interpolated_gaps=gaps if interpolate_gaps else (),
-        inner_holes=holes,
+        clearance_mm=b.clearance_mm[i, :m],
+        margins_mm=b.margins_mm,
+        max_safe_depth_mm=float(b.max_safe_depth_mm[i]),
+        max_safe_depth_capped=bool(b.max_safe_depth_capped[i]),
+        binding_landmark=None if binding < 0 else binding,
+        plan_clearance_mm=None if np.isnan(plan_clear) else plan_clear,
+        out_of_volume_depth_mm=None if np.isnan(oov) else oov,
+        stop_depth_mm=float(b.stop_depth_mm[i]),
+        stop_reason=str(b.stop_reason[i]),
+        stop_clearance_mm=b.stop_clearance_mm[i],
+        warnings=(),
+        interpolated_gaps=run.gaps[i] if interpolate_gaps else (),
+        inner_holes=inner_holes,
     )

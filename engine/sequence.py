@@ -16,12 +16,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ctdrill.engine.path import (
-    DEFAULT_DEPTH_STEP_MM,
-    PathResult,
-    dedupe_warnings,
-    plan_path,
-)
+from ctdrill.engine.grid import DEFAULT_DEPTH_STEP_MM
+from ctdrill.engine.path import PathResult, plan_path
+from ctdrill.engine.path_warnings import dedupe_warnings
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.annulus import Hole
 from ctdrill.imaging.sampling.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS

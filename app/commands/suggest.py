@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.search.suggest import suggest
     from ctdrill.app.search.suggest_write import summary_lines, write_suggestion
     from ctdrill.app.search.warmup import SLOW_PATH_NOTE, kernels_ready
-    from ctdrill.engine.path import plan_calibration
+    from ctdrill.engine.plans import plan_calibration
     from ctdrill.imaging import load_ct
     from ctdrill.imaging.plan.types import load_plan_set
 

@@ -17,7 +17,7 @@ from ctdrill.app.gui.results import compute_path_view
 from ctdrill.app.gui.workers import Debouncer, Runner
 from ctdrill.app.search.candidates import SearchSpace
 from ctdrill.app.search.suggest import Suggestion, suggest
-from ctdrill.engine.path import plan_calibration
+from ctdrill.engine.plans import plan_calibration
 from ctdrill.imaging.plan.types import Plan
 
 #: Delay between the last plan edit and the recomputation, ms.

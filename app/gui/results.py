@@ -10,7 +10,8 @@ import numpy as np
 
 from ctdrill.app.export_band import path_band
 from ctdrill.app.gui.plots import DepthCurves
-from ctdrill.engine.path import PathResult, plan_calibration, plan_path, with_set_warnings
+from ctdrill.engine.path import PathResult, plan_path
+from ctdrill.engine.plans import plan_calibration, with_set_warnings
 from ctdrill.engine.sequence import plan_sequence
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.types import Plan

@@ -15,7 +15,8 @@ from matplotlib.figure import Figure
 
 from ctdrill.app.reformat.draw import FONT_PT, draw_reformat
 from ctdrill.app.reformat.overlay import body_overlay, drill_profile_mm, tube_overlay
-from ctdrill.engine.path import plan_calibration, plan_path
+from ctdrill.engine.path import plan_path
+from ctdrill.engine.plans import plan_calibration
 from ctdrill.imaging.phantom.mandible import make_mandible_phantom
 from ctdrill.imaging.plan.read import read_plans
 from ctdrill.imaging.sampling.reformat import cross_section, panorama

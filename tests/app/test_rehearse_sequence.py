@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from ctdrill.app.cli import main
-from ctdrill.engine.path import plan_calibration, plan_path
+from ctdrill.engine.path import plan_path
+from ctdrill.engine.plans import plan_calibration
 from ctdrill.engine.sequence import drill_path
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.types import DrillSpec, load_plan, save_plan
