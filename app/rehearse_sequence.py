@@ -28,11 +28,14 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
 from ctdrill.app.records import atomic_output_dir, write_file
+from ctdrill.engine.grey import hu_uncertainty, map_volume
 from ctdrill.engine.path import PathResult
 from ctdrill.engine.plans import plan_calibration
-from ctdrill.engine.sequence import drill_folder, drill_path, hole_json, plan_sequence
+from ctdrill.engine.record import to_json as record_json
+from ctdrill.engine.sequence import drill_folder, drill_path, plan_sequence
+from ctdrill.engine.settings import GreyMapSpec
+from ctdrill.engine.summarize import drill_info, hole_info
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import FaultSpec, Operator, SessionCsv
@@ -117,8 +120,8 @@ def rehearse_sequence(
                 hu=hu,
                 grey_map=grey_map,
             )
-            doc["drill"] = path.plan.drill.to_json()
-            doc["inner_holes"] = [hole_json(h) for h in path.inner_holes]
+            doc["drill"] = record_json(drill_info(path.plan.drill))
+            doc["inner_holes"] = [record_json(hole_info(h)) for h in path.inner_holes]
             write_file(folder / "summary.json", to_json(doc))
             runs.append((path, doc, reached_depth_mm(doc)))
             if not doc.get("complete"):

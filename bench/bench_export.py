@@ -22,9 +22,12 @@ import numpy as np
 from scipy import ndimage
 
 from bench.report import Section, table, time_it
-from ctdrill.app.export import ExportJob, write_exports
+from ctdrill.app.export import write_exports
+from ctdrill.engine.case import ExportJob
 from ctdrill.engine.grid import depth_grid_mm, grid_brackets
 from ctdrill.engine.path import plan_path
+from ctdrill.engine.settings import DEFAULTS
+from ctdrill.engine.summarize import CaseContext
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm
 from ctdrill.imaging.plan.types import DrillSpec, Plan, load_plan
@@ -158,9 +161,7 @@ def run(quick: bool) -> Section:
             lambda: write_exports(
                 [ExportJob(ours, "")],
                 Path(tmp) / "out",
-                feed_mm_s=None,
-                rate_hz=1000.0,
-                series_uid=volume.info.series_uid,
+                CaseContext(settings=DEFAULTS, series_uid=volume.info.series_uid),
             ),
             repeats=max(3, repeats // 3),
         )

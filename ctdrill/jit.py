@@ -17,9 +17,10 @@ restores between runs).
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -140,6 +141,20 @@ def helper(pyfunc: Callable[..., Any]) -> Any:
     if _numba is None:
         return pyfunc
     return _numba.njit(nogil=True, error_model="numpy")(pyfunc)
+
+
+@contextlib.contextmanager
+def switched_off(kernels_: Sequence[Kernel]) -> Iterator[None]:
+    """``kernels_`` switched off within the block: :meth:`Kernel.ready` is False and their
+    callers take the NumPy path (tests and benchmarks compare the two in one process)."""
+    saved = [k._ready for k in kernels_]
+    try:
+        for k in kernels_:
+            k._ready = False
+        yield
+    finally:
+        for k, ready in zip(kernels_, saved, strict=True):
+            k._ready = ready
 
 
 def kernels() -> tuple[Kernel, ...]:

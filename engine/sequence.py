@@ -109,12 +109,3 @@ def plan_sequence(
             )
         )
     return SequenceResult(plan, tuple(steps))
-
-
-def hole_json(hole: Hole) -> dict[str, float]:
-    """A hole as summaries write it."""
-    return {
-        "diameter_mm": 2.0 * hole.radius_mm,
-        "tip_length_mm": hole.tip_length_mm,
-        "depth_mm": hole.depth_mm,
-    }

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ctdrill.app.export_band import path_band
 from ctdrill.app.gui.plots import DepthCurves
+from ctdrill.engine.band import path_band
 from ctdrill.engine.path import PathResult, plan_path
 from ctdrill.engine.plans import plan_calibration, with_set_warnings
 from ctdrill.engine.sequence import plan_sequence

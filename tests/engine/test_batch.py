@@ -7,7 +7,6 @@ and every row of a batch equal to its one-row case."""
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -67,18 +66,9 @@ def _close_clearance(got: np.ndarray, want: np.ndarray, what: str) -> None:
     assert np.all(gap >= -TOL) and np.all(gap <= SEGMENT_TOL_MM + TOL), (what, gap.min(), gap.max())
 
 
-@contextlib.contextmanager
-def numpy_path() -> Iterator[None]:
+def numpy_path() -> contextlib.AbstractContextManager[None]:
     """The compiled kernels switched off: the NumPy path computes the same arrays."""
-    kernels = search_kernels()
-    saved = [k._ready for k in kernels]
-    try:
-        for k in kernels:
-            k._ready = False
-        yield
-    finally:
-        for k, ready in zip(kernels, saved, strict=True):
-            k._ready = ready
+    return jit.switched_off(search_kernels())
 
 
 def assert_rows_match(
