@@ -80,7 +80,7 @@ def test_each_warning_is_listed_once() -> None:
     b = LoadWarning("padding", "pixels outside the field")
     assert unique_warnings([a, b, a, b]) == [a, b]
     assert unique_warnings([a, b, a], already=[a]) == [b]
-    assert unique_warnings([LoadWarning("slice_gap", "one"), LoadWarning("x", "two")]) == [
+    assert unique_warnings([LoadWarning("slice_gap", "one"), LoadWarning("slice_gap", "two")]) == [
         LoadWarning("slice_gap", "one"),
         LoadWarning("slice_gap", "two"),
     ]
