@@ -29,7 +29,6 @@ from ctdrill.imaging.sampling.path import (
     crossed_gaps,
     require_grid_for_masks,
 )
-from ctdrill.imaging.stack import wide_steps
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.errors import ModelInputError
 
@@ -157,7 +156,7 @@ def check_rows(
         elif exit_mm[j] < planned[i]:
             oov[i] = exit_mm[j]
     gaps: list[tuple[SliceGap, ...]] = [()] * n
-    if bool(np.any(wide_steps(volume.slice_positions_mm))):
+    if volume.has_slice_gaps:
         for i in range(n):
             if errors[i] is not None:
                 continue

@@ -165,7 +165,7 @@ def search_safe_depths(
         sub = todo[valid]
         found = _refine_rows(clearance_at, margins, sub, lo[valid], hi[valid], tol_mm, out)
         kept = found & (out.depth_mm[sub] < hi[valid])  # safe at lo, violated by hi
-        todo = np.setdiff1d(todo, sub[kept])
+        todo = todo[~np.isin(todo, sub[kept])]
     found = _refine_rows(
         clearance_at, margins, todo, np.zeros(todo.size), limit_mm[todo], tol_mm, out
     )

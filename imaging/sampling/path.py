@@ -110,9 +110,10 @@ def require_grid_for_masks(
     volume: CTVolume, landmarks: tuple[Landmark, ...], *, name: str = ""
 ) -> None:
     """A mask landmark without its own grid takes the CT's: only a regular stack has one."""
-    if volume.regular:
+    needing = [lm for lm in landmarks if lm.needs_grid]
+    if not needing or volume.regular:
         return
-    for lm in landmarks:
+    for lm in needing:
         if lm.needs_grid:
             raise PathInputError(
                 f"plan {name!r}: mask landmark {lm.name!r} has no affine_lps and the CT's "
