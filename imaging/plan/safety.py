@@ -136,8 +136,9 @@ def search_safe_depths(
     """Deepest tip depth of each row whose clearance to every landmark stays >= its margin.
 
     The one safe-depth rule (the single plan's :func:`safe_depth` and the engine's batch use
-    it with their own clearance arrays). Found by bracketing on ``[0, limit_mm]`` and passes
-    of :data:`_REFINE_POINTS` depths spanning the bracket (its ends included), each keeping
+    it with their own clearance arrays). Found by bracketing on ``[0, limit_mm]`` (a row whose
+    margins hold at the limit is capped there at once) and passes of :data:`_REFINE_POINTS`
+    depths spanning the bracket (its ends included), each keeping
     the step where the slack (clearance - margin - :data:`SEGMENT_TOL_MM`) first turns
     negative (valid because the slack never increases with depth), to ``tol_mm``; the depth
     returned is on the safe side of the boundary. A clearance counts as kept only when it is
@@ -166,6 +167,13 @@ def search_safe_depths(
         found = _refine_rows(clearance_at, margins, sub, lo[valid], hi[valid], tol_mm, out)
         kept = found & (out.depth_mm[sub] < hi[valid])  # safe at lo, violated by hi
         todo = todo[~np.isin(todo, sub[kept])]
+    if todo.size:  # safe at the limit: safe all the way (the slack never increases)
+        end = clearance_at(todo, limit_mm[todo][:, None])[:, 0] - margins - SEGMENT_TOL_MM
+        held = np.min(end, axis=1) >= 0.0
+        out.depth_mm[todo[held]] = limit_mm[todo[held]]
+        out.binding[todo[held]] = -1
+        out.capped[todo[held]] = True
+        todo = todo[~held]
     found = _refine_rows(
         clearance_at, margins, todo, np.zeros(todo.size), limit_mm[todo], tol_mm, out
     )
