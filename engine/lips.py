@@ -1,12 +1,12 @@
 """The lip and the force profile of every row: ring samples, padding, the lip integral.
 
-The compiled kernels (:func:`~ctdrill.imaging.sampling.lip_batch.sample_lips`,
-:func:`~ctdrill.model.profile_batch.build_profiles`) compute the arrays where they are ready;
-the sampler and :func:`~ctdrill.model.profile.build_profile` compute the same arrays
-otherwise, row by row: on a padded volume (the sampler substitutes padding voxels and the
-padding rule reads its counts), for a drill cutting around earlier holes (rings per depth), or
-without the kernels' cache. Rows are sampled in chunks of :data:`CHUNK_ROWS`, one float32
-buffer reused.
+:func:`~ctdrill.imaging.sampling.lip_batch.sample_lips` and
+:func:`~ctdrill.model.profile_batch.build_profiles` compute the arrays: their compiled kernels
+where they are ready, the sampler and :func:`~ctdrill.model.profile.build_profile` row by row
+otherwise (a padded volume, whose sampler substitutes padding voxels, or no kernels' cache).
+A drill cutting around earlier holes (rings per depth) takes the sampler and
+``build_profile`` row by row. The padding rule reads each row's counts of samples outside.
+Rows are sampled in chunks of :data:`CHUNK_ROWS`, one float32 buffer reused.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.annulus import Hole, holes_on_grid
 from ctdrill.imaging.sampling.lip import LipSamples, axis_basis, ring_radii_mm, sample_lip_rings
-from ctdrill.imaging.sampling.lip_batch import LIP_KERNEL, sample_lips
+from ctdrill.imaging.sampling.lip_batch import sample_lips
 from ctdrill.imaging.sampling.path import check_padding
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.calibration import Calibration
@@ -84,18 +84,10 @@ def sample_rows(
     n_clipped = np.zeros(n, dtype=np.int64)
     n_samples = np.zeros(n, dtype=np.int64)
     lips: dict[int, LipSamples] = {}
-    per_row = bool(holes) or volume.valid is not None or not LIP_KERNEL.ready()
-    buf = np.empty((min(CHUNK_ROWS, max(n, 1)), d_max, n_rings, n_angles), dtype=np.float32)
-    outs = np.zeros((buf.shape[0], d_max), dtype=np.int64)
-    for start in range(0, rows.size, CHUNK_ROWS):
-        chunk_rows = rows[start : start + CHUNK_ROWS]
-        local = np.arange(chunk_rows.size)
-        chunk, out_chunk = buf[: chunk_rows.size], outs[: chunk_rows.size]
-        bases = np.stack([axis_basis(entries[i], targets[i]) for i in chunk_rows.tolist()])
-        for j, i in enumerate(chunk_rows.tolist()):
+    if holes:  # rings per depth: the sampler and build_profile, row by row
+        for i in rows.tolist():
             m = int(n_dep[i])
-            if not per_row:
-                continue
+            on_grid = holes_on_grid(holes, depth[i, :m])
             lip = sample_lip_rings(
                 volume,
                 entries[i],
@@ -104,53 +96,44 @@ def sample_rows(
                 drill,
                 n_rings=n_rings,
                 n_angles=n_angles,
-                holes=holes_on_grid(holes, depth[i, :m]),
+                holes=on_grid,
             )
-            try:
-                check_padding(
-                    volume,
-                    entries[i],
-                    targets[i],
-                    drill,
-                    lip,
-                    n_rings,
-                    n_angles,
-                    name=plan.name,
-                    holes=holes_on_grid(holes, depth[i, :m]),
-                )
-            except ImagingInputError as exc:
-                errors[i] = exc
-            if holes:  # rings per depth: the profile of this row alone
-                prof = build_profile(
-                    lip.hu,
-                    lip.ring_weights,
-                    depth[i, :m],
-                    calibration,
-                    blades=drill.blades,
-                    rpm=drill.rpm,
-                )
-                s_t[i, :m], hu_mean[i, :m], s0[i, :m] = prof.s_t, prof.hu_mean, prof.s0_n
-                sk[i, :, :m] = prof.sk_n
-                n_clipped[i], n_samples[i] = prof.n_clipped, prof.n_samples
+            _padding(
+                volume, plan, entries[i], targets[i], lip, n_rings, n_angles, on_grid, errors, i
+            )
+            prof = build_profile(
+                lip.hu,
+                lip.ring_weights,
+                depth[i, :m],
+                calibration,
+                blades=drill.blades,
+                rpm=drill.rpm,
+            )
+            s_t[i, :m], hu_mean[i, :m], s0[i, :m] = prof.s_t, prof.hu_mean, prof.s0_n
+            sk[i, :, :m] = prof.sk_n
+            n_clipped[i], n_samples[i] = prof.n_clipped, prof.n_samples
             if keep:
                 lips[i] = lip
-            chunk[j, :m] = lip.hu
-        if holes:
-            continue
-        if not per_row:
-            sample_lips(
-                volume,
-                entries[chunk_rows],
-                targets[chunk_rows],
-                bases,
-                depth[chunk_rows],
-                n_dep[chunk_rows],
-                drill,
-                n_rings=n_rings,
-                n_angles=n_angles,
-                out=chunk,
-                outside=out_chunk,
-            )
+        return LipRun(hu_mean, s_t, s0, disc, sk, n_clipped, n_samples, lips)
+    buf = np.empty((min(CHUNK_ROWS, max(n, 1)), d_max, n_rings, n_angles), dtype=np.float32)
+    outs = np.zeros((buf.shape[0], d_max), dtype=np.int64)
+    for start in range(0, rows.size, CHUNK_ROWS):
+        chunk_rows = rows[start : start + CHUNK_ROWS]
+        chunk, out_chunk = buf[: chunk_rows.size], outs[: chunk_rows.size]
+        bases = np.stack([axis_basis(entries[i], targets[i]) for i in chunk_rows.tolist()])
+        sample_lips(
+            volume,
+            entries[chunk_rows],
+            targets[chunk_rows],
+            bases,
+            depth[chunk_rows],
+            n_dep[chunk_rows],
+            drill,
+            n_rings=n_rings,
+            n_angles=n_angles,
+            out=chunk,
+            outside=out_chunk,
+        )
         prof_b = build_profiles(
             chunk,
             depth[chunk_rows],
@@ -160,7 +143,7 @@ def sample_rows(
             blades=drill.blades,
             rpm=drill.rpm,
             alt_weights=area_w,
-            rows=local,
+            rows=np.arange(chunk_rows.size),
         )
         s_t[chunk_rows], hu_mean[chunk_rows], s0[chunk_rows] = (
             prof_b.s_t,
@@ -169,16 +152,43 @@ def sample_rows(
         )
         sk[chunk_rows], disc[chunk_rows] = prof_b.sk_n, prof_b.hu_mean_alt
         n_clipped[chunk_rows], n_samples[chunk_rows] = prof_b.n_clipped, prof_b.n_samples
-        if keep and not per_row:
-            for j, i in enumerate(chunk_rows.tolist()):
-                m = int(n_dep[i])
-                tips = entries[i] + depth[i, :m, None] * bases[j, 0]
-                lips[i] = LipSamples(
-                    depth_mm=depth[i, :m].copy(),
-                    radii_mm=radii,
-                    ring_weights=ring_w,
-                    hu=chunk[j, :m].copy(),
-                    outside=out_chunk[j, :m].copy(),
-                    axis_hu=volume.sample(tips, order=1, outside_hu=AIR_HU),
-                )
+        if volume.valid is None and not keep:
+            continue
+        for j, i in enumerate(chunk_rows.tolist()):
+            m = int(n_dep[i])
+            tips = entries[i] + depth[i, :m, None] * bases[j, 0]
+            lip = LipSamples(
+                depth_mm=depth[i, :m].copy(),
+                radii_mm=radii,
+                ring_weights=ring_w,
+                hu=chunk[j, :m].copy(),
+                outside=out_chunk[j, :m].copy(),
+                axis_hu=volume.sample(tips, order=1, outside_hu=AIR_HU),
+            )
+            _padding(volume, plan, entries[i], targets[i], lip, n_rings, n_angles, (), errors, i)
+            if keep:
+                lips[i] = lip
     return LipRun(hu_mean, s_t, s0, disc, sk, n_clipped, n_samples, lips)
+
+
+def _padding(
+    volume: CTVolume,
+    plan: Plan,
+    entry: np.ndarray,
+    target: np.ndarray,
+    lip: LipSamples,
+    n_rings: int,
+    n_angles: int,
+    holes: tuple[Hole, ...],
+    errors: list[Exception | None],
+    row: int,
+) -> None:
+    """The padding rule on one row's lip (nothing to check on a volume without padding)."""
+    if volume.valid is None:
+        return
+    try:
+        check_padding(
+            volume, entry, target, plan.drill, lip, n_rings, n_angles, name=plan.name, holes=holes
+        )
+    except ImagingInputError as exc:
+        errors[row] = exc
