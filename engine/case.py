@@ -168,7 +168,7 @@ def prepare_case(
     manual_hu = hu_sigma_uncertainty(settings.hu_sigma)
     plans = list(with_set_warnings(load_plan_set(plan_paths)))
     per_file = Counter(plan.source for plan in plans)
-    volume, grey_map = map_volume(load_ct(dicom, series_uid=settings.series_uid), settings.grey)
+    volume, grey_map = map_volume(load_ct(dicom, series_uid=settings.series), settings.grey)
     cache: dict[str, Calibration] = {}
     override = None if settings.calibration is None else load_calibration(settings.calibration)
     jobs: list[ExportJob] = []

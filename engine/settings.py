@@ -33,7 +33,8 @@ class ExportSettings:
     calibration : overrides every plan's calibration (a set name or a JSON path), or None.
     feed_mm_s : overrides every plan's feed, mm/s, or None (each plan's own).
     rate_hz : ``force.csv`` sample rate, Hz.
-    series_uid : the SeriesInstanceUID (or its hash prefix) to load; None: the largest series.
+    series : the series to load: its SeriesInstanceUID or a prefix of its hash (``--series``);
+        None: the largest CT series.
     include_phi : write the patient identifiers and the raw series UID.
     interpolate_gaps : interpolate across slice gaps the drill crosses instead of refusing.
     hu_sigma : SD of the series' HU (``--hu-sigma``), entered into every force band.
@@ -45,7 +46,7 @@ class ExportSettings:
     calibration: str | None = None
     feed_mm_s: float | None = None
     rate_hz: float = DEFAULT_RATE_HZ
-    series_uid: str | None = None
+    series: str | None = None
     include_phi: bool = False
     interpolate_gaps: bool = False
     hu_sigma: float | None = None

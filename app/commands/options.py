@@ -149,7 +149,7 @@ def export_settings(args: argparse.Namespace) -> ExportSettings:
         calibration=opts.get("calibration"),
         feed_mm_s=opts.get("feed_mm_s"),
         rate_hz=opts.get("rate_hz", DEFAULTS.rate_hz),
-        series_uid=opts.get("series"),
+        series=opts.get("series"),
         include_phi=bool(opts.get("include_phi", False)),
         interpolate_gaps=bool(opts.get("interpolate_gaps", False)),
         hu_sigma=opts.get("hu_sigma"),
