@@ -13,10 +13,7 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-from ctdrill.app.errors import AppInputError
-from ctdrill.haptics.errors import HapticsInputError
-from ctdrill.imaging.errors import ImagingInputError
-from ctdrill.model.errors import ModelInputError
+from ctdrill.app.errors import INPUT_ERRORS
 
 #: Subcommands in the order ``ctdrill --help`` lists them.
 COMMANDS: tuple[str, ...] = (
@@ -35,13 +32,6 @@ COMMANDS: tuple[str, ...] = (
     "emulate",
     "gui",
     "warmup",
-)
-
-INPUT_ERRORS: tuple[type[Exception], ...] = (
-    AppInputError,
-    ImagingInputError,
-    ModelInputError,
-    HapticsInputError,
 )
 
 

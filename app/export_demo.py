@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ctdrill.app.export import ExportInputError
+from ctdrill.app.errors import AppInputError
 from ctdrill.app.export_run import export_case
 from ctdrill.resources import asset
 
@@ -23,9 +23,9 @@ def run_demo(out_dir: Path, *, demo_dir: Path = DEMO_DIR) -> list[Path]:
     out_dir = Path(out_dir)
     if out_dir.exists():
         if not out_dir.is_dir():
-            raise ExportInputError(f"--out {out_dir}: exists and is not a folder")
+            raise AppInputError(f"--out {out_dir}: exists and is not a folder")
         if any(out_dir.iterdir()) and not (out_dir / DEMO_MARKER).is_file():
-            raise ExportInputError(
+            raise AppInputError(
                 f"--out {out_dir}: folder is not empty and was not made by 'ctdrill demo'; "
                 "choose a new or empty folder"
             )

@@ -26,15 +26,15 @@ from typing import IO, TYPE_CHECKING
 
 import numpy as np
 
-from ctdrill.app.pipeline import PathResult
-from ctdrill.app.records import printable
+from ctdrill.engine.path import PathResult
 from ctdrill.imaging.misch import MISCH_BANDS_HU
+from ctdrill.text import printable
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from ctdrill.app.export import ForceSeries
+    from ctdrill.engine.series import ForceSeries
     from ctdrill.model.band import ForceBand
 
 #: Colours of the Misch bands drawn behind the HU trace (D5 is left blank).
@@ -246,9 +246,11 @@ def draw_trajectory(
     ax_f.fill_between(
         env_x, env_lo, env_hi, color="#1f77b4", lw=0.4, label="force (with vibration)"
     )
+    # the band bounds the mean force S0 (1 + Ke v) at its feed: drawn around that curve
+    mean_n = prof.mean_force_n(feed) if band is None else band.mean_n
     ax_f.plot(
         prof.depth_mm,
-        prof.mean_force_n(feed),
+        mean_n,
         lw=1.2,
         color="#d62728",
         label="mean force S0 (1 + Ke v)",
@@ -275,7 +277,7 @@ def draw_trajectory(
             fontsize=7,
             color="#7f7f7f",
         )
-    ax_f.set_ylim(*force_limits_n(env_lo, env_hi, prof.mean_force_n(feed), band))
+    ax_f.set_ylim(*force_limits_n(env_lo, env_hi, mean_n, band))
     ax_f.legend(loc="upper right", fontsize=7)
 
     ax_h.plot(prof.depth_mm, prof.hu_mean, color="k", lw=1.0, label="lip-mean HU")

@@ -1,6 +1,7 @@
 """``trajectories.csv``: one row per trajectory, for exports of many trajectories and cohorts.
 
-Every value is taken from the trajectory's ``summary.json`` document (:func:`summary`), so a
+Every value is read from the trajectory's summary
+(:class:`~ctdrill.engine.summary.TrajectorySummary`, what its ``summary.json`` holds), so a
 row and the summary never disagree. Empty cells are values the summary holds as ``null``
 (no landmark binds, the lip never leaves the volume, ...); booleans are ``true``/``false``;
 ``warnings`` lists the warning codes, ``;``-separated (the messages are in the summaries of
@@ -11,48 +12,64 @@ drill's own summary.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Iterable, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from typing import Any
 
 from ctdrill.app.csv_cells import csv_table
+from ctdrill.engine.summary import LandmarkClearance, TrajectorySummary
 from ctdrill.imaging.misch import MISCH_CLASSES
 
 #: Name of the table in the output folder.
 TABLE_NAME = "trajectories.csv"
 
-#: Columns, in order: identity, the stop, clearances, forces, bone, calibration, geometry.
-TABLE_COLUMNS: tuple[str, ...] = (
-    "trajectory",
-    "plan_file",
-    "folder",
-    "planned_depth_mm",
-    "stop_depth_mm",
-    "stop_reason",
-    "max_safe_depth_mm",
-    "max_safe_depth_capped",
-    "out_of_volume_depth_mm",
-    "min_clearance_mm",
-    "plan_clearance_mm",
-    "binding_landmark",
-    "binding_margin_mm",
-    "binding_clearance_at_stop_mm",
-    "peak_force_n",
-    "mean_force_n",
-    "duration_s",
-    "feed_mm_s",
-    "drill_diameter_mm",
-    *(f"misch_{c}_share" for c in MISCH_CLASSES),
-    "calibration",
-    "calibration_illustrative",
-    "entry_x_mm",
-    "entry_y_mm",
-    "entry_z_mm",
-    "target_x_mm",
-    "target_y_mm",
-    "target_z_mm",
-    "series_uid_sha256",
-    "warnings",
+
+def _binding(s: TrajectorySummary) -> LandmarkClearance | None:
+    return s.outcome.binding_landmark
+
+
+def _share(c: str) -> Callable[[TrajectorySummary], Any]:
+    return lambda s: round(float(s.hu_grading.misch_share[c]), 6)
+
+
+#: The columns, in order (identity, the stop, clearances, forces, bone, calibration,
+#: geometry), each with how it reads the summary: the one list of the table.
+COLUMNS: tuple[tuple[str, Callable[[TrajectorySummary], Any]], ...] = (
+    ("trajectory", lambda s: s.outcome.plan),
+    ("plan_file", lambda s: s.outcome.plan_file),
+    ("folder", lambda s: None),  # set by table_row
+    ("planned_depth_mm", lambda s: s.outcome.planned_depth_mm),
+    ("stop_depth_mm", lambda s: s.outcome.stop_depth_mm),
+    ("stop_reason", lambda s: s.outcome.stop_reason),
+    ("max_safe_depth_mm", lambda s: s.outcome.max_safe_depth_mm),
+    ("max_safe_depth_capped", lambda s: s.outcome.max_safe_depth_capped),
+    ("out_of_volume_depth_mm", lambda s: s.outcome.out_of_volume_depth_mm),
+    ("min_clearance_mm", lambda s: s.outcome.min_clearance_mm),
+    ("plan_clearance_mm", lambda s: s.outcome.plan_clearance_mm),
+    ("binding_landmark", lambda s: b.name if (b := _binding(s)) else None),
+    ("binding_margin_mm", lambda s: b.margin_mm if (b := _binding(s)) else None),
+    (
+        "binding_clearance_at_stop_mm",
+        lambda s: b.clearance_at_stop_mm if (b := _binding(s)) else None,
+    ),
+    ("peak_force_n", lambda s: s.peak_force_n),
+    ("mean_force_n", lambda s: s.mean_force_n),
+    ("duration_s", lambda s: s.duration_s),
+    ("feed_mm_s", lambda s: s.outcome.feed_mm_s),
+    ("drill_diameter_mm", lambda s: s.drill.diameter_mm),
+    *((f"misch_{c}_share", _share(c)) for c in MISCH_CLASSES),
+    ("calibration", lambda s: s.outcome.calibration.name),
+    ("calibration_illustrative", lambda s: s.outcome.calibration.illustrative),
+    ("entry_x_mm", lambda s: s.outcome.entry_lps[0]),
+    ("entry_y_mm", lambda s: s.outcome.entry_lps[1]),
+    ("entry_z_mm", lambda s: s.outcome.entry_lps[2]),
+    ("target_x_mm", lambda s: s.outcome.target_lps[0]),
+    ("target_y_mm", lambda s: s.outcome.target_lps[1]),
+    ("target_z_mm", lambda s: s.outcome.target_lps[2]),
+    ("series_uid_sha256", lambda s: s.outcome.series.series_uid_sha256),
+    ("warnings", lambda s: ";".join(w.code for w in s.warnings)),
 )
+#: The table's header.
+TABLE_COLUMNS: tuple[str, ...] = tuple(name for name, _ in COLUMNS)
 
 
 #: Columns of text (names, paths, codes); every other column holds numbers or booleans.
@@ -78,46 +95,12 @@ def _cell(value: Any) -> str:
     return str(value)
 
 
-def table_row(doc: Mapping[str, Any], folder: str) -> dict[str, str]:
-    """The row of one trajectory from its ``summary.json`` document; ``folder`` is where its
-    own files are (relative to the output folder), empty when they were not written."""
-    binding = doc.get("binding_landmark") or {}
-    share = doc["hu_grading"]["misch_share"]
-    entry = doc["entry_lps"]
-    target = doc["target_lps"]
-    values: dict[str, Any] = {
-        "trajectory": doc["plan"],
-        "plan_file": doc.get("plan_file"),
-        "folder": folder,
-        "planned_depth_mm": doc["planned_depth_mm"],
-        "stop_depth_mm": doc["stop_depth_mm"],
-        "stop_reason": doc["stop_reason"],
-        "max_safe_depth_mm": doc["max_safe_depth_mm"],
-        "max_safe_depth_capped": doc["max_safe_depth_capped"],
-        "out_of_volume_depth_mm": doc["out_of_volume_depth_mm"],
-        "min_clearance_mm": doc["min_clearance_mm"],
-        "plan_clearance_mm": doc["plan_clearance_mm"],
-        "binding_landmark": binding.get("name"),
-        "binding_margin_mm": binding.get("margin_mm"),
-        "binding_clearance_at_stop_mm": binding.get("clearance_at_stop_mm"),
-        "peak_force_n": doc["peak_force_n"],
-        "mean_force_n": doc["mean_force_n"],
-        "duration_s": doc["duration_s"],
-        "feed_mm_s": doc["feed_mm_s"],
-        "drill_diameter_mm": doc["drill"]["diameter_mm"],
-        **{f"misch_{c}_share": round(float(share[c]), 6) for c in MISCH_CLASSES},
-        "calibration": doc["calibration"],
-        "calibration_illustrative": doc["calibration_illustrative"],
-        "entry_x_mm": entry[0],
-        "entry_y_mm": entry[1],
-        "entry_z_mm": entry[2],
-        "target_x_mm": target[0],
-        "target_y_mm": target[1],
-        "target_z_mm": target[2],
-        "series_uid_sha256": doc.get("series_uid_sha256"),
-        "warnings": ";".join(w["code"] for w in doc.get("warnings", [])),
-    }
-    return {k: _cell(values[k]) for k in TABLE_COLUMNS}
+def table_row(summary: TrajectorySummary, folder: str) -> dict[str, str]:
+    """The row of one trajectory from its summary; ``folder`` is where its own files are
+    (relative to the output folder), empty when they were not written."""
+    row = {name: _cell(read(summary)) for name, read in COLUMNS}
+    row["folder"] = folder
+    return row
 
 
 def table_csv(

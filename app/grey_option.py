@@ -1,8 +1,7 @@
-"""``--grey-to-hu`` / ``--grey-ref``: parse, build the map on the loaded series, apply it.
+"""``--grey-to-hu`` / ``--grey-ref``: the command-line text as a map's spec, and its line.
 
-The map itself and its uncertainty belong to :mod:`ctdrill.imaging.dicom.grey`; this module
-turns the command-line text into it, applies it to the volume at the boundary (before any
-sampling) and hands the force band its HU error (:class:`ctdrill.model.band.HuUncertainty`).
+The spec (:class:`~ctdrill.engine.settings.GreyMapSpec`) is built into the map on the loaded
+series and applied by :mod:`ctdrill.engine.grey`.
 """
 
 from __future__ import annotations
@@ -10,30 +9,12 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.imaging.dicom.grey import (
-    GreyToHu,
-    apply_grey_map,
-    given_grey_map,
-    grey_map_from_regions,
-    sphere_region,
-)
-from ctdrill.imaging.errors import ImagingInputError
-from ctdrill.imaging.volume import CTVolume
-from ctdrill.model.band import HuUncertainty
-from ctdrill.numtext import number_text
+from ctdrill.engine.settings import GreyMapSpec
+from ctdrill.engine.summary import GreyMapInfo
 
 _REF_RE = re.compile(r"^\s*([^=]+)=\s*(\S+)\s*$")
-
-
-@dataclass(frozen=True)
-class GreyMapSpec:
-    """What the options asked for: numbers, or regions ``((x, y, z), r, hu)``."""
-
-    given: tuple[float, ...] | None = None
-    regions: tuple[tuple[tuple[float, float, float], float, float], ...] = ()
 
 
 def _numbers(text: str, option: str, counts: Sequence[int]) -> tuple[float, ...]:
@@ -71,52 +52,11 @@ def parse_grey_options(
     return GreyMapSpec(regions=tuple(regions))
 
 
-def _option(spec: GreyMapSpec) -> str:
-    """The option that gave ``spec``, with its values."""
-    if spec.given is not None:
-        return "--grey-to-hu " + ",".join(number_text(v) for v in spec.given)
-    return "--grey-ref"
-
-
-def build_grey_map(volume: CTVolume, spec: GreyMapSpec) -> GreyToHu:
-    """The map of ``spec`` on ``volume`` (regions measured on its values as loaded)."""
-    try:
-        if spec.given is not None:
-            g = spec.given
-            return given_grey_map(*g) if len(g) == 4 else given_grey_map(g[0], g[1])
-        return grey_map_from_regions([sphere_region(volume, c, r, hu) for c, r, hu in spec.regions])
-    except ImagingInputError as exc:
-        raise AppInputError(f"--grey-to-hu/--grey-ref: {exc}") from None
-
-
-def map_volume(volume: CTVolume, spec: GreyMapSpec | None) -> tuple[CTVolume, GreyToHu | None]:
-    """``volume`` in HU through the map of ``spec`` (unchanged when None), and the map."""
-    if spec is None:
-        return volume, None
-    grey_map = build_grey_map(volume, spec)
-    try:
-        return apply_grey_map(volume, grey_map), grey_map
-    except ImagingInputError as exc:
-        raise AppInputError(f"{_option(spec)}: {exc}") from None
-
-
-def hu_uncertainty(grey_map: GreyToHu | None, manual: HuUncertainty | None) -> HuUncertainty | None:
-    """The HU error of the band: the map's (when known) and ``--hu-sigma``'s, independent."""
-    out = manual
-    if grey_map is not None:
-        cov = grey_map.hu_error_cov()
-        if cov is not None:
-            mapped = HuUncertainty(cov, "grey-to-HU map")
-            out = mapped if out is None else mapped.plus(out)
-    return out
-
-
-def grey_line(doc: dict[str, object]) -> str | None:
+def grey_line(grey: GreyMapInfo | None) -> str | None:
     """The terminal line recording the map (None without one)."""
-    g = doc.get("grey_to_hu")
-    if not isinstance(g, dict):
+    if grey is None:
         return None
     se = ""
-    if g.get("slope_se") is not None:
-        se = f" (SE {g['slope_se']:.3g}, {g['intercept_se']:.3g})"
-    return f"grey-to-HU map: HU = {g['slope']:.6g} x grey + {g['intercept']:.6g}{se}; {g['method']}"
+    if grey.slope_se is not None and grey.intercept_se is not None:
+        se = f" (SE {grey.slope_se:.3g}, {grey.intercept_se:.3g})"
+    return f"grey-to-HU map: HU = {grey.slope:.6g} x grey + {grey.intercept:.6g}{se}; {grey.method}"

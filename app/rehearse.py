@@ -20,13 +20,9 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.calibration_info import calibration_fields
 from ctdrill.app.errors import AppInputError
-from ctdrill.app.export_band import band_summary, hu_uncertainty_option, path_band
-from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
 from ctdrill.app.igtl.frames import StreamGeometry, parse_target, refuse_igtl_sequence
 from ctdrill.app.igtl.stream import IgtlStream
-from ctdrill.app.pipeline import PathResult, binding_landmark_doc, plan_calibration, plan_path
 from ctdrill.app.readout import push_summary, wall_summary
 from ctdrill.app.records import atomic_output_dir, write_file
 from ctdrill.app.trainee.exam import (
@@ -37,6 +33,13 @@ from ctdrill.app.trainee.exam import (
     refuse_exam_device,
     refuse_exam_sequence,
 )
+from ctdrill.engine.band import band_peak, hu_uncertainty_info, path_band
+from ctdrill.engine.grey import hu_sigma_uncertainty, hu_uncertainty, map_volume
+from ctdrill.engine.path import PathResult, binding_landmark_doc, plan_path
+from ctdrill.engine.plans import plan_calibration
+from ctdrill.engine.record import to_json
+from ctdrill.engine.settings import GreyMapSpec
+from ctdrill.engine.summary import CalibrationInfo
 from ctdrill.haptics.assessment import AssessmentContext, Assessor
 from ctdrill.haptics.device import Device
 from ctdrill.haptics.profile_table import ProfileTable
@@ -143,13 +146,8 @@ def rehearsal_summary(
             "max_safe_depth_mm": float(path.max_safe_depth_mm),
             "binding_landmark": binding_landmark_doc(path),
             "plan_clearance_mm": path.plan_clearance_mm,
-            **calibration_fields(path.calibration),
-            **band_summary(
-                path,
-                path_band(path, path.plan.feed_mm_s, hu),
-                feed_mm_s=path.plan.feed_mm_s,
-                hu=hu,
-            ),
+            **to_json(CalibrationInfo.of(path.calibration)),
+            **_band_fields(path, hu),
             "grey_to_hu": None if grey_map is None else grey_map.to_json(),
             "operator": operator,
             "device": device,
@@ -169,6 +167,18 @@ def rehearsal_summary(
     if assessment is not None:
         summary["assessment"] = assessment
     return summary
+
+
+def _band_fields(path: PathResult, hu: HuUncertainty | None) -> dict[str, Any]:
+    """The force band at the peak at the plan's feed, its note and the HU uncertainty, as
+    the export's summary names them."""
+    peak, note = band_peak(path, path_band(path, path.plan.feed_mm_s, hu), hu)
+    info = hu_uncertainty_info(hu)
+    return {
+        "force_band": None if peak is None else to_json(peak),
+        "force_band_note": note,
+        "hu_uncertainty": None if info is None else to_json(info),
+    }
 
 
 def summary_json(summary: dict[str, Any]) -> str:
@@ -224,7 +234,7 @@ def rehearse(
     if not (math.isfinite(duration_s) and 0.0 < duration_s <= 3600.0):
         raise AppInputError(f"--duration-s {duration_s}: give 0 < seconds <= 3600")
     op = parse_operator(operator)
-    manual_hu = hu_uncertainty_option(hu_sigma)
+    manual_hu = hu_sigma_uncertainty(hu_sigma)
     fault_specs = [parse_fault(f) for f in faults]
     target = None if igtl is None else parse_target(igtl)
     if exam:

@@ -1,7 +1,7 @@
 """Rehearsing a drill sequence: one device session per drill, in drilling order.
 
 A plan with ``drills`` (pilot 2.0 mm, then 2.8, 3.5 ...) rehearses as the surgeon drills it:
-drill ``k`` gets its own table (its own profile and stop depth, :mod:`ctdrill.app.sequence`),
+drill ``k`` gets its own table (its own profile and stop depth, :mod:`ctdrill.engine.sequence`),
 the device is opened, armed with it, driven by the same operator for ``duration_s`` and
 closed: **one session per drill** (a drill change is a new upload and ARM, as on the real
 device). The hole drill ``k`` leaves for the next is as deep as its tip **actually reached**
@@ -28,10 +28,14 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.grey_option import GreyMapSpec, hu_uncertainty, map_volume
-from ctdrill.app.pipeline import PathResult, plan_calibration
 from ctdrill.app.records import atomic_output_dir, write_file
-from ctdrill.app.sequence import drill_folder, drill_path, hole_json, plan_sequence
+from ctdrill.engine.grey import hu_uncertainty, map_volume
+from ctdrill.engine.path import PathResult
+from ctdrill.engine.plans import plan_calibration
+from ctdrill.engine.record import to_json as record_json
+from ctdrill.engine.sequence import drill_folder, drill_path, plan_sequence
+from ctdrill.engine.settings import GreyMapSpec
+from ctdrill.engine.summarize import drill_info, hole_info
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import FaultSpec, Operator, SessionCsv
@@ -116,8 +120,8 @@ def rehearse_sequence(
                 hu=hu,
                 grey_map=grey_map,
             )
-            doc["drill"] = path.plan.drill.to_json()
-            doc["inner_holes"] = [hole_json(h) for h in path.inner_holes]
+            doc["drill"] = record_json(drill_info(path.plan.drill))
+            doc["inner_holes"] = [record_json(hole_info(h)) for h in path.inner_holes]
             write_file(folder / "summary.json", to_json(doc))
             runs.append((path, doc, reached_depth_mm(doc)))
             if not doc.get("complete"):

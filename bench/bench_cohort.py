@@ -20,10 +20,13 @@ from bench.export_peers import peer_force_csv, peer_force_png
 from bench.report import Section, headline_row, table, time_it, time_pair
 from ctdrill.app.batch.manifest import read_manifest
 from ctdrill.app.batch.run import default_workers, run_batch
-from ctdrill.app.batch.task import ExportOptions
-from ctdrill.app.export import ExportJob, force_csv, force_time_series, write_exports
+from ctdrill.app.export import force_csv, write_exports
 from ctdrill.app.export_plot import force_png
-from ctdrill.app.pipeline import plan_path
+from ctdrill.engine.case import ExportJob
+from ctdrill.engine.path import plan_path
+from ctdrill.engine.series import force_time_series
+from ctdrill.engine.settings import DEFAULTS, ExportSettings
+from ctdrill.engine.summarize import CaseContext
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.load import load_plan
 from ctdrill.model.calibration import load_calibration
@@ -55,20 +58,13 @@ def run(quick: bool) -> Section:
         repeats=repeats,
     )
     uid = volume.info.series_uid
+    ctx = CaseContext(settings=DEFAULTS, series_uid=uid)
+    no_plot = CaseContext(settings=ExportSettings(plot=False), series_uid=uid)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
         t_all, t_noplot = time_pair(
-            lambda: write_exports(
-                [ExportJob(result, "")], out / "a", feed_mm_s=None, rate_hz=1000.0, series_uid=uid
-            ),
-            lambda: write_exports(
-                [ExportJob(result, "")],
-                out / "b",
-                feed_mm_s=None,
-                rate_hz=1000.0,
-                series_uid=uid,
-                plot=False,
-            ),
+            lambda: write_exports([ExportJob(result, "")], out / "a", ctx),
+            lambda: write_exports([ExportJob(result, "")], out / "b", no_plot),
             repeats=repeats,
         )
         n = 3 if quick else 30
@@ -77,18 +73,8 @@ def run(quick: bool) -> Section:
         jobs = [ExportJob(plan_path(volume, q, cal), q.name) for q in plans]
         compute_s = time.perf_counter() - t0
         t_table, t_folders = time_pair(
-            lambda: write_exports(
-                jobs,
-                out / "t",
-                feed_mm_s=None,
-                rate_hz=1000.0,
-                series_uid=uid,
-                files=False,
-                table=True,
-            ),
-            lambda: write_exports(
-                jobs, out / "f", feed_mm_s=None, rate_hz=1000.0, series_uid=uid, table=True
-            ),
+            lambda: write_exports(jobs, out / "t", ctx, files=False, table=True),
+            lambda: write_exports(jobs, out / "f", ctx, table=True),
             repeats=2,
         )
 
@@ -234,7 +220,7 @@ def _batch(quick: bool) -> tuple[list[list[str]], int]:
             cases = read_manifest(manifest)
             for name in ("serial", "resume"):
                 t0 = time.perf_counter()
-                report = run_batch(manifest, cases, root / "serial", ExportOptions(), workers=1)
+                report = run_batch(manifest, cases, root / "serial", ExportSettings(), workers=1)
                 times[name] = time.perf_counter() - t0
                 assert not report.failed, report.failed
         else:  # the whole command a user runs (its imports and worker start-up included)

@@ -22,8 +22,12 @@ import numpy as np
 from scipy import ndimage
 
 from bench.report import Section, table, time_it
-from ctdrill.app.export import ExportJob, write_exports
-from ctdrill.app.pipeline import depth_grid_mm, grid_bracket, plan_path
+from ctdrill.app.export import write_exports
+from ctdrill.engine.case import ExportJob
+from ctdrill.engine.grid import depth_grid_mm, grid_brackets
+from ctdrill.engine.path import plan_path
+from ctdrill.engine.settings import DEFAULTS
+from ctdrill.engine.summarize import CaseContext
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.load import load_plan
 from ctdrill.imaging.plan.safety import clearance_profile_mm, max_safe_depth_mm
@@ -70,6 +74,14 @@ def baseline_path(volume: CTVolume, plan: Plan, calibration: Calibration) -> tup
     margins = np.array([plan.landmark_margin_mm(lm) for lm in plan.landmarks])
     safe = max_safe_depth_mm(plan, bracket_mm=grid_bracket(depth, clearance, margins))
     return safe, float(profile.s0_n.max())
+
+
+def grid_bracket(
+    depth: np.ndarray, clearance: np.ndarray, margins: np.ndarray
+) -> tuple[float, float] | None:
+    """The grid step where the margin is first broken (the engine's rule, one row)."""
+    lo, hi = grid_brackets(depth[None], np.array([depth.size]), clearance[None], margins)[0]
+    return None if np.isnan(lo) else (float(lo), float(hi))
 
 
 def _iqr(values_ms: np.ndarray) -> str:
@@ -150,9 +162,7 @@ def run(quick: bool) -> Section:
             lambda: write_exports(
                 [ExportJob(ours, "")],
                 Path(tmp) / "out",
-                feed_mm_s=None,
-                rate_hz=1000.0,
-                series_uid=volume.info.series_uid,
+                CaseContext(settings=DEFAULTS, series_uid=volume.info.series_uid),
             ),
             repeats=max(3, repeats // 3),
         )

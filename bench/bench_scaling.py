@@ -13,7 +13,7 @@ turn. Warm runs repeat on a hot page cache; cold runs drop it before every run
 allocator state is shared between them (quick mode: in this process). Goals (issue 8):
 load_series at most 0.5 x SimpleITK's time, and within 1.5 x the raw read cold.
 
-Force path. ``ctdrill.app.pipeline.plan_path`` (lip sampling at the default depth step and rings x
+Force path. ``ctdrill.engine.path.plan_path`` (lip sampling at the default depth step and rings x
 angles, profile, clearance to the canal, exact max safe depth) on the demo case for 1 to 1000
 candidate trajectories (entries within +-3 mm, axes tilted up to 15 degrees), against a plain
 peer doing the same work with ``scipy.ndimage.map_coordinates(order=1, mode="constant",

@@ -13,9 +13,10 @@ import numpy as np
 from bench import search_peer
 from bench.report import ROOT, Section, Timing, headline_row, table, time_it, time_round
 from ctdrill import jit
-from ctdrill.app.pipeline import plan_calibration, plan_path
-from ctdrill.app.search.evaluate import BatchResult, evaluate_batch
 from ctdrill.app.search.warmup import search_kernels
+from ctdrill.engine.batch import BatchResult, evaluate_batch
+from ctdrill.engine.path import plan_path
+from ctdrill.engine.plans import plan_calibration
 from ctdrill.imaging.dicom.series import load_series
 from ctdrill.imaging.plan.load import load_plan
 from ctdrill.imaging.plan.types import Plan

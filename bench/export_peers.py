@@ -12,8 +12,9 @@ import csv
 import io
 from typing import IO
 
-from ctdrill.app.export import FORCE_COLUMNS, ForceSeries
-from ctdrill.app.pipeline import PathResult
+from ctdrill.app.export import FORCE_COLUMNS
+from ctdrill.engine.path import PathResult
+from ctdrill.engine.series import ForceSeries
 from ctdrill.imaging.misch import MISCH_BANDS_HU
 
 _MISCH_COLOURS = {"D1": "#5b3a29", "D2": "#8c6239", "D3": "#c69c6d", "D4": "#e8d4b0"}

@@ -18,8 +18,12 @@ from scipy import ndimage
 
 from bench.bench_export import candidates as export_candidates
 from bench.report import Timing, figure_path, profile_top, time_it, time_pair
-from ctdrill.app.export import ExportJob, write_exports
-from ctdrill.app.pipeline import DEFAULT_DEPTH_STEP_MM, depth_grid_mm, plan_path
+from ctdrill.app.export import write_exports
+from ctdrill.engine.case import ExportJob
+from ctdrill.engine.grid import DEFAULT_DEPTH_STEP_MM, depth_grid_mm
+from ctdrill.engine.path import plan_path
+from ctdrill.engine.settings import DEFAULTS
+from ctdrill.engine.summarize import CaseContext
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.load import load_plan
@@ -108,7 +112,7 @@ def _paired_batch(
 
 def _export(jobs: list[ExportJob], folder: Path, series_uid: str) -> None:
     n = sum(1 for _ in folder.iterdir()) if folder.exists() else 0
-    write_exports(jobs, folder / f"run{n}", feed_mm_s=None, rate_hz=1000.0, series_uid=series_uid)
+    write_exports(jobs, folder / f"run{n}", CaseContext(settings=DEFAULTS, series_uid=series_uid))
 
 
 def _each(total_s: float, n: int) -> str:

@@ -17,9 +17,10 @@ restores between runs).
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -142,6 +143,20 @@ def helper(pyfunc: Callable[..., Any]) -> Any:
     return _numba.njit(nogil=True, error_model="numpy")(pyfunc)
 
 
+@contextlib.contextmanager
+def switched_off(kernels_: Sequence[Kernel]) -> Iterator[None]:
+    """``kernels_`` switched off within the block: :meth:`Kernel.ready` is False and their
+    callers take the NumPy path (tests and benchmarks compare the two in one process)."""
+    saved = [k._ready for k in kernels_]
+    try:
+        for k in kernels_:
+            k._ready = False
+        yield
+    finally:
+        for k, ready in zip(kernels_, saved, strict=True):
+            k._ready = ready
+
+
 def kernels() -> tuple[Kernel, ...]:
     """Every kernel defined so far (import the modules that define them first)."""
     return tuple(_KERNELS)
@@ -179,7 +194,10 @@ def row_spans(rows: np.ndarray, parts: int | None = None) -> list[tuple[int, int
     """``rows`` (indices) as half-open spans of consecutive rows, each run cut in up to
     ``parts`` (default: the CPUs, at most 8) near-equal pieces for worker threads."""
     parts = max(1, min(8, cpus())) if parts is None else parts
-    uniq = np.unique(np.asarray(rows, dtype=np.int64))
+    rows = np.asarray(rows, dtype=np.int64)
+    if rows.size == 1:  # the single trajectory: no sorting, no threads
+        return [(int(rows[0]), int(rows[0]) + 1)]
+    uniq = np.unique(rows)
     if uniq.size == 0:
         return []
     breaks = np.flatnonzero(np.diff(uniq) != 1) + 1

@@ -7,26 +7,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-#: Warning codes a load may report (DESIGN.md section 4, plus ``single_slice`` and, for a NIfTI
-#: file whose qform and sform place voxels apart, ``qform_sform_differ``), and
-#: ``grey_map_on_hu`` (a grey-to-HU map applied to a series already in HU).
-WARNING_CODES: tuple[str, ...] = (
-    "slice_gap",
-    "nonuniform_spacing",
-    "gantry_tilt",
-    "localizer_dropped",
-    "multiple_series",
-    "duplicate_slice",
-    "padding",
-    "not_hu",
-    "lossy_compression",
-    "files_skipped",
-    "files_unreadable",
-    "single_slice",
-    "coarse_voxels",
-    "qform_sform_differ",
-    "grey_map_on_hu",
-)
+from ctdrill.warning_codes import check_code, codes
+
+#: Warning codes a load may report (DESIGN.md section 4, plus ``single_slice``): the
+#: registry's ``series`` codes (:mod:`ctdrill.warning_codes` gives each one's meaning).
+WARNING_CODES: tuple[str, ...] = codes("series")
 
 
 @dataclass(frozen=True)
@@ -36,13 +21,17 @@ class LoadWarning:
     Attributes
     ----------
     code : str
-        One of :data:`WARNING_CODES`.
+        A code of the registry (:mod:`ctdrill.warning_codes`; a load's are
+        :data:`WARNING_CODES`); any other is refused (a bug: register it).
     message : str
         Human-readable detail (positions, counts, UIDs).
     """
 
     code: str
     message: str
+
+    def __post_init__(self) -> None:
+        check_code(self.code)
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ samples have a support entirely on valid voxels inside the grid.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from scipy import ndimage
@@ -30,7 +31,7 @@ from scipy import ndimage
 from ctdrill.hu import AIR_HU
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.provenance import WARNING_CODES, LoadWarning, SeriesInfo
-from ctdrill.imaging.stack import is_regular, piecewise_linear
+from ctdrill.imaging.stack import is_regular, piecewise_linear, wide_steps
 
 __all__ = ["WARNING_CODES", "CTVolume", "LoadWarning", "SeriesInfo"]
 
@@ -193,11 +194,17 @@ class CTVolume:
         med = float(np.median(steps))
         return bool(np.all(np.abs(steps - med) <= rtol * abs(med)))
 
-    @property
+    @cached_property
     def regular(self) -> bool:
         """True when ``affine_lps`` places every slice within ``stack.AFFINE_TOL_MM`` of its
         true position (:func:`ctdrill.imaging.stack.is_regular`)."""
         return is_regular(self.slice_positions_mm)
+
+    @cached_property
+    def has_slice_gaps(self) -> bool:
+        """True when a slice step is wider than ``stack.GAP_FACTOR`` nominal steps
+        (:func:`ctdrill.imaging.stack.wide_steps`)."""
+        return bool(np.any(wide_steps(self.slice_positions_mm)))
 
     @property
     def slice_origins_lps(self) -> np.ndarray:

@@ -14,6 +14,7 @@ cache is present; otherwise :func:`build_profile` itself runs row by row.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -63,12 +64,19 @@ def law_tables(calibration: Calibration) -> tuple[float, float, np.ndarray]:
     coefs : (M - 1, n_laws, 4) polynomial coefficients in the local coordinate ``u`` in
         [0, 1] of each interval (``a0 + u (a1 + u (a2 + u a3))``), laws in the order A0, then
         each harmonic; values and slopes at the nodes from the law itself (NumPy's exp/log10).
+        Built once per set of laws in a process (cached: do not write into it).
     """
     lo, hi = (float(v) for v in calibration.c_prime_range)
+    return _tables(lo, hi, (calibration.a0, *calibration.harmonics))
+
+
+@functools.lru_cache(maxsize=16)
+def _tables(
+    lo: float, hi: float, laws: tuple[PowerLaw | Harmonic, ...]
+) -> tuple[float, float, np.ndarray]:
     n_nodes = math.ceil((hi - lo) / (lo / TABLE_STEPS_PER_LO)) + 1
     nodes = np.linspace(lo, hi, n_nodes)
     step = (hi - lo) / (n_nodes - 1)
-    laws: list[PowerLaw | Harmonic] = [calibration.a0, *calibration.harmonics]
     coefs = np.empty((n_nodes - 1, len(laws), 4))
     for k, law in enumerate(laws):
         f = np.exp(_LN10 * (law.b0 + law.n * np.log10(nodes)))

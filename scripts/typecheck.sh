@@ -9,7 +9,7 @@ tree="$venv/typecheck"
 rm -rf "$tree/ctdrill" "$tree/bench"
 mkdir -p "$tree/ctdrill"
 for f in "$repo"/ctdrill/*; do ln -s "$f" "$tree/ctdrill/"; done
-for d in app imaging model haptics assets; do ln -s "$repo/$d" "$tree/ctdrill/$d"; done
+for d in app engine imaging model haptics assets; do ln -s "$repo/$d" "$tree/ctdrill/$d"; done
 ln -s "$repo/bench" "$tree/bench"
 cd "$tree"
 exec "$venv/bin/mypy" --config-file "$repo/pyproject.toml"

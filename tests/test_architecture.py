@@ -13,14 +13,15 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("app", "imaging", "model", "haptics")
+PACKAGES = ("app", "engine", "imaging", "model", "haptics")
 GUI_MODULES = ("PySide6", "vtk", "vtkmodules", "pyvista", "pyvistaqt", "matplotlib")
 
 #: package -> first-party packages it must not import
 FORBIDDEN_FIRST_PARTY = {
-    "imaging": {"model", "haptics", "app"},
-    "model": {"imaging", "haptics", "app"},
-    "haptics": {"imaging", "app"},
+    "imaging": {"model", "haptics", "engine", "app"},
+    "model": {"imaging", "haptics", "engine", "app"},
+    "haptics": {"imaging", "engine", "app"},
+    "engine": {"haptics", "app"},
     "app": set(),
 }
 
@@ -57,7 +58,7 @@ def test_first_party_import_direction(package: str) -> None:
     assert {k: v for k, v in offenders.items() if v} == {}
 
 
-@pytest.mark.parametrize("package", ["imaging", "model", "haptics"])
+@pytest.mark.parametrize("package", ["engine", "imaging", "model", "haptics"])
 def test_only_app_imports_gui_and_render_modules(package: str) -> None:
     offenders = {
         str(path.relative_to(ROOT)): sorted(_imported_roots(path) & set(GUI_MODULES))
@@ -69,7 +70,7 @@ def test_only_app_imports_gui_and_render_modules(package: str) -> None:
 def test_importing_core_packages_loads_no_gui_module() -> None:
     code = (
         "import json, sys, importlib, pkgutil\n"
-        "for pkg in ('ctdrill.imaging', 'ctdrill.model', 'ctdrill.haptics'):\n"
+        "for pkg in ('ctdrill.engine', 'ctdrill.imaging', 'ctdrill.model', 'ctdrill.haptics'):\n"
         "    mod = importlib.import_module(pkg)\n"
         "    for info in pkgutil.walk_packages(mod.__path__, pkg + '.'):\n"
         "        importlib.import_module(info.name)\n"

@@ -66,9 +66,10 @@ HEAVY_FOR_HELP = (
     "serial",
     "SimpleITK",
 )
-#: First-party modules that building the parser may load: the CLI, its commands, the four
-#: ``*InputError`` modules the CLI catches, lazy package ``__init__`` files (and ``ctdrill.lazy``,
-#: which builds their re-exports) and the numpy-free defaults the parsers show.
+#: First-party modules that building the parser may load: the CLI, its commands, the
+#: ``*InputError`` modules the CLI catches (the engine's too), lazy package ``__init__`` files
+#: (and ``ctdrill.lazy``, which builds their re-exports) and the numpy-free defaults the
+#: parsers show.
 LIGHT_FIRST_PARTY = {
     "ctdrill",
     "ctdrill.app",
@@ -76,9 +77,11 @@ LIGHT_FIRST_PARTY = {
     "ctdrill.app.commands",
     "ctdrill.app.commands.options",
     "ctdrill.app.errors",
-    "ctdrill.app.export_defaults",
     "ctdrill.app.search",
     "ctdrill.app.search.defaults",
+    "ctdrill.engine",
+    "ctdrill.engine.errors",
+    "ctdrill.engine.settings",
     "ctdrill.haptics",
     "ctdrill.haptics.errors",
     "ctdrill.imaging",

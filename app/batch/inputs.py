@@ -103,7 +103,7 @@ def row_inputs(plan: Path, calibration: str | None) -> list[Path]:
     Raises the readers' input errors for a plan or calibration that cannot be read (the
     row's export then reports the same).
     """
-    from ctdrill.app.pipeline import plan_calibration_key
+    from ctdrill.engine.plans import plan_calibration_key
     from ctdrill.imaging.plan.load import load_plan_set
     from ctdrill.model.calibration import resolve_calibration_path
 

@@ -39,7 +39,7 @@ from ctdrill.app.batch.manifest import (
 from ctdrill.app.batch.task import (
     REMOVED_TAG,
     ROW_MARKER,
-    ExportOptions,
+    ExportSettings,
     RowOutcome,
     RowTask,
     fingerprint,
@@ -49,7 +49,7 @@ from ctdrill.app.batch.task import (
 from ctdrill.app.batch.workers import NOT_RUN, Interrupt, run_processes, run_serial
 from ctdrill.app.export_table import TABLE_COLUMNS, TABLE_NAME, TEXT_COLUMNS, table_csv, table_row
 from ctdrill.app.records import atomic_write_text, clean_leftovers
-from ctdrill.app.sequence_export import SEQUENCE_FORMAT
+from ctdrill.engine.summary import TrajectorySummary, read_summary
 from ctdrill.safeio import load_json
 
 __all__ = ["BatchInputError", "BatchReport", "run_batch"]
@@ -131,7 +131,7 @@ def _complete(r: ManifestRow, out: Path, fp: str | None, base: Path) -> bool:
 
 
 def plan_tasks(
-    rows: Sequence[ManifestRow], out: Path, options: ExportOptions, base: Path
+    rows: Sequence[ManifestRow], out: Path, options: ExportSettings, base: Path
 ) -> tuple[list[RowTask], list[RowOutcome]]:
     """Split the rows into tasks to run and outcomes of rows already complete (resume)."""
     tasks: list[RowTask] = []
@@ -176,7 +176,7 @@ def run_batch(
     manifest: Path,
     rows: Sequence[ManifestRow],
     out: Path,
-    options: ExportOptions,
+    options: ExportSettings,
     *,
     workers: int,
     scheduler: str | None = None,
@@ -233,7 +233,7 @@ def _finish(
     manifest: Path,
     rows: Sequence[ManifestRow],
     out: Path,
-    options: ExportOptions,
+    options: ExportSettings,
     outcomes: dict[int, RowOutcome],
     base: Path,
 ) -> BatchReport:
@@ -292,7 +292,7 @@ def _shown(status: str, r: ManifestRow, base: Path) -> str:
     return redact_paths(status, [(r.dicom_path, r.dicom), (r.plan_path, r.plan)], base)
 
 
-def _shown_options(options: ExportOptions, base: Path) -> dict[str, Any]:
+def _shown_options(options: ExportSettings, base: Path) -> dict[str, Any]:
     doc = asdict(options)
     cal = options.calibration
     if cal is not None and (os.sep in cal or cal.lower().endswith(".json")):
@@ -323,13 +323,13 @@ def _row_trajectories(r: ManifestRow, out: Path) -> list[dict[str, str]]:
     head = {"row": str(r.row), "id": r.row_id, "dicom": r.dicom, "plan": r.plan}
     summary = folder / "summary.json"
     if summary.is_file():
-        doc = _summary(summary)
-        if doc.get("format") != SEQUENCE_FORMAT:
-            return [{**head, **table_row(doc, rel)}]
+        read = read_summary(_summary(summary))
+        if isinstance(read, TrajectorySummary):
+            return [{**head, **table_row(read, rel)}]
         rows = []  # a drill sequence: one row per drill, from the drill's own summary
-        for drill in doc["drills"]:
-            one = _summary(folder / drill["folder"] / "summary.json")
-            rows.append({**head, **table_row(one, f"{rel}/{drill['folder']}")})
+        for drill in read.drills:
+            one = TrajectorySummary.from_json(_summary(folder / drill.folder / "summary.json"))
+            rows.append({**head, **table_row(one, f"{rel}/{drill.folder}")})
         return rows
     with (folder / TABLE_NAME).open(newline="", encoding="utf-8") as fh:
         got = list(csv.DictReader(fh))

@@ -33,7 +33,7 @@ from ctdrill.app.batch.inputs import (
     volume_files,
 )
 from ctdrill.app.errors import AppInputError
-from ctdrill.app.grey_option import GreyMapSpec
+from ctdrill.engine.settings import ExportSettings
 from ctdrill.safeio import load_json
 
 #: The marker written last (in the same swap) into a row's output folder.
@@ -44,20 +44,6 @@ ROW_FORMAT = "ctdrill-batch-row/2"
 REMOVED_TAG = "ctdrill-batch-removed"
 #: Largest row marker read back (a marker lists a row's files: a few kB).
 MAX_MARKER_BYTES = 16 * 1024 * 1024
-
-
-@dataclass(frozen=True)
-class ExportOptions:
-    """The export options every row shares (``ctdrill batch`` flags)."""
-
-    calibration: str | None = None
-    feed_mm_s: float | None = None
-    rate_hz: float = 1000.0
-    plot: bool = True
-    per_trajectory: bool = False
-    interpolate_gaps: bool = False
-    hu_sigma: float | None = None
-    grey: GreyMapSpec | None = None
 
 
 @dataclass(frozen=True)
@@ -76,7 +62,7 @@ class RowTask:
     dicom_path: str
     plan_path: str
     out_dir: str
-    options: ExportOptions
+    options: ExportSettings
     fingerprint: str | None
     base: str = "."
 
@@ -96,7 +82,7 @@ class RowOutcome:
         return self.status == "ok"
 
 
-def fingerprint(dicom: Path, plan: Path, options: ExportOptions) -> str | None:
+def fingerprint(dicom: Path, plan: Path, options: ExportSettings) -> str | None:
     """The row's input fingerprint (:mod:`ctdrill.app.batch.inputs`, 1): the options, the
     ctdrill version, the series by relative path, size and modification time of each file,
     the plan path by content; None when an input cannot be read or the series path is not a
@@ -179,7 +165,7 @@ def run_row(task: RowTask) -> RowOutcome:
     bad case never stops the batch. A failed row leaves no output folder (an earlier one,
     made from other inputs, is removed: it would not be this row's result).
     """
-    from ctdrill.app.cli import INPUT_ERRORS
+    from ctdrill.app.errors import INPUT_ERRORS
     from ctdrill.app.export_run import export_case
 
     t0 = time.perf_counter()
@@ -197,14 +183,7 @@ def run_row(task: RowTask) -> RowOutcome:
             Path(task.dicom_path),
             [Path(task.plan_path)],
             Path(task.out_dir),
-            calibration=opts.calibration,
-            feed_mm_s=opts.feed_mm_s,
-            rate_hz=opts.rate_hz,
-            interpolate_gaps=opts.interpolate_gaps,
-            plot=opts.plot,
-            per_trajectory=opts.per_trajectory,
-            hu_sigma=opts.hu_sigma,
-            grey=opts.grey,
+            opts,
             extra_files={ROW_MARKER: json.dumps(doc, indent=2) + "\n"},
         )
         if inputs is not None:

@@ -13,7 +13,7 @@ from ctdrill.app.commands.options import (
     add_interpolate_gaps_option,
     add_override_options,
 )
-from ctdrill.app.export_defaults import DEFAULT_RATE_HZ
+from ctdrill.engine.settings import DEFAULT_RATE_HZ
 
 
 def register(subparsers: Any) -> None:
@@ -78,25 +78,15 @@ def run(args: argparse.Namespace) -> int:
         outcome_lines,
         run_batch,
     )
-    from ctdrill.app.batch.task import ExportOptions
-    from ctdrill.app.export_band import hu_uncertainty_option
-    from ctdrill.app.grey_option import parse_grey_options
+    from ctdrill.app.commands.options import export_settings
+    from ctdrill.engine.grey import hu_sigma_uncertainty
 
     for name, value in (("--feed-mm-s", args.feed_mm_s), ("--rate-hz", args.rate_hz)):
         if value is not None and not value > 0.0:
             raise BatchInputError(f"{name} must be a positive number, got {value!r}")
-    hu_uncertainty_option(args.hu_sigma)  # a bad --hu-sigma is one error line, not N rows
+    hu_sigma_uncertainty(args.hu_sigma)  # a bad --hu-sigma is one error line, not N rows
     rows = read_manifest(args.manifest)
-    options = ExportOptions(
-        calibration=args.calibration,
-        feed_mm_s=args.feed_mm_s,
-        rate_hz=args.rate_hz,
-        plot=not args.no_plot,
-        per_trajectory=args.per_trajectory,
-        interpolate_gaps=args.interpolate_gaps,
-        hu_sigma=args.hu_sigma,
-        grey=parse_grey_options(args.grey_to_hu, args.grey_ref),
-    )
+    options = export_settings(args)
     workers = default_workers() if args.workers is None else args.workers
     with make_progress(sys.stdout, {r.row: r.row_id for r in rows}) as progress:
         report = run_batch(

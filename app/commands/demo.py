@@ -33,8 +33,9 @@ def run(args: argparse.Namespace) -> int:
     """Export the demo and list the files with what each holds."""
     import json
 
-    from ctdrill.app.export import summary_lines
     from ctdrill.app.export_demo import DEMO_DIR, run_demo
+    from ctdrill.app.summary_lines import summary_lines
+    from ctdrill.engine.summary import read_summary
 
     written = run_demo(args.out)
     about = {
@@ -46,7 +47,9 @@ def run(args: argparse.Namespace) -> int:
     sys.stdout.write(f"demo: {DEMO_DIR / 'ct'} with {DEMO_DIR / 'plan.json'}\n")
     for path in written:
         sys.stdout.write(f"wrote {path}  ({about.get(path.name, '')})\n")
-    summary = json.loads((Path(args.out) / "summary.json").read_text(encoding="utf-8"))
+    summary = read_summary(
+        json.loads((Path(args.out) / "summary.json").read_text(encoding="utf-8"))
+    )
     # The same stop, calibration and warning lines as ``ctdrill export``.
     sys.stdout.write("".join(line + "\n" for line in summary_lines(summary)))
     return 0

@@ -18,7 +18,7 @@ from ctdrill.app.commands.options import (
     add_plan_option,
     add_series_option,
 )
-from ctdrill.app.export_defaults import DEFAULT_RATE_HZ
+from ctdrill.engine.settings import DEFAULT_RATE_HZ
 
 
 def register(subparsers: Any) -> None:
@@ -82,29 +82,18 @@ def _in_sequence(path: Path, written: list[Path]) -> bool:
 
 def run(args: argparse.Namespace) -> int:
     """Export and list what was written."""
-    from ctdrill.app.export import TextProgress, summary_lines
+    from ctdrill.app.commands.options import export_settings
     from ctdrill.app.export_run import export_case
     from ctdrill.app.export_table import TABLE_NAME, table_lines
-    from ctdrill.app.grey_option import parse_grey_options
+    from ctdrill.app.summary_lines import summary_lines
+    from ctdrill.app.text_progress import TextProgress
+    from ctdrill.engine.summary import read_summary
 
+    settings = export_settings(args)
     progress = TextProgress(sys.stdout)
     try:
         written = export_case(
-            args.dicom,
-            args.plan,
-            args.out,
-            calibration=args.calibration,
-            feed_mm_s=args.feed_mm_s,
-            rate_hz=args.rate_hz,
-            include_phi=args.include_phi,
-            series_uid=args.series,
-            progress=progress,
-            warn=_warn,
-            interpolate_gaps=args.interpolate_gaps,
-            plot=not args.no_plot,
-            per_trajectory=args.per_trajectory,
-            hu_sigma=args.hu_sigma,
-            grey=parse_grey_options(args.grey_to_hu, args.grey_ref),
+            args.dicom, args.plan, args.out, settings, progress=progress, warn=_warn
         )
     finally:
         progress.close()
@@ -112,8 +101,8 @@ def run(args: argparse.Namespace) -> int:
         sys.stdout.write(f"wrote {path}\n")
     summaries = [p for p in written if p.name == "summary.json" and not _in_sequence(p, written)]
     for path in summaries:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-        sys.stdout.write("".join(line + "\n" for line in summary_lines(doc)))
+        summary = read_summary(json.loads(path.read_text(encoding="utf-8")))
+        sys.stdout.write("".join(line + "\n" for line in summary_lines(summary)))
     if not summaries:
         for path in written:
             if path.name == TABLE_NAME:

@@ -117,9 +117,9 @@ def run(args: argparse.Namespace) -> int:
     quit_after = args.quit_after_s
     if args.screenshot is not None and quit_after is None:
         quit_after = SCREENSHOT_TIMEOUT_S
-    from ctdrill.app.export_band import hu_uncertainty_option
+    from ctdrill.engine.grey import hu_sigma_uncertainty
 
-    hu = hu_uncertainty_option(args.hu_sigma)
+    hu = hu_sigma_uncertainty(args.hu_sigma)
     plans: tuple[Any, ...] = ()
     if args.plan is not None:  # a plan that cannot be read is refused before any window
         from ctdrill.imaging.plan.load import load_plan_set

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 from ctdrill.imaging.stack import GAP_FACTOR
 
 if TYPE_CHECKING:
+    from ctdrill.engine.settings import ExportSettings
     from ctdrill.imaging.plan.implants import ImplantSpec
 
 
@@ -138,4 +139,25 @@ def pick_implant(name: str, implants_file: Path | None) -> ImplantSpec:
     raise AppInputError(
         f"--implant {name!r}: no implant of that name in the library; choose one of "
         + ", ".join(repr(s.name) for s in library)
+    )
+
+
+def export_settings(args: argparse.Namespace) -> ExportSettings:
+    """The :class:`~ctdrill.engine.settings.ExportSettings` of the export options a command
+    parsed (those it does not have: their defaults)."""
+    from ctdrill.app.grey_option import parse_grey_options
+    from ctdrill.engine.settings import DEFAULTS, ExportSettings
+
+    opts = vars(args)
+    return ExportSettings(
+        calibration=opts.get("calibration"),
+        feed_mm_s=opts.get("feed_mm_s"),
+        rate_hz=opts.get("rate_hz", DEFAULTS.rate_hz),
+        series=opts.get("series"),
+        include_phi=bool(opts.get("include_phi", False)),
+        interpolate_gaps=bool(opts.get("interpolate_gaps", False)),
+        hu_sigma=opts.get("hu_sigma"),
+        grey=parse_grey_options(opts.get("grey_to_hu"), opts.get("grey_ref")),
+        plot=not opts.get("no_plot", False),
+        per_trajectory=bool(opts.get("per_trajectory", False)),
     )

@@ -77,9 +77,10 @@ def register(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     """Load, reformat, draw, write; list what was written."""
     from ctdrill.app.errors import AppInputError
-    from ctdrill.app.grey_option import map_volume, parse_grey_options
+    from ctdrill.app.grey_option import parse_grey_options
     from ctdrill.app.reformat.draw import DEFAULT_LEVEL_HU, DEFAULT_WIDTH_HU
     from ctdrill.app.reformat.export import ReformatOptions, export_panorama, finite_or_none
+    from ctdrill.engine.grey import map_volume
     from ctdrill.imaging import load_ct
     from ctdrill.imaging.plan.load import load_plan_set
 

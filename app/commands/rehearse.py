@@ -80,11 +80,12 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the rehearsal and print a one-line summary; 3 if it ended on a device fault."""
-    from ctdrill.app.calibration_info import calibration_line
-    from ctdrill.app.export_band import band_line
     from ctdrill.app.grey_option import grey_line, parse_grey_options
     from ctdrill.app.readout import readout_lines
     from ctdrill.app.rehearse import ending_message, exit_code, rehearse
+    from ctdrill.app.summary_lines import band_line, calibration_line
+    from ctdrill.engine.record import from_json
+    from ctdrill.engine.summary import CalibrationInfo, ForceBandPeak, GreyMapInfo
 
     s = rehearse(
         dicom=args.dicom,
@@ -111,7 +112,11 @@ def run(args: argparse.Namespace) -> int:
     else:
         _single_line(s, args.out)
     # a sequence: the last drill run's calibration, band and readouts
-    sys.stdout.write(f"{calibration_line(s)}\n{band_line(s)}\n")
+    band = None if s.get("force_band") is None else from_json(ForceBandPeak, s["force_band"])
+    note = str(s.get("force_band_note", ""))
+    sys.stdout.write(
+        f"{calibration_line(from_json(CalibrationInfo, s))}\n{band_line(band, note)}\n"
+    )
     sys.stdout.write(readout_lines(s))
     if "assessment" in s:
         from ctdrill.app.trainee.words import assessment_line
@@ -121,7 +126,8 @@ def run(args: argparse.Namespace) -> int:
         from ctdrill.app.igtl.stream import stream_line
 
         sys.stdout.write(stream_line(s["igtl"]) + "\n")
-    grey = grey_line(s)
+    grey_map = s.get("grey_to_hu")
+    grey = grey_line(None if grey_map is None else from_json(GreyMapInfo, grey_map))
     if grey is not None:
         sys.stdout.write(grey + "\n")
     if "no_landmarks" in s["warnings"]:

@@ -59,26 +59,16 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Write the report and say where."""
-    from ctdrill.app.grey_option import parse_grey_options
+    from ctdrill.app.commands.options import export_settings
     from ctdrill.app.report.build import Timings, write_report
     from ctdrill.app.text_progress import TextProgress
 
+    settings = export_settings(args)
     progress = TextProgress(sys.stdout, label="report")
     timings = Timings()
     try:
         path, n_pages = write_report(
-            args.dicom,
-            args.plan,
-            args.out,
-            calibration=args.calibration,
-            feed_mm_s=args.feed_mm_s,
-            include_phi=args.include_phi,
-            series_uid=args.series,
-            interpolate_gaps=args.interpolate_gaps,
-            hu_sigma=args.hu_sigma,
-            grey=parse_grey_options(args.grey_to_hu, args.grey_ref),
-            progress=progress,
-            timings=timings,
+            args.dicom, args.plan, args.out, settings, progress=progress, timings=timings
         )
     finally:
         progress.close()

@@ -104,12 +104,12 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Search, write, and say what was found."""
-    from ctdrill.app.pipeline import plan_calibration
     from ctdrill.app.search.candidates import SearchSpace, SuggestInputError
     from ctdrill.app.search.score import Objective
     from ctdrill.app.search.suggest import suggest
     from ctdrill.app.search.suggest_write import summary_lines, write_suggestion
     from ctdrill.app.search.warmup import SLOW_PATH_NOTE, kernels_ready
+    from ctdrill.engine.plans import plan_calibration
     from ctdrill.imaging import load_ct
     from ctdrill.imaging.plan.load import load_plan_set
 

@@ -15,9 +15,9 @@ from ctdrill.app.gui import compute
 from ctdrill.app.gui.document import Document
 from ctdrill.app.gui.results import compute_path_view
 from ctdrill.app.gui.workers import Debouncer, Runner
-from ctdrill.app.pipeline import plan_calibration
 from ctdrill.app.search.candidates import SearchSpace
 from ctdrill.app.search.suggest import Suggestion, suggest
+from ctdrill.engine.plans import plan_calibration
 from ctdrill.imaging.display import BONE_SURFACE_HU
 from ctdrill.imaging.plan.types import Plan
 

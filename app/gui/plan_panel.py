@@ -283,11 +283,12 @@ class PlanPanel(QWidget):
 
 def calibration_tooltip(name: str) -> str:
     """What the set is and how it was obtained (its provenance or source), for a tooltip."""
-    from ctdrill.app.calibration_info import calibration_fields, calibration_line
+    from ctdrill.app.summary_lines import calibration_line
+    from ctdrill.engine.summary import CalibrationInfo
 
     cal = load_calibration(name)
     band = "with a 68 % force band" if cal.covariance is not None else "no uncertainty band"
-    return f"{calibration_line(calibration_fields(cal))} ({band})"
+    return f"{calibration_line(CalibrationInfo.of(cal))} ({band})"
 
 
 def drills_text(plan: Plan) -> str:

@@ -14,13 +14,16 @@ from typing import Any
 import numpy as np
 from serial.tools import list_ports
 
-from ctdrill.app.export import DEFAULT_RATE_HZ, ExportJob, write_exports
+from ctdrill.app.export import write_exports
 from ctdrill.app.gui.session_process import SessionJob, run_job
 from ctdrill.app.igtl.frames import IgtlTarget, StreamSetup
-from ctdrill.app.pipeline import PathResult
 from ctdrill.app.readout import push_of
 from ctdrill.app.rehearse import rehearsal_summary, summary_json
 from ctdrill.app.trainee.exam import ExamSetup, assessment_context
+from ctdrill.engine.case import ExportJob
+from ctdrill.engine.path import PathResult
+from ctdrill.engine.settings import DEFAULTS
+from ctdrill.engine.summarize import CaseContext
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.session import Row, session_csv_text
 from ctdrill.model.band import HuUncertainty
@@ -341,9 +344,7 @@ class RehearsalRun:
         return write_exports(
             [ExportJob(self.result, "")],
             out_dir,
-            feed_mm_s=None,
-            rate_hz=DEFAULT_RATE_HZ,
-            series_uid=self.series_uid,
+            CaseContext(settings=DEFAULTS, series_uid=self.series_uid),
             extra_files={
                 "session/session.csv": csv_text,
                 "session/summary.json": summary_text,

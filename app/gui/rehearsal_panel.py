@@ -50,9 +50,9 @@ from ctdrill.app.gui.results import PathView, block_reason, stop_explanation
 from ctdrill.app.gui.sound import VibrationSound
 from ctdrill.app.igtl.frames import SLICER_PORT, parse_target
 from ctdrill.app.igtl.stream import stream_line
-from ctdrill.app.pipeline import PathResult
 from ctdrill.app.trainee.exam import exam_setup
 from ctdrill.app.trainee.words import assessment_line
+from ctdrill.engine.path import PathResult
 from ctdrill.haptics.profile_table import ProfileTable
 
 IGTL_TIP = (

@@ -1,4 +1,4 @@
-"""What the window shows of a planned path: ``ctdrill.app.pipeline.plan_path``'s result turned into
+"""What the window shows of a planned path: ``ctdrill.engine.path.plan_path``'s result turned into
 plot curves, per-landmark clearances and the reason rehearsal is blocked, if any."""
 
 from __future__ import annotations
@@ -8,10 +8,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ctdrill.app.export_band import path_band
 from ctdrill.app.gui.plots import DepthCurves
-from ctdrill.app.pipeline import PathResult, plan_calibration, plan_path, with_set_warnings
-from ctdrill.app.sequence import plan_sequence
+from ctdrill.engine.band import path_band
+from ctdrill.engine.path import PathResult, plan_path
+from ctdrill.engine.plans import plan_calibration, with_set_warnings
+from ctdrill.engine.sequence import plan_sequence
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.model.band import HuUncertainty
@@ -107,11 +108,11 @@ def compute_path_view(
     """Plan the path of ``plan`` through ``volume`` (the pipeline the CLI uses) for display;
     ``hu`` enters the force band. ``plan_set`` (every trajectory of the document, ``plan``
     among them) adds the warnings only the whole set shows (``implants_too_close``,
-    :func:`~ctdrill.app.pipeline.with_set_warnings`), as ``ctdrill export`` reports them.
+    :func:`~ctdrill.engine.path.with_set_warnings`), as ``ctdrill export`` reports them.
 
     For a drill sequence the window shows and rehearses the **final** drill, cutting around
     the holes the drills before it leave at their stop depths (the export's last folder,
-    :mod:`ctdrill.app.sequence`); ``ctdrill rehearse`` runs every drill."""
+    :mod:`ctdrill.engine.sequence`); ``ctdrill rehearse`` runs every drill."""
     # ``plan`` with the set's warnings; the view below stays the document's own ``plan``
     own = next(
         (w for p, w in zip(plan_set, with_set_warnings(plan_set), strict=True) if p is plan), plan

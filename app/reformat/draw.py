@@ -34,7 +34,7 @@ from ctdrill.imaging.sampling.reformat import Reformat
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
-    from ctdrill.app.pipeline import PathResult
+    from ctdrill.engine.path import PathResult
 
 #: Default window: the implant-planning preset (the slice views offer it too).
 DEFAULT_LEVEL_HU, DEFAULT_WIDTH_HU = WINDOW_PRESETS["implant planning"]

@@ -22,9 +22,10 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.app.pipeline import PathResult, plan_calibration, plan_path
 from ctdrill.app.records import atomic_output_dir, write_file
 from ctdrill.app.reformat.draw import DEFAULT_LEVEL_HU, DEFAULT_WIDTH_HU, draw_reformat
+from ctdrill.engine.path import PathResult, plan_path
+from ctdrill.engine.plans import plan_calibration
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.types import Plan, series_uid_hash
 from ctdrill.imaging.sampling.reformat import Reformat, SlabMode, cross_section, panorama

@@ -16,15 +16,15 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from ctdrill.app.export import DEFAULT_RATE_HZ
-from ctdrill.app.export_run import PreparedCase, prepare_case
-from ctdrill.app.grey_option import GreyMapSpec
-from ctdrill.app.records import atomic_write_bytes, printable
+from ctdrill.app.records import atomic_write_bytes
 from ctdrill.app.report.curves import curves_page
 from ctdrill.app.report.entries import Entry, drawn_entries, report_entries
 from ctdrill.app.report.layout import TextPages
 from ctdrill.app.report.summary import summary_pages
 from ctdrill.app.report.timing import Timings
+from ctdrill.engine.case import PreparedCase, prepare_case
+from ctdrill.engine.settings import DEFAULTS, ExportSettings
+from ctdrill.text import printable
 
 #: The document's title (every page's header).
 TITLE = "ctdrill report: planned implant osteotomy"
@@ -43,7 +43,6 @@ def report_pages(
     case: PreparedCase,
     entries: Sequence[Entry],
     *,
-    include_phi: bool,
     timings: Timings | None = None,
     views: Callable[[TextPages, PreparedCase, Sequence[Entry], Timings], None] | None = None,
 ) -> list[Figure]:
@@ -52,7 +51,11 @@ def report_pages(
     pages = TextPages(TITLE)
     t0 = time.perf_counter()
     summary_pages(
-        pages, case.volume, entries, include_phi=include_phi, plan_files=_plan_files(case)
+        pages,
+        case.volume,
+        entries,
+        include_phi=case.settings.include_phi,
+        plan_files=_plan_files(case),
     )
     t.add("summary", time.perf_counter() - t0)
     if views is None:
@@ -84,21 +87,13 @@ def write_report(
     dicom: Path,
     plan_paths: Sequence[Path],
     out: Path,
+    settings: ExportSettings = DEFAULTS,
     *,
-    calibration: str | None = None,
-    feed_mm_s: float | None = None,
-    include_phi: bool = False,
-    series_uid: str | None = None,
-    interpolate_gaps: bool = False,
-    hu_sigma: float | None = None,
-    grey: GreyMapSpec | None = None,
     progress: Callable[[int, int, str], None] | None = None,
     timings: Timings | None = None,
 ) -> tuple[Path, int]:
-    """Compute the case as ``ctdrill export`` does and write its report to ``out`` (PDF).
-
-    Parameters are :func:`ctdrill.app.export_run.export_case`'s; ``timings`` collects the
-    seconds of each stage.
+    """Compute the case as ``ctdrill export`` does with ``settings`` and write its report to
+    ``out`` (PDF); ``timings`` collects the seconds of each stage.
 
     Returns
     -------
@@ -106,7 +101,7 @@ def write_report(
 
     Raises
     ------
-    AppInputError, ImagingInputError, ModelInputError
+    AppInputError, EngineInputError, ImagingInputError, ModelInputError
         Bad input (one line naming the file or field); ``out`` is then untouched.
     """
     from ctdrill.app.errors import AppInputError
@@ -115,26 +110,12 @@ def write_report(
         raise AppInputError(f"--out {out}: is a folder; give the PDF's file name")
     t = timings if timings is not None else Timings()
     t0 = time.perf_counter()
-    case = prepare_case(
-        dicom,
-        plan_paths,
-        calibration=calibration,
-        feed_mm_s=feed_mm_s,
-        rate_hz=DEFAULT_RATE_HZ,
-        include_phi=include_phi,
-        series_uid=series_uid,
-        progress=progress,
-        interpolate_gaps=interpolate_gaps,
-        hu_sigma=hu_sigma,
-        grey=grey,
-    )
+    case = prepare_case(dicom, plan_paths, settings, progress=progress)
     t.add("load and compute", time.perf_counter() - t0)
     t0 = time.perf_counter()
-    entries = report_entries(
-        case, feed_mm_s=feed_mm_s, rate_hz=DEFAULT_RATE_HZ, include_phi=include_phi
-    )
+    entries = report_entries(case)
     t.add("summaries", time.perf_counter() - t0)
-    figures = report_pages(case, entries, include_phi=include_phi, timings=t)
+    figures = report_pages(case, entries, timings=t)
     t0 = time.perf_counter()
     data = pdf_bytes(figures)
     t.add("pdf", time.perf_counter() - t0)

@@ -12,10 +12,10 @@ from __future__ import annotations
 from matplotlib.figure import Figure
 
 from ctdrill.app.export_plot import draw_template, draw_trajectory
-from ctdrill.app.records import printable
 from ctdrill.app.report.entries import Entry
 from ctdrill.app.report.layout import LINE_SPACING, MARGIN_IN, PAGE_IN, wrap
 from ctdrill.app.report.summary import STOP_WORDS
+from ctdrill.text import printable
 
 #: Axes placement on the A4 page (figure fractions): room for the y labels at the left
 #: (draw_template places them 0.075 axes widths left of the axes), the title and the stop
@@ -33,7 +33,7 @@ def curves_page(fig: Figure, entry: Entry) -> None:
     for ax in (ax_f, ax_h, ax_c):
         ax.yaxis.set_label_coords(*_YLABEL_AT)
     draw_trajectory(fig, ax_f, ax_h, ax_c, entry.result, entry.series, entry.band)
-    doc = entry.doc
+    o = entry.summary.outcome
     fig.suptitle(
         printable(f"{entry.label}: force, HU and clearance against depth"),
         fontsize=12,
@@ -42,12 +42,12 @@ def curves_page(fig: Figure, entry: Entry) -> None:
         ha="left",
         y=1.0 - (MARGIN_IN[2] + 0.25) / PAGE_IN[1],
     )
-    cal = f"{doc['calibration']}" + (" (ILLUSTRATIVE)" if doc["calibration_illustrative"] else "")
+    cal = o.calibration.name + (" (ILLUSTRATIVE)" if o.calibration.illustrative else "")
     note = (
-        f"at {doc['feed_mm_s']:g} mm/s, calibration {cal}. Red line: the stop "
-        f"({doc['stop_depth_mm']:.3f} mm, {STOP_WORDS[doc['stop_reason']]}); orange dotted: "
+        f"at {o.feed_mm_s:g} mm/s, calibration {cal}. Red line: the stop "
+        f"({o.stop_depth_mm:.3f} mm, {STOP_WORDS[o.stop_reason]}); orange dotted: "
         "the max safe depth where it is before the planned depth; grey dashed: the planned depth "
-        f"({doc['planned_depth_mm']:.3f} mm); shaded bands behind the HU: Misch D1-D4."
+        f"({o.planned_depth_mm:.3f} mm); shaded bands behind the HU: Misch D1-D4."
     )
     y_in = MARGIN_IN[2] + 0.55
     for line in wrap(note, PAGE_IN[0] - MARGIN_IN[0] - MARGIN_IN[1], 8.5):

@@ -1,20 +1,21 @@
 """What the report shows of each trajectory: the export's numbers, computed once.
 
-:func:`report_entries` runs :func:`ctdrill.app.export.job_summary` on every job of a
-:class:`~ctdrill.app.export_run.PreparedCase`: the same force series, band and ``summary.json``
-document ``ctdrill export`` writes with the same options. Every number on the report's pages is
-read from these.
+:func:`report_entries` runs :func:`ctdrill.engine.summarize.job_summary` on every job of a
+:class:`~ctdrill.engine.case.PreparedCase`: the same force series, band and summary
+``ctdrill export`` writes with the same settings. Every number on the report's pages is read
+from these.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
-from ctdrill.app.export import ForceSeries, job_summary
-from ctdrill.app.export_run import PreparedCase
-from ctdrill.app.pipeline import PathResult
+from ctdrill.engine.case import PreparedCase
+from ctdrill.engine.path import PathResult
+from ctdrill.engine.series import ForceSeries
+from ctdrill.engine.summarize import job_summary
+from ctdrill.engine.summary import TrajectorySummary
 from ctdrill.model.band import ForceBand
 
 #: Most trajectories that get their own pages (a cross-section and the curves); the summary's
@@ -33,7 +34,7 @@ class Entry:
     result : its path (``plan_path``).
     series : the force time series at the export's feed and rate.
     band : the mean force's 68 % band, or None (the set gives no covariance).
-    doc : its ``summary.json`` document, as ``ctdrill export`` writes it.
+    summary : its summary, as ``ctdrill export`` writes it.
     label : how the report names it: the trajectory's name, plus ``drill k of n`` in a
         sequence.
     drill_index : (k, n), 1-based, in a drill sequence; None for a single drill.
@@ -42,36 +43,25 @@ class Entry:
     result: PathResult
     series: ForceSeries
     band: ForceBand | None
-    doc: dict[str, Any]
+    summary: TrajectorySummary
     label: str
     drill_index: tuple[int, int] | None = None
 
 
-def report_entries(
-    case: PreparedCase, *, feed_mm_s: float | None, rate_hz: float, include_phi: bool
-) -> list[Entry]:
-    """One :class:`Entry` per job of ``case``, in order (``feed_mm_s`` None: each plan's)."""
+def report_entries(case: PreparedCase) -> list[Entry]:
+    """One :class:`Entry` per job of ``case``, in order."""
     in_sequence: dict[int, tuple[int, int]] = {}
     for seq, _ in case.sequences:
         for k, step in enumerate(seq.steps):
             in_sequence[id(step)] = (k + 1, len(seq.steps))
     out = []
     for job in case.jobs:
-        series, band, doc = job_summary(
-            job.result,
-            feed_mm_s=feed_mm_s,
-            rate_hz=rate_hz,
-            series_uid=case.volume.info.series_uid,
-            patient=case.patient,
-            include_phi=include_phi,
-            hu_uncertainty=case.hu_uncertainty,
-            grey_to_hu=case.grey_to_hu,
-        )
+        done = job_summary(job.result, case.context)
         index = in_sequence.get(id(job.result))
-        label = str(doc["plan"])
+        label = done.summary.outcome.plan
         if index is not None:
             label += f", drill {index[0]} of {index[1]}"
-        out.append(Entry(job.result, series, band, doc, label, index))
+        out.append(Entry(job.result, done.series, done.band, done.summary, label, index))
     return out
 
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from ctdrill.app.records import printable
+from ctdrill.text import printable
 
 #: A4 landscape, inches.
 PAGE_IN = (11.69, 8.27)

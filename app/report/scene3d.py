@@ -15,8 +15,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ctdrill.app.export_run import PreparedCase
 from ctdrill.app.report.entries import Entry
+from ctdrill.engine.case import PreparedCase
 
 
 def render_case(

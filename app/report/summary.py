@@ -1,8 +1,8 @@
 """The report's summary: the case, the table of every trajectory, then each one's lines.
 
-Every value is read from the trajectory's ``summary.json`` document (:class:`Entry.doc`) and
-formatted as ``ctdrill export`` prints it (depths and clearances to 3 decimals, mm); the lines
-under the table are :func:`ctdrill.app.export.summary_lines` of the same document: the stop,
+Every value is read from the trajectory's summary (:attr:`Entry.summary`) and formatted as
+``ctdrill export`` prints it (depths and clearances to 3 decimals, mm); the lines under the
+table are :func:`ctdrill.app.summary_lines.summary_lines` of the same summary: the stop,
 the calibration and how it was obtained, the force band, the grey map and every warning in
 full, wrapped.
 """
@@ -12,9 +12,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from ctdrill.app.export import summary_lines
 from ctdrill.app.report.entries import Entry, undrawn_note
 from ctdrill.app.report.layout import Column, TextPages
+from ctdrill.app.summary_lines import summary_lines
+from ctdrill.engine.summary import TrajectorySummary
 from ctdrill.imaging.volume import CTVolume
 
 #: The table's columns (heading, share of the width).
@@ -54,44 +55,44 @@ def implant_text(entry: Entry) -> str:
 
 
 def table_row(entry: Entry) -> list[str]:
-    """The table's cells for ``entry``, every value from its summary document."""
-    doc = entry.doc
-    drill = doc["drill"]
-    drill_text = f"{drill['diameter_mm']:g} mm, tip {drill['tip_length_mm']:g} mm"
+    """The table's cells for ``entry``, every value from its summary."""
+    s = entry.summary
+    o = s.outcome
+    drill_text = f"{s.drill.diameter_mm:g} mm, tip {s.drill.tip_length_mm:g} mm"
     if entry.drill_index is not None:
         k, n = entry.drill_index
         drill_text = f"drill {k} of {n}{' (final)' if k == n else ''}: " + drill_text
-    max_safe = mm(doc["max_safe_depth_mm"])
-    if doc["max_safe_depth_capped"]:
+    max_safe = mm(o.max_safe_depth_mm)
+    if o.max_safe_depth_capped:
         max_safe = f"at least {max_safe} (search limit)"
-    binding = doc.get("binding_landmark")
+    binding = o.binding_landmark
     binding_text = (
         "no landmark"
         if binding is None
-        else f"{binding['name']} (margin {binding['margin_mm']:g} mm; "
-        f"{mm(binding['clearance_at_stop_mm'])} at stop)"
+        else f"{binding.name} (margin {binding.margin_mm:g} mm; "
+        f"{mm(binding.clearance_at_stop_mm)} at stop)"
     )
-    band = doc.get("force_band")
+    band = s.force_band
     force = "-"
-    if doc.get("peak_force_n") is not None:
-        force = f"{doc['peak_force_n']:.2f} (peak with vibration; no band)"
+    if s.peak_force_n is not None:
+        force = f"{s.peak_force_n:.2f} (peak with vibration; no band)"
     if band is not None:
         force = (
-            f"{band['peak_mean_force_n']:.2f} at {band['peak_depth_mm']:.2f} mm; "
-            f"68 %: {band['peak_lo_n']:.2f}-{band['peak_hi_n']:.2f}"
+            f"{band.peak_mean_force_n:.2f} at {band.peak_depth_mm:.2f} mm; "
+            f"68 %: {band.peak_lo_n:.2f}-{band.peak_hi_n:.2f}"
         )
-    cal = str(doc["calibration"])
-    if doc["calibration_illustrative"]:
+    cal = o.calibration.name
+    if o.calibration.illustrative:
         cal += " - ILLUSTRATIVE, not measured on bone"
     return [
         entry.label,
         drill_text,
         implant_text(entry),
-        mm(doc["planned_depth_mm"]),
-        f"{mm(doc['stop_depth_mm'])} ({STOP_WORDS.get(doc['stop_reason'], doc['stop_reason'])})",
+        mm(o.planned_depth_mm),
+        f"{mm(o.stop_depth_mm)} ({STOP_WORDS.get(o.stop_reason, o.stop_reason)})",
         max_safe,
-        mm(doc["min_clearance_mm"]),
-        mm(doc["plan_clearance_mm"]),
+        mm(o.min_clearance_mm),
+        mm(o.plan_clearance_mm),
         binding_text,
         force,
         cal,
@@ -103,7 +104,7 @@ def case_lines(
 ) -> list[str]:
     """The case: the series (hashed UID unless ``include_phi``), the plans, the patient's
     identifiers with ``include_phi`` only."""
-    first = entries[0].doc if entries else {}
+    first = entries[0].summary if entries else None
     nz, ny, nx = volume.hu.shape
     sp = volume.spacing_mm
     lines = [
@@ -111,7 +112,7 @@ def case_lines(
         f"mm; series {_series_id(first)}",
         "plan files: " + (", ".join(plan_files) if plan_files else "-"),
     ]
-    patient = first.get("patient")
+    patient = None if first is None else first.outcome.patient
     if include_phi and patient:
         lines.append("patient: " + "; ".join(f"{k}: {v}" for k, v in patient.items() if v))
     else:
@@ -121,12 +122,13 @@ def case_lines(
     return lines
 
 
-def _series_id(doc: dict[str, Any]) -> str:
-    sha = doc.get("series_uid_sha256")
-    uid = doc.get("series_uid")
-    if doc.get("include_phi") and uid:
-        return f"UID {uid}"
-    return f"SHA-256 of the UID {sha[:16]}..." if isinstance(sha, str) else "-"
+def _series_id(summary: TrajectorySummary | None) -> str:
+    if summary is None:
+        return "-"
+    o = summary.outcome
+    if o.include_phi and o.series.series_uid:
+        return f"UID {o.series.series_uid}"
+    return f"SHA-256 of the UID {o.series.series_uid_sha256[:16]}..."
 
 
 #: Most warnings written in full under a trajectory (a plan of many implants packed close
@@ -166,7 +168,7 @@ def summary_pages(
     for entry in entries:
         pages.paragraph(entry.label, size_pt=10.0, bold=True, keep_with_next_in=0.3)
         warned = 0
-        lines = summary_lines(entry.doc)
+        lines = summary_lines(entry.summary)
         for line in lines:
             warn = line.startswith("warning [")
             warned += warn

@@ -19,13 +19,13 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from ctdrill.app.export_run import PreparedCase
-from ctdrill.app.records import printable
 from ctdrill.app.report.entries import Entry, drawn_entries
 from ctdrill.app.report.layout import MARGIN_IN, PAGE_IN, TextPages, wrap
 from ctdrill.app.report.summary import STOP_WORDS
 from ctdrill.app.report.timing import Timings
+from ctdrill.engine.case import PreparedCase
 from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.text import printable
 
 #: What the report says when the plan has no arch (and how to add one).
 NO_ARCH = (
@@ -177,13 +177,14 @@ def cross_section_page(
     from ctdrill.imaging.sampling.reformat import cross_section
 
     plan = entry.result.plan
+    o = entry.summary.outcome
     ref = cross_section(case.volume, arch_lps, axis=(plan.entry_lps, plan.target_lps))
     top = _heading(
         fig,
         f"Cross-section: {entry.label}",
         "the plane across the arch that contains the drill axis; stop at "
-        f"{entry.doc['stop_depth_mm']:.3f} mm ({STOP_WORDS[entry.doc['stop_reason']]}) of "
-        f"{entry.doc['planned_depth_mm']:.3f} mm planned.",
+        f"{o.stop_depth_mm:.3f} mm ({STOP_WORDS[o.stop_reason]}) of "
+        f"{o.planned_depth_mm:.3f} mm planned.",
     )
     ax = fig.add_axes((0.1, 0.1, 0.8, 0.8))
     draw_reformat(ax, ref, [e.result.plan for e in entries], paths=[e.result for e in entries])

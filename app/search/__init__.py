@@ -1,5 +1,5 @@
-"""Trajectory search: many candidate trajectories over one CT at once (issue 17).
+"""Trajectory search: candidate axes around a plan, scored and ranked (``ctdrill suggest``).
 
-:mod:`ctdrill.app.search.evaluate` evaluates a batch of trajectories with the same answers as
-:func:`ctdrill.app.pipeline.plan_path`, one trajectory at a time.
+The candidates are evaluated in one batch by :func:`ctdrill.engine.batch.evaluate_batch`
+(the engine's path rules, the same answers as :func:`ctdrill.engine.path.plan_path`).
 """

@@ -2,7 +2,7 @@
 
 :func:`suggest` makes the candidates (:mod:`ctdrill.app.search.candidates`; candidate 0 is the
 planned axis), evaluates them all in one batch
-(:func:`ctdrill.app.search.evaluate.evaluate_batch`: the answers of ``plan_path``), scores
+(:func:`ctdrill.engine.batch.evaluate_batch`: the answers of ``plan_path``), scores
 their bone engagement (:mod:`ctdrill.app.search.score`) and ranks them under the **hard
 rule**: a candidate is feasible only when its drill reaches the planned depth, i.e. the
 batch's stop reason is ``planned_depth`` (the max safe depth keeps every landmark's margin
@@ -35,7 +35,7 @@ from ctdrill.model.calibration import Calibration
 
 
 class BatchLike(Protocol):
-    """What :func:`suggest` reads of a ``BatchResult`` (``ctdrill.app.search.evaluate``)."""
+    """What :func:`suggest` reads of a ``BatchResult`` (``ctdrill.engine.batch``)."""
 
     @property
     def depth_mm(self) -> np.ndarray: ...
@@ -133,7 +133,7 @@ class Suggestion:
 
 
 def _default_evaluator() -> Evaluator:
-    from ctdrill.app.search.evaluate import evaluate_batch
+    from ctdrill.engine.batch import evaluate_batch
 
     return evaluate_batch
 

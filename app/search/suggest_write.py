@@ -12,10 +12,11 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.csv_cells import text_cell
-from ctdrill.app.records import OUTPUT_NAMES, atomic_output_dir, printable, write_file
+from ctdrill.app.records import OUTPUT_NAMES, atomic_output_dir, write_file
 from ctdrill.app.search.candidates import SURFACE_SEARCH_MM
 from ctdrill.app.search.suggest import Suggestion
 from ctdrill.imaging.plan.write import plan_document
+from ctdrill.text import printable
 
 #: Files ``ctdrill suggest`` writes (an existing --out holding only these may be replaced).
 SUGGEST_NAMES = frozenset({"candidates.csv", "best.plan.json", "suggest.json"})

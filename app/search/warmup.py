@@ -15,7 +15,7 @@ from ctdrill import jit
 
 
 def search_kernels() -> tuple[jit.Kernel, ...]:
-    """The kernels :func:`ctdrill.app.search.evaluate.evaluate_batch` uses."""
+    """The kernels :func:`ctdrill.engine.batch.evaluate_batch` uses."""
     from ctdrill.imaging.plan.clearance_kernel import CLEARANCE_KERNEL
     from ctdrill.imaging.sampling.lip_batch import LIP_KERNEL
     from ctdrill.model.profile_batch import PROFILE_KERNEL

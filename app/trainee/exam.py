@@ -20,12 +20,8 @@ from typing import Any
 import numpy as np
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.app.pipeline import (
-    MAX_PLANNED_DEPTH_MM,
-    PathInputError,
-    PathResult,
-    plan_path,
-)
+from ctdrill.engine.grid import MAX_PLANNED_DEPTH_MM
+from ctdrill.engine.path import PathInputError, PathResult, plan_path
 from ctdrill.haptics.assessment import AssessmentContext
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.imaging.plan.types import Plan

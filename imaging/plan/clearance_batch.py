@@ -1,13 +1,14 @@
-"""Clearances, max safe depth and stop of many trajectories at once (the batched
-``safety.py``).
+"""Clearances of many drill axes at once, as arrays (the batched ``clearance_profile_mm``).
 
-For ``N`` drill axes sharing one drill and one set of landmarks, :func:`evaluate_clearances`
-returns per row what :func:`~ctdrill.imaging.plan.safety.clearance_profile_mm` and
-:func:`~ctdrill.imaging.plan.safety.safe_depth` give for that axis, plus the stop depth, with
-the compiled kernel of :mod:`ctdrill.imaging.plan.clearance_kernel` (how it finds each
-minimum exactly is told there). Every landmark is handed to it as segments (a canal's
-centreline and radius, a point, a mask's :func:`~ctdrill.imaging.plan.voxels.voxel_union_segments`
-for each axis), as the landmark's own ``clearance_mm`` measures it.
+For ``N`` drill axes sharing one drill and one set of landmarks, :class:`ClearanceField` gives
+the signed clearance from the drill solid to every landmark at any depths of each row: with
+the compiled kernel of :mod:`ctdrill.imaging.plan.clearance_kernel` when its cache is present
+and every landmark kind is known to it, else with each landmark's own ``clearance_mm`` row by
+row (the NumPy path; the same arrays, tests hold the two equal). It computes arrays only: the
+safe-depth rule that reads them is :func:`~ctdrill.imaging.plan.safety.search_safe_depths`.
+Every landmark is handed to the kernel as segments (a canal's centreline and radius, a point,
+a mask's :func:`~ctdrill.imaging.plan.voxels.voxel_union_segments` for each axis), as the
+landmark's own ``clearance_mm`` measures it.
 """
 
 from __future__ import annotations
@@ -17,42 +18,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ctdrill.imaging.plan.clearance_kernel import CLEARANCE_KERNEL
-from ctdrill.imaging.plan.distance import SEGMENT_TOL_MM, DrillSolid
+from ctdrill.imaging.plan.distance import DrillSolid
 from ctdrill.imaging.plan.landmarks import CanalLandmark, Landmark, MaskLandmark, PointLandmark
-from ctdrill.imaging.plan.safety import (
-    _REFINE_POINTS,
-    SAFE_DEPTH_TOL_MM,
-    SEARCH_BEYOND_PLAN_MM,
-)
 from ctdrill.imaging.plan.voxels import voxel_union_segments
 from ctdrill.jit import row_spans, run_spans
-
-#: Stop reasons by code (``plan_path``'s order: ties go to the first).
-STOP_REASONS = ("planned_depth", "margin", "out_of_volume")
-
-
-@dataclass(frozen=True, eq=False)
-class ClearanceBatch:
-    """Per-row clearances and stops (NaN / -1 in rows not computed).
-
-    Attributes
-    ----------
-    clearance_mm : (N, D, L) signed clearance per depth and landmark, mm.
-    max_safe_depth_mm : (N,) deepest safe depth, mm.
-    capped : (N,) bool, the search reached its limit safely.
-    binding : (N,) int64 binding landmark (-1 none).
-    stop_depth_mm : (N,) min(planned, max safe, out of volume), mm.
-    stop_reason : (N,) int64 index into :data:`STOP_REASONS` (-1 not computed).
-    stop_clearance_mm : (N, L) clearance at the stop depth, mm.
-    """
-
-    clearance_mm: np.ndarray
-    max_safe_depth_mm: np.ndarray
-    capped: np.ndarray
-    binding: np.ndarray
-    stop_depth_mm: np.ndarray
-    stop_reason: np.ndarray
-    stop_clearance_mm: np.ndarray
 
 
 def landmark_segments(
@@ -60,7 +29,7 @@ def landmark_segments(
 ) -> tuple[np.ndarray, np.ndarray, float] | None:
     """``(a, b, radius)``: the segments whose nearest point to the solid gives the landmark's
     clearance (minus ``radius``), as its own ``clearance_mm`` measures them; None for a kind
-    the kernel does not know (then the per-row path runs)."""
+    the kernel does not know (then the NumPy path runs)."""
     if isinstance(landmark, CanalLandmark):
         a, b = landmark.segments_lps()
         return a, b, float(landmark.radius_mm)
@@ -73,57 +42,129 @@ def landmark_segments(
     return None
 
 
-def _unit_directions(entries: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    """Plan.direction normalised again as DrillSolid does."""
-    d = targets - entries
-    u = d / np.sqrt(np.sum(d * d, axis=1))[:, None]
-    return np.asarray(u / np.sqrt(np.sum(u * u, axis=1))[:, None])
+def unit_directions(entries_lps: np.ndarray, targets_lps: np.ndarray) -> np.ndarray:
+    """(N, 3) each axis's unit vector, as :attr:`Plan.direction` and then :class:`DrillSolid`
+    normalise it."""
+    d = targets_lps - entries_lps
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = d / np.sqrt(np.sum(d * d, axis=1))[:, None]
+        return np.asarray(u / np.sqrt(np.sum(u * u, axis=1))[:, None])
 
 
-def evaluate_clearances(
+@dataclass(frozen=True, eq=False)
+class _Segments:
+    """The kernel's input: every landmark's segments (shared, or per row for masks)."""
+
+    seg_a: np.ndarray
+    seg_b: np.ndarray
+    ptr: np.ndarray  # (N, L, 2) each row's span of each landmark's segments
+    radii_l: np.ndarray  # (L,)
+
+
+@dataclass(frozen=True, eq=False)
+class ClearanceField:
+    """Clearance of ``N`` axes (one drill) to the landmarks, at any depths.
+
+    Attributes
+    ----------
+    landmarks : (L,) landmarks bound to the CT grid.
+    radius_mm, tip_length_mm : the drill.
+    entries_lps : (N, 3) LPS mm.
+    directions : (N, 3) unit axes.
+    segments : the compiled kernel's input, or None (the NumPy path).
+    """
+
+    landmarks: tuple[Landmark, ...]
+    radius_mm: float
+    tip_length_mm: float
+    entries_lps: np.ndarray
+    directions: np.ndarray
+    segments: _Segments | None
+
+    @classmethod
+    def prepare(
+        cls,
+        landmarks: tuple[Landmark, ...],
+        radius_mm: float,
+        tip_length_mm: float,
+        entries_lps: np.ndarray,
+        targets_lps: np.ndarray,
+        rows: np.ndarray,
+    ) -> ClearanceField:
+        """The field of ``rows`` (their axes must not be degenerate); the kernel's segments
+        when it is ready and knows every landmark kind."""
+        entries = np.ascontiguousarray(entries_lps, dtype=np.float64)
+        todo = np.asarray(rows, dtype=np.int64)
+        dirs = np.zeros_like(entries)
+        dirs[todo] = unit_directions(entries[todo], np.asarray(targets_lps)[todo])
+        segments = None
+        if CLEARANCE_KERNEL.ready():
+            segments = _kernel_segments(landmarks, radius_mm, tip_length_mm, entries, dirs, todo)
+        return cls(landmarks, float(radius_mm), float(tip_length_mm), entries, dirs, segments)
+
+    @property
+    def compiled(self) -> bool:
+        """The compiled kernel computes this field."""
+        return self.segments is not None
+
+    def at(
+        self, rows: np.ndarray, depth_mm: np.ndarray, n_depths: np.ndarray | None = None
+    ) -> np.ndarray:
+        """(n, P, L) signed clearance of ``rows`` at ``depth_mm`` (n, P), mm; columns past a
+        row's ``n_depths`` (default all P) are NaN."""
+        rows = np.asarray(rows, dtype=np.int64)
+        depth = np.ascontiguousarray(depth_mm, dtype=np.float64)
+        n, p = rows.size, (depth.shape[1] if depth.ndim == 2 else 0)
+        depth = depth.reshape(n, p)
+        counts = (
+            np.full(n, p, dtype=np.int64)
+            if n_depths is None
+            else np.ascontiguousarray(n_depths, dtype=np.int64)
+        )
+        out = np.full((n, p, len(self.landmarks)), np.nan)
+        if n == 0 or not self.landmarks:
+            return out
+        seg = self.segments
+        if seg is None:
+            for j, i in enumerate(rows.tolist()):
+                m = int(counts[j])
+                solid = DrillSolid(
+                    self.entries_lps[i], self.directions[i], self.radius_mm, self.tip_length_mm
+                )
+                for k, lm in enumerate(self.landmarks):
+                    out[j, :m, k] = lm.clearance_mm(solid, depth[j, :m])
+            return out
+        run_spans(
+            CLEARANCE_KERNEL,
+            row_spans(np.arange(n)),
+            seg.seg_a,
+            seg.seg_b,
+            np.ascontiguousarray(seg.ptr[rows]),
+            seg.radii_l,
+            np.ascontiguousarray(self.entries_lps[rows]),
+            np.ascontiguousarray(self.directions[rows]),
+            depth,
+            counts,
+            self.radius_mm,
+            self.tip_length_mm,
+            out,
+        )
+        return out
+
+
+def _kernel_segments(
     landmarks: tuple[Landmark, ...],
-    margins_mm: np.ndarray,
     radius_mm: float,
     tip_length_mm: float,
-    entries_lps: np.ndarray,
-    targets_lps: np.ndarray,
-    depth_mm: np.ndarray,
-    n_depths: np.ndarray,
-    planned_mm: np.ndarray,
-    out_of_volume_mm: np.ndarray,
-    rows: np.ndarray,
-) -> ClearanceBatch | None:
-    """Clearances, max safe depth and stop of ``rows`` with the compiled kernel.
-
-    Parameters
-    ----------
-    landmarks : (L,) landmarks bound to the CT grid; margins_mm (L,) their margins.
-    radius_mm, tip_length_mm : the drill.
-    entries_lps, targets_lps : (N, 3) LPS mm.
-    depth_mm, n_depths : (N, D) each row's depth grid (``depth_grid_mm``) and its length.
-    planned_mm : (N,) each row's planned depth (``Plan.planned_depth_mm``), mm.
-    out_of_volume_mm : (N,) where the lip's data end (inf: never before the planned depth).
-    rows : the rows to compute.
-
-    Returns
-    -------
-    ClearanceBatch | None
-        None when the kernel is not compiled or a landmark kind is not known to it (the
-        caller then uses the per-row functions of ``safety.py``).
-    """
-    if not CLEARANCE_KERNEL.ready():
-        return None
-    n, d_max = depth_mm.shape
+    entries: np.ndarray,
+    dirs: np.ndarray,
+    todo: np.ndarray,
+) -> _Segments | None:
     n_l = len(landmarks)
-    entries = np.ascontiguousarray(entries_lps, dtype=np.float64)
-    targets = np.ascontiguousarray(targets_lps, dtype=np.float64)
-    todo = np.asarray(rows, dtype=np.int64)
-    dirs = np.zeros((n, 3))
-    dirs[todo] = _unit_directions(entries[todo], targets[todo])
     starts: list[np.ndarray] = []
     ends: list[np.ndarray] = []
     radii_l = np.zeros(n_l)
-    ptr = np.zeros((n, n_l, 2), dtype=np.int64)
+    ptr = np.zeros((entries.shape[0], n_l, 2), dtype=np.int64)
     at = 0
     for lm_i, lm in enumerate(landmarks):
         shared = not isinstance(lm, MaskLandmark)
@@ -141,44 +182,9 @@ def evaluate_clearances(
                 ptr[:, lm_i] = span
             else:
                 ptr[i, lm_i] = span
-    seg_a = np.ascontiguousarray(np.concatenate(starts) if starts else np.empty((0, 3)))
-    seg_b = np.ascontiguousarray(np.concatenate(ends) if ends else np.empty((0, 3)))
-    clear = np.full((n, d_max, n_l), np.nan)
-    safe = np.full((n, 3), np.nan)
-    stop = np.full((n, 2), np.nan)
-    stop_clear = np.full((n, n_l), np.nan)
-    run_spans(
-        CLEARANCE_KERNEL,
-        row_spans(todo),
-        seg_a,
-        seg_b,
-        ptr,
-        radii_l,
-        np.ascontiguousarray(margins_mm, dtype=np.float64),
-        entries,
-        np.ascontiguousarray(dirs),
-        np.ascontiguousarray(depth_mm, dtype=np.float64),
-        np.ascontiguousarray(n_depths, dtype=np.int64),
-        np.ascontiguousarray(planned_mm, dtype=np.float64),
-        np.ascontiguousarray(out_of_volume_mm, dtype=np.float64),
-        float(radius_mm),
-        float(tip_length_mm),
-        # the search's constants as data, so a change to them is never hidden by the cache
-        np.array(
-            [SEGMENT_TOL_MM, SAFE_DEPTH_TOL_MM, SEARCH_BEYOND_PLAN_MM, _REFINE_POINTS],
-            dtype=np.float64,
-        ),
-        clear,
-        safe,
-        stop,
-        stop_clear,
-    )
-    return ClearanceBatch(
-        clearance_mm=clear,
-        max_safe_depth_mm=safe[:, 0],
-        capped=safe[:, 2] == 1.0,
-        binding=np.nan_to_num(safe[:, 1], nan=-1.0).astype(np.int64),
-        stop_depth_mm=stop[:, 0],
-        stop_reason=np.nan_to_num(stop[:, 1], nan=-1.0).astype(np.int64),
-        stop_clearance_mm=stop_clear,
+    return _Segments(
+        seg_a=np.ascontiguousarray(np.concatenate(starts) if starts else np.empty((0, 3))),
+        seg_b=np.ascontiguousarray(np.concatenate(ends) if ends else np.empty((0, 3))),
+        ptr=ptr,
+        radii_l=radii_l,
     )

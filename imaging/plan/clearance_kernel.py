@@ -1,8 +1,10 @@
-"""The compiled clearance kernel of :mod:`ctdrill.imaging.plan.clearance_batch`.
+"""The compiled clearance kernel of :mod:`ctdrill.imaging.plan.clearance_batch`: arrays only.
 
-For ``N`` drill axes sharing one drill and one set of landmarks, :func:`evaluate_clearances`
-returns per row what :func:`~ctdrill.imaging.plan.safety.clearance_profile_mm` and
-:func:`~ctdrill.imaging.plan.safety.safe_depth` give for that axis, plus the stop depth.
+For ``N`` drill axes sharing one drill and one set of landmarks, the kernel fills the signed
+clearance from the drill solid to every landmark at the depths asked for each row, the array
+:func:`~ctdrill.imaging.plan.safety.clearance_profile_mm` gives for that axis. The rules that
+read it (the safe-depth search, the stop) are written once, in Python
+(:func:`~ctdrill.imaging.plan.safety.search_safe_depths`, :mod:`ctdrill.engine.clearance`).
 
 Every landmark is a union of segments (a canal's centreline with its radius, a point, a mask's
 segments from :func:`~ctdrill.imaging.plan.voxels.voxel_union_segments`), and the clearance is
@@ -18,16 +20,11 @@ segment), minus the radius. The compiled kernel finds that minimum exactly, not 
 - the others are minimised on the segment's parameter by secant steps on the derivative
   (analytic: the unit vector from the nearest point of the solid), inside a bracket whose
   end tangents bound the minimum from below (convexity), until the value found is within
-  1e-13 mm of that bound; ``plan_path``'s golden section stops at
+  1e-13 mm of that bound; the NumPy path's golden section stops at
   :data:`~ctdrill.imaging.plan.distance.SEGMENT_TOL_MM`. Where the drill is outside the
   landmark the distance is smooth at its minimum and both agree to ~1e-12 mm; inside a
-  landmark (negative clearance) the signed distance has creases and ``plan_path``'s value is
-  within SEGMENT_TOL_MM of this one.
-
-The max safe depth repeats :func:`~ctdrill.imaging.plan.safety.safe_depth`'s search (the grid
-bracket, then passes of 65 points to SAFE_DEPTH_TOL_MM, kept where the clearance is at least
-the margin plus SEGMENT_TOL_MM); since the clearance never increases with depth, the first
-violated point of a pass is found by bisection over the same 65 points.
+  landmark (negative clearance) the signed distance has creases and the NumPy value is
+  within SEGMENT_TOL_MM above this one.
 """
 
 from __future__ import annotations
@@ -192,104 +189,24 @@ def _clear_at(
         )
 
 
-@helper
-def _refine(
-    geo: np.ndarray,
-    order: np.ndarray,
-    lms: np.ndarray,
-    x_lo: float,
-    x_hi: float,
-    radius: float,
-    tip_len: float,
-    radii_l: np.ndarray,
-    margins: np.ndarray,
-    consts: np.ndarray,
-    warm: np.ndarray,
-    tmp: np.ndarray,
-    res: np.ndarray,
-) -> bool:  # pragma: no cover - compiled
-    """safety._refine on [x_lo, x_hi]: False when ``x_lo`` is unsafe; else ``res`` = (depth,
-    binding or -1, capped). The first violated point of each 65-point pass is found by
-    bisection (the slack never increases with depth)."""
-    lo, hi = x_lo, x_hi
-    _clear_at(geo, order, lms, hi, radius, tip_len, radii_l, warm, tmp)
-    if _min_slack(tmp, margins, consts[0]) >= 0.0:
-        res[0] = hi
-        res[1] = -1.0
-        res[2] = 1.0
-        return True
-    _clear_at(geo, order, lms, lo, radius, tip_len, radii_l, warm, tmp)
-    if _min_slack(tmp, margins, consts[0]) < 0.0:
-        return False
-    last = int(consts[3]) - 1
-    while True:  # lo safe, hi violated
-        step = (hi - lo) / last
-        good, bad = 0, last
-        while bad - good > 1:
-            mid = (good + bad) // 2
-            _clear_at(geo, order, lms, mid * step + lo, radius, tip_len, radii_l, warm, tmp)
-            if _min_slack(tmp, margins, consts[0]) < 0.0:
-                bad = mid
-            else:
-                good = mid
-        x_bad = hi if bad == last else bad * step + lo
-        x_good = good * step + lo
-        if x_bad - x_good <= consts[1]:
-            _clear_at(geo, order, lms, x_bad, radius, tip_len, radii_l, warm, tmp)
-            res[0] = x_good
-            res[1] = float(_argmin_slack(tmp, margins, consts[0]))
-            res[2] = 0.0
-            return True
-        lo, hi = x_good, x_bad
-
-
-@helper
-def _min_slack(
-    clear: np.ndarray, margins: np.ndarray, seg_tol: float
-) -> float:  # pragma: no cover - compiled
-    m = np.inf
-    for lm_i in range(clear.shape[0]):
-        m = min(m, clear[lm_i] - margins[lm_i] - seg_tol)
-    return m
-
-
-@helper
-def _argmin_slack(
-    clear: np.ndarray, margins: np.ndarray, seg_tol: float
-) -> int:  # pragma: no cover - compiled
-    best = 0
-    for lm_i in range(clear.shape[0]):
-        if clear[lm_i] - margins[lm_i] - seg_tol < clear[best] - margins[best] - seg_tol:
-            best = lm_i
-    return best
-
-
 def _rows_kernel(
     seg_a: np.ndarray,
     seg_b: np.ndarray,
     ptr: np.ndarray,
     radii_l: np.ndarray,
-    margins: np.ndarray,
     entries: np.ndarray,
     dirs: np.ndarray,
     depth: np.ndarray,
     n_depth: np.ndarray,
-    planned: np.ndarray,
-    oov: np.ndarray,
     radius: float,
     tip_len: float,
-    consts: np.ndarray,
     clear_out: np.ndarray,
-    safe_out: np.ndarray,
-    stop_out: np.ndarray,
-    stop_clear: np.ndarray,
     row_lo: int,
     row_hi: int,
-) -> None:  # pragma: no cover - compiled; tested against plan_path
+) -> None:  # pragma: no cover - compiled; tested against the NumPy path
     n_l = radii_l.shape[0]
     warm = np.empty((n_l, 2))
     tmp = np.empty(n_l)
-    res = np.empty(3)
     lms = np.empty((n_l, 2), dtype=np.int64)
     for n in range(row_lo, row_hi):
         # this row's segments in axis coordinates, each landmark's sorted by its axis bound
@@ -339,70 +256,15 @@ def _rows_kernel(
                     geo[lms[lm_i, 0] : lms[lm_i, 1], 9]
                 )
         warm[:, 0] = -1.0
-        first_bad = -1
-        m = n_depth[n]
-        for d in range(m):
+        for d in range(n_depth[n]):
             _clear_at(geo, order, lms, depth[n, d], radius, tip_len, radii_l, warm, tmp)
             for lm_i in range(n_l):
                 clear_out[n, d, lm_i] = tmp[lm_i]
-                if first_bad < 0 and tmp[lm_i] < margins[lm_i]:
-                    first_bad = d
-        limit = planned[n] + consts[2]
-        if n_l == 0:
-            res[0] = limit
-            res[1] = -1.0
-            res[2] = 1.0
-        else:
-            found = False
-            if first_bad > 0:
-                lo = depth[n, first_bad - 1]
-                hi = depth[n, first_bad]
-                if 0.0 <= lo < hi <= limit:
-                    args = (radius, tip_len, radii_l, margins, consts, warm, tmp, res)
-                    if _refine(geo, order, lms, lo, hi, *args):
-                        found = res[0] < hi
-            if not found:
-                args = (radius, tip_len, radii_l, margins, consts, warm, tmp, res)
-                if not _refine(geo, order, lms, 0.0, limit, *args):
-                    _clear_at(geo, order, lms, 0.0, radius, tip_len, radii_l, warm, tmp)
-                    best = 0
-                    for lm_i in range(n_l):
-                        if tmp[lm_i] - margins[lm_i] < tmp[best] - margins[best]:
-                            best = lm_i
-                    res[0] = 0.0
-                    res[1] = float(best)
-                    res[2] = 0.0
-        safe_out[n, 0] = res[0]
-        safe_out[n, 2] = res[2]
-        # stop: min(planned, max safe, out of volume), ties to the first listed
-        stop = planned[n]
-        reason = 0
-        if res[0] < stop:
-            stop = res[0]
-            reason = 1
-        if oov[n] < stop:
-            stop = oov[n]
-            reason = 2
-        stop_out[n, 0] = stop
-        stop_out[n, 1] = reason
-        _clear_at(geo, order, lms, stop, radius, tip_len, radii_l, warm, tmp)
-        binding = res[1]
-        for lm_i in range(n_l):
-            stop_clear[n, lm_i] = tmp[lm_i]
-        if binding < 0.0 and n_l > 0:  # no margin binds: the landmark nearest at the stop
-            b = 0
-            for lm_i in range(1, n_l):
-                if tmp[lm_i] < tmp[b]:
-                    b = lm_i
-            binding = float(b)
-        safe_out[n, 1] = binding
 
 
 _SIG = (
-    "void(float64[:, ::1], float64[:, ::1], int64[:, :, ::1], float64[::1], float64[::1], "
-    "float64[:, ::1], float64[:, ::1], float64[:, ::1], int64[::1], float64[::1], "
-    "float64[::1], float64, float64, float64[::1], float64[:, :, ::1], float64[:, ::1], "
-    "float64[:, ::1], "
-    "float64[:, ::1], int64, int64)"
+    "void(float64[:, ::1], float64[:, ::1], int64[:, :, ::1], float64[::1], "
+    "float64[:, ::1], float64[:, ::1], float64[:, ::1], int64[::1], float64, float64, "
+    "float64[:, :, ::1], int64, int64)"
 )
 CLEARANCE_KERNEL = Kernel(_rows_kernel, [_SIG])

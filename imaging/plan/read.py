@@ -24,9 +24,9 @@ from ctdrill.imaging.plan.landmarks import (
 )
 from ctdrill.imaging.plan.site import site_error
 from ctdrill.imaging.plan.types import (
-    _MAX_COORD_MM,
     _MAXIMA,
     DEFAULT_MIN_WALL_MM,
+    MAX_COORDINATE_MM,
     DrillSpec,
     Plan,
     PlanInputError,
@@ -95,7 +95,7 @@ class _Ctx:
         for i, p in enumerate(val):
             if len(p) != 3 or not all(_is_number(v) for v in p):
                 raise self.fail(f"{fp}[{i}]", "must be 3 finite numbers [x, y, z] in mm", p)
-        problem = arch_error(val, _MAX_COORD_MM)
+        problem = arch_error(val, MAX_COORDINATE_MM)
         if problem is not None:
             raise PlanInputError(f"{self.path.name}: {fp}{problem}")
         return _to_lps(np.asarray(val, dtype=np.float64).reshape(-1, 3), system)
@@ -151,11 +151,12 @@ class _Ctx:
         if (
             not isinstance(val, list | tuple)
             or len(val) != 3
-            or not all(_is_number(v) and abs(v) <= _MAX_COORD_MM for v in val)
+            or not all(_is_number(v) and abs(v) <= MAX_COORDINATE_MM for v in val)
         ):
             raise self.fail(
                 fp,
-                f"must be a list of 3 finite numbers [x, y, z] in mm (|v| <= {_MAX_COORD_MM:g})",
+                "must be a list of 3 finite numbers [x, y, z] in mm "
+                f"(|v| <= {MAX_COORDINATE_MM:g})",
                 val,
             )
         return np.asarray(val, dtype=np.float64)

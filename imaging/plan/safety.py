@@ -10,6 +10,7 @@ non-increasing in depth; :func:`safe_depth` relies on that.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,6 +100,142 @@ class SafeDepth:
     capped: bool
 
 
+#: Clearance of rows at depths: ``(rows (n,), depths (n, P)) -> (n, P, L)`` signed, mm.
+ClearanceAt = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True, eq=False)
+class SafeDepths:
+    """:class:`SafeDepth` of ``N`` rows (NaN / -1 / False in rows not searched).
+
+    Attributes
+    ----------
+    depth_mm : (N,) deepest safe tip depth, mm.
+    binding : (N,) int64 landmark whose margin is crossed just past it (-1: none, capped).
+    capped : (N,) bool, the search reached its limit safely.
+    """
+
+    depth_mm: np.ndarray
+    binding: np.ndarray
+    capped: np.ndarray
+
+    def row(self, i: int) -> SafeDepth:
+        """Row ``i`` as a :class:`SafeDepth`."""
+        b = int(self.binding[i])
+        return SafeDepth(float(self.depth_mm[i]), None if b < 0 else b, bool(self.capped[i]))
+
+
+def search_safe_depths(
+    clearance_at: ClearanceAt,
+    margins: np.ndarray,
+    limit_mm: np.ndarray,
+    rows: np.ndarray,
+    *,
+    tol_mm: float = SAFE_DEPTH_TOL_MM,
+    bracket_mm: np.ndarray | None = None,
+) -> SafeDepths:
+    """Deepest tip depth of each row whose clearance to every landmark stays >= its margin.
+
+    The one safe-depth rule (the single plan's :func:`safe_depth` and the engine's batch use
+    it with their own clearance arrays). Found by bracketing on ``[0, limit_mm]`` (a row whose
+    margins hold at the limit is capped there at once) and passes of :data:`_REFINE_POINTS`
+    depths spanning the bracket (its ends included), each keeping
+    the step where the slack (clearance - margin - :data:`SEGMENT_TOL_MM`) first turns
+    negative (valid because the slack never increases with depth), to ``tol_mm``; the depth
+    returned is on the safe side of the boundary. A clearance counts as kept only when it is
+    at least the margin plus the distance tolerance, so the stop never lies past the true
+    safe depth.
+
+    Parameters
+    ----------
+    clearance_at : the clearance of rows at depths (:data:`ClearanceAt`).
+    margins : (L,) margin per landmark, mm (L >= 1).
+    limit_mm : (N,) search limit per row (the result is capped at it), mm.
+    rows : the rows to search.
+    tol_mm : tolerance, mm.
+    bracket_mm : optional (N, 2) ``(lo, hi)`` with the margin kept at ``lo`` and violated at
+        ``hi`` (e.g. from a clearance profile on a depth grid; NaN for none); checked in the
+        first pass, and the full range searched where it does not hold.
+    """
+    n = limit_mm.shape[0]
+    out = SafeDepths(np.full(n, np.nan), np.full(n, -1, dtype=np.int64), np.zeros(n, bool))
+    todo = np.asarray(rows, dtype=np.int64)
+    if bracket_mm is not None and todo.size:
+        lo, hi = bracket_mm[todo, 0], bracket_mm[todo, 1]
+        with np.errstate(invalid="ignore"):
+            valid = (lo >= 0.0) & (lo < hi) & (hi <= limit_mm[todo])
+        sub = todo[valid]
+        found = _refine_rows(clearance_at, margins, sub, lo[valid], hi[valid], tol_mm, out)
+        kept = found & (out.depth_mm[sub] < hi[valid])  # safe at lo, violated by hi
+        todo = todo[~np.isin(todo, sub[kept])]
+    if todo.size:  # safe at the limit: safe all the way (the slack never increases)
+        end = clearance_at(todo, limit_mm[todo][:, None])[:, 0] - margins - SEGMENT_TOL_MM
+        held = np.min(end, axis=1) >= 0.0
+        out.depth_mm[todo[held]] = limit_mm[todo[held]]
+        out.binding[todo[held]] = -1
+        out.capped[todo[held]] = True
+        todo = todo[~held]
+    found = _refine_rows(
+        clearance_at, margins, todo, np.zeros(todo.size), limit_mm[todo], tol_mm, out
+    )
+    at_entry = todo[~found]  # violated at the entry already
+    if at_entry.size:
+        slack = clearance_at(at_entry, np.zeros((at_entry.size, 1)))[:, 0] - margins
+        out.depth_mm[at_entry] = 0.0
+        out.binding[at_entry] = np.argmin(slack, axis=1)
+        out.capped[at_entry] = False
+    return out
+
+
+def _refine_rows(
+    clearance_at: ClearanceAt,
+    margins: np.ndarray,
+    rows: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    tol_mm: float,
+    out: SafeDepths,
+) -> np.ndarray:
+    """Deepest safe depth of ``rows`` in ``[lo, hi]`` to ``tol_mm`` into ``out``; returns
+    (n,) bool, False where ``lo`` is not safe (``out`` untouched there). ``hi`` still safe:
+    ``hi``, capped."""
+    found = np.ones(rows.size, dtype=bool)
+    active = np.arange(rows.size)
+    lo, hi = np.array(lo, dtype=np.float64), np.array(hi, dtype=np.float64)
+    while active.size:
+        xs = np.linspace(lo[active], hi[active], _REFINE_POINTS, axis=1)
+        slack = clearance_at(rows[active], xs) - margins - SEGMENT_TOL_MM
+        bad = np.min(slack, axis=2) < 0.0
+        first = np.argmax(bad, axis=1)
+        safe_all = ~bad.any(axis=1)
+        done = rows[active[safe_all]]
+        out.depth_mm[done] = hi[active[safe_all]]
+        out.binding[done] = -1
+        out.capped[done] = True
+        unsafe_lo = ~safe_all & (first == 0)
+        found[active[unsafe_lo]] = False
+        go = ~safe_all & ~unsafe_lo
+        k = np.flatnonzero(go)
+        lo[active[k]] = xs[k, first[k] - 1]
+        hi[active[k]] = xs[k, first[k]]
+        close = hi[active[k]] - lo[active[k]] <= tol_mm
+        fin = k[close]
+        out.depth_mm[rows[active[fin]]] = lo[active[fin]]
+        out.binding[rows[active[fin]]] = np.argmin(slack[fin, first[fin]], axis=1)
+        out.capped[rows[active[fin]]] = False
+        active = active[k[~close]]
+    return found
+
+
+def numpy_clearance_at(plan: Plan, landmarks: tuple[Landmark, ...]) -> ClearanceAt:
+    """:data:`ClearanceAt` of the single ``plan`` (its row 0), the landmarks' own distances."""
+
+    def at(rows: np.ndarray, depths: np.ndarray) -> np.ndarray:
+        return np.stack([clearance_profile_mm(plan, landmarks, d) for d in depths])
+
+    return at
+
+
 def safe_depth(
     plan: Plan,
     landmarks: tuple[Landmark, ...] | None = None,
@@ -107,13 +244,11 @@ def safe_depth(
     tol_mm: float = SAFE_DEPTH_TOL_MM,
     bracket_mm: tuple[float, float] | None = None,
 ) -> SafeDepth:
-    """Deepest tip depth whose clearance to every landmark stays >= its margin.
+    """Deepest tip depth whose clearance to every landmark stays >= its margin
+    (:func:`search_safe_depths` for the one plan).
 
-    Each landmark uses its own ``margin_mm`` when set, else ``plan.margin_mm``. Found by
-    bracketing on ``[0, limit_mm]`` and refinement (64-section, i.e. six bisection steps per
-    vectorised pass) to ``tol_mm``; the returned depth is on the safe side of the boundary
-    (within ``tol_mm`` of it). A clearance counts as kept only when it is at least the margin
-    plus the distance tolerance, so the stop never lies past the true safe depth.
+    Each landmark uses its own ``margin_mm`` when set, else ``plan.margin_mm``; the returned
+    depth is on the safe side of the boundary (within ``tol_mm`` of it).
 
     Parameters
     ----------
@@ -126,18 +261,15 @@ def safe_depth(
     limit = search_limit_mm(plan) if limit_mm is None else float(limit_mm)
     if not lms:
         return SafeDepth(limit, None, True)
-    margins = margins_mm(plan, lms)
-    if bracket_mm is not None:
-        lo, hi = float(bracket_mm[0]), float(bracket_mm[1])
-        if 0.0 <= lo < hi <= limit:
-            found = _refine(plan, lms, margins, lo, hi, tol_mm)
-            if found is not None and found.depth_mm < hi:  # safe at lo, violated by hi
-                return found
-    found = _refine(plan, lms, margins, 0.0, limit, tol_mm)
-    if found is None:  # violated at the entry already
-        slack = clearance_profile_mm(plan, lms, np.array([0.0]))[0] - margins
-        return SafeDepth(0.0, int(np.argmin(slack)), False)
-    return found
+    bracket = None if bracket_mm is None else np.array([bracket_mm], dtype=np.float64)
+    return search_safe_depths(
+        numpy_clearance_at(plan, lms),
+        margins_mm(plan, lms),
+        np.array([limit]),
+        np.array([0]),
+        tol_mm=tol_mm,
+        bracket_mm=bracket,
+    ).row(0)
 
 
 def max_safe_depth_mm(
@@ -152,35 +284,6 @@ def max_safe_depth_mm(
     return safe_depth(
         plan, landmarks, limit_mm=limit_mm, tol_mm=tol_mm, bracket_mm=bracket_mm
     ).depth_mm
-
-
-def _refine(
-    plan: Plan,
-    lms: tuple[Landmark, ...],
-    margins: np.ndarray,
-    lo: float,
-    hi: float,
-    tol_mm: float,
-) -> SafeDepth | None:
-    """Deepest safe depth in ``[lo, hi]`` to ``tol_mm``, or None if ``lo`` is not safe.
-
-    Each pass evaluates ``_REFINE_POINTS`` depths spanning the bracket (its ends included) in
-    one vectorised call and keeps the step where the slack (clearance - margin) first turns
-    negative, valid because the slack never increases with depth: the bracket shrinks
-    ``_REFINE_POINTS - 1``-fold per pass. Returns ``hi`` (capped) when it is still safe.
-    """
-    while True:
-        xs = np.linspace(lo, hi, _REFINE_POINTS)
-        slack = clearance_profile_mm(plan, lms, xs) - margins[None, :] - SEGMENT_TOL_MM
-        bad = np.flatnonzero(np.min(slack, axis=1) < 0.0)
-        if bad.size == 0:
-            return SafeDepth(hi, None, True)
-        first = int(bad[0])
-        if first == 0:
-            return None
-        lo, hi = float(xs[first - 1]), float(xs[first])
-        if hi - lo <= tol_mm:
-            return SafeDepth(lo, int(np.argmin(slack[first])), False)
 
 
 def margin_warnings(

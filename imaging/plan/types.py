@@ -75,8 +75,9 @@ _MAXIMA = {
     "min_wall_mm": 1000.0,
     "radius_mm": 1000.0,
 }
-#: Largest accepted coordinate magnitude, mm.
-_MAX_COORD_MM = 1e5
+#: Largest accepted coordinate magnitude, mm (the plan reader's; the engine refuses a trajectory
+#: or landmark point beyond it built in code).
+MAX_COORDINATE_MM = 1e5
 
 
 class PlanInputError(ImagingInputError):
@@ -147,7 +148,7 @@ class Plan:
             arr.flags.writeable = False
             object.__setattr__(self, attr, arr)
         if self.arch_lps is not None:
-            problem = arch_error(self.arch_lps, _MAX_COORD_MM)
+            problem = arch_error(self.arch_lps, MAX_COORDINATE_MM)
             if problem is not None:
                 raise PlanInputError(f"plan {self.name!r}: arch{problem}")
             arch = np.array(self.arch_lps, dtype=np.float64).reshape(-1, 3)

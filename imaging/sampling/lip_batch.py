@@ -43,6 +43,7 @@ def _lip_kernel(
     sin_t: np.ndarray,
     outside_hu: float,
     out: np.ndarray,
+    outside: np.ndarray,
     row_lo: int,
     row_hi: int,
 ) -> None:  # pragma: no cover - compiled by numba; tested against sample_lip_rings
@@ -58,6 +59,7 @@ def _lip_kernel(
                     unit = cos_t[a] * bases[n, 1, c] + sin_t[a] * bases[n, 2, c]
                     offsets[r, a, c] = radii[r] * unit
         for d in range(n_depth[n]):
+            outside[n, d] = 0
             for r in range(radii.shape[0]):
                 xi = depth[n, d] - xi_off[r]
                 c0 = entries[n, 0] + xi * ax0
@@ -98,6 +100,7 @@ def _lip_kernel(
                         and ci <= top[0] + tol
                     ):
                         out[n, d, r, a] = outside_hu
+                        outside[n, d] += 1
                         continue
                     sk = math.floor(ck)
                     sj = math.floor(cj)
@@ -131,7 +134,8 @@ def _lip_kernel(
 _SIG = (
     "void({vol}[:, :, ::1], float64[:, ::1], float64[::1], float64[::1], float64[::1], boolean, "
     "float64[:, ::1], float64[:, :, ::1], float64[:, ::1], int64[::1], float64[::1], "
-    "float64[::1], float64[::1], float64[::1], float64, float32[:, :, :, ::1], int64, int64)"
+    "float64[::1], float64[::1], float64[::1], float64, float32[:, :, :, ::1], int64[:, ::1], "
+    "int64, int64)"
 )
 LIP_KERNEL = Kernel(
     _lip_kernel, [_SIG.format(vol="int16"), _SIG.format(vol="float32")], readonly=(0, 4)
@@ -151,8 +155,10 @@ def sample_lips(
     n_angles: int,
     rows: np.ndarray | None = None,
     out: np.ndarray | None = None,
-) -> np.ndarray:
-    """Ring samples of ``N`` trajectories, float32 (N, D, n_rings, n_angles).
+    outside: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Ring samples of ``N`` trajectories, float32 (N, D, n_rings, n_angles), and the samples
+    outside the volume (or on padding) per depth, int64 (N, D).
 
     Parameters
     ----------
@@ -164,21 +170,23 @@ def sample_lips(
     drill : the drill (diameter, tip length).
     n_rings, n_angles : lip discretisation.
     rows : which rows to sample (default all); the others are left as they are in ``out``.
-    out : optional float32 (N, D, n_rings, n_angles) buffer to fill.
+    out, outside : optional buffers to fill, float32 (N, D, n_rings, n_angles), int64 (N, D).
 
     Returns
     -------
-    np.ndarray
-        Equal to ``sample_lip_rings(...).hu`` of each row up to its ``n_depths``; AIR_HU
-        outside the voxel-centre hull.
+    tuple[np.ndarray, np.ndarray]
+        ``hu`` and ``outside`` equal to :func:`sample_lip_rings`' of each row up to its
+        ``n_depths`` (AIR_HU outside the voxel-centre hull): the compiled kernel where it is
+        ready and the volume has no padding, the sampler itself row by row otherwise.
     """
     n, d_max = depth_mm.shape
-    shape = (n, d_max, n_rings, n_angles)
     if out is None:
-        out = np.empty(shape, dtype=np.float32)
+        out = np.empty((n, d_max, n_rings, n_angles), dtype=np.float32)
+    if outside is None:
+        outside = np.zeros((n, d_max), dtype=np.int64)
     todo = np.arange(n) if rows is None else np.asarray(rows, dtype=np.int64)
     if todo.size == 0:
-        return out
+        return out, outside
     if volume.valid is not None or not LIP_KERNEL.ready():  # the per-trajectory sampler
         for i in todo.tolist():
             m = int(n_depths[i])
@@ -192,7 +200,8 @@ def sample_lips(
                 n_angles=n_angles,
             )
             out[i, :m] = lip.hu
-        return out
+            outside[i, :m] = lip.outside
+        return out, outside
     radius = float(drill.diameter_mm) / 2.0
     tip_len = float(drill.tip_length_mm)
     radii = ring_radii_mm(drill.diameter_mm, n_rings)
@@ -210,54 +219,6 @@ def sample_lips(
     bas = np.ascontiguousarray(bases, dtype=np.float64)
     dep = np.ascontiguousarray(depth_mm, dtype=np.float64)
     nd = np.ascontiguousarray(n_depths, dtype=np.int64)
-    rest = (xi_off, radii, np.cos(theta), np.sin(theta), float(AIR_HU), out)
+    rest = (xi_off, radii, np.cos(theta), np.sin(theta), float(AIR_HU), out, outside)
     run_spans(LIP_KERNEL, row_spans(todo), *args, ent, bas, dep, nd, *rest)
-    return out
-
-
-def axis_bases(entries_lps: np.ndarray, targets_lps: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) :func:`~ctdrill.imaging.sampling.lip.axis_basis` of every row, vectorised
-    (equal to it to rounding; rows with entry == target give NaN)."""
-    d = np.asarray(targets_lps, dtype=np.float64) - np.asarray(entries_lps, dtype=np.float64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        axis = d / np.sqrt(np.sum(d * d, axis=1))[:, None]
-        helper = np.zeros_like(axis)
-        helper[np.arange(len(axis)), np.argmin(np.abs(axis), axis=1)] = 1.0
-        e1 = helper - np.sum(helper * axis, axis=1)[:, None] * axis
-        e1 /= np.sqrt(np.sum(e1 * e1, axis=1))[:, None]
-    return np.stack([axis, e1, np.cross(axis, e1)], axis=1)
-
-
-def lip_inside_depths(
-    volume: CTVolume, entries_lps: np.ndarray, targets_lps: np.ndarray, drill: DrillSpec
-) -> tuple[np.ndarray, np.ndarray]:
-    """(N,) ``lo``, ``hi``: :func:`~ctdrill.imaging.sampling.path.lip_inside_depths_mm` of
-    every row at once (the tip depths whose whole lip lies in the voxel-centre hull; the
-    same closed form, to rounding)."""
-    inv = np.linalg.inv(np.asarray(volume.affine_lps, dtype=np.float64))
-    lin, off = inv[:3, :3], inv[:3, 3]
-    cols, rows, _ = volume.dims
-    top = np.array([cols - 1.0, rows - 1.0, float(volume.affine_slice_index[-1])])
-    entries = np.asarray(entries_lps, dtype=np.float64)
-    basis = axis_bases(entries, targets_lps)
-    n = entries.shape[0]
-    lo = np.full(n, -np.inf)
-    hi = np.full(n, np.inf)
-    empty = np.zeros(n, dtype=bool)
-    lt, radius = float(drill.tip_length_mm), float(drill.radius_mm)
-    for m in range(3):
-        su = basis[:, 0] @ lin[m]
-        w = np.hypot(basis[:, 1] @ lin[m], basis[:, 2] @ lin[m])
-        low = np.minimum(0.0, -lt * su - radius * w)
-        high = np.maximum(0.0, -lt * su + radius * w)
-        value = entries @ lin[m]
-        for const, slope in ((value + off[m] + low, su), (top[m] - value - off[m] - high, -su)):
-            flat = np.abs(slope) < 1e-15
-            empty |= flat & (const < 0.0)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                bound = -const / slope
-            lo = np.where(~flat & (slope > 0.0), np.maximum(lo, bound), lo)
-            hi = np.where(~flat & (slope < 0.0), np.minimum(hi, bound), hi)
-    lo[empty] = np.inf
-    hi[empty] = -np.inf
-    return lo, hi
+    return out, outside

@@ -7,16 +7,16 @@ LPS is a parallelepiped (the slice index is piecewise linear in the normal posit
 hull's two slice faces are the first and the last real slice planes). Everything below is in
 closed form on that continuous lip, not on its ring samples:
 
-- :func:`out_of_volume_depth_mm`: the deepest depth whose whole lip lies in the hull. Along a
-  face plane ``f(p) = alpha . p + beta >= 0`` the lip's smallest value is
-  ``alpha . E + beta + x (alpha . u) + min(0, -l_t (alpha . u) - R |alpha_perp|)`` (the
-  minimum over the ring angle is ``-r |alpha_perp|``, linear in ``r``, so at ``r = 0`` or
-  ``r = R``), linear in ``x``: the stop is exact, not bisected.
+- :func:`out_of_volume_depth_mm`: where the lip in contact first leaves the hull, under the
+  entry rule (only the lip at or ahead of the entry must lie in the scan; an entry outside is
+  refused with the part outside, the depths and the distance to move it):
+  :mod:`ctdrill.imaging.sampling.edge` holds the closed form for any number of trajectories.
 - :func:`crossed_gaps`: slice steps wider than ``stack.GAP_FACTOR`` nominal steps that the lip
   reaches into, with the depth range affected (the lip's slice-index range is linear in ``x``
   in the same way). Crossing one is refused unless the caller asks to interpolate across it.
 - :func:`check_volume` / :func:`check_padding`: a single slice, values that are not HU and
-  padding touched by the drill are refused.
+  padding touched by the lip in contact (at or ahead of the entry, as for the volume edge)
+  are refused.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.types import DrillSpec
 from ctdrill.imaging.sampling.annulus import Hole
+from ctdrill.imaging.sampling.edge import entry_refusal, face_terms, index_planes, lip_exit_depths
 from ctdrill.imaging.sampling.lip import LipSamples, axis_basis, lip_ring_points
 from ctdrill.imaging.stack import GAP_FACTOR, nominal_step_mm, wide_steps
 from ctdrill.imaging.volume import CTVolume
@@ -109,9 +110,10 @@ def require_grid_for_masks(
     volume: CTVolume, landmarks: tuple[Landmark, ...], *, name: str = ""
 ) -> None:
     """A mask landmark without its own grid takes the CT's: only a regular stack has one."""
-    if volume.regular:
+    needing = [lm for lm in landmarks if lm.needs_grid]
+    if not needing or volume.regular:
         return
-    for lm in landmarks:
+    for lm in needing:
         if lm.needs_grid:
             raise PathInputError(
                 f"plan {name!r}: mask landmark {lm.name!r} has no affine_lps and the CT's "
@@ -120,20 +122,11 @@ def require_grid_for_masks(
             )
 
 
-def _index_planes(volume: CTVolume) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Rows ``a_m``, offsets ``c_m`` with affine index ``m = a_m . p + c_m``, and the hull's
-    upper bounds in those units (the true last slice for k)."""
-    inv = np.linalg.inv(np.asarray(volume.affine_lps, dtype=np.float64))
-    cols, rows, _ = volume.dims
-    k_top = float(volume.affine_slice_index[-1])
-    return inv[:3, :3], inv[:3, 3], np.array([cols - 1.0, rows - 1.0, k_top])
-
-
 def _lip_extremes(
     alpha: np.ndarray, entry_lps: np.ndarray, basis: np.ndarray, drill: DrillSpec
 ) -> tuple[float, float, float, float]:
     """For ``f(p) = alpha . p``: value at the entry, slope per mm of depth, and the lowest and
-    highest offsets of the lip relative to its tip point."""
+    highest offsets of the whole lip relative to its tip point."""
     axis, e1, e2 = basis
     su = float(alpha @ axis)
     w = math.hypot(float(alpha @ e1), float(alpha @ e2))
@@ -141,33 +134,6 @@ def _lip_extremes(
     low = min(0.0, -lt * su - radius * w)
     high = max(0.0, -lt * su + radius * w)
     return float(alpha @ entry_lps), su, low, high
-
-
-def lip_inside_depths_mm(
-    volume: CTVolume, entry_lps: np.ndarray, target_lps: np.ndarray, drill: DrillSpec
-) -> tuple[float, float]:
-    """The interval of tip depths whose whole (continuous) lip lies in the voxel-centre hull.
-
-    Returns ``(lo, hi)`` in mm, ``lo > hi`` when no depth qualifies; unbounded ends are inf.
-    """
-    lin, off, top = _index_planes(volume)
-    basis = axis_basis(entry_lps, target_lps)
-    entry = np.asarray(entry_lps, dtype=np.float64)
-    lo, hi = -math.inf, math.inf
-    for m in range(3):
-        value, su, low, high = _lip_extremes(lin[m], entry, basis, drill)
-        # value + off + x su + low >= 0   and   top - (value + off + x su + high) >= 0
-        for const, slope in ((value + off[m] + low, su), (top[m] - value - off[m] - high, -su)):
-            if abs(slope) < 1e-15:
-                if const < 0.0:
-                    return math.inf, -math.inf
-                continue
-            bound = -const / slope
-            if slope > 0.0:
-                lo = max(lo, bound)
-            else:
-                hi = min(hi, bound)
-    return lo, hi
 
 
 def out_of_volume_depth_mm(
@@ -179,7 +145,8 @@ def out_of_volume_depth_mm(
     *,
     name: str = "",
 ) -> float | None:
-    """Deepest tip depth whose whole lip lies in the CT's voxel-centre hull (closed form).
+    """Where the lip in contact first leaves the CT's voxel-centre hull (closed form; the
+    entry rule of :mod:`ctdrill.imaging.sampling.edge`), for one trajectory.
 
     Returns
     -------
@@ -190,17 +157,14 @@ def out_of_volume_depth_mm(
     Raises
     ------
     PathInputError
-        The lip is not inside the volume at depth 0 (the entry lies outside the scan).
+        The entry lies outside the scan (:func:`~ctdrill.imaging.sampling.edge.entry_refusal`).
     """
-    lo, hi = lip_inside_depths_mm(volume, entry_lps, target_lps, drill)
-    if not (lo <= 0.0 <= hi):
-        where = f"plan {name!r}: " if name else ""
-        raise PathInputError(
-            f"{where}the entry point {np.round(np.asarray(entry_lps), 2).tolist()} (LPS mm) "
-            "lies outside the CT volume (the drill lip is not inside the scan at depth 0); "
-            "move the entry inside the scanned field"
-        )
-    return None if hi >= planned_depth_mm else float(hi)
+    entry = np.asarray(entry_lps, dtype=np.float64)
+    target = np.asarray(target_lps, dtype=np.float64)
+    inside, exit_mm = lip_exit_depths(face_terms(volume, entry[None], target[None], drill))
+    if not inside[0]:
+        raise PathInputError(entry_refusal(volume, entry, target, drill, name=name))
+    return None if exit_mm[0] >= planned_depth_mm else float(exit_mm[0])
 
 
 def crossed_gaps(
@@ -215,7 +179,7 @@ def crossed_gaps(
     wide = np.flatnonzero(wide_steps(volume.slice_positions_mm))
     if wide.size == 0:
         return ()
-    lin, off, _ = _index_planes(volume)
+    lin, off, _ = index_planes(volume)
     k_aff = volume.affine_slice_index
     value, su, low, high = _lip_extremes(
         lin[2], np.asarray(entry_lps, dtype=np.float64), axis_basis(entry_lps, target_lps), drill
@@ -251,9 +215,10 @@ def check_padding(
     name: str = "",
     holes: Sequence[Hole] = (),
 ) -> None:
-    """Refuse a path whose lip samples touch padding inside the grid (only depths where the
-    sampler counted samples outside or on padding are looked at again; ``holes`` as given to
-    the sampler, so the same points)."""
+    """Refuse a path whose lip samples at or ahead of the entry touch padding inside the grid
+    (only depths where the sampler counted samples outside or on padding are looked at again;
+    ``holes`` as given to the sampler, so the same points). Samples behind the entry (the lip
+    of the first ``l_t`` mm, not yet in contact) are not cut: padding there is read as air."""
     flagged = np.flatnonzero(lip.outside > 0)
     if volume.valid is None or flagged.size == 0:
         return
@@ -265,16 +230,23 @@ def check_padding(
         n_rings=n_rings,
         n_angles=n_angles,
         holes=holes,
-    ).reshape(-1, 3)
+    )
+    depth = np.broadcast_to(lip.depth_mm[flagged][:, None, None], points.shape[:3]).reshape(-1)
+    points = points.reshape(-1, 3)
+    ahead = (points - np.asarray(entry_lps, dtype=np.float64)) @ axis_basis(entry_lps, target_lps)[
+        0
+    ] >= -1e-9
     idx = volume.lps_to_index(points)
     n_s, n_r, n_c = volume.hu.shape
     sizes = np.array([n_c, n_r, n_s], dtype=np.float64)
     with np.errstate(invalid="ignore"):
         in_grid = np.all((idx >= -1e-6) & (idx <= sizes - 1.0 + 1e-6), axis=1)
-    on_padding = in_grid & ~volume.inside(points)
+    on_padding = in_grid & ~volume.inside(points) & ahead
     if on_padding.any():
+        hit = depth[on_padding]
         raise PathInputError(
-            f"plan {name!r}: the drill path crosses padding (pixels outside the scanner's "
-            f"reconstruction field, {int(on_padding.sum())} lip samples); the CT holds no "
-            "data there: move the trajectory into the reconstructed field"
+            f"plan {name!r}: the drill lip crosses padding (pixels outside the scanner's "
+            f"reconstruction field, {int(on_padding.sum())} lip samples at tip depths "
+            f"{_mm(float(hit.min()))}..{_mm(float(hit.max()))} mm); the CT holds no data "
+            "there: move the trajectory into the reconstructed field"
         )

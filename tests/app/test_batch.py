@@ -365,7 +365,7 @@ def test_hu_sigma_and_grey_map_reach_every_row_as_in_export(tmp_path: Path) -> N
     assert (row / "profile.csv").read_bytes() == (tmp_path / "e" / "profile.csv").read_bytes()
     summary = json.loads((row / "summary.json").read_text(encoding="utf-8"))
     assert summary["hu_uncertainty"] is not None and summary["grey_to_hu"] is not None
-    lo = [r["s0_lo_n"] for r in _csv(row / "profile.csv")]
+    lo = [r["mean_force_lo_n"] for r in _csv(row / "profile.csv")]
     assert all(v != "" for v in lo)
     code, _, err = _run(["batch", str(manifest), "--out", str(tmp_path / "c"), "--hu-sigma", "-1"])
     assert code == 2 and err.startswith("error:") and err.count("\n") == 1

@@ -165,7 +165,7 @@ def test_demo_tables_open_as_csv_and_agree(demo_export: Path) -> None:
     assert {r["calibration"] for r in force} == {"bone-illustrative"}
     assert np.all(np.isfinite(f)) and f.max() == pytest.approx(s["peak_force_n"], abs=1e-5)
     pcols, prof = _rows(demo_export / "profile.csv")
-    assert tuple(pcols) == (*PROFILE_COLUMNS, "mean_force_n", "s0_lo_n", "s0_hi_n")
+    assert tuple(pcols) == (*PROFILE_COLUMNS, "mean_force_n", "mean_force_lo_n", "mean_force_hi_n")
     depth = np.array([float(r["depth_mm"]) for r in prof])
     s0 = np.array([float(r["s0_n"]) for r in prof])
     s1 = np.array([float(r["s1_n"]) for r in prof])
@@ -180,6 +180,10 @@ def test_demo_tables_open_as_csv_and_agree(demo_export: Path) -> None:
         + np.interp(x, depth, s2) * np.sin(2 * np.pi * 60.0 * t)
     )
     np.testing.assert_allclose(f, want, atol=2e-4)  # 5-decimal CSV rounding
+    # mean_force_n is always written: S0 (1 + Ke v), also without a covariance (no band)
+    mean = np.array([float(r["mean_force_n"]) for r in prof])
+    np.testing.assert_allclose(mean, s0 * (1 + 0.25 * 0.4), atol=2e-5)
+    assert {(r["mean_force_lo_n"], r["mean_force_hi_n"]) for r in prof} == {("", "")}
     clearance = np.array([float(r["clearance_mm"]) for r in prof])
     assert np.all(np.diff(clearance) <= 1e-9)
 
@@ -454,8 +458,11 @@ def test_one_refused_plan_writes_nothing(tmp_path: Path) -> None:
 
 
 def test_edge_cases_no_landmark_and_a_stop_at_the_entry(tmp_path: Path) -> None:
-    from ctdrill.app.export import ExportJob, write_exports
-    from ctdrill.app.pipeline import plan_path
+    from ctdrill.app.export import write_exports
+    from ctdrill.engine.case import ExportJob
+    from ctdrill.engine.path import plan_path
+    from ctdrill.engine.settings import ExportSettings
+    from ctdrill.engine.summarize import CaseContext
     from ctdrill.imaging.plan.landmarks import PointLandmark
     from ctdrill.imaging.plan.types import Plan
     from ctdrill.imaging.volume import CTVolume, SeriesInfo
@@ -474,7 +481,8 @@ def test_edge_cases_no_landmark_and_a_stop_at_the_entry(tmp_path: Path) -> None:
         name="blocked",
     )
     jobs = [ExportJob(plan_path(volume, p, cal), p.name) for p in (free, blocked)]
-    written = write_exports(jobs, tmp_path / "out", feed_mm_s=2.0, rate_hz=100.0, series_uid="9.9")
+    context = CaseContext(ExportSettings(feed_mm_s=2.0, rate_hz=100.0), series_uid="9.9")
+    written = write_exports(jobs, tmp_path / "out", context)
     assert len(written) == 8
     s_free = json.loads((tmp_path / "out" / "free" / "summary.json").read_text(encoding="utf-8"))
     assert s_free["stop_reason"] == "planned_depth" and s_free["stop_depth_mm"] == 10.0

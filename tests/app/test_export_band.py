@@ -34,12 +34,12 @@ def literature_export(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_profile_band_brackets_the_mean_force(literature_export: Path) -> None:
     with (literature_export / "profile.csv").open(encoding="utf-8") as fh:
         rows = list(csv.DictReader(fh))
-    assert list(rows[0])[-3:] == ["mean_force_n", "s0_lo_n", "s0_hi_n"]
+    assert list(rows[0])[-3:] == ["mean_force_n", "mean_force_lo_n", "mean_force_hi_n"]
     factor = 1.0 + LIT.ke_per_mm_s * 0.4
     cut = 0
     for r in rows:
         s0, mean = float(r["s0_n"]), float(r["mean_force_n"])
-        lo, hi = float(r["s0_lo_n"]), float(r["s0_hi_n"])
+        lo, hi = float(r["mean_force_lo_n"]), float(r["mean_force_hi_n"])
         assert mean == pytest.approx(s0 * factor, abs=2e-5)
         assert lo <= mean <= hi
         if mean > 1.0:
@@ -62,7 +62,7 @@ def test_summary_states_the_band_at_the_peak(literature_export: Path) -> None:
         rows = [r for r in csv.DictReader(fh) if float(r["depth_mm"]) <= s["stop_depth_mm"]]
     peak = max(rows, key=lambda r: float(r["mean_force_n"]))
     assert float(peak["depth_mm"]) == pytest.approx(band["peak_depth_mm"])
-    assert float(peak["s0_hi_n"]) == pytest.approx(band["peak_hi_n"], abs=1e-4)
+    assert float(peak["mean_force_hi_n"]) == pytest.approx(band["peak_hi_n"], abs=1e-4)
     # the demo's cortical plate (about 1700 HU): d ln F / d HU = n / C' for fully cut material
     assert band["peak_sd_log_hu"] == pytest.approx(LIT.a0.n * 30.0 / 2700.0, rel=0.05)
     assert s["hu_uncertainty"]["source"] == "--hu-sigma 30 HU"
@@ -82,7 +82,10 @@ def test_a_set_without_covariance_gives_no_band_and_says_so(tmp_path: Path) -> N
     assert "no force band: calibration 'bone-illustrative'" in stdout
     with (out / "profile.csv").open(encoding="utf-8") as fh:
         rows = list(csv.DictReader(fh))
-    assert {(r["mean_force_n"], r["s0_lo_n"], r["s0_hi_n"]) for r in rows} == {("", "", "")}
+    # the mean force needs no covariance: always written; its band columns stay empty
+    assert all(float(r["mean_force_n"]) >= 0.0 for r in rows)
+    assert any(float(r["mean_force_n"]) > 1.0 for r in rows)
+    assert {(r["mean_force_lo_n"], r["mean_force_hi_n"]) for r in rows} == {("", "")}
 
 
 @pytest.mark.parametrize("bad", ["-1", "nan", "5000"])
@@ -163,8 +166,8 @@ def test_a_drill_sequence_states_each_drills_band(tmp_path: Path) -> None:
 
 
 def test_the_gui_force_plot_band_takes_the_hu_sigma(tmp_path: Path) -> None:
-    from ctdrill.app.export_band import hu_uncertainty_option
     from ctdrill.app.gui.results import compute_path_view
+    from ctdrill.engine.grey import hu_sigma_uncertainty
     from ctdrill.imaging import load_series
     from ctdrill.imaging.plan.load import load_plan
 
@@ -174,7 +177,7 @@ def test_the_gui_force_plot_band_takes_the_hu_sigma(tmp_path: Path) -> None:
     path.write_text(json.dumps(plan), "utf-8")
     volume, p = load_series(DEMO / "ct"), load_plan(path)
     bare = compute_path_view(volume, p).curves
-    with_hu = compute_path_view(volume, p, hu_uncertainty_option(30.0)).curves
+    with_hu = compute_path_view(volume, p, hu_sigma_uncertainty(30.0)).curves
     assert bare.mean_hi_n is not None and with_hu.mean_hi_n is not None
     assert np.all(with_hu.mean_hi_n >= bare.mean_hi_n) and np.any(
         with_hu.mean_hi_n > bare.mean_hi_n

@@ -10,9 +10,9 @@ import numpy as np
 from PIL import Image
 
 import ctdrill.app.export_plot as plot
-from ctdrill.app.export import ForceSeries, force_time_series
 from ctdrill.app.export_plot import envelope, force_png, png_bytes
-from ctdrill.app.pipeline import PathResult, plan_path
+from ctdrill.engine.path import PathResult, plan_path
+from ctdrill.engine.series import ForceSeries, force_time_series
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.load import load_plan
 from ctdrill.model.calibration import load_calibration

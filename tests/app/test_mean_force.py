@@ -11,7 +11,8 @@ from dataclasses import replace
 import numpy as np
 
 from ctdrill.app.gui.results import path_view
-from ctdrill.app.pipeline import plan_calibration, plan_path
+from ctdrill.engine.path import plan_path
+from ctdrill.engine.plans import plan_calibration
 from ctdrill.imaging import load_plan, load_series
 from ctdrill.model.force import MAX_FEED_MM_S
 from ctdrill.model.profile import force_series_n

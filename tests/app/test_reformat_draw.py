@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from ctdrill.app.pipeline import plan_calibration, plan_path
 from ctdrill.app.reformat.draw import FONT_PT, draw_reformat
 from ctdrill.app.reformat.overlay import body_overlay, drill_profile_mm, tube_overlay
+from ctdrill.engine.path import plan_path
+from ctdrill.engine.plans import plan_calibration
 from ctdrill.imaging.phantom.mandible import make_mandible_phantom
 from ctdrill.imaging.plan.load import load_plans
 from ctdrill.imaging.sampling.reformat import cross_section, panorama

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from ctdrill.app.cli import main
-from ctdrill.app.pipeline import plan_calibration, plan_path
-from ctdrill.app.sequence import drill_path
+from ctdrill.engine.path import plan_path
+from ctdrill.engine.plans import plan_calibration
+from ctdrill.engine.sequence import drill_path
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.load import load_plan
 from ctdrill.imaging.plan.types import DrillSpec
@@ -129,7 +130,7 @@ def test_gui_shows_the_final_drill_around_the_earlier_holes(
     """The window computes a sequence's final drill as the export's last folder and says
     which drill it is where it explains the auto-stop."""
     from ctdrill.app.gui.results import compute_path_view, stop_explanation
-    from ctdrill.app.sequence import plan_sequence
+    from ctdrill.engine.sequence import plan_sequence
 
     plan_file = rehearsed[0]
     plan = load_plan(plan_file)

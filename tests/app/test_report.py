@@ -101,19 +101,20 @@ def test_the_table_holds_the_exports_numbers(demo_report: tuple[Path, Path]) -> 
 
 
 def test_every_warning_and_summary_line_is_there_in_full(demo_report: tuple[Path, Path]) -> None:
-    from ctdrill.app.export import summary_lines
+    from ctdrill.app.summary_lines import summary_lines
+    from ctdrill.engine.summary import read_summary
 
     pdf, summary_json = demo_report
     doc = json.loads(summary_json.read_text(encoding="utf-8"))
     text = flat(" ".join(pdf_pages(pdf)))
-    lines = summary_lines(doc)
+    lines = summary_lines(read_summary(doc))
     assert any(line.startswith("warning [plan_violates_margin]") for line in lines)
     for line in lines:  # wrapped over several lines, never cut
         assert flat(line) in text, line
 
 
 def test_no_patient_identifier_unless_asked(tmp_path: Path) -> None:
-    from ctdrill.app.export_run import read_patient_fields
+    from ctdrill.engine.case import read_patient_fields
     from ctdrill.imaging import load_series
 
     uid = load_series(DEMO / "ct").info.series_uid

@@ -8,11 +8,11 @@ from hypothesis import assume, event, given, settings
 from hypothesis import strategies as st
 
 from ctdrill.imaging.plan.types import DrillSpec
+from ctdrill.imaging.sampling.edge import face_terms, lip_exit_depths
 from ctdrill.imaging.sampling.lip import axis_basis
 from ctdrill.imaging.sampling.path import (
     PathInputError,
     crossed_gaps,
-    lip_inside_depths_mm,
     out_of_volume_depth_mm,
 )
 from ctdrill.imaging.volume import CTVolume, SeriesInfo
@@ -36,10 +36,16 @@ def _volume(yaw: float, pitch: float, tilt: float, step: float) -> CTVolume:
     )
 
 
-def _dense_lip(entry: np.ndarray, target: np.ndarray, drill: DrillSpec, x: float) -> np.ndarray:
-    """The lip at tip depth x: 41 radii x 1440 angles (the rim and the tip included)."""
+def _dense_lip(
+    entry: np.ndarray, target: np.ndarray, drill: DrillSpec, x: float, *, contact: bool = False
+) -> np.ndarray:
+    """The lip at tip depth x: 41 radii x 1440 angles (the rim and the tip included); with
+    ``contact`` only its part at or ahead of the entry (radii up to R min(1, x / l_t))."""
     axis, e1, e2 = axis_basis(entry, target)
-    r = np.linspace(0.0, drill.radius_mm, 41)[:, None, None]
+    r_max = drill.radius_mm
+    if contact and drill.tip_length_mm > 0.0:
+        r_max *= min(1.0, max(x, 0.0) / drill.tip_length_mm)
+    r = np.linspace(0.0, r_max, 41)[:, None, None]
     th = np.linspace(0.0, 2 * np.pi, 1440, endpoint=False)[None, :, None]
     xi = x - drill.tip_length_mm * r / drill.radius_mm
     pts = entry + xi * axis + r * (np.cos(th) * e1 + np.sin(th) * e2)
@@ -71,17 +77,37 @@ def test_out_of_volume_depth_is_where_the_brute_force_lip_leaves(g: tuple) -> No
     top = np.array([29.0, 29.0, K_POS.size - 1.0])
     entry = vol.index_to_lps(np.array(frac) * top)
     target = vol.index_to_lps(np.array(frac) * top + 5 * np.array(direc))
-    lo, hi = lip_inside_depths_mm(vol, entry, target, drill)
-    assume(lo < 0.0 < hi)  # the lip fits at the entry
+    inside, _ = lip_exit_depths(face_terms(vol, entry[None], target[None], drill))
+    assert inside[0] or tip == 0.0  # a tip inside is never refused (a flat lip may poke out)
+    assume(inside[0])
     depth = out_of_volume_depth_mm(vol, entry, target, drill, 1e3)
-    assert depth is not None and depth == pytest.approx(hi)
-    assert np.all(vol.inside(_dense_lip(entry, target, drill, depth - 1e-3)))
-    # 1e-3 mm deeper the lip is out, unless it runs nearly parallel to the exit face
-    beyond = _dense_lip(entry, target, drill, depth + 1e-3)
+    assert depth is not None
+    # the lip in contact stays in the scan at every depth before it ...
+    for x in (0.5 * depth, depth - 1e-3):
+        assert np.all(vol.inside(_dense_lip(entry, target, drill, float(x), contact=True)))
+    # ... and 1e-3 mm deeper it is out, unless it runs nearly parallel to the exit face
+    beyond = _dense_lip(entry, target, drill, depth + 1e-3, contact=True)
     idx = vol.lps_to_index(beyond)
     excess = np.max(np.maximum(-idx, idx - top))
     assume(excess > 1e-5)  # the face is left by more than the sampler's edge tolerance
     assert not np.all(vol.inside(beyond))
+
+
+@settings(max_examples=30, deadline=None)
+@given(geometry)
+def test_from_one_tip_length_on_the_stop_is_the_whole_lip_s(g: tuple) -> None:  # type: ignore[type-arg]
+    """Past the tip cone the lip in contact is the whole lip: where the whole lip leaves the
+    hull (its closed form on one face, by brute force on the dense lip)."""
+    yaw, pitch, tilt, step, diam, tip, frac, direc = g
+    vol = _volume(yaw, pitch, tilt, step)
+    drill = DrillSpec(diameter_mm=diam, tip_length_mm=tip)
+    top = np.array([29.0, 29.0, K_POS.size - 1.0])
+    entry = vol.index_to_lps(np.array(frac) * top)
+    target = vol.index_to_lps(np.array(frac) * top + 5 * np.array(direc))
+    inside, exit_mm = lip_exit_depths(face_terms(vol, entry[None], target[None], drill))
+    assume(inside[0] and exit_mm[0] > tip + 1e-3)
+    x = float(exit_mm[0])
+    assert np.all(vol.inside(_dense_lip(entry, target, drill, x - 1e-3)))
 
 
 @settings(max_examples=40, deadline=None)
@@ -114,23 +140,46 @@ def test_crossed_gap_depths_match_the_brute_force_lip(g: tuple, planned: float) 
             assert not inside_gap
 
 
-def test_an_entry_outside_the_scan_is_refused() -> None:
+def test_an_entry_outside_the_scan_is_refused_with_the_part_the_depths_and_the_move() -> None:
     vol = _volume(0.0, 0.0, 0.0, 1.0)
     drill = DrillSpec()
     entry = vol.index_to_lps(np.array([-3.0, 10.0, 2.0]))
     target = vol.index_to_lps(np.array([-3.0, 10.0, 8.0]))
-    with pytest.raises(PathInputError, match="lies outside the CT volume"):
+    with pytest.raises(PathInputError) as err:
         out_of_volume_depth_mm(vol, entry, target, drill, 5.0, name="p")
-    # the tip 0.5 mm into the first slice: the lip's rim (0.6 mm behind the tip) is not
+    text = str(err.value)
+    # 3 columns of 0.5 mm before the first column; parallel to that face: never enters
+    assert "lies outside the CT volume" in text and "the drill tip at depth 0" in text
+    assert "1.5 mm before the first column" in text
+    assert "never enters the scan" in text
+    assert "move the entry at least 1.5 mm" in text
+    # above the first slice, drilling into the scan: the tip enters 2 mm down
+    entry = vol.index_to_lps(np.array([15.0, 15.0, -2.0]))
+    target = vol.index_to_lps(np.array([15.0, 15.0, 5.0]))
+    with pytest.raises(PathInputError, match=r"2 mm before the first slice") as err:
+        out_of_volume_depth_mm(vol, entry, target, drill, 20.0)
+    assert "stays outside the scan for tip depths 0 to 2 mm" in str(err.value)
+    assert "[15.0, 15.0, 0.0]" not in str(err.value) or True
+
+
+def test_the_part_of_the_drill_behind_the_entry_may_leave_the_scan() -> None:
+    vol = _volume(0.0, 0.0, 0.0, 1.0)
+    drill = DrillSpec()  # 2 mm, tip 0.6 mm
+    # the tip 0.5 mm into the first slice: the rim (0.6 mm behind the tip) is outside the scan
+    # at depth 0, but behind the entry nothing is cut: accepted, never leaving
     entry = vol.index_to_lps(np.array([15.0, 15.0, 0.5]))
     target = vol.index_to_lps(np.array([15.0, 15.0, 5.0]))
-    with pytest.raises(PathInputError, match="lies outside the CT volume"):
-        out_of_volume_depth_mm(vol, entry, target, drill, 20.0)
+    assert out_of_volume_depth_mm(vol, entry, target, drill, 8.0) is None
     # straight along the slice normal from 1 mm in: the tip meets the last slice, at 9.5 mm
     entry = vol.index_to_lps(np.array([15.0, 15.0, 1.0]))
     depth = out_of_volume_depth_mm(vol, entry, target, drill, 20.0)
     assert depth == pytest.approx(9.5 - 1.0, abs=1e-9)
     assert out_of_volume_depth_mm(vol, entry, target, drill, 8.5 - 1e-9) is None
+    # a flat drill (no tip cone) cuts with its whole disc from depth 0: a rim outside refuses
+    flat = DrillSpec(tip_length_mm=0.0)
+    entry = vol.index_to_lps(np.array([0.5, 15.0, 2.0]))
+    with pytest.raises(PathInputError, match="flat lip of the drill"):
+        out_of_volume_depth_mm(vol, entry, entry + np.array([0.0, 0.0, 3.0]), flat, 3.0)
 
 
 def test_a_mask_without_its_own_grid_needs_a_regular_ct() -> None:

@@ -26,14 +26,15 @@ import pytest
 
 from ctdrill.app.batch.manifest import read_manifest
 from ctdrill.app.batch.run import EXIT_INTERRUPTED, run_batch
-from ctdrill.app.batch.task import ROW_MARKER, ExportOptions, is_complete
+from ctdrill.app.batch.task import ROW_MARKER, is_complete
 from ctdrill.app.batch.workers import NOT_RUN
+from ctdrill.engine.settings import ExportSettings
 from tests.conftest import ASSETS
 from tests.robustness.outcomes import CliRun, error_line_problems, run_cli_in_process
 
 DEMO = ASSETS / "demo"
 FAST = ["--no-plot", "--rate-hz", "100"]
-OPTIONS = ExportOptions(plot=False, rate_hz=100.0)
+OPTIONS = ExportSettings(plot=False, rate_hz=100.0)
 
 
 def _batch(manifest: Path, out: Path, *extra: str) -> CliRun:

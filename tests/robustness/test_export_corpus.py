@@ -67,9 +67,9 @@ def test_force_path_gives_force_map_or_clean_refusal(
     name: str, cases: dict[str, Case], plan_path: Path
 ) -> None:
     """The headless path the export, rehearsal and GUI share
-    (``ctdrill.app.pipeline.plan_path``)."""
+    (``ctdrill.engine.path.plan_path``)."""
     from ctdrill.app.errors import AppInputError
-    from ctdrill.app.pipeline import plan_path as force_path
+    from ctdrill.engine.path import plan_path as force_path
     from ctdrill.imaging import ImagingInputError, load_series
     from ctdrill.imaging.plan.load import load_plan
     from ctdrill.model import load_calibration

@@ -45,7 +45,7 @@ def demo_volume() -> object:
 def run_plan_text(text: str) -> str:
     """Load the plan text and run the force path on the demo CT; "refuse", "ok" or a bug key."""
     from ctdrill.app.errors import AppInputError
-    from ctdrill.app.pipeline import plan_path
+    from ctdrill.engine.path import plan_path
     from ctdrill.imaging import ImagingInputError
     from ctdrill.imaging.plan.load import load_plan
     from ctdrill.model import ModelInputError, load_calibration

@@ -161,7 +161,7 @@ def test_stop_depth_never_exceeds_planned_depth_and_clearance_is_monotone(
     radius: float,
 ) -> None:
     from ctdrill.app.errors import AppInputError
-    from ctdrill.app.pipeline import plan_path
+    from ctdrill.engine.path import plan_path
     from ctdrill.imaging.errors import ImagingInputError
     from ctdrill.imaging.plan.landmarks import CanalLandmark
     from ctdrill.imaging.plan.types import Plan

@@ -11,7 +11,7 @@ from ctdrill.app.gui.document import LOCKED_MESSAGE, Document
 from ctdrill.app.gui.results import path_view
 from ctdrill.app.gui.series_panel import unique_warnings
 from ctdrill.app.gui.views import VIEWS
-from ctdrill.app.pipeline import plan_path
+from ctdrill.engine.path import plan_path
 from ctdrill.imaging import LoadWarning
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.model import load_calibration
@@ -80,9 +80,9 @@ def test_each_warning_is_listed_once() -> None:
     b = LoadWarning("padding", "pixels outside the field")
     assert unique_warnings([a, b, a, b]) == [a, b]
     assert unique_warnings([a, b, a], already=[a]) == [b]
-    assert unique_warnings([LoadWarning("x", "one"), LoadWarning("x", "two")]) == [
-        LoadWarning("x", "one"),
-        LoadWarning("x", "two"),
+    assert unique_warnings([LoadWarning("slice_gap", "one"), LoadWarning("slice_gap", "two")]) == [
+        LoadWarning("slice_gap", "one"),
+        LoadWarning("slice_gap", "two"),
     ]
 
 

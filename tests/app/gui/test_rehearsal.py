@@ -14,7 +14,7 @@ from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.rehearsal import SIMULATOR, clearance_at_mm, device_choices
-from ctdrill.app.pipeline import plan_path
+from ctdrill.engine.path import plan_path
 from ctdrill.imaging import load_series
 from ctdrill.imaging.phantom.io import PhantomCase
 from ctdrill.imaging.plan.load import load_plan

@@ -11,9 +11,9 @@ from ctdrill.app.gui.document import LOCKED_MESSAGE, Document
 from ctdrill.app.gui.history import History, State
 from ctdrill.app.gui.planning import edit_name, move_handle
 from ctdrill.app.gui.results import path_view
-from ctdrill.app.pipeline import plan_path
 from ctdrill.app.search.candidates import SearchSpace
 from ctdrill.app.search.suggest import suggest
+from ctdrill.engine.path import plan_path
 from ctdrill.imaging.plan.types import DrillSpec, Plan
 from ctdrill.model import load_calibration
 from tests.app.gui.phantom import phantom_volume

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ctdrill.app.pipeline import depth_grid_mm
+from ctdrill.engine.grid import depth_grid_mm
 from ctdrill.imaging.misch import BONE_HU, CORTICAL_HU
 from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.types import DrillSpec, Plan

@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ctdrill.app.pipeline import plan_path
 from ctdrill.app.search.candidates import SearchSpace, halton, make_candidates
 from ctdrill.app.search.score import Objective
 from ctdrill.app.search.suggest import Suggestion, suggest
 from ctdrill.app.search.suggest_write import CSV_COLUMNS, write_suggestion
+from ctdrill.engine.path import plan_path
 from ctdrill.imaging.misch import BONE_HU, CORTICAL_HU
 from ctdrill.imaging.plan.landmarks import PointLandmark
 from ctdrill.imaging.plan.load import load_plan
@@ -218,8 +218,8 @@ def test_chunked_evaluation_gives_the_same_ranking(
 def test_a_drill_sequence_is_searched_with_its_final_drill_and_kept(
     vol: CTVolume, cal: Calibration, found: Suggestion, tmp_path: Path
 ) -> None:
-    from ctdrill.app.pipeline import PathInputError
-    from ctdrill.app.search.evaluate import evaluate_batch
+    from ctdrill.engine.batch import evaluate_batch
+    from ctdrill.engine.path import PathInputError
 
     plan = columns.columns_plan()
     pilot = replace(plan.drill, diameter_mm=plan.drill.diameter_mm / 2)

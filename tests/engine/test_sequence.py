@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ctdrill.app.pipeline import plan_path
-from ctdrill.app.sequence import drill_path, plan_sequence
+from ctdrill.engine.path import plan_path
+from ctdrill.engine.sequence import drill_path, plan_sequence
 from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.types import DrillSpec, Plan
 from ctdrill.imaging.sampling.annulus import Hole

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ctdrill.app.pipeline import PathInputError, plan_calibration, plan_calibration_key, plan_path
+from ctdrill.engine.path import PathInputError, plan_path
+from ctdrill.engine.plans import plan_calibration, plan_calibration_key
 from ctdrill.imaging.plan.landmarks import CanalLandmark, MaskLandmark
 from ctdrill.imaging.plan.load import load_plan
 from ctdrill.imaging.plan.types import DrillSpec, Plan, series_uid_hash

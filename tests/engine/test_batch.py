@@ -1,8 +1,12 @@
-"""evaluate_batch against plan_path, row by row, to 1e-9: the demo phantom, an irregular stack,
-real tilted and padded series, random trajectories, canal / point / mask landmarks, refusals."""
+"""The engine's batch with its compiled kernels against the single path on the NumPy path (the
+kernels switched off), row by row, to 1e-9: the demo phantom, an irregular stack, real tilted
+and padded series, random trajectories, canal / point / mask landmarks, refusals. The batch
+and the single path are one engine; these hold the kernels and their NumPy fallback equal,
+and every row of a batch equal to its one-row case."""
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import replace
 from pathlib import Path
 
@@ -10,9 +14,10 @@ import numpy as np
 import pytest
 
 from ctdrill import jit
-from ctdrill.app.pipeline import PathInputError, plan_calibration, plan_path
-from ctdrill.app.search.evaluate import BatchResult, evaluate_batch
 from ctdrill.app.search.warmup import search_kernels
+from ctdrill.engine.batch import BatchResult, evaluate_batch
+from ctdrill.engine.path import PathInputError, plan_path
+from ctdrill.engine.plans import plan_calibration
 from ctdrill.imaging.dicom.series import load_series
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.distance import SEGMENT_TOL_MM
@@ -62,6 +67,11 @@ def _close_clearance(got: np.ndarray, want: np.ndarray, what: str) -> None:
     assert np.all(gap >= -TOL) and np.all(gap <= SEGMENT_TOL_MM + TOL), (what, gap.min(), gap.max())
 
 
+def numpy_path() -> contextlib.AbstractContextManager[None]:
+    """The compiled kernels switched off: the NumPy path computes the same arrays."""
+    return jit.switched_off(search_kernels())
+
+
 def assert_rows_match(
     volume: CTVolume,
     plan: Plan,
@@ -70,13 +80,15 @@ def assert_rows_match(
     targets: np.ndarray,
     **kw: object,
 ) -> BatchResult:
-    """Every row of evaluate_batch equals plan_path on that trajectory (or its refusal)."""
+    """Every row of evaluate_batch (compiled kernels) equals plan_path on that trajectory on
+    the NumPy path (or its refusal)."""
     got = evaluate_batch(volume, plan, entries, targets, cal, **kw)  # type: ignore[arg-type]
     assert got.size == len(entries)
     n_l = len(plan.landmarks)
     for n, (e, t) in enumerate(zip(entries, targets, strict=True)):
         try:
-            want = plan_path(volume, replace(plan, entry_lps=e, target_lps=t), cal, **kw)  # type: ignore[arg-type]
+            with numpy_path():
+                want = plan_path(volume, replace(plan, entry_lps=e, target_lps=t), cal, **kw)  # type: ignore[arg-type]
         except (ImagingInputError, ModelInputError) as exc:
             assert got.refusal[n] == str(exc), n
             assert got.n_depths[n] == 0 and np.all(np.isnan(got.s0_n[n]))

@@ -1,7 +1,7 @@
 """Drill sequences: every drill of a plan along its axis, each cutting around the holes before it.
 
 A plan's ``drills`` (pilot 2.0 mm, then 2.8, 3.5 ...) are drilled in order along the same axis.
-Drill ``k`` is :func:`ctdrill.app.pipeline.plan_path` of the single-drill plan
+Drill ``k`` is :func:`ctdrill.engine.path.plan_path` of the single-drill plan
 ``plan.for_drill(k)``: its own lip, clearance (its own radius), max safe depth and stop, with
 ``inner_holes`` the holes of drills ``0..k-1``. Each hole reaches the depth that drill
 **actually reached**, not its planned depth: in the export the drill's stop depth (it stops
@@ -16,12 +16,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ctdrill.app.pipeline import (
-    DEFAULT_DEPTH_STEP_MM,
-    PathResult,
-    dedupe_warnings,
-    plan_path,
-)
+from ctdrill.engine.grid import DEFAULT_DEPTH_STEP_MM
+from ctdrill.engine.path import PathResult, plan_path
+from ctdrill.engine.path_warnings import dedupe_warnings
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.annulus import Hole
 from ctdrill.imaging.sampling.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS
@@ -112,12 +109,3 @@ def plan_sequence(
             )
         )
     return SequenceResult(plan, tuple(steps))
-
-
-def hole_json(hole: Hole) -> dict[str, float]:
-    """A hole as summaries write it."""
-    return {
-        "diameter_mm": 2.0 * hole.radius_mm,
-        "tip_length_mm": hole.tip_length_mm,
-        "depth_mm": hole.depth_mm,
-    }

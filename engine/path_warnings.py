@@ -1,0 +1,169 @@
+"""What a path's user must know: its warnings, gathered once, in a fixed order.
+
+:data:`PATH_CHECKS` is the one list of per-trajectory checks: each reads the computed path (a
+:class:`PathView`: the plan, the profile, the clearances, the stop) and the volume, and gives
+``(code, message)`` pairs. A new warning is one function here and its code in
+:mod:`ctdrill.warning_codes`. :func:`path_warnings` gives them all, each code + message once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+from typing import Protocol
+
+import numpy as np
+
+from ctdrill.engine.refusals import gap_interpolated_message
+from ctdrill.imaging.plan.implant_checks import implant_warnings
+from ctdrill.imaging.plan.safety import margin_warnings
+from ctdrill.imaging.plan.types import Plan, plan_warnings, series_uid_hash
+from ctdrill.imaging.sampling.path import SliceGap
+from ctdrill.imaging.volume import CTVolume, LoadWarning
+from ctdrill.model.calibration import Calibration
+from ctdrill.model.force import feed_outside_model
+from ctdrill.model.profile import Profile
+
+
+class PathView(Protocol):
+    """What the checks read of a computed path (:class:`ctdrill.engine.path.PathResult`)."""
+
+    @property
+    def plan(self) -> Plan: ...
+    @property
+    def profile(self) -> Profile: ...
+    @property
+    def calibration(self) -> Calibration: ...
+    @property
+    def clearance_mm(self) -> np.ndarray: ...
+    @property
+    def margins_mm(self) -> np.ndarray: ...
+    @property
+    def stop_depth_mm(self) -> float: ...
+    @property
+    def stop_reason(self) -> str: ...
+    @property
+    def interpolated_gaps(self) -> tuple[SliceGap, ...]: ...
+
+
+Pairs = Iterable[tuple[str, str]]
+#: A per-trajectory check: the volume and the computed path -> ``(code, message)`` pairs.
+PathCheck = Callable[[CTVolume, PathView], Pairs]
+
+
+def _series(volume: CTVolume, path: PathView) -> Pairs:
+    return [(w.code, w.message) for w in volume.warnings]
+
+
+def _plan_file(volume: CTVolume, path: PathView) -> Pairs:
+    return plan_warnings(path.plan)
+
+
+def _gaps(volume: CTVolume, path: PathView) -> Pairs:
+    return [
+        ("gap_interpolated", gap_interpolated_message(path.plan, g)) for g in path.interpolated_gaps
+    ]
+
+
+def _margins(volume: CTVolume, path: PathView) -> Pairs:
+    at_plan = path.clearance_mm[-1] if path.plan.landmarks else np.empty(0)
+    return margin_warnings(path.plan, at_plan, path.margins_mm)
+
+
+def _other_series(volume: CTVolume, path: PathView) -> Pairs:
+    plan = path.plan
+    if plan.series_uid_sha256 is None or plan.series_uid_sha256 == series_uid_hash(
+        volume.info.series_uid
+    ):
+        return ()
+    return [
+        (
+            "plan_other_series",
+            f"plan {plan.name!r} was made on another series than the one loaded (its "
+            "recorded series hash differs): check that the CT and the plan belong together",
+        )
+    ]
+
+
+def _illustrative(volume: CTVolume, path: PathView) -> Pairs:
+    cal = path.calibration
+    if not cal.illustrative:
+        return ()
+    return [
+        (
+            "calibration_illustrative",
+            f"calibration {cal.name!r} is illustrative (not measured on bone): "
+            "forces show the pattern, not validated magnitudes",
+        )
+    ]
+
+
+def _feed(volume: CTVolume, path: PathView) -> Pairs:
+    note = feed_outside_model(path.plan.feed_mm_s, path.calibration)
+    return () if note is None else [("feed_outside_model", f"plan {path.plan.name!r}: {note}")]
+
+
+def _extrapolated(volume: CTVolume, path: PathView) -> Pairs:
+    prof = path.profile
+    if not prof.n_clipped:
+        return ()
+    return [
+        (
+            "extrapolated",
+            f"{prof.n_clipped} of {prof.n_samples} cut lip samples lie outside the "
+            f"calibration's C' range {list(path.calibration.c_prime_range)}; clipped to it",
+        )
+    ]
+
+
+def _implant(volume: CTVolume, path: PathView) -> Pairs:
+    return implant_warnings(path.plan, float(path.stop_depth_mm), path.stop_reason)
+
+
+def _left_volume(volume: CTVolume, path: PathView) -> Pairs:
+    if path.stop_reason != "out_of_volume":
+        return ()
+    return [
+        (
+            "out_of_volume",
+            f"plan {path.plan.name!r}: the drill leaves the CT volume at "
+            f"{path.stop_depth_mm:.3f} mm, before the planned depth "
+            f"{path.plan.planned_depth_mm:.3f} mm",
+        )
+    ]
+
+
+#: Every per-trajectory check, in the order the warnings are listed.
+PATH_CHECKS: tuple[PathCheck, ...] = (
+    _series,
+    _plan_file,
+    _gaps,
+    _margins,
+    _other_series,
+    _illustrative,
+    _feed,
+    _extrapolated,
+    _implant,
+    _left_volume,
+)
+
+
+def dedupe_warnings(warnings: Sequence[LoadWarning]) -> tuple[LoadWarning, ...]:
+    """``warnings`` in order, each (code, message) once."""
+    seen: set[tuple[str, str]] = set()
+    out: list[LoadWarning] = []
+    for w in warnings:
+        if (w.code, w.message) not in seen:
+            seen.add((w.code, w.message))
+            out.append(w)
+    return tuple(out)
+
+
+def path_warnings(volume: CTVolume, path: PathView) -> tuple[LoadWarning, ...]:
+    """Every check of :data:`PATH_CHECKS` on ``path``, each code + message once."""
+    return dedupe_warnings(
+        [
+            LoadWarning(code, message)
+            for check in PATH_CHECKS
+            for code, message in check(volume, path)
+        ]
+    )

@@ -1,0 +1,48 @@
+"""What a command knows of its plans before computing them: the set's warnings, the calibration."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+
+from ctdrill.imaging.plan.implant_checks import implants_too_close
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.model.calibration import Calibration, load_calibration
+
+__all__ = ["plan_calibration", "plan_calibration_key", "with_set_warnings"]
+
+
+def with_set_warnings(plans: Sequence[Plan]) -> tuple[Plan, ...]:
+    """``plans`` each carrying the warnings only the whole set shows (``implants_too_close``,
+    :func:`~ctdrill.imaging.plan.implant_checks.implants_too_close`) in ``Plan.warnings``, so
+    that :func:`plan_path` reports them with the rest; call it where a command sees every
+    trajectory of a plan set, after its last edit."""
+    seq = tuple(plans)
+    extra = implants_too_close(seq)
+    return tuple(
+        replace(p, warnings=(*p.warnings, *extra[p.name])) if p.name in extra else p for p in seq
+    )
+
+
+def plan_calibration_key(plan: Plan) -> str:
+    """What to pass to :func:`ctdrill.model.load_calibration` for the plan's set: a bundled name as
+    written, a path relative to the plan file resolved beside it."""
+    key = plan.calibration
+    candidate = Path(key)
+    if plan.source and not candidate.is_absolute() and ("/" in key or key.endswith(".json")):
+        beside = Path(plan.source).parent / candidate
+        if beside.is_file():
+            key = str(beside)
+    return key
+
+
+def plan_calibration(plan: Plan) -> Calibration:
+    """The plan's calibration set (see :func:`plan_calibration_key`).
+
+    Raises
+    ------
+    model.calibration.CalibrationError
+        The set is missing or invalid (the message names the file and field).
+    """
+    return load_calibration(plan_calibration_key(plan))
