@@ -248,19 +248,10 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
-#: Cycles left to the engine layer of issue 24, which moves the combining code out of ``app``
-#: (``app.export`` <-> ``app.export_plot`` <-> ``app.sequence_export``). The check requires the
-#: found cycles to be exactly these: delete an entry in the change that breaks its cycle, and
-#: this list ends empty.
-ENGINE_PENDING_CYCLES: list[list[str]] = [
-    ["ctdrill.app.export", "ctdrill.app.export_plot", "ctdrill.app.sequence_export"],
-]
-
-
 def test_no_import_cycles_between_modules() -> None:
     """No two first-party modules import each other, directly or around a loop, counting
     imports inside functions and under ``if TYPE_CHECKING:``."""
-    assert _cycles(_import_graph()) == ENGINE_PENDING_CYCLES
+    assert _cycles(_import_graph()) == []
 
 
 def test_the_cycle_check_sees_a_cycle() -> None:
@@ -339,16 +330,12 @@ def test_nothing_outside_the_gui_imports_it() -> None:
     assert outside == GUI_ENTRY | PENDING_GUI_IMPORTERS
 
 
-#: Left to the engine layer of issue 24: the batch task names the CLI's input errors.
-ENGINE_PENDING_CLI_IMPORTERS = {"ctdrill.app.batch.task": ["ctdrill.app.cli"]}
-
-
 def test_only_the_cli_imports_the_cli_and_its_commands() -> None:
     """``app.cli`` and ``app.commands`` parse arguments and call headless functions; nothing
     below them imports them back."""
     cli = ("ctdrill.app.cli", "ctdrill.app.commands")
     outside = {name: deps for name, deps in _importers_of(cli).items() if not name.startswith(cli)}
-    assert outside == ENGINE_PENDING_CLI_IMPORTERS
+    assert outside == {}
 
 
 def test_no_module_is_far_past_400_lines() -> None:
