@@ -130,10 +130,12 @@ def closed_loop_matrix(loop: Loop) -> np.ndarray:
 
 
 def loop_poles(loop: Loop) -> np.ndarray:
-    """Eigenvalues of the closed loop, the translation mode of a yielding front removed
-    (shifting master, differentiator and front together changes nothing: eigenvalue 1)."""
+    """Eigenvalues of the closed loop, the translation mode of a yielding front or of a
+    master in no contact (zero stiffness) removed (shifting master, differentiator and front
+    together changes nothing: eigenvalue 1)."""
     poles = np.linalg.eigvals(closed_loop_matrix(loop))
-    if loop.material_damping_n_s_per_mm is not None:
+    free = loop.stiffness_n_per_mm == 0.0 and loop.hand_stiffness_n_per_mm == 0.0
+    if loop.material_damping_n_s_per_mm is not None or free:
         i = int(np.argmin(np.abs(poles - 1.0)))
         if abs(poles[i] - 1.0) > 1e-6:
             raise AssertionError(f"no translation mode among the poles: {poles}")
@@ -184,6 +186,63 @@ def stiffness_limit_n_per_mm(loop: Loop, *, hi_n_per_mm: float = 1e6) -> float:
         else:
             k_lo = mid
     return k_hi
+
+
+def damping_limit_n_s_per_mm(loop: Loop, *, hi_n_s_per_mm: float = 1e3) -> float:
+    """Smallest damping above ``loop``'s own at which the loop goes unstable (the damper, on
+    the filtered and one tick old velocity estimate, drives the sampled loop past
+    ``|z| = 1``), N s/mm, scanned up in 4 % steps from it and bisected to 1e-6 relative;
+    ``inf`` if stable up to ``hi_n_s_per_mm``.
+
+    Raises ValueError if ``loop`` itself is not stable or has no damping."""
+    b_lo = loop.damping_n_s_per_mm
+    if not (b_lo > 0.0 and spectral_radius(loop) < 1.0):
+        raise ValueError(f"the loop with {b_lo} N s/mm is not stable: no margin to measure")
+    b_hi = b_lo
+    while True:
+        b_hi = b_lo * 1.04
+        if b_hi > hi_n_s_per_mm:
+            return math.inf
+        if spectral_radius(replace(loop, damping_n_s_per_mm=b_hi)) >= 1.0:
+            break
+        b_lo = b_hi
+    while b_hi - b_lo > 1e-6 * b_hi:
+        mid = 0.5 * (b_lo + b_hi)
+        if spectral_radius(replace(loop, damping_n_s_per_mm=mid)) >= 1.0:
+            b_hi = mid
+        else:
+            b_lo = mid
+    return b_hi
+
+
+def release_speed_bound_mm_s(
+    push_n: float, damping_n_s_per_mm: float, *, mass_kg: float = MASS_KG, g_dob: float = G_DOB
+) -> float:
+    """Bound on the fastest motion back of a master whose hand lets go of ``push_n``, mm/s.
+
+    Two parts (docs/haptics-stability.md, "Letting go"): the force controller still balances
+    the push until its observers (``g_dob``, 1/s) see it gone, an impulse of about
+    ``F / g`` on the mass: ``F / (M g)``; and the springs, which cannot drive the master back
+    faster than the damping that resists its retreat (``damping_n_s_per_mm``: the coupling's,
+    the wall's at the stop, and the release damper's) lets them, since at the fastest point
+    ``B v = K e <= F``: ``F / B``.
+    """
+    return push_n * (1.0 / (mass_kg * g_dob) * 1e3 + 1.0 / damping_n_s_per_mm)
+
+
+def release_excursion_bound_mm(
+    speed_mm_s: float,
+    release_damping_n_s_per_mm: float,
+    *,
+    mass_kg: float = MASS_KG,
+    kf: float = KF,
+    g_dob: float = G_DOB,
+) -> float:
+    """Bound on how far a master leaving its contact at ``speed_mm_s`` goes on, mm: the
+    release damper alone brakes it, the force controller making ``Mn / Kf`` the mass it
+    brakes (time constant ``Mn / (Kf B)``), after the velocity estimate's lag ``1 / g``."""
+    brake_s = mass_kg / (kf * release_damping_n_s_per_mm * 1e3)
+    return speed_mm_s * (1.0 / g_dob + brake_s)
 
 
 def colgate_terms(
