@@ -18,9 +18,9 @@ Per tick, from the encoder depth of the master and its velocity estimate:
    ``RELEASE_DAMPING_N_S_PER_MM * v`` is added: a hand that lets go is not thrown back by the
    springs it compressed nor by the force controller still balancing the push it no longer
    makes; the damper takes that energy out and the master comes to rest at the surface it left
-   (docs/haptics-stability.md, "Letting go"). It may pull (a negative force) on a master the
-   hand does not draw back; a retraction is free;
-5. force limits: 78 N peak either way, and an I^2t thermal model that limits the force to the
+   (docs/haptics-stability.md, "Letting go"). It may pull (a negative force, at most
+   :data:`RELEASE_MAX_N`) on a master the hand does not draw back; a retraction is free;
+5. force limits: 78 N peak, and an I^2t thermal model that limits the force to the
    continuous rating (20 N) once ``thermal_budget_n2_s`` of excess ``F^2 - Fc^2`` has
    accumulated, until it has cooled to half.
 
@@ -77,6 +77,9 @@ RELEASE_DAMPING_N_S_PER_MM = 0.4
 #: A hand pulling less than this is not drawing the handle back (the master's own friction), N;
 #: the release damper fades out over the next as much of pull (none from twice this).
 RELEASE_PULL_N = COULOMB_N
+#: The force the release damper leaves pulls at most this, N (the continuous rating; so
+#: bounded it never reaches the peak force, docs/haptics-stability.md, "Letting go").
+RELEASE_MAX_N = CONTINUOUS_FORCE_N
 #: The hand reading that gates the release damper is low-passed at this, rad/s (the reaction
 #: force observer's own bandwidth: its transient after a release dips a few newtons below 0).
 RELEASE_FILTER_RAD_S = G_RFOB
@@ -316,8 +319,11 @@ class Renderer:
             )
         if back_v < 0.0:
             # the release damper: a master moving back that the hand does not draw back (on
-            # the wall, relative to its gliding anchor: the glide carries the hand unbraked)
+            # the wall, relative to its gliding anchor: the glide carries the hand unbraked),
+            # the force it leaves pulling at most the continuous rating
             force += self.b_release * self.release_gain() * back_v
+            if force < -RELEASE_MAX_N:
+                force = -RELEASE_MAX_N
         self.front_mm = new_front
         self.drill_mm = master_mm if master_mm < new_front else new_front
         self.state = int(DeviceState.STOPPED if new_front >= stop else DeviceState.CUTTING)
@@ -326,9 +332,6 @@ class Renderer:
             return 0.0
         if force > self.peak_force_n:
             force = self.peak_force_n
-            self._raise(Fault.PEAK_LIMIT)
-        elif force < -self.peak_force_n:
-            force = -self.peak_force_n
             self._raise(Fault.PEAK_LIMIT)
         fc = self.continuous_force_n
         if self.thermal_limited and force > fc:
