@@ -18,9 +18,11 @@ host sees a tick rate below 10 kHz).
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import select
 import signal
+import stat
 import time
 import tty
 from collections.abc import Callable, Iterator
@@ -193,33 +195,114 @@ def run_realtime(
     return st
 
 
+def link_lock_path(path: Path) -> Path:
+    """The lock an emulator holds beside its link ``path`` while it runs: ``PATH.lock``."""
+    return path.with_name(path.name + ".lock")
+
+
+def _lock_owner(fd: int) -> str:
+    """The process id written in a lock file, as text (``unknown`` if unreadable)."""
+    with contextlib.suppress(OSError, ValueError):
+        text = os.pread(fd, 32, 0).decode("ascii").strip()
+        if text.isdigit():
+            return text
+    return "unknown"
+
+
+@contextlib.contextmanager
+def _link_lock(path: Path) -> Iterator[None]:
+    """Hold ``PATH.lock`` (an exclusive ``flock``, the holder's pid inside) while the link is
+    served; refuse when another process holds it. The kernel releases it when the process
+    ends, however it ends: a lock left by a killed emulator is taken over."""
+    lock = link_lock_path(path)
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        except OSError as exc:
+            raise PtyLinkError(
+                f"--pty-link {path}: cannot create its lock {lock} ({exc.strerror})"
+            ) from exc
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            owner = _lock_owner(fd)
+            os.close(fd)
+            raise PtyLinkError(
+                f"--pty-link {path}: a running emulator (pid {owner}) serves this link; stop "
+                "it or pick another path"
+            ) from None
+        try:  # its previous holder may have removed the file between our open and flock
+            here, there = os.fstat(fd), os.stat(lock)
+            if (here.st_dev, here.st_ino) == (there.st_dev, there.st_ino):
+                break
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode("ascii"), 0)
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(lock)
+        os.close(fd)
+
+
+def _refuse_live_link(path: Path) -> None:
+    """Remove a stale link at ``path``; refuse anything else (a file, a link to something that
+    exists: a terminal that some process holds open, as another emulator's pty is)."""
+    if not (path.is_symlink() or path.exists()):
+        return
+    if not path.is_symlink():
+        raise PtyLinkError(f"--pty-link {path}: exists and is not a symlink; pick another path")
+    target = os.readlink(path)
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        path.unlink()  # stale: its target is gone (a pty closed by its process)
+        return
+    except OSError as exc:
+        raise PtyLinkError(
+            f"--pty-link {path}: links to {target}, which cannot be checked ({exc.strerror}); "
+            "pick another path"
+        ) from exc
+    what = "a terminal that a running program holds open" if stat.S_ISCHR(mode) else "a file"
+    raise PtyLinkError(
+        f"--pty-link {path}: links to {target}, {what} (another emulator's link?); stop that "
+        "program or remove the link, or pick another path"
+    )
+
+
 @contextlib.contextmanager
 def pty_link(path: Path) -> Iterator[int]:
     """Open a pty, symlink ``path`` to its slave, yield the master fd; clean up on exit.
 
     The slave is put in raw mode (no echo, no line discipline) and kept open so the link
-    survives hosts connecting and disconnecting.
+    survives hosts connecting and disconnecting. While it runs the emulator holds
+    ``PATH.lock`` (:func:`link_lock_path`). A ``path`` that a running emulator serves (its
+    lock is held) or that links to anything that exists (a pty another process holds open) is
+    refused; only a stale link (its target gone) is replaced. On exit the link is removed if it
+    is still this emulator's, then the lock.
     """
-    if path.is_symlink() or path.exists():
-        if not path.is_symlink():
-            raise PtyLinkError(f"--pty-link {path}: exists and is not a symlink; pick another path")
-        path.unlink()
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    try:
+    with _link_lock(path):
+        _refuse_live_link(path)
+        master, slave = os.openpty()
+        tty.setraw(slave)
+        name = os.ttyname(slave)
         try:
-            path.symlink_to(os.ttyname(slave))
-        except OSError as exc:
-            raise PtyLinkError(
-                f"--pty-link {path}: cannot create the link ({exc.strerror})"
-            ) from exc
-        yield master
-    finally:
-        with contextlib.suppress(OSError):
-            if path.is_symlink():
-                path.unlink()
-        os.close(master)
-        os.close(slave)
+            try:
+                path.symlink_to(name)
+            except OSError as exc:
+                raise PtyLinkError(
+                    f"--pty-link {path}: cannot create the link ({exc.strerror})"
+                ) from exc
+            yield master
+        finally:
+            with contextlib.suppress(OSError):
+                if path.is_symlink() and os.readlink(path) == name:
+                    path.unlink()
+            os.close(master)
+            os.close(slave)
 
 
 def serve_pty(
