@@ -200,20 +200,19 @@ def link_lock_path(path: Path) -> Path:
     return path.with_name(path.name + ".lock")
 
 
-def _lock_owner(fd: int) -> str:
-    """The process id written in a lock file, as text (``unknown`` if unreadable)."""
+def _lock_text(fd: int) -> list[str]:
+    """What a lock file says: ``[pid, pty]`` (or less, when unreadable or still empty)."""
     with contextlib.suppress(OSError, ValueError):
-        text = os.pread(fd, 32, 0).decode("ascii").strip()
-        if text.isdigit():
-            return text
-    return "unknown"
+        return os.pread(fd, 4096, 0).decode("utf-8").split()
+    return []
 
 
 @contextlib.contextmanager
-def _link_lock(path: Path) -> Iterator[None]:
-    """Hold ``PATH.lock`` (an exclusive ``flock``, the holder's pid inside) while the link is
-    served; refuse when another process holds it. The kernel releases it when the process
-    ends, however it ends: a lock left by a killed emulator is taken over."""
+def _link_lock(path: Path) -> Iterator[int]:
+    """Hold ``PATH.lock`` (an exclusive ``flock``; inside, the holder's pid and the pty it
+    links, written by :func:`pty_link`) while the link is served and yield its descriptor;
+    refuse when another process holds it. The kernel releases it when the process ends,
+    however it ends: a lock left by a killed emulator is taken over."""
     lock = link_lock_path(path)
     while True:
         try:
@@ -225,7 +224,8 @@ def _link_lock(path: Path) -> Iterator[None]:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
-            owner = _lock_owner(fd)
+            said = _lock_text(fd)
+            owner = said[0] if said and said[0].isdigit() else "unknown"
             os.close(fd)
             raise PtyLinkError(
                 f"--pty-link {path}: a running emulator (pid {owner}) serves this link; stop "
@@ -239,23 +239,27 @@ def _link_lock(path: Path) -> Iterator[None]:
             pass
         os.close(fd)
     try:
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode("ascii"), 0)
-        yield
+        yield fd
     finally:
         with contextlib.suppress(OSError):
             os.unlink(lock)
         os.close(fd)
 
 
-def _refuse_live_link(path: Path) -> None:
+def _refuse_live_link(path: Path, stale_target: str | None) -> None:
     """Remove a stale link at ``path``; refuse anything else (a file, a link to something that
-    exists: a terminal that some process holds open, as another emulator's pty is)."""
+    exists: a terminal that some process holds open, as another emulator's pty is).
+
+    ``stale_target`` is the pty a dead emulator's lock names: its link is stale even if
+    another program has been given a pty of the same number since."""
     if not (path.is_symlink() or path.exists()):
         return
     if not path.is_symlink():
         raise PtyLinkError(f"--pty-link {path}: exists and is not a symlink; pick another path")
     target = os.readlink(path)
+    if target == stale_target:
+        path.unlink()
+        return
     try:
         mode = os.stat(path).st_mode
     except FileNotFoundError:
@@ -279,16 +283,20 @@ def pty_link(path: Path) -> Iterator[int]:
 
     The slave is put in raw mode (no echo, no line discipline) and kept open so the link
     survives hosts connecting and disconnecting. While it runs the emulator holds
-    ``PATH.lock`` (:func:`link_lock_path`). A ``path`` that a running emulator serves (its
-    lock is held) or that links to anything that exists (a pty another process holds open) is
-    refused; only a stale link (its target gone) is replaced. On exit the link is removed if it
-    is still this emulator's, then the lock.
+    ``PATH.lock`` (:func:`link_lock_path`: its pid and pty inside). A ``path`` that a running
+    emulator serves (its lock is held) or that links to anything that exists (a pty another
+    process holds open) is refused; only a stale link (its target gone, or the pty a dead
+    emulator's lock names) is replaced. On exit the link is removed if it is still this
+    emulator's, then the lock.
     """
-    with _link_lock(path):
-        _refuse_live_link(path)
+    with _link_lock(path) as lock:
+        said = _lock_text(lock)  # a dead emulator's: its pid and pty
+        _refuse_live_link(path, said[1] if len(said) > 1 else None)
         master, slave = os.openpty()
         tty.setraw(slave)
         name = os.ttyname(slave)
+        os.ftruncate(lock, 0)
+        os.pwrite(lock, f"{os.getpid()} {name}\n".encode(), 0)
         try:
             try:
                 path.symlink_to(name)

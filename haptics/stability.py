@@ -27,6 +27,7 @@ Everything here is SI inside, mm at the interface (N/mm, N s/mm).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -75,10 +76,6 @@ class Loop:
     g_dob: float = G_DOB
     g_rfob: float = G_RFOB
     g_vel: float = G_VEL
-
-    def with_stiffness(self, stiffness_n_per_mm: float) -> Loop:
-        """The same loop with another stiffness."""
-        return replace(self, stiffness_n_per_mm=stiffness_n_per_mm)
 
 
 def linear_tick(loop: Loop, s: list[Any], force_offset_n: Any = 0.0, hand_n: Any = 0.0) -> Any:
@@ -162,57 +159,61 @@ def dominant_pole(loop: Loop) -> dict[str, float]:
     }
 
 
+def _limit(loop: Loop, lo: float, hi: float, unit: str, vary: Callable[[float], Loop]) -> float:
+    """Smallest value above ``lo`` (``loop``'s own) at which ``vary(value)`` goes unstable
+    (spectral radius reaches 1): scanned up on a geometric grid (4 % steps) and the first
+    crossing bisected to 1e-6 relative; ``inf`` if stable up to ``hi``."""
+    if not (lo > 0.0 and spectral_radius(loop) < 1.0):
+        raise ValueError(f"the loop at {lo} {unit} is not stable: no margin to measure")
+
+    def unstable(value: float) -> bool:
+        return spectral_radius(vary(value)) >= 1.0
+
+    while True:
+        up = lo * 1.04
+        if up > hi:
+            return math.inf
+        if unstable(up):
+            break
+        lo = up
+    while up - lo > 1e-6 * up:
+        mid = 0.5 * (lo + up)
+        if unstable(mid):
+            up = mid
+        else:
+            lo = mid
+    return up
+
+
 def stiffness_limit_n_per_mm(loop: Loop, *, hi_n_per_mm: float = 1e6) -> float:
     """Smallest stiffness above ``loop``'s own at which the loop goes unstable (spectral radius
     reaches 1), N/mm, found by scanning up on a geometric grid (4 % steps) and bisecting the
     first crossing to 1e-6 relative; ``inf`` if stable up to ``hi_n_per_mm``.
 
     Raises ValueError if ``loop`` itself is not stable."""
-    k_lo = loop.stiffness_n_per_mm
-    if not (k_lo > 0.0 and spectral_radius(loop) < 1.0):
-        raise ValueError(f"the loop at {k_lo} N/mm is not stable: no margin to measure")
-    k_hi = k_lo
-    while True:
-        k_hi = k_lo * 1.04
-        if k_hi > hi_n_per_mm:
-            return math.inf
-        if spectral_radius(loop.with_stiffness(k_hi)) >= 1.0:
-            break
-        k_lo = k_hi
-    while k_hi - k_lo > 1e-6 * k_hi:
-        mid = 0.5 * (k_lo + k_hi)
-        if spectral_radius(loop.with_stiffness(mid)) >= 1.0:
-            k_hi = mid
-        else:
-            k_lo = mid
-    return k_hi
+    return _limit(
+        loop,
+        loop.stiffness_n_per_mm,
+        hi_n_per_mm,
+        "N/mm",
+        lambda k: replace(loop, stiffness_n_per_mm=k),
+    )
 
 
 def damping_limit_n_s_per_mm(loop: Loop, *, hi_n_s_per_mm: float = 1e3) -> float:
     """Smallest damping above ``loop``'s own at which the loop goes unstable (the damper, on
     the filtered and one tick old velocity estimate, drives the sampled loop past
-    ``|z| = 1``), N s/mm, scanned up in 4 % steps from it and bisected to 1e-6 relative;
+    ``|z| = 1``), N s/mm, scanned and bisected as :func:`stiffness_limit_n_per_mm`;
     ``inf`` if stable up to ``hi_n_s_per_mm``.
 
     Raises ValueError if ``loop`` itself is not stable or has no damping."""
-    b_lo = loop.damping_n_s_per_mm
-    if not (b_lo > 0.0 and spectral_radius(loop) < 1.0):
-        raise ValueError(f"the loop with {b_lo} N s/mm is not stable: no margin to measure")
-    b_hi = b_lo
-    while True:
-        b_hi = b_lo * 1.04
-        if b_hi > hi_n_s_per_mm:
-            return math.inf
-        if spectral_radius(replace(loop, damping_n_s_per_mm=b_hi)) >= 1.0:
-            break
-        b_lo = b_hi
-    while b_hi - b_lo > 1e-6 * b_hi:
-        mid = 0.5 * (b_lo + b_hi)
-        if spectral_radius(replace(loop, damping_n_s_per_mm=mid)) >= 1.0:
-            b_hi = mid
-        else:
-            b_lo = mid
-    return b_hi
+    return _limit(
+        loop,
+        loop.damping_n_s_per_mm,
+        hi_n_s_per_mm,
+        "N s/mm",
+        lambda b: replace(loop, damping_n_s_per_mm=b),
+    )
 
 
 def release_speed_bound_mm_s(

@@ -13,7 +13,7 @@ import pytest
 from ctdrill.app.cli import main
 from ctdrill.haptics.realtime import link_lock_path
 from ctdrill.haptics.serial_device import SerialDevice
-from tests.haptics.emulator_process import ROOT, emulator_process
+from tests.haptics.emulator_process import ROOT, emulator_process, spawn_emulator
 
 
 def _emulate(link: Path, *extra: str) -> subprocess.CompletedProcess[str]:
@@ -82,7 +82,7 @@ def test_a_second_emulator_does_not_take_a_running_emulators_link(tmp_path: Path
     link = tmp_path / "dev"
     with emulator_process(link) as first:
         pty = os.readlink(link)
-        assert link_lock_path(link).read_text().strip() == str(first.pid)
+        assert link_lock_path(link).read_text().split() == [str(first.pid), pty]
         second = _emulate(link, "--duration-s", "5")
         err = second.stderr.strip().splitlines()
         assert second.returncode == 2 and len(err) == 1, second.stderr
@@ -112,6 +112,11 @@ def test_a_link_to_a_pty_in_use_is_refused(
         assert "a terminal that a running program holds open" in err[0]
         assert os.readlink(link) == os.ttyname(slave)
         assert not os.path.lexists(link_lock_path(link))
+        # the same link beside a dead emulator's lock naming that pty: the number was given
+        # to another program after the emulator died; its link is stale and is replaced
+        link_lock_path(link).write_text(f"999999999 {os.ttyname(slave)}\n")
+        assert main(["emulate", "--pty-link", str(link), "--duration-s", "0.05"]) == 0
+        assert not os.path.lexists(link) and not os.path.lexists(link_lock_path(link))
     finally:
         os.close(master)
         os.close(slave)
@@ -119,21 +124,15 @@ def test_a_link_to_a_pty_in_use_is_refused(
 
 @pytest.mark.timeout(120)
 def test_a_killed_emulators_link_and_lock_are_taken_over(tmp_path: Path) -> None:
-    # kill -9 leaves the link (its pty gone with the process) and the lock file (its lock
-    # released by the kernel): both stale, a new emulator replaces them and runs.
+    # kill -9 leaves the link (its pty closed with the process, its number free for any
+    # program's next pty) and the lock file naming that pty (its lock released by the kernel):
+    # both stale, a new emulator replaces them and runs.
     link = tmp_path / "dev"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "ctdrill.app.cli", "emulate", "--pty-link", str(link)],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    assert proc.stdout is not None
-    assert proc.stdout.readline().startswith(f"emulating on {link} -> /dev/pts/")
+    proc = spawn_emulator(link)
+    pty = os.readlink(link)
     proc.send_signal(signal.SIGKILL)
     proc.communicate(timeout=10)
-    assert link.is_symlink() and not link.exists() and link_lock_path(link).exists()
+    assert link.is_symlink() and link_lock_path(link).read_text().split()[1] == pty
     again = _emulate(link, "--duration-s", "0.3")
     assert again.returncode == 0, again.stderr
     assert again.stdout.startswith(f"emulating on {link} -> /dev/pts/")

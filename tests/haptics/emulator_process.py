@@ -31,13 +31,8 @@ def demo_rehearsal(out: Path, operator: str, duration_s: str, *extra: str) -> li
     ]
 
 
-@contextmanager
-def emulator_process(link: Path) -> Iterator[subprocess.Popen[str]]:
-    """Run the device emulator linked at ``link`` (a serial port stand-in); yield its process.
-
-    On exit it is stopped with SIGTERM (after SIGCONT, should a test have frozen it) and must
-    end cleanly: exit code 0, its closing report on stderr, and the link removed.
-    """
+def spawn_emulator(link: Path) -> subprocess.Popen[str]:
+    """Start ``ctdrill emulate --pty-link link`` and return its process once it serves."""
     proc = subprocess.Popen(
         [sys.executable, "-m", "ctdrill.app.cli", "emulate", "--pty-link", str(link)],
         cwd=ROOT,
@@ -45,10 +40,21 @@ def emulator_process(link: Path) -> Iterator[subprocess.Popen[str]]:
         stderr=subprocess.PIPE,
         text=True,
     )
+    assert proc.stdout is not None
+    line = proc.stdout.readline()
+    assert line.startswith(f"emulating on {link} -> /dev/pts/"), line
+    return proc
+
+
+@contextmanager
+def emulator_process(link: Path) -> Iterator[subprocess.Popen[str]]:
+    """Run the device emulator linked at ``link`` (a serial port stand-in); yield its process.
+
+    On exit it is stopped with SIGTERM (after SIGCONT, should a test have frozen it) and must
+    end cleanly: exit code 0, its closing report on stderr, and the link removed.
+    """
+    proc = spawn_emulator(link)
     try:
-        assert proc.stdout is not None
-        line = proc.stdout.readline()
-        assert line.startswith(f"emulating on {link} -> /dev/pts/"), line
         yield proc
     finally:
         proc.send_signal(signal.SIGCONT)
