@@ -31,7 +31,6 @@ from ctdrill.app.trainee.exam import (
     exam_setup,
     plan_hash,
     refuse_exam_device,
-    refuse_exam_sequence,
 )
 from ctdrill.engine.band import band_peak, hu_uncertainty_info, path_band
 from ctdrill.engine.grey import hu_sigma_uncertainty, hu_uncertainty, map_volume
@@ -240,11 +239,9 @@ def rehearse(
     if exam:
         refuse_exam_device(device)
     whole = load_one_plan([plan] if isinstance(plan, Path) else plan, trajectory=trajectory)
-    if exam:
-        refuse_exam_sequence(whole)
     if target is not None:
         refuse_igtl_sequence(whole)
-    if len(whole.drills) > 1:  # a drill sequence: one session per drill
+    if len(whole.drills) > 1:  # a drill sequence: one session per drill (exam: each drill's)
         from ctdrill.app.rehearse_sequence import rehearse_sequence
 
         return rehearse_sequence(
@@ -262,6 +259,7 @@ def rehearse(
             open_device=open_device,
             summarise=rehearsal_summary,
             to_json=summary_json,
+            exam=exam,
         )
     loaded = load_table(
         dicom, plan, interpolate_gaps=interpolate_gaps, grey=grey, trajectory=trajectory, exam=exam

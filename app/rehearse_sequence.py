@@ -16,10 +16,16 @@ sequence: the drills after it are not run, and the summary says so. ``--fault`` 
 session times and apply to every session.
 
 Records (whole or not at all): ``OUT/drill_k/session.csv`` and ``OUT/drill_k/summary.json`` per
-drill run (the single-drill rehearsal's files, plus ``inner_holes``), and ``OUT/summary.json``
-(``"format": "ctdrill-rehearsal-sequence/1"``) with the session fields of the final drill run,
-``complete`` for the whole sequence, the faults of every session (each with its ``drill``), and
-``drills``: one entry per drill run.
+drill run (the single-drill rehearsal's files with the drill's own ``assessment``, plus
+``inner_holes``), and ``OUT/summary.json`` (``"format": "ctdrill-rehearsal-sequence/1"``) with
+the session fields of the final drill run, ``complete`` for the whole sequence, the faults of
+every session (each with its ``drill``), ``drills``: one entry per drill run (with its score),
+``plan_sha256`` of the whole plan and ``assessment``: the sequence's, with the same fields,
+combined from the drills' (:func:`ctdrill.haptics.assessment.combine_assessments`).
+
+Exam mode (simulation only, as for one drill): every drill's table runs beyond the plan
+(:func:`ctdrill.app.trainee.exam.exam_setup` on the drill alone, around the holes before it),
+so each drill can pass the max safe depth and the assessments record it.
 """
 
 from __future__ import annotations
@@ -29,13 +35,15 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.records import atomic_output_dir, write_file
+from ctdrill.app.trainee.exam import ExamSetup, assessment_context, exam_setup, plan_hash
 from ctdrill.engine.grey import hu_uncertainty, map_volume
 from ctdrill.engine.path import PathResult
 from ctdrill.engine.plans import plan_calibration
 from ctdrill.engine.record import to_json as record_json
-from ctdrill.engine.sequence import drill_folder, drill_path, plan_sequence
+from ctdrill.engine.sequence import drill_folder, drill_path, holes_before, plan_sequence
 from ctdrill.engine.settings import GreyMapSpec
 from ctdrill.engine.summarize import drill_info, hole_info
+from ctdrill.haptics.assessment import Assessor, combine_assessments
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import FaultSpec, Operator, SessionCsv
@@ -67,12 +75,14 @@ def rehearse_sequence(
     open_device: Callable[..., Any],
     summarise: Callable[..., dict[str, Any]],
     to_json: Callable[[dict[str, Any]], str],
+    exam: bool = False,
 ) -> dict[str, Any]:
     """Run every drill of ``plan`` on its own session and write the records (module docstring).
 
     ``grey`` and ``manual_hu`` are the rehearsal's grey-to-HU map and ``--hu-sigma``;
     ``open_device``, ``summarise`` (the single rehearsal's summary) and ``to_json`` are
-    :mod:`ctdrill.app.rehearse`'s, so one drill's records are exactly a rehearsal's.
+    :mod:`ctdrill.app.rehearse`'s, so one drill's records are exactly a rehearsal's; ``exam``
+    runs every drill in exam mode (the caller has refused it on hardware).
     """
     volume, grey_map = map_volume(load_ct(dicom), grey)
     hu = hu_uncertainty(grey_map, manual_hu)
@@ -89,7 +99,15 @@ def rehearse_sequence(
                 if k == 0
                 else drill_path(volume, plan, k, calibration, reached, **options)
             )
-            table = ProfileTable.from_profile(path.profile, path.stop_depth_mm)
+            setup: ExamSetup | None = None
+            if exam:
+                holes = holes_before(plan, reached)
+                setup = exam_setup(volume, plan.for_drill(k), path, inner_holes=holes, **options)
+                table = setup.table
+            else:
+                table = ProfileTable.from_profile(path.profile, path.stop_depth_mm)
+            context = assessment_context(path, None if setup is None else setup.path)
+            assessor = Assessor(context, table)
             folder = stage / drill_folder(k)
             folder.mkdir()
             dev = open_device(device, seed=seed)
@@ -104,6 +122,7 @@ def rehearse_sequence(
                         faults=faults,
                         seed=seed,
                         sink=csv_out.write,
+                        on_samples=assessor.add,
                     )
                 finally:
                     csv_out.close()
@@ -119,6 +138,8 @@ def rehearse_sequence(
                 seed=seed,
                 hu=hu,
                 grey_map=grey_map,
+                assessment=assessor.result().to_json(),
+                exam=setup,
             )
             doc["drill"] = record_json(drill_info(path.plan.drill))
             doc["inner_holes"] = [record_json(hole_info(h)) for h in path.inner_holes]
@@ -152,6 +173,12 @@ def sequence_summary(
         {"drill": k + 1, **fault} for k, (_, doc, _) in enumerate(runs) for fault in doc["faults"]
     ]
     top["warnings"] = list(dict.fromkeys(code for _, doc, _ in runs for code in doc["warnings"]))
+    top["plan_sha256"] = plan_hash(plan)
+    top["assessment"] = combine_assessments(
+        [doc["assessment"] for _, doc, _ in runs],
+        drills_planned=n,
+        planned_depth_mm=float(plan.planned_depth_mm),
+    ).to_json()
     top["drills"] = [
         {
             "drill": k + 1,
@@ -164,6 +191,7 @@ def sequence_summary(
             "max_force_cmd_n": doc.get("max_force_cmd_n"),
             "complete": doc.get("complete"),
             "inner_holes": doc["inner_holes"],
+            "score": doc["assessment"]["score"],
         }
         for k, (path, doc, reached) in enumerate(runs)
     ]

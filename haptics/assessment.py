@@ -13,7 +13,7 @@ gives it); the breakthrough is the table's (:func:`ctdrill.haptics.hands.first_b
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -174,6 +174,63 @@ def score_of(fields: Mapping[str, Any]) -> float:
     if fields["canal_entered"]:
         score *= CANAL_FACTOR
     return round(score, 1)
+
+
+def _worst(values: Sequence[float | None]) -> float | None:
+    known = [v for v in values if v is not None]
+    return max(known) if known else None
+
+
+def combine_assessments(
+    drills: Sequence[Mapping[str, Any]], *, drills_planned: int, planned_depth_mm: float
+) -> Assessment:
+    """The assessment of a drill sequence from its drills' (each a session's
+    ``assessment``, in drilling order; the drills run, ``drills_planned`` in all), with the
+    same fields (docs/rehearse.md, "Drill sequences"):
+
+    * ``depth_error_mm``: the final drill's (it drills the implant's bed); a final drill that
+      never ran reached 0 mm, so the error is ``-planned_depth_mm``;
+    * ``overshoot_mm``, ``peak_hand_force_n``, ``peak_wall_force_n``: the largest;
+      ``wall_contacts``: the most of any drill (each drill meets its own stop once when it is
+      done well: a sequence is not scored down for having several drills);
+      ``feed_cv`` and ``reaction_ms``: the largest known (the least steady drill, the slowest
+      reaction), null when no drill has one;
+    * ``breach``, ``canal_entered``: any drill's;
+    * ``time_in_margin_s``: summed;
+    * ``mean_hand_force_n``: the drills' means averaged (each drill one session of the same
+      duration);
+    * ``time_to_planned_s``: the drills' times to their goals summed, null unless every
+      planned drill ran and reached its goal;
+    * ``score``: :func:`score_of` of these fields, so a sequence that breached anywhere scores
+      below any that kept the margin.
+
+    One drill, the whole plan: the drill's own assessment.
+    """
+    if not drills or drills_planned < len(drills):
+        raise ValueError("give the assessments of the drills run, at most the drills planned")
+    final_ran = len(drills) == drills_planned
+    times = [d["time_to_planned_s"] for d in drills]
+    fields: dict[str, Any] = {
+        "depth_error_mm": drills[-1]["depth_error_mm"]
+        if final_ran
+        else round(-planned_depth_mm, 4),
+        "overshoot_mm": max(float(d["overshoot_mm"]) for d in drills),
+        "breach": any(bool(d["breach"]) for d in drills),
+        "time_in_margin_s": round(sum(float(d["time_in_margin_s"]) for d in drills), 4),
+        "canal_entered": any(bool(d["canal_entered"]) for d in drills),
+        "peak_hand_force_n": max(float(d["peak_hand_force_n"]) for d in drills),
+        "mean_hand_force_n": round(
+            sum(float(d["mean_hand_force_n"]) for d in drills) / len(drills), 3
+        ),
+        "time_to_planned_s": round(sum(times), 4)
+        if final_ran and all(t is not None for t in times)
+        else None,
+        "feed_cv": _worst([d["feed_cv"] for d in drills]),
+        "reaction_ms": _worst([d["reaction_ms"] for d in drills]),
+        "wall_contacts": max(int(d["wall_contacts"]) for d in drills),
+        "peak_wall_force_n": max(float(d["peak_wall_force_n"]) for d in drills),
+    }
+    return Assessment(**fields, score=score_of(fields))
 
 
 class Assessor:

@@ -378,8 +378,9 @@ class DeviceEmulator:
         p = self.plant
         self.ticks += 1
         x_mm = p.encoder_mm()
-        # the velocity estimate is the previous tick's (the controller updates it below)
-        force = r.tick(self.ticks * self.dt_s, x_mm, c.velocity_mm_s)
+        # the velocity and hand estimates are the previous tick's (the controller updates
+        # them below)
+        force = r.tick(self.ticks * self.dt_s, x_mm, c.velocity_mm_s, c.hand_est_n)
         state = r.state
         if state == DeviceState.CUTTING or state == DeviceState.STOPPED:
             current = c.update(x_mm, force)

@@ -18,9 +18,11 @@ host sees a tick rate below 10 kHz).
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import select
 import signal
+import stat
 import time
 import tty
 from collections.abc import Callable, Iterator
@@ -193,33 +195,122 @@ def run_realtime(
     return st
 
 
+def link_lock_path(path: Path) -> Path:
+    """The lock an emulator holds beside its link ``path`` while it runs: ``PATH.lock``."""
+    return path.with_name(path.name + ".lock")
+
+
+def _lock_text(fd: int) -> list[str]:
+    """What a lock file says: ``[pid, pty]`` (or less, when unreadable or still empty)."""
+    with contextlib.suppress(OSError, ValueError):
+        return os.pread(fd, 4096, 0).decode("utf-8").split()
+    return []
+
+
+@contextlib.contextmanager
+def _link_lock(path: Path) -> Iterator[int]:
+    """Hold ``PATH.lock`` (an exclusive ``flock``; inside, the holder's pid and the pty it
+    links, written by :func:`pty_link`) while the link is served and yield its descriptor;
+    refuse when another process holds it. The kernel releases it when the process ends,
+    however it ends: a lock left by a killed emulator is taken over."""
+    lock = link_lock_path(path)
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        except OSError as exc:
+            raise PtyLinkError(
+                f"--pty-link {path}: cannot create its lock {lock} ({exc.strerror})"
+            ) from exc
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            said = _lock_text(fd)
+            owner = said[0] if said and said[0].isdigit() else "unknown"
+            os.close(fd)
+            raise PtyLinkError(
+                f"--pty-link {path}: a running emulator (pid {owner}) serves this link; stop "
+                "it or pick another path"
+            ) from None
+        try:  # its previous holder may have removed the file between our open and flock
+            here, there = os.fstat(fd), os.stat(lock)
+            if (here.st_dev, here.st_ino) == (there.st_dev, there.st_ino):
+                break
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+    try:
+        yield fd
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(lock)
+        os.close(fd)
+
+
+def _refuse_live_link(path: Path, stale_target: str | None) -> None:
+    """Remove a stale link at ``path``; refuse anything else (a file, a link to something that
+    exists: a terminal that some process holds open, as another emulator's pty is).
+
+    ``stale_target`` is the pty a dead emulator's lock names: its link is stale even if
+    another program has been given a pty of the same number since."""
+    if not (path.is_symlink() or path.exists()):
+        return
+    if not path.is_symlink():
+        raise PtyLinkError(f"--pty-link {path}: exists and is not a symlink; pick another path")
+    target = os.readlink(path)
+    if target == stale_target:
+        path.unlink()
+        return
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        path.unlink()  # stale: its target is gone (a pty closed by its process)
+        return
+    except OSError as exc:
+        raise PtyLinkError(
+            f"--pty-link {path}: links to {target}, which cannot be checked ({exc.strerror}); "
+            "pick another path"
+        ) from exc
+    what = "a terminal that a running program holds open" if stat.S_ISCHR(mode) else "a file"
+    raise PtyLinkError(
+        f"--pty-link {path}: links to {target}, {what} (another emulator's link?); stop that "
+        "program or remove the link, or pick another path"
+    )
+
+
 @contextlib.contextmanager
 def pty_link(path: Path) -> Iterator[int]:
     """Open a pty, symlink ``path`` to its slave, yield the master fd; clean up on exit.
 
     The slave is put in raw mode (no echo, no line discipline) and kept open so the link
-    survives hosts connecting and disconnecting.
+    survives hosts connecting and disconnecting. While it runs the emulator holds
+    ``PATH.lock`` (:func:`link_lock_path`: its pid and pty inside). A ``path`` that a running
+    emulator serves (its lock is held) or that links to anything that exists (a pty another
+    process holds open) is refused; only a stale link (its target gone, or the pty a dead
+    emulator's lock names) is replaced. On exit the link is removed if it is still this
+    emulator's, then the lock.
     """
-    if path.is_symlink() or path.exists():
-        if not path.is_symlink():
-            raise PtyLinkError(f"--pty-link {path}: exists and is not a symlink; pick another path")
-        path.unlink()
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    try:
+    with _link_lock(path) as lock:
+        said = _lock_text(lock)  # a dead emulator's: its pid and pty
+        _refuse_live_link(path, said[1] if len(said) > 1 else None)
+        master, slave = os.openpty()
+        tty.setraw(slave)
+        name = os.ttyname(slave)
+        os.ftruncate(lock, 0)
+        os.pwrite(lock, f"{os.getpid()} {name}\n".encode(), 0)
         try:
-            path.symlink_to(os.ttyname(slave))
-        except OSError as exc:
-            raise PtyLinkError(
-                f"--pty-link {path}: cannot create the link ({exc.strerror})"
-            ) from exc
-        yield master
-    finally:
-        with contextlib.suppress(OSError):
-            if path.is_symlink():
-                path.unlink()
-        os.close(master)
-        os.close(slave)
+            try:
+                path.symlink_to(name)
+            except OSError as exc:
+                raise PtyLinkError(
+                    f"--pty-link {path}: cannot create the link ({exc.strerror})"
+                ) from exc
+            yield master
+        finally:
+            with contextlib.suppress(OSError):
+                if path.is_symlink() and os.readlink(path) == name:
+                    path.unlink()
+            os.close(master)
+            os.close(slave)
 
 
 def serve_pty(

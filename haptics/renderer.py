@@ -9,19 +9,29 @@ Per tick, from the encoder depth of the master and its velocity estimate:
    the front advances; once the front has reached the stop depth, a rigid wall (200 N/mm and
    0.4 N s/mm on top of the coupling) anchored where the master was at that moment, so the force
    stays continuous; the anchor then glides to the stop depth at 20 mm/s, carrying the hand back
-   to the stopped drill, and follows the master back whenever it retreats (down to the stop
+   to the stopped drill, and follows the master back when it retreats faster (down to the stop
    depth itself), so a push up to the peak force holds the hand within
    :data:`WALL_HOLD_MM` of the drill;
-4. force limits: 78 N peak, and an I^2t thermal model that limits the force to the continuous
-   rating (20 N) once ``thermal_budget_n2_s`` of excess ``F^2 - Fc^2`` has accumulated, until it
-   has cooled to half.
+4. the release damper: while the master moves back (``v < 0``) and the hand does not draw it
+   back (the device's reading of the hand, low-passed at :data:`RELEASE_FILTER_RAD_S`, pulls
+   less than :data:`RELEASE_PULL_N`; the damper fades out over the next newton of pull),
+   ``RELEASE_DAMPING_N_S_PER_MM * v`` is added: a hand that lets go is not thrown back by the
+   springs it compressed nor by the force controller still balancing the push it no longer
+   makes; the damper takes that energy out and the master comes to rest at the surface it left
+   (docs/haptics-stability.md, "Letting go"). It may pull (a negative force, at most
+   :data:`RELEASE_MAX_N`) on a master the hand does not draw back; a retraction is free;
+5. force limits: 78 N peak, and an I^2t thermal model that limits the force to the
+   continuous rating (20 N) once ``thermal_budget_n2_s`` of excess ``F^2 - Fc^2`` has
+   accumulated, until it has cooled to half.
 
 States: ``IDLE`` (zero force), ``CUTTING`` (armed), ``STOPPED`` (armed, the front reached the
 stop depth), ``SAFE`` (zero force, the drill stopped: the front frozen). SAFE is latched: only
 a successful ARM (or a power cycle) leaves it; DISARM, HELLO and a new table do not.
 The drill depth is ``min(master, front)``: it never exceeds the stop depth whatever the hand does.
 
-Force convention: ``force_cmd_n >= 0`` opposes the advance (pushes the hand back along -depth).
+Force convention: ``force_cmd_n > 0`` opposes the advance (pushes the hand back along -depth);
+it is negative only from the release damper (item 4), braking a master the hand does not draw
+back.
 Plain float arithmetic only: no arrays, no allocation per tick.
 """
 
@@ -30,6 +40,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from ctdrill.haptics.plant import COULOMB_N, G_RFOB
 from ctdrill.haptics.protocol import DeviceState, Fault, NakReason, ProfileBegin
 from ctdrill.haptics.tick import TICK_HZ
 from ctdrill.model.cutting import (
@@ -59,6 +70,19 @@ STOP_GLIDE_MM_S = 20.0
 WALL_HOLD_MM = 0.5
 #: ARM is refused while the coupling would render more than this on arming, N.
 ARM_MAX_FORCE_N = 5.0
+#: The release damper, N s/mm: on a master moving back that the hand does not draw back
+#: (docs/haptics-stability.md, "Letting go": it brakes a released handle within about a
+#: millisecond, and keeps the loop's margins: 7.6x at the stop, 8.4x in damping alone).
+RELEASE_DAMPING_N_S_PER_MM = 0.4
+#: A hand pulling less than this is not drawing the handle back (the master's own friction), N;
+#: the release damper fades out over the next as much of pull (none from twice this).
+RELEASE_PULL_N = COULOMB_N
+#: The force the release damper leaves pulls at most this, N (the continuous rating; so
+#: bounded it never reaches the peak force, docs/haptics-stability.md, "Letting go").
+RELEASE_MAX_N = CONTINUOUS_FORCE_N
+#: The hand reading that gates the release damper is low-passed at this, rad/s (the reaction
+#: force observer's own bandwidth: its transient after a release dips a few newtons below 0).
+RELEASE_FILTER_RAD_S = G_RFOB
 
 
 class Renderer:
@@ -73,7 +97,11 @@ class Renderer:
     front_mm, drill_mm : float
         Cut front (deepest drill depth so far) and drill depth, mm.
     force_cmd_n : float
-        Force command of the last tick, N (>= 0 opposes the advance).
+        Force command of the last tick, N (> 0 opposes the advance; < 0 only from the release
+        damper).
+    hand_n : float
+        The device's reading of the hand low-passed at :data:`RELEASE_FILTER_RAD_S`, N (> 0
+        pushes): what gates the release damper.
     """
 
     def __init__(
@@ -89,6 +117,7 @@ class Renderer:
         stop_wall_n_per_mm: float = STOP_WALL_N_PER_MM,
         stop_wall_damping_n_s_per_mm: float = STOP_WALL_DAMPING_N_S_PER_MM,
         stop_glide_mm_s: float = STOP_GLIDE_MM_S,
+        release_damping_n_s_per_mm: float = RELEASE_DAMPING_N_S_PER_MM,
     ) -> None:
         self.dt_s = 1.0 / tick_hz
         self.peak_force_n = peak_force_n
@@ -100,6 +129,9 @@ class Renderer:
         self.k_stop = stop_wall_n_per_mm
         self.b_stop = stop_wall_damping_n_s_per_mm
         self.glide_mm = stop_glide_mm_s * self.dt_s
+        self.b_release = release_damping_n_s_per_mm
+        self._hand_gain = min(1.0, RELEASE_FILTER_RAD_S * self.dt_s)
+        self.hand_n = 0.0
         self.state = int(DeviceState.IDLE)
         self.faults = 0
         self.new_faults = 0
@@ -167,6 +199,7 @@ class Renderer:
         )
         self.faults = 0
         self.new_faults = 0
+        self.hand_n = 0.0
         self.last_host_s = now_s
         self.t_arm_s = now_s
         self.safe_since_s = math.nan
@@ -217,8 +250,24 @@ class Renderer:
             s2[i] + frac * (s2[i + 1] - s2[i]),
         )
 
-    def tick(self, now_s: float, master_mm: float, master_v_mm_s: float) -> float:
-        """One control tick at device time ``now_s``; returns the force command, N (>= 0)."""
+    def release_gain(self) -> float:
+        """How much of the release damper acts, 0..1, from the hand reading :attr:`hand_n`:
+        1 unless the hand pulls more than :data:`RELEASE_PULL_N`, 0 from twice that."""
+        pull = -self.hand_n - RELEASE_PULL_N
+        if pull <= 0.0:
+            return 1.0
+        return 1.0 - pull / RELEASE_PULL_N if pull < RELEASE_PULL_N else 0.0
+
+    def tick(
+        self, now_s: float, master_mm: float, master_v_mm_s: float, hand_n: float = 0.0
+    ) -> float:
+        """One control tick at device time ``now_s``; returns the force command, N.
+
+        ``hand_n`` is the device's reading of the hand (the force controller's reaction force
+        observer, N, > 0 pushing; 0: no hand); it gates the release damper.
+        """
+        if math.isfinite(hand_n):  # a non-finite reading ends the session below
+            self.hand_n += self._hand_gain * (hand_n - self.hand_n)
         state = self.state
         if state == DeviceState.IDLE or state == DeviceState.SAFE:
             self.force_cmd_n = 0.0
@@ -230,7 +279,9 @@ class Renderer:
         if now_s - self.last_host_s > self.watchdog_s:
             self._go_safe(now_s, Fault.WATCHDOG)
             return 0.0
-        if not (math.isfinite(master_mm) and math.isfinite(master_v_mm_s)):
+        if not (
+            math.isfinite(master_mm) and math.isfinite(master_v_mm_s) and math.isfinite(hand_n)
+        ):
             self._go_safe(now_s, Fault.NONFINITE)
             return 0.0
         front = self.front_mm
@@ -246,13 +297,17 @@ class Renderer:
             vib = s1 * math.sin(self.w1 * t) + s2 * math.sin(self.w2 * t)
         force = resistance_n(coupling, master_v_mm_s, front_v, vib, damping_n_s_per_mm=self.b)
         anchor = self.stop_anchor_mm
+        back_v = master_v_mm_s  # the master's motion away from what it presses on
         if new_front >= stop and anchor == math.inf:
             anchor = master_mm if master_mm > stop else stop  # continuous on reaching the stop
         elif anchor != math.inf:
-            # follows a retreat, else glides to the stop (the hand is carried to the drill)
-            anchor = master_mm if master_mm < anchor else anchor - self.glide_mm
-            if anchor < stop:
-                anchor = stop
+            # glides to the stop (the hand is carried to the drill), or follows a faster retreat
+            glided = anchor - self.glide_mm
+            if master_mm < glided:
+                anchor = master_mm if master_mm > stop else stop
+            elif anchor > stop:
+                anchor = glided if glided > stop else stop
+                back_v = master_v_mm_s + (self.stop_anchor_mm - anchor) / self.dt_s
         self.stop_anchor_mm = anchor
         if master_mm > anchor:
             # spring and damper, the damper within the spring's force: the wall starts from 0
@@ -262,6 +317,13 @@ class Renderer:
             force += spring + (
                 damper if -spring < damper < spring else math.copysign(spring, damper)
             )
+        if back_v < 0.0:
+            # the release damper: a master moving back that the hand does not draw back (on
+            # the wall, relative to its gliding anchor: the glide carries the hand unbraked),
+            # the force it leaves pulling at most the continuous rating
+            force += self.b_release * self.release_gain() * back_v
+            if force < -RELEASE_MAX_N:
+                force = -RELEASE_MAX_N
         self.front_mm = new_front
         self.drill_mm = master_mm if master_mm < new_front else new_front
         self.state = int(DeviceState.STOPPED if new_front >= stop else DeviceState.CUTTING)

@@ -27,6 +27,7 @@ Everything here is SI inside, mm at the interface (N/mm, N s/mm).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -76,10 +77,6 @@ class Loop:
     g_dob: float = G_DOB
     g_rfob: float = G_RFOB
     g_vel: float = G_VEL
-
-    def with_stiffness(self, stiffness_n_per_mm: float) -> Loop:
-        """The same loop with another stiffness."""
-        return replace(self, stiffness_n_per_mm=stiffness_n_per_mm)
 
 
 def linear_tick(loop: Loop, s: list[Any], force_offset_n: Any = 0.0, hand_n: Any = 0.0) -> Any:
@@ -131,10 +128,12 @@ def closed_loop_matrix(loop: Loop) -> np.ndarray:
 
 
 def loop_poles(loop: Loop) -> np.ndarray:
-    """Eigenvalues of the closed loop, the translation mode of a yielding front removed
-    (shifting master, differentiator and front together changes nothing: eigenvalue 1)."""
+    """Eigenvalues of the closed loop, the translation mode of a yielding front or of a
+    master in no contact (zero stiffness) removed (shifting master, differentiator and front
+    together changes nothing: eigenvalue 1)."""
     poles = np.linalg.eigvals(closed_loop_matrix(loop))
-    if loop.material_damping_n_s_per_mm is not None:
+    free = loop.stiffness_n_per_mm == 0.0 and loop.hand_stiffness_n_per_mm == 0.0
+    if loop.material_damping_n_s_per_mm is not None or free:
         i = int(np.argmin(np.abs(poles - 1.0)))
         if abs(poles[i] - 1.0) > 1e-6:
             raise AssertionError(f"no translation mode among the poles: {poles}")
@@ -161,30 +160,91 @@ def dominant_pole(loop: Loop) -> dict[str, float]:
     }
 
 
+def _limit(loop: Loop, lo: float, hi: float, unit: str, vary: Callable[[float], Loop]) -> float:
+    """Smallest value above ``lo`` (``loop``'s own) at which ``vary(value)`` goes unstable
+    (spectral radius reaches 1): scanned up on a geometric grid (4 % steps) and the first
+    crossing bisected to 1e-6 relative; ``inf`` if stable up to ``hi``."""
+    if not (lo > 0.0 and spectral_radius(loop) < 1.0):
+        raise ValueError(f"the loop at {lo} {unit} is not stable: no margin to measure")
+
+    def unstable(value: float) -> bool:
+        return spectral_radius(vary(value)) >= 1.0
+
+    while True:
+        up = lo * 1.04
+        if up > hi:
+            return math.inf
+        if unstable(up):
+            break
+        lo = up
+    while up - lo > 1e-6 * up:
+        mid = 0.5 * (lo + up)
+        if unstable(mid):
+            up = mid
+        else:
+            lo = mid
+    return up
+
+
 def stiffness_limit_n_per_mm(loop: Loop, *, hi_n_per_mm: float = 1e6) -> float:
     """Smallest stiffness above ``loop``'s own at which the loop goes unstable (spectral radius
     reaches 1), N/mm, found by scanning up on a geometric grid (4 % steps) and bisecting the
     first crossing to 1e-6 relative; ``inf`` if stable up to ``hi_n_per_mm``.
 
     Raises ValueError if ``loop`` itself is not stable."""
-    k_lo = loop.stiffness_n_per_mm
-    if not (k_lo > 0.0 and spectral_radius(loop) < 1.0):
-        raise ValueError(f"the loop at {k_lo} N/mm is not stable: no margin to measure")
-    k_hi = k_lo
-    while True:
-        k_hi = k_lo * 1.04
-        if k_hi > hi_n_per_mm:
-            return math.inf
-        if spectral_radius(loop.with_stiffness(k_hi)) >= 1.0:
-            break
-        k_lo = k_hi
-    while k_hi - k_lo > 1e-6 * k_hi:
-        mid = 0.5 * (k_lo + k_hi)
-        if spectral_radius(loop.with_stiffness(mid)) >= 1.0:
-            k_hi = mid
-        else:
-            k_lo = mid
-    return k_hi
+    return _limit(
+        loop,
+        loop.stiffness_n_per_mm,
+        hi_n_per_mm,
+        "N/mm",
+        lambda k: replace(loop, stiffness_n_per_mm=k),
+    )
+
+
+def damping_limit_n_s_per_mm(loop: Loop, *, hi_n_s_per_mm: float = 1e3) -> float:
+    """Smallest damping above ``loop``'s own at which the loop goes unstable (the damper, on
+    the filtered and one tick old velocity estimate, drives the sampled loop past
+    ``|z| = 1``), N s/mm, scanned and bisected as :func:`stiffness_limit_n_per_mm`;
+    ``inf`` if stable up to ``hi_n_s_per_mm``.
+
+    Raises ValueError if ``loop`` itself is not stable or has no damping."""
+    return _limit(
+        loop,
+        loop.damping_n_s_per_mm,
+        hi_n_s_per_mm,
+        "N s/mm",
+        lambda b: replace(loop, damping_n_s_per_mm=b),
+    )
+
+
+def release_speed_bound_mm_s(
+    push_n: float, damping_n_s_per_mm: float, *, mass_kg: float = MASS_KG, g_dob: float = G_DOB
+) -> float:
+    """Bound on the fastest motion back of a master whose hand lets go of ``push_n``, mm/s.
+
+    Two parts (docs/haptics-stability.md, "Letting go"): the force controller still balances
+    the push until its observers (``g_dob``, 1/s) see it gone, an impulse of about
+    ``F / g`` on the mass: ``F / (M g)``; and the springs, which cannot drive the master back
+    faster than the damping that resists its retreat (``damping_n_s_per_mm``: the coupling's,
+    the wall's at the stop, and the release damper's) lets them, since at the fastest point
+    ``B v = K e <= F``: ``F / B``.
+    """
+    return push_n * (1.0 / (mass_kg * g_dob) * 1e3 + 1.0 / damping_n_s_per_mm)
+
+
+def release_excursion_bound_mm(
+    speed_mm_s: float,
+    release_damping_n_s_per_mm: float,
+    *,
+    mass_kg: float = MASS_KG,
+    kf: float = KF,
+    g_dob: float = G_DOB,
+) -> float:
+    """Bound on how far a master leaving its contact at ``speed_mm_s`` goes on, mm: the
+    release damper alone brakes it, the force controller making ``Mn / Kf`` the mass it
+    brakes (time constant ``Mn / (Kf B)``), after the velocity estimate's lag ``1 / g``."""
+    brake_s = mass_kg / (kf * release_damping_n_s_per_mm * 1e3)
+    return speed_mm_s * (1.0 / g_dob + brake_s)
 
 
 def colgate_terms(

@@ -20,6 +20,10 @@ The energy it puts into the wall, ``G(n) = sum F_w,j (a_j - a_{j+1})`` (the wall
 at most the rendered one, times the anchor's step), is booked separately: it is bounded (at
 most the force times the glide, once per stop) and the books show that the coupling gives back
 no more than it took even so.
+
+A hand that lets go (``release_at_s``: the push drops to 0 N there, as a ``human`` operator's
+does) is the release the release damper is for (:mod:`ctdrill.haptics.renderer`):
+:func:`release_account` measures what the master did afterwards, and what the books gave back.
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ from ctdrill.haptics.plant import ForceController, MasterPlant
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import Fault, OperatorKind, SimOperator
 from ctdrill.haptics.renderer import (
+    RELEASE_DAMPING_N_S_PER_MM,
     STOP_GLIDE_MM_S,
     STOP_WALL_DAMPING_N_S_PER_MM,
     STOP_WALL_N_PER_MM,
@@ -50,6 +55,8 @@ class PushRun:
     ----------
     time_s, master_mm, front_mm, force_n, hand_n : ndarray
         After each tick: time, master (true position), cut front, rendered force, hand force.
+    velocity_mm_s : ndarray
+        After each tick: the master's true velocity, mm/s.
     energy_in_j : ndarray
         ``E(n)``: energy the coupling absorbed so far, J.
     stored_j : ndarray
@@ -62,6 +69,8 @@ class PushRun:
         The renderer's fault bits at the end (:class:`Fault`).
     clipped : bool
         A force limit (peak or thermal) acted: ``V`` is then not the rendered force's energy.
+    travel_end : bool
+        The stage met an end of its travel.
     """
 
     time_s: np.ndarray
@@ -69,12 +78,14 @@ class PushRun:
     front_mm: np.ndarray
     force_n: np.ndarray
     hand_n: np.ndarray
+    velocity_mm_s: np.ndarray
     energy_in_j: np.ndarray
     stored_j: np.ndarray
     glide_j: np.ndarray
     stop_reached_s: float
     faults: int
     clipped: bool
+    travel_end: bool
 
     @property
     def dissipated_j(self) -> np.ndarray:
@@ -102,13 +113,17 @@ def simulate_push(
     stop_wall_n_per_mm: float = STOP_WALL_N_PER_MM,
     stop_wall_damping_n_s_per_mm: float = STOP_WALL_DAMPING_N_S_PER_MM,
     stop_glide_mm_s: float = STOP_GLIDE_MM_S,
+    release_damping_n_s_per_mm: float = RELEASE_DAMPING_N_S_PER_MM,
+    release_at_s: float = math.inf,
 ) -> PushRun:
     """Simulate a hand pushing ``push_n`` from ``step_at_s`` on a slab of ``S0 = s0_n`` from
-    depth 0 whose stop is at ``stop_depth_mm``; the master starts at rest at the surface.
+    depth 0 whose stop is at ``stop_depth_mm``; the master starts at rest at the surface. At
+    ``release_at_s`` the hand lets go (0 N from then on).
 
     ``coulomb_n`` replaces the Coulomb friction of plant and friction model (None: the
     paper's 1.0 N); the stiffness and damping those of the renderer's coupling, the
-    ``stop_*`` values those of its stop wall (stiffness, damping, the anchor's glide speed).
+    ``stop_*`` values those of its stop wall (stiffness, damping, the anchor's glide speed),
+    ``release_damping_n_s_per_mm`` its release damper (0: none, the renderer before it).
     """
     emu = DeviceEmulator(nonce_seed=0)
     emu.renderer = Renderer(
@@ -118,6 +133,7 @@ def simulate_push(
         stop_wall_n_per_mm=stop_wall_n_per_mm,
         stop_wall_damping_n_s_per_mm=stop_wall_damping_n_s_per_mm,
         stop_glide_mm_s=stop_glide_mm_s,
+        release_damping_n_s_per_mm=release_damping_n_s_per_mm,
         watchdog_s=math.inf,
     )
     if coulomb_n is not None:
@@ -135,15 +151,19 @@ def simulate_push(
     if r.arm(0.0, emu.plant.encoder_mm()) is not None:
         raise AssertionError("the renderer refused to arm at the surface")
     n = round(duration_s * emu.tick_hz)
-    out = np.zeros((8, n))
+    out = np.zeros((9, n))
     energy = 0.0
     glide = 0.0
     stop_at = math.nan
+    travel_end = False
     k_n_per_m = stiffness_n_per_mm * 1e3
     wall_n_per_m = r.k_stop * 1e3
     emu._set_operator(SimOperator(int(OperatorKind.NONE), 0.0))
     for i in range(n):
-        if emu.now_s >= step_at_s - 1e-12 and emu.operator_kind != OperatorKind.PUSH:
+        if emu.now_s >= release_at_s - 1e-12:
+            if emu.operator_value != 0.0:
+                emu._set_operator(SimOperator(int(OperatorKind.PUSH), 0.0))
+        elif emu.now_s >= step_at_s - 1e-12 and emu.operator_kind != OperatorKind.PUSH:
             emu._set_operator(SimOperator(int(OperatorKind.PUSH), push_n))
         x0 = emu.plant.x_m
         anchor0 = r.stop_anchor_mm
@@ -162,17 +182,77 @@ def simulate_push(
                 glide += pushed_n * (anchor0 - r.stop_anchor_mm) * 1e-3
         if math.isnan(stop_at) and r.front_mm >= stop_depth_mm:
             stop_at = emu.now_s
-        out[:, i] = (emu.now_s, x1 * 1e3, r.front_mm, force, emu.hand_n, energy, stored, glide)
+        travel_end = travel_end or emu.plant.at_end_stop
+        v = emu.plant.v_m_s * 1e3
+        out[:, i] = (emu.now_s, x1 * 1e3, r.front_mm, force, emu.hand_n, v, energy, stored, glide)
     return PushRun(
         time_s=out[0],
         master_mm=out[1],
         front_mm=out[2],
         force_n=out[3],
         hand_n=out[4],
-        energy_in_j=out[5],
-        stored_j=out[6],
-        glide_j=out[7],
+        velocity_mm_s=out[5],
+        energy_in_j=out[6],
+        stored_j=out[7],
+        glide_j=out[8],
         stop_reached_s=stop_at,
         faults=r.faults,
         clipped=bool(r.faults & (Fault.PEAK_LIMIT | Fault.THERMAL_LIMIT)),
+        travel_end=travel_end,
+    )
+
+
+@dataclass(frozen=True)
+class ReleaseAccount:
+    """What the master did after the hand let go (:func:`release_account`).
+
+    Attributes
+    ----------
+    push_n : float
+        The push the hand let go of, N.
+    at_stop : bool
+        The drill was at its stop (the wall) when the hand let go; else it was cutting.
+    peak_back_mm_s : float
+        The master's fastest motion back after the release, mm/s.
+    behind_mm : float
+        How far the master went behind the cut front (the drill's depth, the surface it
+        left) after the release, mm (0: never).
+    final_speed_mm_s : float
+        The master's speed at the end of the run, mm/s.
+    rest_mm : float
+        Where the master is at the end, past the cut front (negative: behind it), mm.
+    travel_end : bool
+        The master met an end of its travel.
+    stored_j : float
+        ``V``: what the coupling's springs held when the hand let go, J.
+    returned_j : float
+        The most the books gave back after the release, ``E(release) - min E(after)``, J.
+    """
+
+    push_n: float
+    at_stop: bool
+    peak_back_mm_s: float
+    behind_mm: float
+    final_speed_mm_s: float
+    rest_mm: float
+    travel_end: bool
+    stored_j: float
+    returned_j: float
+
+
+def release_account(run: PushRun, release_at_s: float) -> ReleaseAccount:
+    """The release of ``run`` (simulated with ``release_at_s``): :class:`ReleaseAccount`."""
+    i = int(np.searchsorted(run.time_s, release_at_s - 1e-12))
+    after = slice(i, None)
+    front = float(run.front_mm[-1])
+    return ReleaseAccount(
+        push_n=float(run.hand_n[i - 1]),
+        at_stop=bool(math.isfinite(run.stop_reached_s) and run.stop_reached_s < release_at_s),
+        peak_back_mm_s=max(0.0, -float(run.velocity_mm_s[after].min())),
+        behind_mm=max(0.0, front - float(run.master_mm[after].min())),
+        final_speed_mm_s=abs(float(run.velocity_mm_s[-1])),
+        rest_mm=float(run.master_mm[-1]) - front,
+        travel_end=run.travel_end,
+        stored_j=float(run.stored_j[i - 1]),
+        returned_j=float(run.energy_in_j[i - 1] - run.energy_in_j[after].min()),
     )

@@ -18,7 +18,8 @@ def register(subparsers: Any) -> None:
         description=(
             "With SESSION_DIR...: store each rehearsal's assessment (its summary.json "
             "'assessment', written by ctdrill rehearse or the window) in the trainee record "
-            "FILE, one row per session (the same session stored twice stays one row), each in "
+            "FILE, one row per session (a drill sequence's folder is one session, its listing's "
+            "assessment; the same session stored twice stays one row), each in "
             "one transaction. With --out DIR: write the trainee's learning_curve.csv, "
             "learning_curve.png and percentiles.csv (against the sessions tagged --expert on "
             "the same plan). Both may be given. docs/rehearse.md describes the record."

@@ -19,7 +19,9 @@ def register(subparsers: Any) -> None:
         description=(
             "Open a pseudo-terminal, link PATH to it and run the device (renderer at 10 kHz "
             "device time, force controller and a simulated master) at real time until "
-            "SIGTERM/SIGINT; the link is removed on exit. Connect with "
+            "SIGTERM/SIGINT; the link is removed on exit. A PATH another running emulator "
+            "serves (its lock PATH.lock is held) or that links to a pty in use is refused; "
+            "only a stale link is replaced. Connect with "
             "'ctdrill rehearse --device serial:PATH'."
         ),
     )

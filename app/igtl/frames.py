@@ -217,8 +217,9 @@ def forces_doc(sample: TelemetrySample, time_s: float) -> dict[str, Any]:
 
     ``time_s`` is the session time (``session.csv``'s, rounded as there to 0.1 ms); ``state``
     the device state; depths in mm; forces in N: ``hand_force_n`` the device's reading of
-    the hand (its reaction-force observer), ``device_force_n`` the force it renders (>= 0
-    opposes the advance), split by state into ``cutting_force_n`` (while cutting: the
+    the hand (its reaction-force observer), ``device_force_n`` the force it renders (> 0
+    opposes the advance; < 0 only from the release damper braking a released handle), split
+    by state into ``cutting_force_n`` (while cutting: the
     material's resistance through the coupling) and ``wall_force_n`` (while stopped: the
     stop's wall), 0 otherwise.
     """

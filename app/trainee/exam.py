@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -26,6 +27,7 @@ from ctdrill.haptics.assessment import AssessmentContext
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.plan.write import plan_to_dict
+from ctdrill.imaging.sampling.annulus import Hole
 from ctdrill.imaging.volume import CTVolume
 
 #: How far beyond the planned depth an exam's table (and its stop) reaches, mm: past a canal
@@ -38,7 +40,8 @@ EXAM_BASES = ("beyond_plan", "planned_depth")
 
 
 class ExamInputError(AppInputError):
-    """Exam mode asked where it cannot run (a hardware device, a drill sequence)."""
+    """Exam mode asked where it cannot run (a hardware device; a drill sequence's plan where
+    one drill's exam table is asked for)."""
 
 
 def refuse_exam_device(device_spec: str) -> None:
@@ -58,7 +61,8 @@ def refuse_exam_device(device_spec: str) -> None:
 
 
 def refuse_exam_sequence(plan: Plan) -> None:
-    """Exam mode rehearses one drill.
+    """An exam table is one drill's (:func:`exam_setup`): a drill sequence's are its drills'
+    (``ctdrill rehearse --exam`` runs each drill in exam mode).
 
     Raises
     ------
@@ -66,9 +70,12 @@ def refuse_exam_sequence(plan: Plan) -> None:
         For a plan with a drill sequence.
     """
     if len(plan.drills) > 1:
+        drills = ", ".join(f"{d.diameter_mm:g}" for d in plan.drills)
         raise ExamInputError(
-            f"--exam: plan {plan.name!r} has a drill sequence (drills); exam mode rehearses "
-            "one drill: give a plan with its final drill alone"
+            f"exam mode: plan {plan.name!r} drills a sequence of {len(plan.drills)} drills "
+            f"({drills} mm) and this exam rehearses one drill; rehearse the whole sequence in "
+            "exam mode with 'ctdrill rehearse --exam', or give a plan with its final drill "
+            "alone"
         )
 
 
@@ -106,14 +113,27 @@ def _free_stop_mm(path: PathResult) -> float:
 
 
 def exam_setup(
-    volume: CTVolume, plan: Plan, guarded: PathResult, *, interpolate_gaps: bool = False
+    volume: CTVolume,
+    plan: Plan,
+    guarded: PathResult,
+    *,
+    interpolate_gaps: bool = False,
+    inner_holes: Sequence[Hole] = (),
 ) -> ExamSetup:
-    """The exam table of ``plan`` (whose guarded path is ``guarded``): module docstring."""
+    """The exam table of the one-drill ``plan`` (whose guarded path is ``guarded``): module
+    docstring. ``inner_holes``: the holes of the drills before it in a sequence (the table is
+    cut around them, as ``guarded`` is)."""
     refuse_exam_sequence(plan)
     reach = min(plan.planned_depth_mm + EXAM_REACH_MM, MAX_PLANNED_DEPTH_MM)
     extended = replace(plan, target_lps=plan.point_at_depth_lps(reach), implant=None)
     try:
-        path = plan_path(volume, extended, guarded.calibration, interpolate_gaps=interpolate_gaps)
+        path = plan_path(
+            volume,
+            extended,
+            guarded.calibration,
+            interpolate_gaps=interpolate_gaps,
+            inner_holes=inner_holes,
+        )
     except PathInputError as exc:
         stop = _free_stop_mm(guarded)
         note = (

@@ -1,5 +1,12 @@
 """A rehearsal's folder as the trainee record reads it: ``summary.json`` (its assessment) and
-``session.csv`` (the replay trace), and the session's content hash."""
+``session.csv`` (the replay trace), and the session's content hash.
+
+A drill sequence's folder (``ctdrill rehearse`` of a plan with ``drills``: ``drill_k/`` per
+drill and a listing ``summary.json``) is one session: the listing's ``assessment`` (the
+sequence's, combined from its drills'), and as its trace the drills' ``session.csv`` one after
+the other; its hash covers the listing and every drill's log. A drill's own folder is that
+drill alone.
+"""
 
 from __future__ import annotations
 
@@ -63,8 +70,8 @@ def session_hash(summary_bytes: bytes, csv_bytes: bytes) -> str:
 def _check_assessment(where: str, a: object) -> dict[str, Any]:
     if not isinstance(a, dict):
         raise SessionFileError(
-            f"{where}: no assessment (a drill sequence, or a session recorded before ctdrill "
-            "assessed sessions): rehearse it again"
+            f"{where}: no assessment (a session recorded before ctdrill assessed sessions, or "
+            "drill sequences): rehearse it again"
         )
     for name in ASSESSMENT_FIELDS:
         if name not in a:
@@ -118,9 +125,25 @@ def _trace(where: str, data: bytes) -> dict[str, np.ndarray]:
     return {name: arr[:, i].copy() for i, name in enumerate(TRACE_ARRAYS)}
 
 
+def _no_file(folder: Path, path: Path) -> SessionFileError:
+    return SessionFileError(
+        f"{folder}: no {path.relative_to(folder)}; give a folder written by ctdrill rehearse "
+        "--out (or exported from the window)"
+    )
+
+
+def _read_csv(folder: Path, path: Path) -> bytes:
+    if not path.is_file():
+        raise _no_file(folder, path)
+    return read_bytes_bounded(
+        path, what="session log", error=SessionFileError, max_bytes=MAX_SESSION_CSV_BYTES
+    )
+
+
 def read_session(folder: Path) -> SessionEntry:
     """Read a rehearsal's folder (``ctdrill rehearse --out``, or the window's export, whose
-    ``session/`` holds it) and check its assessment.
+    ``session/`` holds it; a drill sequence's folder is one session: module docstring) and
+    check its assessment.
 
     Raises
     ------
@@ -128,31 +151,21 @@ def read_session(folder: Path) -> SessionEntry:
         No ``summary.json`` or ``session.csv``, unreadable files, no or bad assessment.
     """
     base = folder / "session" if (folder / "session" / "summary.json").is_file() else folder
-    summary_path, csv_path = base / "summary.json", base / "session.csv"
-    for path in (summary_path, csv_path):
-        if not path.is_file():
-            raise SessionFileError(
-                f"{folder}: no {path.name}; give a folder written by ctdrill rehearse --out "
-                "(or exported from the window)"
-            )
+    summary_path = base / "summary.json"
+    if not summary_path.is_file():
+        raise _no_file(folder, summary_path)
     summary_bytes = read_bytes_bounded(
         summary_path, what="session summary", error=SessionFileError, max_bytes=MAX_SUMMARY_BYTES
     )
-    csv_bytes = read_bytes_bounded(
-        csv_path, what="session log", error=SessionFileError, max_bytes=MAX_SESSION_CSV_BYTES
-    )
-    return session_entry(folder, summary_bytes, csv_bytes)
+    summary = _summary(folder, summary_bytes)
+    if summary.get("format") is None:
+        return session_entry(folder, summary_bytes, _read_csv(folder, base / "session.csv"))
+    logs = [(name, _read_csv(folder, base / name / "session.csv")) for name in _drills(summary)]
+    return sequence_entry(folder, summary_bytes, logs)
 
 
-def session_entry(folder: Path, summary_bytes: bytes, csv_bytes: bytes) -> SessionEntry:
-    """A session from its ``summary.json`` and ``session.csv`` bytes (the window stores the
-    session it holds this way, with the hash ``ctdrill assess`` gives its exported folder).
-
-    Raises
-    ------
-    SessionFileError
-        Not a rehearsal summary, no or bad assessment, no plan hash, a bad ``session.csv``.
-    """
+def _summary(folder: Path, summary_bytes: bytes) -> dict[str, Any]:
+    """The checked ``summary.json``: a JSON object with a valid assessment and a plan hash."""
     where = str(folder / "summary.json")
     try:
         text = summary_bytes.decode("utf-8-sig")
@@ -167,5 +180,68 @@ def session_entry(folder: Path, summary_bytes: bytes, csv_bytes: bytes) -> Sessi
             f"{where}: plan_sha256 is missing (a session recorded before ctdrill assessed "
             "sessions): rehearse it again"
         )
+    return summary
+
+
+def _drills(summary: dict[str, Any]) -> list[str]:
+    """The drill folders a sequence's listing names, checked (``drill_1``, ``drill_2`` ...)."""
+    from ctdrill.app.rehearse_sequence import SEQUENCE_FORMAT  # a sequence only: not at start
+    from ctdrill.engine.sequence import drill_folder
+
+    fmt = summary.get("format")
+    drills = summary.get("drills")
+    if fmt != SEQUENCE_FORMAT or not isinstance(drills, list) or not drills:
+        raise SessionFileError(
+            f"summary.json: format {fmt!r} is not a rehearsal's ({SEQUENCE_FORMAT!r} with its "
+            "drills, or none for one drill); give a folder written by ctdrill rehearse --out"
+        )
+    names = [d.get("folder") if isinstance(d, dict) else None for d in drills]
+    want = [drill_folder(k) for k in range(len(drills))]
+    if names != want:
+        raise SessionFileError(
+            f"summary.json: the sequence's drills name the folders {names}, not {want}; "
+            "rehearse it again"
+        )
+    return want
+
+
+def session_entry(folder: Path, summary_bytes: bytes, csv_bytes: bytes) -> SessionEntry:
+    """A session from its ``summary.json`` and ``session.csv`` bytes (the window stores the
+    session it holds this way, with the hash ``ctdrill assess`` gives its exported folder).
+
+    Raises
+    ------
+    SessionFileError
+        Not a rehearsal summary, no or bad assessment, no plan hash, a bad ``session.csv``.
+    """
+    summary = _summary(folder, summary_bytes)
     trace = _trace(str(folder / "session.csv"), csv_bytes)
     return SessionEntry(folder, session_hash(summary_bytes, csv_bytes), summary, trace)
+
+
+def sequence_entry(
+    folder: Path, summary_bytes: bytes, logs: list[tuple[str, bytes]]
+) -> SessionEntry:
+    """A drill sequence as one session: its listing ``summary.json`` (the sequence's
+    assessment) and each drill's ``(folder name, session.csv bytes)`` in drilling order. The
+    trace is the drills' one after the other (each drill's times after the previous one's
+    last, one trace step apart); the hash covers the listing and every log, each named and
+    sized.
+
+    Raises
+    ------
+    SessionFileError
+        As :func:`session_entry`, naming the drill's log.
+    """
+    summary = _summary(folder, summary_bytes)
+    parts: list[dict[str, np.ndarray]] = []
+    offset = 0.0
+    for name, data in logs:
+        part = _trace(str(folder / name / "session.csv"), data)
+        part["time_s"] = (part["time_s"].astype(np.float64) + offset).astype(np.float32)
+        if part["time_s"].size:
+            offset = float(part["time_s"][-1]) + 1.0 / TRACE_RATE_HZ
+        parts.append(part)
+    trace = {a: np.concatenate([p[a] for p in parts]) for a in TRACE_ARRAYS}
+    joined = b"".join(f"{name}\0{len(data)}\0".encode() + data for name, data in logs)
+    return SessionEntry(folder, session_hash(summary_bytes, joined), summary, trace)

@@ -127,3 +127,26 @@ def test_bad_human_grammar_is_one_error_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
     assert err[0].startswith("error: --operator") and "react_ms" in err[0]
+
+
+@pytest.mark.parametrize("operator", ["human:force=20,react_ms=150", "push:-10"])
+def test_letting_go_or_pulling_back_ends_the_session_well(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], operator: str
+) -> None:
+    # A person who meets the wall at 20 N and lets go 150 ms later: the handle rests at the
+    # stopped drill (it used to be thrown back and coast to the travel end at 1.85 s:
+    # travel_limit). A hand pulling back from the start retracts freely to the travel end; the
+    # release damper, which the end stop's jolt could wake, adds no force limit to it.
+    out = tmp_path / "session"
+    assert _rehearse(out, "--operator", operator) == 0
+    capsys.readouterr()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] is True
+    flags = {f for event in summary["faults"] for f in event.get("flags", [])}
+    if operator.startswith("human"):
+        assert summary["faults"] == [] and summary["final_state"] == "stopped"
+        assert summary["final_master_mm"] == pytest.approx(10.8, abs=0.01)
+        assert summary["wall_held"] is True and summary["assessment"]["wall_contacts"] == 1
+    else:
+        assert flags == {"travel_limit"} and summary["max_drill_mm"] == 0.0
+        assert summary["final_master_mm"] == pytest.approx(-20.0, abs=1e-3)

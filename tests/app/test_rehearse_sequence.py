@@ -5,15 +5,19 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
+import sqlite3
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from ctdrill.app.cli import main
+from ctdrill.app.trainee.exam import plan_hash
 from ctdrill.engine.path import plan_path
 from ctdrill.engine.plans import plan_calibration
 from ctdrill.engine.sequence import drill_path
+from ctdrill.haptics.assessment import ASSESSMENT_FIELDS, combine_assessments
 from ctdrill.imaging import load_series
 from ctdrill.imaging.plan.load import load_plan
 from ctdrill.imaging.plan.types import DrillSpec
@@ -177,3 +181,113 @@ def test_a_fault_ends_the_sequence_and_says_how_far_it_got(
     captured = capsys.readouterr()
     assert "1 of 2 drills run: the sequence ended early" in captured.out
     assert captured.err.strip().splitlines()[-1].startswith("error: the session ended early")
+
+
+def test_every_drill_and_the_sequence_are_assessed(
+    rehearsed: tuple[Path, Path, int, str],
+) -> None:
+    # Each drill's summary carries its own assessment (its own plan and stop); the listing
+    # carries the sequence's, with the same fields, combined from the drills' and scored by
+    # the same rule, against the whole plan (its hash names both drills).
+    plan_file, out, _, stdout = rehearsed
+    top = json.loads((out / "summary.json").read_text())
+    drills = [json.loads((out / f"drill_{k}" / "summary.json").read_text()) for k in (1, 2)]
+    for doc in drills:
+        assert tuple(doc["assessment"]) == ASSESSMENT_FIELDS
+        assert not doc["assessment"]["breach"] and doc["assessment"]["score"] >= 50.0
+    assert tuple(top["assessment"]) == ASSESSMENT_FIELDS
+    want = combine_assessments(
+        [d["assessment"] for d in drills], drills_planned=2, planned_depth_mm=12.0
+    )
+    assert top["assessment"] == want.to_json()
+    assert [d["score"] for d in top["drills"]] == [d["assessment"]["score"] for d in drills]
+    whole = load_plan(plan_file)
+    assert top["plan_sha256"] == plan_hash(whole)
+    assert {d["plan_sha256"] for d in drills} == {plan_hash(whole.for_drill(k)) for k in (0, 1)}
+    assert f"assessment: score {top['assessment']['score']:.1f}/100" in stdout
+
+
+def test_assess_stores_a_sequence_as_one_session(
+    rehearsed: tuple[Path, Path, int, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The sequence's folder is one session of the record: its listing's assessment and the
+    # drills' logs one after the other as its trace; stored twice it stays one row. A drill's
+    # own folder is that drill alone.
+    _, out, _, _ = rehearsed
+    db = tmp_path / "record.db"
+    args = ["assess", str(out), str(out / "drill_2"), "--db", str(db), "--trainee", "ana"]
+    assert main(args) == 0
+    assert main(["assess", str(out), "--db", str(db), "--trainee", "ana"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "stored" in lines[0] and "already in the record" in lines[2]
+    top = json.loads((out / "summary.json").read_text())
+    con = sqlite3.connect(db)
+    try:
+        rows = con.execute(
+            "SELECT s.plan_hash, s.score, t.samples, t.time_s FROM sessions s "
+            "JOIN traces t USING (session_hash) ORDER BY t.samples DESC"
+        ).fetchall()
+    finally:
+        con.close()
+    assert len(rows) == 2
+    (plan_sha, score, samples, time_blob), drill_two = rows
+    assert plan_sha == top["plan_sha256"] and score == top["assessment"]["score"]
+    assert drill_two[0] != plan_sha
+    # 3.5 s per drill at the trace's 100 Hz, the second drill's times after the first's
+    time_s = np.frombuffer(time_blob, dtype=np.float32)
+    assert samples == time_s.size == drill_two[2] + 350
+    assert np.all(np.diff(time_s) > 0.0) and time_s[-1] == pytest.approx(7.0, abs=0.02)
+
+
+def test_exam_mode_runs_every_drill_of_a_sequence(
+    rehearsed: tuple[Path, Path, int, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # In exam mode every drill's table runs 10 mm past the plan: a person pushing 12 N who
+    # lets go 150 ms after the breakthrough takes the pilot into the canal, and the sequence
+    # records the breach (below any guarded score). On hardware it is refused, as for one.
+    plan_file = rehearsed[0]
+    out = tmp_path / "exam"
+    base = ["rehearse", "--dicom", str(DEMO / "ct"), "--plan", str(plan_file), "--out"]
+    op = ["--operator", "human:force=12,react_ms=150", "--duration-s", "3.5", "--exam"]
+    assert main([*base, str(out), *op]) == 0
+    capsys.readouterr()
+    top = json.loads((out / "summary.json").read_text())
+    drills = [json.loads((out / f"drill_{k}" / "summary.json").read_text()) for k in (1, 2)]
+    for doc in drills:
+        assert doc["exam"]["enabled"] is True and doc["exam"]["stop_basis"] == "beyond_plan"
+        assert doc["stop_depth_mm"] == pytest.approx(22.0, abs=1e-4)
+    pilot = drills[0]["assessment"]
+    assert pilot["breach"] and pilot["canal_entered"] and pilot["reaction_ms"] is not None
+    a = top["assessment"]
+    assert a["breach"] and a["canal_entered"] and a["score"] < 45.0
+    assert a["overshoot_mm"] == max(d["assessment"]["overshoot_mm"] for d in drills)
+    assert top["exam"]["enabled"] is True
+    code = main([*base, str(tmp_path / "hw"), *op, "--device", "serial:/dev/ttyUSB9"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith("error: --exam")
+    assert not (tmp_path / "hw").exists()
+
+
+@pytest.mark.parametrize("damage", ["folder", "log"])
+def test_assess_refuses_a_damaged_sequence_folder(
+    rehearsed: tuple[Path, Path, int, str],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    damage: str,
+) -> None:
+    # A listing naming a folder outside the sequence, or a drill's log missing: one error line
+    # naming it, exit 2, nothing written.
+    out = tmp_path / "seq"
+    shutil.copytree(rehearsed[1], out)
+    if damage == "folder":
+        top = json.loads((out / "summary.json").read_text())
+        top["drills"][1]["folder"] = "../elsewhere"
+        (out / "summary.json").write_text(json.dumps(top))
+    else:
+        (out / "drill_2" / "session.csv").unlink()
+    db = tmp_path / "record.db"
+    assert main(["assess", str(out), "--db", str(db), "--trainee", "ana"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:")
+    assert ("../elsewhere" in err[0]) if damage == "folder" else ("drill_2/session.csv" in err[0])
+    assert not db.exists()

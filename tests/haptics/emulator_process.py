@@ -40,6 +40,21 @@ def demo_rehearsal(out: Path, operator: str, duration_s: str, *extra: str) -> li
     ]
 
 
+def spawn_emulator(link: Path) -> subprocess.Popen[str]:
+    """Start ``ctdrill emulate --pty-link link`` and return its process once it serves."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "ctdrill.app.cli", "emulate", "--pty-link", str(link)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stdout is not None
+    line = proc.stdout.readline()
+    assert line.startswith(f"emulating on {link} -> /dev/pts/"), line
+    return proc
+
+
 @contextmanager
 def emulator_process(link: Path, *, killed: bool = False) -> Iterator[subprocess.Popen[str]]:
     """Run the device emulator linked at ``link`` (a serial port stand-in); yield its process.
@@ -48,17 +63,8 @@ def emulator_process(link: Path, *, killed: bool = False) -> Iterator[subprocess
     end cleanly: exit code 0, its closing report on stderr, and the link removed (unless the
     case ``killed`` it).
     """
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "ctdrill.app.cli", "emulate", "--pty-link", str(link)],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    proc = spawn_emulator(link)
     try:
-        assert proc.stdout is not None
-        line = proc.stdout.readline()
-        assert line.startswith(f"emulating on {link} -> /dev/pts/"), line
         yield proc
     finally:
         if proc.poll() is None:

@@ -15,6 +15,7 @@ from ctdrill.haptics.assessment import (
     ASSESSMENT_FIELDS,
     AssessmentContext,
     Assessor,
+    combine_assessments,
     score_of,
 )
 from ctdrill.haptics.device import TelemetrySample
@@ -151,3 +152,92 @@ def test_the_fields_are_the_contract() -> None:
     }
     assert score_of(perfect) == 100.0
     assert score_of(perfect | {"depth_error_mm": -3.0}) == 50.0  # no hole: the floor
+
+
+PILOT = {
+    "depth_error_mm": -1.2,
+    "overshoot_mm": 0.0,
+    "breach": False,
+    "time_in_margin_s": 0.0,
+    "canal_entered": False,
+    "peak_hand_force_n": 16.0,
+    "mean_hand_force_n": 12.0,
+    "time_to_planned_s": 2.357,
+    "feed_cv": 0.4856,
+    "reaction_ms": None,
+    "wall_contacts": 1,
+    "peak_wall_force_n": 20.9,
+}
+FINAL = {
+    "depth_error_mm": -0.7,
+    "overshoot_mm": 0.5,
+    "breach": True,
+    "time_in_margin_s": 0.3,
+    "canal_entered": False,
+    "peak_hand_force_n": 19.6,
+    "mean_hand_force_n": 11.9,
+    "time_to_planned_s": 0.374,
+    "feed_cv": 0.0663,
+    "reaction_ms": 150.0,
+    "wall_contacts": 2,
+    "peak_wall_force_n": 27.3,
+}
+
+
+def test_a_sequence_combines_its_drills_as_documented() -> None:
+    both = combine_assessments([PILOT, FINAL], drills_planned=2, planned_depth_mm=12.0)
+    assert both.to_json() == {
+        "depth_error_mm": -0.7,  # the final drill's bed
+        "overshoot_mm": 0.5,  # the worst
+        "breach": True,  # any
+        "time_in_margin_s": 0.3,  # summed
+        "canal_entered": False,
+        "peak_hand_force_n": 19.6,
+        "mean_hand_force_n": 11.95,  # the drills' means averaged
+        "time_to_planned_s": 2.731,  # the drills' times to their goals, summed
+        "feed_cv": 0.4856,  # the least steady drill
+        "reaction_ms": 150.0,  # the slowest known
+        "wall_contacts": 2,  # the most of any drill
+        "peak_wall_force_n": 27.3,
+        # score_of: skill = (1 / 1.4856 + 0.85 + (1 - 27.3 / 78) / 2 + 1) / 4 = 0.712025;
+        # breached: 45 (1 + skill) / 2 / (1 + 0.5 / 2) / (1 + 0.3 / 5) = 29.07
+        "score": 29.1,
+    }
+    # the final drill never ran: its bed is not drilled (reached 0 mm), no time to the goal
+    short = combine_assessments([PILOT], drills_planned=3, planned_depth_mm=12.0)
+    assert short.depth_error_mm == -12.0 and short.time_to_planned_s is None
+    assert short.score == score_of(short.to_json()) == 50.0  # kept the margin, no bed
+    with pytest.raises(ValueError):
+        combine_assessments([PILOT, FINAL], drills_planned=1, planned_depth_mm=12.0)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    st.lists(st.booleans(), min_size=1, max_size=4).flatmap(
+        lambda flags: st.tuples(*(assessments(breach=b) for b in flags))
+    )
+)
+def test_a_sequence_scores_by_the_same_rule(drills: tuple[dict[str, Any], ...]) -> None:
+    parts = [
+        d
+        | {
+            "time_in_margin_s": round(d["time_in_margin_s"], 4),
+            "mean_hand_force_n": round(d["mean_hand_force_n"], 3),
+        }
+        for d in drills
+    ]
+    both = combine_assessments(parts, drills_planned=len(parts), planned_depth_mm=10.0)
+    fields = both.to_json()
+    assert tuple(fields) == ASSESSMENT_FIELDS
+    assert fields["breach"] == any(d["breach"] for d in parts)
+    assert fields["overshoot_mm"] == max(d["overshoot_mm"] for d in parts)
+    assert fields["wall_contacts"] == max(d["wall_contacts"] for d in parts)
+    assert fields["score"] == score_of(fields)
+    # a sequence that breached anywhere scores below any that kept the margin
+    assert (fields["score"] <= 45.0) if fields["breach"] else (fields["score"] >= 50.0)
+    json.dumps(fields, allow_nan=False)
+    if len(parts) == 1:  # one drill: its own assessment (its time rounded as recorded)
+        one = dict(parts[0])
+        if one["time_to_planned_s"] is not None:
+            one["time_to_planned_s"] = round(one["time_to_planned_s"], 4)
+        assert fields == one | {"score": score_of(one)}

@@ -17,7 +17,7 @@ from ctdrill.haptics.hands import (
 )
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import OperatorKind
-from ctdrill.haptics.run import run_session
+from ctdrill.haptics.run import SessionResult, run_session
 from ctdrill.haptics.session import HumanSpec, SessionInputError, parse_operator
 from ctdrill.haptics.sim import SimulatedDevice
 
@@ -96,7 +96,9 @@ def test_noise_is_seeded_gaussian_at_100_hz() -> None:
     assert {quiet.command(t)[1] for t in times} == {10.0}
 
 
-def _exam_session(react_ms: float, *, stop_mm: float = 15.0) -> tuple[Assessor, HumanHand]:
+def _exam_session(
+    react_ms: float, *, stop_mm: float = 15.0
+) -> tuple[Assessor, HumanHand, SessionResult]:
     """8 N through 4 N bone from 0.5 to 3 mm, a 0.6 mm void (a canal: the landmark, 3 mm
     down), then bone again."""
     depth = np.arange(0, 401) * STEP
@@ -111,7 +113,7 @@ def _exam_session(react_ms: float, *, stop_mm: float = 15.0) -> tuple[Assessor, 
     )
     assessor = Assessor(context, table)
     hand = HumanHand(HumanSpec(8.0, react_ms), table)
-    run_session(
+    result = run_session(
         SimulatedDevice(),
         table,
         parse_operator(f"human:force=8,react_ms={react_ms:g}"),
@@ -119,14 +121,19 @@ def _exam_session(react_ms: float, *, stop_mm: float = 15.0) -> tuple[Assessor, 
         on_samples=assessor.add,
         hand=hand,
     )
-    return assessor, hand
+    return assessor, hand, result
 
 
 def test_a_later_reaction_goes_deeper() -> None:
     runs = {ms: _exam_session(ms) for ms in (20.0, 150.0, 300.0)}
-    deepest = [a.deepest_mm for a, _ in runs.values()]
+    deepest = [a.deepest_mm for a, _, _ in runs.values()]
     assert deepest == sorted(deepest) and deepest[0] + 0.2 < deepest[-1]
-    for ms, (assessor, hand) in runs.items():
+    for ms, (assessor, hand, result) in runs.items():
+        # let go in the bone below the void: the handle rests on the hole's bottom, at most
+        # a few micrometres past the drill (the device's release damper), not thrown back
+        assert result.final_master_mm is not None and result.final_drill_mm is not None
+        assert 0.0 <= result.final_master_mm - assessor.deepest_mm < 0.01
+        assert result.faults == []
         assert hand.cue is not None and hand.cue[0] == "breakthrough"
         assert hand.release_s == pytest.approx(hand.cue[1] + ms / 1000.0)
         a = assessor.result()
@@ -137,7 +144,12 @@ def test_a_later_reaction_goes_deeper() -> None:
 
 
 def test_the_hand_lets_go_at_the_wall() -> None:
-    assessor, hand = _exam_session(80.0, stop_mm=1.0)  # the guard: the stop at the max safe depth
+    # the guard: the stop at the max safe depth
+    assessor, hand, result = _exam_session(80.0, stop_mm=1.0)
+    # let go at the wall: the handle rests at the stopped drill, nothing flagged (it used to be
+    # thrown back and coast to its travel end: travel_limit)
+    assert result.faults == [] and result.final_state == "stopped"
+    assert result.final_master_mm == pytest.approx(1.0, abs=0.01)
     assert hand.cue is not None and hand.cue[0] == "wall"
     assert hand.command(hand.cue[1] + 0.079) == (int(OperatorKind.PUSH), 8.0)
     assert hand.command(hand.cue[1] + 0.080) == (int(OperatorKind.PUSH), 0.0)

@@ -11,7 +11,13 @@ from hypothesis import strategies as st
 
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import DeviceState, Fault, NakReason
-from ctdrill.haptics.renderer import STOP_GLIDE_MM_S, STOP_WALL_N_PER_MM, Renderer
+from ctdrill.haptics.renderer import (
+    RELEASE_DAMPING_N_S_PER_MM,
+    RELEASE_MAX_N,
+    STOP_GLIDE_MM_S,
+    STOP_WALL_N_PER_MM,
+    Renderer,
+)
 from ctdrill.model.profile import Profile, force_n
 
 DT = 1e-4
@@ -127,28 +133,35 @@ def test_the_stop_anchor_glides_to_the_stop_and_carries_the_hand_back() -> None:
     assert forces[-1] == pytest.approx((11.0 + STOP_WALL_N_PER_MM) * 2.0)
 
 
-def test_the_wall_damper_stays_within_the_spring_force() -> None:
+@pytest.mark.parametrize("hand_n", [-10.0, 0.0])
+def test_the_wall_damper_stays_within_the_spring_force(hand_n: float) -> None:
     # Meeting the wall at 200 mm/s: the damper alone would add 0.4 * 200 = 80 N at once; within
-    # the spring's force it starts from zero. Moving out fast, it never pulls (force >= 0).
+    # the spring's force it starts from zero. Moving out fast, the wall never pulls: with a hand
+    # drawing the handle back (-10 N) the force is 0; with the hand off the handle the release
+    # damper alone brakes the master (-0.4 N s/mm * 200 mm/s, bounded to the 20 N continuous
+    # rating; -0.4 * 30 mm/s within it).
     table = ProfileTable.slab(s0_n=2.0, top_mm=0.0, bottom_mm=40.0, stop_depth_mm=1.0)
     r = armed(table, peak_force_n=1e9, thermal_budget_n2_s=1e9)
     now = 0.0
     for _ in range(3000):  # the front to the stop, the anchor to the stop
         now += DT
         r.host_frame(now)
-        r.tick(now, 1.5, 0.0)
+        r.tick(now, 1.5, 0.0, hand_n)
     assert r.stop_anchor_mm == 1.0
     # the hand eases back onto the stop depth (the anchor follows it there), then moves in
     # 20 um at 200 mm/s: the damper alone would add 0.4 * 200 = 80 N at once
     for x, v in ((1.0, 0.0), (1.02, 200.0)):
         now += DT
         r.host_frame(now)
-        force = r.tick(now, x, v)
+        force = r.tick(now, x, v, hand_n)
     spring = STOP_WALL_N_PER_MM * 0.02
     assert force == pytest.approx(11.0 * 0.02 + 0.08 * 200.0 + 2.0 * spring)
-    now += DT
-    r.host_frame(now)
-    assert r.tick(now, 1.01, -200.0) == 0.0  # moving out fast: the wall does not pull
+    for x, v, release in ((1.01, -200.0, -RELEASE_MAX_N), (1.0, -30.0, -12.0)):
+        now += DT
+        r.host_frame(now)
+        assert RELEASE_DAMPING_N_S_PER_MM * v <= release
+        expected = release if hand_n == 0.0 else 0.0
+        assert r.tick(now, x, v, hand_n) == pytest.approx(expected, abs=1e-12)
 
 
 def test_peak_and_thermal_limits() -> None:
@@ -238,6 +251,9 @@ def test_any_trajectory_keeps_force_bounded_and_drill_above_stop(
             now += DT
             r.host_frame(now)
             force = r.tick(now, master, velocity)
-            assert math.isfinite(force) and 0.0 <= force <= 78.0
+            # only the release damper pulls, on a master moving back (the hand off it), and
+            # at most the continuous rating
+            assert math.isfinite(force) and -RELEASE_MAX_N <= force <= 78.0
+            assert force >= 0.0 or velocity < 0.0
             assert r.drill_mm <= table.stop_depth_mm
             assert r.front_mm <= table.stop_depth_mm

@@ -98,7 +98,8 @@ def test_drill_never_passes_the_stop_depth(
         SimulatedDevice(), table, parse_operator(f"push:{force}"), 0.5, sink=rows.extend
     )
     assert result.max_drill_mm <= table.stop_depth_mm
-    assert all(math.isfinite(r[3]) and 0.0 <= r[3] <= 78.0 for r in rows)
+    # within the peak; only the release damper pulls (a master moving back), at most 20 N
+    assert all(math.isfinite(r[3]) and -20.0 <= r[3] <= 78.0 for r in rows)
     assert result.final_state in ("cutting", "stopped")
 
 
