@@ -1,5 +1,6 @@
 """The banner over the views: shown when the planned path breaks a landmark's margin
-(warning ``plan_violates_margin``) or when no path could be computed (clearance unknown)."""
+(warning ``plan_violates_margin``) or when no path could be computed (clearance unknown); while
+a trajectory is dragged it follows the dragged plan's path."""
 
 from __future__ import annotations
 
@@ -42,6 +43,7 @@ class Banner(QLabel):
         self.setWordWrap(True)
         self.hide()
         ctx.doc.path_changed.connect(self._path)
+        ctx.doc.live.path_changed.connect(self._live_path)
         ctx.doc.plan_changed.connect(lambda plan: self.show_banner(None) if plan is None else None)
 
     def _path(self, view: PathView | None) -> None:
@@ -49,6 +51,11 @@ class Banner(QLabel):
         if view is None and not doc.path_error:
             return  # a plan edit: the banner holds until the new result
         self.show_banner(banner_text(view, doc.path_error))
+
+    def _live_path(self, view: PathView | None) -> None:
+        live = self.ctx.doc.live
+        if view is not None or live.error:
+            self.show_banner(banner_text(view, live.error))
 
     def show_banner(self, content: tuple[str, str] | None) -> None:
         """Show ``(text, kind)`` or hide the banner."""

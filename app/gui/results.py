@@ -4,12 +4,13 @@ plot curves, per-landmark clearances and the reason rehearsal is blocked, if any
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ctdrill.app.export_band import path_band
 from ctdrill.app.gui.plots import DepthCurves
+from ctdrill.app.gui.readouts import ImplantReadout, implant_readout
 from ctdrill.app.pipeline import PathResult, plan_calibration, plan_path, with_set_warnings
 from ctdrill.app.sequence import plan_sequence
 from ctdrill.imaging import CTVolume
@@ -25,6 +26,9 @@ class PathView:
     result: PathResult
     curves: DepthCurves
     min_clearance_mm: np.ndarray | None  # (L,) per landmark along the stopped path
+    #: The implant's angulation, crest depth, canal distance and wall (the cross-section's
+    #: readout), when computed with the path.
+    readout: ImplantReadout | None = None
 
 
 def path_view(plan: Plan, result: PathResult, hu: HuUncertainty | None = None) -> PathView:
@@ -118,8 +122,10 @@ def compute_path_view(
     )
     cal = plan_calibration(own)
     if len(own.drills) > 1:
-        return path_view(plan, plan_sequence(volume, own, cal).final, hu)
-    return path_view(plan, plan_path(volume, own, cal), hu)
+        view = path_view(plan, plan_sequence(volume, own, cal).final, hu)
+    else:
+        view = path_view(plan, plan_path(volume, own, cal), hu)
+    return replace(view, readout=implant_readout(volume, plan, view))
 
 
 def drill_note(result: PathResult) -> str:

@@ -1,5 +1,5 @@
-"""The slice views' toolbar: window/level preset and readout, the tool (navigate, distance,
-arch), and "Centre on drill"."""
+"""The slice views' toolbar: window/level preset and readout, the tool (navigate, canal,
+distance, angle, arch), the canal tracing's settings, and "Centre on drill"."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from ctdrill.app.gui.reformat_canvas import CanalChoice
 from ctdrill.app.gui.slices import WINDOW_PRESETS
 
 if TYPE_CHECKING:
@@ -24,9 +25,17 @@ if TYPE_CHECKING:
 TOOLS: dict[str, tuple[str, str]] = {
     "navigate": (
         "Navigate",
-        "Drag entry/target, right-click: target (Shift: entry), right-drag: window/level",
+        "Drag the implant (its apex or body: moved whole; its platform: tilted; Shift: along "
+        "its axis; Ctrl on the apex: the apex alone) or the entry; a click links the views "
+        "there; right-click: target (Shift: entry), right-drag: window/level",
+    ),
+    "canal": (
+        "Canal",
+        "Click along the canal to trace it (the side's canal, or the one chosen); drag a "
+        "point to move it; right-click or Delete removes it",
     ),
     "distance": ("Distance", "Click two points to measure; right-click or Delete removes it"),
+    "angle": ("Angle", "Three clicks: arm, vertex, arm; right-click or Delete removes it"),
     "arch": (
         "Arch",
         "Axial view: click adds an arch point on this slice, drag moves one, "
@@ -65,6 +74,9 @@ class SliceToolbar(QWidget):
             lay.addWidget(button)
         self.tool_buttons["navigate"].setChecked(True)
         lay.addSpacing(6)
+        self.canal_choice = CanalChoice(grid.ctx.doc)
+        lay.addWidget(self.canal_choice)
+        lay.addSpacing(6)
         self.centre = QPushButton("Centre")
         self.centre.setToolTip("Planes back through the target, views centred on the drill (C)")
         self.centre.clicked.connect(lambda _c=False: grid.centre_on_drill())
@@ -72,7 +84,7 @@ class SliceToolbar(QWidget):
         lay.addStretch(1)
 
     def show_mode(self, mode: str) -> None:
-        """Check the button of ``mode`` (none for the canal mode, set by the plan panel)."""
+        """Check the button of ``mode``."""
         button = self.tool_buttons.get(mode)
         if button is not None:
             button.setChecked(True)

@@ -1,0 +1,120 @@
+"""The document's live part: a trajectory being dragged, and the point the views are linked at.
+
+A drag is a **preview**, not an edit: while the mouse moves, :meth:`LiveEdit.drag_to` hands the
+plan under the mouse to whoever computes (the controller plans its path at once, latest wins)
+and whoever draws fast (the dragged view's outline, the depth plots, the banner, the
+cross-section's readouts); the heavy views (3D, the other slices, contours) wait for the
+release. :meth:`LiveEdit.end_drag` then makes the one undo step, with the path already
+computed for it when there is one.
+
+The **crosshair** links the views: a click on one view's image puts the others through that
+point (:meth:`LiveEdit.set_crosshair`). The **trace settings** say which canal a traced point
+goes to (empty: the canal of the side clicked) and a new canal's radius; the trace toolbars
+share them.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from PySide6.QtCore import QObject, Signal
+
+from ctdrill.imaging.plan.landmarks import DEFAULT_CANAL_RADIUS_MM
+from ctdrill.imaging.plan.types import Plan
+
+if TYPE_CHECKING:
+    from ctdrill.app.gui.document import Document
+    from ctdrill.app.gui.results import PathView
+
+
+class LiveEdit(QObject):
+    """Drag preview and crosshair of a :class:`~ctdrill.app.gui.document.Document`.
+
+    Signals
+    -------
+    plan_dragged(plan) : the current trajectory is being dragged to ``plan``; None when the
+        drag ended (after the edit, if any, is in the document).
+    path_changed(view) : the path result of the dragged plan (``path``).
+    crosshair_changed(point) : the views are linked at a (3,) LPS point, or None.
+    trace_changed() : the trace settings changed.
+    """
+
+    plan_dragged = Signal(object)
+    path_changed = Signal(object)
+    crosshair_changed = Signal(object)
+    trace_changed = Signal()
+
+    def __init__(self, doc: Document) -> None:
+        super().__init__(doc)
+        self.doc = doc
+        #: The plan the current trajectory is being dragged to (None: no drag).
+        self.plan: Plan | None = None
+        #: Its path result, once computed; or why it has none (``error``).
+        self.path: PathView | None = None
+        self.error = ""
+        #: Where the views are linked, LPS mm (None: nowhere).
+        self.crosshair_lps: np.ndarray | None = None
+        #: The canal traced points go to ("": the canal of the side clicked), and the
+        #: radius a new canal gets, mm.
+        self.trace_canal = ""
+        self.trace_radius_mm = DEFAULT_CANAL_RADIUS_MM
+
+    @property
+    def dragging(self) -> bool:
+        """A drag is under way."""
+        return self.plan is not None
+
+    def drag_to(self, plan: Plan) -> bool:
+        """The current trajectory is being dragged to ``plan``. Refused (False) while a
+        rehearsal runs or without a current trajectory."""
+        doc = self.doc
+        if doc.plan is None:
+            return False
+        if doc.rehearsing:
+            doc.edit_refused.emit("the plan is locked while a rehearsal runs")
+            return False
+        self.plan = plan
+        self.plan_dragged.emit(plan)
+        return True
+
+    def offer(self, view: PathView) -> bool:
+        """A path result arrived: True when it is the dragged plan's (kept and announced)."""
+        if self.plan is None or view.plan is not self.plan:
+            return False
+        self.path, self.error = view, ""
+        self.path_changed.emit(view)
+        return True
+
+    def fail(self, plan: Plan, message: str) -> None:
+        """No path for the dragged ``plan``: ``path_changed(None)`` with ``error`` saying why."""
+        if plan is self.plan:
+            self.path, self.error = None, message
+            self.path_changed.emit(None)
+
+    def end_drag(self, plan: Plan | None, *, edit: str = "") -> bool:
+        """End the drag: ``plan`` becomes the current trajectory as one undo step named
+        ``edit``, its path shown at once when computed during the drag; None cancels (the
+        trajectory stays). Returns True when the edit was made."""
+        live = self.path
+        self.plan, self.path, self.error = None, None, ""
+        done = plan is not None and self.doc.set_plan(plan, edit=edit or None)
+        if done and live is not None and live.plan is plan:
+            self.doc.set_path(live)  # computed while dragging: not computed again
+        self.plan_dragged.emit(None)
+        return done
+
+    def set_crosshair(self, point_lps: np.ndarray | None) -> None:
+        """Link the views at ``point_lps`` (3,) LPS mm (None: no crosshair)."""
+        self.crosshair_lps = (
+            None if point_lps is None else np.asarray(point_lps, dtype=np.float64).reshape(3)
+        )
+        self.crosshair_changed.emit(self.crosshair_lps)
+
+    def set_trace(self, canal: str | None = None, radius_mm: float | None = None) -> None:
+        """Change the trace settings (None: keep)."""
+        if canal is not None:
+            self.trace_canal = canal
+        if radius_mm is not None:
+            self.trace_radius_mm = float(radius_mm)
+        self.trace_changed.emit()
