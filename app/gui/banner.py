@@ -58,11 +58,16 @@ class Banner(QLabel):
             self.show_banner(banner_text(view, live.error))
 
     def show_banner(self, content: tuple[str, str] | None) -> None:
-        """Show ``(text, kind)`` or hide the banner."""
-        self.kind = "" if content is None else content[1]
+        """Show ``(text, kind)`` or hide the banner (the style set only when the kind
+        changes: restyling costs more than the text, and a drag updates it often)."""
+        kind = "" if content is None else content[1]
         if content is None:
+            self.kind = kind
             self.hide()
             return
-        self.setText(content[0])
-        self.setStyleSheet(VIOLATION_STYLE if content[1] == "violation" else UNKNOWN_STYLE)
+        if self.text() != content[0]:
+            self.setText(content[0])
+        if kind != self.kind or not self.styleSheet():
+            self.setStyleSheet(VIOLATION_STYLE if kind == "violation" else UNKNOWN_STYLE)
+        self.kind = kind
         self.show()

@@ -113,6 +113,15 @@ def dragged_plan(plan: Plan, mode: str, start_lps: np.ndarray, now_lps: np.ndarr
     return new
 
 
+def site_lps(plan: Plan) -> np.ndarray:
+    """(3,) where a trajectory's site is viewed from: its implant's middle (platform to
+    apex), else its axis' middle, LPS mm."""
+    place = implant_placement(plan)
+    if place is None:
+        return np.asarray((plan.entry_lps + plan.target_lps) / 2.0)
+    return np.asarray((place.platform_lps + place.apex_lps) / 2.0)
+
+
 def body_hit(plan: Plan, point_lps: np.ndarray, *, reach_mm: float) -> bool:
     """True when ``point_lps`` lies within ``reach_mm`` of the implant body's axis segment
     (platform to apex) or, without an implant, of the drill's axis (entry to target): a press

@@ -23,6 +23,9 @@ from PySide6.QtCore import QObject, Signal
 from ctdrill.imaging.plan.landmarks import DEFAULT_CANAL_RADIUS_MM
 from ctdrill.imaging.plan.types import Plan
 
+#: Plans of a drag remembered (a result older than these is dropped).
+TRAIL = 64
+
 if TYPE_CHECKING:
     from ctdrill.app.gui.document import Document
     from ctdrill.app.gui.results import PathView
@@ -50,9 +53,13 @@ class LiveEdit(QObject):
         self.doc = doc
         #: The plan the current trajectory is being dragged to (None: no drag).
         self.plan: Plan | None = None
-        #: Its path result, once computed; or why it has none (``error``).
+        #: The latest path computed during the drag (the plan under the mouse's, or one a
+        #: little behind it while the mouse outpaces the computation); or why there is none.
         self.path: PathView | None = None
         self.error = ""
+        #: This drag's plans, oldest first (a result for one of them is shown if newer than
+        #: the one shown).
+        self._trail: list[Plan] = []
         #: Where the views are linked, LPS mm (None: nowhere).
         self.crosshair_lps: np.ndarray | None = None
         #: The canal traced points go to ("": the canal of the side clicked), and the
@@ -75,15 +82,23 @@ class LiveEdit(QObject):
             doc.edit_refused.emit("the plan is locked while a rehearsal runs")
             return False
         self.plan = plan
+        self._trail = [*self._trail[-(TRAIL - 1) :], plan]
         self.plan_dragged.emit(plan)
         return True
 
+    def _rank(self, plan: Plan | None) -> int:
+        return next((i for i, p in enumerate(self._trail) if p is plan), -1)
+
     def offer(self, view: PathView) -> bool:
-        """A path result arrived: True when it is the dragged plan's (kept and announced)."""
-        if self.plan is None or view.plan is not self.plan:
+        """A path result arrived: True when it is for a plan of this drag (kept and announced
+        when newer than the one shown; an older one is dropped)."""
+        rank = self._rank(view.plan)
+        if self.plan is None or rank < 0:
             return False
-        self.path, self.error = view, ""
-        self.path_changed.emit(view)
+        shown = -1 if self.path is None else self._rank(self.path.plan)
+        if rank > shown:
+            self.path, self.error = view, ""
+            self.path_changed.emit(view)
         return True
 
     def fail(self, plan: Plan, message: str) -> None:
@@ -98,6 +113,7 @@ class LiveEdit(QObject):
         trajectory stays). Returns True when the edit was made."""
         live = self.path
         self.plan, self.path, self.error = None, None, ""
+        self._trail = []
         done = plan is not None and self.doc.set_plan(plan, edit=edit or None)
         if done and live is not None and live.plan is plan:
             self.doc.set_path(live)  # computed while dragging: not computed again

@@ -37,6 +37,7 @@ from ctdrill.app.gui import canal_edit, planning
 from ctdrill.app.gui.canal_edit import MAX_RADIUS_MM
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.implant_picker import ImplantPicker
+from ctdrill.app.gui.reformat_canvas import CanalChoice
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.trajectory_list import TrajectoryList
 from ctdrill.imaging.plan.landmarks import CanalLandmark
@@ -45,6 +46,8 @@ from ctdrill.model import available_calibrations, load_calibration
 
 #: Appended to the clearance of a landmark whose margin the planned path breaks.
 VIOLATED_MARK = "(plan!)"
+#: Width of the spin boxes in the landmarks table (margin, radius), px.
+CELL_SPIN_PX = 78
 
 
 def _spin(lo: float, hi: float, step: float, decimals: int, suffix: str) -> QDoubleSpinBox:
@@ -138,6 +141,7 @@ class PlanPanel(QWidget):
         self.table.verticalHeader().setVisible(False)
         header = self.table.horizontalHeader()
         header.setSectionResizeMode(0, QHeaderView.ResizeMode.Stretch)
+        header.setMinimumSectionSize(40)
         for col in (1, 2, 3, 4):
             header.setSectionResizeMode(col, QHeaderView.ResizeMode.ResizeToContents)
         self.table.setWordWrap(True)
@@ -156,6 +160,9 @@ class PlanPanel(QWidget):
         buttons.addWidget(self.add_canal)
         buttons.addWidget(self.remove)
         lay.addLayout(buttons)
+        #: which canal tracing goes to and a new canal's radius (shared with the panorama page)
+        self.canal_choice = CanalChoice(ctx.doc)
+        lay.addWidget(self.canal_choice)
         outer.addWidget(lms)
         outer.addStretch(1)
         self.body.setEnabled(False)
@@ -227,10 +234,12 @@ class PlanPanel(QWidget):
                             item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
                         self.table.setItem(row, col, item)
                     spin = _spin(0.0, 10.0, 0.1, 2, " mm")
+                    spin.setMaximumWidth(CELL_SPIN_PX)
                     spin.valueChanged.connect(partial(self._margin_edited, row))
                     self.table.setCellWidget(row, 2, spin)
                     if isinstance(lm, CanalLandmark):
                         radius = _spin(0.1, MAX_RADIUS_MM, 0.1, 2, " mm")
+                        radius.setMaximumWidth(CELL_SPIN_PX)
                         radius.valueChanged.connect(partial(self._radius_edited, row))
                         self.table.setCellWidget(row, 4, radius)
                     else:

@@ -10,8 +10,10 @@ again (with room to spare) only when the curves leave them. The stop in words is
 the plots (text is the slowest thing matplotlib draws).
 
 The widget's Qt ``objectName`` is ``plot:force``; its ``stopDepthMm`` property (float, mm) is
-the stop depth of the curves it shows, set once they are on the screen, and
-``stopDepthMmChanged`` is emitted each time new curves are (even at the same stop).
+the stop depth of the curves it shows, set by the paint that puts them on the widget, and
+``stopDepthMmChanged`` is emitted each time new curves are painted (even at the same stop).
+Curves drawn live are painted with the event loop's next paint (one screen update for the
+plots and the dragged view's outline together), not by a paint of their own.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 from matplotlib.transforms import Bbox
 from PySide6.QtCore import Property, Signal
-from PySide6.QtGui import QResizeEvent
+from PySide6.QtGui import QPaintEvent, QResizeEvent
 from PySide6.QtWidgets import QLabel
 
 from ctdrill.app.gui.document import ViewContext
@@ -62,6 +64,8 @@ class PlotsView(FigureCanvasQTAgg):
         self._curves: DepthCurves | None = None
         self._animated: list[Any] = []
         self._background: Any = None
+        #: Curves drawn into the canvas, waiting for the paint that shows them.
+        self._painting: DepthCurves | None = None
         #: Curves drawn by blitting over the kept axes / by a whole redraw (for tests, bench).
         self.blits = 0
         self.full_draws = 0
@@ -140,10 +144,10 @@ class PlotsView(FigureCanvasQTAgg):
                 self.restore_region(self._background)
                 for artist in artists:
                     self.plot_fig.draw_artist(artist)
-                # the axes only (ticks and titles did not change), in one repaint
-                self.blit(Bbox.union([ax.bbox for ax in self.plot_fig.axes]))
+                # the axes only (ticks and titles did not change), at the next paint
+                self._update_region(Bbox.union([ax.bbox for ax in self.plot_fig.axes]))
                 self.blits += 1
-                self._shown(curves)
+                self._painting = curves
                 return
         headroom = LIVE_HEADROOM if live else 1.0
         draw_depth_plots(self.plot_fig, curves, headroom=headroom, title_stop=False)
@@ -156,9 +160,22 @@ class PlotsView(FigureCanvasQTAgg):
 
     def _finish(self, curves: DepthCurves) -> None:
         self.draw()
-        self.repaint()
         self.full_draws += 1
-        self._shown(curves)
+        self._painting = curves
+        self.update()
+
+    def _update_region(self, bbox: Bbox) -> None:
+        """Ask for a paint of ``bbox`` (display pixels) with the next event-loop pass."""
+        ratio = self.device_pixel_ratio
+        x0, y0, x1, y1 = (float(v) / ratio for v in bbox.extents)
+        self.update(int(x0) - 1, int(self.height() - y1) - 1, int(x1 - x0) + 3, int(y1 - y0) + 3)
+
+    def paintEvent(self, event: QPaintEvent) -> None:
+        """Paint, then say which curves are on the widget (``stopDepthMm``)."""
+        super().paintEvent(event)
+        curves, self._painting = self._painting, None
+        if curves is not None:
+            self._shown(curves)
 
     # ------------------------------------------------------------------ document
     def _plan(self, plan: Plan | None) -> None:

@@ -127,15 +127,16 @@ def implant_safety(
     Returns ``((clearance_mm, landmark name, what was measured) | None, (wall_mm | None,
     note))``. The implant body's own clearance and bone walls come with the implant-safety
     work (``implant_clearance_mm``, ``bone_walls``); until this function calls them it gives
-    what the path result holds: the final drill's clearance at its stop to each landmark (the
-    nearest named), and no wall.
+    what the path result holds: the final drill's clearance at the planned depth (where the
+    implant's apex sits) to each landmark, the nearest named, and no wall.
     """
     del volume  # the bone walls will be read from it
     canal = None
-    if view is not None and view.plan is plan and view.min_clearance_mm is not None:
-        per = np.asarray(view.min_clearance_mm, dtype=np.float64)
-        k = int(np.argmin(per))
-        canal = (float(per[k]), view.result.landmarks[k].name, "drill at its stop")
+    result = None if view is None or view.plan is not plan else view.result
+    if result is not None and result.clearance_mm.size:
+        at_plan = np.asarray(result.clearance_mm, dtype=np.float64)[-1]
+        k = int(np.argmin(at_plan))
+        canal = (float(at_plan[k]), result.landmarks[k].name, "drill at the planned depth")
     return canal, (None, "not computed yet")
 
 

@@ -27,6 +27,7 @@ from PySide6.QtWidgets import QGridLayout, QHBoxLayout, QLabel, QSizePolicy, QVB
 
 from ctdrill.app.gui import planning
 from ctdrill.app.gui.document import ViewContext
+from ctdrill.app.gui.implant_drag import site_lps
 from ctdrill.app.gui.plan_editor import PlanEditor
 from ctdrill.app.gui.slice_nav import (
     SliceStack,
@@ -41,9 +42,8 @@ from ctdrill.app.gui.slice_toolbar import SliceToolbar
 from ctdrill.app.gui.slice_tools import edit_arch
 from ctdrill.app.gui.slice_view import SliceCanvas
 from ctdrill.app.gui.slices import VIEWS, WINDOW_PRESETS, SliceImage, reslice, volume_center_lps
-from ctdrill.app.gui.workers import Runner
+from ctdrill.app.gui.workers import Runner, RunnerGroup
 from ctdrill.imaging import CTVolume
-from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.plan.types import Plan
 
 #: What the trajectory view says before a trajectory exists.
@@ -127,9 +127,9 @@ class SliceGrid(QWidget):
         doc.live.crosshair_changed.connect(self.go_to)
 
     @property
-    def runner(self) -> _Runners:
+    def runner(self) -> RunnerGroup:
         """Every view's runner, as one (``cancel``, ``busy``)."""
-        return _Runners(self.runners)
+        return RunnerGroup(self.runners)
 
     # ------------------------------------------------------------------ planes
     def _volume_changed(self, volume: CTVolume) -> None:
@@ -387,29 +387,3 @@ class SliceGrid(QWidget):
             if doc.arch_lps is not None:
                 doc.set_arch(None)
             self.draw_overlays()
-
-
-def site_lps(plan: Plan) -> np.ndarray:
-    """(3,) where a trajectory's site is viewed from: its implant's middle (platform to
-    apex), else its axis' middle, LPS mm."""
-    place = implant_placement(plan)
-    if place is None:
-        return np.asarray((plan.entry_lps + plan.target_lps) / 2.0)
-    return np.asarray((place.platform_lps + place.apex_lps) / 2.0)
-
-
-class _Runners:
-    """The grid's per-view runners seen as one."""
-
-    def __init__(self, runners: dict[str, Runner]) -> None:
-        self._runners = runners
-
-    @property
-    def busy(self) -> bool:
-        """True while any view is being resliced."""
-        return any(r.busy for r in self._runners.values())
-
-    def cancel(self) -> None:
-        """Drop every running reslice."""
-        for r in self._runners.values():
-            r.cancel()

@@ -1,5 +1,6 @@
 """The slice views' toolbar: window/level preset and readout, the tool (navigate, canal,
-distance, angle, arch), the canal tracing's settings, and "Centre on drill"."""
+distance, angle, arch), and "Centre on drill" (the canal tracing's settings are in the Plan
+tab's landmarks and on the panorama page)."""
 
 from __future__ import annotations
 
@@ -15,7 +16,6 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from ctdrill.app.gui.reformat_canvas import CanalChoice
 from ctdrill.app.gui.slices import WINDOW_PRESETS
 
 if TYPE_CHECKING:
@@ -73,9 +73,6 @@ class SliceToolbar(QWidget):
             self.tool_buttons[mode] = button
             lay.addWidget(button)
         self.tool_buttons["navigate"].setChecked(True)
-        lay.addSpacing(6)
-        self.canal_choice = CanalChoice(grid.ctx.doc)
-        lay.addWidget(self.canal_choice)
         lay.addSpacing(6)
         self.centre = QPushButton("Centre")
         self.centre.setToolTip("Planes back through the target, views centred on the drill (C)")

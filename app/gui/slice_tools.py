@@ -37,6 +37,20 @@ def remove_artists(artists: list[Any]) -> None:
     artists.clear()
 
 
+def label_at(uv: np.ndarray) -> np.ndarray:
+    """Where an angle's value is written: outside the angle, a fifth of its shorter arm from
+    the vertex ``uv[1]`` (image mm), so it hides neither arm."""
+    a, v, b = uv[0], uv[1], uv[2]
+    arms = [a - v, b - v]
+    lengths = [float(np.linalg.norm(arm)) for arm in arms]
+    if min(lengths) == 0.0:
+        return np.asarray(v)
+    bisector = arms[0] / lengths[0] + arms[1] / lengths[1]
+    norm = float(np.linalg.norm(bisector))
+    away = -bisector / norm if norm > 1e-9 else np.array([arms[0][1], -arms[0][0]]) / lengths[0]
+    return np.asarray(v + 0.2 * min(lengths) * away)
+
+
 def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     d = b - a
     dd = float(d @ d)
@@ -125,7 +139,7 @@ class ToolState:
         self._artists += ax.plot(uv[:, 0], uv[:, 1], "-o", color=MEASURE_COLOUR, lw=1.5, ms=4)
         label = self.label
         if label is not None:
-            at = uv.mean(axis=0) if self.measure_kind == "distance" else uv[1]
+            at = uv.mean(axis=0) if self.measure_kind == "distance" else label_at(uv)
             self._artists.append(
                 ax.text(
                     at[0],
@@ -135,6 +149,9 @@ class ToolState:
                     fontsize=10,
                     fontweight="bold",
                     zorder=10,
+                    ha="center",
+                    va="center",
+                    bbox={"facecolor": "black", "alpha": 0.5, "lw": 0, "pad": 1},
                 )
             )
 

@@ -89,13 +89,12 @@ class Runner(QObject):
         return gen
 
     def submit_latest(self, fn: Callable[[], Any]) -> None:
-        """Run ``fn`` as soon as no job of this runner runs: now when idle, else after the
-        running one (whose result is then dropped), replacing any job waiting. One job at a
-        time, never a queue of stale ones: a drag that outpaces the computation gets the
-        latest plan computed next."""
-        if self.busy:
+        """Run ``fn`` as soon as no job of this runner runs: now when idle, else right after
+        the running one, replacing any job waiting. One job at a time, never a queue of stale
+        ones, and every finished job reports: a drag that outpaces the computation sees each
+        result as it comes, the latest plan computed next."""
+        if self._running:
             self._next = fn
-            self._generation += 1  # the running job's result is stale
         else:
             self.submit(fn)
 
@@ -107,11 +106,11 @@ class Runner(QObject):
     def _finish(self, gen: int) -> bool:
         self._running.discard(gen)
         self._keep.pop(gen, None)
+        latest = gen == self._generation
         if self._next is not None and not self._running:
             fn, self._next = self._next, None
             self.submit(fn)
-            return False
-        return gen == self._generation
+        return latest
 
     def _done(self, gen: int, result: object) -> None:
         if self._finish(gen):
@@ -187,3 +186,20 @@ class StepQueue(QObject):
         if not self._steps:
             self._timer.stop()
         fn()
+
+
+class RunnerGroup:
+    """Several runners seen as one (the slice views' one per view)."""
+
+    def __init__(self, runners: dict[str, Runner]) -> None:
+        self._runners = runners
+
+    @property
+    def busy(self) -> bool:
+        """True while any of them runs."""
+        return any(r.busy for r in self._runners.values())
+
+    def cancel(self) -> None:
+        """Drop every running job."""
+        for r in self._runners.values():
+            r.cancel()

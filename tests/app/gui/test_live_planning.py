@@ -24,10 +24,9 @@ from scipy.ndimage import map_coordinates
 
 from ctdrill.app.gui import slice_grid
 from ctdrill.app.gui.api import open_window
-from ctdrill.app.gui.implant_drag import dragged_plan
+from ctdrill.app.gui.implant_drag import dragged_plan, site_lps
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.results import compute_path_view
-from ctdrill.app.gui.slice_grid import site_lps
 from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.types import load_plan_set
 from ctdrill.imaging.sampling.arch import ArchCurve
