@@ -223,12 +223,6 @@ def unique_name(plans: Sequence[Plan], stem: str = "implant") -> str:
     return f"{stem} {n}"
 
 
-def site_of(plan: Plan) -> int | None:
-    """The implant site of ``plan`` (its FDI tooth number, plan key ``site``), or None."""
-    site = getattr(plan, "site", None)
-    return None if site is None or isinstance(site, bool) else int(site)
-
-
 def trajectory_name(plans: Sequence[Plan], site: int | None = None) -> str:
     """The name a new trajectory gets: its site (FDI number, ``36``) when given and not
     taken, else :func:`unique_name` (``implant 1``, ``implant 2``, ...)."""
@@ -281,9 +275,8 @@ def new_trajectory(
         entry_lps=base.entry_lps + shift,
         target_lps=base.target_lps + shift,
         name=unique_name(plans),
+        site=None,
     )
-    if site_of(new) is not None:
-        new = replace(new, site=None)  # type: ignore[call-arg]
     return new, where
 
 

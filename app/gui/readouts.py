@@ -13,7 +13,14 @@ in words by the cross-section view (:func:`readout_text`).
   :mod:`ctdrill.imaging.misch`) to the platform (the apex without an implant), along the
   axis: positive below the crest (subcrestal), negative when the implant stands out above it.
 - **Distance to the canal and thinnest wall**: :func:`implant_safety`, the one place these
-  come from.
+  come from: the implant body's own clearance to the landmark with the least slack
+  (:func:`~ctdrill.imaging.plan.implant_safety.implant_clearance`; without an implant the
+  final drill's at the planned depth) and its bone walls
+  (:func:`~ctdrill.imaging.sampling.walls.plan_bone_walls`: the thinnest wall, buccal and
+  lingual). While the implant is dragged the walls are read on a coarser grid
+  (:data:`LIVE_WALLS`: 24 directions, 1 mm apart along the body, about a sixth of the cost;
+  never thinner than the fine grid's, said with "~"); the release reads them on the owner's
+  grid.
 """
 
 from __future__ import annotations
@@ -25,10 +32,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ctdrill.imaging import CTVolume
+from ctdrill.imaging.plan.implant_safety import implant_clearance
 from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.arch import ArchCurve
 from ctdrill.imaging.sampling.surface import first_bone_crossing_mm
+from ctdrill.imaging.sampling.walls import BoneWalls, plan_bone_walls
 
 if TYPE_CHECKING:
     from ctdrill.app.gui.results import PathView
@@ -36,6 +45,8 @@ if TYPE_CHECKING:
 #: How far above the entry the crest is looked for along the axis, mm (a platform planned
 #: above the entry still finds the crest).
 CREST_SEARCH_ABOVE_MM = 15.0
+#: The bone walls' grid while the implant is dragged (``plan_bone_walls`` options).
+LIVE_WALLS: dict[str, float] = {"n_angles": 24, "depth_step_mm": 1.0}
 
 
 @dataclass(frozen=True)
@@ -49,9 +60,12 @@ class ImplantReadout:
         without an arch, or beyond its ends).
     crest_depth_mm : the platform (or apex) below the crest along the axis, mm.
     crest_of : ``platform`` or ``apex``.
-    canal_mm : clearance to the nearest canal (or landmark), mm; ``canal_name`` its name;
-        ``canal_of`` what was measured (``implant body`` or ``drill at its stop``).
-    wall_mm : the thinnest bone wall around the implant, mm; ``wall_note`` why not known.
+    canal_mm : clearance to the binding landmark (a canal, usually), mm; ``canal_name`` its
+        name; ``canal_of`` what was measured (``implant body`` or ``drill at the planned
+        depth``).
+    wall_mm : the thinnest bone wall around the implant, mm (None: not known, ``wall_note``
+        says why); ``buccal_mm``, ``lingual_mm`` each side's; ``wall_coarse``: read on the
+        drag's coarser grid.
     """
 
     tilt_deg: float
@@ -64,6 +78,9 @@ class ImplantReadout:
     canal_of: str = ""
     wall_mm: float | None = None
     wall_note: str = ""
+    buccal_mm: float | None = None
+    lingual_mm: float | None = None
+    wall_coarse: bool = False
 
 
 def angulation_deg(
@@ -120,31 +137,39 @@ def crest_depth_mm(volume: CTVolume, plan: Plan) -> tuple[float | None, str]:
 
 
 def implant_safety(
-    volume: CTVolume, plan: Plan, view: PathView | None
-) -> tuple[tuple[float, str, str] | None, tuple[float | None, str]]:
-    """The implant's distance to the canal and its thinnest bone wall: the one hook.
+    volume: CTVolume, plan: Plan, view: PathView | None, *, live: bool = False
+) -> tuple[tuple[float, str, str] | None, BoneWalls | None]:
+    """The implant's distance to the landmarks and its bone walls: the one hook.
 
-    Returns ``((clearance_mm, landmark name, what was measured) | None, (wall_mm | None,
-    note))``. The implant body's own clearance and bone walls come with the implant-safety
-    work (``implant_clearance_mm``, ``bone_walls``); until this function calls them it gives
-    what the path result holds: the final drill's clearance at the planned depth (where the
-    implant's apex sits) to each landmark, the nearest named, and no wall.
+    Returns ``((clearance_mm, landmark name, what was measured) | None, walls | None)``: the
+    implant body's clearance to the landmark with the least slack (without an implant, the
+    final drill's clearance at the planned depth from the path result ``view``), and
+    :func:`~ctdrill.imaging.sampling.walls.plan_bone_walls` (None without an implant), on the
+    coarser :data:`LIVE_WALLS` grid when ``live``.
     """
-    del volume  # the bone walls will be read from it
-    canal = None
     result = None if view is None or view.plan is not plan else view.result
-    if result is not None and result.clearance_mm.size:
+    landmarks = plan.landmarks if result is None else result.landmarks  # masks on the grid
+    canal = None
+    body = implant_clearance(plan, landmarks)
+    if body is not None:
+        canal = (body.binding_clearance_mm, body.names[body.binding], "implant body")
+    elif result is not None and result.clearance_mm.size:
         at_plan = np.asarray(result.clearance_mm, dtype=np.float64)[-1]
         k = int(np.argmin(at_plan))
         canal = (float(at_plan[k]), result.landmarks[k].name, "drill at the planned depth")
-    return canal, (None, "not computed yet")
+    walls = plan_bone_walls(volume, plan, **(LIVE_WALLS if live else {}))
+    return canal, walls
 
 
-def implant_readout(volume: CTVolume, plan: Plan, view: PathView | None = None) -> ImplantReadout:
-    """Every figure of the readout for ``plan`` on ``volume`` (``view``: its path result)."""
+def implant_readout(
+    volume: CTVolume, plan: Plan, view: PathView | None = None, *, live: bool = False
+) -> ImplantReadout:
+    """Every figure of the readout for ``plan`` on ``volume`` (``view``: its path result;
+    ``live``: during a drag, :func:`implant_safety`)."""
     tilt, bl, md = angulation_deg(plan, plan.arch_lps)
     crest, of = crest_depth_mm(volume, plan)
-    canal, (wall, note) = implant_safety(volume, plan, view)
+    canal, walls = implant_safety(volume, plan, view, live=live)
+    note = "no implant" if walls is None else "the CT ends before bone does"
     return ImplantReadout(
         tilt_deg=tilt,
         buccolingual_deg=bl,
@@ -154,14 +179,18 @@ def implant_readout(volume: CTVolume, plan: Plan, view: PathView | None = None) 
         canal_mm=None if canal is None else canal[0],
         canal_name="" if canal is None else canal[1],
         canal_of="" if canal is None else canal[2],
-        wall_mm=wall,
+        wall_mm=None if walls is None else walls.min_mm,
         wall_note=note,
+        buccal_mm=None if walls is None else walls.buccal_mm,
+        lingual_mm=None if walls is None else walls.lingual_mm,
+        wall_coarse=live,
     )
 
 
 def readout_text(r: ImplantReadout) -> str:
     """The readout in one line (``tilt 12.0° (B 8.0°, M 9.0°) · platform 0.8 mm below the
-    crest · canal 3.40 mm ('left mandibular canal', drill at its stop) · thinnest wall -``)."""
+    crest · canal 3.40 mm ('left mandibular canal', implant body) · thinnest wall 1.20 mm
+    (B 1.20, Li 2.10)``; ``~`` marks walls read on the drag's coarser grid)."""
     parts = [f"tilt {r.tilt_deg:.1f}°"]
     if r.buccolingual_deg is not None and r.mesiodistal_deg is not None:
         bl = "B" if r.buccolingual_deg >= 0 else "Li"
@@ -177,5 +206,12 @@ def readout_text(r: ImplantReadout) -> str:
         parts.append("canal: none traced")
     else:
         parts.append(f"canal {r.canal_mm:.2f} mm ({r.canal_name!r}, {r.canal_of})")
-    parts.append("thinnest wall -" if r.wall_mm is None else f"thinnest wall {r.wall_mm:.2f} mm")
+    if r.wall_mm is None:
+        parts.append(f"thinnest wall: unknown ({r.wall_note})")
+    else:
+        about = "~" if r.wall_coarse else ""
+        wall = f"thinnest wall {about}{r.wall_mm:.2f} mm"
+        if r.buccal_mm is not None and r.lingual_mm is not None:
+            wall += f" (B {about}{r.buccal_mm:.2f}, Li {about}{r.lingual_mm:.2f})"
+        parts.append(wall)
     return " · ".join(parts)

@@ -107,6 +107,7 @@ def compute_path_view(
     hu: HuUncertainty | None = None,
     *,
     plan_set: Sequence[Plan] = (),
+    live: bool = False,
 ) -> PathView:
     """Plan the path of ``plan`` through ``volume`` (the pipeline the CLI uses) for display;
     ``hu`` enters the force band. ``plan_set`` (every trajectory of the document, ``plan``
@@ -115,7 +116,9 @@ def compute_path_view(
 
     For a drill sequence the window shows and rehearses the **final** drill, cutting around
     the holes the drills before it leave at their stop depths (the export's last folder,
-    :mod:`ctdrill.app.sequence`); ``ctdrill rehearse`` runs every drill."""
+    :mod:`ctdrill.app.sequence`); ``ctdrill rehearse`` runs every drill. The implant's readout
+    (:mod:`ctdrill.app.gui.readouts`) comes with it, its walls on the drag's grid when
+    ``live``."""
     # ``plan`` with the set's warnings; the view below stays the document's own ``plan``
     own = next(
         (w for p, w in zip(plan_set, with_set_warnings(plan_set), strict=True) if p is plan), plan
@@ -125,7 +128,7 @@ def compute_path_view(
         view = path_view(plan, plan_sequence(volume, own, cal).final, hu)
     else:
         view = path_view(plan, plan_path(volume, own, cal), hu)
-    return replace(view, readout=implant_readout(volume, plan, view))
+    return replace(view, readout=implant_readout(volume, plan, view, live=live))
 
 
 def drill_note(result: PathResult) -> str:

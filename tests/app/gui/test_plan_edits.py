@@ -18,6 +18,7 @@ from ctdrill.app.gui.readouts import (
     ImplantReadout,
     angulation_deg,
     crest_depth_mm,
+    implant_readout,
     nearest_arc_mm,
     readout_text,
 )
@@ -195,10 +196,12 @@ def test_angulation_in_the_arch_frame() -> None:
     assert nearest_arc_mm(arch, np.array([31.0, 20.0, 5.0])) == pytest.approx(80.0)
 
 
-def test_the_platform_below_the_crest_along_the_axis() -> None:
-    # bone (800 HU) below z = 0, air above: the crest is at z = 0 on a vertical axis
+def test_the_platform_below_the_crest_and_the_walls_around_the_implant() -> None:
+    # bone (800 HU) below z = 0 and within |x| <= 3 mm, air elsewhere
     z = np.arange(-20.0, 20.01, 0.5)
-    hu = np.where(z[:, None, None] < 0.0, 800.0, -1000.0) * np.ones((z.size, 20, 20))
+    x = -5.0 + 0.5 * np.arange(20)
+    bone = (z[:, None, None] < 0.0) & (np.abs(x)[None, None, :] <= 3.0)
+    hu = np.where(bone, 800.0, -1000.0) * np.ones((z.size, 20, 20))
     affine = np.diag([0.5, 0.5, 0.5, 1.0])
     affine[:3, 3] = [-5.0, -5.0, -20.0]
     volume = CTVolume(
@@ -206,12 +209,17 @@ def test_the_platform_below_the_crest_along_the_axis() -> None:
     )
     p = plan(entry_lps=np.array([0.0, 0.0, 10.0]), target_lps=np.array([0.0, 0.0, -12.0]))
     crest, of = crest_depth_mm(volume, p)
-    edge = -0.5 + 0.5 * (800.0 - 150.0) / 1800.0  # 150 HU between -0.5 (bone) and 0 (air)
-    assert of == "apex" and crest == pytest.approx(12.0 + edge, abs=1e-5)
-    with_implant = plan(
-        entry_lps=p.entry_lps, target_lps=p.target_lps, implant=IMPLANT
-    )  # platform at z = -2: 2 mm below the crest
-    crest, of = crest_depth_mm(volume, with_implant)
-    assert of == "platform" and crest == pytest.approx(2.0 + edge, abs=1e-5)
+    edge = 0.5 * (800.0 - 150.0) / 1800.0  # 150 HU that far from a bone voxel toward air
+    assert of == "apex" and crest == pytest.approx(12.0 - 0.5 + edge, abs=1e-5)
+    with_implant = plan(entry_lps=p.entry_lps, target_lps=p.target_lps, implant=IMPLANT)
+    crest, of = crest_depth_mm(volume, with_implant)  # platform at z = -2
+    assert of == "platform" and crest == pytest.approx(2.0 - 0.5 + edge, abs=1e-5)
+    # the wall along +-x: from the body (radius 2) to the bone's edge at x = 3 + edge
+    for live in (False, True):
+        r = implant_readout(volume, with_implant, live=live)
+        assert r.wall_mm == pytest.approx(1.0 + edge, abs=1e-3) and r.wall_coarse == live
+        assert r.canal_mm is None and r.buccal_mm is None  # no landmark, no arch
+    text = readout_text(implant_readout(volume, with_implant, live=True))
+    assert "thinnest wall ~1.18 mm" in text and "canal: none traced" in text
     text = readout_text(ImplantReadout(tilt_deg=0.0, crest_depth_mm=-1.5, crest_of="platform"))
-    assert "platform 1.5 mm above the crest" in text and "canal: none traced" in text
+    assert "platform 1.5 mm above the crest" in text
