@@ -44,6 +44,7 @@ from ctdrill.app.gui.reformat_canvas import ReformatCanvas, ReformatTools, SlabC
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.workers import Runner
 from ctdrill.app.reformat.draw import draw_reformat
+from ctdrill.app.reformat.region import PANORAMA_HEIGHT_MM, arch_region
 from ctdrill.imaging.sampling.reformat import Reformat
 
 __all__ = ["PanoramaView", "ReformatCanvas"]
@@ -66,7 +67,7 @@ class PanoramaView(QWidget):
         self.height_box = QComboBox()
         self.height_box.addItems(list(HEIGHTS))
         self.height_box.setToolTip(
-            f"rows of the panorama: the arch region ({reformats.PANORAMA_HEIGHT_MM:g} mm "
+            f"rows of the panorama: the arch region ({PANORAMA_HEIGHT_MM:g} mm "
             "around the jaw) or the scan's whole height"
         )
         self.height_box.currentIndexChanged.connect(lambda _i: self.refresh())
@@ -165,7 +166,7 @@ class PanoramaView(QWidget):
             return
         rows: tuple[float | None, float | None] = (None, None)
         if self.height_box.currentIndex() == 0:
-            rows = reformats.arch_region(doc.volume, arch, doc.plans)
+            rows = arch_region(doc.volume, arch, doc.plans)
         pano = reformats.PanoramaRequest(
             doc.volume, arch, self.pano_controls.slab_mm, self.pano_controls.slab_mode, *rows
         )

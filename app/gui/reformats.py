@@ -25,7 +25,6 @@ from ctdrill.imaging.sampling.reformat import (
     cross_section,
     panorama,
 )
-from ctdrill.imaging.sampling.reformat_grid import volume_z_range_mm
 
 #: What the views say when the plan has no dental arch.
 NO_ARCH = (
@@ -45,12 +44,6 @@ CROSS_SIZE_MM = 40.0
 #: Scroll steps along the arch, mm: one wheel notch or arrow key, and with Shift / Page keys.
 STEP_MM = 1.0
 BIG_STEP_MM = 5.0
-#: The panorama's default height, mm: the arch region (a jaw's bone, its implants and canal,
-#: the teeth above), not the scan's whole height.
-PANORAMA_HEIGHT_MM = 60.0
-#: How far the default panorama's middle lies from the arch toward the implants' apices
-#: (into the jaw's bone), mm: it shows 45 mm of bone side and 15 mm of the teeth side.
-PANORAMA_SHIFT_MM = 15.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,24 +78,6 @@ class PanoramaRequest:
             height_mm=self.height_mm,
             centre_z_mm=self.centre_z_mm,
         )
-
-
-def arch_region(
-    volume: CTVolume, arch_lps: np.ndarray, plans: tuple[Plan, ...]
-) -> tuple[float | None, float | None]:
-    """The panorama's default rows, (height, middle z) in mm: :data:`PANORAMA_HEIGHT_MM` with
-    its middle :data:`PANORAMA_SHIFT_MM` from the arch's mean height toward the implants'
-    apices (down without trajectories: a mandible), inside the volume's height; (None, None)
-    when the volume is not taller (its whole height then)."""
-    z_lo, z_hi = volume_z_range_mm(volume)
-    if z_hi - z_lo <= PANORAMA_HEIGHT_MM:
-        return None, None
-    down = sum(float(p.target_lps[2] - p.entry_lps[2]) for p in plans)
-    sign = 1.0 if down > 0.0 else -1.0
-    half = 0.5 * PANORAMA_HEIGHT_MM
-    mid = float(np.mean(np.asarray(arch_lps)[:, 2])) + sign * PANORAMA_SHIFT_MM
-    mid = float(np.clip(mid, z_lo + half, z_hi - half))
-    return PANORAMA_HEIGHT_MM, mid
 
 
 @dataclass(frozen=True, eq=False)

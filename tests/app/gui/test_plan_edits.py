@@ -22,6 +22,7 @@ from ctdrill.app.gui.readouts import (
     nearest_arc_mm,
     readout_text,
 )
+from ctdrill.app.reformat.region import PANORAMA_HEIGHT_MM, PANORAMA_SHIFT_MM, arch_region
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.landmarks import CanalLandmark
@@ -223,3 +224,18 @@ def test_the_platform_below_the_crest_and_the_walls_around_the_implant() -> None
     assert "thinnest wall ~1.18 mm" in text and "canal: none traced" in text
     text = readout_text(ImplantReadout(tilt_deg=0.0, crest_depth_mm=-1.5, crest_of="platform"))
     assert "platform 1.5 mm above the crest" in text
+
+
+def test_the_panorama_shows_the_arch_region() -> None:
+    affine = np.diag([1.0, 1.0, 1.0, 1.0])
+    affine[:3, 3] = [0.0, 0.0, 600.0]
+    tall = CTVolume(np.zeros((136, 4, 4), np.float32), affine, None, SeriesInfo("1"))  # 135 mm
+    arch = np.array([[0.0, 0.0, 650.0], [3.0, 0.0, 650.0]])
+    down = plan(entry_lps=np.array([0.0, 0, 660]), target_lps=np.array([0.0, 0, 648]))
+    assert arch_region(tall, arch, [down]) == (PANORAMA_HEIGHT_MM, 650.0 - PANORAMA_SHIFT_MM)
+    up = plan(entry_lps=np.array([0.0, 0, 640]), target_lps=np.array([0.0, 0, 652]))
+    assert arch_region(tall, arch, [up]) == (PANORAMA_HEIGHT_MM, 650.0 + PANORAMA_SHIFT_MM)
+    low = arch - np.array([0.0, 0.0, 45.0])  # near the scan's bottom: the window stays inside
+    assert arch_region(tall, low, []) == (PANORAMA_HEIGHT_MM, 600.0 + 0.5 * PANORAMA_HEIGHT_MM)
+    short = CTVolume(np.zeros((50, 4, 4), np.float32), affine, None, SeriesInfo("1"))
+    assert arch_region(short, arch, []) == (None, None)  # not taller: its whole height
