@@ -6,8 +6,11 @@ a worker thread and hands the result to the document on the UI thread.
 
 The path is planned at once after an edit and for every position of a drag: one computation
 at a time, the latest plan next (``Runner.submit_latest``), so a fast drag never queues stale
-work and the plots follow the mouse. :data:`LEGACY_DEBOUNCE_MS` is the older wait after an
-edit, kept for the benchmark that compares the two (``bench/bench_drag.py``).
+work and the plots follow the mouse. Each path result is followed by the implant's readout
+(:func:`ctdrill.app.gui.readouts.implant_readout`, its walls on the coarser grid while a drag
+runs) in a runner of its own, so the plots never wait for it.
+:data:`LEGACY_DEBOUNCE_MS` is the older wait after an edit, kept for the benchmark that
+compares the two (``bench/bench_drag.py``).
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from PySide6.QtCore import QObject, Signal
 
 from ctdrill.app.gui import compute
 from ctdrill.app.gui.document import Document
+from ctdrill.app.gui.readouts import ImplantReadout, implant_readout
 from ctdrill.app.gui.results import PathView, compute_path_view
 from ctdrill.app.gui.workers import Debouncer, Runner
 from ctdrill.app.pipeline import plan_calibration
@@ -55,11 +59,14 @@ class Controller(QObject):
         self.surface_runner = Runner(doc.set_surface, self._fail("surface"), parent=self)
         self.suggest_runner = Runner(self._suggest_done, self._suggest_failed, parent=self)
         self.live_runner = Runner(self._live_done, self._fail("path"), parent=self)
+        self.readout_runner = Runner(self._readout_done, self._fail("path"), parent=self)
         self.debounce = Debouncer(self.recompute, DEBOUNCE_MS, parent=self)
         self._computing: Plan | None = None
         self._live_for: Plan | None = None
         self._suggesting: Plan | None = None
         doc.live.plan_dragged.connect(self._dragged)
+        doc.path_changed.connect(self._read_out)
+        doc.live.path_changed.connect(self._read_out)
         doc.suggestion_requested.connect(self.run_suggest)
         doc.plan_changed.connect(lambda _plan: self.debounce.poke())
         doc.volume_changed.connect(lambda _volume: self.recompute())
@@ -111,11 +118,26 @@ class Controller(QObject):
 
         def job() -> PathView | tuple[Plan, str]:
             try:
-                return compute_path_view(volume, plan, hu, plan_set=others, live=True)
+                return compute_path_view(volume, plan, hu, plan_set=others)
             except ValueError as exc:  # bad input (an axis leaving the scan): said, no curve
                 return plan, str(exc)
 
         self.live_runner.submit_latest(job)
+
+    def _read_out(self, view: PathView | None) -> None:
+        """The readout of the plan a path result is for (after it: the plots come first)."""
+        volume = self.doc.volume
+        if view is None or volume is None:
+            return
+        live = self.doc.live.dragging
+
+        def job() -> tuple[Plan, ImplantReadout]:
+            return view.plan, implant_readout(volume, view.plan, view, live=live)
+
+        self.readout_runner.submit_latest(job)
+
+    def _readout_done(self, result: tuple[Plan, ImplantReadout]) -> None:
+        self.doc.live.set_readout(*result)
 
     def _live_done(self, result: PathView | tuple[Plan, str]) -> None:
         if isinstance(result, PathView):
@@ -169,6 +191,7 @@ class Controller(QObject):
             self.load_runner,
             self.path_runner,
             self.live_runner,
+            self.readout_runner,
             self.surface_runner,
             self.suggest_runner,
         ):

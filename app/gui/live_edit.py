@@ -41,12 +41,15 @@ class LiveEdit(QObject):
     path_changed(view) : the path result of the dragged plan (``path``).
     crosshair_changed(point) : the views are linked at a (3,) LPS point, or None.
     trace_changed() : the trace settings changed.
+    readout_changed(readout) : the current (or dragged) implant's readout
+        (:class:`~ctdrill.app.gui.readouts.ImplantReadout`).
     """
 
     plan_dragged = Signal(object)
     path_changed = Signal(object)
     crosshair_changed = Signal(object)
     trace_changed = Signal()
+    readout_changed = Signal(object)
 
     def __init__(self, doc: Document) -> None:
         super().__init__(doc)
@@ -66,6 +69,9 @@ class LiveEdit(QObject):
         #: radius a new canal gets, mm.
         self.trace_canal = ""
         self.trace_radius_mm = DEFAULT_CANAL_RADIUS_MM
+        #: The latest readout shown and the plan it is for.
+        self.readout: object = None
+        self._readout_for: Plan | None = None
 
     @property
     def dragging(self) -> bool:
@@ -119,6 +125,17 @@ class LiveEdit(QObject):
             self.doc.set_path(live)  # computed while dragging: not computed again
         self.plan_dragged.emit(None)
         return done
+
+    def set_readout(self, plan: Plan, readout: object) -> None:
+        """The readout of ``plan`` arrived: shown when ``plan`` is the current trajectory
+        (no drag) or a plan of the drag newer than the one shown."""
+        if self.plan is None:
+            ok = plan is self.doc.plan
+        else:
+            ok = self._rank(plan) > self._rank(self._readout_for)
+        if ok:
+            self.readout, self._readout_for = readout, plan
+            self.readout_changed.emit(readout)
 
     def set_crosshair(self, point_lps: np.ndarray | None) -> None:
         """Link the views at ``point_lps`` (3,) LPS mm (None: no crosshair)."""

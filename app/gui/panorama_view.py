@@ -39,9 +39,8 @@ from PySide6.QtWidgets import (
 from ctdrill.app.gui import reformats
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.plan_editor import PlanEditor
-from ctdrill.app.gui.readouts import readout_text
+from ctdrill.app.gui.readouts import ImplantReadout, readout_text
 from ctdrill.app.gui.reformat_canvas import ReformatCanvas, ReformatTools, SlabControls
-from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.workers import Runner
 from ctdrill.app.reformat.draw import draw_reformat
 from ctdrill.app.reformat.region import PANORAMA_HEIGHT_MM, arch_region
@@ -130,8 +129,9 @@ class PanoramaView(QWidget):
         doc = ctx.doc
         doc.volume_changed.connect(lambda _v: self.refresh())
         doc.plans_changed.connect(lambda _p: self.refresh())
-        doc.path_changed.connect(self._path)
-        doc.live.path_changed.connect(self._show_readout)
+        doc.path_changed.connect(lambda _v: self._redraw())
+        doc.live.readout_changed.connect(self._show_readout)
+        doc.plan_changed.connect(lambda p: self.readout.setText("") if p is None else None)
         doc.live.crosshair_changed.connect(self.go_to)
         self.pano.show_message(reformats.NO_SERIES)
         self.cross.show_message("")
@@ -248,13 +248,8 @@ class PanoramaView(QWidget):
         self.cross_controls.busy.setText("")
         self._redraw()  # the panorama marks where the cross-section is: both
 
-    def _path(self, view: PathView | None) -> None:
-        self._show_readout(view)
-        self._redraw()
-
-    def _show_readout(self, view: PathView | None) -> None:
+    def _show_readout(self, readout: ImplantReadout | None) -> None:
         """The current (or dragged) implant's figures under the cross-section."""
-        readout = None if view is None else view.readout
         self.readout.setText("" if readout is None else readout_text(readout))
 
     def _failed(self, canvas: ReformatCanvas) -> Any:

@@ -4,13 +4,12 @@ plot curves, per-landmark clearances and the reason rehearsal is blocked, if any
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from ctdrill.app.export_band import path_band
 from ctdrill.app.gui.plots import DepthCurves
-from ctdrill.app.gui.readouts import ImplantReadout, implant_readout
 from ctdrill.app.pipeline import PathResult, plan_calibration, plan_path, with_set_warnings
 from ctdrill.app.sequence import plan_sequence
 from ctdrill.imaging import CTVolume
@@ -26,9 +25,6 @@ class PathView:
     result: PathResult
     curves: DepthCurves
     min_clearance_mm: np.ndarray | None  # (L,) per landmark along the stopped path
-    #: The implant's angulation, crest depth, canal distance and wall (the cross-section's
-    #: readout), when computed with the path.
-    readout: ImplantReadout | None = None
 
 
 def path_view(plan: Plan, result: PathResult, hu: HuUncertainty | None = None) -> PathView:
@@ -107,7 +103,6 @@ def compute_path_view(
     hu: HuUncertainty | None = None,
     *,
     plan_set: Sequence[Plan] = (),
-    live: bool = False,
 ) -> PathView:
     """Plan the path of ``plan`` through ``volume`` (the pipeline the CLI uses) for display;
     ``hu`` enters the force band. ``plan_set`` (every trajectory of the document, ``plan``
@@ -116,19 +111,15 @@ def compute_path_view(
 
     For a drill sequence the window shows and rehearses the **final** drill, cutting around
     the holes the drills before it leave at their stop depths (the export's last folder,
-    :mod:`ctdrill.app.sequence`); ``ctdrill rehearse`` runs every drill. The implant's readout
-    (:mod:`ctdrill.app.gui.readouts`) comes with it, its walls on the drag's grid when
-    ``live``."""
+    :mod:`ctdrill.app.sequence`); ``ctdrill rehearse`` runs every drill."""
     # ``plan`` with the set's warnings; the view below stays the document's own ``plan``
     own = next(
         (w for p, w in zip(plan_set, with_set_warnings(plan_set), strict=True) if p is plan), plan
     )
     cal = plan_calibration(own)
     if len(own.drills) > 1:
-        view = path_view(plan, plan_sequence(volume, own, cal).final, hu)
-    else:
-        view = path_view(plan, plan_path(volume, own, cal), hu)
-    return replace(view, readout=implant_readout(volume, plan, view, live=live))
+        return path_view(plan, plan_sequence(volume, own, cal).final, hu)
+    return path_view(plan, plan_path(volume, own, cal), hu)
 
 
 def drill_note(result: PathResult) -> str:

@@ -191,12 +191,14 @@ def test_a_canal_traced_on_the_panorama_is_saved_where_the_pixels_were(
         )
     assert cross.tools.label is not None and cross.tools.label.endswith("°")  # type: ignore[attr-defined]
     page.tools.buttons["navigate"].click()  # type: ignore[attr-defined]
-    qtbot.waitUntil(
-        lambda: demo.view is not None and demo.ui_steps.pending == 0, timeout=LOAD_TIMEOUT_MS
-    )
     plan = demo.doc.plan
-    assert plan is not None and demo.view is not None and demo.view.readout is not None
+    qtbot.waitUntil(
+        lambda: demo.doc.live.readout is not None and demo.ui_steps.pending == 0,
+        timeout=LOAD_TIMEOUT_MS,
+    )
+    assert plan is not None and demo.doc.live._readout_for is plan
     before = page.readout.text()  # type: ignore[attr-defined]
+    assert "implant body" in before and "thinnest wall" in before
     assert "below the crest" in before or "above the crest" in before
     body = cross.lps_to_pixel(0.5 * (plan.target_lps + plan.entry_lps))  # type: ignore[attr-defined]
     assert body is not None
