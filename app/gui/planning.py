@@ -223,14 +223,6 @@ def unique_name(plans: Sequence[Plan], stem: str = "implant") -> str:
     return f"{stem} {n}"
 
 
-def trajectory_name(plans: Sequence[Plan], site: int | None = None) -> str:
-    """The name a new trajectory gets: its site (FDI number, ``36``) when given and not
-    taken, else :func:`unique_name` (``implant 1``, ``implant 2``, ...)."""
-    if site is not None and str(site) not in {p.name for p in plans}:
-        return str(site)
-    return unique_name(plans)
-
-
 def rename(plans: Sequence[Plan], index: int, name: str) -> Plan:
     """Trajectory ``index`` called ``name`` (stripped; unique among ``plans``, not empty)."""
     name = name.strip()

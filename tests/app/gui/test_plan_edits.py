@@ -4,6 +4,7 @@ sequences, the readouts: closed forms, no Qt."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -161,14 +162,12 @@ def test_distance_and_angle_are_measured_in_the_patient() -> None:
 
 
 # ---------------------------------------------------------------------------- naming, drills
-def test_trajectories_are_named_by_site_else_implant_n() -> None:
+def test_trajectories_placed_or_added_are_named_implant_n() -> None:
     assert planning.unique_name(()) == "implant 1"
     first = planning.place_handle(None, {"entry": np.array([0.0, 0, 10])}, "target", np.zeros(3))
     assert isinstance(first, Plan) and first.name == "implant 1"
-    assert planning.trajectory_name([first], 36) == "36"
-    assert planning.trajectory_name([first, plan(name="36")], 36) == "implant 2"
-    new, _ = planning.new_trajectory([first], 0)
-    assert new.name == "implant 2"
+    new, _ = planning.new_trajectory([replace(first, site=36)], 0)
+    assert new.name == "implant 2" and new.site is None  # a new site, not the copied one
 
 
 def test_the_drill_sequence_is_written_as_diameters() -> None:
