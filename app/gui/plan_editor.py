@@ -28,6 +28,7 @@ class PlanEditor:
         self.ctx = ctx
         self._base: Plan | None = None  # the plan at the drag's press
         self._last: tuple[np.ndarray, Plan] | None = None  # the drag's last point and plan
+        self._drag: object = None  # the drag's grip point (one object for a whole drag)
 
     def connect(self, canvas: MapCanvas) -> None:
         """Route ``canvas``' grip drags, canal edits and link clicks here."""
@@ -53,12 +54,12 @@ class PlanEditor:
             if final and grip in ("entry", "target"):
                 self._place_draft(grip, now_lps)
             return
-        if self._base is None:
-            self._base = doc.plan
-        base = self._base
+        if self._drag is not start_lps:  # a new drag: from the plan as it is now
+            self._drag, self._base, self._last = start_lps, doc.plan, None
+        base = self._base if self._base is not None else doc.plan
         last = self._last
         if final:
-            self._base, self._last = None, None
+            self._drag, self._base, self._last = None, None, None
         try:
             if last is not None and np.array_equal(last[0], now_lps):
                 plan = last[1]

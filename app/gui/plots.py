@@ -71,7 +71,7 @@ class DepthCurves:
 #: so most moves fit the axes already drawn.
 LIVE_HEADROOM = 1.25
 #: Curves need a redraw of the axes when they shrink below this share of an axis' range.
-MIN_FILL = 0.3
+MIN_FILL = 0.15
 
 
 @dataclass(frozen=True)
@@ -115,7 +115,10 @@ def depth_limits(curves: DepthCurves, headroom: float = 1.0) -> DepthLimits:
     hu_hi = max(1600.0, float(np.nanmax(curves.hu)) + 100.0)
     hu_hi += (headroom - 1.0) * (hu_hi - hu_lo)
     f_lo, f_hi = force_limits_n(curves)
-    f_hi = f_lo + (f_hi - f_lo) * headroom
+    span = f_hi - f_lo
+    f_hi = f_lo + span * headroom
+    if f_lo < 0.0:  # a band dipping below 0 N: room below too
+        f_lo -= (headroom - 1.0) * span
     finite = np.isfinite(curves.clearance_mm)
     clear = None
     if finite.any():
