@@ -26,7 +26,7 @@ from matplotlib.figure import Figure
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QKeyEvent, QWheelEvent
 
-from ctdrill.app.gui.map_canvas import MapCanvas
+from ctdrill.app.gui.map_canvas import MapCanvas, modifiers
 from ctdrill.app.gui.sections import revolved_section
 from ctdrill.app.gui.slice_nav import orientation_letters
 from ctdrill.app.gui.slice_overlays import SLAB_MM, draw_scene, plane_of
@@ -112,7 +112,6 @@ class SliceCanvas(MapCanvas):
         self.image: SliceImage | None = None
         self._im: Any = None
         self.scene = OverlayScene()
-        self._handle_artists: dict[str, Any] = {}
         self._right: tuple[float, float, bool, bool] | None = None  # x, y, shift, dragging
         #: Field of view (mm, square) and its centre (in-plane mm); None: the whole image.
         self.fov_mm: float | None = None
@@ -240,12 +239,11 @@ class SliceCanvas(MapCanvas):
         self.scene = scene
         for artist in [*self.ax.lines, *self.ax.patches, *self.ax.collections, *self.ax.texts]:
             artist.remove()
-        self._handle_artists = {}
         self.grips = dict(scene.handles)
         self.grip_plan = scene.plan
         self.canals = list(scene.canals)
         if self.image is not None:
-            self._handle_artists = draw_scene(self.ax, self.image, scene, arch=self.view == "axial")
+            draw_scene(self.ax, self.image, scene, arch=self.view == "axial")
             self.tools.draw()
             self.draw_crosshair()
         self.draw_idle()
@@ -312,10 +310,7 @@ class SliceCanvas(MapCanvas):
 
     def right_press(self, event: MouseEvent, uv: np.ndarray) -> None:
         """A right press: a window/level drag or, released in place, a click."""
-        shift = bool(
-            event.guiEvent is not None
-            and event.guiEvent.modifiers() & Qt.KeyboardModifier.ShiftModifier
-        )
+        shift, _ctrl = modifiers(event)
         self._right = (float(event.x), float(event.y), shift, False)
 
     def motion_hook(self, event: MouseEvent, uv: np.ndarray | None) -> bool:
