@@ -8,7 +8,8 @@ The path is planned at once after an edit and for every position of a drag: one 
 at a time, the latest plan next (``Runner.submit_latest``), so a fast drag never queues stale
 work and the plots follow the mouse. Each path result is followed by the implant's readout
 (:func:`ctdrill.app.gui.readouts.implant_readout`, its walls on the coarser grid while a drag
-runs) in a runner of its own, so the plots never wait for it.
+runs) in a runner of its own, so the plots never wait for it; while a drag outpaces the
+computation the readout is read only when no newer path is computing.
 :data:`LEGACY_DEBOUNCE_MS` is the older wait after an edit, kept for the benchmark that
 compares the two (``bench/bench_drag.py``).
 """
@@ -130,6 +131,8 @@ class Controller(QObject):
         if view is None or volume is None:
             return
         live = self.doc.live.dragging
+        if live and self.live_runner.busy:
+            return  # a newer plan's path is computing: the readout waits for it, not the plots
 
         def job() -> tuple[Plan, ImplantReadout]:
             return view.plan, implant_readout(volume, view.plan, view, live=live)

@@ -8,10 +8,10 @@ in words by the cross-section view (:func:`readout_text`).
   total tilt, and with a dental arch its two components in the arch's frame at the implant
   site: bucco-lingual (+: the platform leans buccally, away from the arch's centre) and
   mesio-distal (+: the platform leans mesially, toward the arch's middle).
-- **Depth below the crest**: where the axis first enters bone
-  (:func:`~ctdrill.imaging.sampling.surface.first_bone_crossing_mm`, the bone threshold of
-  :mod:`ctdrill.imaging.misch`) to the platform (the apex without an implant), along the
-  axis: positive below the crest (subcrestal), negative when the implant stands out above it.
+- **Depth below the crest**: where the axis enters bone nearest the platform
+  (:func:`crest_depth_mm`; the bone threshold of :mod:`ctdrill.imaging.misch`) to the platform
+  (the apex without an implant), along the axis: positive below the crest (subcrestal),
+  negative when the implant stands out above it.
 - **Distance to the canal and thinnest wall**: :func:`implant_safety`, the one place these
   come from: the implant body's own clearance to the landmark with the least slack
   (:func:`~ctdrill.imaging.plan.implant_safety.implant_clearance`; without an implant the
@@ -32,11 +32,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ctdrill.imaging import CTVolume
+from ctdrill.imaging.misch import is_bone
 from ctdrill.imaging.plan.implant_safety import implant_clearance
 from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.arch import ArchCurve
-from ctdrill.imaging.sampling.surface import first_bone_crossing_mm
+from ctdrill.imaging.sampling.surface import SURFACE_STEP_MM, first_bone_crossing_mm
 from ctdrill.imaging.sampling.walls import BoneWalls, plan_bone_walls
 
 if TYPE_CHECKING:
@@ -120,19 +121,31 @@ def nearest_arc_mm(arch_lps: np.ndarray, point_lps: np.ndarray) -> float:
 
 def crest_depth_mm(volume: CTVolume, plan: Plan) -> tuple[float | None, str]:
     """The platform (or, without an implant, the apex) below the crest along the axis, mm,
-    and which it is; None when the axis meets no bone surface."""
-    stop = plan.planned_depth_mm
-    t = float("nan")
-    for start in (-CREST_SEARCH_ABOVE_MM, 0.0):  # from the entry when above it is bone (teeth)
-        t = float(
-            first_bone_crossing_mm(
-                volume, plan.entry_lps[None], plan.direction[None], start_mm=start, stop_mm=stop
-            )[0]
-        )
-        if np.isfinite(t):
-            break
+    and which it is; None when the axis meets no bone surface.
+
+    The crest is where the axis enters bone (``HU`` from below to at least the bone threshold,
+    going down the axis) nearest the platform: the jaw's crest, not an opposing tooth above it
+    nor a canal's far wall below. The axis is scanned every
+    :data:`~ctdrill.imaging.sampling.surface.SURFACE_STEP_MM` from
+    :data:`CREST_SEARCH_ABOVE_MM` above the entry to the apex; the crossing found is located
+    exactly by :func:`~ctdrill.imaging.sampling.surface.first_bone_crossing_mm`."""
     place = implant_placement(plan)
+    stop = plan.planned_depth_mm
     of, depth = ("apex", stop) if place is None else ("platform", place.platform_depth_mm)
+    ts = np.arange(-CREST_SEARCH_ABOVE_MM, stop + 1e-9, SURFACE_STEP_MM)
+    hu = volume.sample(plan.entry_lps + ts[:, None] * plan.direction, outside_hu=np.nan)
+    bone = is_bone(hu)
+    ups = np.flatnonzero(~bone[:-1] & bone[1:] & np.isfinite(hu[:-1]))
+    if ups.size == 0:
+        return None, of
+    k = int(ups[np.argmin(np.abs(ts[ups] - depth))])
+    t = first_bone_crossing_mm(
+        volume,
+        plan.entry_lps[None],
+        plan.direction[None],
+        start_mm=float(ts[k]),
+        stop_mm=float(ts[k + 1]),
+    )[0]
     return (None if not np.isfinite(t) else float(depth - t)), of
 
 
