@@ -38,11 +38,19 @@ DEMO = ROOT / "assets" / "demo"
 FIGURE_NAME = "gui_open.png"
 
 
-def synthetic_case(out_dir: Path, shape_kji: tuple[int, int, int], spacing_mm: float) -> Path:
+def synthetic_case(
+    out_dir: Path,
+    shape_kji: tuple[int, int, int],
+    spacing_mm: float,
+    *,
+    canal_below_top_mm: float | None = None,
+) -> Path:
     """Write a bone-bar series and its plan into ``out_dir``; returns the plan path.
 
     The bar runs along x (patient left), elliptical in (y, z): cortical 1500 HU (1.5 mm),
-    trabecular 700 HU, a canal of radius 1.2 mm (30 HU) 4 mm below the bar's centre.
+    trabecular 700 HU, a canal of radius 1.2 mm (30 HU) 4 mm below the bar's centre, or
+    ``canal_below_top_mm`` below its top (a dental depth). The drill enters 1 mm above the
+    top and ends 2.5 mm above the canal's centre.
     """
     nk, nj, ni = shape_kji
     half = np.array([ni, nj, nk]) * spacing_mm / 2.0
@@ -58,7 +66,7 @@ def synthetic_case(out_dir: Path, shape_kji: tuple[int, int, int], spacing_mm: f
     plane = np.full((nk, nj), -1000, dtype=np.int16)
     plane[r <= 1.0] = 1500
     plane[inner <= 1.0] = 700
-    canal_z = -4.0
+    canal_z = -4.0 if canal_below_top_mm is None else semi_z - canal_below_top_mm
     plane[np.hypot(yy, zz - canal_z) <= 1.2] = 30
     hu = np.broadcast_to(plane[:, :, None], (nk, nj, ni))
     write_series(out_dir / "ct", np.ascontiguousarray(hu), affine)

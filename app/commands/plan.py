@@ -18,8 +18,9 @@ def register(subparsers: Any) -> None:
         help="merge plan files and convert between ctdrill-plan/1 and Slicer markups",
         description=(
             "Read plan files (ctdrill-plan/1 JSON, 3D Slicer .mrk.json, segmentations, or a "
-            "folder of them), merge them into one plan and write it to OUT: ctdrill-plan/1 "
-            "when OUT ends in .json, 3D Slicer markups when it ends in .mrk.json. Every "
+            "folder of them), merge them into one plan and write it to OUT: 3D Slicer markups "
+            "when OUT ends in .mrk.json, else ctdrill-plan/1 (OUT.json when OUT has no .json "
+            "ending: OUT may be a stem). Every "
             "trajectory (Line) of the inputs is written: one in ctdrill-plan/1's single form, "
             "several in its trajectories list (one Line each in markups), with the shared "
             "landmarks and dental arch."
@@ -37,7 +38,8 @@ def register(subparsers: Any) -> None:
         type=Path,
         required=True,
         metavar="OUT",
-        help="the plan to write: NAME.json (ctdrill-plan/1) or NAME.mrk.json (Slicer markups)",
+        help="the plan to write: NAME.json or NAME (ctdrill-plan/1, written as NAME.json), "
+        "NAME.mrk.json or NAME.mrk (3D Slicer markups, written as NAME.mrk.json)",
     )
     p.add_argument(
         "--implant",
@@ -49,6 +51,23 @@ def register(subparsers: Any) -> None:
     p.set_defaults(func=run)
 
 
+def plan_out_path(out: Path) -> Path:
+    """The file ``--out`` names: itself when it ends in ``.json``; a stem (no suffix, or
+    ``.mrk``) gets ``.json`` (``NAME.mrk`` becomes the Slicer markups ``NAME.mrk.json``); any
+    other suffix is refused."""
+    from ctdrill.app.errors import AppInputError
+
+    name = out.name.lower()
+    if name.endswith(".json"):
+        return out
+    if out.suffix == "" or name.endswith(".mrk"):
+        return out.with_name(out.name + ".json")
+    raise AppInputError(
+        f"--out {out}: name a .json (ctdrill-plan/1) or .mrk.json (Slicer markups) file, or a "
+        "stem without a suffix (written as STEM.json)"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     """Merge, convert, write; print what was written and the plan's warnings (those the plan
     alone shows: ``implant_above_entry``, ``implants_too_close`` among them)."""
@@ -57,11 +76,9 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.imaging.plan.types import plan_warnings
     from ctdrill.imaging.plan.write import write_plans
 
-    out: Path = args.out
-    if not out.name.lower().endswith(".json"):
-        raise AppInputError(
-            f"--out {out}: name a .json (ctdrill-plan/1) or .mrk.json (Slicer markups) file"
-        )
+    out = plan_out_path(args.out)
+    if out.is_dir():
+        raise AppInputError(f"--out {args.out}: {out} is a folder; name the plan file")
     if not out.resolve().parent.is_dir():
         raise AppInputError(f"--out {out}: folder {out.resolve().parent} does not exist")
     plans = load_plan_set(args.plans)

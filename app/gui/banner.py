@@ -1,5 +1,6 @@
 """The banner over the views: shown when the planned path breaks a landmark's margin
-(warning ``plan_violates_margin``) or when no path could be computed (clearance unknown)."""
+(warning ``plan_violates_margin``) or when no path could be computed (clearance unknown); while
+a trajectory is dragged it follows the dragged plan's path."""
 
 from __future__ import annotations
 
@@ -42,6 +43,7 @@ class Banner(QLabel):
         self.setWordWrap(True)
         self.hide()
         ctx.doc.path_changed.connect(self._path)
+        ctx.doc.live.path_changed.connect(self._live_path)
         ctx.doc.plan_changed.connect(lambda plan: self.show_banner(None) if plan is None else None)
 
     def _path(self, view: PathView | None) -> None:
@@ -50,12 +52,22 @@ class Banner(QLabel):
             return  # a plan edit: the banner holds until the new result
         self.show_banner(banner_text(view, doc.path_error))
 
+    def _live_path(self, view: PathView | None) -> None:
+        live = self.ctx.doc.live
+        if view is not None or live.error:
+            self.show_banner(banner_text(view, live.error))
+
     def show_banner(self, content: tuple[str, str] | None) -> None:
-        """Show ``(text, kind)`` or hide the banner."""
-        self.kind = "" if content is None else content[1]
+        """Show ``(text, kind)`` or hide the banner (the style set only when the kind
+        changes: restyling costs more than the text, and a drag updates it often)."""
+        kind = "" if content is None else content[1]
         if content is None:
+            self.kind = kind
             self.hide()
             return
-        self.setText(content[0])
-        self.setStyleSheet(VIOLATION_STYLE if content[1] == "violation" else UNKNOWN_STYLE)
+        if self.text() != content[0]:
+            self.setText(content[0])
+        if kind != self.kind or not self.styleSheet():
+            self.setStyleSheet(VIOLATION_STYLE if kind == "violation" else UNKNOWN_STYLE)
+        self.kind = kind
         self.show()

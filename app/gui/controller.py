@@ -1,8 +1,17 @@
 """The document's background work: loading a series (with its bone surface), re-contouring the
-surface, planning the path whenever the plan changes and searching nearby axes when asked
-(:func:`ctdrill.app.search.suggest.suggest`). Each runs a headless function
-(:mod:`ctdrill.app.gui.compute`, :func:`ctdrill.app.gui.results.compute_path_view`) in a worker
-thread, latest wins, and hands the result to the document on the UI thread.
+surface, planning the path whenever the plan changes (and while it is dragged) and searching
+nearby axes when asked (:func:`ctdrill.app.search.suggest.suggest`). Each runs a headless
+function (:mod:`ctdrill.app.gui.compute`, :func:`ctdrill.app.gui.results.compute_path_view`) in
+a worker thread and hands the result to the document on the UI thread.
+
+The path is planned at once after an edit and for every position of a drag: one computation
+at a time, the latest plan next (``Runner.submit_latest``), so a fast drag never queues stale
+work and the plots follow the mouse. Each path result is followed by the implant's readout
+(:func:`ctdrill.app.gui.readouts.implant_readout`, its walls on the coarser grid while a drag
+runs) in a runner of its own, so the plots never wait for it; while a drag outpaces the
+computation the readout is read only when no newer path is computing.
+:data:`LEGACY_DEBOUNCE_MS` is the older wait after an edit, kept for the benchmark that
+compares the two (``bench/bench_drag.py``).
 """
 
 from __future__ import annotations
@@ -13,7 +22,8 @@ from PySide6.QtCore import QObject, Signal
 
 from ctdrill.app.gui import compute
 from ctdrill.app.gui.document import Document
-from ctdrill.app.gui.results import compute_path_view
+from ctdrill.app.gui.readouts import ImplantReadout, implant_readout
+from ctdrill.app.gui.results import PathView, compute_path_view
 from ctdrill.app.gui.workers import Debouncer, Runner
 from ctdrill.app.search.candidates import SearchSpace
 from ctdrill.app.search.suggest import Suggestion, suggest
@@ -21,8 +31,11 @@ from ctdrill.engine.plans import plan_calibration
 from ctdrill.imaging.display import BONE_SURFACE_HU
 from ctdrill.imaging.plan.types import Plan
 
-#: Delay between the last plan edit and the recomputation, ms.
-DEBOUNCE_MS = 150
+#: Delay between the last plan edit and the recomputation, ms: none (a computation at a
+#: time, latest plan next, replaces the wait).
+DEBOUNCE_MS = 0
+#: The wait the window used before live editing (the benchmark's older chain), ms.
+LEGACY_DEBOUNCE_MS = 150
 
 
 class Controller(QObject):
@@ -47,9 +60,15 @@ class Controller(QObject):
         self.path_runner = Runner(self._path_done, self._path_failed, parent=self)
         self.surface_runner = Runner(doc.set_surface, self._fail("surface"), parent=self)
         self.suggest_runner = Runner(self._suggest_done, self._suggest_failed, parent=self)
+        self.live_runner = Runner(self._live_done, self._fail("path"), parent=self)
+        self.readout_runner = Runner(self._readout_done, self._fail("path"), parent=self)
         self.debounce = Debouncer(self.recompute, DEBOUNCE_MS, parent=self)
         self._computing: Plan | None = None
+        self._live_for: Plan | None = None
         self._suggesting: Plan | None = None
+        doc.live.plan_dragged.connect(self._dragged)
+        doc.path_changed.connect(self._read_out)
+        doc.live.path_changed.connect(self._read_out)
         doc.suggestion_requested.connect(self.run_suggest)
         doc.plan_changed.connect(lambda _plan: self.debounce.poke())
         doc.volume_changed.connect(lambda _volume: self.recompute())
@@ -79,10 +98,56 @@ class Controller(QObject):
             return
         if self.doc.path is not None and self.doc.path.plan is plan:
             return  # already computed for this trajectory (switching back to it)
+        if self.live_runner.busy and self._live_for is plan:
+            return  # a drag's last position: its computation is under way
         self._computing = plan
         hu = self.doc.hu_uncertainty
         plans = self.doc.plans
-        self.path_runner.submit(lambda: compute_path_view(volume, plan, hu, plan_set=plans))
+        self.path_runner.submit_latest(lambda: compute_path_view(volume, plan, hu, plan_set=plans))
+
+    def set_debounce(self, ms: int) -> None:
+        """Wait ``ms`` after an edit before planning its path (0: at once)."""
+        self.debounce.set_interval(ms)
+
+    def _dragged(self, plan: Plan | None) -> None:
+        """Plan the path of a dragged plan now (one at a time, the latest next)."""
+        volume = self.doc.volume
+        if plan is None or volume is None:
+            return
+        self._live_for = plan
+        hu = self.doc.hu_uncertainty
+        others = tuple(plan if p is self.doc.plan else p for p in self.doc.plans)
+
+        def job() -> PathView | tuple[Plan, str]:
+            try:
+                return compute_path_view(volume, plan, hu, plan_set=others)
+            except ValueError as exc:  # bad input (an axis leaving the scan): said, no curve
+                return plan, str(exc)
+
+        self.live_runner.submit_latest(job)
+
+    def _read_out(self, view: PathView | None) -> None:
+        """The readout of the plan a path result is for (after it: the plots come first)."""
+        volume = self.doc.volume
+        if view is None or volume is None:
+            return
+        live = self.doc.live.dragging
+        if live and self.live_runner.busy:
+            return  # a newer plan's path is computing: the readout waits for it, not the plots
+
+        def job() -> tuple[Plan, ImplantReadout]:
+            return view.plan, implant_readout(volume, view.plan, view, live=live)
+
+        self.readout_runner.submit_latest(job)
+
+    def _readout_done(self, result: tuple[Plan, ImplantReadout]) -> None:
+        self.doc.live.set_readout(*result)
+
+    def _live_done(self, result: PathView | tuple[Plan, str]) -> None:
+        if isinstance(result, PathView):
+            self.doc.set_path(result)
+        else:
+            self.doc.live.fail(*result)
 
     def _path_done(self, view: Any) -> None:
         self.doc.set_path(view)
@@ -129,6 +194,8 @@ class Controller(QObject):
         for runner in (
             self.load_runner,
             self.path_runner,
+            self.live_runner,
+            self.readout_runner,
             self.surface_runner,
             self.suggest_runner,
         ):

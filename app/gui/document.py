@@ -35,6 +35,7 @@ import numpy as np
 from PySide6.QtCore import QObject, Signal
 
 from ctdrill.app.gui.history import History, State
+from ctdrill.app.gui.live_edit import LiveEdit
 from ctdrill.app.gui.planning import edit_name, with_shared
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.workers import StepQueue
@@ -114,6 +115,8 @@ class Document(QObject):
         self.suggest_status = ""
         self.history = History()
         self.debrief: object = None
+        #: The drag preview and the views' link point (their own signals).
+        self.live = LiveEdit(self)
         self._paths: dict[Plan, PathView] = {}  # by trajectory object (Plan compares by id)
 
     # ------------------------------------------------------------------ reading
@@ -373,7 +376,9 @@ class Document(QObject):
     # ------------------------------------------------------------------ results
     def set_path(self, view: PathView) -> None:
         """The path result for the current plan (kept for its trajectory; not shown if
-        computed for another plan)."""
+        computed for another plan), or for the plan being dragged (``live``)."""
+        if self.live.offer(view):
+            return
         if view.plan in self.plans:
             self._paths[view.plan] = view
             while len(self._paths) > PATH_CACHE_SIZE:

@@ -4,29 +4,31 @@ A page of the main area (beside the 3D and slice views): the panorama on the lef
 cross-section on the right, each with its slab thickness and mean / MIP. The cross-section stands
 perpendicular to the arch at the current trajectory's implant site, tilted to contain its axis;
 the mouse wheel or the arrow keys over it (Shift or Page Up / Down: bigger steps) scroll it along
-the arch, keeping the tilt; a click on the panorama moves it there, and "At implant" brings it
-back. Both are computed in worker threads (:mod:`ctdrill.app.gui.reformats`, latest wins) and
-drawn with :func:`ctdrill.app.reformat.draw.draw_reformat`, the figure ``ctdrill panorama``
+the arch, keeping the tilt; a click on either image links the views there (the crosshair:
+the cross-section moves to the point, the slice views go through it), and "At implant" brings
+it back. Both are computed in worker threads (:mod:`ctdrill.app.gui.reformats`, latest wins)
+and drawn with :func:`ctdrill.app.reformat.draw.draw_reformat`, the figure ``ctdrill panorama``
 writes: canal and margin zone, implant body, drill to its stop, scale bar. A panorama is
-recomputed only when the series, the arch or its slab change; plan edits redraw the overlays.
-Nothing is computed while the page is hidden.
+recomputed only when the series, the arch, its slab or its height change; plan edits redraw
+the overlays. Nothing is computed while the page is hidden.
+
+The tool row (:class:`~ctdrill.app.gui.reformat_canvas.ReformatTools`) traces canals on either
+image, measures distances and angles; on the cross-section the current implant is dragged
+(moved, tilted by its platform, slid along its axis with Shift) with its angulation, depth
+below the crest, distance to the canal and thinnest wall read out live under the image
+(:mod:`ctdrill.app.gui.readouts`).
 """
 
 from __future__ import annotations
 
-import textwrap
 from functools import partial
 from typing import Any
 
-from matplotlib.backend_bases import MouseEvent
-from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
-from matplotlib.figure import Figure
+import numpy as np
 from PySide6.QtCore import Qt, Signal
-from PySide6.QtGui import QKeyEvent, QResizeEvent, QShowEvent, QWheelEvent
+from PySide6.QtGui import QShowEvent
 from PySide6.QtWidgets import (
     QComboBox,
-    QDoubleSpinBox,
-    QHBoxLayout,
     QLabel,
     QPushButton,
     QSplitter,
@@ -36,145 +38,18 @@ from PySide6.QtWidgets import (
 
 from ctdrill.app.gui import reformats
 from ctdrill.app.gui.document import ViewContext
+from ctdrill.app.gui.plan_editor import PlanEditor
+from ctdrill.app.gui.readouts import ImplantReadout, readout_text
+from ctdrill.app.gui.reformat_canvas import ReformatCanvas, ReformatTools, SlabControls
 from ctdrill.app.gui.workers import Runner
 from ctdrill.app.reformat.draw import draw_reformat
-from ctdrill.imaging.sampling.reformat import Reformat, SlabMode
+from ctdrill.app.reformat.region import PANORAMA_HEIGHT_MM, arch_region
+from ctdrill.imaging.sampling.reformat import Reformat
 
-#: Keys that scroll the cross-section, in steps (+: toward the arch's last point).
-_KEY_STEPS = {
-    Qt.Key.Key_Up: 1.0,
-    Qt.Key.Key_Right: 1.0,
-    Qt.Key.Key_Down: -1.0,
-    Qt.Key.Key_Left: -1.0,
-}
-_PAGE_KEYS = {Qt.Key.Key_PageUp: 1.0, Qt.Key.Key_PageDown: -1.0}
+__all__ = ["PanoramaView", "ReformatCanvas"]
 
-
-#: Room around the image, display pixels: left (tick labels and the mm label), right, top,
-#: and bottom for the tick labels and the x label's first line; each more line adds _LINE_PX.
-_MARGINS_PX = (56.0, 14.0, 10.0, 44.0)
-_LINE_PX = 17.0
-
-
-class ReformatCanvas(FigureCanvasQTAgg):
-    """One reformat image (or a message saying why there is none)."""
-
-    scrolled = Signal(float, bool)  # steps (+: along the arch), big step
-    clicked_mm = Signal(float, float)  # image column, row in mm
-
-    def __init__(self) -> None:
-        fig = Figure(figsize=(6.0, 3.0), dpi=80)
-        super().__init__(fig)
-        self.ax = fig.add_subplot()
-        self.message = ""
-        self._captions = ""  # the x label and captions as drawn, before wrapping
-        self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
-        self.mpl_connect("button_press_event", self._press)
-
-    def image_drawn(self) -> None:
-        """An image was just drawn on :attr:`ax`: lay it out and show it."""
-        self.message = ""
-        self._captions = self.ax.get_xlabel()
-        self.fit_captions()
-        self.draw_idle()
-
-    def fit_captions(self) -> None:
-        """Wrap the lines under the image (x label and captions) to the canvas width and
-        leave room for them: a fixed layout (matplotlib's constrained layout costs more than
-        the drawing itself)."""
-        fig, label = self.figure, self.ax.xaxis.label
-        w_px, h_px = max(fig.bbox.width, 100.0), max(fig.bbox.height, 100.0)
-        char_px = 0.6 * float(label.get_fontsize()) * fig.dpi / 72.0
-        chars = max(20, int((w_px - 20.0) / char_px))
-        lines = [
-            piece
-            for line in self._captions.split("\n")
-            for piece in (textwrap.wrap(line, chars) or [""])
-        ]
-        label.set_text("\n".join(lines))
-        left, right, top, bottom = _MARGINS_PX
-        bottom += _LINE_PX * (len(lines) - 1)
-        self.ax.set_position(
-            (left / w_px, bottom / h_px, 1 - (left + right) / w_px, 1 - (top + bottom) / h_px)
-        )
-
-    def resizeEvent(self, event: QResizeEvent) -> None:
-        super().resizeEvent(event)
-        if not self.message and self._captions:
-            self.fit_captions()
-
-    def show_message(self, text: str) -> None:
-        """Show ``text`` instead of an image."""
-        self.message = text
-        self.ax.clear()
-        self.ax.set_position((0.02, 0.02, 0.96, 0.96))
-        self.ax.set_axis_off()
-        self.ax.text(
-            0.5, 0.5, text, ha="center", va="center", wrap=True, fontsize=11,
-            transform=self.ax.transAxes,
-        )  # fmt: skip
-        self.draw_idle()
-
-    def _press(self, event: MouseEvent) -> None:
-        if event.button == 1 and event.inaxes is self.ax and event.xdata is not None:
-            self.clicked_mm.emit(float(event.xdata), float(event.ydata or 0.0))
-
-    def wheelEvent(self, event: QWheelEvent) -> None:
-        notches = event.angleDelta().y() / 120.0
-        if notches:
-            big = bool(event.modifiers() & Qt.KeyboardModifier.ShiftModifier)
-            self.scrolled.emit(notches, big)
-        event.accept()
-
-    def keyPressEvent(self, event: QKeyEvent) -> None:
-        key = Qt.Key(event.key())
-        if key in _KEY_STEPS:
-            big = bool(event.modifiers() & Qt.KeyboardModifier.ShiftModifier)
-            self.scrolled.emit(_KEY_STEPS[key], big)
-        elif key in _PAGE_KEYS:
-            self.scrolled.emit(_PAGE_KEYS[key], True)
-        else:
-            super().keyPressEvent(event)
-
-
-class SlabControls(QWidget):
-    """A title, the slab thickness and mean / MIP, and room for more widgets."""
-
-    changed = Signal()
-
-    def __init__(self, title: str, slab_mm: float) -> None:
-        super().__init__()
-        self.row = QHBoxLayout(self)
-        self.row.setContentsMargins(4, 0, 4, 0)
-        label = QLabel(f"<b>{title}</b>")
-        self.slab = QDoubleSpinBox()
-        self.slab.setRange(0.0, 30.0)
-        self.slab.setSingleStep(0.5)
-        self.slab.setDecimals(1)
-        self.slab.setSuffix(" mm")
-        self.slab.setValue(slab_mm)
-        self.slab.setKeyboardTracking(False)
-        self.slab.setToolTip("slab thickness across the image (0: one plane)")
-        self.mode = QComboBox()
-        self.mode.addItems(["mean", "MIP"])
-        self.mode.setToolTip("mean of the slab, or its maximum (MIP: bone and implants stand out)")
-        #: "computing ..." while its image is computed in the background
-        self.busy = QLabel("")
-        self.busy.setStyleSheet("color:#6a1b9a")
-        for w in (label, QLabel("slab"), self.slab, self.mode, self.busy):
-            self.row.addWidget(w)
-        self.slab.valueChanged.connect(lambda _v: self.changed.emit())
-        self.mode.currentIndexChanged.connect(lambda _i: self.changed.emit())
-
-    @property
-    def slab_mm(self) -> float:
-        """The slab thickness, mm."""
-        return float(self.slab.value())
-
-    @property
-    def slab_mode(self) -> SlabMode:
-        """``mean`` or ``mip``."""
-        return "mip" if self.mode.currentIndex() == 1 else "mean"
+#: The panorama's height choices: the arch region (default) or the scan's whole height.
+HEIGHTS = ("arch region", "whole height")
 
 
 class PanoramaView(QWidget):
@@ -188,6 +63,23 @@ class PanoramaView(QWidget):
         self.ctx = ctx
         self.pano_controls = SlabControls("Panorama", reformats.PANORAMA_SLAB_MM)
         self.cross_controls = SlabControls("Cross-section", reformats.CROSS_SLAB_MM)
+        self.height_box = QComboBox()
+        self.height_box.addItems(list(HEIGHTS))
+        self.height_box.setToolTip(
+            f"rows of the panorama: the arch region ({PANORAMA_HEIGHT_MM:g} mm "
+            "around the jaw) or the scan's whole height"
+        )
+        self.height_box.currentIndexChanged.connect(lambda _i: self.refresh())
+        self.pano_controls.row.addWidget(self.height_box)
+        self.tools = ReformatTools(ctx.doc)
+        #: The current implant's figures (live while it is dragged).
+        self.readout = QLabel("")
+        self.readout.setWordWrap(True)
+        self.readout.setToolTip(
+            "tilt from the vertical (bucco-lingual B/Li and mesio-distal M/D in the arch's "
+            "frame), the platform's depth below the bone crest along the axis, the distance "
+            "to the nearest canal, the thinnest bone wall around the implant"
+        )
         self.position = QLabel("")
         self.to_implant = QPushButton("At implant")
         self.to_implant.setToolTip("Put the cross-section back through the current implant")
@@ -199,12 +91,12 @@ class PanoramaView(QWidget):
         self.pano_controls.row.addStretch(1)
         self.cross_controls.row.addStretch(1)
         self.cross_controls.row.addWidget(self.to_implant)
-        self.pano = ReformatCanvas()
-        self.cross = ReformatCanvas()
+        self.pano = ReformatCanvas("view:panorama")
+        self.cross = ReformatCanvas("view:cross_section")
         split = QSplitter(Qt.Orientation.Horizontal)
         for widgets in (
             (self.pano_controls, self.pano),
-            (self.cross_controls, self.position, self.cross),
+            (self.cross_controls, self.position, self.cross, self.readout),
         ):
             pane = QWidget()
             lay = QVBoxLayout(pane)
@@ -213,7 +105,13 @@ class PanoramaView(QWidget):
                 lay.addWidget(widget, 1 if isinstance(widget, ReformatCanvas) else 0)
             split.addWidget(pane)
         split.setSizes([600, 400])
-        QVBoxLayout(self).addWidget(split)
+        page = QVBoxLayout(self)
+        page.addWidget(self.tools)
+        page.addWidget(split, 1)
+        self.editor = PlanEditor(ctx)
+        for canvas in (self.pano, self.cross):
+            self.editor.connect(canvas)
+        self.tools.mode_changed.connect(self.set_mode)
         #: Requested arc position of the cross-section (None: the current implant's site).
         self.at_arc_mm: float | None = None
         self.pano_image: Reformat | None = None
@@ -227,12 +125,14 @@ class PanoramaView(QWidget):
         self.cross_runner = Runner(self._cross_done, self._failed(self.cross), parent=self)
         self.pano_controls.changed.connect(self.refresh)
         self.cross_controls.changed.connect(self.refresh)
-        self.pano.clicked_mm.connect(lambda x_mm, _y: self.move_to(x_mm))
         self.cross.scrolled.connect(self.scroll_along)
         doc = ctx.doc
         doc.volume_changed.connect(lambda _v: self.refresh())
         doc.plans_changed.connect(lambda _p: self.refresh())
         doc.path_changed.connect(lambda _v: self._redraw())
+        doc.live.readout_changed.connect(self._show_readout)
+        doc.plan_changed.connect(lambda p: self.readout.setText("") if p is None else None)
+        doc.live.crosshair_changed.connect(self.go_to)
         self.pano.show_message(reformats.NO_SERIES)
         self.cross.show_message("")
 
@@ -264,8 +164,11 @@ class PanoramaView(QWidget):
             self.pano.show_message(reformats.NO_SERIES if doc.volume is None else reformats.NO_ARCH)
             self.cross.show_message("")
             return
+        rows: tuple[float | None, float | None] = (None, None)
+        if self.height_box.currentIndex() == 0:
+            rows = arch_region(doc.volume, arch, doc.plans)
         pano = reformats.PanoramaRequest(
-            doc.volume, arch, self.pano_controls.slab_mm, self.pano_controls.slab_mode
+            doc.volume, arch, self.pano_controls.slab_mm, self.pano_controls.slab_mode, *rows
         )
         cross = reformats.CrossRequest(
             doc.volume,
@@ -283,6 +186,28 @@ class PanoramaView(QWidget):
             self._cross_req = cross
             self.cross_runner.submit(cross.compute)
             self.cross_controls.busy.setText("computing ...")
+        self._redraw()
+
+    def set_mode(self, mode: str) -> None:
+        """The tool of both images (``navigate``, ``canal``, ``distance``, ``angle``)."""
+        for canvas in (self.pano, self.cross):
+            canvas.mode = mode
+        self.tools.show_mode(mode)
+
+    def go_to(self, point_lps: np.ndarray | None) -> None:
+        """The crosshair: marked on both images; the cross-section moves to its place along
+        the arch (when it projects on the arch)."""
+        for canvas in (self.pano, self.cross):
+            canvas.crosshair_lps = point_lps
+        arch = self.ctx.doc.arch_lps
+        if point_lps is not None and arch is not None:
+            try:
+                at = reformats.arc_position_mm(arch, point_lps)
+            except ValueError:  # an arch the reformat refuses: nothing to move
+                at = float("nan")
+            if np.isfinite(at):
+                self.move_to(at)
+                return
         self._redraw()
 
     def move_to(self, at_arc_mm: float | None) -> None:
@@ -322,6 +247,10 @@ class PanoramaView(QWidget):
         self.cross_image = image
         self.cross_controls.busy.setText("")
         self._redraw()  # the panorama marks where the cross-section is: both
+
+    def _show_readout(self, readout: ImplantReadout | None) -> None:
+        """The current (or dragged) implant's figures under the cross-section."""
+        self.readout.setText("" if readout is None else readout_text(readout))
 
     def _failed(self, canvas: ReformatCanvas) -> Any:
         def failed(exc: BaseException, tb: str) -> None:
@@ -374,7 +303,7 @@ class PanoramaView(QWidget):
             paths=self._paths(),
             cross_section_at_mm=None if cross is None else cross.at_arc_mm,
         )
-        self.pano.image_drawn()
+        self.pano.image_drawn(image, doc.plans, doc.current)
         self.drawn.emit("panorama")
 
     def _draw_cross(self, image: Reformat) -> None:
@@ -382,7 +311,7 @@ class PanoramaView(QWidget):
             return
         doc = self.ctx.doc
         draw_reformat(self.cross.ax, image, doc.plans, paths=self._paths())
-        self.cross.image_drawn()
+        self.cross.image_drawn(image, doc.plans, doc.current)
         arch = doc.arch_lps
         length = 0.0 if arch is None else reformats.arch_length_mm(arch)
         at_implant = self.at_arc_mm is None and doc.plan is not None

@@ -1,5 +1,5 @@
 """The planning panel: the trajectories, the current one's numeric entry/target, implant,
-drill and feed, calibration, landmark margins.
+drill sequence and feed, calibration, the landmarks (name, margin, a canal's radius).
 
 The panel shows the document's plan and the clearances of its path, and hands every edit to
 the document as a new plan; every edit goes through :mod:`ctdrill.app.gui.planning` (pure
@@ -25,6 +25,7 @@ from PySide6.QtWidgets import (
     QHBoxLayout,
     QHeaderView,
     QLabel,
+    QLineEdit,
     QPushButton,
     QTableWidget,
     QTableWidgetItem,
@@ -32,16 +33,21 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from ctdrill.app.gui import planning
+from ctdrill.app.gui import canal_edit, planning
+from ctdrill.app.gui.canal_edit import MAX_RADIUS_MM
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.implant_picker import ImplantPicker
+from ctdrill.app.gui.reformat_canvas import CanalChoice
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.trajectory_list import TrajectoryList
+from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.types import DrillSpec, Plan
 from ctdrill.model import available_calibrations, load_calibration
 
 #: Appended to the clearance of a landmark whose margin the planned path breaks.
 VIOLATED_MARK = "(plan!)"
+#: Width of the spin boxes in the landmarks table (margin, radius), px.
+CELL_SPIN_PX = 78
 
 
 def _spin(lo: float, hi: float, step: float, decimals: int, suffix: str) -> QDoubleSpinBox:
@@ -106,9 +112,14 @@ class PlanPanel(QWidget):
         self.calibration.addItems(list(available_calibrations()))
         for i, name in enumerate(available_calibrations()):  # which set, and how obtained
             self.calibration.setItemData(i, calibration_tooltip(name), Qt.ItemDataRole.ToolTipRole)
-        #: the drill sequence, read-only: the fields below edit the final drill
-        self.sequence_label = QLabel("-")
-        form.addRow("drills", self.sequence_label)
+        #: the drill sequence (diameters in drilling order); the fields below edit the final drill
+        self.sequence = QLineEdit()
+        self.sequence.setToolTip(
+            "The drills in drilling order, diameters in mm (e.g. 2 -> 2.8 -> 3.5); Enter "
+            "applies. The last is the final drill, edited by the fields below."
+        )
+        self.sequence.editingFinished.connect(self._sequence_edited)
+        form.addRow("drills (mm)", self.sequence)
         form.addRow("diameter", self.diameter)
         form.addRow("tip length", self.tip_length)
         form.addRow("feed", self.feed)
@@ -124,25 +135,34 @@ class PlanPanel(QWidget):
 
         lms = QGroupBox("Landmarks")
         lay = QVBoxLayout(lms)
-        self.table = QTableWidget(0, 4)
-        self.table.setHorizontalHeaderLabels(["name", "kind", "margin", "clearance"])
+        self.table = QTableWidget(0, 5)
+        self.table.setHorizontalHeaderLabels(["name", "kind", "margin", "clearance", "radius"])
+        self.table.setToolTip("double-click a name to rename the landmark")
         self.table.verticalHeader().setVisible(False)
         header = self.table.horizontalHeader()
         header.setSectionResizeMode(0, QHeaderView.ResizeMode.Stretch)
-        for col in (1, 2, 3):
+        header.setMinimumSectionSize(40)
+        for col in (1, 2, 3, 4):
             header.setSectionResizeMode(col, QHeaderView.ResizeMode.ResizeToContents)
         self.table.setWordWrap(True)
+        self.table.itemChanged.connect(self._landmark_renamed)
         lay.addWidget(self.table)
         buttons = QHBoxLayout()
-        self.add_canal = QPushButton("Add canal points")
+        self.add_canal = QPushButton("Trace canal")
         self.add_canal.setCheckable(True)
-        self.add_canal.setToolTip("Click on a slice view to append points to the canal")
+        self.add_canal.setToolTip(
+            "Click along a canal on a slice view to trace it (the canal of the side clicked, "
+            "or the one chosen in the slice toolbar); the panorama page traces too"
+        )
         self.add_canal.toggled.connect(self.add_canal_toggled)
         self.remove = QPushButton("Remove")
         self.remove.clicked.connect(self._remove_landmark)
         buttons.addWidget(self.add_canal)
         buttons.addWidget(self.remove)
         lay.addLayout(buttons)
+        #: which canal tracing goes to and a new canal's radius (shared with the panorama page)
+        self.canal_choice = CanalChoice(ctx.doc)
+        lay.addWidget(self.canal_choice)
         outer.addWidget(lms)
         outer.addStretch(1)
         self.body.setEnabled(False)
@@ -194,7 +214,7 @@ class PlanPanel(QWidget):
                 for box, value in zip(self.point_boxes[name], pt, strict=True):
                     box.setValue(float(value))
             self.depth_label.setText(f"planned depth: {plan.planned_depth_mm:.2f} mm")
-            self.sequence_label.setText(drills_text(plan))
+            self.sequence.setText(planning.drills_text(plan))
             self.implant.show_plan(plan)
             self.diameter.setValue(plan.drill.diameter_mm)
             self.tip_length.setValue(plan.drill.tip_length_mm)
@@ -210,15 +230,27 @@ class PlanPanel(QWidget):
                 for row, lm in enumerate(plan.landmarks):
                     for col, text in enumerate((lm.name, lm.kind)):
                         item = QTableWidgetItem(text)
-                        item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
+                        if col == 1:
+                            item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
                         self.table.setItem(row, col, item)
                     spin = _spin(0.0, 10.0, 0.1, 2, " mm")
+                    spin.setMaximumWidth(CELL_SPIN_PX)
                     spin.valueChanged.connect(partial(self._margin_edited, row))
                     self.table.setCellWidget(row, 2, spin)
+                    if isinstance(lm, CanalLandmark):
+                        radius = _spin(0.1, MAX_RADIUS_MM, 0.1, 2, " mm")
+                        radius.setMaximumWidth(CELL_SPIN_PX)
+                        radius.valueChanged.connect(partial(self._radius_edited, row))
+                        self.table.setCellWidget(row, 4, radius)
+                    else:
+                        self.table.removeCellWidget(row, 4)
             for row, lm in enumerate(plan.landmarks):
                 cell = self.table.cellWidget(row, 2)
                 if isinstance(cell, QDoubleSpinBox):
                     cell.setValue(plan.landmark_margin_mm(lm))
+                cell = self.table.cellWidget(row, 4)
+                if isinstance(cell, QDoubleSpinBox):
+                    cell.setValue(float(lm.radius_mm))
                 clear = "unknown" if clearance_mm is None else f"{float(clearance_mm[row]):.2f} mm"
                 self.table.setItem(row, 3, QTableWidgetItem(clear))
         finally:
@@ -273,6 +305,27 @@ class PlanPanel(QWidget):
             return
         self._emit(lambda: planning.set_landmark_margin(plan, row, value))
 
+    def _radius_edited(self, row: int, value: float) -> None:
+        plan = self.plan
+        if plan is None:
+            return
+        self._emit(lambda: canal_edit.set_radius(plan, row, value))
+
+    def _landmark_renamed(self, item: QTableWidgetItem) -> None:
+        plan = self.plan
+        if self._updating or plan is None or item.column() != 0:
+            return
+        row, text = item.row(), item.text()
+        if row < len(plan.landmarks) and text != plan.landmarks[row].name:
+            self._emit(lambda: canal_edit.rename_landmark(plan, row, text))
+
+    def _sequence_edited(self) -> None:
+        plan = self.plan
+        if plan is None or self.sequence.text().strip() == planning.drills_text(plan):
+            return
+        text = self.sequence.text()
+        self._emit(lambda: planning.with_drill_sequence(plan, text))
+
     def _remove_landmark(self) -> None:
         plan = self.plan
         row = self.table.currentRow()
@@ -289,11 +342,3 @@ def calibration_tooltip(name: str) -> str:
     cal = load_calibration(name)
     band = "with a 68 % force band" if cal.covariance is not None else "no uncertainty band"
     return f"{calibration_line(CalibrationInfo.of(cal))} ({band})"
-
-
-def drills_text(plan: Plan) -> str:
-    """The plan's drills in words: ``one drill`` or ``2 -> 2.8 -> 3.5 mm (fields: the final)``."""
-    if len(plan.drills) == 1:
-        return "one drill"
-    seq = " -> ".join(f"{d.diameter_mm:g}" for d in plan.drills)
-    return f"{seq} mm (the fields edit the final drill)"

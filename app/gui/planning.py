@@ -16,12 +16,9 @@ import numpy as np
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.gui.results import PathView, binding_index, plan_violation
 from ctdrill.app.gui.scene import CandidateLine, LandmarkGeometry, SceneInput
-from ctdrill.imaging.plan.landmarks import (
-    DEFAULT_CANAL_RADIUS_MM,
-    CanalLandmark,
-    Landmark,
-)
-from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.plan.drill_spec import sequence_error
+from ctdrill.imaging.plan.landmarks import Landmark
+from ctdrill.imaging.plan.types import DrillSpec, Plan
 from ctdrill.imaging.sampling.arch import ArchCurve
 
 #: Shortest trajectory the editor accepts, mm.
@@ -60,33 +57,6 @@ def set_landmark_margin(plan: Plan, index: int, margin_mm: float | None) -> Plan
     return replace(plan, landmarks=tuple(lms))
 
 
-def add_canal_point(
-    plan: Plan,
-    point_lps: np.ndarray,
-    *,
-    name: str = "canal",
-    radius_mm: float = DEFAULT_CANAL_RADIUS_MM,
-) -> Plan:
-    """Append a point to the canal called ``name`` (creating it if missing).
-
-    A new point goes at whichever end of the centreline is nearer, so the polyline is built in
-    order when the points are clicked along the canal from either end.
-    """
-    pt = np.asarray(point_lps, dtype=np.float64).reshape(1, 3)
-    lms = list(plan.landmarks)
-    for i, lm in enumerate(lms):
-        if isinstance(lm, CanalLandmark) and lm.name == name:
-            pts = lm.points_lps
-            if np.linalg.norm(pts[0] - pt[0]) < np.linalg.norm(pts[-1] - pt[0]) and len(pts) > 1:
-                new_pts = np.vstack([pt, pts])
-            else:
-                new_pts = np.vstack([pts, pt])
-            lms[i] = replace(lm, points_lps=new_pts)
-            return replace(plan, landmarks=tuple(lms))
-    lms.append(CanalLandmark(name=name, points_lps=pt, radius_mm=radius_mm))
-    return replace(plan, landmarks=tuple(lms))
-
-
 def remove_landmark(plan: Plan, index: int) -> Plan:
     """Drop landmark ``index``."""
     lms = list(plan.landmarks)
@@ -113,7 +83,7 @@ def place_handle(
     points = {**draft, name: pt}
     if set(points) != {"entry", "target"}:
         return points
-    new = Plan(entry_lps=points["entry"], target_lps=points["target"], name="new plan")
+    new = Plan(entry_lps=points["entry"], target_lps=points["target"], name=unique_name(()))
     if new.planned_depth_mm < MIN_DEPTH_MM:
         raise PlanEditError(
             f"{name}: entry and target would be {new.planned_depth_mm:.2f} mm apart; "
@@ -272,7 +242,8 @@ def new_trajectory(
     A copy (drill, implant, landmarks, settings) moved sideways: ``spacing_mm`` along the arch
     (the panorama's arc length, toward the arch's end farther away) when the plan has an arch
     and the target lies beside it, else ``spacing_mm`` toward the patient's left (+x LPS); the
-    user drags it into place. Named :func:`unique_name`.
+    user drags it into place. Named :func:`unique_name` (the site is not copied: a new
+    trajectory is a new site).
     """
     base = plans[current]
     shift = np.array([spacing_mm, 0.0, 0.0])
@@ -297,6 +268,7 @@ def new_trajectory(
         entry_lps=base.entry_lps + shift,
         target_lps=base.target_lps + shift,
         name=unique_name(plans),
+        site=None,
     )
     return new, where
 
@@ -315,3 +287,50 @@ def with_shared(plans: Sequence[Plan], index: int, plan: Plan) -> tuple[Plan, ..
     out = [replace(p, **shared) if shared and i != index else p for i, p in enumerate(plans)]
     out[index] = plan
     return tuple(out)
+
+
+def drills_text(plan: Plan) -> str:
+    """The drill sequence as the window's editor shows it: diameters in drilling order, mm
+    (``2 -> 2.8 -> 3.5``)."""
+    return " -> ".join(f"{d.diameter_mm:g}" for d in plan.drills)
+
+
+def with_drill_sequence(plan: Plan, text: str) -> Plan:
+    """``plan`` drilled with the diameters written in ``text`` (mm, in drilling order,
+    separated by ``->``, commas or spaces; the last is the final drill).
+
+    Each drill keeps the tip length, blades and speed of the plan's drill of the same
+    diameter, else those of the final drill.
+
+    Raises
+    ------
+    PlanEditError
+        A word that is not a diameter, or a sequence ctdrill refuses (empty, too long, not
+        strictly widening).
+    """
+    words = [w for w in text.replace("->", " ").replace(",", " ").replace(";", " ").split() if w]
+    diameters = []
+    for word in words:
+        try:
+            value = float(word.removesuffix("mm"))
+        except ValueError:
+            raise PlanEditError(
+                f"drills: {word!r} is not a diameter; write them in mm in drilling order, "
+                "e.g. 2 -> 2.8 -> 3.5"
+            ) from None
+        if not (np.isfinite(value) and 0.0 < value <= 10.0):
+            raise PlanEditError(f"drills: diameter {word} mm must be > 0 and <= 10 mm")
+        diameters.append(value)
+    known = {d.diameter_mm: d for d in plan.drills}
+    base = plan.drill
+    seq = tuple(
+        known.get(d)
+        or DrillSpec(
+            diameter_mm=d, tip_length_mm=base.tip_length_mm, blades=base.blades, rpm=base.rpm
+        )
+        for d in diameters
+    )
+    problem = sequence_error(seq)
+    if problem is not None:
+        raise PlanEditError(f"drills{problem}")
+    return plan.with_drills(seq)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import textwrap
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -66,11 +67,135 @@ class DepthCurves:
     band_note: str = ""
 
 
-def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = "") -> None:
+#: Room added to the axes' ranges while a plan is dragged (:mod:`ctdrill.app.gui.plots_live`),
+#: so most moves fit the axes already drawn.
+LIVE_HEADROOM = 1.25
+#: Curves need a redraw of the axes when they shrink below this share of an axis' range.
+MIN_FILL = 0.15
+
+
+@dataclass(frozen=True)
+class DepthLimits:
+    """The axes' ranges for some curves: depth (0 to ``depth_max``), HU, force, clearance."""
+
+    depth_max: float
+    hu: tuple[float, float]
+    force: tuple[float, float]
+    clearance: tuple[float, float] | None
+
+    def contains(self, need: DepthLimits) -> bool:
+        """True when curves needing ``need`` are drawn well on axes of ``self``: everything
+        inside, nothing squeezed below :data:`MIN_FILL` of the range."""
+
+        def fits(have: tuple[float, float], want: tuple[float, float]) -> bool:
+            span = have[1] - have[0]
+            inside = have[0] <= want[0] and want[1] <= have[1]
+            return inside and want[1] - want[0] >= MIN_FILL * span
+
+        if not (MIN_FILL * self.depth_max <= need.depth_max <= self.depth_max):
+            return False
+        if (self.clearance is None) != (need.clearance is None):
+            return False
+        clear_ok = (
+            self.clearance is None or need.clearance is None or fits(self.clearance, need.clearance)
+        )
+        return (
+            self.hu[0] <= need.hu[0]
+            and need.hu[1] <= self.hu[1]
+            and fits(self.force, need.force)
+            and clear_ok
+        )
+
+
+def depth_limits(curves: DepthCurves, headroom: float = 1.0) -> DepthLimits:
+    """The ranges that show ``curves`` (``headroom`` > 1 widens depth, force and clearance)."""
+    d = curves.depth_mm
+    depth = (max(float(d[-1]), curves.planned_depth_mm) * 1.02 + 1e-6) * headroom
+    hu_lo = min(-200.0, float(np.nanmin(curves.hu)) - 100.0)
+    hu_hi = max(1600.0, float(np.nanmax(curves.hu)) + 100.0)
+    hu_hi += (headroom - 1.0) * (hu_hi - hu_lo)
+    f_lo, f_hi = force_limits_n(curves)
+    span = f_hi - f_lo
+    f_hi = f_lo + span * headroom
+    if f_lo < 0.0:  # a band dipping below 0 N: room below too
+        f_lo -= (headroom - 1.0) * span
+    finite = np.isfinite(curves.clearance_mm)
+    clear = None
+    if finite.any():
+        top = max(float(np.max(curves.clearance_mm[finite])), curves.margin_mm * 2.0)
+        low = min(0.0, float(np.min(curves.clearance_mm[finite])))
+        clear = (low - (headroom - 1.0) * top, top * 1.05 * headroom)
+    return DepthLimits(depth, (hu_lo, hu_hi), (f_lo, f_hi), clear)
+
+
+def stop_title(curves: DepthCurves) -> str:
+    """The stop in words, as the HU plot's title says it."""
+    return (
+        f"stop {curves.stop_depth_mm:.2f} mm ({curves.stop_reason}) of "
+        f"{curves.planned_depth_mm:.2f} mm planned"
+    )
+
+
+def force_title(curves: DepthCurves) -> str:
+    """The force plot's title: the calibration and what the bands are."""
+    title = "predicted force"
+    if curves.calibration:
+        title += f" ({curves.calibration})"
+    if curves.band_note:
+        title += f"; {curves.band_note}"
+    return title
+
+
+@dataclass
+class CurveArtists:
+    """The artists that depend on the curves, by role (what a live update changes in place).
+
+    ``key`` is what must not change for an in-place update (which pieces exist, the force
+    title, the margin); ``limits`` the axes' ranges they were drawn in.
+    """
+
+    key: tuple[object, ...]
+    limits: DepthLimits
+    lines: dict[str, Any]
+    fills: dict[str, Any]
+    stops: list[Any]
+    planned: list[Any]
+    spans: list[Any]
+    stop_text: Any = None
+
+    def all(self) -> list[Any]:
+        """Every artist, in drawing order."""
+        out = [*self.fills.values(), *self.lines.values(), *self.spans, *self.planned]
+        out += self.stops
+        return out if self.stop_text is None else [*out, self.stop_text]
+
+
+def curves_key(curves: DepthCurves) -> tuple[object, ...]:
+    """What the curves' drawing is made of (see :class:`CurveArtists`)."""
+    return (
+        curves.force_band_n is not None,
+        curves.mean_lo_n is not None and curves.mean_hi_n is not None,
+        bool(np.isfinite(curves.clearance_mm).any()),
+        force_title(curves),
+        curves.margin_mm,
+    )
+
+
+def draw_depth_plots(
+    fig: Figure,
+    curves: DepthCurves | None,
+    *,
+    message: str = "",
+    headroom: float = 1.0,
+    title_stop: bool = True,
+) -> None:
     """Redraw ``fig`` with three stacked axes sharing depth: HU, force, clearance.
 
     With ``curves`` None the axes are drawn empty with ``message`` (e.g. "computing...").
-    The axes are created once and reused (redrawing is then cheap enough for live updates).
+    The axes are created once and reused. ``headroom`` widens the ranges (a dragged plan's
+    next curves then fit them: :mod:`ctdrill.app.gui.plots_live`); ``title_stop`` writes the
+    stop as the HU plot's title (the window shows it in a label instead). The artists that
+    depend on the curves are kept as :func:`curve_artists`.
     """
     ax_hu, ax_f, ax_c = _axes(fig)
     for ax in (ax_hu, ax_f, ax_c):
@@ -96,41 +221,15 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
             transform=ax_f.transAxes,
         )
         return
-    d = curves.depth_mm
-    ax_hu.plot(d, curves.hu, color="#203060", lw=1.2)
-    hu_lo = min(-200.0, float(np.nanmin(curves.hu)) - 100.0)
-    hu_hi = max(1600.0, float(np.nanmax(curves.hu)) + 100.0)
-    ax_hu.set_ylim(hu_lo, hu_hi)
-    _misch_labels(fig, ax_hu, hu_lo, hu_hi)
-    if curves.force_band_n is not None:
-        ax_f.fill_between(
-            d,
-            curves.force_n - curves.force_band_n,
-            curves.force_n + curves.force_band_n,
-            color="#e07020",
-            alpha=0.25,
-            lw=0,
-        )
-    if curves.mean_lo_n is not None and curves.mean_hi_n is not None:
-        ax_f.fill_between(
-            d, curves.mean_lo_n, curves.mean_hi_n, color="#4060c0", alpha=0.18, lw=0, zorder=0
-        )
-        for edge in (curves.mean_lo_n, curves.mean_hi_n):
-            ax_f.plot(d, edge, color="#4060c0", lw=0.7, ls="--")
-    ax_f.plot(d, curves.force_n, color="#c04000", lw=1.2)
-    ax_f.set_ylim(*force_limits_n(curves))
-    title = "predicted force"
-    if curves.calibration:
-        title += f" ({curves.calibration})"
-    if curves.band_note:
-        title += f"; {curves.band_note}"
-    ax_f.set_title(title, fontsize=TITLE_PT, loc="left")
-    finite = np.isfinite(curves.clearance_mm)
-    if finite.any():
-        ax_c.plot(d[finite], curves.clearance_mm[finite], color="#207040", lw=1.2)
-        top = max(float(np.max(curves.clearance_mm[finite])), curves.margin_mm * 2.0)
-        ax_c.set_ylim(min(0.0, float(np.min(curves.clearance_mm[finite]))), top * 1.05)
-    else:
+    lims = depth_limits(curves, headroom)
+    ax_hu.set_ylim(*lims.hu)
+    _misch_labels(fig, ax_hu, *lims.hu)
+    ax_f.set_ylim(*lims.force)
+    if lims.clearance is not None:
+        ax_c.set_ylim(*lims.clearance)
+    ax_c.set_xlim(0.0, lims.depth_max)
+    ax_f.set_title(force_title(curves), fontsize=TITLE_PT, loc="left")
+    if not np.isfinite(curves.clearance_mm).any():
         ax_c.text(0.5, 0.5, "no landmarks", ha="center", va="center", transform=ax_c.transAxes)
     ax_c.axhline(curves.margin_mm, color="#d02020", ls="--", lw=1.0)
     ax_c.text(
@@ -142,20 +241,59 @@ def draw_depth_plots(fig: Figure, curves: DepthCurves | None, *, message: str = 
         va="bottom",
         transform=ax_c.get_yaxis_transform(),
     )
+    arts = _draw_curves(fig, curves, lims)
+    if title_stop:
+        arts.stop_text = ax_hu.set_title(stop_title(curves), fontsize=TITLE_PT, loc="left")
+    fig._ctdrill_curves = arts  # type: ignore[attr-defined]
+
+
+def curve_artists(fig: Figure) -> CurveArtists | None:
+    """The curve artists :func:`draw_depth_plots` last drew on ``fig`` (None: a message)."""
+    arts = getattr(fig, "_ctdrill_curves", None)
+    return arts if isinstance(arts, CurveArtists) else None
+
+
+def _draw_curves(fig: Figure, curves: DepthCurves, lims: DepthLimits) -> CurveArtists:
+    """Draw what depends on ``curves`` on the three axes."""
+    ax_hu, ax_f, ax_c = fig.axes
+    d = curves.depth_mm
+    fills: dict[str, Any] = {}
+    lines: dict[str, Any] = {}
+    if curves.force_band_n is not None:
+        fills["band"] = ax_f.fill_between(
+            d,
+            curves.force_n - curves.force_band_n,
+            curves.force_n + curves.force_band_n,
+            color="#e07020",
+            alpha=0.25,
+            lw=0,
+        )
+    if curves.mean_lo_n is not None and curves.mean_hi_n is not None:
+        fills["mean"] = ax_f.fill_between(
+            d, curves.mean_lo_n, curves.mean_hi_n, color="#4060c0", alpha=0.18, lw=0, zorder=0
+        )
+        (lines["mean_lo"],) = ax_f.plot(d, curves.mean_lo_n, color="#4060c0", lw=0.7, ls="--")
+        (lines["mean_hi"],) = ax_f.plot(d, curves.mean_hi_n, color="#4060c0", lw=0.7, ls="--")
+    (lines["hu"],) = ax_hu.plot(d, curves.hu, color="#203060", lw=1.2)
+    (lines["force"],) = ax_f.plot(d, curves.force_n, color="#c04000", lw=1.2)
+    finite = np.isfinite(curves.clearance_mm)
+    if finite.any():
+        (lines["clearance"],) = ax_c.plot(
+            d[finite], curves.clearance_mm[finite], color="#207040", lw=1.2
+        )
+    beyond = curves.planned_depth_mm > curves.stop_depth_mm + 1e-6
+    stops, planned, spans = [], [], []
     for ax in (ax_hu, ax_f, ax_c):
-        ax.axvline(curves.stop_depth_mm, color="#d02080", lw=1.4)
-        if curves.planned_depth_mm > curves.stop_depth_mm + 1e-6:
-            ax.axvline(curves.planned_depth_mm, color="#808080", ls=":", lw=1.0)
+        stops.append(ax.axvline(curves.stop_depth_mm, color="#d02080", lw=1.4))
+        planned.append(ax.axvline(curves.planned_depth_mm, color="#808080", ls=":", lw=1.0))
+        spans.append(
             ax.axvspan(
                 curves.stop_depth_mm, curves.planned_depth_mm, color="#d02080", alpha=0.08, lw=0
             )
-    ax_hu.set_title(
-        f"stop {curves.stop_depth_mm:.2f} mm ({curves.stop_reason}) of "
-        f"{curves.planned_depth_mm:.2f} mm planned",
-        fontsize=TITLE_PT,
-        loc="left",
-    )
-    ax_c.set_xlim(0.0, max(float(d[-1]), curves.planned_depth_mm) * 1.02 + 1e-6)
+        )
+        planned[-1].set_visible(beyond)
+        spans[-1].set_visible(beyond)
+    return CurveArtists(curves_key(curves), lims, lines, fills, stops, planned, spans)
 
 
 LIVE_GID = "live-depth"
@@ -232,4 +370,6 @@ def _axes(fig: Figure) -> tuple[Axes, Axes, Axes]:
         for artist in [*ax.lines, *ax.collections, *ax.patches, *ax.texts]:
             artist.remove()
         ax.set_title("")
+        ax.set_title("", loc="left")
+    fig._ctdrill_curves = None  # type: ignore[attr-defined]  # set again with curves
     return ax_hu, ax_f, ax_c

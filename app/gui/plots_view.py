@@ -1,15 +1,44 @@
 """The depth plots (HU, force, clearance) as a view of the document: redrawn when a path result
 arrives or fails, with the rehearsal's live depth as a cursor (drawing:
-:mod:`ctdrill.app.gui.plots`)."""
+:mod:`ctdrill.app.gui.plots`).
+
+While a plan is dragged (``Document.live``: ``path_changed``) only the curves are redrawn: the axes,
+ticks, bands and titles drawn last are kept as a bitmap, the curve artists get the new data
+(:mod:`ctdrill.app.gui.plots_live`) and are drawn over it and copied to the screen
+(matplotlib's blitting), a few milliseconds instead of a whole figure; the axes are drawn
+again (with room to spare) only when the curves leave them. The stop in words is a label over
+the plots (text is the slowest thing matplotlib draws).
+
+The widget's Qt ``objectName`` is ``plot:force``; its ``stopDepthMm`` property (float, mm) is
+the stop depth of the curves it shows, set by the paint that puts them on the widget, and
+``stopDepthMmChanged`` is emitted each time new curves are painted (even at the same stop).
+Curves drawn live are painted with the event loop's next paint (one screen update for the
+plots and the dragged view's outline together), not by a paint of their own.
+"""
 
 from __future__ import annotations
 
+from typing import Any
+
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
-from PySide6.QtGui import QResizeEvent
+from matplotlib.transforms import Bbox
+from PySide6.QtCore import Property, Signal
+from PySide6.QtGui import QPaintEvent, QResizeEvent
+from PySide6.QtWidgets import QLabel
 
 from ctdrill.app.gui.document import ViewContext
-from ctdrill.app.gui.plots import WINDOW_DPI, draw_depth_plots, fit_margins, set_live_depth
+from ctdrill.app.gui.plots import (
+    LIVE_HEADROOM,
+    WINDOW_DPI,
+    DepthCurves,
+    curve_artists,
+    draw_depth_plots,
+    fit_margins,
+    set_live_depth,
+    stop_title,
+)
+from ctdrill.app.gui.plots_live import update_depth_plots
 from ctdrill.app.gui.results import PathView
 from ctdrill.imaging.plan.types import Plan
 
@@ -23,41 +52,156 @@ NO_TRAJECTORY = (
 class PlotsView(FigureCanvasQTAgg):
     """HU, force and clearance along the drill."""
 
+    stopDepthMmChanged = Signal(float)
+
     def __init__(self, ctx: ViewContext) -> None:
         fig = Figure(figsize=(6, 4), dpi=WINDOW_DPI)
         super().__init__(fig)
+        self.setObjectName("plot:force")
         self.plot_fig = fig
         self.ctx = ctx
+        self._stop_mm = float("nan")
+        self._curves: DepthCurves | None = None
+        self._animated: list[Any] = []
+        self._background: Any = None
+        #: Curves drawn into the canvas, waiting for the paint that shows them.
+        self._painting: DepthCurves | None = None
+        #: Curves drawn by blitting over the kept axes / by a whole redraw (for tests, bench).
+        self.blits = 0
+        self.full_draws = 0
+        #: A path result is drawn before the other views' drawing steps (False: after them,
+        #: the older order the benchmark compares with).
+        self.first = True
+        self.mpl_connect("draw_event", self._drawn)
+        #: The stop in words, over the HU plot.
+        self.stop_label = QLabel("", self)
+        self.stop_label.setStyleSheet("background: rgba(255,255,255,200); padding: 1px 3px")
+        self.stop_label.move(60, 2)
+        self.stop_label.hide()
         draw_depth_plots(self.plot_fig, None, message=NO_SERIES)
         ctx.doc.path_changed.connect(self._path)
+        ctx.doc.live.path_changed.connect(self._live_path)
         ctx.doc.plan_changed.connect(self._plan)
         ctx.doc.volume_changed.connect(lambda _v: self._plan(ctx.doc.plan))
         ctx.doc.live_depth_changed.connect(self._live_depth)
 
+    # ------------------------------------------------------------------ the stop depth
+    def _get_stop(self) -> float:
+        return self._stop_mm
+
+    stopDepthMm = Property(float, _get_stop, notify=stopDepthMmChanged)
+
+    @property
+    def curves(self) -> DepthCurves | None:
+        """The curves on the screen (None: a message)."""
+        return self._curves
+
+    def _shown(self, curves: DepthCurves | None) -> None:
+        self._curves = curves
+        if curves is None:
+            self.stop_label.hide()
+            return
+        self.stop_label.setText(stop_title(curves))
+        self.stop_label.adjustSize()
+        self.stop_label.show()
+        self._stop_mm = float(curves.stop_depth_mm)
+        self.stopDepthMmChanged.emit(self._stop_mm)
+
+    # ------------------------------------------------------------------ drawing
     def resizeEvent(self, event: QResizeEvent) -> None:
         """Keep the labels' room in pixels whatever the size (:func:`fit_margins`)."""
         super().resizeEvent(event)
         fit_margins(self.plot_fig)
 
+    def _drawn(self, _event: object) -> None:
+        """After every whole redraw: keep the bitmap without the curves, then draw them."""
+        self._background = self.copy_from_bbox(self.plot_fig.bbox)
+        for artist in self._animated:
+            if artist.figure is not None:
+                self.plot_fig.draw_artist(artist)
+
+    def _animate(self, artists: list[Any]) -> None:
+        for artist in self._animated:
+            artist.set_animated(False)
+        self._animated = artists
+        for artist in artists:
+            artist.set_animated(True)
+
+    def show_message(self, message: str) -> None:
+        """Empty axes with ``message``."""
+        draw_depth_plots(self.plot_fig, None, message=message)
+        self._animate([])
+        self._shown(None)
+        self.draw_idle()
+
+    def show_curves(self, curves: DepthCurves, *, live: bool = False) -> None:
+        """Draw ``curves`` now: over the kept axes when ``live`` and they fit, else whole
+        (with room to spare when ``live``); then ``stopDepthMm`` says their stop."""
+        if live and self._background is not None:
+            artists = update_depth_plots(self.plot_fig, curves)
+            if artists is not None:
+                self._animate(artists)
+                self.restore_region(self._background)
+                for artist in artists:
+                    self.plot_fig.draw_artist(artist)
+                # the axes only (ticks and titles did not change), at the next paint
+                self._update_region(Bbox.union([ax.bbox for ax in self.plot_fig.axes]))
+                self.blits += 1
+                self._painting = curves
+                return
+        headroom = LIVE_HEADROOM if live else 1.0
+        draw_depth_plots(self.plot_fig, curves, headroom=headroom, title_stop=False)
+        arts = curve_artists(self.plot_fig)
+        self._animate([] if arts is None else arts.all())
+        if live:
+            self._finish(curves)
+        else:  # the Agg render (~50-200 ms) in a pass of its own, next
+            self.ctx.steps.push(lambda: self._finish(curves), first=self.first)
+
+    def _finish(self, curves: DepthCurves) -> None:
+        self.draw()
+        self.full_draws += 1
+        self._painting = curves
+        self.update()
+
+    def _update_region(self, bbox: Bbox) -> None:
+        """Ask for a paint of ``bbox`` (display pixels) with the next event-loop pass."""
+        ratio = self.device_pixel_ratio
+        x0, y0, x1, y1 = (float(v) / ratio for v in bbox.extents)
+        self.update(int(x0) - 1, int(self.height() - y1) - 1, int(x1 - x0) + 3, int(y1 - y0) + 3)
+
+    def paintEvent(self, event: QPaintEvent) -> None:
+        """Paint, then say which curves are on the widget (``stopDepthMm``)."""
+        super().paintEvent(event)
+        curves, self._painting = self._painting, None
+        if curves is not None:
+            self._shown(curves)
+
+    # ------------------------------------------------------------------ document
     def _plan(self, plan: Plan | None) -> None:
         if plan is None and self.ctx.doc.volume is not None:
-            draw_depth_plots(self.plot_fig, None, message=NO_TRAJECTORY)
-            self.draw_idle()
+            self.show_message(NO_TRAJECTORY)
 
     def _path(self, view: PathView | None) -> None:
         doc = self.ctx.doc
         if view is None:
             if doc.path_error:  # nothing computed for this plan: say why, draw nothing old
-                draw_depth_plots(self.plot_fig, None, message=f"no force profile: {doc.path_error}")
-                self.draw_idle()
+                self.show_message(f"no force profile: {doc.path_error}")
             return
 
         def show() -> None:
             if doc.path is view:
-                draw_depth_plots(self.plot_fig, view.curves)
-                self.ctx.steps.push(self.draw)  # ~50 ms of Agg: a pass of its own
+                self.show_curves(view.curves)
 
-        self.ctx.steps.push(show)
+        self.ctx.steps.push(show, first=self.first)  # before the other views' drawing steps
+
+    def _live_path(self, view: PathView | None) -> None:
+        """A dragged plan's path: its curves at once, over the kept axes."""
+        live = self.ctx.doc.live
+        if view is None and live.error:
+            self.show_message(f"no force profile: {live.error}")
+        elif view is not None and view is live.path:
+            self.show_curves(view.curves, live=True)
 
     def _live_depth(self, depth_mm: float) -> None:
         set_live_depth(self.plot_fig, depth_mm)

@@ -54,6 +54,9 @@ class PanoramaRequest:
     arch_lps: np.ndarray
     slab_mm: float
     slab_mode: SlabMode
+    #: Rows: their height and middle's LPS z, mm (None: the volume's whole height).
+    height_mm: float | None = None
+    centre_z_mm: float | None = None
 
     def same_as(self, other: PanoramaRequest | None) -> bool:
         """True when ``other`` gives the same image."""
@@ -62,11 +65,19 @@ class PanoramaRequest:
             and other.volume is self.volume
             and np.array_equal(other.arch_lps, self.arch_lps)
             and (other.slab_mm, other.slab_mode) == (self.slab_mm, self.slab_mode)
+            and (other.height_mm, other.centre_z_mm) == (self.height_mm, self.centre_z_mm)
         )
 
     def compute(self) -> Reformat:
-        """The panorama (the volume's whole height, its finest pixel)."""
-        return panorama(self.volume, self.arch_lps, slab_mm=self.slab_mm, slab_mode=self.slab_mode)
+        """The panorama (its rows as asked, the volume's finest pixel)."""
+        return panorama(
+            self.volume,
+            self.arch_lps,
+            slab_mm=self.slab_mm,
+            slab_mode=self.slab_mode,
+            height_mm=self.height_mm,
+            centre_z_mm=self.centre_z_mm,
+        )
 
 
 @dataclass(frozen=True, eq=False)

@@ -6,8 +6,15 @@ planes (:mod:`ctdrill.app.gui.slice_nav`), independently of the plan: a series o
 whole volume in view and the planes through the target (the middle planes without a plan);
 "Centre on drill" (C) brings them back to the trajectory. The view along the drill turns about
 the drill when paged. A plane is resliced in a worker thread (one runner per view) and each
-canvas is drawn in an event-loop pass of its own. Handles dragged or placed become plan edits
-through :func:`ctdrill.app.gui.planning.place_handle`; arch edits go to ``Document.set_arch``.
+canvas is drawn in an event-loop pass of its own. Grip drags, canal tracing and link clicks
+become document edits through :class:`~ctdrill.app.gui.plan_editor.PlanEditor`; a target
+placed with a right click through :func:`ctdrill.app.gui.planning.place_handle`; arch edits
+go to ``Document.set_arch``.
+
+Going to the site: a trajectory that appears or is selected puts every plane through its
+target and centres each view on the implant, zoomed to :data:`SITE_FOV_MM`; a link click on
+any view (the crosshair) puts the planes through the clicked point and centres the views on
+it, keeping their zoom.
 """
 
 from __future__ import annotations
@@ -20,6 +27,8 @@ from PySide6.QtWidgets import QGridLayout, QHBoxLayout, QLabel, QSizePolicy, QVB
 
 from ctdrill.app.gui import planning
 from ctdrill.app.gui.document import ViewContext
+from ctdrill.app.gui.implant_drag import site_lps
+from ctdrill.app.gui.plan_editor import PlanEditor
 from ctdrill.app.gui.slice_nav import (
     SliceStack,
     cursor_text,
@@ -33,7 +42,7 @@ from ctdrill.app.gui.slice_toolbar import SliceToolbar
 from ctdrill.app.gui.slice_tools import edit_arch
 from ctdrill.app.gui.slice_view import SliceCanvas
 from ctdrill.app.gui.slices import VIEWS, SliceImage, reslice, volume_center_lps
-from ctdrill.app.gui.workers import Runner
+from ctdrill.app.gui.workers import Runner, RunnerGroup
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.display import WINDOW_PRESETS
 from ctdrill.imaging.plan.types import Plan
@@ -44,6 +53,9 @@ PLACE_HINT = "no trajectory yet:\nright-click the target,\nShift+right-click the
 ROLL_STEP_DEG = 15.0
 #: The orthogonal views (paged through the volume's planes).
 ORTHO = ("axial", "coronal", "sagittal")
+#: Field of view the slice views zoom to at an implant site, mm (an implant, its bone and
+#: the canal below).
+SITE_FOV_MM = 40.0
 
 
 class SliceGrid(QWidget):
@@ -69,6 +81,10 @@ class SliceGrid(QWidget):
         self._had_plan = False
         self._current = 0
         self._cursor_text = ""
+        #: Where each view centres once its next plane is shown: (LPS point, field of view
+        #: in mm or None to keep the zoom).
+        self._focus: dict[str, tuple[np.ndarray, float | None]] = {}
+        self.editor = PlanEditor(ctx)
         self.toolbar = SliceToolbar(self)
         #: The readout line: window/level, then HU and position at the cursor.
         self.wl_label = QLabel("")
@@ -87,7 +103,7 @@ class SliceGrid(QWidget):
             canvas = self.canvases[v]
             grid.addWidget(canvas, n // 2, n % 2)
             canvas.point_moved.connect(self._handle_moved)
-            canvas.clicked.connect(self._canal_click)
+            self.editor.connect(canvas)
             canvas.paged.connect(partial(self.page, v))
             canvas.window_dragged.connect(self._window_dragged)
             canvas.cursor_moved.connect(self._cursor)
@@ -109,11 +125,12 @@ class SliceGrid(QWidget):
         doc.volume_changed.connect(self._volume_changed)
         doc.plan_changed.connect(self._plan_changed)
         doc.path_changed.connect(lambda _view: self.draw_overlays())
+        doc.live.crosshair_changed.connect(self.go_to)
 
     @property
-    def runner(self) -> _Runners:
+    def runner(self) -> RunnerGroup:
         """Every view's runner, as one (``cancel``, ``busy``)."""
-        return _Runners(self.runners)
+        return RunnerGroup(self.runners)
 
     # ------------------------------------------------------------------ planes
     def _volume_changed(self, volume: CTVolume) -> None:
@@ -138,7 +155,36 @@ class SliceGrid(QWidget):
         appeared = plan is not None and not self._had_plan
         if plan is not None and self.stacks and (appeared or current != self._current):
             self._through(plan.target_lps)  # a trajectory appeared or was selected: show it
+            self.focus_all(site_lps(plan), SITE_FOV_MM)
         self._had_plan, self._current = plan is not None, current
+        self.reslice()
+
+    def focus_all(self, point_lps: np.ndarray, fov_mm: float | None = None) -> None:
+        """Centre every view on ``point_lps`` once its next plane is shown (``fov_mm``: zoom
+        to that field of view; None keeps the zoom)."""
+        for view in VIEWS:
+            self._focus[view] = (np.asarray(point_lps, dtype=np.float64), fov_mm)
+
+    def _apply_focus(self, view: str, image: SliceImage) -> None:
+        focus = self._focus.pop(view, None)
+        if focus is None:
+            return
+        canvas = self.canvases[view]
+        point, fov = focus
+        canvas.center_uv = np.asarray(image.to_plane_mm(point)[0], dtype=np.float64)
+        if fov is not None:
+            canvas.fov_mm = fov
+
+    def go_to(self, point_lps: np.ndarray | None) -> None:
+        """Link the views at ``point_lps`` (the crosshair): every orthogonal plane through
+        it, every view centred on it (keeping its zoom) with the cross drawn."""
+        for canvas in self.canvases.values():
+            canvas.crosshair_lps = point_lps
+        if point_lps is None or not self.stacks:
+            self.draw_overlays()
+            return
+        self._through(point_lps)
+        self.focus_all(point_lps)
         self.reslice()
 
     def _through(self, point_lps: np.ndarray) -> None:
@@ -173,6 +219,12 @@ class SliceGrid(QWidget):
             if axis is not None:
                 key = (*key, *np.round(axis, 12))
             if key == self._keys[view]:
+                image = self.slices.get(view)
+                if image is not None and view in self._focus:
+                    self._apply_focus(view, image)
+                    self.canvases[view].show_slice(
+                        image, level_hu=self.window_level[0], width_hu=self.window_level[1]
+                    )
                 self.draw_overlays(only=view)
                 continue
             if self.runners[view].busy:  # one plane at a time per view: the latest one next
@@ -212,6 +264,7 @@ class SliceGrid(QWidget):
             return
         canvas = self.canvases[view]
         level, width = self.window_level
+        self._apply_focus(view, image)
         canvas.show_slice(image, level_hu=level, width_hu=width)
         canvas.set_position_text(self.position_text(view))
         self.draw_overlays(only=view)
@@ -250,9 +303,7 @@ class SliceGrid(QWidget):
             return
         self._through(plan.target_lps)
         self.roll_deg = 0.0
-        mid = (plan.entry_lps + plan.target_lps) / 2.0
-        for canvas in self.canvases.values():
-            canvas.center_uv = None if canvas.image is None else canvas.image.to_plane_mm(mid)[0]
+        self.focus_all((plan.entry_lps + plan.target_lps) / 2.0)
         self.reslice()
 
     # ------------------------------------------------------------------ overlays
@@ -299,7 +350,7 @@ class SliceGrid(QWidget):
 
     # ------------------------------------------------------------------ edits
     def set_mode(self, mode: str) -> None:
-        """``navigate``, ``canal``, ``distance`` or ``arch`` on every canvas."""
+        """``navigate``, ``canal``, ``distance``, ``angle`` or ``arch`` on every canvas."""
         for canvas in self.canvases.values():
             canvas.mode = mode
         self.toolbar.show_mode(mode)
@@ -321,13 +372,6 @@ class SliceGrid(QWidget):
         elif not doc.set_plan(placed):
             self.draw_overlays()  # refused (locked): the handle goes back
 
-    def _canal_click(self, point_lps: np.ndarray) -> None:
-        doc = self.ctx.doc
-        if doc.plan is None:
-            doc.edit_refused.emit("place the trajectory before the canal")
-        else:
-            doc.set_plan(planning.add_canal_point(doc.plan, point_lps))
-
     def _arch_edit(self, op: str, index: int, point_lps: np.ndarray | None) -> None:
         doc = self.ctx.doc
         current = self.arch_draft if self.arch_draft is not None else doc.arch_lps
@@ -344,20 +388,3 @@ class SliceGrid(QWidget):
             if doc.arch_lps is not None:
                 doc.set_arch(None)
             self.draw_overlays()
-
-
-class _Runners:
-    """The grid's per-view runners seen as one."""
-
-    def __init__(self, runners: dict[str, Runner]) -> None:
-        self._runners = runners
-
-    @property
-    def busy(self) -> bool:
-        """True while any view is being resliced."""
-        return any(r.busy for r in self._runners.values())
-
-    def cancel(self) -> None:
-        """Drop every running reslice."""
-        for r in self._runners.values():
-            r.cancel()

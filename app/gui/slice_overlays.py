@@ -33,7 +33,7 @@ OTHER_COLOUR = "#c090ff"
 IMPLANT_COLOUR = "#40e080"
 ARCH_COLOUR = "#ff9040"
 STOP_COLOUR = "#ff40b0"
-HANDLE_COLOURS = {"entry": "#40e0ff", "target": "#ff6060"}
+HANDLE_COLOURS = {"entry": "#40e0ff", "target": "#ff6060", "platform": "#40e080"}
 
 
 def plane_of(image: SliceImage) -> Plane:

@@ -12,10 +12,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ctdrill.app.gui import planning
+from ctdrill.app.gui.implant_drag import grips_lps
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.scene import LandmarkGeometry
 from ctdrill.app.gui.sections import drill_profile
 from ctdrill.imaging.plan.implants import implant_placement
+from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.types import Plan
 
 
@@ -50,11 +52,16 @@ class OverlayScene:
 
     trajectories: tuple[TrajectoryDrawing, ...] = ()
     landmarks: tuple[LandmarkGeometry, ...] = ()
-    #: Draggable points of the trajectory being edited (``entry`` / ``target``).
+    #: Draggable points of the trajectory being edited (``entry`` / ``target``, and the
+    #: implant's ``platform``).
     handles: dict[str, np.ndarray] = field(default_factory=dict)
     stop_lps: np.ndarray | None = None
     #: (K, 3) dental arch (the plan's, or the points placed so far), or None.
     arch_lps: np.ndarray | None = None
+    #: The trajectory being edited (its body is a grip too), or None.
+    plan: Plan | None = None
+    #: The traced canals' points: (landmark index, (N, 3) LPS), for picking.
+    canals: tuple[tuple[int, np.ndarray], ...] = ()
 
 
 def drill_drawing(plan: Plan, depth_mm: float) -> BodyDrawing:
@@ -118,7 +125,16 @@ def overlay_scene(
             trajectory_drawing(p, views[i], current=i == current) for i, p in enumerate(plans)
         ),
         landmarks=planning.drawn_landmarks(plan, view),
-        handles={"entry": plan.entry_lps, "target": plan.target_lps},
+        handles=grips_lps(plan),
         stop_lps=stop,
         arch_lps=arch,
+        plan=plan,
+        canals=canal_points(plan),
+    )
+
+
+def canal_points(plan: Plan) -> tuple[tuple[int, np.ndarray], ...]:
+    """Every canal of ``plan`` as (landmark index, (N, 3) centre-line points, LPS)."""
+    return tuple(
+        (i, lm.points_lps) for i, lm in enumerate(plan.landmarks) if isinstance(lm, CanalLandmark)
     )

@@ -1,5 +1,6 @@
-"""The slice views' toolbar: window/level preset and readout, the tool (navigate, distance,
-arch), and "Centre on drill"."""
+"""The slice views' toolbar: window/level preset and readout, the tool (navigate, canal,
+distance, angle, arch), and "Centre on drill" (the canal tracing's settings are in the Plan
+tab's landmarks and on the panorama page)."""
 
 from __future__ import annotations
 
@@ -32,9 +33,17 @@ class ToolbarTarget(Protocol):
 TOOLS: dict[str, tuple[str, str]] = {
     "navigate": (
         "Navigate",
-        "Drag entry/target, right-click: target (Shift: entry), right-drag: window/level",
+        "Drag the implant (its apex or body: moved whole; its platform: tilted; Shift: along "
+        "its axis; Ctrl on the apex: the apex alone) or the entry; a click links the views "
+        "there; right-click: target (Shift: entry), right-drag: window/level",
+    ),
+    "canal": (
+        "Canal",
+        "Click along the canal to trace it (the side's canal, or the one chosen); drag a "
+        "point to move it; right-click or Delete removes it",
     ),
     "distance": ("Distance", "Click two points to measure; right-click or Delete removes it"),
+    "angle": ("Angle", "Three clicks: arm, vertex, arm; right-click or Delete removes it"),
     "arch": (
         "Arch",
         "Axial view: click adds an arch point on this slice, drag moves one, "
@@ -80,7 +89,7 @@ class SliceToolbar(QWidget):
         lay.addStretch(1)
 
     def show_mode(self, mode: str) -> None:
-        """Check the button of ``mode`` (none for the canal mode, set by the plan panel)."""
+        """Check the button of ``mode``."""
         button = self.tool_buttons.get(mode)
         if button is not None:
             button.setChecked(True)

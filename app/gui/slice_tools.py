@@ -1,8 +1,11 @@
-"""The slice views' tools, on one canvas: the distance tool and the arch editor.
+"""The measuring tools and the arch editor, on one image canvas (a slice view, the panoramic
+or the cross-section: :class:`ToolCanvas`).
 
-Distance (mode ``distance``): two left clicks place the ends of a segment on the plane; the line
-and its length in mm (exact in LPS: both ends lie on the plane) are drawn while that plane is
-shown; a third click starts a new one; a right click, Delete or Escape removes it.
+Distance (mode ``distance``): two left clicks place the ends of a segment on the image; the line
+and its length in mm (in LPS: the straight line between the two points in the patient,
+:mod:`ctdrill.app.gui.measure`) are drawn while that image is shown; a third click starts a
+new one; a right click, Delete or Escape removes it. Angle (mode ``angle``): three clicks, an
+arm's end, the vertex, the other arm's end; the angle in degrees is drawn at the vertex.
 
 Arch (mode ``arch``, axial view): a left click adds a point on the current slice (inserted into
 the segment it falls on, else appended), dragging a vertex moves it onto the current slice, a
@@ -17,10 +20,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from ctdrill.app.gui.sections import in_plane_distance_mm
+from ctdrill.app.gui.measure import CLICKS, measure_label, next_points
 from ctdrill.app.gui.slice_nav import ON_PLANE_MM
-from ctdrill.app.gui.slice_scene import OverlayScene
-from ctdrill.app.gui.slices import SliceImage
 
 #: Pick radius for a handle, an arch vertex or segment, display pixels.
 PICK_PX = 10.0
@@ -33,6 +34,20 @@ def remove_artists(artists: list[Any]) -> None:
         with contextlib.suppress(NotImplementedError, ValueError):  # already removed
             artist.remove()
     artists.clear()
+
+
+def label_at(uv: np.ndarray) -> np.ndarray:
+    """Where an angle's value is written: outside the angle, a fifth of its shorter arm from
+    the vertex ``uv[1]`` (image mm), so it hides neither arm."""
+    a, v, b = uv[0], uv[1], uv[2]
+    arms = [a - v, b - v]
+    lengths = [float(np.linalg.norm(arm)) for arm in arms]
+    if min(lengths) == 0.0:
+        return np.asarray(v)
+    bisector = arms[0] / lengths[0] + arms[1] / lengths[1]
+    norm = float(np.linalg.norm(bisector))
+    away = -bisector / norm if norm > 1e-9 else np.array([arms[0][1], -arms[0][0]]) / lengths[0]
+    return np.asarray(v + 0.2 * min(lengths) * away)
 
 
 def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -53,40 +68,37 @@ def insert_index(points_px: np.ndarray, click_px: np.ndarray, pick_px: float) ->
     return best
 
 
+class PlaneMapLike(Protocol):
+    def to_lps(self, uv_mm: np.ndarray) -> np.ndarray: ...
+
+    def to_uv(self, points_lps: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+
+
 class ToolCanvas(Protocol):
-    """What the tools use of their canvas (:class:`ctdrill.app.gui.slice_view.SliceCanvas`,
-    which holds a :class:`ToolState`)."""
+    """What the tools need of a canvas (:class:`~ctdrill.app.gui.map_canvas.MapCanvas`)."""
 
-    @property
-    def image(self) -> SliceImage | None: ...
-
-    @property
-    def ax(self) -> Any: ...
-
-    @property
-    def scene(self) -> OverlayScene: ...
-
-    @property
-    def mode(self) -> str: ...
-
-    @property
-    def view(self) -> str: ...
-
-    @property
-    def arch_edited(self) -> Any: ...
+    ax: Any
+    mode: str
+    plane_map: PlaneMapLike | None
 
     def display_of(self, uv_mm: np.ndarray) -> np.ndarray: ...
 
     def draw_idle(self) -> None: ...
 
+    def arch_points(self) -> np.ndarray | None: ...
+
+    def emit_arch_edit(self, op: str, index: int, point_lps: np.ndarray | None) -> None: ...
+
 
 class ToolState:
-    """The distance measurement and the arch editing of one canvas."""
+    """The measurements and the arch editing of one :class:`ToolCanvas`."""
 
     def __init__(self, canvas: ToolCanvas) -> None:
         self.canvas = canvas
-        #: Ends of the measurement placed so far (0, 1 or 2), LPS mm.
+        #: Points of the measurement placed so far, LPS mm.
         self.measure_lps: list[np.ndarray] = []
+        #: ``distance`` or ``angle``: what :attr:`measure_lps` measures.
+        self.measure_kind = "distance"
         self._rubber: np.ndarray | None = None  # in-plane mm of the cursor while measuring
         self._vertex_drag: int | None = None
         self._hover_px: tuple[float, float] | None = None
@@ -95,10 +107,15 @@ class ToolState:
     # ------------------------------------------------------------------ distance
     @property
     def length_mm(self) -> float | None:
-        """Length of the finished measurement, mm (None: none)."""
-        if len(self.measure_lps) != 2:
+        """Length of the finished distance measurement, mm (None: none)."""
+        if self.measure_kind != "distance" or len(self.measure_lps) != 2:
             return None
-        return in_plane_distance_mm(self.measure_lps[0], self.measure_lps[1])
+        return float(np.linalg.norm(self.measure_lps[1] - self.measure_lps[0]))
+
+    @property
+    def label(self) -> str | None:
+        """The finished measurement's text (``12.34 mm``, ``87.5°``), None before."""
+        return measure_label(self.measure_kind, self.measure_lps)
 
     def clear_measure(self) -> None:
         """Remove the measurement."""
@@ -108,38 +125,41 @@ class ToolState:
         self.canvas.draw_idle()
 
     def draw(self) -> None:
-        """(Re)draw the measurement when its ends lie on the shown plane."""
+        """(Re)draw the measurement when its points lie on the shown image."""
         remove_artists(self._artists)
-        img, ax = self.canvas.image, self.canvas.ax
-        if img is None or not self.measure_lps:
+        pmap, ax = self.canvas.plane_map, self.canvas.ax
+        if pmap is None or not self.measure_lps:
             return
-        uv, off = img.to_plane_mm(np.array(self.measure_lps))
-        if np.any(np.abs(off) > ON_PLANE_MM):
-            return  # measured on another plane
-        if len(uv) == 1 and self._rubber is not None:
+        uv, off = pmap.to_uv(np.array(self.measure_lps))
+        if np.any(~(np.abs(off) <= ON_PLANE_MM)) or not np.all(np.isfinite(uv)):
+            return  # measured on another image
+        if len(uv) < CLICKS[self.measure_kind] and self._rubber is not None:
             uv = np.vstack([uv, self._rubber])
         self._artists += ax.plot(uv[:, 0], uv[:, 1], "-o", color=MEASURE_COLOUR, lw=1.5, ms=4)
-        length = self.length_mm
-        if length is not None:
-            mid = uv.mean(axis=0)
+        label = self.label
+        if label is not None:
+            at = uv.mean(axis=0) if self.measure_kind == "distance" else label_at(uv)
             self._artists.append(
                 ax.text(
-                    mid[0],
-                    mid[1],
-                    f" {length:.2f} mm",
+                    at[0],
+                    at[1],
+                    f" {label}",
                     color=MEASURE_COLOUR,
                     fontsize=10,
                     fontweight="bold",
                     zorder=10,
+                    ha="center",
+                    va="center",
+                    bbox={"facecolor": "black", "alpha": 0.5, "lw": 0, "pad": 1},
                 )
             )
 
     # ------------------------------------------------------------------ arch
     def _arch_px(self) -> np.ndarray:
-        img, arch = self.canvas.image, self.canvas.scene.arch_lps
-        if img is None or arch is None or len(arch) == 0:
+        pmap, arch = self.canvas.plane_map, self.canvas.arch_points()
+        if pmap is None or arch is None or len(arch) == 0:
             return np.empty((0, 2))
-        uv, _ = img.to_plane_mm(np.atleast_2d(arch))
+        uv, _ = pmap.to_uv(np.atleast_2d(arch))
         return self.canvas.display_of(uv).reshape(-1, 2)
 
     def vertex_at(self, x_px: float, y_px: float) -> int | None:
@@ -152,17 +172,22 @@ class ToolState:
         return k if d[k] <= PICK_PX else None
 
     def _arch_here(self) -> bool:
-        return self.canvas.mode == "arch" and self.canvas.view == "axial"
+        return self.canvas.mode == "arch" and self.canvas.arch_points() is not None
 
     # ------------------------------------------------------------------ events
     def press(self, uv: np.ndarray, x_px: float, y_px: float) -> None:
-        """Left press in the ``distance`` or ``arch`` mode."""
-        img = self.canvas.image
-        if img is None:
+        """Left press in the ``distance``, ``angle`` or ``arch`` mode."""
+        pmap = self.canvas.plane_map
+        if pmap is None:
             return
-        lps = img.to_lps(uv)
-        if self.canvas.mode == "distance":
-            self.measure_lps = [lps] if len(self.measure_lps) != 1 else [*self.measure_lps, lps]
+        lps = np.asarray(pmap.to_lps(uv), dtype=np.float64)
+        if not np.all(np.isfinite(lps)):
+            return
+        mode = self.canvas.mode
+        if mode in CLICKS:
+            if mode != self.measure_kind:
+                self.measure_kind, self.measure_lps = mode, []
+            self.measure_lps = next_points(mode, self.measure_lps, lps)
             self._rubber = None
             self.draw()
             self.canvas.draw_idle()
@@ -172,12 +197,13 @@ class ToolState:
                 self._vertex_drag = k
                 return
             index = insert_index(self._arch_px(), np.array([x_px, y_px]), PICK_PX)
-            self.canvas.arch_edited.emit("add", index, lps)
+            self.canvas.emit_arch_edit("add", index, lps)
 
     def motion(self, uv: np.ndarray | None) -> bool:
         """Mouse moved; True when a tool took the event."""
         canvas = self.canvas
-        if canvas.mode == "distance" and len(self.measure_lps) == 1 and uv is not None:
+        placing = 0 < len(self.measure_lps) < CLICKS.get(canvas.mode, 0)
+        if canvas.mode == self.measure_kind and placing and uv is not None:
             self._rubber = uv
             self.draw()
             canvas.draw_idle()
@@ -197,29 +223,30 @@ class ToolState:
         k, self._vertex_drag = self._vertex_drag, None
         if k is None:
             return False
-        img = self.canvas.image
-        if uv is not None and img is not None:
-            self.canvas.arch_edited.emit("move", k, img.to_lps(uv))
+        pmap = self.canvas.plane_map
+        if uv is not None and pmap is not None:
+            self.canvas.emit_arch_edit("move", k, np.asarray(pmap.to_lps(uv)))
         return True
 
     def right_click(self, x_px: float, y_px: float) -> None:
-        """Right click in the ``distance`` (remove it) or ``arch`` mode (remove a vertex)."""
-        if self.canvas.mode == "distance":
+        """Right click in a measuring mode (remove it) or the ``arch`` mode (remove a
+        vertex)."""
+        if self.canvas.mode in CLICKS:
             self.clear_measure()
         elif self._arch_here():
             k = self.vertex_at(x_px, y_px)
             if k is not None:
-                self.canvas.arch_edited.emit("delete", k, None)
+                self.canvas.emit_arch_edit("delete", k, None)
 
     def delete(self) -> None:
         """Delete/Backspace/Escape: remove the measurement, or the arch vertex under the
         cursor."""
-        if self.canvas.mode == "distance" or self.measure_lps:
+        if self.canvas.mode in CLICKS or self.measure_lps:
             self.clear_measure()
         elif self._arch_here() and self._hover_px is not None:
             k = self.vertex_at(*self._hover_px)
             if k is not None:
-                self.canvas.arch_edited.emit("delete", k, None)
+                self.canvas.emit_arch_edit("delete", k, None)
 
 
 def edit_arch(

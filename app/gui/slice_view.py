@@ -8,10 +8,11 @@ report changes. Controls (docs/slice_views.md):
 - wheel, PageUp/PageDown, Up/Down: ``paged(steps)`` (the next or previous plane);
 - Ctrl+wheel, +/-: zoom about the cursor (or the centre); C: ``centre_requested``;
 - right-drag: ``window_dragged(dx_px, dy_px)`` (window/level); a right *click* places the
-  target (Shift: the entry), ``point_moved``; dragging a handle with the left button moves it;
+  target (Shift: the entry), ``point_moved``;
 - mouse over the image: ``cursor_moved(lps)`` (None when it leaves the image);
-- tools (:attr:`mode`): ``canal`` (left click: ``clicked(lps)``), ``distance``
-  (:mod:`ctdrill.app.gui.slice_tools`), ``arch`` (``arch_edited(op, index, lps)``).
+- the grips, the canal tracing, the measuring tools and the link click of
+  :class:`~ctdrill.app.gui.map_canvas.MapCanvas`; ``arch`` (axial view):
+  ``arch_edited(op, index, lps)``.
 """
 
 from __future__ import annotations
@@ -21,17 +22,18 @@ from typing import Any
 
 import numpy as np
 from matplotlib.backend_bases import MouseEvent
-from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QKeyEvent, QWheelEvent
 
+from ctdrill.app.gui.map_canvas import MapCanvas, modifiers
+from ctdrill.app.gui.sections import revolved_section
 from ctdrill.app.gui.slice_nav import orientation_letters
-from ctdrill.app.gui.slice_overlays import draw_scene
-from ctdrill.app.gui.slice_scene import OverlayScene
-from ctdrill.app.gui.slice_tools import PICK_PX, ToolState
+from ctdrill.app.gui.slice_overlays import SLAB_MM, draw_scene, plane_of
+from ctdrill.app.gui.slice_scene import OverlayScene, trajectory_drawing
 from ctdrill.app.gui.slices import SliceImage, window_to_uint8
 from ctdrill.app.gui.workers import StepQueue
+from ctdrill.imaging.plan.types import Plan
 
 #: The closest zoom, mm of field of view.
 MIN_FOV_MM = 5.0
@@ -53,16 +55,34 @@ _PAGE_KEYS = {
     Qt.Key.Key_Down: -1,
 }
 _TEXT: dict[str, Any] = {"color": "#e8e8e8", "fontsize": 9}
+#: Qt object names of the views (an outside script finds them by name).
+OBJECT_NAMES = {
+    "axial": "view:axial",
+    "coronal": "view:coronal",
+    "sagittal": "view:sagittal",
+    "trajectory": "view:drill",
+}
 
 
-class SliceCanvas(FigureCanvasQTAgg):
-    """A slice view with draggable handles, paging, zoom, window/level drag and tools."""
+class SliceMap:
+    """A slice plane as a :class:`~ctdrill.app.gui.map_canvas.PlaneMap`."""
+
+    def __init__(self, image: SliceImage) -> None:
+        self.image = image
+
+    def to_lps(self, uv_mm: np.ndarray) -> np.ndarray:
+        return self.image.to_lps(uv_mm)
+
+    def to_uv(self, points_lps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.image.to_plane_mm(points_lps)
+
+
+class SliceCanvas(MapCanvas):
+    """A slice view with grips, paging, zoom, window/level drag and tools."""
 
     point_moved = Signal(str, object)  # handle name ("entry" | "target"), (3,) LPS mm
-    clicked = Signal(object)  # canal mode: (3,) LPS mm on the plane
     paged = Signal(int)  # planes to step (+: towards larger coordinates)
     window_dragged = Signal(float, float)  # screen px since the last report (x right, y down)
-    cursor_moved = Signal(object)  # (3,) LPS mm under the cursor, or None
     centre_requested = Signal()
     arch_edited = Signal(str, int, object)  # "add" | "move" | "delete", vertex, LPS or None
 
@@ -71,8 +91,10 @@ class SliceCanvas(FigureCanvasQTAgg):
         canvas per event-loop pass) instead of matplotlib's own idle draw."""
         fig = Figure(figsize=(3.0, 3.0), dpi=80, facecolor="#101010")
         super().__init__(fig)
+        self.setObjectName(OBJECT_NAMES.get(view, f"view:{view}"))
         self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self.view = view
+        self.on_plane_mm = SLAB_MM
         self._steps = steps
         self._draw_queued = False
         self.ax = fig.add_axes((0.0, 0.04, 1.0, 0.90))
@@ -90,18 +112,10 @@ class SliceCanvas(FigureCanvasQTAgg):
         self.image: SliceImage | None = None
         self._im: Any = None
         self.scene = OverlayScene()
-        self._handle_artists: dict[str, Any] = {}
-        self._drag: str | None = None
         self._right: tuple[float, float, bool, bool] | None = None  # x, y, shift, dragging
-        #: ``navigate`` (handles), ``canal``, ``distance`` or ``arch``.
-        self.mode = "navigate"
-        self.tools = ToolState(self)
         #: Field of view (mm, square) and its centre (in-plane mm); None: the whole image.
         self.fov_mm: float | None = None
         self.center_uv: np.ndarray | None = None
-        self.mpl_connect("button_press_event", self._press)
-        self.mpl_connect("motion_notify_event", self._motion)
-        self.mpl_connect("button_release_event", self._release)
         self.mpl_connect("axes_leave_event", self._left)
 
     @property
@@ -148,6 +162,7 @@ class SliceCanvas(FigureCanvasQTAgg):
     def show_slice(self, image: SliceImage, *, level_hu: float, width_hu: float) -> None:
         """Replace the image (and keep the overlays until ``set_overlays``)."""
         self.image = image
+        self.plane_map = SliceMap(image)
         self._note.set_text("")
         for side, text in orientation_letters(image.u_lps, image.v_lps).items():
             self._letters[side].set_text(text)
@@ -224,11 +239,42 @@ class SliceCanvas(FigureCanvasQTAgg):
         self.scene = scene
         for artist in [*self.ax.lines, *self.ax.patches, *self.ax.collections, *self.ax.texts]:
             artist.remove()
-        self._handle_artists = {}
+        self.grips = dict(scene.handles)
+        self.grip_plan = scene.plan
+        self.canals = list(scene.canals)
         if self.image is not None:
-            self._handle_artists = draw_scene(self.ax, self.image, scene, arch=self.view == "axial")
+            draw_scene(self.ax, self.image, scene, arch=self.view == "axial")
             self.tools.draw()
+            self.draw_crosshair()
         self.draw_idle()
+
+    def arch_points(self) -> np.ndarray | None:
+        """The arch the arch tool edits (the axial view's), or None elsewhere."""
+        if self.view != "axial":
+            return None
+        arch = self.scene.arch_lps
+        return np.empty((0, 3)) if arch is None else arch
+
+    def emit_arch_edit(self, op: str, index: int, point_lps: np.ndarray | None) -> None:
+        """Report an arch edit (the grid turns it into ``Document.set_arch``)."""
+        self.arch_edited.emit(op, index, point_lps)
+
+    def ghost_lines(self, plan: Plan) -> list[np.ndarray]:
+        """The dragged trajectory's drill and implant outlines and axis on this plane."""
+        if self.image is None:
+            return []
+        plane = plane_of(self.image)
+        drawing = trajectory_drawing(plan, None, current=True)
+        out = []
+        for body in (drawing.drill, drawing.implant):
+            if body is not None:
+                for poly in revolved_section(
+                    plane, body.p0_lps, body.axis_lps, body.s_mm, body.r_mm
+                ):
+                    out.append(np.vstack([poly, poly[:1]]))
+        uv, _ = self.image.to_plane_mm(np.stack([plan.entry_lps, plan.target_lps]))
+        out.append(uv)
+        return out
 
     # ------------------------------------------------------------------ keys and wheel
     def keyPressEvent(self, event: QKeyEvent) -> None:
@@ -242,7 +288,7 @@ class SliceCanvas(FigureCanvasQTAgg):
         elif key == Qt.Key.Key_C:
             self.centre_requested.emit()
         elif key in (Qt.Key.Key_Delete, Qt.Key.Key_Backspace, Qt.Key.Key_Escape):
-            self.tools.delete()
+            self.delete_under_cursor()
         else:
             super().keyPressEvent(event)
 
@@ -262,86 +308,31 @@ class SliceCanvas(FigureCanvasQTAgg):
         with contextlib.suppress(RuntimeError):  # the window is closing: nobody to tell
             self.cursor_moved.emit(None)
 
-    def _event_uv(self, event: MouseEvent) -> np.ndarray | None:
-        if event.inaxes is not self.ax or event.xdata is None or event.ydata is None:
-            return None
-        return np.array([float(event.xdata), float(event.ydata)])
+    def right_press(self, event: MouseEvent, uv: np.ndarray) -> None:
+        """A right press: a window/level drag or, released in place, a click."""
+        shift, _ctrl = modifiers(event)
+        self._right = (float(event.x), float(event.y), shift, False)
 
-    def display_of(self, uv_mm: np.ndarray) -> np.ndarray:
-        """Display (matplotlib) pixel position of in-plane mm."""
-        return np.asarray(self.ax.transData.transform(np.asarray(uv_mm, dtype=np.float64)))
+    def motion_hook(self, event: MouseEvent, uv: np.ndarray | None) -> bool:
+        """A right-button drag adjusts the window/level (nothing else sees it)."""
+        if self._right is None:
+            return False
+        x0, y0, shift, dragging = self._right
+        dx, dy = float(event.x) - x0, float(event.y) - y0
+        if dragging or np.hypot(dx, dy) > DRAG_PX:
+            self._right = (float(event.x), float(event.y), shift, True)
+            self.window_dragged.emit(dx, -dy)  # matplotlib's y grows upwards
+        return True
 
-    def handle_at(self, x_px: float, y_px: float) -> str | None:
-        """The handle within ``PICK_PX`` of display point (x_px, y_px), if any."""
-        if self.image is None:
-            return None
-        best, best_d = None, PICK_PX
-        for name, pt in self.scene.handles.items():
-            uv, _ = self.image.to_plane_mm(pt)
-            px = self.display_of(uv)
-            d = float(np.hypot(px[0] - x_px, px[1] - y_px))
-            if d <= best_d:
-                best, best_d = name, d
-        return best
-
-    def lps_for(self, name: str, uv_mm: np.ndarray) -> np.ndarray:
-        """LPS of handle ``name`` moved to in-plane ``uv_mm``, keeping its distance off-plane."""
-        assert self.image is not None
-        _, off = self.image.to_plane_mm(self.scene.handles[name])
-        return np.asarray(self.image.to_lps(uv_mm) + float(off) * self.image.normal_lps)
-
-    def _press(self, event: MouseEvent) -> None:
-        uv = self._event_uv(event)
-        if uv is None or self.image is None:
+    def right_release(self, event: MouseEvent, uv: np.ndarray | None) -> None:
+        """A right click places the target (Shift: the entry); in a tool it removes."""
+        if self._right is None:
             return
-        if event.button == 3:
-            shift = event.key == "shift" or "shift" in (getattr(event, "modifiers", None) or ())
-            self._right = (float(event.x), float(event.y), shift, False)
+        _x, _y, shift, dragging = self._right
+        self._right = None
+        if dragging or uv is None or self.image is None:
             return
-        if event.button != 1:
+        if self.mode != "navigate":
+            super().right_release(event, uv)
             return
-        if self.mode == "canal":
-            self.clicked.emit(self.image.to_lps(uv))
-        elif self.mode in ("distance", "arch"):
-            self.tools.press(uv, float(event.x), float(event.y))
-        else:
-            self._drag = self.handle_at(float(event.x), float(event.y))
-
-    def _motion(self, event: MouseEvent) -> None:
-        uv = self._event_uv(event)
-        if self._right is not None:
-            x0, y0, shift, dragging = self._right
-            dx, dy = float(event.x) - x0, float(event.y) - y0
-            if dragging or np.hypot(dx, dy) > DRAG_PX:
-                self._right = (float(event.x), float(event.y), shift, True)
-                self.window_dragged.emit(dx, -dy)  # matplotlib's y grows upwards
-            return
-        if uv is not None and self.image is not None:
-            self.cursor_moved.emit(self.image.to_lps(uv))
-        if self.tools.motion(uv):
-            return
-        if self._drag is None or uv is None:
-            return
-        artist = self._handle_artists.get(self._drag)
-        if artist is not None:
-            artist.set_data([uv[0]], [uv[1]])
-            self.draw_idle()
-
-    def _release(self, event: MouseEvent) -> None:
-        uv = self._event_uv(event)
-        if event.button == 3 and self._right is not None:
-            _x, _y, shift, dragging = self._right
-            self._right = None
-            if dragging or uv is None or self.image is None:
-                return
-            if self.mode in ("distance", "arch"):
-                self.tools.right_click(float(event.x), float(event.y))
-                return
-            self.point_moved.emit("entry" if shift else "target", self.image.to_lps(uv))
-            return
-        if self.tools.release(uv):
-            return
-        name, self._drag = self._drag, None
-        if name is None or uv is None:
-            return
-        self.point_moved.emit(name, self.lps_for(name, uv))
+        self.point_moved.emit("entry" if shift else "target", self.image.to_lps(uv))

@@ -116,6 +116,7 @@ class View3D(QWidget):
         self._frame_without_s = float("nan")
         #: Point the camera at the trajectory on the next build (a newly opened plan).
         self.refocus_next = False
+        self._site = (0, 0)  # (trajectories, current) last seen
         doc = ctx.doc
         doc.surface_changed.connect(self._surface)
         doc.path_changed.connect(self._path)
@@ -150,7 +151,12 @@ class View3D(QWidget):
 
     def _plans(self, plans: tuple[object, ...]) -> None:
         """Every trajectory removed: the anatomy alone (otherwise the current one's path
-        result rebuilds the scene, with every trajectory)."""
+        result rebuilds the scene, with every trajectory). A trajectory added or selected:
+        the camera goes to it with that result."""
+        site = (len(plans), self.ctx.doc.current)
+        if plans and site != self._site and len(plans) >= self._site[0]:
+            self.refocus_next = self._site[0] > 0  # not on opening: the case is framed then
+        self._site = site
         if not plans and self.scene is not None and self.scene.entry_lps is not None:
             self.ctx.steps.push(lambda: self.show_scene(scene_input(None, None)))
 

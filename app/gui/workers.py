@@ -68,11 +68,13 @@ class Runner(QObject):
         self._generation = 0
         self._running: set[int] = set()
         self._keep: dict[int, Job] = {}
+        #: Coalescing (:meth:`submit_latest`): the job to start when the running one reports.
+        self._next: Callable[[], Any] | None = None
 
     @property
     def busy(self) -> bool:
-        """True while the latest submitted job has not reported."""
-        return self._generation in self._running
+        """True while the latest submitted job has not reported (or one waits to start)."""
+        return self._generation in self._running or self._next is not None
 
     def submit(self, fn: Callable[[], Any]) -> int:
         """Start ``fn`` in the pool; returns its generation."""
@@ -86,14 +88,29 @@ class Runner(QObject):
         self._pool.start(job)
         return gen
 
+    def submit_latest(self, fn: Callable[[], Any]) -> None:
+        """Run ``fn`` as soon as no job of this runner runs: now when idle, else right after
+        the running one, replacing any job waiting. One job at a time, never a queue of stale
+        ones, and every finished job reports: a drag that outpaces the computation sees each
+        result as it comes, the latest plan computed next."""
+        if self._running:
+            self._next = fn
+        else:
+            self.submit(fn)
+
     def cancel(self) -> None:
         """Forget the running job: its result will be dropped."""
         self._generation += 1
+        self._next = None
 
     def _finish(self, gen: int) -> bool:
         self._running.discard(gen)
         self._keep.pop(gen, None)
-        return gen == self._generation
+        latest = gen == self._generation
+        if self._next is not None and not self._running:
+            fn, self._next = self._next, None
+            self.submit(fn)
+        return latest
 
     def _done(self, gen: int, result: object) -> None:
         if self._finish(gen):
@@ -117,6 +134,10 @@ class Debouncer(QObject):
     def poke(self) -> None:
         """(Re)start the delay."""
         self._timer.start()
+
+    def set_interval(self, delay_ms: int) -> None:
+        """Wait ``delay_ms`` after the last poke from now on."""
+        self._timer.setInterval(delay_ms)
 
     def cancel(self) -> None:
         """Drop a scheduled call."""
@@ -143,9 +164,12 @@ class StepQueue(QObject):
         self._timer.setInterval(0)
         self._timer.timeout.connect(self._step)
 
-    def push(self, fn: Callable[[], None]) -> None:
-        """Queue ``fn()`` after every step queued before it."""
-        self._steps.append(fn)
+    def push(self, fn: Callable[[], None], *, first: bool = False) -> None:
+        """Queue ``fn()`` after every step queued before it (``first``: before them)."""
+        if first:
+            self._steps.appendleft(fn)
+        else:
+            self._steps.append(fn)
         if not self._timer.isActive():
             self._timer.start()
 
@@ -162,3 +186,20 @@ class StepQueue(QObject):
         if not self._steps:
             self._timer.stop()
         fn()
+
+
+class RunnerGroup:
+    """Several runners seen as one (the slice views' one per view)."""
+
+    def __init__(self, runners: dict[str, Runner]) -> None:
+        self._runners = runners
+
+    @property
+    def busy(self) -> bool:
+        """True while any of them runs."""
+        return any(r.busy for r in self._runners.values())
+
+    def cancel(self) -> None:
+        """Drop every running job."""
+        for r in self._runners.values():
+            r.cancel()

@@ -149,9 +149,12 @@ def panorama_page(
 ) -> None:
     """The panoramic reformat along the arch with every trajectory's implant and drill."""
     from ctdrill.app.reformat.draw import draw_reformat
+    from ctdrill.app.reformat.region import arch_region
     from ctdrill.imaging.sampling.reformat import panorama
 
-    ref = panorama(case.volume, arch_lps)
+    plans = [e.result.plan for e in entries]
+    height, centre = arch_region(case.volume, arch_lps, plans)
+    ref = panorama(case.volume, arch_lps, height_mm=height, centre_z_mm=centre)
     top = _heading(
         fig,
         "Panoramic reformat along the dental arch",
@@ -160,7 +163,7 @@ def panorama_page(
         "each implant body, each drill to its stop (the caption names what lies outside).",
     )
     ax = fig.add_axes((0.1, 0.1, 0.8, 0.8))
-    draw_reformat(ax, ref, [e.result.plan for e in entries], paths=[e.result for e in entries])
+    draw_reformat(ax, ref, plans, paths=[e.result for e in entries])
     _place(ax, top)
 
 

@@ -4,11 +4,14 @@ One trajectory at the top level (``entry_mm``, ``target_mm``, ``drill`` ...), or
 ``trajectories`` (a list of ``{name, entry_mm, target_mm, drill | drills, implant, feed_mm_s,
 calibration, margin_mm}``, names unique); the landmarks, the arch (``arch_mm``) and the series
 hash are the file's, shared by every trajectory. A file giving ``trajectories`` and a
-trajectory's key (``entry_mm`` ...) at the top level is refused.
+trajectory's key (``entry_mm`` ...) at the top level is refused. A trajectory without a
+``name`` is named by its ``site`` (the FDI number, ``36``) when it gives one not taken, else
+after the file (its stem; ``STEM-N`` in a list).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -135,7 +138,7 @@ def parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
     hashed = series_hash(ctx, doc.get(SERIES_HASH_KEY), SERIES_HASH_KEY)
     if "trajectories" not in doc:
         name = doc.get("name") if isinstance(doc.get("name"), str) else None
-        plan = _trajectory(ctx, doc, "", system, hashed, name or _stem(ctx.path))
+        plan = _trajectory(ctx, doc, "", system, hashed, name or _site_name(ctx, doc, "", ()))
         return ctx.parts((plan,), landmarks, arch)
     mixed = sorted(_PER_TRAJECTORY_KEYS & set(doc))
     if mixed:
@@ -159,7 +162,9 @@ def parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
         if not isinstance(item, dict):
             raise ctx.fail(where, "must be a trajectory object", _short(item))
         ctx.keys(item, _TRAJECTORY_KEYS, where)
-        name = ctx.string(item, "name", where, default=f"{_stem(ctx.path)}-{i + 1}")
+        taken = [p.name for p in plans]
+        default = _site_name(ctx, item, where, taken) or f"{_stem(ctx.path)}-{i + 1}"
+        name = ctx.string(item, "name", where, default=default)
         twin = next((k for k, p in enumerate(plans) if p.name == name), None)
         if twin is not None:
             raise ctx.fail(
@@ -169,6 +174,17 @@ def parse_ctdrill(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
             )
         plans.append(_trajectory(ctx, item, where, system, hashed, name))
     return ctx.parts(tuple(plans), landmarks, arch)
+
+
+def _site_name(ctx: _Ctx, obj: dict[str, Any], where: str, taken: Sequence[str]) -> str:
+    """A trajectory without a name is named by its site (``36``) when it gives one not
+    taken; else, alone in its file, by the file's stem ("" in a list: numbered there)."""
+    pre = f"{where}." if where else ""
+    if "site" in obj:
+        site = str(ctx.site(obj["site"], pre + "site"))
+        if site not in taken:
+            return site
+    return "" if where else _stem(ctx.path)
 
 
 def _trajectory(

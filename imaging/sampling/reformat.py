@@ -14,7 +14,7 @@ GUI views and the report (docs/panorama.md). Conventions:
   upright). The slab runs across the arch along the column's bucco-lingual normal (horizontal),
   whose tangent is averaged over an arc window (``tangent_window_mm``) so normals turn smoothly
   through the polyline's vertices. Without ``height_mm`` the rows span the volume's whole LPS
-  z range; with it they are centred on the arch's mean height.
+  z range; with it they are centred on ``centre_z_mm`` (default the arch's mean height).
 - **Cross-section.** The plane perpendicular to the arch at an arc position: columns along the
   arch's horizontal bucco-lingual normal there, rows down an "up" direction. Through an implant
   axis (``axis=(entry, target)``) the plane is tilted to contain the axis (it is spanned by the
@@ -96,6 +96,7 @@ def panorama(
     slab_mm: float = 10.0,
     slab_mode: SlabMode = "mean",
     height_mm: float | None = None,
+    centre_z_mm: float | None = None,
     outside_hu: float = AIR_HU,
     tangent_window_mm: float = TANGENT_WINDOW_MM,
 ) -> Reformat:
@@ -114,7 +115,9 @@ def panorama(
     slab_mode : {"mean", "mip"}
         Slab average or maximum intensity.
     height_mm : float | None
-        Image height (mm), centred on the arch's mean z; None: the volume's whole z range.
+        Image height (mm), centred on ``centre_z_mm``; None: the volume's whole z range.
+    centre_z_mm : float | None
+        LPS height of the middle row with ``height_mm`` (mm); None: the arch's mean z.
     outside_hu : float
         HU of samples outside the volume.
     tangent_window_mm : float
@@ -135,7 +138,10 @@ def panorama(
         z_top = z_hi
     else:
         n_rows = 2 * math.ceil(0.5 * float(height_mm) / pixel - 1e-9) + 1
-        z_top = curve.mean_z_mm + 0.5 * (n_rows - 1) * pixel
+        mid_z = curve.mean_z_mm if centre_z_mm is None else float(centre_z_mm)
+        if not math.isfinite(mid_z):
+            raise ArchInputError(f"panorama: centre_z_mm {centre_z_mm!r} is not a finite height")
+        z_top = mid_z + 0.5 * (n_rows - 1) * pixel
     count_check(n_rows, n_cols, pixel)
     s = np.arange(n_cols, dtype=np.float64) * pixel
     origin, _tangent, normal = curve.frame(s)

@@ -124,6 +124,40 @@ class Reformat:
         v = np.where(np.isfinite(s), z_top - pts[:, 2], np.nan)
         return np.stack([s, v], axis=1), off
 
+    def lps_at(self, uv_mm: np.ndarray) -> np.ndarray:
+        """The LPS point on the image's surface (offset 0) at image position ``uv_mm``: the
+        exact inverse of :meth:`project` on the surface, so ``lps_at((j, i) * pixel_mm)`` is
+        ``lps[i, j]`` and any position between pixel centres is the surface point there (a
+        panorama's column at arc length ``u`` on the arch polyline, its row at height
+        ``z_top - v``; a cross-section's plane point).
+
+        Parameters
+        ----------
+        uv_mm : np.ndarray
+            (..., 2) column and row position in mm from the top-left pixel centre.
+
+        Returns
+        -------
+        np.ndarray
+            (..., 3) LPS mm; NaN where a panorama position lies beyond the arch's ends.
+        """
+        uv = np.asarray(uv_mm, dtype=np.float64)
+        u, v = uv[..., 0], uv[..., 1]
+        if self.plane_lps is not None:
+            origin, col, row, _normal = self.plane_lps
+            h, w = self.shape
+            du = u - 0.5 * (w - 1) * self.pixel_mm
+            dv = v - 0.5 * (h - 1) * self.pixel_mm
+            return np.asarray(origin + du[..., None] * col + dv[..., None] * row)
+        curve = self._curve if self._curve is not None else self._make_curve()
+        length = curve.length_mm
+        on = np.isfinite(u) & (u >= -1e-9) & (u <= length + 1e-9)
+        xy = curve.point_xy(np.clip(np.where(on, u, 0.0), 0.0, length))
+        z_top = float(self.lps[0, 0, 2])
+        out = np.concatenate([xy, (z_top - v)[..., None]], axis=-1)
+        out[~on] = np.nan
+        return np.asarray(out)
+
     def directions_lps(self, points_lps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The image's local directions at LPS points, each (N, 3) unit LPS: along increasing
         columns, along increasing rows (down the image) and along the slab (the offset of

@@ -58,6 +58,14 @@ def test_plan_merges_a_slicer_case_and_converts_both_ways(tmp_path: Path) -> Non
     b = load_plan(back)
     assert (a.drill, a.margin_mm, a.name) == (b.drill, b.margin_mm, b.name)
     assert [lm.name for lm in a.landmarks] == [lm.name for lm in b.landmarks]
+    # --out OUT as the README writes it: a stem, written as OUT.json (OUT.mrk: markups)
+    code, stdout, err = _run(["plan", str(case), "--out", str(tmp_path / "stem")])
+    assert code == 0, err
+    assert stdout.startswith(f"wrote {tmp_path / 'stem.json'} (ctdrill-plan/1)")
+    assert json.loads((tmp_path / "stem.json").read_text()) == doc
+    code, stdout, err = _run(["plan", str(case), "--out", str(tmp_path / "stem.mrk")])
+    assert code == 0 and "(3D Slicer markups)" in stdout
+    validate_markups(json.loads((tmp_path / "stem.mrk.json").read_text()))
 
 
 def test_plan_refusals(tmp_path: Path) -> None:

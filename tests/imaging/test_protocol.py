@@ -245,6 +245,16 @@ def test_defaults_and_slicer_settings(tmp_path: Path) -> None:
     assert site_text(46) == "46 (lower right first molar)"
 
 
+def test_a_trajectory_without_a_name_is_named_by_its_site(tmp_path: Path) -> None:
+    assert load_plan(_write(tmp_path, _doc(site=36))).name == "36"
+    assert load_plan(_write(tmp_path, _doc())).name == "plan"  # no site: the file's stem
+    items = [_doc(site=36), _doc(site=46), _doc(site=36), _doc()]
+    for item in items:
+        del item["format"]
+    multi = _write(tmp_path, {"format": "ctdrill-plan/1", "trajectories": items}, "multi.json")
+    assert [p.name for p in load_plan_set([multi])] == ["36", "46", "multi-3", "multi-4"]
+
+
 @pytest.mark.parametrize(
     ("value", "why"),
     [

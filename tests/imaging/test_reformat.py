@@ -185,6 +185,30 @@ def test_projection_round_trip_panorama_and_cross_section(lin: CTVolume) -> None
     np.testing.assert_allclose(off, 0.0, atol=1e-9)
 
 
+def test_lps_at_inverts_project_on_the_surface_and_hits_every_pixel_centre(lin: CTVolume) -> None:
+    arch = circle_arch(20.0, (-2.0, -8.0), 0.2, 2.8, 6, z=1.5)
+    r = panorama(lin, arch, pixel_mm=0.7, slab_mm=2.0, height_mm=15.0, centre_z_mm=-2.0)
+    h, w = r.shape
+    assert float(r.lps[h // 2, 0, 2]) == pytest.approx(-2.0)  # the rows' middle where asked
+    i, j = np.mgrid[0:h, 0:w]
+    centres = r.lps_at(np.stack([j, i], axis=-1) * 0.7)
+    np.testing.assert_allclose(centres, r.lps, atol=1e-9)
+    # between pixel centres: on the curtain (offset 0), projecting back where it was taken
+    rng = np.random.default_rng(27)
+    uv = rng.uniform([0.0, 0.0], [(w - 1) * 0.7, (h - 1) * 0.7], size=(200, 2))
+    back, off = r.project(r.lps_at(uv))
+    np.testing.assert_allclose(back, uv, atol=1e-7)
+    np.testing.assert_allclose(off, 0.0, atol=1e-7)
+    assert np.all(np.isnan(r.lps_at(np.array([-1.0, 3.0]))))  # before the arch's start
+    c = cross_section(lin, arch, at_arc_mm=10.0, pixel_mm=0.5, width_mm=12.0, height_mm=9.0)
+    ch, cw = c.shape
+    i, j = np.mgrid[0:ch, 0:cw]
+    np.testing.assert_allclose(c.lps_at(np.stack([j, i], -1) * 0.5), c.lps, atol=1e-9)
+    back, off = c.project(c.lps_at(uv[:20] * 0.1))
+    np.testing.assert_allclose(back, uv[:20] * 0.1, atol=1e-9)
+    np.testing.assert_allclose(off, 0.0, atol=1e-9)
+
+
 def test_cross_section_contains_the_axis_and_scrolls_along_the_arch(lin: CTVolume) -> None:
     arch = np.array([[-20.0, -10.0, 0.0], [20.0, -10.0, 0.0]])  # along +x: normal is +y
     entry, target = np.array([1.0, -9.0, 8.0]), np.array([2.0, -12.0, -2.0])  # tilted

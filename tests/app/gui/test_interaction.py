@@ -65,27 +65,34 @@ def test_surface_preset_recontours_in_the_background(
     assert bounds_soft[5] > bounds_cortex[5]  # the soft tissue reaches higher than the bone
 
 
-def test_canal_points_clicked_on_a_slice_build_a_canal(
+def test_canal_points_clicked_on_a_slice_trace_the_sides_canal(
     qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
 ) -> None:
     open_case(qtbot, window, phantom_case)
     window.plan_panel.add_canal.setChecked(True)
     canvas = window.slice_canvases["coronal"]
     assert canvas.image is not None and window.plan is not None
-    n_before = len(window.plan.landmarks)
-    for u in (10.0, 20.0):
+    before = window.plan.landmarks
+    (canal,) = before  # the phantom's left canal
+    assert canal.name == "left mandibular canal"
+    clicked = []
+    for u in (10.0, 20.0):  # two points on the patient's left of x = 0 (a partial arch)
         uv = np.array([u, 15.0])
+        clicked.append(canvas.image.to_lps(uv))
         with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
             qtbot.mouseClick(canvas, Qt.MouseButton.LeftButton, pos=qt_point(canvas, uv))
     window.plan_panel.add_canal.setChecked(False)
     assert not canvas.add_points_mode
-    canal = window.plan.landmarks[-1]
-    assert len(window.plan.landmarks) == n_before + 1
-    assert isinstance(canal, CanalLandmark) and canal.name == "canal"
-    assert len(canal.points_lps) == 2
-    # Both points lie on the coronal plane through the target.
-    assert np.allclose(canal.points_lps[:, 1], window.plan.target_lps[1])
-    assert window.plan_panel.table.rowCount() == n_before + 1
+    assert all(p[0] > 0 for p in clicked)
+    (traced,) = window.plan.landmarks  # the side's canal grew: no second canal
+    assert isinstance(traced, CanalLandmark) and traced.name == "left mandibular canal"
+    assert len(traced.points_lps) == len(canal.points_lps) + 2
+    for p in clicked:  # each point where it was clicked (to a pixel)
+        assert np.min(np.linalg.norm(traced.points_lps - p, axis=1)) < 0.4
+    assert window.undo_action.text() == "Undo trace 'left mandibular canal'"
+    window.undo_action.trigger()
+    window.undo_action.trigger()
+    assert window.plan.landmarks == before
 
 
 def test_right_click_places_the_target(

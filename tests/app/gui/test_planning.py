@@ -54,16 +54,6 @@ def test_margins_per_landmark() -> None:
         planning.set_landmark_margin(p, 1, -1.0)
 
 
-def test_canal_points_grow_the_nearer_end() -> None:
-    p = Plan(entry_lps=np.array([0.0, 0, 10]), target_lps=np.zeros(3))
-    for x in (0.0, 5.0, -5.0, 10.0):
-        p = planning.add_canal_point(p, np.array([x, 0.0, -4.0]))
-    (canal,) = p.landmarks
-    assert isinstance(canal, CanalLandmark)
-    assert canal.points_lps[:, 0].tolist() == [-5.0, 0.0, 5.0, 10.0]
-    assert canal.radius_mm == pytest.approx(1.2)
-
-
 def test_remove_landmark() -> None:
     p = planning.remove_landmark(plan(), 0)
     assert [lm.name for lm in p.landmarks] == ["apex"]

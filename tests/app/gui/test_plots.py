@@ -33,7 +33,8 @@ def vlines(ax: object, colour: str) -> list[float]:
     out = []
     for line in ax.lines:  # type: ignore[attr-defined]
         x = np.asarray(line.get_xdata(), dtype=float)
-        if line.get_color() == colour and x.size == 2 and x[0] == x[1]:
+        visible = line.get_visible()
+        if visible and line.get_color() == colour and x.size == 2 and x[0] == x[1]:
             out.append(float(x[0]))
     return out
 

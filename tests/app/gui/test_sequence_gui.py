@@ -23,12 +23,10 @@ def test_sequence_plan_in_the_window(
 ) -> None:
     open_case(qtbot, window, phantom_case)
     assert window.plan is not None
-    assert window.plan_panel.sequence_label.text() == "one drill"
+    assert window.plan_panel.sequence.text() == "2"
     with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
         window.doc.set_plan(window.plan.with_drills((PILOT, FINAL)))
-    assert (
-        window.plan_panel.sequence_label.text() == "2 -> 2.8 mm (the fields edit the final drill)"
-    )
+    assert window.plan_panel.sequence.text() == "2 -> 2.8"
     assert window.view is not None
     result = window.view.result
     assert result.plan.drill == FINAL and len(result.inner_holes) == 1
@@ -44,3 +42,22 @@ def test_sequence_plan_in_the_window(
     assert "must be larger than drills[0].diameter_mm" in refused.args[0]
     assert [d.diameter_mm for d in window.plan.drills] == [2.0, 3.0]
     assert np.isclose(window.plan_panel.diameter.value(), 3.0)
+
+
+def test_the_drill_sequence_is_edited_in_the_window(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
+) -> None:
+    open_case(qtbot, window, phantom_case)
+    box = window.plan_panel.sequence
+    box.setText("2, 2.8 -> 3.5")
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        box.editingFinished.emit()
+    assert window.plan is not None
+    assert [d.diameter_mm for d in window.plan.drills] == [2.0, 2.8, 3.5]
+    assert window.view is not None and len(window.view.result.inner_holes) == 2
+    assert window.undo_action.text() == "Undo change drill"
+    box.setText("3 -> 2")  # narrowing: refused, the sequence shown again
+    with qtbot.waitSignal(window.doc.edit_refused) as refused:
+        box.editingFinished.emit()
+    assert "must be larger" in refused.args[0]
+    assert box.text() == "2 -> 2.8 -> 3.5"

@@ -203,12 +203,12 @@ def test_history_keeps_at_most_its_step_count() -> None:
 
 
 def test_a_landmark_edit_on_one_trajectory_is_the_plans(qtbot: QtBot) -> None:
-    from ctdrill.app.gui.planning import add_canal_point
+    from ctdrill.app.gui.canal_edit import trace
 
     doc = Document()
     a, b = traj("a"), traj("b", 5.0)
     doc.set_plans([a, b])
-    edited = add_canal_point(a, np.array([1.0, 2.0, -3.0]))
+    edited, _, _ = trace(a, np.array([1.0, 2.0, -3.0]), name="canal")
     assert doc.set_plan(edited)
     assert doc.plans[0] is edited
     assert doc.plans[1].landmarks is edited.landmarks and doc.plans[1].name == "b"

@@ -72,14 +72,14 @@ def test_moving_the_target_recomputes_the_plots_and_the_stop(
     assert window.plan_panel.point_boxes["target"][2].value() == pytest.approx(-35.0)
 
 
-def test_dragging_the_target_on_a_slice_moves_it(
+def test_dragging_the_target_moves_the_implant_whole_and_shift_slides_it(
     qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase
 ) -> None:
     open_case(qtbot, window, phantom_case)
     canvas = window.slice_canvases["trajectory"]
     assert window.plan is not None and canvas.image is not None
-    old = window.plan.target_lps.copy()
-    uv, _ = canvas.image.to_plane_mm(old)
+    old = window.plan
+    uv, _ = canvas.image.to_plane_mm(old.target_lps)
     new_uv = uv + np.array([0.0, -4.0])  # 4 mm up the image = 4 mm back along the drill
     ratio = canvas.devicePixelRatioF()
 
@@ -87,15 +87,27 @@ def test_dragging_the_target_on_a_slice_moves_it(
         x, y = canvas.ax.transData.transform(uv_mm)
         return QPoint(round(x / ratio), round(canvas.height() - y / ratio))
 
-    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
-        qtbot.mousePress(canvas, Qt.MouseButton.LeftButton, pos=qt_point(uv))
-        qtbot.mouseMove(canvas, qt_point((uv + new_uv) / 2))
-        qtbot.mouseMove(canvas, qt_point(new_uv))
-        qtbot.mouseRelease(canvas, Qt.MouseButton.LeftButton, pos=qt_point(new_uv))
-    moved = window.plan.target_lps - old
+    def drag(a: np.ndarray, b: np.ndarray, mods: Qt.KeyboardModifier) -> None:
+        with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+            qtbot.mousePress(canvas, Qt.MouseButton.LeftButton, mods, qt_point(a))
+            qtbot.mouseMove(canvas, qt_point((a + b) / 2))
+            qtbot.mouseMove(canvas, qt_point(b))
+            qtbot.mouseRelease(canvas, Qt.MouseButton.LeftButton, mods, qt_point(b))
+
+    drag(uv, new_uv, Qt.KeyboardModifier.NoModifier)
     pixel = 0.4 * 1.5  # a pixel of slack either way
+    moved = window.plan.target_lps - old.target_lps
     assert moved[2] == pytest.approx(4.0, abs=pixel)
-    assert window.plan.planned_depth_mm == pytest.approx(8.0, abs=pixel)
+    np.testing.assert_allclose(window.plan.entry_lps - old.entry_lps, moved, atol=1e-9)
+    assert window.plan.planned_depth_mm == pytest.approx(old.planned_depth_mm)
+    assert window.undo_action.text() == "Undo move implant"
+    window.undo_action.trigger()
+    assert window.plan is old
+    # Shift: the apex slides along the axis, the entry stays: 4 mm shallower
+    drag(uv, new_uv, Qt.KeyboardModifier.ShiftModifier)
+    np.testing.assert_array_equal(window.plan.entry_lps, old.entry_lps)
+    assert window.plan.planned_depth_mm == pytest.approx(old.planned_depth_mm - 4.0, abs=pixel)
+    assert window.undo_action.text() == "Undo slide implant along its axis"
 
 
 def test_numeric_edit_and_margin_change_the_stop(
