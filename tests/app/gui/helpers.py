@@ -9,6 +9,9 @@ from ctdrill.imaging.phantom.io import PhantomCase
 
 #: Longest wait for a load or a path computation, ms.
 LOAD_TIMEOUT_MS = 30_000
+#: Longest wait for a 2000-candidate search in the window, ms: a hang guard only (the search
+#: takes a few seconds on idle cores and several times that on a shared, loaded machine).
+SEARCH_TIMEOUT_MS = 240_000
 
 
 def open_case(qtbot: QtBot, win: MainWindow, case: PhantomCase) -> None:

@@ -20,7 +20,7 @@ from ctdrill.app.search.defaults import DEFAULT_COUNT
 from ctdrill.app.search.suggest import suggest
 from ctdrill.imaging.phantom.io import PhantomCase
 from ctdrill.model import load_calibration
-from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
+from tests.app.gui.helpers import LOAD_TIMEOUT_MS, SEARCH_TIMEOUT_MS, open_case
 from tests.app.gui.phantom import phantom_volume
 
 pytestmark = pytest.mark.gui
@@ -36,7 +36,7 @@ def test_suggest_draws_the_top_axes_and_a_click_adopts_one(
     assert panel.count.value() == DEFAULT_COUNT  # the command's default, 2000
     assert window.suggest_axes()
     assert window.doc.suggest_status == "running" and not panel.button.isEnabled()
-    qtbot.waitUntil(lambda: window.doc.suggestion is not None, timeout=LOAD_TIMEOUT_MS)
+    qtbot.waitUntil(lambda: window.doc.suggestion is not None, timeout=SEARCH_TIMEOUT_MS)
     s = window.doc.suggestion
     assert s is not None and s.plan is planned and s.candidates.size == DEFAULT_COUNT
     rows = top_rows(s)
