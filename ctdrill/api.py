@@ -69,8 +69,10 @@ __all__ = [
     "TrajectorySummary",
     "evaluate_batch",
     "export_case",
+    "load_ct",
     "load_plan",
     "load_series",
+    "open_window",
     "plan_path",
     "read_summary",
     "summarize",
@@ -85,6 +87,16 @@ def load_series(path: StrPath, *, series_uid: str | None = None) -> CTVolume:
     ``.affine_lps`` maps (i, j, k, 1) to LPS mm, ``.warnings`` says what to know.
     """
     from ctdrill.imaging.dicom.series import load_series as load
+
+    return load(Path(path), series_uid=series_uid)
+
+
+def load_ct(path: StrPath, *, series_uid: str | None = None) -> CTVolume:
+    """The CT at ``path``, whatever it is (``--ct``): a DICOM folder or file, NIfTI
+    (``.nii``, ``.nii.gz``), NRRD (``.nrrd``, ``.nhdr``) or MetaImage (``.mha``, ``.mhd``),
+    told by content; a volume in LPS mm as :func:`load_series` returns
+    (``.info.source_format`` says which; docs/volumes.md)."""
+    from ctdrill.imaging.volumes.load import load_ct as load
 
     return load(Path(path), series_uid=series_uid)
 
@@ -227,3 +239,22 @@ def read_summary(source: StrPath | dict[str, Any]) -> TrajectorySummary | Sequen
 
     doc = source if isinstance(source, dict) else json.loads(Path(source).read_text("utf-8"))
     return read(doc)
+
+
+def open_window(
+    dicom: StrPath,
+    plans: Sequence[StrPath | Plan] = (),
+    implants: StrPath | Sequence[Any] | None = None,
+    *,
+    settings: Any = None,
+) -> Any:
+    """The desktop window, shown, with the CT ``dicom`` (any :func:`load_ct` source) loaded
+    and its first computation finished, for scripts that drive it with real Qt events
+    (docs/gui.md: the views' object names, ``pixel_to_lps``/``lps_to_pixel``, the force
+    plot's ``stopDepthMm``). ``plans``: plan files or :class:`Plan` values; ``implants``: an
+    implant library file or specs (None: the shipped library); ``settings``: a ``QSettings`` the
+    window keeps its settings in (None: the user's). Needs a Qt platform (a display
+    or Xvfb) and creates the ``QApplication`` if there is none."""
+    from ctdrill.app.gui.api import open_window as open_
+
+    return open_(dicom, plans, implants, settings=settings)

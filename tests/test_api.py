@@ -15,7 +15,15 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-NAMES = ("load_series", "load_plan", "plan_path", "evaluate_batch", "export_case")
+NAMES = (
+    "load_series",
+    "load_ct",
+    "load_plan",
+    "plan_path",
+    "evaluate_batch",
+    "export_case",
+    "open_window",
+)
 
 
 def test_the_contract_names_and_the_summary_type() -> None:

@@ -302,8 +302,12 @@ def _importers_of(prefixes: tuple[str, ...]) -> dict[str, list[str]]:
     }
 
 
-#: The GUI's one entry from outside it: ``ctdrill gui`` loads the window inside ``run()``.
-GUI_ENTRY = {"ctdrill.app.commands.gui": ["ctdrill.app.gui.app"]}
+#: The GUI's entries from outside it: ``ctdrill gui`` loads the window inside ``run()``, and the
+#: Python API's ``open_window`` inside that function.
+GUI_ENTRY = {
+    "ctdrill.app.commands.gui": ["ctdrill.app.gui.app"],
+    "ctdrill.api": ["ctdrill.app.gui.api"],
+}
 #: Left for later, named exactly so it cannot grow or go stale: the report's 3D view renders the
 #: window's scene through the GUI's modules. Those modules are Qt-free (pyvista and the plan's
 #: geometry); the fix moves them into a 3D-scene layer below the GUI that both use. Delete the

@@ -127,17 +127,20 @@ def actions(draw: st.DrawFn) -> list[tuple[str, object]]:
 
 
 def check_invariants(device: object, *, ticked: bool) -> None:
-    """Force within 0..peak; front (and, after a tick, the drill) never past the stop depth.
+    """Force within -release bound..peak (negative only from the release damper, which brakes
+    a master moving back by at most the continuous rating); front (and, after a tick, the
+    drill) never past the stop depth.
 
     ``drill_mm`` is refreshed by the tick: right after a new table is loaded it still holds the
     previous session's value until the next tick (no telemetry is sent in between).
     """
     from ctdrill.haptics.emulator import DeviceEmulator
-    from ctdrill.haptics.renderer import PEAK_FORCE_N
+    from ctdrill.haptics.renderer import PEAK_FORCE_N, RELEASE_MAX_N
 
     assert isinstance(device, DeviceEmulator)
     r = device.renderer
-    assert math.isfinite(r.force_cmd_n) and 0.0 <= r.force_cmd_n <= PEAK_FORCE_N, r.force_cmd_n
+    assert math.isfinite(r.force_cmd_n), r.force_cmd_n
+    assert -RELEASE_MAX_N <= r.force_cmd_n <= PEAK_FORCE_N, r.force_cmd_n
     if r.has_profile:
         if ticked:
             assert r.drill_mm <= r.stop_depth_mm + 1e-9, (r.drill_mm, r.stop_depth_mm)

@@ -22,8 +22,8 @@ from PySide6.QtWidgets import QWidget
 from pytestqt.qtbot import QtBot
 from scipy.ndimage import map_coordinates
 
+from ctdrill.api import open_window
 from ctdrill.app.gui import slice_grid
-from ctdrill.app.gui.api import open_window
 from ctdrill.app.gui.implant_drag import dragged_plan, site_lps
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.results import compute_path_view
