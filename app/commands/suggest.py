@@ -40,13 +40,15 @@ def register(subparsers: Any) -> None:
 
     p = subparsers.add_parser(
         "suggest",
-        help="suggest a nearby axis meeting better bone while keeping every margin",
+        help="suggest a nearby axis meeting better bone while keeping every margin and bone wall",
         description=(
             "Sample candidate axes around the planned one (entry moved within --radius-mm on "
-            "the bone surface, axis tilted within --cone-deg, same drill and planned depth), "
-            "score their bone engagement (mean HU over the implant body, cortical contact at "
-            "the crest and at the apex) and keep only those whose drill reaches the planned "
-            "depth with every landmark's margin. Writes OUT/candidates.csv (every candidate, "
+            "the bone surface, axis tilted within --cone-deg, same drills, implant and planned "
+            "depth), score the bone around the implant body (mean HU on a shell just outside "
+            "its surface, cortical contact at its neck and apex) and keep only those whose "
+            "implant and every drill keep each landmark's margin with no thin bone wall and "
+            "no cortical perforation (checked exactly on the best-ranked candidates). "
+            "Writes OUT/candidates.csv (every candidate, "
             "best first; candidate 0 is the planned axis), OUT/suggest.json and, when a "
             "candidate is feasible, OUT/best.plan.json (the plan with the best axis). See "
             "docs/suggest.md."

@@ -92,14 +92,13 @@ def candidate_lines(
 
 
 def summary_text(s: Suggestion) -> str:
-    """How many candidates are feasible, and where the planned axis ranks."""
-    head = f"{s.n_feasible} of {s.candidates.size} candidates keep every margin"
+    """How many candidates are feasible (of those checked exactly), and where the planned
+    axis ranks."""
+    checked = f"{s.n_checked} checked exactly of {s.candidates.size}"
+    head = f"{s.n_feasible} candidates keep every margin and bone wall ({checked})"
     if s.best_index is None:
-        head = (
-            f"no feasible candidate: none of the {s.candidates.size} axes reaches the planned "
-            f"depth {s.plan.planned_depth_mm:.2f} mm keeping every margin"
-        )
+        head = f"no feasible candidate: none keeps every margin and bone wall ({checked})"
     score = float(s.scores.total[0])
     planned = f"score {score:.3f}" if math.isfinite(score) else "not scored"
-    state = "keeps every margin" if s.feasible[0] else s.reason[0]
+    state = "keeps every margin and bone wall" if s.feasible[0] else s.reason[0]
     return f"{head} ({s.total_s:.1f} s). Planned axis: rank {s.rank_of(0)}, {planned}, {state}."

@@ -1,17 +1,20 @@
-"""The bone-engagement objective of ``ctdrill suggest`` (docs/suggest.md has the reasoning).
+"""The objective of ``ctdrill suggest``: bone around the implant body (docs/suggest.md).
 
-Every term is read from the **disc HU** of the batch evaluation: at tip depth ``x`` the
-area-weighted mean HU over the drill's cutting lip (the disc of radius ``R``, the cone of
-length ``l_t`` behind the tip). As ``x`` runs from 0 to the planned depth ``D`` the lip sweeps
-the bone the drill removes exactly once, so the mean of the disc HU over ``[0, D]`` is the mean
-HU of the implant bed. On the uniform depth grid (step <= 0.05 mm) the means are sample means.
+Every term is read from the **shell HU** (:mod:`ctdrill.app.search.shell`): trilinear CT
+numbers on shells 0.25 and 0.75 mm outside the body's surface (the implant at its placement,
+or the final drill's osteotomy without an implant), every 0.5 mm from its top (the platform)
+to its apex, in 16 directions around the axis. Outside the CT counts as air. The bone read is
+the bone the implant's surface engages, never the bone on its axis: an axis running inside a
+cortical plate thinner than the implant has soft tissue on its shell and scores low (and is
+not feasible: it perforates the plate).
 
-- ``body_hu``: mean disc HU over ``[0, D]``; ``body_term = (body_hu - BONE_HU) /
+- ``body_hu``: mean shell HU over the whole body; ``body_term = (body_hu - BONE_HU) /
   (CORTICAL_HU - BONE_HU)``: 0 at the bone threshold (150 HU), 1 at the cortical one
   (1250 HU), linear, not clipped.
-- ``crest_cortical``: fraction of the crest zone ``[0, min(crest_zone_mm, D)]`` whose disc
-  HU is cortical (:func:`ctdrill.imaging.misch.is_cortical`, Misch D1, ``> 1250 HU``);
-- ``apex_cortical``: the same over the apex zone ``[max(0, D - apex_zone_mm), D]``;
+- ``crest_cortical``: fraction of the shell samples within ``crest_zone_mm`` below the top
+  (the platform) whose HU is cortical (:func:`ctdrill.imaging.misch.is_cortical`, Misch D1,
+  ``> 1250 HU``): cortical bone around the neck, where primary stability is made;
+- ``apex_cortical``: the same within ``apex_zone_mm`` above the apex;
 - ``score = w_body body_term + w_crest crest_cortical + w_apex apex_cortical``.
 
 The thresholds have one owner, :mod:`ctdrill.imaging.misch`.
@@ -28,7 +31,7 @@ from ctdrill.app.errors import AppInputError
 from ctdrill.app.search.defaults import DEFAULT_WEIGHTS
 from ctdrill.imaging.misch import BONE_HU, CORTICAL_HU, is_cortical
 
-#: Crest and apex zones, mm: about the thickness of the crestal cortex of a mandible.
+#: Crest and apex zones along the body, mm: about the thickness of a mandible's cortex.
 CREST_ZONE_MM = 2.0
 APEX_ZONE_MM = 2.0
 
@@ -84,34 +87,32 @@ class Scores:
     total: np.ndarray
 
 
-def score_rows(
-    depth_mm: np.ndarray, disc_hu: np.ndarray, planned_depth_mm: float, objective: Objective
-) -> Scores:
-    """The score terms of rows sharing one planned depth.
+def score_rows(shell_hu: np.ndarray, s_mm: np.ndarray, objective: Objective) -> Scores:
+    """The score terms of candidates sharing one body.
 
     Parameters
     ----------
-    depth_mm : (N, D) tip depths (the same uniform grid on every evaluated row), mm; NaN rows
-        were not evaluated.
-    disc_hu : (N, D) disc HU at those depths.
-    planned_depth_mm : ``D``, mm.
+    shell_hu : (N, D, S) shell HU per candidate, depth and shell sample; NaN rows were not
+        sampled.
+    s_mm : (D,) the depths below the body's top (platform), mm.
     objective : weights and zones.
     """
-    depth = np.asarray(depth_mm, dtype=np.float64)
-    hu = np.asarray(disc_hu, dtype=np.float64)
-    n = depth.shape[0]
-    ok = np.all(np.isfinite(depth), axis=1) & np.all(np.isfinite(hu), axis=1)
+    hu = np.asarray(shell_hu, dtype=np.float64)
+    s = np.asarray(s_mm, dtype=np.float64)
+    n = hu.shape[0]
+    ok = np.all(np.isfinite(hu), axis=(1, 2))
     nan = np.full(n, np.nan)
     body, crest, apex = nan.copy(), nan.copy(), nan.copy()
     if ok.any():
-        d, h = depth[ok], hu[ok]
+        h = hu[ok]
         cortical = is_cortical(h)
         tol = 1e-9
-        in_crest = d <= min(objective.crest_zone_mm, planned_depth_mm) + tol
-        in_apex = d >= max(0.0, planned_depth_mm - objective.apex_zone_mm) - tol
-        body[ok] = h.mean(axis=1)
-        crest[ok] = (cortical & in_crest).sum(axis=1) / in_crest.sum(axis=1)
-        apex[ok] = (cortical & in_apex).sum(axis=1) / in_apex.sum(axis=1)
+        length = float(s[-1])
+        in_crest = s <= min(objective.crest_zone_mm, length) + tol
+        in_apex = s >= max(0.0, length - objective.apex_zone_mm) - tol
+        body[ok] = h.mean(axis=(1, 2))
+        crest[ok] = cortical[:, in_crest].mean(axis=(1, 2))
+        apex[ok] = cortical[:, in_apex].mean(axis=(1, 2))
     return combine(body, crest, apex, objective)
 
 

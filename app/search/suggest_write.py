@@ -42,6 +42,11 @@ CSV_COLUMNS = (
     "min_clearance_mm",
     "binding_landmark",
     "stop_reason",
+    "passed",
+    "checked",
+    "implant_clearance_mm",
+    "min_wall_mm",
+    "problems",
     "feasible",
     "reason",
 )
@@ -77,6 +82,11 @@ def candidates_csv(s: Suggestion) -> str:
                 _num(float(s.min_clearance_mm[i])),
                 text_cell(printable(s.binding[i])),
                 text_cell(s.stop_reason[i]),
+                str(bool(s.passed[i])).lower(),
+                str(bool(s.checked[i])).lower(),
+                _num(float(s.implant_clearance_mm[i])),
+                _num(float(s.min_wall_mm[i])),
+                text_cell(s.problems[i]),
                 str(bool(s.feasible[i])).lower(),
                 text_cell(printable(s.reason[i])),
             ]
@@ -98,13 +108,22 @@ def summary_doc(s: Suggestion) -> dict[str, Any]:
         "sampling": "halton-4d" if s.space.seed is None else "halton-4d-shifted",
         "surface_search_mm": SURFACE_SEARCH_MM,
         "objective": s.objective.to_json(),
+        "score_body": printable(s.body),
+        "check": {"wanted": s.check.wanted, "max_checked": s.check.max_checked},
+        "n_passed": s.n_passed,
+        "n_checked": s.n_checked,
         "n_feasible": s.n_feasible,
         "best_candidate": best,
         "best_score": None if best is None else float(s.scores.total[best]),
         "planned_rank": s.rank_of(0),
         "planned_feasible": bool(s.feasible[0]),
         "planned_score": _json_num(float(s.scores.total[0])),
+        "best_implant_clearance_mm": None
+        if best is None
+        else _json_num(float(s.implant_clearance_mm[best])),
+        "best_min_wall_mm": None if best is None else _json_num(float(s.min_wall_mm[best])),
         "evaluate_s": round(s.evaluate_s, 4),
+        "check_s": round(s.check_s, 4),
         "total_s": round(s.total_s, 4),
         "notes": [printable(n) for n in s.notes],
     }
@@ -120,19 +139,30 @@ def summary_lines(s: Suggestion) -> list[str]:
     best = s.best_index
     sc = s.scores.total
     out.append(
-        f"{s.n_feasible} of {s.candidates.size} candidates feasible; evaluation "
-        f"{s.evaluate_s:.2f} s, search {s.total_s:.2f} s"
+        f"{s.n_passed} of {s.candidates.size} candidates pass the final drill's margins; "
+        f"{s.n_checked} checked exactly, {s.n_feasible} feasible; evaluation "
+        f"{s.evaluate_s:.2f} s, exact check {s.check_s:.2f} s, search {s.total_s:.2f} s"
     )
     if best is not None:
         c = s.candidates
         out.append(
             f"best: candidate {best}, score {sc[best]:.4f} (offset {c.offset_mm[best]:.2f} mm, "
-            f"tilt {c.tilt_deg[best]:.1f} deg)"
+            f"tilt {c.tilt_deg[best]:.1f} deg)" + _safety_text(s, best)
         )
     planned = f"{sc[0]:.4f}" if math.isfinite(float(sc[0])) else "none"
     state = "feasible" if s.feasible[0] else f"not feasible: {s.reason[0]}"
     out.append(f"planned axis (candidate 0): rank {s.rank_of(0)}, score {planned}, {state}")
     return out
+
+
+def _safety_text(s: Suggestion, index: int) -> str:
+    parts = []
+    clear, wall = float(s.implant_clearance_mm[index]), float(s.min_wall_mm[index])
+    if math.isfinite(clear):
+        parts.append(f"implant clearance {clear:.1f} mm")
+    if math.isfinite(wall):
+        parts.append(f"thinnest bone wall {wall:.1f} mm")
+    return f"; {', '.join(parts)}" if parts else ""
 
 
 def write_suggestion(s: Suggestion, out_dir: str | Path) -> list[Path]:

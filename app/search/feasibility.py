@@ -1,0 +1,100 @@
+"""Whether one candidate axis is safe enough to suggest: the rule, defined once.
+
+A candidate (the plan with the candidate's entry and target) is **feasible** when
+
+- every drill of the osteotomy, each drilled as it is for the implant
+  (:meth:`~ctdrill.imaging.plan.types.Plan.drilled`: full diameter to the apex, its tip
+  beyond by its own tip length), keeps every landmark's margin at its planned depth
+  (:func:`~ctdrill.imaging.plan.safety.margin_warnings`, ``plan_violates_margin``);
+- the implant body at its placement keeps every landmark's margin
+  (:func:`~ctdrill.imaging.plan.implant_safety.implant_clearance`,
+  :func:`~ctdrill.imaging.plan.implant_safety.implant_margin_warnings`,
+  ``implant_violates_margin``);
+- its bone walls (:func:`~ctdrill.imaging.sampling.walls.plan_bone_walls`) show no
+  ``cortical_perforation`` and no ``thin_wall`` (``min_mm`` at least the plan's
+  ``min_wall_mm``, :func:`~ctdrill.imaging.sampling.walls.bone_wall_warnings`); walls with
+  no known direction at all (``min_mm`` None: the CT ends around the implant) are not a
+  known wall, so the candidate is not feasible (``bone_walls_unknown``).
+
+Without an implant only the drills are checked (there is no body, hence no wall).
+The rules and their thresholds are the imaging package's; this module only combines them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from ctdrill.imaging.plan.implant_safety import implant_clearance, implant_margin_warnings
+from ctdrill.imaging.plan.landmarks import bind_to_grid
+from ctdrill.imaging.plan.safety import clearance_profile_mm, margin_warnings, margins_mm
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.sampling.walls import bone_wall_warnings, plan_bone_walls
+from ctdrill.imaging.volume import CTVolume
+
+#: The warning codes that make a candidate infeasible (``ctdrill.warning_codes``).
+BLOCKING_CODES = (
+    "plan_violates_margin",
+    "implant_violates_margin",
+    "thin_wall",
+    "cortical_perforation",
+    "bone_walls_unknown",
+)
+
+
+@dataclass(frozen=True)
+class Feasibility:
+    """One candidate's verdict.
+
+    Attributes
+    ----------
+    problems : ``(code, message)`` of every rule it breaks (codes of :data:`BLOCKING_CODES`);
+        empty when feasible.
+    implant_clearance_mm : the implant body's signed clearance to the binding landmark, mm
+        (None without an implant or landmark).
+    min_wall_mm : the thinnest known bone wall around the implant, mm (None without an
+        implant, or when no wall is known).
+    """
+
+    problems: tuple[tuple[str, str], ...]
+    implant_clearance_mm: float | None
+    min_wall_mm: float | None
+
+    @property
+    def feasible(self) -> bool:
+        """No rule broken."""
+        return not self.problems
+
+    @property
+    def codes(self) -> tuple[str, ...]:
+        """The codes of :attr:`problems`, in order, each once."""
+        return tuple(dict.fromkeys(code for code, _ in self.problems))
+
+
+def check_candidate(volume: CTVolume, plan: Plan) -> Feasibility:
+    """The feasibility of ``plan`` (a candidate's axis, its drills and implant) on ``volume``
+    (module docstring)."""
+    lms = bind_to_grid(plan.landmarks, volume.affine_lps, tuple(volume.hu.shape))
+    plan = replace(plan, landmarks=lms)
+    problems: list[tuple[str, str]] = []
+    if lms:
+        for k, drill in enumerate(plan.drills):
+            drilled = plan.drilled(k)
+            clear = clearance_profile_mm(drilled)[0]
+            for code, message in margin_warnings(drilled, clear, margins_mm(drilled)):
+                if code == "plan_violates_margin":
+                    problems.append((code, f"drill {k + 1} ({drill.diameter_mm:g} mm): {message}"))
+    implant = implant_clearance(plan)
+    problems += implant_margin_warnings(plan, implant)
+    walls = plan_bone_walls(volume, plan)
+    min_wall = None
+    if walls is not None:
+        min_wall = walls.min_mm
+        label = f"plan {plan.name!r}"
+        for code, message in bone_wall_warnings(walls, min_wall_mm=plan.min_wall_mm, label=label):
+            if code != "bone_walls_unknown" or walls.min_mm is None:
+                problems.append((code, message))
+    return Feasibility(
+        problems=tuple(problems),
+        implant_clearance_mm=None if implant is None else implant.binding_clearance_mm,
+        min_wall_mm=min_wall,
+    )
