@@ -134,12 +134,15 @@ class Exact:
         check: CheckSettings,
         checker: Checker,
     ) -> Exact:
-        """Check the stage-1 survivors in order (unflagged first, then by score); fill in
-        ``rows.reason`` for every row not feasible."""
+        """Check the stage-1 survivors in order (the planned axis, candidate 0, first; then
+        unflagged first, each by score); fill in ``rows.reason`` for every row not
+        feasible."""
         n = cands.size
         nan = np.full(n, np.nan)
         ex = cls(np.zeros(n, bool), np.zeros(n, bool), [""] * n, nan.copy(), nan.copy())
         queue = np.lexsort((np.arange(n), key, flagged, ~rows.passed))[: rows.passed.sum()]
+        if rows.passed[0]:  # the planned axis first: its verdict is always shown
+            queue = np.concatenate([[0], queue[queue != 0]])
         for i in queue:
             if ex.feasible.sum() >= check.wanted or ex.checked.sum() >= check.max_checked:
                 break

@@ -12,7 +12,7 @@ planned axis) and ranks them in two stages:
    around the body (:mod:`ctdrill.app.search.shell`), read once for all: the score
    (:mod:`ctdrill.app.search.score`) and the flags of a likely perforation or thin wall.
 2. **Exact, for the best-ranked.** The candidates that passed stage 1 are checked in order
-   (unflagged first, then by score) with the one feasibility rule
+   (the planned axis first, then unflagged first, each by score) with the one feasibility rule
    (:func:`ctdrill.app.search.feasibility.check_candidate`: every drill's and the implant's
    margins, the bone walls), until ``wanted`` feasible ones are found or ``max_checked``
    were checked. Only a checked candidate can be feasible; the others say why not (their
@@ -302,9 +302,10 @@ def _notes(
             f"{SURFACE_SEARCH_MM:g} mm of their anchor: not evaluated, not feasible"
         )
     if not plan.landmarks:
+        walls = "" if plan.implant is None else " and the bone walls"
         out.append(
             f"plan {plan.name!r} has no landmark: feasibility checks the planned depth, the "
-            "volume and the bone walls, no safety margin"
+            f"volume{walls}, no safety margin"
         )
     n_passed, n_checked = int(passed.sum()), int(exact.checked.sum())
     n_feasible = int(exact.feasible.sum())
