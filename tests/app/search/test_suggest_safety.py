@@ -172,8 +172,8 @@ def test_demo_plan_at_its_depth_has_no_feasible_axis(demo: CTVolume) -> None:
     # ran inside the lingual plate and was ranked best).
     plan = load_plan(asset("demo") / "plan.json")
     cal = load_calibration(plan.calibration)
-    s = suggest(demo, plan, cal, SearchSpace(count=300))
-    assert s.best_index is None and s.best_plan() is None
+    s = suggest(demo, plan, cal, SearchSpace(count=300), check=CheckSettings(max_checked=10))
+    assert s.best_index is None and s.best_plan() is None and s.n_checked == 10
     assert any(n.startswith("no feasible candidate") and "thin_wall" in n for n in s.notes)
     old = check_candidate(demo, s.plan_of(283))
     assert {"thin_wall", "cortical_perforation"} <= set(old.codes)
