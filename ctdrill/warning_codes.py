@@ -137,6 +137,19 @@ REGISTRY: tuple[WarningCode, ...] = (
         "two implants of the plan set are closer than the 3 mm kept between implants (the gap "
         "between their platform-wide bodies)",
     ),
+    WarningCode(
+        "implant_protocol",
+        "plan",
+        "a note: the trajectory has an implant and no drills of its own, so it drills the "
+        "implant's drilling protocol (its drills in order, each to the apex plus its tip)",
+    ),
+    WarningCode(
+        "final_drill_mismatch",
+        "plan",
+        "the final drill does not suit the implant: wider than its diameter (no primary "
+        "stability) or narrower than both its apex diameter and its diameter less the allowed "
+        "undersize (it could not be seated)",
+    ),
     # a computed path (ctdrill.engine.path_warnings)
     WarningCode(
         "gap_interpolated",

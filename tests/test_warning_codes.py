@@ -41,15 +41,22 @@ MESSAGE_NAMES = {"message", "msg", "note", "text"}
 
 
 def _emitted_in_source() -> dict[str, set[str]]:
-    """code -> modules: the first argument of every ``LoadWarning(...)`` and the first item of
-    every ``(code, message)`` pair (a code-like string, then a message expression)."""
+    """code -> modules: the first argument of every ``LoadWarning(...)``, the first item of
+    every ``(code, message)`` pair (a code-like string, then a message expression) and every
+    constant named ``*_CODE``."""
     found: dict[str, set[str]] = {}
     for room in ROOMS:
         for path in sorted((ROOT / room).rglob("*.py")):
             rel = str(path.relative_to(ROOT))
             for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
                 first: ast.expr | None = None
-                if isinstance(node, ast.Call) and getattr(node.func, "id", "") == "LoadWarning":
+                if (
+                    isinstance(node, ast.Assign)
+                    and len(node.targets) == 1
+                    and getattr(node.targets[0], "id", "").endswith("_CODE")
+                ):
+                    first = node.value  # a code held in a constant (``NOTE_CODE = "..."``)
+                elif isinstance(node, ast.Call) and getattr(node.func, "id", "") == "LoadWarning":
                     first = node.args[0] if node.args else None
                 elif isinstance(node, ast.Tuple) and len(node.elts) == 2:
                     msg = node.elts[1]
