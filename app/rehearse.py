@@ -94,6 +94,8 @@ def load_table(
     plan = load_one_plan(
         [plan_file] if isinstance(plan_file, Path) else plan_file, trajectory=trajectory
     )
+    if not plan.earlier_drills:  # with an implant: to its apex plus the drill's tip
+        plan = plan.drilled(0)
     path = plan_path(volume, plan, plan_calibration(plan), interpolate_gaps=interpolate_gaps)
     if exam:
         setup = exam_setup(volume, plan, path, interpolate_gaps=interpolate_gaps)

@@ -1,9 +1,16 @@
 """What ``ctdrill export`` (and ``report``, ``demo``) prints of a summary: the stop, the
-calibration, the force band, the grey map and every warning, one line each."""
+implant's clearance and walls, the calibration, the force band, the grey map and every
+warning, one line each.
+
+Clearances and walls are printed with no more digits than the CT's sampling supports
+(:func:`~ctdrill.imaging.resolution.format_clearance_mm` of the summary's
+``clearance_accuracy_mm``: one decimal on 0.3-1 mm voxels); depths keep three decimals (they
+are the plan's own numbers, not measured on the CT); ``summary.json`` keeps every digit."""
 
 from __future__ import annotations
 
 from ctdrill.app.grey_option import grey_line
+from ctdrill.engine.summary import BoneWallsInfo
 from ctdrill.engine.summary import (
     METHOD_NOT_STATED,
     CalibrationInfo,
@@ -43,10 +50,54 @@ def _why(outcome: PlanOutcome) -> str:
     return why
 
 
+def clearance_text(value_mm: float, outcome: PlanOutcome) -> str:
+    """``value_mm`` with the digits the CT supports (``outcome.clearance_accuracy_mm``;
+    three decimals when unknown), without a unit."""
+    from ctdrill.imaging.resolution import MAX_DECIMALS, format_clearance_mm
+
+    acc = outcome.clearance_accuracy_mm
+    return f"{value_mm:.{MAX_DECIMALS}f}" if acc is None else format_clearance_mm(value_mm, acc)
+
+
 def _clearance(outcome: PlanOutcome) -> str:
     if outcome.plan_clearance_mm is None:
         return ""
-    return f"; clearance along the planned path {outcome.plan_clearance_mm:.3f} mm"
+    return f"; clearance along the planned path {clearance_text(outcome.plan_clearance_mm, outcome)} mm"
+
+
+def walls_text(walls: BoneWallsInfo, outcome: PlanOutcome) -> str:
+    """``thinnest bone wall 1.2 mm (buccal 1.2, lingual 2.0 mm)``, or why it is unknown."""
+    if walls.min_mm is None:
+        return "bone walls unknown (the CT ends before bone does; outside it is never bone)"
+    at_least = "at least " if walls.capped else ""
+    sides = [
+        f"{name} {clearance_text(v, outcome)}"
+        for name, v in (("buccal", walls.buccal_mm), ("lingual", walls.lingual_mm))
+        if v is not None
+    ]
+    return f"thinnest bone wall {at_least}{clearance_text(walls.min_mm, outcome)} mm" + (
+        f" ({', '.join(sides)} mm)" if sides else ""
+    )
+
+
+def implant_line(outcome: PlanOutcome) -> str | None:
+    """The implant body's clearance to its binding landmark and its thinnest walls, or None
+    without an implant."""
+    imp = outcome.implant
+    if imp is None:
+        return None
+    parts = []
+    binding = outcome.implant_binding_landmark
+    if outcome.implant_clearance_mm is not None and binding is not None:
+        parts.append(
+            f"clearance {clearance_text(outcome.implant_clearance_mm, outcome)} mm to "
+            f"{binding.name!r} (margin {binding.margin_mm:g} mm)"
+        )
+    if outcome.bone_walls is not None:
+        parts.append(walls_text(outcome.bone_walls, outcome))
+    acc = outcome.clearance_accuracy_mm
+    known = "" if acc is None else f"; +-{acc:.2g} mm on this CT"
+    return f"{outcome.plan}: implant {imp.name!r} " + "; ".join(parts) + known
 
 
 def _warnings(warnings: tuple[WarningEntry, ...]) -> list[str]:
@@ -66,6 +117,9 @@ def summary_lines(summary: TrajectorySummary | SequenceSummary) -> list[str]:
         calibration_line(o.calibration),
         band_line(summary.force_band, summary.force_band_note),
     ]
+    implant = implant_line(o)
+    if implant is not None:
+        lines.insert(1, implant)
     grey = grey_line(o.grey_to_hu)
     if grey is not None:
         lines.append(grey)
@@ -82,7 +136,8 @@ def sequence_lines(summary: SequenceSummary) -> list[str]:
         band = d.force_band
         lines.append(
             f"{o.plan} drill {d.drill}/{n} ({d.spec.diameter_mm:g} mm): stop at "
-            f"{d.stop_depth_mm:.3f} mm ({d.stop_reason}), peak force {d.peak_force_n:.3f} N"
+            f"{d.stop_depth_mm:.3f} mm ({d.stop_reason}) of {d.planned_depth_mm:.3f} mm "
+            f"planned, peak force {d.peak_force_n:.3f} N"
             + (
                 ""
                 if band is None
@@ -94,5 +149,8 @@ def sequence_lines(summary: SequenceSummary) -> list[str]:
         f"{o.plan}: final drill stops at {o.stop_depth_mm:.3f} mm ({_why(o)}) of "
         f"{o.planned_depth_mm:.3f} mm planned" + _clearance(o)
     )
+    implant = implant_line(o)
+    if implant is not None:
+        lines.append(implant)
     lines.append(calibration_line(o.calibration))
     return lines + _warnings(summary.warnings)

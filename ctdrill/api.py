@@ -14,10 +14,10 @@ work, the types load on first use)::
     done = api.export_case("assets/demo/ct", ["assets/demo/plan.json"], "out")
     print(done.summaries[0].outcome.stop_depth_mm)
 
-Names: :func:`load_series`, :func:`load_plan`, :func:`plan_path`, :func:`evaluate_batch`,
-:func:`export_case`, :func:`summarize`, :func:`read_summary`; the values they return
-(:class:`CTVolume`, :class:`Plan`, :class:`PathResult`, :class:`BatchResult`,
-:class:`CaseExport`) and the summary types (:class:`TrajectorySummary`,
+Names: :func:`load_series`, :func:`load_plan`, :func:`plan_path`, :func:`implant_outcome`,
+:func:`evaluate_batch`, :func:`export_case`, :func:`summarize`, :func:`read_summary`; the
+values they return (:class:`CTVolume`, :class:`Plan`, :class:`PathResult`,
+:class:`ImplantOutcome`, :class:`BatchResult`, :class:`CaseExport`) and the summary types (:class:`TrajectorySummary`,
 :class:`SequenceSummary`), :class:`ExportSettings`. Bad input raises the rooms' input errors
 (``ValueError`` subclasses whose message names the file or field).
 """
@@ -36,6 +36,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from ctdrill.engine.batch import BatchResult
+    from ctdrill.engine.implant import ImplantOutcome
     from ctdrill.engine.path import PathResult
     from ctdrill.engine.settings import ExportSettings
     from ctdrill.engine.summary import SequenceSummary, TrajectorySummary
@@ -48,6 +49,7 @@ _EXPORTS: dict[str, str] = {
     "BatchResult": "ctdrill.engine.batch",
     "CTVolume": "ctdrill.imaging.volume",
     "ExportSettings": "ctdrill.engine.settings",
+    "ImplantOutcome": "ctdrill.engine.implant",
     "PathResult": "ctdrill.engine.path",
     "Plan": "ctdrill.imaging.plan.types",
     "SequenceSummary": "ctdrill.engine.summary",
@@ -63,12 +65,14 @@ __all__ = [
     "CTVolume",
     "CaseExport",
     "ExportSettings",
+    "ImplantOutcome",
     "PathResult",
     "Plan",
     "SequenceSummary",
     "TrajectorySummary",
     "evaluate_batch",
     "export_case",
+    "implant_outcome",
     "load_ct",
     "load_plan",
     "load_series",
@@ -132,6 +136,11 @@ def plan_path(
     """One trajectory through the CT: the lip's HU, the force profile, the clearance to every
     landmark, the max safe depth and the stop (``ctdrill export`` computes the same).
 
+    A single-drill plan with an implant is drilled as the export drills it
+    (``plan.drilled(0)``: to the implant's apex plus the drill's tip length), and the result's
+    ``implant`` holds :func:`implant_outcome`. A plan with a drill sequence gives its final
+    drill alone as given (the export's ``drill_k`` folders cut around the earlier holes).
+
     ``calibration``: a set, a set's name or JSON path; default the plan's own.
     ``depth_step_mm``: the profile's step (default 0.05 mm). ``interpolate_gaps``:
     interpolate across slice gaps the drill crosses instead of refusing.
@@ -142,11 +151,24 @@ def plan_path(
     step = DEFAULT_DEPTH_STEP_MM if depth_step_mm is None else depth_step_mm
     return path(
         volume,
-        plan,
+        plan if plan.earlier_drills else plan.drilled(0),
         _calibration(plan, calibration),
         depth_step_mm=step,
         interpolate_gaps=interpolate_gaps,
     )
+
+
+def implant_outcome(volume: CTVolume, plan: Plan) -> ImplantOutcome | None:
+    """The implant of ``plan`` on ``volume``, as every output reports it: ``.clearance_mm``
+    (signed distance from the implant body to the binding landmark, < 0 inside),
+    ``.binding_name``/``.binding_margin_mm``, ``.walls`` (the thinnest bone walls,
+    ``.walls.min_mm``, ``.buccal_mm``, ``.lingual_mm``, ``.perforation``), ``.accuracy_mm``
+    (what the CT's sampling lets a clearance claim) and ``.warnings`` (``(code, message)``:
+    ``implant_violates_margin``, ``plan_violates_margin``, ``thin_wall``,
+    ``cortical_perforation``, ``bone_walls_unknown``); None when the plan places no implant."""
+    from ctdrill.engine.implant import implant_outcome as outcome
+
+    return outcome(volume, plan)
 
 
 def evaluate_batch(

@@ -27,6 +27,7 @@ from ctdrill.engine.summary import GreyMapInfo
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.plan.load import load_plan_set
 from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.resolution import volume_clearance_accuracy_mm
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.calibration import Calibration, load_calibration
 
@@ -203,7 +204,8 @@ def prepare_case(
             sequences.append((seq, sub))
             jobs.extend(sequence_jobs(seq, sub))
             continue
-        jobs.append(ExportJob(plan_path(volume, plan, cal, interpolate_gaps=gaps), sub))
+        # with an implant the drill reaches the apex plus its tip (Plan.drilled)
+        jobs.append(ExportJob(plan_path(volume, plan.drilled(0), cal, interpolate_gaps=gaps), sub))
     patient = None
     if settings.include_phi:
         patient = (
@@ -217,5 +219,6 @@ def prepare_case(
         patient=patient,
         hu_uncertainty=hu_uncertainty(grey_map, manual_hu),
         grey_to_hu=None if grey_map is None else from_json(GreyMapInfo, grey_map.to_json()),
+        clearance_accuracy_mm=volume_clearance_accuracy_mm(volume),
     )
     return PreparedCase(volume, tuple(plans), tuple(jobs), tuple(sequences), context)

@@ -21,6 +21,7 @@ import numpy as np
 
 from ctdrill.engine.batch import RowsRun, evaluate_rows
 from ctdrill.engine.grid import DEFAULT_DEPTH_STEP_MM
+from ctdrill.engine.implant import ImplantOutcome, implant_outcome
 from ctdrill.engine.path_warnings import path_warnings
 from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.types import Plan
@@ -73,6 +74,9 @@ class PathResult:
         the caller asked to (``interpolate_gaps``); empty otherwise.
     inner_holes : the holes of earlier drills of a sequence the profile cut around (empty for
         a single drill or the first drill of a sequence).
+    implant : the implant's outcome (:func:`ctdrill.engine.implant.implant_outcome`: its
+        clearance, walls and warnings), or None without an implant (and in a batch's rows,
+        which compute the drill only).
     """
 
     plan: Plan
@@ -93,6 +97,7 @@ class PathResult:
     warnings: tuple[LoadWarning, ...]
     interpolated_gaps: tuple[SliceGap, ...] = ()
     inner_holes: tuple[Hole, ...] = ()
+    implant: ImplantOutcome | None = None
 
     @property
     def planned_depth_mm(self) -> float:
@@ -152,6 +157,7 @@ def plan_path(
     n_angles: int = DEFAULT_N_ANGLES,
     interpolate_gaps: bool = False,
     inner_holes: Sequence[Hole] = (),
+    implant: ImplantOutcome | None = None,
 ) -> PathResult:
     """Sample the CT along ``plan``, build the force profile, the clearances and the stop.
 
@@ -169,6 +175,8 @@ def plan_path(
         Clearance, stop and the volume checks are this drill's own, on its whole solid. Empty
         (a single drill): the full lip, exactly as before. :mod:`ctdrill.engine.sequence` runs
         a whole sequence.
+    implant : the plan's implant outcome when already computed (a sequence computes it once
+        for all its drills); else computed here for a plan with an implant.
 
     Returns
     -------
@@ -197,6 +205,9 @@ def plan_path(
     result = path_row(
         run, 0, calibration, interpolate_gaps=interpolate_gaps, inner_holes=tuple(inner_holes)
     )
+    if implant is None and plan.implant is not None:
+        implant = implant_outcome(volume, result.plan)
+    result = replace(result, implant=implant)
     return replace(result, warnings=path_warnings(volume, result))
 
 

@@ -13,6 +13,7 @@ from typing import Protocol
 
 import numpy as np
 
+from ctdrill.engine.implant import ImplantOutcome
 from ctdrill.engine.refusals import gap_interpolated_message
 from ctdrill.imaging.plan.implant_checks import implant_warnings
 from ctdrill.imaging.plan.safety import margin_warnings
@@ -43,6 +44,8 @@ class PathView(Protocol):
     def stop_reason(self) -> str: ...
     @property
     def interpolated_gaps(self) -> tuple[SliceGap, ...]: ...
+    @property
+    def implant(self) -> ImplantOutcome | None: ...
 
 
 Pairs = Iterable[tuple[str, str]]
@@ -67,6 +70,13 @@ def _gaps(volume: CTVolume, path: PathView) -> Pairs:
 def _margins(volume: CTVolume, path: PathView) -> Pairs:
     at_plan = path.clearance_mm[-1] if path.plan.landmarks else np.empty(0)
     return margin_warnings(path.plan, at_plan, path.margins_mm)
+
+
+def _implant_body(volume: CTVolume, path: PathView) -> Pairs:
+    """The implant's own: its margin (``implant_violates_margin`` and the plan's
+    ``plan_violates_margin``), its walls (``thin_wall``, ``cortical_perforation``,
+    ``bone_walls_unknown``)."""
+    return () if path.implant is None else path.implant.warnings
 
 
 def _other_series(volume: CTVolume, path: PathView) -> Pairs:
@@ -138,6 +148,7 @@ PATH_CHECKS: tuple[PathCheck, ...] = (
     _plan_file,
     _gaps,
     _margins,
+    _implant_body,
     _other_series,
     _illustrative,
     _feed,

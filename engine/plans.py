@@ -7,6 +7,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ctdrill.imaging.plan.implant_checks import implants_too_close
+from ctdrill.imaging.plan.protocol import final_drill_warnings
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.model.calibration import Calibration, load_calibration
 
@@ -15,14 +16,18 @@ __all__ = ["plan_calibration", "plan_calibration_key", "with_set_warnings"]
 
 def with_set_warnings(plans: Sequence[Plan]) -> tuple[Plan, ...]:
     """``plans`` each carrying the warnings only the whole set shows (``implants_too_close``,
-    :func:`~ctdrill.imaging.plan.implant_checks.implants_too_close`) in ``Plan.warnings``, so
+    :func:`~ctdrill.imaging.plan.implant_checks.implants_too_close`) and only the whole
+    trajectory shows, not one drill's view of it (``final_drill_mismatch``,
+    :func:`~ctdrill.imaging.plan.protocol.final_drill_warnings`) in ``Plan.warnings``, so
     that :func:`plan_path` reports them with the rest; call it where a command sees every
     trajectory of a plan set, after its last edit."""
     seq = tuple(plans)
     extra = implants_too_close(seq)
-    return tuple(
-        replace(p, warnings=(*p.warnings, *extra[p.name])) if p.name in extra else p for p in seq
-    )
+    out = []
+    for p in seq:
+        more = [*extra.get(p.name, ()), *final_drill_warnings(p)]
+        out.append(replace(p, warnings=(*p.warnings, *more)) if more else p)
+    return tuple(out)
 
 
 def plan_calibration_key(plan: Plan) -> str:

@@ -2,12 +2,19 @@
 
 A plan's ``drills`` (pilot 2.0 mm, then 2.8, 3.5 ...) are drilled in order along the same axis.
 Drill ``k`` is :func:`ctdrill.engine.path.plan_path` of the single-drill plan
-``plan.for_drill(k)``: its own lip, clearance (its own radius), max safe depth and stop, with
+``plan.drilled(k)``: its own lip, clearance (its own radius), max safe depth and stop, with
 ``inner_holes`` the holes of drills ``0..k-1``. Each hole reaches the depth that drill
 **actually reached**, not its planned depth: in the export the drill's stop depth (it stops
 there: the margin, the volume's end, or the planned depth); in a rehearsal the deepest tip
 position of its session (:mod:`ctdrill.app.rehearse_sequence`). The final drill's stop rules the
-plan. A single-drill plan is exactly :func:`plan_path`.
+plan. A single-drill plan is exactly :func:`plan_path` of ``plan.drilled(0)``.
+
+**The osteotomy follows the implant.** With an implant, the plan's target is its apex and
+every drill's full diameter reaches it, so each drill's planned depth is the apex's plus its
+own tip length (:meth:`~ctdrill.imaging.plan.types.Plan.drilled`): its profile, clearance,
+margin check and stop are computed to that depth. Without an implant ``drilled(k)`` is
+``for_drill(k)``. The implant's outcome (:func:`ctdrill.engine.implant.implant_outcome`) is
+computed once and shared by every drill.
 """
 
 from __future__ import annotations
@@ -41,7 +48,7 @@ class SequenceResult:
     Attributes
     ----------
     plan : the whole plan (all its drills).
-    steps : one :class:`PathResult` per drill; ``steps[k].plan`` is ``plan.for_drill(k)`` and
+    steps : one :class:`PathResult` per drill; ``steps[k].plan`` is ``plan.drilled(k)`` and
         ``steps[k].inner_holes`` the holes of the drills before it.
     """
 
@@ -73,12 +80,13 @@ def drill_path(
     reached_mm: Sequence[float],
     **options: Any,
 ) -> PathResult:
-    """Drill ``index`` of ``plan`` after the drills before it reached ``reached_mm`` (one
-    depth per earlier drill, mm); ``options`` go to :func:`plan_path`."""
+    """Drill ``index`` of ``plan`` as it is drilled (``plan.drilled(index)``: with an implant,
+    to the apex plus its tip) after the drills before it reached ``reached_mm`` (one depth per
+    earlier drill, mm); ``options`` go to :func:`plan_path`."""
     if len(reached_mm) != index:
         raise ValueError(f"drill {index + 1}: give the reached depth of the {index} drills before")
     holes = holes_before(plan, reached_mm)
-    return plan_path(volume, plan.for_drill(index), calibration, inner_holes=holes, **options)
+    return plan_path(volume, plan.drilled(index), calibration, inner_holes=holes, **options)
 
 
 def plan_sequence(
@@ -94,7 +102,10 @@ def plan_sequence(
     """Every drill of ``plan`` in order, each stopping at its own stop depth and leaving its
     hole there for the next (see the module docstring). Options as :func:`plan_path`'s."""
     steps: list[PathResult] = []
+    implant = None
     for k in range(len(plan.drills)):
+        if k == 1:
+            implant = steps[0].implant  # the same body for every drill
         steps.append(
             drill_path(
                 volume,
@@ -106,6 +117,7 @@ def plan_sequence(
                 n_rings=n_rings,
                 n_angles=n_angles,
                 interpolate_gaps=interpolate_gaps,
+                implant=implant,
             )
         )
     return SequenceResult(plan, tuple(steps))

@@ -31,7 +31,9 @@ from ctdrill.engine.summary import (
     Extrapolation,
     GapInfo,
     GreyMapInfo,
+    BoneWallsInfo,
     HoleInfo,
+    ImplantBindingLandmark,
     ImplantSummary,
     LandmarkClearance,
     PlanOutcome,
@@ -61,6 +63,8 @@ class CaseContext:
     patient : the patient's identifiers (``include_phi`` only), else None.
     hu_uncertainty : ``--hu-sigma`` and the grey map's HU error, entered into every band.
     grey_to_hu : the grey map applied to the series, or None.
+    clearance_accuracy_mm : what the CT's sampling lets a clearance claim, +- mm
+        (:func:`~ctdrill.imaging.resolution.volume_clearance_accuracy_mm`), or None.
     """
 
     settings: ExportSettings
@@ -68,6 +72,7 @@ class CaseContext:
     patient: Mapping[str, str] | None = None
     hu_uncertainty: HuUncertainty | None = None
     grey_to_hu: GreyMapInfo | None = field(default=None)
+    clearance_accuracy_mm: float | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,6 +115,22 @@ def implant_summary(result: PathResult) -> ImplantSummary | None:
     )
 
 
+def implant_fields(
+    result: PathResult,
+) -> tuple[float | None, ImplantBindingLandmark | None, BoneWallsInfo | None]:
+    """``implant_clearance_mm``, ``implant_binding_landmark`` and ``bone_walls`` of
+    ``result``'s implant outcome (:func:`ctdrill.engine.implant.implant_outcome`); Nones
+    without an implant."""
+    out = result.implant
+    if out is None:
+        return None, None, None
+    binding = None
+    if out.binding_name is not None and out.binding_margin_mm is not None:
+        binding = ImplantBindingLandmark(printable(out.binding_name), out.binding_margin_mm)
+    walls = from_json(BoneWallsInfo, out.bone_walls_json())
+    return _num(out.clearance_mm), binding, walls
+
+
 def warning_entries(warnings: tuple[LoadWarning, ...]) -> tuple[WarningEntry, ...]:
     """Warnings as summaries list them."""
     return tuple(WarningEntry(w.code, w.message) for w in warnings)
@@ -130,6 +151,10 @@ def plan_outcome(result: PathResult, context: CaseContext, feed_mm_s: float) -> 
     )
     binding = result.binding_landmark
     settings = context.settings
+    implant_clear, implant_binding, walls = implant_fields(result)
+    accuracy = context.clearance_accuracy_mm
+    if accuracy is None and result.implant is not None:
+        accuracy = result.implant.accuracy_mm
     identity = series_identity(context.series_uid, include_phi=settings.include_phi)
     return PlanOutcome(
         plan=printable(plan.name),
@@ -151,8 +176,13 @@ def plan_outcome(result: PathResult, context: CaseContext, feed_mm_s: float) -> 
         feed_mm_s=feed_mm_s,
         rate_hz=settings.rate_hz,
         entry_lps=tuple(plan.entry_lps.tolist()),
-        target_lps=tuple(plan.target_lps.tolist()),
+        target_lps=tuple(plan.planned_target_lps.tolist()),
         implant=implant_summary(result),
+        implant_clearance_mm=implant_clear,
+        implant_binding_landmark=implant_binding,
+        bone_walls=walls,
+        overdrill_mm=plan.overdrill_mm,
+        clearance_accuracy_mm=_num(accuracy, 6),
         series=SeriesIdentity(identity["series_uid"], identity["series_uid_sha256"]),
         include_phi=settings.include_phi,
         patient=context.patient,
@@ -218,6 +248,7 @@ def sequence_summary(seq: SequenceResult, context: CaseContext) -> SequenceSumma
                 drill=k + 1,
                 folder=drill_folder(k),
                 spec=drill_info(path.plan.drill),
+                planned_depth_mm=s.outcome.planned_depth_mm,
                 stop_depth_mm=s.outcome.stop_depth_mm,
                 stop_reason=s.outcome.stop_reason,
                 max_safe_depth_mm=s.outcome.max_safe_depth_mm,

@@ -113,6 +113,50 @@ class ImplantSummary:
 
 
 @dataclass(frozen=True)
+class ImplantBindingLandmark:
+    """The landmark nearest the implant body for its margin (least ``clearance - margin``)."""
+
+    name: str
+    margin_mm: float
+
+
+@dataclass(frozen=True)
+class PerforationInfo:
+    """Where the implant surface leaves bone (more than 1 mm below the platform): depths from
+    the entry and below the platform (shallowest, deepest), the shallowest exposed point, the
+    mean outward direction (LPS), the exposed share of the surface."""
+
+    depth_mm: tuple[float, ...]
+    below_platform_mm: tuple[float, ...]
+    point_lps: tuple[float, ...]
+    direction_lps: tuple[float, ...]
+    fraction: float
+
+
+@dataclass(frozen=True)
+class BoneWallsInfo:
+    """The thinnest bone wall around the implant body (:mod:`ctdrill.imaging.sampling.walls`).
+
+    ``min_mm`` at ``depth_mm`` from the entry (``below_platform_mm`` from the platform)
+    towards ``direction_lps``; ``buccal_mm``/``lingual_mm`` with a dental arch (else None);
+    ``capped``: every known wall reaches the ray's end; ``unknown_fraction`` of the rays leave
+    the CT first (``outside_ct`` states the rule); ``bone_hu`` is where bone ends.
+    """
+
+    min_mm: float | None
+    depth_mm: float | None
+    below_platform_mm: float | None
+    direction_lps: tuple[float, ...] | None
+    buccal_mm: float | None
+    lingual_mm: float | None
+    capped: bool
+    unknown_fraction: float
+    perforation: PerforationInfo | None
+    bone_hu: float
+    outside_ct: str
+
+
+@dataclass(frozen=True)
 class SeriesIdentity:
     """The series: the SHA-256 of its UID, the raw UID only with ``include_phi``."""
 
@@ -141,6 +185,14 @@ class PlanOutcome:
     feed_mm_s, rate_hz : the force series' feed and sample rate.
     entry_lps, target_lps : the trajectory, LPS mm.
     implant : its placement and seat, or None.
+    implant_clearance_mm : signed distance from the implant body at its placement to the
+        binding landmark, mm (< 0 inside; None without an implant or landmarks);
+        ``implant_binding_landmark`` that landmark's name and margin.
+    bone_walls : the thinnest bone walls around the implant body, or None without one.
+    overdrill_mm : how far the drill's planned depth lies beyond the plan's target (the
+        implant's apex): the drill's tip length with an implant, else 0.
+    clearance_accuracy_mm : what the CT's sampling lets a clearance claim, +- mm (half its
+        coarsest sampling; text for people prints clearances to it), or None when unknown.
     series : the series' identity (flattened); ``include_phi``; ``patient`` only with it.
     """
 
@@ -165,6 +217,11 @@ class PlanOutcome:
     entry_lps: tuple[float, ...]
     target_lps: tuple[float, ...]
     implant: ImplantSummary | None
+    implant_clearance_mm: float | None
+    implant_binding_landmark: ImplantBindingLandmark | None
+    bone_walls: BoneWallsInfo | None
+    overdrill_mm: float
+    clearance_accuracy_mm: float | None
     series: SeriesIdentity = field(metadata=flat())
     include_phi: bool
     patient: Mapping[str, str] | None = field(default=None, metadata=optional())
@@ -296,11 +353,13 @@ class TrajectorySummary:
 
 @dataclass(frozen=True)
 class DrillStep:
-    """One drill of a sequence in its listing: its folder, geometry, stop and forces."""
+    """One drill of a sequence in its listing: its folder, geometry, planned depth (with an
+    implant the apex's plus its tip length), stop and forces."""
 
     drill: int
     folder: str
     spec: DrillInfo = field(metadata=flat())
+    planned_depth_mm: float | None
     stop_depth_mm: float | None
     stop_reason: str
     max_safe_depth_mm: float | None

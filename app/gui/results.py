@@ -120,7 +120,7 @@ def compute_path_view(
     cal = plan_calibration(own)
     if len(own.drills) > 1:
         return path_view(plan, plan_sequence(volume, own, cal).final, hu)
-    return path_view(plan, plan_path(volume, own, cal), hu)
+    return path_view(plan, plan_path(volume, own.drilled(0), cal), hu)  # to apex + tip
 
 
 def drill_note(result: PathResult) -> str:

@@ -125,7 +125,9 @@ def exam_setup(
     cut around them, as ``guarded`` is)."""
     refuse_exam_sequence(plan)
     reach = min(plan.planned_depth_mm + EXAM_REACH_MM, MAX_PLANNED_DEPTH_MM)
-    extended = replace(plan, target_lps=plan.point_at_depth_lps(reach), implant=None)
+    extended = replace(
+        plan, target_lps=plan.point_at_depth_lps(reach), implant=None, overdrill_mm=0.0
+    )
     try:
         path = plan_path(
             volume,
