@@ -10,9 +10,9 @@ are the plan's own numbers, not measured on the CT); ``summary.json`` keeps ever
 from __future__ import annotations
 
 from ctdrill.app.grey_option import grey_line
-from ctdrill.engine.summary import BoneWallsInfo
 from ctdrill.engine.summary import (
     METHOD_NOT_STATED,
+    BoneWallsInfo,
     CalibrationInfo,
     ForceBandPeak,
     PlanOutcome,
@@ -62,7 +62,8 @@ def clearance_text(value_mm: float, outcome: PlanOutcome) -> str:
 def _clearance(outcome: PlanOutcome) -> str:
     if outcome.plan_clearance_mm is None:
         return ""
-    return f"; clearance along the planned path {clearance_text(outcome.plan_clearance_mm, outcome)} mm"
+    text = clearance_text(outcome.plan_clearance_mm, outcome)
+    return f"; clearance along the planned path {text} mm"
 
 
 def walls_text(walls: BoneWallsInfo, outcome: PlanOutcome) -> str:

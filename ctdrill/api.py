@@ -17,8 +17,8 @@ work, the types load on first use)::
 Names: :func:`load_series`, :func:`load_plan`, :func:`plan_path`, :func:`implant_outcome`,
 :func:`evaluate_batch`, :func:`export_case`, :func:`summarize`, :func:`read_summary`; the
 values they return (:class:`CTVolume`, :class:`Plan`, :class:`PathResult`,
-:class:`ImplantOutcome`, :class:`BatchResult`, :class:`CaseExport`) and the summary types (:class:`TrajectorySummary`,
-:class:`SequenceSummary`), :class:`ExportSettings`. Bad input raises the rooms' input errors
+:class:`ImplantOutcome`, :class:`BatchResult`, :class:`CaseExport`) and the summary types
+(:class:`TrajectorySummary`, :class:`SequenceSummary`), :class:`ExportSettings`. Bad input raises the rooms' input errors
 (``ValueError`` subclasses whose message names the file or field).
 """
 
