@@ -18,8 +18,9 @@ Names: :func:`load_series`, :func:`load_plan`, :func:`plan_path`, :func:`implant
 :func:`evaluate_batch`, :func:`export_case`, :func:`summarize`, :func:`read_summary`; the
 values they return (:class:`CTVolume`, :class:`Plan`, :class:`PathResult`,
 :class:`ImplantOutcome`, :class:`BatchResult`, :class:`CaseExport`) and the summary types
-(:class:`TrajectorySummary`, :class:`SequenceSummary`), :class:`ExportSettings`. Bad input raises the rooms' input errors
-(``ValueError`` subclasses whose message names the file or field).
+(:class:`TrajectorySummary`, :class:`SequenceSummary`), :class:`ExportSettings`. Bad input
+raises the rooms' input errors (``ValueError`` subclasses whose message names the file or
+field).
 """
 
 from __future__ import annotations

@@ -20,6 +20,7 @@ NAMES = (
     "load_ct",
     "load_plan",
     "plan_path",
+    "implant_outcome",
     "evaluate_batch",
     "export_case",
     "open_window",
@@ -79,6 +80,15 @@ def test_the_documented_example_runs(tmp_path: Path) -> None:
     assert summary.outcome.stop_depth_mm == round(path.stop_depth_mm, 4)
     assert (tmp_path / "api-out" / "summary.json").is_file()
     assert not (tmp_path / "api-out" / "force.png").exists()
+    # the demo's implant (tapered 4.1 x 11.5) lies inside the canal's 2 mm margin: every
+    # output says so with the same number
+    implant = scope["implant"]
+    assert isinstance(implant, api.ImplantOutcome) and implant.clearance_mm is not None
+    assert "implant_violates_margin" in implant.codes and implant.clearance_mm < 2.0
+    assert summary.outcome.implant_clearance_mm == round(implant.clearance_mm, 4)
+    assert path.implant is not None
+    assert path.implant.clearance_mm == pytest.approx(implant.clearance_mm, abs=1e-9)
+    assert path.planned_depth_mm == pytest.approx(12.6, abs=1e-9)  # apex 12 + tip 0.6
 
 
 def test_a_bad_input_is_the_packages_input_error(tmp_path: Path) -> None:
