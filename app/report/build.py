@@ -2,9 +2,11 @@
 screen, the PDF written atomically.
 
 Order of the pages: the summary (the case, the table of every trajectory, each one's lines and
-warnings), the panoramic reformat with every implant, a cross-section per trajectory, the 3D
-view, then each trajectory's curves. Everything is computed and drawn in memory first; the file
-appears whole (a temporary sibling renamed over it) or not at all.
+warnings), a clinical page per implant (:mod:`ctdrill.app.report.clinical`), the panoramic
+reformat with every implant, a cross-section per trajectory, the 3D view, then the appendix:
+the engineering detail (calibrations, force terms) and each trajectory's curves. Everything is
+computed and drawn in memory first; the file appears whole (a temporary sibling renamed over
+it) or not at all.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from pathlib import Path
 from matplotlib.figure import Figure
 
 from ctdrill.app.records import atomic_write_bytes
+from ctdrill.app.report.clinical import appendix_pages, clinical_pages
 from ctdrill.app.report.curves import curves_page
 from ctdrill.app.report.entries import Entry, drawn_entries, report_entries
 from ctdrill.app.report.layout import TextPages
@@ -57,6 +60,7 @@ def report_pages(
         include_phi=case.settings.include_phi,
         plan_files=_plan_files(case),
     )
+    clinical_pages(pages, case, entries)
     t.add("summary", time.perf_counter() - t0)
     if views is None:
         from ctdrill.app.report.views import view_pages
@@ -64,6 +68,7 @@ def report_pages(
         views = view_pages
     views(pages, case, entries, t)
     t0 = time.perf_counter()
+    appendix_pages(pages, entries)
     for entry in drawn_entries(entries):
         curves_page(pages.figure(), entry)
     t.add("curves", time.perf_counter() - t0)

@@ -209,6 +209,10 @@ class TextPages:
         )
         self._y_in += 0.06
 
+    def new_page(self) -> None:
+        """Start a fresh page that text flows onto (a chapter's first page)."""
+        self._new_page()
+
     def figure(self) -> Figure:
         """A fresh page of its own (for a drawing), titled like the others."""
         fig = self._new_page()

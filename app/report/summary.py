@@ -1,10 +1,11 @@
 """The report's summary: the case, the table of every trajectory, then each one's lines.
 
 Every value is read from the trajectory's summary (:attr:`Entry.summary`) and formatted as
-``ctdrill export`` prints it (depths and clearances to 3 decimals, mm); the lines under the
-table are :func:`ctdrill.app.summary_lines.summary_lines` of the same summary: the stop,
-the calibration and how it was obtained, the force band, the grey map and every warning in
-full, wrapped.
+``ctdrill export`` prints it (depths to 3 decimals, mm; clearances with the digits the CT
+supports, :func:`ctdrill.app.summary_lines.clearance_text`); the lines under the table are
+:func:`ctdrill.app.summary_lines.summary_lines` of the same summary (the stop, the implant's
+clearance and walls, the grey map and every warning in full, wrapped) without the calibration
+and force band, which the engineering appendix gives (:mod:`ctdrill.app.report.clinical`).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from typing import Any
 
 from ctdrill.app.report.entries import Entry, undrawn_note
 from ctdrill.app.report.layout import Column, TextPages
-from ctdrill.app.summary_lines import summary_lines
+from ctdrill.app.summary_lines import band_line, calibration_line, clearance_text, summary_lines
 from ctdrill.engine.summary import TrajectorySummary
 from ctdrill.imaging.volume import CTVolume
 
@@ -29,8 +30,8 @@ COLUMNS: tuple[Column, ...] = (
     Column("clearance at stop (mm)", 0.85),
     Column("clearance of the plan (mm)", 0.85),
     Column("binding landmark", 1.3),
-    Column("peak mean force (N)", 1.0),
-    Column("calibration", 1.25),
+    Column("implant clearance (mm)", 1.0),
+    Column("thinnest wall (mm)", 0.9),
 )
 
 #: How the table words a stop reason.
@@ -58,6 +59,10 @@ def table_row(entry: Entry) -> list[str]:
     """The table's cells for ``entry``, every value from its summary."""
     s = entry.summary
     o = s.outcome
+
+    def clear(value: float | None) -> str:
+        return "-" if value is None else clearance_text(value, o)
+
     drill_text = f"{s.drill.diameter_mm:g} mm, tip {s.drill.tip_length_mm:g} mm"
     if entry.drill_index is not None:
         k, n = entry.drill_index
@@ -70,20 +75,17 @@ def table_row(entry: Entry) -> list[str]:
         "no landmark"
         if binding is None
         else f"{binding.name} (margin {binding.margin_mm:g} mm; "
-        f"{mm(binding.clearance_at_stop_mm)} at stop)"
+        f"{clear(binding.clearance_at_stop_mm)} at stop)"
     )
-    band = s.force_band
-    force = "-"
-    if s.peak_force_n is not None:
-        force = f"{s.peak_force_n:.2f} (peak with vibration; no band)"
-    if band is not None:
-        force = (
-            f"{band.peak_mean_force_n:.2f} at {band.peak_depth_mm:.2f} mm; "
-            f"68 %: {band.peak_lo_n:.2f}-{band.peak_hi_n:.2f}"
+    implant = "-"
+    if o.implant_binding_landmark is not None:
+        implant = (
+            f"{clear(o.implant_clearance_mm)} to {o.implant_binding_landmark.name} "
+            f"(margin {o.implant_binding_landmark.margin_mm:g} mm)"
         )
-    cal = o.calibration.name
-    if o.calibration.illustrative:
-        cal += " - ILLUSTRATIVE, not measured on bone"
+    wall = "-"
+    if o.bone_walls is not None:
+        wall = "unknown" if o.bone_walls.min_mm is None else clear(o.bone_walls.min_mm)
     return [
         entry.label,
         drill_text,
@@ -91,11 +93,11 @@ def table_row(entry: Entry) -> list[str]:
         mm(o.planned_depth_mm),
         f"{mm(o.stop_depth_mm)} ({STOP_WORDS.get(o.stop_reason, o.stop_reason)})",
         max_safe,
-        mm(o.min_clearance_mm),
-        mm(o.plan_clearance_mm),
+        clear(o.min_clearance_mm),
+        clear(o.plan_clearance_mm),
         binding_text,
-        force,
-        cal,
+        implant,
+        wall,
     ]
 
 
@@ -160,7 +162,11 @@ def summary_pages(
         "Depths are the drill tip's from the entry point along the axis; clearance is the "
         "signed distance from the drill to a landmark's surface (negative: inside it). The "
         "drill stops at the smallest of the planned depth, the max safe depth (the deepest "
-        "keeping every margin) and where the drill leaves the CT.",
+        "keeping every margin) and where the drill leaves the CT. With an implant every drill "
+        "is drilled to the implant's apex plus its own tip length (the planned depth). "
+        "Implant clearance: from the implant body to the landmark whose margin binds. "
+        "Clearances and walls are printed with the digits the CT's sampling supports. "
+        "Calibrations and forces: the appendix.",
         size_pt=8.0,
         colour="#444444",
     )
@@ -168,7 +174,12 @@ def summary_pages(
     for entry in entries:
         pages.paragraph(entry.label, size_pt=10.0, bold=True, keep_with_next_in=0.3)
         warned = 0
-        lines = summary_lines(entry.summary)
+        o = entry.summary.outcome
+        engineering = {  # in the appendix
+            calibration_line(o.calibration),
+            band_line(entry.summary.force_band, entry.summary.force_band_note),
+        }
+        lines = [line for line in summary_lines(entry.summary) if line not in engineering]
         for line in lines:
             warn = line.startswith("warning [")
             warned += warn

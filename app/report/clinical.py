@@ -1,0 +1,195 @@
+"""The report's clinical page of each implant, and the engineering appendix.
+
+**Per implant** (:func:`clinical_pages`), a page a colleague can use: the site (FDI), the
+implant and its drilling protocol with each drill's drilled depth, the angulation to the
+patient's vertical, the implant-to-nerve distance against its margin, the thinnest bone walls
+(buccal and lingual where the plan gives an arch), the bone height from the crest to the canal
+along the axis, where the final drill stops, and the implant's warnings. The values are
+:func:`ctdrill.engine.implant_facts.implant_facts` (headless); this module only words them.
+Clearances and walls are printed with the digits the CT supports
+(:func:`~ctdrill.imaging.resolution.format_clearance_mm`), depths to 0.01 mm.
+
+**Appendix** (:func:`appendix_pages`): the engineering detail the clinical pages leave out:
+each trajectory's calibration and how it was obtained, the force terms (peak and mean force,
+the 68 % band, the share of extrapolated samples), the grey map; the force curves follow it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from ctdrill.app.report.entries import Entry, drawn_entries
+from ctdrill.app.report.layout import Column, TextPages
+from ctdrill.app.summary_lines import band_line, calibration_line
+from ctdrill.engine.case import PreparedCase
+from ctdrill.engine.implant_facts import ImplantFacts, implant_facts
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.resolution import format_clearance_mm
+
+#: The clinical table's columns.
+ITEM_COLUMNS = (Column("item", 1.0), Column("value", 3.2))
+#: The protocol table's columns.
+DRILL_COLUMNS = (
+    Column("drill", 0.5),
+    Column("diameter (mm)", 1.0),
+    Column("tip length (mm)", 1.0),
+    Column("drilled depth (mm)", 1.2),
+    Column("beyond the apex (mm)", 1.2),
+)
+#: The appendix table's columns.
+APPENDIX_COLUMNS = (
+    Column("trajectory", 1.3),
+    Column("calibration", 1.2),
+    Column("peak force (N)", 0.9),
+    Column("mean force (N)", 0.9),
+    Column("peak mean force (N), 68 % band", 1.6),
+    Column("extrapolated samples", 1.0),
+)
+
+
+def _mm(value: float | None, facts: ImplantFacts) -> str:
+    """A clearance or wall with the CT's digits, or ``unknown``."""
+    return "unknown" if value is None else f"{format_clearance_mm(value, facts.accuracy_mm)} mm"
+
+
+def implant_items(facts: ImplantFacts, stop_text: str) -> list[tuple[str, str]]:
+    """The clinical page's (item, value) rows of ``facts``; ``stop_text`` says where the final
+    drill stops."""
+    site = facts.site_text or "not given (plan key site: an FDI tooth number 11-48)"
+    nerve = "no landmark in the plan"
+    if facts.nerve is not None and facts.nerve_mm is not None:
+        verdict = (
+            "keeps the margin"
+            if facts.nerve_margin_mm is None or facts.nerve_mm >= facts.nerve_margin_mm
+            else "INSIDE THE SAFETY MARGIN"
+        )
+        nerve = (
+            f"{_mm(facts.nerve_mm, facts)} from the implant body to {facts.nerve!r} "
+            f"(margin {facts.nerve_margin_mm:g} mm): {verdict}"
+        )
+    walls = f"thinnest {_mm(facts.min_wall_mm, facts)}"
+    if facts.buccal_mm is not None or facts.lingual_mm is not None:
+        walls += f"; buccal {_mm(facts.buccal_mm, facts)}, lingual {_mm(facts.lingual_mm, facts)}"
+    else:
+        walls += " (buccal and lingual need a dental arch in the plan)"
+    height = "unknown (no canal landmark, or the crest is not found on the axis)"
+    if facts.bone_height_mm is not None:
+        height = (
+            f"{_mm(facts.bone_height_mm, facts)} (crest at {facts.crest_depth_mm:.2f} mm, "
+            f"canal at {facts.canal_depth_mm:.2f} mm from the entry"
+            + (
+                ")"
+                if facts.axis_meets_canal
+                else "; the axis passes beside the canal: its nearest approach)"
+            )
+        )
+    return [
+        ("site", site),
+        (
+            "implant",
+            f"{facts.implant} ({facts.size_text}), apex {facts.apex_depth_mm:.2f} mm "
+            "from the entry",
+        ),
+        ("angulation", f"{facts.angulation_deg:.1f} deg to the patient's vertical"),
+        ("implant to nerve", nerve),
+        ("bone walls", walls),
+        ("bone height, crest to canal along the axis", height),
+        ("final drill", stop_text),
+        (
+            "accuracy",
+            f"clearances and walls known to about +-{facts.accuracy_mm:.2g} mm on this CT "
+            "(half its coarsest sampling), printed to that",
+        ),
+    ]
+
+
+def _final_entry(entries: Sequence[Entry], plan: Plan) -> Entry | None:
+    mine = [e for e in entries if e.result.plan.name == plan.name]
+    return mine[-1] if mine else None
+
+
+def clinical_pages(pages: TextPages, case: PreparedCase, entries: Sequence[Entry]) -> None:
+    """One page per drawn trajectory with an implant (module docstring)."""
+    drawn = {e.result.plan.name for e in drawn_entries(entries)}
+    for plan in case.plans:
+        if plan.implant is None or plan.name not in drawn:
+            continue
+        entry = _final_entry(entries, plan)
+        if entry is None:
+            continue
+        facts = implant_facts(case.volume, plan, entry.result.implant)
+        assert facts is not None
+        o = entry.summary.outcome
+        stop = (
+            f"stops at {o.stop_depth_mm:.2f} mm ({o.stop_reason.replace('_', ' ')}) of "
+            f"{o.planned_depth_mm:.2f} mm drilled"
+        )
+        pages.new_page()
+        pages.paragraph(f"Implant: {facts.plan}", size_pt=14.0, bold=True)
+        pages.gap(0.08)
+        pages.table(ITEM_COLUMNS, implant_items(facts, stop), size_pt=9.0)
+        pages.gap(0.15)
+        pages.paragraph("Drilling protocol", size_pt=10.0, bold=True)
+        rows = [
+            [
+                str(k),
+                f"{d.diameter_mm:g}",
+                f"{d.tip_length_mm:g}",
+                f"{d.drilled_depth_mm:.2f}",
+                f"{d.drilled_depth_mm - facts.apex_depth_mm:.2f}",
+            ]
+            for k, d in enumerate(facts.drills, start=1)
+        ]
+        pages.table(DRILL_COLUMNS, rows, size_pt=9.0)
+        pages.paragraph(
+            "Each drill's full diameter reaches the implant's apex, so its tip goes beyond by "
+            "its own tip length: the drilled depth, checked against every margin.",
+            size_pt=8.0,
+            colour="#444444",
+        )
+        pages.gap(0.15)
+        mine = () if entry.result.implant is None else entry.result.implant.warnings
+        if mine:
+            pages.paragraph("Implant warnings", size_pt=10.0, bold=True)
+            for code, message in mine:
+                pages.paragraph(f"[{code}] {message}", size_pt=8.5, colour="#a01010")
+
+
+def appendix_pages(pages: TextPages, entries: Sequence[Entry]) -> None:
+    """The engineering appendix (module docstring): a table and each trajectory's lines."""
+    pages.new_page()
+    pages.paragraph("Appendix: engineering detail", size_pt=14.0, bold=True)
+    pages.gap(0.1)
+    rows = []
+    for e in entries:
+        s = e.summary
+        band = s.force_band
+        rows.append(
+            [
+                e.label,
+                s.outcome.calibration.name
+                + (
+                    " - ILLUSTRATIVE, not measured on bone"
+                    if s.outcome.calibration.illustrative
+                    else ""
+                ),
+                "-" if s.peak_force_n is None else f"{s.peak_force_n:.2f}",
+                "-" if s.mean_force_n is None else f"{s.mean_force_n:.2f}",
+                "-"
+                if band is None
+                else f"{band.peak_mean_force_n:.2f} at {band.peak_depth_mm:.2f} mm; "
+                f"68 %: {band.peak_lo_n:.2f}-{band.peak_hi_n:.2f}",
+                f"{s.extrapolation.clipped_samples} of {s.extrapolation.samples}",
+            ]
+        )
+    pages.table(APPENDIX_COLUMNS, rows)
+    pages.gap(0.15)
+    for e in entries:
+        o = e.summary.outcome
+        pages.paragraph(e.label, size_pt=10.0, bold=True, keep_with_next_in=0.3)
+        for line in (
+            calibration_line(o.calibration),
+            band_line(e.summary.force_band, e.summary.force_band_note),
+        ):
+            pages.paragraph(line, size_pt=8.5, indent_in=0.15)
+        pages.gap(0.1)
