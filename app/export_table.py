@@ -51,6 +51,8 @@ COLUMNS: tuple[tuple[str, Callable[[TrajectorySummary], Any]], ...] = (
         "binding_clearance_at_stop_mm",
         lambda s: b.clearance_at_stop_mm if (b := _binding(s)) else None,
     ),
+    ("implant_clearance_mm", lambda s: s.outcome.implant_clearance_mm),
+    ("bone_wall_min_mm", lambda s: w.min_mm if (w := s.outcome.bone_walls) else None),
     ("peak_force_n", lambda s: s.peak_force_n),
     ("mean_force_n", lambda s: s.mean_force_n),
     ("duration_s", lambda s: s.duration_s),
