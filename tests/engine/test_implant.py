@@ -10,7 +10,9 @@ Each case runs the engine's own path (``plan_path``, ``plan_sequence``) and its 
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,6 +27,7 @@ from ctdrill.imaging.misch import BONE_HU
 from ctdrill.imaging.plan.drill_spec import DrillSpec
 from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.landmarks import CanalLandmark
+from ctdrill.imaging.plan.load import load_plan
 from ctdrill.imaging.plan.protocol import generic_protocol
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.provenance import SeriesInfo
@@ -152,7 +155,7 @@ def test_a_tilted_implant_leaving_the_slab_perforates(calibration) -> None:  # t
     assert upright is not None and "cortical_perforation" not in upright.codes
 
 
-def test_every_drill_is_drilled_to_the_apex_plus_its_tip(calibration) -> None:  # type: ignore[no-untyped-def]
+def test_every_drill_is_drilled_to_the_apex_plus_its_tip(calibration, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """A protocol plan above a canal: each drill's planned depth is the apex's (11 mm) plus
     its own tip, and its planned clearance is the canal's top less that depth."""
     vol = _slab(9.0)
@@ -179,6 +182,27 @@ def test_every_drill_is_drilled_to_the_apex_plus_its_tip(calibration) -> None:  
     assert facts.canal_depth_mm == pytest.approx(top, abs=2e-4) and facts.axis_meets_canal
     assert facts.bone_height_mm == pytest.approx(top, abs=2e-4)
     assert facts.nerve == "ian" and facts.nerve_mm == pytest.approx(top - 11.0, abs=1e-6)
+    # a plan file with the implant and no drill drills that protocol, and says so
+    doc = {
+        "format": "ctdrill-plan/1",
+        "coordinate_system": "LPS",
+        "entry_mm": [0.0, 0.0, 0.0],
+        "target_mm": [0.0, 0.0, -11.0],
+        "implant": {
+            **PARALLEL.to_json(),
+            "drills": [
+                {"diameter_mm": d.diameter_mm, "tip_length_mm": d.tip_length_mm}
+                for d in plan.drills
+            ],
+        },
+        "landmarks": [plan.landmarks[0].to_plan_item()],
+    }
+    (tmp_path / "p.json").write_text(json.dumps(doc), encoding="utf-8")
+    read = load_plan(tmp_path / "p.json")
+    assert read.drills == plan.drills
+    listing = sequence_summary(plan_sequence(vol, read, calibration), CONTEXT)
+    assert "implant_protocol" in [w.code for w in listing.warnings]
+    assert [d.planned_depth_mm for d in listing.drills] == pytest.approx(depths, abs=1e-4)
     # a drill deep enough to break the margin is reported at its drilled depth
     deep = _plan(landmarks=(_canal(0.0, -15.0),))  # top 13.8: drill tip at 11.6, 2.2 mm off
     path = plan_path(vol, deep.drilled(0), calibration)
