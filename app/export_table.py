@@ -53,6 +53,7 @@ COLUMNS: tuple[tuple[str, Callable[[TrajectorySummary], Any]], ...] = (
     ),
     ("implant_clearance_mm", lambda s: s.outcome.implant_clearance_mm),
     ("bone_wall_min_mm", lambda s: w.min_mm if (w := s.outcome.bone_walls) else None),
+    ("clearance_accuracy_mm", lambda s: s.outcome.clearance_accuracy_mm),
     ("peak_force_n", lambda s: s.peak_force_n),
     ("mean_force_n", lambda s: s.mean_force_n),
     ("duration_s", lambda s: s.duration_s),
@@ -116,9 +117,19 @@ def table_csv(
 
 
 def table_lines(rows: Iterable[Mapping[str, str]]) -> list[str]:
-    """One terminal line per trajectory of a table (the stop and the planned path's clearance)."""
+    """The terminal lines of a table: per trajectory the stop and the planned path's
+    clearance, with an implant its clearance and thinnest wall, and its warnings' codes
+    (clearances with the digits the CT supports, ``clearance_accuracy_mm``)."""
+    from ctdrill.imaging.resolution import MAX_DECIMALS, format_clearance_mm
+
     lines = []
     for r in rows:
+        acc = r.get("clearance_accuracy_mm", "")
+
+        def clear(cell: str, acc: str = acc) -> str:
+            v = float(cell)
+            return f"{v:.{MAX_DECIMALS}f}" if not acc else format_clearance_mm(v, float(acc))
+
         why = r["stop_reason"]
         if why == "margin" and r["binding_landmark"]:
             why += f": {r['binding_landmark']!r}, margin {float(r['binding_margin_mm']):g} mm"
@@ -127,6 +138,18 @@ def table_lines(rows: Iterable[Mapping[str, str]]) -> list[str]:
             f"{float(r['planned_depth_mm']):.3f} mm planned"
         )
         if r["plan_clearance_mm"]:
-            line += f"; clearance along the planned path {float(r['plan_clearance_mm']):.3f} mm"
+            line += f"; clearance along the planned path {clear(r['plan_clearance_mm'])} mm"
         lines.append(line)
+        implant = [
+            f"{what} {clear(r[key])} mm"
+            for what, key in (
+                ("implant clearance", "implant_clearance_mm"),
+                ("thinnest bone wall", "bone_wall_min_mm"),
+            )
+            if r.get(key)
+        ]
+        if implant:
+            lines.append(f"{r['trajectory']}: " + ", ".join(implant))
+        if r.get("warnings"):
+            lines.append(f"{r['trajectory']}: warnings {r['warnings'].replace(';', ', ')}")
     return lines

@@ -97,16 +97,27 @@ def demo_export(tmp_path_factory: pytest.TempPathFactory) -> Path:
     # then the stop, why, and every warning of summary.json, on the terminal
     s = json.loads((out / "summary.json").read_text(encoding="utf-8"))
     rest = stdout.splitlines()[len(wrote) :]
+    # the drill is drilled to the implant's apex (12 mm) plus its tip (0.6 mm); clearances
+    # printed with one decimal, what 0.4 mm voxels support (+-0.2 mm)
+    assert s["clearance_accuracy_mm"] == 0.2
     assert rest[0] == (
         f"plan: stop at {s['stop_depth_mm']:.3f} mm (margin: 'left mandibular canal', margin "
-        f"2 mm) of 12.000 mm planned; clearance along the planned path "
-        f"{s['plan_clearance_mm']:.3f} mm"
+        f"2 mm) of 12.600 mm planned; clearance along the planned path "
+        f"{s['plan_clearance_mm']:.1f} mm"
+    )
+    # the implant body against the canal and in its bone
+    walls = s["bone_walls"]
+    assert rest[1] == (
+        f"plan: implant 'tapered 4.1 x 11.5' clearance {s['implant_clearance_mm']:.1f} mm to "
+        f"'left mandibular canal' (margin 2 mm); thinnest bone wall {walls['min_mm']:.1f} mm "
+        f"(buccal {walls['buccal_mm']:.1f}, lingual {walls['lingual_mm']:.1f} mm); +-0.2 mm on "
+        "this CT"
     )
     # which calibration set, and how it was obtained (the illustrative set has no method)
-    assert rest[1] == f"calibration bone-illustrative (illustrative): {s['calibration_source']}"
+    assert rest[2] == f"calibration bone-illustrative (illustrative): {s['calibration_source']}"
     assert s["calibration_method"] == "not stated by the set (see its source)"
-    assert rest[2] == s["force_band_note"] and s["force_band"] is None  # no covariance: no band
-    assert rest[3:] == [f"warning [{w['code']}]: {w['message']}" for w in s["warnings"]]
+    assert rest[3] == s["force_band_note"] and s["force_band"] is None  # no covariance: no band
+    assert rest[4:] == [f"warning [{w['code']}]: {w['message']}" for w in s["warnings"]]
     return out
 
 
@@ -127,18 +138,21 @@ def test_demo_summary_matches_the_phantom_truth(demo_export: Path) -> None:
         "hu_grading",
     ):
         assert key in s
-    assert s["planned_depth_mm"] == pytest.approx(12.0)
+    assert s["planned_depth_mm"] == pytest.approx(12.6)  # the apex (the target) + the tip
     assert s["stop_reason"] == "margin"
     assert s["max_safe_depth_mm"] == pytest.approx(truth["max_safe_depth_mm"], abs=1e-3)
     assert s["stop_depth_mm"] <= truth["max_safe_depth_mm"]
     assert s["min_clearance_mm"] == pytest.approx(2.0, abs=1e-3)
     assert s["binding_landmark"]["name"] == "left mandibular canal"
     assert s["binding_landmark"]["margin_mm"] == 2.0
-    # the demo plan goes 1.2 mm deeper than the margin allows: it says so (canal at 14 mm,
-    # radius 1.2: 0.8 mm of clearance along the planned path)
-    assert s["plan_clearance_mm"] == pytest.approx(0.8, abs=1e-3)
+    # the demo plan goes 1.8 mm deeper than the margin allows: it says so (canal at 14 mm,
+    # radius 1.2, the drill's tip 0.6 mm beyond the implant's apex at 12 mm: 0.2 mm of
+    # clearance along the planned path), and its implant's apex is 0.8 mm from the canal
+    assert s["plan_clearance_mm"] == pytest.approx(0.2, abs=1e-3)
+    assert s["implant_clearance_mm"] == pytest.approx(0.8, abs=1e-3)
     codes = [w["code"] for w in s["warnings"]]
-    assert codes.count("plan_violates_margin") == 1
+    assert codes.count("plan_violates_margin") == 2  # the drill's, the implant body's
+    assert "implant_violates_margin" in codes
     assert "margin_below_clinical" not in codes and "plan_other_series" not in codes
     assert s["calibration"] == "bone-illustrative" and s["calibration_illustrative"] is True
     assert "calibration_illustrative" in [w["code"] for w in s["warnings"]]
@@ -171,7 +185,7 @@ def test_demo_tables_open_as_csv_and_agree(demo_export: Path) -> None:
     s1 = np.array([float(r["s1_n"]) for r in prof])
     s2 = np.array([float(r["s2_n"]) for r in prof])
     hu = np.array([float(r["hu"]) for r in prof])
-    assert depth[-1] == pytest.approx(12.0)
+    assert depth[-1] == pytest.approx(12.6)  # the drilled depth: the apex + the tip
     assert [r["misch"] for r in prof] == misch_class(hu).tolist()
     # force.csv is Eq. 19 evaluated on profile.csv: S0 (1 + Ke v) + S1 sin(2 pi 30 t) + ...
     want = (
