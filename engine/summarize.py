@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -85,6 +86,14 @@ class JobSummary:
     summary: TrajectorySummary
 
 
+def _nm(value: Any) -> Any:
+    """A coordinate or depth (or a list of them) rounded to 1 nm, below any meaning: a drill's
+    view of an implant plan computes the apex as its tip less the tip length."""
+    if isinstance(value, list):
+        return [_nm(v) for v in value]
+    return round(value, 6) if isinstance(value, float) else value
+
+
 def _num(v: float | None, digits: int = 4) -> float | None:
     if v is None or not np.isfinite(v):
         return None
@@ -109,10 +118,8 @@ def implant_summary(result: PathResult) -> ImplantSummary | None:
     place = implant_placement(result.plan)
     if place is None:
         return None
-    return from_json(
-        ImplantSummary,
-        {**place.to_json(), "seated": implant_seated(place, result.stop_depth_mm)},
-    )
+    doc = {k: _nm(v) for k, v in place.to_json().items()}  # a drill's view: apex = tip - tip
+    return from_json(ImplantSummary, {**doc, "seated": implant_seated(place, result.stop_depth_mm)})
 
 
 def implant_fields(
@@ -176,7 +183,7 @@ def plan_outcome(result: PathResult, context: CaseContext, feed_mm_s: float) -> 
         feed_mm_s=feed_mm_s,
         rate_hz=settings.rate_hz,
         entry_lps=tuple(plan.entry_lps.tolist()),
-        target_lps=tuple(plan.planned_target_lps.tolist()),
+        target_lps=tuple(_nm(plan.planned_target_lps.tolist())),
         implant=implant_summary(result),
         implant_clearance_mm=implant_clear,
         implant_binding_landmark=implant_binding,

@@ -27,9 +27,10 @@ def test_demo_writes_reruns_and_refuses_foreign_folders(tmp_path: Path) -> None:
         assert f"wrote {out / name}" in stdout
     stop = re.search(
         r"stop at ([0-9.]+) mm \(margin: 'left mandibular canal', margin 2 mm\) of "
-        r"12.000 mm planned; clearance along the planned path 0.800 mm",
+        r"12.600 mm planned; clearance along the planned path 0.2 mm",
         stdout,
-    )
+    )  # the drill's tip 0.6 mm beyond the implant's apex; one decimal on 0.4 mm voxels
+    assert "implant 'tapered 4.1 x 11.5' clearance 0.8 mm to 'left mandibular canal'" in stdout
     assert stop is not None and 10.799 <= float(stop.group(1)) <= 10.8  # truth: 10.8 mm
     # The demo plan goes past its margin on purpose (the stop shows it): the terminal says so.
     assert "warning [plan_violates_margin]: " in stdout

@@ -94,7 +94,17 @@ def test_first_drill_is_the_single_drill_export_byte_for_byte(
 ) -> None:
     out, pilot_out, _ = exported
     for name in FILES:
-        assert (out / "drill_1" / name).read_bytes() == (pilot_out / name).read_bytes(), name
+        if name != "summary.json":
+            assert (out / "drill_1" / name).read_bytes() == (pilot_out / name).read_bytes(), name
+    # the summaries differ by one warning: the pilot alone is a final drill too narrow for the
+    # implant (a check of the whole plan, not of one drill)
+    seq, alone = (
+        json.loads((d / "summary.json").read_text()) for d in (out / "drill_1", pilot_out)
+    )
+    dropped = [w for w in alone["warnings"] if w["code"] == "final_drill_mismatch"]
+    assert len(dropped) == 1 and "the final drill (2 mm)" in dropped[0]["message"]
+    alone["warnings"] = [w for w in alone["warnings"] if w not in dropped]
+    assert seq == alone
 
 
 def test_later_drills_cut_less_where_the_pilot_has_been(exported: tuple[Path, Path, str]) -> None:

@@ -35,8 +35,9 @@ def test_demo_implant_is_left_short_by_the_margin_stop(tmp_path: Path) -> None:
     s = json.loads((out / "summary.json").read_text(encoding="utf-8"))
     beyond = [w for w in s["warnings"] if w["code"] == "implant_beyond_stop"]
     assert len(beyond) == 1
-    # The stop (10.8 mm, the margin) is shallower than the implant's apex at the target (12 mm).
-    assert s["stop_reason"] == "margin" and s["stop_depth_mm"] < s["planned_depth_mm"] == 12.0
+    # The stop (10.8 mm, the margin) is shallower than the implant's apex at the target (12 mm);
+    # the drill is planned to the apex plus its tip (0.6 mm).
+    assert s["stop_reason"] == "margin" and s["stop_depth_mm"] < s["planned_depth_mm"] == 12.6
     assert "needs an osteotomy 12.00 mm deep" in beyond[0]["message"]
     assert f"stops at {s['stop_depth_mm']:.2f} mm (margin)" in beyond[0]["message"]
     assert not any(w["code"] == "implant_above_entry" for w in s["warnings"])
