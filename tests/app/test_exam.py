@@ -42,7 +42,7 @@ def test_the_exam_table_reaches_beyond_the_plan(tables: dict[str, RehearsalTable
     exam, guard = tables["exam"], tables["guard"]
     assert guard.table.stop_depth_mm == pytest.approx(10.8, abs=1e-3)  # the margin's wall
     assert exam.exam is not None and exam.exam.basis == "beyond_plan"
-    assert exam.table.stop_depth_mm == pytest.approx(12.0 + EXAM_REACH_MM, abs=1e-4)
+    assert exam.table.stop_depth_mm == pytest.approx(12.6 + EXAM_REACH_MM, abs=1e-4)  # drilled: apex + tip
     # the same force table along the plan, and the canal's clearance past it (vertical drill,
     # canal top 12.8 mm down: clearance 12.8 - x, negative inside)
     n = guard.table.n_steps
@@ -71,7 +71,7 @@ def test_later_reactions_overshoot_deeper_and_the_guard_holds(
         a = _session(tables["guard"], ms, 2.6)
         assert not a.breach and a.overshoot_mm == 0.0 and a.time_in_margin_s == 0.0
         assert not a.canal_entered and a.reaction_ms is None and a.wall_contacts >= 1
-        assert a.depth_error_mm == pytest.approx(10.8 - 12.0, abs=1e-3)
+        assert a.depth_error_mm == pytest.approx(10.8 - 12.6, abs=1e-3)
         assert a.score >= 50.0
 
 
@@ -105,9 +105,9 @@ def test_exam_summary_from_the_command_line(
     a = summary["assessment"]
     assert a["breach"] is True and a["canal_entered"] is True and 0.0 <= a["score"] < 45.0
     assert a["overshoot_mm"] == pytest.approx(summary["max_drill_mm"] - 10.8, abs=2e-3)
-    assert a["depth_error_mm"] == pytest.approx(summary["max_drill_mm"] - 12.0, abs=1e-3)
+    assert a["depth_error_mm"] == pytest.approx(summary["max_drill_mm"] - 12.6, abs=1e-3)
     assert summary["exam"]["enabled"] is True and summary["exam"]["stop_basis"] == "beyond_plan"
-    assert summary["stop_depth_mm"] == pytest.approx(22.0, abs=1e-4)
+    assert summary["stop_depth_mm"] == pytest.approx(22.6, abs=1e-4)
     assert summary["plan_sha256"] == plan_hash(load_one_plan([DEMO / "plan.json"]))
     assert summary["recorded_at"].endswith("+00:00")
 
