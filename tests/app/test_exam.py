@@ -42,7 +42,9 @@ def test_the_exam_table_reaches_beyond_the_plan(tables: dict[str, RehearsalTable
     exam, guard = tables["exam"], tables["guard"]
     assert guard.table.stop_depth_mm == pytest.approx(10.8, abs=1e-3)  # the margin's wall
     assert exam.exam is not None and exam.exam.basis == "beyond_plan"
-    assert exam.table.stop_depth_mm == pytest.approx(12.6 + EXAM_REACH_MM, abs=1e-4)  # drilled: apex + tip
+    assert exam.table.stop_depth_mm == pytest.approx(
+        12.6 + EXAM_REACH_MM, abs=1e-4
+    )  # drilled: apex + tip
     # the same force table along the plan, and the canal's clearance past it (vertical drill,
     # canal top 12.8 mm down: clearance 12.8 - x, negative inside)
     n = guard.table.n_steps

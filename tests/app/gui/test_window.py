@@ -43,7 +43,10 @@ def test_open_the_phantom_stops_at_the_true_safe_depth(
     curves = window.view.curves
     assert curves.stop_reason == "margin"
     assert curves.stop_depth_mm == pytest.approx(truth["max_safe_depth_mm"], abs=0.01)
-    assert curves.planned_depth_mm == pytest.approx(truth["planned_depth_mm"])
+    # the plan places an implant: the drill reaches its apex (the target) plus its tip
+    assert window.plan is not None and window.plan.implant is not None
+    tip = window.plan.drill.tip_length_mm
+    assert curves.planned_depth_mm == pytest.approx(truth["planned_depth_mm"] + tip)
     assert plot_stop_lines(window) == pytest.approx([curves.stop_depth_mm] * 3)
     # The trabecular bone's force shows on the plot: D2 bone, well above air.
     mid = (curves.depth_mm > 4.0) & (curves.depth_mm < 8.0)
@@ -64,11 +67,12 @@ def test_moving_the_target_recomputes_the_plots_and_the_stop(
         window.slice_canvases["coronal"].point_moved.emit("target", target)
     assert window.view is not None
     assert window.view.curves.stop_reason == "planned_depth"
-    assert window.view.curves.stop_depth_mm == pytest.approx(6.0)
-    assert plot_stop_lines(window) == pytest.approx([6.0] * 3)
-    # canal top at z = -43 + 1.2; the tip stops at z = -35: 6.8 mm clear
+    # the implant's apex 6 mm down, the drill's tip beyond it
+    assert window.view.curves.stop_depth_mm == pytest.approx(6.0 + window.plan.drill.tip_length_mm)
+    assert plot_stop_lines(window) == pytest.approx([6.0 + window.plan.drill.tip_length_mm] * 3)
+    # canal top at z = -43 + 1.2; the apex at z = -35, the tip 0.6 mm below: 6.2 mm clear
     assert window.view.min_clearance_mm is not None
-    assert float(window.view.min_clearance_mm[0]) == pytest.approx(6.8, abs=0.02)
+    assert float(window.view.min_clearance_mm[0]) == pytest.approx(6.2, abs=0.02)
     assert window.plan_panel.point_boxes["target"][2].value() == pytest.approx(-35.0)
 
 
