@@ -51,7 +51,7 @@ def demo_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     options = ["--calibration", "bone-literature", "--hu-sigma", "40"]
     code, out, err = run_cli(["report", *common, *options, "--out", str(root / "r.pdf")])
     assert (code, err) == (0, "")
-    assert out == f"wrote {root / 'r.pdf'} (5 pages)\n"
+    assert out == f"wrote {root / 'r.pdf'} (7 pages)\n"
     code, _, err = run_cli(["export", *common, *options, "--out", str(root / "export")])
     assert (code, err) == (0, "")
     return root / "r.pdf", root / "export" / "summary.json"
@@ -61,20 +61,52 @@ def test_the_pdf_parses_with_the_pages_of_the_case(demo_report: tuple[Path, Path
     pdf, _ = demo_report
     assert pdf.read_bytes().startswith(b"%PDF-")
     pages = pdf_pages(pdf)
-    # summary, panoramic, one cross-section (one trajectory), 3D view, one curves page
-    assert len(pages) == 5
+    # summary, the implant's clinical page, panoramic, one cross-section (one trajectory), 3D
+    # view, the engineering appendix, one curves page
+    assert len(pages) == 7
     assert "Planned osteotomy: summary" in pages[0]
-    assert "Panoramic reformat" in pages[1]
-    assert "Cross-section: plan" in pages[2]
-    assert "3D view" in pages[3]
-    assert "plan: force, HU and clearance against depth" in pages[4]
+    assert "Implant: plan" in pages[1]
+    assert "Panoramic reformat" in pages[2]
+    assert "Cross-section: plan" in pages[3]
+    assert "3D view" in pages[4]
+    assert "Appendix: engineering detail" in pages[5]
+    assert "plan: force, HU and clearance against depth" in pages[6]
     for k, text in enumerate(pages, start=1):
-        assert f"page {k} of 5" in text
+        assert f"page {k} of 7" in text
+
+
+def test_the_implant_page_says_what_a_colleague_needs(demo_report: tuple[Path, Path]) -> None:
+    """The demo: a vertical tapered 4.1 x 11.5 implant, its apex 12 mm below the crest, the
+    canal's top 12.8 mm below it (centre 14 mm, radius 1.2): 0.8 mm from the implant, inside
+    the 2 mm margin; one decimal on 0.4 mm voxels."""
+    pdf, summary_json = demo_report
+    doc: dict[str, Any] = json.loads(summary_json.read_text(encoding="utf-8"))
+    page = pdf_pages(pdf)[1]
+    assert "angulation 0.0 deg to the patient's vertical" in page
+    assert (
+        "0.8 mm from the implant body to 'left mandibular canal' (margin 2 mm): INSIDE THE "
+        "SAFETY MARGIN" in page
+    )
+    walls = doc["bone_walls"]
+    assert (
+        f"thinnest {walls['min_mm']:.1f} mm; buccal {walls['buccal_mm']:.1f} mm, lingual "
+        f"{walls['lingual_mm']:.1f} mm" in page
+    )
+    assert "12.8 mm (crest at" in page  # bone height from the crest to the canal
+    assert "1 2 0.6 12.60 0.60" in page  # the drill, its tip, drilled depth, beyond the apex
+    assert "site not given" in page and "tapered 4.1 x 11.5" in page
+    assert "[implant_violates_margin]" in page
+    # engineering detail is in the appendix, not on the summary page
+    appendix = pdf_pages(pdf)[5]
+    band = doc["force_band"]
+    assert f"{band['peak_mean_force_n']:.2f} at {band['peak_depth_mm']:.2f} mm" in appendix
+    assert "calibration bone-literature: " in appendix
+    assert "calibration bone-literature: " not in pdf_pages(pdf)[0]
 
 
 def _table_cells(page: str) -> str:
     """The table row's text: after the headings, before the note under the table."""
-    start = page.index("calibration", page.index("peak mean force"))
+    start = page.index("wall (mm)", page.index("thinnest"))
     return page[start : page.index("Depths are the drill tip")]
 
 
@@ -85,17 +117,23 @@ def test_the_table_holds_the_exports_numbers(demo_report: tuple[Path, Path]) -> 
     # every number as the export's terminal lines print it, from the export's own summary
     for key in ("planned_depth_mm", "stop_depth_mm", "max_safe_depth_mm"):
         assert f"{doc[key]:.3f}" in row, key
-    assert f"{doc['min_clearance_mm']:.3f}" in row
-    assert f"{doc['plan_clearance_mm']:.3f}" in row
+    # clearances with the digits 0.4 mm voxels support (+-0.2 mm: one decimal)
+    assert doc["clearance_accuracy_mm"] == 0.2
+    assert f"{doc['min_clearance_mm']:.1f}" in row
+    assert f"{doc['plan_clearance_mm']:.1f}" in row
     binding = doc["binding_landmark"]
     assert binding["name"] in row and f"margin {binding['margin_mm']:g} mm" in row
-    assert f"{binding['clearance_at_stop_mm']:.3f} at stop" in row
+    assert f"{binding['clearance_at_stop_mm']:.1f} at stop" in row
     assert "(safety margin)" in row and doc["stop_reason"] == "margin"
+    assert f"{doc['implant_clearance_mm']:.1f} to left" in row
+    assert f"{doc['bone_walls']['min_mm']:.1f}" in row
+    # the force band and the calibration: in the appendix's table
+    appendix = pdf_pages(pdf)[5]
     band = doc["force_band"]
-    assert f"{band['peak_mean_force_n']:.2f} at {band['peak_depth_mm']:.2f} mm" in row
-    assert f"68 %: {band['peak_lo_n']:.2f}-{band['peak_hi_n']:.2f}" in row
-    assert doc["calibration"] == "bone-literature" and "bone-literature" in row
-    assert not doc["calibration_illustrative"] and "ILLUSTRATIVE" not in row
+    assert f"{band['peak_mean_force_n']:.2f} at {band['peak_depth_mm']:.2f} mm" in appendix
+    assert f"68 %: {band['peak_lo_n']:.2f}-{band['peak_hi_n']:.2f}" in appendix
+    assert doc["calibration"] == "bone-literature" and "bone-literature" in appendix
+    assert not doc["calibration_illustrative"] and "ILLUSTRATIVE" not in appendix
     drill = doc["drill"]
     assert f"{drill['diameter_mm']:g} mm, tip {drill['tip_length_mm']:g} mm" in row
 
@@ -109,6 +147,7 @@ def test_every_warning_and_summary_line_is_there_in_full(demo_report: tuple[Path
     text = flat(" ".join(pdf_pages(pdf)))
     lines = summary_lines(read_summary(doc))
     assert any(line.startswith("warning [plan_violates_margin]") for line in lines)
+    assert any(line.startswith("warning [implant_violates_margin]") for line in lines)
     for line in lines:  # wrapped over several lines, never cut
         assert flat(line) in text, line
 
@@ -231,11 +270,13 @@ def test_a_plan_without_an_arch_gets_its_report_saying_how_to_add_one(tmp_path: 
     code, _, err = run_cli([*argv, "--out", str(tmp_path / "r.pdf")])
     assert (code, err) == (0, "")
     pages = pdf_pages(tmp_path / "r.pdf")
-    assert len(pages) == 5
-    for page in pages[1:3]:  # the panoramic and the cross-section say why, and how
+    assert len(pages) == 7
+    for page in pages[2:4]:  # the panoramic and the cross-section say why, and how
         assert "No dental arch in the plan" in page
         assert "arch_mm" in page and "ctdrill gui" in page and "'arch'" in page
-    assert "3D view" in pages[3]
+    assert "3D view" in pages[4]
+    # without an arch the walls have no buccal or lingual side
+    assert "buccal and lingual need a dental arch in the plan" in pages[1]
     assert "Planned osteotomy: summary" in pages[0]
 
 
@@ -258,10 +299,10 @@ def test_a_reformat_the_plan_cannot_give_is_said_on_its_page(tmp_path: Path) -> 
     code, _, err = run_cli([*argv, "--out", str(tmp_path / "r.pdf")])
     assert (code, err) == (0, "")
     pages = pdf_pages(tmp_path / "r.pdf")
-    assert len(pages) == 5
-    assert "Panoramic reformat along the dental arch" in pages[1]
+    assert len(pages) == 7
+    assert "Panoramic reformat along the dental arch" in pages[2]
     assert (
         "Not drawn: cross-section: the axis runs along the arch's bucco-lingual normal"
-        in (pages[2])
+        in (pages[3])
     )
-    assert "The rest of the report is unaffected." in pages[2]
+    assert "The rest of the report is unaffected." in pages[3]
