@@ -119,7 +119,8 @@ def implant_summary(result: PathResult) -> ImplantSummary | None:
     if place is None:
         return None
     doc = {k: _nm(v) for k, v in place.to_json().items()}  # a drill's view: apex = tip - tip
-    return from_json(ImplantSummary, {**doc, "seated": implant_seated(place, result.stop_depth_mm)})
+    seated = implant_seated(place, result.stop_depth_mm, result.plan.overdrill_mm)
+    return from_json(ImplantSummary, {**doc, "seated": seated})
 
 
 def implant_fields(

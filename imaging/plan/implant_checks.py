@@ -2,9 +2,12 @@
 
 Warnings (codes documented in ``docs/export.md``):
 
-- ``implant_beyond_stop``: the drill stops (margin, end of the volume) shallower than the
-  implant's apex, which sits at the planned target: the osteotomy is shorter than the implant,
-  which cannot be seated where planned. The stop wins: it is what the device enforces.
+- ``implant_beyond_stop``: the drill's full diameter stops (margin, end of the volume)
+  shallower than the implant's apex, which sits at the planned target: the osteotomy is
+  shorter than the implant, which cannot be seated where planned. A drill drilled for the
+  implant (``Plan.drilled(k)``) is planned to the apex plus its tip length; its full diameter
+  reaches its stop less that tip length (``overdrill_mm``). The stop wins: it is what the
+  device enforces.
 - ``implant_above_entry``: the implant is longer than the planned depth, so its platform
   stands above the entry point (outside the bone where the entry is on the crest).
 - ``implants_too_close``: two implants of one plan set closer than
@@ -34,9 +37,13 @@ from ctdrill.imaging.plan.types import Plan
 DEPTH_TOL_MM = 1e-9
 
 
-def implant_seated(place: ImplantPlacement, stop_depth_mm: float) -> bool:
-    """Whether a drill stopping at ``stop_depth_mm`` reaches the implant's apex (its seat)."""
-    return stop_depth_mm >= place.apex_depth_mm - DEPTH_TOL_MM
+def implant_seated(
+    place: ImplantPlacement, stop_depth_mm: float, tip_beyond_mm: float = 0.0
+) -> bool:
+    """Whether a drill stopping at ``stop_depth_mm`` reaches the implant's apex (its seat)
+    with its full diameter, the part ``tip_beyond_mm`` above its tip (the plan's
+    ``overdrill_mm``: the tip a drill for the implant is drilled beyond the apex)."""
+    return stop_depth_mm - tip_beyond_mm >= place.apex_depth_mm - DEPTH_TOL_MM
 
 
 def implant_warnings(
@@ -48,14 +55,20 @@ def implant_warnings(
         return ()
     spec = place.spec
     out: list[tuple[str, str]] = []
-    if not implant_seated(place, stop_depth_mm):
+    if not implant_seated(place, stop_depth_mm, plan.overdrill_mm):
+        tip = plan.overdrill_mm
+        reach = (
+            ""
+            if tip == 0.0
+            else f" (its full diameter to {stop_depth_mm - tip:.2f} mm, {tip:g} mm above its tip)"
+        )
         out.append(
             (
                 "implant_beyond_stop",
                 f"plan {plan.name!r}: implant {spec.name!r} needs an osteotomy "
                 f"{place.apex_depth_mm:.2f} mm deep (its apex at the target) but the drill "
-                f"stops at {stop_depth_mm:.2f} mm ({stop_reason}): the implant cannot be seated "
-                "where planned; plan it shallower or choose a shorter implant",
+                f"stops at {stop_depth_mm:.2f} mm ({stop_reason}){reach}: the implant cannot be "
+                "seated where planned; plan it shallower or choose a shorter implant",
             )
         )
     if place.platform_depth_mm < -DEPTH_TOL_MM:

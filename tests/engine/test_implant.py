@@ -208,3 +208,13 @@ def test_every_drill_is_drilled_to_the_apex_plus_its_tip(calibration, tmp_path: 
     path = plan_path(vol, deep.drilled(0), calibration)
     assert path.plan_clearance_mm == pytest.approx(13.8 - 11.6, abs=1e-6)
     assert path.planned_depth_mm == pytest.approx(11.6, abs=1e-9)
+    assert job_summary(path, CONTEXT).summary.outcome.implant.seated  # type: ignore[union-attr]
+    # the margin stops the tip between the apex and the drilled depth (canal top 13.3 mm: safe
+    # to 11.3 mm); its full diameter then ends 0.6 mm higher, above the apex: not seated
+    short = plan_path(vol, _plan(landmarks=(_canal(0.0, -14.5),)).drilled(0), calibration)
+    assert short.stop_reason == "margin"
+    assert short.stop_depth_mm == pytest.approx(13.3 - 2.0, abs=1e-3)
+    s = job_summary(short, CONTEXT).summary
+    assert s.outcome.implant is not None and not s.outcome.implant.seated
+    (msg,) = [w.message for w in s.warnings if w.code == "implant_beyond_stop"]
+    assert "its full diameter to 10.70 mm, 0.6 mm above its tip" in msg
