@@ -15,12 +15,12 @@ work, the types load on first use)::
     print(done.summaries[0].outcome.stop_depth_mm)
 
 Names: :func:`load_series`, :func:`load_plan`, :func:`plan_path`, :func:`implant_outcome`,
-:func:`evaluate_batch`, :func:`export_case`, :func:`summarize`, :func:`read_summary`; the
-values they return (:class:`CTVolume`, :class:`Plan`, :class:`PathResult`,
-:class:`ImplantOutcome`, :class:`BatchResult`, :class:`CaseExport`) and the summary types
-(:class:`TrajectorySummary`, :class:`SequenceSummary`), :class:`ExportSettings`. Bad input
-raises the rooms' input errors (``ValueError`` subclasses whose message names the file or
-field).
+:func:`implant_facts`, :func:`evaluate_batch`, :func:`export_case`, :func:`summarize`,
+:func:`read_summary`; the values they return (:class:`CTVolume`, :class:`Plan`,
+:class:`PathResult`, :class:`ImplantOutcome`, :class:`ImplantFacts`, :class:`BatchResult`,
+:class:`CaseExport`) and the summary types (:class:`TrajectorySummary`,
+:class:`SequenceSummary`), :class:`ExportSettings`. Bad input raises the rooms' input errors
+(``ValueError`` subclasses whose message names the file or field).
 """
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ if TYPE_CHECKING:
 
     from ctdrill.engine.batch import BatchResult
     from ctdrill.engine.implant import ImplantOutcome
+    from ctdrill.engine.implant_facts import ImplantFacts
     from ctdrill.engine.path import PathResult
     from ctdrill.engine.settings import ExportSettings
     from ctdrill.engine.summary import SequenceSummary, TrajectorySummary
@@ -50,6 +51,7 @@ _EXPORTS: dict[str, str] = {
     "BatchResult": "ctdrill.engine.batch",
     "CTVolume": "ctdrill.imaging.volume",
     "ExportSettings": "ctdrill.engine.settings",
+    "ImplantFacts": "ctdrill.engine.implant_facts",
     "ImplantOutcome": "ctdrill.engine.implant",
     "PathResult": "ctdrill.engine.path",
     "Plan": "ctdrill.imaging.plan.types",
@@ -66,6 +68,7 @@ __all__ = [
     "CTVolume",
     "CaseExport",
     "ExportSettings",
+    "ImplantFacts",
     "ImplantOutcome",
     "PathResult",
     "Plan",
@@ -73,6 +76,7 @@ __all__ = [
     "TrajectorySummary",
     "evaluate_batch",
     "export_case",
+    "implant_facts",
     "implant_outcome",
     "load_ct",
     "load_plan",
@@ -170,6 +174,18 @@ def implant_outcome(volume: CTVolume, plan: Plan) -> ImplantOutcome | None:
     from ctdrill.engine.implant import implant_outcome as outcome
 
     return outcome(volume, plan)
+
+
+def implant_facts(volume: CTVolume, plan: Plan) -> ImplantFacts | None:
+    """The clinical values of ``plan``'s implant (the report's implant page): ``.site_text``,
+    ``.drills`` (each with its ``drilled_depth_mm``), ``.angulation_deg`` (to the patient's
+    vertical), ``.nerve``/``.nerve_mm`` (the implant body's clearance to the nearest canal),
+    ``.min_wall_mm``/``.buccal_mm``/``.lingual_mm``, ``.crest_depth_mm``,
+    ``.canal_depth_mm`` and ``.bone_height_mm`` (crest to canal along the axis),
+    ``.accuracy_mm``; None when the plan places no implant."""
+    from ctdrill.engine.implant_facts import implant_facts as facts
+
+    return facts(volume, plan)
 
 
 def evaluate_batch(

@@ -21,6 +21,7 @@ NAMES = (
     "load_plan",
     "plan_path",
     "implant_outcome",
+    "implant_facts",
     "evaluate_batch",
     "export_case",
     "open_window",
@@ -89,6 +90,11 @@ def test_the_documented_example_runs(tmp_path: Path) -> None:
     assert path.implant is not None
     assert path.implant.clearance_mm == pytest.approx(implant.clearance_mm, abs=1e-9)
     assert path.planned_depth_mm == pytest.approx(12.6, abs=1e-9)  # apex 12 + tip 0.6
+    facts = scope["facts"]
+    assert isinstance(facts, api.ImplantFacts) and facts.angulation_deg == 0.0
+    # the canal's top 12.8 mm below the crest, on the axis (the demo's truth; the noise moves
+    # the 150 HU crossing of the crest by hundredths)
+    assert facts.bone_height_mm == pytest.approx(12.8, abs=0.1)
 
 
 def test_a_bad_input_is_the_packages_input_error(tmp_path: Path) -> None:
