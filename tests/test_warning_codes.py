@@ -30,6 +30,10 @@ NOT_WARNINGS = {
     ("state", "app/gui/session_process.py"),
     ("off", "app/readout.py"),
     ("igtl", "app/gui/session_process.py"),
+    # the rows (item, value) of the report's implant page
+    ("implant", "app/report/clinical.py"),
+    ("angulation", "app/report/clinical.py"),
+    ("accuracy", "app/report/clinical.py"),
     # a device's fault kinds (a rehearsal's ``faults``), not warnings
     ("device_fault", "haptics/watch.py"),
     ("device_clock", "haptics/watch.py"),
