@@ -77,7 +77,8 @@ def _paths(volume: CTVolume, plans: Sequence[Plan]) -> tuple[list[PathResult | N
     notes: list[str] = []
     for plan in plans:
         try:
-            out.append(plan_path(volume, plan, plan_calibration(plan)))
+            drilled = plan if plan.earlier_drills else plan.drilled(0)  # to the apex + tip
+            out.append(plan_path(volume, drilled, plan_calibration(plan)))
         except (ImagingInputError, ModelInputError) as exc:
             out.append(None)
             notes.append(f"{plan.name}: drill stop not computed ({exc}); planned axis drawn")
