@@ -31,11 +31,17 @@ def real_report(
 
 def test_pages_of_two_implants_on_a_real_head(real_report: tuple[list[str], Path]) -> None:
     everything, _ = real_report
-    # summary, its warnings continued (the 5 mm slices' coarse_voxels), panoramic,
-    # 2 cross-sections, 3D view, 3 curves pages (front; left's 2 drills)
-    assert len(everything) == 9
+    # summary, its warnings continued (the 5 mm slices' coarse_voxels), a clinical page per
+    # implant, panoramic, 2 cross-sections, 3D view, the engineering appendix, 3 curves pages
+    # (front; left's 2 drills)
+    assert len(everything) == 12
     assert "warning [coarse_voxels]: coarse voxels: slice step 5 mm" in everything[1]
-    pages = [everything[0], *everything[2:]]
+    for page, name in zip(everything[2:4], ("front", "left"), strict=True):
+        assert f"Implant: {name}" in page
+        # 5 mm slices: clearances known to +-2.5 mm, printed in whole millimetres
+        assert "known to about +-2.5 mm on this CT" in page
+    assert "Appendix: engineering detail" in everything[8]
+    pages = [everything[0], *everything[4:8], *everything[9:]]
     assert "Panoramic reformat along the dental arch" in pages[1]
     assert "No dental arch" not in " ".join(pages)
     assert "Cross-section: front" in pages[2] and "Cross-section: left, drill 2 of 2" in pages[3]
@@ -64,10 +70,12 @@ def test_the_real_heads_table_is_the_exports(real_report: tuple[list[str], Path]
         row = first[start:end]
         for key in ("planned_depth_mm", "stop_depth_mm", "max_safe_depth_mm"):
             assert f"{doc[key]:.3f}" in row, (label, key)
-        assert f"{doc['min_clearance_mm']:.3f}" in row and f"{doc['plan_clearance_mm']:.3f}" in row
+        # clearances in whole millimetres: what 5 mm slices support
+        assert doc["clearance_accuracy_mm"] == 2.5
+        assert f"{doc['min_clearance_mm']:.0f}" in row and f"{doc['plan_clearance_mm']:.0f}" in row
         assert doc["binding_landmark"]["name"] in row
         band = doc["force_band"]
-        assert f"{band['peak_lo_n']:.2f}-{band['peak_hi_n']:.2f}" in row
-        assert doc["calibration"] in row
+        assert f"{band['peak_lo_n']:.2f}-{band['peak_hi_n']:.2f}" in text  # the appendix
+        assert flat(doc["calibration"]) in text
         for w in doc["warnings"]:
             assert flat(w["message"]) in text
