@@ -34,6 +34,12 @@ def optional() -> dict[str, Any]:
     return {"json_optional": True}
 
 
+def added(absent: Any = None) -> dict[str, Any]:
+    """Field metadata: a key later versions added (always written); a document written before
+    it reads as ``absent`` (a batch resumed over older row folders, an older summary read)."""
+    return {"json_absent": absent}
+
+
 def _encode(value: Any) -> Any:
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return to_json(value)
@@ -104,6 +110,9 @@ def from_json(cls: type[T], doc: Mapping[str, Any]) -> T:
             values[f.name] = from_json(tp, doc)
             continue
         name = f.metadata.get("json_key", f.name)
+        if name not in doc and "json_absent" in f.metadata:
+            values[f.name] = f.metadata["json_absent"]
+            continue
         if name not in doc and f.metadata.get("json_optional"):
             origin = get_origin(tp)
             values[f.name] = () if origin is tuple else None

@@ -18,7 +18,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from ctdrill.engine.record import flat, from_json, key, optional, to_json
+from ctdrill.engine.record import added, flat, from_json, key, optional, to_json
 from ctdrill.model.calibration import Calibration
 
 EXPORT_FORMAT = "ctdrill-export/1"
@@ -217,11 +217,11 @@ class PlanOutcome:
     entry_lps: tuple[float, ...]
     target_lps: tuple[float, ...]
     implant: ImplantSummary | None
-    implant_clearance_mm: float | None
-    implant_binding_landmark: ImplantBindingLandmark | None
-    bone_walls: BoneWallsInfo | None
-    overdrill_mm: float
-    clearance_accuracy_mm: float | None
+    implant_clearance_mm: float | None = field(metadata=added())
+    implant_binding_landmark: ImplantBindingLandmark | None = field(metadata=added())
+    bone_walls: BoneWallsInfo | None = field(metadata=added())
+    overdrill_mm: float = field(metadata=added(0.0))
+    clearance_accuracy_mm: float | None = field(metadata=added())
     series: SeriesIdentity = field(metadata=flat())
     include_phi: bool
     patient: Mapping[str, str] | None = field(default=None, metadata=optional())
@@ -359,7 +359,7 @@ class DrillStep:
     drill: int
     folder: str
     spec: DrillInfo = field(metadata=flat())
-    planned_depth_mm: float | None
+    planned_depth_mm: float | None = field(metadata=added())
     stop_depth_mm: float | None
     stop_reason: str
     max_safe_depth_mm: float | None
