@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.app.igtl.frames import StreamGeometry, parse_target, refuse_igtl_sequence
+from ctdrill.app.igtl.frames import StreamGeometry, parse_target
 from ctdrill.app.igtl.stream import IgtlStream
 from ctdrill.app.readout import push_summary, wall_summary
 from ctdrill.app.records import atomic_output_dir, write_file
@@ -227,7 +227,8 @@ def rehearse(
     pace): ``summary.json`` gains ``igtl``; a failed connection is one call of ``on_warning``.
 
     A plan with a drill sequence runs one session per drill
-    (:mod:`ctdrill.app.rehearse_sequence`: ``OUT/drill_k/`` and a listing ``summary.json``).
+    (:mod:`ctdrill.app.rehearse_sequence`: ``OUT/drill_k/`` and a listing ``summary.json``);
+    ``igtl`` then streams every drill's session through one connection.
 
     Returns the summary written. Raises an input error (exit 2, nothing written) for bad
     input and for a device that fails before it was armed.
@@ -241,8 +242,6 @@ def rehearse(
     if exam:
         refuse_exam_device(device)
     whole = load_one_plan([plan] if isinstance(plan, Path) else plan, trajectory=trajectory)
-    if target is not None:
-        refuse_igtl_sequence(whole)
     if len(whole.drills) > 1:  # a drill sequence: one session per drill (exam: each drill's)
         from ctdrill.app.rehearse_sequence import rehearse_sequence
 
@@ -262,6 +261,8 @@ def rehearse(
             summarise=rehearsal_summary,
             to_json=summary_json,
             exam=exam,
+            igtl=target,
+            on_warning=on_warning,
         )
     loaded = load_table(
         dicom, plan, interpolate_gaps=interpolate_gaps, grey=grey, trajectory=trajectory, exam=exam

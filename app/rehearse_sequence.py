@@ -30,10 +30,12 @@ so each drill can pass the max safe depth and the assessments record it.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import contextlib
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from ctdrill.app.igtl.frames import IgtlTarget, StreamDrill, StreamGeometry
 from ctdrill.app.records import atomic_output_dir, write_file
 from ctdrill.app.trainee.exam import ExamSetup, assessment_context, exam_setup, plan_hash
 from ctdrill.engine.grey import hu_uncertainty, map_volume
@@ -50,6 +52,9 @@ from ctdrill.haptics.session import FaultSpec, Operator, SessionCsv
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.model.band import HuUncertainty
+
+if TYPE_CHECKING:
+    from ctdrill.app.igtl.stream import IgtlStream
 
 SEQUENCE_FORMAT = "ctdrill-rehearsal-sequence/1"
 
@@ -76,13 +81,17 @@ def rehearse_sequence(
     summarise: Callable[..., dict[str, Any]],
     to_json: Callable[[dict[str, Any]], str],
     exam: bool = False,
+    igtl: IgtlTarget | None = None,
+    on_warning: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Run every drill of ``plan`` on its own session and write the records (module docstring).
 
     ``grey`` and ``manual_hu`` are the rehearsal's grey-to-HU map and ``--hu-sigma``;
     ``open_device``, ``summarise`` (the single rehearsal's summary) and ``to_json`` are
     :mod:`ctdrill.app.rehearse`'s, so one drill's records are exactly a rehearsal's; ``exam``
-    runs every drill in exam mode (the caller has refused it on hardware).
+    runs every drill in exam mode (the caller has refused it on hardware); ``igtl`` streams
+    every drill's session through one connection (:meth:`IgtlStream.start_drill`: the
+    ``Drill`` message names each), the top ``summary.json`` gaining ``igtl``.
     """
     volume, grey_map = map_volume(load_ct(dicom), grey)
     hu = hu_uncertainty(grey_map, manual_hu)
@@ -91,7 +100,10 @@ def rehearse_sequence(
     # every drill computed before the first ARM: bad input is refused before anything runs
     first = plan_sequence(volume, plan, calibration, **options)
     runs: list[tuple[PathResult, dict[str, Any], float]] = []
-    with atomic_output_dir(out) as stage:
+    with (
+        atomic_output_dir(out) as stage,
+        _streaming(igtl, first.steps[0].plan, on_warning, device) as stream,
+    ):
         for k in range(len(plan.drills)):
             reached = [r for _, _, r in runs]
             path = (
@@ -110,6 +122,12 @@ def rehearse_sequence(
             assessor = Assessor(context, table)
             folder = stage / drill_folder(k)
             folder.mkdir()
+            observe: Callable[[list[Any]], None] = assessor.add
+            if stream is not None:
+                number = (k + 1, len(plan.drills))
+                drill = StreamDrill(*number, path.plan.drill.diameter_mm, drill_folder(k))
+                stream.start_drill(StreamGeometry.of_plan(path.plan), drill)
+                observe = stream.chained(assessor.add)
             dev = open_device(device, seed=seed)
             try:
                 csv_out = SessionCsv(folder / "session.csv")
@@ -122,7 +140,7 @@ def rehearse_sequence(
                         faults=faults,
                         seed=seed,
                         sink=csv_out.write,
-                        on_samples=assessor.add,
+                        on_samples=observe,
                     )
                 finally:
                     csv_out.close()
@@ -148,8 +166,32 @@ def rehearse_sequence(
             if not doc.get("complete"):
                 break
         top = sequence_summary(plan, runs)
+        if stream is not None:
+            top["igtl"] = stream.close().to_json()
         write_file(stage / "summary.json", to_json(top))
     return top
+
+
+@contextlib.contextmanager
+def _streaming(
+    igtl: IgtlTarget | None,
+    first: Plan,
+    on_warning: Callable[[str], None] | None,
+    device: str,
+) -> Iterator[IgtlStream | None]:
+    """The sequence's one stream (None without ``igtl``), closed however the sequence ends
+    (closing twice is harmless: the report is taken from the first)."""
+    if igtl is None:
+        yield None
+        return
+    from ctdrill.app.igtl.stream import IgtlStream
+
+    geometry = StreamGeometry.of_plan(first)
+    stream = IgtlStream(igtl, geometry, on_warning=on_warning, pace=device == "sim")
+    try:
+        yield stream
+    finally:
+        stream.close()
 
 
 def sequence_summary(

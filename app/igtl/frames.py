@@ -6,7 +6,9 @@ A frame is the newest telemetry sample of a session's block, sent as
 - ``STRING "Forces"``: :func:`forces_doc` as JSON (UTF-8);
 - ``TRANSFORM "Implant"``: the plan's implant when it has one (where
   :func:`ctdrill.imaging.plan.implants.implant_placement` puts it), with the first frame and
-  then once a second.
+  then once a second;
+- ``STRING "Drill"`` (a drill sequence only, first in its frame): :class:`StreamDrill` as
+  JSON, with a session's first frame (the drill changed) and then with ``Implant``.
 
 Poses are computed in LPS (the world frame) and converted to RAS, 3D Slicer's frame, only in
 :func:`to_ras` (x and y negated). The axis frame of both transforms (:func:`axis_frame_lps`):
@@ -41,6 +43,8 @@ SLICER_PORT = 18944
 DRILL_TIP = "DrillTip"
 IMPLANT = "Implant"
 FORCES = "Forces"
+#: A drill sequence's ``STRING`` naming the drill whose session streams (``StreamDrill``).
+DRILL = "Drill"
 #: ``Forces`` JSON fields, in order (``forces_doc``).
 FORCE_FIELDS = (
     "time_s",
@@ -95,19 +99,32 @@ def parse_target(spec: str, *, option: str = "--igtl") -> IgtlTarget:
     return IgtlTarget(host, int(port_text))
 
 
-def refuse_igtl_sequence(plan: Plan) -> None:
-    """``--igtl`` streams one drill's session.
+@dataclass(frozen=True)
+class StreamDrill:
+    """Which drill of a sequence a session rehearses (the ``Drill`` message).
 
-    Raises
-    ------
-    AppInputError
-        For a plan with a drill sequence.
+    Attributes
+    ----------
+    number : 1-based, in drilling order.
+    count : the sequence's drills.
+    diameter_mm : the drill's diameter, mm.
+    folder : the session's records (``drill_k``, beside ``session.csv``).
     """
-    if len(plan.drills) > 1:
-        raise AppInputError(
-            f"--igtl: plan {plan.name!r} has a drill sequence (drills); streaming to "
-            "OpenIGTLink rehearses one drill: give a plan with that drill alone"
-        )
+
+    number: int
+    count: int
+    diameter_mm: float
+    folder: str
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``Drill`` message's JSON object: ``drill``, ``drills``, ``diameter_mm``,
+        ``folder``."""
+        return {
+            "drill": self.number,
+            "drills": self.count,
+            "diameter_mm": self.diameter_mm,
+            "folder": self.folder,
+        }
 
 
 @dataclass(frozen=True)
@@ -127,7 +144,7 @@ class StreamGeometry:
 
     @classmethod
     def of_plan(cls, plan: Plan) -> StreamGeometry:
-        """The axis and implant of a (single-drill) plan."""
+        """The axis and implant of a plan (a drill sequence: one drill's, ``Plan.drilled``)."""
         from ctdrill.imaging.plan.implants import implant_placement
 
         placement = implant_placement(plan)
@@ -245,8 +262,10 @@ def frame_messages(
     *,
     timestamp: float,
     with_implant: bool,
+    drill: StreamDrill | None = None,
 ) -> list[MessageBase]:
-    """One frame's messages: ``DrillTip``, ``Forces``, then ``Implant`` when asked and known.
+    """One frame's messages: ``Drill`` when given (a drill sequence: the drill whose session
+    this is), ``DrillTip``, ``Forces``, then ``Implant`` when asked and known.
 
     ``timestamp`` (s since 1970) is each message's header timestamp: when the host received
     the sample. A non-finite value of the JSON is sent as ``null``; the caller skips samples
@@ -256,7 +275,11 @@ def frame_messages(
 
     doc = forces_doc(sample, time_s)
     text = json.dumps({k: (v if _finite(v) else None) for k, v in doc.items()})
-    messages: list[MessageBase] = [
+    messages: list[MessageBase] = []
+    if drill is not None:
+        drill_text = json.dumps(drill.to_json())
+        messages.append(pyigtl.StringMessage(drill_text, timestamp=timestamp, device_name=DRILL))
+    messages += [
         pyigtl.TransformMessage(
             geometry.tip_pose_ras(sample.drill_mm), timestamp=timestamp, device_name=DRILL_TIP
         ),

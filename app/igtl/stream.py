@@ -15,6 +15,10 @@ accepts nothing for ``STALL_TIMEOUT_S`` (it stopped reading) ends the streaming 
 warning (``on_warning``) and the reason in :class:`StreamReport` ``error``; the session goes
 on. Pyigtl (its message classes) packs the messages; the socket is ours, so that a dead peer
 costs bounded time and is reported once.
+
+A drill sequence streams every drill's session through one connection:
+:meth:`IgtlStream.start_drill` before each session names the drill (``Drill``) and restarts
+the session time; the frames then carry that drill's axis, implant and name.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from ctdrill.app.igtl.frames import (
     FORCES,
     IMPLANT,
     IgtlTarget,
+    StreamDrill,
     StreamGeometry,
     frame_messages,
 )
@@ -45,6 +50,8 @@ CONNECT_TIMEOUT_S = 2.0
 STALL_TIMEOUT_S = 2.0
 #: The socket's send buffer (the kernel doubles it): about 0.2 s of frames at 100 Hz.
 SEND_BUFFER_BYTES = 8192
+#: A frame: (header timestamp s, session time s, the sample, the axis, the drill or None).
+_Frame = tuple[float, float, TelemetrySample, StreamGeometry, StreamDrill | None]
 #: ``Implant`` (a fixed pose) is sent with the first frame and then at this period, s.
 IMPLANT_PERIOD_S = 1.0
 #: :meth:`IgtlStream.close` waits this long for the last frame, s; a sender still blocked
@@ -70,7 +77,7 @@ class StreamReport:
         it, or offered when there was no connection.
     send_rate_hz : ``(sent - 1) / span`` of the sent frames' header timestamps (None: fewer
         than two sent).
-    messages : messages sent per name.
+    messages : messages sent per name (``Drill`` too when a drill sequence sent it).
     error : why streaming stopped early (None: it did not).
     """
 
@@ -134,9 +141,10 @@ class IgtlStream:
         self.connect_timeout_s = connect_timeout_s
         self.send_buffer_bytes = send_buffer_bytes
         self.report = StreamReport(target.host, target.port)
-        #: The newest frame ``(header timestamp, session time, sample)``: written by the
-        #: session only (one reference store), read by the sender only.
-        self._slot: tuple[float, float, TelemetrySample] | None = None
+        #: The newest frame: written by the session only (one reference store), read by the
+        #: sender only.
+        self._slot: _Frame | None = None
+        self._drill: StreamDrill | None = None
         self._closing = False
         self._error_lock = threading.Lock()
         self._sock: socket.socket | None = None
@@ -161,12 +169,20 @@ class IgtlStream:
         sample = samples[-1]
         t = sample.time_s - self._t0
         if math.isfinite(sample.drill_mm):
-            self._slot = (time.time(), t, sample)
+            self._slot = (time.time(), t, sample, self.geometry, self._drill)
             self.report.frames += 1
         if self.pace:
             ahead = t - (time.monotonic() - self._wall0)
             if ahead > 0.0:
                 time.sleep(ahead)
+
+    def start_drill(self, geometry: StreamGeometry, drill: StreamDrill) -> None:
+        """A drill sequence's next session (call between sessions, from the session side):
+        its frames carry ``geometry`` and ``drill`` (sent as ``Drill`` with its first frame)
+        and its session time starts again at 0 (as its ``session.csv``)."""
+        self.geometry = geometry
+        self._drill = drill
+        self._t0 = None
 
     def chained(self, first: Callable[[list[TelemetrySample]], None]) -> Callable[..., None]:
         """An ``on_samples`` observer calling ``first``, then :meth:`observe`."""
@@ -245,7 +261,8 @@ class IgtlStream:
         if sock is None:
             return
         self.report.connected = True
-        sent: tuple[float, float, TelemetrySample] | None = None
+        sent: _Frame | None = None
+        drill_sent: StreamDrill | None = None
         next_implant = -math.inf
         try:
             while True:
@@ -254,8 +271,10 @@ class IgtlStream:
                 if item is not None and item is not sent:
                     sent = item
                     due = item[0] >= next_implant
-                    if not self._send(sock, item, with_implant=due):
+                    name_drill = item[4] is not None and (due or item[4] is not drill_sent)
+                    if not self._send(sock, item, with_implant=due, with_drill=name_drill):
                         return
+                    drill_sent = item[4]
                     if due:
                         next_implant = item[0] + IMPLANT_PERIOD_S
                 if closing:
@@ -266,12 +285,17 @@ class IgtlStream:
                 sock.close()
 
     def _send(
-        self, sock: socket.socket, item: tuple[float, float, TelemetrySample], *, with_implant: bool
+        self, sock: socket.socket, item: _Frame, *, with_implant: bool, with_drill: bool
     ) -> bool:
         """Send one frame whole; False (and the stream's error) when the peer failed."""
-        stamp, t, sample = item
+        stamp, t, sample, geometry, drill = item
         messages = frame_messages(
-            self.geometry, sample, t, timestamp=stamp, with_implant=with_implant
+            geometry,
+            sample,
+            t,
+            timestamp=stamp,
+            with_implant=with_implant,
+            drill=drill if with_drill else None,
         )
         try:
             sock.sendall(b"".join(m.pack() for m in messages))
@@ -284,7 +308,7 @@ class IgtlStream:
         report = self.report
         report.sent += 1
         for m in messages:
-            report.messages[m.device_name] += 1
+            report.messages[m.device_name] = report.messages.get(m.device_name, 0) + 1
         self._stamps = (self._stamps[0] if report.sent > 1 else stamp, stamp)
         return True
 

@@ -251,28 +251,83 @@ def test_a_peer_that_hangs_up_ends_the_stream_with_one_warning() -> None:
     assert len(warnings) == 1 and report.dropped == report.frames - report.sent > 0
 
 
-def test_bad_igtl_values_and_a_drill_sequence_are_one_error_line_before_anything_runs(
+def test_bad_igtl_values_are_one_error_line_before_anything_runs(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from ctdrill.imaging.plan.load import load_plan
-    from ctdrill.imaging.plan.types import DrillSpec
-    from ctdrill.imaging.plan.write import save_plan
-
     for value, says in (("localhost", "no port"), ("localhost:70000", "1..65535")):
         assert _rehearse(tmp_path / "out", value, "1") == 2
         err = capsys.readouterr().err.splitlines()
         assert len(err) == 1 and err[0].startswith(f"error: --igtl '{value}': ") and says in err[0]
+        assert not (tmp_path / "out").exists()
+
+
+def test_a_drill_sequence_streams_each_drills_session_named_by_drill(
+    tmp_path: Path, server: tuple[int, Recorder], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Each drill's session streams through the one connection: a ``Drill`` STRING names the
+    drill before its first pose, and every frame after it is a row of that drill's
+    session.csv, at the tip of that drill's depth on the plan's axis."""
+    from ctdrill.imaging.plan.load import load_plan
+    from ctdrill.imaging.plan.types import DrillSpec
+    from ctdrill.imaging.plan.write import save_plan
+
+    port, received = server
     drills = (DrillSpec(diameter_mm=2.0, tip_length_mm=0.6), DrillSpec(3.0, tip_length_mm=0.9))
     save_plan(load_plan(DEMO / "plan.json").with_drills(drills), tmp_path / "seq.plan.json")
+    out = tmp_path / "out"
     code = main(
         [
             "rehearse",
             *("--dicom", str(DEMO / "ct"), "--plan", str(tmp_path / "seq.plan.json")),
-            *("--out", str(tmp_path / "out"), "--operator", "push:20", "--duration-s", "1"),
-            *("--igtl", f"127.0.0.1:{free_port()}"),
+            *("--out", str(out), "--operator", "push:20", "--duration-s", "0.5"),
+            *("--igtl", f"127.0.0.1:{port}"),
         ]
     )
-    err = capsys.readouterr().err.splitlines()
-    assert code == 2 and len(err) == 1 and "drill sequence" in err[0]
-    assert err[0].startswith("error: --igtl: plan ")
-    assert not (tmp_path / "out").exists()
+    captured = capsys.readouterr()
+    assert code == 0 and not _warnings(captured.err)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["drills_run"] == 2
+    igtl = summary["igtl"]
+    assert igtl["connected"] is True and igtl["error"] is None
+    assert igtl["frames"] == 2 * 50 and igtl["sent"] + igtl["dropped"] == igtl["frames"]
+    counts = igtl["messages"]
+    assert counts["DrillTip"] == counts["Forces"] == igtl["sent"] and counts["Drill"] >= 2
+    assert "OpenIGTLink 127.0.0.1:" in captured.out
+    log = received.wait_for(sum(counts.values()))
+    assert len(log) == sum(counts.values())
+    assert log[0].device_name == "Drill"  # named before the first pose
+
+    plan = json.loads((DEMO / "plan.json").read_text())
+    entry, target = np.array(plan["entry_mm"]), np.array(plan["target_mm"])
+    axis = (target - entry) / np.linalg.norm(target - entry)
+    flip = np.array([-1.0, -1.0, 1.0])
+    rows: dict[str, dict[str, dict[str, str]]] = {}
+    for k in (1, 2):
+        with (out / f"drill_{k}" / "session.csv").open(newline="") as f:
+            rows[f"drill_{k}"] = {r["time_s"]: r for r in csv.DictReader(f)}
+    current: dict[str, object] | None = None
+    seen: list[int] = []
+    pose = None
+    frames_per_drill = {1: 0, 2: 0}
+    for m in log:
+        if m.device_name == "Drill":
+            current = json.loads(m.string)
+            assert current is not None
+            assert current["drills"] == 2
+            assert current["diameter_mm"] == drills[int(str(current["drill"])) - 1].diameter_mm
+            if not seen or seen[-1] != current["drill"]:
+                seen.append(int(str(current["drill"])))
+        elif m.device_name == "DrillTip":
+            pose = np.asarray(m.matrix, dtype=np.float64)
+        elif m.device_name == "Forces":
+            assert current is not None and pose is not None
+            doc = json.loads(m.string)
+            row = rows[str(current["folder"])][f"{doc['time_s']:.4f}"]
+            drill_mm = float(row["drill_mm"])
+            assert doc["drill_depth_mm"] == pytest.approx(drill_mm, abs=1e-9)
+            np.testing.assert_allclose(pose[:3, 3], flip * (entry + drill_mm * axis), atol=2e-5)
+            frames_per_drill[int(str(current["drill"]))] += 1
+    assert seen == [1, 2]  # drill 1's frames, then drill 2's: never back
+    assert frames_per_drill[1] > 0 and frames_per_drill[2] > 0
+    # each drill's session time starts at 0 again: its own session.csv's
+    assert sum(frames_per_drill.values()) == igtl["sent"]

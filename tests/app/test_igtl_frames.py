@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.igtl.frames import (
+    StreamDrill,
     StreamGeometry,
     axis_frame_lps,
     forces_doc,
@@ -164,3 +165,19 @@ def test_a_frame_packs_the_three_named_messages() -> None:
     assert doc["device_force_n"] is None  # non-finite: null, never an invalid JSON 'Infinity'
     assert all(m.timestamp == 1.7e9 for m in messages)
     assert len(frame_messages(geometry, sample, 0.5, timestamp=0.0, with_implant=False)) == 2
+
+
+def test_a_drill_of_a_sequence_is_named_first_in_its_frame() -> None:
+    import pyigtl
+
+    geometry = StreamGeometry((32.0, 10.0, -29.0), (0.0, 0.0, -1.0))
+    drill = StreamDrill(2, 3, 2.8, "drill_2")
+    sample = _sample(DeviceState.CUTTING, 1.0)
+    messages = frame_messages(geometry, sample, 0.5, timestamp=5.0, with_implant=True, drill=drill)
+    assert [m.device_name for m in messages] == ["Drill", "DrillTip", "Forces"]  # no implant
+    assert isinstance(messages[0], pyigtl.StringMessage) and messages[0].timestamp == 5.0
+    # the packed bytes decode as the JSON object docs/slicer.md shows
+    packed = messages[0].pack()
+    assert packed[2:14] == b"STRING\0\0\0\0\0\0" and packed[14:19] == b"Drill"
+    doc = json.loads(packed[58 + 4 :].decode("utf-8"))
+    assert doc == {"drill": 2, "drills": 3, "diameter_mm": 2.8, "folder": "drill_2"}
