@@ -40,13 +40,26 @@ from ctdrill.imaging.volumes.types import DEFAULT_MAX_BYTES, VolumeData, VolumeF
 
 #: Values spanning less than this cannot be a CT in HU (air -1000 to bone hundreds).
 MIN_HU_SPAN = 100.0
+#: The low tail of a volume's values: this fraction of the voxels, %. A few padding or
+#: outlier voxels below 0 do not make grey values HU.
+LOW_TAIL_PERCENT = 0.1
+#: A low tail at or above this cannot be a CT in HU: no air (-1000) and no fat (about -100)
+#: in more than ``LOW_TAIL_PERCENT`` of the voxels; grey values whose air reads near 0.
+MIN_HU_LOW_TAIL = -50.0
+#: Voxels sampled (evenly) for the low tail.
+_TAIL_SAMPLES = 1 << 20
 #: Prefix of a file volume's content identity.
 CONTENT_UID_PREFIX = "sha256:"
 _INT16 = np.iinfo(np.int16)
 
 
-def hu_problem(lo: float, hi: float) -> str | None:
-    """Why values spanning ``lo..hi`` cannot be Hounsfield units, or None when they can be."""
+def hu_problem(lo: float, hi: float, low_tail: float | None = None) -> str | None:
+    """Why values spanning ``lo..hi`` cannot be Hounsfield units, or None when they can be.
+
+    ``low_tail`` is the value below which lie ``LOW_TAIL_PERCENT`` % of the voxels (None:
+    ``lo``): at or above ``MIN_HU_LOW_TAIL`` the volume has no air and no fat, whatever a few
+    voxels below 0 say (grey values with air near 0, and noise or padding just below it).
+    """
     if lo >= 0.0:
         return (
             f"values {lo:g}..{hi:g} never go below 0 (a CT in HU has air at -1000 and fat below "
@@ -56,7 +69,21 @@ def hu_problem(lo: float, hi: float) -> str | None:
         return (
             f"values {lo:g}..{hi:g} span less than {MIN_HU_SPAN:g}: normalised intensities, not HU"
         )
+    if low_tail is not None and low_tail >= MIN_HU_LOW_TAIL:
+        return (
+            f"values {lo:g}..{hi:g}, but {100 - LOW_TAIL_PERCENT:g} % of the voxels are at or "
+            f"above {low_tail:g} (a CT in HU has air at -1000 and fat near -100): grey values "
+            "with air near 0, not HU"
+        )
     return None
+
+
+def low_tail(values: np.ndarray) -> float:
+    """The ``LOW_TAIL_PERCENT`` percentile of ``values`` (any shape; at most
+    ``_TAIL_SAMPLES`` voxels sampled evenly)."""
+    flat = values.reshape(-1)
+    step = max(1, flat.size // _TAIL_SAMPLES)
+    return float(np.percentile(flat[::step], LOW_TAIL_PERCENT))
 
 
 def content_uid(hu: np.ndarray, affine_lps: np.ndarray) -> str:
@@ -120,7 +147,7 @@ def ct_volume(path: str | Path, vol: VolumeData, *, max_bytes: int = DEFAULT_MAX
             )
     values = hu if valid is None else hu[valid]
     lo, hi = float(values.min()), float(values.max())
-    problem = hu_problem(lo, hi)
+    problem = hu_problem(lo, hi, low_tail(values))
     if problem is not None:
         warnings.append(
             LoadWarning(

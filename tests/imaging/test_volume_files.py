@@ -159,6 +159,24 @@ def test_hu_rule() -> None:
     assert hu_problem(-150.0, 1500.0) is None  # a crop inside the head: fat, no air
     assert hu_problem(0.0, 4095.0) is not None
     assert hu_problem(-0.5, 0.5) is not None
+    # grey values whose air reads near 0, a few noise or padding voxels below it: not HU
+    assert hu_problem(-30.0, 4095.0, low_tail=-2.0) is not None
+    assert hu_problem(-1024.0, 3000.0, low_tail=-1000.0) is None
+    assert hu_problem(-150.0, 1500.0, low_tail=-120.0) is None  # fat, no air: HU
+
+
+def test_grey_values_with_air_near_zero_and_noise_below_it_are_flagged(tmp_path: Path) -> None:
+    """0..4095 grey values (air about 0) with 0.05 % noise and padding voxels down to -30."""
+    rng = np.random.default_rng(3)
+    grey = rng.integers(0, 4096, size=SHAPE).astype(np.int16)
+    flat = grey.reshape(-1)
+    flat[rng.choice(flat.size, size=max(1, flat.size // 2000), replace=False)] = -30
+    v = load_ct(write_nrrd(tmp_path / "g.nrrd", grey, AFFINE))
+    (w,) = [w for w in v.warnings if w.code == "not_hu"]
+    assert not v.info.is_hu and "air near 0" in w.message and "--grey-to-hu" in w.message
+    hu = grey.copy()
+    hu.reshape(-1)[: flat.size // 100] = -1000  # 1 % air at -1000: HU
+    assert load_ct(write_nrrd(tmp_path / "h.nrrd", hu, AFFINE)).info.is_hu
 
 
 def test_non_finite_voxels_are_masked_invalid(tmp_path: Path) -> None:
