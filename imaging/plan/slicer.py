@@ -300,9 +300,21 @@ def _line_implant(ctx: _Ctx, settings: _Settings, where: str) -> ImplantSpec | N
     raw = {IMPLANT_SETTINGS[k]: settings[k] for k in IMPLANT_SETTINGS}
     if IMPLANT_DRILLS_SETTING in settings:
         text = settings[IMPLANT_DRILLS_SETTING]
+        origin = settings.origin[IMPLANT_DRILLS_SETTING]
         try:
-            raw["drills"] = json.loads(text) if isinstance(text, str) else text
-        except json.JSONDecodeError:
+            raw["drills"] = (
+                loads_json(
+                    text,
+                    where=f"{ctx.path.name}: {origin}: setting {IMPLANT_DRILLS_SETTING}",
+                    what="value",
+                    error=PlanInputError,
+                )
+                if isinstance(text, str)
+                else text
+            )
+        except PlanInputError as exc:
+            if not isinstance(exc.__cause__, json.JSONDecodeError):
+                raise  # a duplicate key, a huge number: named as such
             raise ctx.fail(
                 f"{settings.origin[IMPLANT_DRILLS_SETTING]}: setting {IMPLANT_DRILLS_SETTING}",
                 "must be a quoted JSON list of drills, e.g. "

@@ -175,3 +175,26 @@ def test_identical_duplicates_are_refused_too_and_unique_keys_parse() -> None:
     with pytest.raises(ValueError, match=r"y\.\.\., then 2\)"):  # long values are cut
         loads_json(f'{{"a": "{long}", "a": 2}}', where="x.json", what="doc", error=ValueError)
     assert loads_json('{"a": {"a": 1}, "b": [{"a": 2}]}', where="x", what="d", error=ValueError)
+
+
+def test_an_implant_drills_setting_with_a_duplicate_key_is_refused(tmp_path: Path) -> None:
+    """The implant's drilling protocol in a Line's description is JSON too: a drill giving
+    ``diameter_mm`` twice is refused, naming the key, never read as its last value."""
+    doc = _markups_doc()
+    cp = doc["markups"][0]["controlPoints"][0]
+    drills = '[{"diameter_mm": 2.0, "diameter_mm": 3.5}, {"diameter_mm": 2.8}]'
+    cp["description"] = (
+        'implant="T" implant_diameter_mm=4.1 implant_length_mm=10 implant_apex_diameter_mm=2.9 '
+        f"implant_apex=round implant_drills={json.dumps(drills)}"
+    )
+    path = tmp_path / "implant.mrk.json"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    with pytest.raises(PlanInputError, match="setting implant_drills: the value gives the key "):
+        load_plan(path)
+    clean = (
+        '[{"diameter_mm": 2.0, "tip_length_mm": 0.6}, {"diameter_mm": 2.8, "tip_length_mm": 0.8}]'
+    )
+    cp["description"] = cp["description"].replace(json.dumps(drills), json.dumps(clean))
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    plan = load_plan(path)  # the same protocol without the duplicate reads
+    assert [d.diameter_mm for d in plan.drills] == [2.0, 2.8]
