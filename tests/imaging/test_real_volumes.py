@@ -10,6 +10,7 @@ says.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import nibabel
@@ -180,3 +181,77 @@ def test_synthetic_ct_round_trips_through_files(mandible: RealMandible, tmp_path
         back = load_ct(path)
         np.testing.assert_array_equal(back.hu, v.hu)
         np.testing.assert_allclose(back.affine_lps, v.affine_lps, rtol=0, atol=1e-4)
+
+
+def _crest_over(m: RealMandible, point_lps: np.ndarray) -> np.ndarray:
+    """The bone's top (LPS) straight above ``point_lps``: the last mask voxel going superior."""
+    v = m.volume
+    zs = np.arange(0.0, 60.0, 0.05)
+    line = point_lps + zs[:, None] * [0.0, 0.0, 1.0]
+    kji = np.rint(v.lps_to_index(line)[:, ::-1]).astype(int)
+    inside = np.all((kji >= 0) & (kji < m.bone.shape), axis=1)
+    bone = np.zeros(len(zs), dtype=bool)
+    bone[inside] = m.bone[tuple(kji[inside].T)]
+    assert bone[0], "the arch point lies in the bone"
+    top = int(np.argmin(bone)) - 1  # the last bone sample of the first run
+    return np.asarray(line[top])
+
+
+def _mask_run_mm(m: RealMandible, start_lps: np.ndarray, direction: np.ndarray) -> float:
+    """How far the bone mask runs from ``start_lps`` along ``direction`` (nearest voxel)."""
+    steps = np.arange(0.0, 30.0, 0.02)
+    kji = np.rint(m.volume.lps_to_index(start_lps + steps[:, None] * direction)[:, ::-1])
+    kji = kji.astype(int)
+    inside = np.all((kji >= 0) & (kji < m.bone.shape), axis=1)
+    bone = np.zeros(len(steps), dtype=bool)
+    bone[inside] = m.bone[tuple(kji[inside].T)]
+    return float(steps[int(np.argmin(bone))]) if not bone.all() else math.inf
+
+
+def test_bone_walls_around_an_implant_in_the_real_symphysis(mandible: RealMandible) -> None:
+    """A cylindrical implant set vertically 3 mm into the crest at the arch's midline (the
+    symphysis, no canal): its buccal and lingual walls, read from the CT's samples, match the
+    real mask's extent along the same rays, within two voxels (each
+    end: the 150 HU edge of trilinear samples against the mask's nearest-voxel boundary, half a
+    voxel each, plus the resampled mask's own half voxel) wherever the surface is vertical
+    (the mask's extent the same 1 mm above and below); where it slopes, the mask's voxel
+    staircase is no reference for a horizontal ray."""
+    from ctdrill.imaging.plan.implants import ImplantSpec
+    from ctdrill.imaging.sampling.walls import MAX_WALL_MM, plan_bone_walls
+
+    m = mandible
+    mid = m.arch_lps[len(m.arch_lps) // 2]
+    axis = np.array([0.0, 0.0, -1.0])
+    platform = _crest_over(m, mid) + 3.0 * axis  # 3 mm into the bone: the crest is knife-edged
+    spec = ImplantSpec("cylinder 4.1 x 10", 4.1, 10.0, 4.1, "flat")
+    plan = Plan(
+        entry_lps=platform,
+        target_lps=platform + spec.length_mm * axis,
+        implant=spec,
+        arch_lps=m.arch_lps,
+    )
+    walls = plan_bone_walls(m.volume, plan)
+    assert walls is not None and walls.buccal_mm is not None and walls.lingual_mm is not None
+    assert walls.unknown_fraction == 0.0
+    buccal = walls.buccal_lps
+    assert buccal is not None and abs(buccal @ axis) < 1e-9
+    sides = {"buccal": 0, "lingual": len(walls.directions_lps) // 2}
+    np.testing.assert_allclose(walls.directions_lps[sides["buccal"]], buccal, atol=1e-9)
+    tol = 2 * 0.75
+    checked = 0
+    for d, depth in enumerate(walls.depth_grid_mm):
+        if not 1.0 <= depth - walls.depth_grid_mm[0] <= spec.length_mm - 1.0:
+            continue  # the platform at the rounded crest and the apex face
+        for a in sides.values():
+            ray = walls.directions_lps[a]
+            runs = [_mask_run_mm(m, platform + (depth + dz) * axis, ray) for dz in (-1, 0, 1)]
+            if max(runs) - min(runs) > 1e-9:
+                continue  # the surface slopes here: the mask's staircase is no reference
+            expected = min(runs[1] - 2.05, MAX_WALL_MM)
+            assert walls.wall_mm[d, a] == pytest.approx(expected, abs=tol), (depth, a)
+            checked += 1
+    assert checked >= 20, checked
+    # buccal and lingual: the thinnest walls facing out of and into the arch
+    side = walls.directions_lps @ buccal
+    assert walls.buccal_mm == pytest.approx(np.nanmin(walls.wall_mm[:, side > 1e-9]), abs=1e-9)
+    assert walls.lingual_mm == pytest.approx(np.nanmin(walls.wall_mm[:, side < -1e-9]), abs=1e-9)
