@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.commands.options import CT_HELP, add_series_option
+from ctdrill.app.commands.options import CT_HELP, OneCt, add_series_option
 from ctdrill.app.errors import AppInputError
 
 
@@ -21,7 +21,9 @@ def register(subparsers: Any) -> None:
         description="Load a CT and print its geometry, HU range and load warnings.",
     )
     p.add_argument("dicom", type=Path, nargs="?", metavar="PATH", help=CT_HELP)
-    p.add_argument("--ct", type=Path, default=None, metavar="PATH", help="the same as PATH")
+    p.add_argument(
+        "--ct", type=Path, default=None, action=OneCt, metavar="PATH", help="the same as PATH"
+    )
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
     add_series_option(p)
     p.add_argument(

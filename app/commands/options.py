@@ -35,12 +35,33 @@ CT_HELP = (
 )
 
 
+class OneCt(argparse.Action):
+    """Stores the CT; a second, different one (``--dicom A --ct B``) is refused, not the last
+    silently taken."""
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: object,
+        option_string: str | None = None,
+    ) -> None:
+        earlier = getattr(namespace, self.dest, None)
+        if earlier is not None and earlier != values:
+            parser.error(
+                f"{option_string} {values}: the CT is already given ({earlier}); give one CT "
+                "(--ct and --dicom are the same option)"
+            )
+        setattr(namespace, self.dest, values)
+
+
 def add_ct_option(parser: argparse.ArgumentParser, *, required: bool) -> None:
     """``--ct PATH`` (and its older name ``--dicom``): the CT a command reads (docs/volumes.md)."""
     parser.add_argument(
         "--ct",
         "--dicom",
         dest="dicom",
+        action=OneCt,
         type=Path,
         required=required,
         metavar="PATH",

@@ -356,3 +356,30 @@ def test_the_real_head_ct_exports_and_draws_its_panoramic(tmp_path: Path) -> Non
         hu, lps = z["hu"], z["lps"]
     body = int(np.argmin(np.abs(lps[:, 0, 2] + 117.0)))  # the mandible's body, z = -117 mm
     assert (hu[body] > 300.0).mean() >= 0.95
+
+
+def test_two_different_cts_are_refused_not_the_last_taken(tmp_path: Path) -> None:
+    """``--dicom A --ct B``: the same option given two different CTs is one error line
+    naming both, before anything is read; the same path twice is harmless."""
+    demo = Path(__file__).resolve().parents[2] / "assets" / "demo"
+    other = tmp_path / "other.nii"
+    for cmd in ("export", "panorama"):
+        code, _, err = run_cli(
+            [
+                cmd,
+                *("--dicom", str(demo / "ct"), "--ct", str(other)),
+                *("--plan", str(demo / "plan.json"), "--out", str(tmp_path / cmd)),
+            ]
+        )
+        line = one_error_line(code, err)
+        assert "the CT is already given" in line and str(other) in line and "demo" in line
+        assert not (tmp_path / cmd).exists()
+    code, _, err = run_cli(
+        [
+            "inspect",
+            *("--ct", str(demo / "ct"), "--ct", str(demo / "ct")),
+        ]
+    )
+    assert code == 0, err
+    code, _, err = run_cli(["inspect", "--ct", str(demo / "ct"), "--ct", str(other)])
+    assert "the CT is already given" in one_error_line(code, err)
