@@ -216,8 +216,10 @@ def mapped_range_error(volume: CTVolume, grey_map: GreyToHu) -> str | None:
 
 
 def _rescale(volume: CTVolume) -> str:
-    kind = volume.info.rescale_type
-    return f" (RescaleType {kind})" if kind else ""
+    info = volume.info
+    if info.source_format != "DICOM":  # a volume file: no unit, its values read as HU
+        return f" (a {info.source_format} file whose values read as HU: they reach air)"
+    return f" (RescaleType {info.rescale_type})" if info.rescale_type else ""
 
 
 def apply_grey_map(volume: CTVolume, grey_map: GreyToHu) -> CTVolume:

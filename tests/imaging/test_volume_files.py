@@ -274,3 +274,16 @@ def test_a_metaimage_label_map_is_a_plan_input(tmp_path: Path) -> None:
     assert isinstance(lm, MaskLandmark) and lm.name == "labels label 3" and lm.label == 3
     np.testing.assert_array_equal(lm.mask, labels == 3)
     np.testing.assert_allclose(lm.affine_lps, AFFINE, atol=1e-12)
+
+
+def test_a_grey_map_on_a_file_in_hu_names_the_file_type_not_a_rescale_type(
+    tmp_path: Path,
+) -> None:
+    from ctdrill.imaging.dicom.grey import GreyToHu, apply_grey_map
+
+    hu = np.linspace(-1000, 1500, 210).astype(np.int16).reshape(SHAPE)
+    v = load_ct(write_nrrd(tmp_path / "hu.nrrd", hu, AFFINE))
+    assert v.info.is_hu
+    mapped = apply_grey_map(v, GreyToHu(1.0, 0.0, None, "given"))
+    (w,) = [w for w in mapped.warnings if w.code == "grey_map_on_hu"]
+    assert "a NRRD file whose values read as HU" in w.message and "RescaleType" not in w.message
