@@ -299,29 +299,30 @@ def _line_implant(ctx: _Ctx, settings: _Settings, where: str) -> ImplantSpec | N
         )
     raw = {IMPLANT_SETTINGS[k]: settings[k] for k in IMPLANT_SETTINGS}
     if IMPLANT_DRILLS_SETTING in settings:
-        text = settings[IMPLANT_DRILLS_SETTING]
-        origin = settings.origin[IMPLANT_DRILLS_SETTING]
-        try:
-            raw["drills"] = (
-                loads_json(
-                    text,
-                    where=f"{ctx.path.name}: {origin}: setting {IMPLANT_DRILLS_SETTING}",
-                    what="value",
-                    error=PlanInputError,
-                )
-                if isinstance(text, str)
-                else text
-            )
-        except PlanInputError as exc:
-            if not isinstance(exc.__cause__, json.JSONDecodeError):
-                raise  # a duplicate key, a huge number: named as such
+        raw["drills"] = _json_value(ctx, settings, IMPLANT_DRILLS_SETTING)
+        if isinstance(raw["drills"], str):
             raise ctx.fail(
                 f"{settings.origin[IMPLANT_DRILLS_SETTING]}: setting {IMPLANT_DRILLS_SETTING}",
                 "must be a quoted JSON list of drills, e.g. "
                 'implant_drills="[{\\"diameter_mm\\": 2.0, \\"tip_length_mm\\": 0.6}]"',
-                text,
-            ) from None
+                raw["drills"],
+            )
     return ctx.implant(raw, f"{fp}: implant")
+
+
+def _json_value(ctx: _Ctx, settings: _Settings, key: str) -> Any:
+    """A setting holding quoted JSON, parsed (a duplicate key or a huge number refused, named
+    as such); text that is not JSON is returned as it is (the caller says what it must be)."""
+    raw = settings[key]
+    if not isinstance(raw, str):
+        return raw
+    where = f"{ctx.path.name}: {settings.origin[key]}: setting {key}"
+    try:
+        return loads_json(raw, where=where, what="value", error=PlanInputError)
+    except PlanInputError as exc:
+        if not isinstance(exc.__cause__, json.JSONDecodeError):
+            raise
+        return raw
 
 
 def _line_drills(
@@ -347,18 +348,7 @@ def _line_drills(
             "drills for a sequence, not both",
         )
     raw = settings["drills"]
-    value = raw
-    if isinstance(raw, str):
-        try:
-            value = loads_json(
-                raw,
-                where=f"{ctx.path.name}: {fp}: setting drills",
-                what="value",
-                error=PlanInputError,
-            )
-        except PlanInputError as exc:
-            if not isinstance(exc.__cause__, json.JSONDecodeError):
-                raise  # a duplicate key, a huge number: named as such
+    value = _json_value(ctx, settings, "drills")
     if not isinstance(value, list):
         raise ctx.fail(
             f"{fp}: setting drills",
