@@ -7,28 +7,26 @@ A candidate (the plan with the candidate's entry and target) is **feasible** whe
   beyond by its own tip length), keeps every landmark's margin at its planned depth
   (:func:`~ctdrill.imaging.plan.safety.margin_warnings`, ``plan_violates_margin``);
 - the implant body at its placement keeps every landmark's margin
-  (:func:`~ctdrill.imaging.plan.implant_safety.implant_clearance`,
-  :func:`~ctdrill.imaging.plan.implant_safety.implant_margin_warnings`,
-  ``implant_violates_margin``);
-- its bone walls (:func:`~ctdrill.imaging.sampling.walls.plan_bone_walls`) show no
+  (``implant_violates_margin``) and its bone walls show no
   ``cortical_perforation`` and no ``thin_wall`` (``min_mm`` at least the plan's
   ``min_wall_mm``, :func:`~ctdrill.imaging.sampling.walls.bone_wall_warnings`); walls with
   no known direction at all (``min_mm`` None: the CT ends around the implant) are not a
   known wall, so the candidate is not feasible (``bone_walls_unknown``).
 
-Without an implant only the drills are checked (there is no body, hence no wall).
-The rules and their thresholds are the imaging package's; this module only combines them.
+The implant's part is :func:`ctdrill.engine.implant.implant_outcome`, the same function whose
+warnings ``ctdrill export`` writes, so a suggested axis and its export agree. Without an
+implant only the drills are checked (there is no body, hence no wall). The rules and their
+thresholds are the imaging package's; this module only combines them.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from ctdrill.imaging.plan.implant_safety import implant_clearance, implant_margin_warnings
+from ctdrill.engine.implant import implant_outcome
 from ctdrill.imaging.plan.landmarks import bind_to_grid
 from ctdrill.imaging.plan.safety import clearance_profile_mm, margin_warnings, margins_mm
 from ctdrill.imaging.plan.types import Plan
-from ctdrill.imaging.sampling.walls import bone_wall_warnings, plan_bone_walls
 from ctdrill.imaging.volume import CTVolume
 
 #: The warning codes that make a candidate infeasible (``ctdrill.warning_codes``).
@@ -83,18 +81,17 @@ def check_candidate(volume: CTVolume, plan: Plan) -> Feasibility:
             for code, message in margin_warnings(drilled, clear, margins_mm(drilled)):
                 if code == "plan_violates_margin":
                     problems.append((code, f"drill {k + 1} ({drill.diameter_mm:g} mm): {message}"))
-    implant = implant_clearance(plan)
-    problems += implant_margin_warnings(plan, implant)
-    walls = plan_bone_walls(volume, plan)
+    outcome = implant_outcome(volume, plan)  # the export's own implant rule (engine)
     min_wall = None
-    if walls is not None:
-        min_wall = walls.min_mm
-        label = f"plan {plan.name!r}"
-        for code, message in bone_wall_warnings(walls, min_wall_mm=plan.min_wall_mm, label=label):
-            if code != "bone_walls_unknown" or walls.min_mm is None:
+    if outcome is not None:
+        min_wall = outcome.walls.min_mm
+        for code, message in outcome.warnings:
+            if code == "bone_walls_unknown" and min_wall is not None:
+                continue  # some directions unknown, the known ones decide
+            if code in BLOCKING_CODES:
                 problems.append((code, message))
     return Feasibility(
         problems=tuple(problems),
-        implant_clearance_mm=None if implant is None else implant.binding_clearance_mm,
+        implant_clearance_mm=None if outcome is None else outcome.clearance_mm,
         min_wall_mm=min_wall,
     )
