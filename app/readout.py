@@ -212,6 +212,10 @@ def stop_timing(
     if vib is not None:
         reasons.append(vib)
     t = pred.time_to_stop_s
+    if measured_s is None and push_n <= 0.0:
+        what = "pulls the handle back out of the hole" if push_n < 0.0 else "is no push"
+        msg = f"never reached the stop: push {push_n:g} N {what}, so nothing is cut"
+        return StopTiming(t, None, True, msg, ())
     if measured_s is None:
         if pred.too_weak:
             msg = (

@@ -13,6 +13,7 @@ gives it); the breakthrough is the table's (:func:`ctdrill.haptics.hands.first_b
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
@@ -57,6 +58,11 @@ LET_GO_N = COULOMB_N
 WALL_CONTACT_MM = 1e-4
 #: The feed is measured over windows of this much session time, s.
 FEED_WINDOW_S = 0.1
+#: The hand's peak force is the largest mean of the device's reading over this much session
+#: time, s: a person's push (voluntary force control reaches about 10 Hz), not the reaction
+#: observer's few-millisecond transients where the push steps or the handle meets the wall
+#: (a steady 12 N push reads up to 16 N for a millisecond at the stop).
+HAND_PEAK_WINDOW_S = 0.05
 
 # The score (docs/rehearse.md, "The score"): a session that keeps the margin scores
 # SAFE_FLOOR + (100 - SAFE_FLOOR) * q; one that breaches at most BREACH_CEILING, below any
@@ -249,6 +255,11 @@ class Assessor:
         self.t_goal: float | None = None
         self.time_in_margin_s = 0.0
         self.hand_peak = 0.0
+        self._hand_window: deque[tuple[float, float]] = deque()
+        self._hand_window_sum = 0.0
+        self._hand_window_full = False
+        self._hand_start_s: float | None = None
+        self._hand_short_mean = 0.0
         self.hand_sum = 0.0
         self.hand_count = 0
         self.wall_contacts = 0
@@ -287,7 +298,7 @@ class Assessor:
         if drill > ctx.max_safe_depth_mm + DEPTH_TOLERANCE_MM:
             self.time_in_margin_s += dt
         if armed:
-            self.hand_peak = max(self.hand_peak, s.force_est_n)
+            self._hand(t, s.force_est_n)
             if s.force_est_n >= LET_GO_N:
                 self.hand_sum += s.force_est_n
                 self.hand_count += 1
@@ -308,6 +319,24 @@ class Assessor:
         if self.t_breakthrough is not None and self.t_let_go is None and s.force_est_n < LET_GO_N:
             self.t_let_go = t
         self._feed(t, s.state == DeviceState.CUTTING)
+
+    def _hand(self, t: float, force_n: float) -> None:
+        """The hand's peak: the largest mean reading over :data:`HAND_PEAK_WINDOW_S` of armed
+        samples (a session armed for less than that: the mean of all its readings)."""
+        if self._hand_start_s is None:
+            self._hand_start_s = t
+        window = self._hand_window
+        window.append((t, force_n))
+        self._hand_window_sum += force_n
+        while window[0][0] <= t - HAND_PEAK_WINDOW_S + 1e-9:
+            self._hand_window_sum -= window.popleft()[1]
+        mean = self._hand_window_sum / len(window)
+        if t - self._hand_start_s >= HAND_PEAK_WINDOW_S - 1e-9:
+            self._hand_window_full = True
+        if self._hand_window_full:
+            self.hand_peak = max(self.hand_peak, mean)
+        else:
+            self._hand_short_mean = mean
 
     def _feed(self, t: float, cutting: bool) -> None:
         """Close a feed window every :data:`FEED_WINDOW_S`: it counts when the drill cut
@@ -347,7 +376,9 @@ class Assessor:
             "breach": breach,
             "time_in_margin_s": round(self.time_in_margin_s, 4),
             "canal_entered": clearance is not None and clearance < 0.0,
-            "peak_hand_force_n": round(self.hand_peak, 3),
+            "peak_hand_force_n": round(
+                self.hand_peak if self._hand_window_full else self._hand_short_mean, 3
+            ),
             "mean_hand_force_n": round(self.hand_sum / max(self.hand_count, 1), 3),
             "time_to_planned_s": None if self.t_goal is None else round(self.t_goal, 4),
             "feed_cv": cv,

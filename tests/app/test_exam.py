@@ -75,6 +75,9 @@ def test_later_reactions_overshoot_deeper_and_the_guard_holds(
         assert not a.canal_entered and a.reaction_ms is None and a.wall_contacts >= 1
         assert a.depth_error_mm == pytest.approx(10.8 - 12.6, abs=1e-3)
         assert a.score >= 50.0
+        # the hand pushed 12 N: its peak is that push (the observer reads 16 N for a
+        # millisecond where the handle meets the wall; the 50 ms mean does not)
+        assert a.peak_hand_force_n == pytest.approx(12.0, abs=0.5)
 
 
 def _rehearse(out: Path, *extra: str) -> int:

@@ -108,6 +108,21 @@ def test_simulated_time_to_the_stop_agrees_with_the_model_feed(
     assert timing.predicted_s == pytest.approx(expected, rel=1e-9)
 
 
+def test_a_pull_retracts_and_is_not_called_too_weak() -> None:
+    # push:-N is the retraction the docs name: the handle moves back and nothing is cut
+    slab = ProfileTable.slab(s0_n=8.0, top_mm=0.0, bottom_mm=39.0, stop_depth_mm=5.0)
+    session = _session(slab, -10.0, 0.3)
+    assert session.time_to_stop_s is None and session.max_drill_mm < 0.05
+    assert session.final_master_mm is not None and session.final_master_mm < -1.0
+    timing = stop_timing(slab, -10.0, session.time_to_stop_s, 0.3)
+    assert timing.agrees and "too weak" not in timing.message
+    assert timing.message == (
+        "never reached the stop: push -10 N pulls the handle back out of the hole, "
+        "so nothing is cut"
+    )
+    assert "is no push" in stop_timing(slab, 0.0, None, 0.3).message
+
+
 def test_a_push_too_weak_to_cut_holds_and_says_so() -> None:
     slab = ProfileTable.slab(s0_n=8.0, top_mm=0.0, bottom_mm=39.0, stop_depth_mm=5.0)
     session = _session(slab, 6.0, 1.0)

@@ -96,6 +96,22 @@ def test_reaction_and_wall_contacts() -> None:
     assert r.peak_hand_force_n == 9.0 and r.mean_hand_force_n == 9.0  # while on the handle
 
 
+def test_the_hand_peak_is_a_push_not_an_observer_transient() -> None:
+    # 1 kHz: a steady 6 N reading with a 3 ms transient of 30 N (as the observer reads where
+    # the handle meets the wall), then a push of 12 N held for 0.2 s. Over 50 ms windows the
+    # transient adds 24 N * 3 / 50 = 1.44 N; the held push reads 12 N.
+    a = Assessor(_context(), TABLE)
+    hand = [6.0] * 300 + [30.0] * 3 + [6.0] * 297 + [12.0] * 200
+    a.add([_sample(i / 1000.0, 1.0, 0.5, 6.0, f, CUT) for i, f in enumerate(hand[:600])])
+    assert a.result().peak_hand_force_n == pytest.approx(6.0 + 24.0 * 3 / 50, abs=1e-9)
+    a.add([_sample(i / 1000.0, 1.0, 0.5, 6.0, f, CUT) for i, f in enumerate(hand) if i >= 600])
+    assert a.result().peak_hand_force_n == pytest.approx(12.0, abs=1e-9)
+    # a session armed for less than 50 ms: the mean of its readings
+    short = Assessor(_context(), TABLE)
+    short.add([_sample(i / 1000.0, 1.0, 0.5, 6.0, 4.0 + (i % 2), CUT) for i in range(20)])
+    assert short.result().peak_hand_force_n == pytest.approx(4.5, abs=1e-9)
+
+
 @st.composite
 def assessments(draw: Any, breach: bool) -> dict[str, Any]:
     pos = st.floats(0.0, 100.0, allow_nan=False)
