@@ -24,6 +24,13 @@ STATE_STYLE = {
     "safe": "background:#6a1b9a; color:white",
 }
 WARN_STYLE = "color:#c62828; font-weight:bold"
+#: The device's states in the trainee's words (the state's own name is in the tooltip).
+STATE_WORDS = {
+    "idle": "not drilling",
+    "cutting": "drilling",
+    "stopped": "at the stop",
+    "safe": "stopped for safety",
+}
 
 
 class LiveReadouts(QGroupBox):
@@ -32,8 +39,9 @@ class LiveReadouts(QGroupBox):
     def __init__(self) -> None:
         super().__init__("Your hand and what it feels")
         box = QVBoxLayout(self)
-        self.state_label = QLabel("idle")
+        self.state_label = QLabel(STATE_WORDS["idle"])
         self.state_label.setStyleSheet(STATE_STYLE["idle"])
+        self.state_label.setToolTip("device state: idle")
         box.addWidget(self.state_label)
         pair = QHBoxLayout()
         self.hand = HandControl()
@@ -75,7 +83,8 @@ class LiveReadouts(QGroupBox):
         self, run: RehearsalRun, tel: Telemetry, stop_why: str, sound: VibrationSound
     ) -> None:
         """Update every readout from one telemetry sample of ``run``."""
-        self.state_label.setText(tel.state)
+        self.state_label.setText(STATE_WORDS.get(tel.state, tel.state))
+        self.state_label.setToolTip(f"device state: {tel.state}")
         self.state_label.setStyleSheet(STATE_STYLE.get(tel.state, ""))
         self.depth_label.setText(f"drill {tel.drill_mm:.2f} mm deep")
         self.depth_gauge.set_depth(tel.drill_mm, tel.master_mm)

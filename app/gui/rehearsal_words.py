@@ -74,12 +74,12 @@ def predicted_words(table: ProfileTable, push_n: float) -> tuple[str, str]:
         ahead = table.s0_n[rows <= float(table.stop_depth_mm) + 1e-9]
         need = needed_n(float(ahead.max()) if ahead.size else 0.0)
         return (
-            f"{push_n:g} N is too weak: the drill stops at {pred.stall_depth_mm:.1f} mm; "
+            f"{round(push_n, 1):g} N is too weak: the drill stops at {pred.stall_depth_mm:.1f} mm; "
             f"{need} N reaches the stop ({need - push_n:.1f} N more).",
             tip,
         )
     return (
-        f"At {push_n:g} N the drill reaches the stop in about {pred.time_to_stop_s:.1f} s.",
+        f"At {round(push_n, 1):g} N the drill reaches the stop in about {pred.time_to_stop_s:.1f} s.",
         tip,
     )
 

@@ -154,7 +154,8 @@ def curve_png(
             color="0.45",
             lw=1.2,
             ls="--",
-            label=f"experts' median ({len(expert_scores)} sessions)",
+            label=f"experts' median ({len(expert_scores)} session"
+            f"{'' if len(expert_scores) == 1 else 's'})",
         )
     top.plot(n, score, "-", color="#1565c0", lw=1.5)
     top.plot(n[~breach], score[~breach], "o", color="#1565c0", label="kept the margin")
@@ -163,7 +164,7 @@ def curve_png(
     top.set_ylim(0, 100)
     top.set_ylabel("score (0-100)")
     top.set_title(f"learning curve of {trainee}")
-    top.legend(loc="lower right", fontsize=8)
+    top.legend(loc="best", fontsize=8)  # clear of the sessions' points where it can be
     top.grid(alpha=0.3)
     over = [float(r["overshoot_mm"]) for r in curve]
     bottom.bar(n, over, color="#c62828", width=0.6)

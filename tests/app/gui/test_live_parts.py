@@ -121,3 +121,5 @@ def test_the_three_named_forces_and_the_plain_words() -> None:
     assert predicted_words(table, 6.0)[0] == "At 6 N the drill reaches the stop in about 1.0 s."
     weak = predicted_words(table, 3.0)[0]
     assert weak == "3 N is too weak: the drill stops at 0.5 mm; 5 N reaches the stop (2.0 N more)."
+    # a push set with the mouse reads to 0.1 N, as the hand's own label shows it
+    assert predicted_words(table, 6.0674)[0].startswith("At 6.1 N the drill reaches the stop")

@@ -14,6 +14,7 @@ from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.rehearsal import SIMULATOR, clearance_at_mm, device_choices
+from ctdrill.app.gui.rehearsal_live import STATE_WORDS
 from ctdrill.engine.path import plan_path
 from ctdrill.imaging import load_series
 from ctdrill.imaging.phantom.io import PhantomCase
@@ -70,7 +71,8 @@ def test_simulated_rehearsal_reaches_the_auto_stop_and_exports(
     assert "2.00 mm margin of 'left mandibular canal'" in panel.auto_stop_label.text()
     assert "session ended at the auto-stop" in panel.message.text()
     assert "0 fault event(s)" in panel.message.text() or run.session["faults"]
-    assert panel.state_label.text() == panel.last.state if panel.last else False
+    assert panel.last is not None and panel.state_label.text() == STATE_WORDS[panel.last.state]
+    assert panel.state_label.toolTip() == f"device state: {panel.last.state}"
     assert panel.export_button.isEnabled() and not window.doc.rehearsing
     assert float(panel.depth_label.text().split()[1]) == pytest.approx(drill[-1], abs=0.01)
     # The forces kept apart on the gauge (hand, cutting, wall), in plain words on the screen,
@@ -157,7 +159,8 @@ def test_stop_button_ends_a_realtime_run_in_the_safe_state(
     assert panel.last is not None
     last_state = panel.last.state
     assert last_state in ("safe", "idle")
-    assert panel.state_label.text() == last_state
+    assert panel.state_label.text() == STATE_WORDS[last_state]
+    assert panel.state_label.toolTip() == f"device state: {last_state}"
     assert panel.safe_label.text() == (
         "safe state: YES" if last_state == "safe" else "safe state: no"
     )

@@ -106,7 +106,7 @@ def test_a_student_drills_with_the_mouse_and_reads_the_debrief(
     open_case(qtbot, window, phantom_case)
     panel = window.rehearsal
     window.tabs.setCurrentWidget(panel)
-    panel.duration_s = 30.0  # the session ends at the auto-stop
+    panel.duration_s = 120.0  # the session ends at the auto-stop
     assert panel.device.currentText() == SIMULATOR
     hand = panel.hand
     _press_at(qtbot, hand, 6.0)  # too weak for the cortex: the screen says by how much
@@ -123,18 +123,23 @@ def test_a_student_drills_with_the_mouse_and_reads_the_debrief(
     for _ in range(3):
         qtbot.keyClick(hand, Qt.Key.Key_PageDown)  # 21 N: it cuts
     assert panel.run is not None and panel.run.push_n == pytest.approx(weak + 15.0)
-    qtbot.waitUntil(
-        lambda: (
-            panel.last is not None
-            and panel.last.state == "cutting"
-            and panel.forces.forces["cutting"] > 10.0
-        ),
-        timeout=SESSION_MS,
-    )
-    _shots(window, tmp_path, "cutting")
-    with qtbot.waitSignal(panel.finished, timeout=SESSION_MS):
-        pass  # the auto-stop ends it
     run = panel.run
+
+    def cutting_hard() -> bool:
+        last = panel.last
+        return last is not None and last.state == "cutting" and panel.forces.forces["cutting"] > 10
+
+    # The session runs at the wall clock's pace in its own process: a window starved of CPU
+    # may first look after the drill has reached the stop (21 N takes about 1 s to it), so the
+    # live cut is shown when the window sees it and the recorded session is checked after.
+    qtbot.waitUntil(lambda: cutting_hard() or not run.running, timeout=SESSION_MS)
+    if cutting_hard():
+        _shots(window, tmp_path, "cutting")
+    qtbot.waitUntil(
+        lambda: run.assessment is not None and not window.doc.rehearsing, timeout=SESSION_MS
+    )
+    # the 21 N push cut: the device rendered more than 10 N of cutting force while cutting
+    assert any(row[4] == "cutting" and row[3] > 10.0 for row in run.rows)
     assert run.assessment is not None and run.assessment["breach"] is False
     assert run.assessment["peak_hand_force_n"] > 15.0 and run.session is not None
     assert run.session["final_state"] == "stopped"
