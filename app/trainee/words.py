@@ -98,7 +98,7 @@ def debrief_lines(assessment: Mapping[str, Any], *, planned_depth_mm: float) -> 
         Line(
             "You did not meet the stop."
             if n == 0
-            else f"You met the stop {n} time{'s' if n > 1 else ''}, pressing on it with up to "
+            else f"You met the stop {n} time{'s' if n > 1 else ''}; it pushed back with up to "
             f"{float(a['peak_wall_force_n']):.1f} N.",
             ("wall_contacts", "peak_wall_force_n"),
         )
