@@ -120,6 +120,12 @@ def test_the_three_named_forces_and_the_plain_words() -> None:
     # 6 N on 4 N: (6 / 4 - 1) / 0.25 = 2 mm/s over the 2 mm from 0.5 to 2.5 mm: 1 s
     assert predicted_words(table, 6.0)[0] == "At 6 N the drill reaches the stop in about 1.0 s."
     weak = predicted_words(table, 3.0)[0]
-    assert weak == "3 N is too weak: the drill stops at 0.5 mm; 5 N reaches the stop (2.0 N more)."
+    # the push said to reach the stop beats S0 by more than the master's 1 N friction: 6 N
+    assert weak == "3 N is too weak: the drill stops at 0.5 mm; 6 N reaches the stop (3.0 N more)."
+    # 4.5 N beats S0 within that friction: it may stall from the slab's top
+    assert predicted_words(table, 4.5)[0] == (
+        "4.5 N is barely enough: from 0.5 mm the drill may stall or creep; 6 N reaches the stop "
+        "(1.5 N more)."
+    )
     # a push set with the mouse reads to 0.1 N, as the hand's own label shows it
     assert predicted_words(table, 6.0674)[0].startswith("At 6.1 N the drill reaches the stop")

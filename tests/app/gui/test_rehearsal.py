@@ -117,7 +117,8 @@ def test_a_push_too_weak_to_cut_says_so(
     window.tabs.setCurrentWidget(panel)
     # predicted before it runs: the demo's crest holds 2 N at 0.4 mm; its cortex needs 9 N
     assert panel.timing_label.text().startswith("2 N is too weak: the drill stops at 0.")
-    assert "9 N reaches the stop (7.0 N more)" in panel.timing_label.text()
+    # the cortex's S0 peaks at 8.13 N: 10 N beats it by more than the master's 1 N friction
+    assert "10 N reaches the stop (8.0 N more)" in panel.timing_label.text()
     with qtbot.waitSignal(panel.finished, timeout=60_000):
         panel.start()
         qtbot.waitUntil(lambda: "Push harder" in panel.status_label.text(), timeout=30_000)
