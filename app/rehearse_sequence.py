@@ -226,8 +226,11 @@ def sequence_summary(
             "drill": k + 1,
             "folder": drill_folder(k),
             **path.plan.drill.to_json(),
-            "stop_depth_mm": path.stop_depth_mm,
+            # the stop the device enforced (in exam mode past the plan, as the drill's own
+            # summary.json says), and the plan's reason for its guarded stop
+            "stop_depth_mm": doc["stop_depth_mm"],
             "stop_reason": path.stop_reason,
+            "exam_stop_basis": doc["exam"].get("stop_basis"),
             "max_drill_mm": doc["max_drill_mm"],
             "reached_depth_mm": reached,
             "max_force_cmd_n": doc.get("max_force_cmd_n"),
@@ -240,12 +243,17 @@ def sequence_summary(
     return top
 
 
+def _stop_why(drill: dict[str, Any]) -> str:
+    basis = drill.get("exam_stop_basis")
+    return f"exam: {basis}" if basis else str(drill["stop_reason"])
+
+
 def sequence_lines(summary: dict[str, Any], out: Path) -> list[str]:
     """What ``ctdrill rehearse`` prints of a sequence: one line per drill run, then the files."""
     n = summary["drills_planned"]
     lines = [
         f"drill {d['drill']}/{n} ({d['diameter_mm']:g} mm): stop depth {d['stop_depth_mm']:.2f} "
-        f"mm ({d['stop_reason']}), reached {d['reached_depth_mm']:.2f} mm"
+        f"mm ({_stop_why(d)}), reached {d['reached_depth_mm']:.2f} mm"
         for d in summary["drills"]
     ]
     if summary["drills_run"] < n:
