@@ -42,6 +42,7 @@ from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.rehearsal import SIMULATOR, RehearsalRun, Telemetry, device_choices
 from ctdrill.app.gui.rehearsal_live import WARN_STYLE, LiveReadouts
 from ctdrill.app.gui.rehearsal_words import (
+    end_details,
     end_message,
     predicted_words,
     timing_text,
@@ -308,6 +309,7 @@ class RehearsalPanel(QWidget):
         )
         streaming = "" if igtl is None else f"; streaming to OpenIGTLink {igtl.text}"
         self.message.setText(f"armed on {device}; {where}{streaming}")
+        self.message.setToolTip("")
         self._predict()
         if self.sound_box.isChecked():
             self._start_sound()
@@ -349,10 +351,13 @@ class RehearsalPanel(QWidget):
         self.timer.stop()
         self.sound.stop()
         self._update_buttons()
-        text = end_message(run, tel)
+        text, details = end_message(run, tel), end_details(run, tel)
         debrief = debrief_of(run)
         if debrief is not None:
-            text += f" {assessment_line(debrief.summary)}; see the Debrief page."
+            score = float(debrief.summary["assessment"]["score"])
+            text += f" Score {score:.0f} of 100: see the Debrief page."
+            details = "\n".join(t for t in (details, assessment_line(debrief.summary)) if t)
+        self.message.setToolTip(details)
         if run.igtl is not None:
             text += f"\n{stream_line(run.igtl)}"
         self.message.setText(text)

@@ -110,13 +110,24 @@ def end_message(run: RehearsalRun, last: Telemetry | None) -> str:
     s = run.session
     if s is None:
         return f"session ended (device state: {state})"
-    faults = len(s.get("faults", ()))
     reached = s.get("final_state") == "stopped"
     how = "at the auto-stop" if reached else "(its time is up, or the drill came out)"
     return (
-        f"session ended {how}: deepest drill {s['max_drill_mm']:.2f} mm of stop "
-        f"{s['stop_depth_mm']:.2f} mm, {s['samples']} samples, {s['overruns']} overruns, "
-        f"{faults} fault event(s); device state now: {state}. Export the session to keep it."
+        f"session ended {how}: the drill went {s['max_drill_mm']:.2f} mm deep, the stop is at "
+        f"{s['stop_depth_mm']:.2f} mm. Export the session to keep it."
+    )
+
+
+def end_details(run: RehearsalRun, last: Telemetry | None) -> str:
+    """The end message's tooltip: the engineering account of a session that ran (samples,
+    the device's overruns, fault events, its state now); empty otherwise."""
+    s = run.session
+    if s is None or run.error or run.cancelled:
+        return ""
+    state = "none reported" if last is None else last.state
+    return (
+        f"{s['samples']} samples, {s['overruns']} overruns, {len(s.get('faults', ()))} fault "
+        f"event(s); device state now: {state}"
     )
 
 

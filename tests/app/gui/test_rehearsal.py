@@ -69,8 +69,14 @@ def test_simulated_rehearsal_reaches_the_auto_stop_and_exports(
     assert run.rows[-1][0] < run.rows[first_stop][0] + 0.5
     assert "REACHED" in panel.auto_stop_label.text()
     assert "2.00 mm margin of 'left mandibular canal'" in panel.auto_stop_label.text()
-    assert "session ended at the auto-stop" in panel.message.text()
-    assert "0 fault event(s)" in panel.message.text() or run.session["faults"]
+    assert panel.message.text().startswith(
+        f"session ended at the auto-stop: the drill went {run.session['max_drill_mm']:.2f} mm"
+    )
+    # the engineering account in the tooltip, not on the screen
+    assert "samples" not in panel.message.text() and "overruns" not in panel.message.text()
+    tip = panel.message.toolTip()
+    assert f"{run.session['samples']} samples" in tip and "assessment: score" in tip
+    assert "0 fault event(s)" in tip or run.session["faults"]
     assert panel.last is not None and panel.state_label.text() == STATE_WORDS[panel.last.state]
     assert panel.state_label.toolTip() == f"device state: {panel.last.state}"
     assert panel.export_button.isEnabled() and not window.doc.rehearsing
