@@ -13,7 +13,7 @@ import math
 import struct
 
 import pytest
-from hypothesis import event, given
+from hypothesis import event, example, given
 from hypothesis import strategies as st
 
 from tests.robustness.fuzz import FUZZ_TIMEOUT_S, fuzz_settings
@@ -147,8 +147,26 @@ def check_invariants(device: object, *, ticked: bool) -> None:
         assert r.front_mm <= r.stop_depth_mm + 1e-9, (r.front_mm, r.stop_depth_mm)
 
 
+def _retraction_to_the_travel_end() -> list[tuple[str, object]]:
+    """A hand pulling 46 N from ARM on: the handle jolts against the travel's end stop and
+    bounces, and the release damper brakes it with the most pull it may leave (-20 N)."""
+    from ctdrill.haptics import protocol as p
+
+    begin = p.ProfileBegin(1, 1.0, 0.0, 0.0, 0.0, 0.0)
+    rows = [(0.0, 0.0, 0.0)]
+    crc = p.profile_crc32(begin, rows)
+    upload = [begin, p.ProfileChunk(0, tuple(rows)), p.ProfileEnd(1, crc)]
+    return [("send", m) for m in upload] + [
+        ("send", p.Arm(crc)),
+        ("send", _operator(1, -46.0)),
+        ("tick", 200),
+        ("tick", 1),
+    ]
+
+
 @fuzz_settings
 @given(steps=actions())
+@example(steps=_retraction_to_the_travel_end())
 def test_fuzz_device_commands_keep_safety_invariants(steps: list[tuple[str, object]]) -> None:
     from ctdrill.haptics.emulator import DeviceEmulator
     from ctdrill.haptics.protocol import FrameReader, Heartbeat, MessageError, Packet
