@@ -1,40 +1,70 @@
-"""The banner over the views: shown when the planned path breaks a landmark's margin
-(warning ``plan_violates_margin``) or when no path could be computed (clearance unknown); while
-a trajectory is dragged it follows the dragged plan's path."""
+"""The banner over the views: every plan problem of the current trajectory
+(:mod:`ctdrill.app.gui.problems`: drill margin, implant margin, thin wall, perforation,
+implants too close, implant above the entry; each with its warning code and the outputs'
+message), or why no path could be computed (clearance unknown), and a series whose voxels are
+too coarse for the clearances (``coarse_voxels``); while a trajectory is dragged it follows the
+dragged plan's path."""
 
 from __future__ import annotations
 
 from PySide6.QtWidgets import QLabel
 
 from ctdrill.app.gui.document import ViewContext
-from ctdrill.app.gui.results import PathView, binding_index, plan_violation
+from ctdrill.app.gui.problems import plan_problems, problems_text
+from ctdrill.app.gui.results import PathView
+from ctdrill.imaging import CTVolume
 
 VIOLATION_STYLE = "background:#c62828; color:white; font-weight:bold; padding:6px"
 UNKNOWN_STYLE = "background:#8d6e00; color:white; font-weight:bold; padding:6px"
 
 
-def banner_text(view: PathView | None, path_error: str) -> tuple[str, str] | None:
+def coarse_note(volume: CTVolume | None) -> str:
+    """The series' ``coarse_voxels`` warning as the banner writes it ("" when fine)."""
+    if volume is None:
+        return ""
+    found = [w for w in volume.warnings if w.code == "coarse_voxels"]
+    return "" if not found else f"Coarse data (coarse_voxels): {found[0].message}"
+
+
+def marked_text(view: PathView) -> str:
+    """What the views mark red: the trajectory's implant and the landmarks whose margin the
+    implant or the osteotomy breaks ("" when none)."""
+    names = []
+    if view.plan.implant is not None:
+        names.append("the implant")
+    if view.planned is not None:
+        broken = view.planned.broken()
+        names += [repr(lm.name) for lm, b in zip(view.result.landmarks, broken, strict=True) if b]
+    if not names:
+        return ""
+    verb = "is" if len(names) == 1 else "are"
+    return f" ({' and '.join(names)} {verb} marked red)"
+
+
+def banner_text(view: PathView | None, path_error: str, coarse: str = "") -> tuple[str, str] | None:
     """(text, kind) of the banner for a path result (or its failure), None: no banner.
-    ``kind`` is ``violation`` or ``unknown``."""
+    ``kind`` is ``violation`` (plan problems), ``unknown`` (no path) or ``coarse`` (only the
+    series' ``coarse_voxels``, the note ``coarse`` added to every banner)."""
+    tail = f"\n{coarse}" if coarse else ""
     if view is None:
         if not path_error:
-            return None
-        return f"No path: {path_error}. Clearance to the landmarks is unknown.", "unknown"
-    message = plan_violation(view.result)
-    if message is None:
-        return None
-    binding = binding_index(view.result)
-    who = "" if binding is None else f" ({view.result.landmarks[binding].name!r} is marked)"
-    stop = view.curves.stop_depth_mm
-    return (
-        f"Unsafe plan{who}: {message}. The drill stops at {stop:.2f} mm; move the target "
-        "to plan a safe path.",
-        "violation",
-    )
+            return (coarse, "coarse") if coarse else None
+        return f"No path: {path_error}. Clearance to the landmarks is unknown.{tail}", "unknown"
+    problems = view.problems or plan_problems(view.result.warnings)
+    if not problems:
+        return (coarse, "coarse") if coarse else None
+    n = len(problems)
+    head = f"Unsafe plan {view.plan.name!r}{marked_text(view)}: {n} problem{'s' * (n > 1)}."
+    if any(code == "plan_violates_margin" for code, _ in problems):
+        head += (
+            f" The drill stops at {view.curves.stop_depth_mm:.2f} mm; move the target to plan a "
+            "safe path."
+        )
+    return f"{head}\n{problems_text(problems)}{tail}", "violation"
 
 
 class Banner(QLabel):
-    """One line (wrapped) in red or amber above the views; hidden when all is well."""
+    """Lines (wrapped) in red or amber above the views; hidden when all is well."""
 
     def __init__(self, ctx: ViewContext) -> None:
         super().__init__("")
@@ -44,18 +74,26 @@ class Banner(QLabel):
         self.hide()
         ctx.doc.path_changed.connect(self._path)
         ctx.doc.live.path_changed.connect(self._live_path)
-        ctx.doc.plan_changed.connect(lambda plan: self.show_banner(None) if plan is None else None)
+        ctx.doc.plan_changed.connect(self._plan)
+        ctx.doc.volume_changed.connect(lambda _v: self._plan(ctx.doc.plan))
+
+    def _coarse(self) -> str:
+        return coarse_note(self.ctx.doc.volume)
+
+    def _plan(self, plan: object) -> None:
+        if plan is None or self.kind in ("", "coarse"):
+            self.show_banner(banner_text(None, "", self._coarse()))
 
     def _path(self, view: PathView | None) -> None:
         doc = self.ctx.doc
         if view is None and not doc.path_error:
             return  # a plan edit: the banner holds until the new result
-        self.show_banner(banner_text(view, doc.path_error))
+        self.show_banner(banner_text(view, doc.path_error, self._coarse()))
 
     def _live_path(self, view: PathView | None) -> None:
         live = self.ctx.doc.live
         if view is not None or live.error:
-            self.show_banner(banner_text(view, live.error))
+            self.show_banner(banner_text(view, live.error, self._coarse()))
 
     def show_banner(self, content: tuple[str, str] | None) -> None:
         """Show ``(text, kind)`` or hide the banner (the style set only when the kind

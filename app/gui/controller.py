@@ -120,7 +120,7 @@ class Controller(QObject):
 
         def job() -> PathView | tuple[Plan, str]:
             try:
-                return compute_path_view(volume, plan, hu, plan_set=others)
+                return compute_path_view(volume, plan, hu, plan_set=others, live=True)
             except ValueError as exc:  # bad input (an axis leaving the scan): said, no curve
                 return plan, str(exc)
 

@@ -39,6 +39,7 @@ from PySide6.QtWidgets import (
 from ctdrill.app.gui import reformats
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.plan_editor import PlanEditor
+from ctdrill.app.gui.problems import offending_implants
 from ctdrill.app.gui.readouts import ImplantReadout, readout_text
 from ctdrill.app.gui.reformat_canvas import ReformatCanvas, ReformatTools, SlabControls
 from ctdrill.app.gui.workers import Runner
@@ -291,6 +292,11 @@ class PanoramaView(QWidget):
         views = [doc.cached_path(p) for p in doc.plans]
         return [None if v is None else v.result for v in views]
 
+    def _offending(self) -> tuple[bool, ...]:
+        """The implants drawn red (:func:`~ctdrill.app.gui.problems.offending_implants`)."""
+        doc = self.ctx.doc
+        return offending_implants(doc.plans, [doc.cached_path(p) for p in doc.plans])
+
     def _draw_pano(self, image: Reformat) -> None:
         if image is not self.pano_image:
             return
@@ -302,6 +308,7 @@ class PanoramaView(QWidget):
             doc.plans,
             paths=self._paths(),
             cross_section_at_mm=None if cross is None else cross.at_arc_mm,
+            offending=self._offending(),
         )
         self.pano.image_drawn(image, doc.plans, doc.current)
         self.drawn.emit("panorama")
@@ -310,7 +317,9 @@ class PanoramaView(QWidget):
         if image is not self.cross_image:
             return
         doc = self.ctx.doc
-        draw_reformat(self.cross.ax, image, doc.plans, paths=self._paths())
+        draw_reformat(
+            self.cross.ax, image, doc.plans, paths=self._paths(), offending=self._offending()
+        )
         self.cross.image_drawn(image, doc.plans, doc.current)
         arch = doc.arch_lps
         length = 0.0 if arch is None else reformats.arch_length_mm(arch)

@@ -1,5 +1,6 @@
 """The planning panel: the trajectories, the current one's numeric entry/target, implant,
-drill sequence and feed, calibration, the landmarks (name, margin, a canal's radius).
+drill sequence and feed, calibration, the landmarks (name, margin, the planned clearance of the
+implant and of the osteotomy, a canal's radius).
 
 The panel shows the document's plan and the clearances of its path, and hands every edit to
 the document as a new plan; every edit goes through :mod:`ctdrill.app.gui.planning` (pure
@@ -37,6 +38,7 @@ from ctdrill.app.gui import canal_edit, planning
 from ctdrill.app.gui.canal_edit import MAX_RADIUS_MM
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.implant_picker import ImplantPicker
+from ctdrill.app.gui.problems import planned_cells
 from ctdrill.app.gui.reformat_canvas import CanalChoice
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.trajectory_list import TrajectoryList
@@ -44,8 +46,14 @@ from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.types import DrillSpec, Plan
 from ctdrill.model import available_calibrations, load_calibration
 
-#: Appended to the clearance of a landmark whose margin the planned path breaks.
-VIOLATED_MARK = "(plan!)"
+#: The landmark table's columns.
+COLUMNS = ("name", "kind", "margin", "implant", "osteotomy", "radius")
+#: What the two clearance columns hold (their header tooltips).
+COLUMN_TIPS = {
+    "implant": "planned clearance of the implant body at its placement (apex at the target)",
+    "osteotomy": "planned clearance of the osteotomy: every drill drilled to the implant's "
+    "apex plus its tip, the least over the drills",
+}
 #: Width of the spin boxes in the landmarks table (margin, radius), px.
 CELL_SPIN_PX = 78
 
@@ -135,14 +143,18 @@ class PlanPanel(QWidget):
 
         lms = QGroupBox("Landmarks")
         lay = QVBoxLayout(lms)
-        self.table = QTableWidget(0, 5)
-        self.table.setHorizontalHeaderLabels(["name", "kind", "margin", "clearance", "radius"])
+        self.table = QTableWidget(0, len(COLUMNS))
+        self.table.setHorizontalHeaderLabels(list(COLUMNS))
+        for col, name in enumerate(COLUMNS):
+            header_item = self.table.horizontalHeaderItem(col)
+            if name in COLUMN_TIPS and header_item is not None:
+                header_item.setToolTip(COLUMN_TIPS[name])
         self.table.setToolTip("double-click a name to rename the landmark")
         self.table.verticalHeader().setVisible(False)
         header = self.table.horizontalHeader()
         header.setSectionResizeMode(0, QHeaderView.ResizeMode.Stretch)
         header.setMinimumSectionSize(40)
-        for col in (1, 2, 3, 4):
+        for col in range(1, len(COLUMNS)):
             header.setSectionResizeMode(col, QHeaderView.ResizeMode.ResizeToContents)
         self.table.setWordWrap(True)
         self.table.itemChanged.connect(self._landmark_renamed)
@@ -183,16 +195,20 @@ class PlanPanel(QWidget):
         if plan is None:
             return
         own = view is not None and view.plan is plan
-        lms = planning.drawn_landmarks(plan, view if own else None)
-        self.set_plan(plan, view.min_clearance_mm if own and view is not None else None)
-        for row, lm in enumerate(lms):
-            if lm.violated:
-                shown = self.table.item(row, 3)
-                text = "" if shown is None else shown.text()
-                item = QTableWidgetItem(f"{text} {VIOLATED_MARK}")
-                item.setToolTip("the planned path breaks this landmark's margin")
-                item.setForeground(QColor("#c62828"))
-                self.table.setItem(row, 3, item)
+        self.set_plan(plan)
+        if not own or view is None or view.planned is None:
+            return
+        if len(view.planned.margins_mm) != len(plan.landmarks):
+            return  # computed for another landmark list
+        cells = planned_cells(plan, view.planned, view.min_clearance_mm)
+        for row, pair in enumerate(cells):
+            for col, (text, tip, broken) in zip((3, 4), pair, strict=True):
+                item = QTableWidgetItem(text)
+                item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
+                item.setToolTip(tip)
+                if broken:
+                    item.setForeground(QColor("#c62828"))
+                self.table.setItem(row, col, item)
 
     def _rehearsal_changed(self, running: bool) -> None:
         self.body.setEnabled(not running and self.plan is not None)
@@ -204,8 +220,9 @@ class PlanPanel(QWidget):
         )
 
     # ------------------------------------------------------------------ show
-    def set_plan(self, plan: Plan, clearance_mm: np.ndarray | None = None) -> None:
-        """Show ``plan`` (no signals are emitted); ``clearance_mm`` (L,) per landmark."""
+    def set_plan(self, plan: Plan) -> None:
+        """Show ``plan`` (no signals are emitted); its planned clearances unknown until its
+        path result arrives."""
         self._updating = True
         try:
             self.plan = plan
@@ -221,8 +238,6 @@ class PlanPanel(QWidget):
             self.feed.setValue(plan.feed_mm_s)
             self.margin.setValue(plan.margin_mm)
             self.calibration.setCurrentText(plan.calibration)
-            if clearance_mm is not None and len(clearance_mm) != len(plan.landmarks):
-                clearance_mm = None  # computed for another landmark list
             key = tuple((lm.name, lm.kind) for lm in plan.landmarks)
             if key != self._rows_key:  # rebuild the rows only when the landmarks change
                 self._rows_key = key
@@ -241,18 +256,20 @@ class PlanPanel(QWidget):
                         radius = _spin(0.1, MAX_RADIUS_MM, 0.1, 2, " mm")
                         radius.setMaximumWidth(CELL_SPIN_PX)
                         radius.valueChanged.connect(partial(self._radius_edited, row))
-                        self.table.setCellWidget(row, 4, radius)
+                        self.table.setCellWidget(row, 5, radius)
                     else:
-                        self.table.removeCellWidget(row, 4)
+                        self.table.removeCellWidget(row, 5)
             for row, lm in enumerate(plan.landmarks):
                 cell = self.table.cellWidget(row, 2)
                 if isinstance(cell, QDoubleSpinBox):
                     cell.setValue(plan.landmark_margin_mm(lm))
-                cell = self.table.cellWidget(row, 4)
+                cell = self.table.cellWidget(row, 5)
                 if isinstance(cell, QDoubleSpinBox):
                     cell.setValue(float(lm.radius_mm))
-                clear = "unknown" if clearance_mm is None else f"{float(clearance_mm[row]):.2f} mm"
-                self.table.setItem(row, 3, QTableWidgetItem(clear))
+                for col in (3, 4):
+                    item = QTableWidgetItem("unknown")
+                    item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
+                    self.table.setItem(row, col, item)
         finally:
             self._updating = False
 

@@ -100,17 +100,19 @@ def landmark_points_lps(landmark: Landmark) -> np.ndarray:
 
 
 def landmark_geometries(
-    plan: Plan, clearance_mm: np.ndarray | None = None, *, violated: int | None = None
+    plan: Plan, clearance_mm: np.ndarray | None = None, *, violated: int | Sequence[int] = ()
 ) -> tuple[LandmarkGeometry, ...]:
     """What to draw for each landmark, with its minimum clearance along the stopped path.
 
     ``clearance_mm`` is (L,) per landmark (in plan order) or None when not computed yet or
     not computable (a result for another landmark list is ignored): drawn as unknown.
-    ``violated`` is the landmark whose margin the planned path breaks, marked in every view.
+    ``violated`` are the landmarks whose margin the plan breaks (an index or several),
+    marked in every view.
     Mask landmarks are drawn as their boundary points (point cloud), without a tube.
     """
     if clearance_mm is not None and len(clearance_mm) != len(plan.landmarks):
         clearance_mm = None
+    marked = {violated} if isinstance(violated, int) else set(violated)
     out = []
     for i, lm in enumerate(plan.landmarks):
         clear = None if clearance_mm is None else float(clearance_mm[i])
@@ -123,7 +125,7 @@ def landmark_geometries(
                 clearance_mm=clear,
                 kind=lm.kind,
                 cloud=len(lm.drawing().surface_lps) > 0,
-                violated=i == violated,
+                violated=i in marked,
             )
         )
     return tuple(out)
@@ -131,11 +133,18 @@ def landmark_geometries(
 
 def drawn_landmarks(plan: Plan, view: PathView | None) -> tuple[LandmarkGeometry, ...]:
     """The landmarks of ``plan`` as every view draws them: with the clearances of ``view``
-    when it was computed for this plan (else unknown), the binding landmark marked when the
-    planned path breaks its margin."""
+    when it was computed for this plan (else unknown), marked where the plan breaks their
+    margin: the implant's or the osteotomy's planned clearance below it
+    (:class:`~ctdrill.app.gui.problems.PlannedClearance`), else (a bare result) the binding
+    landmark when the planned path breaks its margin."""
     if view is None or view.plan is not plan:
         return landmark_geometries(plan)
-    violated = binding_index(view.result) if plan_violation(view.result) else None
+    planned = view.planned
+    if planned is not None and len(planned.margins_mm) == len(plan.landmarks):
+        violated: int | Sequence[int] = [int(i) for i in np.flatnonzero(planned.broken())]
+    else:
+        binding = binding_index(view.result) if plan_violation(view.result) else None
+        violated = () if binding is None else binding
     return landmark_geometries(plan, view.min_clearance_mm, violated=violated)
 
 

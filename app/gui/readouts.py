@@ -12,15 +12,15 @@ in words by the cross-section view (:func:`readout_text`).
   (:func:`crest_depth_mm`; the bone threshold of :mod:`ctdrill.imaging.misch`) to the platform
   (the apex without an implant), along the axis: positive below the crest (subcrestal),
   negative when the implant stands out above it.
-- **Distance to the canal and thinnest wall**: :func:`implant_safety`, the one place these
-  come from: the implant body's own clearance to the landmark with the least slack
-  (:func:`~ctdrill.imaging.plan.implant_safety.implant_clearance`; without an implant the
-  final drill's at the planned depth) and its bone walls
-  (:func:`~ctdrill.imaging.sampling.walls.plan_bone_walls`: the thinnest wall, buccal and
-  lingual). While the implant is dragged the walls are read on a coarser grid
-  (:data:`LIVE_WALLS`: 24 directions, 1 mm apart along the body, about a sixth of the cost;
-  never thinner than the fine grid's, said with "~"); the release reads them on the owner's
-  grid.
+- **Distance to the canal and thinnest wall**: :func:`implant_safety`, read from the path
+  result's implant check (:func:`ctdrill.app.gui.problems.implant_check`, the one place
+  these come from): the implant body's own clearance to the landmark with the least slack
+  (without an implant the final drill's at the planned depth) and its bone walls (the
+  thinnest wall, buccal and lingual). While the implant is dragged the walls are read on a
+  coarser grid (:data:`~ctdrill.app.gui.problems.LIVE_WALLS`: 24 directions, 1 mm apart
+  along the body, about a sixth of the cost; never thinner than the fine grid's, said with
+  "~"); the release reads them on the owner's grid. Lengths are written with the digits the
+  CT supports.
 """
 
 from __future__ import annotations
@@ -31,14 +31,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ctdrill.app.gui.problems import implant_check
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.misch import is_bone
-from ctdrill.imaging.plan.implant_safety import implant_clearance
 from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.resolution import format_clearance_mm, volume_clearance_accuracy_mm
 from ctdrill.imaging.sampling.arch import ArchCurve
 from ctdrill.imaging.sampling.surface import SURFACE_STEP_MM, first_bone_crossing_mm
-from ctdrill.imaging.sampling.walls import BoneWalls, plan_bone_walls
+from ctdrill.imaging.sampling.walls import BoneWalls
 
 if TYPE_CHECKING:
     from ctdrill.app.gui.results import PathView
@@ -46,8 +47,6 @@ if TYPE_CHECKING:
 #: How far above the entry the crest is looked for along the axis, mm (a platform planned
 #: above the entry still finds the crest).
 CREST_SEARCH_ABOVE_MM = 15.0
-#: The bone walls' grid while the implant is dragged (``plan_bone_walls`` options).
-LIVE_WALLS: dict[str, float] = {"n_angles": 24, "depth_step_mm": 1.0}
 
 
 @dataclass(frozen=True)
@@ -67,6 +66,9 @@ class ImplantReadout:
     wall_mm : the thinnest bone wall around the implant, mm (None: not known, ``wall_note``
         says why); ``buccal_mm``, ``lingual_mm`` each side's; ``wall_coarse``: read on the
         drag's coarser grid.
+    accuracy_mm : what the CT lets these lengths claim, +- mm: they are written with the
+        digits it supports (:func:`~ctdrill.imaging.resolution.format_clearance_mm`; 0:
+        every digit).
     """
 
     tilt_deg: float
@@ -82,6 +84,7 @@ class ImplantReadout:
     buccal_mm: float | None = None
     lingual_mm: float | None = None
     wall_coarse: bool = False
+    accuracy_mm: float = 0.0
 
 
 def angulation_deg(
@@ -151,27 +154,32 @@ def crest_depth_mm(volume: CTVolume, plan: Plan) -> tuple[float | None, str]:
 
 def implant_safety(
     volume: CTVolume, plan: Plan, view: PathView | None, *, live: bool = False
-) -> tuple[tuple[float, str, str] | None, BoneWalls | None]:
-    """The implant's distance to the landmarks and its bone walls: the one hook.
+) -> tuple[tuple[float, str, str] | None, BoneWalls | None, bool]:
+    """The implant's distance to the landmarks and its bone walls.
 
-    Returns ``((clearance_mm, landmark name, what was measured) | None, walls | None)``: the
-    implant body's clearance to the landmark with the least slack (without an implant, the
-    final drill's clearance at the planned depth from the path result ``view``), and
-    :func:`~ctdrill.imaging.sampling.walls.plan_bone_walls` (None without an implant), on the
-    coarser :data:`LIVE_WALLS` grid when ``live``.
+    Returns ``((clearance_mm, landmark name, what was measured) | None, walls | None,
+    coarse)``: from the implant check of the path result ``view`` when it was computed for
+    ``plan`` (:func:`~ctdrill.app.gui.problems.implant_check`, the one place these come
+    from), else that check computed here (walls on the coarser
+    :data:`~ctdrill.app.gui.problems.LIVE_WALLS` grid when ``live``); without an implant, the
+    final drill's clearance at the planned depth from ``view``. ``coarse``: the walls were
+    read on the coarser grid.
     """
     result = None if view is None or view.plan is not plan else view.result
     landmarks = plan.landmarks if result is None else result.landmarks  # masks on the grid
+    own = None if view is None or result is None else view.implant
+    check = own if own is not None else implant_check(volume, plan, landmarks, live=live)
     canal = None
-    body = implant_clearance(plan, landmarks)
+    body = None if check is None else check.clearance
     if body is not None:
         canal = (body.binding_clearance_mm, body.names[body.binding], "implant body")
-    elif result is not None and result.clearance_mm.size:
+    elif check is None and result is not None and result.clearance_mm.size:
         at_plan = np.asarray(result.clearance_mm, dtype=np.float64)[-1]
         k = int(np.argmin(at_plan))
         canal = (float(at_plan[k]), result.landmarks[k].name, "drill at the planned depth")
-    walls = plan_bone_walls(volume, plan, **(LIVE_WALLS if live else {}))
-    return canal, walls
+    if check is None:
+        return canal, None, False
+    return canal, check.walls, check.coarse
 
 
 def implant_readout(
@@ -181,7 +189,7 @@ def implant_readout(
     ``live``: during a drag, :func:`implant_safety`)."""
     tilt, bl, md = angulation_deg(plan, plan.arch_lps)
     crest, of = crest_depth_mm(volume, plan)
-    canal, walls = implant_safety(volume, plan, view, live=live)
+    canal, walls, coarse = implant_safety(volume, plan, view, live=live)
     note = "no implant" if walls is None else "the CT ends before bone does"
     return ImplantReadout(
         tilt_deg=tilt,
@@ -196,7 +204,8 @@ def implant_readout(
         wall_note=note,
         buccal_mm=None if walls is None else walls.buccal_mm,
         lingual_mm=None if walls is None else walls.lingual_mm,
-        wall_coarse=live,
+        wall_coarse=coarse,
+        accuracy_mm=volume_clearance_accuracy_mm(volume),
     )
 
 
@@ -215,16 +224,20 @@ def readout_text(r: ImplantReadout) -> str:
         parts.append(f"{r.crest_of} {r.crest_depth_mm:.1f} mm below the crest")
     else:
         parts.append(f"{r.crest_of} {-r.crest_depth_mm:.1f} mm above the crest")
+
+    def mm(value: float) -> str:
+        return format_clearance_mm(value, r.accuracy_mm)
+
     if r.canal_mm is None:
         parts.append("canal: none traced")
     else:
-        parts.append(f"canal {r.canal_mm:.2f} mm ({r.canal_name!r}, {r.canal_of})")
+        parts.append(f"canal {mm(r.canal_mm)} mm ({r.canal_name!r}, {r.canal_of})")
     if r.wall_mm is None:
         parts.append(f"thinnest wall: unknown ({r.wall_note})")
     else:
         about = "~" if r.wall_coarse else ""
-        wall = f"thinnest wall {about}{r.wall_mm:.2f} mm"
+        wall = f"thinnest wall {about}{mm(r.wall_mm)} mm"
         if r.buccal_mm is not None and r.lingual_mm is not None:
-            wall += f" (B {about}{r.buccal_mm:.2f}, Li {about}{r.lingual_mm:.2f})"
+            wall += f" (B {about}{mm(r.buccal_mm)}, Li {about}{mm(r.lingual_mm)})"
         parts.append(wall)
     return " · ".join(parts)

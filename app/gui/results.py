@@ -1,31 +1,49 @@
 """What the window shows of a planned path: ``ctdrill.engine.path.plan_path``'s result turned into
-plot curves, per-landmark clearances and the reason rehearsal is blocked, if any."""
+plot curves, per-landmark clearances, the plan's problems (:mod:`ctdrill.app.gui.problems`: the
+implant, the planned clearances, the banner's list) and the reason rehearsal is blocked, if
+any."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ctdrill.app.gui.plots import DepthCurves
+from ctdrill.app.gui.problems import (
+    ImplantCheck,
+    PlannedClearance,
+    drill_margin_warnings,
+    implant_check,
+    plan_problems,
+    planned_clearance,
+)
 from ctdrill.engine.band import path_band
 from ctdrill.engine.path import PathResult, plan_path
 from ctdrill.engine.plans import plan_calibration, with_set_warnings
 from ctdrill.engine.sequence import plan_sequence
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.resolution import volume_clearance_accuracy_mm
 from ctdrill.model.band import HuUncertainty
 
 
 @dataclass(frozen=True, eq=False)
 class PathView:
-    """A path result and its display form, for the plan it was computed for."""
+    """A path result and its display form, for the plan it was computed for.
+
+    ``implant``, ``planned`` and ``problems`` are filled by :func:`compute_path_view` (the
+    implant body's check, the planned clearances of the implant and of the osteotomy, the
+    plan problems as ``(code, message)``); a bare :func:`path_view` leaves them empty."""
 
     plan: Plan
     result: PathResult
     curves: DepthCurves
     min_clearance_mm: np.ndarray | None  # (L,) per landmark along the stopped path
+    implant: ImplantCheck | None = None
+    planned: PlannedClearance | None = None
+    problems: tuple[tuple[str, str], ...] = ()
 
 
 def path_view(plan: Plan, result: PathResult, hu: HuUncertainty | None = None) -> PathView:
@@ -104,11 +122,14 @@ def compute_path_view(
     hu: HuUncertainty | None = None,
     *,
     plan_set: Sequence[Plan] = (),
+    live: bool = False,
 ) -> PathView:
     """Plan the path of ``plan`` through ``volume`` (the pipeline the CLI uses) for display;
     ``hu`` enters the force band. ``plan_set`` (every trajectory of the document, ``plan``
     among them) adds the warnings only the whole set shows (``implants_too_close``,
     :func:`~ctdrill.engine.path.with_set_warnings`), as ``ctdrill export`` reports them.
+    The view carries the plan's problems (:func:`checked`; ``live``: the implant's walls on
+    the drag's coarser grid).
 
     For a drill sequence the window shows and rehearses the **final** drill, cutting around
     the holes the drills before it leave at their stop depths (the export's last folder,
@@ -119,8 +140,27 @@ def compute_path_view(
     )
     cal = plan_calibration(own)
     if len(own.drills) > 1:
-        return path_view(plan, plan_sequence(volume, own, cal).final, hu)
-    return path_view(plan, plan_path(volume, own.drilled(0), cal), hu)  # to apex + tip
+        view = path_view(plan, plan_sequence(volume, own, cal).final, hu)
+    else:
+        view = path_view(plan, plan_path(volume, own.drilled(0), cal), hu)  # to apex + tip
+    return checked(volume, view, live=live)
+
+
+def checked(volume: CTVolume, view: PathView, *, live: bool = False) -> PathView:
+    """``view`` with its implant check, planned clearances and problems: the path's warnings
+    of :data:`~ctdrill.app.gui.problems.PROBLEM_CODES`, the implant's, and every drill's
+    margin at its drilled depth (a path computed to the apex rather than drilled to the apex
+    plus the tip has its drill-margin warning replaced by the drilled one)."""
+    result, plan = view.result, view.plan
+    landmarks = result.landmarks  # masks bound to the CT grid
+    with_lms = replace(plan, landmarks=landmarks)
+    check = implant_check(volume, with_lms, landmarks, live=live)
+    to_apex = plan.implant is not None and result.plan.overdrill_mm == 0.0
+    own = [w for w in result.warnings if not (to_apex and w.code == "plan_violates_margin")]
+    drills = drill_margin_warnings(with_lms, covered=None if to_apex else result.plan)
+    problems = plan_problems(own, () if check is None else check.warnings, drills)
+    planned = planned_clearance(with_lms, landmarks, check, volume_clearance_accuracy_mm(volume))
+    return replace(view, implant=check, planned=planned, problems=problems)
 
 
 def drill_note(result: PathResult) -> str:

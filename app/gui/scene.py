@@ -85,7 +85,8 @@ class CandidateLine:
 class ImplantGeometry:
     """An implant body as drawn: its profile (``ImplantSpec.profile_mm()``: radius ``r_mm``
     at ``s_mm`` from the platform) placed with the platform at ``platform_lps`` and the apex
-    along unit ``axis_lps``; ``current`` marks the selected trajectory's."""
+    along unit ``axis_lps``; ``current`` marks the selected trajectory's, ``offending`` one
+    with a plan problem (drawn red, :mod:`ctdrill.app.gui.problems`)."""
 
     name: str
     platform_lps: np.ndarray
@@ -93,6 +94,7 @@ class ImplantGeometry:
     s_mm: np.ndarray
     r_mm: np.ndarray
     current: bool = True
+    offending: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,6 +121,13 @@ class SceneInput:
     arch_lps: np.ndarray | None = None  # (K, 3) dental arch: the camera looks from outside it
     implants: tuple[ImplantGeometry, ...] = field(default=())  # every trajectory's implant
     others: tuple[TrajectoryLine, ...] = field(default=())  # the plan's other trajectories
+
+
+def implant_colour(implant: ImplantGeometry) -> tuple[float, float, float]:
+    """An implant's colour: red with a plan problem, else the current or the other colour."""
+    if implant.offending:
+        return CLEARANCE_COLOURS["violated"]
+    return IMPLANT_COLOUR if implant.current else OTHER_IMPLANT_COLOUR
 
 
 def clearance_state(clearance_mm: float | None, margin_mm: float, violated: bool = False) -> str:
@@ -221,8 +230,8 @@ def plan_actors(plotter: Any, scene: SceneInput) -> dict[str, Any]:
         actors[f"implant:{i}"] = plotter.add_mesh(
             render=False,
             mesh=mesh,
-            color=IMPLANT_COLOUR if imp.current else OTHER_IMPLANT_COLOUR,
-            opacity=0.85 if imp.current else 0.6,
+            color=implant_colour(imp),
+            opacity=0.85 if imp.current or imp.offending else 0.6,
             specular=0.5,
             name=f"implant:{i}",
         )

@@ -12,15 +12,18 @@ from dataclasses import replace
 import numpy as np
 
 from ctdrill.app.gui.planning import scene_input
+from ctdrill.app.gui.problems import offending_implants
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.scene import CandidateLine, ImplantGeometry, SceneInput, TrajectoryLine
 from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.plan.types import Plan
 
 
-def implant_geometry(plan: Plan, *, current: bool = True) -> ImplantGeometry | None:
+def implant_geometry(
+    plan: Plan, *, current: bool = True, offending: bool = False
+) -> ImplantGeometry | None:
     """The implant body of ``plan`` as drawn (apex at the target, platform ``length_mm`` back
-    along the axis), or None when the plan has no implant."""
+    along the axis; ``offending``: red), or None when the plan has no implant."""
     placement = implant_placement(plan)
     if placement is None:
         return None
@@ -32,6 +35,7 @@ def implant_geometry(plan: Plan, *, current: bool = True) -> ImplantGeometry | N
         s_mm=np.asarray(s_mm, dtype=np.float64),
         r_mm=np.asarray(r_mm, dtype=np.float64),
         current=current,
+        offending=offending,
     )
 
 
@@ -40,19 +44,26 @@ def plans_scene(
     current: int,
     view: PathView | None,
     candidates: tuple[CandidateLine, ...] = (),
+    views: Sequence[PathView | None] = (),
 ) -> SceneInput:
     """The scene of ``plans`` with ``plans[current]`` selected (no plans: the anatomy alone).
 
     ``view`` is the path result (its stop and clearances are drawn when computed for the
-    selected plan); ``candidates`` the suggested axes around it.
+    selected plan); ``candidates`` the suggested axes around it; ``views`` the results known
+    for the others (aligned with ``plans``): an implant with a plan problem is drawn red
+    (:func:`~ctdrill.app.gui.problems.offending_implants`).
     """
     if not plans:
         return scene_input(None, None)
     sel = plans[current]
     base = scene_input(sel, view, candidates)
+    known = [
+        view if i == current else (views[i] if i < len(views) else None) for i in range(len(plans))
+    ]
+    red = offending_implants(plans, known)
     implants = []
     for i, plan in enumerate(plans):
-        geom = implant_geometry(plan, current=i == current)
+        geom = implant_geometry(plan, current=i == current, offending=red[i])
         if geom is not None:
             implants.append(geom)
     others = tuple(

@@ -5,7 +5,7 @@ where the plane cuts each solid (:mod:`ctdrill.app.gui.sections`), in in-plane m
   centreline (solid where it runs within the tube's reach of the plane, dotted elsewhere);
 - a drill: its diameter down to the stop (or the planned depth) with the cone tip, the planned
   axis dashed; the current trajectory bright, the others muted;
-- an implant body: its outline;
+- an implant body: its outline (red with a plan problem, :mod:`ctdrill.app.gui.problems`);
 - the arch (axial view): solid where it lies on the slice, dotted where it is projected.
 """
 
@@ -112,10 +112,17 @@ def _draw_trajectory(ax: Any, image: SliceImage, tr: TrajectoryDrawing) -> None:
             image,
             tr.implant,
             fill=False,
-            edgecolor=IMPLANT_COLOUR if tr.current else OTHER_COLOUR,
-            lw=1.6 if tr.current else 1.0,
+            edgecolor=implant_colour(tr),
+            lw=1.6 if tr.current or tr.offending else 1.0,
             zorder=5,
         )
+
+
+def implant_colour(tr: TrajectoryDrawing) -> str:
+    """The outline colour of a trajectory's implant: red with a plan problem."""
+    if tr.offending:
+        return VIOLATED_COLOUR
+    return IMPLANT_COLOUR if tr.current else OTHER_COLOUR
 
 
 def _draw_arch(ax: Any, image: SliceImage, arch_lps: np.ndarray) -> None:

@@ -13,6 +13,7 @@ import numpy as np
 
 from ctdrill.app.gui import planning
 from ctdrill.app.gui.implant_drag import grips_lps
+from ctdrill.app.gui.problems import offending_implants
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.scene import LandmarkGeometry
 from ctdrill.app.gui.sections import drill_profile
@@ -44,6 +45,8 @@ class TrajectoryDrawing:
     stopped: bool
     implant: BodyDrawing | None
     current: bool
+    #: The implant has a plan problem: drawn red (:mod:`ctdrill.app.gui.problems`).
+    offending: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,8 +90,11 @@ def implant_drawing(plan: Plan) -> BodyDrawing | None:
     )
 
 
-def trajectory_drawing(plan: Plan, view: PathView | None, *, current: bool) -> TrajectoryDrawing:
-    """``plan`` drawn with its drill to the stop of ``view`` (when computed for it)."""
+def trajectory_drawing(
+    plan: Plan, view: PathView | None, *, current: bool, offending: bool = False
+) -> TrajectoryDrawing:
+    """``plan`` drawn with its drill to the stop of ``view`` (when computed for it), its
+    implant red when ``offending``."""
     own = view is not None and view.plan is plan
     depth = view.curves.stop_depth_mm if own and view is not None else plan.planned_depth_mm
     return TrajectoryDrawing(
@@ -99,6 +105,7 @@ def trajectory_drawing(plan: Plan, view: PathView | None, *, current: bool) -> T
         stopped=own,
         implant=implant_drawing(plan),
         current=current,
+        offending=offending,
     )
 
 
@@ -120,9 +127,11 @@ def overlay_scene(
     plan, view = plans[current], views[current]
     own = view is not None and view.plan is plan
     stop = plan.point_at_depth_lps(view.curves.stop_depth_mm) if own and view else None
+    red = offending_implants(plans, views)
     return OverlayScene(
         trajectories=tuple(
-            trajectory_drawing(p, views[i], current=i == current) for i, p in enumerate(plans)
+            trajectory_drawing(p, views[i], current=i == current, offending=red[i])
+            for i, p in enumerate(plans)
         ),
         landmarks=planning.drawn_landmarks(plan, view),
         handles=grips_lps(plan),

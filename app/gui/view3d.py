@@ -142,7 +142,8 @@ class View3D(QWidget):
         def build() -> None:
             if current():
                 lines = candidate_lines(doc.suggestion, doc.adopted)
-                scene = plans_scene(doc.plans, doc.current, view, lines)
+                views = [doc.cached_path(p) for p in doc.plans]
+                scene = plans_scene(doc.plans, doc.current, view, lines, views)
                 self.show_scene(scene, refocus=self.refocus_next, render=False)
                 self.refocus_next = False
 
@@ -169,7 +170,9 @@ class View3D(QWidget):
         def build() -> None:
             if doc.plan is plan and doc.path is view:
                 lines = candidate_lines(doc.suggestion, doc.adopted)
-                self.show_scene(plans_scene(doc.plans, doc.current, view, lines), render=False)
+                views = [doc.cached_path(p) for p in doc.plans]
+                scene = plans_scene(doc.plans, doc.current, view, lines, views)
+                self.show_scene(scene, render=False)
 
         self.ctx.steps.push(build)
         self.ctx.steps.push(self.render_now)

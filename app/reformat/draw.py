@@ -43,6 +43,8 @@ FONT_PT = 10.0
 CANAL_COLOUR = "#ffd400"
 MARGIN_COLOUR = "#ff8c00"
 IMPLANT_COLOUR = "#4fc3f7"
+#: An implant with a plan problem (a margin, a wall, a perforation, too close, above the entry).
+OFFENDING_COLOUR = "#ff3030"
 DRILL_COLOUR = "#ff4fd8"
 ARCH_COLOUR = "#7cfc00"
 _STROKE = [patheffects.withStroke(linewidth=2.5, foreground="black")]
@@ -85,6 +87,7 @@ def draw_reformat(
     cross_section_at_mm: float | None = None,
     title: str | None = None,
     captions: Sequence[str] = (),
+    offending: Sequence[bool] = (),
 ) -> ReformatDrawing:
     """Draw ``reformat`` and the plans on ``ax`` (module docstring).
 
@@ -106,6 +109,8 @@ def draw_reformat(
         Axes title.
     captions : Sequence[str]
         More lines to write under the image (e.g. why a drill's stop is not known).
+    offending : Sequence[bool]
+        Aligned with ``plans``: the implants with a plan problem, drawn red.
 
     Returns
     -------
@@ -136,7 +141,7 @@ def draw_reformat(
     if title:
         ax.set_title(title, fontsize=FONT_PT + 2)
     _draw_landmarks(ax, reformat, plans, out)
-    _draw_bodies(ax, reformat, plans, paths, out)
+    _draw_bodies(ax, reformat, plans, paths, out, offending)
     _draw_arch_marks(ax, reformat, cross_section_at_mm)
     out.scale_bar_mm = _scale_bar(ax, reformat)
     _letters(ax, reformat)
@@ -208,6 +213,7 @@ def _draw_bodies(
     plans: Sequence[Plan],
     paths: Sequence[PathResult | None] | None,
     out: ReformatDrawing,
+    offending: Sequence[bool] = (),
 ) -> None:
     for k, plan in enumerate(plans):
         label = plan.name if len(plans) > 1 else "implant"
@@ -215,7 +221,8 @@ def _draw_bodies(
         if implant is not None:
             base, axis, s, r, spec_name = implant
             body = body_overlay(reformat, base, axis, s, r, f"{label} ({spec_name})")
-            _show_body(ax, body, IMPLANT_COLOUR, fill=False, out=out)
+            red = k < len(offending) and offending[k]
+            _show_body(ax, body, OFFENDING_COLOUR if red else IMPLANT_COLOUR, fill=False, out=out)
         entry, target = plan.entry_lps, plan.target_lps
         axis = target - entry
         path = None if paths is None or k >= len(paths) else paths[k]

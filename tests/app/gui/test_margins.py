@@ -1,5 +1,6 @@
 """The margins in the window: the binding landmark's margin line, and the banner and marks
-when the planned path breaks a margin (``plan_violates_margin``)."""
+when the planned path breaks a margin (``plan_violates_margin``); the landmark table shows the
+planned clearance (0.8 mm), not the clearance at the stop (the margin itself)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui import planning
 from ctdrill.app.gui.main_window import MainWindow
-from ctdrill.app.gui.plan_panel import VIOLATED_MARK
+from ctdrill.app.gui.problems import VIOLATED_MARK
 from ctdrill.app.gui.scene import CLEARANCE_COLOURS
 from ctdrill.app.gui.slice_overlays import VIOLATED_COLOUR
 from ctdrill.imaging.phantom.io import PhantomCase
@@ -67,8 +68,10 @@ def test_a_plan_through_the_margin_shows_a_banner_and_marks_the_landmark(
     banner = window.views["banner"]
     assert banner.isVisible() and banner.kind == "violation"  # type: ignore[attr-defined]
     assert CANAL in banner.text()  # type: ignore[attr-defined]
-    item = window.plan_panel.table.item(0, 3)
-    assert item.text().endswith(VIOLATED_MARK) and "breaks" in item.toolTip()
+    assert window.plan_panel.table.item(0, 3).text() == "no implant"
+    item = window.plan_panel.table.item(0, 4)  # 0.4 mm voxels: +-0.2 mm, one decimal
+    assert item.text() == f"{VIOLATED_MARK} 0.8 mm" and "breaks" in item.toolTip()
+    assert "at its stop: 2.0 mm" in item.toolTip()  # the margin stops the drill
     qtbot.waitUntil(lambda: f"margin:{CANAL}" in window.view3d.actors, timeout=5000)
     colour = window.view3d.actors[f"margin:{CANAL}"].GetProperty().GetColor()
     assert colour == pytest.approx(CLEARANCE_COLOURS["violated"], abs=1 / 255)
@@ -82,4 +85,4 @@ def test_a_plan_through_the_margin_shows_a_banner_and_marks_the_landmark(
     with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
         window.slice_canvases["coronal"].point_moved.emit("target", target)
     assert not banner.isVisible()
-    assert window.plan_panel.table.item(0, 3).text() == "6.20 mm"  # 12.8 - (6 + 0.6 tip)
+    assert window.plan_panel.table.item(0, 4).text() == "6.8 mm"

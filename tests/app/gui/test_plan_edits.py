@@ -220,7 +220,8 @@ def test_the_platform_below_the_crest_and_the_walls_around_the_implant() -> None
         assert r.wall_mm == pytest.approx(1.0 + edge, abs=1e-3) and r.wall_coarse == live
         assert r.canal_mm is None and r.buccal_mm is None  # no landmark, no arch
     text = readout_text(implant_readout(volume, with_implant, live=True))
-    assert "thinnest wall ~1.18 mm" in text and "canal: none traced" in text
+    # 0.5 mm voxels: lengths known to +-0.25 mm, written to 0.1 mm (imaging.resolution)
+    assert "thinnest wall ~1.2 mm" in text and "canal: none traced" in text
     text = readout_text(ImplantReadout(tilt_deg=0.0, crest_depth_mm=-1.5, crest_of="platform"))
     assert "platform 1.5 mm above the crest" in text
 

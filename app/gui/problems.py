@@ -1,0 +1,310 @@
+"""What the window says is wrong with a trajectory, headless: the planned clearances of the
+implant and of the osteotomy (the landmark table), the plan problems (the banner) and whether
+the implant offends (drawn red in every view).
+
+- **Planned clearance of the osteotomy** (:func:`osteotomy_clearance_mm`): every drill of the
+  plan as it is drilled for the implant (:meth:`~ctdrill.imaging.plan.types.Plan.drilled`:
+  its full diameter to the apex, its tip beyond by its own tip length), measured at its
+  planned depth; per landmark the least over the drills. The clearance at the stop would be
+  the margin itself whenever the margin stops the drill, so it is not what the table shows.
+- **The implant** (:func:`implant_check`, the one function the window calls for the implant
+  body's clearance, its bone walls and their warnings, with the same messages as the
+  outputs): :func:`~ctdrill.imaging.plan.implant_safety.implant_clearance` and
+  :func:`~ctdrill.imaging.sampling.walls.plan_bone_walls` with their warning functions.
+- **Problems** (:data:`PROBLEM_CODES`, codes of :mod:`ctdrill.warning_codes`): the path's own
+  warnings with these codes, the implant's, and every drill of a sequence that breaks a margin
+  at its drilled depth; each code and message once, in the order of :data:`PROBLEM_CODES`.
+- **Digits**: clearances are written with the digits the CT supports
+  (:func:`~ctdrill.imaging.resolution.format_clearance_mm`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from ctdrill.imaging.plan.implant_checks import implant_warnings, implants_too_close
+from ctdrill.imaging.plan.implant_safety import (
+    ImplantClearance,
+    implant_clearance,
+    implant_margin_warnings,
+)
+from ctdrill.imaging.plan.landmarks import Landmark
+from ctdrill.imaging.plan.safety import clearance_profile_mm, margin_warnings, margins_mm
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.resolution import format_clearance_mm, volume_clearance_accuracy_mm
+from ctdrill.imaging.sampling.walls import BoneWalls, bone_wall_warnings, plan_bone_walls
+from ctdrill.imaging.volume import CTVolume
+
+#: The plan problems the banner lists, in this order (issue 25): drill margin, implant
+#: margin, thin wall, perforation, implants too close, implant above entry.
+PROBLEM_CODES = (
+    "plan_violates_margin",
+    "implant_violates_margin",
+    "thin_wall",
+    "cortical_perforation",
+    "implants_too_close",
+    "implant_above_entry",
+)
+#: Each problem in a few words (the banner's headings).
+PROBLEM_WORDS = {
+    "plan_violates_margin": "drill margin",
+    "implant_violates_margin": "implant margin",
+    "thin_wall": "thin bone wall",
+    "cortical_perforation": "cortical perforation",
+    "implants_too_close": "implants too close",
+    "implant_above_entry": "implant above the entry",
+}
+#: The bone walls' grid while a trajectory is dragged (``plan_bone_walls`` options: 24
+#: directions, 1 mm apart along the body, about a sixth of the cost; never thinner than the
+#: fine grid's, said with "~").
+LIVE_WALLS: dict[str, float] = {"n_angles": 24, "depth_step_mm": 1.0}
+
+
+@dataclass(frozen=True, eq=False)
+class ImplantCheck:
+    """The implant of one trajectory against its landmarks and in its bone.
+
+    Attributes
+    ----------
+    plan : the plan checked.
+    clearance : the body's clearance to each landmark, or None without landmarks.
+    walls : the bone walls around the body.
+    accuracy_mm : what the CT's sampling lets a clearance claim, +- mm.
+    warnings : ``(code, message)``: ``implant_violates_margin``, ``thin_wall``,
+        ``cortical_perforation``, ``bone_walls_unknown``, as the outputs word them.
+    coarse : the walls were read on the drag's coarser grid (:data:`LIVE_WALLS`).
+    """
+
+    plan: Plan
+    clearance: ImplantClearance | None
+    walls: BoneWalls
+    accuracy_mm: float
+    warnings: tuple[tuple[str, str], ...]
+    coarse: bool = False
+
+
+def implant_check(
+    volume: CTVolume,
+    plan: Plan,
+    landmarks: tuple[Landmark, ...] | None = None,
+    *,
+    live: bool = False,
+) -> ImplantCheck | None:
+    """The implant body of ``plan`` on ``volume``: its clearance to ``landmarks`` (default the
+    plan's; mask landmarks bound to the CT grid), its bone walls (on :data:`LIVE_WALLS` when
+    ``live``) and their warnings; None without an implant."""
+    spec = plan.implant
+    walls = plan_bone_walls(volume, plan, **(LIVE_WALLS if live else {}))
+    if spec is None or walls is None:
+        return None
+    clearance = implant_clearance(plan, landmarks)
+    label = f"plan {plan.name!r}: implant {spec.name!r} ({spec.size_text})"
+    warnings = implant_margin_warnings(plan, clearance)
+    warnings += bone_wall_warnings(walls, min_wall_mm=plan.min_wall_mm, label=label)
+    return ImplantCheck(
+        plan=plan,
+        clearance=clearance,
+        walls=walls,
+        accuracy_mm=volume_clearance_accuracy_mm(volume),
+        warnings=tuple(warnings),
+        coarse=live,
+    )
+
+
+def osteotomy_clearance_mm(
+    plan: Plan, landmarks: tuple[Landmark, ...] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per landmark, the least planned clearance over the drills (each drilled to its planned
+    depth, :meth:`~ctdrill.imaging.plan.types.Plan.drilled`) and which drill it is: ``(L,)``
+    mm and ``(L,)`` drill index (0-based)."""
+    lms = plan.landmarks if landmarks is None else landmarks
+    per_drill = np.array(
+        [clearance_profile_mm(plan.drilled(k), lms)[0] for k in range(len(plan.drills))]
+    ).reshape(len(plan.drills), len(lms))
+    which = np.argmin(per_drill, axis=0) if lms else np.zeros(0, dtype=np.int64)
+    return per_drill.min(axis=0) if lms else np.zeros(0), which
+
+
+@dataclass(frozen=True, eq=False)
+class PlannedClearance:
+    """The planned clearances the landmark table shows, per landmark in plan order, mm.
+
+    Attributes
+    ----------
+    margins_mm : (L,) the margin that applies to each.
+    osteotomy_mm : (L,) the least clearance of the drills at their planned depths.
+    osteotomy_drill : (L,) which drill that is (0-based).
+    implant_mm : (L,) the implant body's clearance, or None without an implant.
+    accuracy_mm : what the CT lets a clearance claim, +- mm (sets the digits).
+    """
+
+    margins_mm: np.ndarray
+    osteotomy_mm: np.ndarray
+    osteotomy_drill: np.ndarray
+    implant_mm: np.ndarray | None
+    accuracy_mm: float
+
+    def broken(self) -> np.ndarray:
+        """(L,) bool: the osteotomy or the implant breaks the landmark's margin."""
+        out = self.osteotomy_mm < self.margins_mm
+        if self.implant_mm is not None:
+            out = out | (self.implant_mm < self.margins_mm)
+        return np.asarray(out, dtype=bool)
+
+    def text(self, value_mm: float) -> str:
+        """``value_mm`` with the digits the CT supports and its unit (``"0.8 mm"``)."""
+        return f"{format_clearance_mm(value_mm, self.accuracy_mm)} mm"
+
+
+def planned_clearance(
+    plan: Plan,
+    landmarks: tuple[Landmark, ...],
+    implant: ImplantCheck | None,
+    accuracy_mm: float,
+) -> PlannedClearance:
+    """The planned clearances of ``plan`` to ``landmarks`` (masks on the CT grid)."""
+    osteotomy, which = osteotomy_clearance_mm(plan, landmarks)
+    body = None if implant is None or implant.clearance is None else implant.clearance
+    return PlannedClearance(
+        margins_mm=margins_mm(plan, landmarks),
+        osteotomy_mm=osteotomy,
+        osteotomy_drill=which,
+        implant_mm=None if body is None else np.asarray(body.clearance_mm, dtype=np.float64),
+        accuracy_mm=accuracy_mm,
+    )
+
+
+def drill_margin_warnings(plan: Plan, covered: Plan | None = None) -> list[tuple[str, str]]:
+    """``plan_violates_margin`` of every drill of ``plan`` at its drilled depth (the message
+    :func:`~ctdrill.imaging.plan.safety.margin_warnings` gives the outputs; the plan's
+    landmarks bound to the CT grid), except the drill ``covered`` (the path result's own plan,
+    whose warnings already say it)."""
+    out: list[tuple[str, str]] = []
+    margins = margins_mm(plan)
+    for k in range(len(plan.drills)):
+        drilled = plan.drilled(k)
+        if covered is not None and _same_drill(drilled, covered):
+            continue
+        at_plan = clearance_profile_mm(drilled)[0]
+        out += [w for w in margin_warnings(drilled, at_plan, margins) if w[0] == PROBLEM_CODES[0]]
+    return out
+
+
+def _same_drill(a: Plan, b: Plan) -> bool:
+    """The same drill to the same planned tip (the path result computed for this drill)."""
+    return a.drill == b.drill and bool(np.allclose(a.target_lps, b.target_lps, atol=1e-9, rtol=0))
+
+
+def set_problems(
+    plans: Sequence[Plan], index: int, close: dict[str, tuple[tuple[str, str], ...]] | None = None
+) -> list[tuple[str, str]]:
+    """The geometric problems of ``plans[index]`` that need no CT: ``implant_above_entry`` and
+    ``implants_too_close`` with the others of the set (the outputs' messages; ``close``: the
+    set's :func:`~ctdrill.imaging.plan.implant_checks.implants_too_close`, when known)."""
+    plan = plans[index]
+    above = implant_warnings(plan, plan.planned_depth_mm, "planned_depth")
+    pairs = implants_too_close(tuple(plans)) if close is None else close
+    return [w for w in above if w[0] == "implant_above_entry"] + list(pairs.get(plan.name, ()))
+
+
+def plan_problems(*sources: Iterable[Any]) -> tuple[tuple[str, str], ...]:
+    """The problems among ``sources`` (``(code, message)`` pairs or objects with ``code`` and
+    ``message``): those with a :data:`PROBLEM_CODES` code, each once, ordered by code."""
+    seen: set[tuple[str, str]] = set()
+    found: list[tuple[str, str]] = []
+    for source in sources:
+        for w in source:
+            pair = (w[0], w[1]) if isinstance(w, tuple) else (str(w.code), str(w.message))
+            if pair[0] in PROBLEM_CODES and pair not in seen:
+                seen.add(pair)
+                found.append(pair)
+    return tuple(sorted(found, key=lambda p: PROBLEM_CODES.index(p[0])))
+
+
+def problems_text(problems: Sequence[tuple[str, str]]) -> str:
+    """The banner's lines: ``code (words): message``, one per problem."""
+    return "\n".join(f"• {PROBLEM_WORDS[code]} ({code}): {message}" for code, message in problems)
+
+
+#: Written before a planned clearance below the landmark's margin (the landmark table).
+VIOLATED_MARK = "\u2717"
+#: A table cell: ``(text, tooltip, below the margin)``.
+Cell = tuple[str, str, bool]
+
+
+def planned_cells(
+    plan: Plan, planned: PlannedClearance, at_stop_mm: np.ndarray | None = None
+) -> list[tuple[Cell, Cell]]:
+    """The landmark table's implant and osteotomy cells of each landmark of ``plan``: the
+    planned clearance with the CT's digits, after :data:`VIOLATED_MARK` below the margin, and
+    a tooltip saying what was measured and to what accuracy (``at_stop_mm``: the clearance
+    at the stop, (L,))."""
+    out = []
+    for j, lm in enumerate(plan.landmarks):
+        margin = float(planned.margins_mm[j])
+        margin_text = f"margin {margin:g} mm"
+        if planned.implant_mm is None:
+            implant: Cell = ("no implant", "no implant is placed on this trajectory", False)
+        else:
+            value = float(planned.implant_mm[j])
+            broken = value < margin
+            implant = (
+                _marked(planned.text(value), broken),
+                f"implant body at its placement to {lm.name!r}: {planned.text(value)} "
+                f"({margin_text})"
+                + (": the implant breaks the margin" if broken else "")
+                + _known(planned),
+                broken,
+            )
+        value = float(planned.osteotomy_mm[j])
+        k = int(planned.osteotomy_drill[j])
+        drilled = plan.drilled(k)
+        broken = value < margin
+        tip = (
+            f"drill {k + 1} of {len(plan.drills)} ({drilled.drill.diameter_mm:g} mm) at its "
+            f"planned depth {drilled.planned_depth_mm:.2f} mm to {lm.name!r}: "
+            f"{planned.text(value)} ({margin_text})"
+            + (": the osteotomy breaks the margin" if broken else "")
+            + _known(planned)
+        )
+        if at_stop_mm is not None and len(at_stop_mm) == len(plan.landmarks):
+            tip += f"; the final drill at its stop: {planned.text(float(at_stop_mm[j]))}"
+        osteotomy = (_marked(planned.text(value), broken), tip, broken)
+        out.append((implant, osteotomy))
+    return out
+
+
+class _Checked(Protocol):
+    """What :func:`offending_implants` reads of a path view."""
+
+    @property
+    def plan(self) -> Plan: ...
+    @property
+    def problems(self) -> tuple[tuple[str, str], ...]: ...
+
+
+def offending_implants(
+    plans: Sequence[Plan], views: Sequence[_Checked | None] = ()
+) -> tuple[bool, ...]:
+    """Per trajectory, whether its implant is drawn red: it has an implant and a plan problem,
+    from its path result when one was computed for it (``views[i]``, aligned with ``plans``)
+    or from the problems the set shows without a CT (:func:`set_problems`)."""
+    close = implants_too_close(tuple(plans))
+    out = []
+    for i, plan in enumerate(plans):
+        view = views[i] if i < len(views) else None
+        own = view is not None and view.plan is plan and bool(view.problems)
+        out.append(plan.implant is not None and (own or bool(set_problems(plans, i, close))))
+    return tuple(out)
+
+
+def _marked(text: str, broken: bool) -> str:
+    return f"{VIOLATED_MARK} {text}" if broken else text
+
+
+def _known(planned: PlannedClearance) -> str:
+    return f" (the CT's sampling: +-{planned.accuracy_mm:.2g} mm)"
