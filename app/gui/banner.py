@@ -3,10 +3,13 @@
 implants too close, implant above the entry; each with its warning code and the outputs'
 message), or why no path could be computed (clearance unknown), and a series whose voxels are
 too coarse for the clearances (``coarse_voxels``); while a trajectory is dragged it follows the
-dragged plan's path."""
+dragged plan's path **without changing its height** (the views under the cursor must not move:
+it keeps the height it had when the drag started, its text cut to it, first line first, and a
+banner hidden then stays hidden until the release)."""
 
 from __future__ import annotations
 
+from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QLabel
 
 from ctdrill.app.gui.document import ViewContext
@@ -16,6 +19,11 @@ from ctdrill.imaging import CTVolume
 
 VIOLATION_STYLE = "background:#c62828; color:white; font-weight:bold; padding:6px"
 UNKNOWN_STYLE = "background:#8d6e00; color:white; font-weight:bold; padding:6px"
+CLEAR_STYLE = "background:#2e7d32; color:white; font-weight:bold; padding:6px"
+#: What a banner shown when a drag started says where the dragged plan has no problem.
+CLEAR_TEXT = "No plan problem at this position."
+#: Qt's largest widget height (QWIDGETSIZE_MAX).
+MAX_HEIGHT_PX = 16_777_215
 
 
 def coarse_note(volume: CTVolume | None) -> str:
@@ -70,12 +78,27 @@ class Banner(QLabel):
         super().__init__("")
         self.ctx = ctx
         self.kind = ""
+        #: The height kept while a drag runs (0: hidden when it started), None: no drag.
+        self.frozen_px: int | None = None
         self.setWordWrap(True)
+        self.setAlignment(Qt.AlignmentFlag.AlignTop | Qt.AlignmentFlag.AlignLeft)
         self.hide()
         ctx.doc.path_changed.connect(self._path)
         ctx.doc.live.path_changed.connect(self._live_path)
         ctx.doc.plan_changed.connect(self._plan)
         ctx.doc.volume_changed.connect(lambda _v: self._plan(ctx.doc.plan))
+        ctx.doc.live.plan_dragged.connect(self._dragged)
+
+    def _dragged(self, plan: object) -> None:
+        """A drag starts (keep the height) or ends (free it)."""
+        if plan is None:
+            self.frozen_px = None
+            self.setMinimumHeight(0)
+            self.setMaximumHeight(MAX_HEIGHT_PX)
+        elif self.frozen_px is None:
+            self.frozen_px = self.height() if self.isVisible() else 0
+            if self.frozen_px:
+                self.setFixedHeight(self.frozen_px)
 
     def _coarse(self) -> str:
         return coarse_note(self.ctx.doc.volume)
@@ -92,8 +115,13 @@ class Banner(QLabel):
 
     def _live_path(self, view: PathView | None) -> None:
         live = self.ctx.doc.live
+        if self.frozen_px == 0:
+            return  # hidden when the drag started: showing it would move the views
         if view is not None or live.error:
-            self.show_banner(banner_text(view, live.error, self._coarse()))
+            content = banner_text(view, live.error, self._coarse())
+            if content is None and self.frozen_px:
+                content = CLEAR_TEXT, "clear"
+            self.show_banner(content)
 
     def show_banner(self, content: tuple[str, str] | None) -> None:
         """Show ``(text, kind)`` or hide the banner (the style set only when the kind
@@ -106,6 +134,7 @@ class Banner(QLabel):
         if self.text() != content[0]:
             self.setText(content[0])
         if kind != self.kind or not self.styleSheet():
-            self.setStyleSheet(VIOLATION_STYLE if kind == "violation" else UNKNOWN_STYLE)
+            styles = {"violation": VIOLATION_STYLE, "clear": CLEAR_STYLE}
+            self.setStyleSheet(styles.get(kind, UNKNOWN_STYLE))
         self.kind = kind
         self.show()

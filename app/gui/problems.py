@@ -115,18 +115,21 @@ def implant_check(
     )
 
 
-def osteotomy_clearance_mm(
-    plan: Plan, landmarks: tuple[Landmark, ...] | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Per landmark, the least planned clearance over the drills (each drilled to its planned
-    depth, :meth:`~ctdrill.imaging.plan.types.Plan.drilled`) and which drill it is: ``(L,)``
-    mm and ``(L,)`` drill index (0-based)."""
-    lms = plan.landmarks if landmarks is None else landmarks
-    per_drill = np.array(
-        [clearance_profile_mm(plan.drilled(k), lms)[0] for k in range(len(plan.drills))]
-    ).reshape(len(plan.drills), len(lms))
-    which = np.argmin(per_drill, axis=0) if lms else np.zeros(0, dtype=np.int64)
-    return per_drill.min(axis=0) if lms else np.zeros(0), which
+def drill_clearances_mm(plan: Plan) -> np.ndarray:
+    """(K, L) planned clearance of each drill of ``plan`` (drilled to its planned depth,
+    :meth:`~ctdrill.imaging.plan.types.Plan.drilled`) to each landmark (masks bound to the CT
+    grid), mm."""
+    n_l = len(plan.landmarks)
+    rows = [clearance_profile_mm(plan.drilled(k))[0] for k in range(len(plan.drills))]
+    return np.array(rows, dtype=np.float64).reshape(len(plan.drills), n_l)
+
+
+def osteotomy_clearance_mm(per_drill_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per landmark, the least planned clearance over the drills (:func:`drill_clearances_mm`)
+    and which drill it is: ``(L,)`` mm and ``(L,)`` drill index (0-based)."""
+    if per_drill_mm.shape[1] == 0:
+        return np.zeros(0), np.zeros(0, dtype=np.int64)
+    return per_drill_mm.min(axis=0), np.argmin(per_drill_mm, axis=0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -161,16 +164,14 @@ class PlannedClearance:
 
 
 def planned_clearance(
-    plan: Plan,
-    landmarks: tuple[Landmark, ...],
-    implant: ImplantCheck | None,
-    accuracy_mm: float,
+    plan: Plan, per_drill_mm: np.ndarray, implant: ImplantCheck | None, accuracy_mm: float
 ) -> PlannedClearance:
-    """The planned clearances of ``plan`` to ``landmarks`` (masks on the CT grid)."""
-    osteotomy, which = osteotomy_clearance_mm(plan, landmarks)
+    """The planned clearances of ``plan`` (landmarks on the CT grid) from its drills'
+    (:func:`drill_clearances_mm`) and its implant's."""
+    osteotomy, which = osteotomy_clearance_mm(per_drill_mm)
     body = None if implant is None or implant.clearance is None else implant.clearance
     return PlannedClearance(
-        margins_mm=margins_mm(plan, landmarks),
+        margins_mm=margins_mm(plan),
         osteotomy_mm=osteotomy,
         osteotomy_drill=which,
         implant_mm=None if body is None else np.asarray(body.clearance_mm, dtype=np.float64),
@@ -178,19 +179,21 @@ def planned_clearance(
     )
 
 
-def drill_margin_warnings(plan: Plan, covered: Plan | None = None) -> list[tuple[str, str]]:
-    """``plan_violates_margin`` of every drill of ``plan`` at its drilled depth (the message
-    :func:`~ctdrill.imaging.plan.safety.margin_warnings` gives the outputs; the plan's
-    landmarks bound to the CT grid), except the drill ``covered`` (the path result's own plan,
-    whose warnings already say it)."""
+def drill_margin_warnings(
+    plan: Plan, per_drill_mm: np.ndarray, covered: Plan | None = None
+) -> list[tuple[str, str]]:
+    """``plan_violates_margin`` of every drill of ``plan`` at its drilled depth (clearances
+    :func:`drill_clearances_mm`; the message
+    :func:`~ctdrill.imaging.plan.safety.margin_warnings` gives the outputs), except the drill
+    ``covered`` (the path result's own plan, whose warnings already say it)."""
     out: list[tuple[str, str]] = []
     margins = margins_mm(plan)
     for k in range(len(plan.drills)):
         drilled = plan.drilled(k)
         if covered is not None and _same_drill(drilled, covered):
             continue
-        at_plan = clearance_profile_mm(drilled)[0]
-        out += [w for w in margin_warnings(drilled, at_plan, margins) if w[0] == PROBLEM_CODES[0]]
+        found = margin_warnings(drilled, per_drill_mm[k], margins)
+        out += [w for w in found if w[0] == PROBLEM_CODES[0]]
     return out
 
 

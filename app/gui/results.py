@@ -14,6 +14,7 @@ from ctdrill.app.gui.plots import DepthCurves
 from ctdrill.app.gui.problems import (
     ImplantCheck,
     PlannedClearance,
+    drill_clearances_mm,
     drill_margin_warnings,
     implant_check,
     plan_problems,
@@ -157,9 +158,10 @@ def checked(volume: CTVolume, view: PathView, *, live: bool = False) -> PathView
     check = implant_check(volume, with_lms, landmarks, live=live)
     to_apex = plan.implant is not None and result.plan.overdrill_mm == 0.0
     own = [w for w in result.warnings if not (to_apex and w.code == "plan_violates_margin")]
-    drills = drill_margin_warnings(with_lms, covered=None if to_apex else result.plan)
+    per_drill = drill_clearances_mm(with_lms)
+    drills = drill_margin_warnings(with_lms, per_drill, None if to_apex else result.plan)
     problems = plan_problems(own, () if check is None else check.warnings, drills)
-    planned = planned_clearance(with_lms, landmarks, check, volume_clearance_accuracy_mm(volume))
+    planned = planned_clearance(with_lms, per_drill, check, volume_clearance_accuracy_mm(volume))
     return replace(view, implant=check, planned=planned, problems=problems)
 
 

@@ -68,10 +68,16 @@ def test_a_plan_through_the_margin_shows_a_banner_and_marks_the_landmark(
     banner = window.views["banner"]
     assert banner.isVisible() and banner.kind == "violation"  # type: ignore[attr-defined]
     assert CANAL in banner.text()  # type: ignore[attr-defined]
-    assert window.plan_panel.table.item(0, 3).text() == "no implant"
-    item = window.plan_panel.table.item(0, 4)  # 0.4 mm voxels: +-0.2 mm, one decimal
-    assert item.text() == f"{VIOLATED_MARK} 0.8 mm" and "breaks" in item.toolTip()
-    assert "at its stop: 2.0 mm" in item.toolTip()  # the margin stops the drill
+    # The table: the planned clearances (0.4 mm voxels: +-0.2 mm, one decimal), not the
+    # clearance at the stop (2.0 mm, the margin: it would read "safe"). The implant's round
+    # apex sits 0.8 mm above the canal; the drill's tip 0.6 mm beyond it.
+    implant, drills = (window.plan_panel.table.item(0, col) for col in (3, 4))
+    assert implant.text() == f"{VIOLATED_MARK} 0.8 mm" and "implant breaks" in implant.toolTip()
+    assert drills.text() == f"{VIOLATED_MARK} 0.2 mm" and "planned depth 12.60 mm" in (
+        drills.toolTip()
+    )
+    assert "at its stop: 2.0 mm" in drills.toolTip()  # the margin stops the drill there
+    assert "implant_violates_margin" in banner.text()  # type: ignore[attr-defined]
     qtbot.waitUntil(lambda: f"margin:{CANAL}" in window.view3d.actors, timeout=5000)
     colour = window.view3d.actors[f"margin:{CANAL}"].GetProperty().GetColor()
     assert colour == pytest.approx(CLEARANCE_COLOURS["violated"], abs=1 / 255)
@@ -84,5 +90,10 @@ def test_a_plan_through_the_margin_shows_a_banner_and_marks_the_landmark(
     target = window.plan.target_lps + np.array([0.0, 0.0, 6.0])
     with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
         window.slice_canvases["coronal"].point_moved.emit("target", target)
-    assert not banner.isVisible()
-    assert window.plan_panel.table.item(0, 4).text() == "6.8 mm"
+    # The margins hold (nothing marked), but the 11.5 mm implant now stands above the entry
+    # of a 6 mm path: the banner says that instead.
+    text = banner.text()  # type: ignore[attr-defined]
+    assert "margin" not in text.split("\n")[0] and "plan_violates_margin" not in text
+    assert "(implant_above_entry): " in text
+    assert window.plan_panel.table.item(0, 3).text() == "6.8 mm"
+    assert window.plan_panel.table.item(0, 4).text() == "6.2 mm"

@@ -126,7 +126,8 @@ def test_numeric_edit_and_margin_change_the_stop(
     assert window.view.curves.stop_depth_mm == pytest.approx(9.8, abs=0.01)
     assert window.view.curves.margin_mm == pytest.approx(3.0)
     assert table.cellWidget(0, 2) is margin_box  # the row was updated, not rebuilt
-    assert table.item(0, 3).text().startswith("3.00 mm")
+    drills = table.item(0, 4)  # the planned clearance stays; the stop follows the margin
+    assert drills.text().endswith(" 0.2 mm") and "at its stop: 3.0 mm" in drills.toolTip()
     with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
         margin_box.setValue(2.5)  # type: ignore[attr-defined]
     assert window.view.curves.stop_depth_mm == pytest.approx(10.3, abs=0.01)
