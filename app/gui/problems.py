@@ -51,7 +51,7 @@ PROBLEM_CODES = (
 )
 #: Each problem in a few words (the banner's headings).
 PROBLEM_WORDS = {
-    "plan_violates_margin": "drill margin",
+    "plan_violates_margin": "safety margin",
     "implant_violates_margin": "implant margin",
     "thin_wall": "thin bone wall",
     "cortical_perforation": "cortical perforation",

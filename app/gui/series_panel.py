@@ -1,5 +1,6 @@
-"""The Series tab: why rehearsal is blocked, the loader's warnings, the path's warnings; each
-warning once and whole (wrapped to the tab's width, scrollable; a view of the document)."""
+"""The Series tab: why rehearsal is blocked, the loader's warnings, the path's warnings (with the
+implant's and every drill's, :mod:`ctdrill.app.gui.problems`); each warning once and whole
+(wrapped to the tab's width, scrollable; a view of the document)."""
 
 from __future__ import annotations
 
@@ -25,6 +26,13 @@ def unique_warnings(
             seen.add((w.code, w.message))
             out.append(w)
     return out
+
+
+def path_warnings(view: PathView) -> tuple[LoadWarning, ...]:
+    """The path's warnings, then the implant check's and the plan problems' (repeats are
+    dropped by :func:`unique_warnings`)."""
+    extra = [*(() if view.implant is None else view.implant.warnings), *view.problems]
+    return (*view.result.warnings, *(LoadWarning(code, message) for code, message in extra))
 
 
 class SeriesPanel(QWidget):
@@ -55,7 +63,7 @@ class SeriesPanel(QWidget):
         own = view if view is not None and view.plan is doc.plan else None
         self.set_block(block_reason(doc.volume, doc.plan, own, doc.path_error))
         loader = doc.volume.warnings if doc.volume is not None else ()
-        self.set_path_warnings(() if own is None else own.result.warnings, loader)
+        self.set_path_warnings(() if own is None else path_warnings(own), loader)
 
     def set_load_warnings(self, warnings: tuple[LoadWarning, ...]) -> None:
         """Show the loader's warnings (``code: message``), each once."""

@@ -76,6 +76,9 @@ def test_two_implants_typed_too_close_are_listed_and_drawn_red(
     assert window.view is not None
     close = [m for c, m in window.view.problems if c == "implants_too_close"]
     assert len(close) == 1 and close[0] in text  # the outputs' message, whole
+    listed = window.views["series"].path_warnings_list  # type: ignore[attr-defined]
+    rows = [listed.item(i).text() for i in range(listed.count())]
+    assert rows.count(f"implants_too_close: {close[0]}") == 1  # the Series tab, once
     # both implants red in 3D (the first one, not current, too)
     violated = CLEARANCE_COLOURS["violated"]
     for key in ("implant:0", "implant:1"):
