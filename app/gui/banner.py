@@ -16,6 +16,7 @@ from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.problems import plan_problems, problems_text
 from ctdrill.app.gui.results import PathView
 from ctdrill.imaging import CTVolume
+from ctdrill.imaging.resolution import clearance_decimals, volume_clearance_accuracy_mm
 
 VIOLATION_STYLE = "background:#c62828; color:white; font-weight:bold; padding:6px"
 UNKNOWN_STYLE = "background:#8d6e00; color:white; font-weight:bold; padding:6px"
@@ -27,11 +28,22 @@ MAX_HEIGHT_PX = 16_777_215
 
 
 def coarse_note(volume: CTVolume | None) -> str:
-    """The series' ``coarse_voxels`` warning as the banner writes it ("" when fine)."""
-    if volume is None:
+    """The series' ``coarse_voxels`` warning in one line ("" when fine): what it limits the
+    clearances to (the whole warning is in the Series tab and the banner's tooltip)."""
+    if volume is None or not any(w.code == "coarse_voxels" for w in volume.warnings):
         return ""
-    found = [w for w in volume.warnings if w.code == "coarse_voxels"]
-    return "" if not found else f"Coarse data (coarse_voxels): {found[0].message}"
+    acc = volume_clearance_accuracy_mm(volume)
+    step = 10.0 ** -clearance_decimals(acc)
+    return (
+        f"Coarse voxels (coarse_voxels): clearances and walls on this series are known only to "
+        f"about +-{acc:.2g} mm (shown to {step:g} mm); the Series tab says why."
+    )
+
+
+def coarse_tooltip(volume: CTVolume | None) -> str:
+    """The whole ``coarse_voxels`` warning ("" when fine)."""
+    found = [] if volume is None else [w for w in volume.warnings if w.code == "coarse_voxels"]
+    return "" if not found else f"coarse_voxels: {found[0].message}"
 
 
 def marked_text(view: PathView) -> str:
@@ -101,7 +113,9 @@ class Banner(QLabel):
                 self.setFixedHeight(self.frozen_px)
 
     def _coarse(self) -> str:
-        return coarse_note(self.ctx.doc.volume)
+        volume = self.ctx.doc.volume
+        self.setToolTip(coarse_tooltip(volume))
+        return coarse_note(volume)
 
     def _plan(self, plan: object) -> None:
         if plan is None or self.kind in ("", "coarse"):

@@ -231,7 +231,7 @@ def plan_actors(plotter: Any, scene: SceneInput) -> dict[str, Any]:
             render=False,
             mesh=mesh,
             color=implant_colour(imp),
-            opacity=0.85 if imp.current or imp.offending else 0.6,
+            opacity=0.85 if imp.current else 0.6,
             specular=0.5,
             name=f"implant:{i}",
         )

@@ -139,3 +139,31 @@ def test_the_banner_lists_every_problem_once_in_order(slab: CTVolume) -> None:
     assert text.endswith("Coarse data (coarse_voxels): slice step 5 mm")
     assert banner_text(None, "", "coarse") == ("coarse", "coarse")
     assert banner_text(None, "", "") is None
+
+
+def test_implant_colours_in_3d_and_on_the_slices() -> None:
+    from ctdrill.app.gui.scene import (
+        CLEARANCE_COLOURS,
+        IMPLANT_COLOUR,
+        OTHER_IMPLANT_COLOUR,
+        implant_colour,
+    )
+    from ctdrill.app.gui.scene_plans import implant_geometry
+    from ctdrill.app.gui.slice_overlays import CURRENT_COLOUR, OTHER_COLOUR, VIOLATED_COLOUR
+    from ctdrill.app.gui.slice_overlays import IMPLANT_COLOUR as SLICE_IMPLANT
+    from ctdrill.app.gui.slice_overlays import implant_colour as slice_colour
+    from ctdrill.app.gui.slice_scene import trajectory_drawing
+
+    p = vertical()
+    expected = {
+        (True, False): (IMPLANT_COLOUR, SLICE_IMPLANT),
+        (False, False): (OTHER_IMPLANT_COLOUR, OTHER_COLOUR),
+        (True, True): (CLEARANCE_COLOURS["violated"], VIOLATED_COLOUR),
+        (False, True): (CLEARANCE_COLOURS["violated"], VIOLATED_COLOUR),
+    }
+    for (current, offending), (in_3d, on_slices) in expected.items():
+        geom = implant_geometry(p, current=current, offending=offending)
+        assert geom is not None and implant_colour(geom) == in_3d
+        tr = trajectory_drawing(p, None, current=current, offending=offending)
+        assert slice_colour(tr) == on_slices
+    assert CURRENT_COLOUR != VIOLATED_COLOUR

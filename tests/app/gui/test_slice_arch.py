@@ -11,13 +11,20 @@ from PySide6.QtCore import QPoint, Qt
 from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui.main_window import MainWindow
-from ctdrill.app.gui.slice_overlays import IMPLANT_COLOUR
+from ctdrill.app.gui.slice_overlays import IMPLANT_COLOUR, VIOLATED_COLOUR
 from ctdrill.app.gui.slice_view import SliceCanvas
 from ctdrill.imaging.phantom.io import PhantomCase
 from ctdrill.imaging.plan.implants import implant_placement, load_implant_library
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 from tests.app.gui.test_slice_drawing import _rgb
 from tests.app.gui.test_slice_navigation import qt_point, settle, shots
+
+
+def implant_colour(window: MainWindow) -> str:
+    """The current implant's outline colour: red when its plan has a problem (issue 25)."""
+    view = window.view
+    return VIOLATED_COLOUR if view is not None and view.problems else IMPLANT_COLOUR
+
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
 
@@ -115,7 +122,7 @@ def test_the_implant_body_is_drawn_to_its_profile(
     outlines = [
         np.asarray(p.get_xy())
         for p in traj.ax.patches
-        if np.allclose(p.get_edgecolor()[:3], _rgb(IMPLANT_COLOUR))
+        if np.allclose(p.get_edgecolor()[:3], _rgb(implant_colour(window)))
     ]
     assert len(outlines) == 1
     pts = img.to_lps(outlines[0])
@@ -163,7 +170,7 @@ def test_the_arch_and_the_implant_of_a_real_ct_plan_on_the_slices(
         p
         for c in window.slice_canvases.values()
         for p in c.ax.patches
-        if np.allclose(p.get_edgecolor()[:3], _rgb(IMPLANT_COLOUR))
+        if np.allclose(p.get_edgecolor()[:3], _rgb(implant_colour(window)))
     ]
     assert implants
     window.grab().save(str(shots(tmp_path) / "philips_arch_implant.png"))

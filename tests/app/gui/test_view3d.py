@@ -117,7 +117,7 @@ def test_every_trajectory_and_implant_is_drawn_and_the_selected_one_highlighted(
 ) -> None:
     from dataclasses import replace
 
-    from ctdrill.app.gui.scene import IMPLANT_COLOUR, OTHER_IMPLANT_COLOUR
+    from ctdrill.app.gui.scene import CLEARANCE_COLOURS
     from ctdrill.imaging.plan.implants import ImplantSpec
 
     window.open_plan(phantom_case.plan_path)
@@ -145,8 +145,13 @@ def test_every_trajectory_and_implant_is_drawn_and_the_selected_one_highlighted(
     qtbot.waitUntil(drawn, timeout=LOAD_TIMEOUT_MS)
     actors = window.view3d.actors
     colour = [actors[f"implant:{i}"].GetProperty().GetColor() for i in (0, 1)]
-    assert colour[0] == pytest.approx(OTHER_IMPLANT_COLOUR, abs=1 / 255)  # not selected
-    assert colour[1] == pytest.approx(IMPLANT_COLOUR, abs=1 / 255)  # the selected one
+    opacity = [actors[f"implant:{i}"].GetProperty().GetOpacity() for i in (0, 1)]
+    # 6 mm between the 4.1 mm bodies' axes: 1.9 mm apart (< 3 mm), implants_too_close: both
+    # drawn red (the other colours: tests/app/gui/test_problems.py); the selected one stands
+    # out by its opacity
+    red = CLEARANCE_COLOURS["violated"]
+    assert colour[0] == pytest.approx(red, abs=1 / 255) and colour[1] == colour[0]
+    assert opacity[1] > opacity[0]
     # the selected trajectory is the one drawn in full (its drill at its entry)
     b = np.array(actors["drill"].GetBounds())
     centre_x = (b[0] + b[1]) / 2.0
@@ -156,8 +161,8 @@ def test_every_trajectory_and_implant_is_drawn_and_the_selected_one_highlighted(
         doc.select(0)
     qtbot.waitUntil(
         lambda: (
-            window.view3d.actors["implant:0"].GetProperty().GetColor()
-            == pytest.approx(IMPLANT_COLOUR, abs=1 / 255)
+            window.view3d.actors["implant:0"].GetProperty().GetOpacity()
+            > window.view3d.actors["implant:1"].GetProperty().GetOpacity()
         ),
         timeout=LOAD_TIMEOUT_MS,
     )
