@@ -148,14 +148,26 @@ def compute_path_view(
 
 
 def checked(volume: CTVolume, view: PathView, *, live: bool = False) -> PathView:
-    """``view`` with its implant check, planned clearances and problems: the path's warnings
+    """``view`` with its implant check (the engine's outcome, ``PathResult.implant``, when the
+    path computed one; else :func:`~ctdrill.app.gui.problems.implant_check`, on the coarser
+    grid when ``live``), planned clearances and problems: the path's warnings
     of :data:`~ctdrill.app.gui.problems.PROBLEM_CODES`, the implant's, and every drill's
     margin at its drilled depth (a path computed to the apex rather than drilled to the apex
     plus the tip has its drill-margin warning replaced by the drilled one)."""
     result, plan = view.result, view.plan
     landmarks = result.landmarks  # masks bound to the CT grid
     with_lms = replace(plan, landmarks=landmarks)
-    check = implant_check(volume, with_lms, landmarks, live=live)
+    out = result.implant  # the engine's implant outcome (engine.implant.implant_outcome)
+    if out is not None:
+        check: ImplantCheck | None = ImplantCheck(
+            plan=with_lms,
+            clearance=out.clearance,
+            walls=out.walls,
+            accuracy_mm=out.accuracy_mm,
+            warnings=out.warnings,
+        )
+    else:
+        check = implant_check(volume, with_lms, landmarks, live=live)
     to_apex = plan.implant is not None and result.plan.overdrill_mm == 0.0
     own = [w for w in result.warnings if not (to_apex and w.code == "plan_violates_margin")]
     per_drill = drill_clearances_mm(with_lms)
