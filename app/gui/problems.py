@@ -9,8 +9,8 @@ the implant offends (drawn red in every view).
   the margin itself whenever the margin stops the drill, so it is not what the table shows.
 - **The implant** (:func:`implant_check`, the one function the window calls for the implant
   body's clearance, its bone walls and their warnings, with the same messages as the
-  outputs): :func:`~ctdrill.imaging.plan.implant_safety.implant_clearance` and
-  :func:`~ctdrill.imaging.sampling.walls.plan_bone_walls` with their warning functions.
+  outputs): the engine's :func:`~ctdrill.engine.implant.implant_outcome`, taken from the path
+  result (``PathResult.implant``) when the path computed it.
 - **Problems** (:data:`PROBLEM_CODES`, codes of :mod:`ctdrill.warning_codes`): the path's own
   warnings with these codes, the implant's, and every drill of a sequence that breaks a margin
   at its drilled depth; each code and message once, in the order of :data:`PROBLEM_CODES`.
@@ -21,22 +21,19 @@ the implant offends (drawn red in every view).
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
 import numpy as np
 
+from ctdrill.engine.implant import ImplantOutcome, implant_outcome
 from ctdrill.imaging.plan.implant_checks import implant_warnings, implants_too_close
-from ctdrill.imaging.plan.implant_safety import (
-    ImplantClearance,
-    implant_clearance,
-    implant_margin_warnings,
-)
+from ctdrill.imaging.plan.implant_safety import ImplantClearance
 from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.safety import clearance_profile_mm, margin_warnings, margins_mm
 from ctdrill.imaging.plan.types import Plan
-from ctdrill.imaging.resolution import format_clearance_mm, volume_clearance_accuracy_mm
-from ctdrill.imaging.sampling.walls import BoneWalls, bone_wall_warnings, plan_bone_walls
+from ctdrill.imaging.resolution import format_clearance_mm
+from ctdrill.imaging.sampling.walls import BoneWalls
 from ctdrill.imaging.volume import CTVolume
 
 #: The plan problems the banner lists, in this order (issue 25): drill margin, implant
@@ -94,24 +91,26 @@ def implant_check(
     *,
     live: bool = False,
 ) -> ImplantCheck | None:
-    """The implant body of ``plan`` on ``volume``: its clearance to ``landmarks`` (default the
-    plan's; mask landmarks bound to the CT grid), its bone walls (on :data:`LIVE_WALLS` when
+    """The implant body of ``plan`` on ``volume`` (the engine's
+    :func:`~ctdrill.engine.implant.implant_outcome`): its clearance to ``landmarks`` (default
+    the plan's; masks bound to the CT grid), its bone walls (on :data:`LIVE_WALLS` when
     ``live``) and their warnings; None without an implant."""
-    spec = plan.implant
-    walls = plan_bone_walls(volume, plan, **(LIVE_WALLS if live else {}))
-    if spec is None or walls is None:
-        return None
-    clearance = implant_clearance(plan, landmarks)
-    label = f"plan {plan.name!r}: implant {spec.name!r} ({spec.size_text})"
-    warnings = implant_margin_warnings(plan, clearance)
-    warnings += bone_wall_warnings(walls, min_wall_mm=plan.min_wall_mm, label=label)
+    if landmarks is not None:
+        plan = replace(plan, landmarks=landmarks)
+    out = implant_outcome(volume, plan, **(LIVE_WALLS if live else {}))
+    return None if out is None else checked_implant(out, coarse=live)
+
+
+def checked_implant(out: ImplantOutcome, *, coarse: bool = False) -> ImplantCheck:
+    """The engine's implant outcome as the window keeps it (``coarse``: walls read on
+    :data:`LIVE_WALLS`)."""
     return ImplantCheck(
-        plan=plan,
-        clearance=clearance,
-        walls=walls,
-        accuracy_mm=volume_clearance_accuracy_mm(volume),
-        warnings=tuple(warnings),
-        coarse=live,
+        plan=out.plan,
+        clearance=out.clearance,
+        walls=out.walls,
+        accuracy_mm=out.accuracy_mm,
+        warnings=out.warnings,
+        coarse=coarse,
     )
 
 

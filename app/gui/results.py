@@ -14,6 +14,7 @@ from ctdrill.app.gui.plots import DepthCurves
 from ctdrill.app.gui.problems import (
     ImplantCheck,
     PlannedClearance,
+    checked_implant,
     drill_clearances_mm,
     drill_margin_warnings,
     implant_check,
@@ -159,13 +160,7 @@ def checked(volume: CTVolume, view: PathView, *, live: bool = False) -> PathView
     with_lms = replace(plan, landmarks=landmarks)
     out = result.implant  # the engine's implant outcome (engine.implant.implant_outcome)
     if out is not None:
-        check: ImplantCheck | None = ImplantCheck(
-            plan=with_lms,
-            clearance=out.clearance,
-            walls=out.walls,
-            accuracy_mm=out.accuracy_mm,
-            warnings=out.warnings,
-        )
+        check: ImplantCheck | None = checked_implant(out)
     else:
         check = implant_check(volume, with_lms, landmarks, live=live)
     to_apex = plan.implant is not None and result.plan.overdrill_mm == 0.0
