@@ -98,7 +98,7 @@ def rehearse_sequence(
     calibration = plan_calibration(plan)
     options = {"interpolate_gaps": interpolate_gaps}
     # every drill computed before the first ARM: bad input is refused before anything runs
-    first = plan_sequence(volume, plan, calibration, **options)
+    first = plan_sequence(volume, plan, calibration, interpolate_gaps=interpolate_gaps)
     runs: list[tuple[PathResult, dict[str, Any], float]] = []
     with (
         atomic_output_dir(out) as stage,

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ctdrill.engine.grid import DEFAULT_DEPTH_STEP_MM
+from ctdrill.engine.implant import ImplantOutcome
 from ctdrill.engine.path import PathResult, plan_path
 from ctdrill.engine.path_warnings import dedupe_warnings
 from ctdrill.imaging.plan.types import Plan
@@ -98,13 +99,14 @@ def plan_sequence(
     n_rings: int = DEFAULT_N_RINGS,
     n_angles: int = DEFAULT_N_ANGLES,
     interpolate_gaps: bool = False,
+    implant: ImplantOutcome | None = None,
 ) -> SequenceResult:
     """Every drill of ``plan`` in order, each stopping at its own stop depth and leaving its
-    hole there for the next (see the module docstring). Options as :func:`plan_path`'s."""
+    hole there for the next (see the module docstring). Options as :func:`plan_path`'s
+    (``implant``: the plan's implant outcome when computed already, else the first drill's)."""
     steps: list[PathResult] = []
-    implant = None
     for k in range(len(plan.drills)):
-        if k == 1:
+        if k == 1 and implant is None:
             implant = steps[0].implant  # the same body for every drill
         steps.append(
             drill_path(

@@ -12,6 +12,7 @@ import numpy as np
 
 from ctdrill.app.gui.plots import DepthCurves
 from ctdrill.app.gui.problems import (
+    LIVE_WALLS,
     ImplantCheck,
     PlannedClearance,
     checked_implant,
@@ -22,6 +23,7 @@ from ctdrill.app.gui.problems import (
     planned_clearance,
 )
 from ctdrill.engine.band import path_band
+from ctdrill.engine.implant import implant_outcome
 from ctdrill.engine.path import PathResult, plan_path
 from ctdrill.engine.plans import plan_calibration, with_set_warnings
 from ctdrill.engine.sequence import plan_sequence
@@ -141,10 +143,12 @@ def compute_path_view(
         (w for p, w in zip(plan_set, with_set_warnings(plan_set), strict=True) if p is plan), plan
     )
     cal = plan_calibration(own)
+    # while dragging, the implant's walls on the coarser grid (the path then takes them)
+    implant = implant_outcome(volume, own, **LIVE_WALLS) if live else None
     if len(own.drills) > 1:
-        view = path_view(plan, plan_sequence(volume, own, cal).final, hu)
-    else:
-        view = path_view(plan, plan_path(volume, own.drilled(0), cal), hu)  # to apex + tip
+        view = path_view(plan, plan_sequence(volume, own, cal, implant=implant).final, hu)
+    else:  # to apex + tip
+        view = path_view(plan, plan_path(volume, own.drilled(0), cal, implant=implant), hu)
     return checked(volume, view, live=live)
 
 
@@ -160,7 +164,7 @@ def checked(volume: CTVolume, view: PathView, *, live: bool = False) -> PathView
     with_lms = replace(plan, landmarks=landmarks)
     out = result.implant  # the engine's implant outcome (engine.implant.implant_outcome)
     if out is not None:
-        check: ImplantCheck | None = checked_implant(out)
+        check: ImplantCheck | None = checked_implant(out, coarse=live)
     else:
         check = implant_check(volume, with_lms, landmarks, live=live)
     to_apex = plan.implant is not None and result.plan.overdrill_mm == 0.0

@@ -171,3 +171,28 @@ def test_implant_colours_in_3d_and_on_the_slices() -> None:
         tr = trajectory_drawing(p, None, current=current, offending=offending)
         assert slice_colour(tr) == on_slices
     assert CURRENT_COLOUR != VIOLATED_COLOUR
+
+
+def test_a_drag_reads_the_walls_on_the_coarser_grid_and_the_path_takes_them(
+    slab: CTVolume,
+) -> None:
+    """While dragging the implant's walls are read once, on the drag's grid, and the path
+    takes that outcome (the full-grid walls wait for the release): same clearances, same
+    problems here, the check marked coarse."""
+    d = 5.0
+    drills = (DrillSpec(diameter_mm=2.0, tip_length_mm=0.6), DrillSpec(3.2, 0.8))
+    plan = vertical(landmarks=(canal(d, -4.0),)).with_drills(drills)
+    full = compute_path_view(slab, plan)
+    live = compute_path_view(slab, plan, live=True)
+    assert live.implant is not None and live.implant.coarse
+    assert full.implant is not None and not full.implant.coarse
+    assert live.result.implant is not None
+    assert live.result.implant.walls.directions_lps.shape[0] == 24  # LIVE_WALLS' n_angles
+    assert full.implant.walls.directions_lps.shape[0] > 24
+    assert [c for c, _ in live.problems] == [c for c, _ in full.problems]
+    assert live.implant.clearance is not None and full.implant.clearance is not None
+    # the walls only are coarser
+    assert (
+        live.implant.clearance.binding_clearance_mm == full.implant.clearance.binding_clearance_mm
+    )
+    assert live.result.stop_depth_mm == full.result.stop_depth_mm
