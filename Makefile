@@ -10,7 +10,7 @@ SYSTEM_PKGS := xvfb xauth libegl1 libgl1 libxkbcommon-x11-0 libxcb-cursor0 libxc
 	libxcb-image0 libxrender1 libfontconfig1 libdbus-1-3 dicom3tools libportaudio2
 DEMO_OUT ?= demo-out
 
-.PHONY: test-blas demo test bench fuzz lint typecheck sysdeps venv venv-dev wheel-check clean warmup
+.PHONY: test-blas bench-smoke demo test bench fuzz lint typecheck sysdeps venv venv-dev wheel-check clean warmup
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -61,7 +61,11 @@ warmup: $(STAMP_RUN)
 	$(PY) -m ctdrill.app.search.warmup
 
 test: sysdeps $(STAMP) lint typecheck warmup
-	QT_QPA_PLATFORM=xcb xvfb-run -a -s "-screen 0 1600x1000x24" $(PY) -m pytest -q -p no:cacheprovider
+	QT_QPA_PLATFORM=xcb xvfb-run -a -s "-screen 0 1600x1000x24" $(PY) -m pytest -q -p no:cacheprovider -m "not bench_smoke"
+
+## Every benchmark module at toy sizes, its report written aside (about a minute; CI runs it)
+bench-smoke: sysdeps $(STAMP) warmup
+	QT_QPA_PLATFORM=xcb xvfb-run -a -s "-screen 0 1600x1000x24" $(PY) -m pytest -q -p no:cacheprovider -m bench_smoke
 
 bench: sysdeps $(STAMP) warmup
 	MALLOC_TRIM_THRESHOLD_=17179869184 MALLOC_MMAP_THRESHOLD_=33554432 xvfb-run -a -s "-screen 0 1600x1000x24" $(PY) -m bench

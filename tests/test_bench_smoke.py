@@ -50,6 +50,7 @@ def _snapshot() -> dict[str, bytes]:
 
 @pytest.mark.gui  # bench_gui opens the window: run under a display (make test uses Xvfb)
 @pytest.mark.timeout(960)
+@pytest.mark.bench_smoke
 def test_quick_bench_writes_every_section_with_numbers(tmp_path: Path) -> None:
     before = _snapshot()
     modules = discover()
