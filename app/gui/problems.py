@@ -28,12 +28,10 @@ import numpy as np
 
 from ctdrill.engine.implant import ImplantOutcome, implant_outcome
 from ctdrill.imaging.plan.implant_checks import implant_warnings, implants_too_close
-from ctdrill.imaging.plan.implant_safety import ImplantClearance
 from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.safety import clearance_profile_mm, margin_warnings, margins_mm
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.resolution import format_clearance_mm
-from ctdrill.imaging.sampling.walls import BoneWalls
 from ctdrill.imaging.volume import CTVolume
 
 #: The plan problems the banner lists, in this order (issue 25): drill margin, implant
@@ -62,25 +60,16 @@ LIVE_WALLS: dict[str, float] = {"n_angles": 24, "depth_step_mm": 1.0}
 
 
 @dataclass(frozen=True, eq=False)
-class ImplantCheck:
-    """The implant of one trajectory against its landmarks and in its bone.
+class ImplantCheck(ImplantOutcome):
+    """The engine's implant outcome (:class:`~ctdrill.engine.implant.ImplantOutcome`: the body's
+    clearance, its bone walls, the CT's accuracy and the warnings as the outputs word them) as
+    the window keeps it.
 
     Attributes
     ----------
-    plan : the plan checked.
-    clearance : the body's clearance to each landmark, or None without landmarks.
-    walls : the bone walls around the body.
-    accuracy_mm : what the CT's sampling lets a clearance claim, +- mm.
-    warnings : ``(code, message)``: ``implant_violates_margin``, ``thin_wall``,
-        ``cortical_perforation``, ``bone_walls_unknown``, as the outputs word them.
     coarse : the walls were read on the drag's coarser grid (:data:`LIVE_WALLS`).
     """
 
-    plan: Plan
-    clearance: ImplantClearance | None
-    walls: BoneWalls
-    accuracy_mm: float
-    warnings: tuple[tuple[str, str], ...]
     coarse: bool = False
 
 
