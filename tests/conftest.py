@@ -9,8 +9,9 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 ROOT = Path(__file__).resolve().parents[1]
-#: ``../shared`` beside the repository (DESIGN.md, real CT series, the paper).
-SHARED = ROOT.parent / "shared"
+#: ``../shared`` beside the repository (DESIGN.md, real CT series, the paper), or the folder
+#: ``CTDRILL_SHARED`` names (a checkout elsewhere).
+SHARED = Path(os.environ.get("CTDRILL_SHARED") or ROOT.parent / "shared")
 SHARED_DATA = SHARED / "data"
 ASSETS = ROOT / "assets"
 
