@@ -2,10 +2,10 @@
 series against ``tests/data/export_golden.json`` (the previous release's outputs).
 
 The record holds each case's whole ``summary.json`` and every 5th row of ``profile.csv``.
-Numbers are compared to the precision they are written with (``profile.csv`` prints 4 or 5
-decimals: one unit of the last decimal; ``summary.json`` rounds to 1e-4 mm or N, unrounded floats
-(bone walls) to 1e-7 relative, far below a voxel, far above a BLAS kernel's rounding), strings and lists of codes exactly. A change that is meant to move
-the numbers rewrites the record, reviewed in its diff::
+Numbers are compared to the precision they are written with: ``profile.csv`` to one unit of
+its last decimal, ``summary.json``'s unrounded floats (bone walls) to 1e-7 relative (far
+below a voxel, far above a BLAS kernel's rounding); strings and lists of codes exactly. A
+change that is meant to move the numbers rewrites the record, reviewed in its diff::
 
     .venv/bin/python -m tests.app.test_export_golden --write
 """
