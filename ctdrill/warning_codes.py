@@ -150,6 +150,18 @@ REGISTRY: tuple[WarningCode, ...] = (
         "stability) or narrower than both its apex diameter and its diameter less the allowed "
         "undersize (it could not be seated)",
     ),
+    WarningCode(
+        "drill_tip_override",
+        "plan",
+        "a drill's tip length was given and differs from the tip rule's for its diameter and "
+        "point angle (docs/plan.md): the override is used for its depth, stop and clearance",
+    ),
+    WarningCode(
+        "drills_reconciled",
+        "plan",
+        "a trajectory drill gave another tip than its implant's protocol gives the same "
+        "diameter: the protocol's tip is used, so the plan never contradicts itself",
+    ),
     # a computed path (ctdrill.engine.path_warnings)
     WarningCode(
         "gap_interpolated",

@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
+from ctdrill.imaging.plan.drill_spec import tip_override_warnings
 from ctdrill.imaging.plan.implant_checks import implants_too_close
 from ctdrill.imaging.plan.protocol import final_drill_warnings
 from ctdrill.imaging.plan.types import Plan
@@ -18,6 +19,7 @@ def with_set_warnings(plans: Sequence[Plan]) -> tuple[Plan, ...]:
     """``plans`` each carrying the warnings only the whole set shows (``implants_too_close``,
     :func:`~ctdrill.imaging.plan.implant_checks.implants_too_close`) and only the whole
     trajectory shows, not one drill's view of it (``final_drill_mismatch``,
+    ``drill_tip_override``,
     :func:`~ctdrill.imaging.plan.protocol.final_drill_warnings`) in ``Plan.warnings``, so
     that :func:`plan_path` reports them with the rest; call it where a command sees every
     trajectory of a plan set, after its last edit."""
@@ -25,7 +27,11 @@ def with_set_warnings(plans: Sequence[Plan]) -> tuple[Plan, ...]:
     extra = implants_too_close(seq)
     out = []
     for p in seq:
-        more = [*extra.get(p.name, ()), *final_drill_warnings(p)]
+        more = [
+            *extra.get(p.name, ()),
+            *final_drill_warnings(p),
+            *tip_override_warnings(p.drills, f"plan {p.name!r}"),
+        ]
         out.append(replace(p, warnings=(*p.warnings, *more)) if more else p)
     return tuple(out)
 

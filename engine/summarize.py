@@ -109,7 +109,14 @@ def hole_info(hole: Hole) -> HoleInfo:
 
 def drill_info(drill: DrillSpec) -> DrillInfo:
     """The drill by its plan-file keys."""
-    return DrillInfo(drill.diameter_mm, drill.tip_length_mm, drill.blades, drill.rpm)
+    return DrillInfo(
+        drill.diameter_mm,
+        drill.tip_length_mm,
+        drill.blades,
+        drill.rpm,
+        drill.point_angle_deg,
+        drill.tip_override,
+    )
 
 
 def implant_summary(result: PathResult) -> ImplantSummary | None:

@@ -245,12 +245,16 @@ class ForceBandPeak:
 
 @dataclass(frozen=True)
 class DrillInfo:
-    """The drill, by its plan-file keys."""
+    """The drill, by its plan-file keys; ``tip_length_mm`` is the tip rule's for the diameter
+    and point angle unless ``tip_override`` (a tip given that differs, warning
+    ``drill_tip_override``)."""
 
     diameter_mm: float
     tip_length_mm: float
     blades: int
     rpm: float
+    point_angle_deg: float = field(metadata=added(120.0))
+    tip_override: bool = field(metadata=added(False))
 
 
 @dataclass(frozen=True)

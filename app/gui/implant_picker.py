@@ -10,11 +10,11 @@ plan edit (an undo step); the apex sits at the planned target
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
 
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QComboBox
 
+from ctdrill.app.gui import planning
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.imaging.plan.implants import ImplantSpec, load_implant_library
 from ctdrill.imaging.plan.types import Plan
@@ -104,5 +104,11 @@ class ImplantPicker(QComboBox):
         if spec == plan.implant:
             return
         name = "remove implant" if spec is None else f"pick implant {spec.name!r}"
-        if not doc.set_plan(replace(plan, implant=spec), edit=name):
+        try:
+            new = planning.with_implant(plan, spec)
+        except ValueError as exc:
+            doc.edit_refused.emit(f"error: {exc}")
+            self.show_plan(doc.plan)
+            return
+        if not doc.set_plan(new, edit=name):
             self.show_plan(doc.plan)  # refused: the implant that holds

@@ -43,7 +43,7 @@ from ctdrill.app.gui.reformat_canvas import CanalChoice
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.trajectory_list import TrajectoryList
 from ctdrill.imaging.plan.landmarks import CanalLandmark
-from ctdrill.imaging.plan.types import DrillSpec, Plan
+from ctdrill.imaging.plan.types import Plan
 from ctdrill.model import available_calibrations, load_calibration
 
 #: The landmark table's columns.
@@ -299,11 +299,8 @@ class PlanPanel(QWidget):
             return
 
         def edit() -> Plan:
-            drill = DrillSpec(
-                diameter_mm=self.diameter.value(),
-                tip_length_mm=self.tip_length.value(),
-                blades=plan.drill.blades,
-                rpm=plan.drill.rpm,
+            drill = planning.final_drill_edited(
+                plan, diameter_mm=self.diameter.value(), tip_length_mm=self.tip_length.value()
             )
             calibration = self.calibration.currentText().strip() or plan.calibration
             return replace(

@@ -7,6 +7,7 @@ naming the field when the result would not be a usable plan.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
@@ -17,7 +18,9 @@ from ctdrill.app.errors import AppInputError
 from ctdrill.app.gui.results import PathView, binding_index, plan_violation
 from ctdrill.app.gui.scene import CandidateLine, LandmarkGeometry, SceneInput
 from ctdrill.imaging.plan.drill_spec import sequence_error
+from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.landmarks import Landmark
+from ctdrill.imaging.plan.protocol import protocol_drills
 from ctdrill.imaging.plan.types import DrillSpec, Plan
 from ctdrill.imaging.sampling.arch import ArchCurve
 
@@ -308,8 +311,10 @@ def with_drill_sequence(plan: Plan, text: str) -> Plan:
     """``plan`` drilled with the diameters written in ``text`` (mm, in drilling order,
     separated by ``->``, commas or spaces; the last is the final drill).
 
-    Each drill keeps the tip length, blades and speed of the plan's drill of the same
-    diameter, else those of the final drill.
+    A diameter already drilled keeps its drill; a new one is the implant protocol's drill of
+    that diameter, else a drill with the tip rule's tip
+    (:func:`~ctdrill.imaging.plan.drill_spec.tip_length_rule_mm`) and the final drill's blades,
+    speed and point angle.
 
     Raises
     ------
@@ -330,12 +335,20 @@ def with_drill_sequence(plan: Plan, text: str) -> Plan:
         if not (np.isfinite(value) and 0.0 < value <= 10.0):
             raise PlanEditError(f"drills: diameter {word} mm must be > 0 and <= 10 mm")
         diameters.append(value)
+    protocol = {} if plan.implant is None else {d.diameter_mm: d for d in plan.implant.drills}
     known = {d.diameter_mm: d for d in plan.drills}
     base = plan.drill
     seq = tuple(
         known.get(d)
-        or DrillSpec(
-            diameter_mm=d, tip_length_mm=base.tip_length_mm, blades=base.blades, rpm=base.rpm
+        or (
+            replace(protocol[d], blades=base.blades, rpm=base.rpm)
+            if d in protocol
+            else DrillSpec(
+                diameter_mm=d,
+                blades=base.blades,
+                rpm=base.rpm,
+                point_angle_deg=base.point_angle_deg,
+            )
         )
         for d in diameters
     )
@@ -343,3 +356,31 @@ def with_drill_sequence(plan: Plan, text: str) -> Plan:
     if problem is not None:
         raise PlanEditError(f"drills{problem}")
     return plan.with_drills(seq)
+
+
+def with_implant(plan: Plan, spec: ImplantSpec | None) -> Plan:
+    """``plan`` with the implant ``spec`` (None: none) drilled with its protocol (its own
+    drills, else the generic protocol for its size,
+    :func:`~ctdrill.imaging.plan.protocol.protocol_drills`), keeping the drills' blades and
+    speed: picking an implant is one edit (one undo step). Removing the implant keeps the
+    drills."""
+    if spec is None:
+        return replace(plan, implant=None)
+    base = plan.drill
+    seq = tuple(replace(d, blades=base.blades, rpm=base.rpm) for d in protocol_drills(spec)[0])
+    whole = replace(plan, target_lps=plan.planned_target_lps, overdrill_mm=0.0, implant=None)
+    return replace(whole, implant=spec, drill=seq[-1], earlier_drills=seq[:-1])
+
+
+def final_drill_edited(plan: Plan, *, diameter_mm: float, tip_length_mm: float) -> DrillSpec:
+    """The final drill after the window's diameter and tip fields read ``diameter_mm`` and
+    ``tip_length_mm``: a new diameter with the tip left as it was takes the implant protocol's
+    drill of that diameter, else the tip rule's tip; a tip typed that differs from the rule's is
+    kept as an override (warning ``drill_tip_override``)."""
+    old = plan.drill
+    if diameter_mm != old.diameter_mm and abs(tip_length_mm - old.tip_length_mm) < 1e-9:
+        protocol = {} if plan.implant is None else {d.diameter_mm: d for d in plan.implant.drills}
+        if diameter_mm in protocol:
+            return replace(protocol[diameter_mm], blades=old.blades, rpm=old.rpm)
+        return replace(old, diameter_mm=diameter_mm, tip_length_mm=math.nan)
+    return replace(old, diameter_mm=diameter_mm, tip_length_mm=tip_length_mm)

@@ -6,19 +6,26 @@ reader (:mod:`ctdrill.imaging.plan.slicer`); the rules are in :func:`drills_fiel
 
 from __future__ import annotations
 
+import math
+from dataclasses import replace
 from typing import Any
 
 from ctdrill.imaging.plan.drill_spec import (
     _DRILL_KEYS,
     _MAX_BLADES,
     MAX_DRILLS,
+    POINT_ANGLE_RANGE_DEG,
     DrillSpec,
+    protocol_conflicts,
     sequence_error,
 )
 from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.protocol import PROTOCOL_NOTE_CODE, protocol_drills, protocol_note
 from ctdrill.imaging.plan.read import _Ctx, _is_number
 from ctdrill.imaging.plan.types import PlanInputError
+
+#: The warning code of a trajectory drill given the tip of its implant's protocol.
+RECONCILED_CODE = "drills_reconciled"
 
 
 def drills_field(
@@ -46,7 +53,7 @@ def drills_field(
         if not isinstance(drill_raw, dict):
             raise ctx.fail(fd, "must be an object", drill_raw)
         ctx.keys(drill_raw, _DRILL_KEYS, fd)
-        return (drill_from(ctx, drill_raw, fd),)
+        return reconciled(ctx, (drill_from(ctx, drill_raw, fd),), implant, where)
     if "drill" in doc:
         raise ctx.fail(
             fp,
@@ -70,6 +77,31 @@ def drills_field(
     problem = sequence_error(out)
     if problem is not None:
         raise PlanInputError(f"{ctx.path.name}: {fp}{problem}")
+    return reconciled(ctx, tuple(out), implant, where)
+
+
+def reconciled(
+    ctx: _Ctx, drills: tuple[DrillSpec, ...], implant: ImplantSpec | None, where: str
+) -> tuple[DrillSpec, ...]:
+    """``drills`` with each drill that contradicts the ``implant``'s protocol (the same
+    diameter with another tip or point angle,
+    :func:`~ctdrill.imaging.plan.drill_spec.protocol_conflicts`) given the protocol's tip and
+    point angle, one ``drills_reconciled`` warning naming each: a plan read is never one that
+    contradicts itself."""
+    if implant is None or not implant.drills:
+        return drills
+    out = list(drills)
+    label = f"{ctx.path.name}: {where or 'the trajectory'}"
+    for i, d, p in protocol_conflicts(drills, implant.drills):
+        out[i] = replace(d, tip_length_mm=p.tip_length_mm, point_angle_deg=p.point_angle_deg)
+        ctx.warnings.append(
+            (
+                RECONCILED_CODE,
+                f"{label}: drills[{i}] (the {d.name}) gave a {d.tip_length_mm:g} mm tip, but "
+                f"implant {implant.name!r}'s protocol drills it with {p.tip_length_mm:g} mm: "
+                "using the protocol's tip (edit the implant's drills to change it)",
+            )
+        )
     return tuple(out)
 
 
@@ -86,11 +118,22 @@ def no_drill_note(ctx: _Ctx, where: str) -> str:
 def drill_from(ctx: _Ctx, raw: dict[str, Any], where: str) -> DrillSpec:
     d = DrillSpec()
     diameter = ctx.number(raw, "diameter_mm", where, default=d.diameter_mm, positive=True)
-    tip = ctx.number(raw, "tip_length_mm", where, default=d.tip_length_mm, positive=True)
+    # no tip given: NaN, and DrillSpec gives the tip rule's for the diameter and point angle
+    tip = ctx.number(raw, "tip_length_mm", where, default=math.nan, positive=True)
+    angle = ctx.number(raw, "point_angle_deg", where, default=d.point_angle_deg, positive=True)
+    lo, hi = POINT_ANGLE_RANGE_DEG
+    if not lo < angle < hi:
+        raise ctx.fail(f"{where}.point_angle_deg", f"must be between {lo:g} and {hi:g} deg", angle)
     blades_raw = raw.get("blades", d.blades)
     if not _is_number(blades_raw) or blades_raw != int(blades_raw) or blades_raw < 1:
         raise ctx.fail(f"{where}.blades", "must be a positive whole number", blades_raw)
     if blades_raw > _MAX_BLADES:
         raise ctx.fail(f"{where}.blades", f"must be at most {_MAX_BLADES}", blades_raw)
     rpm = ctx.number(raw, "rpm", where, default=d.rpm, positive=True)
-    return DrillSpec(diameter_mm=diameter, tip_length_mm=tip, blades=int(blades_raw), rpm=rpm)
+    return DrillSpec(
+        diameter_mm=diameter,
+        tip_length_mm=tip,
+        blades=int(blades_raw),
+        rpm=rpm,
+        point_angle_deg=angle,
+    )

@@ -44,7 +44,10 @@ import numpy as np
 
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.drill_spec import (
+    POINT_ANGLE_DEG,
+    POINT_ANGLE_RANGE_DEG,
     PROTOCOL_DRILL_KEYS,
+    PROTOCOL_OPTIONAL_KEYS,
     DrillSpec,
     positive_finite,
     protocol_error,
@@ -244,20 +247,30 @@ def protocol_from_json(raw: object, *, where: str, source: str) -> tuple[DrillSp
         fi = f"{where}[{i}]"
         if not isinstance(item, dict):
             raise ImplantInputError(f"{source}: {fi} must be a drill object, got {item!r}")
-        extra = sorted(set(item) - set(PROTOCOL_DRILL_KEYS))
+        known = (*PROTOCOL_DRILL_KEYS, *PROTOCOL_OPTIONAL_KEYS)
+        extra = sorted(set(item) - set(known))
         if extra:
             raise ImplantInputError(
-                f"{source}: {fi}.{extra[0]} is not a known field (known: "
-                f"{', '.join(PROTOCOL_DRILL_KEYS)})"
+                f"{source}: {fi}.{extra[0]} is not a known field (known: {', '.join(known)})"
             )
-        for key in PROTOCOL_DRILL_KEYS:
+        for key in known:
             if key not in item:
-                raise ImplantInputError(f"{source}: {fi}.{key} is missing; add it")
+                if key in PROTOCOL_DRILL_KEYS:
+                    raise ImplantInputError(f"{source}: {fi}.{key} is missing; add it")
+                continue
             if not positive_finite(item[key]):
                 raise ImplantInputError(
-                    f"{source}: {fi}.{key} must be a positive number (mm), got {item[key]!r}"
+                    f"{source}: {fi}.{key} must be a positive number, got {item[key]!r}"
                 )
-        out.append(DrillSpec(float(item["diameter_mm"]), float(item["tip_length_mm"])))
+        angle = float(item.get("point_angle_deg", POINT_ANGLE_DEG))
+        lo, hi = POINT_ANGLE_RANGE_DEG
+        if not lo < angle < hi:
+            raise ImplantInputError(
+                f"{source}: {fi}.point_angle_deg must be between {lo:g} and {hi:g} deg, "
+                f"got {angle:g}"
+            )
+        tip = float(item["tip_length_mm"]) if "tip_length_mm" in item else math.nan
+        out.append(DrillSpec(float(item["diameter_mm"]), tip, point_angle_deg=angle))
     drills = tuple(out)
     problem = protocol_error(drills, max_diameter_mm=MAX_IMPLANT_DIAMETER_MM)
     if problem is not None:

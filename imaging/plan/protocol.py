@@ -15,9 +15,11 @@ implant's length (DESIGN.md section 5). Generic, no brand:
 - final drill :data:`FINAL_UNDERSIZE_MM` (0.6 mm) narrower than the implant's diameter;
 - between them equal steps of at most :data:`MAX_STEP_MM` (0.8 mm), every diameter rounded to
   0.1 mm;
-- each drill's tip a cone of :data:`POINT_ANGLE_DEG` (120 deg, a twist drill's point):
-  ``tip = d / (2 tan 60 deg)``, rounded to 0.1 mm (0.6 mm for the 2.0 mm pilot, as the default
-  drill; 1.3 mm for a 4.4 mm final drill).
+- each drill's tip the project's one tip rule
+  (:func:`~ctdrill.imaging.plan.drill_spec.tip_length_rule_mm`): a cone of
+  :data:`POINT_ANGLE_DEG` (120 deg, a twist drill's point), ``tip = d / (2 tan 60 deg)``,
+  rounded to 0.1 mm (0.6 mm for the 2.0 mm pilot, as the default drill; 1.3 mm for a 4.4 mm
+  final drill).
 
 **Checks** (:func:`final_drill_warnings`, code ``final_drill_mismatch``): a final drill wider
 than the implant (no thread engages: no primary stability), or narrower than both the
@@ -31,7 +33,8 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-from ctdrill.imaging.plan.drill_spec import DrillSpec
+from ctdrill.imaging.plan.drill_spec import POINT_ANGLE_DEG as POINT_ANGLE_DEG
+from ctdrill.imaging.plan.drill_spec import DrillSpec, tip_length_rule_mm
 from ctdrill.imaging.plan.implants import ImplantSpec
 
 if TYPE_CHECKING:
@@ -46,8 +49,6 @@ FINAL_UNDERSIZE_MM = 0.6
 #: Most a final drill may be narrower than the implant's diameter before it is reported
 #: (unless it still reaches the apex diameter), mm.
 MAX_UNDERSIZE_MM = 0.8
-#: Point angle of a generic drill's tip, degrees (a twist drill's 118-120 deg).
-POINT_ANGLE_DEG = 120.0
 #: Generic diameters and tip lengths are rounded to this, mm.
 ROUND_MM = 0.1
 #: The warning code of a plan whose final drill does not suit its implant.
@@ -68,8 +69,7 @@ def _mm(steps: int) -> float:
 
 def generic_tip_length_mm(diameter_mm: float) -> float:
     """The generic drill's tip (cone) length for ``diameter_mm``, mm (module docstring)."""
-    half_angle = math.radians(POINT_ANGLE_DEG / 2.0)
-    return _mm(_tenths(diameter_mm / (2.0 * math.tan(half_angle))))
+    return tip_length_rule_mm(diameter_mm, POINT_ANGLE_DEG)
 
 
 def generic_protocol(diameter_mm: float) -> tuple[DrillSpec, ...]:

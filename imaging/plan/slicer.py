@@ -48,7 +48,7 @@ from ctdrill.imaging.plan.arch import (
 )
 from ctdrill.imaging.plan.curve import slicer_curve
 from ctdrill.imaging.plan.drill_spec import _DRILL_KEYS
-from ctdrill.imaging.plan.drills import drill_from, drills_field, no_drill_note
+from ctdrill.imaging.plan.drills import drill_from, drills_field, no_drill_note, reconciled
 from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.landmarks import (
     DEFAULT_CANAL_RADIUS_MM,
@@ -245,7 +245,7 @@ def _line(
         )
     settings = _settings(ctx, mk, cps[0], where, LINE_KEYS)
     implant = _line_implant(ctx, settings, where)
-    drills = _line_drills(ctx, settings, where, implant)
+    drills = reconciled(ctx, _line_drills(ctx, settings, where, implant), implant, where)
     feed = _number(ctx, settings, "feed_mm_s", positive=True)
     margin = _number(ctx, settings, "margin_mm")
     wall = _number(ctx, settings, "min_wall_mm")

@@ -36,7 +36,7 @@ from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.arch import arch_error
 from ctdrill.imaging.plan.clinical import CLINICAL_MARGIN_MM, CLINICAL_MIN_WALL_MM
 from ctdrill.imaging.plan.drill_spec import MAX_DRILLS as MAX_DRILLS
-from ctdrill.imaging.plan.drill_spec import DrillSpec, sequence_error
+from ctdrill.imaging.plan.drill_spec import DrillSpec, protocol_conflicts, sequence_error
 from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.landmarks import (
     Landmark,
@@ -161,6 +161,8 @@ class Plan:
         problem = sequence_error(self.drills)
         if problem is not None:
             raise PlanInputError(f"plan {self.name!r}: drills{problem}")
+        if self.implant is not None and self.implant.drills:
+            self._reconcile_drills(self.implant)
         wall = self.min_wall_mm
         if isinstance(wall, bool) or not (isinstance(wall, int | float) and 0.0 <= wall <= 1e3):
             raise PlanInputError(f"plan {self.name!r}: min_wall_mm must be a number 0-1000 mm")
@@ -178,6 +180,30 @@ class Plan:
                 f"plan {self.name!r}: overdrill_mm must be >= 0, shorter than the path, and 0 "
                 "without an implant"
             )
+
+    def _reconcile_drills(self, implant: ImplantSpec) -> None:
+        """Give each drill that contradicts ``implant``'s protocol (the same diameter with
+        another tip or point angle) the protocol's, with a ``drills_reconciled`` warning: a
+        plan never holds (nor saves) drills that contradict its implant."""
+        conflicts = protocol_conflicts(self.drills, implant.drills)
+        if not conflicts:
+            return
+        seq = list(self.drills)
+        notes = []
+        for i, d, p in conflicts:
+            seq[i] = replace(d, tip_length_mm=p.tip_length_mm, point_angle_deg=p.point_angle_deg)
+            notes.append(
+                (
+                    "drills_reconciled",
+                    f"plan {self.name!r}: drills[{i}] (the {d.name}) had a "
+                    f"{d.tip_length_mm:g} mm tip, but implant {implant.name!r}'s protocol "
+                    f"drills it with {p.tip_length_mm:g} mm: using the protocol's tip (edit "
+                    "the implant's drills to change it)",
+                )
+            )
+        object.__setattr__(self, "drill", seq[-1])
+        object.__setattr__(self, "earlier_drills", tuple(seq[:-1]))
+        object.__setattr__(self, "warnings", (*self.warnings, *notes))
 
     @property
     def drills(self) -> tuple[DrillSpec, ...]:

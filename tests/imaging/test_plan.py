@@ -261,7 +261,9 @@ def test_slicer_markups_line_curves_fiducials_and_per_markup_frames(tmp_path: Pa
     np.testing.assert_array_equal(plan.entry_lps, [10.0, 20.0, 30.0])  # RAS -> LPS
     np.testing.assert_array_equal(plan.target_lps, [10.0, 20.0, 18.0])
     assert plan.name == "case"
-    assert plan.drill.diameter_mm == 2.5 and plan.drill.tip_length_mm == 0.6
+    assert (
+        plan.drill.diameter_mm == 2.5 and plan.drill.tip_length_mm == 0.7
+    )  # the tip rule for 2.5 mm
     assert plan.feed_mm_s == 0.6 and plan.calibration == "pine-wood-paper"
     assert plan.margin_mm == 2.0
     canal, canal2, canal3, apex36, apex37 = plan.landmarks

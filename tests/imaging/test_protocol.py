@@ -169,8 +169,12 @@ def test_protocols_in_a_user_library_are_checked(tmp_path: Path) -> None:
     item = TAPERED.to_json() | {"name": "ours"}
     bad = [
         (
-            [{"diameter_mm": 2.0}],
-            r"mine\.json: implants\[0\]\.drills\[0\]\.tip_length_mm is missing",
+            [{"tip_length_mm": 0.6}],
+            r"mine\.json: implants\[0\]\.drills\[0\]\.diameter_mm is missing",
+        ),
+        (
+            [{"diameter_mm": 2.0, "point_angle_deg": 200}],
+            r"mine\.json: implants\[0\]\.drills\[0\]\.point_angle_deg must be between",
         ),
         (
             [

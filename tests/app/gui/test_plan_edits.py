@@ -175,7 +175,8 @@ def test_the_drill_sequence_is_written_as_diameters() -> None:
     assert planning.drills_text(p) == "3.5"
     seq = planning.with_drill_sequence(p, "2 -> 2.8mm, 3.5")
     assert [d.diameter_mm for d in seq.drills] == [2.0, 2.8, 3.5]
-    assert seq.drill == p.drill and seq.drills[0].tip_length_mm == 1.0
+    # a new diameter takes the tip rule's tip, not the final drill's (the typed-tips defect)
+    assert seq.drill == p.drill and [d.tip_length_mm for d in seq.drills] == [0.6, 0.8, 1.0]
     assert planning.drills_text(seq) == "2 -> 2.8 -> 3.5"
     for bad, words in (("", "at least one"), ("3 -> 2", "must be larger"), ("two", "diameter")):
         with pytest.raises(PlanEditError, match=words):

@@ -12,6 +12,7 @@ from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.imaging.phantom.io import PhantomCase
+from ctdrill.imaging.plan.protocol import protocol_drills
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 
 DEMO_PLAN = Path(__file__).resolve().parents[3] / "assets" / "demo" / "plan.json"
@@ -126,6 +127,9 @@ def test_pick_an_implant_from_the_library_and_undo_it(
     assert picker.pick(target.name)
     assert window.plan is not None and window.plan.implant == target
     assert window.undo_action.text() == f"Undo pick implant {target.name!r}"
+    # picking applies the implant's protocol in the same edit (one undo step)
+    got = [(d.diameter_mm, d.tip_length_mm) for d in window.plan.drills]
+    assert got == [(d.diameter_mm, d.tip_length_mm) for d in protocol_drills(target)[0]]
     assert picker.pick(None)
     assert window.plan is not None and window.plan.implant is None
     assert picker.currentText() == "(no implant)"

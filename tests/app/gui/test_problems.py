@@ -196,3 +196,10 @@ def test_a_drag_reads_the_walls_on_the_coarser_grid_and_the_path_takes_them(
         live.implant.clearance.binding_clearance_mm == full.implant.clearance.binding_clearance_mm
     )
     assert live.result.stop_depth_mm == full.result.stop_depth_mm
+
+
+def test_a_final_drill_that_does_not_suit_the_implant_is_a_banner_problem(slab: CTVolume) -> None:
+    plan = vertical().with_drills([DrillSpec(2.0), DrillSpec(2.5)])  # 2.5 < 4.0 - 0.8 mm
+    view = compute_path_view(slab, plan, plan_set=(plan,))
+    found = [m for c, m in view.problems if c == "final_drill_mismatch"]
+    assert len(found) == 1 and "2.5 mm" in found[0]
