@@ -286,17 +286,29 @@ AT_LIMIT_N = 0.01
 
 
 def wall_summary(session: dict[str, Any]) -> dict[str, Any]:
-    """The stop's account for a session that ended at the stop (empty otherwise):
-    ``hand_past_drill_mm`` (the hand's final offset past the stopped drill), ``wall_held``
-    (within :data:`ctdrill.haptics.renderer.WALL_HOLD_MM`) and ``wall_limits``: when the wall
-    did not hold, the device limits that let the hand through at the end, read from the force
-    the device rendered last: its 20 N continuous rating once the thermal limit acted, its 78 N
-    peak, and the travel's end stop where the stage came to rest (None when the wall held)."""
-    if session.get("final_state") != "stopped" or session.get("final_master_mm") is None:
+    """The stop's account for a session that reached the stop (empty otherwise).
+
+    ``hand_past_drill_mm`` (the hand's final offset past the stopped drill),
+    ``max_hand_past_drill_mm`` (the largest over every sample of the stopped state: the wall
+    must be rigid from its first instant), ``wall_held`` (that largest offset within
+    :data:`ctdrill.haptics.renderer.WALL_HOLD_MM`) and ``wall_limits``: when the wall did not
+    hold, the device limits that let the hand through, read from the force the device rendered
+    at the worst sample: its 20 N continuous rating once the thermal limit acted, its 78 N
+    peak, and the travel's end stop where the stage came to rest (None when the wall held).
+    """
+    worst = session.get("max_hand_past_drill_mm")
+    if worst is None or session.get("final_master_mm") is None:
         return {}
+    stopped = session.get("final_state") == "stopped"
     past = max(float(session["final_master_mm"]) - float(session["final_drill_mm"]), 0.0)
-    if past <= WALL_HOLD_MM:
-        return {"hand_past_drill_mm": past, "wall_held": True, "wall_limits": None}
+    worst = max(float(worst), past if stopped else 0.0)
+    account: dict[str, Any] = {
+        "hand_past_drill_mm": past if stopped else None,
+        "max_hand_past_drill_mm": worst,
+    }
+    if worst <= WALL_HOLD_MM:
+        return {**account, "wall_held": True, "wall_limits": None}
+    at_worst = set(session.get("worst_wall_flags") or [])
     raised = [
         name
         for event in session.get("faults", [])
@@ -304,15 +316,15 @@ def wall_summary(session: dict[str, Any]) -> dict[str, Any]:
         for name in event.get("flags", [])
         if name in WALL_LIMITS
     ]
-    force = float(session.get("final_force_cmd_n") or 0.0)
+    force = float(session.get("worst_wall_force_n") or 0.0)
     limits = []
-    if "thermal_limit" in raised and force <= CONTINUOUS_FORCE_N + AT_LIMIT_N:
+    if "thermal_limit" in at_worst and force <= CONTINUOUS_FORCE_N + AT_LIMIT_N:
         limits.append("thermal_limit")
     elif force >= PEAK_FORCE_N - AT_LIMIT_N:
         limits.append("peak_limit")
-    if "travel_limit" in raised:
+    if "travel_limit" in at_worst:
         limits.append("travel_limit")
-    return {"hand_past_drill_mm": past, "wall_held": False, "wall_limits": limits or raised}
+    return {**account, "wall_held": False, "wall_limits": limits or raised}
 
 
 def readout_lines(summary: dict[str, Any]) -> str:
@@ -328,6 +340,9 @@ def readout_lines(summary: dict[str, Any]) -> str:
             f"at the stop the wall holds {summary['final_force_cmd_n']:.1f} N{hand_text}; the "
             f"hand sits {summary['hand_past_drill_mm']:.2f} mm past the stopped drill"
         )
+        worst = summary.get("max_hand_past_drill_mm")
+        if worst is not None and worst > summary["hand_past_drill_mm"] + 0.005:
+            line += f" (at most {worst:.2f} mm while stopped)"
         if summary.get("wall_limits"):
             names = " then ".join(n.replace("_", " ") for n in summary["wall_limits"])
             line += f" (the device's {names} let it through)"

@@ -153,6 +153,8 @@ class Renderer:
         self.w2 = 0.0
         self.stop_depth_mm = 0.0
         self.stop_anchor_mm = math.inf
+        #: The coupling's force when the hand met the wall short of the stop, N (0: not on it).
+        self.contact_n = 0.0
 
     # ------------------------------------------------------------ commands
 
@@ -286,20 +288,12 @@ class Renderer:
             return 0.0
         front = self.front_mm
         stop = self.stop_depth_mm
-        s0, s1, s2 = self.coefficients(front)
-        new_front, coupling = cut_step(
-            front, master_mm, s0, self.ke, self.dt_s, stiffness_n_per_mm=self.k, limit_mm=stop
-        )
-        front_v = (new_front - front) / self.dt_s
-        vib = 0.0
-        if new_front > front:
-            t = now_s - self.t_arm_s
-            vib = s1 * math.sin(self.w1 * t) + s2 * math.sin(self.w2 * t)
-        force = resistance_n(coupling, master_v_mm_s, front_v, vib, damping_n_s_per_mm=self.b)
         anchor = self.stop_anchor_mm
         back_v = master_v_mm_s  # the master's motion away from what it presses on
-        if new_front >= stop and anchor == math.inf:
-            anchor = master_mm if master_mm > stop else stop  # continuous on reaching the stop
+        if anchor == math.inf and (front >= stop or master_mm >= stop):
+            # the wall stands at the stop depth from the hand's first touch of it (continuous):
+            # the hand never runs past the stop on the coupling's stretch
+            anchor = master_mm if master_mm > stop else stop
         elif anchor != math.inf:
             # glides to the stop (the hand is carried to the drill), or follows a faster retreat
             glided = anchor - self.glide_mm
@@ -309,10 +303,35 @@ class Renderer:
                 anchor = glided if glided > stop else stop
                 back_v = master_v_mm_s + (self.stop_anchor_mm - anchor) / self.dt_s
         self.stop_anchor_mm = anchor
-        if master_mm > anchor:
+        spring = self.k_stop * (master_mm - anchor) if master_mm > anchor else 0.0
+        s0, s1, s2 = self.coefficients(front)
+        # short of the stop the front is driven by the whole force the hand meets (coupling and
+        # wall): the drill cuts on to the stop behind a hand the wall holds
+        drive_mm = master_mm
+        if front < stop and spring > 0.0:
+            if self.contact_n == 0.0:  # the hand meets the wall: the push it cut with
+                self.contact_n = self.k * (master_mm - front)
+            # the master held still, its friction hides up to 1 N of the push: the drill cuts
+            # on with the push the hand met the wall with, or more, up to what the device renders
+            push = self.k * (master_mm - front) + spring
+            push = min(max(push, self.contact_n), self.peak_force_n)
+            drive_mm = front + push / self.k
+        else:
+            self.contact_n = 0.0
+        new_front, coupling = cut_step(
+            front, drive_mm, s0, self.ke, self.dt_s, stiffness_n_per_mm=self.k, limit_mm=stop
+        )
+        if drive_mm != master_mm:  # the coupling's own share of the force
+            coupling -= self.k * (drive_mm - master_mm)
+        front_v = (new_front - front) / self.dt_s
+        vib = 0.0
+        if new_front > front:
+            t = now_s - self.t_arm_s
+            vib = s1 * math.sin(self.w1 * t) + s2 * math.sin(self.w2 * t)
+        force = resistance_n(coupling, master_v_mm_s, front_v, vib, damping_n_s_per_mm=self.b)
+        if spring > 0.0:
             # spring and damper, the damper within the spring's force: the wall starts from 0
             # on contact at any speed, and never pulls
-            spring = self.k_stop * (master_mm - anchor)
             damper = self.b_stop * master_v_mm_s
             force += spring + (
                 damper if -spring < damper < spring else math.copysign(spring, damper)

@@ -75,6 +75,11 @@ class SessionResult:
     #: device's watchdog it says the host itself was late (a machine too busy to run it),
     #: beyond it with an injected ``delay`` or ``link-loss``.
     max_heartbeat_gap_s: float = 0.0
+    #: The hand's largest offset past the drill over the samples of the stopped state, mm, and
+    #: the force rendered and the flags raised at that sample (None: never stopped).
+    max_hand_past_drill_mm: float | None = None
+    worst_wall_force_n: float | None = None
+    worst_wall_faults: int = 0
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dict."""
@@ -98,6 +103,9 @@ class SessionResult:
             "final_hand_est_n": self.final_hand_est_n,
             "retraction": self.retraction,
             "max_heartbeat_gap_s": self.max_heartbeat_gap_s,
+            "max_hand_past_drill_mm": self.max_hand_past_drill_mm,
+            "worst_wall_force_n": self.worst_wall_force_n,
+            "worst_wall_flags": fault_names(self.worst_wall_faults),
         }
 
 
@@ -193,8 +201,15 @@ class _Loop:
             result.max_drill_mm = max(result.max_drill_mm, s.drill_mm)
             result.max_master_mm = max(result.max_master_mm, s.master_mm)
             result.max_force_cmd_n = max(result.max_force_cmd_n, s.force_cmd_n)
-            if result.time_to_stop_s is None and s.state == DeviceState.STOPPED:
-                result.time_to_stop_s = round(t, 4)
+            if s.state == DeviceState.STOPPED:
+                if result.time_to_stop_s is None:
+                    result.time_to_stop_s = round(t, 4)
+                past = s.master_mm - s.drill_mm
+                worst = result.max_hand_past_drill_mm
+                if worst is None or past > worst:
+                    result.max_hand_past_drill_mm = max(past, 0.0)
+                    result.worst_wall_force_n = s.force_cmd_n
+                    result.worst_wall_faults = s.faults
             new_bits = s.faults & ~self.prev_faults
             if new_bits:
                 result.faults.append(

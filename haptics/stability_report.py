@@ -141,6 +141,15 @@ def _hand_offset_mm(
     return float(run.master_mm[-1]) - 1.0
 
 
+def max_past_stopped_mm(run: Any) -> float:
+    """The hand's largest offset past the drill over the ticks the front stood at the stop,
+    mm (0: it never got there)."""
+    stopped = run.front_mm >= run.front_mm.max() - 1e-12
+    if not math.isfinite(run.stop_reached_s) or not stopped.any():
+        return 0.0
+    return float(max(0.0, (run.master_mm[stopped] - run.front_mm[stopped]).max()))
+
+
 def coupling_report() -> dict[str, Any]:
     """Poles, margins, Colgate's terms and the simulated passivity of the coupling."""
     k = DEFAULT_STIFFNESS_N_PER_MM
@@ -198,6 +207,7 @@ def coupling_report() -> dict[str, Any]:
                 "final_force_n": float(run.force_n[-1]),
                 "max_force_n": float(run.force_n.max()),
                 "hand_past_drill_mm": float(run.master_mm[-1] - run.front_mm[-1]),
+                "max_past_drill_mm": max_past_stopped_mm(run),
                 "settled_range_mm": run.settled_range_mm(),
                 "min_energy_in_j": float(run.energy_in_j.min()),
                 "min_dissipated_j": None if run.clipped else float(run.dissipated_j.min()),
@@ -295,14 +305,16 @@ def report_markdown(report: dict[str, Any]) -> str:
     lines += [
         "",
         "| push (N) | final force (N) | max force (N) | hand past the drill (mm) "
+        "| at most, while stopped (mm) "
         "| motion in the last 0.1 s (mm) | min E(n) (J) | min D(n) (J) | G (J) "
         "| force limit acted |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for p in report["pushes"]:
         lines.append(
             f"| {_g(p['push_n'])} | {p['final_force_n']:.2f} | {p['max_force_n']:.2f} "
-            f"| {p['hand_past_drill_mm']:.3f} | {_g(p['settled_range_mm'], 3)} "
+            f"| {p['hand_past_drill_mm']:.3f} | {p['max_past_drill_mm']:.3f} "
+            f"| {_g(p['settled_range_mm'], 3)} "
             f"| {_g(p['min_energy_in_j'], 3)} | {_g(p['min_dissipated_j'], 3)} "
             f"| {_g(p['glide_j'], 3)} | {_g(p['clipped'])} |"
         )

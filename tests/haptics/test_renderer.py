@@ -111,24 +111,28 @@ def test_stop_depth_is_never_passed_and_the_wall_is_continuous() -> None:
 
 
 def test_the_stop_anchor_glides_to_the_stop_and_carries_the_hand_back() -> None:
-    # The front reaches the stop (1 mm) with the master 3 mm deep: the wall starts there (no
-    # force step), then its anchor glides to the stop at STOP_GLIDE_MM_S: held at 3 mm the
-    # master meets a wall force growing by K_w * glide per tick, 2 mm in 0.1 s.
+    # The master jumps to 3 mm, past the stop (1 mm), the front still at the surface: the wall
+    # starts where the master is (no force step), the drill cuts on to the stop driven by the
+    # coupling and the wall, and the anchor glides to the stop at STOP_GLIDE_MM_S: held at 3 mm
+    # the master meets a wall force growing by K_w * glide per tick once the front has stopped.
     table = ProfileTable.slab(s0_n=2.0, top_mm=0.0, bottom_mm=40.0, stop_depth_mm=1.0)
     r = armed(table, peak_force_n=1e9, thermal_budget_n2_s=1e9)
-    now, anchors, forces = 0.0, [], []
+    now, anchors, forces, fronts = 0.0, [], [], []
     for _ in range(2000):
         now += DT
         r.host_frame(now)
         forces.append(r.tick(now, 3.0, 0.0))
         anchors.append(r.stop_anchor_mm)
+        fronts.append(r.front_mm)
     first = next(i for i, a in enumerate(anchors) if math.isfinite(a))
-    assert anchors[first] == 3.0 and r.state == DeviceState.STOPPED
+    assert first == 0 and anchors[first] == 3.0 and r.state == DeviceState.STOPPED
     glide_mm = STOP_GLIDE_MM_S * DT
     n_glide = round(2.0 / glide_mm)
     assert anchors[first + n_glide - 1] == pytest.approx(1.0 + glide_mm, abs=1e-9)
     assert anchors[first + n_glide] == pytest.approx(1.0, abs=1e-9) and anchors[-1] == 1.0
-    rise = np.diff(forces[first + 1 : first + n_glide])  # after the tick the front stopped
+    stopped = next(i for i, f in enumerate(fronts) if f >= 1.0)
+    assert stopped < n_glide // 2  # the whole push drives the drill: it reaches the stop early
+    rise = np.diff(forces[stopped + 1 : first + n_glide])  # after the tick the front stopped
     assert np.allclose(rise, STOP_WALL_N_PER_MM * glide_mm, atol=1e-9)
     assert forces[-1] == pytest.approx((11.0 + STOP_WALL_N_PER_MM) * 2.0)
 

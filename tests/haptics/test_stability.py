@@ -33,7 +33,11 @@ from ctdrill.haptics.stability import (
     spectral_radius,
     stiffness_limit_n_per_mm,
 )
-from ctdrill.haptics.stability_report import coupling_report, report_markdown
+from ctdrill.haptics.stability_report import (
+    coupling_report,
+    max_past_stopped_mm,
+    report_markdown,
+)
 from ctdrill.haptics.stability_sim import simulate_push
 from ctdrill.model.cutting import DEFAULT_DAMPING_N_S_PER_MM, DEFAULT_STIFFNESS_N_PER_MM
 from tests.conftest import ROOT
@@ -146,16 +150,16 @@ def test_poles_predict_where_the_simulation_goes_unstable() -> None:
     assert above.settled_range_mm() > 1.0 and above.clipped
     assert below.dissipated_j.min() > -1e-4
     assert above.dissipated_j.min() < -0.1
-    # With the master's 1 N Coulomb friction too: settled at 0.8x, ringing at 1.25x (the wall's
-    # damper, not friction, is what keeps the stiff wall stable), and by 2x the coupling even
-    # returns more energy than it took (E(n) < 0).
+    # With the master's 1 N Coulomb friction too: settled at 0.8x, ringing at 2x (the wall's
+    # damper, not friction, is what keeps the stiff wall stable; at 1.25x the wall, met at the
+    # stop depth from the first touch, gets no kick above the friction's band), and by 2x the
+    # coupling even returns more energy than it took (E(n) < 0).
     assert _wall_push(0.8).settled_range_mm() == 0.0
-    assert _wall_push(1.25).settled_range_mm() > 0.5
     far = _wall_push(2.0)
     assert far.settled_range_mm() > 1.0 and far.energy_in_j.min() < -0.01
     # The release damper, damping every move back, keeps such a wall from ringing up to the
     # peak force, but not from generating energy: the limit stays the wall's.
-    damped = _wall_push(1.25, release_damping_n_s_per_mm=RELEASE_DAMPING_N_S_PER_MM)
+    damped = _wall_push(2.0, release_damping_n_s_per_mm=RELEASE_DAMPING_N_S_PER_MM)
     assert damped.settled_range_mm() < 0.5 and damped.energy_in_j.min() < -0.01
 
 
@@ -190,8 +194,11 @@ def test_the_paper_stiffness_is_stable_with_margin_at_every_operating_point(
     )
     assert released[-1]["stiffness_n_per_mm"] == 0.0 and released[-1]["damping_margin"] > 8.0
     offsets = {(k, wall[0]): mm for k, wall, mm in report["hand_offset_mm"]}
-    assert offsets[(11.0, 20.0)] == pytest.approx(30.0 / 11.0, abs=0.05)
-    assert offsets[(3.2, 20.0)] > 8.5  # the "about 9 mm" before
+    # the earlier walls (20 N/mm), now met at the stop depth from the first touch: 30 N rests
+    # at 30 N / (k + 20) N/mm, within the master's 1 N friction (they held it 2.7 and 8.9 mm
+    # past the drill when the wall stood only from the drill's arrival)
+    for k in (11.0, 3.2):
+        assert offsets[(k, 20.0)] == pytest.approx(30.0 / (k + 20.0), abs=1.0 / (k + 20.0))
     # now the wall holds the hand at 30 N / (11 + 200) N/mm past the stopped drill
     assert offsets[(11.0, STOP_WALL_N_PER_MM)] == pytest.approx(30.0 / WALL, abs=0.01)
     # Without its dampers the wall is unstable (the DOB leaves the master no damping of its
@@ -227,7 +234,9 @@ def test_stable_and_passive_over_operator_forces(push_n: float, step_at_s: float
     assert run.force_n.max() <= PEAK_FORCE_N
     assert run.energy_in_j.min() >= 0.0
     if push_n < PEAK_FORCE_N:
-        assert not run.clipped or push_n >= 60.0  # 60 N overshoots the peak on impact only
+        # from 20 N a step from rest 1 mm above the stop meets the wall (rigid from its first
+        # touch) fast enough to overshoot the peak on impact, for a few ticks only
+        assert not run.clipped or push_n >= 20.0
         if not run.clipped:
             assert run.dissipated_j.min() > -1e-6
         assert run.settled_range_mm() < 1e-3 or 4.0 < push_n < 6.0  # slow cut still going
@@ -243,7 +252,10 @@ def test_stable_and_passive_over_operator_forces(push_n: float, step_at_s: float
             assert offset == pytest.approx(push_n / WALL, abs=1.0 / WALL)
             assert offset < WALL_HOLD_MM
             # the anchor's glide carried the hand back: bounded, at most the force times F/k
-            assert 0.0 < run.glide_j[-1] <= push_n * 1e-3 * push_n / K
+            assert 0.0 <= run.glide_j[-1] <= push_n * 1e-3 * push_n / K
+            # rigid from its first instant: every tick of the stopped state within the hold,
+            # or the peak limit acted (a step from rest arrives too fast for 78 N to stop)
+            assert max_past_stopped_mm(run) <= WALL_HOLD_MM or run.clipped
         # the oscillation after the impact decays: the last 0.1 s moves less than the first
         n = int(0.1 / 1e-4)
         i0 = int(step_at_s / 1e-4)
