@@ -43,9 +43,8 @@ from ctdrill.haptics.assessment import AssessmentContext, Assessor
 from ctdrill.haptics.device import Device
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import SessionResult, run_session
-from ctdrill.haptics.serial_device import SerialDevice
 from ctdrill.haptics.session import SessionCsv, parse_fault, parse_operator
-from ctdrill.haptics.sim import SimulatedDevice
+from ctdrill.haptics.spec import DeviceSpec
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.dicom.grey import GreyToHu
 from ctdrill.imaging.plan.load import load_one_plan
@@ -105,14 +104,9 @@ def load_table(
     )
 
 
-def open_device(spec: str, *, seed: int = 0) -> Device:
-    """``sim`` or ``serial:PORT`` (a device path, a pty link, or a pyserial URL)."""
-    if spec == "sim":
-        return SimulatedDevice(seed=seed)
-    kind, sep, port = spec.partition(":")
-    if kind == "serial" and sep and port:
-        return SerialDevice(port)
-    raise AppInputError(f"--device {spec!r}: use sim or serial:PORT (e.g. serial:/dev/ttyUSB0)")
+def open_device(spec: DeviceSpec, *, seed: int = 0) -> Device:
+    """Open the device ``spec`` names (:meth:`ctdrill.haptics.spec.DeviceSpec.open`)."""
+    return spec.open(seed=seed)
 
 
 def rehearsal_summary(
@@ -205,7 +199,7 @@ def rehearse(
     out: Path,
     operator: str,
     duration_s: float,
-    device: str = "sim",
+    device: str | DeviceSpec = "sim",
     faults: Sequence[str] = (),
     seed: int = 0,
     interpolate_gaps: bool = False,
@@ -236,11 +230,12 @@ def rehearse(
     if not (math.isfinite(duration_s) and 0.0 < duration_s <= 3600.0):
         raise AppInputError(f"--duration-s {duration_s}: give 0 < seconds <= 3600")
     op = parse_operator(operator)
+    spec = device if isinstance(device, DeviceSpec) else DeviceSpec.parse(device)
     manual_hu = hu_sigma_uncertainty(hu_sigma)
     fault_specs = [parse_fault(f) for f in faults]
     target = None if igtl is None else parse_target(igtl)
     if exam:
-        refuse_exam_device(device)
+        refuse_exam_device(spec)
     whole = load_one_plan([plan] if isinstance(plan, Path) else plan, trajectory=trajectory)
     if len(whole.drills) > 1:  # a drill sequence: one session per drill (exam: each drill's)
         from ctdrill.app.rehearse_sequence import rehearse_sequence
@@ -251,7 +246,7 @@ def rehearse(
             out=out,
             operator=op,
             duration_s=duration_s,
-            device=device,
+            device=spec,
             faults=fault_specs,
             seed=seed,
             interpolate_gaps=interpolate_gaps,
@@ -270,11 +265,11 @@ def rehearse(
     hu = hu_uncertainty(loaded.grey_map, manual_hu)
     assessor = Assessor(loaded.context, loaded.table)
     with atomic_output_dir(out) as stage:
-        dev = open_device(device, seed=seed)
+        dev = open_device(spec, seed=seed)
         stream = None
         if target is not None:
             geometry = StreamGeometry.of_plan(loaded.path.plan)
-            stream = IgtlStream(target, geometry, on_warning=on_warning, pace=device == "sim")
+            stream = IgtlStream(target, geometry, on_warning=on_warning, pace=not spec.paced)
         try:
             csv_out = SessionCsv(stage / "session.csv")
             try:
@@ -299,7 +294,7 @@ def rehearse(
             loaded.path,
             loaded.table,
             operator=op.spec,
-            device=device,
+            device=spec.label,
             duration_s=duration_s,
             seed=seed,
             hu=hu,

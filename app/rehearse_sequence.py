@@ -49,6 +49,7 @@ from ctdrill.haptics.assessment import Assessor, combine_assessments
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import FaultSpec, Operator, SessionCsv
+from ctdrill.haptics.spec import DeviceSpec
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.model.band import HuUncertainty
@@ -71,7 +72,7 @@ def rehearse_sequence(
     out: Path,
     operator: Operator,
     duration_s: float,
-    device: str,
+    device: DeviceSpec,
     faults: Sequence[FaultSpec],
     seed: int,
     interpolate_gaps: bool,
@@ -151,7 +152,7 @@ def rehearse_sequence(
                 path,
                 table,
                 operator=operator.spec,
-                device=device,
+                device=device.label,
                 duration_s=duration_s,
                 seed=seed,
                 hu=hu,
@@ -177,7 +178,7 @@ def _streaming(
     igtl: IgtlTarget | None,
     first: Plan,
     on_warning: Callable[[str], None] | None,
-    device: str,
+    device: DeviceSpec,
 ) -> Iterator[IgtlStream | None]:
     """The sequence's one stream (None without ``igtl``), closed however the sequence ends
     (closing twice is harmless: the report is taken from the first)."""
@@ -187,7 +188,7 @@ def _streaming(
     from ctdrill.app.igtl.stream import IgtlStream
 
     geometry = StreamGeometry.of_plan(first)
-    stream = IgtlStream(igtl, geometry, on_warning=on_warning, pace=device == "sim")
+    stream = IgtlStream(igtl, geometry, on_warning=on_warning, pace=not device.paced)
     try:
         yield stream
     finally:

@@ -10,7 +10,7 @@ the host logic of :class:`ctdrill.haptics.host.HostDevice`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from ctdrill.haptics.errors import HapticsInputError
 from ctdrill.haptics.profile_table import ProfileTable
@@ -79,7 +79,8 @@ class TelemetrySample:
 
 
 class Device(Protocol):
-    """Host API of a haptic device (simulated or serial)."""
+    """Host API of a haptic device (simulated or serial); what only a simulator or emulator
+    carries out is :class:`SimulatorControls`."""
 
     def hello(self) -> DeviceInfo:
         """Open the session: version and limits; raises :class:`DeviceError` on no answer."""
@@ -106,18 +107,6 @@ class Device(Protocol):
         """Feed the device watchdog (send at least every 50 ms while armed)."""
         ...
 
-    def set_operator(self, kind: int, value: float) -> None:
-        """Simulated hand (simulator/emulator only; real hardware refuses it)."""
-        ...
-
-    def write_raw(self, data: bytes) -> None:
-        """Raw bytes to the device (fault injection)."""
-        ...
-
-    def sim_reset(self) -> None:
-        """Ask the emulator to power-cycle (fault injection)."""
-        ...
-
     def poll(self) -> list[TelemetrySample]:
         """Telemetry of this session received since the last poll, oldest first (after ARM:
         only what the device sent once armed)."""
@@ -142,3 +131,26 @@ class Device(Protocol):
     def close(self) -> None:
         """Release the link."""
         ...
+
+
+@runtime_checkable
+class SimulatorControls(Protocol):
+    """What a host may ask of a simulated device or an emulator on a link (the simulated
+    hand, fault injection); real hardware refuses SIM_OPERATOR and SIM_RESET."""
+
+    def set_operator(self, kind: int, value: float) -> None:
+        """Simulated hand (:class:`ctdrill.haptics.protocol.OperatorKind` and its value)."""
+        ...
+
+    def write_raw(self, data: bytes) -> None:
+        """Raw bytes to the device (fault injection)."""
+        ...
+
+    def sim_reset(self) -> None:
+        """Ask the emulator to power-cycle (fault injection)."""
+        ...
+
+
+def simulator_controls(device: Device) -> SimulatorControls | None:
+    """``device``'s simulator controls, or None for a device without them."""
+    return device if isinstance(device, SimulatorControls) else None

@@ -1,4 +1,6 @@
-"""The device emulator: protocol handling + renderer + force controller + plant + simulated hand.
+"""The device emulator: protocol handling + renderer + the device's physics (force controller,
+mechanism and simulated hand: an injected :class:`ctdrill.haptics.physics.Physics`, by
+default the paper's master, :class:`ctdrill.haptics.physics.MasterPhysics`).
 
 Bytes in (:meth:`DeviceEmulator.receive`), ticks run (:meth:`DeviceEmulator.run_ticks`), bytes out
 (:meth:`DeviceEmulator.take_output`). The same object runs in-process behind
@@ -22,7 +24,8 @@ from __future__ import annotations
 import math
 import random
 
-from ctdrill.haptics.plant import TRAVEL_MM, ForceController, MasterPlant
+from ctdrill.haptics.physics import MasterPhysics, Physics
+from ctdrill.haptics.plant import ForceController, MasterPlant
 from ctdrill.haptics.profile_table import MAX_PROFILE_STEPS
 from ctdrill.haptics.protocol import (
     DEVICE_TYPES,
@@ -41,7 +44,6 @@ from ctdrill.haptics.protocol import (
     MessageError,
     Nak,
     NakReason,
-    OperatorKind,
     Packet,
     ProfileBegin,
     ProfileChunk,
@@ -70,14 +72,6 @@ from ctdrill.haptics.tick import TICK_HZ
 FW_VERSION = (0, 1, 0)
 #: Telemetry every this many ticks (1 kHz at 10 kHz).
 TELEMETRY_EVERY = 10
-#: The simulated hand in FEED mode: a stiff spring-damper to a reference moving at the feed.
-HAND_STIFFNESS_N_PER_MM = 5.0
-HAND_DAMPING_N_S_PER_MM = 0.05
-#: The simulated hand's bounds (SIM_OPERATOR values beyond them are clamped; ``--operator``
-#: and operator scripts are refused beyond them): it pushes at most the device's peak force,
-#: and feeds at most 200 mm/s.
-HAND_MAX_N = PEAK_FORCE_N
-HAND_MAX_FEED_MM_S = 200.0
 
 
 class DeviceEmulator:
@@ -91,27 +85,33 @@ class DeviceEmulator:
         Control rate, Hz.
     nonce_seed : int, optional
         Seeds the session nonces (reproducible simulation); default: the OS random source.
+    physics : Physics, optional
+        The controller, mechanism and hand (ticking at ``tick_hz``); default: the paper's
+        master at ``start_mm``.
     """
 
     def __init__(
-        self, *, start_mm: float = 0.0, tick_hz: int = TICK_HZ, nonce_seed: int | None = None
+        self,
+        *,
+        start_mm: float = 0.0,
+        tick_hz: int = TICK_HZ,
+        nonce_seed: int | None = None,
+        physics: Physics | None = None,
     ) -> None:
         self.tick_hz = tick_hz
         self.dt_s = 1.0 / tick_hz
         self.ticks = 0
         self.overruns = 0
         self.start_mm = start_mm
-        self.plant = MasterPlant(start_mm=start_mm)
-        self.controller = ForceController(start_mm=start_mm, dt_s=self.dt_s)
+        self.physics: Physics = (
+            physics if physics is not None else MasterPhysics(start_mm=start_mm, dt_s=self.dt_s)
+        )
         self.renderer = Renderer(tick_hz=tick_hz)
         self._reader = FrameReader()
         self._out = bytearray()
         self._seq = 0
         self._upload: ProfileBegin | None = None
         self._rows: list[tuple[float, float, float]] = []
-        self.operator_kind = int(OperatorKind.NONE)
-        self.operator_value = 0.0
-        self._feed_ref_mm = 0.0
         self.hand_n = 0.0
         self.frames_rejected = 0
         self._boot_fault = int(Fault.RESET)
@@ -130,6 +130,29 @@ class DeviceEmulator:
     def now_s(self) -> float:
         """Device clock, s."""
         return self.ticks * self.dt_s
+
+    def _master(self) -> MasterPhysics:
+        if not isinstance(self.physics, MasterPhysics):
+            raise AttributeError("this emulator's physics is not the master's plant")
+        return self.physics
+
+    @property
+    def plant(self) -> MasterPlant:
+        """The master's plant (default physics only)."""
+        return self._master().plant
+
+    @plant.setter
+    def plant(self, plant: MasterPlant) -> None:
+        self._master().plant = plant
+
+    @property
+    def controller(self) -> ForceController:
+        """The master's force controller (default physics only)."""
+        return self._master().controller
+
+    @controller.setter
+    def controller(self, controller: ForceController) -> None:
+        self._master().controller = controller
 
     # ------------------------------------------------------------ I/O
 
@@ -229,7 +252,7 @@ class DeviceEmulator:
                 THERMAL_BUDGET_N2_S,
                 round(WATCHDOG_S * 1000),
                 MAX_PROFILE_STEPS,
-                *TRAVEL_MM,
+                *self.physics.travel_mm,
             )
         )
 
@@ -299,7 +322,7 @@ class DeviceEmulator:
                 return NakReason.NOT_READY  # no table uploaded in this session
             if msg.table_crc32 != self.table_crc32:
                 return NakReason.PROFILE_CRC  # not the table the host means
-            refused = r.arm(now, self.plant.encoder_mm())
+            refused = r.arm(now, self.physics.encoder_mm())
             if refused is None:
                 self._boot_fault = 0
             return refused
@@ -312,28 +335,14 @@ class DeviceEmulator:
         return NakReason.UNKNOWN_TYPE  # not reached: every host type is handled above
 
     def _set_operator(self, msg: SimOperator) -> NakReason | None:
-        """The simulated hand: PUSH N (negative pulls the handle back), FEED mm/s (negative
-        retracts), NONE (no hand). Values beyond :data:`HAND_MAX_N` / :data:`HAND_MAX_FEED_MM_S`
-        are clamped; NaN, inf or an unknown kind are refused and the hand keeps its previous
-        input."""
-        if msg.kind not in tuple(OperatorKind):
-            return NakReason.BAD_VALUE
-        if not math.isfinite(msg.value):
-            return NakReason.NONFINITE
-        if msg.kind == OperatorKind.FEED and (
-            self.operator_kind != OperatorKind.FEED or msg.value != self.operator_value
-        ):
-            self._feed_ref_mm = self.plant.position_mm
-        self.operator_kind = msg.kind
-        limit = HAND_MAX_N if msg.kind == OperatorKind.PUSH else HAND_MAX_FEED_MM_S
-        self.operator_value = max(-limit, min(limit, msg.value))
-        return None
+        """The simulated hand's input (:meth:`ctdrill.haptics.physics.Physics.set_operator`)."""
+        return self.physics.set_operator(msg.kind, msg.value)
 
     def reset(self) -> None:
         """Power cycle: table, session and state lost (the stage stays where it is, the hand
         keeps doing what it did); RESET reported; unsent output is kept (it left before)."""
         self.renderer = Renderer(tick_hz=self.tick_hz)
-        self.controller = ForceController(start_mm=self.plant.encoder_mm(), dt_s=self.dt_s)
+        self.physics.power_cycle()
         self._upload = None
         self._reader = FrameReader()
         self._boot_fault = int(Fault.RESET)
@@ -349,18 +358,6 @@ class DeviceEmulator:
 
     # ------------------------------------------------------------ ticks
 
-    def _hand_force_n(self) -> float:
-        kind = self.operator_kind
-        if kind == OperatorKind.PUSH:
-            return self.operator_value
-        if kind == OperatorKind.FEED:
-            self._feed_ref_mm += self.operator_value * self.dt_s
-            force = HAND_STIFFNESS_N_PER_MM * (
-                self._feed_ref_mm - self.plant.position_mm
-            ) + HAND_DAMPING_N_S_PER_MM * (self.operator_value - self.plant.v_m_s * 1e3)
-            return max(-HAND_MAX_N, min(HAND_MAX_N, force))
-        return 0.0
-
     def run_ticks(self, n: int) -> None:
         """Run ``n`` control ticks (telemetry every :data:`TELEMETRY_EVERY`)."""
         for _ in range(n):
@@ -371,39 +368,31 @@ class DeviceEmulator:
                 self._telemetry()
 
     def control_tick(self) -> None:
-        """One control tick without I/O: renderer, force controller, hand, plant (the loop
-        :mod:`ctdrill.haptics.stability_sim` also runs)."""
+        """One control tick without I/O: renderer, then the physics (controller, hand,
+        mechanism; the loop :mod:`ctdrill.haptics.stability_sim` also runs)."""
         r = self.renderer
-        c = self.controller
-        p = self.plant
+        ph = self.physics
         self.ticks += 1
-        x_mm = p.encoder_mm()
-        # the velocity and hand estimates are the previous tick's (the controller updates
-        # them below)
-        force = r.tick(self.ticks * self.dt_s, x_mm, c.velocity_mm_s, c.hand_est_n)
+        # the velocity and hand estimates are the previous tick's (the physics updates them)
+        force = r.tick(self.ticks * self.dt_s, ph.encoder_mm(), ph.velocity_mm_s, ph.hand_est_n)
         state = r.state
-        if state == DeviceState.CUTTING or state == DeviceState.STOPPED:
-            current = c.update(x_mm, force)
-        else:
-            current = c.idle(x_mm)
-        hand = self._hand_force_n()
-        self.hand_n = hand
-        p.step(current, hand, self.dt_s)
+        ph.step(force, engaged=state == DeviceState.CUTTING or state == DeviceState.STOPPED)
+        self.hand_n = ph.hand_n
 
     def _telemetry(self) -> None:
         r = self.renderer
-        c = self.controller
+        ph = self.physics
         faults = r.faults | self._boot_fault
-        if self.plant.at_end_stop:
+        if ph.at_end_stop:
             faults |= Fault.TRAVEL_LIMIT
         self._send(
             Telemetry(
                 self.ticks & 0xFFFFFFFF,
-                self.plant.encoder_mm(),
+                ph.encoder_mm(),
                 r.drill_mm,
-                c.velocity_mm_s,
+                ph.velocity_mm_s,
                 r.force_cmd_n,
-                c.hand_est_n,
+                ph.hand_est_n,
                 r.state,
                 faults,
                 min(self.overruns, 0xFFFF),

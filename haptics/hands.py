@@ -27,7 +27,7 @@ from typing import Protocol
 import numpy as np
 
 from ctdrill.haptics.device import TelemetrySample
-from ctdrill.haptics.emulator import HAND_MAX_N
+from ctdrill.haptics.physics import HAND_MAX_N
 from ctdrill.haptics.plant import COULOMB_N
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import DeviceState, OperatorKind

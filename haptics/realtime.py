@@ -29,7 +29,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ctdrill.haptics.emulator import DeviceEmulator
+from ctdrill.haptics.core import DeviceCore, make_core
 from ctdrill.haptics.errors import HapticsInputError
 
 OVERRUN_S = 0.005
@@ -111,7 +111,7 @@ class RealtimeStats:
 
 def run_realtime(
     fd: int,
-    emulator: DeviceEmulator,
+    emulator: DeviceCore,
     *,
     should_stop: Callable[[], bool],
     duration_s: float | None = None,
@@ -124,7 +124,8 @@ def run_realtime(
     ----------
     fd : int
         Non-blocking byte stream (pty master).
-    emulator : DeviceEmulator
+    emulator : DeviceCore
+        The device (:mod:`ctdrill.haptics.core`).
     should_stop : callable
         Polled every wakeup.
     duration_s : float, optional
@@ -314,9 +315,10 @@ def pty_link(path: Path) -> Iterator[int]:
 
 
 def serve_pty(
-    path: Path, *, duration_s: float | None = None, start_mm: float = 0.0
+    path: Path, *, duration_s: float | None = None, start_mm: float = 0.0, core: str = "python"
 ) -> RealtimeStats:
-    """``ctdrill emulate``: serve a fresh emulator on a pty linked at ``path`` until SIGTERM/SIGINT.
+    """``ctdrill emulate``: serve a fresh device ``core`` (:data:`ctdrill.haptics.core.CORES`)
+    on a pty linked at ``path`` until SIGTERM/SIGINT.
 
     Prints one line ``emulating on PATH -> /dev/pts/N`` once the link exists.
     """
@@ -332,7 +334,7 @@ def serve_pty(
             print(f"emulating on {path} -> {os.readlink(path)}", flush=True)
             return run_realtime(
                 fd,
-                DeviceEmulator(start_mm=start_mm),
+                make_core(core, start_mm=start_mm),
                 should_stop=lambda: stop[0],
                 duration_s=duration_s,
             )

@@ -15,7 +15,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from ctdrill.haptics.device import Device, DeviceRefused
+from ctdrill.haptics.device import Device, DeviceRefused, simulator_controls
 from ctdrill.haptics.protocol import NakReason, OperatorKind
 
 #: The simulated hand retracts at this feed, mm/s (60 mm of travel in 1.2 s).
@@ -69,6 +69,7 @@ def arm_retracted(
         if exc.reason != NakReason.NOT_RETRACTED:
             raise
     start = device.clock_s()
+    sim = simulator_controls(device)
     depth = _depth(device, block_s)
     if notice is not None:
         notice(
@@ -77,12 +78,14 @@ def arm_retracted(
         )
     first = depth
     while device.clock_s() - start < wait_s:
-        device.set_operator(int(OperatorKind.FEED), RETRACT_FEED_MM_S)
+        if sim is not None:
+            sim.set_operator(int(OperatorKind.FEED), RETRACT_FEED_MM_S)
         device.wait(block_s)
         depth = _depth(device, 0.0, depth)
         if depth > RETRACT_TO_MM:
             continue
-        device.set_operator(int(OperatorKind.NONE), 0.0)
+        if sim is not None:
+            sim.set_operator(int(OperatorKind.NONE), 0.0)
         device.wait(SETTLE_S)
         depth = _depth(device, 0.0, depth)
         try:
@@ -92,7 +95,8 @@ def arm_retracted(
                 raise
             continue
         return Retraction(first, depth, device.clock_s() - start)
-    device.set_operator(int(OperatorKind.NONE), 0.0)
+    if sim is not None:
+        sim.set_operator(int(OperatorKind.NONE), 0.0)
     raise DeviceRefused(
         f"the device refused ARM (NOT_RETRACTED): the handle stayed {depth:.1f} mm deep for "
         f"{wait_s:g} s; retract it to the entry point and start again",

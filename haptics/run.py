@@ -27,7 +27,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from ctdrill.haptics.device import Device, DeviceError, DeviceRefused, TelemetrySample
+from ctdrill.haptics.device import (
+    Device,
+    DeviceError,
+    DeviceRefused,
+    TelemetrySample,
+    simulator_controls,
+)
 from ctdrill.haptics.hands import Hand, hand_for
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import DeviceState, OperatorKind
@@ -124,6 +130,7 @@ class _Loop:
         hand: Hand,
     ) -> None:
         self.device = device
+        self.sim = simulator_controls(device)
         self.on_samples = on_samples
         self.operator = operator
         self.hand = hand
@@ -160,12 +167,17 @@ class _Loop:
             )
             if fault.kind == "link-loss":
                 self.link_up = False
-            elif fault.kind == "garbage" and self.link_up:
-                self.device.write_raw(bytes(self.rng.randrange(256) for _ in range(GARBAGE_BYTES)))
+            elif fault.kind == "garbage" and self.link_up and self.sim is not None:
+                self.sim.write_raw(bytes(self.rng.randrange(256) for _ in range(GARBAGE_BYTES)))
             elif fault.kind == "delay":
                 self.hold_until = now + fault.duration_ms / 1000.0
-            elif fault.kind == "reset" and self.link_up:
-                self.device.sim_reset()
+            elif fault.kind == "reset" and self.link_up and self.sim is not None:
+                self.sim.sim_reset()
+
+    def operate(self, kind: int, value: float) -> None:
+        """The simulated hand's input (a device without simulator controls takes none)."""
+        if self.sim is not None:
+            self.sim.set_operator(kind, value)
 
     def send(self, now: float) -> None:
         """The block's heartbeat and operator input (held while a delay is injected)."""
@@ -177,10 +189,10 @@ class _Loop:
             return
         for held_kind, held_value in self.held:
             self.device.heartbeat()
-            self.device.set_operator(held_kind, held_value)
+            self.operate(held_kind, held_value)
         self.held.clear()
         self.device.heartbeat()
-        self.device.set_operator(kind, value)
+        self.operate(kind, value)
         beat_s = self.device.clock_s()
         if self.last_beat_s is not None:
             gap = beat_s - self.last_beat_s
@@ -384,9 +396,9 @@ def run_session(
     result = SessionResult(stop_depth_mm=float(table.stop_depth_mm))
     info = device.hello()
     device.upload_profile(table)
-    device.set_operator(int(OperatorKind.NONE), 0.0)
     driver = hand if hand is not None else hand_for(operator, table)
     loop = _Loop(device, operator, faults, seed, result, sink, on_samples, driver)
+    loop.operate(int(OperatorKind.NONE), 0.0)
     try:
         retraction = arm_retracted(device, notice=notice)
     except DeviceRefused:

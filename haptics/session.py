@@ -4,7 +4,7 @@ The host loop that runs a session is :func:`ctdrill.haptics.run.run_session`.
 
 Operators (``--operator``): ``push:N`` constant hand force N newtons; ``feed:V`` the hand
 moves at a constant feed V mm/s (a stiff hand, its force capped at the device's peak force,
-:data:`~ctdrill.haptics.emulator.HAND_MAX_N`); ``script:FILE`` a CSV ``time_s,force_n`` (linear
+:data:`~ctdrill.haptics.physics.HAND_MAX_N`); ``script:FILE`` a CSV ``time_s,force_n`` (linear
 between rows, held after the last); ``human:force=N,react_ms=T[,noise_n=S,seed=K]`` a person
 (:class:`HumanSpec`; what it does in a session: :class:`ctdrill.haptics.hands.HumanHand`).
 
@@ -25,8 +25,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
-from ctdrill.haptics.emulator import HAND_MAX_FEED_MM_S, HAND_MAX_N
 from ctdrill.haptics.errors import HapticsInputError
+from ctdrill.haptics.physics import HAND_MAX_FEED_MM_S, HAND_MAX_N
 from ctdrill.haptics.protocol import DeviceState
 from ctdrill.safeio import read_bytes_bounded
 
@@ -57,7 +57,7 @@ class HumanSpec:
     ----------
     force_n : float
         The push while the hand holds on, N (0 < force <=
-        :data:`~ctdrill.haptics.emulator.HAND_MAX_N`).
+        :data:`~ctdrill.haptics.physics.HAND_MAX_N`).
     react_ms : float
         Reaction time: the hand lets go this long after it feels a breakthrough or meets the
         wall, ms.

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from ctdrill.haptics.core import DeviceCore
 from ctdrill.haptics.emulator import DeviceEmulator
 from ctdrill.haptics.host import HostDevice
+from ctdrill.haptics.physics import Physics
 
 
 class SimLink:
-    """In-memory byte link to a :class:`DeviceEmulator`; :meth:`wait` runs its ticks.
+    """In-memory byte link to a device core (:class:`DeviceEmulator`); :meth:`wait` runs its
+    ticks.
 
     Host bytes reach the device at once; time passes only in :meth:`wait`, in whole ticks (the
     fractional remainder is carried), so a session is reproducible tick for tick.
@@ -15,7 +18,7 @@ class SimLink:
 
     name = "sim"
 
-    def __init__(self, emulator: DeviceEmulator) -> None:
+    def __init__(self, emulator: DeviceCore) -> None:
         self.emulator = emulator
         self._carry_ticks = 0.0
 
@@ -51,8 +54,17 @@ class SimulatedDevice(HostDevice):
         Initial master depth, mm.
     seed : int
         Seeds the session nonce and the host's HELLO token: a session is reproducible.
+    physics : Physics, optional
+        The emulator's physics (:mod:`ctdrill.haptics.physics`); default: the paper's master.
     """
 
-    def __init__(self, *, start_mm: float = 0.0, timeout_s: float = 1.0, seed: int = 0) -> None:
-        self.emulator = DeviceEmulator(start_mm=start_mm, nonce_seed=seed)
+    def __init__(
+        self,
+        *,
+        start_mm: float = 0.0,
+        timeout_s: float = 1.0,
+        seed: int = 0,
+        physics: Physics | None = None,
+    ) -> None:
+        self.emulator = DeviceEmulator(start_mm=start_mm, nonce_seed=seed, physics=physics)
         super().__init__(SimLink(self.emulator), timeout_s=timeout_s, token_seed=seed)

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ctdrill.haptics.emulator import HAND_DAMPING_N_S_PER_MM, HAND_STIFFNESS_N_PER_MM
+from ctdrill.haptics.physics import HAND_DAMPING_N_S_PER_MM, HAND_STIFFNESS_N_PER_MM
 from ctdrill.haptics.renderer import (
     PEAK_FORCE_N,
     RELEASE_DAMPING_N_S_PER_MM,

@@ -34,9 +34,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ctdrill.haptics.emulator import DeviceEmulator
-from ctdrill.haptics.plant import ForceController, MasterPlant
+from ctdrill.haptics.physics import MasterPhysics
 from ctdrill.haptics.profile_table import ProfileTable
-from ctdrill.haptics.protocol import Fault, OperatorKind, SimOperator
+from ctdrill.haptics.protocol import Fault, OperatorKind
 from ctdrill.haptics.renderer import (
     RELEASE_DAMPING_N_S_PER_MM,
     STOP_GLIDE_MM_S,
@@ -126,6 +126,8 @@ def simulate_push(
     ``release_damping_n_s_per_mm`` its release damper (0: none, the renderer before it).
     """
     emu = DeviceEmulator(nonce_seed=0)
+    master = MasterPhysics(dt_s=emu.dt_s, coulomb_n=coulomb_n)
+    emu.physics = master
     emu.renderer = Renderer(
         tick_hz=emu.tick_hz,
         stiffness_n_per_mm=stiffness_n_per_mm,
@@ -136,9 +138,6 @@ def simulate_push(
         release_damping_n_s_per_mm=release_damping_n_s_per_mm,
         watchdog_s=math.inf,
     )
-    if coulomb_n is not None:
-        emu.plant = MasterPlant(coulomb_n=coulomb_n)
-        emu.controller = ForceController(dt_s=emu.dt_s, coulomb_n=coulomb_n)
     table = ProfileTable.slab(
         s0_n=s0_n,
         top_mm=0.0,
@@ -148,7 +147,7 @@ def simulate_push(
     )
     r = emu.renderer
     r.load(table.begin_message(), table.rows())
-    if r.arm(0.0, emu.plant.encoder_mm()) is not None:
+    if r.arm(0.0, master.plant.encoder_mm()) is not None:
         raise AssertionError("the renderer refused to arm at the surface")
     n = round(duration_s * emu.tick_hz)
     out = np.zeros((9, n))
@@ -158,17 +157,17 @@ def simulate_push(
     travel_end = False
     k_n_per_m = stiffness_n_per_mm * 1e3
     wall_n_per_m = r.k_stop * 1e3
-    emu._set_operator(SimOperator(int(OperatorKind.NONE), 0.0))
+    master.set_operator(int(OperatorKind.NONE), 0.0)
     for i in range(n):
         if emu.now_s >= release_at_s - 1e-12:
-            if emu.operator_value != 0.0:
-                emu._set_operator(SimOperator(int(OperatorKind.PUSH), 0.0))
-        elif emu.now_s >= step_at_s - 1e-12 and emu.operator_kind != OperatorKind.PUSH:
-            emu._set_operator(SimOperator(int(OperatorKind.PUSH), push_n))
-        x0 = emu.plant.x_m
+            if master.hand.value != 0.0:
+                master.set_operator(int(OperatorKind.PUSH), 0.0)
+        elif emu.now_s >= step_at_s - 1e-12 and master.hand.kind != OperatorKind.PUSH:
+            master.set_operator(int(OperatorKind.PUSH), push_n)
+        x0 = master.plant.x_m
         anchor0 = r.stop_anchor_mm
         emu.control_tick()
-        x1 = emu.plant.x_m
+        x1 = master.plant.x_m
         force = r.force_cmd_n
         energy += force * (x1 - x0)
         e_m = x1 - r.front_mm * 1e-3
@@ -182,8 +181,8 @@ def simulate_push(
                 glide += pushed_n * (anchor0 - r.stop_anchor_mm) * 1e-3
         if math.isnan(stop_at) and r.front_mm >= stop_depth_mm:
             stop_at = emu.now_s
-        travel_end = travel_end or emu.plant.at_end_stop
-        v = emu.plant.v_m_s * 1e3
+        travel_end = travel_end or master.plant.at_end_stop
+        v = master.plant.v_m_s * 1e3
         out[:, i] = (emu.now_s, x1 * 1e3, r.front_mm, force, emu.hand_n, v, energy, stored, glide)
     return PushRun(
         time_s=out[0],

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from ctdrill.haptics.emulator import HAND_MAX_FEED_MM_S
+from ctdrill.haptics.physics import HAND_MAX_FEED_MM_S
 from ctdrill.haptics.renderer import CONTINUOUS_FORCE_N, PEAK_FORCE_N
 from ctdrill.haptics.tick import TICK_HZ, TICK_S
 from ctdrill.imaging.display import BONE_SURFACE_HU
@@ -62,7 +62,7 @@ RULES = (
         r"(^|_)(force|hand|peak|continuous)|_n$",
         "haptics/renderer.py",
     ),
-    Rule("hand feed bound", (HAND_MAX_FEED_MM_S,), r"hand.*feed|feed.*hand", "haptics/emulator.py"),
+    Rule("hand feed bound", (HAND_MAX_FEED_MM_S,), r"hand.*feed|feed.*hand", "haptics/physics.py"),
     Rule("slice-gap factor", (GAP_FACTOR,), r"gap", "imaging/stack.py"),
     Rule("implant gap", (MIN_IMPLANT_DISTANCE_MM,), r"implant|between", "imaging/plan/implants.py"),
     Rule("master mass", (MASTER_MASS_KG,), r"mass", "model/cutting.py"),

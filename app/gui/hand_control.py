@@ -22,7 +22,7 @@ from PySide6.QtGui import (
 )
 from PySide6.QtWidgets import QSizePolicy, QWidget
 
-from ctdrill.haptics.emulator import HAND_MAX_N
+from ctdrill.haptics.physics import HAND_MAX_N
 
 #: The bar's full scale, N (the device takes up to 78 N; a drilling hand stays far below).
 SCALE_N = 40.0

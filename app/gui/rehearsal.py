@@ -26,6 +26,7 @@ from ctdrill.engine.settings import DEFAULTS
 from ctdrill.engine.summarize import CaseContext
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.session import Row, session_csv_text
+from ctdrill.haptics.spec import DeviceSpec
 from ctdrill.model.band import HuUncertainty
 
 #: The device-choice label of the simulator.
@@ -38,6 +39,12 @@ def device_choices() -> list[str]:
     """The simulator, then every serial port present (``serial:<device>``)."""
     ports = sorted(p.device for p in list_ports.comports())
     return [SIMULATOR, *(f"serial:{p}" for p in ports)]
+
+
+def device_of(choice: str, *, realtime: bool) -> DeviceSpec:
+    """The device a choice of :func:`device_choices` names (``realtime``: the simulator
+    kept to the wall clock)."""
+    return DeviceSpec.simulator(paced=realtime) if choice == SIMULATOR else DeviceSpec.parse(choice)
 
 
 def clearance_at_mm(result: PathResult, depth_mm: float) -> float | None:
@@ -92,6 +99,8 @@ class RehearsalRun:
     ) -> None:
         self.result = result
         self.device_spec = device_spec
+        #: The device the choice names.
+        self.device = device_of(device_spec, realtime=realtime)
         self.operator_spec = operator_spec
         self.duration_s = duration_s
         self.series_uid = series_uid
@@ -140,9 +149,8 @@ class RehearsalRun:
         job = SessionJob(
             table=self.table,
             operator_spec=operator_spec,
-            device_spec="sim" if device_spec == SIMULATOR else device_spec,
+            device=self.device,
             duration_s=duration_s,
-            realtime=realtime and device_spec == SIMULATOR,
             end_at_stop=end_at_stop,
             context=assessment_context(result, None if exam is None else exam.path),
             live=live,
@@ -179,7 +187,7 @@ class RehearsalRun:
         the session streams to that OpenIGTLink server (docs/slicer.md)."""
         if not (np.isfinite(push_n) and push_n >= 0.0):
             raise ValueError(f"simulated push: give a force >= 0 N, got {push_n}")
-        if exam is not None and device != SIMULATOR:
+        if exam is not None and not device_of(device, realtime=realtime).simulated:
             raise ValueError("exam mode runs on the simulator only: the device keeps its stop")
         run = cls(
             result,

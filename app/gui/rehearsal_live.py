@@ -8,7 +8,7 @@ from PySide6.QtWidgets import QGroupBox, QHBoxLayout, QLabel, QVBoxLayout
 
 from ctdrill.app.gui.gauges import DepthGauge, ForceGauge, VibrationTrace
 from ctdrill.app.gui.hand_control import HandControl
-from ctdrill.app.gui.rehearsal import SIMULATOR, RehearsalRun, Telemetry
+from ctdrill.app.gui.rehearsal import RehearsalRun, Telemetry
 from ctdrill.app.gui.rehearsal_words import live_words, need_here_n
 from ctdrill.app.gui.sound import VibrationSound
 from ctdrill.app.readout import gauge_forces, harmonics_at, live_readout
@@ -116,7 +116,7 @@ class LiveReadouts(QGroupBox):
         now_state = tel.state
         if now_state not in ("cutting", "stopped") and run.last_armed is not None:
             tel = run.last_armed
-        push = run.push_n if run.device_spec == SIMULATOR else None
+        push = run.push_n if run.device.simulated else None
         r = live_readout(
             run.table,
             state=tel.state,

@@ -39,7 +39,13 @@ from PySide6.QtWidgets import (
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.gui.debrief import debrief_of
 from ctdrill.app.gui.document import ViewContext
-from ctdrill.app.gui.rehearsal import SIMULATOR, RehearsalRun, Telemetry, device_choices
+from ctdrill.app.gui.rehearsal import (
+    SIMULATOR,
+    RehearsalRun,
+    Telemetry,
+    device_choices,
+    device_of,
+)
 from ctdrill.app.gui.rehearsal_live import WARN_STYLE, LiveReadouts
 from ctdrill.app.gui.rehearsal_words import (
     end_details,
@@ -226,7 +232,7 @@ class RehearsalPanel(QWidget):
         self.stop_button.setEnabled(running)
         self.device.setEnabled(not running)
         self.igtl.setEnabled(not running)
-        simulator = (self.device.currentText() or SIMULATOR) == SIMULATOR
+        simulator = device_of(self.device.currentText() or SIMULATOR, realtime=False).simulated
         self.exam.setEnabled(simulator and not running)
         if not simulator:
             self.exam.setChecked(False)
@@ -279,7 +285,7 @@ class RehearsalPanel(QWidget):
             igtl_text = self.igtl.text().strip()
             igtl = parse_target(igtl_text, option="stream to Slicer") if igtl_text else None
             exam = None
-            if self.exam.isChecked() and device == SIMULATOR:
+            if self.exam.isChecked() and device_of(device, realtime=False).simulated:
                 exam = exam_setup(doc.volume, doc.plan, self.result)
             self.run = RehearsalRun.start(
                 self.result,

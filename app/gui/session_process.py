@@ -41,6 +41,7 @@ from ctdrill.haptics.hands import RETRACTED_MM, Hand, LiveHand
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import STATE_NAMES, Row, parse_operator
+from ctdrill.haptics.spec import DeviceSpec
 
 #: With ``end_at_stop``, how long the device holds its auto-stop before the session ends, s.
 AUTO_STOP_HOLD_S = 0.25
@@ -68,9 +69,8 @@ class SessionJob:
     ----------
     table : the force table to upload (with the stop depth the device enforces).
     operator_spec : ``push:N`` (``ctdrill.haptics.session.parse_operator``).
-    device_spec : ``sim`` or ``serial:PORT`` (``ctdrill.app.rehearse.open_device``).
+    device : the device (a simulator ``paced`` to the wall clock runs in real time).
     duration_s : session length, s.
-    realtime : pace the simulator to the wall clock (a real device is never paced).
     end_at_stop : end the session (complete, disarmed) once the device has held its auto-stop
         for ``AUTO_STOP_HOLD_S``: the drill can go no deeper, the window offers the export.
     igtl : stream the session to an OpenIGTLink server (None: no streaming).
@@ -78,9 +78,8 @@ class SessionJob:
 
     table: ProfileTable
     operator_spec: str
-    device_spec: str
+    device: DeviceSpec
     duration_s: float
-    realtime: bool
     end_at_stop: bool = False
     context: AssessmentContext | None = None
     live: bool = False
@@ -98,7 +97,7 @@ def run_job(
     ``retract`` are the live hand's shared values (``job.live``)."""
     try:
         operator = parse_operator(job.operator_spec)
-        device = open_device(job.device_spec)
+        device = open_device(job.device)
     except (ValueError, OSError) as exc:
         out.put(("error", str(exc) or type(exc).__name__))
         return
@@ -132,7 +131,9 @@ def run_job(
             and rows[-1][1] <= RETRACTED_MM
         )  # the live hand drew the drill back out of the hole it drilled
         done[0] = (job.end_at_stop and held) or out_again
-        if job.realtime:  # the simulator's time only advances in wait(): keep it to the clock
+        if (
+            job.device.host_paces
+        ):  # the simulator's time only advances in wait(): keep it to the clock
             ahead = rows[-1][0] - (time.monotonic() - wall0)
             if ahead > 0:
                 stop.wait(ahead)

@@ -25,6 +25,7 @@ from ctdrill.engine.grid import MAX_PLANNED_DEPTH_MM
 from ctdrill.engine.path import PathInputError, PathResult, plan_path
 from ctdrill.haptics.assessment import AssessmentContext
 from ctdrill.haptics.profile_table import ProfileTable
+from ctdrill.haptics.spec import DeviceSpec
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.plan.write import plan_to_dict
 from ctdrill.imaging.sampling.annulus import Hole
@@ -44,17 +45,17 @@ class ExamInputError(AppInputError):
     one drill's exam table is asked for)."""
 
 
-def refuse_exam_device(device_spec: str) -> None:
+def refuse_exam_device(device: DeviceSpec) -> None:
     """Exam mode runs on the simulator only: a hardware device keeps its stop at the margin.
 
     Raises
     ------
     ExamInputError
-        For any device but ``sim`` (``serial:...``).
+        For any device that is not simulated (``serial:...``).
     """
-    if device_spec != "sim":
+    if not device.simulated:
         raise ExamInputError(
-            f"--exam with --device {device_spec!r}: exam mode removes the margin's wall and "
+            f"--exam with --device {device.label!r}: exam mode removes the margin's wall and "
             "runs on the simulator only (--device sim); a hardware device always stops at the "
             "margin"
         )
