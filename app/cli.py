@@ -28,6 +28,7 @@ COMMANDS: tuple[str, ...] = (
     "demo",
     "calibrate",
     "rehearse",
+    "teleop",
     "assess",
     "emulate",
     "gui",

@@ -1,0 +1,113 @@
+"""The slave under bilateral control: channel, Eq. 25, replay, the force-based stop."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ctdrill.app.teleop import TeleopCase, prepare_teleop, run_teleop
+from ctdrill.haptics.bilateral.channel import Channel
+from ctdrill.haptics.bilateral.estimator import HuEstimator, plan_prior
+from ctdrill.haptics.bilateral.params import ChannelSpec
+from ctdrill.haptics.session import parse_operator
+from ctdrill.model.calibration import load_calibration
+from ctdrill.model.force import a0_n
+from ctdrill.model.profile import build_profile
+
+ROOT = Path(__file__).resolve().parents[2]
+DEMO = ROOT / "assets" / "demo"
+
+
+def test_channel_delays_by_whole_ticks_keeps_order_and_holds_over_loss() -> None:
+    ch = Channel(ChannelSpec(delay_ms=0.5), 10_000.0, seed=1, initial=(0.0, 0.0, 0.0))
+    got = []
+    for k in range(10):
+        ch.send(k, (float(k), 0.0, 0.0))
+        got.append(ch.receive(k)[0])
+    assert got == [0.0] * 5 + [0.0, 1.0, 2.0, 3.0, 4.0]  # 5 ticks late
+    lossy = Channel(ChannelSpec(loss=0.5, jitter_ms=2.0), 10_000.0, 3, (0.0, 0.0, 0.0))
+    seen = []
+    for k in range(2000):
+        lossy.send(k, (float(k), 0.0, 0.0))
+        seen.append(lossy.receive(k)[0])
+    assert all(b >= a for a, b in itertools.pairwise(seen))  # never out of order
+    assert 800 < lossy.lost < 1200
+
+
+def _slab_prior(hu: float):  # type: ignore[no-untyped-def]
+    cal = load_calibration("bone-illustrative")
+    depth = np.arange(0.0, 20.0, 0.05)
+    lip = np.full((depth.size, 1, 1), hu)
+    prof = build_profile(lip, np.ones(1), depth, cal, blades=2, rpm=900)
+    return cal, plan_prior(prof, cal)
+
+
+@pytest.mark.parametrize("gain", [0.8, 1.0, 1.25])
+def test_eq25_inverts_eq20_and_learns_the_force_gain(gain: float) -> None:
+    # a steady cut of 1050 HU at 0.5 mm/s whose force law is `gain` times the model's
+    cal, prior = _slab_prior(1050.0)
+    est = HuEstimator(cal, prior, tip_length_mm=0.6, window_ticks=333, tick_s=1e-4)
+    force = gain * float(a0_n(1050.0, 0.5, cal))
+    for k in range(60_000):
+        est.update(1.0 + 0.5 * k * 1e-4, force, 0.5)
+    assert est.valid and est.stop_reason is None
+    assert 10.0**est.log10_gain == pytest.approx(gain, rel=1e-9)
+    assert est.hu == pytest.approx(1050.0, abs=1e-6)
+
+
+def test_a_force_that_vanishes_after_bone_is_a_cortex_exit() -> None:
+    cal, prior = _slab_prior(1050.0)
+    est = HuEstimator(cal, prior, tip_length_mm=0.6, window_ticks=333, tick_s=1e-4)
+    force = float(a0_n(1050.0, 0.5, cal))
+    k = 0
+    while est.stop_reason is None and k < 80_000:
+        x = 1.0 + 0.5 * k * 1e-4
+        est.update(x, force if x < 3.0 else force * max(0.0, 1.0 - (x - 3.0) / 0.6), 0.5)
+        k += 1
+    assert est.stop_reason == "cortex_exit"
+    assert 3.0 < 1.0 + 0.5 * k * 1e-4 < 3.6
+
+
+@pytest.fixture(scope="module")
+def case() -> TeleopCase:
+    return prepare_teleop(DEMO / "ct", DEMO / "plan.json")
+
+
+def test_a_seeded_run_replays_bit_for_bit(case: TeleopCase) -> None:
+    op = parse_operator("human:force=15,react_ms=150,noise_n=1,seed=4")
+    kw = {"duration_s": 0.6, "delay_ms": 1.0, "jitter_ms": 0.5, "loss": 0.05, "record_every": 1}
+    a, fa = run_teleop(case, op, seed=7, **kw)  # type: ignore[arg-type]
+    b, fb = run_teleop(case, op, seed=7, **kw)  # type: ignore[arg-type]
+    c, _ = run_teleop(case, op, seed=8, **kw)  # type: ignore[arg-type]
+    for name in ("master_mm", "slave_mm", "env_force_n", "hand_n", "fe_est_n", "energy_j"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert np.array_equal(a.hu_est, b.hu_est, equal_nan=True)
+    assert fa == fb
+    assert not np.array_equal(a.slave_mm, c.slave_mm)  # the seed matters
+
+
+def test_cutting_is_transparent_without_delay(case: TeleopCase) -> None:
+    run, f = run_teleop(case, parse_operator("push:15"), duration_s=1.5)
+    cut = f["transparency"]["cutting"]
+    assert cut["samples"] > 1000
+    assert cut["force_error_pct"] < 3.5  # the paper's figure, mean force
+    assert cut["tracking_rms_um"] < 30.0
+    assert run.front_mm[-1] > 2.0  # it cut through the cortex
+
+
+def test_the_force_stop_catches_the_exit_a_misregistered_plan_would_pass() -> None:
+    shifted = prepare_teleop(DEMO / "ct", DEMO / "plan.json", misregister_mm=3.0)
+    exit_mm = shifted.exit_mm
+    assert exit_mm is not None and exit_mm < shifted.plan_path.stop_depth_mm  # the plan's stop
+    op = parse_operator("push:15")
+    plan_only, f0 = run_teleop(shifted, op, duration_s=3.0, force_stop=False)
+    assert f0["stop_reason"] == "plan_stop" and plan_only.deepest_front_mm > exit_mm + 0.3
+    run, f = run_teleop(shifted, op, duration_s=3.0)
+    assert f["stop_reason"] == "cortex_exit"
+    assert 0.0 <= f["overshoot_mm"] <= 0.5
+    assert f["stop_depth_mm"] < shifted.plan_path.stop_depth_mm
+    assert math.isfinite(run.stop_time_s)
