@@ -10,8 +10,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING
 
-from ctdrill.haptics.protocol import PROTOCOL_VERSION, Limits, Version
+from ctdrill.haptics.protocol import PROTOCOL_VERSION, Fault, Limits, Version
+
+if TYPE_CHECKING:
+    from ctdrill.haptics.device import TelemetrySample
 
 #: The host ends a session after this long without telemetry, s, at the most.
 HOST_SILENCE_S = 0.100
@@ -20,6 +24,26 @@ HOST_SILENCE_S = 0.100
 SILENT_WATCHDOG_PERIODS = 2
 #: Control rates the host accepts in VERSION, Hz (1 kHz is haptic rendering's floor).
 TICK_RATE_HZ = (1_000, 100_000)
+#: The numbers of a TELEMETRY report (each must be finite).
+TELEMETRY_NUMBERS = ("master_mm", "drill_mm", "velocity_mm_s", "force_cmd_n", "force_est_n")
+#: A reported position may lie beyond the announced travel by this much, mm (encoder counts and
+#: the float32 rounding of the travel's ends).
+TRAVEL_TOLERANCE_MM = 1e-3
+#: A reported force may exceed its bound by this much, N (float32 rounding).
+FORCE_TOLERANCE_N = 1e-3
+#: The device's reading of the hand may overshoot the hand in a transient (89 N for a 78 N push
+#: meeting the wall on the emulated master, 57 N for 40 N): beyond this many times the peak
+#: force no hand pushes or pulls on the master's axis.
+HAND_READING_PEAKS = 1.5
+#: On a mechanical end stop (TRAVEL_LIMIT in the report, or the master within
+#: :data:`END_STOP_NEAR_MM` of either end: it rebounds a few micrometres while the reading
+#: settles) the reading takes the stage's impact for the hand (660 N for the emulated master
+#: stopped from 4.3 m/s, decaying at 1000 rad/s): at most this many times the peak force.
+END_STOP_READING_MULTIPLE = 20.0
+END_STOP_NEAR_MM = 1.0
+#: The master's speed at the most, mm/s (the emulated master reaches 4.3 m/s pushed at 78 N
+#: through air over its whole travel; 10 m/s is no hand-held drill's stage).
+MAX_SPEED_MM_S = 10_000.0
 
 
 @dataclass(frozen=True)
@@ -92,4 +116,45 @@ def table_problem(limits: Limits, n_steps: int, stop_depth_mm: float) -> str | N
             f"the stop depth {stop_depth_mm:g} mm lies beyond the device's travel "
             f"({limits.travel_max_mm:g} mm)"
         )
+    return None
+
+
+def telemetry_problem(sample: TelemetrySample, limits: Limits) -> str | None:
+    """Why a TELEMETRY report (finite, already checked) lies outside what the device announced
+    and what its physics allow (None: within them): the master or the drill outside the
+    travel, a speed beyond
+    :data:`MAX_SPEED_MM_S`, a rendered force outside ``-continuous_force_n ..
+    peak_force_n`` (it pulls only through the release damper, at most the continuous rating),
+    a reading of the hand beyond :data:`HAND_READING_PEAKS` times the peak force
+    (:data:`END_STOP_READING_MULTIPLE` on an end stop)."""
+    lo = limits.travel_min_mm - TRAVEL_TOLERANCE_MM
+    hi = limits.travel_max_mm + TRAVEL_TOLERANCE_MM
+    for name in ("master_mm", "drill_mm"):
+        value = getattr(sample, name)
+        if not lo <= value <= hi:
+            return (
+                f"{name} {value:g} mm, outside its travel {limits.travel_min_mm:g}.."
+                f"{limits.travel_max_mm:g} mm"
+            )
+    if abs(sample.velocity_mm_s) > MAX_SPEED_MM_S:
+        return f"velocity_mm_s {sample.velocity_mm_s:g} mm/s, beyond {MAX_SPEED_MM_S:g} mm/s"
+    peak = limits.peak_force_n
+    if not (
+        -limits.continuous_force_n - FORCE_TOLERANCE_N
+        <= sample.force_cmd_n
+        <= peak + FORCE_TOLERANCE_N
+    ):
+        return (
+            f"force_cmd_n {sample.force_cmd_n:g} N, outside -{limits.continuous_force_n:g}.."
+            f"{peak:g} N"
+        )
+    on_end_stop = bool(sample.faults & Fault.TRAVEL_LIMIT) or not (
+        limits.travel_min_mm + END_STOP_NEAR_MM
+        < sample.master_mm
+        < limits.travel_max_mm - END_STOP_NEAR_MM
+    )
+    reading = (END_STOP_READING_MULTIPLE if on_end_stop else HAND_READING_PEAKS) * peak
+    if abs(sample.force_est_n) > reading:
+        where = " on an end stop" if on_end_stop else ""
+        return f"force_est_n {sample.force_est_n:g} N, beyond {reading:g} N{where}"
     return None

@@ -15,8 +15,9 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from ctdrill.haptics.device import Device, DeviceRefused, simulator_controls
-from ctdrill.haptics.protocol import NakReason, OperatorKind
+from ctdrill.haptics.device import Device, DeviceRefused, TelemetrySample, simulator_controls
+from ctdrill.haptics.limits import TELEMETRY_NUMBERS, telemetry_problem
+from ctdrill.haptics.protocol import Limits, NakReason, OperatorKind
 
 #: The simulated hand retracts at this feed, mm/s (60 mm of travel in 1.2 s).
 RETRACT_FEED_MM_S = -50.0
@@ -52,15 +53,19 @@ def arm_retracted(
     wait_s: float = RETRACT_WAIT_S,
     block_s: float = 0.01,
     notice: Callable[[str], None] | None = None,
+    limits: Limits | None = None,
 ) -> Retraction | None:
     """ARM ``device`` (a table uploaded in this session); if it refuses NOT_RETRACTED, retract
     the handle and arm again. Returns the retraction (None: armed at once).
 
+    The handle's depth is read from the session's idle telemetry; with ``limits`` (what the
+    device announced) a report outside them or not finite is refused, as after ARM.
+
     Raises
     ------
     DeviceRefused
-        Any other refusal, or the handle not retracted within ``wait_s`` (then nothing is
-        armed and the simulated hand is let go).
+        Any other refusal, a report outside ``limits``, or the handle not retracted within
+        ``wait_s`` (then nothing is armed and the simulated hand is let go).
     """
     try:
         device.arm()
@@ -70,7 +75,7 @@ def arm_retracted(
             raise
     start = device.clock_s()
     sim = simulator_controls(device)
-    depth = _depth(device, block_s)
+    depth = _depth(device, block_s, limits=limits)
     if notice is not None:
         notice(
             f"the handle is {depth:.1f} mm deep, beyond the entry point: retracting it "
@@ -81,13 +86,13 @@ def arm_retracted(
         if sim is not None:
             sim.set_operator(int(OperatorKind.FEED), RETRACT_FEED_MM_S)
         device.wait(block_s)
-        depth = _depth(device, 0.0, depth)
+        depth = _depth(device, 0.0, depth, limits=limits)
         if depth > RETRACT_TO_MM:
             continue
         if sim is not None:
             sim.set_operator(int(OperatorKind.NONE), 0.0)
         device.wait(SETTLE_S)
-        depth = _depth(device, 0.0, depth)
+        depth = _depth(device, 0.0, depth, limits=limits)
         try:
             device.arm()
         except DeviceRefused as exc:
@@ -104,10 +109,37 @@ def arm_retracted(
     )
 
 
-def _depth(device: Device, wait_s: float, last: float = float("inf")) -> float:
+def _depth(
+    device: Device, wait_s: float, last: float = float("inf"), *, limits: Limits | None = None
+) -> float:
     """The handle's depth from the latest telemetry (idle telemetry of this session), mm."""
-    samples = [s for s in device.poll() if math.isfinite(s.master_mm)]
+    samples = _heard(device, limits)
     if not samples and wait_s > 0.0:
         device.wait(wait_s)
-        samples = [s for s in device.poll() if math.isfinite(s.master_mm)]
+        samples = _heard(device, limits)
     return samples[-1].master_mm if samples else last
+
+
+def _heard(device: Device, limits: Limits | None) -> list[TelemetrySample]:
+    """The telemetry since the last poll; with ``limits``, none may lie outside them."""
+    samples = device.poll()
+    if limits is not None:
+        for s in samples:
+            bad = next(
+                (
+                    f"a non-finite {n}"
+                    for n in TELEMETRY_NUMBERS
+                    if not math.isfinite(getattr(s, n))
+                ),
+                None,
+            )
+            bad = bad or telemetry_problem(s, limits)
+            if bad is not None:
+                sim = simulator_controls(device)
+                if sim is not None:
+                    sim.set_operator(int(OperatorKind.NONE), 0.0)
+                raise DeviceRefused(
+                    f"while retracting the handle the device reported {bad}: nothing armed; "
+                    "check the device (docs/protocol.md section 5)"
+                )
+    return [s for s in samples if math.isfinite(s.master_mm)]

@@ -400,7 +400,7 @@ def run_session(
     loop = _Loop(device, operator, faults, seed, result, sink, on_samples, driver)
     loop.operate(int(OperatorKind.NONE), 0.0)
     try:
-        retraction = arm_retracted(device, notice=notice)
+        retraction = arm_retracted(device, notice=notice, limits=info.limits)
     except DeviceRefused:
         raise  # NAK: the device did not arm
     except (DeviceError, OSError) as exc:  # the ARM may have reached the device: end it safely

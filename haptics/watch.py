@@ -4,9 +4,12 @@
 the device claims about itself. It finds the first reason to end an armed session:
 
 * a report the host cannot interpret or trust (:meth:`TelemetryWatch.malformed`): a non-finite
-  number, a state or a fault flag this protocol does not define, the table of another upload,
-  device time that does not advance by its ticks (backwards, frozen, a jump) or runs ahead of the
-  host's clock; such a sample is not recorded;
+  number, a value outside the device's LIMITS or its physics
+  (:func:`ctdrill.haptics.limits.telemetry_problem`: a position outside the travel, a force
+  beyond the peak, a reading of the hand or a speed no hand makes), a state or a fault flag
+  this protocol does not define, the table of another upload, device time that does not
+  advance by its ticks (backwards, frozen, a jump) or runs ahead of the host's clock; such a
+  sample is not recorded;
 * the drill reported beyond the stop depth by more than :func:`stop_tolerance_mm`, a fault flag
   of :data:`ABORT_FLAGS`, a state other than cutting or stopped (recorded, then the session
   ends);
@@ -26,10 +29,16 @@ from dataclasses import dataclass
 
 from ctdrill.haptics.codes import KNOWN_FAULT_BITS, KNOWN_STATES
 from ctdrill.haptics.device import DeviceInfo, TelemetrySample
-from ctdrill.haptics.limits import silence_bound_s
-from ctdrill.haptics.plant import ENCODER_M
-from ctdrill.haptics.protocol import DeviceState, Fault
-from ctdrill.haptics.renderer import WATCHDOG_S
+from ctdrill.haptics.limits import TELEMETRY_NUMBERS, silence_bound_s, telemetry_problem
+from ctdrill.haptics.plant import ENCODER_M, TRAVEL_MM
+from ctdrill.haptics.profile_table import MAX_PROFILE_STEPS
+from ctdrill.haptics.protocol import DeviceState, Fault, Limits
+from ctdrill.haptics.renderer import (
+    CONTINUOUS_FORCE_N,
+    PEAK_FORCE_N,
+    THERMAL_BUDGET_N2_S,
+    WATCHDOG_S,
+)
 from ctdrill.haptics.session import STATE_NAMES
 from ctdrill.haptics.tick import TICK_HZ
 
@@ -43,7 +52,15 @@ TICK_TIME_TOLERANCE_S = 2e-6
 #: (crystals differ by 1e-4; the slack covers the ARM acknowledgement's transit).
 CLOCK_RATE_TOLERANCE = 0.01
 CLOCK_SLACK_S = 0.05
-_NUMBERS = ("master_mm", "drill_mm", "velocity_mm_s", "force_cmd_n", "force_est_n")
+#: The emulated master's LIMITS (what a watch holds a device to when none was announced).
+DEFAULT_LIMITS = Limits(
+    PEAK_FORCE_N,
+    CONTINUOUS_FORCE_N,
+    THERMAL_BUDGET_N2_S,
+    round(WATCHDOG_S * 1000),
+    MAX_PROFILE_STEPS,
+    *TRAVEL_MM,
+)
 
 
 def stop_tolerance_mm(stop_depth_mm: float) -> float:
@@ -110,6 +127,9 @@ class TelemetryWatch:
         The device's control rate (from VERSION, within the host's bounds).
     table_crc32 : int, optional
         CRC-32 of the uploaded table: telemetry naming another table ends the session.
+    limits : Limits, optional
+        What the device announced (already within the host's bounds): every reported value is
+        held to it (default: the emulated master's).
     """
 
     @classmethod
@@ -123,6 +143,7 @@ class TelemetryWatch:
             watchdog_ms=info.limits.watchdog_ms,
             tick_rate_hz=info.version.tick_rate_hz,
             table_crc32=table_crc32,
+            limits=info.limits,
         )
 
     def __init__(
@@ -133,7 +154,9 @@ class TelemetryWatch:
         watchdog_ms: int = round(WATCHDOG_S * 1000),
         tick_rate_hz: int = TICK_HZ,
         table_crc32: int | None = None,
+        limits: Limits | None = None,
     ) -> None:
+        self.limits = limits or DEFAULT_LIMITS
         self.stop_depth_mm = stop_depth_mm
         self.limit_mm = stop_depth_mm + stop_tolerance_mm(stop_depth_mm)
         self.silent_s = silence_bound_s(watchdog_ms)
@@ -147,10 +170,13 @@ class TelemetryWatch:
     def malformed(self, s: TelemetrySample, clock_s: float) -> tuple[str, str] | None:
         """``(kind, message)`` if the host cannot trust ``s`` (module docstring), else None;
         a trusted sample becomes the reference for the next one's clock."""
-        for name in _NUMBERS:
+        for name in TELEMETRY_NUMBERS:
             value = getattr(s, name)
             if not math.isfinite(value):
                 return "device_fault", f"the device reported a non-finite {name} ({value})"
+        beyond = telemetry_problem(s, self.limits)
+        if beyond is not None:
+            return "device_fault", f"the device reported {beyond}"
         if s.state not in KNOWN_STATES:
             return "device_fault", f"the device reported an undefined state {s.state}"
         unknown = s.faults & ~KNOWN_FAULT_BITS

@@ -51,6 +51,14 @@ TELEMETRY_LIES = {
     "time-jump-2-64": "device_clock",
     "time-fast": "device_clock",
     "silent": "telemetry_silent",
+    # values outside the device's LIMITS or its physics (finite, well formed)
+    "force-cmd-150": "device_fault",
+    "force-cmd-minus-45": "device_fault",
+    "hand-300": "device_fault",
+    "hand-minus-130": "device_fault",
+    "master-95": "device_fault",
+    "drill-minus-40": "device_fault",
+    "velocity-5e4": "device_fault",
 }
 #: The lies told at HELLO: the host refuses the device before anything is uploaded.
 HELLO_LIES = ("limits-watchdog-65535", "limits-peak-nan", "limits-travel", "version-rate-0")
@@ -111,6 +119,13 @@ class HostileEmulator(DeviceEmulator):
             "fault-bit-8000": {"faults": message.faults | 0x8000},
             "other-table": {"table_crc32": message.table_crc32 ^ 1},
             "time-fast": {"tick": (message.tick + 2 * since_us // 100) & 0xFFFFFFFF},
+            "force-cmd-150": {"force_cmd_n": 150.0},
+            "force-cmd-minus-45": {"force_cmd_n": -45.0},
+            "hand-300": {"force_est_n": 300.0},
+            "hand-minus-130": {"force_est_n": -130.0},
+            "master-95": {"master_mm": 95.0},
+            "drill-minus-40": {"drill_mm": -40.0},
+            "velocity-5e4": {"velocity_mm_s": 5e4},
         }
         changes = lies.get(lie, {})
         if lie == "silent":
