@@ -30,10 +30,21 @@ COMMANDS: tuple[str, ...] = (
     "rehearse",
     "teleop",
     "assess",
+    "exercise",
+    "class",
     "emulate",
     "gui",
     "warmup",
 )
+
+
+#: Subcommands whose module has another name (``class`` is a Python keyword).
+_MODULES = {"class": "classroom"}
+
+
+def command_module(command: str) -> str:
+    """The module under ctdrill.app.commands that defines ``command``."""
+    return _MODULES.get(command, command)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -54,10 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for name in COMMANDS:
         try:
-            module = importlib.import_module(f"ctdrill.app.commands.{name}")
+            module = importlib.import_module(f"ctdrill.app.commands.{command_module(name)}")
         except ModuleNotFoundError as exc:
             # A command module not written yet: tests/test_cli.py fails until each exists.
-            if exc.name != f"ctdrill.app.commands.{name}":
+            if exc.name != f"ctdrill.app.commands.{command_module(name)}":
                 raise
             continue
         module.register(sub)

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.errors import AppInputError
+from ctdrill.app.exercise.trials import blind_summary, check_session_plan, find_trial
 from ctdrill.app.igtl.frames import StreamGeometry, parse_target
 from ctdrill.app.igtl.stream import IgtlStream
 from ctdrill.app.readout import push_summary, wall_summary
@@ -259,9 +260,12 @@ def rehearse(
             igtl=target,
             on_warning=on_warning,
         )
+    card = find_trial([plan] if isinstance(plan, Path) else plan)  # a blind trial's card
     loaded = load_table(
         dicom, plan, interpolate_gaps=interpolate_gaps, grey=grey, trajectory=trajectory, exam=exam
     )
+    if card is not None:
+        check_session_plan(card, plan_hash(loaded.path.plan), where=str(plan))
     hu = hu_uncertainty(loaded.grey_map, manual_hu)
     assessor = Assessor(loaded.context, loaded.table)
     with atomic_output_dir(out) as stage:
@@ -304,6 +308,8 @@ def rehearse(
         )
         if streamed is not None:
             summary["igtl"] = streamed
+        if card is not None:
+            summary = blind_summary(summary, card)
         write_file(stage / "summary.json", summary_json(summary))
     return summary
 

@@ -29,7 +29,25 @@ def register(subparsers: Any) -> None:
         "sessions", type=Path, nargs="*", metavar="SESSION_DIR", help="rehearsal output folders"
     )
     p.add_argument("--db", type=Path, required=True, metavar="FILE", help="the trainee record")
-    p.add_argument("--trainee", required=True, metavar="ID", help="whose sessions")
+    p.add_argument("--trainee", default=None, metavar="ID", help="whose sessions")
+    p.add_argument(
+        "--answer",
+        action="extend",
+        nargs="+",
+        default=[],
+        metavar="CLASS",
+        help="the bone class (D1-D4) the trainee names for a blind trial's session; once per "
+        "SESSION_DIR, in order (docs/exercises.md)",
+    )
+    p.add_argument(
+        "--merge",
+        type=Path,
+        nargs="+",
+        default=[],
+        metavar="STATION_DB",
+        help="merge these station records into --db (idempotent: sessions are keyed by "
+        "their content hash)",
+    )
     p.add_argument("--expert", action="store_true", help="tag the stored sessions as an expert's")
     p.add_argument(
         "--out", type=Path, default=None, metavar="DIR", help="write the learning curve here"
@@ -42,10 +60,23 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.trainee.curve import write_learning_curve
     from ctdrill.app.trainee.record import check_trainee, open_record, record_sessions
 
+    if args.merge:
+        if args.sessions or args.out is not None or args.answer or args.expert:
+            raise AppInputError(
+                "--merge merges station records into --db: give it without SESSION_DIR, "
+                "--answer, --expert or --out"
+            )
+        return _merge(args)
     if not args.sessions and args.out is None:
         raise AppInputError(
             "assess: give SESSION_DIR... to store sessions, or --out DIR for the learning curve"
         )
+    if args.trainee is None:
+        raise AppInputError("assess: give --trainee ID (whose sessions)")
+    if args.answer:
+        if not args.sessions:
+            raise AppInputError("--answer names a blind session's bone: give its SESSION_DIR")
+        return _answer(args)
     if args.expert and not args.sessions:
         raise AppInputError("--expert tags stored sessions: give the SESSION_DIR... to store")
     trainee = check_trainee(args.trainee)
@@ -65,4 +96,37 @@ def run(args: argparse.Namespace) -> int:
         finally:
             record.close()
         sys.stdout.write(f"wrote {', '.join(str(f) for f in files)}\n")
+    return 0
+
+
+def _answer(args: argparse.Namespace) -> int:
+    """Store blind sessions with the classes named for them."""
+    from ctdrill.app.trainee.answers import answer_sessions
+
+    for entry, stored, answer, earlier in answer_sessions(
+        args.db, args.sessions, args.answer, trainee=args.trainee, expert=args.expert
+    ):
+        what = "stored" if stored else "already in the record"
+        said = (
+            f"answered {answer.answer}"
+            if earlier is None
+            else f"already answered {earlier} (the first answer stands; {answer.answer} ignored)"
+        )
+        sys.stdout.write(
+            f"{entry.folder}: {what} (session {entry.session_hash[:12]}, {answer.exercise} "
+            f"{answer.trial}); {said}\n"
+        )
+    return 0
+
+
+def _merge(args: argparse.Namespace) -> int:
+    """Merge station records into ``--db``."""
+    from ctdrill.app.trainee.merge import merge_records
+
+    for count in merge_records(args.db, args.merge):
+        extra = f", {count.conflicts} stored for another trainee here" if count.conflicts else ""
+        sys.stdout.write(
+            f"{count.source}: {count.sessions} sessions, {count.added} new, "
+            f"{count.answers_added} answers new{extra}\n"
+        )
     return 0

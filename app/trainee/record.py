@@ -330,3 +330,8 @@ def record_sessions(
         return [(e, record.store(e, trainee=trainee, expert=expert)) for e in entries]
     finally:
         record.close()
+
+
+#: The record's error for an SQLite failure on ``path`` (locked, damaged ...), for the
+#: modules that write to it (:mod:`ctdrill.app.trainee.merge`).
+record_error = _error
