@@ -29,9 +29,9 @@ from ctdrill.app.records import atomic_output_dir, write_file
 from ctdrill.app.trainee.exam import (
     ExamSetup,
     assessment_context,
+    exam_at_surface,
     exam_setup,
     plan_hash,
-    refuse_exam_device,
 )
 from ctdrill.engine.band import band_peak, hu_uncertainty_info, path_band
 from ctdrill.engine.grey import hu_sigma_uncertainty, hu_uncertainty, map_volume
@@ -81,6 +81,7 @@ def load_table(
     grey: GreyMapSpec | None = None,
     trajectory: str | None = None,
     exam: bool = False,
+    exam_surface: bool = False,
 ) -> RehearsalTable:
     """Load the CT and the plan (one file, or several merged into one trajectory), compute
     the path and adapt its profile to a device table.
@@ -88,7 +89,8 @@ def load_table(
     ``interpolate_gaps`` interpolates across slice gaps the drill crosses instead of refusing
     (the path's warnings then say so); ``grey`` maps grey values to HU (``--grey-to-hu``);
     ``trajectory`` picks one of several by name or number (``load_one_plan``); ``exam``
-    uploads the exam's table (:func:`ctdrill.app.trainee.exam.exam_setup`).
+    uploads the exam's table (:func:`ctdrill.app.trainee.exam.exam_setup`; ``exam_surface``:
+    its wall at the nearest landmark's surface, as on the robot).
     """
     volume, grey_map = map_volume(load_ct(dicom), grey)
     plan = load_one_plan(
@@ -98,7 +100,9 @@ def load_table(
         plan = plan.drilled(0)
     path = plan_path(volume, plan, plan_calibration(plan), interpolate_gaps=interpolate_gaps)
     if exam:
-        setup = exam_setup(volume, plan, path, interpolate_gaps=interpolate_gaps)
+        setup = exam_setup(
+            volume, plan, path, interpolate_gaps=interpolate_gaps, at_surface=exam_surface
+        )
         return RehearsalTable(setup.table, path, grey_map, setup)
     return RehearsalTable(
         ProfileTable.from_profile(path.profile, path.stop_depth_mm), path, grey_map
@@ -235,8 +239,6 @@ def rehearse(
     manual_hu = hu_sigma_uncertainty(hu_sigma)
     fault_specs = [parse_fault(f) for f in faults]
     target = None if igtl is None else parse_target(igtl)
-    if exam:
-        refuse_exam_device(spec)
     whole = load_one_plan([plan] if isinstance(plan, Path) else plan, trajectory=trajectory)
     if len(whole.drills) > 1:  # a drill sequence: one session per drill (exam: each drill's)
         from ctdrill.app.rehearse_sequence import rehearse_sequence
@@ -262,7 +264,13 @@ def rehearse(
         )
     card = find_trial([plan] if isinstance(plan, Path) else plan)  # a blind trial's card
     loaded = load_table(
-        dicom, plan, interpolate_gaps=interpolate_gaps, grey=grey, trajectory=trajectory, exam=exam
+        dicom,
+        plan,
+        interpolate_gaps=interpolate_gaps,
+        grey=grey,
+        trajectory=trajectory,
+        exam=exam,
+        exam_surface=exam_at_surface(spec),
     )
     if card is not None:
         check_session_plan(card, plan_hash(loaded.path.plan), where=str(plan))

@@ -37,7 +37,13 @@ from typing import TYPE_CHECKING, Any
 
 from ctdrill.app.igtl.frames import IgtlTarget, StreamDrill, StreamGeometry
 from ctdrill.app.records import atomic_output_dir, write_file
-from ctdrill.app.trainee.exam import ExamSetup, assessment_context, exam_setup, plan_hash
+from ctdrill.app.trainee.exam import (
+    ExamSetup,
+    assessment_context,
+    exam_at_surface,
+    exam_setup,
+    plan_hash,
+)
 from ctdrill.engine.grey import hu_uncertainty, map_volume
 from ctdrill.engine.path import PathResult
 from ctdrill.engine.plans import plan_calibration
@@ -90,7 +96,7 @@ def rehearse_sequence(
     ``grey`` and ``manual_hu`` are the rehearsal's grey-to-HU map and ``--hu-sigma``;
     ``open_device``, ``summarise`` (the single rehearsal's summary) and ``to_json`` are
     :mod:`ctdrill.app.rehearse`'s, so one drill's records are exactly a rehearsal's; ``exam``
-    runs every drill in exam mode (the caller has refused it on hardware); ``igtl`` streams
+    runs every drill in exam mode (on hardware its wall at the landmark's surface); ``igtl`` streams
     every drill's session through one connection (:meth:`IgtlStream.start_drill`: the
     ``Drill`` message names each), the top ``summary.json`` gaining ``igtl``.
     """
@@ -115,7 +121,14 @@ def rehearse_sequence(
             setup: ExamSetup | None = None
             if exam:
                 holes = holes_before(plan, reached)
-                setup = exam_setup(volume, plan.for_drill(k), path, inner_holes=holes, **options)
+                setup = exam_setup(
+                    volume,
+                    plan.for_drill(k),
+                    path,
+                    inner_holes=holes,
+                    at_surface=exam_at_surface(device),
+                    **options,
+                )
                 table = setup.table
             else:
                 table = ProfileTable.from_profile(path.profile, path.stop_depth_mm)

@@ -60,9 +60,9 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--exam",
         action="store_true",
-        help="exam mode (simulator only): no wall at the margin, the stop 10 mm beyond the "
-        "planned depth, so the drill can enter the margin zone and the canal; the summary's "
-        "assessment records any breach (docs/rehearse.md)",
+        help="exam mode: no wall at the margin; the simulator's stop 10 mm beyond the planned "
+        "depth (the drill can enter the margin zone and the canal), the robot's at the canal's "
+        "surface (serial:...); the summary's assessment records any breach (docs/rehearse.md)",
     )
     p.add_argument(
         "--igtl",

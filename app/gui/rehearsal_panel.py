@@ -57,7 +57,7 @@ from ctdrill.app.gui.results import PathView, block_reason, stop_explanation
 from ctdrill.app.gui.sound import VibrationSound
 from ctdrill.app.igtl.frames import SLICER_PORT, parse_target
 from ctdrill.app.igtl.stream import stream_line
-from ctdrill.app.trainee.exam import exam_setup
+from ctdrill.app.trainee.exam import exam_at_surface, exam_setup
 from ctdrill.app.trainee.words import assessment_line
 from ctdrill.engine.path import PathResult
 from ctdrill.haptics.profile_table import ProfileTable
@@ -232,10 +232,7 @@ class RehearsalPanel(QWidget):
         self.stop_button.setEnabled(running)
         self.device.setEnabled(not running)
         self.igtl.setEnabled(not running)
-        simulator = device_of(self.device.currentText() or SIMULATOR, realtime=False).simulated
-        self.exam.setEnabled(simulator and not running)
-        if not simulator:
-            self.exam.setChecked(False)
+        self.exam.setEnabled(not running)  # on the robot its wall stands at the canal
         self.export_button.setEnabled(self.run is not None and not running)
 
     # ------------------------------------------------------------------ the hand
@@ -285,8 +282,11 @@ class RehearsalPanel(QWidget):
             igtl_text = self.igtl.text().strip()
             igtl = parse_target(igtl_text, option="stream to Slicer") if igtl_text else None
             exam = None
-            if self.exam.isChecked() and device_of(device, realtime=False).simulated:
-                exam = exam_setup(doc.volume, doc.plan, self.result)
+            if self.exam.isChecked():
+                spec = device_of(device, realtime=False)
+                exam = exam_setup(
+                    doc.volume, doc.plan, self.result, at_surface=exam_at_surface(spec)
+                )
             self.run = RehearsalRun.start(
                 self.result,
                 device=device,

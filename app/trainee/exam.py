@@ -35,9 +35,9 @@ from ctdrill.imaging.volume import CTVolume
 #: at the margin (2 mm) and its whole diameter (2-4 mm) with room to spare; a hundred more
 #: table rows at the 0.05 mm step.
 EXAM_REACH_MM = 10.0
-#: Exam stop bases: beyond the plan (the usual case) or the planned depth (the path beyond it
-#: cannot carry a table).
-EXAM_BASES = ("beyond_plan", "planned_depth")
+#: Exam stop bases: beyond the plan (the simulator), the planned depth (the path beyond it
+#: cannot carry a table) or the surface of the nearest landmark (the robot).
+EXAM_BASES = ("beyond_plan", "planned_depth", "canal_surface")
 
 
 class ExamInputError(AppInputError):
@@ -45,20 +45,26 @@ class ExamInputError(AppInputError):
     one drill's exam table is asked for)."""
 
 
-def refuse_exam_device(device: DeviceSpec) -> None:
-    """Exam mode runs on the simulator only: a hardware device keeps its stop at the margin.
+def exam_at_surface(device: DeviceSpec) -> bool:
+    """Whether the exam's wall stands at the canal's surface: on hardware (the robot) it
+    does, so a real hand can never drive the drill into the canal; the simulator's stands
+    :data:`EXAM_REACH_MM` beyond the plan (module docstring)."""
+    return not device.simulated
 
-    Raises
-    ------
-    ExamInputError
-        For any device that is not simulated (``serial:...``).
+
+def surface_depth_mm(depth_mm: np.ndarray, clearance_mm: np.ndarray) -> float | None:
+    """The deepest grid depth before the clearance first falls below 0 (the drill touches a
+    landmark's surface there and never crosses it); None when it never does.
+
+    Parameters
+    ----------
+    depth_mm : (D,) increasing depth grid, mm.
+    clearance_mm : (D,) the drill's signed clearance at each depth, mm.
     """
-    if not device.simulated:
-        raise ExamInputError(
-            f"--exam with --device {device.label!r}: exam mode removes the margin's wall and "
-            "runs on the simulator only (--device sim); a hardware device always stops at the "
-            "margin"
-        )
+    below = np.nonzero(np.asarray(clearance_mm) < 0.0)[0]
+    if below.size == 0:
+        return None
+    return float(depth_mm[below[0] - 1]) if below[0] > 0 else 0.0
 
 
 def refuse_exam_sequence(plan: Plan) -> None:
@@ -120,10 +126,12 @@ def exam_setup(
     *,
     interpolate_gaps: bool = False,
     inner_holes: Sequence[Hole] = (),
+    at_surface: bool = False,
 ) -> ExamSetup:
     """The exam table of the one-drill ``plan`` (whose guarded path is ``guarded``): module
     docstring. ``inner_holes``: the holes of the drills before it in a sequence (the table is
-    cut around them, as ``guarded`` is)."""
+    cut around them, as ``guarded`` is). ``at_surface`` (the robot, :func:`exam_at_surface`):
+    the stop moves from the margin to the surface of the nearest landmark, not beyond."""
     refuse_exam_sequence(plan)
     reach = min(plan.planned_depth_mm + EXAM_REACH_MM, MAX_PLANNED_DEPTH_MM)
     extended = replace(
@@ -146,6 +154,20 @@ def exam_setup(
         table = ProfileTable.from_profile(guarded.profile, stop)
         return ExamSetup(table, guarded, "planned_depth", note)
     stop = _free_stop_mm(path)
+    surface = (
+        surface_depth_mm(path.depth_mm, path.min_clearance_per_depth_mm)
+        if at_surface and path.landmarks
+        else None
+    )
+    if surface is not None and surface < stop:
+        note = (
+            f"the wall moved from the margin to the landmark's surface: the stop is at "
+            f"{surface:.2f} mm, where the drill touches it (the device never lets it in); past "
+            f"the max safe depth {guarded.max_safe_depth_mm:.2f} mm the drill enters the "
+            "margin zone"
+        )
+        table = ProfileTable.from_profile(path.profile, surface)
+        return ExamSetup(table, path, "canal_surface", note)
     where = (
         f"{EXAM_REACH_MM:g} mm beyond the planned depth"
         if path.out_of_volume_depth_mm is None

@@ -117,12 +117,42 @@ def test_exam_summary_from_the_command_line(
     assert summary["recorded_at"].endswith("+00:00")
 
 
-def test_exam_is_refused_on_hardware(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    out = tmp_path / "never"
-    code = _rehearse(out, "--exam", "--operator", "push:12", "--device", "serial:/dev/ttyUSB9")
-    err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and err[0].startswith("error: --exam")
-    assert "simulator only" in err[0] and not out.exists()
+def test_on_the_robot_the_exam_wall_stands_at_the_canal_surface() -> None:
+    robot = load_table(DEMO / "ct", DEMO / "plan.json", exam=True, exam_surface=True)
+    assert robot.exam is not None and robot.exam.basis == "canal_surface"
+    # the canal's roof is 12.8 mm down the vertical drill (clearance 12.8 - x): the wall stands
+    # at the last grid depth that does not cross it, never inside
+    stop = robot.table.stop_depth_mm
+    assert 12.8 - 0.05 - 1e-6 <= stop <= 12.8 + 1e-6
+    assert robot.context.clearance_at_mm(stop) >= 0.0
+    assert robot.context.max_safe_depth_mm == pytest.approx(10.8, abs=1e-3)
+    a = _session(robot, 150.0, 3.0)  # a 12 N push that meets the wall at the canal
+    assert a.breach and not a.canal_entered
+    assert a.overshoot_mm == pytest.approx(stop - 10.8, abs=0.01)
+    assert 0.0 < a.score < 45.0  # a breach of the margin, measured as in simulation
+
+
+@pytest.mark.timeout(180)
+def test_exam_runs_on_the_robot_with_its_wall_at_the_canal(tmp_path: Path) -> None:
+    from tests.haptics.emulator_process import HostLate, host_late, with_fresh_emulator
+
+    def case(link: Path, _emulator: object) -> None:
+        out = link.with_name(f"{link.name}-out")
+        code = _rehearse(out, "--exam", "--operator", "push:20", "--device", f"serial:{link}")
+        summary = json.loads((out / "summary.json").read_text())
+        reason, gap = summary["reason"] or "", summary["max_heartbeat_gap_s"]
+        if host_late("raised watchdog" in reason, gap):  # a loaded machine starved this host
+            raise HostLate(f"{reason} (host heartbeat gap {gap * 1e3:.0f} ms)")
+        assert code == 0, reason
+        assert summary["exam"]["enabled"] and summary["exam"]["stop_basis"] == "canal_surface"
+        stop = summary["exam"]["stop_depth_mm"]
+        assert 12.75 - 1e-4 <= stop <= 12.8 + 1e-4
+        assert summary["max_drill_mm"] <= stop + 1e-3  # the device's wall held at the canal
+        a = summary["assessment"]
+        assert a["breach"] is True and a["canal_entered"] is False
+        assert a["overshoot_mm"] == pytest.approx(summary["max_drill_mm"] - 10.8, abs=2e-3)
+
+    with_fresh_emulator(tmp_path, case)
 
 
 def test_bad_human_grammar_is_one_error_line(
