@@ -41,3 +41,29 @@ def number_text(value: float | int, digits: int = 6) -> str:
     if math.isinf(x):
         return "inf" if x > 0 else "-inf"
     return f"{x:.{digits}g}"
+
+
+def ascii_whole(text: str, *, max_digits: int = 18) -> int | None:
+    """The whole number ``text`` spells in ASCII digits (``0`` .. ``9``, at most
+    ``max_digits``), else None.
+
+    ``str.isdigit`` is true for ``²`` and ``٣`` as well; ``int`` refuses the first (a
+    traceback where a message was due) and reads the second: what a user typed is read as
+    ASCII or refused, the same way everywhere.
+    """
+    t = text.strip()
+    if not t or len(t) > max_digits or not (t.isascii() and t.isdigit()):
+        return None
+    return int(t)
+
+
+def ascii_number(text: str) -> float | None:
+    """The float ``text`` spells in ASCII (``1.5``, ``-2e-3``, ``inf``), else None (``float``
+    also reads ``١.٥`` and full-width digits, which no field of ctdrill means)."""
+    t = text.strip()
+    if not t.isascii():
+        return None
+    try:
+        return float(t)
+    except ValueError:
+        return None

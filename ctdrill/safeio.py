@@ -18,7 +18,7 @@ import json
 import os
 import re
 import stat
-from typing import Any
+from typing import IO, Any
 
 #: Largest JSON document read (plans, markups, calibration sets), bytes.
 MAX_JSON_BYTES = 64 * 1024 * 1024
@@ -51,7 +51,72 @@ def regular_file_size(path: str | os.PathLike[str], *, what: str, error: ErrorTy
     if not stat.S_ISREG(st.st_mode):
         kind = _kind(st.st_mode)
         raise error(f"{path}: the {what} is {kind}, not a regular file; name a file")
+    if st.st_dev in _pseudo_devices():
+        raise error(
+            f"{path}: the {what} is a kernel pseudo-file (/proc, /sys), not a data file; "
+            "name a file"
+        )
     return int(st.st_size)
+
+
+#: Kernel pseudo-file systems: their "regular files" (``/proc/self/mem``, ``/sys/...``) are
+#: not data (a size of 0 or 4096 that says nothing, reads that fail or never end).
+_PSEUDO_ROOTS = ("/proc", "/sys")
+
+
+def _pseudo_devices() -> frozenset[int]:
+    out = set()
+    for root in _PSEUDO_ROOTS:
+        try:
+            out.add(os.stat(root).st_dev)
+        except OSError:
+            continue
+    return frozenset(out)
+
+
+def open_regular(path: str | os.PathLike[str], *, what: str, error: ErrorType) -> IO[bytes]:
+    """``path`` opened for binary reading, refused unless the opened file is a regular file.
+
+    The file is opened with ``O_NONBLOCK`` (opening a FIFO or a device never waits) and the
+    *opened descriptor* is examined with ``fstat``: a path swapped for a FIFO, a device or a
+    folder between any earlier check and this open is refused, never read. Kernel pseudo-files
+    (``/proc``, ``/sys``: ``/proc/self/mem`` claims to be a regular file) are refused too.
+    Every reader of a file a user names opens it here.
+
+    Parameters
+    ----------
+    path : the file a user named.
+    what : what the file is for, used in the message (``"plan file"``, ``"mask"``).
+    error : the exception type raised (the caller's room's input error).
+
+    Returns
+    -------
+    A binary file object positioned at 0 (close it; ``with`` works).
+    """
+    flags = os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags)
+    except FileNotFoundError as exc:
+        raise error(f"{path}: {what} not found; check the path") from exc
+    except IsADirectoryError as exc:
+        raise error(f"{path}: the {what} is a folder, not a regular file; name a file") from exc
+    except (OSError, ValueError) as exc:
+        raise error(f"{path}: cannot open the {what} ({_reason(exc)}); check the path") from exc
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise error(
+                f"{path}: the {what} is {_kind(st.st_mode)}, not a regular file; name a file"
+            )
+        if st.st_dev in _pseudo_devices():
+            raise error(
+                f"{path}: the {what} is a kernel pseudo-file (/proc, /sys), not a data file; "
+                "name a file"
+            )
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
 
 
 def read_bytes_bounded(
@@ -62,19 +127,19 @@ def read_bytes_bounded(
     The size is checked before reading and the read stops one byte past the limit, so a file
     that grows meanwhile is refused too.
     """
-    size = regular_file_size(path, what=what, error=error)
-    if size > max_bytes:
-        raise error(
-            f"{path}: the {what} holds {size} bytes, more than the {max_bytes} accepted; "
-            "check that this is the right file"
-        )
-    try:
-        with open(path, "rb") as fh:
+    with open_regular(path, what=what, error=error) as fh:
+        size = os.fstat(fh.fileno()).st_size
+        if size > max_bytes:
+            raise error(
+                f"{path}: the {what} holds {size} bytes, more than the {max_bytes} accepted; "
+                "check that this is the right file"
+            )
+        try:
             data = fh.read(max_bytes + 1)
-    except OSError as exc:
-        raise error(
-            f"{path}: cannot read the {what} ({_reason(exc)}); check its permissions"
-        ) from exc
+        except OSError as exc:
+            raise error(
+                f"{path}: cannot read the {what} ({_reason(exc)}); check its permissions"
+            ) from exc
     if len(data) > max_bytes:
         raise error(f"{path}: the {what} grew past {max_bytes} bytes while being read")
     return data

@@ -28,6 +28,7 @@ from typing import IO
 from ctdrill.haptics.errors import HapticsInputError
 from ctdrill.haptics.physics import HAND_MAX_FEED_MM_S, HAND_MAX_N
 from ctdrill.haptics.protocol import DeviceState
+from ctdrill.numtext import ascii_number, ascii_whole
 from ctdrill.safeio import read_bytes_bounded
 
 SESSION_COLUMNS = ("time_s", "master_mm", "drill_mm", "force_cmd_n", "state")
@@ -112,9 +113,8 @@ class Operator:
 
 
 def _number(text: str, what: str, spec: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
+    value = ascii_number(text)
+    if value is None:
         value = math.nan
     if not math.isfinite(value):
         raise SessionInputError(f"{spec}: {what} must be a finite number, got {text!r}")
@@ -204,12 +204,13 @@ def parse_human(spec: str) -> HumanSpec:
     react = _bounded(fields["react_ms"], "react_ms", spec, 0.0, MAX_REACT_MS, open_low=False)
     noise = _bounded(fields.get("noise_n", "0"), "noise_n", spec, 0.0, HAND_MAX_N, open_low=False)
     seed_text = fields.get("seed", "0")
-    if not seed_text.isdigit() or len(seed_text) > 18:
+    seed = ascii_whole(seed_text, max_digits=18)
+    if seed is None:
         raise SessionInputError(
-            f"--operator {spec!r}: seed must be a whole number >= 0 (at most 18 digits), "
-            f"got {seed_text!r}"
+            f"--operator {spec!r}: seed must be a whole number >= 0 in digits 0-9 (at most 18 "
+            f"digits), got {seed_text!r}"
         )
-    return HumanSpec(force, react, noise, int(seed_text))
+    return HumanSpec(force, react, noise, seed)
 
 
 def parse_operator(spec: str) -> Operator:

@@ -37,3 +37,14 @@ def shared_data() -> Path:
     """``../shared/data``; its absence is a failure, not a skip."""
     assert SHARED_DATA.is_dir(), f"real test data missing: {SHARED_DATA} (clone beside ../shared)"
     return SHARED_DATA
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _itk_agrees_on_every_volume_file() -> object:
+    """Every NIfTI, NRRD or MetaImage file any test makes ctdrill accept is read again by
+    SimpleITK, independently, and must have the same grid (``tests/imaging/itk_witness.py``)."""
+    from tests.imaging.itk_witness import install
+
+    undo = install()
+    yield
+    undo()

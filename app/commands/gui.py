@@ -57,7 +57,7 @@ def x11_reachable(display: str, timeout_s: float = 1.0) -> bool:
     A display name of another form is assumed reachable (Qt will say)."""
     host, sep, rest = display.rpartition(":")
     number = rest.split(".", 1)[0]
-    if not sep or not number.isdigit():
+    if not sep or not (number.isascii() and number.isdigit()):
         return True
     if host in ("", "unix"):
         targets: list[tuple[int, Any]] = [

@@ -20,6 +20,7 @@ from ctdrill.imaging.plan.plan_file import parse_ctdrill
 from ctdrill.imaging.plan.read import PlanParts, _Ctx, _read_json
 from ctdrill.imaging.plan.slicer import parse_slicer
 from ctdrill.imaging.plan.types import MAX_TRAJECTORIES, PLAN_FORMAT, Plan, PlanInputError
+from ctdrill.numtext import ascii_whole
 
 #: Segmentation files a folder contributes (plain ``.nrrd`` is not taken from a folder: Slicer
 #: saves volumes, the CT itself included, as ``.nrrd``).
@@ -155,8 +156,9 @@ def load_one_plan(paths: Sequence[str | os.PathLike[str]], trajectory: str | Non
         for p in plans:
             if p.name == trajectory:
                 return p
-        if trajectory.strip().isdigit() and 1 <= int(trajectory) <= len(plans):
-            return plans[int(trajectory) - 1]
+        number = ascii_whole(trajectory)
+        if number is not None and 1 <= number <= len(plans):
+            return plans[number - 1]
         raise PlanInputError(
             f"--trajectory {trajectory!r}: the plan files hold no trajectory of that name or "
             f"number; they hold {names}"

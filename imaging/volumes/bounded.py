@@ -10,7 +10,15 @@ detached data file may be a device. Every reader here:
   (:func:`fill_array`): a bomb costs the declared bytes at most, never more, and stops there;
 - names the file and what is short when the data end before the header's size.
 
-Text headers (NRRD, MetaImage) are read up to :data:`MAX_HEADER_BYTES`.
+Text headers (NRRD, MetaImage) are read up to :data:`MAX_HEADER_BYTES`; a gzip stream's own
+header fields (the stored file name and comment) up to :data:`MAX_GZIP_FIELD_BYTES`, read in
+blocks (:func:`gzip_header_bytes`; Python's ``gzip`` module reads a name byte by byte: a 60 MB
+name took 74 s).
+
+Every compressed stream, whatever its codec, may declare at most :data:`MAX_RATIO` times its
+compressed bytes: deflate's own largest expansion (gzip, zlib), and the bound ctdrill sets for
+bzip2 (whose format allows far more: a few kB inflating to a GiB), so a bomb of any codec is
+refused before anything is allocated.
 """
 
 from __future__ import annotations
@@ -30,9 +38,12 @@ _CHUNK = 1 << 20
 _STEP = 16 << 20
 #: Codecs :func:`fill_array` inflates: gzip (or zlib: both detected by the header), bzip2.
 CODECS = ("raw", "gzip", "zlib", "bzip2")
-#: Deflate's largest expansion (a run of one byte: 258 bytes per 2 bits), plus header slack.
-_DEFLATE_RATIO = 1032
+#: Deflate's largest expansion (a run of one byte: 258 bytes per 2 bits), plus header slack:
+#: the most any compressed voxel stream may declare per compressed byte (bzip2 included).
+MAX_RATIO = 1032
 _DEFLATE_SLACK = 1024
+#: Longest gzip header field read (FNAME, FCOMMENT; FEXTRA is at most 65535 by the format).
+MAX_GZIP_FIELD_BYTES = 64 * 1024
 
 ErrorType = type[Exception]
 
@@ -93,17 +104,28 @@ def check_available(
     """Refuse before allocating when the rest of the file cannot hold ``nbytes`` of voxels.
 
     Raw data must be there byte for byte; a deflate stream (gzip, zlib) expands at most
-    1032-fold, so a header declaring more than that of the compressed bytes left lies.
+    1032-fold, so a header declaring more than that of the compressed bytes left lies; a bzip2
+    stream is held to the same ratio (:data:`MAX_RATIO`). A gzip stream's header fields are
+    checked here too (:func:`gzip_header_bytes`).
     """
     here = fh.tell()
     left = fh.seek(0, 2) - here
     fh.seek(here)
     if codec == "raw":
         holds = left - skip
-    elif codec in ("gzip", "zlib"):
-        holds = left * _DEFLATE_RATIO + _DEFLATE_SLACK - skip
+    elif codec in ("gzip", "zlib", "bzip2"):
+        holds = left * MAX_RATIO + _DEFLATE_SLACK - skip
+        if codec == "gzip":
+            gzip_header_bytes(fh, where=where, error=error)
+            fh.seek(here)
     else:
         return
+    if codec == "bzip2" and holds < nbytes:
+        raise error(
+            f"{where}: the header declares {nbytes} bytes of voxel data from {left} bytes of "
+            f"bzip2 (more than {MAX_RATIO} times, the most ctdrill inflates); the file is a "
+            "decompression bomb or its header lies: save the volume raw or gzip"
+        )
     if holds < nbytes:
         raise error(
             f"{where}: the header declares {nbytes} bytes of voxel data, the file holds "
@@ -114,6 +136,81 @@ def check_available(
             )
             + "; the file is truncated or its header lies"
         )
+
+
+def gzip_header_bytes(fh: IO[bytes], *, where: str, error: ErrorType) -> int:
+    """Length of the gzip member header at ``fh``'s position (RFC 1952), its fields bounded.
+
+    The stored name and comment are read in blocks up to :data:`MAX_GZIP_FIELD_BYTES` each;
+    longer ones are refused (no tool writes a name of 64 kB). The position is left after the
+    header.
+    """
+    head = fh.read(10)
+    if len(head) < 10 or head[:2] != b"\x1f\x8b" or head[2] != 8:
+        raise error(f"{where}: not a gzip stream (no 1f 8b 08 header); the file is damaged")
+    flags = head[3]
+    size = 10
+    if flags & 0x04:  # FEXTRA
+        raw = fh.read(2)
+        if len(raw) < 2:
+            raise error(
+                f"{where}: the gzip header ends inside its extra field; the file is damaged"
+            )
+        extra = int.from_bytes(raw, "little")
+        if len(fh.read(extra)) < extra:
+            raise error(
+                f"{where}: the gzip header ends inside its extra field; the file is damaged"
+            )
+        size += 2 + extra
+    for bit, name in ((0x08, "file name"), (0x10, "comment")):
+        if flags & bit:
+            size += _gzip_text_field(fh, name, where, error)
+    if flags & 0x02:  # FHCRC
+        fh.read(2)
+        size += 2
+    return size
+
+
+def _gzip_text_field(fh: IO[bytes], name: str, where: str, error: ErrorType) -> int:
+    """Bytes of a zero-terminated gzip header field (its zero included), read in blocks."""
+    start = fh.tell()
+    seen = 0
+    while seen <= MAX_GZIP_FIELD_BYTES:
+        block = fh.read(4096)
+        if not block:
+            raise error(f"{where}: the gzip header's {name} never ends; the file is damaged")
+        at = block.find(b"\0")
+        if at >= 0:
+            fh.seek(start + seen + at + 1)
+            return seen + at + 1
+        seen += len(block)
+    raise error(
+        f"{where}: the gzip header's {name} field runs past {MAX_GZIP_FIELD_BYTES} bytes; no "
+        "tool writes such a header: the file is damaged or hostile, compress it again"
+    )
+
+
+def gunzip_prefix(fh: IO[bytes], nbytes: int, *, where: str, error: ErrorType) -> bytes:
+    """The first ``nbytes`` (or fewer, at the stream's end) of the gzip stream at ``fh``'s
+    position, its header fields bounded (:func:`gzip_header_bytes`) and its input read in
+    blocks: a header, never the whole stream."""
+    gzip_header_bytes(fh, where=where, error=error)
+    dec = _ZLIB.decompressobj(-zlib.MAX_WBITS)
+    out = b""
+    pending = b""
+    while len(out) < nbytes:
+        if not pending:
+            pending = fh.read(64 * 1024)
+            if not pending:
+                break
+        try:
+            out += dec.decompress(pending, nbytes - len(out))
+        except _INFLATE_ERRORS as exc:
+            raise error(f"{where}: the gzip stream cannot be inflated ({exc})") from exc
+        pending = dec.unconsumed_tail
+        if dec.eof:
+            break
+    return out
 
 
 def allocate(

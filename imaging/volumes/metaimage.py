@@ -17,7 +17,9 @@ Geometry, LPS as ITK writes it: ``ElementSpacing`` (required), ``Offset`` (or ``
 ``Orientation``; identity when absent, as the format defines) stored column by column: its first
 three numbers are the direction of the fastest axis. The directions must be unit, perpendicular
 vectors (:func:`.grid.check_direction_cosines`). ``AnatomicalOrientation`` is a label ITK does
-not use for geometry, and neither does this reader.
+not use for geometry, and neither does this reader. Two names of one field (``Offset`` and
+``Origin``, :data:`ALIASES`) with different values are refused, and ITK must read the same grid
+from the header (:mod:`.itk_header`).
 """
 
 from __future__ import annotations
@@ -37,8 +39,9 @@ from ctdrill.imaging.volumes.bounded import (
     read_text_header,
 )
 from ctdrill.imaging.volumes.grid import check_direction_cosines, check_grid
+from ctdrill.imaging.volumes.itk_header import check_itk_agrees
 from ctdrill.imaging.volumes.types import VolumeData, native
-from ctdrill.safeio import regular_file_size
+from ctdrill.safeio import open_regular, regular_file_size
 
 _TYPES = {
     "MET_CHAR": "i1",
@@ -56,6 +59,13 @@ _TYPES = {
 }
 _LINE = re.compile(r"^\s*([A-Za-z][A-Za-z0-9_]*)\s*=\s*(.*?)\s*$")
 _KEYS = ("ObjectType", "NDims", "ObjectSubType", "Comment", "DimSize", "ElementType")
+#: Names MetaIO accepts for one field. Two of them with different values are refused: readers
+#: differ on which counts (ITK takes ``Origin`` over ``Offset``; ctdrill took ``Offset``).
+ALIASES = (
+    ("Offset", "Origin", "Position"),
+    ("TransformMatrix", "Rotation", "Orientation"),
+    ("BinaryDataByteOrderMSB", "ElementByteOrderMSB"),
+)
 
 ErrorType = type[Exception]
 
@@ -78,6 +88,15 @@ def _fields(path: Path, text: str, error: ErrorType) -> dict[str, str]:
         if m[1] in fields:
             raise error(f"{path}: MetaImage field {m[1]} is given twice; which one is meant?")
         fields[m[1]] = m[2]
+    for names in ALIASES:
+        given = [n for n in names if n in fields]
+        if len(given) > 1 and len({" ".join(fields[n].split()).lower() for n in given}) > 1:
+            shown = ", ".join(f"{n} = {fields[n]}" for n in given)
+            raise error(
+                f"{path}: MetaImage fields {' and '.join(given)} both given with different "
+                f"values ({shown}); readers differ on which one counts (ITK, hence 3D Slicer, "
+                f"does not take the one ctdrill would): keep one and save the file again"
+            )
     return fields
 
 
@@ -140,13 +159,13 @@ def metaimage_data_file(path: Path, fields: dict[str, str], error: ErrorType) ->
             "one .mha file"
         )
     target = Path(name) if os.path.isabs(name) else path.parent / name
-    regular_file_size(target, what="MetaImage data file", error=error)
+    regular_file_size(target, what=f"MetaImage data file named by {path}", error=error)
     return target
 
 
 def header_fields(path: Path, error: ErrorType) -> dict[str, str]:
     """The header's ``Key = Value`` fields (up to ``ElementDataFile``)."""
-    with open(path, "rb") as fh:
+    with open_regular(path, what="MetaImage file", error=error) as fh:
         text, _ = read_text_header(fh, where=str(path), error=error, end=b"ElementDataFile")
     return _fields(path, text, error)
 
@@ -154,7 +173,7 @@ def header_fields(path: Path, error: ErrorType) -> dict[str, str]:
 def read_metaimage(path: Path, *, max_bytes: int, error: ErrorType) -> VolumeData:
     """One MetaImage volume (module docstring): ``data`` (k, j, i) in native byte order."""
     where = str(path)
-    with open(path, "rb") as fh:
+    with open_regular(path, what="MetaImage file", error=error) as fh:
         text, offset = read_text_header(fh, where=where, error=error, end=b"ElementDataFile")
         fields = _fields(path, text, error)
         if "ElementDataFile" not in fields:
@@ -191,7 +210,9 @@ def read_metaimage(path: Path, *, max_bytes: int, error: ErrorType) -> VolumeDat
         affine, tilt = _geometry(path, fields, shape_kji, error)
         codec = "zlib" if _flag(fields, "CompressedData") else "raw"
         source = metaimage_data_file(path, fields, error)
-        with open(source, "rb") if source is not None else fh as stream:
+        data_what = f"MetaImage data file named by {path}"
+        opened = open_regular(source, what=data_what, error=error) if source is not None else fh
+        with opened as stream:
             skip = _header_size(path, fields, source is not None, error)
             if skip == -1 and codec == "raw":
                 end = stream.seek(0, 2)
@@ -200,6 +221,15 @@ def read_metaimage(path: Path, *, max_bytes: int, error: ErrorType) -> VolumeDat
             elif source is None:
                 stream.seek(offset)
             check_available(stream, codec=codec, nbytes=nbytes, skip=skip, where=where, error=error)
+            check_itk_agrees(
+                fh,
+                affine,
+                shape_kji,
+                fmt="metaimage",
+                field="ElementSpacing / TransformMatrix / Offset",
+                where=where,
+                error=error,
+            )
             data = allocate(shape_kji, dtype, where=where, error=error)
             fill_array(stream, data, codec=codec, skip=skip, where=where, error=error)
     return VolumeData(format="MetaImage", data=native(data), affine_lps=affine, tilt_deg=tilt)

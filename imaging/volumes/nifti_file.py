@@ -17,15 +17,17 @@ Geometry, in the file RAS and converted to LPS (x, y negated):
   with the distance); a segmentation (``refuse_ambiguous``) is refused: which of the two a tool
   trusts differs between tools (ITK may take the qform), and a canal must not move with it.
 
-Each coded transform must be a proper grid (:func:`.grid.check_grid`). Spatial units
-(``xyzt_units``): metres and microns are converted to mm (as ITK does), unknown is taken as mm.
+Each coded transform must be a proper grid (:func:`.grid.check_grid`), and ITK must read the
+same grid from the header (:mod:`.itk_header`: a sheared sform ITK will not take, or one where
+ITK takes the qform, is refused). Spatial units (``xyzt_units``): metres and microns are
+converted to mm (as ITK does), unknown (0) is taken as mm (as ITK does), a code that is no
+length unit (4..7) is refused.
 Scaling: ``scl_slope`` 0 or NaN means none (the NIfTI convention, nibabel's); otherwise the
 slope and intercept are returned to be applied; a non-finite slope or intercept is refused.
 """
 
 from __future__ import annotations
 
-import gzip
 import struct
 from pathlib import Path
 from typing import IO, Any
@@ -33,22 +35,31 @@ from typing import IO, Any
 import numpy as np
 
 from ctdrill.imaging.provenance import LoadWarning
-from ctdrill.imaging.volumes.bounded import allocate, check_available, declared_bytes, fill_array
+from ctdrill.imaging.volumes.bounded import (
+    allocate,
+    check_available,
+    declared_bytes,
+    fill_array,
+    gunzip_prefix,
+)
 from ctdrill.imaging.volumes.grid import (
     RAS_TO_LPS,
     SAME_GRID_MM,
     check_grid,
     grid_distance_mm,
 )
+from ctdrill.imaging.volumes.itk_header import check_itk_agrees
 from ctdrill.imaging.volumes.types import VolumeData, native
+from ctdrill.safeio import open_regular
 
 #: Header sizes of NIfTI-1 and NIfTI-2, bytes (``sizeof_hdr``).
 NIFTI1_BYTES = 348
 NIFTI2_BYTES = 540
 #: Largest offset of the voxel data (header plus extensions) read past, bytes.
 MAX_VOX_OFFSET = 16 << 20
-#: mm per unit of ``xyzt_units``' spatial code.
-_UNIT_MM = {"unknown": 1.0, "mm": 1.0, "meter": 1000.0, "micron": 1e-3}
+#: mm per unit of ``xyzt_units``' spatial code (its low 3 bits): 0 unknown (taken as mm, as
+#: ITK does), 1 metre, 2 mm, 3 micron. Codes 4..7 are no length unit: refused.
+_UNIT_MM = {0: 1.0, 1: 1000.0, 2: 1.0, 3: 1e-3}
 
 ErrorType = type[Exception]
 
@@ -66,24 +77,22 @@ def nifti_header_bytes(head: bytes) -> int | None:
     return None
 
 
-def _open(path: Path, fh: IO[bytes]) -> tuple[Any, str]:
-    """A stream of the header's bytes and the codec of the file (``raw`` or ``gzip``)."""
+def _codec(fh: IO[bytes]) -> str:
+    """``gzip`` or ``raw``: the file's compression, by its first bytes; ``fh`` left at 0."""
     fh.seek(0)
-    if fh.read(2) == b"\x1f\x8b":
-        fh.seek(0)
-        return gzip.GzipFile(fileobj=fh, mode="rb"), "gzip"
+    magic = fh.read(2)
     fh.seek(0)
-    return fh, "raw"
+    return "gzip" if magic == b"\x1f\x8b" else "raw"
 
 
 def _header(path: Path, fh: IO[bytes], error: ErrorType) -> Any:
     import nibabel
 
-    stream, _ = _open(path, fh)
-    try:
-        head = stream.read(NIFTI2_BYTES)
-    except (OSError, EOFError, ValueError) as exc:
-        raise error(f"{path}: the compressed NIfTI header cannot be read ({exc})") from exc
+    if _codec(fh) == "gzip":
+        head = gunzip_prefix(fh, NIFTI2_BYTES, where=str(path), error=error)
+    else:
+        head = fh.read(NIFTI2_BYTES)
+    fh.seek(0)
     size = nifti_header_bytes(head)
     if size is None:
         raise error(f"{path}: not a NIfTI-1 or NIfTI-2 file (no sizeof_hdr and magic)")
@@ -115,12 +124,15 @@ def _coded(path: Path, hdr: Any, which: str, error: ErrorType) -> Any:
     return np.asarray(affine, dtype=np.float64), int(code)
 
 
-def _units_mm(hdr: Any) -> float:
-    try:
-        space, _ = hdr.get_xyzt_units()
-    except Exception:  # an unknown unit code
-        space = "unknown"
-    return _UNIT_MM.get(space, 1.0)
+def _units_mm(path: Path, hdr: Any, error: ErrorType) -> float:
+    code = int(hdr["xyzt_units"]) & 0x07
+    if code not in _UNIT_MM:
+        raise error(
+            f"{path}: xyzt_units {int(hdr['xyzt_units'])}: spatial unit code {code} is not a "
+            "length unit (0 unknown, taken as mm; 1 metre; 2 mm; 3 micron); the voxel size is "
+            "not known: save the file again with its units in mm"
+        )
+    return _UNIT_MM[code]
 
 
 def _geometry(
@@ -128,7 +140,7 @@ def _geometry(
 ) -> tuple[np.ndarray, float, tuple[LoadWarning, ...]]:
     """LPS affine, tilt and warnings (module docstring)."""
     where = str(path)
-    scale = np.diag([_units_mm(hdr)] * 3 + [1.0])
+    scale = np.diag([_units_mm(path, hdr, error)] * 3 + [1.0])
     found = {}
     for which in ("sform", "qform"):
         affine, code = _coded(path, hdr, which, error)
@@ -174,6 +186,15 @@ def _geometry(
     return chosen[0], chosen[2], warnings
 
 
+def _field_of(affine: np.ndarray, hdr: Any) -> str:
+    """The header fields a chosen geometry came from, for messages."""
+    return (
+        f"sform (srow_x/y/z, sform_code {int(hdr['sform_code'])})"
+        if int(hdr["sform_code"]) > 0
+        else f"qform (quatern_b/c/d, qoffset_x/y/z, pixdim; qform_code {int(hdr['qform_code'])})"
+    )
+
+
 def _scale(path: Path, hdr: Any, error: ErrorType) -> tuple[float, float] | None:
     slope, inter = float(hdr["scl_slope"]), float(hdr["scl_inter"])
     if slope == 0.0 or np.isnan(slope):
@@ -204,7 +225,7 @@ def read_nifti(
     refuse_ambiguous : refuse a qform and sform that disagree (segmentations) instead of
         using the sform with a warning (CT).
     """
-    with open(path, "rb") as fh:
+    with open_regular(path, what="NIfTI file", error=error) as fh:
         hdr = _header(path, fh, error)
         try:
             shape_f = tuple(int(n) for n in hdr.get_data_shape())
@@ -245,10 +266,21 @@ def read_nifti(
                 f"{path}: vox_offset {offset!r} is not a byte offset from {minimum} to "
                 f"{MAX_VOX_OFFSET}; the header is damaged"
             )
-        _, codec = _open(path, fh)
-        fh.seek(0)
+        codec = _codec(fh)
         where = str(path)
         check_available(fh, codec=codec, nbytes=nbytes, skip=int(offset), where=where, error=error)
+        fh.seek(0)
+        check_itk_agrees(
+            fh,
+            affine,
+            shape_kji,
+            fmt="nifti",
+            field=_field_of(affine, hdr),
+            where=where,
+            error=error,
+            gzip=codec == "gzip",
+        )
+        fh.seek(0)
         data = allocate(shape_kji, dtype, where=where, error=error)
         fill_array(fh, data, codec=codec, skip=int(offset), where=str(path), error=error)
     return VolumeData(

@@ -11,7 +11,12 @@ their directions the affine's i, j, k columns in file order and ``space origin``
 a proper grid (:func:`.grid.check_grid`). ``space units``, when given, must be mm. A header with
 only ``spacings`` (no orientation, no origin) is refused.
 
-Data: encodings raw, gzip, bzip2 and ascii; ``byte skip`` (-1 for raw: the data end the file)
+Every field is given once: two spellings of one field (``data file`` and ``datafile``,
+``byte skip`` and ``byteskip``) are refused as teem refuses them; ``space origin`` holds exactly
+3 numbers; and ITK must read the same grid from the header (:mod:`.itk_header`).
+
+Data: encodings raw, gzip, bzip2 and ascii (parsed block by block, at most 32 bytes of text a
+value); ``byte skip`` (-1 for raw: the data end the file)
 and ``line skip``. A detached header's ``data file`` must name one regular file (a name
 relative to the header, or absolute); ``LIST`` and numbered file patterns are refused.
 Non-spatial axes of size 1 are dropped; one more axis (a Slicer segmentation's layers, the
@@ -21,6 +26,7 @@ fastest file axis) is kept only when ``layers`` allows it, anything else is 4-D 
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
@@ -35,8 +41,9 @@ from ctdrill.imaging.volumes.bounded import (
     read_text_header,
 )
 from ctdrill.imaging.volumes.grid import RAS_TO_LPS, check_grid
+from ctdrill.imaging.volumes.itk_header import check_itk_agrees
 from ctdrill.imaging.volumes.types import VolumeData, native
-from ctdrill.safeio import regular_file_size
+from ctdrill.safeio import open_regular, regular_file_size
 
 #: NRRD ``space`` values that are patient spaces, and the LPS matrix of each.
 _SPACES = {
@@ -53,6 +60,8 @@ _ASCII = ("ascii", "text", "txt")
 _MAX_LINE_SKIP = 10_000
 #: Bytes of text an ascii-encoded value may take on average (bounds the text read).
 _ASCII_BYTES_PER_VALUE = 32
+#: Bytes of ascii text parsed at a time.
+_ASCII_BLOCK = 256 * 1024
 
 ErrorType = type[Exception]
 
@@ -64,11 +73,30 @@ def is_nrrd(head: bytes) -> bool:
 
 def read_nrrd_header(path: Path, fh: IO[bytes], error: ErrorType) -> tuple[dict[str, Any], int]:
     """The parsed header and the byte offset of the attached data (or the header's end)."""
+    header, offset, _ = _read_header(path, fh, error)
+    return header, offset
+
+
+def _read_header(path: Path, fh: IO[bytes], error: ErrorType) -> tuple[dict[str, Any], int, str]:
+    """The parsed header, the byte offset of the attached data, and the header's text."""
     import nrrd
 
     text, offset = read_text_header(fh, where=str(path), error=error, end=b"")
     if not text.startswith("NRRD000"):
         raise error(f"{path}: not a NRRD file (no NRRD000x magic line)")
+    seen: dict[str, str] = {}
+    for line in text.splitlines()[1:]:
+        if line.startswith("#") or ":=" in line.split(": ", 1)[0] or ": " not in line:
+            continue
+        key = line.split(": ", 1)[0]
+        norm = key.replace(" ", "").lower()
+        if norm in seen:
+            raise error(
+                f"{path}: NRRD field {seen[norm]!r} is given twice (as {seen[norm]!r} and "
+                f"{key!r}); readers differ on which one counts (teem, hence ITK and 3D Slicer, "
+                "refuses the file): keep one and save it again"
+            )
+        seen[norm] = key
     for line in text.splitlines():
         key, _, value = line.partition(":")
         if key.strip().lower() in ("data file", "datafile") and (
@@ -82,7 +110,7 @@ def read_nrrd_header(path: Path, fh: IO[bytes], error: ErrorType) -> tuple[dict[
         header = nrrd.read_header(text.splitlines())
     except (nrrd.NRRDError, ValueError, TypeError, KeyError, IndexError) as exc:
         raise error(f"{path}: the NRRD header cannot be read ({exc})") from exc
-    return dict(header), offset
+    return dict(header), offset, text
 
 
 def _field(header: dict[str, Any], *names: str) -> Any:
@@ -104,7 +132,7 @@ def data_file(path: Path, header: dict[str, Any], error: ErrorType) -> Path | No
             "volume as one .nrrd file"
         )
     target = Path(text) if os.path.isabs(text) else path.parent / text
-    regular_file_size(target, what="NRRD data file", error=error)
+    regular_file_size(target, what=f"NRRD data file named by {path}", error=error)
     return target
 
 
@@ -157,10 +185,16 @@ def _affine(
     origin = _field(header, "space origin")
     if origin is None:
         raise error(f"{path}: no space origin: the header does not say where its voxels are")
+    origin_mm = np.asarray(origin, dtype=np.float64).reshape(-1)
+    if origin_mm.size != 3:
+        raise error(
+            f"{path}: space origin holds {origin_mm.size} numbers {origin_mm.tolist()}, the "
+            "space has 3; the header is damaged: save it again"
+        )
     rows = np.asarray(header["space directions"], dtype=np.float64)[spatial]
     affine = np.eye(4)
     affine[:3, :3] = rows.T
-    affine[:3, 3] = np.asarray(origin, dtype=np.float64).reshape(-1)[:3]
+    affine[:3, 3] = origin_mm
     lps: np.ndarray = _SPACES[space] @ affine
     tilt = check_grid(
         lps, shape_kji, where=str(path), field="space directions / space origin", error=error
@@ -169,23 +203,52 @@ def _affine(
 
 
 def _ascii(path: Path, fh: IO[bytes], out: np.ndarray, error: ErrorType) -> None:
-    limit = min(out.size * _ASCII_BYTES_PER_VALUE + MAX_HEADER_BYTES, 1 << 30)
-    text = fh.read(limit + 1)
-    if len(text) > limit:
-        raise error(f"{path}: the ascii data run past {limit} bytes; save the volume raw or gzip")
-    try:
-        values = np.array(text.split(), dtype=np.float64)
-    except ValueError as exc:
-        raise error(f"{path}: the ascii data hold a value that is not a number ({exc})") from exc
-    if values.size != out.size:
-        raise error(
-            f"{path}: the header declares {out.size} values, the ascii data hold {values.size}"
-        )
-    with np.errstate(all="ignore"):
-        cast = values.astype(out.dtype)
-    if not np.array_equal(cast.astype(np.float64), values, equal_nan=True):
-        raise error(f"{path}: the ascii data hold values its type {out.dtype} cannot hold")
-    out.reshape(-1)[:] = cast
+    """Fill ``out`` from ascii numbers, parsed block by block (:data:`_ASCII_BLOCK` bytes of
+    text at a time): the memory beyond ``out`` is one block's, never the whole text's (a list
+    of Python numbers costs about 36 times the declared bytes)."""
+    limit = min(out.size * _ASCII_BYTES_PER_VALUE + MAX_HEADER_BYTES, 1 << 32)
+    flat = out.reshape(-1)
+    filled = 0
+    read = 0
+    carry = b""
+    while True:
+        block = fh.read(_ASCII_BLOCK)
+        read += len(block)
+        if read > limit:
+            raise error(
+                f"{path}: the ascii data run past {limit} bytes ({_ASCII_BYTES_PER_VALUE} a "
+                "value); save the volume raw or gzip"
+            )
+        text = carry + block
+        if block:
+            cut = max(text.rfind(b" "), text.rfind(b"\n"), text.rfind(b"\t"), text.rfind(b"\r"))
+            text, carry = (text[: cut + 1], text[cut + 1 :]) if cut >= 0 else (b"", text)
+            if len(carry) > _ASCII_BYTES_PER_VALUE * 8:
+                raise error(f"{path}: the ascii data hold a value longer than {len(carry)} bytes")
+        else:
+            carry = b""
+        words = text.split()
+        if filled + len(words) > flat.size:
+            raise error(
+                f"{path}: the ascii data hold more than the {flat.size} values the header declares"
+            )
+        if words:
+            try:
+                values = np.array(words, dtype=np.float64)
+            except ValueError as exc:
+                raise error(
+                    f"{path}: the ascii data hold a value that is not a number ({exc})"
+                ) from exc
+            with np.errstate(all="ignore"):
+                cast = values.astype(out.dtype)
+            if not np.array_equal(cast.astype(np.float64), values, equal_nan=True):
+                raise error(f"{path}: the ascii data hold values its type {out.dtype} cannot hold")
+            flat[filled : filled + len(words)] = cast
+            filled += len(words)
+        if not block:
+            break
+    if filled != flat.size:
+        raise error(f"{path}: the header declares {flat.size} values, the ascii data hold {filled}")
 
 
 def read_nrrd(path: Path, *, max_bytes: int, error: ErrorType, layers: bool = False) -> VolumeData:
@@ -196,8 +259,8 @@ def read_nrrd(path: Path, *, max_bytes: int, error: ErrorType, layers: bool = Fa
     """
     import nrrd
 
-    with open(path, "rb") as fh:
-        header, offset = read_nrrd_header(path, fh, error)
+    with open_regular(path, what="NRRD file", error=error) as fh:
+        header, offset, text = _read_header(path, fh, error)
         try:
             sizes = [int(n) for n in np.atleast_1d(header["sizes"])]
             dtype = np.dtype(nrrd.reader._determine_datatype(header))
@@ -222,11 +285,29 @@ def read_nrrd(path: Path, *, max_bytes: int, error: ErrorType, layers: bool = Fa
         if encoding not in _CODECS and encoding not in _ASCII:
             raise error(f"{path}: encoding {encoding!r} is not read; save it raw, gzip or bzip2")
         source = data_file(path, header, error)
-        with open(source, "rb") if source is not None else fh as stream:
+        data_what = f"NRRD data file named by {path}"
+        opened = open_regular(source, what=data_what, error=error) if source is not None else fh
+        with opened as stream:
+
+            def itk_agrees() -> None:
+                check_itk_agrees(
+                    fh,
+                    affine,
+                    shape_kji,
+                    fmt="nrrd",
+                    field="space directions / space origin",
+                    where=str(path),
+                    error=error,
+                    data_fh=stream if source is not None else None,
+                    header_text=text if source is not None else None,
+                )
+
             if source is None:
                 stream.seek(offset)
             _skip_lines(path, stream, header, error)
-            data = _read_data(path, stream, tuple(reversed(sizes)), dtype, encoding, header, error)
+            data = _read_data(
+                path, stream, tuple(reversed(sizes)), dtype, encoding, header, error, itk_agrees
+            )
     arr = native(data)
     # C order: file axes reversed. Drop size-1 non-spatial axes; the layer axis goes first.
     keep = set(spatial) | ({layer_axis} if layer_axis is not None else set())
@@ -262,11 +343,23 @@ def _read_data(
     encoding: str,
     header: dict[str, Any],
     error: ErrorType,
+    before_allocating: Callable[[], None],
 ) -> np.ndarray:
+    """The voxels, after the bounded checks and ``before_allocating`` (ITK's agreement)."""
     where = str(path)
     skip = int(_field(header, "byte skip", "byteskip") or 0)
     nbytes = int(np.prod(shape, dtype=object)) * dtype.itemsize
     if encoding in _ASCII:
+        count = nbytes // dtype.itemsize
+        here = fh.tell()
+        left = fh.seek(0, 2) - here
+        fh.seek(here)
+        if left < 2 * count - 1:  # a digit and a separator per value
+            raise error(
+                f"{path}: the header declares {count} values, the ascii data hold {left} bytes "
+                "(at least two a value); the file is truncated or its header lies"
+            )
+        before_allocating()
         out = allocate(shape, dtype, where=where, error=error)
         _ascii(path, fh, out, error)
         return out
@@ -283,6 +376,7 @@ def _read_data(
     elif not 0 <= skip <= MAX_HEADER_BYTES:
         raise error(f"{path}: byte skip {skip} outside 0..{MAX_HEADER_BYTES} (-1 only for raw)")
     check_available(fh, codec=codec, nbytes=nbytes, skip=skip, where=where, error=error)
+    before_allocating()
     out = allocate(shape, dtype, where=where, error=error)
     fill_array(fh, out, codec=codec, skip=skip, where=where, error=error)
     return out

@@ -14,15 +14,14 @@ A folder is a DICOM series. A file is recognised by its first bytes, whatever it
 
 from __future__ import annotations
 
-import gzip
-import zlib
 from pathlib import Path
 
+from ctdrill.imaging.volumes.bounded import gunzip_prefix
 from ctdrill.imaging.volumes.metaimage import is_metaimage, read_metaimage
 from ctdrill.imaging.volumes.nifti_file import NIFTI2_BYTES, nifti_header_bytes, read_nifti
 from ctdrill.imaging.volumes.nrrd_file import is_nrrd, read_nrrd
 from ctdrill.imaging.volumes.types import VolumeData
-from ctdrill.safeio import regular_file_size
+from ctdrill.safeio import open_regular
 
 #: Bytes read to recognise a text header.
 SNIFF_BYTES = 64 * 1024
@@ -41,18 +40,15 @@ def volume_format(path: str | Path, *, error: ErrorType, what: str = "CT volume"
     p = Path(path)
     if p.is_dir():
         return "dicom"
-    regular_file_size(p, what=what, error=error)
     try:
-        with open(p, "rb") as fh:
+        with open_regular(p, what=what, error=error) as fh:
             head = fh.read(SNIFF_BYTES)
+            if head[:2] == b"\x1f\x8b":
+                fh.seek(0)
+                inner = gunzip_prefix(fh, NIFTI2_BYTES, where=str(p), error=error)
     except OSError as exc:
         raise error(f"{p}: cannot read the {what} ({exc.strerror or exc})") from exc
     if head[:2] == b"\x1f\x8b":
-        try:
-            with gzip.open(p, "rb") as gz:
-                inner = gz.read(NIFTI2_BYTES)
-        except (OSError, EOFError, zlib.error) as exc:
-            raise error(f"{p}: a gzip file that cannot be inflated ({exc})") from exc
         if nifti_header_bytes(inner) is not None:
             return "nifti"
         raise error(
@@ -91,7 +87,7 @@ def files_read(path: str | Path, *, error: ErrorType) -> tuple[Path, ...]:
     if kind == "nrrd":
         from ctdrill.imaging.volumes.nrrd_file import data_file, read_nrrd_header
 
-        with open(p, "rb") as fh:
+        with open_regular(p, what="NRRD file", error=error) as fh:
             header, _ = read_nrrd_header(p, fh, error)
         extra = data_file(p, header, error)
     elif kind == "metaimage":
@@ -126,10 +122,19 @@ def read_volume_file(
     """
     p = Path(path)
     fmt = kind or volume_format(p, error=error, what="volume file")
-    if fmt == "nifti":
-        return read_nifti(p, max_bytes=max_bytes, error=error, refuse_ambiguous=refuse_ambiguous)
-    if fmt == "nrrd":
-        return read_nrrd(p, max_bytes=max_bytes, error=error, layers=layers)
-    if fmt == "metaimage":
-        return read_metaimage(p, max_bytes=max_bytes, error=error)
+    try:
+        if fmt == "nifti":
+            return read_nifti(
+                p, max_bytes=max_bytes, error=error, refuse_ambiguous=refuse_ambiguous
+            )
+        if fmt == "nrrd":
+            return read_nrrd(p, max_bytes=max_bytes, error=error, layers=layers)
+        if fmt == "metaimage":
+            return read_metaimage(p, max_bytes=max_bytes, error=error)
+    except OSError as exc:  # a read that fails midway: name the file it failed on
+        failed = exc.filename or p
+        raise error(
+            f"{p}: reading {failed} failed ({exc.strerror or exc}); check the file and its "
+            "data file"
+        ) from exc
     raise error(f"{p}: a DICOM file, not a NIfTI, NRRD or MetaImage volume")

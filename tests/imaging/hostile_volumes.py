@@ -204,7 +204,7 @@ def nrrd_data_file_device(folder: Path) -> tuple[Path, str]:
     path = _nrrd(folder, "ct.nhdr", encoding="raw", detached=True)
     data_name = next(p.name for p in folder.iterdir() if p.name.startswith("ct.") and p != path)
     edit_text_header(path, f"data file: {data_name}", "data file: /dev/zero")
-    return path, r"/dev/zero: the NRRD data file is a device"
+    return path, r"/dev/zero: the NRRD data file named by .*ct\.nhdr is a device"
 
 
 def nrrd_data_file_list(folder: Path) -> tuple[Path, str]:
@@ -287,7 +287,7 @@ def mha_no_offset(folder: Path) -> tuple[Path, str]:
 def mha_data_device(folder: Path) -> tuple[Path, str]:
     path = _mha(folder, name="ct.mhd")
     edit_text_header(path, "ElementDataFile = ct.raw", "ElementDataFile = /dev/zero")
-    return path, r"/dev/zero: the MetaImage data file is a device"
+    return path, r"/dev/zero: the MetaImage data file named by .*ct\.mhd is a device"
 
 
 def mha_zlib_bomb(folder: Path) -> tuple[Path, str]:
@@ -317,6 +317,137 @@ def mha_channels(folder: Path) -> tuple[Path, str]:
     return path, r"ElementNumberOfChannels is not 1"
 
 
+# Round four: where ctdrill's reader and ITK's (3D Slicer's) would read one header two ways,
+# and the bounds of every codec and header field. Other instances than the ones reported.
+
+
+def nifti_sheared_sform_over_qform(folder: Path) -> tuple[Path, str]:
+    sheared = AFFINE.copy()
+    sheared[:3, 2] += np.tan(np.radians(12.0)) * AFFINE[:3, 1] * 0.875 / 1.25  # 12 deg shear
+    path = write_nifti(folder / "ct.nii", ramp(SHAPE), sheared, qform_lps=AFFINE)
+    # a CT: ITK takes the qform where ctdrill would take the sform; a segmentation: refused
+    # already because the two disagree
+    return (
+        path,
+        r"sform \(srow_x/y/z, sform_code 1\): ctdrill reads .* where ITK reads|qform .* and the sform .* apart",
+    )
+
+
+def nifti_sheared_sform_only(folder: Path) -> tuple[Path, str]:
+    sheared = AFFINE.copy()
+    sheared[:3, 2] += 0.05 * AFFINE[:3, 0]
+    path = write_nifti(folder / "ct.nii.gz", ramp(SHAPE), sheared, qform_code=0)
+    return path, r"ITK .*refuses the header: .*orthonormal"
+
+
+def nifti_units_code_5(folder: Path) -> tuple[Path, str]:
+    path = _nii(folder)
+    raw = bytearray(path.read_bytes())
+    raw[123] = 5 | 0x08  # spatial code 5 (none), time in seconds
+    path.write_bytes(bytes(raw))
+    return path, r"xyzt_units 13: spatial unit code 5 is not a length unit"
+
+
+def nifti_version_2(folder: Path) -> tuple[Path, str]:
+    path = write_nifti(folder / "ct.nii", ramp(SHAPE), AFFINE, version=2)
+    return path, r"ITK .*refuses the header.*NIfTI-1"
+
+
+def _gzip_with_field(payload: bytes, flag: int, field: bytes) -> bytes:
+    """A gzip member with header flag ``flag`` (0x08 name, 0x10 comment) holding ``field``."""
+    head = b"\x1f\x8b\x08" + bytes([flag]) + b"\0\0\0\0\0\xff" + field + b"\0"
+    comp = zlib.compressobj(6, zlib.DEFLATED, -15)
+    body = comp.compress(payload) + comp.flush()
+    tail = struct.pack("<II", zlib.crc32(payload), len(payload) & 0xFFFFFFFF)
+    return head + body + tail
+
+
+def nifti_gz_long_name(folder: Path) -> tuple[Path, str]:
+    plain = _nii(folder)
+    path = folder / "named.nii.gz"
+    path.write_bytes(_gzip_with_field(plain.read_bytes(), 0x08, b"n" * (3 << 20)))
+    plain.unlink()
+    return path, r"gzip header's file name field runs past 65536 bytes"
+
+
+def nifti_gz_long_comment(folder: Path) -> tuple[Path, str]:
+    plain = _nii(folder)
+    path = folder / "commented.nii.gz"
+    path.write_bytes(_gzip_with_field(plain.read_bytes(), 0x10, b"c" * (1 << 20)))
+    plain.unlink()
+    return path, r"gzip header's comment field runs past 65536 bytes"
+
+
+def nrrd_line_skip_spellings(folder: Path) -> tuple[Path, str]:
+    path = _nrrd(folder, encoding="raw")
+    edit_text_header(path, "encoding: raw", "encoding: raw\nline skip: 0\nlineskip: 1")
+    return path, r"NRRD field 'line skip' is given twice \(as 'line skip' and 'lineskip'\)"
+
+
+def nrrd_origin_given_twice(folder: Path) -> tuple[Path, str]:
+    path = _nrrd(folder, encoding="raw")
+    edit_text_header(path, "space origin:", "space origin: (0,0,0)\nspace origin:")
+    return path, r"NRRD field 'space origin' is given twice"
+
+
+def nrrd_origin_two_values(folder: Path) -> tuple[Path, str]:
+    path = _nrrd(folder, encoding="raw")
+    text = path.read_bytes().split(b"\n\n", 1)[0].decode()
+    line = next(x for x in text.splitlines() if x.startswith("space origin:"))
+    edit_text_header(path, line, "space origin: (12.5,-30.25)")
+    return path, r"space origin holds 2 numbers"
+
+
+def nrrd_bzip2_bomb(folder: Path) -> tuple[Path, str]:
+    import bz2
+
+    path = _nrrd(folder, encoding="raw")
+    data = path.read_bytes()
+    head = data[: data.index(b"\n\n") + 2].decode()
+    head = head.replace("sizes: 6 5 4", "sizes: 512 512 256").replace(
+        "encoding: raw", "encoding: bzip2"
+    )
+    path.write_bytes(head.encode() + bz2.compress(bytes(128 << 20), 9))
+    return path, r"bytes of bzip2 \(more than 1032 times.*decompression bomb"
+
+
+def nrrd_data_file_proc(folder: Path) -> tuple[Path, str]:
+    path = _nrrd(folder, "ct.nhdr", encoding="raw", detached=True)
+    data_name = next(p.name for p in folder.iterdir() if p.name.startswith("ct.") and p != path)
+    edit_text_header(path, f"data file: {data_name}", "data file: /proc/self/environ")
+    return (
+        path,
+        r"/proc/self/environ: the NRRD data file named by .*ct\.nhdr is a kernel pseudo-file",
+    )
+
+
+def mha_position_and_offset(folder: Path) -> tuple[Path, str]:
+    path = _mha(folder)
+    edit_text_header(path, "Offset =", "Position = 0 0 4\nOffset =")
+    return path, r"MetaImage fields Offset and Position both given with different values"
+
+
+def mha_rotation_and_matrix(folder: Path) -> tuple[Path, str]:
+    path = _mha(folder)
+    edit_text_header(path, "TransformMatrix =", "Rotation = 1 0 0 0 1 0 0 0 1\nTransformMatrix =")
+    return path, r"MetaImage fields TransformMatrix and Rotation both given"
+
+
+def mha_byte_order_spellings(folder: Path) -> tuple[Path, str]:
+    path = _mha(folder)
+    edit_text_header(path, "ElementType", "ElementByteOrderMSB = True\nElementType")
+    return path, r"BinaryDataByteOrderMSB and ElementByteOrderMSB both given"
+
+
+def mha_data_proc(folder: Path) -> tuple[Path, str]:
+    path = _mha(folder, name="ct.mhd")
+    edit_text_header(path, "ElementDataFile = ct.raw", "ElementDataFile = /proc/self/stat")
+    return (
+        path,
+        r"/proc/self/stat: the MetaImage data file named by .*ct\.mhd is a kernel pseudo-file",
+    )
+
+
 HOSTILE: dict[str, Builder] = {
     name: fn
     for name, fn in sorted(globals().items())
@@ -334,4 +465,6 @@ BOMBS = (
     "mha_huge",
     "mha_zlib_bomb",
     "seg_100k_segments",
+    "nifti_gz_long_name",
+    "nrrd_bzip2_bomb",
 )
