@@ -329,7 +329,8 @@ def nifti_sheared_sform_over_qform(folder: Path) -> tuple[Path, str]:
     # already because the two disagree
     return (
         path,
-        r"sform \(srow_x/y/z, sform_code 1\): ctdrill reads .* where ITK reads|qform .* and the sform .* apart",
+        r"sform \(srow_x/y/z, sform_code 1\): ctdrill reads .* where ITK reads"
+        r"|qform .* and the sform .* apart",
     )
 
 

@@ -330,7 +330,7 @@ def test_nrrd_header_declaring_a_huge_volume_is_refused(tmp_path: Path) -> None:
         b"space origin: (0,0,0)\ndata file: /dev/zero\n\n"
     )
     with pytest.raises(
-        LandmarkInputError, match="/dev/zero: the NRRD data file named by .* is a device"
+        LandmarkInputError, match=r"/dev/zero: the NRRD data file named by .* is a device"
     ):
         load_plan(_plan_with(tmp_path, {"kind": "mask", "path": "bomb.nrrd"}))
 
