@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -33,13 +33,13 @@ from ctdrill.app.trainee.exam import (
     exam_setup,
     plan_hash,
 )
-from ctdrill.engine.band import band_peak, hu_uncertainty_info, path_band
-from ctdrill.engine.grey import hu_sigma_uncertainty, hu_uncertainty, map_volume
-from ctdrill.engine.path import PathResult, binding_landmark_doc, plan_path
-from ctdrill.engine.plans import plan_calibration
-from ctdrill.engine.record import to_json
-from ctdrill.engine.settings import GreyMapSpec
-from ctdrill.engine.summary import CalibrationInfo
+from ctdrill.engine.case import case_context
+from ctdrill.engine.grey import hu_sigma_uncertainty, map_volume
+from ctdrill.engine.path import PathResult, plan_path
+from ctdrill.engine.plans import one_trajectory, plan_calibration
+from ctdrill.engine.rehearsal_summary import RehearsalSummary, rehearsal_plan_summary
+from ctdrill.engine.settings import DEFAULTS, GreyMapSpec
+from ctdrill.engine.summarize import CaseContext
 from ctdrill.haptics.assessment import AssessmentContext, Assessor
 from ctdrill.haptics.device import Device
 from ctdrill.haptics.profile_table import ProfileTable
@@ -48,8 +48,6 @@ from ctdrill.haptics.session import SessionCsv, parse_fault, parse_operator
 from ctdrill.haptics.spec import DeviceSpec
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.dicom.grey import GreyToHu
-from ctdrill.imaging.plan.load import load_one_plan
-from ctdrill.model.band import HuUncertainty
 
 #: Exit code of a session that ended on a device fault or a host error (STOP, DISARM sent).
 EXIT_DEVICE_FAULT = 3
@@ -64,6 +62,7 @@ class RehearsalTable:
 
     table: ProfileTable
     path: PathResult
+    case: CaseContext
     grey_map: GreyToHu | None = None
     exam: ExamSetup | None = None
 
@@ -82,6 +81,7 @@ def load_table(
     trajectory: str | None = None,
     exam: bool = False,
     exam_surface: bool = False,
+    hu_sigma: float | None = None,
 ) -> RehearsalTable:
     """Load the CT and the plan (one file, or several merged into one trajectory), compute
     the path and adapt its profile to a device table.
@@ -90,10 +90,12 @@ def load_table(
     (the path's warnings then say so); ``grey`` maps grey values to HU (``--grey-to-hu``);
     ``trajectory`` picks one of several by name or number (``load_one_plan``); ``exam``
     uploads the exam's table (:func:`ctdrill.app.trainee.exam.exam_setup`; ``exam_surface``:
-    its wall at the nearest landmark's surface, as on the robot).
+    its wall at the nearest landmark's surface, as on the robot); ``case`` is what the export's
+    summary of the same CT, map and ``hu_sigma`` (``--hu-sigma``) shares.
     """
     volume, grey_map = map_volume(load_ct(dicom), grey)
-    plan = load_one_plan(
+    case = case_context(volume, grey_map, replace(DEFAULTS, hu_sigma=hu_sigma))
+    plan = one_trajectory(
         [plan_file] if isinstance(plan_file, Path) else plan_file, trajectory=trajectory
     )
     if not plan.earlier_drills:  # with an implant: to its apex plus the drill's tip
@@ -103,9 +105,9 @@ def load_table(
         setup = exam_setup(
             volume, plan, path, interpolate_gaps=interpolate_gaps, at_surface=exam_surface
         )
-        return RehearsalTable(setup.table, path, grey_map, setup)
+        return RehearsalTable(setup.table, path, case, grey_map, setup)
     return RehearsalTable(
-        ProfileTable.from_profile(path.profile, path.stop_depth_mm), path, grey_map
+        ProfileTable.from_profile(path.profile, path.stop_depth_mm), path, case, grey_map
     )
 
 
@@ -119,66 +121,40 @@ def rehearsal_summary(
     path: PathResult,
     table: ProfileTable,
     *,
+    context: CaseContext,
     operator: str,
     device: str,
     duration_s: float,
     seed: int,
-    hu: HuUncertainty | None = None,
-    grey_map: GreyToHu | None = None,
     assessment: dict[str, Any] | None = None,
     exam: ExamSetup | None = None,
 ) -> dict[str, Any]:
-    """The one ``summary.json`` of a rehearsal (CLI and GUI): the session's fields, then the
-    plan's (stop reason, planned and max safe depth, the binding landmark, the planned path's
-    clearance, calibration, how it was obtained, the force band at the peak at the plan's feed
-    with ``hu`` (``--hu-sigma``), warnings), how the session was run, and for a ``push:N``
-    operator the readouts of :func:`ctdrill.app.readout.push_summary` (the model's time to the
-    stop against the session's, a push too weak to cut); at the stop the wall's account
-    (:func:`ctdrill.app.readout.wall_summary`: the hand's offset past the stopped drill, the
-    limit that let it through); then ``exam`` (exam mode: the stop and why there, or
-    ``{"enabled": false}``), ``plan_sha256``, ``recorded_at`` (UTC) and the session's ``assessment``
-    (:meth:`ctdrill.haptics.assessment.Assessment.to_json`), when given."""
-    summary = dict(session.to_json() if isinstance(session, SessionResult) else session)
-    summary.update(
-        {
-            "stop_reason": path.stop_reason,
-            "planned_depth_mm": float(path.plan.planned_depth_mm),
-            "max_safe_depth_mm": float(path.max_safe_depth_mm),
-            "binding_landmark": binding_landmark_doc(path),
-            "plan_clearance_mm": path.plan_clearance_mm,
-            **to_json(CalibrationInfo.of(path.calibration)),
-            **_band_fields(path, hu),
-            "grey_to_hu": None if grey_map is None else grey_map.to_json(),
-            "operator": operator,
-            "device": device,
-            "duration_s": duration_s,
-            "seed": seed,
-            "profile_steps": table.n_steps,
-            "depth_step_mm": table.depth_step_mm,
-            "warnings": [w.code for w in path.warnings],
-            "interpolated_gaps": len(path.interpolated_gaps),
-        }
-    )
-    summary.update(push_summary(summary, table, operator, duration_s))
-    summary.update(wall_summary(summary))
-    summary["exam"] = {"enabled": False} if exam is None else exam.to_json()
-    summary["plan_sha256"] = plan_hash(path.plan)
-    summary["recorded_at"] = datetime.now(UTC).isoformat(timespec="seconds")
-    if assessment is not None:
-        summary["assessment"] = assessment
-    return summary
-
-
-def _band_fields(path: PathResult, hu: HuUncertainty | None) -> dict[str, Any]:
-    """The force band at the peak at the plan's feed, its note and the HU uncertainty, as
-    the export's summary names them."""
-    peak, note = band_peak(path, path_band(path, path.plan.feed_mm_s, hu), hu)
-    info = hu_uncertainty_info(hu)
-    return {
-        "force_band": None if peak is None else to_json(peak),
-        "force_band_note": note,
-        "hu_uncertainty": None if info is None else to_json(info),
+    """The one ``summary.json`` of a rehearsal (CLI, drill sequence and window): a
+    :class:`~ctdrill.engine.rehearsal_summary.RehearsalSummary` of the session's fields, the
+    export's summary of ``path`` on the case ``context`` (every field, the same values), and
+    how the session was run: ``operator``, ``device``, ``session_duration_s``, ``seed``,
+    ``profile_steps``; for a ``push:N`` operator the readouts of
+    :func:`ctdrill.app.readout.push_summary` (the model's time to the stop against the
+    session's, a push too weak to cut); at the stop the wall's account
+    (:func:`ctdrill.app.readout.wall_summary`); ``exam`` (exam mode: the device's stop and why
+    there, or ``{"enabled": false}``), ``plan_sha256``, ``recorded_at`` (UTC) and the session's
+    ``assessment`` (:meth:`ctdrill.haptics.assessment.Assessment.to_json`), when given."""
+    fields = dict(session.to_json() if isinstance(session, SessionResult) else session)
+    run: dict[str, Any] = {
+        "operator": operator,
+        "device": device,
+        "session_duration_s": duration_s,
+        "seed": seed,
+        "profile_steps": table.n_steps,
     }
+    run.update(push_summary(fields, table, operator, duration_s))
+    run.update(wall_summary(fields))
+    run["exam"] = {"enabled": False} if exam is None else exam.to_json()
+    run["plan_sha256"] = plan_hash(path.plan)
+    run["recorded_at"] = datetime.now(UTC).isoformat(timespec="seconds")
+    if assessment is not None:
+        run["assessment"] = assessment
+    return RehearsalSummary(fields, rehearsal_plan_summary(path, context), run).to_json()
 
 
 def summary_json(summary: dict[str, Any]) -> str:
@@ -236,10 +212,10 @@ def rehearse(
         raise AppInputError(f"--duration-s {duration_s}: give 0 < seconds <= 3600")
     op = parse_operator(operator)
     spec = device if isinstance(device, DeviceSpec) else DeviceSpec.parse(device)
-    manual_hu = hu_sigma_uncertainty(hu_sigma)
+    hu_sigma_uncertainty(hu_sigma)  # a bad --hu-sigma is refused before anything loads
     fault_specs = [parse_fault(f) for f in faults]
     target = None if igtl is None else parse_target(igtl)
-    whole = load_one_plan([plan] if isinstance(plan, Path) else plan, trajectory=trajectory)
+    whole = one_trajectory([plan] if isinstance(plan, Path) else plan, trajectory=trajectory)
     if len(whole.drills) > 1:  # a drill sequence: one session per drill (exam: each drill's)
         from ctdrill.app.rehearse_sequence import rehearse_sequence
 
@@ -254,7 +230,7 @@ def rehearse(
             seed=seed,
             interpolate_gaps=interpolate_gaps,
             grey=grey,
-            manual_hu=manual_hu,
+            hu_sigma=hu_sigma,
             open_device=open_device,
             summarise=rehearsal_summary,
             to_json=summary_json,
@@ -271,10 +247,10 @@ def rehearse(
         trajectory=trajectory,
         exam=exam,
         exam_surface=exam_at_surface(spec),
+        hu_sigma=hu_sigma,
     )
     if card is not None:
         check_session_plan(card, plan_hash(loaded.path.plan), where=str(plan))
-    hu = hu_uncertainty(loaded.grey_map, manual_hu)
     assessor = Assessor(loaded.context, loaded.table)
     with atomic_output_dir(out) as stage:
         dev = open_device(spec, seed=seed)
@@ -309,8 +285,7 @@ def rehearse(
             device=spec.label,
             duration_s=duration_s,
             seed=seed,
-            hu=hu,
-            grey_map=loaded.grey_map,
+            context=loaded.case,
             assessment=assessor.result().to_json(),
             exam=loaded.exam,
         )

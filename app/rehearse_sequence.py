@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Iterator, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -44,13 +45,12 @@ from ctdrill.app.trainee.exam import (
     exam_setup,
     plan_hash,
 )
-from ctdrill.engine.grey import hu_uncertainty, map_volume
+from ctdrill.engine.case import case_context
+from ctdrill.engine.grey import map_volume
 from ctdrill.engine.path import PathResult
 from ctdrill.engine.plans import plan_calibration
-from ctdrill.engine.record import to_json as record_json
 from ctdrill.engine.sequence import drill_folder, drill_path, holes_before, plan_sequence
-from ctdrill.engine.settings import GreyMapSpec
-from ctdrill.engine.summarize import drill_info, hole_info
+from ctdrill.engine.settings import DEFAULTS, GreyMapSpec
 from ctdrill.haptics.assessment import Assessor, combine_assessments
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session
@@ -58,7 +58,6 @@ from ctdrill.haptics.session import FaultSpec, Operator, SessionCsv
 from ctdrill.haptics.spec import DeviceSpec
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.plan.types import Plan
-from ctdrill.model.band import HuUncertainty
 
 if TYPE_CHECKING:
     from ctdrill.app.igtl.stream import IgtlStream
@@ -83,7 +82,7 @@ def rehearse_sequence(
     seed: int,
     interpolate_gaps: bool,
     grey: GreyMapSpec | None,
-    manual_hu: HuUncertainty | None,
+    hu_sigma: float | None,
     open_device: Callable[..., Any],
     summarise: Callable[..., dict[str, Any]],
     to_json: Callable[[dict[str, Any]], str],
@@ -93,7 +92,7 @@ def rehearse_sequence(
 ) -> dict[str, Any]:
     """Run every drill of ``plan`` on its own session and write the records (module docstring).
 
-    ``grey`` and ``manual_hu`` are the rehearsal's grey-to-HU map and ``--hu-sigma``;
+    ``grey`` and ``hu_sigma`` are the rehearsal's grey-to-HU map and ``--hu-sigma``;
     ``open_device``, ``summarise`` (the single rehearsal's summary) and ``to_json`` are
     :mod:`ctdrill.app.rehearse`'s, so one drill's records are exactly a rehearsal's; ``exam``
     runs every drill in exam mode (on hardware its wall at the landmark's surface); ``igtl`` streams
@@ -101,7 +100,7 @@ def rehearse_sequence(
     ``Drill`` message names each), the top ``summary.json`` gaining ``igtl``.
     """
     volume, grey_map = map_volume(load_ct(dicom), grey)
-    hu = hu_uncertainty(grey_map, manual_hu)
+    case = case_context(volume, grey_map, replace(DEFAULTS, hu_sigma=hu_sigma))
     calibration = plan_calibration(plan)
     options = {"interpolate_gaps": interpolate_gaps}
     # every drill computed before the first ARM: bad input is refused before anything runs
@@ -168,13 +167,10 @@ def rehearse_sequence(
                 device=device.label,
                 duration_s=duration_s,
                 seed=seed,
-                hu=hu,
-                grey_map=grey_map,
+                context=case,
                 assessment=assessor.result().to_json(),
                 exam=setup,
             )
-            doc["drill"] = record_json(drill_info(path.plan.drill))
-            doc["inner_holes"] = [record_json(hole_info(h)) for h in path.inner_holes]
             write_file(folder / "summary.json", to_json(doc))
             runs.append((path, doc, reached_depth_mm(doc)))
             if not doc.get("complete"):
@@ -217,18 +213,24 @@ def sequence_summary(
     done = len(runs) == n
     top: dict[str, Any] = {"format": SEQUENCE_FORMAT}
     top.update(last)
+    top["format"] = SEQUENCE_FORMAT  # in the first place, over the drill's own
+    top.pop("rehearsal", None)  # the listing, not one session
     top.pop("drill", None)
     top.pop("inner_holes", None)
     top["complete"] = done and all(doc.get("complete") for _, doc, _ in runs)
     if not done:  # the final drill never ran: the plan's stop is not known from this session
         top["stop_depth_mm"] = None
+        top["device_stop_depth_mm"] = None
         top["stop_reason"] = None
     top["drills_planned"] = n
     top["drills_run"] = len(runs)
     top["faults"] = [
         {"drill": k + 1, **fault} for k, (_, doc, _) in enumerate(runs) for fault in doc["faults"]
     ]
-    top["warnings"] = list(dict.fromkeys(code for _, doc, _ in runs for code in doc["warnings"]))
+    # every drill's warnings once, as the export's listing gives them
+    top["warnings"] = list(
+        {(w["code"], w["message"]): w for _, doc, _ in runs for w in doc["warnings"]}.values()
+    )
     top["plan_sha256"] = plan_hash(plan)
     top["assessment"] = combine_assessments(
         [doc["assessment"] for _, doc, _ in runs],
@@ -242,14 +244,14 @@ def sequence_summary(
             **path.plan.drill.to_json(),
             # the stop the device enforced (in exam mode past the plan, as the drill's own
             # summary.json says), and the plan's reason for its guarded stop
-            "stop_depth_mm": doc["stop_depth_mm"],
+            "stop_depth_mm": doc["device_stop_depth_mm"],
             "stop_reason": path.stop_reason,
             "exam_stop_basis": doc["exam"].get("stop_basis"),
             "max_drill_mm": doc["max_drill_mm"],
             "reached_depth_mm": reached,
             "max_force_cmd_n": doc.get("max_force_cmd_n"),
             "complete": doc.get("complete"),
-            "inner_holes": doc["inner_holes"],
+            "inner_holes": doc.get("inner_holes", []),
             "score": doc["assessment"]["score"],
         }
         for k, (path, doc, reached) in enumerate(runs)

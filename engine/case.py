@@ -11,7 +11,7 @@ import os
 import re
 import stat
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -25,6 +25,7 @@ from ctdrill.engine.settings import DEFAULTS, ExportSettings
 from ctdrill.engine.summarize import CaseContext
 from ctdrill.engine.summary import GreyMapInfo
 from ctdrill.imaging import load_ct
+from ctdrill.imaging.dicom.grey import GreyToHu
 from ctdrill.imaging.plan.load import load_plan_set
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.resolution import volume_clearance_accuracy_mm
@@ -167,7 +168,7 @@ def prepare_case(
         Bad input (one line naming the file or field).
     """
     check_settings(settings)
-    manual_hu = hu_sigma_uncertainty(settings.hu_sigma)
+    hu_sigma_uncertainty(settings.hu_sigma)  # a bad --hu-sigma is refused before any load
     plans = list(with_set_warnings(load_plan_set(plan_paths)))
     per_file = Counter(plan.source for plan in plans)
     volume, grey_map = map_volume(load_ct(dicom, series_uid=settings.series), settings.grey)
@@ -213,12 +214,24 @@ def prepare_case(
             if volume.info.source_format == "DICOM"
             else {"description": volume.info.series_description}  # NIfTI descrip, NRRD content
         )
-    context = CaseContext(
+    context = case_context(volume, grey_map, settings, patient=patient)
+    return PreparedCase(volume, tuple(plans), tuple(jobs), tuple(sequences), context)
+
+
+def case_context(
+    volume: CTVolume,
+    grey_map: GreyToHu | None,
+    settings: ExportSettings = DEFAULTS,
+    *,
+    patient: Mapping[str, str] | None = None,
+) -> CaseContext:
+    """What every summary of a case on ``volume`` (as loaded, ``grey_map`` applied) shares:
+    the export's and the rehearsal's (the same values for the same plan)."""
+    return CaseContext(
         settings=settings,
         series_uid=volume.info.series_uid,
         patient=patient,
-        hu_uncertainty=hu_uncertainty(grey_map, manual_hu),
+        hu_uncertainty=hu_uncertainty(grey_map, hu_sigma_uncertainty(settings.hu_sigma)),
         grey_to_hu=None if grey_map is None else from_json(GreyMapInfo, grey_map.to_json()),
         clearance_accuracy_mm=volume_clearance_accuracy_mm(volume),
     )
-    return PreparedCase(volume, tuple(plans), tuple(jobs), tuple(sequences), context)

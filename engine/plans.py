@@ -2,17 +2,19 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
 from ctdrill.imaging.plan.drill_spec import tip_override_warnings
 from ctdrill.imaging.plan.implant_checks import implants_too_close
+from ctdrill.imaging.plan.load import load_plan_set, pick_plan
 from ctdrill.imaging.plan.protocol import final_drill_warnings
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.model.calibration import Calibration, load_calibration
 
-__all__ = ["plan_calibration", "plan_calibration_key", "with_set_warnings"]
+__all__ = ["one_trajectory", "plan_calibration", "plan_calibration_key", "with_set_warnings"]
 
 
 def with_set_warnings(plans: Sequence[Plan]) -> tuple[Plan, ...]:
@@ -57,3 +59,10 @@ def plan_calibration(plan: Plan) -> Calibration:
         The set is missing or invalid (the message names the file and field).
     """
     return load_calibration(plan_calibration_key(plan))
+
+
+def one_trajectory(paths: Sequence[str | os.PathLike[str]], trajectory: str | None = None) -> Plan:
+    """The one trajectory a command drills (``rehearse``): picked as
+    :func:`~ctdrill.imaging.plan.load.load_one_plan` picks it, carrying the warnings of its
+    whole plan set (:func:`with_set_warnings`), as the export of the same files gives them."""
+    return pick_plan(with_set_warnings(load_plan_set(paths)), trajectory)

@@ -198,6 +198,7 @@ def plan_outcome(result: PathResult, context: CaseContext, feed_mm_s: float) -> 
         bone_walls=walls,
         overdrill_mm=plan.overdrill_mm,
         clearance_accuracy_mm=_num(accuracy, 6),
+        site=plan.site,
         series=SeriesIdentity(identity["series_uid"], identity["series_uid_sha256"]),
         include_phi=settings.include_phi,
         patient=context.patient,

@@ -23,6 +23,9 @@ from ctdrill.model.calibration import Calibration
 
 EXPORT_FORMAT = "ctdrill-export/1"
 SEQUENCE_FORMAT = "ctdrill-sequence/1"
+#: A rehearsal's ``summary.json`` says ``"rehearsal": REHEARSAL_FORMAT`` beside the export's
+#: ``format`` (:mod:`ctdrill.engine.rehearsal_summary`).
+REHEARSAL_FORMAT = "ctdrill-rehearsal/1"
 #: Said when a set has no ``provenance.method`` (sets written before it).
 METHOD_NOT_STATED = "not stated by the set (see its source)"
 
@@ -171,6 +174,7 @@ class PlanOutcome:
     Attributes
     ----------
     plan, plan_file : the trajectory's name and its file's name.
+    site : the implant site, an FDI tooth number (plan key ``site``), or None.
     planned_depth_mm, stop_depth_mm : mm; ``stop_reason`` ``planned_depth`` | ``margin`` |
         ``out_of_volume``.
     max_safe_depth_mm : deepest depth keeping every margin; ``max_safe_depth_capped``: the
@@ -222,6 +226,7 @@ class PlanOutcome:
     bone_walls: BoneWallsInfo | None = field(metadata=added())
     overdrill_mm: float = field(metadata=added(0.0))
     clearance_accuracy_mm: float | None = field(metadata=added())
+    site: int | None = field(metadata=added())
     series: SeriesIdentity = field(metadata=flat())
     include_phi: bool
     patient: Mapping[str, str] | None = field(default=None, metadata=optional())

@@ -130,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
     grey = grey_line(None if grey_map is None else from_json(GreyMapInfo, grey_map))
     if grey is not None:
         sys.stdout.write(grey + "\n")
-    if "no_landmarks" in s["warnings"]:
+    if any(w["code"] == "no_landmarks" for w in s["warnings"]):
         sys.stderr.write(
             "warning: the plan has no landmark: no safety margin was enforced, the drill "
             "stopped only at the planned depth or the volume's end\n"

@@ -328,7 +328,7 @@ class RehearsalRun:
             device=self.device_spec,
             duration_s=self.duration_s,
             seed=0,
-            hu=self.hu,
+            context=self.case(),
             assessment=self.assessment,
             exam=self.exam,
         )
@@ -338,6 +338,10 @@ class RehearsalRun:
         if not self.running:
             self._summary = summary
         return summary
+
+    def case(self) -> CaseContext:
+        """What the window's export and the session's summary share (the same values)."""
+        return CaseContext(settings=DEFAULTS, series_uid=self.series_uid, hu_uncertainty=self.hu)
 
     def session_files(self) -> tuple[str, str]:
         """``(summary.json, session.csv)`` texts of the ended session."""
@@ -352,7 +356,7 @@ class RehearsalRun:
         return write_exports(
             [ExportJob(self.result, "")],
             out_dir,
-            CaseContext(settings=DEFAULTS, series_uid=self.series_uid),
+            self.case(),
             extra_files={
                 "session/session.csv": csv_text,
                 "session/summary.json": summary_text,

@@ -158,7 +158,7 @@ def read_session(folder: Path) -> SessionEntry:
         summary_path, what="session summary", error=SessionFileError, max_bytes=MAX_SUMMARY_BYTES
     )
     summary = _summary(folder, summary_bytes)
-    if summary.get("format") is None:
+    if _one_session(summary):
         return session_entry(folder, summary_bytes, _read_csv(folder, base / "session.csv"))
     logs = [(name, _read_csv(folder, base / name / "session.csv")) for name in _drills(summary)]
     return sequence_entry(folder, summary_bytes, logs)
@@ -181,6 +181,14 @@ def _summary(folder: Path, summary_bytes: bytes) -> dict[str, Any]:
             "sessions): rehearse it again"
         )
     return summary
+
+
+def _one_session(summary: dict[str, Any]) -> bool:
+    """One rehearsal's summary (the export's fields and ``rehearsal``; before them, no
+    ``format``), not a sequence's listing."""
+    from ctdrill.engine.summary import REHEARSAL_FORMAT
+
+    return summary.get("format") is None or summary.get("rehearsal") == REHEARSAL_FORMAT
 
 
 def _drills(summary: dict[str, Any]) -> list[str]:

@@ -150,7 +150,11 @@ def load_one_plan(paths: Sequence[str | os.PathLike[str]], trajectory: str | Non
     ``trajectory`` picks one of several by its name, or by its number (1-based, in the order
     :func:`load_plan_set` gives them); None requires the files to hold exactly one.
     """
-    plans = load_plan_set(paths)
+    return pick_plan(load_plan_set(paths), trajectory)
+
+
+def pick_plan(plans: Sequence[Plan], trajectory: str | None = None) -> Plan:
+    """The trajectory of ``plans`` that ``trajectory`` names (:func:`load_one_plan`)."""
     names = ", ".join(f"{i + 1}: {p.name!r}" for i, p in enumerate(plans))
     if trajectory is not None:
         for p in plans:

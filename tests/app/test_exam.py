@@ -112,7 +112,7 @@ def test_exam_summary_from_the_command_line(
     assert a["overshoot_mm"] == pytest.approx(summary["max_drill_mm"] - 10.8, abs=2e-3)
     assert a["depth_error_mm"] == pytest.approx(summary["max_drill_mm"] - 12.6, abs=1e-3)
     assert summary["exam"]["enabled"] is True and summary["exam"]["stop_basis"] == "beyond_plan"
-    assert summary["stop_depth_mm"] == pytest.approx(22.6, abs=1e-4)
+    assert summary["device_stop_depth_mm"] == pytest.approx(22.6, abs=1e-4)
     assert summary["plan_sha256"] == plan_hash(load_one_plan([DEMO / "plan.json"]))
     assert summary["recorded_at"].endswith("+00:00")
 

@@ -165,7 +165,7 @@ def test_rehearse_over_a_serial_link_to_the_emulator(tmp_path: Path) -> None:
         # host's clock by more than the emulator's catch-up of a stall
         times = [float(r["time_s"]) for r in rows]
         assert len(rows) > 1 and all(abs(b - a - 1e-3) < 1e-6 for a, b in itertools.pairwise(times))
-        assert summary["max_drill_mm"] <= summary["stop_depth_mm"]
+        assert summary["max_drill_mm"] <= summary["device_stop_depth_mm"]
         assert 0.0 < summary["tick_rate_hz"] < 1.5 * TICK_HZ
         assert summary["device"] == f"serial:{link}"
 

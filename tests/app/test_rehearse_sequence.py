@@ -89,7 +89,7 @@ def test_one_session_per_drill_and_a_listing_summary(
     assert top["complete"] is True and (top["drills_run"], top["drills_planned"]) == (2, 2)
     assert top["stop_depth_mm"] == two["stop_depth_mm"]  # the final drill's stop rules
     assert [d["diameter_mm"] for d in top["drills"]] == [2.0, 2.8]
-    assert one["inner_holes"] == [] and one["drill"]["diameter_mm"] == 2.0
+    assert "inner_holes" not in one and one["drill"]["diameter_mm"] == 2.0
     # the hole drill 2 cut around is as deep as drill 1 actually reached in its session
     assert two["inner_holes"] == [
         {"diameter_mm": 2.0, "tip_length_mm": 0.6, "depth_mm": one["max_drill_mm"]}
@@ -260,7 +260,7 @@ def test_exam_mode_runs_every_drill_of_a_sequence(
     drills = [json.loads((out / f"drill_{k}" / "summary.json").read_text()) for k in (1, 2)]
     for doc in drills:
         assert doc["exam"]["enabled"] is True and doc["exam"]["stop_basis"] == "beyond_plan"
-        assert doc["stop_depth_mm"] == pytest.approx(22.0, abs=1e-4)
+        assert doc["device_stop_depth_mm"] == pytest.approx(22.0, abs=1e-4)
     pilot = drills[0]["assessment"]
     assert pilot["breach"] and pilot["canal_entered"] and pilot["reaction_ms"] is not None
     a = top["assessment"]
