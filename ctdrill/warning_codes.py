@@ -224,7 +224,8 @@ REGISTRY: tuple[WarningCode, ...] = (
     WarningCode(
         "cortical_perforation",
         "path",
-        "part of the implant surface deeper than 1 mm below the platform lies outside bone",
+        "part of the implant surface deeper than 1 mm below the platform lies outside the jaw's "
+        "envelope (the cortical surface of the bone it sits in; docs/plan.md, Bone walls)",
     ),
     WarningCode(
         "bone_walls_unknown",
@@ -237,6 +238,12 @@ REGISTRY: tuple[WarningCode, ...] = (
         "path",
         "the drill leaves the CT volume before the planned depth: it stops where the lip's "
         "data end",
+    ),
+    WarningCode(
+        "canal_entry",
+        "path",
+        "the implant body enters a nerve canal (its apex inside it): named as the canal, not "
+        "as a cortical perforation",
     ),
 )
 

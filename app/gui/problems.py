@@ -35,8 +35,8 @@ from ctdrill.imaging.resolution import format_clearance_mm
 from ctdrill.imaging.volume import CTVolume
 
 #: The plan problems the banner lists, in this order (issue 25): drill margin, implant
-#: margin, thin wall, perforation, implants too close, implant above entry, a final
-#: drill that does not suit the implant.
+#: margin, thin wall, perforation, implants too close, implant above entry, an implant
+#: in the canal, a final drill that does not suit the implant.
 PROBLEM_CODES = (
     "plan_violates_margin",
     "implant_violates_margin",
@@ -44,6 +44,7 @@ PROBLEM_CODES = (
     "cortical_perforation",
     "implants_too_close",
     "implant_above_entry",
+    "canal_entry",
     "final_drill_mismatch",
 )
 #: Each problem in a few words (the banner's headings).
@@ -54,6 +55,7 @@ PROBLEM_WORDS = {
     "cortical_perforation": "cortical perforation",
     "implants_too_close": "implants too close",
     "implant_above_entry": "implant above the entry",
+    "canal_entry": "implant in the canal",
     "final_drill_mismatch": "final drill does not suit the implant",
 }
 #: The bone walls' grid while a trajectory is dragged (``plan_bone_walls`` options: 24

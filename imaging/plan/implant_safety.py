@@ -167,7 +167,7 @@ def implant_margin_warnings(plan: Plan, result: ImplantClearance | None) -> list
     ]
     if not broken:
         return []
-    return [
+    out = [
         (
             "implant_violates_margin",
             f"plan {plan.name!r}: implant {plan.implant.name!r} ({plan.implant.size_text}) at its "
@@ -175,3 +175,31 @@ def implant_margin_warnings(plan: Plan, result: ImplantClearance | None) -> list
             + ", ".join(broken),
         )
     ]
+    lms = {lm.name: lm for lm in plan.landmarks}
+    entered = [
+        (result.names[i], float(result.clearance_mm[i]))
+        for i in result.violated
+        if result.clearance_mm[i] < 0.0 and _is_canal(lms.get(result.names[i]), result.names[i])
+    ]
+    out += [
+        (
+            CANAL_ENTRY_CODE,
+            f"plan {plan.name!r}: implant {plan.implant.name!r} ({plan.implant.size_text}) enters "
+            f"the canal {name!r}: its body reaches {-c:.2f} mm into it (move the apex up or "
+            "choose a shorter implant)",
+        )
+        for name, c in entered
+    ]
+    return out
+
+
+#: The warning code of an implant body that enters a nerve canal.
+CANAL_ENTRY_CODE = "canal_entry"
+
+
+def _is_canal(landmark: Landmark | None, name: str) -> bool:
+    """A canal landmark, or a segmentation named as a canal or nerve."""
+    if landmark is not None and landmark.kind == "canal":
+        return True
+    words = name.lower()
+    return "canal" in words or "nerve" in words

@@ -2,26 +2,45 @@
 
 For every depth along the body (platform to apex) and every direction perpendicular to its
 axis, the **wall** is the distance from the implant's surface outward, along that direction,
-to where bone ends: the first point whose CT number falls below the lower edge of Misch D4
-(:data:`~ctdrill.imaging.misch.BONE_HU`, 150 HU). CT numbers are trilinear samples
-(:meth:`~ctdrill.imaging.volume.CTVolume.sample`), as everywhere else.
+to the **jaw's outer envelope**: the cortical surface of the bone the implant sits in, not the
+first dark sample. CT numbers are trilinear samples
+(:meth:`~ctdrill.imaging.volume.CTVolume.sample`), as everywhere else; *bone* is a sample at or
+above the lower edge of Misch D4 (:data:`~ctdrill.imaging.misch.BONE_HU`, 150 HU).
+
+**The envelope rule** (a closing along each ray; it holds in D4 and in fatty marrow, where the
+cancellous bone between the implant and the cortex reads 50-150 HU or below): along the ray the
+jaw ends at the first of
+
+- a run of non-bone at least :data:`ENVELOPE_GAP_MM` (3 mm) long after bone has been met (the
+  soft tissue outside the cortex; marrow spaces and the canal inside the jaw are shorter and
+  are closed over), or
+- a sample below :data:`AIR_HU` (air is never inside the jaw: a sinus, the mouth, a socket),
+
+and the wall is the distance to the last bone/non-bone crossing before that end (bisected to
+:data:`BISECT_TOL_MM` on the trilinear CT). A surface point whose ray meets no bone before the
+end, or none within :data:`ENVELOPE_REACH_MM` (8 mm), lies **outside** the envelope: its wall
+is 0, except a ray running along the jaw (within 45 deg of its long direction at that depth:
+perpendicular to the arch's buccal direction, or without an arch to the mean axis of the rays
+that cross the jaw's surface): the jaw goes on there (the wall reads ``max_wall_mm``). A ray
+that meets no bone before the CT ends is judged the same way (across the jaw: outside).
+Cancellous bone of any density between the implant and an intact cortex is therefore inside
+the jaw and counts in the wall.
 
 - **Outside the CT is unknown, never bone.** A direction whose ray leaves the CT (or reaches
-  padding) before bone ends has no wall: it counts in ``unknown_fraction``, not in the
-  minimum, and the warning ``bone_walls_unknown`` says so. A surface point outside the CT is
-  unknown too (neither bone nor a perforation).
-- **Rays.** Each ray is sampled every ``ray_step_mm`` out to ``max_wall_mm``; the first sample
-  below the edge brackets the crossing, which is then bisected to :data:`BISECT_TOL_MM` (the
-  trilinear crossing itself, not the step). A surface point below the edge has a wall of 0. A
-  ray still in bone at ``max_wall_mm`` reads ``max_wall_mm`` ("at least"; ``capped``).
+  padding) before its end is decided has no wall: it counts in ``unknown_fraction``, not in the
+  minimum, and the warning ``bone_walls_unknown`` says so.
+- **Rays.** Each ray is sampled every ``ray_step_mm`` out to ``max_wall_mm`` plus the gap; a
+  ray whose jaw goes on past ``max_wall_mm`` reads ``max_wall_mm`` ("at least"; ``capped``).
 - **Sides.** With a dental arch the angular grid starts at the arch's buccal normal
   (:func:`~ctdrill.imaging.sampling.arch.buccal_normal_lps`) projected perpendicular to the
   axis; ``buccal_mm`` is the thinnest wall over the directions within 90 deg of it,
   ``lingual_mm`` over those within 90 deg of its opposite. Without an arch (or where it is
   straight or ends before the implant) both are None.
-- **Perforation.** Any surface point more than :data:`PERFORATION_DEPTH_MM` below the
-  platform (the side, the apex, the flat apex face) whose CT number is below the edge lies
-  outside bone: ``cortical_perforation``, reported with where it starts and which way.
+- **Perforation** means leaving the envelope: any surface point more than
+  :data:`PERFORATION_DEPTH_MM` below the platform (the side, and the flat apex face along the
+  axis) outside it: ``cortical_perforation``, reported with where it starts and which way. An
+  apex inside a nerve canal is inside the jaw: it is named by ``canal_entry``
+  (:mod:`ctdrill.imaging.plan.implant_safety`), not called a perforation.
 
 Discretisation defaults (:data:`DEPTH_STEP_MM`, :data:`N_ANGLES`, :func:`ray_step_mm`) were
 chosen by measured cost against error (docs/plan.md, "Bone walls").
@@ -49,7 +68,14 @@ DEPTH_STEP_MM = 0.25
 #: Directions around the axis (every 5 deg).
 N_ANGLES = 72
 #: Ray step as a fraction of the CT's smallest voxel spacing (see :func:`ray_step_mm`).
-RAY_STEP_VOXELS = 0.125
+RAY_STEP_VOXELS = 0.5
+#: A non-bone run this long after bone ends the jaw along a ray (the envelope rule), mm: longer
+#: than a nerve canal (2-4 mm) or a marrow space, shorter than the soft tissue outside the jaw.
+ENVELOPE_GAP_MM = 3.0
+#: A surface point whose ray meets no bone within this lies outside the jaw, mm.
+ENVELOPE_REACH_MM = 8.0
+#: A sample below this is air: never inside the jaw, HU.
+AIR_HU = -400.0
 #: Walls are followed this far from the surface, mm (thicker walls read "at least" this).
 MAX_WALL_MM = 10.0
 #: The crossing of the bone edge is bisected to this, mm.
@@ -59,9 +85,9 @@ _CHUNK_STEPS = 16
 
 
 def ray_step_mm(volume: CTVolume) -> float:
-    """The default ray step: :data:`RAY_STEP_VOXELS` of the CT's smallest spacing, mm (a
-    non-bone gap one voxel wide dips below the edge over about two voxels, so it is not
-    stepped over)."""
+    """The default ray step: :data:`RAY_STEP_VOXELS` of the CT's smallest spacing, mm (a cortex
+    one voxel thick stays above the edge over about a voxel in the trilinear CT, so it is not
+    stepped over; the crossing itself is bisected)."""
     return RAY_STEP_VOXELS * min(volume.spacing_mm)
 
 
@@ -202,7 +228,12 @@ def bone_walls(
     surface = (
         placement.platform_lps + s[:, None, None] * axis + r[:, None, None] * dirs[None, :, :]
     )  # (D, A, 3)
-    wall, unknown = _march(volume, surface, dirs, step, max_wall_mm)
+    buccal_perp = (
+        e1
+        if buccal is not None and np.linalg.norm(buccal - (buccal @ axis) * axis) > 1e-6
+        else None
+    )
+    wall, unknown = _march(volume, surface, dirs, step, max_wall_mm, buccal_perp)
     known = ~unknown
     depth = placement.platform_depth_mm + s
     out: dict[str, Any] = {"min_mm": None, "depth_mm": None, "below_platform_mm": None}
@@ -224,7 +255,8 @@ def bone_walls(
         for name, cols in (("buccal", cos_b > 1e-9), ("lingual", cos_b < -1e-9)):
             part = np.where(known[:, cols], wall[:, cols], np.inf)
             sides[name] = float(part.min()) if np.isfinite(part).any() else None
-    perforation = _perforation(volume, placement, s, r, dirs, surface)
+    outside = known & (wall <= 0.0)
+    perforation = _perforation(volume, placement, s, dirs, surface, outside, step)
     return BoneWalls(
         min_mm=out["min_mm"],
         depth_mm=out["depth_mm"],
@@ -243,82 +275,184 @@ def bone_walls(
 
 
 def _march(
-    volume: CTVolume, origin: np.ndarray, dirs: np.ndarray, step: float, max_wall_mm: float
+    volume: CTVolume,
+    origin: np.ndarray,
+    dirs: np.ndarray,
+    step: float,
+    max_wall_mm: float,
+    buccal_perp: np.ndarray | None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Each ray's wall (D, A) and whether it is unknown (D, A): see the module docstring."""
+    """Each ray's wall (D, A) to the jaw's envelope and whether it is unknown (D, A).
+
+    An open ray (no bone within the reach, no air) runs along the jaw or out of it: within
+    45 deg of the jaw's long direction at its depth (perpendicular to ``buccal_perp``, the
+    arch's buccal direction; without an arch, perpendicular to the mean axis of the rays
+    that cross the jaw's surface, by doubled angles) the jaw goes on (capped); across it the surface point
+    is outside the jaw (0)."""
     shape = origin.shape[:2]
     o = origin.reshape(-1, 3)
     v = np.broadcast_to(dirs[None, :, :], origin.shape).reshape(-1, 3)
-    n = len(o)
-    wall = np.full(n, max_wall_mm)
+    wall, unknown, open_ = envelope_walls(volume, o, v, step=step, max_wall_mm=max_wall_mm)
+    wall, unknown, open_ = wall.reshape(shape), unknown.reshape(shape), open_.reshape(shape)
+    if open_.any():
+        # (D, A) rays that cross the jaw's surface (an exit short of the cap: across it)
+        met = ~unknown & ~open_ & (wall > 0.0) & (wall < max_wall_mm)
+        if buccal_perp is not None:
+            across = np.broadcast_to(buccal_perp, (shape[0], 3))
+        else:
+            # the mean axis of the rays meeting bone, by doubled angles (a line, not a ray)
+            e1 = dirs[0]
+            e2 = dirs[len(dirs) // 4] - (dirs[len(dirs) // 4] @ e1) * e1
+            e2 = e2 / np.linalg.norm(e2)
+            ang = np.arctan2(dirs @ e2, dirs @ e1)
+            c2 = (met * np.cos(2 * ang)).sum(axis=1)
+            s2 = (met * np.sin(2 * ang)).sum(axis=1)
+            half = 0.5 * np.arctan2(s2, c2)
+            across = np.cos(half)[:, None] * e1 + np.sin(half)[:, None] * e2
+        along = np.abs(dirs @ across.T).T < math.cos(math.radians(45.0))  # (D, A)
+        jaw = (~unknown & ~open_ & (wall > 0.0)).any(axis=1)[:, None]
+        # along the jaw it goes on (where the CT lets the ray run to the reach); across it
+        # (or at a depth where no ray meets bone) the surface point is outside: wall 0
+        wall = np.where(open_ & along & jaw & ~unknown, max_wall_mm, wall)
+        out = open_ & ~(along & jaw)
+        wall = np.where(out, 0.0, wall)
+        unknown = unknown & ~out
+    return wall, unknown
+
+
+def envelope_walls(
+    volume: CTVolume,
+    origins_lps: np.ndarray,
+    dirs_lps: np.ndarray,
+    *,
+    step: float,
+    max_wall_mm: float = MAX_WALL_MM,
+    gap_mm: float = ENVELOPE_GAP_MM,
+    reach_mm: float = ENVELOPE_REACH_MM,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distance from each origin along its direction to the jaw's envelope (module
+    docstring: 0 outside it, ``max_wall_mm`` where the jaw goes on), whether it is unknown
+    (the ray leaves the CT first), and whether it is open (no bone within
+    :data:`ENVELOPE_REACH_MM` and no air: outside the jaw across its width, inside it along
+    the arch; the caller decides).
+
+    Parameters
+    ----------
+    origins_lps, dirs_lps : (N, 3) ray origins (LPS mm) and unit directions.
+    step : march step, mm; ``max_wall_mm``, ``gap_mm``, ``reach_mm`` as in the module.
+
+    Returns
+    -------
+    wall : (N,) mm; unknown, open : (N,) bool.
+    """
+    n = len(origins_lps)
+    wall = np.zeros(n)
     unknown = np.zeros(n, dtype=bool)
-    lo = np.zeros(n)  # last distance known to be in bone
-    hi = np.full(n, np.nan)  # first distance known not to be
-    open_ = np.arange(n)
-    n_steps = math.ceil(max_wall_mm / step)
-    k0 = 0
-    while open_.size and k0 <= n_steps:
-        ks = np.arange(k0, min(k0 + _CHUNK_STEPS, n_steps + 1))
-        t = np.minimum(ks * step, max_wall_mm)
-        pts = o[open_, None, :] + t[None, :, None] * v[open_, None, :]
-        hu = volume.sample(pts, outside_hu=np.nan)  # (m, k)
-        below = hu < BONE_HU
-        gone = np.isnan(hu)
-        stop = below | gone
-        hit = stop.any(axis=1)
-        first = np.argmax(stop, axis=1)
-        rows, firsts = open_[hit], first[hit]
-        lost = gone[hit, firsts]
-        unknown[rows[lost]] = True
-        found, kf = rows[~lost], firsts[~lost]
-        hi[found] = t[kf]
-        lo[found] = np.where(kf > 0, t[np.maximum(kf - 1, 0)], lo[found])
-        at_surface = (ks[kf] == 0) if kf.size else np.zeros(0, dtype=bool)
-        wall[found[at_surface]] = 0.0
-        if not hit.all():
-            lo[open_[~hit]] = t[-1]
-        open_ = open_[~hit]
-        k0 = int(ks[-1]) + 1
-    refine = np.flatnonzero(np.isfinite(hi) & (hi > 0.0))
-    a, b = lo[refine], hi[refine]
-    while refine.size and float(np.max(b - a)) > BISECT_TOL_MM:
-        mid = 0.5 * (a + b)
-        hu = volume.sample(o[refine] + mid[:, None] * v[refine], outside_hu=np.nan)
-        bone = hu >= BONE_HU  # NaN (padding between two known samples): not bone
-        a = np.where(bone, mid, a)
-        b = np.where(bone, b, mid)
-    wall[refine] = 0.5 * (a + b)
-    return wall.reshape(shape), unknown.reshape(shape)
+    cross = np.zeros(n, dtype=bool)
+    open_ = np.zeros(n, dtype=bool)
+    n_steps = math.ceil((max_wall_mm + gap_mm) / step) + 1
+    t = np.arange(n_steps) * step
+    gap_steps = math.ceil(gap_mm / step - 1e-9)
+    chunk = max(1, 200_000 // n_steps)
+    for lo_i in range(0, n, chunk):
+        sl = slice(lo_i, min(n, lo_i + chunk))
+        o, v = origins_lps[sl], dirs_lps[sl]
+        hu = volume.sample(o[:, None, :] + t[None, :, None] * v[:, None, :], outside_hu=np.nan)
+        wall[sl], unknown[sl], cross[sl], open_[sl] = _envelope_rows(
+            hu, t, gap_steps, max_wall_mm, reach_mm
+        )
+    # bisect each exit crossing between its last bone sample and the next
+    exits = np.flatnonzero(~unknown & cross)
+    if exits.size:
+        k = np.rint(wall[exits] / step).astype(np.int64)
+        a, b = t[k], t[np.minimum(k + 1, n_steps - 1)]
+        oo, vv = origins_lps[exits], dirs_lps[exits]
+        while float(np.max(b - a)) > BISECT_TOL_MM:
+            mid = 0.5 * (a + b)
+            bone = volume.sample(oo + mid[:, None] * vv, outside_hu=np.nan) >= BONE_HU
+            a = np.where(bone, mid, a)
+            b = np.where(bone, b, mid)
+        wall[exits] = np.minimum(0.5 * (a + b), max_wall_mm)
+    return wall, unknown, open_
+
+
+def _envelope_rows(
+    hu: np.ndarray, t: np.ndarray, gap_steps: int, max_wall_mm: float, reach_mm: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The envelope rule on sampled rays ``hu`` (N, K) at distances ``t`` (K,): each ray's
+    wall (the last bone sample's distance, refined by the caller; 0 outside the jaw;
+    ``max_wall_mm`` capped), whether it is unknown, whether it ends at a bone crossing (to
+    refine), and whether it is *open*: no bone within the reach and no air."""
+    n, k_all = hu.shape
+    gone = np.isnan(hu)
+    bone = hu >= BONE_HU
+    air = hu < AIR_HU
+    idx = np.arange(k_all)
+    last_bone = np.maximum.accumulate(np.where(bone, idx, -1), axis=1)  # (N, K)
+    seen = last_bone >= 0
+    # where the jaw ends: air, or a non-bone run of gap_steps after bone, or the ray's end
+    end = air | (seen & ~bone & (idx - last_bone >= gap_steps))
+    end |= ~seen & (t[None, :] > reach_mm)
+    has_end = end.any(axis=1)
+    k_end = np.where(has_end, np.argmax(end, axis=1), k_all - 1)
+    # unknown when the CT ends at or before the end is decided
+    first_gone = np.where(gone.any(axis=1), np.argmax(gone, axis=1), k_all)
+    unknown = first_gone <= k_end
+    lb = last_bone[np.arange(n), k_end]
+    wall = np.where(lb >= 0, t[np.maximum(lb, 0)], 0.0)
+    # the jaw goes on past max_wall_mm (bone there, or no end within the samples)
+    capped = (lb >= 0) & ((t[np.maximum(lb, 0)] >= max_wall_mm) | ~has_end)
+    # bone met at or past max_wall_mm before the CT and the jaw end: "at least", known
+    k_cap = int(np.searchsorted(t, max_wall_mm - 1e-12))
+    far = bone[:, k_cap:]
+    k_far = k_cap + np.argmax(far, axis=1)
+    far_first = far.any(axis=1) & (k_far < first_gone) & (~has_end | (k_end > k_far))
+    capped |= far_first
+    unknown &= ~far_first
+    wall = np.where(capped, max_wall_mm, wall)
+    # open: no bone met before the reach or before the CT ends (the surface itself inside it)
+    k_stop = np.minimum(k_end, first_gone - 1)
+    open_ = (lb < 0) & (first_gone > 0) & ~air[np.arange(n), np.maximum(k_stop, 0)]
+    open_ &= ~air.any(axis=1) | (np.argmax(air, axis=1) > k_stop)
+    return wall, unknown, (lb >= 0) & ~capped, open_
 
 
 def _perforation(
     volume: CTVolume,
     placement: ImplantPlacement,
     s: np.ndarray,
-    r: np.ndarray,
     dirs: np.ndarray,
     surface: np.ndarray,
+    outside: np.ndarray,
+    step: float,
 ) -> Perforation | None:
-    """Exposed surface points deeper than :data:`PERFORATION_DEPTH_MM` (side and apex)."""
+    """Surface points deeper than :data:`PERFORATION_DEPTH_MM` outside the jaw's envelope:
+    the side (``outside`` (D, A), from the walls' rays) and a flat apex face (rays along the
+    axis)."""
     spec, axis = placement.spec, placement.axis_lps
     deep = s > PERFORATION_DEPTH_MM
-    side = surface[deep].reshape(-1, 3)
-    side_s = np.repeat(s[deep], len(dirs))
-    side_dir = np.tile(dirs, (int(deep.sum()), 1))
-    parts_p, parts_s, parts_d = [side], [side_s], [side_dir]
+    parts_p = [surface[deep].reshape(-1, 3)]
+    parts_s = [np.repeat(s[deep], len(dirs))]
+    parts_d = [np.tile(dirs, (int(deep.sum()), 1))]
+    parts_x = [outside[deep].reshape(-1)]
     apex_r = spec.apex_diameter_mm / 2.0
     if spec.apex == "flat" and spec.length_mm > PERFORATION_DEPTH_MM:
         radii = apex_r * np.array([0.0, 1.0 / 3.0, 2.0 / 3.0])
-        face = placement.apex_lps + radii[:, None, None] * dirs[None, :, :]
-        parts_p.append(face.reshape(-1, 3))
-        parts_s.append(np.full(face.shape[0] * face.shape[1], spec.length_mm))
-        parts_d.append(np.broadcast_to(axis, (face.shape[0] * face.shape[1], 3)))
+        face = (placement.apex_lps + radii[:, None, None] * dirs[None, :, :]).reshape(-1, 3)
+        along = np.broadcast_to(axis, face.shape)
+        wall, unknown, open_ = envelope_walls(
+            volume, face, np.ascontiguousarray(along), step=step
+        )
+        parts_p.append(face)
+        parts_s.append(np.full(len(face), spec.length_mm))
+        parts_d.append(along)
+        # along the axis the jaw may hold more marrow than the reach: an open ray is inside
+        parts_x.append(~unknown & ~open_ & (wall <= 0.0))
     pts = np.concatenate(parts_p)
     if len(pts) == 0:
         return None
     ss, out_dirs = np.concatenate(parts_s), np.concatenate(parts_d)
-    hu = volume.sample(pts, outside_hu=np.nan)
-    exposed = hu < BONE_HU  # NaN: unknown, not exposed
+    exposed = np.concatenate(parts_x)
     if not exposed.any():
         return None
     first = int(np.argmin(np.where(exposed, ss, np.inf)))
@@ -362,7 +496,7 @@ def bone_wall_warnings(
         out.append(
             (
                 "cortical_perforation",
-                f"{label}: the implant surface lies outside bone (below {BONE_HU:g} HU) from "
+                f"{label}: the implant surface lies outside the jaw's bone from "
                 f"{p.below_platform_mm[0]:.1f} to {p.below_platform_mm[1]:.1f} mm below the "
                 f"platform, towards {_lps_text(p.direction_lps)} ({100 * p.fraction:.0f} % of "
                 "the surface deeper than "
