@@ -58,6 +58,11 @@ from ctdrill.imaging.misch import BONE_HU
 from ctdrill.imaging.plan.implants import ImplantPlacement, implant_placement
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.arch import buccal_normal_lps
+from ctdrill.imaging.sampling.envelope import AIR_HU as AIR_HU
+from ctdrill.imaging.sampling.envelope import BISECT_TOL_MM as BISECT_TOL_MM
+from ctdrill.imaging.sampling.envelope import ENVELOPE_GAP_MM as ENVELOPE_GAP_MM
+from ctdrill.imaging.sampling.envelope import ENVELOPE_REACH_MM as ENVELOPE_REACH_MM
+from ctdrill.imaging.sampling.envelope import MAX_ENVELOPE_MM, envelope_walls, ring_walls
 from ctdrill.imaging.volume import CTVolume
 
 #: Surface points deeper than this below the platform must lie in bone, mm (above it the
@@ -69,17 +74,9 @@ DEPTH_STEP_MM = 0.25
 N_ANGLES = 72
 #: Ray step as a fraction of the CT's smallest voxel spacing (see :func:`ray_step_mm`).
 RAY_STEP_VOXELS = 0.5
-#: A non-bone run this long after bone ends the jaw along a ray (the envelope rule), mm: longer
-#: than a nerve canal (2-4 mm) or a marrow space, shorter than the soft tissue outside the jaw.
-ENVELOPE_GAP_MM = 3.0
-#: A surface point whose ray meets no bone within this lies outside the jaw, mm.
-ENVELOPE_REACH_MM = 8.0
-#: A sample below this is air: never inside the jaw, HU.
-AIR_HU = -400.0
+
 #: Walls are followed this far from the surface, mm (thicker walls read "at least" this).
-MAX_WALL_MM = 10.0
-#: The crossing of the bone edge is bisected to this, mm.
-BISECT_TOL_MM = 1e-4
+MAX_WALL_MM = MAX_ENVELOPE_MM
 #: Rays marched per chunk of steps (bounded memory; unresolved rays only).
 _CHUNK_STEPS = 16
 
@@ -233,7 +230,7 @@ def bone_walls(
         if buccal is not None and np.linalg.norm(buccal - (buccal @ axis) * axis) > 1e-6
         else None
     )
-    wall, unknown = _march(volume, surface, dirs, step, max_wall_mm, buccal_perp)
+    wall, unknown = ring_walls(volume, surface, dirs, step, max_wall_mm, buccal_perp)
     known = ~unknown
     depth = placement.platform_depth_mm + s
     out: dict[str, Any] = {"min_mm": None, "depth_mm": None, "below_platform_mm": None}
@@ -274,149 +271,6 @@ def bone_walls(
     )
 
 
-def _march(
-    volume: CTVolume,
-    origin: np.ndarray,
-    dirs: np.ndarray,
-    step: float,
-    max_wall_mm: float,
-    buccal_perp: np.ndarray | None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Each ray's wall (D, A) to the jaw's envelope and whether it is unknown (D, A).
-
-    An open ray (no bone within the reach, no air) runs along the jaw or out of it: within
-    45 deg of the jaw's long direction at its depth (perpendicular to ``buccal_perp``, the
-    arch's buccal direction; without an arch, perpendicular to the mean axis of the rays
-    that cross the jaw's surface, by doubled angles) the jaw goes on (capped); across it the surface point
-    is outside the jaw (0)."""
-    shape = origin.shape[:2]
-    o = origin.reshape(-1, 3)
-    v = np.broadcast_to(dirs[None, :, :], origin.shape).reshape(-1, 3)
-    wall, unknown, open_ = envelope_walls(volume, o, v, step=step, max_wall_mm=max_wall_mm)
-    wall, unknown, open_ = wall.reshape(shape), unknown.reshape(shape), open_.reshape(shape)
-    if open_.any():
-        # (D, A) rays that cross the jaw's surface (an exit short of the cap: across it)
-        met = ~unknown & ~open_ & (wall > 0.0) & (wall < max_wall_mm)
-        if buccal_perp is not None:
-            across = np.broadcast_to(buccal_perp, (shape[0], 3))
-        else:
-            # the mean axis of the rays meeting bone, by doubled angles (a line, not a ray)
-            e1 = dirs[0]
-            e2 = dirs[len(dirs) // 4] - (dirs[len(dirs) // 4] @ e1) * e1
-            e2 = e2 / np.linalg.norm(e2)
-            ang = np.arctan2(dirs @ e2, dirs @ e1)
-            c2 = (met * np.cos(2 * ang)).sum(axis=1)
-            s2 = (met * np.sin(2 * ang)).sum(axis=1)
-            half = 0.5 * np.arctan2(s2, c2)
-            across = np.cos(half)[:, None] * e1 + np.sin(half)[:, None] * e2
-        along = np.abs(dirs @ across.T).T < math.cos(math.radians(45.0))  # (D, A)
-        jaw = (~unknown & ~open_ & (wall > 0.0)).any(axis=1)[:, None]
-        # along the jaw it goes on (where the CT lets the ray run to the reach); across it
-        # (or at a depth where no ray meets bone) the surface point is outside: wall 0
-        wall = np.where(open_ & along & jaw & ~unknown, max_wall_mm, wall)
-        out = open_ & ~(along & jaw)
-        wall = np.where(out, 0.0, wall)
-        unknown = unknown & ~out
-    return wall, unknown
-
-
-def envelope_walls(
-    volume: CTVolume,
-    origins_lps: np.ndarray,
-    dirs_lps: np.ndarray,
-    *,
-    step: float,
-    max_wall_mm: float = MAX_WALL_MM,
-    gap_mm: float = ENVELOPE_GAP_MM,
-    reach_mm: float = ENVELOPE_REACH_MM,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The distance from each origin along its direction to the jaw's envelope (module
-    docstring: 0 outside it, ``max_wall_mm`` where the jaw goes on), whether it is unknown
-    (the ray leaves the CT first), and whether it is open (no bone within
-    :data:`ENVELOPE_REACH_MM` and no air: outside the jaw across its width, inside it along
-    the arch; the caller decides).
-
-    Parameters
-    ----------
-    origins_lps, dirs_lps : (N, 3) ray origins (LPS mm) and unit directions.
-    step : march step, mm; ``max_wall_mm``, ``gap_mm``, ``reach_mm`` as in the module.
-
-    Returns
-    -------
-    wall : (N,) mm; unknown, open : (N,) bool.
-    """
-    n = len(origins_lps)
-    wall = np.zeros(n)
-    unknown = np.zeros(n, dtype=bool)
-    cross = np.zeros(n, dtype=bool)
-    open_ = np.zeros(n, dtype=bool)
-    n_steps = math.ceil((max_wall_mm + gap_mm) / step) + 1
-    t = np.arange(n_steps) * step
-    gap_steps = math.ceil(gap_mm / step - 1e-9)
-    chunk = max(1, 200_000 // n_steps)
-    for lo_i in range(0, n, chunk):
-        sl = slice(lo_i, min(n, lo_i + chunk))
-        o, v = origins_lps[sl], dirs_lps[sl]
-        hu = volume.sample(o[:, None, :] + t[None, :, None] * v[:, None, :], outside_hu=np.nan)
-        wall[sl], unknown[sl], cross[sl], open_[sl] = _envelope_rows(
-            hu, t, gap_steps, max_wall_mm, reach_mm
-        )
-    # bisect each exit crossing between its last bone sample and the next
-    exits = np.flatnonzero(~unknown & cross)
-    if exits.size:
-        k = np.rint(wall[exits] / step).astype(np.int64)
-        a, b = t[k], t[np.minimum(k + 1, n_steps - 1)]
-        oo, vv = origins_lps[exits], dirs_lps[exits]
-        while float(np.max(b - a)) > BISECT_TOL_MM:
-            mid = 0.5 * (a + b)
-            bone = volume.sample(oo + mid[:, None] * vv, outside_hu=np.nan) >= BONE_HU
-            a = np.where(bone, mid, a)
-            b = np.where(bone, b, mid)
-        wall[exits] = np.minimum(0.5 * (a + b), max_wall_mm)
-    return wall, unknown, open_
-
-
-def _envelope_rows(
-    hu: np.ndarray, t: np.ndarray, gap_steps: int, max_wall_mm: float, reach_mm: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The envelope rule on sampled rays ``hu`` (N, K) at distances ``t`` (K,): each ray's
-    wall (the last bone sample's distance, refined by the caller; 0 outside the jaw;
-    ``max_wall_mm`` capped), whether it is unknown, whether it ends at a bone crossing (to
-    refine), and whether it is *open*: no bone within the reach and no air."""
-    n, k_all = hu.shape
-    gone = np.isnan(hu)
-    bone = hu >= BONE_HU
-    air = hu < AIR_HU
-    idx = np.arange(k_all)
-    last_bone = np.maximum.accumulate(np.where(bone, idx, -1), axis=1)  # (N, K)
-    seen = last_bone >= 0
-    # where the jaw ends: air, or a non-bone run of gap_steps after bone, or the ray's end
-    end = air | (seen & ~bone & (idx - last_bone >= gap_steps))
-    end |= ~seen & (t[None, :] > reach_mm)
-    has_end = end.any(axis=1)
-    k_end = np.where(has_end, np.argmax(end, axis=1), k_all - 1)
-    # unknown when the CT ends at or before the end is decided
-    first_gone = np.where(gone.any(axis=1), np.argmax(gone, axis=1), k_all)
-    unknown = first_gone <= k_end
-    lb = last_bone[np.arange(n), k_end]
-    wall = np.where(lb >= 0, t[np.maximum(lb, 0)], 0.0)
-    # the jaw goes on past max_wall_mm (bone there, or no end within the samples)
-    capped = (lb >= 0) & ((t[np.maximum(lb, 0)] >= max_wall_mm) | ~has_end)
-    # bone met at or past max_wall_mm before the CT and the jaw end: "at least", known
-    k_cap = int(np.searchsorted(t, max_wall_mm - 1e-12))
-    far = bone[:, k_cap:]
-    k_far = k_cap + np.argmax(far, axis=1)
-    far_first = far.any(axis=1) & (k_far < first_gone) & (~has_end | (k_end > k_far))
-    capped |= far_first
-    unknown &= ~far_first
-    wall = np.where(capped, max_wall_mm, wall)
-    # open: no bone met before the reach or before the CT ends (the surface itself inside it)
-    k_stop = np.minimum(k_end, first_gone - 1)
-    open_ = (lb < 0) & (first_gone > 0) & ~air[np.arange(n), np.maximum(k_stop, 0)]
-    open_ &= ~air.any(axis=1) | (np.argmax(air, axis=1) > k_stop)
-    return wall, unknown, (lb >= 0) & ~capped, open_
-
-
 def _perforation(
     volume: CTVolume,
     placement: ImplantPlacement,
@@ -440,9 +294,7 @@ def _perforation(
         radii = apex_r * np.array([0.0, 1.0 / 3.0, 2.0 / 3.0])
         face = (placement.apex_lps + radii[:, None, None] * dirs[None, :, :]).reshape(-1, 3)
         along = np.broadcast_to(axis, face.shape)
-        wall, unknown, open_ = envelope_walls(
-            volume, face, np.ascontiguousarray(along), step=step
-        )
+        wall, unknown, open_ = envelope_walls(volume, face, np.ascontiguousarray(along), step=step)
         parts_p.append(face)
         parts_s.append(np.full(len(face), spec.length_mm))
         parts_d.append(along)

@@ -31,7 +31,7 @@ def _jaw(
     xs = np.arange(-12.0, 12.0 + 1e-9, SP) + SP / 2
     ys = np.arange(-16.0, 16.0 + 1e-9, SP) + SP / 2
     zs = np.arange(-24.0, 5.0 + 1e-9, SP) + SP / 2
-    z, y, x = np.meshgrid(zs, ys, xs, indexing="ij")
+    z, _y, x = np.meshgrid(zs, ys, xs, indexing="ij")
     top, bottom = 1.0, -20.0
     inside_d = np.minimum.reduce([OUTER - np.abs(x), top - z, z - bottom])  # depth into the jaw
     hu = np.full(x.shape, -1000.0)
