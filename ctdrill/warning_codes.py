@@ -23,11 +23,25 @@ SCOPES = ("series", "plan", "path")
 
 @dataclass(frozen=True)
 class WarningCode:
-    """One code: its name, what it is about (:data:`SCOPES`) and what it means."""
+    """One code: its name, what it is about (:data:`SCOPES`), what it means, and how the
+    rooms that read warnings treat it.
+
+    Attributes
+    ----------
+    blocks_suggest : a candidate with this warning is infeasible (``ctdrill suggest``).
+    banner : the window's problem banner shows it, at this rank (1 first); None: not shown.
+    words : the problem in a few plain words (the banner's heading); None: the code itself.
+    slice_spacing : it is about the slices' spacing (a volume resampled to uniform slices no
+        longer has it).
+    """
 
     code: str
     scope: str
     meaning: str
+    blocks_suggest: bool = False
+    banner: int | None = None
+    words: str | None = None
+    slice_spacing: bool = False
 
 
 REGISTRY: tuple[WarningCode, ...] = (
@@ -38,12 +52,14 @@ REGISTRY: tuple[WarningCode, ...] = (
         "slices are missing: a step wider than 1.5 nominal steps between real slices; sampling "
         "uses the true positions, and a drill lip crossing the gap is refused unless asked to "
         "interpolate across it",
+        slice_spacing=True,
     ),
     WarningCode(
         "nonuniform_spacing",
         "series",
         "the slice steps differ (irregular but narrower than a gap); sampling uses every "
         "slice's true position",
+        slice_spacing=True,
     ),
     WarningCode(
         "gantry_tilt",
@@ -136,6 +152,8 @@ REGISTRY: tuple[WarningCode, ...] = (
         "plan",
         "two implants of the plan set are closer than the 3 mm kept between implants (the gap "
         "between their platform-wide bodies)",
+        banner=5,
+        words="implants too close",
     ),
     WarningCode(
         "implant_protocol",
@@ -149,6 +167,8 @@ REGISTRY: tuple[WarningCode, ...] = (
         "the final drill does not suit the implant: wider than its diameter (no primary "
         "stability) or narrower than both its apex diameter and its diameter less the allowed "
         "undersize (it could not be seated)",
+        banner=8,
+        words="final drill does not suit the implant",
     ),
     WarningCode(
         "drill_tip_override",
@@ -173,6 +193,9 @@ REGISTRY: tuple[WarningCode, ...] = (
         "plan_violates_margin",
         "path",
         "the planned path breaks a landmark's safety margin (the drill stops before it)",
+        blocks_suggest=True,
+        banner=1,
+        words="safety margin",
     ),
     WarningCode(
         "margin_below_clinical",
@@ -210,28 +233,40 @@ REGISTRY: tuple[WarningCode, ...] = (
         "implant_above_entry",
         "path",
         "the implant is longer than the planned depth: its platform stands above the entry point",
+        banner=6,
+        words="implant above the entry",
     ),
     WarningCode(
         "implant_violates_margin",
         "path",
         "the implant body at its planned place breaks a landmark's safety margin",
+        blocks_suggest=True,
+        banner=2,
+        words="implant margin",
     ),
     WarningCode(
         "thin_wall",
         "path",
         "the thinnest bone wall around the implant is under the plan's minimum (min_wall_mm)",
+        blocks_suggest=True,
+        banner=3,
+        words="thin bone wall",
     ),
     WarningCode(
         "cortical_perforation",
         "path",
         "part of the implant surface deeper than 1 mm below the platform lies outside the jaw's "
         "envelope (the cortical surface of the bone it sits in; docs/plan.md, Bone walls)",
+        blocks_suggest=True,
+        banner=4,
+        words="cortical perforation",
     ),
     WarningCode(
         "bone_walls_unknown",
         "path",
         "directions around the implant leave the CT before bone ends: the walls there are not "
         "measured (outside the CT is never counted as bone)",
+        blocks_suggest=True,
     ),
     WarningCode(
         "out_of_volume",
@@ -244,6 +279,8 @@ REGISTRY: tuple[WarningCode, ...] = (
         "path",
         "the implant body enters a nerve canal (its apex inside it): named as the canal, not "
         "as a cortical perforation",
+        banner=7,
+        words="implant in the canal",
     ),
 )
 
@@ -273,6 +310,28 @@ def meaning(code: str) -> str:
 def codes(scope: str | None = None) -> tuple[str, ...]:
     """Every code (of ``scope``), in the registry's order."""
     return tuple(w.code for w in REGISTRY if scope is None or w.scope == scope)
+
+
+def blocking_codes() -> tuple[str, ...]:
+    """The codes that make a ``suggest`` candidate infeasible, in the registry's order."""
+    return tuple(w.code for w in REGISTRY if w.blocks_suggest)
+
+
+def banner_codes() -> tuple[str, ...]:
+    """The codes the window's problem banner shows, by their rank."""
+    shown = [w for w in REGISTRY if w.banner is not None]
+    return tuple(w.code for w in sorted(shown, key=lambda w: w.banner or 0))
+
+
+def words(code: str) -> str:
+    """``code``'s plain words (the banner's heading), else the code with spaces."""
+    entry = WARNINGS[check_code(code)]
+    return entry.words if entry.words is not None else code.replace("_", " ")
+
+
+def slice_spacing_codes() -> frozenset[str]:
+    """The codes about the slices' spacing (resampling to uniform slices clears them)."""
+    return frozenset(w.code for w in REGISTRY if w.slice_spacing)
 
 
 _TITLES = {

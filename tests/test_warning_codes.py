@@ -131,3 +131,58 @@ def test_the_codes_the_demo_and_the_engine_emit_are_registered(tmp_path: Path) -
     want |= {"margin_below_clinical"}
     assert want <= seen
     assert seen <= set(codes())
+
+
+#: The modules that may list warning codes: the registry, and the plan's verdict (which
+#: checks produce which findings).
+MAY_LIST_CODES = {"ctdrill/warning_codes.py", "engine/verdict.py"}
+
+
+def code_lists_in_source() -> list[str]:
+    """``module:line`` of every literal tuple, list, set or dict (its keys) of two or more
+    strings that are all registered codes, outside :data:`MAY_LIST_CODES`."""
+    found = []
+    for room in ROOMS:
+        for path in sorted((ROOT / room).rglob("*.py")):
+            rel = str(path.relative_to(ROOT))
+            if rel in MAY_LIST_CODES:
+                continue
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                items: list[ast.expr] = []
+                if isinstance(node, ast.Tuple | ast.List | ast.Set):
+                    items = list(node.elts)
+                elif isinstance(node, ast.Dict):
+                    items = [k for k in node.keys if k is not None]
+                texts = [i.value for i in items if isinstance(i, ast.Constant)]
+                if (
+                    len(texts) >= 2
+                    and len(texts) == len(items)
+                    and all(isinstance(t, str) and t in warning_codes.WARNINGS for t in texts)
+                ):
+                    found.append(f"{rel}:{node.lineno}")
+    return found
+
+
+def test_no_module_but_the_registry_lists_warning_codes() -> None:
+    # which codes block suggest, show in the banner, and their words are the registry's fields
+    assert code_lists_in_source() == []
+
+
+def test_the_scan_finds_a_list_of_codes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    room = tmp_path / "app"
+    room.mkdir()
+    (room / "lists.py").write_text('BLOCKING = ("thin_wall", "cortical_perforation")\n')
+    (room / "fine.py").write_text('PAIR = ("thin_wall", "a message")\nONE = ("thin_wall",)\n')
+    monkeypatch.setattr(f"{__name__}.ROOT", tmp_path)
+    monkeypatch.setattr(f"{__name__}.ROOMS", ("app",))
+    assert code_lists_in_source() == ["app/lists.py:1"]
+
+
+def test_the_registry_says_what_blocks_suggest_and_what_the_banner_shows() -> None:
+    ranks = [w.banner for w in REGISTRY if w.banner is not None]
+    assert sorted(ranks) == list(range(1, len(ranks) + 1))  # one place each
+    assert warning_codes.banner_codes()[0] == "plan_violates_margin"
+    assert {"plan_violates_margin", "thin_wall"} <= set(warning_codes.blocking_codes())
+    assert all(w.words for w in REGISTRY if w.banner is not None)  # the banner's headings
+    assert warning_codes.words("thin_wall") == "thin bone wall"
+    assert warning_codes.words("out_of_volume") == "out of volume"

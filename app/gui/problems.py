@@ -33,31 +33,11 @@ from ctdrill.imaging.plan.safety import clearance_profile_mm, margin_warnings, m
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.resolution import format_clearance_mm
 from ctdrill.imaging.volume import CTVolume
+from ctdrill.warning_codes import banner_codes, words
 
-#: The plan problems the banner lists, in this order (issue 25): drill margin, implant
-#: margin, thin wall, perforation, implants too close, implant above entry, an implant
-#: in the canal, a final drill that does not suit the implant.
-PROBLEM_CODES = (
-    "plan_violates_margin",
-    "implant_violates_margin",
-    "thin_wall",
-    "cortical_perforation",
-    "implants_too_close",
-    "implant_above_entry",
-    "canal_entry",
-    "final_drill_mismatch",
-)
-#: Each problem in a few words (the banner's headings).
-PROBLEM_WORDS = {
-    "plan_violates_margin": "safety margin",
-    "implant_violates_margin": "implant margin",
-    "thin_wall": "thin bone wall",
-    "cortical_perforation": "cortical perforation",
-    "implants_too_close": "implants too close",
-    "implant_above_entry": "implant above the entry",
-    "canal_entry": "implant in the canal",
-    "final_drill_mismatch": "final drill does not suit the implant",
-}
+#: The plan problems the banner lists, in this order: the registry's ``banner`` codes
+#: (:func:`ctdrill.warning_codes.banner_codes`; their headings, ``words``).
+PROBLEM_CODES = banner_codes()
 #: The bone walls' grid while a trajectory is dragged (``plan_bone_walls`` options: 24
 #: directions, 1 mm apart along the body, about a sixth of the cost; never thinner than the
 #: fine grid's, said with "~").
@@ -223,7 +203,7 @@ def plan_problems(*sources: Iterable[Any]) -> tuple[tuple[str, str], ...]:
 
 def problems_text(problems: Sequence[tuple[str, str]]) -> str:
     """The banner's lines: ``code (words): message``, one per problem."""
-    return "\n".join(f"• {PROBLEM_WORDS[code]} ({code}): {message}" for code, message in problems)
+    return "\n".join(f"• {words(code)} ({code}): {message}" for code, message in problems)
 
 
 #: Written before a planned clearance below the landmark's margin (the landmark table).

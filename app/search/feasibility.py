@@ -28,15 +28,10 @@ from ctdrill.imaging.plan.landmarks import bind_to_grid
 from ctdrill.imaging.plan.safety import clearance_profile_mm, margin_warnings, margins_mm
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.volume import CTVolume
+from ctdrill.warning_codes import blocking_codes
 
-#: The warning codes that make a candidate infeasible (``ctdrill.warning_codes``).
-BLOCKING_CODES = (
-    "plan_violates_margin",
-    "implant_violates_margin",
-    "thin_wall",
-    "cortical_perforation",
-    "bone_walls_unknown",
-)
+#: The warning codes that make a candidate infeasible (the registry's ``blocks_suggest``).
+BLOCKING_CODES = blocking_codes()
 
 
 @dataclass(frozen=True)

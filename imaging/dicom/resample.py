@@ -15,8 +15,7 @@ import numpy as np
 
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.volume import CTVolume
-
-_IRREGULAR = ("slice_gap", "nonuniform_spacing")
+from ctdrill.warning_codes import slice_spacing_codes
 
 
 def resample_uniform_slices(volume: CTVolume, *, step_mm: float | None = None) -> CTVolume:
@@ -70,7 +69,8 @@ def resample_uniform_slices(volume: CTVolume, *, step_mm: float | None = None) -
     normal = np.cross(affine[:3, 0], affine[:3, 1])
     normal /= np.linalg.norm(normal)
     affine[:3, 2] = kcol * (step / float(kcol @ normal))
-    warnings = tuple(w for w in volume.warnings if w.code not in _IRREGULAR)
+    spacing = slice_spacing_codes()  # resolved by the uniform slices
+    warnings = tuple(w for w in volume.warnings if w.code not in spacing)
     return CTVolume(
         hu=hu,
         affine_lps=affine,
