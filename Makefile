@@ -7,7 +7,8 @@ STAMP := $(VENV)/.installed-dev
 STAMP_RUN := $(VENV)/.installed
 SYSTEM_PKGS := xvfb xauth libegl1 libgl1 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 \
 	libxcb-keysyms1 libxcb-shape0 libxcb-xinerama0 libxcb-randr0 libxcb-render-util0 \
-	libxcb-image0 libxrender1 libfontconfig1 libdbus-1-3 dicom3tools libportaudio2
+	libxcb-image0 libxrender1 libfontconfig1 libdbus-1-3 dicom3tools libportaudio2 \
+	gcc libc6-dev
 DEMO_OUT ?= demo-out
 
 .PHONY: test-blas bench-smoke demo test bench fuzz lint typecheck sysdeps venv venv-dev wheel-check clean warmup
@@ -27,7 +28,8 @@ $(STAMP): pyproject.toml | $(VENV)/bin/python
 venv: $(STAMP_RUN)
 venv-dev: $(STAMP)
 
-## System packages the GUI tests need (Xvfb and the Qt/VTK X11 libraries); installed when root.
+## System packages the tests need (Xvfb and the Qt/VTK X11 libraries; gcc builds the firmware core
+## for `--core c` and its equality tests); installed when root.
 sysdeps:
 	@missing=$$(for p in $(SYSTEM_PKGS); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
 	if [ -n "$$missing" ]; then \

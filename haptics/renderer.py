@@ -2,7 +2,8 @@
 
 Per tick, from the encoder depth of the master and its velocity estimate:
 
-1. watchdog: no accepted host frame for ``watchdog_s`` (50 ms) while armed -> safe state;
+1. watchdog: no accepted host frame for more than ``watchdog_s`` (50 ms, counted in ticks: the
+   firmware's counter, ``firmware/fw_render.c``) while armed -> safe state;
 2. finite checks on the inputs and on the force command (non-finite -> safe state);
 3. the cutting law (:mod:`ctdrill.model.cutting`) on the uploaded table: the front (deepest drill
    depth) yields to the hand, never past the stop depth; vibration from the device clock while
@@ -124,6 +125,9 @@ class Renderer:
         self.continuous_force_n = continuous_force_n
         self.thermal_budget_n2_s = thermal_budget_n2_s
         self.watchdog_s = watchdog_s
+        #: The watchdog counts ticks (as the firmware does): trips past this many.
+        self.watchdog_ticks = round(watchdog_s * tick_hz)
+        self._tick_hz = tick_hz
         self.k = stiffness_n_per_mm
         self.b = damping_n_s_per_mm
         self.k_stop = stop_wall_n_per_mm
@@ -278,7 +282,7 @@ class Renderer:
             if master_mm == master_mm:  # finite-or-inf, not NaN
                 self.drill_mm = master_mm if master_mm < self.front_mm else self.front_mm
             return 0.0
-        if now_s - self.last_host_s > self.watchdog_s:
+        if round((now_s - self.last_host_s) * self._tick_hz) > self.watchdog_ticks:
             self._go_safe(now_s, Fault.WATCHDOG)
             return 0.0
         if not (

@@ -374,9 +374,9 @@ def test_pyproject_maps_every_package_folder_into_ctdrill() -> None:
     setup = conf["setuptools"]
     assert setup["package-dir"] == {
         "ctdrill": "ctdrill",
-        **{f"ctdrill.{p}": p for p in (*PACKAGES, "assets")},
+        **{f"ctdrill.{p}": p for p in (*PACKAGES, "assets", "firmware")},
     }
-    found = {"ctdrill", "ctdrill.assets"} | {
+    found = {"ctdrill", "ctdrill.assets", "ctdrill.firmware"} | {
         _module_name(init).removesuffix(".__init__")
         for package in PACKAGES
         for init in (ROOT / package).rglob("__init__.py")

@@ -1,0 +1,381 @@
+/*
+ * The per-tick law (docs/protocol.md section 6): the renderer of haptics/renderer.py and the
+ * force controller of haptics/plant.py, operation for operation (the double build reproduces
+ * them to the last bit; the float build is what a Cortex-M4F computes).
+ */
+#include <math.h>
+
+#include "fw.h"
+
+/* device limits and the rendering's constants (haptics/renderer.py, model/cutting.py) */
+#define PEAK_FORCE_N R(78.0)
+#define CONTINUOUS_FORCE_N R(20.0)
+#define THERMAL_BUDGET_N2_S R(5684.0) /* 78^2 - 20^2: one second at the peak force */
+#define ARM_MAX_FORCE_N R(5.0)
+#define K_N_PER_MM R(11.0)
+#define B_N_S_PER_MM R(0.08)
+#define K_STOP_N_PER_MM R(200.0)
+#define B_STOP_N_S_PER_MM R(0.4)
+#define STOP_GLIDE_MM_S R(20.0)
+#define B_RELEASE_N_S_PER_MM R(0.4)
+#define RELEASE_PULL_N R(1.0)
+#define RELEASE_MAX_N R(20.0)
+/* the force controller (paper Table 4) */
+#define MASS_KG R(0.5)
+#define KT_N_PER_A R(33.0)
+#define COULOMB_N R(1.0)
+#define KF R(1.2)
+#define G_DOB R(1000.0)
+#define G_RFOB R(1000.0)
+#define G_VEL R(1000.0)
+#define FRICTION_VEL_M_S R(0.1e-3)
+#define TWO_PI R(6.283185307179586)
+#if FW_REAL_IS_DOUBLE
+#define COPYSIGN copysign
+#else
+#define COPYSIGN copysignf
+#endif
+
+static const real_t DT_S = (real_t)(1.0 / FW_TICK_HZ);
+/* the hand reading low-passed at 1000 rad/s: min(1, g T) */
+#define HAND_GAIN (G_RFOB * DT_S)
+
+static int finite_r(real_t x)
+{
+    /* no comparison that raises FE_INVALID on a NaN: x - x is 0 only for finite x */
+    real_t d = x - x;
+    return d == d;
+}
+
+void fw_render_init(fw_renderer *r)
+{
+    r->state = FW_IDLE;
+    r->faults = 0;
+    r->new_faults = 0;
+    r->front_mm = R(0.0);
+    r->drill_mm = R(0.0);
+    r->force_cmd_n = R(0.0);
+    r->hand_n = R(0.0);
+    r->thermal_n2_s = R(0.0);
+    r->thermal_limited = 0;
+    r->last_host_tick = 0;
+    r->arm_tick = 0;
+    r->ke = r->w1 = r->w2 = r->f1_hz = r->f2_hz = R(0.0);
+    r->stop_depth_mm = R(0.0);
+    r->stop_anchor_mm = (real_t)INFINITY;
+    r->inv_step = R(0.0);
+    r->last = -1;
+#if !FW_REAL_IS_DOUBLE
+    r->turn1 = r->turn2 = R(0.0);
+    r->thermal_lo = R(0.0);
+    r->glide_from = (real_t)INFINITY;
+    r->glide_n = 0;
+#endif
+}
+
+/* the I2t state plus inc, never below 0 (compensated in float: a plain float sum drifts by
+ * more than the increment of a tick over a thermal budget's 10^4 ticks) */
+static void thermal_add(fw_renderer *r, real_t inc)
+{
+#if FW_REAL_IS_DOUBLE
+    real_t sum = r->thermal_n2_s + inc;
+    r->thermal_n2_s = sum > R(0.0) ? sum : R(0.0);
+#else
+    real_t y = inc - r->thermal_lo;
+    real_t sum = r->thermal_n2_s + y;
+    r->thermal_lo = (sum - r->thermal_n2_s) - y;
+    if (sum > R(0.0)) {
+        r->thermal_n2_s = sum;
+    } else {
+        r->thermal_n2_s = R(0.0);
+        r->thermal_lo = R(0.0);
+    }
+#endif
+}
+
+static void raise_fault(fw_renderer *r, uint16_t fault)
+{
+    if (!(r->faults & fault))
+        r->new_faults |= fault;
+    r->faults |= fault;
+}
+
+static real_t go_safe(fw_renderer *r, uint16_t fault)
+{
+    raise_fault(r, fault);
+    r->state = FW_SAFE;
+    r->force_cmd_n = R(0.0);
+    return R(0.0);
+}
+
+static void coefficients(const fw_device *dev, real_t depth_mm, real_t *s0, real_t *s1,
+                         real_t *s2)
+{
+    const fw_renderer *r = &dev->r;
+    real_t pos = depth_mm * r->inv_step, frac;
+    int32_t i;
+    if (!(R(0.0) <= pos && pos <= (real_t)r->last)) {
+        *s0 = *s1 = *s2 = R(0.0);
+        return;
+    }
+    i = (int32_t)pos;
+    if (i >= r->last) {
+        *s0 = (real_t)dev->s0[r->last];
+        *s1 = (real_t)dev->s1[r->last];
+        *s2 = (real_t)dev->s2[r->last];
+        return;
+    }
+    frac = pos - (real_t)i;
+    *s0 = (real_t)dev->s0[i] + frac * ((real_t)dev->s0[i + 1] - (real_t)dev->s0[i]);
+    *s1 = (real_t)dev->s1[i] + frac * ((real_t)dev->s1[i + 1] - (real_t)dev->s1[i]);
+    *s2 = (real_t)dev->s2[i] + frac * ((real_t)dev->s2[i + 1] - (real_t)dev->s2[i]);
+}
+
+static real_t release_gain(const fw_renderer *r)
+{
+    real_t pull = -r->hand_n - RELEASE_PULL_N;
+    if (pull <= R(0.0))
+        return R(1.0);
+    return pull < RELEASE_PULL_N ? R(1.0) - pull / RELEASE_PULL_N : R(0.0);
+}
+
+/* model/cutting.py cut_step: the yielding front and the coupling force it sustained */
+static real_t cut_step(real_t front, real_t master, real_t s0, real_t ke, real_t limit,
+                       real_t *coupling)
+{
+    real_t e = master - front, e_star, room, step, new_front, e_after;
+    int free_ = 0;
+    if (e <= R(0.0) || front >= limit) {
+        *coupling = e > R(0.0) ? K_N_PER_MM * e : R(0.0);
+        return front;
+    }
+    e_star = s0 <= R(0.0) ? R(0.0) : s0 / K_N_PER_MM;
+    if (e <= e_star) {
+        *coupling = K_N_PER_MM * e;
+        return front;
+    }
+    room = e - e_star;
+    if (s0 <= R(0.0) || ke <= R(0.0)) {
+        step = room;
+    } else {
+        step = (K_N_PER_MM * e / s0 - R(1.0)) / ke * DT_S;
+        free_ = step < room;
+        if (!free_)
+            step = room;
+    }
+    new_front = front + step;
+    if (new_front >= limit) {
+        new_front = limit;
+        free_ = 0;
+    }
+    if (free_) {
+        *coupling = K_N_PER_MM * e;
+        return new_front;
+    }
+    e_after = master - new_front;
+    *coupling = e_after > R(0.0) ? K_N_PER_MM * e_after : R(0.0);
+    return new_front;
+}
+
+real_t fw_render_tick(fw_device *dev, real_t master_mm, real_t v_mm_s, real_t hand_n)
+{
+    fw_renderer *r = &dev->r;
+    real_t front, stop, s0, s1, s2, new_front, coupling, front_v, vib, force, anchor, back_v;
+    real_t glided, spring, damper, fc;
+    if (finite_r(hand_n))
+        r->hand_n += HAND_GAIN * (hand_n - r->hand_n);
+    if (r->state == FW_IDLE || r->state == FW_SAFE) {
+        r->force_cmd_n = R(0.0);
+        thermal_add(r, -(CONTINUOUS_FORCE_N * CONTINUOUS_FORCE_N * DT_S));
+        if (master_mm == master_mm)
+            r->drill_mm = master_mm < r->front_mm ? master_mm : r->front_mm;
+        return R(0.0);
+    }
+    /* the watchdog counts ticks: no accepted host frame for more than 50 ms */
+    if (dev->ticks - r->last_host_tick > FW_WATCHDOG_TICKS)
+        return go_safe(r, FW_F_WATCHDOG);
+    if (!(finite_r(master_mm) && finite_r(v_mm_s) && finite_r(hand_n)))
+        return go_safe(r, FW_F_NONFINITE);
+    front = r->front_mm;
+    stop = r->stop_depth_mm;
+    coefficients(dev, front, &s0, &s1, &s2);
+    new_front = cut_step(front, master_mm, s0, r->ke, stop, &coupling);
+    front_v = (new_front - front) / DT_S;
+    vib = R(0.0);
+#if !FW_REAL_IS_DOUBLE
+    /* phases kept in turns (exact enough in float over any session's length) */
+    r->turn1 += r->f1_hz * DT_S;
+    r->turn1 -= (real_t)(int32_t)r->turn1;
+    r->turn2 += r->f2_hz * DT_S;
+    r->turn2 -= (real_t)(int32_t)r->turn2;
+#endif
+    if (new_front > front) {
+#if FW_REAL_IS_DOUBLE
+        double t = (double)dev->ticks * (1.0 / FW_TICK_HZ) - (double)r->arm_tick * (1.0 / FW_TICK_HZ);
+        vib = s1 * sin(r->w1 * t) + s2 * sin(r->w2 * t);
+#else
+        vib = s1 * sinf(TWO_PI * r->turn1) + s2 * sinf(TWO_PI * r->turn2);
+#endif
+    }
+    /* model/cutting.py resistance_n */
+    if (coupling <= R(0.0)) {
+        force = R(0.0);
+    } else {
+        force = coupling + B_N_S_PER_MM * (v_mm_s - front_v) + vib;
+        force = force > R(0.0) ? force : R(0.0);
+    }
+    anchor = r->stop_anchor_mm;
+    back_v = v_mm_s;
+#if FW_REAL_IS_DOUBLE
+    if (new_front >= stop && anchor == (real_t)INFINITY) {
+        anchor = master_mm > stop ? master_mm : stop;
+    } else if (anchor != (real_t)INFINITY) {
+        glided = anchor - STOP_GLIDE_MM_S * DT_S;
+        if (master_mm < glided) {
+            anchor = master_mm > stop ? master_mm : stop;
+        } else if (anchor > stop) {
+            anchor = glided > stop ? glided : stop;
+            back_v = v_mm_s + (r->stop_anchor_mm - anchor) / DT_S;
+        }
+    }
+#else
+    /* the same glide, each position computed from where it began (a float anchor stepped
+     * by 2 um a tick would drift by its rounding: 0.01 N on the wall within 0.05 s) */
+    if (new_front >= stop && anchor == (real_t)INFINITY) {
+        anchor = master_mm > stop ? master_mm : stop;
+        r->glide_from = anchor;
+        r->glide_n = 0;
+    } else if (anchor != (real_t)INFINITY) {
+        glided = r->glide_from - (real_t)(r->glide_n + 1u) * (STOP_GLIDE_MM_S * DT_S);
+        if (master_mm < glided) {
+            anchor = master_mm > stop ? master_mm : stop;
+            r->glide_from = anchor;
+            r->glide_n = 0;
+        } else if (anchor > stop) {
+            if (glided > stop) {
+                anchor = glided;
+                r->glide_n++;
+                back_v = v_mm_s + STOP_GLIDE_MM_S;
+            } else {
+                back_v = v_mm_s + (anchor - stop) / DT_S;
+                anchor = stop;
+            }
+        }
+    }
+#endif
+    r->stop_anchor_mm = anchor;
+    if (master_mm > anchor) {
+        spring = K_STOP_N_PER_MM * (master_mm - anchor);
+        damper = B_STOP_N_S_PER_MM * v_mm_s;
+        if (-spring < damper && damper < spring)
+            force += spring + damper;
+        else
+            force += spring + COPYSIGN(spring, damper);
+    }
+    if (back_v < R(0.0)) {
+        force += B_RELEASE_N_S_PER_MM * release_gain(r) * back_v;
+        if (force < -RELEASE_MAX_N)
+            force = -RELEASE_MAX_N;
+    }
+    r->front_mm = new_front;
+    r->drill_mm = master_mm < new_front ? master_mm : new_front;
+    r->state = new_front >= stop ? FW_STOPPED : FW_CUTTING;
+    if (!finite_r(force))
+        return go_safe(r, FW_F_NONFINITE);
+    if (force > PEAK_FORCE_N) {
+        force = PEAK_FORCE_N;
+        raise_fault(r, FW_F_PEAK_LIMIT);
+    }
+    fc = CONTINUOUS_FORCE_N;
+    if (r->thermal_limited && force > fc) {
+        force = fc;
+        raise_fault(r, FW_F_THERMAL_LIMIT);
+    }
+    thermal_add(r, (force * force - fc * fc) * DT_S);
+    if (r->thermal_n2_s >= THERMAL_BUDGET_N2_S)
+        r->thermal_limited = 1;
+    else if (r->thermal_n2_s < R(0.5) * THERMAL_BUDGET_N2_S)
+        r->thermal_limited = 0;
+    r->force_cmd_n = force;
+    return force;
+}
+
+/* ------------------------------------------------------------------ the force controller */
+
+void fw_control_init(fw_controller *c, real_t start_mm, int32_t counts)
+{
+    c->zv = start_mm * R(1e-3);
+    c->yd = c->yr = R(0.0);
+    c->velocity_mm_s = c->hand_est_n = c->current_a = R(0.0);
+#if !FW_REAL_IS_DOUBLE
+    c->last_counts = counts;
+    c->resid_m = (real_t)counts * R(1e-7) - c->zv;
+#else
+    (void)counts;
+#endif
+}
+
+static real_t friction_model(real_t v)
+{
+    real_t r = v / FRICTION_VEL_M_S;
+    r = r < R(1.0) ? r : R(1.0);
+    r = r > R(-1.0) ? r : R(-1.0);
+    return COULOMB_N * r;
+}
+
+/* the pseudo-differentiator: v = g (x - zv), zv += v T (1000 rad/s) */
+static real_t velocity(fw_controller *c, int32_t counts, real_t encoder_mm)
+{
+    real_t v;
+#if FW_REAL_IS_DOUBLE
+    real_t x = encoder_mm * R(1e-3);
+    (void)counts;
+    v = G_VEL * (x - c->zv);
+    c->zv += v * DT_S;
+#else
+    /* the same filter on differences: x - zv = (x - x_last) + (x_last - zv) */
+    real_t dxz = (real_t)(counts - c->last_counts) * R(1e-7) + c->resid_m;
+    (void)encoder_mm;
+    v = G_VEL * dxz;
+    c->resid_m = dxz - v * DT_S;
+    c->last_counts = counts;
+    c->zv = (real_t)counts * R(1e-7) - c->resid_m;
+#endif
+    return v;
+}
+
+real_t fw_control_update(fw_controller *c, int32_t counts, real_t encoder_mm, real_t force_cmd_n)
+{
+    real_t v = velocity(c, counts, encoder_mm);
+    real_t ti, d_hat, hand, a_ref, i;
+    const real_t i_max = R(80.0) / KT_N_PER_A;
+    ti = KT_N_PER_A * c->current_a;
+    /* DOB: everything that is not the motor, low-passed at G_DOB */
+    c->yd += DT_S * G_DOB * (ti + MASS_KG * G_DOB * v - c->yd);
+    d_hat = c->yd - MASS_KG * G_DOB * v;
+    /* RFOB: the hand's force, the friction model removed */
+    c->yr += DT_S * G_RFOB * (ti + MASS_KG * G_RFOB * v - c->yr);
+    hand = -(c->yr - MASS_KG * G_RFOB * v) + friction_model(v);
+    a_ref = KF * (hand - force_cmd_n) / MASS_KG;
+    i = (MASS_KG * a_ref + d_hat) / KT_N_PER_A;
+    if (!finite_r(i))
+        i = R(0.0);
+    i = i < i_max ? i : i_max;
+    i = i > -i_max ? i : -i_max;
+    c->current_a = i;
+    c->velocity_mm_s = v * R(1e3);
+    c->hand_est_n = hand;
+    return i;
+}
+
+real_t fw_control_idle(fw_controller *c, int32_t counts, real_t encoder_mm)
+{
+    real_t v = velocity(c, counts, encoder_mm);
+    real_t ti = KT_N_PER_A * c->current_a;
+    c->yd += DT_S * G_DOB * (ti + MASS_KG * G_DOB * v - c->yd);
+    c->yr += DT_S * G_RFOB * (ti + MASS_KG * G_RFOB * v - c->yr);
+    c->hand_est_n = -(c->yr - MASS_KG * G_RFOB * v) + friction_model(v);
+    c->velocity_mm_s = v * R(1e3);
+    c->current_a = R(0.0);
+    return R(0.0);
+}

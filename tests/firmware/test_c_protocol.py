@@ -1,0 +1,121 @@
+"""The C core against docs/protocol.md byte for byte: every device example replayed on the C
+device (double and single precision builds), every frame of the document decoded and encoded
+again by the C framing, the check values of both CRCs."""
+
+from __future__ import annotations
+
+import ctypes
+import struct
+import zlib
+
+import pytest
+
+from ctdrill.haptics.ccore import CDeviceEmulator, Precision, load_core
+from ctdrill.haptics.framing import cobs_decode, cobs_encode, crc32c
+from tests.haptics.test_protocol_doc import BLOCKS, DOC, HELLO, HOST_BLOCKS, _bytes, _lines
+
+PRECISIONS: tuple[Precision, ...] = ("double", "single")
+
+
+@pytest.mark.parametrize("precision", PRECISIONS)
+@pytest.mark.parametrize("block", BLOCKS, ids=[f"example{i}" for i in range(len(BLOCKS))])
+def test_byte_example_replays_on_the_c_core(block: str, precision: Precision) -> None:
+    emu = CDeviceEmulator(nonce_seed=0, precision=precision)
+    expected = b""
+
+    def check() -> None:
+        nonlocal expected
+        assert emu.take_output().hex(" ") == expected.hex(" ")
+        expected = b""
+
+    for kind, arg in _lines(block):
+        if kind == "<":
+            expected += _bytes(arg)
+            continue
+        check()
+        if kind == ">":
+            emu.receive(_bytes(arg))
+        elif arg == "hello":
+            emu.receive(HELLO)
+            emu.take_output()
+        else:
+            verb, n = arg.split()
+            if verb == "device-seq":
+                emu.set_device_seq(int(n))
+            else:
+                assert verb == "ticks"
+                emu.run_ticks(int(n))
+    check()
+
+
+def _doc_frames() -> list[bytes]:
+    """Every wire frame the document writes (device and host examples, the worked example)."""
+    frames = []
+    for block in (*BLOCKS, *HOST_BLOCKS):
+        for kind, arg in _lines(block):
+            if kind in "<>":
+                data = _bytes(arg)
+                frames += [f for f in data.split(b"\x00") if f]
+    return frames
+
+
+def test_every_frame_of_the_document_decodes_and_encodes_byte_for_byte_in_c() -> None:
+    lib = load_core("double")
+    frames = _doc_frames()
+    assert len(frames) > 100
+    exact = 0
+    raw_buf = ctypes.create_string_buffer(300)
+    out_buf = ctypes.create_string_buffer(300)
+    for frame in frames:
+        n = lib.fw_cobs_decode(frame, len(frame), raw_buf, 300)
+        try:
+            py_raw = cobs_decode(frame)
+        except ValueError:
+            assert n < 0
+            continue
+        assert n == len(py_raw) and raw_buf.raw[:n] == py_raw
+        if len(py_raw) < 22 or len(py_raw) > 254:
+            continue
+        crc_ok = struct.unpack_from("<I", py_raw, len(py_raw) - 4)[0] == crc32c(py_raw[:-4])
+        assert lib.fw_crc32c(py_raw[:-4], len(py_raw) - 4) == crc32c(py_raw[:-4])
+        # the C encoder repeats the frame byte for byte from its fields
+        ln = lib.fw_cobs_encode(py_raw, len(py_raw), out_buf)
+        assert out_buf.raw[:ln] == cobs_encode(py_raw) == frame
+        if not crc_ok or py_raw[0] != 3:
+            continue
+        mtype, seq, session, time_us = struct.unpack_from("<BIIQ", py_raw, 1)
+        body = py_raw[18:-4]
+        ln = lib.fw_encode_frame(mtype, seq, session, time_us, body, len(body), out_buf)
+        assert out_buf.raw[:ln] == frame + b"\x00"
+        exact += 1
+    assert exact > 90
+
+
+def test_the_worked_example_and_the_check_values() -> None:
+    lib = load_core("double")
+    assert lib.fw_crc32c(b"123456789", 9) == 0xE3069283
+    assert lib.fw_crc32(0, b"123456789", 9) == 0xCBF43926 == zlib.crc32(b"123456789")
+    worked = bytes.fromhex(
+        "04 03 22 02 01 01 05 ce 07 2c d8 01 01 01 01 01 01 01 05 ae 73 43 f4 00"
+    )
+    assert "04 03 22 02  01 01 05 ce 07 2c d8" in DOC
+    out = ctypes.create_string_buffer(300)
+    n = lib.fw_encode_frame(0x22, 2, 0xD82C07CE, 0, b"", 0, out)
+    assert out.raw[:n] == worked
+    # serial-number arithmetic (RFC 1982)
+    assert lib.fw_seq_after(0, 0xFFFFFFFF) and not lib.fw_seq_after(5, 5)
+    assert lib.fw_seq_after(0x7FFFFFFF, 0) and not lib.fw_seq_after(0x80000000, 0)
+
+
+def test_hardware_refuses_the_simulator_messages_but_the_emulator_takes_them() -> None:
+    # the host build answers SIM_OPERATOR with nothing when accepted (doc section 7); the
+    # doc's refusals of NaN and unknown kinds are replayed above
+    emu = CDeviceEmulator(nonce_seed=0)
+    emu.receive(HELLO)
+    emu.take_output()
+    from ctdrill.haptics.protocol import SimOperator, encode
+
+    emu.receive(encode(SimOperator(1, 10.0), seq=2, session=emu.session))
+    assert emu.take_output() == b""
+    emu.run_ticks(100)
+    assert emu.position_mm > 0.0  # the hand pushes the idle stage
