@@ -98,6 +98,7 @@ typedef struct fw_renderer {
     uint8_t thermal_limited;
     uint64_t last_host_tick, arm_tick;
     real_t ke, w1, w2, f1_hz, f2_hz, stop_depth_mm, stop_anchor_mm, inv_step;
+    real_t contact_n; /* the coupling's force when the hand met the wall short of the stop */
     int32_t last; /* index of the last row, -1 without a table */
 #if !FW_REAL_IS_DOUBLE
     real_t turn1, turn2; /* vibration phases in turns since ARM */

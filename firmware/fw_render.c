@@ -63,6 +63,7 @@ void fw_render_init(fw_renderer *r)
     r->ke = r->w1 = r->w2 = r->f1_hz = r->f2_hz = R(0.0);
     r->stop_depth_mm = R(0.0);
     r->stop_anchor_mm = (real_t)INFINITY;
+    r->contact_n = R(0.0);
     r->inv_step = R(0.0);
     r->last = -1;
 #if !FW_REAL_IS_DOUBLE
@@ -181,7 +182,7 @@ real_t fw_render_tick(fw_device *dev, real_t master_mm, real_t v_mm_s, real_t ha
 {
     fw_renderer *r = &dev->r;
     real_t front, stop, s0, s1, s2, new_front, coupling, front_v, vib, force, anchor, back_v;
-    real_t glided, spring, damper, fc;
+    real_t glided, spring, damper, fc, drive_mm, push;
     if (finite_r(hand_n))
         r->hand_n += HAND_GAIN * (hand_n - r->hand_n);
     if (r->state == FW_IDLE || r->state == FW_SAFE) {
@@ -198,8 +199,66 @@ real_t fw_render_tick(fw_device *dev, real_t master_mm, real_t v_mm_s, real_t ha
         return go_safe(r, FW_F_NONFINITE);
     front = r->front_mm;
     stop = r->stop_depth_mm;
+    anchor = r->stop_anchor_mm;
+    back_v = v_mm_s; /* the master's motion away from what it presses on */
+#if FW_REAL_IS_DOUBLE
+    if (anchor == (real_t)INFINITY && (front >= stop || master_mm >= stop)) {
+        /* the wall stands at the stop depth from the hand's first touch of it */
+        anchor = master_mm > stop ? master_mm : stop;
+    } else if (anchor != (real_t)INFINITY) {
+        /* glides to the stop (the hand is carried to the drill), or follows a faster retreat */
+        glided = anchor - STOP_GLIDE_MM_S * DT_S;
+        if (master_mm < glided) {
+            anchor = master_mm > stop ? master_mm : stop;
+        } else if (anchor > stop) {
+            anchor = glided > stop ? glided : stop;
+            back_v = v_mm_s + (r->stop_anchor_mm - anchor) / DT_S;
+        }
+    }
+#else
+    /* the same glide, each position computed from where it began (a float anchor stepped
+     * by 2 um a tick would drift by its rounding: 0.01 N on the wall within 0.05 s) */
+    if (anchor == (real_t)INFINITY && (front >= stop || master_mm >= stop)) {
+        anchor = master_mm > stop ? master_mm : stop;
+        r->glide_from = anchor;
+        r->glide_n = 0;
+    } else if (anchor != (real_t)INFINITY) {
+        glided = r->glide_from - (real_t)(r->glide_n + 1u) * (STOP_GLIDE_MM_S * DT_S);
+        if (master_mm < glided) {
+            anchor = master_mm > stop ? master_mm : stop;
+            r->glide_from = anchor;
+            r->glide_n = 0;
+        } else if (anchor > stop) {
+            if (glided > stop) {
+                anchor = glided;
+                r->glide_n++;
+                back_v = v_mm_s + STOP_GLIDE_MM_S;
+            } else {
+                back_v = v_mm_s + (anchor - stop) / DT_S;
+                anchor = stop;
+            }
+        }
+    }
+#endif
+    r->stop_anchor_mm = anchor;
+    spring = master_mm > anchor ? K_STOP_N_PER_MM * (master_mm - anchor) : R(0.0);
     coefficients(dev, front, &s0, &s1, &s2);
-    new_front = cut_step(front, master_mm, s0, r->ke, stop, &coupling);
+    /* short of the stop the front is driven by the whole force the hand meets (coupling and
+     * wall): the drill cuts on to the stop behind a hand the wall holds */
+    drive_mm = master_mm;
+    if (front < stop && spring > R(0.0)) {
+        if (r->contact_n == R(0.0)) /* the hand meets the wall: the push it cut with */
+            r->contact_n = K_N_PER_MM * (master_mm - front);
+        push = K_N_PER_MM * (master_mm - front) + spring;
+        push = push > r->contact_n ? push : r->contact_n;
+        push = push < PEAK_FORCE_N ? push : PEAK_FORCE_N;
+        drive_mm = front + push / K_N_PER_MM;
+    } else {
+        r->contact_n = R(0.0);
+    }
+    new_front = cut_step(front, drive_mm, s0, r->ke, stop, &coupling);
+    if (drive_mm != master_mm) /* the coupling's own share of the force */
+        coupling -= K_N_PER_MM * (drive_mm - master_mm);
     front_v = (new_front - front) / DT_S;
     vib = R(0.0);
 #if !FW_REAL_IS_DOUBLE
@@ -224,48 +283,9 @@ real_t fw_render_tick(fw_device *dev, real_t master_mm, real_t v_mm_s, real_t ha
         force = coupling + B_N_S_PER_MM * (v_mm_s - front_v) + vib;
         force = force > R(0.0) ? force : R(0.0);
     }
-    anchor = r->stop_anchor_mm;
-    back_v = v_mm_s;
-#if FW_REAL_IS_DOUBLE
-    if (new_front >= stop && anchor == (real_t)INFINITY) {
-        anchor = master_mm > stop ? master_mm : stop;
-    } else if (anchor != (real_t)INFINITY) {
-        glided = anchor - STOP_GLIDE_MM_S * DT_S;
-        if (master_mm < glided) {
-            anchor = master_mm > stop ? master_mm : stop;
-        } else if (anchor > stop) {
-            anchor = glided > stop ? glided : stop;
-            back_v = v_mm_s + (r->stop_anchor_mm - anchor) / DT_S;
-        }
-    }
-#else
-    /* the same glide, each position computed from where it began (a float anchor stepped
-     * by 2 um a tick would drift by its rounding: 0.01 N on the wall within 0.05 s) */
-    if (new_front >= stop && anchor == (real_t)INFINITY) {
-        anchor = master_mm > stop ? master_mm : stop;
-        r->glide_from = anchor;
-        r->glide_n = 0;
-    } else if (anchor != (real_t)INFINITY) {
-        glided = r->glide_from - (real_t)(r->glide_n + 1u) * (STOP_GLIDE_MM_S * DT_S);
-        if (master_mm < glided) {
-            anchor = master_mm > stop ? master_mm : stop;
-            r->glide_from = anchor;
-            r->glide_n = 0;
-        } else if (anchor > stop) {
-            if (glided > stop) {
-                anchor = glided;
-                r->glide_n++;
-                back_v = v_mm_s + STOP_GLIDE_MM_S;
-            } else {
-                back_v = v_mm_s + (anchor - stop) / DT_S;
-                anchor = stop;
-            }
-        }
-    }
-#endif
-    r->stop_anchor_mm = anchor;
-    if (master_mm > anchor) {
-        spring = K_STOP_N_PER_MM * (master_mm - anchor);
+    if (spring > R(0.0)) {
+        /* spring and damper, the damper within the spring's force: the wall starts from 0 on
+         * contact at any speed, and never pulls */
         damper = B_STOP_N_S_PER_MM * v_mm_s;
         if (-spring < damper && damper < spring)
             force += spring + damper;

@@ -25,12 +25,29 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
+from collections.abc import Callable
 from importlib.resources import as_file, files
 from pathlib import Path
-from typing import Literal
+from typing import Literal, Protocol
 
 from ctdrill.haptics.errors import HapticsInputError
 from ctdrill.haptics.tick import TICK_HZ
+
+
+class LatenessStats(Protocol):
+    """What the pacer fills (:class:`ctdrill.haptics.realtime.RealtimeStats`)."""
+
+    wakeups: int
+    ticks: int
+    overruns: int
+    resyncs: int
+    slipped_s: float
+    dropped_bytes: int
+    busy_s: float
+    late_bins: list[int]
+    late_max_s: float
+
 
 Precision = Literal["double", "single"]
 #: The core's sources, relative to the package ``ctdrill.firmware``.
@@ -248,6 +265,10 @@ class CDeviceEmulator:
         """Control ticks run since power-on."""
         return int(self._lib.fw_host_ticks(self._h))
 
+    @ticks.setter
+    def ticks(self, value: int) -> None:
+        raise AttributeError("the C core counts its own ticks")
+
     @property
     def now_s(self) -> float:
         """Device clock, s."""
@@ -328,3 +349,68 @@ class CDeviceEmulator:
         out = getattr(self, "_kept", b"") + self._take()
         self._kept = b""
         return out
+
+    # ------------------------------------------------------------ real time
+
+    def serve_realtime(
+        self,
+        fd: int,
+        *,
+        should_stop: Callable[[], bool],
+        duration_s: float | None = None,
+        stats: LatenessStats,
+    ) -> None:
+        """Serve on ``fd`` at real time with the ticks paced in C (``fw_host_serve``: each tick
+        waits for its own due time, 0.1 ms apart, instead of the Python loop's 1 ms wakeups),
+        in slices of :data:`SLICE_S` between which ``should_stop`` is polled; fills
+        ``stats`` as :func:`ctdrill.haptics.realtime.run_realtime` does."""
+        n_bins = len(stats.late_bins)  # 10 us bins (the C pacer's too)
+        bins = (ctypes.c_uint64 * n_bins)()
+        st = _RtStats()
+        st.late_bins = ctypes.cast(bins, ctypes.POINTER(ctypes.c_uint64))
+        st.n_bins = n_bins
+        end = None if duration_s is None else time.monotonic_ns() + round(duration_s * 1e9)
+        while not should_stop():
+            now = time.monotonic_ns()
+            if end is not None and now >= end:
+                break
+            until = now + round(SLICE_S * 1e9)
+            self._lib.fw_host_serve(
+                self._h, fd, until if end is None else min(until, end), ctypes.byref(st)
+            )
+        stats.wakeups += st.wakeups
+        stats.ticks += st.ticks
+        stats.overruns += st.overruns
+        stats.resyncs += st.resyncs
+        stats.slipped_s += st.slipped_s
+        stats.dropped_bytes += st.dropped_bytes
+        stats.busy_s += st.busy_s
+        stats.late_max_s = max(stats.late_max_s, st.late_max_s)
+        for i, count in enumerate(bins):
+            if count:
+                stats.late_bins[i] += count
+
+
+#: The compiled pacer returns to Python this often (signals, ``should_stop``), s.
+SLICE_S = 0.01
+
+
+class _RtStats(ctypes.Structure):
+    """``fw_rt_stats`` of firmware/host/fw_host.c."""
+
+    _fields_ = [
+        ("wakeups", ctypes.c_uint64),
+        ("ticks", ctypes.c_uint64),
+        ("overruns", ctypes.c_uint64),
+        ("resyncs", ctypes.c_uint64),
+        ("dropped_bytes", ctypes.c_uint64),
+        ("slipped_s", ctypes.c_double),
+        ("busy_s", ctypes.c_double),
+        ("late_max_s", ctypes.c_double),
+        ("t0_ns", ctypes.c_int64),
+        ("started", ctypes.c_int32),
+        ("late_bins", ctypes.POINTER(ctypes.c_uint64)),
+        ("n_bins", ctypes.c_uint32),
+        ("pending", ctypes.c_uint8 * 65536),
+        ("pending_len", ctypes.c_uint32),
+    ]

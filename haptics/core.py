@@ -63,8 +63,24 @@ def _python_core(
     return DeviceEmulator(start_mm=start_mm, nonce_seed=nonce_seed, physics=physics)
 
 
-#: core name -> its constructor (``ctdrill emulate --core``).
-CORES: dict[str, CoreFactory] = {"python": _python_core}
+def _c_core(
+    *, start_mm: float = 0.0, nonce_seed: int | None = None, physics: Physics | None = None
+) -> DeviceCore:
+    from ctdrill.haptics.ccore import CDeviceEmulator
+    from ctdrill.haptics.errors import HapticsInputError
+
+    if physics is not None:
+        raise HapticsInputError(
+            "--core c: the compiled core runs its own simulated master (firmware/host); "
+            "inject a Python physics into --core python"
+        )
+    return CDeviceEmulator(start_mm=start_mm, nonce_seed=nonce_seed)
+
+
+#: core name -> its constructor (``ctdrill emulate --core``): ``python`` the emulator of
+#: :mod:`ctdrill.haptics.emulator`, ``c`` the reference firmware (``firmware/``, compiled on
+#: first use by :mod:`ctdrill.haptics.ccore`).
+CORES: dict[str, CoreFactory] = {"python": _python_core, "c": _c_core}
 
 
 def make_core(

@@ -135,6 +135,10 @@ def run_realtime(
     """
     st = stats if stats is not None else RealtimeStats()
     os.set_blocking(fd, False)
+    pacer = getattr(emulator, "serve_realtime", None)
+    if pacer is not None:  # a compiled core paces its own ticks (haptics/ccore.py)
+        pacer(fd, should_stop=should_stop, duration_s=duration_s, stats=st)
+        return st
     hz = emulator.tick_hz
     t0 = time.monotonic() - emulator.ticks / hz
     end = None if duration_s is None else time.monotonic() + duration_s
@@ -330,14 +334,10 @@ def serve_pty(
     old_term = signal.signal(signal.SIGTERM, _on_signal)
     old_int = signal.signal(signal.SIGINT, _on_signal)
     try:
+        device = make_core(core, start_mm=start_mm)  # a core that cannot be built: no link
         with pty_link(path) as fd:
             print(f"emulating on {path} -> {os.readlink(path)}", flush=True)
-            return run_realtime(
-                fd,
-                make_core(core, start_mm=start_mm),
-                should_stop=lambda: stop[0],
-                duration_s=duration_s,
-            )
+            return run_realtime(fd, device, should_stop=lambda: stop[0], duration_s=duration_s)
     finally:
         signal.signal(signal.SIGTERM, old_term)
         signal.signal(signal.SIGINT, old_int)

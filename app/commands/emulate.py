@@ -33,6 +33,16 @@ def register(subparsers: Any) -> None:
         help="stop after this long (default: run until killed)",
     )
     p.add_argument("--start-mm", type=float, default=0.0, help="initial master depth, mm")
+    p.add_argument(
+        "--core",
+        choices=("python", "c"),
+        default="python",
+        help=(
+            "the device core: python (haptics/emulator.py) or c (the reference firmware, "
+            "firmware/, compiled with the system C compiler on first use; its ticks paced in "
+            "compiled code); both speak the same protocol (default: python)"
+        ),
+    )
     p.set_defaults(func=run)
 
 
@@ -46,6 +56,8 @@ def run(args: argparse.Namespace) -> int:
         raise AppInputError(f"--duration-s {args.duration_s}: give a positive number of seconds")
     if not math.isfinite(args.start_mm):
         raise AppInputError(f"--start-mm {args.start_mm}: give a finite depth in mm")
-    stats = serve_pty(args.pty_link, duration_s=args.duration_s, start_mm=args.start_mm)
+    stats = serve_pty(
+        args.pty_link, duration_s=args.duration_s, start_mm=args.start_mm, core=args.core
+    )
     sys.stderr.write(f"emulator stopped: {stats.summary()}\n")
     return 0

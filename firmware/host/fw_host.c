@@ -303,6 +303,7 @@ static int64_t now_ns(void)
 
 static void record_late(fw_rt_stats *st, double late_s)
 {
+    /* 10 us bins: haptics/realtime.py LATE_BIN_S (tests/firmware/test_c_emulate.py checks) */
     uint64_t i = late_s > 0.0 ? (uint64_t)(late_s / 10e-6) : 0u;
     st->late_bins[i < st->n_bins ? i : st->n_bins - 1u] += 1u;
     if (late_s > st->late_max_s)
