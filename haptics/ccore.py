@@ -398,19 +398,34 @@ SLICE_S = 0.01
 class _RtStats(ctypes.Structure):
     """``fw_rt_stats`` of firmware/host/fw_host.c."""
 
-    _fields_ = [
-        ("wakeups", ctypes.c_uint64),
-        ("ticks", ctypes.c_uint64),
-        ("overruns", ctypes.c_uint64),
-        ("resyncs", ctypes.c_uint64),
-        ("dropped_bytes", ctypes.c_uint64),
-        ("slipped_s", ctypes.c_double),
-        ("busy_s", ctypes.c_double),
-        ("late_max_s", ctypes.c_double),
-        ("t0_ns", ctypes.c_int64),
-        ("started", ctypes.c_int32),
-        ("late_bins", ctypes.POINTER(ctypes.c_uint64)),
-        ("n_bins", ctypes.c_uint32),
-        ("pending", ctypes.c_uint8 * 65536),
-        ("pending_len", ctypes.c_uint32),
-    ]
+    _fields_ = list(
+        zip(
+            [
+                "wakeups",
+                "ticks",
+                "overruns",
+                "resyncs",
+                "dropped_bytes",
+                "slipped_s",
+                "busy_s",
+                "late_max_s",
+                "t0_ns",
+                "started",
+                "late_bins",
+                "n_bins",
+                "pending",
+                "pending_len",
+            ],
+            (
+                *(ctypes.c_uint64,) * 5,
+                *(ctypes.c_double,) * 3,
+                ctypes.c_int64,
+                ctypes.c_int32,
+                ctypes.POINTER(ctypes.c_uint64),
+                ctypes.c_uint32,
+                ctypes.c_uint8 * 65536,
+                ctypes.c_uint32,
+            ),
+            strict=True,
+        )
+    )
