@@ -27,6 +27,7 @@ from typing import IO, TYPE_CHECKING
 import numpy as np
 
 from ctdrill.engine.path import PathResult
+from ctdrill.engine.stop import stop_words
 from ctdrill.imaging.misch import MISCH_BANDS_HU
 from ctdrill.text import printable
 
@@ -314,7 +315,7 @@ def draw_trajectory(
     ax_f.text(
         result.stop_depth_mm,
         1.02,
-        f"stop {result.stop_depth_mm:.2f} mm ({result.stop_reason})",
+        f"stop {result.stop_depth_mm:.2f} mm ({stop_words(result.stop_reason, form='code')})",
         transform=ax_f.get_xaxis_transform(),
         ha="right",
         fontsize=7,

@@ -16,6 +16,7 @@ from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from typing import Any
 
 from ctdrill.app.csv_cells import csv_table
+from ctdrill.engine.stop import stop_words
 from ctdrill.engine.summary import LandmarkClearance, TrajectorySummary
 from ctdrill.imaging.misch import MISCH_CLASSES
 
@@ -130,9 +131,9 @@ def table_lines(rows: Iterable[Mapping[str, str]]) -> list[str]:
             v = float(cell)
             return f"{v:.{MAX_DECIMALS}f}" if not acc else format_clearance_mm(v, float(acc))
 
-        why = r["stop_reason"]
-        if why == "margin" and r["binding_landmark"]:
-            why += f": {r['binding_landmark']!r}, margin {float(r['binding_margin_mm']):g} mm"
+        binding = r["binding_landmark"] or None
+        margin = float(r["binding_margin_mm"]) if binding else None
+        why = stop_words(r["stop_reason"], landmark=binding, margin_mm=margin)
         line = (
             f"{r['trajectory']}: stop at {float(r['stop_depth_mm']):.3f} mm ({why}) of "
             f"{float(r['planned_depth_mm']):.3f} mm planned"

@@ -51,6 +51,7 @@ from ctdrill.engine.path import PathResult
 from ctdrill.engine.plans import plan_calibration
 from ctdrill.engine.sequence import drill_folder, drill_path, holes_before, plan_sequence
 from ctdrill.engine.settings import DEFAULTS, GreyMapSpec
+from ctdrill.engine.stop import stop_words
 from ctdrill.haptics.assessment import Assessor, combine_assessments
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session
@@ -261,7 +262,7 @@ def sequence_summary(
 
 def _stop_why(drill: dict[str, Any]) -> str:
     basis = drill.get("exam_stop_basis")
-    return f"exam: {basis}" if basis else str(drill["stop_reason"])
+    return f"exam: {basis}" if basis else stop_words(drill["stop_reason"], form="code")
 
 
 def sequence_lines(summary: dict[str, Any], out: Path) -> list[str]:

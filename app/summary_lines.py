@@ -10,6 +10,7 @@ are the plan's own numbers, not measured on the CT); ``summary.json`` keeps ever
 from __future__ import annotations
 
 from ctdrill.app.grey_option import grey_line
+from ctdrill.engine.stop import stop_words
 from ctdrill.engine.summary import (
     METHOD_NOT_STATED,
     BoneWallsInfo,
@@ -43,11 +44,10 @@ def band_line(band: ForceBandPeak | None, note: str) -> str:
 
 
 def _why(outcome: PlanOutcome) -> str:
-    why = outcome.stop_reason
     binding = outcome.binding_landmark
-    if why == "margin" and binding is not None:
-        why += f": {binding.name!r}, margin {binding.margin_mm:g} mm"
-    return why
+    if binding is None:
+        return stop_words(outcome.stop_reason)
+    return stop_words(outcome.stop_reason, landmark=binding.name, margin_mm=binding.margin_mm)
 
 
 def clearance_text(value_mm: float, outcome: PlanOutcome) -> str:

@@ -15,11 +15,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ctdrill.engine.grid import grid_brackets
+from ctdrill.engine.stop import StopReason
 from ctdrill.imaging.plan.clearance_batch import ClearanceField
 from ctdrill.imaging.plan.safety import SEARCH_BEYOND_PLAN_MM, search_safe_depths
 
 #: Stop reasons in the order ties are broken (the first listed wins).
-STOP_REASONS = ("planned_depth", "margin", "out_of_volume")
+STOP_REASONS = tuple(StopReason)
 
 
 @dataclass(frozen=True, eq=False)

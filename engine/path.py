@@ -23,6 +23,7 @@ from ctdrill.engine.batch import RowsRun, evaluate_rows
 from ctdrill.engine.grid import DEFAULT_DEPTH_STEP_MM
 from ctdrill.engine.implant import ImplantOutcome, implant_outcome
 from ctdrill.engine.path_warnings import path_warnings
+from ctdrill.engine.stop import StopReason
 from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.annulus import Hole
@@ -66,7 +67,7 @@ class PathResult:
     out_of_volume_depth_mm : deepest depth whose lip stays inside the CT, or None if the lip
         stays inside down to the planned depth.
     stop_depth_mm : min(planned, max safe, out of volume), mm.
-    stop_reason : ``planned_depth`` | ``margin`` | ``out_of_volume``.
+    stop_reason : :class:`~ctdrill.engine.stop.StopReason` (a ``str``).
     stop_clearance_mm : (L,) clearance at the stop depth, mm.
     warnings : what the user must know (load warnings and path warnings), each code + message
         once.
@@ -92,7 +93,7 @@ class PathResult:
     plan_clearance_mm: float | None
     out_of_volume_depth_mm: float | None
     stop_depth_mm: float
-    stop_reason: str
+    stop_reason: StopReason
     stop_clearance_mm: np.ndarray
     warnings: tuple[LoadWarning, ...]
     interpolated_gaps: tuple[SliceGap, ...] = ()
@@ -259,7 +260,7 @@ def path_row(
         plan_clearance_mm=None if np.isnan(plan_clear) else plan_clear,
         out_of_volume_depth_mm=None if np.isnan(oov) else oov,
         stop_depth_mm=float(b.stop_depth_mm[i]),
-        stop_reason=str(b.stop_reason[i]),
+        stop_reason=StopReason(b.stop_reason[i]),
         stop_clearance_mm=b.stop_clearance_mm[i],
         warnings=(),
         interpolated_gaps=run.gaps[i] if interpolate_gaps else (),

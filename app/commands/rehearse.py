@@ -14,6 +14,7 @@ from ctdrill.app.commands.options import (
     add_interpolate_gaps_option,
     add_plan_option,
 )
+from ctdrill.engine.stop import stop_words
 
 
 def register(subparsers: Any) -> None:
@@ -148,7 +149,11 @@ def _warn(message: str) -> None:
 
 def _single_line(s: dict[str, Any], out: Path) -> None:
     exam = s.get("exam", {})
-    why = f"exam: {exam['stop_basis']}" if exam.get("enabled") else s["stop_reason"]
+    why = (
+        f"exam: {exam['stop_basis']}"
+        if exam.get("enabled")
+        else stop_words(s["stop_reason"], form="code")
+    )
     sys.stdout.write(
         f"stop depth {s['stop_depth_mm']:.2f} mm ({why}), max drill depth "
         f"{s['max_drill_mm']:.2f} mm, final state {s['final_state']}, "

@@ -45,6 +45,7 @@ from ctdrill.app.gui.suggest_panel import SuggestPanel
 from ctdrill.app.gui.view3d import View3D
 from ctdrill.app.gui.views import VIEWS, build_views
 from ctdrill.app.gui.workers import StepQueue
+from ctdrill.engine.stop import stop_words
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.load import load_plan_set
 from ctdrill.imaging.plan.types import Plan
@@ -343,7 +344,7 @@ class MainWindow(QMainWindow):
                 return
             c = view.curves
             self._status(
-                f"stop at {c.stop_depth_mm:.2f} mm ({c.stop_reason}) of "
+                f"stop at {c.stop_depth_mm:.2f} mm ({stop_words(c.stop_reason, form='code')}) of "
                 f"{c.planned_depth_mm:.2f} mm planned"
             )
             self.path_updated.emit()

@@ -12,6 +12,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from ctdrill.engine.stop import stop_words
 from ctdrill.hu import AIR_HU
 from ctdrill.imaging.misch import MISCH_BANDS_HU
 
@@ -131,7 +132,7 @@ def depth_limits(curves: DepthCurves, headroom: float = 1.0) -> DepthLimits:
 def stop_title(curves: DepthCurves) -> str:
     """The stop in words, as the HU plot's title says it."""
     return (
-        f"stop {curves.stop_depth_mm:.2f} mm ({curves.stop_reason}) of "
+        f"stop {curves.stop_depth_mm:.2f} mm ({stop_words(curves.stop_reason, form='code')}) of "
         f"{curves.planned_depth_mm:.2f} mm planned"
     )
 

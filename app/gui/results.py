@@ -27,6 +27,7 @@ from ctdrill.engine.implant import implant_outcome
 from ctdrill.engine.path import PathResult, plan_path
 from ctdrill.engine.plans import plan_calibration, with_set_warnings
 from ctdrill.engine.sequence import plan_sequence
+from ctdrill.engine.stop import stop_words
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.resolution import volume_clearance_accuracy_mm
@@ -98,17 +99,17 @@ def stop_explanation(result: PathResult) -> str:
 
 
 def _stop_words(result: PathResult) -> str:
-    stop, planned = result.stop_depth_mm, result.planned_depth_mm
-    if result.stop_reason == "planned_depth":
-        return f"the planned depth {planned:.2f} mm"
-    if result.stop_reason == "out_of_volume":
-        return f"the end of the CT data at {stop:.2f} mm (the drill would leave the scan)"
     binding = binding_index(result)
-    if binding is None:
-        return f"the safety margin at {stop:.2f} mm"
-    name = result.landmarks[binding].name
-    margin = float(result.margins_mm[binding])
-    return f"the {margin:.2f} mm margin of {name!r} at {stop:.2f} mm (of {planned:.2f} mm planned)"
+    name = None if binding is None else result.landmarks[binding].name
+    margin = None if binding is None else float(result.margins_mm[binding])
+    return stop_words(
+        result.stop_reason,
+        form="sentence",
+        landmark=name,
+        margin_mm=margin,
+        stop_mm=result.stop_depth_mm,
+        planned_mm=result.planned_depth_mm,
+    )
 
 
 def plan_violation(result: PathResult) -> str | None:
@@ -197,5 +198,6 @@ def block_reason(
     if view is None:
         return f"no path: {error}" if error else "the path has not been computed"
     if view.curves.stop_depth_mm <= 0.0:
-        return f"the drill cannot advance (stop reason: {view.curves.stop_reason})"
+        why = stop_words(view.curves.stop_reason, form="code")
+        return f"the drill cannot advance (stop reason: {why})"
     return None

@@ -23,6 +23,7 @@ from ctdrill.app.report.layout import Column, TextPages
 from ctdrill.app.summary_lines import band_line, calibration_line
 from ctdrill.engine.case import PreparedCase
 from ctdrill.engine.implant_facts import ImplantFacts, implant_facts
+from ctdrill.engine.stop import stop_words
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.resolution import format_clearance_mm
 
@@ -121,7 +122,7 @@ def clinical_pages(pages: TextPages, case: PreparedCase, entries: Sequence[Entry
         assert facts is not None
         o = entry.summary.outcome
         stop = (
-            f"stops at {o.stop_depth_mm:.2f} mm ({o.stop_reason.replace('_', ' ')}) of "
+            f"stops at {o.stop_depth_mm:.2f} mm ({stop_words(o.stop_reason, form='plain')}) of "
             f"{o.planned_depth_mm:.2f} mm drilled"
         )
         pages.new_page()

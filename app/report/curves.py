@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 from ctdrill.app.export_plot import draw_template, draw_trajectory
 from ctdrill.app.report.entries import Entry
 from ctdrill.app.report.layout import LINE_SPACING, MARGIN_IN, PAGE_IN, wrap
-from ctdrill.app.report.summary import STOP_WORDS
+from ctdrill.engine.stop import stop_words
 from ctdrill.text import printable
 
 #: Axes placement on the A4 page (figure fractions): room for the y labels at the left
@@ -45,7 +45,7 @@ def curves_page(fig: Figure, entry: Entry) -> None:
     cal = o.calibration.name + (" (ILLUSTRATIVE)" if o.calibration.illustrative else "")
     note = (
         f"at {o.feed_mm_s:g} mm/s, calibration {cal}. Red line: the stop "
-        f"({o.stop_depth_mm:.3f} mm, {STOP_WORDS[o.stop_reason]}); orange dotted: "
+        f"({o.stop_depth_mm:.3f} mm, {stop_words(o.stop_reason, form='plain')}); orange dotted: "
         "the max safe depth where it is before the planned depth; grey dashed: the planned depth "
         f"({o.planned_depth_mm:.3f} mm); shaded bands behind the HU: Misch D1-D4."
     )

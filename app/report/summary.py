@@ -16,6 +16,7 @@ from typing import Any
 from ctdrill.app.report.entries import Entry, undrawn_note
 from ctdrill.app.report.layout import Column, TextPages
 from ctdrill.app.summary_lines import band_line, calibration_line, clearance_text, summary_lines
+from ctdrill.engine.stop import stop_words
 from ctdrill.engine.summary import TrajectorySummary
 from ctdrill.imaging.volume import CTVolume
 
@@ -33,13 +34,6 @@ COLUMNS: tuple[Column, ...] = (
     Column("implant clearance (mm)", 1.0),
     Column("thinnest wall (mm)", 0.9),
 )
-
-#: How the table words a stop reason.
-STOP_WORDS = {
-    "planned_depth": "planned depth",
-    "margin": "safety margin",
-    "out_of_volume": "end of the CT",
-}
 
 
 def mm(value: Any) -> str:
@@ -91,7 +85,7 @@ def table_row(entry: Entry) -> list[str]:
         drill_text,
         implant_text(entry),
         mm(o.planned_depth_mm),
-        f"{mm(o.stop_depth_mm)} ({STOP_WORDS.get(o.stop_reason, o.stop_reason)})",
+        f"{mm(o.stop_depth_mm)} ({stop_words(o.stop_reason, form='plain')})",
         max_safe,
         clear(o.min_clearance_mm),
         clear(o.plan_clearance_mm),

@@ -21,9 +21,9 @@ from matplotlib.figure import Figure
 
 from ctdrill.app.report.entries import Entry, drawn_entries
 from ctdrill.app.report.layout import MARGIN_IN, PAGE_IN, TextPages, wrap
-from ctdrill.app.report.summary import STOP_WORDS
 from ctdrill.app.report.timing import Timings
 from ctdrill.engine.case import PreparedCase
+from ctdrill.engine.stop import stop_words
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.text import printable
 
@@ -186,7 +186,7 @@ def cross_section_page(
         fig,
         f"Cross-section: {entry.label}",
         "the plane across the arch that contains the drill axis; stop at "
-        f"{o.stop_depth_mm:.3f} mm ({STOP_WORDS[o.stop_reason]}) of "
+        f"{o.stop_depth_mm:.3f} mm ({stop_words(o.stop_reason, form='plain')}) of "
         f"{o.planned_depth_mm:.3f} mm planned.",
     )
     ax = fig.add_axes((0.1, 0.1, 0.8, 0.8))

@@ -12,6 +12,7 @@ import numpy as np
 
 from ctdrill.app.search.candidates import Candidates
 from ctdrill.app.search.feasibility import Feasibility
+from ctdrill.engine.stop import StopReason
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.volume import CTVolume
 
@@ -99,13 +100,13 @@ class Rows:
             if 0 <= j < len(plan.landmarks) and not self.capped[i]:
                 self.binding[i] = plan.landmarks[j].name
             stop = self.stop[i] = str(batch.stop_reason[k])
-            if stop == "planned_depth":
+            if stop == StopReason.PLANNED_DEPTH:
                 self.passed[i] = True
-            elif stop == "margin":
+            elif stop == StopReason.MARGIN:
                 self.reason[i] = (
                     f"{what}: margin to {self.binding[i]!r}: max safe depth {self.msd[i]:.3f} mm"
                 )
-            elif stop == "out_of_volume":
+            elif stop == StopReason.OUT_OF_VOLUME:
                 oov = float(batch.out_of_volume_depth_mm[k])
                 self.reason[i] = f"{what} leaves the CT at {oov:.3f} mm"
             else:

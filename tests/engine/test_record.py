@@ -16,6 +16,7 @@ ADDED = {
     "bone_walls": None,
     "overdrill_mm": 0.0,
     "clearance_accuracy_mm": None,
+    "site": None,
 }
 
 
