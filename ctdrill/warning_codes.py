@@ -275,6 +275,14 @@ REGISTRY: tuple[WarningCode, ...] = (
         "data end",
     ),
     WarningCode(
+        "margin_below_budget",
+        "path",
+        "a clearance keeps its margin but is under the margin budget: the 95th percentile of "
+        "the placement mode's, the canal's and the CT's errors combined (docs/margin_budget.md)",
+        banner=9,
+        words="under the margin budget",
+    ),
+    WarningCode(
         "canal_entry",
         "path",
         "the implant body enters a nerve canal (its apex inside it): named as the canal, not "

@@ -191,6 +191,9 @@ def prepare_case(
         if settings.feed_mm_s is not None:
             plan = replace(plan, feed_mm_s=settings.feed_mm_s)  # the path's feed warnings see it
             plans[n] = plan
+        if settings.placement is not None:
+            plan = replace(plan, placement=settings.placement)  # the margin budget's mode
+            plans[n] = plan
         sub = "" if len(plans) == 1 else _subdir(_stem(plan, per_file[plan.source]))
         if sub in seen:
             first, source = seen[sub]

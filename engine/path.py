@@ -20,10 +20,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ctdrill.engine.batch import RowsRun, evaluate_rows
+from ctdrill.engine.budget import plan_budgets
 from ctdrill.engine.grid import DEFAULT_DEPTH_STEP_MM
 from ctdrill.engine.implant import ImplantOutcome, implant_outcome
 from ctdrill.engine.path_warnings import path_warnings
 from ctdrill.engine.stop import StopReason
+from ctdrill.imaging.plan.budget import MarginBudget
 from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.annulus import Hole
@@ -78,6 +80,8 @@ class PathResult:
     implant : the implant's outcome (:func:`ctdrill.engine.implant.implant_outcome`: its
         clearance, walls and warnings), or None without an implant (and in a batch's rows,
         which compute the drill only).
+    budgets : each landmark's margin budget on this CT (:mod:`ctdrill.engine.budget`; empty
+        in a batch's rows).
     """
 
     plan: Plan
@@ -99,6 +103,7 @@ class PathResult:
     interpolated_gaps: tuple[SliceGap, ...] = ()
     inner_holes: tuple[Hole, ...] = ()
     implant: ImplantOutcome | None = None
+    budgets: tuple[MarginBudget, ...] = ()
 
     @property
     def planned_depth_mm(self) -> float:
@@ -208,7 +213,7 @@ def plan_path(
     )
     if implant is None and plan.implant is not None:
         implant = implant_outcome(volume, result.plan)
-    result = replace(result, implant=implant)
+    result = replace(result, implant=implant, budgets=plan_budgets(volume, result.plan))
     return replace(result, warnings=path_warnings(volume, result))
 
 

@@ -13,8 +13,10 @@ from typing import Protocol
 
 import numpy as np
 
+from ctdrill.engine.budget import budget_warnings
 from ctdrill.engine.implant import ImplantOutcome
 from ctdrill.engine.refusals import gap_interpolated_message
+from ctdrill.imaging.plan.budget import MarginBudget
 from ctdrill.imaging.plan.implant_checks import implant_warnings
 from ctdrill.imaging.plan.safety import margin_warnings
 from ctdrill.imaging.plan.types import Plan, plan_warnings, series_uid_hash
@@ -46,6 +48,8 @@ class PathView(Protocol):
     def interpolated_gaps(self) -> tuple[SliceGap, ...]: ...
     @property
     def implant(self) -> ImplantOutcome | None: ...
+    @property
+    def budgets(self) -> tuple[MarginBudget, ...]: ...
 
 
 Pairs = Iterable[tuple[str, str]]
@@ -77,6 +81,16 @@ def _implant_body(volume: CTVolume, path: PathView) -> Pairs:
     ``plan_violates_margin``), its walls (``thin_wall``, ``cortical_perforation``,
     ``bone_walls_unknown``)."""
     return () if path.implant is None else path.implant.warnings
+
+
+def _budget(volume: CTVolume, path: PathView) -> Pairs:
+    """``margin_below_budget`` (:func:`~ctdrill.engine.budget.budget_warnings`)."""
+    if not path.budgets or not path.plan.landmarks:
+        return ()
+    body = None
+    if path.implant is not None and path.implant.clearance is not None:
+        body = path.implant.clearance.clearance_mm
+    return budget_warnings(path.plan, path.budgets, path.margins_mm, path.clearance_mm[-1], body)
 
 
 def _other_series(volume: CTVolume, path: PathView) -> Pairs:
@@ -149,6 +163,7 @@ PATH_CHECKS: tuple[PathCheck, ...] = (
     _gaps,
     _margins,
     _implant_body,
+    _budget,
     _other_series,
     _illustrative,
     _feed,

@@ -41,6 +41,8 @@ class ExportSettings:
     grey : a grey-to-HU map applied to the series as loaded, or None.
     plot : write ``force.png``.
     per_trajectory : with several trajectories, also write each one's files.
+    placement : overrides every plan's placement mode (``--placement``: ``freehand``,
+        ``static``, ``dynamic``, ``robot``; the margin budget's), or None (each plan's own).
     """
 
     calibration: str | None = None
@@ -53,6 +55,7 @@ class ExportSettings:
     grey: GreyMapSpec | None = None
     plot: bool = True
     per_trajectory: bool = False
+    placement: str | None = None
 
     def feed_for(self, plan_feed_mm_s: float) -> float:
         """The feed of a plan whose own is ``plan_feed_mm_s``: the override, else its own."""

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ctdrill.engine.band import band_peak, hu_uncertainty_info, path_band
+from ctdrill.engine.budget import summary_budget
 from ctdrill.engine.grading import hu_grading
 from ctdrill.engine.path import PathResult
 from ctdrill.engine.record import from_json
@@ -37,6 +38,7 @@ from ctdrill.engine.summary import (
     ImplantBindingLandmark,
     ImplantSummary,
     LandmarkClearance,
+    MarginBudgetInfo,
     PlanOutcome,
     SequenceSummary,
     SeriesIdentity,
@@ -171,6 +173,7 @@ def plan_outcome(result: PathResult, context: CaseContext, feed_mm_s: float) -> 
     if accuracy is None and result.implant is not None:
         accuracy = result.implant.accuracy_mm
     identity = series_identity(context.series_uid, include_phi=settings.include_phi)
+    budget = summary_budget(result.budgets)
     return PlanOutcome(
         plan=printable(plan.name),
         plan_file=printable(Path(plan.source).name) if plan.source else None,
@@ -198,6 +201,8 @@ def plan_outcome(result: PathResult, context: CaseContext, feed_mm_s: float) -> 
         bone_walls=walls,
         overdrill_mm=plan.overdrill_mm,
         clearance_accuracy_mm=_num(accuracy, 6),
+        margin_budget_mm=None if budget is None else round(budget.budget_mm, 3),
+        margin_budget=None if budget is None else from_json(MarginBudgetInfo, budget.to_json()),
         site=plan.site,
         series=SeriesIdentity(identity["series_uid"], identity["series_uid_sha256"]),
         include_phi=settings.include_phi,

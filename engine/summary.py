@@ -160,6 +160,20 @@ class BoneWallsInfo:
 
 
 @dataclass(frozen=True)
+class MarginBudgetInfo:
+    """The margin budget and its three 95th-percentile terms, mm
+    (:mod:`ctdrill.imaging.plan.budget`)."""
+
+    budget_mm: float
+    placement: str
+    canal_source: str
+    voxel_mm: float
+    placement_mm: float
+    canal_mm: float
+    ct_mm: float
+
+
+@dataclass(frozen=True)
 class SeriesIdentity:
     """The series: the SHA-256 of its UID, the raw UID only with ``include_phi``."""
 
@@ -198,6 +212,9 @@ class PlanOutcome:
     clearance_accuracy_mm : what the CT's sampling lets a clearance claim, +- mm (half its
         coarsest sampling; text for people prints clearances to it), or None when unknown.
     series : the series' identity (flattened); ``include_phi``; ``patient`` only with it.
+    margin_budget_mm : the clearance the 95th percentile of the placement, canal and CT errors
+        needs (the largest landmark's; ``margin_budget`` its terms), or None without
+        landmarks; warning ``margin_below_budget`` under it.
     """
 
     plan: str
@@ -227,6 +244,8 @@ class PlanOutcome:
     overdrill_mm: float = field(metadata=added(0.0))
     clearance_accuracy_mm: float | None = field(metadata=added())
     site: int | None = field(metadata=added())
+    margin_budget_mm: float | None = field(metadata=added())
+    margin_budget: MarginBudgetInfo | None = field(metadata=added())
     series: SeriesIdentity = field(metadata=flat())
     include_phi: bool
     patient: Mapping[str, str] | None = field(default=None, metadata=optional())

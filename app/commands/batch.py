@@ -12,6 +12,7 @@ from ctdrill.app.commands.options import (
     add_hu_sigma_option,
     add_interpolate_gaps_option,
     add_override_options,
+    add_placement_option,
 )
 from ctdrill.engine.settings import DEFAULT_RATE_HZ
 
@@ -61,6 +62,7 @@ def register(subparsers: Any) -> None:
         help="rows with several trajectories: also each one's files",
     )
     add_interpolate_gaps_option(p)
+    add_placement_option(p)
     add_hu_sigma_option(p)
     add_grey_map_options(p)
     p.set_defaults(func=run)

@@ -15,6 +15,7 @@ from ctdrill.app.commands.options import (
     add_hu_sigma_option,
     add_interpolate_gaps_option,
     add_override_options,
+    add_placement_option,
     add_plan_option,
     add_series_option,
 )
@@ -54,6 +55,7 @@ def register(subparsers: Any) -> None:
     )
     add_series_option(p)
     add_interpolate_gaps_option(p)
+    add_placement_option(p)
     p.add_argument(
         "--no-plot",
         action="store_true",

@@ -102,6 +102,20 @@ def add_interpolate_gaps_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_placement_option(parser: argparse.ArgumentParser) -> None:
+    """``--placement MODE``: how the implants will be placed (the margin budget's error)."""
+    from ctdrill.imaging.plan.budget import DEFAULT_PLACEMENT, PLACEMENTS
+
+    parser.add_argument(
+        "--placement",
+        choices=PLACEMENTS,
+        default=None,
+        help="how the implants will be placed, for the margin budget (the 95th percentile of "
+        "placement, canal and CT errors; docs/margin_budget.md): overrides each plan's "
+        f"placement key (default: the plan's, else {DEFAULT_PLACEMENT})",
+    )
+
+
 def add_hu_sigma_option(parser: argparse.ArgumentParser) -> None:
     """``--hu-sigma HU``: an HU uncertainty of the series, entered into the force band."""
     parser.add_argument(
@@ -181,4 +195,5 @@ def export_settings(args: argparse.Namespace) -> ExportSettings:
         grey=parse_grey_options(opts.get("grey_to_hu"), opts.get("grey_ref")),
         plot=not opts.get("no_plot", False),
         per_trajectory=bool(opts.get("per_trajectory", False)),
+        placement=opts.get("placement"),
     )

@@ -14,6 +14,7 @@ from ctdrill.app.commands.options import (
     add_hu_sigma_option,
     add_interpolate_gaps_option,
     add_override_options,
+    add_placement_option,
     add_plan_option,
     add_series_option,
 )
@@ -47,6 +48,7 @@ def register(subparsers: Any) -> None:
     )
     add_series_option(p)
     add_interpolate_gaps_option(p)
+    add_placement_option(p)
     add_hu_sigma_option(p)
     add_grey_map_options(p)
     p.add_argument(

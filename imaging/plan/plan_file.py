@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill.imaging.plan.budget import DEFAULT_PLACEMENT, placement_error
 from ctdrill.imaging.plan.drills import drills_field
 from ctdrill.imaging.plan.landmarks import (
     DEFAULT_CANAL_RADIUS_MM,
@@ -204,6 +205,10 @@ def _trajectory(
     margin = ctx.number(obj, "margin_mm", where, default=DEFAULT_MARGIN_MM, nonneg=True)
     wall = ctx.number(obj, "min_wall_mm", where, default=DEFAULT_MIN_WALL_MM, nonneg=True)
     site = ctx.site(obj["site"], pre + "site") if "site" in obj else None
+    placement = obj.get("placement", DEFAULT_PLACEMENT)
+    bad = placement_error(placement)
+    if bad is not None:
+        raise ctx.fail(pre + "placement", bad.split(", got")[0])
     return _make_plan(
         ctx,
         series_hash=hashed,
@@ -218,4 +223,5 @@ def _trajectory(
         implant=implant,
         min_wall=wall,
         site=site,
+        placement=placement,
     )

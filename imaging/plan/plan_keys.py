@@ -19,6 +19,7 @@ _TOP_KEYS = {
     "margin_mm",
     "min_wall_mm",
     "site",
+    "placement",
     "landmarks",
     SERIES_HASH_KEY,
     "name",
@@ -41,6 +42,7 @@ _TRAJECTORY_KEYS = {
     "margin_mm",
     "min_wall_mm",
     "site",
+    "placement",
     "description",
     "comment",
 }

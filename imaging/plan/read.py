@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from ctdrill.imaging.plan.arch import arch_error
+from ctdrill.imaging.plan.budget import DEFAULT_PLACEMENT
 from ctdrill.imaging.plan.implants import ImplantInputError, ImplantSpec, implant_from_json
 from ctdrill.imaging.plan.landmarks import (
     Landmark,
@@ -236,6 +237,7 @@ def _make_plan(
     implant: ImplantSpec | None = None,
     min_wall: float = DEFAULT_MIN_WALL_MM,
     site: int | None = None,
+    placement: str = DEFAULT_PLACEMENT,
 ) -> Plan:
     """One trajectory of the file (its landmarks and arch are joined by :func:`merge_parts`)."""
     if not np.linalg.norm(target - entry) > 1e-6:
@@ -254,6 +256,7 @@ def _make_plan(
         implant=implant,
         min_wall_mm=min_wall,
         site=site,
+        placement=placement,
     )
 
 

@@ -34,6 +34,7 @@ import numpy as np
 
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.arch import arch_error
+from ctdrill.imaging.plan.budget import DEFAULT_PLACEMENT, placement_error
 from ctdrill.imaging.plan.clinical import CLINICAL_MARGIN_MM, CLINICAL_MIN_WALL_MM
 from ctdrill.imaging.plan.drill_spec import MAX_DRILLS as MAX_DRILLS
 from ctdrill.imaging.plan.drill_spec import DrillSpec, protocol_conflicts, sequence_error
@@ -115,6 +116,9 @@ class Plan:
         like the landmarks; None when the plan gives none.
     min_wall_mm : thinnest bone wall to keep around the implant, mm (plan key ``min_wall_mm``,
         default :data:`DEFAULT_MIN_WALL_MM`; warning ``thin_wall`` below it).
+    placement : how the implant will be placed (``freehand``, ``static`` guide, ``dynamic``
+        navigation, ``robot``): the margin budget's placement error
+        (:mod:`ctdrill.imaging.plan.budget`; plan key ``placement``, ``--placement``).
     site : the implant site, an FDI tooth number 11-48 (:mod:`ctdrill.imaging.plan.site`),
         or None.
     overdrill_mm : how far ``target_lps`` lies beyond the plan's target (the implant's apex,
@@ -141,6 +145,7 @@ class Plan:
     min_wall_mm: float = DEFAULT_MIN_WALL_MM
     site: int | None = None
     overdrill_mm: float = 0.0
+    placement: str = DEFAULT_PLACEMENT
 
     def __post_init__(self) -> None:
         for attr in ("entry_lps", "target_lps"):
@@ -172,6 +177,9 @@ class Plan:
             if bad is not None:
                 raise PlanInputError(f"plan {self.name!r}: site {bad}, got {self.site!r}")
             object.__setattr__(self, "site", int(self.site))
+        bad = placement_error(self.placement)
+        if bad is not None:
+            raise PlanInputError(f"plan {self.name!r}: placement {bad}")
         over = self.overdrill_mm
         if not over >= 0.0 or (
             over > 0.0 and (self.implant is None or not over < self.planned_depth_mm)

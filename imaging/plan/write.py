@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ctdrill.imaging.plan.arch import ARCH_MARKUP_NAME, ARCH_ROLE
+from ctdrill.imaging.plan.budget import DEFAULT_PLACEMENT
 from ctdrill.imaging.plan.curve import POINTS_PER_SEGMENT, slicer_curve
 from ctdrill.imaging.plan.landmarks import (
     CanalLandmark,
@@ -106,6 +107,7 @@ def _trajectory_json(plan: Plan) -> dict[str, Any]:
         "margin_mm": plan.margin_mm,
         "min_wall_mm": plan.min_wall_mm,
         **({} if plan.site is None else {"site": plan.site}),
+        **({} if plan.placement == DEFAULT_PLACEMENT else {"placement": plan.placement}),
     }
 
 

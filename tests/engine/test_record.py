@@ -17,6 +17,8 @@ ADDED = {
     "overdrill_mm": 0.0,
     "clearance_accuracy_mm": None,
     "site": None,
+    "margin_budget_mm": None,
+    "margin_budget": None,
 }
 
 
