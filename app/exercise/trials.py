@@ -200,3 +200,15 @@ def is_inside(path: Path, folder: Path) -> bool:
     """True if ``path`` is ``folder`` or lies inside it (both resolved)."""
     p, f = Path(os.path.realpath(path)), Path(os.path.realpath(folder))
     return p == f or f in p.parents
+
+
+def write_session_only(out_dir: Path, summary_text: str, csv_text: str) -> list[Path]:
+    """A blind session's export: ``session/summary.json`` and ``session/session.csv`` (what
+    ``ctdrill assess`` reads), in one swap; no path export (its profile names the bone)."""
+    from ctdrill.app.records import OUTPUT_NAMES, atomic_output_dir, write_file
+
+    with atomic_output_dir(out_dir, owned_names=OUTPUT_NAMES) as stage:
+        (stage / "session").mkdir()
+        write_file(stage / "session" / "summary.json", summary_text)
+        write_file(stage / "session" / "session.csv", csv_text)
+    return [Path(out_dir) / "session" / "summary.json", Path(out_dir) / "session" / "session.csv"]

@@ -77,6 +77,7 @@ def run_gui(
     window.ask_series = not window.unattended  # unattended: take the largest series
     if plans:
         window.use_plans(plans, plans[0].source)
+        window.show_trial(sorted({p.source for p in plans if p.source}))  # a blind trial's?
     if dicom is not None:
         window.open_folder(dicom)
     state = {"saved": False}

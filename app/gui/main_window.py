@@ -27,6 +27,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from ctdrill.app.exercise.trials import TrialCard
 from ctdrill.app.gui import compute
 from ctdrill.app.gui.controller import DEBOUNCE_MS, LEGACY_DEBOUNCE_MS, Controller
 from ctdrill.app.gui.document import Document, ViewContext
@@ -85,6 +86,8 @@ class MainWindow(QMainWindow):
         self.unattended = False
         self.internal_error = ""
         self.progress: QProgressDialog | None = None
+        #: The blind trial shown, if the plan is one (:mod:`ctdrill.app.gui.blind`).
+        self.blind_trial: TrialCard | None = None
 
         self.doc = Document(self)
         #: UI-thread drawing steps, one per event-loop pass (no view holds the thread long).
@@ -238,7 +241,12 @@ class MainWindow(QMainWindow):
         if self.doc.volume is not loaded.volume:  # refused: a rehearsal runs
             return
         self._remember(loaded.path)
-        self.setWindowTitle(f"ctdrill - {Path(loaded.path).name}")
+        trial = self.blind_trial
+        self.setWindowTitle(
+            f"ctdrill - {Path(loaded.path).name}"
+            if trial is None
+            else f"ctdrill: blind trial {trial.trial}"
+        )
         dims = "x".join(str(n) for n in loaded.volume.dims)
         self._status(
             PLACE_TRAJECTORY
@@ -284,7 +292,23 @@ class MainWindow(QMainWindow):
             if not self.unattended:
                 QMessageBox.warning(self, "ctdrill: cannot open the plan", str(exc))
             return False
-        return self.use_plans(plans, ", ".join(str(p) for p in paths))
+        shown = self.use_plans(plans, ", ".join(str(p) for p in paths))
+        if shown:
+            self.show_trial(paths)
+        return shown
+
+    def show_trial(self, paths: Sequence[str | os.PathLike[str]]) -> None:
+        """A blind trial's plan hides what gives the bone away; any other plan shows it all
+        (:mod:`ctdrill.app.gui.blind`)."""
+        from ctdrill.app.exercise.trials import TrialError, find_trial
+        from ctdrill.app.gui.blind import apply_blind
+
+        try:
+            card = find_trial([Path(p) for p in paths])
+        except TrialError as exc:
+            card = None
+            self._status(f"not a blind trial: {exc}")
+        apply_blind(self, card)
 
     def use_plans(self, plans: Sequence[Plan], source: str = "") -> bool:
         """Show ``plans`` (read from ``source``; a new undo history), the first one current,

@@ -204,5 +204,7 @@ class PlotsView(FigureCanvasQTAgg):
             self.show_curves(view.curves, live=True)
 
     def _live_depth(self, depth_mm: float) -> None:
+        if not self.isVisible():  # hidden (a blind trial): its axes have no size to draw in
+            return
         set_live_depth(self.plot_fig, depth_mm)
         self.draw_idle()

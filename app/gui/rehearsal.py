@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from serial.tools import list_ports
 
+from ctdrill.app.exercise.trials import TrialCard, blind_summary, write_session_only
 from ctdrill.app.export import write_exports
 from ctdrill.app.gui.session_process import SessionJob, run_job
 from ctdrill.app.igtl.frames import IgtlTarget, StreamSetup
@@ -106,6 +107,9 @@ class RehearsalRun:
         self.series_uid = series_uid
         #: Exam mode's table and why its stop is where it is (None: the margin's wall).
         self.exam = exam
+        #: The blind trial's card when the session drills one (its summary and export hide
+        #: the bone: :func:`ctdrill.app.exercise.trials.blind_summary`).
+        self.blind: TrialCard | None = None
         self.table = (
             ProfileTable.from_profile(result.profile, result.stop_depth_mm)
             if exam is None
@@ -183,12 +187,11 @@ class RehearsalRun:
         run, with a simulated hand pushing ``push_n`` newtons (simulator and emulator); with
         ``live`` the push follows :meth:`set_push` and :meth:`retract` while it runs; with
         ``end_at_stop`` the session ends once the device holds its auto-stop; with ``exam``
-        (simulator only) the exam's table is uploaded instead of the margin's; with ``igtl``
+        the exam's table is uploaded instead of the margin's (on hardware its wall stands at
+        the canal's surface, :func:`ctdrill.app.trainee.exam.exam_at_surface`); with ``igtl``
         the session streams to that OpenIGTLink server (docs/slicer.md)."""
         if not (np.isfinite(push_n) and push_n >= 0.0):
             raise ValueError(f"simulated push: give a force >= 0 N, got {push_n}")
-        if exam is not None and not device_of(device, realtime=realtime).simulated:
-            raise ValueError("exam mode runs on the simulator only: the device keeps its stop")
         run = cls(
             result,
             device,
@@ -335,6 +338,8 @@ class RehearsalRun:
         summary.update({"cancelled": self.cancelled, "recorded_rows": len(self.rows)})
         if self.igtl is not None:
             summary["igtl"] = self.igtl
+        if self.blind is not None:  # a blind trial: nothing that gives the bone away
+            summary = blind_summary(summary, self.blind)
         if not self.running:
             self._summary = summary
         return summary
@@ -353,6 +358,8 @@ class RehearsalRun:
         ``session/summary.json``, as ``ctdrill rehearse``) into ``out_dir``, all in one swap
         (the folder is replaced whole or not at all)."""
         summary_text, csv_text = self.session_files()
+        if self.blind is not None:  # a blind trial: the session alone (no HU, no profile)
+            return write_session_only(out_dir, summary_text, csv_text)
         return write_exports(
             [ExportJob(self.result, "")],
             out_dir,

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from PySide6.QtWidgets import QGroupBox, QHBoxLayout, QLabel, QVBoxLayout
 
+from ctdrill.app.gui.blind import blind_live_words
 from ctdrill.app.gui.gauges import DepthGauge, ForceGauge, VibrationTrace
 from ctdrill.app.gui.hand_control import HandControl
 from ctdrill.app.gui.rehearsal import RehearsalRun, Telemetry
@@ -38,6 +39,8 @@ class LiveReadouts(QGroupBox):
 
     def __init__(self) -> None:
         super().__init__("Your hand and what it feels")
+        #: A blind trial: no word of the force the bone resists with or the push it needs.
+        self.blind = False
         box = QVBoxLayout(self)
         self.state_label = QLabel(STATE_WORDS["idle"])
         self.state_label.setStyleSheet(STATE_STYLE["idle"])
@@ -129,9 +132,9 @@ class LiveReadouts(QGroupBox):
             drill_feed_mm_s=self._feed(tel),
         )
         self.forces.set_forces(gauge_forces(r, push))
-        need = need_here_n(r, push)
+        need = None if self.blind else need_here_n(r, push)
         self.hand.set_need(None if need is None else float(need))
-        text, tip = live_words(r, push)
+        text, tip = blind_live_words(r, push) if self.blind else live_words(r, push)
         if tel.state != now_state:
             text = f"{text} (last reading; the device is now {now_state})"
         self.status_label.setText(text)

@@ -37,6 +37,8 @@ from PySide6.QtWidgets import (
 )
 
 from ctdrill.app.errors import AppInputError
+from ctdrill.app.exercise.trials import TrialCard, check_session_plan
+from ctdrill.app.gui.blind import BLIND_PREDICTION
 from ctdrill.app.gui.debrief import debrief_of
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.rehearsal import (
@@ -57,7 +59,7 @@ from ctdrill.app.gui.results import PathView, block_reason, stop_explanation
 from ctdrill.app.gui.sound import VibrationSound
 from ctdrill.app.igtl.frames import SLICER_PORT, parse_target
 from ctdrill.app.igtl.stream import stream_line
-from ctdrill.app.trainee.exam import exam_at_surface, exam_setup
+from ctdrill.app.trainee.exam import exam_at_surface, exam_setup, plan_hash
 from ctdrill.app.trainee.words import assessment_line
 from ctdrill.engine.path import PathResult
 from ctdrill.haptics.profile_table import ProfileTable
@@ -96,6 +98,8 @@ class RehearsalPanel(QWidget):
         self.sound = VibrationSound()
         self._last_emit = (-1.0, float("nan"))  # (monotonic s, depth mm) of the last update
         self._reported: RehearsalRun | None = None  # the run whose end was reported
+        #: The blind trial's card when the plan is one (:mod:`ctdrill.app.gui.blind`).
+        self.blind: TrialCard | None = None
         content = QWidget()
         outer = QVBoxLayout(content)
         outer.setSizeConstraint(QLayout.SizeConstraint.SetMinimumSize)  # scroll, never squeeze
@@ -246,8 +250,19 @@ class RehearsalPanel(QWidget):
             self.run.retract()
         self.timing_label.setText("Retracting: the drill comes back out of the hole.")
 
+    def set_blind(self, card: TrialCard | None) -> None:
+        """Drill a blind trial (``card``: no prediction, no word of the bone) or not (None)."""
+        self.blind = card
+        self.live.blind = card is not None
+        self.timing_label.setToolTip("")
+        self._predict()
+
     def _predict(self) -> None:
         """What the hand's push does, before and while the drill cuts (the model's words)."""
+        if self.blind is not None:
+            self.timing_label.setText(BLIND_PREDICTION)
+            self.timing_label.setToolTip("")
+            return
         run = self.run
         table = run.table if run is not None else None
         if table is None:
@@ -287,6 +302,8 @@ class RehearsalPanel(QWidget):
                 exam = exam_setup(
                     doc.volume, doc.plan, self.result, at_surface=exam_at_surface(spec)
                 )
+            if self.blind is not None:  # the trial's own plan, as the exercise wrote it
+                check_session_plan(self.blind, plan_hash(self.result.plan), where="the plan")
             self.run = RehearsalRun.start(
                 self.result,
                 device=device,
@@ -301,6 +318,7 @@ class RehearsalPanel(QWidget):
                 igtl=igtl,
             )
             self.run.hu = doc.hu_uncertainty
+            self.run.blind = self.blind
         except (AppInputError, ValueError, OSError) as exc:
             self.message.setText(f"error: {exc}")
             self.run = None
@@ -367,7 +385,7 @@ class RehearsalPanel(QWidget):
         if run.igtl is not None:
             text += f"\n{stream_line(run.igtl)}"
         self.message.setText(text)
-        self.timing_label.setText(timing_text(run))
+        self.timing_label.setText(BLIND_PREDICTION if run.blind else timing_text(run))
         if run.session is not None and run.session.get("final_state") == "stopped":
             self.auto_stop_label.setText(f"auto-stop: REACHED: {self._stop_why(run)}")
             self.auto_stop_label.setStyleSheet(WARN_STYLE)

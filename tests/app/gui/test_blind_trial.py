@@ -1,0 +1,132 @@
+"""A blind bone-quality trial in the window, driven with real Qt events: the CT views, the
+plots (HU, Misch labels, the predicted force) and the push's prediction are hidden; nothing on
+screen names the class, a CT number or a prediction; the export is answered with ctdrill assess."""
+
+from __future__ import annotations
+
+import json
+import re
+import sqlite3
+from pathlib import Path
+
+import pytest
+from PySide6.QtCore import QPoint, Qt
+from PySide6.QtWidgets import (
+    QAbstractButton,
+    QComboBox,
+    QLabel,
+    QLineEdit,
+    QTabBar,
+    QWidget,
+)
+from pytestqt.qtbot import QtBot
+
+from ctdrill.app.cli import main
+from ctdrill.app.exercise.bone_quality import TRIAL_CLASSES, write_bone_quality
+from ctdrill.app.exercise.trials import BLIND_HIDDEN_KEYS
+from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.app.gui.rehearsal import SIMULATOR
+from ctdrill.imaging.phantom.io import PhantomCase
+from tests.app.gui.helpers import LOAD_TIMEOUT_MS
+
+pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
+
+SESSION_MS = 90_000
+#: What must not be on screen in a blind trial: a class, a CT number, a prediction.
+GIVEAWAY = re.compile(
+    r"\bD[1-5]\b|misch|\bHU\b|predict|needed to cut|\bS0\b|cortical|trabecular", re.IGNORECASE
+)
+
+
+def _screen_text(window: MainWindow) -> list[str]:
+    """Every text a visible widget of the window shows (labels, buttons, fields, tabs, the
+    title and the status line)."""
+    out = [window.windowTitle(), window.statusBar().currentMessage()]
+    for w in window.findChildren(QWidget):
+        if not w.isVisible():
+            continue
+        if isinstance(w, QLabel | QAbstractButton) or isinstance(w, QLineEdit):
+            out.append(w.text())
+        elif isinstance(w, QComboBox):
+            out.append(w.currentText())
+        elif isinstance(w, QTabBar):
+            out += [w.tabText(i) for i in range(w.count()) if w.isTabVisible(i)]
+    return [t for t in out if t]
+
+
+def _assert_blind(window: MainWindow) -> None:
+    shown = [t for t in _screen_text(window) if GIVEAWAY.search(t)]
+    assert shown == [], shown
+    for w in window.findChildren(QWidget):
+        name = w.objectName()
+        if name.startswith(("view:", "plot:")):
+            assert not w.isVisible(), name
+    for view in (window.view3d, window.slice_grid, window.plot_canvas, window.pages):
+        assert not view.isVisible()
+
+
+@pytest.mark.timeout(240)
+def test_a_trainee_drills_a_blind_trial_with_the_mouse(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase, tmp_path: Path
+) -> None:
+    trials = write_bone_quality(tmp_path / "trials", trials=1, seed=4, spacing_mm=0.5)
+    trial = tmp_path / "trials" / "trial-01"
+    window.resize(1280, 800)
+    window.show()
+    qtbot.waitExposed(window)
+    window.open_plan(trial / "plan.json")
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        window.open_folder(trial / "ct")
+    panel = window.rehearsal
+    assert window.tabs.currentWidget() is panel and "blind trial trial-01" in window.windowTitle()
+    _assert_blind(window)
+    window.grab().save(str(tmp_path / "blind-before.png"))
+    panel.duration_s = 120.0  # ends at the auto-stop
+    assert panel.device.currentText() == SIMULATOR
+    hand = panel.hand
+    pos = QPoint(hand.width() // 2, round(hand.y_of(14.0)))
+    qtbot.mousePress(hand, Qt.MouseButton.LeftButton, pos=pos)  # a real press sets the push
+    qtbot.mouseRelease(hand, Qt.MouseButton.LeftButton, pos=pos)
+    assert hand.push_n == pytest.approx(14.0, abs=0.5)
+    qtbot.mouseClick(panel.connect_button, Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(
+        lambda: panel.last is not None and panel.last.drill_mm > 1.0, timeout=SESSION_MS
+    )
+    _assert_blind(window)  # while it cuts
+    assert panel.hand.need_n is None
+    window.grab().save(str(tmp_path / "blind-cutting.png"))
+    qtbot.waitUntil(lambda: panel.run is not None and not panel.run.running, timeout=SESSION_MS)
+    qtbot.wait(100)
+    _assert_blind(window)  # and at the end (the debrief page stays hidden)
+    window.grab().save(str(tmp_path / "blind-end.png"))
+    files = panel.export(tmp_path / "export")
+    assert sorted(f.name for f in files) == ["session.csv", "summary.json"]
+    summary = json.loads((tmp_path / "export" / "session" / "summary.json").read_text())
+    assert summary["exercise"]["trial"] == "trial-01"
+    assert not re.search(r"\bD[1-5]\b|misch", json.dumps(summary), re.IGNORECASE)
+    assert not set(summary) & BLIND_HIDDEN_KEYS
+    db = tmp_path / "record.db"
+    named = next(c for c in TRIAL_CLASSES if c != trials[0].misch)
+    assert (
+        main(
+            [
+                "assess",
+                str(tmp_path / "export"),
+                "--answer",
+                named,
+                "--db",
+                str(db),
+                "--trainee",
+                "ann",
+            ]
+        )
+        == 0
+    )
+    with sqlite3.connect(db) as conn:
+        assert conn.execute("SELECT answer, truth FROM answers").fetchall() == [
+            (named, trials[0].misch)
+        ]
+    # a plan that is no trial shows everything again
+    window.open_plan(phantom_case.plan_path)
+    assert window.windowTitle() == "ctdrill" and window.pages.isVisible()
+    assert window.plot_canvas.isVisible()
