@@ -2,39 +2,38 @@
 
 When the plan opened is a blind trial's (``ctdrill exercise bone-quality``: a ``trial.json``
 beside it, :func:`ctdrill.app.exercise.trials.find_trial`), the window shows the Rehearsal tab
-alone: the CT views (3D, slices, panorama), the plots (the HU profile with its Misch labels,
-the predicted force), the plan, suggestion, series and debrief pages and the banner are
-hidden; the rehearsal panel gives no prediction of the push (the time to the stop, the force
-needed to cut) and its live words name no force the bone resists with
-(:func:`blind_live_words`). The session's summary and export hide the bone as the command line
-does. Opening a plan that is no trial shows everything again.
+and the banner (the plan's safety problems) alone: the CT views (3D, slices, panorama), the
+plots (the HU profile with its Misch labels, the predicted force), the plan, suggestion,
+series and debrief pages are hidden and a note stands in their place; the rehearsal panel
+gives no prediction of the push and its live words name no force the bone resists with
+(:mod:`ctdrill.app.gui.blind_words`). The session's summary and export hide the bone as the
+command line does. Opening a plan that is no trial shows everything again.
 """
 
 from __future__ import annotations
 
+import os
+from collections.abc import Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QLabel, QSplitter, QTabWidget, QWidget
 
+from ctdrill.app.gui.views import VIEWS
+
 if TYPE_CHECKING:
     from ctdrill.app.exercise.trials import TrialCard
-    from ctdrill.app.readout import LiveReadout
 
 #: Views a blind trial shows (every other is hidden): the rehearsal and the banner (the plan's
 #: safety problems, which say nothing of the bone).
 BLIND_SHOWN = frozenset({"rehearsal", "banner"})
-#: Where the hidden views were, in their place.
+#: What stands where the hidden views were.
 BLIND_NOTE = (
     "Blind trial {trial}: the CT views, the plots and the model's forecasts are hidden.\n\n"
     "Drill the site on the Rehearsal tab and feel the bone: how hard the drill pushes back, "
     "how fast it goes down, where it gives.\nThen export the session and name the bone's "
     "class: ctdrill assess SESSION --answer CLASS --db FILE --trainee ID."
-)
-#: What the panel says instead of the push's prediction (it names none).
-BLIND_PREDICTION = (
-    "A blind trial: feel the bone as the drill goes down, then name its class (export the "
-    "session, then ctdrill assess SESSION --answer CLASS)."
 )
 
 
@@ -48,28 +47,11 @@ class BlindWindow(Protocol):
 
     def setWindowTitle(self, title: str) -> None: ...
 
-
-def blind_live_words(r: LiveReadout, push_n: float | None) -> tuple[str, str]:
-    """``(text, tooltip)`` of a live readout in a blind trial: what the drill does, never the
-    force the bone resists with or the push it needs."""
-    if r.kind == "off":
-        return "The device is off: no force.", ""
-    if r.kind == "wall":
-        return "At the stop: the drill goes no deeper. Let go, or retract (R).", ""
-    if r.kind == "holding":
-        push = push_n if push_n is not None else r.hand_n
-        if push is not None and push <= 1.0:
-            return "Push to start: the handle does not move.", ""
-        return "The drill holds: push harder to cut.", ""
-    if r.kind == "free":
-        return "The drill is not cutting.", ""
-    return "Cutting.", ""
+    def _status(self, text: str) -> None: ...
 
 
 def apply_blind(window: BlindWindow, card: TrialCard | None) -> None:
     """Enter a blind trial (``card``) or leave it (None): module docstring."""
-    from ctdrill.app.gui.views import VIEWS  # the views import the panel, which imports this
-
     blind = card is not None
     window.blind_trial = card
     for spec in VIEWS:
@@ -115,3 +97,16 @@ def _note(window: BlindWindow) -> QLabel | None:
     note.setVisible(False)
     found.addWidget(note)
     return note
+
+
+def show_trial(window: BlindWindow, paths: Sequence[str | os.PathLike[str]]) -> None:
+    """Enter the blind trial whose plan is ``paths`` (a ``trial.json`` beside it), or leave
+    blind mode for any other plan; a card that cannot be read is said on the status line."""
+    from ctdrill.app.exercise.trials import TrialError, find_trial
+
+    try:
+        card = find_trial([Path(p) for p in paths])
+    except TrialError as exc:
+        card = None
+        window._status(f"not a blind trial: {exc}")
+    apply_blind(window, card)

@@ -298,17 +298,10 @@ class MainWindow(QMainWindow):
         return shown
 
     def show_trial(self, paths: Sequence[str | os.PathLike[str]]) -> None:
-        """A blind trial's plan hides what gives the bone away; any other plan shows it all
-        (:mod:`ctdrill.app.gui.blind`)."""
-        from ctdrill.app.exercise.trials import TrialError, find_trial
-        from ctdrill.app.gui.blind import apply_blind
+        """A blind trial's plan hides what gives the bone away (:mod:`ctdrill.app.gui.blind`)."""
+        from ctdrill.app.gui.blind import show_trial
 
-        try:
-            card = find_trial([Path(p) for p in paths])
-        except TrialError as exc:
-            card = None
-            self._status(f"not a blind trial: {exc}")
-        apply_blind(self, card)
+        show_trial(self, paths)
 
     def use_plans(self, plans: Sequence[Plan], source: str = "") -> bool:
         """Show ``plans`` (read from ``source``; a new undo history), the first one current,

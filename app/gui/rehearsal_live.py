@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from PySide6.QtWidgets import QGroupBox, QHBoxLayout, QLabel, QVBoxLayout
 
-from ctdrill.app.gui.blind import blind_live_words
+from ctdrill.app.gui.blind_words import blind_live_words
 from ctdrill.app.gui.gauges import DepthGauge, ForceGauge, VibrationTrace
 from ctdrill.app.gui.hand_control import HandControl
 from ctdrill.app.gui.rehearsal import RehearsalRun, Telemetry

@@ -38,7 +38,7 @@ from PySide6.QtWidgets import (
 
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.exercise.trials import TrialCard, check_session_plan
-from ctdrill.app.gui.blind import BLIND_PREDICTION
+from ctdrill.app.gui.blind_words import BLIND_PREDICTION
 from ctdrill.app.gui.debrief import debrief_of
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.rehearsal import (

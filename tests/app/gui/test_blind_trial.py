@@ -45,7 +45,7 @@ def _screen_text(window: MainWindow) -> list[str]:
     for w in window.findChildren(QWidget):
         if not w.isVisible():
             continue
-        if isinstance(w, QLabel | QAbstractButton) or isinstance(w, QLineEdit):
+        if isinstance(w, QLabel | QAbstractButton | QLineEdit):
             out.append(w.text())
         elif isinstance(w, QComboBox):
             out.append(w.currentText())
