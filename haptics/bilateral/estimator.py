@@ -2,13 +2,16 @@
 
 Per tick of the slave's loop (:meth:`HuEstimator.update`):
 
-1. **Low-pass**: the slave's environment force estimate (RFOB) and its feed are averaged over
-   one period of the lowest vibration harmonic, ``60 / (blades rpm)`` s: every term of Eq. 19's
+1. **Low-pass**: the slave's environment force estimate (RFOB) and the feed of the cut front
+   (the slave's depth less its contact deflection ``F / k``) are averaged over one period of the
+   lowest vibration harmonic, ``60 / (blades rpm)`` s: every term of Eq. 19's
    vibration averages to exactly 0 over it (docs/model.md, "What the paper leaves open").
-2. **Gate**: the estimate starts ``l_t`` mm after the force first rose above
-   :data:`CONTACT_N` (Eq. 2's contact state: the lip is only partly engaged) and holds while
-   the drill does not cut (feed below :data:`MIN_FEED_MM_S`: a resting drill's force is any
-   value below ``S0``).
+2. **Depth and gate**: the depth is the slave's less its contact deflection ``F / k`` (the cut
+   front). From the contact (the force rising above :data:`CONTACT_N`, placed where it last
+   was below :data:`FREE_N`) the lip engages as Eq. 2 says, ``s_t = (x - x_c) / l_t``: the
+   estimate divides by it and waits while ``s_t < MIN_ENGAGED``; beyond ``l_t`` ``s_t = 1``.
+   It holds while the drill does not cut (feed below :data:`MIN_FEED_MM_S`: a resting
+   drill's force is any value below ``S0``).
 3. **Inverse of Eq. 20 with the adapted gain** (Eq. 25):
    ``log10 C' = (log10(F / (1 + Ke v)) - log10 gamma - b0) / n``, clipped to the set's range;
    below the gate's upper edge the gate ramp is inverted linearly (0 N: its lower edge).
@@ -24,6 +27,9 @@ Per tick of the slave's loop (:meth:`HuEstimator.update`):
    pull it except through the gain.
 5. **Stop** (:attr:`HuEstimator.stop_reason`): ``cortex_exit`` when the estimate, after
    :data:`IN_BONE_MM` in bone, falls below the gate's upper edge (the lip leaves the bone);
+   the same fires sooner from a fast average (:data:`FAST_FRACTION` of the window) when even
+   at the vibration's crest (the model's ``sum Bk`` at the current estimate) the force is below
+   the exit level's (its ``A0`` at the current feed and gain), for a fast feed;
    ``density_rise`` when it exceeds the plan's CT anywhere within :data:`PRIOR_WINDOW_MM` by
    :data:`RISE_MARGIN_HU`. Force and feed only for the first; the second asks the plan.
 """
@@ -36,11 +42,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ctdrill.haptics.bilateral.params import ENV_STIFFNESS_N_PER_MM
 from ctdrill.model.calibration import Calibration
 from ctdrill.model.profile import Profile
 
-#: The force above which the drill touches material, N.
-CONTACT_N = 0.2
+#: The low-passed force above which the drill touches material, N; the contact is placed
+#: where the force last was below :data:`FREE_N` (the low-pass lags half a window).
+CONTACT_N = 1.0
+FREE_N = 1.0
+#: Below this share of the lip engaged (Eq. 2) the force is too small to read, so the
+#: estimate waits.
+MIN_ENGAGED = 0.25
+#: The fast exit test averages over this fraction of the low-pass window.
+FAST_FRACTION = 8
+#: The gain learns only while the fast average is within this fraction of the low-passed
+#: force (a steady cut, not the bounce of an impact).
+STEADY_FRACTION = 0.15
 #: Below this feed the drill does not cut and the force says nothing of the material, mm/s.
 MIN_FEED_MM_S = 0.05
 #: The plan's CT must be uniform within this many HU ...
@@ -142,6 +159,7 @@ class HuEstimator:
         tip_length_mm: float,
         window_ticks: int,
         tick_s: float,
+        contact_stiffness_n_per_mm: float = ENV_STIFFNESS_N_PER_MM,
     ) -> None:
         self.b0 = calibration.a0.b0
         self.n = calibration.a0.n
@@ -158,11 +176,22 @@ class HuEstimator:
         self.tip = tip_length_mm
         self.n_win = max(1, window_ticks)
         self._f = [0.0] * self.n_win
-        self._v = [0.0] * self.n_win
+        self._x = [0.0] * self.n_win
         self._i = 0
         self._fsum = 0.0
-        self._vsum = 0.0
+        self._ticks = 0
+        self._window_s = self.n_win * tick_s
         self._z: list[float] = [0.0]  # the prior: the model's gain, one vote
+        self.n_fast = max(1, self.n_win // FAST_FRACTION)
+        self._fast = 0.0
+        self._free_mm = math.nan
+        self.k_contact = contact_stiffness_n_per_mm
+        self.harmonics = [(h.b0, h.n) for h in calibration.harmonics]
+        cp_exit = min(
+            max(prior.exit_hu + 1000.0, calibration.c_prime_range[0]),
+            calibration.c_prime_range[1],
+        )
+        self.exit_a0_n = 10.0 ** (self.b0 + self.n * math.log10(cp_exit))
         self.contact_mm = math.nan
         self.log10_gain = 0.0
         self._next_update_mm = -math.inf
@@ -180,45 +209,60 @@ class HuEstimator:
             return -1
         return round(pos)
 
-    def update(self, slave_mm: float, force_n: float, feed_mm_s: float) -> None:
-        """One tick: the slave's depth, its environment force estimate (+ against the
-        advance) and feed."""
+    def update(self, slave_mm: float, force_n: float) -> None:
+        """One tick: the slave's depth (mm) and its environment force estimate (N, + against
+        the advance)."""
         i = self._i
         self._fsum += force_n - self._f[i]
-        self._vsum += feed_mm_s - self._v[i]
+        j = (i - self.n_fast) % self.n_win
+        self._fast += force_n - self._f[j]
         self._f[i] = force_n
-        self._v[i] = feed_mm_s
+        f = self._fsum / self.n_win
+        front = slave_mm - force_n / self.k_contact  # the cut front: less the deflection
+        oldest = self._x[i]
+        self._x[i] = front
         i += 1
         if i == self.n_win:  # re-sum once a window: no drift of the running sums
             i = 0
             self._fsum = math.fsum(self._f)
-            self._vsum = math.fsum(self._v)
+            self._fast = math.fsum(self._f[-self.n_fast :])
         self._i = i
-        f = self._fsum / self.n_win
-        v = self._vsum / self.n_win
+        self._ticks += 1
+        # the front's mean feed over the window (exact for Eq. 20, linear in the feed)
+        v = (front - oldest) / self._window_s if self._ticks > self.n_win else 0.0
         self.force_lp_n = f
         self.feed_lp_mm_s = v
         self.valid = False
+        depth = front
         if math.isnan(self.contact_mm):
-            if f > CONTACT_N:
-                self.contact_mm = slave_mm
+            if force_n <= FREE_N:
+                self._free_mm = depth
+            elif f > CONTACT_N:
+                self.contact_mm = depth if math.isnan(self._free_mm) else self._free_mm
             return
-        if slave_mm < self.contact_mm + self.tip or v < MIN_FEED_MM_S or self.stop_reason:
+        if v < MIN_FEED_MM_S or self.stop_reason:
+            return
+        s_t = (depth - self.contact_mm) / self.tip  # Eq. 2, the contact state
+        if s_t < MIN_ENGAGED:
             return
         factor = 1.0 + self.ke * (v if v < 50.0 else 50.0)
-        y = math.log10(f / factor) if f > 0.0 else -math.inf
-        self._adapt(slave_mm, y)
+        y = math.log10(f / (factor * min(s_t, 1.0))) if f > 0.0 else -math.inf
+        fast = self._fast / self.n_fast
+        if s_t >= 1.0 and abs(fast - f) <= STEADY_FRACTION * f:
+            self._adapt(depth, y)
         y_gain = y - self.log10_gain
         if y_gain >= self.log10_a0_gate:
             c = (y_gain - self.b0) / self.n
             c = self.c_lo if c < self.c_lo else (self.c_hi if c > self.c_hi else c)
             hu = 10.0**c - 1000.0
         else:  # the gate ramp: the share of the gate's upper-edge force
+            c = self.c_lo
             share = 10.0 ** (y_gain - self.log10_a0_gate) if y > -math.inf else 0.0
             hu = self.gate_lo + (self.gate_hi - self.gate_lo) * share
         self.hu = hu
         self.valid = True
-        self._check_stop(slave_mm, hu)
+        if s_t >= 1.0:  # the stops read a fully engaged lip only
+            self._check_stop(depth, hu, c, factor)
 
     def _adapt(self, slave_mm: float, y: float) -> None:
         if slave_mm < self._next_update_mm or not math.isfinite(y):
@@ -234,15 +278,22 @@ class HuEstimator:
         self.log10_gain = self._z[mid] if m % 2 else 0.5 * (self._z[mid - 1] + self._z[mid])
         self.gain_updates += 1
 
-    def _check_stop(self, slave_mm: float, hu: float) -> None:
+    def _check_stop(self, depth_mm: float, hu: float, log10_c: float, factor: float) -> None:
         if hu >= self.prior.exit_hu:
             if math.isnan(self.bone_since_mm):
-                self.bone_since_mm = slave_mm
+                self.bone_since_mm = depth_mm
         elif not math.isnan(self.bone_since_mm):
-            if slave_mm - self.bone_since_mm >= IN_BONE_MM:
+            if depth_mm - self.bone_since_mm >= IN_BONE_MM:
                 self.stop_reason = "cortex_exit"
                 return
             self.bone_since_mm = math.nan
-        k = self._prior_index(slave_mm)
+        if not math.isnan(self.bone_since_mm) and depth_mm - self.bone_since_mm >= IN_BONE_MM:
+            # the fast test: even at the vibration's crest the force is below the exit level
+            gain = 10.0**self.log10_gain
+            vib = gain * sum(10.0 ** (b0 + n * log10_c) for b0, n in self.harmonics)
+            if self._fast / self.n_fast + vib < gain * self.exit_a0_n * factor:
+                self.stop_reason = "cortex_exit"
+                return
+        k = self._prior_index(depth_mm)
         if k >= 0 and hu > self.prior.window_max_hu[k] + RISE_MARGIN_HU:
             self.stop_reason = "density_rise"

@@ -129,6 +129,7 @@ class TeleopRun:
     deepest_front_mm: float
     force_scale: float
     packets_lost: int
+    window_s: float
 
 
 def _push_at(op: Operator, t_s: float) -> float:
@@ -278,7 +279,7 @@ def simulate_teleop(
         energy += hand_f * (master.x_m - x_m) - resistance * (slave.x_m - x_s)
         if energy < energy_min:
             energy_min = energy
-        est.update(slave.x_m * 1e3, -s_servo.external_n, s_servo.velocity_m_s * 1e3)
+        est.update(slave.encoder_mm(), -s_servo.external_n)
         if stop_reason is None:
             reason = None
             if env.front_mm >= plan_stop:
@@ -338,4 +339,5 @@ def simulate_teleop(
         deepest_front_mm=env.front_mm,
         force_scale=beta,
         packets_lost=to_slave.lost + to_master.lost,
+        window_s=est.n_win * dt,
     )

@@ -9,8 +9,10 @@
   stays above ``-PASSIVITY_TOL_J``.
 * **Estimation**: the CT's layers along the cut front (``not cut`` below the gate's centre,
   ``trabecular``, ``cortex`` from the cortical threshold), per layer the RMS error and bias of
-  the estimate where the lip lies wholly in the layer; at each boundary the lag (mm of front,
-  ms) of the estimate's crossing of the mid-level between the layers' means against the CT's;
+  the estimate on its plateau, where the lip lies wholly in the layer now and a low-pass
+  window earlier (:data:`PLATEAU_HU`; the transitions are what the boundary lag measures); at
+  each boundary the lag (mm of front, ms) of the estimate's crossing of the mid-level between
+  the layers' means against the CT's;
   a boundary is detected when the estimate crosses within :data:`DETECT_TOL_MM` of it (an exit
   into material that is not cut also by the force-based stop); false alarms are changes of the
   estimate's layer (with :data:`HYSTERESIS_HU`) away from every boundary, per 10 mm cut.
@@ -28,14 +30,21 @@ from ctdrill.haptics.bilateral.loop import CUTTING, FREE, STOPPED, TeleopRun
 
 #: The stop phase starts this long after the brake, s.
 SETTLE_S = 0.3
-#: The passivity observer may dip this far below 0 (the energy the master's 1 N friction
-#: dissipates over 1 mm), J.
-PASSIVITY_TOL_J = 1e-3
+#: The passivity observer may dip this far below 0, J. The four-channel law shows the hand an
+#: apparent mass of ``2 Mn / Kf`` = 0.83 kg for the 2.0 kg of both stages (and the hand's): the
+#: motors supply the rest of the kinetic energy on an approach, and an impact gives it to the
+#: environment, so the observer dips by up to that share of the approach's kinetic energy
+#: without any instability (2-8 mJ measured for a 15 N push from 0.5 mm, no delay). A delay's
+#: activity is 10-1000 times larger (docs/teleop.md, the stability map).
+PASSIVITY_TOL_J = 0.01
 #: A layer change counts as detected within this depth of the boundary, mm.
 DETECT_TOL_MM = 0.5
 #: Hysteresis of the estimate's layer, HU.
 HYSTERESIS_HU = 50.0
 LAYER_NAMES = ("not cut", "trabecular", "cortex")
+#: A layer's plateau: where the CT's lip-mean number is within this of the layer's median, HU
+#: (the lip lies wholly in the layer).
+PLATEAU_HU = 100.0
 
 
 @dataclass(frozen=True)
@@ -132,10 +141,15 @@ def teleop_metrics(
         names.append(name)
         if c == 0:
             continue
-        lo = run.front_mm[i0] + tip_length_mm
         sel = np.arange(i0, i1 + 1)
+        plateau = np.abs(run.hu_ct[sel] - np.median(run.hu_ct[sel])) <= PLATEAU_HU
+        # ... and was a window earlier (the low-pass reads the last window)
+        lag = max(1, round(run.window_s / float(run.time_s[1] - run.time_s[0])))
+        earlier = np.zeros_like(plateau)
+        earlier[lag:] = plateau[:-lag]
         sel = sel[
-            (run.front_mm[sel] >= lo)
+            plateau
+            & earlier
             & run.hu_valid[sel]
             & (run.state[sel] == CUTTING)
             & np.isfinite(run.hu_est[sel])
@@ -165,10 +179,12 @@ def teleop_metrics(
         old_side = np.flatnonzero(ct > level if falling else ct < level)
         t_truth = a0 + int(old_side[old_side < a1 - a0 + 1][-1]) + 1 if old_side.size else a1
         t_truth = min(t_truth, b1)
-        search = max(a0, int(np.searchsorted(run.time_s, run.time_s[t_truth] - 0.5)))
+        # the estimate's crossing: its first sample on the new side once the front is within
+        # the tolerance of the boundary (the front only advances before the brake)
+        near = np.flatnonzero(run.front_mm[a0 : b1 + 1] >= run.front_mm[t_truth] - DETECT_TOL_MM)
+        search = a0 + int(near[0]) if near.size else t_truth
         filled = np.nan_to_num(est, nan=m0)
-        on_old = _crossing(filled, level, not falling, search)
-        t_est = -1 if on_old < 0 else _crossing(filled, level, falling, on_old)
+        t_est = _crossing(filled[: b1 + 1], level, falling, search)
         if c1 == 0 and run.stop_reason == "cortex_exit":
             stop_i = int(np.searchsorted(run.time_s, run.stop_time_s))
             t_est = stop_i if t_est < 0 else min(t_est, stop_i)
@@ -210,7 +226,9 @@ def teleop_metrics(
                 )[0]
             )
             if hc == c:
-                near = bdepths.size and np.min(np.abs(bdepths - run.front_mm[i])) <= DETECT_TOL_MM
+                near = bool(bdepths.size) and bool(
+                    np.min(np.abs(bdepths - run.front_mm[i])) <= DETECT_TOL_MM
+                )
                 if not near:
                     false_alarms += 1
                     alarm_mm.append(float(run.front_mm[i]))

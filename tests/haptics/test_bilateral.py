@@ -53,7 +53,9 @@ def test_eq25_inverts_eq20_and_learns_the_force_gain(gain: float) -> None:
     est = HuEstimator(cal, prior, tip_length_mm=0.6, window_ticks=333, tick_s=1e-4)
     force = gain * float(a0_n(1050.0, 0.5, cal))
     for k in range(60_000):
-        est.update(1.0 + 0.5 * k * 1e-4, force, 0.5)
+        x = 1.0 + 0.5 * k * 1e-4
+        f = force * min(1.0, (x - 1.0) / 0.6)  # the lip engages (Eq. 2)
+        est.update(x + f / 100.0, f)
     assert est.valid and est.stop_reason is None
     assert 10.0**est.log10_gain == pytest.approx(gain, rel=1e-9)
     assert est.hu == pytest.approx(1050.0, abs=1e-6)
@@ -66,7 +68,8 @@ def test_a_force_that_vanishes_after_bone_is_a_cortex_exit() -> None:
     k = 0
     while est.stop_reason is None and k < 80_000:
         x = 1.0 + 0.5 * k * 1e-4
-        est.update(x, force if x < 3.0 else force * max(0.0, 1.0 - (x - 3.0) / 0.6), 0.5)
+        f = force * min(1.0, (x - 1.0) / 0.6, max(0.0, 1.0 - (x - 3.0) / 0.6))
+        est.update(x + f / 100.0, f)
         k += 1
     assert est.stop_reason == "cortex_exit"
     assert 3.0 < 1.0 + 0.5 * k * 1e-4 < 3.6
