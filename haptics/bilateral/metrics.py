@@ -226,10 +226,10 @@ def teleop_metrics(
                 )[0]
             )
             if hc == c:
-                near = bool(bdepths.size) and bool(
+                close = bool(bdepths.size) and bool(
                     np.min(np.abs(bdepths - run.front_mm[i])) <= DETECT_TOL_MM
                 )
-                if not near:
+                if not close:
                     false_alarms += 1
                     alarm_mm.append(float(run.front_mm[i]))
                 cur = c
