@@ -17,6 +17,7 @@ import csv
 import io
 import json
 import math
+import random
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -28,7 +29,7 @@ from ctdrill.engine.path import PathResult, plan_path
 from ctdrill.engine.plans import plan_calibration
 from ctdrill.haptics.bilateral.estimator import Prior, plan_prior
 from ctdrill.haptics.bilateral.loop import STATE_NAMES, TeleopRun, TeleopSetup, simulate_teleop
-from ctdrill.haptics.bilateral.metrics import teleop_metrics
+from ctdrill.haptics.bilateral.metrics import eq19_reproduction, teleop_metrics
 from ctdrill.haptics.bilateral.params import ChannelSpec, EnvSpec, HandSpec
 from ctdrill.haptics.hands import breakthrough_depths_mm
 from ctdrill.haptics.profile_table import ProfileTable
@@ -114,6 +115,12 @@ def prepare_teleop(
     )
 
 
+def vibration_phases(seed: int, count: int) -> tuple[float, ...]:
+    """The drill's vibration phases of run ``seed`` (uniform, from the seed), rad."""
+    rng = random.Random(f"vibration-{seed}")
+    return tuple(rng.uniform(0.0, 2.0 * math.pi) for _ in range(count))
+
+
 def run_teleop(
     case: TeleopCase,
     operator: Operator,
@@ -139,7 +146,12 @@ def run_teleop(
         record_every=record_every,
         channel=ChannelSpec(delay_ms=delay_ms, jitter_ms=jitter_ms, loss=loss),
         hand=replace(HandSpec(), damping_n_s_per_m=hand_damping_n_s_per_m),
-        env=replace(EnvSpec(), model_error=model_error, stiffness_n_per_mm=env_stiffness_n_per_mm),
+        env=replace(
+            EnvSpec(),
+            model_error=model_error,
+            stiffness_n_per_mm=env_stiffness_n_per_mm,
+            vibration_phase_rad=vibration_phases(seed, len(case.calibration.harmonics)),
+        ),
     )
     run = simulate_teleop(
         case.true_path.profile,
@@ -157,6 +169,7 @@ def run_teleop(
         tip_length_mm=case.plan_path.plan.drill.tip_length_mm,
         exit_mm=case.exit_mm,
     )
+    figures.update(eq19_reproduction(run, case.plan_path.profile, 0.0))
     figures["plan_stop_depth_mm"] = case.plan_path.stop_depth_mm
     figures["plan_stop_reason"] = case.plan_path.stop_reason
     return run, figures

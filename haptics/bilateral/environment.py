@@ -58,6 +58,8 @@ class CuttingEnvironment:
         self._hu = [float(v) for v in profile.hu_mean]
         self._w = [2.0 * math.pi * float(f) for f in profile.freqs_hz]
         self._periods = [1.0 / float(f) for f in profile.freqs_hz]
+        phases = list(spec.vibration_phase_rad)
+        self._phase = [phases[k] if k < len(phases) else 0.0 for k in range(len(self._w))]
         self.ke = profile.ke_per_mm_s
         self.k = spec.stiffness_n_per_mm
         self.b = spec.damping_n_s_per_mm
@@ -107,8 +109,10 @@ class CuttingEnvironment:
         if feed > 0.0:
             pos = (front - self._d0) * self._inv
             if 0.0 <= pos <= self._last:
-                for row, w, period in zip(self._sk, self._w, self._periods, strict=True):
-                    vib += self._at(row, front) * math.sin(w * math.fmod(t_s, period))
+                for row, w, period, phase in zip(
+                    self._sk, self._w, self._periods, self._phase, strict=True
+                ):
+                    vib += self._at(row, front) * math.sin(w * math.fmod(t_s, period) + phase)
         self.front_mm = new_front
         self.front_feed_mm_s = feed
         force = resistance_n(coupling, slave_mm_s, feed, vib, damping_n_s_per_mm=self.b)

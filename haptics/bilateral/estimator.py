@@ -2,36 +2,41 @@
 
 Per tick of the slave's loop (:meth:`HuEstimator.update`):
 
-1. **Low-pass**: the slave's environment force estimate (RFOB) and the feed of the cut front
-   (the slave's depth less its contact deflection ``F / k``) are averaged over one period of the
-   lowest vibration harmonic, ``60 / (blades rpm)`` s: every term of Eq. 19's
-   vibration averages to exactly 0 over it (docs/model.md, "What the paper leaves open").
-2. **Depth and gate**: the depth is the slave's less its contact deflection ``F / k`` (the cut
-   front). From the contact (the force rising above :data:`CONTACT_N`, placed where it last
-   was below :data:`FREE_N`) the lip engages as Eq. 2 says, ``s_t = (x - x_c) / l_t``: the
-   estimate divides by it and waits while ``s_t < MIN_ENGAGED``; beyond ``l_t`` ``s_t = 1``.
-   It holds while the drill does not cut (feed below :data:`MIN_FEED_MM_S`: a resting
-   drill's force is any value below ``S0``).
+1. **Low-pass**: the slave's environment force estimate (RFOB) is averaged over one period of
+   the lowest vibration harmonic, ``60 / (blades rpm)`` s: every term of Eq. 19's vibration
+   averages to exactly 0 over it (docs/model.md, "What the paper leaves open"). The feed is
+   the cut front's mean feed over the same window (the front: the slave's depth less its
+   contact deflection ``F / k``), so ``F / (1 + Ke v)`` is exact for Eq. 20, linear in ``v``.
+2. **Contact state**: from the contact (the low-passed force above :data:`CONTACT_N`, placed
+   where the force last was below :data:`FREE_N`) the lip engages as Eq. 2 says,
+   ``s_t = (x - x_c) / l_t``; the estimate divides by it and waits while
+   ``s_t < MIN_ENGAGED``; beyond ``l_t``, ``s_t = 1``. It holds while the drill does not cut
+   (feed below :data:`MIN_FEED_MM_S`: a resting drill's force is any value below ``S0``).
 3. **Inverse of Eq. 20 with the adapted gain** (Eq. 25):
-   ``log10 C' = (log10(F / (1 + Ke v)) - log10 gamma - b0) / n``, clipped to the set's range;
-   below the gate's upper edge the gate ramp is inverted linearly (0 N: its lower edge).
-4. **The force gain** ``log10 gamma``, learnt against the plan's CT as prior: once per
-   profile step of new depth, where the plan's CT is uniform within :data:`PRIOR_WINDOW_MM`
-   and the lip fully engaged, the residual ``z = log10(F / (1 + Ke v)) - b0 - n log10 C'_plan``
-   is one vote; the gain is the median of the votes and of one vote for the model's own gain
-   (``z = 0``). A Kalman filter on the same residual (the joint filter on gain and CT number
-   marginalised over the CT number) was tried first: under a misregistration its first votes
-   come from the wrong layer, it locks onto them and rejects the right ones after; the median
-   follows the majority of the path, where plan and slave agree. The CT number reported is the
-   force's own with this gain (the prior's weight on it is 0), so a misregistered plan cannot
-   pull it except through the gain.
-5. **Stop** (:attr:`HuEstimator.stop_reason`): ``cortex_exit`` when the estimate, after
-   :data:`IN_BONE_MM` in bone, falls below the gate's upper edge (the lip leaves the bone);
-   the same fires sooner from a fast average (:data:`FAST_FRACTION` of the window) when even
-   at the vibration's crest (the model's ``sum Bk`` at the current estimate) the force is below
-   the exit level's (its ``A0`` at the current feed and gain), for a fast feed;
-   ``density_rise`` when it exceeds the plan's CT anywhere within :data:`PRIOR_WINDOW_MM` by
-   :data:`RISE_MARGIN_HU`. Force and feed only for the first; the second asks the plan.
+   ``log10 C' = (log10(F / (s_t (1 + Ke v))) - log10 gamma - b0) / n``, clipped to the set's
+   range; below the gate's upper edge the gate ramp is inverted linearly.
+4. **The force gain** ``log10 gamma``, learnt against the plan's CT as prior: once per profile
+   step of new depth, where the plan's CT is uniform within :data:`PRIOR_WINDOW_MM`, the lip
+   fully engaged and the cut steady (:data:`STEADY_FRACTION`), the residual
+   ``z = log10(F / (1 + Ke v)) - b0 - n log10 C'_plan`` is one vote, unless it lies further
+   than :data:`MAX_VOTE_LOG10` from the current gain (the plan's CT then shows another layer
+   than the one cut: a misregistration). The gain is the model's own (``z = 0``) until the
+   first vote, then the median of the votes; it learns force laws off by up to a factor 1.5. A
+   Kalman filter on the same residual (the joint filter on gain and CT number, marginalised
+   over the CT number with the plan as its prior) was tried first: under a misregistration its
+   first votes come from the wrong layer, it locks onto them and rejects the right ones after;
+   the median follows the majority of the path, where plan and slave agree. The CT number
+   reported is the force's own with this gain (the prior's weight on it is 0), so a
+   misregistered plan cannot pull it except through the gain.
+5. **Stop** (:attr:`HuEstimator.stop_reason`), on a fully engaged lip only: ``cortex_exit``
+   when the estimate, after :data:`IN_BONE_MM` in bone, falls below the exit level: half-way
+   from the gate's upper edge to the softest bone of the plan's CT along the whole path
+   (:attr:`Prior.exit_hu`: a level, never a position, so the registration does not enter).
+   The same fires sooner from a fast average (:data:`FAST_FRACTION` of the window) when even at
+   the vibration's crest (the model's ``sum Bk`` at the current estimate) the force is below
+   the exit level's ``A0`` at the current feed and gain: a fast feed crosses the lip's exit in
+   less than a window. ``density_rise`` when the estimate exceeds the plan's CT anywhere within
+   :data:`RISE_WINDOW_MM` by :data:`RISE_MARGIN_HU`.
 """
 
 from __future__ import annotations
@@ -67,6 +72,9 @@ PRIOR_WINDOW_MM = 0.15
 #: A density rise counts where the plan's CT shows none within this far either side, mm
 #: (the registration error it tolerates).
 RISE_WINDOW_MM = 3.0
+#: A vote further than this from the current gain (log10: a factor 1.5) is the plan's CT
+#: disagreeing with the slave's (another layer: a misregistration), not the force law.
+MAX_VOTE_LOG10 = math.log10(1.5)
 #: Depth in bone before an exit counts, mm.
 IN_BONE_MM = 0.5
 #: The exit level: this fraction of the way from the gate's upper edge up to the softest bone
@@ -181,7 +189,7 @@ class HuEstimator:
         self._fsum = 0.0
         self._ticks = 0
         self._window_s = self.n_win * tick_s
-        self._z: list[float] = [0.0]  # the prior: the model's gain, one vote
+        self._z: list[float] = []  # the votes, sorted
         self.n_fast = max(1, self.n_win // FAST_FRACTION)
         self._fast = 0.0
         self._free_mm = math.nan
@@ -202,6 +210,7 @@ class HuEstimator:
         self.force_lp_n = 0.0
         self.feed_lp_mm_s = 0.0
         self.gain_updates = 0
+        self.votes_rejected = 0
 
     def _prior_index(self, depth_mm: float) -> int:
         pos = (depth_mm - self.prior.origin_mm) / self.prior.step_mm
@@ -272,6 +281,9 @@ class HuEstimator:
             return
         self._next_update_mm = slave_mm + self.prior.step_mm
         z = y - self.b0 - self.n * self.prior.log10_c[k]
+        if abs(z - self.log10_gain) > MAX_VOTE_LOG10:
+            self.votes_rejected += 1
+            return
         bisect.insort(self._z, z)
         m = len(self._z)
         mid = m // 2

@@ -9,10 +9,13 @@
   stays above ``-PASSIVITY_TOL_J``.
 * **Estimation**: the CT's layers along the cut front (``not cut`` below the gate's centre,
   ``trabecular``, ``cortex`` from the cortical threshold), per layer the RMS error and bias of
-  the estimate on its plateau, where the lip lies wholly in the layer now and a low-pass
+  the estimate along the path (one sample per :data:`DEPTH_BIN_MM` of depth) on its plateau,
+  where the lip lies wholly in the layer now and a low-pass
   window earlier (:data:`PLATEAU_HU`; the transitions are what the boundary lag measures); at
   each boundary the lag (mm of front, ms) of the estimate's crossing of the mid-level between
   the layers' means against the CT's;
+  ``boundary_lag_*`` is the worst delay, ``boundary_lead_mm`` the worst crossing ahead of the
+  CT's (the contact state of Eq. 2 reads the material at the tip before the lip's mean);
   a boundary is detected when the estimate crosses within :data:`DETECT_TOL_MM` of it (an exit
   into material that is not cut also by the force-based stop); false alarms are changes of the
   estimate's layer (with :data:`HYSTERESIS_HU`) away from every boundary, per 10 mm cut.
@@ -27,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from ctdrill.haptics.bilateral.loop import CUTTING, FREE, STOPPED, TeleopRun
+from ctdrill.model.profile import Profile, force_series_n
 
 #: The stop phase starts this long after the brake, s.
 SETTLE_S = 0.3
@@ -42,6 +46,8 @@ DETECT_TOL_MM = 0.5
 #: Hysteresis of the estimate's layer, HU.
 HYSTERESIS_HU = 50.0
 LAYER_NAMES = ("not cut", "trabecular", "cortex")
+#: The per-layer error takes one sample per this much front advance, mm.
+DEPTH_BIN_MM = 0.01
 #: A layer's plateau: where the CT's lip-mean number is within this of the layer's median, HU
 #: (the lip lies wholly in the layer).
 PLATEAU_HU = 100.0
@@ -78,9 +84,42 @@ def _phase(run: TeleopRun, mask: np.ndarray, alpha: float) -> dict[str, Any]:
         out["force_error_n"] = float(np.mean(fh)) - mean_fe
         out["force_mae_n"] = float(np.mean(np.abs(fh - fe)))
         out["mean_env_force_n"] = mean_fe
+        t = run.time_s[mask]
+        if t.size > 1 and t[-1] > t[0]:
+            out["mean_feed_mm_s"] = float(
+                np.sum(np.clip(np.diff(run.front_mm), 0.0, None)[mask[1:]])
+                / (mask.sum() * _dt(run))
+            )
     else:
         out["hand_force_rms_n"] = float(np.sqrt(np.mean(fh**2)))
     return out
+
+
+def _dt(run: TeleopRun) -> float:
+    return float(run.time_s[1] - run.time_s[0]) if run.time_s.size > 1 else 1.0
+
+
+def eq19_reproduction(run: TeleopRun, profile: Profile, origin_mm: float) -> dict[str, float]:
+    """The paper's Fig. 14 comparison: Eq. 19 on ``profile`` (the plan's, its depth 0 at slave
+    depth ``origin_mm``) at the slave's cut depth and feed (the front's mean over one low-pass
+    window), against the force the slave met, over the cutting samples: the mean error (N and %
+    of the mean force) and the mean absolute error with the vibration (N)."""
+    mask = run.state == CUTTING
+    if not mask.any():
+        return {"model_force_error_pct": math.nan, "model_force_mae_n": math.nan}
+    n = max(1, round(run.window_s / _dt(run)))
+    front = run.front_mm
+    back = np.concatenate([np.full(n, front[0]), front[:-n]])
+    feed = (front - back) / (n * _dt(run))
+    model = force_series_n(profile, front - origin_mm, feed, run.time_s)
+    env = run.env_force_n
+    mean_env = float(np.mean(env[mask]))
+    err = float(np.mean(model[mask]) - mean_env)
+    return {
+        "model_force_error_n": err,
+        "model_force_error_pct": 100.0 * abs(err) / mean_env if mean_env > 0.0 else math.nan,
+        "model_force_mae_n": float(np.mean(np.abs(model[mask] - env[mask]))),
+    }
 
 
 def layer_of(hu: np.ndarray, *, gate_hu: float, cortical_hu: float) -> np.ndarray:
@@ -124,13 +163,13 @@ def teleop_metrics(
             runs[-1] = (c, runs[-1][1], int(i))
         else:
             runs.append((c, int(i), int(i)))
-    # a run thinner than the lip is the lip crossing a boundary, not a layer
+    # a run thinner than the lip between two others is the lip crossing a boundary
     layers: list[tuple[int, int, int]] = []
     for c, i0, i1 in runs:
         thick = run.front_mm[i1] - run.front_mm[i0] >= tip_length_mm
         if layers and layers[-1][0] == c:
             layers[-1] = (c, layers[-1][1], i1)
-        elif thick or i1 == idx[-1]:
+        elif thick or not layers or i1 == idx[-1]:
             layers.append((c, i0, i1))
     counts: dict[int, int] = {}
     rmse: list[dict[str, Any]] = []
@@ -154,6 +193,10 @@ def teleop_metrics(
             & (run.state[sel] == CUTTING)
             & np.isfinite(run.hu_est[sel])
         ]
+        # one sample per DEPTH_BIN_MM of front advance: the error along the path, not in time
+        # (a drill resting on the cortex would otherwise weigh as much as a millimetre cut)
+        _, first = np.unique(np.floor(run.front_mm[sel] / DEPTH_BIN_MM), return_index=True)
+        sel = sel[np.sort(first)]
         if sel.size == 0:
             continue
         err = run.hu_est[sel] - run.hu_ct[sel]
@@ -260,8 +303,9 @@ def teleop_metrics(
             }
             for b in boundaries
         ],
-        "boundary_lag_mm": max((abs(b.lag_mm) for b in lags), default=None),
-        "boundary_lag_ms": max((abs(b.lag_ms) for b in lags), default=None),
+        "boundary_lag_mm": max((max(b.lag_mm, 0.0) for b in lags), default=None),
+        "boundary_lag_ms": max((max(b.lag_ms, 0.0) for b in lags), default=None),
+        "boundary_lead_mm": max((max(-b.lag_mm, 0.0) for b in lags), default=None),
         "layers_detected": int(detected),
         "layers_missed": len(boundaries) - int(detected),
         "false_alarms": int(false_alarms),

@@ -97,3 +97,6 @@ class EnvSpec:
     damping_n_s_per_mm: float = ENV_DAMPING_N_S_PER_MM
     #: The true force law is the model's times ``1 + model_error`` (the estimator assumes 1).
     model_error: float = 0.0
+    #: Phase of each vibration harmonic at ``t = 0``, rad (a real drill's is random; Eq. 19
+    #: has 0). Missing harmonics take 0.
+    vibration_phase_rad: tuple[float, ...] = ()

@@ -8,7 +8,13 @@ Coulomb friction model removed. Internally SI; encoder in mm.
 
 from __future__ import annotations
 
-from ctdrill.haptics.plant import FRICTION_VEL_M_S
+#: Below this speed the servos' friction model fades linearly to 0, m/s. The master's force
+#: controller fades it below 0.1 mm/s (:data:`ctdrill.haptics.plant.FRICTION_VEL_M_S`); in the
+#: bilateral loop that leaves a 1-4 um stick-slip cycle between the stages at rest (the model's
+#: 1 N steps in at every slip and kicks the force loop). Fading it over 1 mm/s lets both stages
+#: settle at the stop within 0.2 um (measured in bench/bench_teleop.py); below 1 mm/s the
+#: friction is then only partly removed from the force estimates.
+SERVO_FRICTION_VEL_M_S = 1e-3
 
 
 class Servo:
@@ -68,7 +74,7 @@ class Servo:
         self._yd += dt * self.gd * (ti + mn * self.gd * v - self._yd)
         self._d_hat = self._yd - mn * self.gd * v
         self._yr += dt * self.gr * (ti + mn * self.gr * v - self._yr)
-        r = v / FRICTION_VEL_M_S
+        r = v / SERVO_FRICTION_VEL_M_S
         fric = self.fc * (-1.0 if r < -1.0 else (1.0 if r > 1.0 else r))
         self.external_n = -(self._yr - mn * self.gr * v) + fric
         self.velocity_m_s = v

@@ -13,6 +13,7 @@ from ctdrill.app.teleop import TeleopCase, prepare_teleop, run_teleop
 from ctdrill.haptics.bilateral.channel import Channel
 from ctdrill.haptics.bilateral.estimator import HuEstimator, plan_prior
 from ctdrill.haptics.bilateral.params import ChannelSpec
+from ctdrill.haptics.bilateral.stability import SPREAD_LIMIT_UM, stability_point
 from ctdrill.haptics.session import parse_operator
 from ctdrill.model.calibration import load_calibration
 from ctdrill.model.force import a0_n
@@ -114,3 +115,23 @@ def test_the_force_stop_catches_the_exit_a_misregistered_plan_would_pass() -> No
     assert 0.0 <= f["overshoot_mm"] <= 0.5
     assert f["stop_depth_mm"] < shifted.plan_path.stop_depth_mm
     assert math.isfinite(run.stop_time_s)
+
+
+@pytest.mark.parametrize(
+    ("hand", "contact", "delay", "passive", "stable"),
+    [
+        (20.0, 100.0, 0.0, True, True),  # firm hand, stiff contact, no delay
+        (50.0, 11.0, 0.0, True, True),
+        (20.0, 100.0, 5.0, False, False),  # 5 ms one way: a limit cycle of ~0.7 mm
+        (2.0, 100.0, 20.0, False, False),
+    ],
+)
+def test_points_of_the_stability_map(
+    hand: float, contact: float, delay: float, passive: bool, stable: bool
+) -> None:
+    p = stability_point(hand, contact, delay)
+    assert (p.passive, p.stable) == (passive, stable), p
+    if not stable:
+        assert p.spread_um > 5 * SPREAD_LIMIT_UM  # far from the limit, not a borderline call
+    else:
+        assert p.spread_um < SPREAD_LIMIT_UM / 5
