@@ -7,6 +7,8 @@ own (``docs/architecture.md``):
   clearance, the phantom and its writer.
 - ``ctdrill.model`` (``model/``): force law, profiles, calibration sets and fitting.
 - ``ctdrill.haptics`` (``haptics/``): device protocol, renderer, simulator, serial link, sessions.
+- ``ctdrill.engine`` (``engine/``): one CT combined with the force model along trajectories: the
+  path rules, the stop, drill sequences, the plan's verdict and the summaries every output reads.
 - ``ctdrill.app`` (``app/``): CLI, headless export, rehearsal and the Qt GUI.
 - ``ctdrill.assets`` (``assets/``): package data (calibration sets, the demo case), read through
   :func:`ctdrill.resources.asset`.

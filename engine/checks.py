@@ -17,9 +17,10 @@ import numpy as np
 
 from ctdrill.engine import refusals
 from ctdrill.engine.grid import MAX_PLANNED_DEPTH_MM
+from ctdrill.imaging.bounds import MAX_COORDINATE_MM
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.landmarks import Landmark, bind_to_grid
-from ctdrill.imaging.plan.types import MAX_COORDINATE_MM, Plan
+from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.edge import entry_refusal, face_terms, lip_exit_depths
 from ctdrill.imaging.sampling.lip import axis_basis, ring_radii_mm
 from ctdrill.imaging.sampling.path import (

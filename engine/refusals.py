@@ -11,7 +11,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from ctdrill.engine.grid import MAX_PLANNED_DEPTH_MM
-from ctdrill.imaging.plan.types import MAX_COORDINATE_MM, Plan
+from ctdrill.imaging.bounds import MAX_COORDINATE_MM
+from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.path import PathInputError, SliceGap
 
 
@@ -22,7 +23,7 @@ def bad_step(depth_step_mm: float) -> PathInputError:
 
 def bad_coordinate(plan: Plan) -> PathInputError:
     """A point of the trajectory or of a landmark that is not finite or beyond
-    :data:`~ctdrill.imaging.plan.types.MAX_COORDINATE_MM`."""
+    :data:`~ctdrill.imaging.bounds.MAX_COORDINATE_MM`."""
     return PathInputError(
         f"plan {plan.name!r}: a coordinate is not finite or beyond {MAX_COORDINATE_MM:g} mm; "
         "check the plan's points (units are mm)"

@@ -21,6 +21,7 @@ import pytest
 from ctdrill.haptics.physics import HAND_MAX_FEED_MM_S
 from ctdrill.haptics.renderer import CONTINUOUS_FORCE_N, PEAK_FORCE_N
 from ctdrill.haptics.tick import TICK_HZ, TICK_S
+from ctdrill.imaging.bounds import MAX_COORDINATE_MM
 from ctdrill.imaging.display import BONE_SURFACE_HU
 from ctdrill.imaging.misch import MISCH_BANDS_HU
 from ctdrill.imaging.plan.clinical import CLINICAL_MARGIN_MM
@@ -30,7 +31,7 @@ from ctdrill.imaging.stack import GAP_FACTOR
 from ctdrill.model.cutting import MASTER_MASS_KG
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("app", "imaging", "model", "haptics", "ctdrill")
+PACKAGES = ("app", "engine", "imaging", "model", "haptics", "ctdrill")
 
 
 @dataclass(frozen=True)
@@ -67,6 +68,7 @@ RULES = (
     Rule("implant gap", (MIN_IMPLANT_DISTANCE_MM,), r"implant|between", "imaging/plan/implants.py"),
     Rule("master mass", (MASTER_MASS_KG,), r"mass", "model/cutting.py"),
     Rule("default feed", (DEFAULT_FEED_MM_S,), r"feed", "imaging/plan/types.py"),
+    Rule("coordinate bound", (MAX_COORDINATE_MM,), r"coord|world|lps|extent", "imaging/bounds.py"),
 )
 
 

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ctdrill.imaging.bounds import MAX_COORDINATE_MM as MAX_COORDINATE_MM
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.arch import arch_error
 from ctdrill.imaging.plan.budget import DEFAULT_PLACEMENT, placement_error
@@ -76,9 +77,6 @@ _MAXIMA = {
     "min_wall_mm": 1000.0,
     "radius_mm": 1000.0,
 }
-#: Largest accepted coordinate magnitude, mm (the plan reader's; the engine refuses a trajectory
-#: or landmark point beyond it built in code).
-MAX_COORDINATE_MM = 1e5
 
 
 class PlanInputError(ImagingInputError):

@@ -27,6 +27,7 @@ import itertools
 
 import numpy as np
 
+from ctdrill.imaging.bounds import MAX_COORDINATE_MM
 from ctdrill.imaging.stack import AFFINE_TOL_MM
 
 #: Largest |cos| between the in-plane axes, and largest |length - 1| of a direction cosine.
@@ -34,8 +35,8 @@ ORIENTATION_TOL = 1e-4
 #: Voxel spacing bounds, mm (1 um is finer than any micro-CT; 100 mm is no CT's voxel).
 MIN_SPACING_MM = 1e-3
 MAX_SPACING_MM = 100.0
-#: Farthest voxel corner from the LPS origin, mm (the plan reader's coordinate bound).
-MAX_WORLD_MM = 1e5
+#: Farthest voxel corner from the LPS origin, mm (the world frame's bound, shared with plans).
+MAX_WORLD_MM = MAX_COORDINATE_MM
 #: Largest lean of the slice axis off the in-plane normal, degrees (gantry tilts reach ~30).
 MAX_TILT_DEG = 45.0
 #: The lean above which the grid is reported as tilted (:mod:`ctdrill.imaging.dicom.geometry`).
