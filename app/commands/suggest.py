@@ -10,6 +10,7 @@ from typing import Any
 
 from ctdrill.app.commands.options import (
     add_ct_option,
+    add_implants_option,
     add_interpolate_gaps_option,
     add_plan_option,
     add_series_option,
@@ -50,8 +51,9 @@ def register(subparsers: Any) -> None:
             "no cortical perforation (checked exactly on the best-ranked candidates). "
             "Writes OUT/candidates.csv (every candidate, "
             "best first; candidate 0 is the planned axis), OUT/suggest.json and, when a "
-            "candidate is feasible, OUT/best.plan.json (the plan with the best axis). See "
-            "docs/suggest.md."
+            "candidate is feasible, OUT/best.plan.json (the plan with the best axis); when "
+            "none is, OUT/alternatives.csv (the library's shorter or narrower implants at the "
+            "same site, checked by the same rule). See docs/suggest.md."
         ),
     )
     add_ct_option(p, required=True)
@@ -101,6 +103,7 @@ def register(subparsers: Any) -> None:
     )
     add_series_option(p)
     add_interpolate_gaps_option(p)
+    add_implants_option(p)
     p.set_defaults(func=run)
 
 
@@ -109,7 +112,11 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.app.search.candidates import SearchSpace, SuggestInputError
     from ctdrill.app.search.score import Objective
     from ctdrill.app.search.suggest import suggest
-    from ctdrill.app.search.suggest_write import summary_lines, write_suggestion
+    from ctdrill.app.search.suggest_write import (
+        alternative_lines,
+        summary_lines,
+        write_suggestion,
+    )
     from ctdrill.app.search.warmup import SLOW_PATH_NOTE, kernels_ready
     from ctdrill.engine.plans import plan_calibration
     from ctdrill.imaging import load_ct
@@ -133,10 +140,17 @@ def run(args: argparse.Namespace) -> int:
     result = suggest(
         volume, plan, calibration, space, objective, interpolate_gaps=args.interpolate_gaps
     )
-    written = write_suggestion(result, args.out)
+    alts = None
+    if result.best_index is None and plan.implant is not None:
+        from ctdrill.app.search.alternatives import alternatives
+        from ctdrill.imaging.plan.implants import load_implant_library
+
+        alts = alternatives(volume, plan, load_implant_library(args.implants))
+    written = write_suggestion(result, args.out, alts)
     if not kernels_ready():
         sys.stdout.write(SLOW_PATH_NOTE + "\n")
     for path in written:
         sys.stdout.write(f"wrote {path}\n")
-    sys.stdout.write("".join(line + "\n" for line in summary_lines(result)))
+    lines = summary_lines(result) + ([] if alts is None else alternative_lines(alts))
+    sys.stdout.write("".join(line + "\n" for line in lines))
     return 0

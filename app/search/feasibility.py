@@ -27,6 +27,7 @@ from ctdrill.engine.implant import implant_outcome
 from ctdrill.imaging.plan.landmarks import bind_to_grid
 from ctdrill.imaging.plan.safety import clearance_profile_mm, margin_warnings, margins_mm
 from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.sampling.walls import BoneWalls
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.warning_codes import blocking_codes
 
@@ -46,11 +47,16 @@ class Feasibility:
         (None without an implant or landmark).
     min_wall_mm : the thinnest known bone wall around the implant, mm (None without an
         implant, or when no wall is known).
+    drill_clearance_mm : the least clearance of any drill at its drilled depth to any
+        landmark, mm (None without landmarks).
+    walls : the implant's bone walls (None without an implant).
     """
 
     problems: tuple[tuple[str, str], ...]
     implant_clearance_mm: float | None
     min_wall_mm: float | None
+    drill_clearance_mm: float | None = None
+    walls: BoneWalls | None = None
 
     @property
     def feasible(self) -> bool:
@@ -69,10 +75,13 @@ def check_candidate(volume: CTVolume, plan: Plan) -> Feasibility:
     lms = bind_to_grid(plan.landmarks, volume.affine_lps, tuple(volume.hu.shape))
     plan = replace(plan, landmarks=lms)
     problems: list[tuple[str, str]] = []
+    drill_clear = None
     if lms:
         for k, drill in enumerate(plan.drills):
             drilled = plan.drilled(k)
             clear = clearance_profile_mm(drilled)[0]
+            least = float(min(clear))
+            drill_clear = least if drill_clear is None else min(drill_clear, least)
             for code, message in margin_warnings(drilled, clear, margins_mm(drilled)):
                 if code == "plan_violates_margin":
                     problems.append((code, f"drill {k + 1} ({drill.diameter_mm:g} mm): {message}"))
@@ -89,4 +98,6 @@ def check_candidate(volume: CTVolume, plan: Plan) -> Feasibility:
         problems=tuple(problems),
         implant_clearance_mm=None if outcome is None else outcome.clearance_mm,
         min_wall_mm=min_wall,
+        drill_clearance_mm=drill_clear,
+        walls=None if outcome is None else outcome.walls,
     )

@@ -16,6 +16,14 @@ not feasible: it perforates the plate).
   ``> 1250 HU``): cortical bone around the neck, where primary stability is made;
 - ``apex_cortical``: the same within ``apex_zone_mm`` above the apex;
 - ``score = w_body body_term + w_crest crest_cortical + w_apex apex_cortical``.
+- **Even walls** (:func:`wall_balance`), read from the exact bone walls of the checked
+  candidates: the thinnest wall over the wall opposite it at the same depth (1 for an implant
+  centred in the ridge, near 0 for one hugging a plate); the ranking of the checked candidates
+  adds ``w_balance * balance`` (:func:`ranked_total`).
+
+By default (:data:`~ctdrill.app.search.defaults.DEFAULT_WEIGHTS`) the crest and apex
+cortical-contact terms weigh 0: the score prefers bone all around the implant and even walls,
+not an axis pressed against the cortical plate.
 
 The thresholds have one owner, :mod:`ctdrill.imaging.misch`.
 """
@@ -28,8 +36,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.app.search.defaults import DEFAULT_WEIGHTS
+from ctdrill.app.search.defaults import DEFAULT_BALANCE_WEIGHT, DEFAULT_WEIGHTS
 from ctdrill.imaging.misch import BONE_HU, CORTICAL_HU, is_cortical
+from ctdrill.imaging.sampling.walls import BoneWalls
 
 #: Crest and apex zones along the body, mm: about the thickness of a mandible's cortex.
 CREST_ZONE_MM = 2.0
@@ -45,9 +54,10 @@ class Objective:
     apex_weight: float = DEFAULT_WEIGHTS[2]
     crest_zone_mm: float = CREST_ZONE_MM
     apex_zone_mm: float = APEX_ZONE_MM
+    balance_weight: float = DEFAULT_BALANCE_WEIGHT
 
     def __post_init__(self) -> None:
-        for name in ("body_weight", "crest_weight", "apex_weight"):
+        for name in ("body_weight", "crest_weight", "apex_weight", "balance_weight"):
             value = getattr(self, name)
             if not (math.isfinite(value) and 0.0 <= value <= 1e6):
                 raise AppInputError(
@@ -66,6 +76,7 @@ class Objective:
                 "body": self.body_weight,
                 "crest": self.crest_weight,
                 "apex": self.apex_weight,
+                "balance": self.balance_weight,
             },
             "crest_zone_mm": self.crest_zone_mm,
             "apex_zone_mm": self.apex_zone_mm,
@@ -73,6 +84,8 @@ class Objective:
             "cortical_hu": CORTICAL_HU,
             "score": "body_weight * (body_hu - bone_hu) / (cortical_hu - bone_hu) "
             "+ crest_weight * crest_cortical + apex_weight * apex_cortical",
+            "ranked": "score + balance_weight * wall_balance (checked candidates; wall_balance: "
+            "the thinnest bone wall over the wall opposite it at the same depth)",
         }
 
 
@@ -130,3 +143,28 @@ def combine(
     return Scores(
         body_hu=body, body_term=body_term, crest_cortical=crest, apex_cortical=apex, total=total
     )
+
+
+def wall_balance(walls: BoneWalls | None) -> float:
+    """How even the walls are: the thinnest known wall over the wall opposite it (the
+    direction 180 deg around the axis) at the same depth, in [0, 1]; NaN without walls."""
+    if walls is None:
+        return math.nan
+    w = np.asarray(walls.wall_mm, dtype=np.float64)
+    if w.size == 0 or not np.isfinite(w).any() or w.shape[1] % 2:
+        return math.nan
+    opp = np.roll(w, w.shape[1] // 2, axis=1)
+    flat = np.where(np.isfinite(w), w, np.inf)
+    d, a = np.unravel_index(int(np.argmin(flat)), flat.shape)
+    thin, other = float(w[d, a]), float(opp[d, a])
+    if not math.isfinite(other) or other <= 0.0:
+        return 0.0 if math.isfinite(other) else math.nan
+    return min(1.0, thin / other)
+
+
+def ranked_total(total: np.ndarray, balance: np.ndarray, objective: Objective) -> np.ndarray:
+    """(N,) the ranking score: ``total`` plus ``balance_weight * balance`` where the balance is
+    known (checked candidates with an implant)."""
+    b = np.where(np.isfinite(balance), balance, 0.0)
+    out: np.ndarray = total + objective.balance_weight * b
+    return out

@@ -12,6 +12,7 @@ import numpy as np
 
 from ctdrill.app.search.candidates import Candidates
 from ctdrill.app.search.feasibility import Feasibility
+from ctdrill.app.search.score import wall_balance
 from ctdrill.engine.stop import StopReason
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.volume import CTVolume
@@ -122,6 +123,7 @@ class Exact:
     problems: list[str]
     implant_mm: np.ndarray
     wall_mm: np.ndarray
+    balance: np.ndarray
 
     @classmethod
     def run(
@@ -140,7 +142,7 @@ class Exact:
         feasible."""
         n = cands.size
         nan = np.full(n, np.nan)
-        ex = cls(np.zeros(n, bool), np.zeros(n, bool), [""] * n, nan.copy(), nan.copy())
+        ex = cls(np.zeros(n, bool), np.zeros(n, bool), [""] * n, nan.copy(), nan.copy(), nan.copy())
         queue = np.lexsort((np.arange(n), key, flagged, ~rows.passed))[: rows.passed.sum()]
         if rows.passed[0]:  # the planned axis first: its verdict is always shown
             queue = np.concatenate([[0], queue[queue != 0]])
@@ -154,6 +156,7 @@ class Exact:
             ex.problems[i] = ";".join(verdict.codes)
             ex.implant_mm[i] = _nan(verdict.implant_clearance_mm)
             ex.wall_mm[i] = _nan(verdict.min_wall_mm)
+            ex.balance[i] = wall_balance(verdict.walls)
             if verdict.problems:
                 rows.reason[i] = "; ".join(f"{c}: {m}" for c, m in verdict.problems)
         for i in np.flatnonzero(rows.passed & ~ex.checked):

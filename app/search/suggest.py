@@ -38,7 +38,7 @@ from ctdrill.app.search.candidates import (
     make_candidates,
 )
 from ctdrill.app.search.feasibility import check_candidate
-from ctdrill.app.search.score import Objective, Scores, score_rows
+from ctdrill.app.search.score import Objective, Scores, ranked_total, score_rows
 from ctdrill.app.search.shell import body_profile, sample_shells
 from ctdrill.app.search.stages import (
     Checker,
@@ -72,7 +72,8 @@ class Suggestion:
     problems : (N,) the codes the exact check found (``;``-joined; "" when none or not
         checked).
     implant_clearance_mm, min_wall_mm : (N,) from the exact check (NaN when not checked or
-        not defined).
+        not defined); ``wall_balance`` (N,) how even the walls are
+        (:func:`~ctdrill.app.search.score.wall_balance`), added to the ranking.
     feasible : (N,) bool: checked and no problem.
     reason : (N,) why a row is not feasible ("" when it is).
     order : (N,) candidate indices, best first (feasible first).
@@ -99,6 +100,7 @@ class Suggestion:
     problems: tuple[str, ...]
     implant_clearance_mm: np.ndarray
     min_wall_mm: np.ndarray
+    wall_balance: np.ndarray
     feasible: np.ndarray
     reason: tuple[str, ...]
     order: np.ndarray
@@ -236,7 +238,9 @@ def suggest(
     t2 = time.perf_counter()
     exact = Exact.run(volume, cands, plan, out, key, flagged, check, checker)
     check_s = time.perf_counter() - t2
-    order = np.lexsort((np.arange(n), key, ~exact.feasible))
+    ranked = ranked_total(scores.total, exact.balance, objective)
+    rank_key = np.where(np.isfinite(ranked), -ranked, np.inf)
+    order = np.lexsort((np.arange(n), rank_key, ~exact.feasible))
     notes = _notes(plan, cands, out.passed, exact, check, body.what, drilled.planned_depth_mm)
     return Suggestion(
         plan=plan,
@@ -256,6 +260,7 @@ def suggest(
         problems=tuple(exact.problems),
         implant_clearance_mm=exact.implant_mm,
         min_wall_mm=exact.wall_mm,
+        wall_balance=exact.balance,
         feasible=exact.feasible,
         reason=tuple(out.reason),
         order=order,

@@ -8,18 +8,20 @@ import csv
 import io
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from ctdrill.app.csv_cells import text_cell
 from ctdrill.app.records import OUTPUT_NAMES, atomic_output_dir, write_file
+from ctdrill.app.search.alternatives import Alternative, alternatives_csv, keeps_text
 from ctdrill.app.search.candidates import SURFACE_SEARCH_MM
 from ctdrill.app.search.suggest import Suggestion
 from ctdrill.imaging.plan.write import plan_document
 from ctdrill.text import printable
 
 #: Files ``ctdrill suggest`` writes (an existing --out holding only these may be replaced).
-SUGGEST_NAMES = frozenset({"candidates.csv", "best.plan.json", "suggest.json"})
+SUGGEST_NAMES = frozenset({"candidates.csv", "best.plan.json", "suggest.json", "alternatives.csv"})
 
 CSV_COLUMNS = (
     "rank",
@@ -46,6 +48,7 @@ CSV_COLUMNS = (
     "checked",
     "implant_clearance_mm",
     "min_wall_mm",
+    "wall_balance",
     "problems",
     "feasible",
     "reason",
@@ -86,6 +89,7 @@ def candidates_csv(s: Suggestion) -> str:
                 str(bool(s.checked[i])).lower(),
                 _num(float(s.implant_clearance_mm[i])),
                 _num(float(s.min_wall_mm[i])),
+                _num(float(s.wall_balance[i])),
                 text_cell(s.problems[i]),
                 str(bool(s.feasible[i])).lower(),
                 text_cell(printable(s.reason[i])),
@@ -155,6 +159,23 @@ def summary_lines(s: Suggestion) -> list[str]:
     return out
 
 
+def alternative_lines(alts: Sequence[Alternative]) -> list[str]:
+    """What the terminal says of the alternatives (no feasible axis)."""
+    if not alts:
+        return ["no axis is feasible, and the library has no shorter or narrower implant to try"]
+    good = [a for a in alts if a.verdict.feasible]
+    if not good:
+        return [
+            f"no axis is feasible; none of the {len(alts)} shorter or narrower implants at the "
+            "planned site is either (alternatives.csv)"
+        ]
+    a = good[0]
+    return [
+        f"no axis is feasible; {len(good)} of {len(alts)} shorter or narrower implants at the "
+        f"planned site are (alternatives.csv), e.g. {a.spec.name!r} ({a.change}): " + keeps_text(a)
+    ]
+
+
 def _safety_text(s: Suggestion, index: int) -> str:
     parts = []
     clear, wall = float(s.implant_clearance_mm[index]), float(s.min_wall_mm[index])
@@ -165,9 +186,14 @@ def _safety_text(s: Suggestion, index: int) -> str:
     return f"; {', '.join(parts)}" if parts else ""
 
 
-def write_suggestion(s: Suggestion, out_dir: str | Path) -> list[Path]:
-    """Write the outputs into ``out_dir`` in one atomic swap; returns the final paths."""
+def write_suggestion(
+    s: Suggestion, out_dir: str | Path, alternatives: Sequence[Alternative] | None = None
+) -> list[Path]:
+    """Write the outputs into ``out_dir`` in one atomic swap; returns the final paths.
+    ``alternatives`` (given when no axis is feasible) go into ``alternatives.csv``."""
     files: dict[str, str] = {"candidates.csv": candidates_csv(s)}
+    if alternatives is not None:
+        files["alternatives.csv"] = alternatives_csv(alternatives)
     best = s.best_plan()
     final = Path(out_dir)
     if best is not None:

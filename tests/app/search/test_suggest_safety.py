@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 
 from ctdrill.app.search.candidates import SearchSpace
 from ctdrill.app.search.feasibility import check_candidate
+from ctdrill.app.search.score import ranked_total
 from ctdrill.app.search.stages import CheckSettings
 from ctdrill.app.search.suggest import Suggestion, suggest
 from ctdrill.imaging.dicom.series import load_series
@@ -85,9 +86,10 @@ def test_the_densest_axis_perforates_and_is_not_picked(
     assert "cortical_perforation" in verdict.codes
     best = every.best_index
     assert best is not None and best != densest
-    # The score reads the bone around the implant, not on its axis: the plate axis scores
-    # below the best feasible one.
-    assert every.scores.total[densest] < every.scores.total[best]
+    # The ranking reads the bone around the implant and how even its walls are, not the bone
+    # on its axis: the plate axis ranks below the best feasible one.
+    ranked = ranked_total(every.scores.total, every.wall_balance, every.objective)
+    assert ranked[densest] < ranked[best]
     x_best = float(c.entries_lps[best, 0])
     wall = plate.thinnest_wall_mm(x_best, _radius(every))
     assert wall >= every.plan.min_wall_mm
@@ -114,7 +116,8 @@ def test_every_verdict_follows_the_closed_form_walls(every: Suggestion) -> None:
     # Ranking: the feasible first, by score.
     n = every.n_feasible
     assert every.feasible[every.order[:n]].all() and not every.feasible[every.order[n:]].any()
-    assert np.all(np.diff(every.scores.total[every.order[:n]]) <= 0.0)
+    ranked = ranked_total(every.scores.total, every.wall_balance, every.objective)
+    assert np.all(np.diff(ranked[every.order[:n]]) <= 0.0)
 
 
 def test_the_exact_check_stops_and_says_so(vol: CTVolume, cal: Calibration) -> None:
@@ -196,3 +199,21 @@ def test_demo_shorter_implant_best_keeps_margins_and_walls(demo: CTVolume) -> No
     assert walls is not None and walls.perforation is None
     assert walls.min_mm is not None and walls.min_mm >= best.min_wall_mm
     assert s.min_wall_mm[s.best_index] == walls.min_mm
+
+
+def test_the_best_axis_has_even_walls_not_the_plate(every: Suggestion) -> None:
+    """The bone runs from X_LEFT to X_RIGHT: an implant centred between them has even walls
+    (about 3.8 mm each); the old objective hugged the plate (one wall at the 1.5 mm minimum)."""
+    best = every.best_index
+    assert best is not None
+    centre = 0.5 * (plate.X_LEFT + plate.X_RIGHT)
+    x_best = float(every.candidates.entries_lps[best, 0])
+    assert abs(x_best - centre) < 1.0
+    assert every.wall_balance[best] > 0.6
+    hugging = [
+        i
+        for i in np.flatnonzero(every.feasible)
+        if plate.thinnest_wall_mm(float(every.candidates.entries_lps[i, 0]), _radius(every)) < 2.0
+    ]
+    for i in hugging:
+        assert every.rank_of(i) > every.rank_of(best)
