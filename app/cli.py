@@ -76,12 +76,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``ctdrill`` with ``argv`` (default: ``sys.argv[1:]``) and return the exit code."""
+    """Run ``ctdrill`` with ``argv`` (default: ``sys.argv[1:]``) and return the exit code.
+
+    SIGTERM and SIGHUP are taken as Ctrl-C (:mod:`ctdrill.interrupts`): exit ``128 + signal``
+    (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), the command's records written as after Ctrl-C.
+    """
+    from ctdrill.interrupts import exit_code_of, install, signal_name, signum_of
+
+    install()
     try:
         args = build_parser().parse_args(argv)
-    except KeyboardInterrupt:  # Ctrl-C while the command starts: no traceback either
-        sys.stderr.write("error: interrupted\n")
-        return 130
+    except KeyboardInterrupt as exc:  # Ctrl-C while the command starts: no traceback either
+        sys.stderr.write(f"error: interrupted ({signal_name(signum_of(exc))})\n")
+        return exit_code_of(exc)
     _ignore_file_size_signal()
     try:
         code: int = args.func(args)
@@ -95,9 +102,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         reason = exc.strerror or str(exc)
         sys.stderr.write(f"error: {where}{reason}; check the path and its permissions\n")
         return 2
-    except KeyboardInterrupt:
-        sys.stderr.write("error: interrupted\n")
-        return 130
+    except KeyboardInterrupt as exc:
+        sys.stderr.write(f"error: interrupted ({signal_name(signum_of(exc))})\n")
+        return exit_code_of(exc)
     return code
 
 

@@ -57,7 +57,8 @@ import re
 import secrets
 import shutil
 import stat
-from collections.abc import Collection, Iterator
+import sys
+from collections.abc import Callable, Collection, Iterator
 from pathlib import Path
 
 from ctdrill.app.errors import AppInputError
@@ -135,11 +136,18 @@ def _remove(path: Path) -> None:
             path.unlink()
 
 
-def clean_leftovers(out: Path) -> list[Path]:
+def clean_leftovers(
+    out: Path, *, keep_unfinished: bool = False, notice: Callable[[str], None] | None = None
+) -> list[Path]:
     """Remove what crashed writes of ``out`` left beside it; restore a set-aside old folder.
 
-    Only leftovers of processes that are gone are touched. Returns the paths removed.
+    Only leftovers of processes that are gone are touched. An unfinished output (a staging
+    folder with files in it: a run killed before its swap) is never removed without a word:
+    ``notice`` (default: a ``note:`` line on stderr) says so, and with ``keep_unfinished`` (a
+    rehearsal's ``session.csv`` is a session's only record) it is kept instead, renamed to the
+    visible ``NAME.unfinished-PID-XXXX`` beside ``out``. Returns the paths removed.
     """
+    say = notice or _note
     out = Path(os.path.abspath(out))
     parent, name = out.parent, out.name
     pattern = _leftover_re(name, f"{_NEW}|{_OLD}|{_TMP}")
@@ -156,15 +164,45 @@ def clean_leftovers(out: Path) -> list[Path]:
                 _remove(entry)
                 removed.append(entry)
             continue
-        if _alive(int(match.group(2))):
+        pid = int(match.group(2))
+        if _alive(pid):
             continue
         if match.group(1) == _OLD and not os.path.lexists(out):
             with contextlib.suppress(OSError):
                 os.rename(entry, out)  # the fallback swap died between its two renames
                 continue
+        unfinished = match.group(1) == _NEW and _has_files(entry)
+        if unfinished and keep_unfinished:
+            kept = parent / f"{name}.unfinished-{entry.name[len(name) + len(_NEW) + 3 :]}"
+            try:
+                os.rename(entry, kept)
+            except OSError:
+                pass
+            else:
+                say(
+                    f"an earlier run (process {pid}, no longer running) left an unfinished "
+                    f"output beside {out}; kept as {kept}"
+                )
+                continue
         _remove(entry)
         removed.append(entry)
+        if unfinished:
+            say(
+                f"removed the unfinished output an earlier run (process {pid}, no longer "
+                f"running) left at {entry}"
+            )
     return removed
+
+
+def _has_files(folder: Path) -> bool:
+    """``folder`` is a folder with at least one file somewhere in it."""
+    if not folder.is_dir() or folder.is_symlink():
+        return False
+    return any(files for _, _, files in os.walk(folder))
+
+
+def _note(text: str) -> None:
+    sys.stderr.write(f"note: {text}\n")
 
 
 def _foreign_files(folder: Path, owned: Collection[str]) -> list[Path]:
@@ -257,6 +295,8 @@ def atomic_output_dir(
     *,
     owned_names: Collection[str] = OUTPUT_NAMES,
     what: str = "--out",
+    keep_unfinished: bool = False,
+    notice: Callable[[str], None] | None = None,
 ) -> Iterator[Path]:
     """Yield a temporary sibling folder of ``out_dir``; on success swap it into its place.
 
@@ -267,6 +307,8 @@ def atomic_output_dir(
     owned_names : file names an existing ``out_dir`` may hold to be replaced (default: the
         names of ctdrill's export and rehearsal outputs).
     what : how messages name the folder (the option that gave it).
+    keep_unfinished, notice : what becomes of an earlier run's unfinished output
+        (:func:`clean_leftovers`).
 
     Yields
     ------
@@ -299,7 +341,7 @@ def atomic_output_dir(
         raise OutputWriteError(
             f"{what} {out_dir}: cannot create the folder: {_reason(exc)}"
         ) from exc
-    clean_leftovers(out)
+    clean_leftovers(out, keep_unfinished=keep_unfinished, notice=notice)
     token = secrets.token_hex(4)
     staging = out.parent / f".{out.name}.{_NEW}-{os.getpid()}-{token}"
     try:

@@ -12,6 +12,7 @@ nothing is written. Once the device was armed, ``summary.json`` is always writte
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 from collections.abc import Callable, Sequence
@@ -48,10 +49,12 @@ from ctdrill.haptics.session import SessionCsv, parse_fault, parse_operator
 from ctdrill.haptics.spec import DeviceSpec
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.dicom.grey import GreyToHu
+from ctdrill.interrupts import exit_code_for_signal, held
 
 #: Exit code of a session that ended on a device fault or a host error (STOP, DISARM sent).
 EXIT_DEVICE_FAULT = 3
-#: Exit code of a session interrupted with Ctrl-C (STOP, DISARM sent, records written).
+#: Exit code of a session interrupted with Ctrl-C (STOP, DISARM sent, records written);
+#: SIGTERM and SIGHUP are taken as Ctrl-C and exit 143 and 129 (``128 + signal``).
 EXIT_INTERRUPTED = 130
 
 
@@ -252,7 +255,7 @@ def rehearse(
     if card is not None:
         check_session_plan(card, plan_hash(loaded.path.plan), where=str(plan))
     assessor = Assessor(loaded.context, loaded.table)
-    with atomic_output_dir(out) as stage:
+    with atomic_output_dir(out, keep_unfinished=True) as stage, contextlib.ExitStack() as late:
         dev = open_device(spec, seed=seed)
         stream = None
         if target is not None:
@@ -272,6 +275,8 @@ def rehearse(
                     on_samples=assessor.add if stream is None else stream.chained(assessor.add),
                     notice=notice,
                 )
+                # the session has ended: a signal now no longer cuts its records short
+                late.enter_context(held(reraise=False))
             finally:
                 csv_out.close()
         finally:
@@ -314,7 +319,11 @@ def ending_message(summary: dict[str, Any]) -> str:
 
 
 def exit_code(summary: dict[str, Any]) -> int:
-    """0 for a complete session, 3 after a device fault or host error, 130 after Ctrl-C."""
+    """0 for a complete session, 3 after a device fault or host error, ``128 + signal`` after
+    an interrupt: 130 Ctrl-C (SIGINT), 143 SIGTERM, 129 SIGHUP (the host's event names it)."""
     if summary.get("complete"):
         return 0
-    return EXIT_INTERRUPTED if summary.get("outcome") == "interrupted" else EXIT_DEVICE_FAULT
+    if summary.get("outcome") != "interrupted":
+        return EXIT_DEVICE_FAULT
+    host = [f for f in summary.get("faults", []) if f.get("source") == "host"]
+    return exit_code_for_signal(host[-1].get("signal") if host else None)

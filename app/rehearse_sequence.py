@@ -59,6 +59,7 @@ from ctdrill.haptics.session import FaultSpec, Operator, SessionCsv
 from ctdrill.haptics.spec import DeviceSpec
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.plan.types import Plan
+from ctdrill.interrupts import Interrupted, held, signal_name
 
 if TYPE_CHECKING:
     from ctdrill.app.igtl.stream import IgtlStream
@@ -108,10 +109,15 @@ def rehearse_sequence(
     first = plan_sequence(volume, plan, calibration, interpolate_gaps=interpolate_gaps)
     runs: list[tuple[PathResult, dict[str, Any], float]] = []
     with (
-        atomic_output_dir(out) as stage,
+        atomic_output_dir(out, keep_unfinished=True) as stage,
         _streaming(igtl, first.steps[0].plan, on_warning, device) as stream,
+        held(reraise=False) as signals,  # outside the sessions, a signal ends the sequence
     ):
         for k in range(len(plan.drills)):
+            if signals.caught:  # Ctrl-C, SIGTERM or SIGHUP between two sessions
+                if not runs:
+                    raise Interrupted(signals.caught[0])  # nothing armed: nothing written
+                break
             reached = [r for _, _, r in runs]
             path = (
                 first.steps[0]
@@ -146,16 +152,17 @@ def rehearse_sequence(
             try:
                 csv_out = SessionCsv(folder / "session.csv")
                 try:
-                    result = run_session(
-                        dev,
-                        table,
-                        operator,
-                        duration_s,
-                        faults=faults,
-                        seed=seed,
-                        sink=csv_out.write,
-                        on_samples=observe,
-                    )
+                    with signals.released():  # the session handles them (STOP, DISARM)
+                        result = run_session(
+                            dev,
+                            table,
+                            operator,
+                            duration_s,
+                            faults=faults,
+                            seed=seed,
+                            sink=csv_out.write,
+                            on_samples=observe,
+                        )
                 finally:
                     csv_out.close()
             finally:
@@ -177,6 +184,8 @@ def rehearse_sequence(
             if not doc.get("complete"):
                 break
         top = sequence_summary(plan, runs)
+        if signals.caught and len(runs) < len(plan.drills) and runs[-1][1].get("complete"):
+            _mark_interrupted(top, signal_name(signals.caught[0]))  # the sequence broke there
         if stream is not None:
             top["igtl"] = stream.close().to_json()
         write_file(stage / "summary.json", to_json(top))
@@ -203,6 +212,23 @@ def _streaming(
         yield stream
     finally:
         stream.close()
+
+
+def _mark_interrupted(top: dict[str, Any], signal: str) -> None:
+    """A sequence interrupted between two drills' sessions (every session run ended whole)."""
+    message = f"interrupted ({signal}) between drills"
+    top["complete"] = False
+    top["outcome"] = "interrupted"
+    top["reason"] = f"interrupted: {message}"
+    top["faults"].append(
+        {
+            "drill": top["drills_run"],
+            "source": "host",
+            "kind": "interrupted",
+            "message": message,
+            "signal": signal,
+        }
+    )
 
 
 def sequence_summary(

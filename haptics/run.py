@@ -46,6 +46,7 @@ from ctdrill.haptics.session import (
     SessionInputError,
 )
 from ctdrill.haptics.watch import TelemetryWatch, fault_names
+from ctdrill.interrupts import held, signal_name, signum_of
 
 GARBAGE_BYTES = 64
 #: Outcomes of a session.
@@ -81,8 +82,7 @@ class SessionResult:
     #: device's watchdog it says the host itself was late (a machine too busy to run it),
     #: beyond it with an injected ``delay`` or ``link-loss``.
     max_heartbeat_gap_s: float = 0.0
-    #: The hand's largest offset past the drill over the samples of the stopped state, mm, and
-    #: the force rendered and the flags raised at that sample (None: never stopped).
+    #: The hand's largest offset past the drill while stopped, mm; the force and flags then.
     max_hand_past_drill_mm: float | None = None
     worst_wall_force_n: float | None = None
     worst_wall_faults: int = 0
@@ -216,12 +216,10 @@ class _Loop:
             if s.state == DeviceState.STOPPED:
                 if result.time_to_stop_s is None:
                     result.time_to_stop_s = round(t, 4)
-                past = s.master_mm - s.drill_mm
-                worst = result.max_hand_past_drill_mm
+                past, worst = s.master_mm - s.drill_mm, result.max_hand_past_drill_mm
                 if worst is None or past > worst:
                     result.max_hand_past_drill_mm = max(past, 0.0)
-                    result.worst_wall_force_n = s.force_cmd_n
-                    result.worst_wall_faults = s.faults
+                    result.worst_wall_force_n, result.worst_wall_faults = s.force_cmd_n, s.faults
             new_bits = s.faults & ~self.prev_faults
             if new_bits:
                 result.faults.append(
@@ -259,14 +257,19 @@ class _Loop:
             result.final_force_cmd_n = sample.force_cmd_n
             result.final_hand_est_n = sample.force_est_n
 
-    def abort(self, kind: str, message: str, *, outcome: str = "fault") -> None:
-        """End the session: STOP and DISARM (each awaited), record why, log the last rows."""
+    def abort(
+        self, kind: str, message: str, *, outcome: str = "fault", signal: str | None = None
+    ) -> None:
+        """End the session: STOP and DISARM (each awaited), record why, log the last rows;
+        ``signal`` names the signal that interrupted it (recorded in the event)."""
         event: dict[str, Any] = {
             "time_s": round(self.now(), 4),
             "source": "host",
             "kind": kind,
             "message": message,
         }
+        if signal is not None:
+            event["signal"] = signal
         if self.link_up:
             sent_s = self.device.clock_s()
             for name, step in (("stop", self.device.stop), ("disarm", self.device.disarm)):
@@ -412,8 +415,13 @@ def run_session(
     loop.watch = watch
     try:
         loop.run(duration_s, block_s, watch, should_stop, until)
-    except KeyboardInterrupt:
-        loop.abort("interrupted", "interrupted by the user (SIGINT)", outcome="interrupted")
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP (ctdrill.interrupts)
+        name = signal_name(signum_of(exc))
+        with held(reraise=False):  # a second signal does not cut the STOP and DISARM short
+            why = (
+                f"interrupted by the user ({name})" if name == "SIGINT" else f"interrupted ({name})"
+            )
+            loop.abort("interrupted", why, outcome="interrupted", signal=name)
     except (DeviceError, OSError, ValueError) as exc:  # the host's own step failed
         loop.abort("host_error", str(exc) or type(exc).__name__)
     except BaseException as exc:  # a bug: make the device safe first, then let it surface

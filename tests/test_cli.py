@@ -68,8 +68,8 @@ HEAVY_FOR_HELP = (
 )
 #: First-party modules that building the parser may load: the CLI, its commands, the
 #: ``*InputError`` modules the CLI catches (the engine's too), lazy package ``__init__`` files
-#: (and ``ctdrill.lazy``, which builds their re-exports) and the numpy-free defaults the
-#: parsers show.
+#: (and ``ctdrill.lazy``, which builds their re-exports), the numpy-free defaults the parsers
+#: show and ``ctdrill.interrupts`` (SIGTERM and SIGHUP taken as Ctrl-C from the start).
 LIGHT_FIRST_PARTY = {
     "ctdrill",
     "ctdrill.app",
@@ -89,6 +89,7 @@ LIGHT_FIRST_PARTY = {
     "ctdrill.imaging.phantom",
     "ctdrill.imaging.phantom.classes",
     "ctdrill.imaging.stack",
+    "ctdrill.interrupts",
     "ctdrill.lazy",
     "ctdrill.model",
     "ctdrill.model.errors",

@@ -78,6 +78,8 @@ class BatchReport:
     outcomes: tuple[RowOutcome, ...]
     out_dir: Path
     interrupted: bool = False
+    #: The exit code after an interrupt: ``128 + signal`` (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP).
+    interrupt_exit: int = EXIT_INTERRUPTED
 
     @property
     def failed(self) -> tuple[RowOutcome, ...]:
@@ -181,14 +183,28 @@ def run_batch(
     workers: int,
     scheduler: str | None = None,
     progress: Progress | None = None,
+    stop: Interrupt | None = None,
 ) -> BatchReport:
     """Export every row not already complete, then write the three tables.
 
     ``workers`` 1 runs in this process; more use a process pool; ``scheduler`` a Dask
-    cluster (``workers`` is then the cluster's business). Ctrl-C stops the batch
-    (:class:`ctdrill.app.batch.workers.Interrupt`): the report says ``interrupted`` and the
-    tables record which rows are complete.
+    cluster (``workers`` is then the cluster's business). Ctrl-C (SIGTERM, SIGHUP) stops the
+    batch (``stop``, the caller's :class:`ctdrill.app.batch.workers.Interrupt` when it
+    installed one before reading the manifest, else this call's): the report says
+    ``interrupted`` and the tables record which rows are complete, whenever it came.
     """
+    if stop is None:
+        with Interrupt() as own:
+            return run_batch(
+                manifest,
+                rows,
+                out,
+                options,
+                workers=workers,
+                scheduler=scheduler,
+                progress=progress,
+                stop=own,
+            )
     if workers < 1:
         raise BatchInputError(f"--workers must be 1 or more, got {workers}")
     _check_out_dir(out)
@@ -208,25 +224,24 @@ def run_batch(
         if progress is not None:
             progress(len(outcomes), len(rows), o)
 
-    with Interrupt() as stop:
-        try:
-            tasks, done = plan_tasks(rows, out, options, base)
-            for o in done:
-                on_done(o)
-            if stop.stopping:
-                tasks = []
-            if client is not None:
-                from ctdrill.app.batch.cluster import run_dask
+    try:
+        tasks, done = plan_tasks(rows, out, options, base)
+        for o in done:
+            on_done(o)
+        if stop.stopping:
+            tasks = []
+        if client is not None:
+            from ctdrill.app.batch.cluster import run_dask
 
-                run_dask(tasks, client, on_done, stop)
-            elif workers == 1 or len(tasks) <= 1:
-                run_serial(tasks, on_done, stop)
-            else:
-                run_processes(tasks, min(workers, len(tasks)), on_done, stop)
-        except KeyboardInterrupt:  # a second Ctrl-C outside a row
-            stop.count = max(stop.count, 2)
-        report = _finish(manifest, rows, out, options, outcomes, base)
-    return replace(report, interrupted=stop.stopping)
+            run_dask(tasks, client, on_done, stop)
+        elif workers == 1 or len(tasks) <= 1:
+            run_serial(tasks, on_done, stop)
+        else:
+            run_processes(tasks, min(workers, len(tasks)), on_done, stop)
+    except KeyboardInterrupt:  # a second Ctrl-C outside a row
+        stop.count = max(stop.count, 2)
+    report = _finish(manifest, rows, out, options, outcomes, base)
+    return replace(report, interrupted=stop.stopping, interrupt_exit=stop.exit_code)
 
 
 def _finish(

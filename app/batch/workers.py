@@ -4,10 +4,11 @@
 **Ctrl-C** (:class:`Interrupt`): the first stops scheduling; the rows running finish (their
 outputs are whole and recorded), rows not started are reported "not run". A second Ctrl-C
 cancels the running rows too (worker processes killed; in this process the row is abandoned,
-its staging folder removed). Either way the batch then writes its tables and exits 130. Worker
-processes never see the terminal's Ctrl-C themselves (SIGINT is blocked when the pool starts
-and ignored in the workers), so no traceback comes from them and no row is cut mid-write by
-it.
+its staging folder removed). Either way the batch then writes its tables and exits 130.
+SIGTERM and SIGHUP (``timeout``, systemd, a closed terminal) count as Ctrl-C
+(:mod:`ctdrill.interrupts`; exit 143 and 129). Worker processes never see these signals
+themselves (they are blocked when the pool starts and ignored in the workers), so no traceback
+comes from them and no row is cut mid-write by them.
 
 **kill -9 of the batch** leaves no live process behind: each worker watches the batch process
 (a ``pidfd`` where Linux has one, else polling) and kills itself when it is gone, and has the
@@ -29,6 +30,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 from ctdrill.app.batch.task import RowOutcome, RowTask, one_line, run_row
+from ctdrill.interrupts import INTERRUPT_SIGNALS, Interrupted
 
 if TYPE_CHECKING:
     from multiprocessing.context import BaseContext
@@ -57,6 +59,8 @@ class Interrupt:
 
     def __init__(self, *, raise_on_cancel: bool = False) -> None:
         self.count = 0
+        #: The first signal's number (0: none yet).
+        self.signum = 0
         self.raise_on_cancel = raise_on_cancel
         self._old: Any = None
 
@@ -72,17 +76,28 @@ class Interrupt:
 
     def _handle(self, signum: int, frame: object) -> None:
         self.count += 1
+        self.signum = self.signum or signum
         if self.cancelling and self.raise_on_cancel:
-            raise KeyboardInterrupt
+            raise Interrupted(signum)
+
+    @property
+    def exit_code(self) -> int:
+        """``128 +`` the first signal's number: 130 Ctrl-C, 143 SIGTERM, 129 SIGHUP."""
+        return 128 + (self.signum or int(signal.SIGINT))
 
     def __enter__(self) -> Interrupt:
         if threading.current_thread() is threading.main_thread():
-            self._old = signal.signal(signal.SIGINT, self._handle)
+            self._old = {
+                sig: signal.signal(sig, self._handle)
+                for sig in INTERRUPT_SIGNALS
+                if signal.getsignal(sig) is not signal.SIG_IGN
+            }
         return self
 
     def __exit__(self, *exc: object) -> None:
         if self._old is not None:
-            signal.signal(signal.SIGINT, self._old)
+            for sig, old in self._old.items():
+                signal.signal(sig, old)
             self._old = None
 
 
@@ -131,7 +146,8 @@ def _die_with_parent() -> None:
 
 def worker_init(batch_pid: int) -> None:
     """Every worker's initializer: ignore Ctrl-C, die with the forkserver and with the batch."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for sig in INTERRUPT_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
     parent = os.getppid()
     _die_with_parent()
     if os.getppid() != parent:  # the parent died before the request took effect
@@ -146,7 +162,7 @@ def sigint_blocked() -> Iterator[None]:
     if not hasattr(signal, "pthread_sigmask"):
         yield
         return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, set(INTERRUPT_SIGNALS))
     try:
         yield
     finally:
@@ -160,10 +176,14 @@ def pool_context() -> BaseContext:
 
     if "forkserver" not in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("spawn")
-    from multiprocessing import forkserver
+    from multiprocessing import forkserver, resource_tracker
 
     server = multiprocessing.get_context("forkserver")
     server.set_forkserver_preload(list(PRELOAD))
+    # the resource tracker first: starting it unblocks SIGINT and SIGTERM in this thread
+    # (multiprocessing's own block around its start), which would let them reach the
+    # forkserver's preload imports (a KeyboardInterrupt traceback, then EOFError here)
+    resource_tracker.ensure_running()
     with sigint_blocked():
         forkserver.ensure_running()
     return server

@@ -69,11 +69,18 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the batch; print the summary line and each failed row."""
+    """Run the batch; print the summary line and each failed row. Ctrl-C (SIGTERM, SIGHUP)
+    from here on still writes ``status.csv`` (every row not run) and exits ``128 + signal``."""
+    from ctdrill.app.batch.workers import Interrupt
+
+    with Interrupt() as stop:
+        return _run(args, stop)
+
+
+def _run(args: argparse.Namespace, stop: Any) -> int:
     from ctdrill.app.batch.manifest import read_manifest
     from ctdrill.app.batch.progress import make_progress
     from ctdrill.app.batch.run import (
-        EXIT_INTERRUPTED,
         EXIT_ROWS_FAILED,
         BatchInputError,
         default_workers,
@@ -99,6 +106,7 @@ def run(args: argparse.Namespace) -> int:
             workers=workers,
             scheduler=args.scheduler,
             progress=progress,
+            stop=stop,
         )
     sys.stdout.write(report.summary_line() + "\n")
     for line in outcome_lines(report, rows):
@@ -108,5 +116,5 @@ def run(args: argparse.Namespace) -> int:
             f"error: interrupted: {len(report.not_run)} rows not run, the others recorded in "
             f"{report.out_dir / 'status.csv'}; run the same command again to resume\n"
         )
-        return EXIT_INTERRUPTED
+        return report.interrupt_exit
     return EXIT_ROWS_FAILED if report.failed else 0
