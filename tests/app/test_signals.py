@@ -89,8 +89,8 @@ def test_a_signal_to_an_armed_rehearsal_stops_the_device_and_writes_the_records(
     assert "the device acknowledged STOP and DISARM" in stderr
     summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
     assert summary["complete"] is False and summary["outcome"] == "interrupted"
-    host = summary["faults"][-1]
-    assert host["source"] == "host" and host["signal"] == sig.name
+    host = [f for f in summary["faults"] if f["source"] == "host"][-1]
+    assert host["kind"] == "interrupted" and host["signal"] == sig.name
     assert host["stop_acknowledged"] is True and host["disarm_acknowledged"] is True
     with (out / "session.csv").open(encoding="utf-8") as fh:
         assert len(list(csv.DictReader(fh))) > 10
@@ -113,9 +113,11 @@ def test_a_signal_during_a_drill_sequence_writes_every_drills_records(tmp_path: 
     assert "Traceback" not in stderr + stdout
     top = json.loads((out / "summary.json").read_text(encoding="utf-8"))
     assert top["complete"] is False and top["outcome"] == "interrupted"
-    assert top["drills_run"] == 1 and top["faults"][-1]["signal"] == "SIGTERM"
+    host = [f for f in top["faults"] if f["source"] == "host"]
+    assert top["drills_run"] == 1 and host[-1]["signal"] == "SIGTERM"
     first = json.loads((out / "drill_1" / "summary.json").read_text(encoding="utf-8"))
-    assert first["outcome"] == "interrupted" and first["faults"][-1]["stop_acknowledged"]
+    host = [f for f in first["faults"] if f["source"] == "host"]
+    assert first["outcome"] == "interrupted" and host[-1]["stop_acknowledged"] is True
 
 
 def test_an_unfinished_output_of_a_killed_run_is_kept_and_named(tmp_path: Path) -> None:
