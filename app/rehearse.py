@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.errors import AppInputError
+from ctdrill.app.exercise.aids import AidLevel
 from ctdrill.app.exercise.trials import blind_summary, check_session_plan, find_trial
 from ctdrill.app.igtl.frames import StreamGeometry, parse_target
 from ctdrill.app.igtl.stream import IgtlStream
@@ -194,8 +195,13 @@ def rehearse(
     notice: Callable[[str], None] | None = None,
     igtl: str | None = None,
     on_warning: Callable[[str], None] | None = None,
+    aids: AidLevel | None = None,
 ) -> dict[str, Any]:
     """Run one rehearsal and write ``OUT/session.csv`` and ``OUT/summary.json`` (whole).
+
+    ``aids``: a level of the stop-yourself exercise (:mod:`ctdrill.app.exercise.aids`): the
+    summary's ``mode`` is the level's and ``aids`` says which aids were on; a level without
+    the wall runs in exam mode. One drill at a time (a drill sequence is refused).
 
     ``trajectory`` picks one trajectory of several plan files by name or number; ``exam``
     removes the margin's wall (simulator only: refused with any other device; docs/rehearse.md);
@@ -219,6 +225,13 @@ def rehearse(
     fault_specs = [parse_fault(f) for f in faults]
     target = None if igtl is None else parse_target(igtl)
     whole = one_trajectory([plan] if isinstance(plan, Path) else plan, trajectory=trajectory)
+    if aids is not None:
+        if len(whole.drills) > 1:
+            raise AppInputError(
+                f"--aids {aids.name}: the stop-yourself exercise drills one drill; give a plan "
+                "with its final drill alone"
+            )
+        exam = exam or not aids.wall
     if len(whole.drills) > 1:  # a drill sequence: one session per drill (exam: each drill's)
         from ctdrill.app.rehearse_sequence import rehearse_sequence
 
@@ -296,6 +309,8 @@ def rehearse(
         )
         if streamed is not None:
             summary["igtl"] = streamed
+        if aids is not None:
+            summary.update(aids.summary())
         if card is not None:
             summary = blind_summary(summary, card)
         write_file(stage / "summary.json", summary_json(summary))

@@ -66,6 +66,14 @@ def register(subparsers: Any) -> None:
         "surface (serial:...); the summary's assessment records any breach (docs/rehearse.md)",
     )
     p.add_argument(
+        "--aids",
+        metavar="LEVEL",
+        default=None,
+        help="a level of the stop-yourself exercise (all-aids, no-plots, no-readout, "
+        "no-gauges, no-wall: exam mode); the summary's mode is stop-yourself:LEVEL "
+        "(docs/exercises.md)",
+    )
+    p.add_argument(
         "--igtl",
         metavar="HOST:PORT",
         help="stream the session live to an OpenIGTLink server, e.g. 3D Slicer's "
@@ -81,6 +89,7 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the rehearsal and print a one-line summary; 3 if it ended on a device fault."""
+    from ctdrill.app.exercise.aids import aid_level
     from ctdrill.app.grey_option import grey_line, parse_grey_options
     from ctdrill.app.readout import readout_lines
     from ctdrill.app.rehearse import ending_message, exit_code, rehearse
@@ -88,7 +97,9 @@ def run(args: argparse.Namespace) -> int:
     from ctdrill.engine.record import from_json
     from ctdrill.engine.summary import CalibrationInfo, ForceBandPeak, GreyMapInfo
 
+    aids = None if args.aids is None else aid_level(args.aids)
     s = rehearse(
+        aids=aids,
         dicom=args.dicom,
         plan=args.plan,
         out=args.out,

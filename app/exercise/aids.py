@@ -14,6 +14,7 @@ Each level is an exercise of its own (its name is the session's ``mode``, e.g.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from ctdrill.app.errors import AppInputError
 
@@ -43,11 +44,20 @@ class AidLevel:
         """The aids on at this level, in :data:`AIDS` order."""
         return tuple(a for a in AIDS if getattr(self, a))
 
+    def summary(self) -> dict[str, Any]:
+        """A session's ``summary.json`` keys at this level: ``mode`` and ``aids``."""
+        return {"mode": self.mode, "aids": {"level": self.name, "on": list(self.aids())}}
+
     def describe(self) -> str:
         """The level in words."""
         on = self.aids()
         off = [a for a in AIDS if a not in on]
-        wall = "" if self.wall else "; the wall at the canal's surface, not the margin"
+        wall = (
+            ""
+            if self.wall
+            else "; exam mode: no wall at the margin (on the robot the wall stands at the "
+            "canal's surface)"
+        )
         return f"aids on: {', '.join(on) or 'none'}; off: {', '.join(off) or 'none'}{wall}"
 
 

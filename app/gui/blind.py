@@ -23,6 +23,7 @@ from PySide6.QtWidgets import QLabel, QSplitter, QTabWidget, QWidget
 from ctdrill.app.gui.views import VIEWS
 
 if TYPE_CHECKING:
+    from ctdrill.app.exercise.aids import AidLevel
     from ctdrill.app.exercise.trials import TrialCard
 
 #: Views a blind trial shows (every other is hidden): the rehearsal and the banner (the plan's
@@ -110,3 +111,10 @@ def show_trial(window: BlindWindow, paths: Sequence[str | os.PathLike[str]]) -> 
         card = None
         window._status(f"not a blind trial: {exc}")
     apply_blind(window, card)
+
+
+def apply_aids(window: BlindWindow, level: AidLevel | None) -> None:
+    """The stop-yourself exercise's level in the window: its plots shown only where the level
+    keeps them (a blind trial keeps them hidden whatever the level)."""
+    shown = window.blind_trial is None and (level is None or level.plots)
+    window.views["plots"].setVisible(shown)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 
 from PySide6.QtCore import QSettings, Qt, QThreadPool, Signal
@@ -29,6 +30,7 @@ from PySide6.QtWidgets import (
 
 from ctdrill.app.exercise.trials import TrialCard
 from ctdrill.app.gui import compute
+from ctdrill.app.gui.blind import apply_aids
 from ctdrill.app.gui.controller import DEBOUNCE_MS, LEGACY_DEBOUNCE_MS, Controller
 from ctdrill.app.gui.document import Document, ViewContext
 from ctdrill.app.gui.map_canvas import MapCanvas
@@ -108,6 +110,7 @@ class MainWindow(QMainWindow):
         self.warnings_list = self.series_panel.warnings_list
         self.block_label = self.series_panel.block_label
         self.plan_panel.add_canal_toggled.connect(self.slice_grid.set_canal_mode)
+        self.rehearsal.exercise.aids_changed.connect(partial(apply_aids, self))
 
         # Connected after the views: the steps pushed here run after theirs.
         self.doc.path_changed.connect(self._path_changed)

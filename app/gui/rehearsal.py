@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from serial.tools import list_ports
 
+from ctdrill.app.exercise.aids import AidLevel
 from ctdrill.app.exercise.trials import TrialCard, blind_summary, write_session_only
 from ctdrill.app.export import write_exports
 from ctdrill.app.gui.session_process import SessionJob, run_job
@@ -110,6 +111,8 @@ class RehearsalRun:
         #: The blind trial's card when the session drills one (its summary and export hide
         #: the bone: :func:`ctdrill.app.exercise.trials.blind_summary`).
         self.blind: TrialCard | None = None
+        #: The stop-yourself exercise's level the session runs at (its summary says so).
+        self.aids: AidLevel | None = None
         self.table = (
             ProfileTable.from_profile(result.profile, result.stop_depth_mm)
             if exam is None
@@ -338,6 +341,8 @@ class RehearsalRun:
         summary.update({"cancelled": self.cancelled, "recorded_rows": len(self.rows)})
         if self.igtl is not None:
             summary["igtl"] = self.igtl
+        if self.aids is not None:
+            summary.update(self.aids.summary())
         if self.blind is not None:  # a blind trial: nothing that gives the bone away
             summary = blind_summary(summary, self.blind)
         if not self.running:

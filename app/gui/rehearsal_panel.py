@@ -38,9 +38,9 @@ from PySide6.QtWidgets import (
 
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.exercise.trials import TrialCard, check_session_plan
-from ctdrill.app.gui.blind_words import BLIND_PREDICTION
 from ctdrill.app.gui.debrief import debrief_of
 from ctdrill.app.gui.document import ViewContext
+from ctdrill.app.gui.exercise_controls import ExerciseControls
 from ctdrill.app.gui.rehearsal import (
     SIMULATOR,
     RehearsalRun,
@@ -50,6 +50,8 @@ from ctdrill.app.gui.rehearsal import (
 )
 from ctdrill.app.gui.rehearsal_live import WARN_STYLE, LiveReadouts
 from ctdrill.app.gui.rehearsal_words import (
+    IGTL_TIP,
+    SOUND_TIP,
     end_details,
     end_message,
     predicted_words,
@@ -64,17 +66,8 @@ from ctdrill.app.trainee.words import assessment_line
 from ctdrill.engine.path import PathResult
 from ctdrill.haptics.profile_table import ProfileTable
 
-IGTL_TIP = (
-    "HOST:PORT of an OpenIGTLink server, e.g. 3D Slicer's OpenIGTLinkIF connector on "
-    f"localhost:{SLICER_PORT}: the session streams the transforms DrillTip and Implant and the "
-    "forces (text Forces, JSON). Empty: off. docs/slicer.md says how to watch it in Slicer."
-)
 #: Telemetry poll period, ms (30 Hz display).
 POLL_MS = 33
-SOUND_TIP = (
-    "The cutting vibration at the drill's depth (the model's 30 and 60 Hz amplitudes) on the "
-    "audio output; a headset carries 30 Hz better than small speakers"
-)
 #: Shortest interval between 3D drill updates, s (a software-GL frame costs ~80 ms).
 MIN_3D_UPDATE_S = 0.1
 
@@ -98,8 +91,6 @@ class RehearsalPanel(QWidget):
         self.sound = VibrationSound()
         self._last_emit = (-1.0, float("nan"))  # (monotonic s, depth mm) of the last update
         self._reported: RehearsalRun | None = None  # the run whose end was reported
-        #: The blind trial's card when the plan is one (:mod:`ctdrill.app.gui.blind`).
-        self.blind: TrialCard | None = None
         content = QWidget()
         outer = QVBoxLayout(content)
         outer.setSizeConstraint(QLayout.SizeConstraint.SetMinimumSize)  # scroll, never squeeze
@@ -127,6 +118,8 @@ class RehearsalPanel(QWidget):
             "you must stop yourself. The debrief records any breach (summary.json exam)."
         )
         form.addRow(self.exam)
+        self.exercise = ExerciseControls(self)  # blind trials, aid levels
+        form.addRow("exercise", self.exercise.picker)
         self.sound_box = QCheckBox("hear the vibration")
         self.sound_box.setToolTip(SOUND_TIP)
         self.sound_box.setChecked(True)
@@ -236,8 +229,13 @@ class RehearsalPanel(QWidget):
         self.stop_button.setEnabled(running)
         self.device.setEnabled(not running)
         self.igtl.setEnabled(not running)
-        self.exam.setEnabled(not running)  # on the robot its wall stands at the canal
+        self.update_exam_toggle()
         self.export_button.setEnabled(self.run is not None and not running)
+
+    def update_exam_toggle(self) -> None:
+        """Exam mode is settable unless a session runs or the aid level locks it on."""
+        running = self.run is not None and self.run.running
+        self.exam.setEnabled(not running and not self.exercise.exam_locked)
 
     # ------------------------------------------------------------------ the hand
     def _push_changed(self, push_n: float) -> None:
@@ -251,18 +249,14 @@ class RehearsalPanel(QWidget):
         self.timing_label.setText("Retracting: the drill comes back out of the hole.")
 
     def set_blind(self, card: TrialCard | None) -> None:
-        """Drill a blind trial (``card``: no prediction, no word of the bone) or not (None)."""
-        self.blind = card
-        self.live.blind = card is not None
-        self.timing_label.setToolTip("")
+        """Drill a blind trial (``card``) or not (None): :mod:`ctdrill.app.gui.blind`."""
+        self.exercise.set_blind(card)
         self._predict()
 
     def _predict(self) -> None:
         """What the hand's push does, before and while the drill cuts (the model's words)."""
-        if self.blind is not None:
-            self.timing_label.setText(BLIND_PREDICTION)
-            self.timing_label.setToolTip("")
-            return
+        if (blind := self.exercise.prediction()) is not None:
+            return self.timing_label.setText(blind)
         run = self.run
         table = run.table if run is not None else None
         if table is None:
@@ -302,8 +296,8 @@ class RehearsalPanel(QWidget):
                 exam = exam_setup(
                     doc.volume, doc.plan, self.result, at_surface=exam_at_surface(spec)
                 )
-            if self.blind is not None:  # the trial's own plan, as the exercise wrote it
-                check_session_plan(self.blind, plan_hash(self.result.plan), where="the plan")
+            if (card := self.exercise.card) is not None:  # the trial's plan, as written
+                check_session_plan(card, plan_hash(self.result.plan), where="the plan")
             self.run = RehearsalRun.start(
                 self.result,
                 device=device,
@@ -318,7 +312,7 @@ class RehearsalPanel(QWidget):
                 igtl=igtl,
             )
             self.run.hu = doc.hu_uncertainty
-            self.run.blind = self.blind
+            self.run.blind, self.run.aids = self.exercise.card, self.exercise.level
         except (AppInputError, ValueError, OSError) as exc:
             self.message.setText(f"error: {exc}")
             self.run = None
@@ -385,7 +379,7 @@ class RehearsalPanel(QWidget):
         if run.igtl is not None:
             text += f"\n{stream_line(run.igtl)}"
         self.message.setText(text)
-        self.timing_label.setText(BLIND_PREDICTION if run.blind else timing_text(run))
+        self.timing_label.setText(self.exercise.prediction() or timing_text(run))
         if run.session is not None and run.session.get("final_state") == "stopped":
             self.auto_stop_label.setText(f"auto-stop: REACHED: {self._stop_why(run)}")
             self.auto_stop_label.setStyleSheet(WARN_STYLE)

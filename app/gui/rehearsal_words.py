@@ -11,10 +11,22 @@ import math
 import numpy as np
 
 from ctdrill.app.gui.rehearsal import RehearsalRun, Telemetry
+from ctdrill.app.igtl.frames import SLICER_PORT
 from ctdrill.app.readout import LiveReadout, push_of, stop_timing
 from ctdrill.haptics.plant import COULOMB_N
 from ctdrill.haptics.predict import predict_push
 from ctdrill.haptics.profile_table import ProfileTable
+
+#: The panel's tooltips of the stream to Slicer and of the sound.
+IGTL_TIP = (
+    "HOST:PORT of an OpenIGTLink server, e.g. 3D Slicer's OpenIGTLinkIF connector on "
+    f"localhost:{SLICER_PORT}: the session streams the transforms DrillTip and Implant and the "
+    "forces (text Forces, JSON). Empty: off. docs/slicer.md says how to watch it in Slicer."
+)
+SOUND_TIP = (
+    "The cutting vibration at the drill's depth (the model's 30 and 60 Hz amplitudes) on the "
+    "audio output; a headset carries 30 Hz better than small speakers"
+)
 
 
 def needed_n(s0_n: float) -> int:

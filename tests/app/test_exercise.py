@@ -238,3 +238,23 @@ def _site(ct: Path, plan: Path) -> object:
     from ctdrill.app.exercise.bone_quality import RealSite
 
     return RealSite(ct, plan)
+
+
+def test_a_session_at_an_aid_level_says_so_and_no_wall_is_an_exam(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    demo = Path(__file__).resolve().parents[2] / "assets" / "demo"
+    argv = ["rehearse", "--ct", str(demo / "ct"), "--plan", str(demo / "plan.json")]
+    argv += ["--operator", "push:12", "--duration-s", "3"]
+    assert main([*argv, "--out", str(tmp_path / "a"), "--aids", "no-gauges"]) == 0
+    a = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert a["mode"] == "stop-yourself:no-gauges" and a["aids"]["on"] == ["wall"]
+    assert a["exam"]["enabled"] is False
+    assert main([*argv, "--out", str(tmp_path / "b"), "--aids", "no-wall"]) == 0
+    b = json.loads((tmp_path / "b" / "summary.json").read_text())
+    assert b["mode"] == "stop-yourself:no-wall" and b["exam"]["enabled"] is True
+    assert b["assessment"]["breach"] is True  # 12 N without the wall: into the margin zone
+    capsys.readouterr()
+    assert main([*argv, "--out", str(tmp_path / "c"), "--aids", "some"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --aids 'some'") and err.count("\n") == 1

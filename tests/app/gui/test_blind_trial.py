@@ -130,3 +130,51 @@ def test_a_trainee_drills_a_blind_trial_with_the_mouse(
     window.open_plan(phantom_case.plan_path)
     assert window.windowTitle() == "ctdrill" and window.pages.isVisible()
     assert window.plot_canvas.isVisible()
+
+
+@pytest.mark.timeout(240)
+def test_the_aids_fade_level_by_level(
+    qtbot: QtBot, window: MainWindow, phantom_case: PhantomCase, tmp_path: Path
+) -> None:
+    from tests.app.gui.helpers import open_case
+
+    window.resize(1280, 800)
+    window.show()
+    qtbot.waitExposed(window)
+    open_case(qtbot, window, phantom_case)
+    panel = window.rehearsal
+    window.tabs.setCurrentWidget(panel)
+    picker = panel.exercise.picker
+    live = panel.live
+    seen = []
+    for _ in range(picker.count() - 1):  # the keyboard walks the list: all aids to none
+        picker.setFocus()
+        qtbot.keyClick(picker, Qt.Key.Key_Down)
+        level = panel.exercise.level
+        assert level is not None
+        seen.append(level.name)
+        assert window.plot_canvas.isVisible() == level.plots
+        assert live.clearance_label.isVisible() == level.clearance
+        assert live.forces.isVisible() == live.depth_gauge.isVisible() == level.gauges
+        assert panel.exam.isChecked() or level.wall
+        assert panel.exam.isEnabled() == level.wall
+    assert seen == ["all-aids", "no-plots", "no-readout", "no-gauges", "no-wall"]
+    window.grab().save(str(tmp_path / "no-wall.png"))
+    qtbot.keyClick(picker, Qt.Key.Key_Up)  # no-gauges: the wall is back
+    assert panel.exercise.level is not None and panel.exercise.level.name == "no-gauges"
+    qtbot.mouseClick(panel.exam, Qt.MouseButton.LeftButton)  # exam off again
+    assert not panel.exam.isChecked()
+    panel.duration_s = 120.0
+    pos = QPoint(panel.hand.width() // 2, round(panel.hand.y_of(16.0)))
+    qtbot.mousePress(panel.hand, Qt.MouseButton.LeftButton, pos=pos)
+    qtbot.mouseRelease(panel.hand, Qt.MouseButton.LeftButton, pos=pos)
+    qtbot.mouseClick(panel.connect_button, Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: panel.run is not None and not panel.run.running, timeout=SESSION_MS)
+    window.grab().save(str(tmp_path / "no-gauges-end.png"))
+    assert panel.run is not None
+    summary = panel.run.summary()
+    assert summary["mode"] == "stop-yourself:no-gauges"
+    assert summary["aids"] == {"level": "no-gauges", "on": ["wall"]}
+    qtbot.keyClick(picker, Qt.Key.Key_Home)  # a free rehearsal shows everything again
+    assert panel.exercise.level is None and window.plot_canvas.isVisible()
+    assert live.forces.isVisible() and live.clearance_label.isVisible()
