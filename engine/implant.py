@@ -22,6 +22,7 @@ from typing import Any
 
 from ctdrill.imaging.plan.implant_safety import (
     ImplantClearance,
+    broken_margins_text,
     implant_clearance,
     implant_margin_warnings,
 )
@@ -99,14 +100,13 @@ def implant_body_margin_warnings(
     """``implant_violates_margin`` and, for the same break, ``plan_violates_margin`` (the
     plan's margin covers the implant as well as every drill)."""
     out = implant_margin_warnings(plan, clearance)
-    if out and plan.implant is not None:
-        _, message = out[0]
-        cut = message.split(": clearance of the implant body to ", 1)[-1]
+    if out and plan.implant is not None and clearance is not None:
         out.append(
             (
                 "plan_violates_margin",
                 f"plan {plan.name!r}: the implant body at its planned place breaks the safety "
-                f"margin: clearance of implant {plan.implant.name!r} to {cut}",
+                f"margin: clearance of implant {plan.implant.name!r} to "
+                + broken_margins_text(clearance),
             )
         )
     return out

@@ -186,3 +186,21 @@ def test_the_registry_says_what_blocks_suggest_and_what_the_banner_shows() -> No
     assert all(w.words for w in REGISTRY if w.banner is not None)  # the banner's headings
     assert warning_codes.words("thin_wall") == "thin bone wall"
     assert warning_codes.words("out_of_volume") == "out of volume"
+
+
+def test_no_warning_is_cut_from_another_warnings_message() -> None:
+    """A message is built from the values it reports, never by cutting another message."""
+    cuts = ("split", "rsplit", "partition", "rpartition")
+    found = []
+    for room in ROOMS:
+        for path in sorted((ROOT / room).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if (
+                    isinstance(node, ast.Call)
+                    and isinstance(node.func, ast.Attribute)
+                    and node.func.attr in cuts
+                    and isinstance(node.func.value, ast.Name)
+                    and node.func.value.id in {"message", "msg"}
+                ):
+                    found.append(f"{path.relative_to(ROOT)}:{node.lineno}")
+    assert found == []

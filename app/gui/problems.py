@@ -2,7 +2,8 @@
 implant and of the osteotomy (the landmark table), the plan problems (the banner) and whether
 the implant offends (drawn red in every view).
 
-- **Planned clearance of the osteotomy** (:func:`osteotomy_clearance_mm`): every drill of the
+- **Planned clearance of the osteotomy** (the plan's verdict, :mod:`ctdrill.engine.verdict`,
+  computed once with the banner's problems and ``suggest``'s feasibility): every drill of the
   plan as it is drilled for the implant (:meth:`~ctdrill.imaging.plan.types.Plan.drilled`:
   its full diameter to the apex, its tip beyond by its own tip length), measured at its
   planned depth; per landmark the least over the drills. The clearance at the stop would be
@@ -27,9 +28,9 @@ from typing import Any, Protocol
 import numpy as np
 
 from ctdrill.engine.implant import ImplantOutcome, implant_outcome
-from ctdrill.imaging.plan.implant_checks import implant_warnings, implants_too_close
+from ctdrill.engine.verdict import PlanVerdict, banner_problems, set_findings
+from ctdrill.imaging.plan.implant_checks import implants_too_close
 from ctdrill.imaging.plan.landmarks import Landmark
-from ctdrill.imaging.plan.safety import clearance_profile_mm, margin_warnings, margins_mm
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.resolution import format_clearance_mm
 from ctdrill.imaging.volume import CTVolume
@@ -88,23 +89,6 @@ def checked_implant(out: ImplantOutcome, *, coarse: bool = False) -> ImplantChec
     )
 
 
-def drill_clearances_mm(plan: Plan) -> np.ndarray:
-    """(K, L) planned clearance of each drill of ``plan`` (drilled to its planned depth,
-    :meth:`~ctdrill.imaging.plan.types.Plan.drilled`) to each landmark (masks bound to the CT
-    grid), mm."""
-    n_l = len(plan.landmarks)
-    rows = [clearance_profile_mm(plan.drilled(k))[0] for k in range(len(plan.drills))]
-    return np.array(rows, dtype=np.float64).reshape(len(plan.drills), n_l)
-
-
-def osteotomy_clearance_mm(per_drill_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per landmark, the least planned clearance over the drills (:func:`drill_clearances_mm`)
-    and which drill it is: ``(L,)`` mm and ``(L,)`` drill index (0-based)."""
-    if per_drill_mm.shape[1] == 0:
-        return np.zeros(0), np.zeros(0, dtype=np.int64)
-    return per_drill_mm.min(axis=0), np.argmin(per_drill_mm, axis=0)
-
-
 @dataclass(frozen=True, eq=False)
 class PlannedClearance:
     """The planned clearances the landmark table shows, per landmark in plan order, mm.
@@ -136,69 +120,38 @@ class PlannedClearance:
         return f"{format_clearance_mm(value_mm, self.accuracy_mm)} mm"
 
 
-def planned_clearance(
-    plan: Plan, per_drill_mm: np.ndarray, implant: ImplantCheck | None, accuracy_mm: float
-) -> PlannedClearance:
-    """The planned clearances of ``plan`` (landmarks on the CT grid) from its drills'
-    (:func:`drill_clearances_mm`) and its implant's."""
-    osteotomy, which = osteotomy_clearance_mm(per_drill_mm)
+def planned_clearance(verdict: PlanVerdict, accuracy_mm: float) -> PlannedClearance:
+    """The planned clearances of the plan of ``verdict`` (landmarks on the CT grid): its
+    drills' as drilled and its implant body's."""
+    implant = verdict.implant
     body = None if implant is None or implant.clearance is None else implant.clearance
     return PlannedClearance(
-        margins_mm=margins_mm(plan),
-        osteotomy_mm=osteotomy,
-        osteotomy_drill=which,
+        margins_mm=verdict.margins_mm,
+        osteotomy_mm=verdict.osteotomy_mm,
+        osteotomy_drill=verdict.osteotomy_drill,
         implant_mm=None if body is None else np.asarray(body.clearance_mm, dtype=np.float64),
         accuracy_mm=accuracy_mm,
     )
 
 
-def drill_margin_warnings(
-    plan: Plan, per_drill_mm: np.ndarray, covered: Plan | None = None
-) -> list[tuple[str, str]]:
-    """``plan_violates_margin`` of every drill of ``plan`` at its drilled depth (clearances
-    :func:`drill_clearances_mm`; the message
-    :func:`~ctdrill.imaging.plan.safety.margin_warnings` gives the outputs), except the drill
-    ``covered`` (the path result's own plan, whose warnings already say it)."""
-    out: list[tuple[str, str]] = []
-    margins = margins_mm(plan)
-    for k in range(len(plan.drills)):
-        drilled = plan.drilled(k)
-        if covered is not None and _same_drill(drilled, covered):
-            continue
-        found = margin_warnings(drilled, per_drill_mm[k], margins)
-        out += [w for w in found if w[0] == PROBLEM_CODES[0]]
-    return out
-
-
-def _same_drill(a: Plan, b: Plan) -> bool:
-    """The same drill to the same planned tip (the path result computed for this drill)."""
-    return a.drill == b.drill and bool(np.allclose(a.target_lps, b.target_lps, atol=1e-9, rtol=0))
-
-
 def set_problems(
     plans: Sequence[Plan], index: int, close: dict[str, tuple[tuple[str, str], ...]] | None = None
 ) -> list[tuple[str, str]]:
-    """The geometric problems of ``plans[index]`` that need no CT: ``implant_above_entry`` and
-    ``implants_too_close`` with the others of the set (the outputs' messages; ``close``: the
-    set's :func:`~ctdrill.imaging.plan.implant_checks.implants_too_close`, when known)."""
+    """The geometric problems of ``plans[index]`` that need no CT: ``implant_above_entry``
+    (:func:`ctdrill.engine.verdict.set_findings`) and ``implants_too_close`` with the others
+    of the set (the outputs' messages; ``close``: the set's
+    :func:`~ctdrill.imaging.plan.implant_checks.implants_too_close`, when known)."""
     plan = plans[index]
-    above = implant_warnings(plan, plan.planned_depth_mm, "planned_depth")
+    above = [(w.code, w.message) for w in set_findings(plan)]
     pairs = implants_too_close(tuple(plans)) if close is None else close
-    return [w for w in above if w[0] == "implant_above_entry"] + list(pairs.get(plan.name, ()))
+    return above + list(pairs.get(plan.name, ()))
 
 
 def plan_problems(*sources: Iterable[Any]) -> tuple[tuple[str, str], ...]:
     """The problems among ``sources`` (``(code, message)`` pairs or objects with ``code`` and
-    ``message``): those with a :data:`PROBLEM_CODES` code, each once, ordered by code."""
-    seen: set[tuple[str, str]] = set()
-    found: list[tuple[str, str]] = []
-    for source in sources:
-        for w in source:
-            pair = (w[0], w[1]) if isinstance(w, tuple) else (str(w.code), str(w.message))
-            if pair[0] in PROBLEM_CODES and pair not in seen:
-                seen.add(pair)
-                found.append(pair)
-    return tuple(sorted(found, key=lambda p: PROBLEM_CODES.index(p[0])))
+    ``message``): those the banner shows, each once, by rank
+    (:func:`ctdrill.engine.verdict.banner_problems`)."""
+    return banner_problems(*sources)
 
 
 def problems_text(problems: Sequence[tuple[str, str]]) -> str:

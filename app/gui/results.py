@@ -16,10 +16,6 @@ from ctdrill.app.gui.problems import (
     ImplantCheck,
     PlannedClearance,
     checked_implant,
-    drill_clearances_mm,
-    drill_margin_warnings,
-    implant_check,
-    plan_problems,
     planned_clearance,
 )
 from ctdrill.engine.band import path_band
@@ -28,6 +24,7 @@ from ctdrill.engine.path import PathResult, plan_path
 from ctdrill.engine.plans import plan_calibration, with_set_warnings
 from ctdrill.engine.sequence import plan_sequence
 from ctdrill.engine.stop import stop_words
+from ctdrill.engine.verdict import plan_verdict
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.resolution import volume_clearance_accuracy_mm
@@ -161,20 +158,14 @@ def checked(volume: CTVolume, view: PathView, *, live: bool = False) -> PathView
     margin at its drilled depth (a path computed to the apex rather than drilled to the apex
     plus the tip has its drill-margin warning replaced by the drilled one)."""
     result, plan = view.result, view.plan
-    landmarks = result.landmarks  # masks bound to the CT grid
-    with_lms = replace(plan, landmarks=landmarks)
+    with_lms = replace(plan, landmarks=result.landmarks)  # masks bound to the CT grid
     out = result.implant  # the engine's implant outcome (engine.implant.implant_outcome)
-    if out is not None:
-        check: ImplantCheck | None = checked_implant(out, coarse=live)
-    else:
-        check = implant_check(volume, with_lms, landmarks, live=live)
-    to_apex = plan.implant is not None and result.plan.overdrill_mm == 0.0
-    own = [w for w in result.warnings if not (to_apex and w.code == "plan_violates_margin")]
-    per_drill = drill_clearances_mm(with_lms)
-    drills = drill_margin_warnings(with_lms, per_drill, None if to_apex else result.plan)
-    problems = plan_problems(own, () if check is None else check.warnings, drills)
-    planned = planned_clearance(with_lms, per_drill, check, volume_clearance_accuracy_mm(volume))
-    return replace(view, implant=check, planned=planned, problems=problems)
+    if out is None and plan.implant is not None:
+        out = implant_outcome(volume, with_lms, **(LIVE_WALLS if live else {}))
+    verdict = plan_verdict(volume, with_lms, path=result, implant=out)
+    check = None if verdict.implant is None else checked_implant(verdict.implant, coarse=live)
+    planned = planned_clearance(verdict, volume_clearance_accuracy_mm(volume))
+    return replace(view, implant=check, planned=planned, problems=verdict.problems())
 
 
 def drill_note(result: PathResult) -> str:

@@ -13,19 +13,19 @@ A candidate (the plan with the candidate's entry and target) is **feasible** whe
   no known direction at all (``min_mm`` None: the CT ends around the implant) are not a
   known wall, so the candidate is not feasible (``bone_walls_unknown``).
 
-The implant's part is :func:`ctdrill.engine.implant.implant_outcome`, the same function whose
-warnings ``ctdrill export`` writes, so a suggested axis and its export agree. Without an
+The findings are the plan's verdict (:mod:`ctdrill.engine.verdict`, which the window's banner
+reads too); which codes block is the warning registry's ``blocks_suggest``. The implant's part
+is :func:`ctdrill.engine.implant.implant_outcome`, the same function whose warnings
+``ctdrill export`` writes, so a suggested axis and its export agree. Without an
 implant only the drills are checked (there is no body, hence no wall). The rules and their
 thresholds are the imaging package's; this module only combines them.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
-from ctdrill.engine.implant import implant_outcome
-from ctdrill.imaging.plan.landmarks import bind_to_grid
-from ctdrill.imaging.plan.safety import clearance_profile_mm, margin_warnings, margins_mm
+from ctdrill.engine.verdict import plan_verdict
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.walls import BoneWalls
 from ctdrill.imaging.volume import CTVolume
@@ -70,34 +70,22 @@ class Feasibility:
 
 
 def check_candidate(volume: CTVolume, plan: Plan) -> Feasibility:
-    """The feasibility of ``plan`` (a candidate's axis, its drills and implant) on ``volume``
-    (module docstring)."""
-    lms = bind_to_grid(plan.landmarks, volume.affine_lps, tuple(volume.hu.shape))
-    plan = replace(plan, landmarks=lms)
-    problems: list[tuple[str, str]] = []
-    drill_clear = None
-    if lms:
-        for k, drill in enumerate(plan.drills):
-            drilled = plan.drilled(k)
-            clear = clearance_profile_mm(drilled)[0]
-            least = float(min(clear))
-            drill_clear = least if drill_clear is None else min(drill_clear, least)
-            for code, message in margin_warnings(drilled, clear, margins_mm(drilled)):
-                if code == "plan_violates_margin":
-                    problems.append((code, f"drill {k + 1} ({drill.diameter_mm:g} mm): {message}"))
-    outcome = implant_outcome(volume, plan)  # the export's own implant rule (engine)
-    min_wall = None
-    if outcome is not None:
-        min_wall = outcome.walls.min_mm
-        for code, message in outcome.warnings:
-            if code == "bone_walls_unknown" and min_wall is not None:
-                continue  # some directions unknown, the known ones decide
-            if code in BLOCKING_CODES:
-                problems.append((code, message))
+    """The feasibility of ``plan`` (a candidate's axis, its drills and implant) on ``volume``:
+    the blocking findings of its verdict (:func:`ctdrill.engine.verdict.plan_verdict`)."""
+    verdict = plan_verdict(volume, plan)
+    problems = []
+    for k, w in verdict.blocking():
+        if k is None:
+            problems.append((w.code, w.message))
+        else:
+            drill = verdict.plan.drills[k]
+            problems.append((w.code, f"drill {k + 1} ({drill.diameter_mm:g} mm): {w.message}"))
+    outcome = verdict.implant
+    clear = verdict.drill_clearance_mm
     return Feasibility(
         problems=tuple(problems),
         implant_clearance_mm=None if outcome is None else outcome.clearance_mm,
-        min_wall_mm=min_wall,
-        drill_clearance_mm=drill_clear,
+        min_wall_mm=None if outcome is None else outcome.walls.min_mm,
+        drill_clearance_mm=float(clear.min()) if clear.size else None,
         walls=None if outcome is None else outcome.walls,
     )

@@ -153,26 +153,31 @@ def implant_clearance(
     return ImplantClearance(clear, margins, tuple(lm.name for lm in lms), binding)
 
 
+def broken_margins_text(result: ImplantClearance) -> str:
+    """Every landmark whose margin the body breaks, its clearance and margin, in words
+    (``'canal' 0.80 mm (margin 2 mm)``, comma-separated); empty when none is broken."""
+    return ", ".join(
+        f"{result.names[i]!r} {float(result.clearance_mm[i]):.2f} mm (margin "
+        f"{float(result.margins_mm[i]):g} mm"
+        + (", inside it)" if result.clearance_mm[i] < 0 else ")")
+        for i in result.violated
+    )
+
+
 def implant_margin_warnings(plan: Plan, result: ImplantClearance | None) -> list[tuple[str, str]]:
     """``implant_violates_margin`` naming every landmark whose margin the implant body breaks
     (its clearance below the margin: the computed clearance is never below the true one, so a
     break reported is a break); empty otherwise."""
     if result is None or plan.implant is None:
         return []
-    broken = [
-        f"{result.names[i]!r} {float(result.clearance_mm[i]):.2f} mm (margin "
-        f"{float(result.margins_mm[i]):g} mm"
-        + (", inside it)" if result.clearance_mm[i] < 0 else ")")
-        for i in result.violated
-    ]
+    broken = broken_margins_text(result)
     if not broken:
         return []
     out = [
         (
             "implant_violates_margin",
             f"plan {plan.name!r}: implant {plan.implant.name!r} ({plan.implant.size_text}) at its "
-            "planned place breaks the safety margin: clearance of the implant body to "
-            + ", ".join(broken),
+            "planned place breaks the safety margin: clearance of the implant body to " + broken,
         )
     ]
     lms = {lm.name: lm for lm in plan.landmarks}
