@@ -102,6 +102,7 @@ typedef struct fw_renderer {
     int32_t last; /* index of the last row, -1 without a table */
 #if !FW_REAL_IS_DOUBLE
     real_t turn1, turn2; /* vibration phases in turns since ARM */
+    real_t turn1_step, turn2_step; /* f T modulo 1: turns a tick */
     real_t glide_from;   /* float: the anchor where its glide began, and the ticks since */
     uint32_t glide_n;
     real_t thermal_lo;   /* compensation of the I2t sum (Kahan): float keeps its threshold tick */

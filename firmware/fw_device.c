@@ -161,10 +161,27 @@ static uint8_t arm(fw_device *dev)
     return FW_NAK_NONE;
 }
 
+#if !FW_REAL_IS_DOUBLE
+/* x modulo 1 for x >= 0 (the vibration's turns a tick) without a float-to-int overflow */
+static real_t frac_turns(real_t x)
+{
+    if (x >= R(8388608.0)) /* 2^23: every float this large is a whole number */
+        return R(0.0);
+    return x - (real_t)(int32_t)x;
+}
+#endif
+
 static void install_table(fw_device *dev)
 {
     fw_renderer *r = &dev->r;
+#if FW_REAL_IS_DOUBLE
     r->inv_step = R(1.0) / (real_t)dev->up_step;
+#else
+    /* a step below 1e-30 mm would overflow its inverse: every depth is then off the table */
+    r->inv_step = dev->up_step < 1e-30f ? R(1e30) : R(1.0) / dev->up_step;
+    r->turn1_step = frac_turns((real_t)dev->up_f1 * (real_t)(1.0 / FW_TICK_HZ));
+    r->turn2_step = frac_turns((real_t)dev->up_f2 * (real_t)(1.0 / FW_TICK_HZ));
+#endif
     r->last = (int32_t)dev->upload_n - 1;
     r->ke = (real_t)dev->up_ke;
     r->f1_hz = (real_t)dev->up_f1;

@@ -42,9 +42,16 @@ static const real_t DT_S = (real_t)(1.0 / FW_TICK_HZ);
 
 static int finite_r(real_t x)
 {
-    /* no comparison that raises FE_INVALID on a NaN: x - x is 0 only for finite x */
-    real_t d = x - x;
-    return d == d;
+    /* by the exponent bits: no arithmetic or ordered comparison that could raise FE_INVALID */
+#if FW_REAL_IS_DOUBLE
+    union { double d; uint64_t u; } v;
+    v.d = x;
+    return (v.u & 0x7FF0000000000000u) != 0x7FF0000000000000u;
+#else
+    union { float f; uint32_t u; } v;
+    v.f = x;
+    return (v.u & 0x7F800000u) != 0x7F800000u;
+#endif
 }
 
 void fw_render_init(fw_renderer *r)
@@ -68,6 +75,7 @@ void fw_render_init(fw_renderer *r)
     r->last = -1;
 #if !FW_REAL_IS_DOUBLE
     r->turn1 = r->turn2 = R(0.0);
+    r->turn1_step = r->turn2_step = R(0.0);
     r->thermal_lo = R(0.0);
     r->glide_from = (real_t)INFINITY;
     r->glide_n = 0;
@@ -263,10 +271,10 @@ real_t fw_render_tick(fw_device *dev, real_t master_mm, real_t v_mm_s, real_t ha
     vib = R(0.0);
 #if !FW_REAL_IS_DOUBLE
     /* phases kept in turns (exact enough in float over any session's length) */
-    r->turn1 += r->f1_hz * DT_S;
-    r->turn1 -= (real_t)(int32_t)r->turn1;
-    r->turn2 += r->f2_hz * DT_S;
-    r->turn2 -= (real_t)(int32_t)r->turn2;
+    r->turn1 += r->turn1_step;
+    r->turn1 -= r->turn1 >= R(1.0) ? R(1.0) : R(0.0);
+    r->turn2 += r->turn2_step;
+    r->turn2 -= r->turn2 >= R(1.0) ? R(1.0) : R(0.0);
 #endif
     if (new_front > front) {
 #if FW_REAL_IS_DOUBLE

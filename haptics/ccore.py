@@ -56,7 +56,12 @@ HEADERS = ("fw.h",)
 #: Compiler flags of the host build: C99, no fast-math and no contraction into FMA (the
 #: double build repeats Python's float arithmetic operation for operation).
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math", "-Wall")
-SANITIZE = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-g", "-O1")
+SANITIZE = (
+    "-fsanitize=address,undefined,float-cast-overflow",
+    "-fno-sanitize-recover=all",
+    "-g",
+    "-O1",
+)
 #: Columns of a per-tick record (``fw_host_run``): plant position (mm), force command (N),
 #: drill depth (mm), motor current (A), hand estimate (N), ``state | faults << 8``.
 RECORD_COLUMNS = ("position_mm", "force_cmd_n", "drill_mm", "current_a", "hand_est_n", "state")
@@ -192,6 +197,7 @@ def _declare(lib: ctypes.CDLL) -> None:
         "fw_host_position_mm": (dbl, [vp]),
         "fw_host_real_is_double": (ctypes.c_int, []),
         "fw_rt_stats_size": (sz, []),
+        "fw_host_fe_raised": (ctypes.c_int, []),
         "fw_host_serve": (ctypes.c_int, [vp, ctypes.c_int, ctypes.c_int64, vp]),
         "fw_crc32c": (u32, [buf, sz]),
         "fw_crc32": (u32, [u32, buf, sz]),

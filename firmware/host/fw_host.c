@@ -8,6 +8,7 @@
  */
 #define _GNU_SOURCE
 #include <errno.h>
+#include <fenv.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -216,7 +217,23 @@ void fw_host_push_nonce(fw_host *h, uint32_t nonce)
 
 unsigned fw_host_nonces_queued(const fw_host *h) { return h->nonce_tail - h->nonce_head; }
 
-void fw_host_receive(fw_host *h, const uint8_t *data, size_t n) { fw_receive(&h->dev, data, n); }
+/* floating-point exceptions raised inside the core's calls (invalid, divide by zero, overflow) */
+static int fe_raised;
+#define FE_WATCHED (FE_INVALID | FE_DIVBYZERO | FE_OVERFLOW)
+
+int fw_host_fe_raised(void)
+{
+    int r = fe_raised;
+    fe_raised = 0;
+    return r;
+}
+
+void fw_host_receive(fw_host *h, const uint8_t *data, size_t n)
+{
+    feclearexcept(FE_ALL_EXCEPT);
+    fw_receive(&h->dev, data, n);
+    fe_raised |= fetestexcept(FE_WATCHED);
+}
 
 size_t fw_host_take(fw_host *h, uint8_t *out, size_t cap)
 {
@@ -243,11 +260,13 @@ static void record(const fw_host *h, double *rec)
 void fw_host_run(fw_host *h, size_t n, double *rec)
 {
     size_t i;
+    feclearexcept(FE_ALL_EXCEPT);
     for (i = 0; i < n; i++) {
         fw_tick(&h->dev);
         if (rec != NULL)
             record(h, rec + REC_COLS * i);
     }
+    fe_raised |= fetestexcept(FE_WATCHED);
 }
 
 /* the core on given encoder readings (open loop): counts[i] is tick i's, counts[i+1] what
