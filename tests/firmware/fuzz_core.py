@@ -18,7 +18,7 @@ aborts the process):
 
 from __future__ import annotations
 
-import struct
+import contextlib
 import sys
 from typing import Any
 
@@ -142,10 +142,8 @@ class _Session:
             n = self.begin.n_steps if self.begin else draw(st.integers(0, 20))
             crc = draw(st.integers(0, 2**32 - 1))
             if self.begin is not None and draw(st.booleans()):
-                try:
+                with contextlib.suppress(Exception):  # a row out of float32's range
                     crc = profile_crc32(self.begin, self.rows)
-                except Exception:
-                    pass
             self.crc = crc
             return ProfileEnd(n, crc)
         if kind == "arm":
@@ -206,4 +204,3 @@ def run(examples: int) -> None:
 if __name__ == "__main__":
     run(int(sys.argv[1]) if len(sys.argv) > 1 else 50)
     print("fuzzed: no finding")
-    struct.pack("<I", 0)
