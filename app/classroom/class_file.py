@@ -13,15 +13,18 @@
         "attempts": 3}]}
 
 * ``roster``: the trainees and the experts, by the id their sessions are stored under
-  (compared as the record compares ids). Experts are named here, nowhere else; an id may not
-  be both.
+  (compared as the record compares ids); or a list of ids (trainees) and
+  ``{"id": ..., "role": "trainee" | "expert"}``. Experts are named here, nowhere else; an id
+  may not be both.
 * an exercise: ``name`` (unique), ``mode`` (:data:`MODES`), ``case`` (a plan file, relative to
-  the class file, or ``{"plan_sha256": ...}``: sessions on that plan; absent: any plan) or
+  the class file, ``{"ct": ..., "plan": ...}`` or ``{"plan_sha256": ...}``: sessions on that
+  plan; absent: any plan) or
   ``generator`` (``bone-quality``: the blind trials of ``ctdrill exercise``), ``aid_level``
   (the stop-yourself exercise's level, :data:`ctdrill.app.exercise.aids.AID_LEVELS`; required
   for that mode, absent otherwise), ``calibration`` (sessions with that calibration set;
   absent: any), ``pass_mark`` (0-100: the score that passes, or for ``bone-quality`` the share
-  of trials named right, %), ``attempts`` (how many attempts count, 1-1000).
+  of trials named right, %), ``attempts`` (how many attempts count, 1-1000). ``attempts_allowed``
+  and ``aids`` are accepted for ``attempts`` and ``aid_level``.
 """
 
 from __future__ import annotations
@@ -110,12 +113,21 @@ def _ids(path: Path, roster: dict[str, Any], key: str) -> tuple[str, ...]:
     return tuple(out)
 
 
+#: Other names a class file may give an exercise's keys.
+_ALIASES = {"attempts_allowed": "attempts", "aids": "aid_level", "calibration_set": "calibration"}
+
+
 def _exercise(path: Path, i: int, raw: object) -> ClassExercise:
     from ctdrill.app.exercise.aids import aid_level
 
     where = f"{path}: exercises[{i}]"
     if not isinstance(raw, dict):
         raise ClassFileError(f"{where} must be an object")
+    for alias, key in _ALIASES.items():
+        if alias in raw:
+            if key in raw:
+                raise ClassFileError(f"{where}: give {key} once (not also as {alias})")
+            raw = {**{k: v for k, v in raw.items() if k != alias}, key: raw[alias]}
     extra = sorted(set(raw) - _EXERCISE_KEYS)
     if extra:
         raise ClassFileError(
@@ -172,6 +184,8 @@ def _case(path: Path, where: str, case: object) -> str | None:
     """The plan hash of the exercise's case (None: any plan)."""
     if case is None:
         return None
+    if isinstance(case, dict) and "plan" in case and set(case) <= {"plan", "ct"}:
+        case = case["plan"]  # {"ct": ..., "plan": ...}: the plan names the case
     if isinstance(case, dict):
         sha = case.get("plan_sha256")
         if set(case) != {"plan_sha256"} or not isinstance(sha, str) or not _SHA.fullmatch(sha):
@@ -211,9 +225,7 @@ def load_class(path: Path) -> ClassFile:
     name = doc.get("name", path.stem)
     if not isinstance(name, str):
         raise ClassFileError(f"{path}: name must be a string")
-    roster = doc.get("roster")
-    if not isinstance(roster, dict) or set(roster) - {"trainees", "experts"}:
-        raise ClassFileError(f'{path}: roster must be {{"trainees": [...], "experts": [...]}}')
+    roster = _roster(path, doc.get("roster"))
     trainees = _ids(path, roster, "trainees")
     experts = _ids(path, roster, "experts")
     if not trainees:
@@ -230,3 +242,27 @@ def load_class(path: Path) -> ClassFile:
     if dup is not None:
         raise ClassFileError(f"{path}: two exercises are named {dup!r}; name each once")
     return ClassFile(name, trainees, experts, exercises)
+
+
+def _roster(path: Path, raw: object) -> dict[str, Any]:
+    """``{"trainees": [...], "experts": [...]}``, or a list of ids (trainees) and
+    ``{"id": ..., "role": "trainee" | "expert"}`` entries, as the first form."""
+    if isinstance(raw, dict) and not set(raw) - {"trainees", "experts"}:
+        return raw
+    if not isinstance(raw, list):
+        raise ClassFileError(
+            f'{path}: roster must be {{"trainees": [...], "experts": [...]}} or a list of '
+            '{"id": ..., "role": ...}'
+        )
+    out: dict[str, list[object]] = {"trainees": [], "experts": []}
+    for i, item in enumerate(raw):
+        if isinstance(item, str):
+            out["trainees"].append(item)
+            continue
+        role = item.get("role", "trainee") if isinstance(item, dict) else None
+        if not isinstance(item, dict) or role not in ("trainee", "expert"):
+            raise ClassFileError(
+                f'{path}: roster[{i}] must be an id or {{"id": ..., "role": "trainee" or "expert"}}'
+            )
+        out[f"{role}s"].append(item.get("id"))
+    return out

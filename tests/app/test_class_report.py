@@ -197,6 +197,34 @@ def test_a_bad_class_file_names_the_field(
     assert field in str(info.value) and str(path) in str(info.value)
 
 
+def test_a_class_file_takes_a_roster_list_and_key_aliases(tmp_path: Path) -> None:
+    path = tmp_path / "class.json"
+    doc = {
+        "format": "ctdrill-class/1",
+        "roster": ["ann", {"id": "bo"}, {"id": "dr", "role": "expert"}],
+        "exercises": [
+            {
+                "name": "e",
+                "mode": "stop-yourself",
+                "aids": "no-plots",
+                "pass_mark": 70,
+                "attempts_allowed": 3,
+                "case": {"ct": "ct", "plan": str(DEMO / "plan.json")},
+            },
+        ],
+    }
+    path.write_text(json.dumps(doc))
+    cls = load_class(path)
+    assert cls.trainees == ("ann", "bo") and cls.experts == ("dr",)
+    ex = cls.exercises[0]
+    assert (ex.aid_level, ex.attempts, ex.session_mode) == ("no-plots", 3, "stop-yourself:no-plots")
+    assert ex.plan_sha256 is not None
+    doc["roster"] = [{"id": "x", "role": "teacher"}]
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ClassFileError, match="roster\\[0\\]"):
+        load_class(path)
+
+
 def test_a_class_file_reads_cases_levels_and_normalised_ids(tmp_path: Path) -> None:
     path = tmp_path / "class.json"
     path.write_text(
