@@ -390,3 +390,29 @@ def test_a_locked_record_is_retried_then_one_error_line(
     err = capsys.readouterr().err
     assert err.startswith("error: --db") and "locked" in err and err.count("\n") == 1
     assert 0.25 <= waited < 5.0
+
+
+def test_bad_inputs_to_merge_and_report_are_one_error_line(
+    stations: tuple[Path, Path, Path, dict[str, str]],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    a, _, klass, _ = stations
+    junk = tmp_path / "junk.db"
+    junk.write_bytes(b"not a database at all" * 100)
+    merged = tmp_path / "class.db"
+    for argv in (
+        ["assess", "--merge", str(tmp_path / "none.db"), "--db", str(merged)],
+        ["assess", "--merge", str(junk), "--db", str(merged)],
+        ["assess", "--merge", str(a), "--db", str(merged), "--trainee", "x", "--out", "o"],
+        ["class", "report", "--db", str(tmp_path / "none.db"), "--class", str(klass), "--out",
+         str(tmp_path / "r")],
+        ["class", "report", "--db", str(a), "--class", str(tmp_path / "none.json"), "--out",
+         str(tmp_path / "r")],
+        ["class", "report", "--db", str(a), "--class", str(junk), "--out", str(tmp_path / "r")],
+    ):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and err.count("\n") == 1 and "Traceback" not in err
+    assert not merged.exists() and not (tmp_path / "r").exists()
+    assert junk.read_bytes() == b"not a database at all" * 100
