@@ -202,13 +202,14 @@ def is_inside(path: Path, folder: Path) -> bool:
     return p == f or f in p.parents
 
 
-def write_session_only(out_dir: Path, summary_text: str, csv_text: str) -> list[Path]:
-    """A blind session's export: ``session/summary.json`` and ``session/session.csv`` (what
-    ``ctdrill assess`` reads), in one swap; no path export (its profile names the bone)."""
+def write_session_only(out_dir: Path, files: Mapping[str, str]) -> list[Path]:
+    """A blind session's export: its session files alone (``files``: name -> text, written
+    under ``session/``: ``summary.json``, ``session.csv`` and what else ``ctdrill assess``
+    reads), in one swap; no path export (its profile and plot name the bone)."""
     from ctdrill.app.records import OUTPUT_NAMES, atomic_output_dir, write_file
 
-    with atomic_output_dir(out_dir, owned_names=OUTPUT_NAMES) as stage:
+    with atomic_output_dir(out_dir, owned_names=OUTPUT_NAMES | set(files)) as stage:
         (stage / "session").mkdir()
-        write_file(stage / "session" / "summary.json", summary_text)
-        write_file(stage / "session" / "session.csv", csv_text)
-    return [Path(out_dir) / "session" / "summary.json", Path(out_dir) / "session" / "session.csv"]
+        for name, text in files.items():
+            write_file(stage / "session" / name, text)
+    return [Path(out_dir) / "session" / name for name in files]

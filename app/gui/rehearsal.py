@@ -364,7 +364,9 @@ class RehearsalRun:
         (the folder is replaced whole or not at all)."""
         summary_text, csv_text = self.session_files()
         if self.blind is not None:  # a blind trial: the session alone (no HU, no profile)
-            return write_session_only(out_dir, summary_text, csv_text)
+            return write_session_only(
+                out_dir, {"summary.json": summary_text, "session.csv": csv_text}
+            )
         return write_exports(
             [ExportJob(self.result, "")],
             out_dir,
