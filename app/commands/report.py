@@ -52,6 +52,13 @@ def register(subparsers: Any) -> None:
     add_hu_sigma_option(p)
     add_grey_map_options(p)
     p.add_argument(
+        "--appendix",
+        action="store_true",
+        help="add the appendix: the full panoramic, every cross-section, the 3D view, the "
+        "engineering detail (calibrations, force terms) and the force curves (by default the "
+        "report is the clinical summary)",
+    )
+    p.add_argument(
         "--timings",
         action="store_true",
         help="print the seconds each stage took (load and compute, pages, PDF) on stderr",
@@ -70,7 +77,13 @@ def run(args: argparse.Namespace) -> int:
     timings = Timings()
     try:
         path, n_pages = write_report(
-            args.dicom, args.plan, args.out, settings, progress=progress, timings=timings
+            args.dicom,
+            args.plan,
+            args.out,
+            settings,
+            progress=progress,
+            timings=timings,
+            appendix=args.appendix,
         )
     finally:
         progress.close()

@@ -2,11 +2,12 @@
 screen, the PDF written atomically.
 
 Order of the pages: the summary (the case, the table of every trajectory, each one's lines and
-warnings), a clinical page per implant (:mod:`ctdrill.app.report.clinical`), the panoramic
-reformat with every implant, a cross-section per trajectory, the 3D view, then the appendix:
-the engineering detail (calibrations, force terms) and each trajectory's curves. Everything is
-computed and drawn in memory first; the file appears whole (a temporary sibling renamed over
-it) or not at all.
+warnings, the signature block), a clinical page per implant (:mod:`ctdrill.app.report.clinical`)
+with its zoomed cross-section and panoramic (:mod:`ctdrill.app.report.implant_view`); with
+``--appendix`` then the panoramic reformat with every implant, a cross-section per trajectory,
+the 3D view, the engineering detail (calibrations, force terms) and each trajectory's curves.
+Everything is computed and drawn in memory first; the file appears whole (a temporary sibling
+renamed over it) or not at all.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from pathlib import Path
 from matplotlib.figure import Figure
 
 from ctdrill.app.records import atomic_write_bytes
-from ctdrill.app.report.clinical import appendix_pages, clinical_pages
+from ctdrill.app.report.clinical import appendix_pages, clinical_pages, signature_block
 from ctdrill.app.report.curves import curves_page
 from ctdrill.app.report.entries import Entry, drawn_entries, report_entries
 from ctdrill.app.report.layout import TextPages
@@ -48,8 +49,12 @@ def report_pages(
     *,
     timings: Timings | None = None,
     views: Callable[[TextPages, PreparedCase, Sequence[Entry], Timings], None] | None = None,
+    appendix: bool = False,
 ) -> list[Figure]:
-    """Every page of the report, drawn (not yet written)."""
+    """Every page of the report, drawn (not yet written): the clinical summary (the case's
+    page with the signature block, a page per implant with its zoomed views); with
+    ``appendix`` also the full panoramic, every cross-section, the 3D view, the engineering
+    detail and the force curves."""
     t = timings if timings is not None else Timings()
     pages = TextPages(TITLE)
     t0 = time.perf_counter()
@@ -60,8 +65,11 @@ def report_pages(
         include_phi=case.settings.include_phi,
         plan_files=_plan_files(case),
     )
+    signature_block(pages)
     clinical_pages(pages, case, entries)
     t.add("summary", time.perf_counter() - t0)
+    if not appendix:
+        return pages.finish()
     if views is None:
         from ctdrill.app.report.views import view_pages
 
@@ -96,6 +104,7 @@ def write_report(
     *,
     progress: Callable[[int, int, str], None] | None = None,
     timings: Timings | None = None,
+    appendix: bool = False,
 ) -> tuple[Path, int]:
     """Compute the case as ``ctdrill export`` does with ``settings`` and write its report to
     ``out`` (PDF); ``timings`` collects the seconds of each stage.
@@ -120,7 +129,7 @@ def write_report(
     t0 = time.perf_counter()
     entries = report_entries(case)
     t.add("summaries", time.perf_counter() - t0)
-    figures = report_pages(case, entries, timings=t)
+    figures = report_pages(case, entries, timings=t, appendix=appendix)
     t0 = time.perf_counter()
     data = pdf_bytes(figures)
     t.add("pdf", time.perf_counter() - t0)

@@ -26,16 +26,28 @@ from ctdrill.engine.implant_facts import ImplantFacts, implant_facts
 from ctdrill.engine.stop import stop_words
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.resolution import format_clearance_mm
+from ctdrill.warning_codes import banner_codes
+
+#: The codes a clinical page lists (the window's banner problems).
+BANNER = frozenset(banner_codes())
 
 #: The clinical table's columns.
 ITEM_COLUMNS = (Column("item", 1.0), Column("value", 3.2))
 #: The protocol table's columns.
 DRILL_COLUMNS = (
     Column("drill", 0.5),
-    Column("diameter (mm)", 1.0),
-    Column("tip length (mm)", 1.0),
-    Column("drilled depth (mm)", 1.2),
-    Column("beyond the apex (mm)", 1.2),
+    Column("diameter (mm)", 0.9),
+    Column("tip length (mm)", 0.9),
+    Column("drilled depth (mm)", 1.0),
+    Column("beyond the apex (mm)", 1.0),
+    Column("clearance (mm)", 1.1),
+    Column("verdict", 1.6),
+)
+#: The signature block's lines.
+SIGNATURE = (
+    "Planned by: ______________________",
+    "Date: ______________",
+    "Approved by: ______________________",
 )
 #: The appendix table's columns.
 APPENDIX_COLUMNS = (
@@ -53,9 +65,11 @@ def _mm(value: float | None, facts: ImplantFacts) -> str:
     return "unknown" if value is None else f"{format_clearance_mm(value, facts.accuracy_mm)} mm"
 
 
-def implant_items(facts: ImplantFacts, stop_text: str) -> list[tuple[str, str]]:
+def implant_items(
+    facts: ImplantFacts, stop_text: str, budget_mm: float | None = None, placement: str = ""
+) -> list[tuple[str, str]]:
     """The clinical page's (item, value) rows of ``facts``; ``stop_text`` says where the final
-    drill stops."""
+    drill stops; ``budget_mm`` the margin budget (placement ``placement``), when known."""
     site = facts.site_text or "not given (plan key site: an FDI tooth number 11-48)"
     nerve = "no landmark in the plan"
     if facts.nerve is not None and facts.nerve_mm is not None:
@@ -97,6 +111,18 @@ def implant_items(facts: ImplantFacts, stop_text: str) -> list[tuple[str, str]]:
         ("bone height, crest to canal along the axis", height),
         ("final drill", stop_text),
         (
+            "margin budget",
+            "not known (no landmark)"
+            if budget_mm is None
+            else f"{budget_mm:.1f} mm for {placement} placement: the 95th percentile of "
+            "placement, canal and CT errors (docs/margin_budget.md)"
+            + (
+                "; the implant's clearance is under it"
+                if facts.nerve_mm is not None and facts.nerve_mm < budget_mm
+                else ""
+            ),
+        ),
+        (
             "accuracy",
             f"clearances and walls known to about +-{facts.accuracy_mm:.2g} mm on this CT "
             "(half its coarsest sampling), printed to that",
@@ -109,15 +135,62 @@ def _final_entry(entries: Sequence[Entry], plan: Plan) -> Entry | None:
     return mine[-1] if mine else None
 
 
+def drill_rows(facts: ImplantFacts, mine: Sequence[Entry]) -> list[list[str]]:
+    """The protocol table: each drill by its diameter, its tip, drilled depth, clearance at
+    that depth (two decimals and the CT's accuracy) and verdict against its margin."""
+    rows = []
+    for k, d in enumerate(facts.drills, start=1):
+        entry = mine[k - 1] if len(mine) == len(facts.drills) else None
+        clear, verdict = "-", "not computed"
+        if entry is not None:
+            o = entry.summary.outcome
+            c = o.plan_clearance_mm
+            margin = o.margin_mm if o.binding_landmark is None else o.binding_landmark.margin_mm
+            if c is None:
+                verdict = "no landmark"
+            else:
+                clear = f"{c:.2f} +-{facts.accuracy_mm:.2g}"
+                verdict = (
+                    f"keeps the {margin:g} mm margin"
+                    if c >= margin
+                    else f"INSIDE THE {margin:g} mm MARGIN"
+                )
+        rows.append(
+            [
+                f"{d.diameter_mm:g} mm",
+                f"{d.diameter_mm:g}",
+                f"{d.tip_length_mm:g}",
+                f"{d.drilled_depth_mm:.2f}",
+                f"{d.drilled_depth_mm - facts.apex_depth_mm:.2f}",
+                clear,
+                verdict,
+            ]
+        )
+    return rows
+
+
+def signature_block(pages: TextPages) -> None:
+    """Planned by, date, approved: lines to sign."""
+    pages.gap(0.25)
+    pages.paragraph("   ".join(SIGNATURE), size_pt=10.0)
+
+
 def clinical_pages(pages: TextPages, case: PreparedCase, entries: Sequence[Entry]) -> None:
-    """One page per drawn trajectory with an implant (module docstring)."""
-    drawn = {e.result.plan.name for e in drawn_entries(entries)}
+    """One page per drawn trajectory with an implant (module docstring), its zoomed
+    cross-section and panoramic with the distances drawn at its foot."""
+    from ctdrill.app.report.implant_view import case_panorama, implant_views
+
+    finals = [e for e in drawn_entries(entries)]
+    drawn = {e.result.plan.name for e in finals}
+    pano = None
     for plan in case.plans:
         if plan.implant is None or plan.name not in drawn:
             continue
         entry = _final_entry(entries, plan)
         if entry is None:
             continue
+        if pano is None:
+            pano = case_panorama(case, finals)
         facts = implant_facts(case.volume, plan, entry.result.implant)
         assert facts is not None
         o = entry.summary.outcome
@@ -125,35 +198,29 @@ def clinical_pages(pages: TextPages, case: PreparedCase, entries: Sequence[Entry
             f"stops at {o.stop_depth_mm:.2f} mm ({stop_words(o.stop_reason, form='plain')}) of "
             f"{o.planned_depth_mm:.2f} mm drilled"
         )
+        budget = o.margin_budget
         pages.new_page()
-        pages.paragraph(f"Implant: {facts.plan}", size_pt=14.0, bold=True)
-        pages.gap(0.08)
-        pages.table(ITEM_COLUMNS, implant_items(facts, stop), size_pt=9.0)
-        pages.gap(0.15)
-        pages.paragraph("Drilling protocol", size_pt=10.0, bold=True)
-        rows = [
-            [
-                str(k),
-                f"{d.diameter_mm:g}",
-                f"{d.tip_length_mm:g}",
-                f"{d.drilled_depth_mm:.2f}",
-                f"{d.drilled_depth_mm - facts.apex_depth_mm:.2f}",
-            ]
-            for k, d in enumerate(facts.drills, start=1)
-        ]
-        pages.table(DRILL_COLUMNS, rows, size_pt=9.0)
-        pages.paragraph(
-            "Each drill's full diameter reaches the implant's apex, so its tip goes beyond by "
-            "its own tip length: the drilled depth, checked against every margin.",
+        pages.paragraph(f"Implant: {facts.plan}", size_pt=13.0, bold=True)
+        pages.table(
+            ITEM_COLUMNS,
+            implant_items(
+                facts,
+                stop,
+                None if budget is None else budget.budget_mm,
+                "" if budget is None else budget.placement,
+            ),
             size_pt=8.0,
-            colour="#444444",
         )
-        pages.gap(0.15)
-        mine = () if entry.result.implant is None else entry.result.implant.warnings
-        if mine:
-            pages.paragraph("Implant warnings", size_pt=10.0, bold=True)
-            for code, message in mine:
-                pages.paragraph(f"[{code}] {message}", size_pt=8.5, colour="#a01010")
+        pages.gap(0.06)
+        mine = [e for e in entries if e.result.plan.name == plan.name]
+        pages.table(DRILL_COLUMNS, drill_rows(facts, mine), size_pt=8.0)
+        problems = [(w.code, w.message) for w in entry.result.warnings if w.code in BANNER]
+        for code, message in dict.fromkeys(problems):
+            pages.paragraph(f"[{code}] {message}", size_pt=7.5, colour="#a01010")
+        fig, top, height = pages.remaining_figure(2.6)
+        why = implant_views(fig, top, height, case, entry, facts, finals, pano)
+        if why is not None:
+            fig.text(0.1, 1.0 - (top + 0.3) / 8.27, why, fontsize=9)
 
 
 def appendix_pages(pages: TextPages, entries: Sequence[Entry]) -> None:

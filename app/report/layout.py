@@ -209,6 +209,15 @@ class TextPages:
         )
         self._y_in += 0.06
 
+    def remaining_figure(self, min_height_in: float) -> tuple[Figure, float, float]:
+        """The current page and the band left on it for a drawing, ``(figure, top_in,
+        height_in)`` from the page's top (a new page when less than ``min_height_in`` is
+        left); nothing flows onto that page afterwards."""
+        fig = self._need(min_height_in)
+        top, height = self._y_in, self._room_in()
+        self._y_in = PAGE_IN[1]
+        return fig, top, height
+
     def new_page(self) -> None:
         """Start a fresh page that text flows onto (a chapter's first page)."""
         self._new_page()

@@ -49,7 +49,9 @@ def demo_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     root = tmp_path_factory.mktemp("report")
     common = ["--dicom", str(DEMO / "ct"), "--plan", str(DEMO / "plan.json")]
     options = ["--calibration", "bone-literature", "--hu-sigma", "40"]
-    code, out, err = run_cli(["report", *common, *options, "--out", str(root / "r.pdf")])
+    code, out, err = run_cli(
+        ["report", *common, *options, "--appendix", "--out", str(root / "r.pdf")]
+    )
     assert (code, err) == (0, "")
     assert out == f"wrote {root / 'r.pdf'} (7 pages)\n"
     code, _, err = run_cli(["export", *common, *options, "--out", str(root / "export")])
@@ -93,7 +95,8 @@ def test_the_implant_page_says_what_a_colleague_needs(demo_report: tuple[Path, P
         f"{walls['lingual_mm']:.1f} mm" in page
     )
     assert "12.8 mm (crest at" in page  # bone height from the crest to the canal
-    assert "1 2 0.6 12.60 0.60" in page  # the drill, its tip, drilled depth, beyond the apex
+    # the drill by its diameter, its tip, drilled depth, beyond the apex, clearance, verdict
+    assert "2 mm 2 0.6 12.60 0.60 0.20 +-0.2 INSIDE THE 2 mm MARGIN" in page
     assert "site not given" in page and "tapered 4.1 x 11.5" in page
     assert "[implant_violates_margin]" in page
     # engineering detail is in the appendix, not on the summary page
@@ -223,7 +226,7 @@ def test_several_trajectories_and_a_drill_sequence_each_get_their_rows_and_pages
     save_plan(second, tmp_path / "second.json")
     common = ["--dicom", str(DEMO / "ct"), "--plan", str(DEMO / "plan.json")]
     common += ["--plan", str(tmp_path / "second.json")]
-    code, out, err = run_cli(["report", *common, "--out", str(tmp_path / "r.pdf")])
+    code, out, err = run_cli(["report", *common, "--appendix", "--out", str(tmp_path / "r.pdf")])
     assert code == 0 and "Traceback" not in err
     code, _, _ = run_cli(["export", *common, "--per-trajectory", "--out", str(tmp_path / "x")])
     assert code == 0
@@ -267,6 +270,7 @@ def test_a_plan_without_an_arch_gets_its_report_saying_how_to_add_one(tmp_path: 
     plan = replace(load_plan(DEMO / "plan.json"), arch_lps=None)
     save_plan(plan, tmp_path / "no_arch.json")
     argv = ["report", "--dicom", str(DEMO / "ct"), "--plan", str(tmp_path / "no_arch.json")]
+    argv.append("--appendix")
     code, _, err = run_cli([*argv, "--out", str(tmp_path / "r.pdf")])
     assert (code, err) == (0, "")
     pages = pdf_pages(tmp_path / "r.pdf")
@@ -296,6 +300,7 @@ def test_a_reformat_the_plan_cannot_give_is_said_on_its_page(tmp_path: Path) -> 
     )
     save_plan(across, tmp_path / "across.json")
     argv = ["report", "--dicom", str(DEMO / "ct"), "--plan", str(tmp_path / "across.json")]
+    argv.append("--appendix")
     code, _, err = run_cli([*argv, "--out", str(tmp_path / "r.pdf")])
     assert (code, err) == (0, "")
     pages = pdf_pages(tmp_path / "r.pdf")
@@ -306,3 +311,34 @@ def test_a_reformat_the_plan_cannot_give_is_said_on_its_page(tmp_path: Path) -> 
         in (pages[3])
     )
     assert "The rest of the report is unaffected." in pages[3]
+
+
+def test_the_clinical_summary_of_two_implants_fits_four_pages(tmp_path: Path) -> None:
+    """Without --appendix: the case page with the signature block and one page per implant
+    with its per-drill clearance and verdict, the margin budget and its zoomed views; no force
+    or calibration page."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from ctdrill.imaging.plan.load import load_plan
+    from ctdrill.imaging.plan.write import write_plans
+
+    demo = load_plan(DEMO / "plan.json")
+    shift = np.array([0.0, 7.0, 0.0])
+    second = replace(
+        demo, name="second", entry_lps=demo.entry_lps + shift, target_lps=demo.target_lps + shift
+    )
+    write_plans([replace(demo, name="first", site=36), second], tmp_path / "two.json")
+    common = ["--dicom", str(DEMO / "ct"), "--plan", str(tmp_path / "two.json")]
+    code, out, err = run_cli(["report", *common, "--out", str(tmp_path / "r.pdf")])
+    assert (code, err) == (0, "")
+    pages = pdf_pages(tmp_path / "r.pdf")
+    assert len(pages) <= 4
+    text = " ".join(pages)
+    assert "Planned by:" in text and "Approved by:" in text
+    assert "Implant: first" in text and "Implant: second" in text
+    assert "margin budget" in text and "freehand placement" in text
+    assert "INSIDE THE 2 mm MARGIN" in text  # the demo's 2 mm drill, 0.2 mm from the canal
+    assert "cross-section (zoomed)" in text and "mm to canal" in text
+    assert "Appendix" not in text and "force, HU and clearance" not in text

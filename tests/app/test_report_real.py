@@ -21,12 +21,25 @@ def real_report(
     root = tmp_path_factory.mktemp("real_report")
     plan = real_plan(root)
     common = ["--dicom", str(shared_data / PHILIPS), "--plan", str(plan)]
-    code, out, err = run_cli(["report", *common, "--out", str(root / "r.pdf")])
+    code, out, err = run_cli(["report", *common, "--appendix", "--out", str(root / "r.pdf")])
+    assert code == 0 and "Traceback" not in err, err
+    code, _, err = run_cli(["report", *common, "--out", str(root / "clinical.pdf")])
     assert code == 0 and "Traceback" not in err, err
     assert out.splitlines()[-1].startswith(f"wrote {root / 'r.pdf'}")  # after the progress
     code, _, err = run_cli(["export", *common, "--per-trajectory", "--out", str(root / "x")])
     assert code == 0, err
     return pdf_pages(root / "r.pdf"), root / "x"
+
+
+def test_the_clinical_summary_of_two_real_implants_is_at_most_four_pages(
+    real_report: tuple[list[str], Path],
+) -> None:
+    _, export = real_report
+    pages = pdf_pages(export.parent / "clinical.pdf")
+    assert len(pages) <= 4
+    text = " ".join(pages)
+    assert "Implant: front" in text and "Implant: left" in text and "Approved by:" in text
+    assert "Appendix" not in text
 
 
 def test_pages_of_two_implants_on_a_real_head(real_report: tuple[list[str], Path]) -> None:
