@@ -331,7 +331,7 @@ def test_the_clinical_summary_of_two_implants_fits_four_pages(tmp_path: Path) ->
     )
     write_plans([replace(demo, name="first", site=36), second], tmp_path / "two.json")
     common = ["--dicom", str(DEMO / "ct"), "--plan", str(tmp_path / "two.json")]
-    code, out, err = run_cli(["report", *common, "--out", str(tmp_path / "r.pdf")])
+    code, _, err = run_cli(["report", *common, "--out", str(tmp_path / "r.pdf")])
     assert (code, err) == (0, "")
     pages = pdf_pages(tmp_path / "r.pdf")
     assert len(pages) <= 4
