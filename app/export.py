@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ctdrill.app.csv_cells import text_cell
+from ctdrill.app.csv_cells import csv_text, text_cell
 from ctdrill.app.fixedtext import fixed_csv
 from ctdrill.engine.band import BAND_COLUMNS
 from ctdrill.engine.case import ExportJob
@@ -72,15 +72,10 @@ def profile_csv(job: JobSummary) -> str:
     """``profile.csv`` text: one row per depth of the profile grid; then ``mean_force_n``
     (``S0 (1 + Ke v)`` at the export's feed, always), ``mean_force_lo_n`` and
     ``mean_force_hi_n`` (its 68 % band; empty when the set gives no band: docs/export.md)."""
-    import csv
-
     result, band = job.result, job.band
     prof = result.profile
     feed = job.summary.outcome.feed_mm_s
     sk = [prof.sk_n[k] if k < prof.sk_n.shape[0] else np.zeros_like(prof.s0_n) for k in (0, 1)]
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(PROFILE_COLUMNS + BAND_COLUMNS)
     empty = [""] * len(prof.depth_mm)
     mean = prof.mean_force_n(feed) if band is None else band.mean_n
     cols = [
@@ -96,8 +91,8 @@ def profile_csv(job: JobSummary) -> str:
         _fmt(mean, 5),
         *([empty] * 2 if band is None else [_fmt(band.lo_n, 5), _fmt(band.hi_n, 5)]),
     ]
-    w.writerows(zip(*cols, strict=True))
-    return buf.getvalue()
+    header = PROFILE_COLUMNS + BAND_COLUMNS
+    return csv_text(header, zip(*cols, strict=True), text_columns={"misch", "calibration"})
 
 
 def summary_json(summary: object) -> str:

@@ -15,11 +15,11 @@ The sign is the sign bit, as Python writes it (``-0.000000`` for ``-1e-9`` and `
 
 from __future__ import annotations
 
-import csv
-import io
 from collections.abc import Sequence
 
 import numpy as np
+
+from ctdrill.app.csv_cells import csv_row
 
 #: Rows formatted at once: every temporary stays small (in cache, below malloc's mmap
 #: threshold, so no page faults).
@@ -90,10 +90,9 @@ def _digits(values: np.ndarray, width: int) -> np.ndarray:
 
 
 def csv_cell(text: str) -> str:
-    """One CSV cell as :mod:`csv` writes it (quoted when it holds a comma, quote or newline)."""
-    buf = io.StringIO()
-    csv.writer(buf, lineterminator="\n").writerow([text])  # "\n" in the text is quoted
-    return buf.getvalue()[:-1]
+    """One text cell as :mod:`ctdrill.app.csv_cells` writes it (neutralised when it starts
+    like a formula; quoted when it holds a comma, quote or newline)."""
+    return csv_row([text], text=True)[:-1]
 
 
 def fixed_csv(
@@ -103,7 +102,8 @@ def fixed_csv(
 
     Each column is (values, digits) written as ``"%.{digits}f"``; ``tail`` is one more cell,
     the same on every row (e.g. the calibration's name), omitted when empty. Equal to
-    ``csv.writer`` over the Python-formatted strings, byte for byte.
+    ``csv.writer`` over the Python-formatted strings, byte for byte (the header and ``tail``
+    through the one CSV writer, :func:`ctdrill.app.csv_cells.csv_row`).
     """
     if not columns:
         raise ValueError("fixed_csv needs at least one column")
@@ -114,9 +114,7 @@ def fixed_csv(
     if len(n) != 1:
         raise ValueError(f"columns differ in length: {sorted(n)}")
     rows = n.pop()
-    buf = io.StringIO()
-    csv.writer(buf, lineterminator="\n").writerow(header)
-    head = buf.getvalue()
+    head = csv_row(header, text=True)
     # a lone empty field is written "" by csv; among others it is written empty
     cell = "" if tail is None else "," + (csv_cell(tail) if tail else "")
     end = np.frombuffer(cell.encode("utf-8") + b"\n", np.uint8)

@@ -28,6 +28,7 @@ from ctdrill.app.igtl.frames import StreamGeometry, parse_target
 from ctdrill.app.igtl.stream import IgtlStream
 from ctdrill.app.readout import push_summary, wall_summary
 from ctdrill.app.records import atomic_output_dir, write_file
+from ctdrill.app.session_csv import SessionCsv
 from ctdrill.app.trainee.exam import (
     ExamSetup,
     assessment_context,
@@ -46,7 +47,7 @@ from ctdrill.haptics.assessment import AssessmentContext, Assessor
 from ctdrill.haptics.device import Device
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import SessionResult, run_session
-from ctdrill.haptics.session import SessionCsv, parse_fault, parse_operator
+from ctdrill.haptics.session import parse_fault, parse_operator
 from ctdrill.haptics.spec import DeviceSpec
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.dicom.grey import GreyToHu

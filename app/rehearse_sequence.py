@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any
 
 from ctdrill.app.igtl.frames import IgtlTarget, StreamDrill, StreamGeometry
 from ctdrill.app.records import atomic_output_dir, write_file
+from ctdrill.app.session_csv import SessionCsv
 from ctdrill.app.trainee.exam import (
     ExamSetup,
     assessment_context,
@@ -55,7 +56,7 @@ from ctdrill.engine.stop import stop_words
 from ctdrill.haptics.assessment import Assessor, combine_assessments
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session
-from ctdrill.haptics.session import FaultSpec, Operator, SessionCsv
+from ctdrill.haptics.session import FaultSpec, Operator
 from ctdrill.haptics.spec import DeviceSpec
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.plan.types import Plan

@@ -13,8 +13,6 @@ surface it really meets.
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import math
 import random
@@ -23,6 +21,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from ctdrill.app.csv_cells import csv_text
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.records import atomic_output_dir, write_file
 from ctdrill.engine.path import PathResult, plan_path
@@ -177,9 +176,6 @@ def run_teleop(
 
 def session_csv_text(run: TeleopRun) -> str:
     """``session.csv`` of ``run`` (:data:`SESSION_COLUMNS`; ``hu_est`` empty while gated)."""
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(SESSION_COLUMNS)
     cols = [
         run.time_s,
         run.master_mm,
@@ -193,9 +189,10 @@ def session_csv_text(run: TeleopRun) -> str:
         run.force_lp_n,
         run.hu_ct,
     ]
+    rows = []
     for i in range(run.time_s.shape[0]):
         hu = float(run.hu_est[i])
-        w.writerow(
+        rows.append(
             [f"{float(c[i]):.6g}" for c in cols]
             + [
                 "" if math.isnan(hu) else f"{hu:.1f}",
@@ -204,7 +201,7 @@ def session_csv_text(run: TeleopRun) -> str:
                 f"{float(run.energy_j[i]):.6g}",
             ]
         )
-    return buf.getvalue()
+    return csv_text(SESSION_COLUMNS, rows)
 
 
 def _finite(value: Any) -> Any:

@@ -18,12 +18,11 @@ from __future__ import annotations
 
 import bisect
 import csv
-import io
+import hashlib
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
 
 from ctdrill.haptics.errors import HapticsInputError
 from ctdrill.haptics.physics import HAND_MAX_FEED_MM_S, HAND_MAX_N
@@ -87,7 +86,8 @@ class Operator:
     script : tuple of (time_s, force_n)
         Script rows, times increasing (script only).
     spec : str
-        The specification it was parsed from.
+        The specification it was parsed from, as records name it (a script by its content's
+        hash: :func:`script_label`).
     human : HumanSpec or None
         The person (human only).
     """
@@ -127,6 +127,18 @@ def load_script(path: Path) -> tuple[tuple[float, float], ...]:
     A regular file of at most :data:`MAX_SCRIPT_BYTES` and :data:`MAX_SCRIPT_ROWS` rows (a FIFO
     would block, ``/dev/zero`` would never end): it is read whole before the device is armed.
     """
+    return _load_script(path)[0]
+
+
+def script_label(digest: str) -> str:
+    """How records name a script operator: ``script:sha256=`` and the first 16 hex digits of
+    the file's SHA-256, never its path (a folder named after a patient stays out of
+    ``summary.json`` and the trainee record)."""
+    return f"script:sha256={digest[:16]}"
+
+
+def _load_script(path: Path) -> tuple[tuple[tuple[float, float], ...], str]:
+    """The script's rows and the SHA-256 of its bytes (hex)."""
     if not path.exists() and not path.is_symlink():
         raise SessionInputError(f"operator script {path}: cannot read (no such file)")
     data = read_bytes_bounded(
@@ -165,7 +177,7 @@ def load_script(path: Path) -> tuple[tuple[float, float], ...]:
         rows.append((t, f))
     if not rows:
         raise SessionInputError(f"operator script {path}: no rows after the header")
-    return tuple(rows)
+    return tuple(rows), hashlib.sha256(data).hexdigest()
 
 
 def _bounded(text: str, field: str, spec: str, low: float, high: float, *, open_low: bool) -> float:
@@ -224,8 +236,9 @@ def parse_operator(spec: str) -> Operator:
     if kind == "human":
         human = parse_human(spec)
         return Operator("human", value=human.force_n, spec=spec, human=human)
-    if kind == "script":
-        return Operator("script", script=load_script(Path(arg)), spec=spec)
+    if kind == "script":  # recorded by its content's hash: no path reaches the records
+        rows, digest = _load_script(Path(arg))
+        return Operator("script", script=rows, spec=script_label(digest))
     value = _number(arg, "the value", f"--operator {spec!r}")
     if kind == "push" and abs(value) > HAND_MAX_N:
         raise SessionInputError(f"--operator {spec!r}: force must be within +-{HAND_MAX_N:g} N")
@@ -270,33 +283,7 @@ def parse_fault(spec: str) -> FaultSpec:
 Row = tuple[float, float, float, float, str]
 
 
-def _csv_rows(rows: Sequence[Row]) -> Iterator[tuple[str, str, str, str, str]]:
+def session_cells(rows: Sequence[Row]) -> Iterator[tuple[str, str, str, str, str]]:
+    """``session.csv``'s cells of ``rows`` (:data:`SESSION_COLUMNS`), formatted; the file is
+    written by :mod:`ctdrill.app.session_csv`."""
     return ((f"{t:.4f}", f"{m:.5f}", f"{d:.5f}", f"{f:.4f}", s) for t, m, d, f, s in rows)
-
-
-def session_csv_text(rows: Sequence[Row]) -> str:
-    """``session.csv`` of ``rows`` as one text (the GUI's export), as :class:`SessionCsv`."""
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(SESSION_COLUMNS)
-    writer.writerows(_csv_rows(rows))
-    return out.getvalue()
-
-
-class SessionCsv:
-    """``session.csv`` writer, flushed after every block."""
-
-    def __init__(self, path: Path) -> None:
-        self._file: IO[str] = path.open("w", encoding="utf-8", newline="")
-        self._writer = csv.writer(self._file, lineterminator="\n")
-        self._writer.writerow(SESSION_COLUMNS)
-        self._file.flush()
-
-    def write(self, rows: Sequence[Row]) -> None:
-        """Append rows and flush."""
-        self._writer.writerows(_csv_rows(rows))
-        self._file.flush()
-
-    def close(self) -> None:
-        """Close the file."""
-        self._file.close()

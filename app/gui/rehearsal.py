@@ -21,13 +21,14 @@ from ctdrill.app.gui.session_process import SessionJob, run_job
 from ctdrill.app.igtl.frames import IgtlTarget, StreamSetup
 from ctdrill.app.readout import push_of
 from ctdrill.app.rehearse import rehearsal_summary, summary_json
+from ctdrill.app.session_csv import session_csv_text
 from ctdrill.app.trainee.exam import ExamSetup, assessment_context
 from ctdrill.engine.case import ExportJob
 from ctdrill.engine.path import PathResult
 from ctdrill.engine.settings import DEFAULTS
 from ctdrill.engine.summarize import CaseContext
 from ctdrill.haptics.profile_table import ProfileTable
-from ctdrill.haptics.session import Row, session_csv_text
+from ctdrill.haptics.session import Row
 from ctdrill.haptics.spec import DeviceSpec
 from ctdrill.model.band import HuUncertainty
 

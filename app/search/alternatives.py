@@ -11,13 +11,11 @@ clearances, walls and the rules each keeps (docs/suggest.md).
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
-from ctdrill.app.csv_cells import text_cell
+from ctdrill.app.csv_cells import csv_text, text_cell
 from ctdrill.app.search.feasibility import Feasibility, check_candidate
 from ctdrill.imaging.plan.implants import ImplantSpec, implant_placement
 from ctdrill.imaging.plan.protocol import protocol_drills
@@ -122,13 +120,11 @@ def keeps_text(a: Alternative) -> str:
 
 def alternatives_csv(alts: Sequence[Alternative]) -> str:
     """``alternatives.csv``: one row per implant tried (module docstring)."""
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(ALTERNATIVE_COLUMNS)
+    rows = []
     for a in alts:
         v = a.verdict
         walls = v.walls
-        w.writerow(
+        rows.append(
             [
                 text_cell(a.spec.name),
                 f"{a.spec.diameter_mm:g}",
@@ -144,4 +140,4 @@ def alternatives_csv(alts: Sequence[Alternative]) -> str:
                 text_cell(";".join(v.codes)),
             ]
         )
-    return buf.getvalue()
+    return csv_text(ALTERNATIVE_COLUMNS, rows)

@@ -4,15 +4,13 @@ through the plan writer), all in one atomic swap; and the lines the terminal sho
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ctdrill.app.csv_cells import text_cell
+from ctdrill.app.csv_cells import csv_text, text_cell
 from ctdrill.app.records import OUTPUT_NAMES, atomic_output_dir, write_file
 from ctdrill.app.search.alternatives import Alternative, alternatives_csv, keeps_text
 from ctdrill.app.search.candidates import SURFACE_SEARCH_MM
@@ -62,12 +60,10 @@ def _num(value: float, digits: int = 6) -> str:
 def candidates_csv(s: Suggestion) -> str:
     """``candidates.csv``: one row per candidate, best first (coordinates LPS mm, written to
     round-trip exactly)."""
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(CSV_COLUMNS)
     c, sc = s.candidates, s.scores
+    rows = []
     for rank, i in enumerate(s.order, start=1):
-        w.writerow(
+        rows.append(
             [
                 rank,
                 int(i),
@@ -95,7 +91,7 @@ def candidates_csv(s: Suggestion) -> str:
                 text_cell(printable(s.reason[i])),
             ]
         )
-    return buf.getvalue()
+    return csv_text(CSV_COLUMNS, rows)
 
 
 def summary_doc(s: Suggestion) -> dict[str, Any]:

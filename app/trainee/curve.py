@@ -12,7 +12,6 @@ half): 50 is the experts' median, whichever way is better for the metric.
 
 from __future__ import annotations
 
-import csv
 import io
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -20,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill.app.csv_cells import csv_text
 from ctdrill.app.records import atomic_output_dir, write_file
 from ctdrill.app.trainee.record import RecordError, TraineeRecord
 from ctdrill.haptics.assessment import ASSESSMENT_FIELDS
@@ -72,11 +72,9 @@ def _cell(value: Any) -> str:
 
 
 def _csv(columns: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> str:
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(columns)
-    writer.writerows([[_cell(r.get(c)) for c in columns] for r in rows])
-    return out.getvalue()
+    """Through the one CSV writer: a trainee's or a plan's name that starts like a formula
+    (``=HYPERLINK(...)``) is written quoted, never run by a spreadsheet."""
+    return csv_text(columns, [[_cell(r.get(c)) for c in columns] for r in rows])
 
 
 def learning_curve(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import hashlib
 import itertools
 import json
 import subprocess
@@ -123,7 +124,10 @@ def test_script_operator_drives_the_session(tmp_path: Path) -> None:
     assert float(rows[-1]["drill_mm"]) > 0.1  # 30 N cuts
     assert float(rows[-1]["force_cmd_n"]) == pytest.approx(30.0, abs=3.0)
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["operator"] == f"script:{script}"
+    # named by its content's hash, never by its path (a patient-named folder stays out)
+    digest = hashlib.sha256(script.read_bytes()).hexdigest()[:16]
+    assert summary["operator"] == f"script:sha256={digest}"
+    assert str(tmp_path) not in (out / "summary.json").read_text()
 
 
 @pytest.mark.parametrize(

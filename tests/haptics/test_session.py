@@ -9,16 +9,15 @@ from typing import Any
 
 import pytest
 
+from ctdrill.app.session_csv import SessionCsv, session_csv_text
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import (
     SESSION_COLUMNS,
     Operator,
-    SessionCsv,
     SessionInputError,
     parse_fault,
     parse_operator,
-    session_csv_text,
 )
 from ctdrill.haptics.sim import SimulatedDevice
 
