@@ -11,7 +11,7 @@ SYSTEM_PKGS := xvfb xauth libegl1 libgl1 libxkbcommon-x11-0 libxcb-cursor0 libxc
 	gcc libc6-dev
 DEMO_OUT ?= demo-out
 
-.PHONY: test-blas bench-smoke demo test bench fuzz lint typecheck sysdeps venv venv-dev wheel-check clean warmup
+.PHONY: test-blas bench-smoke demo test bench fuzz lint typecheck sysdeps venv venv-dev wheel-check clean warmup firmware firmware-cycles
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -74,6 +74,31 @@ bench: sysdeps $(STAMP) warmup
 
 fuzz: $(STAMP)
 	CTDRILL_FUZZ_EXAMPLES=20000 $(PY) -m pytest -q -p no:cacheprovider tests -m fuzz
+
+## The firmware for a Cortex-M4F (firmware/README.md): Debian's arm-none-eabi toolchain is
+## installed as root for this target only; the image and its size in build/firmware/.
+ARM_PKGS := gcc-arm-none-eabi libnewlib-arm-none-eabi binutils-arm-none-eabi
+ARM_CC := arm-none-eabi-gcc -mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard -std=c99 \
+	-O2 -ffp-contract=off -ffunction-sections -fdata-sections -Wall -Wextra -Werror -DFW_REAL_FLOAT \
+	--specs=nano.specs --specs=nosys.specs -nostartfiles -Wl,--gc-sections -T firmware/board/m4f.ld
+FW_SOURCES := firmware/fw_frame.c firmware/fw_render.c firmware/fw_device.c \
+	firmware/board/m4f_board.c firmware/board/m4f_start.c
+firmware:
+	@$(MAKE) --no-print-directory sysdeps SYSTEM_PKGS="$(ARM_PKGS)"
+	mkdir -p build/firmware
+	$(ARM_CC) -o build/firmware/ctdrill-m4f.elf $(FW_SOURCES) -lm
+	arm-none-eabi-objcopy -O binary build/firmware/ctdrill-m4f.elf build/firmware/ctdrill-m4f.bin
+	arm-none-eabi-size build/firmware/ctdrill-m4f.elf
+
+## Instructions per tick counted by QEMU (-icount) on a Cortex-M4F, priced in cycles
+## (scripts/firmware_cycles.py) against the 100 us budget at 168 MHz.
+firmware-cycles: firmware $(STAMP_RUN)
+	@$(MAKE) --no-print-directory sysdeps SYSTEM_PKGS="qemu-system-arm"
+	$(ARM_CC) -DFW_NO_MAIN -o build/firmware/ctdrill-m4f-cycles.elf $(FW_SOURCES) \
+		firmware/board/m4f_cycles.c -lm
+	timeout 300 qemu-system-arm -M netduinoplus2 -nographic -semihosting -icount shift=0 \
+		-kernel build/firmware/ctdrill-m4f-cycles.elf > build/firmware/cycles.txt 2>&1
+	$(PY) scripts/firmware_cycles.py build/firmware/ctdrill-m4f-cycles.elf build/firmware/cycles.txt
 
 ## Build the wheel, install it into a scratch venv and run the demo from outside the checkout.
 wheel-check: | $(VENV)/bin/python

@@ -119,6 +119,17 @@ typedef struct fw_controller {
 #endif
 } fw_controller;
 
+/* a received frame, decoded and checked (or its refusal), waiting for fw_poll */
+#define FW_RXQ 4u
+typedef struct fw_packet {
+    uint8_t nak;        /* a refusal to send (a NAK reason), or 0: a packet to handle */
+    uint8_t type;
+    uint8_t time_nonzero;
+    uint8_t body_len;
+    uint32_t seq, session;
+    uint8_t body[FW_MAX_DECODED - FW_HEADER_BYTES - 4u];
+} fw_packet;
+
 typedef struct fw_device {
     fw_hal hal;
     uint64_t ticks;
@@ -139,6 +150,11 @@ typedef struct fw_device {
     uint16_t rx_len;
     uint8_t rx_overflow;
     uint8_t reset_pending; /* SIM_RESET: drop the partial frame at the end of this chunk */
+    /* deferred handling (a board): fw_receive decodes into this queue in the background,
+     * fw_poll handles it in the tick's context; 0 (the host build): handled at once */
+    uint8_t defer;
+    uint32_t rxq_head, rxq_tail, rxq_dropped;
+    fw_packet rxq[FW_RXQ];
     fw_renderer r;
     fw_controller c;
     float s0[FW_MAX_PROFILE_STEPS], s1[FW_MAX_PROFILE_STEPS], s2[FW_MAX_PROFILE_STEPS];
@@ -148,8 +164,12 @@ typedef struct fw_device {
 void fw_init(fw_device *dev, const fw_hal *hal);
 /* power-cycle the core (what SIM_RESET does after its ACK): table, session, state lost */
 void fw_reset(fw_device *dev);
-/* bytes from the UART, handled at the current device time */
+/* bytes from the UART: frames decoded and checked, then handled at the current device time
+ * (dev->defer == 0) or queued for fw_poll (dev->defer == 1: fw_receive may run in the
+ * background while fw_poll and fw_tick run in the tick's interrupt) */
 void fw_receive(fw_device *dev, const uint8_t *data, size_t n);
+/* handle up to max queued frames (their replies, their commands); returns how many */
+unsigned fw_poll(fw_device *dev, unsigned max);
 /* one 10 kHz control tick: renderer, force controller, faults, telemetry */
 void fw_tick(fw_device *dev);
 /* the board saw a late tick */

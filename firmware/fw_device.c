@@ -393,58 +393,100 @@ static int device_type(uint8_t type)
            type == FW_ACK || type == FW_NAK;
 }
 
-/* one frame between delimiters (COBS bytes, 1..256 of them) */
+/* a frame's fate after decoding: handled at once, or queued for fw_poll */
+static void dispatch(fw_device *dev, const fw_packet *p);
+
+static void deliver(fw_device *dev, fw_packet *p)
+{
+    if (!dev->defer) {
+        dispatch(dev, p);
+        return;
+    }
+    if (dev->rxq_head - dev->rxq_tail >= FW_RXQ) {
+        dev->rxq_dropped++; /* the tick has not caught up: lost, like a UART overrun */
+        return;
+    }
+    dev->rxq[dev->rxq_head % FW_RXQ] = *p;
+    dev->rxq_head++; /* published after the copy (a single producer, a single consumer) */
+}
+
+static void refuse(fw_device *dev, uint8_t type, uint32_t seq, uint8_t reason)
+{
+    fw_packet p;
+    p.nak = reason;
+    p.type = type;
+    p.seq = seq;
+    p.session = 0;
+    p.time_nonzero = 0;
+    p.body_len = 0;
+    deliver(dev, &p);
+}
+
+/* one frame between delimiters (COBS bytes, 1..256 of them): decoded and checked */
 static void frame(fw_device *dev, const uint8_t *enc, size_t n)
 {
     uint8_t raw[FW_MAX_ENCODED];
     int len = fw_cobs_decode(enc, n, raw, sizeof raw);
     uint8_t type;
-    uint32_t seq, session, time_lo, time_hi;
-    size_t body_len;
+    uint32_t seq;
+    size_t body_len, i;
     int want;
-    const uint8_t *body;
+    fw_packet p;
     if (len < 0 || len > (int)FW_MAX_DECODED || len < (int)(FW_HEADER_BYTES + 4u) ||
         get_u32(raw + len - 4) != fw_crc32c(raw, (size_t)len - 4u)) {
-        dev->frames_rejected++;
-        send_nak(dev, 0, 0, FW_NAK_BAD_FRAME);
+        refuse(dev, 0, 0, FW_NAK_BAD_FRAME);
         return;
     }
     if (raw[0] != FW_PROTOCOL_VERSION) {
-        dev->frames_rejected++;
-        send_nak(dev, 0, 0, FW_NAK_BAD_VERSION);
+        refuse(dev, 0, 0, FW_NAK_BAD_VERSION);
         return;
     }
     type = raw[1];
     seq = get_u32(raw + 2);
-    session = get_u32(raw + 6);
-    time_lo = get_u32(raw + 10);
-    time_hi = get_u32(raw + 14);
-    body = raw + FW_HEADER_BYTES;
     body_len = (size_t)len - FW_HEADER_BYTES - 4u;
     want = body_size(type);
     if (want == -1) {
-        dev->frames_rejected++;
-        send_nak(dev, type, seq, FW_NAK_UNKNOWN_TYPE);
+        refuse(dev, type, seq, FW_NAK_UNKNOWN_TYPE);
         return;
     }
     if (want == -2) {
-        int count = body_len >= 3u ? body[2] : -1;
+        int count = body_len >= 3u ? raw[FW_HEADER_BYTES + 2] : -1;
         if (count < 1 || count > (int)FW_MAX_CHUNK_ROWS || body_len != 3u + 12u * (size_t)count)
             want = -3;
         else
             want = (int)body_len;
     }
-    if (want != (int)body_len) {
+    if (want != (int)body_len || device_type(type)) {
+        /* a device->host type is looped back: dropped without a reply (section 2.3) */
+        if (device_type(type))
+            dev->frames_rejected++;
+        else
+            refuse(dev, type, seq, FW_NAK_BAD_LENGTH);
+        return;
+    }
+    p.nak = 0;
+    p.type = type;
+    p.seq = seq;
+    p.session = get_u32(raw + 6);
+    p.time_nonzero = (get_u32(raw + 10) | get_u32(raw + 14)) != 0u;
+    p.body_len = (uint8_t)body_len;
+    for (i = 0; i < body_len; i++)
+        p.body[i] = raw[FW_HEADER_BYTES + i];
+    deliver(dev, &p);
+}
+
+/* what a checked frame does: session and sequence rules, then its command (tick context) */
+static void dispatch(fw_device *dev, const fw_packet *p)
+{
+    uint8_t type = p->type;
+    uint32_t seq = p->seq, session = p->session;
+    const uint8_t *body = p->body;
+    if (p->nak) {
         dev->frames_rejected++;
-        if (!device_type(type))
-            send_nak(dev, type, seq, FW_NAK_BAD_LENGTH);
+        send_nak(dev, type, seq, p->nak);
         return;
     }
-    if (device_type(type)) {
-        dev->frames_rejected++; /* looped back: dropped without a reply */
-        return;
-    }
-    if (time_lo != 0u || time_hi != 0u) {
+    if (p->time_nonzero) {
         dev->frames_rejected++;
         send_nak(dev, type, seq, FW_NAK_BAD_HEADER);
         return;
@@ -476,6 +518,17 @@ static void frame(fw_device *dev, const uint8_t *enc, size_t n)
                                                              : FW_NAK_BAD_SESSION);
 }
 
+unsigned fw_poll(fw_device *dev, unsigned max)
+{
+    unsigned done = 0;
+    while (done < max && dev->rxq_tail != dev->rxq_head) {
+        dispatch(dev, &dev->rxq[dev->rxq_tail % FW_RXQ]);
+        dev->rxq_tail++;
+        done++;
+    }
+    return done;
+}
+
 void fw_receive(fw_device *dev, const uint8_t *data, size_t n)
 {
     size_t i;
@@ -497,8 +550,7 @@ void fw_receive(fw_device *dev, const uint8_t *data, size_t n)
             /* a run longer than any frame: dropped up to the next delimiter, one NAK */
             dev->rx_len = 0;
             dev->rx_overflow = 1;
-            dev->frames_rejected++;
-            send_nak(dev, 0, 0, FW_NAK_BAD_FRAME);
+            refuse(dev, 0, 0, FW_NAK_BAD_FRAME);
         }
     }
     if (dev->reset_pending) {
@@ -555,6 +607,9 @@ void fw_init(fw_device *dev, const fw_hal *hal)
     dev->hal = *hal;
     dev->ticks = 0;
     dev->overruns = 0;
+    dev->defer = 0;
+    dev->rxq_head = dev->rxq_tail = dev->rxq_dropped = 0;
+    (void)fw_crc32(0u, NULL, 0); /* the CRC tables built here, not in a tick */
     dev->frames_rejected = 0;
     dev->reset_pending = 0;
     fw_reset(dev);

@@ -289,6 +289,11 @@ void fw_host_replay(fw_host *h, const int32_t *counts, size_t n, double *rec)
     h->v_m_s = 0.0;
 }
 
+/* the board's split: frames decoded by fw_receive, handled by fw_poll (the tick's context) */
+void fw_host_set_defer(fw_host *h, int on) { h->dev.defer = (uint8_t)(on != 0); }
+unsigned fw_host_poll(fw_host *h, unsigned max) { return fw_poll(&h->dev, max); }
+uint32_t fw_host_frames_dropped(const fw_host *h) { return h->dev.rxq_dropped; }
+
 uint64_t fw_host_ticks(const fw_host *h) { return h->dev.ticks; }
 uint32_t fw_host_overruns(const fw_host *h) { return h->dev.overruns; }
 void fw_host_set_overruns(fw_host *h, uint32_t n) { h->dev.overruns = n; }

@@ -7,6 +7,7 @@ from __future__ import annotations
 import ctypes
 import struct
 import zlib
+from pathlib import Path
 
 import pytest
 
@@ -15,6 +16,7 @@ from ctdrill.haptics.framing import cobs_decode, cobs_encode, crc32c
 from tests.haptics.test_protocol_doc import BLOCKS, DOC, HELLO, HOST_BLOCKS, _bytes, _lines
 
 PRECISIONS: tuple[Precision, ...] = ("double", "single")
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.parametrize("precision", PRECISIONS)
@@ -119,3 +121,81 @@ def test_hardware_refuses_the_simulator_messages_but_the_emulator_takes_them() -
     assert emu.take_output() == b""
     emu.run_ticks(100)
     assert emu.position_mm > 0.0  # the hand pushes the idle stage
+
+
+@pytest.mark.parametrize("block", BLOCKS[:8], ids=[f"example{i}" for i in range(8)])
+def test_the_boards_split_decode_then_poll_gives_the_same_bytes(block: str) -> None:
+    # on a board fw_receive decodes in the background and fw_poll handles the frames in the
+    # tick; polled before the next tick, the replies are the document's
+    emu = CDeviceEmulator(nonce_seed=0)
+    lib, h = load_core("double"), emu.handle
+    lib.fw_host_set_defer(h, 1)
+    expected = b""
+
+    def check() -> None:
+        nonlocal expected
+        assert emu.take_output().hex(" ") == expected.hex(" ")
+        expected = b""
+
+    for kind, arg in _lines(block):
+        if kind == "<":
+            expected += _bytes(arg)
+            continue
+        check()
+        if kind == ">":
+            emu.receive(_bytes(arg))
+            assert emu.take_output() == b""  # nothing handled before the poll
+            while lib.fw_host_poll(h, 2):
+                pass
+        elif arg == "hello":
+            emu.receive(HELLO)
+            while lib.fw_host_poll(h, 2):
+                pass
+            emu.take_output()
+        else:
+            verb, n = arg.split()
+            if verb == "device-seq":
+                emu.set_device_seq(int(n))
+            else:
+                emu.run_ticks(int(n))
+    check()
+    assert lib.fw_host_frames_dropped(h) == 0
+
+
+def test_the_board_and_the_core_compile_clean_for_the_microcontroller() -> None:
+    # the ARM toolchain is make firmware's; here the host compiler checks the same sources
+    # (C99, pedantic, every warning an error) for both precisions
+    import subprocess
+
+    from ctdrill.haptics.ccore import compiler
+
+    cc = compiler()
+    assert cc is not None
+    fw = ROOT / "firmware"
+    sources = [
+        "fw_frame.c",
+        "fw_render.c",
+        "fw_device.c",
+        "board/m4f_board.c",
+        "board/m4f_start.c",
+        "board/m4f_cycles.c",
+    ]
+    for real in ([], ["-DFW_REAL_FLOAT"]):
+        done = subprocess.run(
+            [
+                cc,
+                "-std=c99",
+                "-pedantic",
+                "-Wall",
+                "-Wextra",
+                "-Werror",
+                "-fsyntax-only",
+                "-DFW_NO_MAIN",
+                *real,
+                *(str(fw / s) for s in sources),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert done.returncode == 0, done.stderr
