@@ -28,7 +28,7 @@ from ctdrill.engine.path import PathResult, plan_path
 from ctdrill.engine.plans import plan_calibration
 from ctdrill.haptics.bilateral.estimator import Prior, plan_prior
 from ctdrill.haptics.bilateral.loop import STATE_NAMES, TeleopRun, TeleopSetup, simulate_teleop
-from ctdrill.haptics.bilateral.metrics import eq19_reproduction, teleop_metrics
+from ctdrill.haptics.bilateral.metrics import fig14, teleop_metrics
 from ctdrill.haptics.bilateral.params import ChannelSpec, EnvSpec, HandSpec
 from ctdrill.haptics.hands import breakthrough_depths_mm
 from ctdrill.haptics.profile_table import ProfileTable
@@ -168,7 +168,7 @@ def run_teleop(
         tip_length_mm=case.plan_path.plan.drill.tip_length_mm,
         exit_mm=case.exit_mm,
     )
-    figures.update(eq19_reproduction(run, case.plan_path.profile, 0.0))
+    figures["fig14"] = fig14(run, case.plan_path.profile, 0.0)
     figures["plan_stop_depth_mm"] = case.plan_path.stop_depth_mm
     figures["plan_stop_reason"] = case.plan_path.stop_reason
     return run, figures

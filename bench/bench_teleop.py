@@ -116,6 +116,7 @@ def _estimation(case: TeleopCase, seeds: list[int]) -> tuple[list[list[str]], di
                 )
                 layers = {d["layer"]: d for d in f["hu_rmse_by_layer"]}
                 cut = f["transparency"]["cutting"]
+                f14 = f["fig14"]
                 rows.append(
                     [
                         "feed 2 mm/s" if kind != "push" else "push 20 N",
@@ -128,10 +129,10 @@ def _estimation(case: TeleopCase, seeds: list[int]) -> tuple[list[list[str]], di
                         _fmt(f["boundary_lead_mm"], ".3f"),
                         f"{f['layers_detected']}/{f['layers_detected'] + f['layers_missed']}",
                         f["false_alarms"],
-                        _fmt(cut.get("force_error_pct")),
-                        _fmt(cut.get("force_mae_n"), ".3f"),
-                        _fmt(f["model_force_error_pct"]),
-                        _fmt(f["model_force_mae_n"], ".3f"),
+                        _fmt(f14.get("hand_error_pct")),
+                        _fmt(f14.get("hand_mae_n"), ".3f"),
+                        _fmt(f14.get("model_error_pct")),
+                        _fmt(f14.get("model_mae_n"), ".3f"),
                     ]
                 )
                 worst["rmse"] = max([worst["rmse"], *(d["rmse_hu"] for d in layers.values())])
@@ -139,11 +140,37 @@ def _estimation(case: TeleopCase, seeds: list[int]) -> tuple[list[list[str]], di
                 worst[f"lag_mm_{key}"] = max(worst[f"lag_mm_{key}"], f["boundary_lag_mm"] or 0.0)
                 worst["lag_ms"] = max(worst["lag_ms"], f["boundary_lag_ms"] or 0.0)
                 worst[f"fig14_mean_{key}"] = max(
-                    worst[f"fig14_mean_{key}"], cut.get("force_error_pct", math.inf)
+                    worst[f"fig14_mean_{key}"], f14.get("hand_error_pct", math.inf)
                 )
                 if err == 0.0:
-                    worst["fig14_model"] = max(worst["fig14_model"], f["model_force_error_pct"])
+                    worst["fig14_model"] = max(
+                        worst["fig14_model"], f14.get("model_error_pct", math.inf)
+                    )
     return rows, worst
+
+
+def _fig14(case: TeleopCase) -> tuple[list[list[str]], dict[str, float]]:
+    """Fig. 14 at the plan's feed and beyond: hand and Eq. 19 against the slave's force."""
+    rows = []
+    hand_pct = {}
+    for spec in ("feed:0.4", "feed:2", "push:12", "human:force=20,react_ms=200,noise_n=1,seed=0"):
+        _, f = run_teleop(case, parse_operator(spec), duration_s=_duration_s(spec), seed=0)
+        f14 = f["fig14"]
+        hand_pct[spec] = f14.get("hand_error_pct", math.inf)
+        rows.append(
+            [
+                f"`{spec}`",
+                _fmt(f["transparency"]["cutting"].get("mean_feed_mm_s"), ".1f"),
+                _fmt(f14.get("mean_force_n")),
+                _fmt(f14.get("hand_error_n"), "+.3f"),
+                _fmt(f14.get("hand_error_pct")),
+                _fmt(f14.get("hand_mae_n"), ".3f"),
+                _fmt(f14.get("model_error_n"), "+.3f"),
+                _fmt(f14.get("model_error_pct")),
+                _fmt(f14.get("model_mae_n"), ".3f"),
+            ]
+        )
+    return rows, hand_pct
 
 
 def _seeded(cases: dict[float, TeleopCase], n: int) -> dict[str, Any]:
@@ -257,6 +284,7 @@ def run(quick: bool) -> Section:
     cost_us = _tick_cost(base, 0.3 if quick else 2.0)
     stop_rows, stop_um, stop_pct = _stop_goal(base, [20.0] if quick else [15.0, 20.0, 25.0, 30.0])
     est_rows, worst = _estimation(base, [0] if quick else [0, 1, 2])
+    fig14_rows, fig14_pct = ([], {}) if quick else _fig14(base)
     n = 4 if quick else 100
     seeded = _seeded(cases, n)
     points = _map(quick)
@@ -275,7 +303,7 @@ def run(quick: bool) -> Section:
         ("overshoot past the cortex exit (mm)", over_max, 0.5),
         ("mean cutting force reproduced by the hand, pushed (%)", worst["fig14_mean_push"], 3.5),
         ("mean cutting force reproduced by the hand, 2 mm/s (%)", worst["fig14_mean_feed"], 3.5),
-        ("mean cutting force reproduced by Eq. 19 (%)", worst["fig14_model"], 3.5),
+        ("mean cutting force reproduced by Eq. 19, true law (%)", worst["fig14_model"], 3.5),
     ]
     shortfalls = []
     goal_rows = []
@@ -291,6 +319,12 @@ def run(quick: bool) -> Section:
         )
         if not ok:
             shortfalls.append(f"teleop goal not met: {name} = {value:.3g} (goal {limit:g})")
+    for spec, pct in fig14_pct.items():
+        if pct > 3.5:
+            shortfalls.append(
+                f"teleop: at `{spec}` the hand feels the mean cutting force {pct:.1f} % off "
+                "(goal 3.5 %): the stages' Coulomb friction below 1 mm/s"
+            )
     map_rows = [
         [
             f"{p.hand_damping_n_s_per_m:g}",
@@ -348,6 +382,29 @@ def run(quick: bool) -> Section:
             ],
             est_rows,
         ),
+        "",
+        "**The paper's Fig. 14** (seed 0, true force law, cutting depths 1-8 mm past the first "
+        "contact; the paper: mean error 0.15 N = 3.5 %, mean absolute error 0.72 N with a 0.47 N "
+        "vibration). At the plan's own feed, 0.4 mm/s, the hand feels the cut "
+        "off by the stages' Coulomb friction, which the servos remove only above 1 mm/s "
+        "(`haptics/bilateral/servo.py` gives the trade with the stop's figures):",
+        "",
+        table(
+            [
+                "operator",
+                "feed mm/s",
+                "mean force N",
+                "hand: error N",
+                "hand: %",
+                "hand: MAE N",
+                "Eq. 19: error N",
+                "Eq. 19: %",
+                "Eq. 19: MAE N",
+            ],
+            fig14_rows,
+        )
+        if fig14_rows
+        else "(not in a quick run)",
         "",
         f"**{n} seeded runs** (seeds 0-{n - 1}: even seeds push uniform 12-25 N with 1 N noise, "
         "odd seeds hold a feed uniform 1-3 mm/s; force law "

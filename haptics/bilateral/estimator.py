@@ -19,7 +19,7 @@ Per tick of the slave's loop (:meth:`HuEstimator.update`):
    step of new depth, where the plan's CT is uniform within :data:`PRIOR_WINDOW_MM`, the lip
    fully engaged and the cut steady (:data:`STEADY_FRACTION`), the residual
    ``z = log10(F / (1 + Ke v)) - b0 - n log10 C'_plan`` is one vote, unless it lies further
-   than :data:`MAX_VOTE_LOG10` from the current gain (the plan's CT then shows another layer
+   than :data:`MAX_VOTE_LOG10` from the model's gain (the plan's CT then shows another layer
    than the one cut: a misregistration). The gain is the model's own (``z = 0``) until the
    first vote, then the median of the votes; it learns force laws off by up to a factor 1.5. A
    Kalman filter on the same residual (the joint filter on gain and CT number, marginalised
@@ -72,8 +72,10 @@ PRIOR_WINDOW_MM = 0.15
 #: A density rise counts where the plan's CT shows none within this far either side, mm
 #: (the registration error it tolerates).
 RISE_WINDOW_MM = 3.0
-#: A vote further than this from the current gain (log10: a factor 1.5) is the plan's CT
-#: disagreeing with the slave's (another layer: a misregistration), not the force law.
+#: A vote further than this from the model's gain (log10: a factor 1.5) is the plan's CT
+#: disagreeing with the slave's (another layer: a misregistration), not the force law. (Gated
+#: against the current gain instead, a run of wrong votes first locks the gain out of the
+#: right ones.)
 MAX_VOTE_LOG10 = math.log10(1.5)
 #: Depth in bone before an exit counts, mm.
 IN_BONE_MM = 0.5
@@ -281,7 +283,7 @@ class HuEstimator:
             return
         self._next_update_mm = slave_mm + self.prior.step_mm
         z = y - self.b0 - self.n * self.prior.log10_c[k]
-        if abs(z - self.log10_gain) > MAX_VOTE_LOG10:
+        if abs(z) > MAX_VOTE_LOG10:
             self.votes_rejected += 1
             return
         bisect.insort(self._z, z)

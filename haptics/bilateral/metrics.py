@@ -46,6 +46,8 @@ DETECT_TOL_MM = 0.5
 #: Hysteresis of the estimate's layer, HU.
 HYSTERESIS_HU = 50.0
 LAYER_NAMES = ("not cut", "trabecular", "cortex")
+#: The paper's Fig. 14 compares forces over cutting depths 1-8 mm, here past the first contact.
+FIG14_WINDOW_MM = (1.0, 8.0)
 #: The per-layer error takes one sample per this much front advance, mm.
 DEPTH_BIN_MM = 0.01
 #: A layer's plateau: where the CT's lip-mean number is within this of the layer's median, HU
@@ -99,27 +101,41 @@ def _dt(run: TeleopRun) -> float:
     return float(run.time_s[1] - run.time_s[0]) if run.time_s.size > 1 else 1.0
 
 
-def eq19_reproduction(run: TeleopRun, profile: Profile, origin_mm: float) -> dict[str, float]:
-    """The paper's Fig. 14 comparison: Eq. 19 on ``profile`` (the plan's, its depth 0 at slave
-    depth ``origin_mm``) at the slave's cut depth and feed (the front's mean over one low-pass
-    window), against the force the slave met, over the cutting samples: the mean error (N and %
-    of the mean force) and the mean absolute error with the vibration (N)."""
-    mask = run.state == CUTTING
+def fig14(run: TeleopRun, profile: Profile, origin_mm: float) -> dict[str, float]:
+    """The paper's Fig. 14 figures over its depth window (:data:`FIG14_WINDOW_MM` past the
+    first contact, cutting samples): the mean error (N, % of the mean cutting force) and the
+    mean absolute error with the vibration (N) of
+
+    * ``hand_*``: the force the hand feels (``hand_n``) against the slave's cutting force;
+    * ``model_*``: Eq. 19 on ``profile`` (the plan's, its depth 0 at slave depth
+      ``origin_mm``) at the slave's cut depth and feed (the front's mean over one low-pass
+      window), the paper's reproduction, against the slave's cutting force.
+    """
+    cutting = run.state == CUTTING
+    out: dict[str, float] = {}
+    if not cutting.any():
+        return out
+    first = float(run.front_mm[np.argmax(cutting)])
+    lo, hi = FIG14_WINDOW_MM
+    mask = cutting & (run.front_mm >= first + lo) & (run.front_mm <= first + hi)
     if not mask.any():
-        return {"model_force_error_pct": math.nan, "model_force_mae_n": math.nan}
+        return out
     n = max(1, round(run.window_s / _dt(run)))
     front = run.front_mm
     back = np.concatenate([np.full(n, front[0]), front[:-n]])
     feed = (front - back) / (n * _dt(run))
-    model = force_series_n(profile, front - origin_mm, feed, run.time_s)
-    env = run.env_force_n
-    mean_env = float(np.mean(env[mask]))
-    err = float(np.mean(model[mask]) - mean_env)
-    return {
-        "model_force_error_n": err,
-        "model_force_error_pct": 100.0 * abs(err) / mean_env if mean_env > 0.0 else math.nan,
-        "model_force_mae_n": float(np.mean(np.abs(model[mask] - env[mask]))),
-    }
+    env = run.env_force_n[mask] * run.force_scale
+    mean_env = float(np.mean(env))
+    out["mean_force_n"] = mean_env
+    for name, series in (
+        ("hand", run.hand_n[mask]),
+        ("model", force_series_n(profile, front - origin_mm, feed, run.time_s)[mask]),
+    ):
+        err = float(np.mean(series)) - mean_env
+        out[f"{name}_error_n"] = err
+        out[f"{name}_error_pct"] = 100.0 * abs(err) / mean_env if mean_env > 0.0 else math.nan
+        out[f"{name}_mae_n"] = float(np.mean(np.abs(series - env)))
+    return out
 
 
 def layer_of(hu: np.ndarray, *, gate_hu: float, cortical_hu: float) -> np.ndarray:

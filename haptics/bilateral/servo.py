@@ -12,8 +12,11 @@ from __future__ import annotations
 #: controller fades it below 0.1 mm/s (:data:`ctdrill.haptics.plant.FRICTION_VEL_M_S`); in the
 #: bilateral loop that leaves a 1-4 um stick-slip cycle between the stages at rest (the model's
 #: 1 N steps in at every slip and kicks the force loop). Fading it over 1 mm/s lets both stages
-#: settle at the stop within 0.2 um (measured in bench/bench_teleop.py); below 1 mm/s the
-#: friction is then only partly removed from the force estimates.
+#: settle at the stop within 0.04 um RMS with ``|F_h + F_e|`` within 2.5 % (pushes 12-30 N);
+#: the price is at slow feeds, where the friction is only partly removed from the force
+#: estimates: the hand feels the cut 2 % off at 2 mm/s, 15 % at 0.4 mm/s (measured in
+#: bench/bench_teleop.py). A 0.3 mm/s fade on a 30 rad/s low-passed velocity gives 2.6 % at
+#: 0.4 mm/s and 0.2-0.5 um at the stop, but 7-10 % force error at the stop for 12-15 N pushes.
 SERVO_FRICTION_VEL_M_S = 1e-3
 
 
