@@ -13,11 +13,9 @@ nothing is written. Once the device was armed, ``summary.json`` is always writte
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -26,9 +24,16 @@ from ctdrill.app.exercise.aids import AidLevel
 from ctdrill.app.exercise.trials import blind_summary, check_session_plan, find_trial
 from ctdrill.app.igtl.frames import StreamGeometry, parse_target
 from ctdrill.app.igtl.stream import IgtlStream
-from ctdrill.app.readout import push_summary, wall_summary
 from ctdrill.app.records import atomic_output_dir, write_file
-from ctdrill.app.session_csv import SessionCsv
+from ctdrill.app.session_run import (
+    AssessmentObserver,
+    CsvObserver,
+    RehearsalSession,
+    SessionObserver,
+    StreamObserver,
+    rehearsal_summary,
+    summary_json,
+)
 from ctdrill.app.trainee.exam import (
     ExamSetup,
     assessment_context,
@@ -40,13 +45,11 @@ from ctdrill.engine.case import case_context
 from ctdrill.engine.grey import hu_sigma_uncertainty, map_volume
 from ctdrill.engine.path import PathResult, plan_path
 from ctdrill.engine.plans import one_trajectory, plan_calibration
-from ctdrill.engine.rehearsal_summary import RehearsalSummary, rehearsal_plan_summary
 from ctdrill.engine.settings import DEFAULTS, GreyMapSpec
 from ctdrill.engine.summarize import CaseContext
 from ctdrill.haptics.assessment import AssessmentContext, Assessor
 from ctdrill.haptics.device import Device
 from ctdrill.haptics.profile_table import ProfileTable
-from ctdrill.haptics.run import SessionResult, run_session
 from ctdrill.haptics.session import parse_fault, parse_operator
 from ctdrill.haptics.spec import DeviceSpec
 from ctdrill.imaging import load_ct
@@ -121,63 +124,6 @@ def open_device(spec: DeviceSpec, *, seed: int = 0) -> Device:
     return spec.open(seed=seed)
 
 
-def rehearsal_summary(
-    session: SessionResult | dict[str, Any],
-    path: PathResult,
-    table: ProfileTable,
-    *,
-    context: CaseContext,
-    operator: str,
-    device: str,
-    duration_s: float,
-    seed: int,
-    assessment: dict[str, Any] | None = None,
-    exam: ExamSetup | None = None,
-) -> dict[str, Any]:
-    """The one ``summary.json`` of a rehearsal (CLI, drill sequence and window): a
-    :class:`~ctdrill.engine.rehearsal_summary.RehearsalSummary` of the session's fields, the
-    export's summary of ``path`` on the case ``context`` (every field, the same values), and
-    how the session was run: ``operator``, ``device``, ``session_duration_s``, ``seed``,
-    ``profile_steps``; for a ``push:N`` operator the readouts of
-    :func:`ctdrill.app.readout.push_summary` (the model's time to the stop against the
-    session's, a push too weak to cut); at the stop the wall's account
-    (:func:`ctdrill.app.readout.wall_summary`); ``exam`` (exam mode: the device's stop and why
-    there, or ``{"enabled": false}``), ``plan_sha256``, ``recorded_at`` (UTC) and the session's
-    ``assessment`` (:meth:`ctdrill.haptics.assessment.Assessment.to_json`), when given."""
-    fields = dict(session.to_json() if isinstance(session, SessionResult) else session)
-    run: dict[str, Any] = {
-        "operator": operator,
-        "device": device,
-        "session_duration_s": duration_s,
-        "seed": seed,
-        "profile_steps": table.n_steps,
-    }
-    run.update(push_summary(fields, table, operator, duration_s))
-    run.update(wall_summary(fields))
-    run["exam"] = {"enabled": False} if exam is None else exam.to_json()
-    run["plan_sha256"] = plan_hash(path.plan)
-    run["recorded_at"] = datetime.now(UTC).isoformat(timespec="seconds")
-    if assessment is not None:
-        run["assessment"] = assessment
-    return RehearsalSummary(fields, rehearsal_plan_summary(path, context), run).to_json()
-
-
-def summary_json(summary: dict[str, Any]) -> str:
-    """``summary.json``'s text: valid JSON, a number that is not finite written as null (the
-    host records no untrusted telemetry; this keeps any other value from breaking the file)."""
-    return json.dumps(_finite(summary), indent=2, allow_nan=False) + "\n"
-
-
-def _finite(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    return value
-
-
 def rehearse(
     *,
     dicom: Path,
@@ -248,9 +194,6 @@ def rehearse(
             interpolate_gaps=interpolate_gaps,
             grey=grey,
             hu_sigma=hu_sigma,
-            open_device=open_device,
-            summarise=rehearsal_summary,
-            to_json=summary_json,
             exam=exam,
             igtl=target,
             on_warning=on_warning,
@@ -268,34 +211,28 @@ def rehearse(
     )
     if card is not None:
         check_session_plan(card, plan_hash(loaded.path.plan), where=str(plan))
-    assessor = Assessor(loaded.context, loaded.table)
     with atomic_output_dir(out, keep_unfinished=True) as stage, contextlib.ExitStack() as late:
-        dev = open_device(spec, seed=seed)
-        stream = None
+        observers: list[SessionObserver] = [
+            CsvObserver(stage / "session.csv"),
+            AssessmentObserver(Assessor(loaded.context, loaded.table)),
+        ]
         if target is not None:
             geometry = StreamGeometry.of_plan(loaded.path.plan)
             stream = IgtlStream(target, geometry, on_warning=on_warning, pace=not spec.paced)
-        try:
-            csv_out = SessionCsv(stage / "session.csv")
-            try:
-                result = run_session(
-                    dev,
-                    loaded.table,
-                    op,
-                    duration_s,
-                    faults=fault_specs,
-                    seed=seed,
-                    sink=csv_out.write,
-                    on_samples=assessor.add if stream is None else stream.chained(assessor.add),
-                    notice=notice,
-                )
-                # the session has ended: a signal now no longer cuts its records short
-                late.enter_context(held(reraise=False))
-            finally:
-                csv_out.close()
-        finally:
-            dev.close()
-            streamed = None if stream is None else stream.close().to_json()
+            observers.append(StreamObserver(stream))
+        session = RehearsalSession(
+            lambda: open_device(spec, seed=seed),
+            loaded.table,
+            op,
+            duration_s,
+            observers,
+            faults=fault_specs,
+            seed=seed,
+            notice=notice,
+            # the session has ended: a signal now no longer cuts its records short
+            ended=lambda: late.enter_context(held(reraise=False)),
+        )
+        result, records = session.run()
         summary = rehearsal_summary(
             result,
             loaded.path,
@@ -305,11 +242,11 @@ def rehearse(
             duration_s=duration_s,
             seed=seed,
             context=loaded.case,
-            assessment=assessor.result().to_json(),
+            assessment=records["assessment"],
             exam=loaded.exam,
         )
-        if streamed is not None:
-            summary["igtl"] = streamed
+        if "igtl" in records:
+            summary["igtl"] = records["igtl"]
         if aids is not None:
             summary.update(aids.summary())
         if card is not None:

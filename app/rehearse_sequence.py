@@ -38,7 +38,15 @@ from typing import TYPE_CHECKING, Any
 
 from ctdrill.app.igtl.frames import IgtlTarget, StreamDrill, StreamGeometry
 from ctdrill.app.records import atomic_output_dir, write_file
-from ctdrill.app.session_csv import SessionCsv
+from ctdrill.app.session_run import (
+    AssessmentObserver,
+    CsvObserver,
+    RehearsalSession,
+    SessionObserver,
+    StreamObserver,
+    rehearsal_summary,
+    summary_json,
+)
 from ctdrill.app.trainee.exam import (
     ExamSetup,
     assessment_context,
@@ -55,7 +63,6 @@ from ctdrill.engine.settings import DEFAULTS, GreyMapSpec
 from ctdrill.engine.stop import stop_words
 from ctdrill.haptics.assessment import Assessor, combine_assessments
 from ctdrill.haptics.profile_table import ProfileTable
-from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import FaultSpec, Operator
 from ctdrill.haptics.spec import DeviceSpec
 from ctdrill.imaging import load_ct
@@ -86,18 +93,16 @@ def rehearse_sequence(
     interpolate_gaps: bool,
     grey: GreyMapSpec | None,
     hu_sigma: float | None,
-    open_device: Callable[..., Any],
-    summarise: Callable[..., dict[str, Any]],
-    to_json: Callable[[dict[str, Any]], str],
     exam: bool = False,
     igtl: IgtlTarget | None = None,
     on_warning: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Run every drill of ``plan`` on its own session and write the records (module docstring).
 
-    ``grey`` and ``hu_sigma`` are the rehearsal's grey-to-HU map and ``--hu-sigma``;
-    ``open_device``, ``summarise`` (the single rehearsal's summary) and ``to_json`` are
-    :mod:`ctdrill.app.rehearse`'s, so one drill's records are exactly a rehearsal's; ``exam``
+    ``grey`` and ``hu_sigma`` are the rehearsal's grey-to-HU map and ``--hu-sigma``; each
+    drill is one :class:`~ctdrill.app.session_run.RehearsalSession` summarised by
+    :func:`~ctdrill.app.session_run.rehearsal_summary`, so one drill's records are exactly a
+    rehearsal's; ``exam``
     runs every drill in exam mode (on hardware its wall at the landmark's surface); ``igtl`` streams
     every drill's session through one connection (:meth:`IgtlStream.start_drill`: the
     ``Drill`` message names each), the top ``summary.json`` gaining ``igtl``.
@@ -140,35 +145,29 @@ def rehearse_sequence(
             else:
                 table = ProfileTable.from_profile(path.profile, path.stop_depth_mm)
             context = assessment_context(path, None if setup is None else setup.path)
-            assessor = Assessor(context, table)
             folder = stage / drill_folder(k)
             folder.mkdir()
-            observe: Callable[[list[Any]], None] = assessor.add
+            observers: list[SessionObserver] = [
+                CsvObserver(folder / "session.csv"),
+                AssessmentObserver(Assessor(context, table)),
+            ]
             if stream is not None:
                 number = (k + 1, len(plan.drills))
                 drill = StreamDrill(*number, path.plan.drill.diameter_mm, drill_folder(k))
                 stream.start_drill(StreamGeometry.of_plan(path.plan), drill)
-                observe = stream.chained(assessor.add)
-            dev = open_device(device, seed=seed)
-            try:
-                csv_out = SessionCsv(folder / "session.csv")
-                try:
-                    with signals.released():  # the session handles them (STOP, DISARM)
-                        result = run_session(
-                            dev,
-                            table,
-                            operator,
-                            duration_s,
-                            faults=faults,
-                            seed=seed,
-                            sink=csv_out.write,
-                            on_samples=observe,
-                        )
-                finally:
-                    csv_out.close()
-            finally:
-                dev.close()
-            doc = summarise(
+                observers.append(StreamObserver(stream, owned=False))  # one for the sequence
+            session = RehearsalSession(
+                lambda: device.open(seed=seed),
+                table,
+                operator,
+                duration_s,
+                observers,
+                faults=faults,
+                seed=seed,
+            )
+            with signals.released():  # the session handles them (STOP, DISARM)
+                result, records = session.run()
+            doc = rehearsal_summary(
                 result,
                 path,
                 table,
@@ -177,10 +176,10 @@ def rehearse_sequence(
                 duration_s=duration_s,
                 seed=seed,
                 context=case,
-                assessment=assessor.result().to_json(),
+                assessment=records["assessment"],
                 exam=setup,
             )
-            write_file(folder / "summary.json", to_json(doc))
+            write_file(folder / "summary.json", summary_json(doc))
             runs.append((path, doc, reached_depth_mm(doc)))
             if not doc.get("complete"):
                 break
@@ -189,7 +188,7 @@ def rehearse_sequence(
             _mark_interrupted(top, signal_name(signals.caught[0]))  # the sequence broke there
         if stream is not None:
             top["igtl"] = stream.close().to_json()
-        write_file(stage / "summary.json", to_json(top))
+        write_file(stage / "summary.json", summary_json(top))
     return top
 
 

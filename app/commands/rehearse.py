@@ -14,7 +14,6 @@ from ctdrill.app.commands.options import (
     add_interpolate_gaps_option,
     add_plan_option,
 )
-from ctdrill.engine.stop import stop_words
 
 
 def register(subparsers: Any) -> None:
@@ -159,6 +158,8 @@ def _warn(message: str) -> None:
 
 
 def _single_line(s: dict[str, Any], out: Path) -> None:
+    from ctdrill.engine.stop import stop_words
+
     exam = s.get("exam", {})
     why = (
         f"exam: {exam['stop_basis']}"

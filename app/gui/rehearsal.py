@@ -20,8 +20,8 @@ from ctdrill.app.export import write_exports
 from ctdrill.app.gui.session_process import SessionJob, run_job
 from ctdrill.app.igtl.frames import IgtlTarget, StreamSetup
 from ctdrill.app.readout import push_of
-from ctdrill.app.rehearse import rehearsal_summary, summary_json
 from ctdrill.app.session_csv import session_csv_text
+from ctdrill.app.session_run import rehearsal_summary, summary_json
 from ctdrill.app.trainee.exam import ExamSetup, assessment_context
 from ctdrill.engine.case import ExportJob
 from ctdrill.engine.path import PathResult
