@@ -81,7 +81,8 @@ def _settings(
     allowed: frozenset[str],
 ) -> _Settings:
     """Settings of the markup's description and attributes, then of control point ``cp``
-    (its index in ``controlPoints`` and itself), the control point winning."""
+    (its index in ``controlPoints`` and itself). A setting given at two of these levels with
+    different values is refused, naming both (neither wins silently)."""
     out = _Settings()
     sources: list[tuple[object, str]] = [(markup.get("description"), f"{where}.description")]
     attrs = markup.get("attributes")
@@ -96,10 +97,13 @@ def _settings(
             found = parse_settings(text)
         except SettingsSyntaxError as exc:
             raise ctx.fail(fp, f"holds a malformed setting: {exc}") from exc
-        out.update(found)
-        out.origin.update(dict.fromkeys(found, fp))
+        for key, value in found.items():
+            _agree(ctx, out, key, value, fp)
+            out[key] = value
+            out.origin[key] = fp
     if isinstance(attrs, dict):
         for key, value in attrs.items():
+            _agree(ctx, out, key, value, f"{where}.attributes")
             if key not in out:
                 out[key] = value
                 out.origin[key] = f"{where}.attributes"
@@ -110,6 +114,27 @@ def _settings(
             f"is not a setting of this markup (known: {', '.join(sorted(allowed))})",
         )
     return out
+
+
+def _same_value(a: Any, b: Any) -> bool:
+    """One setting's two values mean the same (``2`` and ``2.0``; text by its words)."""
+    if isinstance(a, str) and isinstance(b, str):
+        return a.strip() == b.strip()
+    try:
+        return bool(float(a) == float(b))
+    except (TypeError, ValueError):
+        return bool(a == b)
+
+
+def _agree(ctx: _Ctx, out: _Settings, key: str, value: Any, fp: str) -> None:
+    """Refuse ``key`` given again at another level with a different value."""
+    if key in out and not _same_value(out[key], value):
+        raise ctx.fail(
+            f"{fp}: setting {key}",
+            f"is {value!r} here and {out[key]!r} in {out.origin[key]}; a setting given at the "
+            "markup and at the control point must agree (readers differ on which one wins): "
+            "keep one",
+        )
 
 
 def _name(ctx: _Ctx, settings: dict[str, Any], markup: dict[str, Any], only: bool) -> str | None:
@@ -127,3 +152,19 @@ def _number(ctx: _Ctx, settings: _Settings, key: str, *, positive: bool = False)
         return None
     where = settings.origin[key]
     return ctx.number(settings, key, where, positive=positive, nonneg=not positive)
+
+
+#: Why an unnamed Curve is refused, and what to do.
+UNNAMED_CURVE = (
+    'has no name: name the canal, e.g. name="left IAN canal" in its first control point\'s '
+    "description (3D Slicer keeps it), or give the markup a name; ctdrill takes no name or role "
+    'from the file\'s name (a Curve is a canal unless its description says "arch")'
+)
+
+
+def _curve_name(ctx: _Ctx, settings: dict[str, Any], markup: dict[str, Any], where: str) -> str:
+    """A canal Curve's name: its ``name=`` setting or its markup name, never the file's."""
+    name = _name(ctx, settings, markup, only=False)
+    if name is None:
+        raise ctx.fail(f"{where} (Curve)", UNNAMED_CURVE)
+    return name

@@ -8,6 +8,7 @@ Part of the landmark kinds (:mod:`ctdrill.imaging.plan.landmarks` re-exports
 
 from __future__ import annotations
 
+import itertools
 import os
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -26,6 +27,22 @@ from ctdrill.imaging.plan.landmark_base import (
 )
 from ctdrill.imaging.plan.voxels import exposed_face_centres, voxel_union_segments
 
+#: Axis orders a ``.npy`` labelmap may be stated in (plan key ``axes``): slices, rows, cols
+#: (ctdrill's and SimpleITK's arrays) or cols, rows, slices (nibabel's ``get_fdata``).
+AXES_KJI = "kji"
+AXES_IJK = "ijk"
+AXES = (AXES_KJI, AXES_IJK)
+
+
+def _other_orders(shape: tuple[int, ...]) -> set[tuple[int, ...]]:
+    """Shapes an array of the grid ``shape`` would have if its axes were stated in another
+    order, when that other order gives the same shape (the grid has two equal sizes)."""
+    out = set()
+    for perm in itertools.permutations(range(len(shape))):
+        if perm != tuple(range(len(shape))) and tuple(shape[p] for p in perm) == shape:
+            out.add(shape)
+    return out
+
 
 @dataclass(frozen=True, eq=False)
 class MaskLandmark:
@@ -37,6 +54,11 @@ class MaskLandmark:
     file the mask came from (for messages and saving); ``label`` and ``segment`` what was
     taken from it (a label value, a segment's name). Each labelled voxel is the box
     ``affine @ ([i, j, k] + [-1/2, 1/2]^3)``.
+
+    ``axes`` is the order the array's axes were stated in: :data:`AXES_KJI` (slices, rows,
+    cols: an array built in ctdrill's order, the default) or None (a ``.npy`` labelmap whose
+    plan entry states no order: the file carries none). A mask of unknown order binds to a CT
+    grid only where no other axis order would fit that grid too (:meth:`on_grid`).
     """
 
     name: str
@@ -46,6 +68,7 @@ class MaskLandmark:
     source: str = ""
     label: int | None = None
     segment: str | None = None
+    axes: str | None = "kji"
     _segments: dict[bytes, tuple[np.ndarray, np.ndarray]] = field(
         init=False, repr=False, default_factory=dict
     )
@@ -137,6 +160,8 @@ class MaskLandmark:
             item["segment"] = self.segment
         if self.affine_lps is not None and self.source.lower().endswith(".npy"):
             item["affine_lps"] = self.affine_lps.tolist()
+        if self.axes is not None and self.axes != AXES_KJI and self.source.lower().endswith(".npy"):
+            item["axes"] = self.axes
         return item | margin_item(self.margin_mm)
 
     def control_points_lps(self) -> np.ndarray:
@@ -163,9 +188,27 @@ class MaskLandmark:
         return self.affine_lps is None
 
     def on_grid(self, affine_lps: np.ndarray, shape: tuple[int, ...]) -> MaskLandmark:
-        """Bound to the CT grid when it has none (its shape must then be the CT's)."""
+        """Bound to the CT grid when it has none (its shape must then be the CT's, and a mask
+        of unknown axis order must fit it in one order only)."""
         if self.affine_lps is not None:
             return self
+        ct = tuple(int(n) for n in shape)
+        if self.axes is None and tuple(self.mask.shape) in _other_orders(ct):
+            raise LandmarkInputError(
+                f"mask landmark {self.name!r} ({self.source or 'array'}): a .npy labelmap "
+                f"carries no geometry, and its shape {tuple(self.mask.shape)} fits the CT grid "
+                f"{ct} (slices, rows, cols) in more than one axis order (the CT has two equal "
+                'sizes); say which: "axes": "kji" (slices, rows, cols, as ctdrill and '
+                'SimpleITK arrays) or "ijk" (cols, rows, slices, as nibabel returns), or give '
+                "its affine_lps, or save the mask as NIfTI or NRRD"
+            )
+        if self.axes is None and sorted(self.mask.shape) == sorted(ct) != list(self.mask.shape):
+            raise LandmarkInputError(
+                f"mask landmark {self.name!r} ({self.source or 'array'}): shape "
+                f"{tuple(self.mask.shape)} is the CT grid {ct} (slices, rows, cols) in another "
+                'axis order; say which with "axes" ("ijk": cols, rows, slices, as nibabel '
+                "returns) or give its affine_lps"
+            )
         if tuple(self.mask.shape) != tuple(shape):
             raise LandmarkInputError(
                 f"mask landmark {self.name!r} ({self.source or 'array'}): shape "

@@ -25,6 +25,7 @@ from ctdrill.imaging.plan.landmarks import (
     Landmark,
     PointLandmark,
 )
+from ctdrill.imaging.plan.mask import AXES
 from ctdrill.imaging.plan.plan_keys import (
     _LANDMARK_KEYS,
     _PER_TRAJECTORY_KEYS,
@@ -110,6 +111,13 @@ def _parse_landmark(ctx: _Ctx, raw: object, index: int, system: str, base_dir: P
             affine = None
         if affine is None or affine.shape != (4, 4) or not np.all(np.isfinite(affine)):
             raise ctx.fail(f"{where}.affine_lps", "must be a 4x4 matrix of finite numbers")
+    axes = raw.get("axes")
+    if axes is not None and axes not in AXES:
+        raise ctx.fail(
+            f"{where}.axes",
+            'must be "kji" (slices, rows, cols) or "ijk" (cols, rows, slices)',
+            axes,
+        )
     mask_path = Path(rel) if Path(rel).is_absolute() else base_dir / rel
     from ctdrill.imaging.plan.segmentation import mask_landmark
 
@@ -121,6 +129,7 @@ def _parse_landmark(ctx: _Ctx, raw: object, index: int, system: str, base_dir: P
         affine_lps=affine,
         margin_mm=margin,
         source=str(mask_path),
+        axes=axes,
     )
 
 

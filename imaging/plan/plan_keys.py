@@ -51,5 +51,15 @@ _PER_TRAJECTORY_KEYS = _TRAJECTORY_KEYS - {"name", "description", "comment"}
 _LANDMARK_KEYS = {
     "canal": {"name", "kind", "points_mm", "radius_mm", "margin_mm", "description"},
     "point": {"name", "kind", "point_mm", "points_mm", "margin_mm", "description"},
-    "mask": {"name", "kind", "path", "label", "segment", "affine_lps", "margin_mm", "description"},
+    "mask": {
+        "name",
+        "kind",
+        "path",
+        "label",
+        "segment",
+        "affine_lps",
+        "axes",
+        "margin_mm",
+        "description",
+    },
 }

@@ -4,8 +4,11 @@ A mask landmark (``{"kind": "mask", "path": ..., "segment": NAME}`` or ``"label"
 plan, or the file itself given as a plan input) is read from (the format by the file's content,
 :func:`mask_format`, not its name):
 
-- ``.npy``: a labelmap (slices, rows, cols) on the CT grid (or on ``affine_lps`` given in the
-  plan); the header's shape x item size is checked against :data:`MAX_MASK_BYTES` before
+- ``.npy``: a labelmap on the CT grid (or on ``affine_lps`` given in the plan). It carries no
+  geometry and no axis order: the plan's ``axes`` says ``kji`` (slices, rows, cols) or
+  ``ijk`` (cols, rows, slices, nibabel's order); without it the mask is refused where another
+  axis order would fit the CT grid too (a CT with as many columns as slices); the header's
+  shape x item size is checked against :data:`MAX_MASK_BYTES` before
   anything is allocated, and a ``.npz`` (zip) or any non-NPY file is refused.
 - a 3D Slicer segmentation (``.seg.nrrd``: a NRRD with ``SegmentN_`` fields): every segment is a
   landmark named by its ``SegmentN_Name``; its voxels are those of its layer equal to its
@@ -28,6 +31,7 @@ from __future__ import annotations
 
 import os
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +45,7 @@ from ctdrill.imaging.plan.labels import (
     mask_of,
 )
 from ctdrill.imaging.plan.landmarks import LandmarkInputError, MaskLandmark
+from ctdrill.imaging.plan.mask import AXES_IJK, AXES_KJI
 from ctdrill.imaging.plan.read import PlanParts
 from ctdrill.imaging.volumes.sniff import read_volume_file, volume_format
 from ctdrill.imaging.volumes.types import VolumeData
@@ -259,13 +264,28 @@ def mask_landmark(
     affine_lps: np.ndarray | None,
     margin_mm: float | None,
     source: str,
+    axes: str | None = None,
 ) -> MaskLandmark:
-    """The mask landmark a plan names: ``label`` and/or ``segment`` choose what is taken."""
+    """The mask landmark a plan names: ``label`` and/or ``segment`` choose what is taken.
+
+    ``axes`` (a ``.npy`` only): the order its axes are stored in, ``kji`` (slices, rows,
+    cols) or ``ijk`` (cols, rows, slices, transposed here); None: not stated, and the mask is
+    refused where another order would fit the CT grid too (:meth:`MaskLandmark.on_grid`).
+    """
     if mask_format(path) == "npy":  # a missing file, FIFO or device is named first
         if segment is not None:
             raise LandmarkInputError(f"{path}: a .npy labelmap has no named segments; use label")
         mask = load_mask_file(path, label=label)
-        return _nonempty(path, name, mask, affine_lps, margin_mm, source, label, None)
+        if axes == AXES_IJK:
+            mask = np.ascontiguousarray(mask.transpose(2, 1, 0))
+        lm = _nonempty(path, name, mask, affine_lps, margin_mm, source, label, None)
+        stated = axes if axes is not None else (AXES_KJI if affine_lps is not None else None)
+        return replace(lm, axes=stated)
+    if axes is not None:
+        raise LandmarkInputError(
+            f"{path}: this file carries its own geometry and axis order; remove axes from the "
+            "landmark (it is for .npy labelmaps)"
+        )
     if affine_lps is not None:
         raise LandmarkInputError(
             f"{path}: this file carries its own geometry; remove affine_lps from the landmark"

@@ -8,7 +8,9 @@ stores a markup's settings in its first control point's description::
 
 A value is either a bare word or a JSON string in double quotes (for names with spaces). Words
 without ``=`` are free text and ignored; a ``key=value`` whose key is not a setting of that
-markup is refused (a misspelt key must not be silently dropped).
+markup is refused (a misspelt key must not be silently dropped), and so is a key given twice
+in one description (``radius_mm=1.2 radius_mm=0.01``: which one was meant is not known, so
+neither is taken).
 """
 
 from __future__ import annotations
@@ -35,7 +37,8 @@ TEXT_KEYS = frozenset(
 
 
 class SettingsSyntaxError(ValueError):
-    """A ``key=value`` word whose quoted value is not a valid JSON string."""
+    """A ``key=value`` word whose quoted value is not a valid JSON string, or a key given
+    twice."""
 
 
 def parse_settings(text: str) -> dict[str, Any]:
@@ -44,11 +47,17 @@ def parse_settings(text: str) -> dict[str, Any]:
     Raises
     ------
     SettingsSyntaxError
-        A quoted value that is not a valid JSON string.
+        A quoted value that is not a valid JSON string, or a key given twice.
     """
     out: dict[str, Any] = {}
+    raws: dict[str, str] = {}
     for match in _SETTING.finditer(text):
         key, raw = match.group(1), match.group(2)
+        if key in raws:
+            raise SettingsSyntaxError(
+                f"{key} is given twice ({key}={raws[key]}, then {key}={raw}); keep the one you mean"
+            )
+        raws[key] = raw
         value: Any
         if raw.startswith('"'):
             try:

@@ -21,16 +21,17 @@ What is read, as 3D Slicer 5 writes it (``vtkMRMLMarkupsJsonStorageNode``):
   ``coordinateUnits`` ``"mm"``, ``"um"`` or the coded form ``["mm", "UCUM", "millimeter"]``.
 - Settings: ``key=value`` words of the first placed control point's description
   (:mod:`ctdrill.imaging.plan.settings`), which Slicer keeps; the markup's own ``description``
-  and ``attributes`` (which Slicer drops) are read too for older files, the control point
-  winning. A Fiducial's points each carry their own settings.
+  and ``attributes`` (which Slicer drops) are read too for older files; where both give a
+  setting they must agree. A Fiducial's points each carry their own settings.
 - A Line's implant: ``implant="NAME" implant_diameter_mm=4.1 implant_length_mm=10.0
   implant_apex_diameter_mm=2.9 implant_apex=round`` (all five, or none), and optionally its
   drilling protocol ``implant_drills="[{...}, ...]"`` (a quoted JSON list, as the implant
   object's ``drills``). A Line with an implant and no drill settings drills its protocol.
 - A Line's ``min_wall_mm`` (the thinnest bone wall to keep) and ``site`` (the FDI tooth
   number, 11-48), as the plan keys.
-- Names: a ``name=`` setting, else the markup's ``name``, else (Slicer writes no name; it
-  names the node after the file) the file's stem when the file holds one markup.
+- Names: a ``name=`` setting, else the markup's ``name``; a Line or Fiducial without either is
+  named after the file's stem (one markup a file); an unnamed Curve is refused, telling the
+  user to name it: no role (arch, canal, landmark) is ever taken from a file's name.
 """
 
 from __future__ import annotations
@@ -57,6 +58,7 @@ from ctdrill.imaging.plan.landmarks import (
     PointLandmark,
 )
 from ctdrill.imaging.plan.markup_fields import (
+    _curve_name,
     _name,
     _number,
     _placed_points,
@@ -182,9 +184,10 @@ def _is_arch(
     ctx: _Ctx, mk: dict[str, Any], cps: list[tuple[int, dict[str, Any]]], only: bool
 ) -> bool:
     """The Curve is the arch by its first placed point's description or, without one, by its
-    name (the markup's, else the file's stem): :func:`is_arch_curve`."""
+    markup name: :func:`is_arch_curve`. Never by the file's name (a canal saved by Slicer has
+    no name, and may sit in a file called ``Dental Arch.mrk.json``)."""
     first = cps[0][1].get("description") if cps else None
-    return is_arch_curve(first, _name(ctx, {}, mk, only))
+    return is_arch_curve(first, _name(ctx, {}, mk, only=False))
 
 
 def _arch(
@@ -380,7 +383,7 @@ def _curve(
             "accepted (a canal needs tens); resample the curve in Slicer",
         )
     settings = _settings(ctx, mk, cps[0], where, CURVE_KEYS)
-    name = _name(ctx, settings, mk, only) or f"canal {m_index + 1}"
+    name = _curve_name(ctx, settings, mk, where)
     radius = _number(ctx, settings, "radius_mm")
     if radius is None:
         ctx.notes.append(

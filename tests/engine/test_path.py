@@ -310,7 +310,15 @@ def test_mask_landmark_from_a_plan_file_on_the_ct_grid(slabs: CTVolume, tmp_path
         "entry_mm": [0.0, 0.0, 0.0],
         "target_mm": [0.0, 0.0, 5.0],
         "drill": {"diameter_mm": 2 * R_MM, "tip_length_mm": LT_MM},
-        "landmarks": [{"name": "segmented canal", "kind": "mask", "path": "canal.npy", "label": 5}],
+        "landmarks": [
+            {
+                "name": "segmented canal",
+                "kind": "mask",
+                "path": "canal.npy",
+                "label": 5,
+                "axes": "kji",
+            }
+        ],
     }
     (tmp_path / "plan.json").write_text(json.dumps(doc), encoding="utf-8")
     plan = load_plan(tmp_path / "plan.json")

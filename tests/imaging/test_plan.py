@@ -235,12 +235,16 @@ SLICER: dict[str, Any] = {
             "type": "Curve",
             "coordinateSystem": "LPS",
             "controlPoints": [
-                {"position": [0.0, 0.0, 0.0], "description": "tip of the canal radius_mm=0.9"},
+                {
+                    "position": [0.0, 0.0, 0.0],
+                    "description": 'tip of the canal radius_mm=0.9 name="canal 3"',
+                },
                 {"position": [1.0, 0.0, 0.0]},
             ],
         },
         {
             "type": "Curve",
+            "name": "canal 4",
             "coordinateSystem": "LPS",
             "controlPoints": [{"position": [5.0, 0.0, 0.0]}],
         },

@@ -242,7 +242,8 @@ def test_defaults_and_slicer_settings(tmp_path: Path) -> None:
     assert DEFAULT_MIN_WALL_MM == 1.5
     doc = plan_to_markups(Plan(np.zeros(3), np.array([0, 0, -10.0])))
     cp = doc["markups"][0]["controlPoints"][0]
-    cp["description"] += " site=46 min_wall_mm=2"
+    assert "min_wall_mm=1.5" in cp["description"]  # a setting is given once: replace it
+    cp["description"] = cp["description"].replace("min_wall_mm=1.5", "min_wall_mm=2") + " site=46"
     path = _write(tmp_path, doc, "line.mrk.json")
     line = load_plan(path)
     assert (line.site, line.min_wall_mm) == (46, 2.0)

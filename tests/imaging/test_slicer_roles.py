@@ -52,7 +52,7 @@ def _read(tmp_path: Path, markups: list[dict[str, object]], file: str = "case.mr
         ("", "IAN canal below the arch"),  # the issue's case: the word in the markup's name
         ('name="IAN canal below the arch" radius_mm=1.2', None),  # in the name setting
         ('name="IAN canal below the arch" radius_mm=1.2', "IAN canal below the arch"),
-        ("canal below the arch radius_mm=1.2", None),  # free words besides the role word
+        ('canal below the arch radius_mm=1.2 name="IAN"', None),  # free words, role word
         ("arch canal", "left canal"),
         ("", "Arch"),  # a name that is not exactly the documented one
         ("", "dental arch 2"),
@@ -84,18 +84,43 @@ def test_the_arch_is_marked_by_its_description_or_its_exact_name(
     assert plan.landmarks == () and plan.arch_lps is not None
 
 
-def test_a_slicer_saved_curve_named_dental_arch_is_the_arch_by_its_file_name(
-    tmp_path: Path,
-) -> None:
-    """Slicer writes no markup name: a one-markup file is named after the node."""
+@pytest.mark.parametrize("file", [ARCH_MARKUP_NAME, "Dental Arch", "arch", "IAN canal"])
+def test_no_role_or_name_comes_from_the_file_name(tmp_path: Path, file: str) -> None:
+    """Slicer writes no markup name: an unnamed Curve is refused with the line telling the
+    user to name it, whatever its file is called (a canal in "Dental Arch.mrk.json" used to
+    become the arch: the drill went 1.6 mm deeper)."""
     (tmp_path / "line.mrk.json").write_text(json.dumps(slicer_document(_LINE)))
-    (tmp_path / f"{ARCH_MARKUP_NAME}.mrk.json").write_text(json.dumps(slicer_document(_curve())))
-    (tmp_path / "IAN canal below the arch.mrk.json").write_text(
-        json.dumps(slicer_document(_curve()))
+    (tmp_path / f"{file}.mrk.json").write_text(json.dumps(slicer_document(_curve())))
+    with pytest.raises(PlanInputError) as info:
+        load_plan_set([tmp_path])
+    message = str(info.value)
+    assert f"{file}.mrk.json: markups[0] (Curve) has no name: name the canal" in message
+    assert "name=" in message and "\n" not in message
+    run = run_cli_in_process(
+        [
+            "export",
+            "--dicom",
+            str(ASSETS / "demo" / "ct"),
+            "--plan",
+            str(tmp_path / "line.mrk.json"),
+            "--plan",
+            str(tmp_path / f"{file}.mrk.json"),
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
+    assert run.code == 2 and run.stderr.count("\n") == 1 and "has no name" in run.stderr
+    # named by its description (what Slicer keeps), the same file is a canal of that name
+    (tmp_path / f"{file}.mrk.json").write_text(
+        json.dumps(slicer_document(_curve('name="IAN canal" radius_mm=1.2')))
     )
     (plan,) = load_plan_set([tmp_path])
-    assert plan.arch_lps is not None
-    assert [(lm.kind, lm.name) for lm in plan.landmarks] == [("canal", "IAN canal below the arch")]
+    assert plan.arch_lps is None
+    assert [(lm.kind, lm.name) for lm in plan.landmarks] == [("canal", "IAN canal")]
+    # marked as the arch by its description: the arch, whatever the file is called
+    (tmp_path / f"{file}.mrk.json").write_text(json.dumps(slicer_document(_curve("arch"))))
+    (plan,) = load_plan_set([tmp_path])
+    assert plan.arch_lps is not None and plan.landmarks == ()
 
 
 def test_an_arch_given_a_canal_setting_is_refused_naming_the_role(tmp_path: Path) -> None:

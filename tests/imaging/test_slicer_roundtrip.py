@@ -131,7 +131,10 @@ def _slicer5_case(tmp_path: Path) -> Path:
         "Curve",
         [
             slicer_control_point(
-                i, p, label=f"OC-{i + 1}", description="radius_mm=1.4" if i == 0 else ""
+                i,
+                p,
+                label=f"OC-{i + 1}",
+                description='name="OC" radius_mm=1.4' if i == 0 else "",
             )
             for i, p in enumerate(curve_pts)
         ]
@@ -163,6 +166,7 @@ def test_slicer5_case_in_separate_files_runs_without_edits(tmp_path: Path) -> No
     np.testing.assert_array_equal(plan.target_lps, [10.0, 20.0, 18.0])
     assert plan.drill == DrillSpec() and plan.margin_mm == 2.0
     apex, canal = plan.landmarks  # files in name order: F, L, OC, R
+    # a Curve is named by its description (Slicer keeps it), never after its file
     assert isinstance(canal, CanalLandmark) and canal.name == "OC" and canal.radius_mm == 1.4
     # The preview point is ignored: 4 placed points, 3 segments of 10 samples.
     assert canal.points_lps.shape == (31, 3)
