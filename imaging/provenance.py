@@ -73,3 +73,6 @@ class SeriesInfo:
     #: The file format the volume was read from: ``DICOM``, ``NIfTI-1``, ``NIfTI-2``, ``NRRD``
     #: or ``MetaImage`` (:func:`ctdrill.imaging.load_ct`).
     source_format: str = "DICOM"
+    #: FrameOfReferenceUID of a DICOM series ("" for a file volume, which has none): a DICOM
+    #: SEG landmark must share it. Never written to an output.
+    frame_of_reference_uid: str = ""

@@ -44,6 +44,7 @@ TAGS: dict[int, tuple[str, str]] = {
     0x00181120: ("GantryDetectorTilt", "DS"),
     0x00181210: ("ConvolutionKernel", "SH"),
     0x0020000E: ("SeriesInstanceUID", "UI"),
+    0x00200052: ("FrameOfReferenceUID", "UI"),
     0x00200032: ("ImagePositionPatient", "DS"),
     0x00200037: ("ImageOrientationPatient", "DS"),
     0x00280002: ("SamplesPerPixel", "US"),

@@ -147,6 +147,7 @@ def _planes(
         "slice_thickness_mm": _num(ds, "SliceThickness"),
         "spacing_between_slices_mm": _num(ds, "SpacingBetweenSlices"),
         "gantry_tilt_deg": _num(ds, "GantryDetectorTilt"),
+        "frame_of_reference_uid": str(ds.get("FrameOfReferenceUID", "") or "").strip(),
     }
     common: dict[str, Any] = {
         "path": path,

@@ -308,6 +308,7 @@ def _info(planes: Sequence[SliceHeader], n_files: int, is_hu: bool, tilt: float)
         rescale_type=h.rescale_type,
         n_files=n_files,
         gantry_tilt_deg=tilt,
+        frame_of_reference_uid=str(m.get("frame_of_reference_uid", "")),
     )
 
 

@@ -15,6 +15,13 @@ functional groups (per-frame, else shared): ``PlaneOrientationSequence``
 ``SpacingBetweenSlices`` when given) and each frame's ``PlanePositionSequence``
 (``ImagePositionPatient``). DICOM patient coordinates are LPS already.
 
+Every frame's own functional groups are honoured: each frame is placed by its own
+``ImagePositionPatient``, and a segment whose frames give different ``PixelSpacing``,
+``SpacingBetweenSlices``, ``SliceThickness`` or orientation is refused naming both frames
+(one frame's spacing applied to all moved the others: 0.45 against 0.4 mm moved the stop
+0.5 mm). The SEG's ``FrameOfReferenceUID`` travels with its landmarks; a CT of another Frame of
+Reference is refused naming both (:func:`ctdrill.imaging.sampling.path.require_grid_for_masks`).
+
 Every field is checked before it is used, and a failure names the file, the field and (for
 per-frame values) the frame: a missing or empty ``SegmentSequence``, ``SegmentNumber`` or
 ``ReferencedSegmentNumber``, a ``PixelSpacing`` that is not two positive numbers, orientation
@@ -170,7 +177,8 @@ def read_dicom_seg(path: Path) -> Labels:
         frames = np.asarray(ds.pixel_array).reshape(n_frames, rows, cols)
     except Exception as exc:  # pydicom's decoders raise many types
         raise LandmarkInputError(f"{path}: the SEG pixel data cannot be decoded ({exc})") from exc
-    labels = Labels(path, named=True)
+    frame_of_reference = str(ds.get("FrameOfReferenceUID", "") or "").strip()
+    labels = Labels(path, named=True, frame_of_reference_uid=frame_of_reference or None)
     frames_of: dict[int, list[int]] = {}
     for f, number in enumerate(referenced):
         frames_of.setdefault(number, []).append(f)
@@ -198,6 +206,48 @@ def _orientation(path: Path, ds: Any, frame: int) -> np.ndarray:
     return iop
 
 
+#: Per-frame pixel measures that place voxels: each frame of a segment must give the same.
+_MEASURES = (("PixelSpacing", 2), ("SpacingBetweenSlices", 1), ("SliceThickness", 1))
+#: Relative tolerance between two frames' measures (DS strings of 16 characters).
+_MEASURE_RTOL = 1e-6
+
+
+def _same_measures(path: Path, ds: Any, idx: list[int], name: str) -> None:
+    """Refuse a segment whose frames give different pixel measures (per-frame
+    ``PixelMeasuresSequence``): one spacing applied to all would move the others' voxels."""
+    first = _item(ds, idx[0], "PixelMeasuresSequence")
+    for f in idx[1:]:
+        item = _item(ds, f, "PixelMeasuresSequence")
+        if item is first:
+            continue
+        for key, count in _MEASURES:
+            a = None if first is None else first.get(key)
+            b = None if item is None else item.get(key)
+            if (a in (None, "")) and (b in (None, "")):
+                continue
+            where = f"frame {f + 1} (PixelMeasuresSequence)"
+            if a in (None, "") or b in (None, ""):
+                differ = True
+            else:
+                va = _numbers(path, first, key, count, f"frame {idx[0] + 1}")
+                vb = _numbers(path, item, key, count, where)
+                differ = not np.allclose(va, vb, rtol=_MEASURE_RTOL, atol=0.0)
+            if differ:
+                raise LandmarkInputError(
+                    f"{path}: segment {name!r}: {where} {key} {_shown(b)} differs from frame "
+                    f"{idx[0] + 1}'s {_shown(a)}; the frames are not one voxel grid (ctdrill "
+                    "does not resample): export the segmentation again on one grid"
+                )
+
+
+def _shown(value: Any) -> str:
+    if value in (None, ""):
+        return "(missing)"
+    if isinstance(value, Sequence) and not isinstance(value, (str, bytes)):
+        return "[" + ", ".join(str(v) for v in value) + "]"
+    return str(value)
+
+
 def _segment_volume(
     path: Path, ds: Any, frames: np.ndarray, idx: list[int], name: str
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -211,10 +261,15 @@ def _segment_volume(
         raise LandmarkInputError(f"{path}: {where}: PixelSpacing must be positive")
     e_i, e_j = iop[:3], iop[3:]
     normal = np.cross(e_i, e_j)
+    _same_measures(path, ds, idx, name)
     positions = []
     for f in idx:
         if not np.allclose(_orientation(path, ds, f), iop, atol=1e-6):
-            raise LandmarkInputError(f"{path}: segment {name!r} frames differ in orientation")
+            raise LandmarkInputError(
+                f"{path}: segment {name!r}: frame {f + 1} (PlaneOrientationSequence) "
+                f"ImageOrientationPatient differs from frame {idx[0] + 1}'s; the frames are not "
+                "one stack"
+            )
         positions.append(
             _numbers(
                 path,

@@ -33,9 +33,14 @@ class Labels:
     values.
     """
 
-    def __init__(self, path: Path, *, named: bool = False) -> None:
+    def __init__(
+        self, path: Path, *, named: bool = False, frame_of_reference_uid: str | None = None
+    ) -> None:
         self.path = path
         self.named = named
+        #: The DICOM Frame of Reference the masks are placed in (a SEG's), None for files
+        #: that carry none.
+        self.frame_of_reference_uid = frame_of_reference_uid
         self.items: list[tuple[str, int | None, np.ndarray, np.ndarray | None]] = []
 
 

@@ -55,6 +55,10 @@ class MaskLandmark:
     taken from it (a label value, a segment's name). Each labelled voxel is the box
     ``affine @ ([i, j, k] + [-1/2, 1/2]^3)``.
 
+    ``frame_of_reference_uid`` is the DICOM Frame of Reference its coordinates are in (a DICOM
+    SEG's), None when the file carries none: a CT of another frame is refused
+    (:func:`ctdrill.imaging.sampling.path.require_grid_for_masks`).
+
     ``axes`` is the order the array's axes were stated in: :data:`AXES_KJI` (slices, rows,
     cols: an array built in ctdrill's order, the default) or None (a ``.npy`` labelmap whose
     plan entry states no order: the file carries none). A mask of unknown order binds to a CT
@@ -69,6 +73,7 @@ class MaskLandmark:
     label: int | None = None
     segment: str | None = None
     axes: str | None = "kji"
+    frame_of_reference_uid: str | None = None
     _segments: dict[bytes, tuple[np.ndarray, np.ndarray]] = field(
         init=False, repr=False, default_factory=dict
     )

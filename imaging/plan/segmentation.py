@@ -307,7 +307,8 @@ def mask_landmark(
     mask = np.zeros(first[2].shape, dtype=bool)
     for _, value, arr, _ in chosen:
         mask |= mask_of(arr, value)
-    return _nonempty(path, name, mask, first[3], margin_mm, source, label, segment)
+    lm = _nonempty(path, name, mask, first[3], margin_mm, source, label, segment)
+    return replace(lm, frame_of_reference_uid=labels.frame_of_reference_uid)
 
 
 def _nonempty(
@@ -361,6 +362,7 @@ def segmentation_parts(path: Path) -> PlanParts:
                 source=source,
                 label=None if labels.named else value,
                 segment=name if labels.named else None,
+                frame_of_reference_uid=labels.frame_of_reference_uid,
             )
         )
     if not out:

@@ -109,7 +109,19 @@ def _not_hu_cause(volume: CTVolume) -> str:
 def require_grid_for_masks(
     volume: CTVolume, landmarks: tuple[Landmark, ...], *, name: str = ""
 ) -> None:
-    """A mask landmark without its own grid takes the CT's: only a regular stack has one."""
+    """A mask landmark without its own grid takes the CT's: only a regular stack has one. A
+    mask placed in a DICOM Frame of Reference (a SEG) must share the CT's (a DICOM series
+    records its own; a file volume has none, and then nothing can be compared)."""
+    ct_frame = volume.info.frame_of_reference_uid
+    for lm in landmarks:
+        frame = getattr(lm, "frame_of_reference_uid", None)
+        if frame and ct_frame and frame != ct_frame:
+            raise PathInputError(
+                f"plan {name!r}: mask landmark {lm.name!r} ({getattr(lm, 'source', '') or 'SEG'}) "
+                f"is placed in the Frame of Reference {frame}, the CT in {ct_frame}: the "
+                "segmentation was made on another scan's coordinates, so where it lies in this "
+                "CT is not known; segment this CT (or register the two and resample the SEG)"
+            )
     needing = [lm for lm in landmarks if lm.needs_grid]
     if not needing or volume.regular:
         return

@@ -219,7 +219,59 @@ def _frames_terabytes(ds: Any) -> None:
     ds.NumberOfFrames = 10**9
 
 
+def _per_frame_measures(ds: Any) -> None:
+    """Every frame its own PixelMeasuresSequence (as a scanner's SEG may give them)."""
+    from copy import deepcopy
+
+    shared = ds.SharedFunctionalGroupsSequence[0]
+    for item in ds.PerFrameFunctionalGroupsSequence:
+        item.PixelMeasuresSequence = deepcopy(shared.PixelMeasuresSequence)
+    del shared.PixelMeasuresSequence
+
+
+def _frame_spacing_differs(ds: Any) -> None:
+    _per_frame_measures(ds)
+    _frame(ds, 2, "PixelMeasuresSequence").PixelSpacing = [0.41, 0.4]
+
+
+def _frame_slice_spacing_differs(ds: Any) -> None:
+    _per_frame_measures(ds)
+    for n in range(len(ds.PerFrameFunctionalGroupsSequence)):
+        _frame(ds, n, "PixelMeasuresSequence").SpacingBetweenSlices = 0.4
+    _frame(ds, 4, "PixelMeasuresSequence").SpacingBetweenSlices = 0.5
+
+
+def _frame_orientation_differs(ds: Any) -> None:
+    from copy import deepcopy
+
+    shared = ds.SharedFunctionalGroupsSequence[0]
+    for item in ds.PerFrameFunctionalGroupsSequence:
+        item.PlaneOrientationSequence = deepcopy(shared.PlaneOrientationSequence)
+    del shared.PlaneOrientationSequence
+    c, s = np.cos(0.01), np.sin(0.01)
+    _frame(ds, 1, "PlaneOrientationSequence").ImageOrientationPatient = [
+        float(c),
+        float(s),
+        0.0,
+        float(-s),
+        float(c),
+        0.0,
+    ]
+
+
 SEG_LIES: dict[str, tuple[Callable[[Any], None], str]] = {
+    "frame_spacing_differs": (
+        _frame_spacing_differs,
+        r"frame 3 \(PixelMeasuresSequence\) PixelSpacing \[0\.41, 0\.4\] differs from frame 1's",
+    ),
+    "frame_slice_spacing_differs": (
+        _frame_slice_spacing_differs,
+        r"frame 5 \(PixelMeasuresSequence\) SpacingBetweenSlices 0\.5 differs from frame 1's 0\.4",
+    ),
+    "frame_orientation_differs": (
+        _frame_orientation_differs,
+        r"frame 2 \(PlaneOrientationSequence\) ImageOrientationPatient differs from frame 1's",
+    ),
     "iop_scaled_x10": (_iop_scaled_x10, r"ImageOrientationPatient: direction 1 has length 10"),
     "iop_skewed": (_iop_skewed, r"ImageOrientationPatient: directions 1 and 2 are not perp"),
     "iop_nan": (_iop_nan, r"ImageOrientationPatient \[.*nan.*\] is not finite"),
@@ -298,7 +350,14 @@ def test_lying_nifti_is_refused(canal: dict[str, Any], tmp_path: Path, name: str
 
 @pytest.mark.filterwarnings("ignore:Invalid value for VR DS")
 @pytest.mark.parametrize(
-    "case", ["seg:iop_scaled_x10", "seg:ipp_nan", "nifti:no_codes", "nifti:qform_sform"]
+    "case",
+    [
+        "seg:iop_scaled_x10",
+        "seg:ipp_nan",
+        "seg:frame_spacing_differs",
+        "nifti:no_codes",
+        "nifti:qform_sform",
+    ],
 )
 def test_export_refuses_with_one_error_line(
     canal: dict[str, Any], tmp_path: Path, case: str
@@ -324,3 +383,54 @@ def test_export_refuses_with_one_error_line(
     lines = err.getvalue().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"error: {path}"), err.getvalue()
     assert not (tmp_path / "out").exists()
+
+
+# --------------------------------------------------------------------------- per frame, frames
+
+
+def test_per_frame_measures_that_agree_are_honoured(canal: dict[str, Any], tmp_path: Path) -> None:
+    ds = pydicom.dcmread(canal["folder"] / "canal.dcm")
+    _per_frame_measures(ds)
+    ds.save_as(tmp_path / "per_frame.dcm")
+    assert abs(_stop_mm(_plan(tmp_path, "per_frame.dcm")) - CANAL_STOP_MM) <= VOXEL_MM
+
+
+def test_a_seg_of_another_frame_of_reference_is_refused_naming_both(
+    canal: dict[str, Any], tmp_path: Path
+) -> None:
+    from ctdrill import api
+
+    volume = api.load_ct(DEMO / "ct")
+    ct_frame = volume.info.frame_of_reference_uid
+    ds = pydicom.dcmread(canal["folder"] / "canal.dcm")
+    assert ct_frame and str(ds.FrameOfReferenceUID) == ct_frame  # highdicom copies the CT's
+    result = api.plan_path(volume, api.load_plan(_plan(tmp_path, _copy(canal, tmp_path))))
+    assert result.stop_reason == "margin"
+    ds.FrameOfReferenceUID = "1.2.826.0.1.3680043.8.498.4242"
+    ds.save_as(tmp_path / "other.dcm")
+    plan = _plan(tmp_path, "other.dcm")
+    with pytest.raises(
+        Exception, match=r"Frame of Reference 1\.2\.826\.0\.1\.3680043\.8\.498\.4242"
+    ):
+        api.plan_path(volume, api.load_plan(plan))
+    out, err = io.StringIO(), io.StringIO()
+    argv = [
+        "export",
+        "--dicom",
+        str(DEMO / "ct"),
+        "--plan",
+        str(plan),
+        "--out",
+        str(tmp_path / "o"),
+    ]
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(argv)
+    lines = err.getvalue().splitlines()
+    assert code == 2 and len(lines) == 1, err.getvalue()
+    assert "1.2.826.0.1.3680043.8.498.4242" in lines[0] and ct_frame in lines[0]
+    assert not (tmp_path / "o").exists()
+
+
+def _copy(canal: dict[str, Any], folder: Path) -> str:
+    (folder / "canal.dcm").write_bytes((canal["folder"] / "canal.dcm").read_bytes())
+    return "canal.dcm"
