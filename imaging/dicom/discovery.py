@@ -39,6 +39,7 @@ from ctdrill.imaging.dicom.slice_header import (
     SliceHeader,
 )
 from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.safeio import open_regular
 
 #: At most this many bytes are announced to the kernel for read-ahead per scan.
 PREFETCH_BYTES = 1 << 30
@@ -150,7 +151,7 @@ def _looks_like_dicom(path: Path) -> bool | None:
     OSError
         The file cannot be opened or read (e.g. permission denied).
     """
-    with path.open("rb") as fh:
+    with open_regular(path, what="DICOM file", error=OSError) as fh:
         head = fh.read(132)
     if len(head) == 132 and head[128:132] == b"DICM":
         return True
@@ -231,7 +232,7 @@ def read_headers(
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            with path.open("rb") as fh:
+            with open_regular(path, what="DICOM file", error=OSError) as fh:
                 ds = dcmread(fh, stop_before_pixels=True, force=kind is None)
                 implicit, little = ds.original_encoding
                 offset, length, has_pixels = _pixel_offset(fh, bool(implicit))

@@ -12,6 +12,7 @@ paths give identical headers on every real and synthetic file.
 from __future__ import annotations
 
 import os
+import stat
 import struct
 from dataclasses import dataclass
 from pathlib import Path
@@ -195,11 +196,14 @@ def read_fast_header(path: Path) -> FastHeader | None:
         A header element declares more bytes than the file holds.
     """
     try:
-        fd = os.open(path, os.O_RDONLY)
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO never blocks the open
     except OSError:
         return None
     try:
-        size = os.fstat(fd).st_size
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):  # swapped since it was listed: pydicom's path says so
+            return None
+        size = st.st_size
         chunk = _FIRST_READ
         while True:
             buf = os.pread(fd, min(chunk, size), 0)

@@ -23,6 +23,7 @@ from pydicom.uid import UID, ExplicitVRLittleEndian, ImplicitVRLittleEndian, RLE
 
 from ctdrill.imaging.dicom.discovery import SliceHeader
 from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.safeio import open_regular
 
 _NATIVE = (ExplicitVRLittleEndian, ImplicitVRLittleEndian)
 _ITEM = 0xFFFEE000
@@ -192,7 +193,7 @@ def read_stored(h: SliceHeader, out: np.ndarray | None = None) -> np.ndarray:
         out = np.empty(shape, dtype=dtype)
     if h.pixel_offset is not None:
         try:
-            with h.path.open("rb") as fh:
+            with open_regular(h.path, what="DICOM file", error=OSError) as fh:
                 fh.seek(h.pixel_offset)
                 got = fh.readinto(out.data.cast("B"))
         except OSError as exc:

@@ -49,6 +49,7 @@ from ctdrill.imaging.plan.mask import AXES_IJK, AXES_KJI
 from ctdrill.imaging.plan.read import PlanParts
 from ctdrill.imaging.volumes.sniff import read_volume_file, volume_format
 from ctdrill.imaging.volumes.types import VolumeData
+from ctdrill.safeio import open_regular
 
 _SEGMENT_KEY = re.compile(r"Segment\d+_ID")
 _SUFFIXES = (".seg.nrrd", ".nii.gz", ".nrrd", ".nhdr", ".nii", ".mha", ".mhd", ".npy", ".dcm")
@@ -85,7 +86,7 @@ def read_npy(path: Path) -> np.ndarray:
     size = bounded_file_size(path)
     fmt = np.lib.format
     try:
-        with open(path, "rb") as fh:
+        with open_regular(path, what="mask file", error=LandmarkInputError) as fh:
             version = fmt.read_magic(fh)
             if version == (1, 0):
                 shape, fortran, dtype = fmt.read_array_header_1_0(fh)
@@ -156,7 +157,7 @@ def mask_format(path: Path) -> str:
     if _suffix(path) == ".npy":
         return "npy"
     try:
-        with open(path, "rb") as fh:
+        with open_regular(path, what="mask file", error=LandmarkInputError) as fh:
             if fh.read(6) == b"\x93NUMPY":
                 return "npy"
     except OSError as exc:
