@@ -14,11 +14,12 @@ it imports nothing of theirs.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import re
 import stat
-from typing import IO, Any
+from typing import Any
 
 #: Largest JSON document read (plans, markups, calibration sets), bytes.
 MAX_JSON_BYTES = 64 * 1024 * 1024
@@ -74,7 +75,7 @@ def _pseudo_devices() -> frozenset[int]:
     return frozenset(out)
 
 
-def open_regular(path: str | os.PathLike[str], *, what: str, error: ErrorType) -> IO[bytes]:
+def open_regular(path: str | os.PathLike[str], *, what: str, error: ErrorType) -> io.BufferedReader:
     """``path`` opened for binary reading, refused unless the opened file is a regular file.
 
     The file is opened with ``O_NONBLOCK`` (opening a FIFO or a device never waits) and the
@@ -113,7 +114,9 @@ def open_regular(path: str | os.PathLike[str], *, what: str, error: ErrorType) -
                 f"{path}: the {what} is a kernel pseudo-file (/proc, /sys), not a data file; "
                 "name a file"
             )
-        return os.fdopen(fd, "rb")
+        fh = os.fdopen(fd, "rb")
+        assert isinstance(fh, io.BufferedReader)
+        return fh
     except BaseException:
         os.close(fd)
         raise
