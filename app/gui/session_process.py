@@ -35,11 +35,16 @@ from typing import Any, Protocol
 
 from ctdrill.app.igtl.frames import StreamSetup
 from ctdrill.app.rehearse import open_device
+from ctdrill.app.session_run import (
+    AssessmentObserver,
+    RehearsalSession,
+    SessionObserver,
+    StreamObserver,
+)
 from ctdrill.haptics.assessment import AssessmentContext, Assessor
 from ctdrill.haptics.device import TelemetrySample
 from ctdrill.haptics.hands import RETRACTED_MM, Hand, LiveHand
 from ctdrill.haptics.profile_table import ProfileTable
-from ctdrill.haptics.run import run_session
 from ctdrill.haptics.session import STATE_NAMES, Row, parse_operator
 from ctdrill.haptics.spec import DeviceSpec
 
@@ -86,6 +91,44 @@ class SessionJob:
     igtl: StreamSetup | None = None
 
 
+class WindowObserver:
+    """The window's record of a session: its rows and hand readings on the queue ``out``; it
+    ends the session (:attr:`done`) once the device held its auto-stop for
+    :data:`AUTO_STOP_HOLD_S` (``job.end_at_stop``) or the live hand drew the drill back out of
+    the hole it drilled (``retract`` set), and keeps a simulator to the wall clock."""
+
+    def __init__(self, job: SessionJob, out: _Queue, stop: _Event, retract: _Shared | None) -> None:
+        self.job, self.out, self.stop, self.retract = job, out, stop, retract
+        self.wall0 = time.monotonic()
+        self.stopped_at: float | None = None  # session time of the first auto-stop row
+        self.drilled_mm = 0.0
+        self.done = False
+
+    def rows(self, rows: list[Row]) -> None:
+        self.out.put(("rows", rows))
+        if self.stopped_at is None:
+            self.stopped_at = next((r[0] for r in rows if r[4] == "stopped"), None)
+        held = self.stopped_at is not None and rows[-1][0] - self.stopped_at >= AUTO_STOP_HOLD_S
+        self.drilled_mm = max(self.drilled_mm, max(r[2] for r in rows))
+        out_again = (
+            self.retract is not None
+            and bool(self.retract.value)
+            and self.drilled_mm > 0.0
+            and rows[-1][1] <= RETRACTED_MM
+        )  # the live hand drew the drill back out of the hole it drilled
+        self.done = (self.job.end_at_stop and held) or out_again
+        if self.job.device.host_paces:  # the simulator's time only advances in wait()
+            ahead = rows[-1][0] - (time.monotonic() - self.wall0)
+            if ahead > 0:
+                self.stop.wait(ahead)
+
+    def samples(self, block: list[TelemetrySample]) -> None:
+        self.out.put(("hand", block[-1].force_est_n))
+
+    def close(self) -> dict[str, Any]:
+        return {}
+
+
 def run_job(
     job: SessionJob,
     out: _Queue,
@@ -104,69 +147,38 @@ def run_job(
     hand: Hand | None = None
     if job.live and push is not None and retract is not None:
         hand = LiveHand(lambda: float(push.value), lambda: bool(retract.value))
-    assessor = None if job.context is None else Assessor(job.context, job.table)
-    stream = None
+    window = WindowObserver(job, out, stop, retract if hand is not None else None)
+    observers: list[SessionObserver] = [window]
+    if job.context is not None:
+        observers.append(AssessmentObserver(Assessor(job.context, job.table), if_armed=True))
     if job.igtl is not None:
         from ctdrill.app.igtl.stream import IgtlStream
 
         stream = IgtlStream(
             job.igtl.target, job.igtl.geometry, on_warning=lambda m: out.put(("warning", m))
         )
-    wall0 = time.monotonic()
-    stopped_at: list[float] = []  # session time of the first auto-stop row
-    done = [False]
-    drilled = [0.0]
-
-    def sink(rows: list[Row]) -> None:
-        out.put(("rows", rows))
-        if not stopped_at:
-            stopped_at.extend(r[0] for r in rows if r[4] == "stopped")
-        held = bool(stopped_at) and rows[-1][0] - stopped_at[0] >= AUTO_STOP_HOLD_S
-        drilled[0] = max(drilled[0], max(r[2] for r in rows))
-        out_again = (
-            hand is not None
-            and retract is not None
-            and bool(retract.value)
-            and drilled[0] > 0.0
-            and rows[-1][1] <= RETRACTED_MM
-        )  # the live hand drew the drill back out of the hole it drilled
-        done[0] = (job.end_at_stop and held) or out_again
-        if (
-            job.device.host_paces
-        ):  # the simulator's time only advances in wait(): keep it to the clock
-            ahead = rows[-1][0] - (time.monotonic() - wall0)
-            if ahead > 0:
-                stop.wait(ahead)
-
-    def samples(block: list[TelemetrySample]) -> None:
-        out.put(("hand", block[-1].force_est_n))
-        if assessor is not None:
-            assessor.add(block)
-        if stream is not None:
-            stream.observe(block)
-
+        observers.append(StreamObserver(stream))
+    session = RehearsalSession(
+        lambda: device,
+        job.table,
+        operator,
+        job.duration_s,
+        observers,
+        hand=hand,
+        should_stop=stop.is_set,
+        until=lambda: window.done,
+    )
     try:
-        result = run_session(
-            device,
-            job.table,
-            operator,
-            job.duration_s,
-            sink=sink,
-            should_stop=stop.is_set,
-            until=lambda: done[0],
-            on_samples=samples,
-            hand=hand,
-        )
+        result, records = session.run(device)
         kind = {"complete": "done", "cancelled": "cancelled"}.get(result.outcome, "fault")
         with contextlib.suppress(ValueError, OSError):  # a lost link reports nothing more
             device.wait(0.05)
             states = [s.state for s in device.poll()]
             if states:  # after the session's DISARM (or STOP and DISARM), as reported
                 out.put(("state", STATE_NAMES.get(states[-1], "?")))
-        if assessor is not None and assessor.t0 is not None:
-            out.put(("assessment", assessor.result().to_json()))
-        if stream is not None:
-            out.put(("igtl", stream.close().to_json()))
+        for key in ("assessment", "igtl"):
+            if key in records:
+                out.put((key, records[key]))
         out.put((kind, result.to_json()))
     except (ValueError, OSError) as exc:  # before ARM: a device that does not answer
         out.put(("error", str(exc) or type(exc).__name__))
@@ -175,5 +187,3 @@ def run_job(
         out.put(("error", f"internal error: {exc!r}"))
     finally:
         device.close()
-        if stream is not None:
-            stream.close()
