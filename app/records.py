@@ -66,7 +66,16 @@ from ctdrill.app.errors import AppInputError
 #: File names ctdrill writes into output folders (export, rehearse): an existing folder
 #: holding only these (at any depth) may be replaced by a new output.
 OUTPUT_NAMES: frozenset[str] = frozenset(
-    {"force.csv", "profile.csv", "summary.json", "force.png", "session.csv", "trajectories.csv"}
+    {
+        "force.csv",
+        "profile.csv",
+        "summary.json",
+        "force.png",
+        "session.csv",
+        "trajectories.csv",
+        "table.json",
+        "display.csv",
+    }
 )
 
 _NEW = "ctdrill-new"

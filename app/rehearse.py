@@ -41,6 +41,7 @@ from ctdrill.app.trainee.exam import (
     exam_setup,
     plan_hash,
 )
+from ctdrill.app.trainee.session_table import TABLE_FILE, table_text
 from ctdrill.engine.case import case_context
 from ctdrill.engine.grey import hu_sigma_uncertainty, map_volume
 from ctdrill.engine.path import PathResult, plan_path
@@ -252,6 +253,10 @@ def rehearse(
         if card is not None:
             summary = blind_summary(summary, card)
         write_file(stage / "summary.json", summary_json(summary))
+        write_file(
+            stage / TABLE_FILE,
+            table_text(loaded.table, loaded.context, str(summary["plan_sha256"])),
+        )
     return summary
 
 

@@ -54,6 +54,7 @@ from ctdrill.app.trainee.exam import (
     exam_setup,
     plan_hash,
 )
+from ctdrill.app.trainee.session_table import TABLE_FILE, table_text
 from ctdrill.engine.case import case_context
 from ctdrill.engine.grey import map_volume
 from ctdrill.engine.path import PathResult
@@ -180,6 +181,7 @@ def rehearse_sequence(
                 exam=setup,
             )
             write_file(folder / "summary.json", summary_json(doc))
+            write_file(folder / TABLE_FILE, table_text(table, context, str(doc["plan_sha256"])))
             runs.append((path, doc, reached_depth_mm(doc)))
             if not doc.get("complete"):
                 break
@@ -262,7 +264,7 @@ def sequence_summary(
     top["assessment"] = combine_assessments(
         [doc["assessment"] for _, doc, _ in runs],
         drills_planned=n,
-        planned_depth_mm=float(plan.planned_depth_mm),
+        planned_depth_mm=float(top["planned_depth_mm"]),
     ).to_json()
     top["drills"] = [
         {

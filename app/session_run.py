@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 from ctdrill.app.readout import push_summary, wall_summary
 from ctdrill.app.session_csv import SessionCsv
 from ctdrill.app.trainee.exam import ExamSetup, plan_hash
+from ctdrill.app.trainee.kinds import mode_of, operator_kind_of
 from ctdrill.engine.path import PathResult
 from ctdrill.engine.rehearsal_summary import RehearsalSummary, rehearsal_plan_summary
 from ctdrill.engine.summarize import CaseContext
@@ -197,7 +198,8 @@ def rehearsal_summary(
     :func:`ctdrill.app.readout.push_summary` (the model's time to the stop against the
     session's, a push too weak to cut); at the stop the wall's account
     (:func:`ctdrill.app.readout.wall_summary`); ``exam`` (exam mode: the device's stop and why
-    there, or ``{"enabled": false}``), ``plan_sha256``, ``recorded_at`` (UTC) and the session's
+    there, or ``{"enabled": false}``), ``operator_kind`` and ``mode``
+    (:mod:`ctdrill.app.trainee.kinds`), ``plan_sha256``, ``recorded_at`` (UTC) and the session's
     ``assessment`` (:meth:`ctdrill.haptics.assessment.Assessment.to_json`), when given."""
     fields = dict(session.to_json() if isinstance(session, SessionResult) else session)
     run: dict[str, Any] = {
@@ -210,6 +212,8 @@ def rehearsal_summary(
     run.update(push_summary(fields, table, operator, duration_s))
     run.update(wall_summary(fields))
     run["exam"] = {"enabled": False} if exam is None else exam.to_json()
+    run["operator_kind"] = operator_kind_of(operator, device)
+    run["mode"] = mode_of(run)
     run["plan_sha256"] = plan_hash(path.plan)
     run["recorded_at"] = datetime.now(UTC).isoformat(timespec="seconds")
     if assessment is not None:

@@ -197,7 +197,7 @@ def _session_figure(operator: str, duration_s: float) -> str:
 
     demo = ROOT / "assets" / "demo"
     loaded = load_table(demo / "ct", demo / "plan.json")
-    rows: list[tuple[float, float, float, float, str]] = []
+    rows: list[tuple[float, float, float, float, str, float]] = []
     result = run_session(
         SimulatedDevice(), loaded.table, parse_operator(operator), duration_s, sink=rows.extend
     )

@@ -10,11 +10,14 @@ sees every telemetry sample (:meth:`Hand.observe`), so it can react to what it f
 * :class:`LiveHand`: a push set from outside while the session runs (the window's mouse and
   keys), with a retraction out of the hole.
 
-The breakthrough is a property of the table (:func:`breakthrough_depths_mm`): the cutting
+The breakthroughs are a property of the table (:func:`breakthrough_depths_mm`): the cutting
 force ``S0`` at the drill depth falling below :data:`BREAKTHROUGH_RATIO` of its running peak
-over the last :data:`BREAKTHROUGH_WINDOW_MM` of depth; the hand feels it when the drill
-reaches that depth while cutting. The session's assessment
-(:mod:`ctdrill.haptics.assessment`) times the same event.
+over the last :data:`BREAKTHROUGH_WINDOW_MM` of depth. The one that matters
+(:func:`decisive_breakthrough_mm`) is the exit from the last layer before a protected
+structure or the goal: the first breakthrough at or beyond the planned osteotomy's end (less
+the window), never a layer the plan drills through (the crestal cortex's step into soft
+trabecular bone in D3/D4). The hand lets go when the drill reaches it while cutting; the
+session's assessment (:mod:`ctdrill.haptics.assessment`) times the same event.
 """
 
 from __future__ import annotations
@@ -85,6 +88,17 @@ def first_breakthrough_mm(table: ProfileTable) -> float | None:
     return depths[0] if depths else None
 
 
+def decisive_breakthrough_mm(table: ProfileTable) -> float | None:
+    """The breakthrough that matters, mm (None: none within the table's stop): the first at
+    or beyond ``table.goal_mm - BREAKTHROUGH_WINDOW_MM``, the exit from the last layer before
+    the goal or a protected structure beyond it (the canal's roof in an exam). A breakthrough
+    shallower than that is a layer the planned osteotomy drills through (the crestal cortex
+    into trabecular bone): a hand that let go there would never reach the goal."""
+    floor = float(table.goal_mm) - BREAKTHROUGH_WINDOW_MM
+    depths = [d for d in breakthrough_depths_mm(table) if d >= floor - 1e-9]
+    return depths[0] if depths else None
+
+
 class OperatorHand:
     """``push:N``, ``feed:V`` and ``script:FILE``: the command follows the clock alone."""
 
@@ -104,7 +118,8 @@ class OperatorHand:
 class HumanHand:
     """A person: pushes with ``force_n`` (plus Gaussian noise of ``noise_n`` at 100 Hz, from
     ``seed``) and lets go ``react_ms`` after the first cue: the drill reaching the table's
-    first breakthrough while cutting, or the device reporting its stop (the wall). Once it has
+    decisive breakthrough (:func:`decisive_breakthrough_mm`) while cutting, or the device
+    reporting its stop (the wall). Once it has
     let go it stays off the handle (0 N, no noise).
 
     The host sends the command once per block (10 ms), so the release lands on the first
@@ -120,7 +135,7 @@ class HumanHand:
 
     def __init__(self, spec: HumanSpec, table: ProfileTable) -> None:
         self.spec = spec
-        self.breakthrough_mm = first_breakthrough_mm(table)
+        self.breakthrough_mm = decisive_breakthrough_mm(table)
         self.cue: tuple[str, float] | None = None
         self.release_s: float | None = None
         self._rng = random.Random(spec.seed)

@@ -71,6 +71,11 @@ class ProfileTable:
         Harmonic frequencies ``f1, f2``, Hz.
     stop_depth_mm : float
         The drill never passes this depth, mm (>= 0).
+    goal_depth_mm : float or None
+        Where the planned osteotomy ends (the guarded stop), mm; None: the stop depth. The
+        host's alone (not uploaded): an exam's table runs past it, and the breakthrough a hand
+        reacts to is the first at or beyond it
+        (:func:`ctdrill.haptics.hands.decisive_breakthrough_mm`).
     """
 
     depth_step_mm: float
@@ -80,6 +85,7 @@ class ProfileTable:
     ke_per_mm_s: float
     freqs_hz: np.ndarray
     stop_depth_mm: float
+    goal_depth_mm: float | None = None
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -106,6 +112,13 @@ class ProfileTable:
         set_(self, "depth_step_mm", step)
         set_(self, "ke_per_mm_s", _finite32(self.ke_per_mm_s, "ke_per_mm_s"))
         set_(self, "stop_depth_mm", _finite32(self.stop_depth_mm, "stop_depth_mm"))
+        if self.goal_depth_mm is not None:
+            set_(self, "goal_depth_mm", _finite32(self.goal_depth_mm, "goal_depth_mm"))
+
+    @property
+    def goal_mm(self) -> float:
+        """The planned osteotomy's end, mm: ``goal_depth_mm``, or the stop without one."""
+        return self.stop_depth_mm if self.goal_depth_mm is None else self.goal_depth_mm
 
     @property
     def n_steps(self) -> int:
@@ -118,8 +131,11 @@ class ProfileTable:
         return np.arange(self.n_steps) * float(self.depth_step_mm)
 
     @classmethod
-    def from_profile(cls, profile: Profile, stop_depth_mm: float) -> ProfileTable:
-        """Adapt a :class:`ctdrill.model.profile.Profile` (depth from 0, uniform step).
+    def from_profile(
+        cls, profile: Profile, stop_depth_mm: float, *, goal_depth_mm: float | None = None
+    ) -> ProfileTable:
+        """Adapt a :class:`ctdrill.model.profile.Profile` (depth from 0, uniform step);
+        ``goal_depth_mm``: where the planned osteotomy ends when the stop is beyond it.
 
         Harmonics beyond the second are dropped, missing ones are zero.
         """
@@ -138,6 +154,7 @@ class ProfileTable:
             ke_per_mm_s=float(profile.ke_per_mm_s),
             freqs_hz=np.asarray(f),
             stop_depth_mm=stop_depth_mm,
+            goal_depth_mm=goal_depth_mm,
         )
 
     @classmethod

@@ -44,6 +44,7 @@ from ctdrill.haptics.session import (
     Operator,
     Row,
     SessionInputError,
+    sample_row,
 )
 from ctdrill.haptics.watch import TelemetryWatch, fault_names
 from ctdrill.interrupts import held, signal_name, signum_of
@@ -208,7 +209,7 @@ class _Loop:
                 self.t0_device = s.time_s
             self.last = s
             t = s.time_s - self.t0_device
-            rows.append((t, s.master_mm, s.drill_mm, s.force_cmd_n, STATE_NAMES.get(s.state, "?")))
+            rows.append(sample_row(t, s))
             self.hand.observe(t, s)
             result.max_drill_mm = max(result.max_drill_mm, s.drill_mm)
             result.max_master_mm = max(result.max_master_mm, s.master_mm)

@@ -23,6 +23,7 @@ import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ctdrill.haptics.errors import HapticsInputError
 from ctdrill.haptics.physics import HAND_MAX_FEED_MM_S, HAND_MAX_N
@@ -30,7 +31,13 @@ from ctdrill.haptics.protocol import DeviceState
 from ctdrill.numtext import ascii_number, ascii_whole
 from ctdrill.safeio import read_bytes_bounded
 
-SESSION_COLUMNS = ("time_s", "master_mm", "drill_mm", "force_cmd_n", "state")
+if TYPE_CHECKING:
+    from ctdrill.haptics.device import TelemetrySample
+
+#: ``session.csv``'s columns: the session time, the handle's and the drill's depth, the force
+#: the device rendered, its state, and the device's reading of the hand's force (the reaction
+#: observer's ``force_est_n``), from which the assessment is recomputed.
+SESSION_COLUMNS = ("time_s", "master_mm", "drill_mm", "force_cmd_n", "state", "hand_force_n")
 STATE_NAMES = {int(s): s.name.lower() for s in DeviceState}
 FAULT_KINDS = ("link-loss", "garbage", "delay", "reset")
 #: Largest operator script read, bytes, and its most rows (1 kHz for over 16 minutes).
@@ -280,10 +287,24 @@ def parse_fault(spec: str) -> FaultSpec:
     return FaultSpec(kind, t, ms, spec)
 
 
-Row = tuple[float, float, float, float, str]
+#: One ``session.csv`` row: ``(time_s, master_mm, drill_mm, force_cmd_n, state, hand_force_n)``.
+Row = tuple[float, float, float, float, str, float]
 
 
-def session_cells(rows: Sequence[Row]) -> Iterator[tuple[str, str, str, str, str]]:
-    """``session.csv``'s cells of ``rows`` (:data:`SESSION_COLUMNS`), formatted; the file is
-    written by :mod:`ctdrill.app.session_csv`."""
-    return ((f"{t:.4f}", f"{m:.5f}", f"{d:.5f}", f"{f:.4f}", s) for t, m, d, f, s in rows)
+def sample_row(t_s: float, sample: TelemetrySample) -> Row:
+    """The ``session.csv`` row of a telemetry ``sample`` at session time ``t_s``."""
+    state = STATE_NAMES.get(sample.state, "?")
+    return (t_s, sample.master_mm, sample.drill_mm, sample.force_cmd_n, state, sample.force_est_n)
+
+
+def csv_cells(row: Row) -> tuple[str, str, str, str, str, str]:
+    """A row's ``session.csv`` cells: the one place their digits are chosen (the assessment
+    reads the values as written, so the file recomputes it exactly)."""
+    t, m, d, f, s, h = row
+    return (f"{t:.4f}", f"{m:.5f}", f"{d:.5f}", f"{f:.4f}", s, f"{h:.4f}")
+
+
+def session_cells(rows: Sequence[Row]) -> Iterator[tuple[str, str, str, str, str, str]]:
+    """``session.csv``'s cells of ``rows`` (:data:`SESSION_COLUMNS`), formatted
+    (:func:`csv_cells`); the file is written by :mod:`ctdrill.app.session_csv`."""
+    return (csv_cells(r) for r in rows)

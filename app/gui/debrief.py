@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 
 from ctdrill.app.gui.rehearsal import RehearsalRun
 from ctdrill.app.trainee.record import TraineeRecord
-from ctdrill.app.trainee.session_files import SessionEntry, session_entry
+from ctdrill.app.trainee.session_files import SessionEntry, SessionFiles, session_entry
 
 #: Colours: the session's drill, hand and force; the expert's lines are grey.
 DRILL, HAND, FORCE, EXPERT = "#6d4c41", "#1e88e5", "#2e7d32", "#9e9e9e"
@@ -26,13 +26,15 @@ class Debrief:
 
     Attributes
     ----------
-    summary_text, csv_text : ``summary.json`` and ``session.csv`` as exported.
+    summary_text, csv_text, table_text : ``summary.json``, ``session.csv`` and ``table.json``
+        as exported.
     summary : the parsed summary (``assessment``, ``planned_depth_mm``, ``plan_sha256``...).
     time_s, hand_mm, drill_mm, force_n : (N,) the session's rows (hand = the master).
     """
 
     summary_text: str
     csv_text: str
+    table_text: str
     summary: dict[str, Any]
     time_s: np.ndarray
     hand_mm: np.ndarray
@@ -53,7 +55,10 @@ class Debrief:
     def entry(self) -> SessionEntry:
         """The session as the trainee record stores it (the hash ``ctdrill assess`` gives the
         exported folder)."""
-        return session_entry(Path("window"), self.summary_text.encode(), self.csv_text.encode())
+        files = SessionFiles(
+            self.summary_text.encode(), self.csv_text.encode(), self.table_text.encode()
+        )
+        return session_entry(Path("window"), files)
 
     def index_at(self, t_s: float) -> int:
         """The last row at or before ``t_s`` (the first row before the session)."""
@@ -76,6 +81,7 @@ def debrief_of(run: RehearsalRun) -> Debrief | None:
     return Debrief(
         summary_text,
         csv_text,
+        run.table_text(),
         run.summary(),
         rows[:, 0],
         rows[:, 1],

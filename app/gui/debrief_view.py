@@ -125,7 +125,8 @@ class DebriefView(QWidget):
             return
         exam = d.summary.get("exam", {}).get("enabled", False)
         self.title.setText("How it went" + (" (exam: no wall at the margin)" if exam else ""))
-        for line in debrief_lines(d.assessment, planned_depth_mm=d.planned_depth_mm):
+        lines = debrief_lines(d.assessment, planned_depth_mm=d.planned_depth_mm, summary=d.summary)
+        for line in lines:
             label = QLabel(line.text)
             label.setWordWrap(True)
             label.setToolTip(line.tooltip(d.assessment))

@@ -22,7 +22,8 @@ from ctdrill.app.igtl.frames import IgtlTarget, StreamSetup
 from ctdrill.app.readout import push_of
 from ctdrill.app.session_csv import session_csv_text
 from ctdrill.app.session_run import rehearsal_summary, summary_json
-from ctdrill.app.trainee.exam import ExamSetup, assessment_context
+from ctdrill.app.trainee.exam import ExamSetup, assessment_context, plan_hash
+from ctdrill.app.trainee.session_table import TABLE_FILE, table_text
 from ctdrill.engine.case import ExportJob
 from ctdrill.engine.path import PathResult
 from ctdrill.engine.settings import DEFAULTS
@@ -154,13 +155,15 @@ class RehearsalRun:
         push = push_of(operator_spec)
         self._push = ctx.Value("d", 0.0 if push is None else push)
         self._retract = ctx.Value("b", 0)
+        #: What the session is assessed against (``table.json`` with the table).
+        self.context = assessment_context(result, None if exam is None else exam.path)
         job = SessionJob(
             table=self.table,
             operator_spec=operator_spec,
             device=self.device,
             duration_s=duration_s,
             end_at_stop=end_at_stop,
-            context=assessment_context(result, None if exam is None else exam.path),
+            context=self.context,
             live=live,
             igtl=None if igtl is None else StreamSetup.of_plan(igtl, result.plan),
         )
@@ -244,7 +247,7 @@ class RehearsalRun:
                 if self._record:
                     self.rows.extend(rows)
                 self.trace.extend((r[0], r[3]) for r in rows)
-                t, master, drill, force, state = rows[-1]
+                t, master, drill, force, state, _hand = rows[-1]
                 exam = self.exam
                 self._latest = Telemetry(
                     t,
@@ -358,6 +361,10 @@ class RehearsalRun:
         """``(summary.json, session.csv)`` texts of the ended session."""
         return summary_json(self.summary()), session_csv_text(self.rows)
 
+    def table_text(self) -> str:
+        """``table.json``: what the session is assessed against (``ctdrill assess``)."""
+        return table_text(self.table, self.context, plan_hash(self.result.plan))
+
     def export(self, out_dir: Path) -> list[Path]:
         """Write the path export (``force.csv``, ``profile.csv``, ``summary.json``,
         ``force.png``, as ``ctdrill export``) and the recorded session (``session/session.csv``,
@@ -375,5 +382,6 @@ class RehearsalRun:
             extra_files={
                 "session/session.csv": csv_text,
                 "session/summary.json": summary_text,
+                f"session/{TABLE_FILE}": self.table_text(),
             },
         )

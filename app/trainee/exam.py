@@ -151,7 +151,9 @@ def exam_setup(
             f"the stop is at {stop:.2f} mm, the planned depth (or the CT's end): the path "
             f"beyond it cannot carry a force table ({exc})"
         )
-        table = ProfileTable.from_profile(guarded.profile, stop)
+        table = ProfileTable.from_profile(
+            guarded.profile, stop, goal_depth_mm=float(guarded.stop_depth_mm)
+        )
         return ExamSetup(table, guarded, "planned_depth", note)
     stop = _free_stop_mm(path)
     surface = (
@@ -177,7 +179,10 @@ def exam_setup(
         f"no wall at the margin: the stop is at {stop:.2f} mm, {where}; past the max safe "
         f"depth {guarded.max_safe_depth_mm:.2f} mm the drill enters the margin zone"
     )
-    return ExamSetup(ProfileTable.from_profile(path.profile, stop), path, "beyond_plan", note)
+    table = ProfileTable.from_profile(
+        path.profile, stop, goal_depth_mm=float(guarded.stop_depth_mm)
+    )
+    return ExamSetup(table, path, "beyond_plan", note)
 
 
 def assessment_context(

@@ -1,14 +1,17 @@
 """The trainee record: every assessed session in one SQLite file (stdlib ``sqlite3``).
 
-Schema version :data:`SCHEMA_VERSION` (``PRAGMA user_version``):
+Schema version :data:`SCHEMA_VERSION` (``PRAGMA user_version``; a version 1 file is migrated
+in place when opened to store, :func:`~ctdrill.app.trainee.schema.migrate`):
 
 * ``sessions``: one row per session, keyed by ``session_hash`` (the SHA-256 of the session's
-  ``summary.json`` and ``session.csv``,
-  :func:`~ctdrill.app.trainee.session_files.session_hash`): ``trainee``, ``expert`` (0/1),
-  ``plan_hash``, ``recorded_at`` (when the session ran, UTC ISO-8601), ``stored_at``,
-  ``exam`` (0/1), ``operator``, ``device``, ``calibration``, ``planned_depth_mm``,
-  ``max_safe_depth_mm``, then one column per assessment field
-  (:data:`ctdrill.haptics.assessment.ASSESSMENT_FIELDS`);
+  files, :func:`~ctdrill.app.trainee.session_files.session_hash`): ``trainee`` (NFC,
+  case-folded: :func:`check_trainee`), ``expert`` (0/1), ``plan_hash``, ``recorded_at`` (when
+  the session ran, UTC ISO-8601), ``stored_at``, ``exam`` (0/1), ``operator``, ``device``,
+  ``calibration``, ``planned_depth_mm``, ``max_safe_depth_mm``, how it ran
+  (:func:`ctdrill.app.trainee.kinds.session_kind`: ``operator_kind``, ``device_kind``,
+  ``mode``, ``complete``, ``outcome``, ``reason``, ``device_fault``), ``program_version``
+  (the ctdrill that assessed and stored it), then one column per assessment field
+  (:data:`ctdrill.haptics.assessment.ASSESSMENT_FIELDS`, recomputed from the trace);
 * ``traces``: the session's time, hand (master), drill and force at :data:`TRACE_RATE_HZ`
   (float32 arrays as blobs), for the window's replay and its expert overlay.
 
@@ -32,61 +35,29 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill import __version__
 from ctdrill.app.errors import AppInputError
+from ctdrill.app.trainee.kinds import SessionKind, session_kind
+from ctdrill.app.trainee.schema import (
+    HEAD_COLUMNS,
+    SCHEMA,
+    SCHEMA_VERSION,
+    SESSION_COLUMNS,
+    migrate,
+    normal_trainee,
+)
 from ctdrill.app.trainee.session_files import (
     TRACE_ARRAYS,
     TRACE_RATE_HZ,
     SessionEntry,
     read_session,
 )
-from ctdrill.haptics.assessment import ASSESSMENT_FIELDS, BOOL_FIELDS, INT_FIELDS, NULLABLE_FIELDS
+from ctdrill.haptics.assessment import ASSESSMENT_FIELDS, BOOL_FIELDS
 
-SCHEMA_VERSION = 1
 #: How long to wait for another program's lock on the file before refusing, s.
 LOCK_TIMEOUT_S = 2.0
 #: Longest trainee name, characters.
 MAX_TRAINEE_CHARS = 100
-
-#: The session columns before the assessment's, with their SQL types.
-_HEAD_COLUMNS = (
-    ("session_hash", "TEXT PRIMARY KEY"),
-    ("trainee", "TEXT NOT NULL"),
-    ("expert", "INTEGER NOT NULL CHECK (expert IN (0, 1))"),
-    ("plan_hash", "TEXT NOT NULL"),
-    ("recorded_at", "TEXT NOT NULL"),
-    ("stored_at", "TEXT NOT NULL"),
-    ("exam", "INTEGER NOT NULL CHECK (exam IN (0, 1))"),
-    ("operator", "TEXT"),
-    ("device", "TEXT"),
-    ("calibration", "TEXT"),
-    ("planned_depth_mm", "REAL"),
-    ("max_safe_depth_mm", "REAL"),
-)
-
-
-def _field_type(name: str) -> str:
-    if name in BOOL_FIELDS:
-        return f"INTEGER NOT NULL CHECK ({name} IN (0, 1))"
-    if name in INT_FIELDS:
-        return "INTEGER NOT NULL"
-    return "REAL" if name in NULLABLE_FIELDS else "REAL NOT NULL"
-
-
-SESSION_COLUMNS = tuple(c for c, _ in _HEAD_COLUMNS) + ASSESSMENT_FIELDS
-_SCHEMA = (
-    "CREATE TABLE sessions ("
-    + ", ".join(
-        [f"{c} {t}" for c, t in _HEAD_COLUMNS]
-        + [f"{f} {_field_type(f)}" for f in ASSESSMENT_FIELDS]
-    )
-    + ")",
-    "CREATE INDEX sessions_by_trainee ON sessions (trainee, recorded_at)",
-    "CREATE INDEX sessions_by_plan ON sessions (plan_hash, expert)",
-    "CREATE TABLE traces (session_hash TEXT PRIMARY KEY REFERENCES sessions (session_hash), "
-    "rate_hz REAL NOT NULL, samples INTEGER NOT NULL, "
-    + ", ".join(f"{a} BLOB NOT NULL" for a in TRACE_ARRAYS)
-    + ")",
-)
 
 
 class RecordError(AppInputError):
@@ -94,7 +65,9 @@ class RecordError(AppInputError):
 
 
 def check_trainee(trainee: str) -> str:
-    """A trainee id: 1 to 100 printable characters, no surrounding spaces."""
+    """A trainee id: 1 to 100 printable characters, no surrounding spaces; returned in its
+    stored form (:func:`normal_trainee`)."""
+    trainee = normal_trainee(trainee)
     if not trainee or trainee != trainee.strip() or len(trainee) > MAX_TRAINEE_CHARS:
         raise RecordError(
             f"--trainee {trainee!r}: give 1 to {MAX_TRAINEE_CHARS} characters without "
@@ -131,13 +104,17 @@ class TraineeRecord:
 
     def store(self, entry: SessionEntry, *, trainee: str, expert: bool) -> bool:
         """Store one session in one transaction; False if it was stored already (then the
-        row is left as it was)."""
+        row is left as it was). The row's assessment is the one recomputed from the trace
+        (``entry.assessment``), its kind :func:`~ctdrill.app.trainee.kinds.session_kind`."""
         s = entry.summary
         a = entry.assessment
         exam = s.get("exam")
+        kind: SessionKind = session_kind(s)
         head: dict[str, Any] = {
+            **kind.columns(),
+            "program_version": __version__,
             "session_hash": entry.session_hash,
-            "trainee": trainee,
+            "trainee": normal_trainee(trainee),
             "expert": int(expert),
             "plan_hash": s["plan_sha256"],
             "recorded_at": str(s.get("recorded_at") or _now()),
@@ -146,10 +123,10 @@ class TraineeRecord:
             "operator": _text(s.get("operator")),
             "device": _text(s.get("device")),
             "calibration": _text(s.get("calibration")),
-            "planned_depth_mm": _real(s.get("planned_depth_mm")),
-            "max_safe_depth_mm": _real(s.get("max_safe_depth_mm")),
+            "planned_depth_mm": _real(entry.planned_depth_mm),
+            "max_safe_depth_mm": _real(entry.max_safe_depth_mm),
         }
-        values = [head[c] for c, _ in _HEAD_COLUMNS]
+        values = [head[c] for c, _ in HEAD_COLUMNS]
         values += [int(a[f]) if f in BOOL_FIELDS else a[f] for f in ASSESSMENT_FIELDS]
         marks = ", ".join("?" for _ in SESSION_COLUMNS)
         trace = entry.trace
@@ -193,11 +170,15 @@ class TraineeRecord:
         trainee: str | None = None,
         plan_hash: str | None = None,
         expert: bool | None = None,
+        mode: str | None = None,
     ) -> list[dict[str, Any]]:
-        """Rows (column -> value, booleans as bool) in time order, filtered."""
+        """Rows (column -> value, booleans as bool, null where unknown) in time order,
+        filtered (``trainee`` compared in its stored form)."""
         where: list[str] = []
         args: list[object] = []
-        for column, value in (("trainee", trainee), ("plan_hash", plan_hash)):
+        if trainee is not None:
+            trainee = normal_trainee(trainee)
+        for column, value in (("trainee", trainee), ("plan_hash", plan_hash), ("mode", mode)):
             if value is not None:
                 where.append(f"{column} = ?")
                 args.append(value)
@@ -214,8 +195,9 @@ class TraineeRecord:
         out = []
         for row in rows:
             item = dict(zip(SESSION_COLUMNS, row, strict=True))
-            for name in ("expert", "exam", *BOOL_FIELDS):
-                item[name] = bool(item[name])
+            for name in ("expert", "exam", "complete", "device_fault", *BOOL_FIELDS):
+                if item[name] is not None:
+                    item[name] = bool(item[name])
             out.append(item)
         return out
 
@@ -284,7 +266,7 @@ def open_record(path: Path, *, create: bool) -> TraineeRecord:
                 f"--db {path}: a trainee record of schema {version}, newer than this ctdrill "
                 f"reads ({SCHEMA_VERSION}); update ctdrill"
             )
-        if version == SCHEMA_VERSION:
+        if version in (1, SCHEMA_VERSION):
             if not {"sessions", "traces"} <= tables:
                 raise RecordError(f"--db {path}: its sessions or traces table is missing")
             check = " ".join(str(conn.execute("PRAGMA quick_check").fetchone()[0]).split())
@@ -293,6 +275,8 @@ def open_record(path: Path, *, create: bool) -> TraineeRecord:
                     f"--db {path}: the trainee record is damaged ({check}); the file was left "
                     "as it was: restore it from a backup"
                 )
+            if version == 1:
+                migrate(conn)
         elif tables:
             raise RecordError(
                 f"--db {path}: an SQLite database that is not a ctdrill trainee record (tables "
@@ -303,7 +287,7 @@ def open_record(path: Path, *, create: bool) -> TraineeRecord:
         else:
             conn.execute("BEGIN IMMEDIATE")
             if not _tables(conn):
-                for statement in _SCHEMA:
+                for statement in SCHEMA:
                     conn.execute(statement)
                 conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
             conn.execute("COMMIT")

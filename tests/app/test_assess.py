@@ -5,7 +5,6 @@ from __future__ import annotations
 import csv
 import json
 import os
-import shutil
 import signal
 import sqlite3
 import subprocess
@@ -20,7 +19,8 @@ from ctdrill.app.cli import main
 from ctdrill.app.trainee import record as record_module
 from ctdrill.app.trainee.curve import CURVE_COLUMNS, percentile
 from ctdrill.app.trainee.record import SCHEMA_VERSION, open_record, read_session
-from ctdrill.haptics.assessment import ASSESSMENT_FIELDS, score_of
+from ctdrill.haptics.assessment import ASSESSMENT_FIELDS
+from tests.app.trainee_sessions import rewrite
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "assets" / "demo"
@@ -36,15 +36,9 @@ def real_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _variant(real: Path, dest: Path, when: str, **changes: Any) -> Path:
-    """A copy of the real session recorded at ``when`` with some assessment fields changed
-    (its score recomputed): another session, another content hash."""
-    shutil.copytree(real, dest)
-    summary = json.loads((dest / "summary.json").read_text())
-    a = summary["assessment"] | changes
-    summary["assessment"] = a | {"score": score_of(a)}
-    summary["recorded_at"] = when
-    (dest / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    return dest
+    """Another session made from the real one (its trace changed: ``depth_scale``,
+    ``rest_rows``...; the assessment recomputed), recorded at ``when``."""
+    return rewrite(real, dest, when, **changes)
 
 
 def _assess(*args: str | Path) -> int:
@@ -86,18 +80,16 @@ def test_sessions_are_stored_once_each_with_every_field(real_session: Path, tmp_
 def test_learning_curve_and_percentiles_against_experts(real_session: Path, tmp_path: Path) -> None:
     db = tmp_path / "record.sqlite"
     t = "2030-01-0{}T10:00:00+00:00"
-    late = _variant(real_session, tmp_path / "late", t.format(3), depth_error_mm=-0.2)
-    early = _variant(
-        real_session,
-        tmp_path / "early",
-        t.format(1),
-        breach=True,
-        overshoot_mm=2.5,
-        time_in_margin_s=0.4,
-        canal_entered=True,
-    )
+    late = _variant(real_session, tmp_path / "late", t.format(3), depth_scale=0.98)
+    early = _variant(real_session, tmp_path / "early", t.format(1), depth_scale=1.25)
     experts = [
-        _variant(real_session, tmp_path / f"expert{i}", t.format(5 + i), depth_error_mm=-0.1 * i)
+        _variant(
+            real_session,
+            tmp_path / f"expert{i}",
+            t.format(5 + i),
+            depth_scale=1.0 - 0.01 * i,
+            rest_rows=1,
+        )
         for i in range(3)
     ]
     assert _assess(late, early, "--db", db, "--trainee", "bob") == 0
@@ -139,11 +131,11 @@ def test_bad_input_is_one_error_line_and_nothing_is_lost(
     before = _rows(db)
     capsys.readouterr()
     # a session folder without an assessment: nothing stored, the record as it was
-    old = _variant(real_session, tmp_path / "old", "2030-01-01T00:00:00+00:00")
+    old = _variant(real_session, tmp_path / "old", "2030-01-01T00:00:00+00:00", rest_rows=2)
     summary = json.loads((old / "summary.json").read_text())
     del summary["assessment"]
     (old / "summary.json").write_text(json.dumps(summary))
-    other = _variant(real_session, tmp_path / "other", "2030-01-02T00:00:00+00:00")
+    other = _variant(real_session, tmp_path / "other", "2030-01-02T00:00:00+00:00", rest_rows=3)
     assert _assess(other, old, "--db", db, "--trainee", "carol") == 2
     assert "no assessment" in _one_error(capsys) and _rows(db) == before
     # locked by another program: refused once the lock timeout it gives SQLite has passed
@@ -215,7 +207,7 @@ def test_the_record_survives_kill_9_mid_transaction(real_session: Path, tmp_path
     db = tmp_path / "record.sqlite"
     assert _assess(real_session, "--db", db, "--trainee", "dave") == 0
     before = _rows(db)
-    new = _variant(real_session, tmp_path / "new", "2030-02-01T00:00:00+00:00")
+    new = _variant(real_session, tmp_path / "new", "2030-02-01T00:00:00+00:00", rest_rows=4)
     marker = tmp_path / "marker"
     proc = subprocess.Popen(
         [

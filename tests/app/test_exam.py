@@ -73,8 +73,11 @@ def test_later_reactions_overshoot_deeper_and_the_guard_holds(
         a = _session(tables["guard"], ms, 2.6)
         assert not a.breach and a.overshoot_mm == 0.0 and a.time_in_margin_s == 0.0
         assert not a.canal_entered and a.reaction_ms is None and a.wall_contacts >= 1
-        assert a.depth_error_mm == pytest.approx(10.8 - 12.6, abs=1e-3)
-        assert a.score >= 50.0
+        # measured against the goal (the guard's 10.8 mm, not the planned 12.6 mm): the
+        # perfect guarded session scores 100, whatever the case's plan asks beyond the margin
+        assert a.goal_depth_mm == pytest.approx(10.8, abs=1e-3) and a.attempted
+        assert a.depth_error_mm == pytest.approx(0.0, abs=1e-3) and a.wall_contacts == 1
+        assert a.score == 100.0
         # the hand pushed 12 N: its peak is that push (the observer reads 16 N for a
         # millisecond where the handle meets the wall; the 50 ms mean does not)
         assert a.peak_hand_force_n == pytest.approx(12.0, abs=0.5)
@@ -110,7 +113,8 @@ def test_exam_summary_from_the_command_line(
     a = summary["assessment"]
     assert a["breach"] is True and a["canal_entered"] is True and 0.0 <= a["score"] < 45.0
     assert a["overshoot_mm"] == pytest.approx(summary["max_drill_mm"] - 10.8, abs=2e-3)
-    assert a["depth_error_mm"] == pytest.approx(summary["max_drill_mm"] - 12.6, abs=1e-3)
+    assert a["depth_error_mm"] == pytest.approx(summary["max_drill_mm"] - 10.8, abs=1e-3)
+    assert a["goal_depth_mm"] == pytest.approx(10.8, abs=1e-3) and a["attempted"] is True
     assert summary["exam"]["enabled"] is True and summary["exam"]["stop_basis"] == "beyond_plan"
     assert summary["device_stop_depth_mm"] == pytest.approx(22.6, abs=1e-4)
     assert summary["plan_sha256"] == plan_hash(load_one_plan([DEMO / "plan.json"]))

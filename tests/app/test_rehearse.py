@@ -47,7 +47,7 @@ def test_rehearse_writes_the_contract_files_and_stops_at_the_margin(tmp_path: Pa
     out = tmp_path / "out"
     assert _rehearse(out, operator="push:78", duration="3") == 0
     text = (out / "session.csv").read_text()
-    assert text.splitlines()[0] == "time_s,master_mm,drill_mm,force_cmd_n,state"
+    assert text.splitlines()[0] == "time_s,master_mm,drill_mm,force_cmd_n,state,hand_force_n"
     rows = _rows(out / "session.csv")
     assert len(rows) == 3000
     summary = json.loads((out / "summary.json").read_text())
@@ -100,7 +100,7 @@ def test_a_failing_device_leaves_the_previous_session_intact(tmp_path: Path) -> 
     out = tmp_path / "out"
     assert _rehearse(out, duration="0.2") == 0
     before = {p.name: p.read_bytes() for p in out.iterdir()}
-    assert set(before) == {"session.csv", "summary.json"}
+    assert set(before) == {"session.csv", "summary.json", "table.json"}
     # the device cannot be opened: exit 2, nothing of the last session touched
     assert _rehearse(out, "--device", "serial:/nonexistent/tty", duration="0.2") == 2
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before

@@ -79,8 +79,10 @@ def test_one_session_per_drill_and_a_listing_summary(
     assert files == [
         "drill_1/session.csv",
         "drill_1/summary.json",
+        "drill_1/table.json",
         "drill_2/session.csv",
         "drill_2/summary.json",
+        "drill_2/table.json",
         "summary.json",
     ]
     top = json.loads((out / "summary.json").read_text())
@@ -173,7 +175,12 @@ def test_a_fault_ends_the_sequence_and_says_how_far_it_got(
     )
     assert code == 3
     files = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
-    assert files == ["drill_1/session.csv", "drill_1/summary.json", "summary.json"]
+    assert files == [
+        "drill_1/session.csv",
+        "drill_1/summary.json",
+        "drill_1/table.json",
+        "summary.json",
+    ]
     top = json.loads((out / "summary.json").read_text())
     assert top["complete"] is False and (top["drills_run"], top["drills_planned"]) == (1, 2)
     assert top["stop_depth_mm"] is None and top["stop_reason"] is None

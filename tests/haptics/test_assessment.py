@@ -49,10 +49,11 @@ def test_a_steady_feed_and_a_margin_crossing_measured_exactly() -> None:
     drill = np.minimum(2.0 * t, 9.0)
     a.add([_sample(ti, d + 0.5, d, 6.0, 6.0, CUT) for ti, d in zip(t, drill, strict=True)])
     r = a.result()
-    assert r.depth_error_mm == pytest.approx(-1.0)
+    assert r.depth_error_mm == pytest.approx(1.0)  # against the goal, 8 mm
+    assert r.goal_depth_mm == 8.0 and r.attempted
     assert r.breach and r.overshoot_mm == pytest.approx(1.0)
-    # beyond 8 mm from t = 4.0 s on: 1.5 s in the margin (to a millisecond sample)
-    assert r.time_in_margin_s == pytest.approx(1.5, abs=0.0015)
+    # beyond 8 mm from t = 4.0 s to the last cut at 4.5 s (the held second does not count)
+    assert r.time_in_margin_s == pytest.approx(0.5, abs=0.0015)
     assert r.time_to_planned_s == pytest.approx(4.0, abs=0.0015)  # the goal: 8 mm
     assert not r.canal_entered  # clearance 10 - 9 = 1 mm
     assert r.feed_cv == pytest.approx(0.0, abs=1e-6)  # the held second is not cutting
@@ -78,6 +79,7 @@ def test_reaction_and_wall_contacts() -> None:
     # The drill crosses the table's breakthrough (its far face, 4 mm + one row) at 2 mm/s; the
     # device reads the hand below 1 N from 250 ms later; then two separate touches of the wall.
     table = ProfileTable.slab(s0_n=4.0, top_mm=0.0, bottom_mm=4.0, stop_depth_mm=6.0)
+    table = ProfileTable(**{**table.__dict__, "goal_depth_mm": 4.0})  # the slab's far face
     a = Assessor(_context(max_safe_depth_mm=20.0, goal_depth_mm=6.0), table)
     bt = a.breakthrough_mm
     assert bt is not None and 4.0 < bt <= 4.0625 + 1e-9
@@ -88,9 +90,16 @@ def test_reaction_and_wall_contacts() -> None:
         hand = 9.0 if t < t_cross + 0.25 - 1e-9 else 0.2
         samples.append(_sample(t, 2.0 * t + 0.2, min(2.0 * t, 5.5), 5.0, hand, CUT))
     a.add(samples)
-    for k, (master, force) in enumerate([(6.1, 7.0), (6.0, 0.0), (6.3, 12.0), (6.0, 0.0)]):
-        a.add([_sample(2.8 + 0.001 * (k + 1), master, 6.0, force, 0.0, STOP)])
+    # pushing on the wall for 0.1 s, letting go for 0.1 s, twice (1 kHz)
+    walls = [(6.1, 7.0, 9.0), (6.0, 0.0, 0.0), (6.3, 12.0, 9.0), (6.0, 0.0, 0.0)]
+    for k, (master, force, hand) in enumerate(walls):
+        t0 = 2.8 + 0.1 * k
+        a.add([_sample(t0 + 0.001 * (i + 1), master, 6.0, force, hand, STOP) for i in range(100)])
     r = a.result()
+    # each push on the wall lasts while the hand's 50 ms mean is 1 N or more: 0.1 s, plus up to
+    # 44 ms after it let go (8/9 of the window), less up to 6 ms while the mean rises again
+    assert 2 * (0.099 + 0.044) - 0.012 <= r.wall_press_s <= 2 * (0.099 + 0.044) + 0.001
+    assert r.wall_overrun_mm == pytest.approx(0.3, abs=1e-6)
     assert r.reaction_ms == pytest.approx(250.0, abs=1.01)  # to a millisecond sample
     assert r.wall_contacts == 2 and r.peak_wall_force_n == 12.0
     assert r.peak_hand_force_n == 9.0 and r.mean_hand_force_n == 9.0  # while on the handle
@@ -128,16 +137,26 @@ def assessments(draw: Any, breach: bool) -> dict[str, Any]:
         "reaction_ms": draw(st.none() | st.floats(0.0, 1e6)),
         "wall_contacts": draw(st.integers(0, 10_000)),
         "peak_wall_force_n": draw(st.floats(0.0, 78.0)),
+        "goal_depth_mm": draw(st.floats(0.5, 30.0)),
+        "attempted": True,
+        "hand_force_cv": draw(st.none() | st.floats(0.0, 10.0)),
+        "plunge_mm": draw(st.floats(0.0, 20.0)),
+        "wall_press_s": draw(pos),
+        "wall_overrun_mm": draw(st.floats(0.0, 80.0)),
+        "display_lag_ms": draw(st.none() | pos),
+        "display_lagged": draw(st.booleans()),
     }
 
 
 @settings(max_examples=150, deadline=None)
-@given(assessments(breach=True), assessments(breach=False))
-def test_a_breach_scores_below_any_session_that_kept_the_margin(
-    bad: dict[str, Any], good: dict[str, Any]
+@given(assessments(breach=True), assessments(breach=False), assessments(breach=False))
+def test_a_breach_scores_below_any_attempted_session_that_kept_the_margin(
+    bad: dict[str, Any], good: dict[str, Any], idle: dict[str, Any]
 ) -> None:
     lo, hi = score_of(bad), score_of(good)
     assert 0.0 <= lo < hi <= 100.0 and math.isfinite(lo)
+    # a session that never reached the goal region scores below both, reported apart
+    assert score_of(idle | {"attempted": False}) == 0.0 <= lo
     deeper = bad | {"overshoot_mm": bad["overshoot_mm"] + 1.0}
     assert score_of(deeper) <= lo
     json.dumps(good | {"score": hi}, allow_nan=False)
@@ -157,17 +176,30 @@ def test_the_fields_are_the_contract() -> None:
         "reaction_ms",
         "wall_contacts",
         "peak_wall_force_n",
+        "goal_depth_mm",
+        "attempted",
+        "hand_force_cv",
+        "plunge_mm",
+        "wall_press_s",
+        "wall_overrun_mm",
+        "display_lag_ms",
+        "display_lagged",
         "score",
     )
     perfect = dict.fromkeys(ASSESSMENT_FIELDS[:-1], 0.0) | {
         "breach": False,
         "canal_entered": False,
+        "attempted": True,
+        "display_lagged": False,
         "wall_contacts": 0,
         "feed_cv": None,
         "reaction_ms": None,
+        "hand_force_cv": None,
+        "display_lag_ms": None,
     }
     assert score_of(perfect) == 100.0
-    assert score_of(perfect | {"depth_error_mm": -3.0}) == 50.0  # no hole: the floor
+    assert score_of(perfect | {"depth_error_mm": -3.0}) == 50.0  # at the goal region's edge
+    assert score_of(perfect | {"depth_error_mm": -3.5, "attempted": False}) == 0.0
 
 
 PILOT = {
@@ -183,6 +215,14 @@ PILOT = {
     "reaction_ms": None,
     "wall_contacts": 1,
     "peak_wall_force_n": 20.9,
+    "goal_depth_mm": 10.8,
+    "attempted": True,
+    "hand_force_cv": 0.02,
+    "plunge_mm": 0.0,
+    "wall_press_s": 0.15,
+    "wall_overrun_mm": 1.1,
+    "display_lag_ms": None,
+    "display_lagged": False,
 }
 FINAL = {
     "depth_error_mm": -0.7,
@@ -197,6 +237,14 @@ FINAL = {
     "reaction_ms": 150.0,
     "wall_contacts": 2,
     "peak_wall_force_n": 27.3,
+    "goal_depth_mm": 10.8,
+    "attempted": True,
+    "hand_force_cv": 0.15,
+    "plunge_mm": 0.5,
+    "wall_press_s": 1.5,
+    "wall_overrun_mm": 2.5,
+    "display_lag_ms": 40.0,
+    "display_lagged": False,
 }
 
 
@@ -215,14 +263,23 @@ def test_a_sequence_combines_its_drills_as_documented() -> None:
         "reaction_ms": 150.0,  # the slowest known
         "wall_contacts": 2,  # the most of any drill
         "peak_wall_force_n": 27.3,
-        # score_of: skill = (1 / 1.4856 + 0.85 + (1 - 27.3 / 78) / 2 + 1) / 4 = 0.712025;
-        # breached: 45 (1 + skill) / 2 / (1 + 0.5 / 2) / (1 + 0.3 / 5) = 29.07
-        "score": 29.1,
+        "goal_depth_mm": 10.8,  # the final drill's
+        "attempted": True,
+        "hand_force_cv": 0.15,  # the least steady
+        "plunge_mm": 0.5,  # the largest
+        "wall_press_s": 1.5,
+        "wall_overrun_mm": 2.5,
+        "display_lag_ms": 40.0,
+        "display_lagged": False,
+        # score_of: steady 1 - 0.1 / 0.25 = 0.6, reaction 0.85, plunge 1 / 1.5; wall
+        # 1 / (1 + 0.5 / 1) / (1 + 0.5 / 2) / 2 = 0.266667; hand 1: skill = 0.705556 *
+        # 0.266667 = 0.188148; breached: 45 (1 + skill) / 2 / (1 + 0.5 / 2) = 21.39
+        "score": 21.4,
     }
-    # the final drill never ran: its bed is not drilled (reached 0 mm), no time to the goal
+    # the final drill never ran: its bed is not drilled (reached 0 mm), not attempted
     short = combine_assessments([PILOT], drills_planned=3, planned_depth_mm=12.0)
     assert short.depth_error_mm == -12.0 and short.time_to_planned_s is None
-    assert short.score == score_of(short.to_json()) == 50.0  # kept the margin, no bed
+    assert not short.attempted and short.score == score_of(short.to_json()) == 0.0
     with pytest.raises(ValueError):
         combine_assessments([PILOT, FINAL], drills_planned=1, planned_depth_mm=12.0)
 
@@ -239,6 +296,7 @@ def test_a_sequence_scores_by_the_same_rule(drills: tuple[dict[str, Any], ...]) 
         | {
             "time_in_margin_s": round(d["time_in_margin_s"], 4),
             "mean_hand_force_n": round(d["mean_hand_force_n"], 3),
+            "goal_depth_mm": round(d["goal_depth_mm"], 4),
         }
         for d in drills
     ]
@@ -249,7 +307,7 @@ def test_a_sequence_scores_by_the_same_rule(drills: tuple[dict[str, Any], ...]) 
     assert fields["overshoot_mm"] == max(d["overshoot_mm"] for d in parts)
     assert fields["wall_contacts"] == max(d["wall_contacts"] for d in parts)
     assert fields["score"] == score_of(fields)
-    # a sequence that breached anywhere scores below any that kept the margin
+    # a sequence that breached anywhere scores below any attempted one that kept the margin
     assert (fields["score"] <= 45.0) if fields["breach"] else (fields["score"] >= 50.0)
     json.dumps(fields, allow_nan=False)
     if len(parts) == 1:  # one drill: its own assessment (its time rounded as recorded)

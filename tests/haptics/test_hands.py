@@ -24,9 +24,9 @@ from ctdrill.haptics.sim import SimulatedDevice
 STEP = 0.05
 
 
-def _table(s0: np.ndarray, stop_mm: float) -> ProfileTable:
+def _table(s0: np.ndarray, stop_mm: float, goal_mm: float | None = None) -> ProfileTable:
     zeros = np.zeros_like(s0)
-    return ProfileTable(STEP, s0, zeros, zeros, 0.25, np.array([30.0, 60.0]), stop_mm)
+    return ProfileTable(STEP, s0, zeros, zeros, 0.25, np.array([30.0, 60.0]), stop_mm, goal_mm)
 
 
 def test_human_grammar() -> None:
@@ -103,7 +103,7 @@ def _exam_session(
     down), then bone again."""
     depth = np.arange(0, 401) * STEP
     bone = (depth >= 0.5) & ((depth <= 3.0) | (depth >= 3.6))
-    table = _table(np.where(bone, 4.0, 0.0), stop_mm)
+    table = _table(np.where(bone, 4.0, 0.0), stop_mm, goal_mm=1.0)
     context = AssessmentContext(
         planned_depth_mm=1.0,
         max_safe_depth_mm=1.0,

@@ -129,11 +129,18 @@ def test_session_csv(tmp_path: Path) -> None:
     path = tmp_path / "session.csv"
     out = SessionCsv(path)
     assert path.read_text() == ",".join(SESSION_COLUMNS) + "\n"  # header flushed at once
-    out.write([(0.001, 1.0, 0.5, 2.25, "cutting")])
-    assert path.read_text().splitlines()[1] == "0.0010,1.00000,0.50000,2.2500,cutting"
+    out.write([(0.001, 1.0, 0.5, 2.25, "cutting", 7.125)])
+    assert path.read_text().splitlines()[1] == "0.0010,1.00000,0.50000,2.2500,cutting,7.1250"
     out.close()
-    assert SESSION_COLUMNS == ("time_s", "master_mm", "drill_mm", "force_cmd_n", "state")
-    assert session_csv_text([(0.001, 1.0, 0.5, 2.25, "cutting")]) == path.read_text()
+    assert SESSION_COLUMNS == (
+        "time_s",
+        "master_mm",
+        "drill_mm",
+        "force_cmd_n",
+        "state",
+        "hand_force_n",
+    )
+    assert session_csv_text([(0.001, 1.0, 0.5, 2.25, "cutting", 7.125)]) == path.read_text()
 
 
 def test_bad_duration() -> None:
