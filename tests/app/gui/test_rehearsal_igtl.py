@@ -61,7 +61,7 @@ def test_the_panel_streams_the_session_and_reports_a_refused_server(
     assert plan is not None
     last_tip = [m for m in log if m.device_name == "DrillTip"][-1]
     last_forces = json.loads([m for m in log if m.device_name == "Forces"][-1].string)
-    t, _master, drill_mm, _force, _state = run.rows[-1]
+    t, _master, drill_mm, _force, _state, _hand = run.rows[-1]
     assert last_forces["time_s"] == pytest.approx(t, abs=1e-4)
     tip_lps = plan.entry_lps + drill_mm * plan.direction
     np.testing.assert_allclose(
