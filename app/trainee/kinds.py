@@ -70,8 +70,11 @@ def device_kind_of(device: object) -> str | None:
 
 
 def mode_of(summary: Mapping[str, Any]) -> str:
-    """``exam`` (no wall at the margin), an exercise's name (``summary.json`` ``mode``), or
-    ``guarded``."""
+    """An exercise's name (a blind trial's card, ``summary.json`` ``exercise``; or
+    ``summary.json`` ``mode``), ``exam`` (no wall at the margin), or ``guarded``."""
+    card = summary.get("exercise")
+    if isinstance(card, Mapping) and isinstance(card.get("exercise"), str) and card["exercise"]:
+        return str(card["exercise"])
     mode = summary.get("mode")
     if isinstance(mode, str) and mode.strip():
         return mode.strip()

@@ -285,7 +285,7 @@ def _checked(where: Path, summary: dict[str, Any], files: SessionFiles) -> dict[
     ):
         claimed = summary.get(key)
         if isinstance(claimed, int | float) and not isinstance(claimed, bool):
-            same = math.isclose(float(claimed), value, abs_tol=1e-6) or claimed == value
+            same = math.isclose(float(claimed), value, abs_tol=1e-3) or claimed == value
             claims.append((key, claimed, claimed if same else value))
     for key, claimed, actual in claims:
         if claimed != actual:
