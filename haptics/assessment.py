@@ -21,8 +21,6 @@ from collections import deque
 from collections.abc import Sequence
 from typing import Any
 
-import numpy as np
-
 from ctdrill.haptics.assessment_fields import (
     ASSESSMENT_FIELDS,
     BOOL_FIELDS,
@@ -113,8 +111,8 @@ class Assessor:
     def __init__(self, context: AssessmentContext, table: ProfileTable) -> None:
         self.context = context
         self.table = table
-        self._rows = np.arange(table.n_steps) * float(table.depth_step_mm)
-        self._s0 = table.s0_n.astype(float)
+        self._step_mm = float(table.depth_step_mm)
+        self._s0 = [float(v) for v in table.s0_n]
         self.breakthrough_mm = decisive_breakthrough_mm(table)
         self.t0: float | None = None
         self.last_t = 0.0
@@ -145,7 +143,17 @@ class Assessor:
         self._shown: list[tuple[float, float]] = []
 
     def _s0_at(self, depth_mm: float) -> float:
-        return float(np.interp(depth_mm, self._rows, self._s0, left=0.0, right=0.0))
+        """``S0`` at ``depth_mm``, linear between rows, 0 outside the table (as ``np.interp``
+        with ``left = right = 0``; a Python float per row: this runs for every sample)."""
+        x = depth_mm / self._step_mm
+        last = len(self._s0) - 1
+        if x < 0.0 or x > last:
+            return 0.0
+        i = min(int(x), last - 1) if last > 0 else 0
+        if last == 0:
+            return self._s0[0]
+        w = x - i
+        return self._s0[i] * (1.0 - w) + self._s0[i + 1] * w
 
     def add(self, samples: list[TelemetrySample]) -> None:
         """One block of telemetry, oldest first (read as ``session.csv`` writes it)."""
@@ -200,22 +208,30 @@ class Assessor:
             held = self._hand(t, hand, cutting_front) >= LET_GO_N
             if pushing:
                 self._hand_mean.add(hand)
-        self._wall(dt, master, drill, force, state, held)
+        self._wall(dt, master, drill, force, state, held, pushing)
         bt = self.breakthrough_mm
         if self.t_breakthrough is None and bt is not None and state == _CUTTING and drill >= bt:
             self.t_breakthrough = t
             self._drill_at_breakthrough = drill
         if self.t_breakthrough is not None and self.t_let_go is None and not pushing:
             self.t_let_go = t
-        self._feed_window(t, state == _CUTTING)
+        self._feed_window(t, state == _CUTTING, cut)
 
     def _wall(
-        self, dt: float, master: float, drill: float, force: float, state: int, pushing: bool
+        self,
+        dt: float,
+        master: float,
+        drill: float,
+        force: float,
+        state: int,
+        pushing: bool,
+        pressing: bool,
     ) -> None:
         """Contacts with the stop's wall: stopped, the handle beyond the drill, the hand
         pushing (``pushing``: its mean over :data:`HAND_PEAK_WINDOW_S`, so the release
         damper's millisecond blips after a release are not a new contact); how long it pressed
-        and how far the handle sank past the drill."""
+        (``pressing``: the reading itself at 1 N or more, so the mean's fall after a release
+        adds nothing) and how far the handle sank past the drill."""
         if state == _STOPPED:
             self.wall_peak = max(self.wall_peak, force)
         held = state == _STOPPED and pushing
@@ -224,11 +240,12 @@ class Assessor:
         else:
             contact = held and master > drill + WALL_CONTACT_MM
         if contact:
-            if self._in_contact:
-                self.wall_press_s += dt
-            else:
+            if not self._in_contact:
                 self.wall_contacts += 1
-            self.wall_overrun_mm = max(self.wall_overrun_mm, master - drill, 0.0)
+            elif pressing:
+                self.wall_press_s += dt
+            if pressing:
+                self.wall_overrun_mm = max(self.wall_overrun_mm, master - drill, 0.0)
         self._in_contact = contact
 
     def _hand(self, t: float, force_n: float, cutting: bool) -> float:
@@ -257,16 +274,18 @@ class Assessor:
             self._hand_short_mean = mean
         return mean
 
-    def _feed_window(self, t: float, cutting: bool) -> None:
-        """Close a feed window every :data:`FEED_WINDOW_S`: it counts when the drill cut
-        material all through it (cutting state, ``S0 > 0`` at the front) and advanced."""
+    def _feed_window(self, t: float, cutting: bool, cut: bool) -> None:
+        """Close a feed window every :data:`FEED_WINDOW_S`, on a cutting event (a window open
+        at the last cut never closes: what follows it changes nothing): it counts when the
+        drill cut material all through it (cutting state, ``S0 > 0`` at the front) and
+        advanced."""
         front = self.deepest_mm
         self._win_cut = self._win_cut and cutting and self._s0_at(front) > 0.0
         if self._win is None:
             self._win, self._win_cut = (t, front), cutting
             return
         t0, front0 = self._win
-        if t - t0 < FEED_WINDOW_S - 1e-9:
+        if t - t0 < FEED_WINDOW_S - 1e-9 or not cut:
             return
         feed = (front - front0) / (t - t0)
         if self._win_cut and feed > 0.0:

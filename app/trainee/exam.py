@@ -168,7 +168,9 @@ def exam_setup(
             f"the max safe depth {guarded.max_safe_depth_mm:.2f} mm the drill enters the "
             "margin zone"
         )
-        table = ProfileTable.from_profile(path.profile, surface)
+        table = ProfileTable.from_profile(
+            path.profile, surface, goal_depth_mm=float(guarded.stop_depth_mm)
+        )
         return ExamSetup(table, path, "canal_surface", note)
     where = (
         f"{EXAM_REACH_MM:g} mm beyond the planned depth"

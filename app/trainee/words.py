@@ -14,6 +14,7 @@ from ctdrill.app.trainee.kinds import device_fault_of
 from ctdrill.haptics.renderer import CONTINUOUS_FORCE_N
 from ctdrill.haptics.score import (
     DEPTH_SCALE_MM,
+    HAND_ALLOWED_N,
     PLUNGE_SCALE_MM,
     STEADY_FREE_CV,
     STEADY_SCALE_CV,
@@ -149,7 +150,7 @@ def next_time(a: Mapping[str, Any], summary: Mapping[str, Any] | None = None) ->
         fields = ("overshoot_mm", "mean_hand_force_n")
     elif not a["attempted"]:
         text = f"push harder than {mean:.0f} N and drill on to {goal:.1f} mm"
-    elif peak > CONTINUOUS_FORCE_N:
+    elif peak > HAND_ALLOWED_N:
         text = f"push at most {CONTINUOUS_FORCE_N:.0f} N (you pushed up to {peak:.0f} N)"
         fields = ("peak_hand_force_n",)
     elif press > WALL_GRACE_S * n or float(a["wall_overrun_mm"]) > WALL_OVERRUN_FREE_MM:
@@ -207,7 +208,7 @@ def debrief_lines(
             )
         )
     peak = float(a["peak_hand_force_n"])
-    over = peak > CONTINUOUS_FORCE_N
+    over = peak > HAND_ALLOWED_N
     out.append(
         Line(
             f"Your push: up to {peak:.1f} N, {float(a['mean_hand_force_n']):.1f} N on average"
