@@ -66,16 +66,8 @@ from ctdrill.app.errors import AppInputError
 #: File names ctdrill writes into output folders (export, rehearse): an existing folder
 #: holding only these (at any depth) may be replaced by a new output.
 OUTPUT_NAMES: frozenset[str] = frozenset(
-    {
-        "force.csv",
-        "profile.csv",
-        "summary.json",
-        "force.png",
-        "session.csv",
-        "trajectories.csv",
-        "table.json",
-        "display.csv",
-    }
+    {"force.csv", "profile.csv", "summary.json", "force.png", "session.csv", "trajectories.csv"}
+    | {"table.json", "display.csv"}  # a session's table (ctdrill assess), the window's display
 )
 
 _NEW = "ctdrill-new"

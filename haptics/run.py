@@ -9,8 +9,7 @@ The host does not trust the device to be right: every block it checks the teleme
 (:class:`ctdrill.haptics.watch.TelemetryWatch`: a report it cannot trust, which is not
 recorded, the drill past the stop, a fault, a device silent for longer than the host's own
 bound or back without the session) and ends the session on the first finding, or when its own
-step failed (a write or read error, a sink that cannot write, an ARM or DISARM that was not
-acknowledged).
+step failed (a write or read error, a sink that cannot write, an unacknowledged ARM or DISARM).
 
 It then sends STOP and DISARM (unless an injected ``link-loss`` cut the line), records the
 event in ``faults`` and returns a result with ``complete = False``, ``outcome = "fault"`` and
