@@ -121,8 +121,8 @@ def test_numbers_stay_numbers() -> None:
     text = csv_text(["t", "x", "s"], [["-0.0010", "-1e-05", "stopped"], [1, 2.5, None]])
     assert _cells(text) == [["t", "x", "s"], ["-0.0010", "-1e-05", "stopped"], ["1", "2.5", ""]]
     # session.csv: negative positions are numbers, not formulas
-    rows = session_csv_text([(0.001, -0.5, -0.5, 0.0, "idle")])
-    assert rows.splitlines()[1] == "0.0010,-0.50000,-0.50000,0.0000,idle"
+    rows = session_csv_text([(0.001, -0.5, -0.5, 0.0, "idle", -2.0)])
+    assert rows.splitlines()[1] == "0.0010,-0.50000,-0.50000,0.0000,idle,-2.0000"
 
 
 class _Record:
