@@ -19,6 +19,8 @@ import json
 import re
 from typing import Any
 
+from ctdrill.numtext import ascii_number
+
 #: ``key=value``: key a word, value a JSON string ("...", escapes allowed) or a bare word.
 _SETTING = re.compile(r'(?<![\w"=])([A-Za-z_][A-Za-z0-9_]*)=("(?:[^"\\]|\\.)*"|[^\s,;]*)')
 #: Settings whose value is text, never a number.
@@ -66,11 +68,9 @@ def parse_settings(text: str) -> dict[str, Any]:
                 raise SettingsSyntaxError(f"{key}={raw} is not a quoted string") from exc
         elif key in TEXT_KEYS:
             value = raw
-        else:
-            try:
-                value = float(raw)
-            except ValueError:
-                value = raw
+        else:  # ASCII digits only (float also reads "١.٢"): the same rule everywhere
+            number = ascii_number(raw)
+            value = raw if number is None else number
         out[key] = value
     return out
 
