@@ -323,7 +323,7 @@ def mha_channels(folder: Path) -> tuple[Path, str]:
 
 def nifti_sheared_sform_over_qform(folder: Path) -> tuple[Path, str]:
     sheared = AFFINE.copy()
-    sheared[:3, 2] += np.tan(np.radians(12.0)) * AFFINE[:3, 1] * 0.875 / 1.25  # 12 deg shear
+    sheared[:3, 2] += np.tan(np.radians(12.0)) * 1.25 * AFFINE[:3, 1] / 0.875  # 12 deg shear
     path = write_nifti(folder / "ct.nii", ramp(SHAPE), sheared, qform_lps=AFFINE)
     # a CT: ITK takes the qform where ctdrill would take the sform; a segmentation: refused
     # already because the two disagree
