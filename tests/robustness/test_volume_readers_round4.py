@@ -214,3 +214,54 @@ def test_unicode_digits_in_an_operator_spec_are_one_error_line(tmp_path: Path, s
     )
     assert not error_line_problems(run), error_line_problems(run)
     assert "seed" in run.stderr and not (tmp_path / "out").exists()
+
+
+#: The headers ITK reads otherwise than ctdrill would, one per format and kind of lie.
+ITK_DISAGREES = (
+    "mha_position_and_offset",
+    "mha_rotation_and_matrix",
+    "mha_byte_order_spellings",
+    "nrrd_line_skip_spellings",
+    "nrrd_origin_given_twice",
+    "nrrd_origin_two_values",
+    "nifti_sheared_sform_over_qform",
+    "nifti_sheared_sform_only",
+    "nifti_units_code_5",
+)
+
+
+@pytest.mark.parametrize("name", ITK_DISAGREES)
+def test_headers_itk_reads_otherwise_are_one_error_line_as_ct_and_as_mask(
+    tmp_path: Path, name: str
+) -> None:
+    import json
+    import re
+
+    from tests.robustness.outcomes import run_cli_in_process
+
+    path, pattern = HOSTILE[name](tmp_path)
+    with pytest.raises(ImagingInputError) as err:
+        api.load_ct(path)
+    assert re.search(pattern, str(err.value)), str(err.value)
+    run = run_cli_in_process(["inspect", "--ct", str(path), "--json"])
+    assert not error_line_problems(run), error_line_problems(run)
+    assert re.search(pattern, run.stderr) and path.name in run.stderr, run.stderr
+    doc = json.loads((ASSETS / "demo" / "plan.json").read_text())
+    doc["landmarks"] = [{"name": "canal", "kind": "mask", "path": str(path)}]
+    plan = tmp_path / "plan.json"
+    plan.write_text(json.dumps(doc))
+    with pytest.raises(ImagingInputError):
+        api.load_plan(plan)
+    run = run_cli_in_process(
+        [
+            "export",
+            "--ct",
+            str(ASSETS / "demo" / "ct"),
+            "--plan",
+            str(plan),
+            "--out",
+            str(tmp_path / "o"),
+        ]
+    )
+    assert not error_line_problems(run), error_line_problems(run)
+    assert path.name in run.stderr and not (tmp_path / "o").exists()
