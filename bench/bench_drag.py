@@ -12,9 +12,11 @@ the new curves (its ``stopDepthMmChanged``, emitted once they are on the screen)
   worker (one at a time, the latest next) and the curves are redrawn over the kept axes.
   Latency: a move, then the time until the plots show that move's curves; one move at a time.
   Rate: moves sent every 16 ms (a 60 Hz mouse) for a while, plot updates counted per second.
-- **older chain** (``MainWindow.set_live_editing(False)``, the window before issue 27): the
-  plan changes only at the release, the path waits ``LEGACY_DEBOUNCE_MS`` (150 ms) and the
-  plots are drawn after the 3D view and the slice redraws. Latency: the release of a short
+- **older chain** (:func:`older_chain`, the window before issue 27, rebuilt here from the
+  window's own options: the product keeps none of it): the plan changes only at the release
+  (the canvases' ``live_drag`` off), the path waits :data:`LEGACY_DEBOUNCE_MS` (150 ms) and
+  the plots are drawn after the 3D view and the slice redraws (their drawing steps queued
+  last). Latency: the release of a short
   drag, then the time until the plots show its curves.
 
 The breakdown (each median): the path computation in the worker, the plots' redraw on the UI
@@ -37,6 +39,28 @@ from bench.bench_gui import synthetic_case
 from bench.report import Section, Timing, headline_row, table
 
 ROOT = Path(__file__).resolve().parents[1]
+#: The wait the window used after an edit before live editing, ms (the older chain's).
+LEGACY_DEBOUNCE_MS = 150
+
+
+def older_chain(window: Any, on: bool) -> None:
+    """Put ``window`` in the older chain (``on``) or back to today's: the canvases report a
+    drag only at its release, the controller waits :data:`LEGACY_DEBOUNCE_MS`, and every
+    drawing step is queued after the others (the plots lose their place at the front)."""
+    from ctdrill.app.gui.controller import DEBOUNCE_MS
+    from ctdrill.app.gui.map_canvas import MapCanvas
+
+    window.controller.set_debounce(LEGACY_DEBOUNCE_MS if on else DEBOUNCE_MS)
+    for canvas in window.findChildren(MapCanvas):
+        canvas.live_drag = not on
+    steps = window.ui_steps
+    if on:
+        push = steps.push
+        steps.push = lambda fn, *, first=False: push(fn, first=False)
+    else:
+        steps.__dict__.pop("push", None)
+
+
 DEMO = ROOT / "assets" / "demo"
 #: Goals of issue 27: mouse move to updated plots (median), plot updates per second.
 GOAL_LATENCY_MS = 50.0
@@ -172,7 +196,7 @@ def _drag_case(
             "dragged outline": Timing.from_samples(probe.ghost or [np.nan]),
         }
         # the older chain: a short drag, its release, the plots
-        window.set_live_editing(False)
+        older_chain(window, True)
         older = []
         for k in range(legacy_steps):
             plan = window.doc.plan
@@ -188,7 +212,7 @@ def _drag_case(
             if _wait(app, lambda n=n: len(drawn) > n):  # type: ignore[misc]
                 older.append(drawn[-1] - t0)
             _wait(app, lambda: window.ui_steps.pending == 0)
-        window.set_live_editing(True)
+        older_chain(window, False)
         volume = window.doc.volume
         dims = "x".join(str(d) for d in volume.dims) if volume is not None else "?"
     finally:

@@ -10,8 +10,6 @@ work and the plots follow the mouse. Each path result is followed by the implant
 (:func:`ctdrill.app.gui.readouts.implant_readout`, its walls on the coarser grid while a drag
 runs) in a runner of its own, so the plots never wait for it; while a drag outpaces the
 computation the readout is read only when no newer path is computing.
-:data:`LEGACY_DEBOUNCE_MS` is the older wait after an edit, kept for the benchmark that
-compares the two (``bench/bench_drag.py``).
 """
 
 from __future__ import annotations
@@ -34,8 +32,6 @@ from ctdrill.imaging.plan.types import Plan
 #: Delay between the last plan edit and the recomputation, ms: none (a computation at a
 #: time, latest plan next, replaces the wait).
 DEBOUNCE_MS = 0
-#: The wait the window used before live editing (the benchmark's older chain), ms.
-LEGACY_DEBOUNCE_MS = 150
 
 
 class Controller(QObject):

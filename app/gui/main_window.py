@@ -31,9 +31,8 @@ from PySide6.QtWidgets import (
 from ctdrill.app.exercise.trials import TrialCard
 from ctdrill.app.gui import compute
 from ctdrill.app.gui.blind import apply_aids
-from ctdrill.app.gui.controller import DEBOUNCE_MS, LEGACY_DEBOUNCE_MS, Controller
+from ctdrill.app.gui.controller import Controller
 from ctdrill.app.gui.document import Document, ViewContext
-from ctdrill.app.gui.map_canvas import MapCanvas
 from ctdrill.app.gui.menus import build_menus, fill_recent
 from ctdrill.app.gui.plan_panel import PlanPanel
 from ctdrill.app.gui.plots_view import PlotsView
@@ -370,15 +369,6 @@ class MainWindow(QMainWindow):
             self.path_updated.emit()
 
         self.ui_steps.push(finish)
-
-    def set_live_editing(self, on: bool) -> None:
-        """Drags change the plan live, its path and plots following the mouse (default); or
-        only at the release, after the older wait, the plots drawn after the other views
-        (the older chain ``bench/bench_drag.py`` compares with)."""
-        self.controller.set_debounce(DEBOUNCE_MS if on else LEGACY_DEBOUNCE_MS)
-        self.plot_canvas.first = on
-        for canvas in self.findChildren(MapCanvas):
-            canvas.live_drag = on
 
     def set_surface_preset(self, iso_hu: float) -> None:
         """Re-contour the bone surface at ``iso_hu`` (in the background)."""

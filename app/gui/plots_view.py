@@ -69,9 +69,6 @@ class PlotsView(FigureCanvasQTAgg):
         #: Curves drawn by blitting over the kept axes / by a whole redraw (for tests, bench).
         self.blits = 0
         self.full_draws = 0
-        #: A path result is drawn before the other views' drawing steps (False: after them,
-        #: the older order the benchmark compares with).
-        self.first = True
         self.mpl_connect("draw_event", self._drawn)
         #: The stop in words, over the HU plot.
         self.stop_label = QLabel("", self)
@@ -156,7 +153,7 @@ class PlotsView(FigureCanvasQTAgg):
         if live:
             self._finish(curves)
         else:  # the Agg render (~50-200 ms) in a pass of its own, next
-            self.ctx.steps.push(lambda: self._finish(curves), first=self.first)
+            self.ctx.steps.push(lambda: self._finish(curves), first=True)
 
     def _finish(self, curves: DepthCurves) -> None:
         self.draw()
@@ -193,7 +190,7 @@ class PlotsView(FigureCanvasQTAgg):
             if doc.path is view:
                 self.show_curves(view.curves)
 
-        self.ctx.steps.push(show, first=self.first)  # before the other views' drawing steps
+        self.ctx.steps.push(show, first=True)  # before the other views' drawing steps
 
     def _live_path(self, view: PathView | None) -> None:
         """A dragged plan's path: its curves at once, over the kept axes."""
