@@ -131,7 +131,26 @@ def test_device_spec(text: str, simulated: bool, paced: bool, label: str) -> Non
     assert DeviceSpec.simulator(paced=True).host_paces
 
 
-@pytest.mark.parametrize("text", ["", "simulator", "serial", "serial:", "usb:/dev/x", "SIM"])
+@pytest.mark.parametrize(
+    "text", ["", "simulator", "serial", "serial:", "usb:/dev/x", "SIM", "sim:x"]
+)
 def test_a_device_spec_that_names_nothing_is_refused(text: str) -> None:
     with pytest.raises(HapticsInputError, match="use sim or serial:PORT"):
         DeviceSpec.parse(text)
+
+
+def test_a_new_simulated_device_is_one_kind(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A device with its own physics: its Physics class and one entry of KINDS."""
+    from ctdrill.haptics import spec
+
+    def open_feedbot(device: DeviceSpec, seed: int) -> SimulatedDevice:
+        return SimulatedDevice(seed=seed, physics=FeedRobot(2.0, 1e-4))
+
+    kind = spec.DeviceKind(simulated=True, needs_port=False, opener=open_feedbot)
+    monkeypatch.setitem(spec.KINDS, "feedbot", kind)
+    device_spec = DeviceSpec.parse("feedbot")
+    assert device_spec.simulated and device_spec.label == "feedbot"
+    device = device_spec.open(seed=0)
+    assert isinstance(device, SimulatedDevice) and isinstance(device.emulator.physics, FeedRobot)
+    with pytest.raises(HapticsInputError, match="use sim or serial:PORT or feedbot"):
+        DeviceSpec.parse("feedbot:x")
