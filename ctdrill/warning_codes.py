@@ -283,6 +283,22 @@ REGISTRY: tuple[WarningCode, ...] = (
         words="under the margin budget",
     ),
     WarningCode(
+        "implant_in_tooth",
+        "path",
+        "the implant body enters a tooth (CT numbers of enamel, dentin or metal, >= 2000 HU: "
+        "teeth are not bone; docs/plan.md, Teeth)",
+        blocks_suggest=True,
+        banner=10,
+        words="implant in a tooth",
+    ),
+    WarningCode(
+        "implant_near_tooth",
+        "path",
+        "the implant body is closer to a neighbouring tooth than the clinical 1.5 mm",
+        banner=11,
+        words="implant near a tooth",
+    ),
+    WarningCode(
         "canal_entry",
         "path",
         "the implant body enters a nerve canal (its apex inside it): named as the canal, not "

@@ -20,16 +20,21 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
+import numpy as np
+
+from ctdrill.imaging.plan.clinical import CLINICAL_TOOTH_DISTANCE_MM
 from ctdrill.imaging.plan.implant_safety import (
     ImplantClearance,
     broken_margins_text,
     implant_clearance,
     implant_margin_warnings,
 )
+from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.plan.landmarks import bind_to_grid
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.resolution import volume_clearance_accuracy_mm
 from ctdrill.imaging.sampling.walls import BoneWalls, bone_wall_warnings, plan_bone_walls
+from ctdrill.imaging.teeth import TOOTH_HU, tooth_distance_mm
 from ctdrill.imaging.volume import CTVolume
 
 #: Said in ``bone_walls`` of every summary: how the CT's edge is counted.
@@ -48,6 +53,8 @@ class ImplantOutcome:
     accuracy_mm : what the CT's sampling lets a clearance claim, +- mm
         (:func:`~ctdrill.imaging.resolution.volume_clearance_accuracy_mm`).
     warnings : ``(code, message)`` pairs, in the order the summary lists them.
+    tooth_mm : the distance from the body to the nearest tooth (:mod:`ctdrill.imaging.teeth`;
+        negative: it enters one), mm, or None when no tooth is near.
     """
 
     plan: Plan
@@ -55,6 +62,7 @@ class ImplantOutcome:
     walls: BoneWalls
     accuracy_mm: float
     warnings: tuple[tuple[str, str], ...]
+    tooth_mm: float | None = None
 
     @property
     def clearance_mm(self) -> float | None:
@@ -133,10 +141,49 @@ def implant_outcome(volume: CTVolume, plan: Plan, **wall_options: Any) -> Implan
     assert walls is not None  # the plan has an implant
     warnings = implant_body_margin_warnings(plan, clearance)
     warnings += bone_wall_warnings(walls, min_wall_mm=plan.min_wall_mm, label=_label(plan))
+    tooth = implant_tooth_distance_mm(volume, plan)
+    warnings += tooth_warnings(plan, tooth)
     return ImplantOutcome(
         plan=plan,
         clearance=clearance,
         walls=walls,
         accuracy_mm=volume_clearance_accuracy_mm(volume),
         warnings=tuple(warnings),
+        tooth_mm=tooth,
     )
+
+
+def implant_tooth_distance_mm(volume: CTVolume, plan: Plan) -> float | None:
+    """The distance from ``plan``'s implant body to the nearest tooth, mm (None: none near)."""
+    place = implant_placement(plan)
+    if place is None:
+        return None
+    spec = place.spec
+    s = np.linspace(0.0, spec.length_mm, 33)
+    radii = np.array([spec.radius_at_mm(float(v)) for v in s])
+    return tooth_distance_mm(volume, place.platform_lps, place.axis_lps, spec.length_mm, radii)
+
+
+def tooth_warnings(plan: Plan, tooth_mm: float | None) -> list[tuple[str, str]]:
+    """``implant_in_tooth`` (the body enters a tooth) or ``implant_near_tooth`` (closer than
+    the clinical implant-tooth distance)."""
+    if tooth_mm is None:
+        return []
+    if tooth_mm < 0.0:
+        return [
+            (
+                "implant_in_tooth",
+                f"{_label(plan)}: the implant body enters a tooth ({-tooth_mm:.1f} mm into it: "
+                f"CT numbers >= {TOOTH_HU:g} HU, enamel, dentin or metal); extract it first or "
+                "move the implant",
+            )
+        ]
+    if tooth_mm < CLINICAL_TOOTH_DISTANCE_MM:
+        return [
+            (
+                "implant_near_tooth",
+                f"{_label(plan)}: {tooth_mm:.1f} mm from the implant body to the nearest tooth, "
+                f"under the clinical {CLINICAL_TOOTH_DISTANCE_MM:g} mm implant-tooth distance",
+            )
+        ]
+    return []

@@ -34,6 +34,7 @@ from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.site import site_text
 from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.teeth import bone_along, edge_steps
 from ctdrill.imaging.volume import CTVolume
 
 #: The crest is searched from this far above the entry along the axis, mm.
@@ -117,11 +118,14 @@ def crest_depth_mm(volume: CTVolume, plan: Plan, to_depth_mm: float) -> float | 
     pts = plan.entry_lps + depth[:, None] * plan.direction
     hu = volume.sample(pts, outside_hu=np.nan)
     known = np.flatnonzero(np.isfinite(hu))
-    if known.size == 0 or hu[known[0]] >= BONE_HU:
+    bone = bone_along(hu, edge_steps(volume, STEP_MM))  # a crown is not the crest
+    if known.size == 0 or bone[known[0]]:
         return None
     for i in known[1:]:
-        if hu[i] >= BONE_HU and np.isfinite(hu[i - 1]):
+        if bone[i] and not bone[i - 1] and np.isfinite(hu[i - 1]):
             a, b = float(hu[i - 1]), float(hu[i])
+            if a >= BONE_HU:  # after a tooth's edge: the bone starts at this sample
+                return float(depth[i])
             return float(depth[i - 1] + STEP_MM * (BONE_HU - a) / (b - a))
     return None
 

@@ -203,6 +203,7 @@ def plan_outcome(result: PathResult, context: CaseContext, feed_mm_s: float) -> 
         clearance_accuracy_mm=_num(accuracy, 6),
         margin_budget_mm=None if budget is None else round(budget.budget_mm, 3),
         margin_budget=None if budget is None else from_json(MarginBudgetInfo, budget.to_json()),
+        tooth_distance_mm=None if result.implant is None else _num(result.implant.tooth_mm),
         site=plan.site,
         series=SeriesIdentity(identity["series_uid"], identity["series_uid_sha256"]),
         include_phi=settings.include_phi,

@@ -214,7 +214,8 @@ class PlanOutcome:
     series : the series' identity (flattened); ``include_phi``; ``patient`` only with it.
     margin_budget_mm : the clearance the 95th percentile of the placement, canal and CT errors
         needs (the largest landmark's; ``margin_budget`` its terms), or None without
-        landmarks; warning ``margin_below_budget`` under it.
+        landmarks; warning ``margin_below_budget`` under it. ``tooth_distance_mm``: implant to
+        the nearest tooth (negative: in it), None without an implant or a tooth near.
     """
 
     plan: str
@@ -246,6 +247,7 @@ class PlanOutcome:
     site: int | None = field(metadata=added())
     margin_budget_mm: float | None = field(metadata=added())
     margin_budget: MarginBudgetInfo | None = field(metadata=added())
+    tooth_distance_mm: float | None = field(metadata=added())
     series: SeriesIdentity = field(metadata=flat())
     include_phi: bool
     patient: Mapping[str, str] | None = field(default=None, metadata=optional())

@@ -66,7 +66,11 @@ def _mm(value: float | None, facts: ImplantFacts) -> str:
 
 
 def implant_items(
-    facts: ImplantFacts, stop_text: str, budget_mm: float | None = None, placement: str = ""
+    facts: ImplantFacts,
+    stop_text: str,
+    budget_mm: float | None = None,
+    placement: str = "",
+    tooth_mm: float | None = None,
 ) -> list[tuple[str, str]]:
     """The clinical page's (item, value) rows of ``facts``; ``stop_text`` says where the final
     drill stops; ``budget_mm`` the margin budget (placement ``placement``), when known."""
@@ -109,6 +113,13 @@ def implant_items(
         ("implant to nerve", nerve),
         ("bone walls", walls),
         ("bone height, crest to canal along the axis", height),
+        (
+            "nearest tooth",
+            "none within 25 mm (teeth: CT numbers >= 2000 HU; docs/plan.md, Teeth)"
+            if tooth_mm is None
+            else f"{_mm(tooth_mm, facts)} from the implant body"
+            + (" (INSIDE A TOOTH)" if tooth_mm < 0 else ""),
+        ),
         ("final drill", stop_text),
         (
             "margin budget",
@@ -208,6 +219,7 @@ def clinical_pages(pages: TextPages, case: PreparedCase, entries: Sequence[Entry
                 stop,
                 None if budget is None else budget.budget_mm,
                 "" if budget is None else budget.placement,
+                None if entry.result.implant is None else entry.result.implant.tooth_mm,
             ),
             size_pt=8.0,
         )

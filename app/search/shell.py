@@ -32,6 +32,7 @@ from ctdrill.imaging.misch import BONE_HU
 from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.walls import PERFORATION_DEPTH_MM
+from ctdrill.imaging.teeth import is_tooth_hu
 from ctdrill.imaging.volume import CTVolume
 
 #: Distances outside the body's surface where the score reads bone, mm: the first millimetre
@@ -43,6 +44,9 @@ DEPTH_STEP_MM = 0.5
 N_ANGLES = 16
 #: Candidates sampled per chunk (bounded memory: about 10 MB of points per chunk).
 CHUNK = 256
+
+#: What a shell sample in a tooth scores as: water (a tooth is not bone), HU.
+TOOTH_SCORE_HU = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,9 +159,10 @@ def sample_shells(
         )  # (m, D, A, K, 3)
         hu = volume.sample(pts, outside_hu=np.nan)
         shell = np.nan_to_num(hu[..., :n_shell], nan=AIR_HU)
+        shell = np.where(is_tooth_hu(shell), TOOTH_SCORE_HU, shell)  # a tooth is not bone
         hu_out[sl] = shell.reshape(shell.shape[0], len(depth), -1)
         with np.errstate(invalid="ignore"):
-            below = hu < BONE_HU  # NaN (unknown): False
+            below = (hu < BONE_HU) | is_tooth_hu(hu)  # NaN (unknown): False
         perforation[sl] = below[..., n_shell][:, deep].any(axis=(1, 2))
         thin[sl] = below[..., n_shell + 1].any(axis=(1, 2))
     return ShellSamples(hu_out, perforation, thin)

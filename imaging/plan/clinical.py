@@ -15,3 +15,6 @@ CLINICAL_MARGIN_MM = 2.0
 #: implant, buccal above all): the default of a trajectory's ``min_wall_mm``; thinner walls are
 #: reported (warning ``thin_wall``).
 CLINICAL_MIN_WALL_MM = 1.5
+#: Clinical minimum distance from an implant to a neighbouring tooth, mm (DESIGN.md section 5;
+#: warning ``implant_near_tooth``).
+CLINICAL_TOOTH_DISTANCE_MM = 1.5

@@ -6,6 +6,8 @@ docs/plan.md, "Bone walls"): along a ray the jaw ends at the first of a non-bone
 a run; the distance to the envelope is that of the last bone/non-bone crossing before the end
 (bisected to :data:`BISECT_TOL_MM`). A ray meeting no bone within :data:`ENVELOPE_REACH_MM` is
 *open* (its caller decides: along the jaw it goes on, across it the origin is outside).
+Bone is :func:`~ctdrill.imaging.teeth.is_bone_hu`: a tooth is not bone (a crown on the crest
+is not wall) but no gap either (a root inside the jaw does not end it).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import math
 
 import numpy as np
 
-from ctdrill.imaging.misch import BONE_HU
+from ctdrill.imaging.teeth import bone_along, edge_steps, is_bone_hu, is_tooth_hu
 from ctdrill.imaging.volume import CTVolume
 
 #: A non-bone run this long after bone ends the jaw along a ray (the envelope rule), mm: longer
@@ -63,13 +65,14 @@ def envelope_walls(
     n_steps = math.ceil((max_wall_mm + gap_mm) / step) + 1
     t = np.arange(n_steps) * step
     gap_steps = math.ceil(gap_mm / step - 1e-9)
+    tooth_edge = edge_steps(volume, step)
     chunk = max(1, 200_000 // n_steps)
     for lo_i in range(0, n, chunk):
         sl = slice(lo_i, min(n, lo_i + chunk))
         o, v = origins_lps[sl], dirs_lps[sl]
         hu = volume.sample(o[:, None, :] + t[None, :, None] * v[:, None, :], outside_hu=np.nan)
         wall[sl], unknown[sl], cross[sl], open_[sl] = _envelope_rows(
-            hu, t, gap_steps, max_wall_mm, reach_mm
+            hu, t, gap_steps, max_wall_mm, reach_mm, tooth_edge
         )
     # bisect each exit crossing between its last bone sample and the next
     exits = np.flatnonzero(~unknown & cross)
@@ -79,7 +82,7 @@ def envelope_walls(
         oo, vv = origins_lps[exits], dirs_lps[exits]
         while float(np.max(b - a)) > BISECT_TOL_MM:
             mid = 0.5 * (a + b)
-            bone = volume.sample(oo + mid[:, None] * vv, outside_hu=np.nan) >= BONE_HU
+            bone = is_bone_hu(volume.sample(oo + mid[:, None] * vv, outside_hu=np.nan))
             a = np.where(bone, mid, a)
             b = np.where(bone, b, mid)
         wall[exits] = np.minimum(0.5 * (a + b), max_wall_mm)
@@ -87,7 +90,12 @@ def envelope_walls(
 
 
 def _envelope_rows(
-    hu: np.ndarray, t: np.ndarray, gap_steps: int, max_wall_mm: float, reach_mm: float
+    hu: np.ndarray,
+    t: np.ndarray,
+    gap_steps: int,
+    max_wall_mm: float,
+    reach_mm: float,
+    tooth_edge: int = 0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The envelope rule on sampled rays ``hu`` (N, K) at distances ``t`` (K,): each ray's
     wall (the last bone sample's distance, refined by the caller; 0 outside the jaw;
@@ -95,17 +103,19 @@ def _envelope_rows(
     refine), and whether it is *open*: no bone within the reach and no air."""
     n, k_all = hu.shape
     gone = np.isnan(hu)
-    bone = hu >= BONE_HU
+    bone = bone_along(hu, tooth_edge)  # a tooth (and its trilinear edge) is not bone ...
+    solid = bone | is_tooth_hu(hu)  # ... but no gap either: a root inside the jaw is closed over
     air = hu < AIR_HU
     idx = np.arange(k_all)
     last_bone = np.maximum.accumulate(np.where(bone, idx, -1), axis=1)  # (N, K)
+    last_solid = np.maximum.accumulate(np.where(solid, idx, -1), axis=1)
     seen = last_bone >= 0
-    # where the jaw ends: air, or a non-bone run of gap_steps after bone, or the ray's end
-    end = air | (seen & ~bone & (idx - last_bone >= gap_steps))
+    # where the jaw ends: air, or a run of gap_steps of neither bone nor tooth after bone
+    end = air | (seen & ~solid & (idx - last_solid >= gap_steps))
     end |= ~seen & (t[None, :] > reach_mm)
     # the CT's edge met in a gap after bone ends the jaw (outside the CT is never bone)
     in_gap = np.zeros_like(bone)
-    in_gap[:, 1:] = seen[:, :-1] & ~bone[:, :-1] & ~gone[:, :-1]
+    in_gap[:, 1:] = seen[:, :-1] & ~solid[:, :-1] & ~gone[:, :-1]
     edge_end = gone & in_gap
     end |= edge_end
     has_end = end.any(axis=1)

@@ -19,6 +19,7 @@ ADDED = {
     "site": None,
     "margin_budget_mm": None,
     "margin_budget": None,
+    "tooth_distance_mm": None,
 }
 
 

@@ -44,7 +44,7 @@ def _slab(
     zs = np.arange(z_range[0], z_range[1] + 1e-9, SP)
     z, _y, x = np.meshgrid(zs, xs, xs, indexing="ij")
     inside = np.minimum(half_width - np.abs(x), top_z - z)
-    hu = np.clip(BONE_HU + G * inside, -1000.0, 3000.0).astype(np.float32)
+    hu = np.clip(BONE_HU + G * inside, -1000.0, 1900.0).astype(np.float32)  # below teeth
     aff = np.eye(4)
     aff[:3, :3] *= SP
     aff[:3, 3] = [xs[0], xs[0], zs[0]]
