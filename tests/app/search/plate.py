@@ -5,7 +5,7 @@ LPS mm, 0.5 mm voxels with centres at odd multiples of 0.25 (x in [-9.75, 9.75],
 (40 HU) except
 
 - the ridge, trabecular bone (600 HU, Misch D3), voxel centres ``-4.5 < x < 4.5``;
-- the plate, cortical bone (2000 HU), voxel centres ``4.5 < x < 7``: 2.5 mm thick, thinner
+- the plate, cortical bone (1800 HU), voxel centres ``4.5 < x < 7``: 2.5 mm thick, thinner
   than the 4.1 mm implant.
 
 Everything is uniform in y and, below z = -0.25, in z; HU is linear in x between voxel
@@ -30,7 +30,7 @@ from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.volume import CTVolume, SeriesInfo
 
 VOXEL_MM = 0.5
-AIR, SOFT, RIDGE_HU, PLATE_HU = -1000, 40, 600, 2000
+AIR, SOFT, RIDGE_HU, PLATE_HU = -1000, 40, 600, 1800  # the plate below teeth (2000 HU)
 RIDGE_X, PLATE_X = 4.5, 7.0
 DEPTH_MM = 8.5
 IMPLANT = "parallel 4.1 x 8"
