@@ -85,8 +85,18 @@ def _read_header(path: Path, fh: IO[bytes], error: ErrorType) -> tuple[dict[str,
     if not text.startswith("NRRD000"):
         raise error(f"{path}: not a NRRD file (no NRRD000x magic line)")
     seen: dict[str, str] = {}
+    pairs: set[str] = set()
     for line in text.splitlines()[1:]:
-        if line.startswith("#") or ":=" in line.split(": ", 1)[0] or ": " not in line:
+        if ":=" in line.split(": ", 1)[0]:  # a key/value pair (a Slicer segment's name...)
+            pair = line.split(":=", 1)[0]
+            if pair in pairs:
+                raise error(
+                    f"{path}: NRRD key {pair!r} is given twice; readers differ on which value "
+                    "counts: keep one and save it again"
+                )
+            pairs.add(pair)
+            continue
+        if line.startswith("#") or ": " not in line:
             continue
         key = line.split(": ", 1)[0]
         norm = key.replace(" ", "").lower()

@@ -409,6 +409,13 @@ def _bz2_zeros(n: int) -> bytes:
     return b"".join(comp.compress(block) for _ in range(n >> 20)) + comp.flush()
 
 
+def seg_segment_name_twice(folder: Path) -> tuple[Path, str]:
+    path = _nrrd(folder, "two.seg.nrrd", encoding="raw")
+    fields = "Segment0_ID:=S0\nSegment0_Name:=canal\nSegment0_Name:=tooth\n"
+    edit_text_header(path, "space: left", fields + "space: left")
+    return path, r"NRRD key 'Segment0_Name' is given twice"
+
+
 def nrrd_bzip2_bomb(folder: Path) -> tuple[Path, str]:
     path = _nrrd(folder, encoding="raw")
     data = path.read_bytes()
