@@ -366,6 +366,8 @@ static real_t velocity(fw_controller *c, int32_t counts, real_t encoder_mm)
     (void)encoder_mm;
     v = G_VEL * dxz;
     c->resid_m = dxz - v * DT_S;
+    if (c->resid_m < R(1e-20) && c->resid_m > R(-1e-20))
+        c->resid_m = R(0.0); /* at rest: no subnormal tail (slow on some FPUs), 1e-20 m is 0 */
     c->last_counts = counts;
     c->zv = (real_t)counts * R(1e-7) - c->resid_m;
 #endif

@@ -11,7 +11,9 @@ that the real-time loop and the tests use (``receive``, ``run_ticks``, ``take_ou
 from __future__ import annotations
 
 import ctypes
+import os
 import random
+import sys
 import time
 from collections.abc import Callable
 from typing import Protocol
@@ -209,21 +211,36 @@ class CDeviceEmulator:
         """Serve on ``fd`` at real time with the ticks paced in C (``fw_host_serve``: each tick
         waits for its own due time, 0.1 ms apart, instead of the Python loop's 1 ms wakeups),
         in slices of :data:`SLICE_S` between which ``should_stop`` is polled; fills
-        ``stats`` as :func:`ctdrill.haptics.realtime.run_realtime` does."""
+        ``stats`` as :func:`ctdrill.haptics.realtime.run_realtime` does.
+
+        The pacer asks for the lowest real-time priority (``SCHED_FIFO`` 1; granted to root,
+        ``CAP_SYS_NICE`` or an rtprio limit; ``CTDRILL_EMULATE_RT=0`` declines it) and says on
+        stderr whether it got it: without it the ticks wake as late as the machine's load
+        makes them."""
         n_bins = len(stats.late_bins)  # 10 us bins (the C pacer's too)
         bins = (ctypes.c_uint64 * n_bins)()
         st = _RtStats()
         st.late_bins = ctypes.cast(bins, ctypes.POINTER(ctypes.c_uint64))
         st.n_bins = n_bins
         end = None if duration_s is None else time.monotonic_ns() + round(duration_s * 1e9)
+        want_rt = int(os.environ.get("CTDRILL_EMULATE_RT", "1") != "0")
+        said = False
         while not should_stop():
             now = time.monotonic_ns()
             if end is not None and now >= end:
                 break
             until = now + round(SLICE_S * 1e9)
             self._lib.fw_host_serve(
-                self._h, fd, until if end is None else min(until, end), ctypes.byref(st)
+                self._h, fd, until if end is None else min(until, end), ctypes.byref(st), want_rt
             )
+            if not said and st.started:
+                said = True
+                sys.stderr.write(
+                    "pacer: real-time priority (SCHED_FIFO 1)\n"
+                    if st.realtime
+                    else "pacer: no real-time priority (timesharing: ticks wake as late as the "
+                    "load makes them)\n"
+                )
         stats.wakeups += st.wakeups
         stats.ticks += st.ticks
         stats.overruns += st.overruns
@@ -257,6 +274,7 @@ class _RtStats(ctypes.Structure):
                 "late_max_s",
                 "t0_ns",
                 "started",
+                "realtime",
                 "late_bins",
                 "n_bins",
                 "pending",
@@ -266,6 +284,7 @@ class _RtStats(ctypes.Structure):
                 *(ctypes.c_uint64,) * 5,
                 *(ctypes.c_double,) * 3,
                 ctypes.c_int64,
+                ctypes.c_int32,
                 ctypes.c_int32,
                 ctypes.POINTER(ctypes.c_uint64),
                 ctypes.c_uint32,

@@ -175,7 +175,7 @@ def _declare(lib: ctypes.CDLL) -> None:
         "fw_host_set_defer": (None, [vp, ctypes.c_int]),
         "fw_host_poll": (ctypes.c_uint, [vp, ctypes.c_uint]),
         "fw_host_frames_dropped": (u32, [vp]),
-        "fw_host_serve": (ctypes.c_int, [vp, ctypes.c_int, ctypes.c_int64, vp]),
+        "fw_host_serve": (ctypes.c_int, [vp, ctypes.c_int, ctypes.c_int64, vp, ctypes.c_int]),
         "fw_crc32c": (u32, [buf, sz]),
         "fw_crc32": (u32, [u32, buf, sz]),
         "fw_cobs_encode": (sz, [buf, sz, vp]),

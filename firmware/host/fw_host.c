@@ -10,6 +10,7 @@
 #include <errno.h>
 #include <fenv.h>
 #include <math.h>
+#include <sched.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/prctl.h>
@@ -310,6 +311,7 @@ typedef struct fw_rt_stats {
     double slipped_s, busy_s, late_max_s;
     int64_t t0_ns;   /* device time origin on CLOCK_MONOTONIC (tick n is due at t0 + n T) */
     int32_t started; /* t0 set */
+    int32_t realtime; /* SCHED_FIFO obtained (1), refused (0) */
     uint64_t *late_bins;
     uint32_t n_bins;
     uint8_t pending[65536];
@@ -363,12 +365,18 @@ static void flush_out(fw_host *h, int fd, fw_rt_stats *st)
  * and sleeps to the next tick's due time (timer slack 1 ns). A wakeup finding more than 5 ms
  * of ticks due is an overrun; over 20 ms the clock slips instead of replaying the backlog.
  */
-int fw_host_serve(fw_host *h, int fd, int64_t until_ns, fw_rt_stats *st)
+int fw_host_serve(fw_host *h, int fd, int64_t until_ns, fw_rt_stats *st, int want_realtime)
 {
     const int64_t tick_ns = 1000000000 / FW_TICK_HZ;
     uint8_t buf[4096];
     prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);
     if (!st->started) {
+        /* the lowest real-time priority where the system grants it (root, CAP_SYS_NICE,
+         * an rtprio limit): a sleeping 10 kHz pacer then wakes on time on a loaded machine;
+         * it uses a few per cent of a core, and the kernel's throttling bounds it anyway */
+        struct sched_param sp;
+        sp.sched_priority = 1;
+        st->realtime = want_realtime && sched_setscheduler(0, SCHED_FIFO, &sp) == 0;
         st->t0_ns = now_ns() - (int64_t)h->dev.ticks * tick_ns;
         st->started = 1;
     }
