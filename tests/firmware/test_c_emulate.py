@@ -87,7 +87,7 @@ def test_the_same_rehearsal_against_the_c_and_the_python_core(tmp_path: Path) ->
     c_rows, c_sum = _session(tmp_path, "c")
     py_rows, py_sum = _session(tmp_path, "python")
     for rows in (c_rows, py_rows):
-        assert list(rows[0]) == ["time_s", "master_mm", "drill_mm", "force_cmd_n", "state"]
+        assert list(rows[0])[:5] == ["time_s", "master_mm", "drill_mm", "force_cmd_n", "state"]
 
     def states(rows: list[dict[str, str]]) -> list[str]:
         seq = [rows[0]["state"]]
@@ -139,7 +139,8 @@ def test_the_same_simulated_rehearsal_on_both_cores_gives_the_same_session_csv(
 ) -> None:
     c_rows = _sim_session(tmp_path, "c", monkeypatch)
     py_rows = _sim_session(tmp_path, "python", monkeypatch)
-    assert c_rows[0] == py_rows[0] == ["time_s", "master_mm", "drill_mm", "force_cmd_n", "state"]
+    assert c_rows[0] == py_rows[0]
+    assert c_rows[0][:5] == ["time_s", "master_mm", "drill_mm", "force_cmd_n", "state"]
     assert len(c_rows) == len(py_rows) > 1000
     assert {r[4] for r in py_rows[1:]} == {"cutting", "stopped"}
     for a, b in zip(c_rows[1:], py_rows[1:], strict=True):
