@@ -13,6 +13,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from ctdrill.app.gui.rehearsal import RehearsalRun
+from ctdrill.app.trainee.curve import ranked
 from ctdrill.app.trainee.record import TraineeRecord
 from ctdrill.app.trainee.session_files import SessionEntry, SessionFiles, session_entry
 
@@ -91,13 +92,14 @@ def debrief_of(run: RehearsalRun) -> Debrief | None:
 
 
 def best_expert(
-    record: TraineeRecord, plan_hash: str, *, exclude: str = ""
+    record: TraineeRecord, plan_hash: str, *, exclude: str = "", mode: str | None = None
 ) -> tuple[dict[str, Any], dict[str, np.ndarray]] | None:
-    """The best-scored expert session of the plan that has a trace, and its trace (None: the
-    record holds no expert session of this plan)."""
-    rows = record.sessions(plan_hash=plan_hash, expert=True)
+    """The best-scored expert session of the plan (and ``mode``: the same case and mode) that
+    has a trace and is ranked (no device fault, attempted), and its trace (None: the record
+    holds no such session)."""
+    rows = record.sessions(plan_hash=plan_hash, expert=True, mode=mode)
     for row in sorted(rows, key=lambda r: -float(r["score"])):
-        if row["session_hash"] == exclude:
+        if row["session_hash"] == exclude or not ranked(row):
             continue
         trace = record.trace(row["session_hash"])
         if trace is not None and trace["time_s"].size:

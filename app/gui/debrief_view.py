@@ -34,6 +34,7 @@ from ctdrill.app.errors import AppInputError
 from ctdrill.app.gui.debrief import Debrief, best_expert, draw_replay
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.plots import WINDOW_DPI
+from ctdrill.app.trainee.kinds import mode_of
 from ctdrill.app.trainee.record import check_trainee, open_record
 from ctdrill.app.trainee.words import debrief_lines
 
@@ -211,7 +212,10 @@ class DebriefView(QWidget):
             record = open_record(db, create=False)
             try:
                 found = best_expert(
-                    record, str(d.summary["plan_sha256"]), exclude=d.entry().session_hash
+                    record,
+                    str(d.summary["plan_sha256"]),
+                    exclude=d.entry().session_hash,
+                    mode=mode_of(d.summary),
                 )
             finally:
                 record.close()
@@ -219,7 +223,9 @@ class DebriefView(QWidget):
             self.record_message.setText(f"No comparison: {exc}")
             return False
         if found is None:
-            self.record_message.setText("The record holds no expert session of this plan yet.")
+            self.record_message.setText(
+                "The record holds no expert session of this case and mode yet."
+            )
             return False
         row, self.expert = found
         self._redraw()

@@ -368,13 +368,13 @@ class RehearsalRun:
     def export(self, out_dir: Path) -> list[Path]:
         """Write the path export (``force.csv``, ``profile.csv``, ``summary.json``,
         ``force.png``, as ``ctdrill export``) and the recorded session (``session/session.csv``,
-        ``session/summary.json``, as ``ctdrill rehearse``) into ``out_dir``, all in one swap
-        (the folder is replaced whole or not at all)."""
+        ``session/summary.json``, ``session/table.json``, as ``ctdrill rehearse``) into
+        ``out_dir``, all in one swap (the folder is replaced whole or not at all); a blind
+        trial's session alone."""
         summary_text, csv_text = self.session_files()
         if self.blind is not None:  # a blind trial: the session alone (no HU, no profile)
-            return write_session_only(
-                out_dir, {"summary.json": summary_text, "session.csv": csv_text}
-            )
+            files = {"summary.json": summary_text, "session.csv": csv_text}
+            return write_session_only(out_dir, files | {TABLE_FILE: self.table_text()})
         return write_exports(
             [ExportJob(self.result, "")],
             out_dir,

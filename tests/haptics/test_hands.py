@@ -13,6 +13,7 @@ from ctdrill.haptics.hands import (
     HumanHand,
     LiveHand,
     breakthrough_depths_mm,
+    decisive_breakthrough_mm,
     first_breakthrough_mm,
 )
 from ctdrill.haptics.profile_table import ProfileTable
@@ -177,3 +178,58 @@ def test_live_hand_follows_its_push_and_retracts_out_of_the_hole() -> None:
     assert hand.command(0.0) == (int(OperatorKind.FEED), -RETRACT_MM_S)
     hand.master_mm = 0.0
     assert hand.command(0.0) == (int(OperatorKind.PUSH), 0.0)
+
+
+def _d4_table(stop_mm: float, goal_mm: float | None = None) -> ProfileTable:
+    """The D4 phantom's cutting force along its plan (``make_mandible_phantom(misch="D4",
+    spacing_mm=0.5)``, bone-illustrative: measured 0.8 N in the gum, 7.0 N in the crestal
+    cortex, 1.7 N in the trabecular bone below): the crest's step into soft bone breaks
+    through by the table's rule (at 1.9 mm on the phantom)."""
+    depth = np.arange(0, 401) * STEP
+    s0 = np.where(depth < 0.5, 0.8, np.where(depth < 1.8, 7.0, 1.74))
+    return _table(s0, stop_mm, goal_mm)
+
+
+@pytest.mark.parametrize("goal_mm", [6.0, 10.8, 14.0])
+def test_the_crestal_cortex_is_not_the_breakthrough_that_matters(goal_mm: float) -> None:
+    table = _d4_table(goal_mm)
+    first = first_breakthrough_mm(table)
+    assert first is not None and 1.8 <= first <= 1.85  # the crest's exit, by the table's rule
+    assert decisive_breakthrough_mm(table) is None  # a layer the osteotomy drills through
+    # in an exam (the table runs past the goal) the canal's roof beyond it is the one
+    depth = np.arange(0, 401) * STEP
+    s0 = np.where(depth < 0.5, 0.8, np.where(depth < 1.8, 7.0, 1.74))
+    s0 = np.where((depth >= goal_mm + 1.0) & (depth < goal_mm + 3.0), 0.0, s0)
+    exam = _table(s0, goal_mm + 6.0, goal_mm)
+    found = decisive_breakthrough_mm(exam)
+    assert found is not None and goal_mm + 1.0 <= found <= goal_mm + 1.05
+
+
+def test_a_careful_d4_session_is_scripted_without_a_late_reaction() -> None:
+    # 9 N through the D4 crest, then on through the soft bone to the wall at the goal: the
+    # scripted hand lets go at the wall, not 150 ms after the crest (which would stop it
+    # 8 mm short), and no reaction is charged
+    goal = 10.8
+    table = _d4_table(goal)
+    depth = np.arange(0, 401) * STEP
+    context = AssessmentContext(
+        planned_depth_mm=12.6,
+        max_safe_depth_mm=goal,
+        goal_depth_mm=goal,
+        clearance_depth_mm=depth,
+        clearance_mm=12.8 - depth,
+    )
+    assessor = Assessor(context, table)
+    hand = HumanHand(HumanSpec(9.0, 150.0), table)
+    result = run_session(
+        SimulatedDevice(),
+        table,
+        parse_operator("human:force=9,react_ms=150"),
+        4.0,
+        on_samples=assessor.add,
+        hand=hand,
+    )
+    assert result.faults == [] and hand.cue is not None and hand.cue[0] == "wall"
+    a = assessor.result()
+    assert a.reaction_ms is None and a.plunge_mm == 0.0 and not a.breach
+    assert a.depth_error_mm == pytest.approx(0.0, abs=1e-3) and a.score == 100.0
