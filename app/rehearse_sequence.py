@@ -59,9 +59,12 @@ from ctdrill.engine.case import case_context
 from ctdrill.engine.grey import map_volume
 from ctdrill.engine.path import PathResult
 from ctdrill.engine.plans import plan_calibration
+from ctdrill.engine.record import to_json as record_json
 from ctdrill.engine.sequence import drill_folder, drill_path, holes_before, plan_sequence
 from ctdrill.engine.settings import DEFAULTS, GreyMapSpec
 from ctdrill.engine.stop import stop_words
+from ctdrill.engine.summarize import drill_step
+from ctdrill.engine.summary import TrajectorySummary
 from ctdrill.haptics.assessment import Assessor, combine_assessments
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.session import FaultSpec, Operator
@@ -129,7 +132,9 @@ def rehearse_sequence(
             path = (
                 first.steps[0]
                 if k == 0
-                else drill_path(volume, plan, k, calibration, reached, **options)
+                else drill_path(
+                    volume, plan, k, calibration, reached, implant=first.steps[0].implant, **options
+                )  # the same implant body for every drill, as the export's sequence has it
             )
             setup: ExamSetup | None = None
             if exam:
@@ -266,24 +271,22 @@ def sequence_summary(
         drills_planned=n,
         planned_depth_mm=float(top["planned_depth_mm"]),
     ).to_json()
+    top["final_drill"] = n
     top["drills"] = [
         {
-            "drill": k + 1,
-            "folder": drill_folder(k),
-            **path.plan.drill.to_json(),
+            # the export's listing entry of this drill (the same code, from its summary)
+            **record_json(drill_step(k, TrajectorySummary.from_json(doc))),
             # the stop the device enforced (in exam mode past the plan, as the drill's own
-            # summary.json says), and the plan's reason for its guarded stop
-            "stop_depth_mm": doc["device_stop_depth_mm"],
-            "stop_reason": path.stop_reason,
+            # summary.json says; stop_reason stays the plan's reason for its guarded stop)
+            "device_stop_depth_mm": doc["device_stop_depth_mm"],
             "exam_stop_basis": doc["exam"].get("stop_basis"),
             "max_drill_mm": doc["max_drill_mm"],
             "reached_depth_mm": reached,
             "max_force_cmd_n": doc.get("max_force_cmd_n"),
             "complete": doc.get("complete"),
-            "inner_holes": doc.get("inner_holes", []),
             "score": doc["assessment"]["score"],
         }
-        for k, (path, doc, reached) in enumerate(runs)
+        for k, (_, doc, reached) in enumerate(runs)
     ]
     return top
 
@@ -297,7 +300,8 @@ def sequence_lines(summary: dict[str, Any], out: Path) -> list[str]:
     """What ``ctdrill rehearse`` prints of a sequence: one line per drill run, then the files."""
     n = summary["drills_planned"]
     lines = [
-        f"drill {d['drill']}/{n} ({d['diameter_mm']:g} mm): stop depth {d['stop_depth_mm']:.2f} "
+        f"drill {d['drill']}/{n} ({d['diameter_mm']:g} mm): stop depth "
+        f"{d['device_stop_depth_mm']:.2f} "
         f"mm ({_stop_why(d)}), reached {d['reached_depth_mm']:.2f} mm"
         for d in summary["drills"]
     ]

@@ -265,22 +265,25 @@ def sequence_summary(seq: SequenceResult, context: CaseContext) -> SequenceSumma
         format=SEQUENCE_FORMAT,
         outcome=steps[-1].outcome,
         final_drill=len(steps),
-        drills=tuple(
-            DrillStep(
-                drill=k + 1,
-                folder=drill_folder(k),
-                spec=drill_info(path.plan.drill),
-                planned_depth_mm=s.outcome.planned_depth_mm,
-                stop_depth_mm=s.outcome.stop_depth_mm,
-                stop_reason=s.outcome.stop_reason,
-                max_safe_depth_mm=s.outcome.max_safe_depth_mm,
-                min_clearance_mm=s.outcome.min_clearance_mm,
-                peak_force_n=s.peak_force_n,
-                mean_force_n=s.mean_force_n,
-                force_band=s.force_band,
-                inner_holes=tuple(hole_info(h) for h in path.inner_holes),
-            )
-            for k, (path, s) in enumerate(zip(seq.steps, steps, strict=True))
-        ),
+        drills=tuple(drill_step(k, s) for k, s in enumerate(steps)),
         warnings=warning_entries(seq.warnings),
+    )
+
+
+def drill_step(index: int, s: TrajectorySummary) -> DrillStep:
+    """Drill ``index`` (0-based) of a sequence in its listing, from its own summary ``s`` (the
+    export's listing and the rehearsal's read the same code)."""
+    return DrillStep(
+        drill=index + 1,
+        folder=drill_folder(index),
+        spec=s.drill,
+        planned_depth_mm=s.outcome.planned_depth_mm,
+        stop_depth_mm=s.outcome.stop_depth_mm,
+        stop_reason=s.outcome.stop_reason,
+        max_safe_depth_mm=s.outcome.max_safe_depth_mm,
+        min_clearance_mm=s.outcome.min_clearance_mm,
+        peak_force_n=s.peak_force_n,
+        mean_force_n=s.mean_force_n,
+        force_band=s.force_band,
+        inner_holes=s.inner_holes,
     )

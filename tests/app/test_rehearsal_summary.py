@@ -78,3 +78,30 @@ def test_site_is_the_fdi_number_or_null(outputs: dict[str, Any]) -> None:
     assert outputs["x"]["site"] == 36 and outputs["r"]["site"] == 36
     assert "site" in outputs["plain"] and outputs["plain"]["site"] is None
     assert outputs["plain_r"]["site"] is None
+
+
+def test_a_rehearsed_sequence_carries_the_exported_sequences_fields(tmp_path: Path) -> None:
+    from ctdrill.imaging.plan.load import load_plan
+    from ctdrill.imaging.plan.types import DrillSpec
+    from ctdrill.imaging.plan.write import save_plan
+
+    drills = (DrillSpec(diameter_mm=2.0), DrillSpec(diameter_mm=2.8))
+    save_plan(load_plan(DEMO / "plan.json").with_drills(drills), tmp_path / "plan.json")
+    common = ["--dicom", str(DEMO / "ct"), "--plan", str(tmp_path / "plan.json")]
+    _run(["export", *common, "--out", str(tmp_path / "x")])
+    # long enough for each drill to reach its stop (2.4 s at 12 N), so the hole drill 2 cuts
+    # around is the one the export assumes (to the device's float32 stop)
+    session = ["--operator", "push:12", "--duration-s", "3"]
+    _run(["rehearse", *common, *session, "--out", str(tmp_path / "r")])
+    export, rehearsal = _summary(tmp_path / "x"), _summary(tmp_path / "r")
+    assert export["format"] == "ctdrill-sequence/1"  # the rehearsal's listing has its own
+    skip = {"format", "drills"}
+    assert {k: v for k, v in export.items() if k not in skip and rehearsal.get(k) != v} == {}
+    for x, r in zip(export["drills"], rehearsal["drills"], strict=True):
+        # the hole a drill cut around is as deep as the drill before it reached in its session
+        same = {k: v for k, v in x.items() if k != "inner_holes"}
+        assert {k: r.get(k) for k in same} == same
+    for k in (1, 2):  # each drill's own summary: the export's drill summary
+        x, r = _summary(tmp_path / "x" / f"drill_{k}"), _summary(tmp_path / "r" / f"drill_{k}")
+        differ = {n for n, v in x.items() if n not in EXPORT_ONLY and r.get(n, "missing") != v}
+        assert differ == (set() if k == 1 else {"inner_holes"})

@@ -261,7 +261,7 @@ def test_exam_mode_runs_every_drill_of_a_sequence(
     top = json.loads((out / "summary.json").read_text())
     # the listing and the lines give each drill's exam stop, not the guarded one (10.80 mm)
     for entry in top["drills"]:
-        assert entry["stop_depth_mm"] == pytest.approx(22.0, abs=1e-4)
+        assert entry["device_stop_depth_mm"] == pytest.approx(22.0, abs=1e-4)
         assert entry["exam_stop_basis"] == "beyond_plan" and entry["stop_reason"] == "margin"
     assert stdout.startswith("drill 1/2 (2 mm): stop depth 22.00 mm (exam: beyond_plan), ")
     drills = [json.loads((out / f"drill_{k}" / "summary.json").read_text()) for k in (1, 2)]

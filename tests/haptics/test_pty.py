@@ -112,7 +112,7 @@ def test_a_second_rehearsal_on_the_same_emulator_works(
     assert code in (0, 3), err
     b = json.loads((second / "summary.json").read_text())
     assert b["retraction"]["from_mm"] > 1.0 and b["retraction"]["to_mm"] <= 0.0
-    assert "retracting it" in out and b["max_drill_mm"] <= b["stop_depth_mm"]
+    assert "retracting it" in out and b["max_drill_mm"] <= b["device_stop_depth_mm"]
     if code == 0:
         assert b["time_to_stop_s"] is not None
         assert b["wall_held"] is True  # 30 N rests 0.14 mm past the stopped drill
