@@ -82,6 +82,8 @@ class MapCanvas(FigureCanvasQTAgg):
     canal_edited = Signal(str, int, int, object)  # op, landmark, point, LPS (None: delete)
     linked = Signal(object)  # (3,) LPS clicked: move the other views there
     cursor_moved = Signal(object)  # (3,) LPS under the cursor, or None
+    placed = Signal(str, object)  # "entry" | "target", (3,) LPS: a right-click placed it
+    told = Signal(str)  # why a right-click did nothing (for the status bar)
 
     ax: Any
 
@@ -297,16 +299,34 @@ class MapCanvas(FigureCanvasQTAgg):
         """A right press on the image (the slice views start a window/level drag)."""
 
     def right_release(self, event: MouseEvent, uv: np.ndarray | None) -> None:
-        """A right release: a click removes the canal point or the measurement under it."""
+        """A right release acts or says why not (:attr:`told`): in navigation it places the
+        target (Shift: the entry, :attr:`placed`); in a tool it removes the canal point, the
+        measurement or the arch vertex under it."""
         if uv is None:
+            self.told.emit("right-click on the image: nothing to act on outside it")
             return
         x, y = float(event.x), float(event.y)
         if self.mode == "canal":
             hit = self.canal_point_at(x, y)
             if hit is not None:
                 self.canal_edited.emit("delete", hit[0], hit[1], None)
+            else:
+                self.told.emit("right-click removes a traced canal point: none under the cursor")
         elif self.mode in ("distance", "angle", "arch"):
-            self.tools.right_click(x, y)
+            if not self.tools.right_click(x, y):
+                self.told.emit(
+                    "right-click removes the measurement or the arch point under the cursor: "
+                    "none there"
+                )
+        elif self.mode == "navigate":
+            lps = self._lps(uv)
+            if lps is None:
+                self.told.emit("right-click: no CT position under the cursor")
+                return
+            shift, _ctrl = modifiers(event)
+            self.placed.emit("entry" if shift else "target", lps)
+        else:
+            self.told.emit(f"right-click does nothing in the {self.mode!r} tool")
 
     def motion_hook(self, event: MouseEvent, uv: np.ndarray | None) -> bool:
         """A move the subclass takes first (True: nothing else sees it)."""

@@ -37,6 +37,25 @@ class PlanEditor:
         )
         canvas.canal_edited.connect(self.canal)
         canvas.linked.connect(self.ctx.doc.live.set_crosshair)
+        canvas.placed.connect(self.place)
+        canvas.told.connect(self.ctx.doc.edit_refused.emit)
+
+    def place(self, name: str, point_lps: np.ndarray) -> None:
+        """A right-click placed ``name`` (``entry`` | ``target``) at ``point_lps``: the first
+        trajectory's points (both needed), else the current trajectory's handle moved."""
+        doc = self.ctx.doc
+        if doc.plan is None:
+            self._place_draft(name, point_lps)
+            if doc.plan is None:
+                other = "entry (Shift+right-click)" if name == "target" else "target (right-click)"
+                doc.edit_refused.emit(f"{name} placed; now place the {other}")
+            return
+        try:
+            plan = planning.move_handle(doc.plan, name, point_lps)
+        except ValueError as exc:
+            doc.edit_refused.emit(f"error: {exc}")
+            return
+        doc.set_plan(plan)
 
     # ------------------------------------------------------------------ grips
     def grip(

@@ -228,15 +228,19 @@ class ToolState:
             self.canvas.emit_arch_edit("move", k, np.asarray(pmap.to_lps(uv)))
         return True
 
-    def right_click(self, x_px: float, y_px: float) -> None:
+    def right_click(self, x_px: float, y_px: float) -> bool:
         """Right click in a measuring mode (remove it) or the ``arch`` mode (remove a
-        vertex)."""
+        vertex); whether it removed something."""
         if self.canvas.mode in CLICKS:
+            had = bool(self.measure_lps)
             self.clear_measure()
-        elif self._arch_here():
+            return had
+        if self._arch_here():
             k = self.vertex_at(x_px, y_px)
             if k is not None:
                 self.canvas.emit_arch_edit("delete", k, None)
+                return True
+        return False
 
     def delete(self) -> None:
         """Delete/Backspace/Escape: remove the measurement, or the arch vertex under the
