@@ -15,6 +15,7 @@ import pytest
 from ctdrill.app.classroom.class_file import ClassExercise, ClassFile, ClassFileError, load_class
 from ctdrill.app.classroom.grades import GRADE_COLUMNS, confusion_rows, grade_rows
 from ctdrill.app.cli import main
+from ctdrill.app.exercise.aids import aid_level
 from ctdrill.app.exercise.bone_quality import TRIAL_CLASSES, write_bone_quality
 from ctdrill.app.rehearse import rehearse
 from ctdrill.app.trainee import record as record_module
@@ -292,6 +293,19 @@ def stations(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path
             duration_s=4.5,  # 10 N reaches the demo's goal after 4.15 s (docs/rehearse.md)
         )
         assert main(["assess", str(out), "--db", str(db), "--trainee", who]) == 0
+    # ann also drills without the gauges, and once the link fails (the device's fault)
+    db = root / "stationA.db"
+    common = {"dicom": DEMO / "ct", "plan": DEMO / "plan.json", "operator": "push:12"}
+    rehearse(out=root / "s" / "ann" / "aids", duration_s=3.0, aids=aid_level("no-gauges"), **common)
+    faulted = rehearse(
+        out=root / "s" / "ann" / "fault", duration_s=3.0, faults=["link-loss@0.5"], **common
+    )
+    assert not faulted["complete"]
+    for name in ("aids", "fault"):
+        assert (
+            main(["assess", str(root / "s" / "ann" / name), "--db", str(db), "--trainee", "ann"])
+            == 0
+        )
     klass = root / "class.json"
     klass.write_text(
         json.dumps(
@@ -314,6 +328,13 @@ def stations(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path
                         "pass_mark": 50,
                         "attempts": 3,
                     },
+                    {
+                        "name": "no gauges",
+                        "mode": "stop-yourself",
+                        "aid_level": "no-gauges",
+                        "pass_mark": 50,
+                        "attempts": 2,
+                    },
                 ],
             }
         )
@@ -333,10 +354,13 @@ def test_merging_stations_is_idempotent(
     merged = tmp_path / "class.db"
     for _ in range(2):
         assert main(["assess", "--merge", str(a), str(b), "--db", str(merged)]) == 0
-        assert _count(merged, "sessions") == _count(a, "sessions") + _count(b, "sessions") == 9
-        assert _count(merged, "traces") == 9 and _count(merged, "answers") == 6
+        assert _count(merged, "sessions") == _count(a, "sessions") + _count(b, "sessions") == 11
+        assert _count(merged, "traces") == 11 and _count(merged, "answers") == 6
     assert main(["assess", "--merge", str(a), str(merged), "--db", str(merged)]) == 0
-    assert _count(merged, "sessions") == 9
+    assert _count(merged, "sessions") == 11
+    with sqlite3.connect(merged) as conn:
+        modes = dict(conn.execute("SELECT mode, COUNT(*) FROM sessions GROUP BY mode").fetchall())
+    assert modes == {"bone-quality": 6, "guarded": 4, "stop-yourself:no-gauges": 1}
 
 
 def test_the_class_report(
@@ -352,8 +376,16 @@ def test_the_class_report(
     )
     grades = list(csv.DictReader(io.StringIO((out / "grades.csv").read_text())))
     assert [(g["trainee"], g["exercise"]) for g in grades] == [
-        (t, e) for t in ("ann", "bo", "'=cmd") for e in ("feel", "demo")
+        (t, e) for t in ("ann", "bo", "'=cmd") for e in ("feel", "demo", "no gauges")
     ]
+    ann = {g["exercise"]: g for g in grades if g["trainee"] == "ann"}
+    assert (ann["demo"]["attempts"], ann["demo"]["faulted"]) == ("1", "1")  # the link's fault
+    assert (ann["no gauges"]["attempts"], ann["no gauges"]["mode"]) == (
+        "1",
+        "stop-yourself:no-gauges",
+    )
+    assert float(ann["no gauges"]["best"]) >= 50 and ann["no gauges"]["passed"] == "1"
+    assert [g["attempts"] for g in grades if g["exercise"] == "no gauges"] == ["1", "0", "0"]
     feel = {g["trainee"]: g for g in grades if g["exercise"] == "feel"}
     assert (feel["ann"]["best"], feel["ann"]["passed"]) == ("100", "1")
     assert (feel["bo"]["best"], feel["bo"]["passed"]) == ("0", "0")
