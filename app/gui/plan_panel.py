@@ -111,6 +111,13 @@ class PlanPanel(QWidget):
         form = QFormLayout(drill)
         self.implant = ImplantPicker(ctx)
         form.addRow("implant", self.implant)
+        #: the implant's site, an FDI tooth number (validated; empty: not given)
+        self.site = QLineEdit()
+        self.site.setObjectName("field:site")
+        self.site.setPlaceholderText("FDI, e.g. 36")
+        self.site.setToolTip("The implant site as an FDI tooth number 11-48; Enter applies")
+        self.site.editingFinished.connect(self._site_edited)
+        form.addRow("site (FDI)", self.site)
         self.diameter = _spin(0.5, 10.0, 0.1, 2, " mm")
         self.tip_length = _spin(0.0, 5.0, 0.1, 2, " mm")
         self.feed = _spin(0.01, 10.0, 0.05, 2, " mm/s")
@@ -233,6 +240,7 @@ class PlanPanel(QWidget):
             self.depth_label.setText(f"planned depth: {plan.planned_depth_mm:.2f} mm")
             self.sequence.setText(planning.drills_text(plan))
             self.implant.show_plan(plan)
+            self.site.setText("" if plan.site is None else str(plan.site))
             self.diameter.setValue(plan.drill.diameter_mm)
             self.tip_length.setValue(plan.drill.tip_length_mm)
             self.feed.setValue(plan.feed_mm_s)
@@ -332,6 +340,15 @@ class PlanPanel(QWidget):
         row, text = item.row(), item.text()
         if row < len(plan.landmarks) and text != plan.landmarks[row].name:
             self._emit(lambda: canal_edit.rename_landmark(plan, row, text))
+
+    def _site_edited(self) -> None:
+        plan = self.plan
+        if self._updating or plan is None:
+            return
+        text = self.site.text().strip()
+        if text == ("" if plan.site is None else str(plan.site)):
+            return
+        self._emit(lambda: planning.with_site(plan, text))
 
     def _sequence_edited(self) -> None:
         plan = self.plan

@@ -21,6 +21,7 @@ from ctdrill.imaging.plan.drill_spec import sequence_error
 from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.protocol import protocol_drills
+from ctdrill.imaging.plan.site import site_error
 from ctdrill.imaging.plan.types import DrillSpec, Plan
 from ctdrill.imaging.sampling.arch import ArchCurve
 
@@ -384,3 +385,24 @@ def final_drill_edited(plan: Plan, *, diameter_mm: float, tip_length_mm: float) 
             return replace(protocol[diameter_mm], blades=old.blades, rpm=old.rpm)
         return replace(old, diameter_mm=diameter_mm, tip_length_mm=math.nan)
     return replace(old, diameter_mm=diameter_mm, tip_length_mm=tip_length_mm)
+
+
+def with_site(plan: Plan, text: str) -> Plan:
+    """``plan`` at the FDI site written in ``text`` ("" removes it).
+
+    Raises
+    ------
+    PlanEditError
+        Not an FDI tooth number 11-48 (the message says what one is).
+    """
+    words = text.strip()
+    if not words:
+        return replace(plan, site=None)
+    try:
+        number = int(words)
+    except ValueError:
+        number = None
+    problem = site_error(number) if number is not None else site_error(words)
+    if problem is not None:
+        raise PlanEditError(f"site {words!r}: {problem}")
+    return replace(plan, site=number)

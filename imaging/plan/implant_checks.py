@@ -126,11 +126,13 @@ def implants_too_close(plans: tuple[Plan, ...]) -> dict[str, tuple[tuple[str, st
             gap = implant_gap_mm(a, b)
             if gap is None or not gap < MIN_IMPLANT_DISTANCE_MM:
                 continue
-            message = (
-                f"implants of {a.name!r} and {b.name!r} are {gap:.2f} mm apart, less than the "
-                f"{MIN_IMPLANT_DISTANCE_MM:g} mm kept between implants (gap between their "
-                "platform-wide bodies); move one of them"
+            how = (
+                f"intersect ({-gap:.2f} mm of overlap between their platform-wide bodies)"
+                if gap < 0.0
+                else f"are {gap:.2f} mm apart, less than the {MIN_IMPLANT_DISTANCE_MM:g} mm kept "
+                "between implants (gap between their platform-wide bodies)"
             )
+            message = f"implants of {a.name!r} and {b.name!r} {how}; move one of them"
             for name in (a.name, b.name):
                 out.setdefault(name, []).append(("implants_too_close", message))
     return {k: tuple(v) for k, v in out.items()}

@@ -340,7 +340,8 @@ def bone_wall_warnings(
                 "thin_wall",
                 f"{label}: the thinnest bone wall around the implant is {walls.min_mm:.1f} mm, "
                 f"under {min_wall_mm:g} mm, {walls.below_platform_mm:.1f} mm below the platform "
-                f"towards {_lps_text(walls.direction_lps)}" + (f" ({sides})" if sides else ""),
+                f"towards {_direction_text(walls.direction_lps, walls.buccal_lps)}"
+                + (f" ({sides})" if sides else ""),
             )
         )
     p = walls.perforation
@@ -350,7 +351,8 @@ def bone_wall_warnings(
                 "cortical_perforation",
                 f"{label}: the implant surface lies outside the jaw's bone from "
                 f"{p.below_platform_mm[0]:.1f} to {p.below_platform_mm[1]:.1f} mm below the "
-                f"platform, towards {_lps_text(p.direction_lps)} ({100 * p.fraction:.0f} % of "
+                f"platform, towards {_direction_text(p.direction_lps, walls.buccal_lps)} "
+                f"({100 * p.fraction:.0f} % of "
                 "the surface deeper than "
                 f"{PERFORATION_DEPTH_MM:g} mm): the implant perforates the cortical plate",
             )
@@ -365,6 +367,20 @@ def bone_wall_warnings(
             )
         )
     return out
+
+
+def _direction_text(direction: np.ndarray, buccal_lps: np.ndarray | None) -> str:
+    """A direction in a surgeon's words where the arch is known (``buccal``, ``lingual``, or
+    ``along the arch`` (mesial or distal), by the nearest within 45 deg), else in patient
+    axes (:func:`_lps_text`)."""
+    if buccal_lps is None:
+        return _lps_text(direction)
+    c = float(np.dot(direction, buccal_lps))
+    if c >= np.cos(np.radians(45.0)):
+        return "buccal"
+    if c <= -np.cos(np.radians(45.0)):
+        return "lingual"
+    return "along the arch (mesial or distal)"
 
 
 def _lps_text(direction: np.ndarray) -> str:

@@ -75,3 +75,9 @@ def test_gap_without_an_implant_is_none_and_sets_without_pairs_are_quiet() -> No
     bare = Plan(entry_lps=[1, 0, 0], target_lps=[1, 0, -10], name="bare")
     assert implant_gap_mm(_plan(0.0), bare) is None
     assert implants_too_close((_plan(0.0), bare)) == {}
+
+
+def test_intersecting_implants_are_said_to_intersect() -> None:
+    a, b = _plan(0.0, name="a"), _plan(2.0, name="b")
+    ((_, msg),) = implants_too_close((a, b))["a"]
+    assert "intersect" in msg and "mm of overlap" in msg and "apart" not in msg

@@ -93,7 +93,7 @@ def test_thin_wall_names_the_thinnest_wall_and_where() -> None:
     ((code, msg),) = bone_wall_warnings(walls, min_wall_mm=1.5, label="plan '36'")
     assert code == "thin_wall"
     assert msg.startswith("plan '36': the thinnest bone wall around the implant is 0.5 mm")
-    assert "towards L 1.00" in msg and "buccal 0.5 mm, lingual 2.4 mm" in msg
+    assert "towards buccal (" in msg and "buccal 0.5 mm, lingual 2.4 mm" in msg
     assert bone_wall_warnings(walls, min_wall_mm=0.5, label="x") == []
 
 
@@ -166,3 +166,10 @@ def test_the_buccal_normal_points_out_of_the_arch() -> None:
     straight = np.array([[0.0, -20.0, 0.0], [0.0, 20.0, 0.0]])
     assert buccal_normal_lps(straight, np.zeros(3)) is None
     assert buccal_normal_lps(ARCH, np.array([0.0, 80.0, 0.0])) is None  # beyond its ends
+
+
+def test_without_an_arch_the_direction_is_in_patient_axes() -> None:
+    walls = plan_bone_walls(_slab(3.5), _plan(PARALLEL, 0.95), max_wall_mm=5.0)
+    assert walls is not None
+    ((_, msg),) = bone_wall_warnings(walls, min_wall_mm=1.5, label="p")
+    assert "towards L 1.00" in msg

@@ -69,3 +69,24 @@ def test_a_right_click_that_cannot_act_says_why(qtbot: QtBot, window: MainWindow
     centre = QPoint(view.pano.width() // 2, view.pano.height() // 2)
     qtbot.mouseClick(view.pano, Qt.MouseButton.RightButton, pos=centre)
     assert "none there" in window.statusBar().currentMessage()
+
+
+def test_the_fdi_site_field_is_typed_and_validated(qtbot: QtBot, window: MainWindow) -> None:
+    assert window.open_plan(DEMO_PLAN)
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        window.open_folder(DEMO_CT)
+    field = window.plan_panel.site
+    field.setFocus()
+    field.selectAll()
+    qtbot.keyClicks(field, "36")
+    qtbot.keyClick(field, Qt.Key.Key_Return)
+    assert window.plan is not None and window.plan.site == 36
+    field.selectAll()
+    qtbot.keyClicks(field, "99")
+    qtbot.keyClick(field, Qt.Key.Key_Return)
+    assert window.plan.site == 36  # refused, said why
+    assert (
+        "FDI" in window.statusBar().currentMessage()
+        or "quadrant" in window.statusBar().currentMessage()
+    )
+    assert field.text() == "36"
