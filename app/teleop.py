@@ -36,6 +36,8 @@ from ctdrill.haptics.session import Operator, parse_operator
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.misch import CORTICAL_HU
 from ctdrill.imaging.plan.load import load_one_plan
+from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.calibration import Calibration
 
 #: The slave starts this far above the surface it meets, mm.
@@ -88,12 +90,24 @@ def prepare_teleop(
     ct: Path, plan_file: Path | Sequence[Path], *, misregister_mm: float = 0.0
 ) -> TeleopCase:
     """Load the CT and plan; the plan's path and the misregistered one the slave cuts."""
+    check_misregistration(misregister_mm)
+    volume = load_ct(ct)
+    plan = load_one_plan([plan_file] if isinstance(plan_file, Path) else list(plan_file))
+    return teleop_case(volume, plan, misregister_mm=misregister_mm)
+
+
+def check_misregistration(misregister_mm: float) -> None:
+    """Refuse a misregistration that is not a finite shift within the bound."""
     if not (math.isfinite(misregister_mm) and abs(misregister_mm) <= MAX_MISREGISTER_MM):
         raise AppInputError(
             f"--misregister-mm {misregister_mm}: give a shift within ±{MAX_MISREGISTER_MM:g} mm"
         )
-    volume = load_ct(ct)
-    plan = load_one_plan([plan_file] if isinstance(plan_file, Path) else list(plan_file))
+
+
+def teleop_case(volume: CTVolume, plan: Plan, *, misregister_mm: float = 0.0) -> TeleopCase:
+    """The plan's path on ``volume`` (its first drill) and the misregistered one the slave
+    cuts (module docstring)."""
+    check_misregistration(misregister_mm)
     plan = plan.drilled(0)
     cal = plan_calibration(plan)
     path = plan_path(volume, plan, cal)

@@ -26,6 +26,7 @@ from ctdrill.app.gui.rehearsal_panel import RehearsalPanel
 from ctdrill.app.gui.series_panel import SeriesPanel
 from ctdrill.app.gui.slice_grid import SliceGrid
 from ctdrill.app.gui.suggest_panel import SuggestPanel
+from ctdrill.app.gui.teleop_view import TeleopView
 from ctdrill.app.gui.view3d import View3D
 
 Area = Literal["banner", "main", "page", "bottom", "tab"]
@@ -48,6 +49,7 @@ VIEWS: tuple[ViewSpec, ...] = (
     ViewSpec("slices", "main", "Slices", SliceGrid),
     ViewSpec("panorama", "page", "Panorama and cross-section", PanoramaView),
     ViewSpec("debrief", "page", "Debrief", DebriefView),
+    ViewSpec("teleop", "page", "Teleoperation", TeleopView),
     ViewSpec("plots", "bottom", "Plots", PlotsView),
     ViewSpec("plan", "tab", "Plan", PlanPanel),
     ViewSpec("suggest", "tab", "Suggest", SuggestPanel),
