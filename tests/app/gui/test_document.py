@@ -70,7 +70,7 @@ def test_views_register_in_one_place_with_unique_keys() -> None:
     keys = [spec.key for spec in VIEWS]
     assert len(keys) == len(set(keys))
     expected = {"3d", "slices", "panorama", "plots", "plan", "suggest", "rehearsal", "series"}
-    expected |= {"debrief"}
+    expected |= {"debrief", "teleop"}
     assert expected | {"banner"} == set(keys)
     assert {spec.area for spec in VIEWS} <= {"banner", "main", "page", "bottom", "tab"}
 
