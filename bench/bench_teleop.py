@@ -251,7 +251,9 @@ def _map_figure(points: list[StabilityPoint]) -> Path:
     delays = sorted({p.delay_ms for p in points})
     dampings = sorted({p.hand_damping_n_s_per_m for p in points})
     stiff = sorted({p.env_stiffness_n_per_mm for p in points})
-    fig, axes = plt.subplots(1, len(delays), figsize=(3.2 * len(delays), 3.4), squeeze=False)
+    fig, axes = plt.subplots(
+        1, len(delays), figsize=(2.9 * len(delays) + 1.4, 3.6), squeeze=False, layout="constrained"
+    )
     for ax, d in zip(axes[0], delays, strict=True):
         grid = np.full((len(dampings), len(stiff)), np.nan)
         for p in points:
