@@ -36,7 +36,7 @@ def test_the_slave_runs_from_the_window_and_its_figure_is_drawn(
     assert view.run()
     qtbot.waitUntil(lambda: view.result is not None, timeout=LOAD_TIMEOUT_MS)
     run, figures = view.result  # type: ignore[misc]
-    assert figures["stop_reason"] == "cortex_exit"  # the canal met 3 mm early: stopped by force
+    assert run.stop_reason == figures["stop_reason"] == "cortex_exit"  # the canal 3 mm early
     assert "cortex_exit" in view.message.text()
     axes = view.figure.axes
     assert len(axes) == 3
