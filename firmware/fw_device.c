@@ -6,9 +6,7 @@
 #include <math.h>
 
 #include "fw.h"
-
-#define ARM_MAX_FORCE_N R(5.0)
-#define K_N_PER_MM R(11.0)
+#include "fw_law.h"
 
 /* ------------------------------------------------------------------ little-endian fields */
 static uint16_t get_u16(const uint8_t *p) { return (uint16_t)(p[0] | (p[1] << 8)); }
@@ -356,13 +354,13 @@ static void hello(fw_device *dev, uint32_t seq, const uint8_t *b)
     put_u32(v + 4, FW_TICK_HZ);
     put_u32(v + 8, get_u32(b + 1));
     send(dev, FW_VERSION, v, 12, dev->session);
-    put_f32(l, R(78.0));
-    put_f32(l + 4, R(20.0));
-    put_f32(l + 8, R(5684.0));
+    put_f32(l, PEAK_FORCE_N);
+    put_f32(l + 4, CONTINUOUS_FORCE_N);
+    put_f32(l + 8, THERMAL_BUDGET_N2_S);
     put_u16(l + 12, FW_WATCHDOG_MS);
     put_u16(l + 14, FW_MAX_PROFILE_STEPS);
-    put_f32(l + 16, R(-20.0));
-    put_f32(l + 20, R(60.0));
+    put_f32(l + 16, TRAVEL_MIN_MM);
+    put_f32(l + 20, TRAVEL_MAX_MM);
     send(dev, FW_LIMITS, l, 24, dev->session);
 }
 

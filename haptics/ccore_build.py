@@ -26,7 +26,7 @@ from ctdrill.haptics.errors import HapticsInputError
 Precision = Literal["double", "single"]
 #: The core's sources, relative to the package ``ctdrill.firmware``.
 SOURCES = ("fw_frame.c", "fw_render.c", "fw_device.c", "host/fw_host.c")
-HEADERS = ("fw.h",)
+HEADERS = ("fw.h", "fw_law.h")
 #: Compiler flags of the host build: C99, no fast-math and no contraction into FMA (the
 #: double build repeats Python's float arithmetic operation for operation).
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math", "-Wall")
