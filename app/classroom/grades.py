@@ -49,8 +49,6 @@ CONFUSION_COLUMNS = (
     "correct",
     "correct_pct",
 )
-#: Session fault reasons the trainee caused (the drill pushed past the stop): they count.
-TRAINEE_FAULTS = frozenset({"drill_past_stop"})
 
 
 def session_mode(row: Mapping[str, Any], blind: Collection[str] = ()) -> str:
@@ -66,12 +64,9 @@ def session_mode(row: Mapping[str, Any], blind: Collection[str] = ()) -> str:
 
 
 def device_faulted(row: Mapping[str, Any]) -> bool:
-    """The session ended on a fault the device or its link caused (not the trainee)."""
-    if "device_fault" in row:
-        return bool(row["device_fault"])
-    if row.get("outcome") != "fault":
-        return False
-    return str(row.get("reason") or "") not in TRAINEE_FAULTS
+    """The session ended on a fault the device or its link caused, not the trainee (the
+    record's ``device_fault``, :mod:`ctdrill.app.trainee.kinds`)."""
+    return bool(row.get("device_fault"))
 
 
 def _matches(ex: ClassExercise, row: Mapping[str, Any], blind: Collection[str]) -> bool:

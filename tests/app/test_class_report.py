@@ -59,10 +59,10 @@ def test_grades_count_the_allowed_attempts_and_leave_device_faults_out() -> None
     )
     sessions = [
         _session("ann", 60.0, "1"),
-        _session("ann", 50.0, "2", outcome="fault", reason="watchdog"),  # the device's: left out
+        _session("ann", 50.0, "2", outcome="fault", device_fault=True),  # the device's: left out
         _session("ann", 75.0, "3"),
         _session("ann", 99.0, "4"),  # over the allowance of 2: not graded
-        _session("ann", 30.0, "5", exam=True, outcome="fault", reason="drill_past_stop"),  # counts
+        _session("ann", 30.0, "5", exam=True, outcome="fault", device_fault=False),  # counts
         _session("bo", 20.0, "1", exam=True),
     ]
     rows = {(r["trainee"], r["exercise"]): r for r in grade_rows(cls, sessions, [])}
