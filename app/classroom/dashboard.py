@@ -71,7 +71,10 @@ def _figure(
         curve.set_ylim(-3, 105)  # a score of 0 or 100 stays a whole point
         longest = max([len(curves[ex.name][t]) for t in cls.trainees] + [1])
         curve.set_xlim(0.5, longest + 0.5)
-        curve.xaxis.set_major_locator(MaxNLocator(integer=True))
+        if longest <= 20:  # each attempt its tick (a locator gives fractions for one)
+            curve.set_xticks(range(1, longest + 1))
+        else:
+            curve.xaxis.set_major_locator(MaxNLocator(integer=True))
         curve.set_xlabel("attempt", fontsize=8)
         curve.set_ylabel(unit, fontsize=8)
         curve.set_title("learning curves", fontsize=9)
