@@ -24,7 +24,7 @@ from typing import Any
 from ctdrill.app.csv_cells import csv_text
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.records import atomic_output_dir, write_file
-from ctdrill.engine.path import PathResult, plan_path
+from ctdrill.engine.path import PathInputError, PathResult, plan_path
 from ctdrill.engine.plans import plan_calibration
 from ctdrill.haptics.bilateral.estimator import Prior, plan_prior
 from ctdrill.haptics.bilateral.loop import STATE_NAMES, TeleopRun, TeleopSetup, simulate_teleop
@@ -114,9 +114,24 @@ def teleop_case(volume: CTVolume, plan: Plan, *, misregister_mm: float = 0.0) ->
     start = -(STANDOFF_MM + max(misregister_mm, 0.0))
     u = plan.direction
     entry = plan.entry_lps + (start + misregister_mm) * u
-    target = plan.target_lps + (misregister_mm + BEYOND_MM) * u
-    true_plan = replace(plan, entry_lps=entry, target_lps=target, landmarks=())
-    true_path = plan_path(volume, true_plan, cal)
+    try:
+        try:
+            target = plan.target_lps + (misregister_mm + BEYOND_MM) * u
+            true_path = plan_path(
+                volume, replace(plan, entry_lps=entry, target_lps=target, landmarks=()), cal
+            )
+        except PathInputError:  # the scan ends near the plan's end: no margin beyond it
+            target = plan.target_lps + misregister_mm * u
+            true_path = plan_path(
+                volume, replace(plan, entry_lps=entry, target_lps=target, landmarks=()), cal
+            )
+    except PathInputError as exc:
+        if misregister_mm == 0.0:
+            raise
+        raise AppInputError(
+            f"--misregister-mm {misregister_mm:g}: the CT shifted this far along the drill's axis "
+            f"cannot carry the slave's path ({exc}); give a smaller shift"
+        ) from exc
     return TeleopCase(
         plan_path=path,
         true_path=true_path,

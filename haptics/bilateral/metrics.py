@@ -229,9 +229,13 @@ def teleop_metrics(
     boundaries: list[Boundary] = []
     est = np.where(np.isfinite(run.hu_est), run.hu_est, np.nan)
     for j in range(1, len(layers)):
-        (_c0, a0, b0), (c1, a1, b1) = layers[j - 1], layers[j]
+        (c0, a0, b0), (c1, a1, b1) = layers[j - 1], layers[j]
+        # a layer that is not cut reads as the gate to the estimate (it cannot tell air from
+        # soft tissue): its side of the level is the gate's
         m0 = float(np.mean(run.hu_ct[a0 : b0 + 1]))
         m1 = float(np.mean(run.hu_ct[a1 : b1 + 1]))
+        m0 = max(m0, gate_hu) if c0 == 0 else m0
+        m1 = max(m1, gate_hu) if c1 == 0 else m1
         level = 0.5 * (m0 + m1)
         falling = m1 < m0
         ct = run.hu_ct[a0 : b1 + 1]

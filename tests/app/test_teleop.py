@@ -54,6 +54,7 @@ def test_teleop_writes_the_session_and_the_summary(tmp_path: Path) -> None:
         (["--delay-ms", "-1"], "--delay-ms"),
         (["--model-error", "nan"], "--model-error"),
         (["--misregister-mm", "50"], "--misregister-mm"),
+        (["--misregister-mm", "-10"], "--misregister-mm"),  # the shifted CT leaves the scan
         (["--operator", "shove:3"], "shove"),
     ],
 )
