@@ -53,6 +53,9 @@ TASK = (
 )
 _KEY_FORMAT = "ctdrill-exercise-key/1"
 _CT_NAME = re.compile(r"CT\d{5}\.dcm")
+_CLASS_TEXT = re.compile(r"d[1-5]", re.IGNORECASE)
+#: Most series UIDs drawn for one trial (each passes with probability ~0.09).
+_MAX_UID_DRAWS = 200
 
 
 class ExerciseInputError(AppInputError):
@@ -226,15 +229,33 @@ def _crop(hu: np.ndarray, affine: np.ndarray, pts_lps: np.ndarray) -> tuple[np.n
     return region, out
 
 
-def _write_site(folder: Path, site: _Site, *, exercise_id: str, name: str) -> None:
-    """The site's ``ct/`` (blind headers) and ``plan.json``."""
+def reads_as_class(text: str) -> bool:
+    """True if ``text`` holds a class's name in any case (``d3`` inside a hash reads as one
+    to a search that ignores case)."""
+    return _CLASS_TEXT.search(text) is not None
+
+
+def _write_site(folder: Path, site: _Site, *, exercise_id: str, name: str) -> str:
+    """The site's ``ct/`` (blind headers) and ``plan.json``; returns the plan's hash as
+    ``ctdrill rehearse`` records it. The series' UID is drawn (from the exercise id, the
+    trial and a counter) until neither the hash a plan and ``ctdrill inspect`` show of it nor
+    the plan's hash reads as a class (:func:`reads_as_class`)."""
     from pydicom.uid import generate_uid
 
     from ctdrill.imaging.phantom.writer import write_series
     from ctdrill.imaging.plan.types import SERIES_HASH_KEY, series_uid_hash
 
     ent = ["ctdrill-exercise", exercise_id, name]
-    series_uid = str(generate_uid(entropy_srcs=[*ent, "series"]))
+    for k in range(_MAX_UID_DRAWS):
+        series_uid = str(generate_uid(entropy_srcs=[*ent, "series", str(k)]))
+        plan = {**site.plan, SERIES_HASH_KEY: series_uid_hash(series_uid)}
+        write_file(folder / "plan.json", json.dumps(plan, indent=2) + "\n")
+        plan_sha = session_plan_hash([folder / "plan.json"])
+        if not reads_as_class(series_uid_hash(series_uid) + plan_sha):
+            break
+        (folder / "plan.json").unlink()
+    else:  # pragma: no cover - (0.91 ** 200): never in practice
+        raise ExerciseInputError(f"{name}: no series UID whose hashes read as no class")
     hu = np.clip(np.rint(site.hu), -1024, 3071)
     spacing = np.linalg.norm(site.affine_lps[:3, :3], axis=0)
     write_series(
@@ -263,8 +284,7 @@ def _write_site(folder: Path, site: _Site, *, exercise_id: str, name: str) -> No
             "WindowWidth": "3000",
         },
     )
-    plan = {**site.plan, SERIES_HASH_KEY: series_uid_hash(series_uid)}
-    write_file(folder / "plan.json", json.dumps(plan, indent=2) + "\n")
+    return plan_sha
 
 
 def write_bone_quality(
@@ -337,8 +357,7 @@ def write_bone_quality(
             site = replace(site, plan={**site.plan, "calibration": calibration})
             folder = stage / name
             folder.mkdir()
-            _write_site(folder, site, exercise_id=exercise_id, name=name)
-            plan_sha = session_plan_hash([folder / "plan.json"])
+            plan_sha = _write_site(folder, site, exercise_id=exercise_id, name=name)
             nonce = hashlib.sha256(digest + name.encode()).digest()[:15]
             key = seal(site.misch, binding=trial_binding(exercise_id, name, plan_sha), nonce=nonce)
             card = TrialCard(

@@ -63,6 +63,8 @@ def test_trials_are_balanced_and_name_no_class(exercise: tuple[Path, list[Writte
             assert not CLASS_WORDS.search(path.read_text()), rel
         elif path.suffix == ".dcm":
             assert not CLASS_WORDS.search(_dicom_text(path)), rel
+    for path in sorted((root / "trials").rglob("*.json")):  # not even inside a hash
+        assert not re.search(r"d[1-5]", path.read_text(), re.IGNORECASE), path
     key = json.loads((root / "key.json").read_text())
     assert [(t["trial"], t["misch"]) for t in key["trials"]] == [(t.name, t.misch) for t in trials]
 
