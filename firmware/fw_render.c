@@ -114,9 +114,16 @@ static void coefficients(const fw_device *dev, real_t depth_mm, real_t *s0, real
         return;
     }
     frac = pos - (real_t)i;
+#if FW_REAL_IS_DOUBLE
     *s0 = (real_t)dev->s0[i] + frac * ((real_t)dev->s0[i + 1] - (real_t)dev->s0[i]);
     *s1 = (real_t)dev->s1[i] + frac * ((real_t)dev->s1[i + 1] - (real_t)dev->s1[i]);
     *s2 = (real_t)dev->s2[i] + frac * ((real_t)dev->s2[i + 1] - (real_t)dev->s2[i]);
+#else
+    /* weighted, so that rows near the float range cannot overflow their difference */
+    *s0 = dev->s0[i] * (R(1.0) - frac) + dev->s0[i + 1] * frac;
+    *s1 = dev->s1[i] * (R(1.0) - frac) + dev->s1[i + 1] * frac;
+    *s2 = dev->s2[i] * (R(1.0) - frac) + dev->s2[i + 1] * frac;
+#endif
 }
 
 static real_t release_gain(const fw_renderer *r)
@@ -143,7 +150,13 @@ static real_t cut_step(real_t front, real_t master, real_t s0, real_t ke, real_t
         return front;
     }
     room = e - e_star;
+#if FW_REAL_IS_DOUBLE
     if (s0 <= R(0.0) || ke <= R(0.0)) {
+#else
+    /* below 1e-30 (N, per mm/s) the step is the whole room in double too; float would
+     * overflow on the way there */
+    if (s0 <= R(1e-30) || ke <= R(1e-30)) {
+#endif
         step = room;
     } else {
         step = (K_N_PER_MM * e / s0 - R(1.0)) / ke * DT_S;
@@ -260,7 +273,12 @@ real_t fw_render_tick(fw_device *dev, real_t master_mm, real_t v_mm_s, real_t ha
         double t = (double)dev->ticks * (1.0 / FW_TICK_HZ) - (double)r->arm_tick * (1.0 / FW_TICK_HZ);
         vib = s1 * sin(r->w1 * t) + s2 * sin(r->w2 * t);
 #else
-        vib = s1 * sinf(TWO_PI * r->turn1) + s2 * sinf(TWO_PI * r->turn2);
+        /* each term within 1e30 N: the sum cannot overflow, and the force is clipped to
+         * the peak (or to 0) long before */
+        real_t v1 = s1 * sinf(TWO_PI * r->turn1), v2 = s2 * sinf(TWO_PI * r->turn2);
+        v1 = v1 < R(1e30) ? (v1 > R(-1e30) ? v1 : R(-1e30)) : R(1e30);
+        v2 = v2 < R(1e30) ? (v2 > R(-1e30) ? v2 : R(-1e30)) : R(1e30);
+        vib = v1 + v2;
 #endif
     }
     /* model/cutting.py resistance_n */
