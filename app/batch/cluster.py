@@ -18,6 +18,7 @@ never speaks, a frame header announcing 8 EiB, a scheme Dask cannot use here. So
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -31,6 +32,8 @@ from ctdrill.app.batch.workers import POLL_S, Interrupt
 SCHEMES = ("tcp", "tls", "inproc")
 #: The whole connection (Dask's handshake included) must succeed within this, s.
 CONNECT_TIMEOUT_S = 8.0
+#: A client that never connected is closed within this, s (in the background).
+CLOSE_TIMEOUT_S = 2.0
 #: Dask's TLS settings a ``tls://`` address needs (its configuration keys).
 TLS_KEYS = ("distributed.comm.tls.ca-file", "distributed.comm.tls.client.cert")
 
@@ -82,13 +85,33 @@ def connect(address: str) -> Any:
         kwargs["security"] = security
     got: dict[str, Any] = {}
 
+    class _Client(Client):
+        """A client whose failed construction is closed at once, quietly and in the
+        background; Dask's own ``__del__`` would close it synchronously at exit, which on a
+        peer that answered garbage waits twice the timeout (16 s) and then prints a
+        traceback."""
+
+        def __init__(self, *args: Any, **kw: Any) -> None:
+            self._ctdrill_failed = False
+            try:
+                super().__init__(*args, **kw)
+            except BaseException:
+                self._ctdrill_failed = True
+                closer = threading.Thread(target=_quiet_close, args=(self,), daemon=True)
+                closer.start()
+                raise
+
+        def __del__(self) -> None:
+            if not getattr(self, "_ctdrill_failed", True):
+                super().__del__()
+
     def attempt() -> None:
         try:
-            got["client"] = Client(
+            got["client"] = _Client(
                 address, timeout=f"{CONNECT_TIMEOUT_S}s", set_as_default=False, **kwargs
             )
         except BaseException as exc:  # anything the peer provokes: reported, not raised
-            got["error"] = exc
+            got["error"] = one_line(f"{type(exc).__name__}: {exc}")[:300]
 
     worker = threading.Thread(target=attempt, name="ctdrill-scheduler-connect", daemon=True)
     worker.start()
@@ -98,12 +121,17 @@ def connect(address: str) -> Any:
     if worker.is_alive():
         why = f"no answer as a Dask scheduler within {CONNECT_TIMEOUT_S:g} s"
     else:
-        exc = got.get("error")
-        why = one_line(f"{type(exc).__name__}: {exc}")[:300]
+        why = str(got.get("error"))
     raise BatchInputError(
         f"{_advice(address)}: cannot connect ({why}); start one with 'dask scheduler' and give "
         "its address (tcp://HOST:8786)"
     )
+
+
+def _quiet_close(client: Any) -> None:
+    """Close a client that never connected, briefly, whatever it raises."""
+    with contextlib.suppress(BaseException):
+        client.close(timeout=CLOSE_TIMEOUT_S)
 
 
 def run_dask(
