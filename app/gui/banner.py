@@ -5,12 +5,15 @@ message), or why no path could be computed (clearance unknown), and a series who
 too coarse for the clearances (``coarse_voxels``); while a trajectory is dragged it follows the
 dragged plan's path **without changing its height** (the views under the cursor must not move:
 it keeps the height it had when the drag started, its text cut to it, first line first, and a
-banner hidden then stays hidden until the release)."""
+banner hidden then stays hidden until the release).
+
+The banner has **a fixed height** (:data:`BANNER_PX`, about three lines): its first line counts
+the problems, the list under it scrolls, so five problems never shrink the views under it."""
 
 from __future__ import annotations
 
 from PySide6.QtCore import Qt
-from PySide6.QtWidgets import QLabel
+from PySide6.QtWidgets import QFrame, QLabel, QScrollArea
 
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.problems import plan_problems, problems_text
@@ -25,6 +28,8 @@ CLEAR_STYLE = "background:#2e7d32; color:white; font-weight:bold; padding:6px"
 CLEAR_TEXT = "No plan problem at this position."
 #: Qt's largest widget height (QWIDGETSIZE_MAX).
 MAX_HEIGHT_PX = 16_777_215
+#: The banner's fixed height, px: the count line and about two problems; the rest scrolls.
+BANNER_PX = 72
 
 
 def coarse_note(volume: CTVolume | None) -> str:
@@ -83,17 +88,25 @@ def banner_text(view: PathView | None, path_error: str, coarse: str = "") -> tup
     return f"{head}\n{problems_text(problems)}{tail}", "violation"
 
 
-class Banner(QLabel):
-    """Lines (wrapped) in red or amber above the views; hidden when all is well."""
+class Banner(QScrollArea):
+    """Lines (wrapped) in red or amber above the views, a fixed height with the list
+    scrolling; hidden when all is well."""
 
     def __init__(self, ctx: ViewContext) -> None:
-        super().__init__("")
+        super().__init__()
         self.ctx = ctx
         self.kind = ""
         #: The height kept while a drag runs (0: hidden when it started), None: no drag.
         self.frozen_px: int | None = None
-        self.setWordWrap(True)
-        self.setAlignment(Qt.AlignmentFlag.AlignTop | Qt.AlignmentFlag.AlignLeft)
+        self.label = QLabel("")
+        self.label.setObjectName("banner:text")
+        self.label.setWordWrap(True)
+        self.label.setAlignment(Qt.AlignmentFlag.AlignTop | Qt.AlignmentFlag.AlignLeft)
+        self.setWidget(self.label)
+        self.setWidgetResizable(True)
+        self.setFrameShape(QFrame.Shape.NoFrame)
+        self.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        self.setFixedHeight(BANNER_PX)
         self.hide()
         ctx.doc.path_changed.connect(self._path)
         ctx.doc.live.path_changed.connect(self._live_path)
@@ -101,12 +114,15 @@ class Banner(QLabel):
         ctx.doc.volume_changed.connect(lambda _v: self._plan(ctx.doc.plan))
         ctx.doc.live.plan_dragged.connect(self._dragged)
 
+    def text(self) -> str:
+        """The banner's text (count line, then the problems)."""
+        return self.label.text()
+
     def _dragged(self, plan: object) -> None:
         """A drag starts (keep the height) or ends (free it)."""
         if plan is None:
             self.frozen_px = None
-            self.setMinimumHeight(0)
-            self.setMaximumHeight(MAX_HEIGHT_PX)
+            self.setFixedHeight(BANNER_PX)
         elif self.frozen_px is None:
             self.frozen_px = self.height() if self.isVisible() else 0
             if self.frozen_px:
@@ -146,9 +162,9 @@ class Banner(QLabel):
             self.hide()
             return
         if self.text() != content[0]:
-            self.setText(content[0])
-        if kind != self.kind or not self.styleSheet():
+            self.label.setText(content[0])
+        if kind != self.kind or not self.label.styleSheet():
             styles = {"violation": VIOLATION_STYLE, "clear": CLEAR_STYLE}
-            self.setStyleSheet(styles.get(kind, UNKNOWN_STYLE))
+            self.label.setStyleSheet(styles.get(kind, UNKNOWN_STYLE))
         self.kind = kind
         self.show()

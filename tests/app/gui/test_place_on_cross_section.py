@@ -90,3 +90,15 @@ def test_the_fdi_site_field_is_typed_and_validated(qtbot: QtBot, window: MainWin
         or "quadrant" in window.statusBar().currentMessage()
     )
     assert field.text() == "36"
+
+
+def test_the_banner_keeps_its_height_and_scrolls(qtbot: QtBot, window: MainWindow) -> None:
+    from ctdrill.app.gui.banner import BANNER_PX, Banner
+
+    banner = window.views["banner"]
+    assert isinstance(banner, Banner)
+    text = "5 problems\n" + "\n".join(f"• problem {k}: " + "words " * 30 for k in range(5))
+    banner.show_banner((text, "violation"))
+    qtbot.waitUntil(banner.isVisible)
+    assert banner.height() == BANNER_PX and banner.text() == text
+    qtbot.waitUntil(lambda: banner.verticalScrollBar().maximum() > 0)

@@ -15,7 +15,7 @@ from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
 
 PILOT = DrillSpec(diameter_mm=2.0, tip_length_mm=0.6)
-FINAL = DrillSpec(diameter_mm=2.8, tip_length_mm=0.84)
+FINAL = DrillSpec(diameter_mm=2.8)  # the tip rule: 0.8 mm, as the implant's protocol
 
 
 def test_sequence_plan_in_the_window(
