@@ -125,8 +125,6 @@ class Renderer:
         self.continuous_force_n = continuous_force_n
         self.thermal_budget_n2_s = thermal_budget_n2_s
         self.watchdog_s = watchdog_s
-        #: The watchdog counts ticks (as the firmware does): trips past this many.
-        self.watchdog_ticks = round(watchdog_s * tick_hz)
         self._tick_hz = tick_hz
         self.k = stiffness_n_per_mm
         self.b = damping_n_s_per_mm
@@ -161,6 +159,13 @@ class Renderer:
         self.contact_n = 0.0
 
     # ------------------------------------------------------------ commands
+
+    @property
+    def watchdog_ticks(self) -> float:
+        """The watchdog counts ticks, as the firmware does: it trips past this many without an
+        accepted host frame (``watchdog_s`` in ticks; inf: never)."""
+        ticks = self.watchdog_s * self._tick_hz
+        return float(round(ticks)) if math.isfinite(ticks) else ticks
 
     @property
     def has_profile(self) -> bool:
