@@ -26,6 +26,7 @@ from __future__ import annotations
 import contextlib
 import math
 import socket
+import struct
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -61,6 +62,19 @@ CLOSE_GRACE_S = 0.25
 #: viewer draws faster, and an unpaced simulator offers thousands a second (a sender busy
 #: packing them would take the interpreter from the session's loop).
 MAX_RATE_HZ = 200.0
+#: A server that reads keeps its receive window open: once it holds more unread than this,
+#: bytes (more than half a second of frames), it is not reading (a port that listens and never
+#: accepts: the kernel takes the bytes, no program does) and the stream ends with an error.
+UNREAD_LIMIT_BYTES = 16 * 1024
+#: After the last frame, a reading server's window reopens within this, s; what it still
+#: holds unread then beyond :data:`UNREAD_SLACK_BYTES` was never taken.
+DRAIN_WAIT_S = 0.15
+#: The sender looks at what the server holds unread this often, s.
+UNREAD_CHECK_S = 0.25
+UNREAD_SLACK_BYTES = 2048
+#: ``struct tcp_info``'s ``tcpi_snd_wnd`` (Linux 5.4+): the window the peer advertises.
+_TCPI_SND_WND = struct.Struct("<I")
+_TCPI_SND_WND_AT = 228
 
 
 @dataclass
@@ -148,6 +162,8 @@ class IgtlStream:
         self._closing = False
         self._error_lock = threading.Lock()
         self._sock: socket.socket | None = None
+        #: The widest receive window the server advertised, bytes (None: not known).
+        self._max_window: int | None = None
         self._t0: float | None = None
         self._wall0 = 0.0
         self._stamps = (math.nan, math.nan)  # first and last sent header timestamps
@@ -196,7 +212,7 @@ class IgtlStream:
     def close(self) -> StreamReport:
         """Send the last frame (waiting at most ``CLOSE_GRACE_S``), close, and report."""
         self._closing = True
-        self._thread.join(CLOSE_GRACE_S)
+        self._thread.join(CLOSE_GRACE_S + DRAIN_WAIT_S)
         if self._thread.is_alive():  # blocked connecting, or sending to a peer that does not read
             if not self.report.connected:
                 self._fail(f"no connection within the session ({self.connect_timeout_s:g} s)")
@@ -261,9 +277,11 @@ class IgtlStream:
         if sock is None:
             return
         self.report.connected = True
+        self._max_window = _peer_window(sock)
         sent: _Frame | None = None
         drill_sent: StreamDrill | None = None
         next_implant = -math.inf
+        next_check = time.monotonic() + UNREAD_CHECK_S
         try:
             while True:
                 closing = self._closing  # read before the slot: the last frame still goes
@@ -274,15 +292,51 @@ class IgtlStream:
                     name_drill = item[4] is not None and (due or item[4] is not drill_sent)
                     if not self._send(sock, item, with_implant=due, with_drill=name_drill):
                         return
+                    now = time.monotonic()
+                    if now >= next_check:  # a look at the server's queue, 4 times a second
+                        next_check = now + UNREAD_CHECK_S
+                        if self._unread(sock) > UNREAD_LIMIT_BYTES:
+                            self._fail_unread(sock)
+                            return
                     drill_sent = item[4]
                     if due:
                         next_implant = item[0] + IMPLANT_PERIOD_S
                 if closing:
+                    self._drained(sock)
                     return
                 time.sleep(1.0 / MAX_RATE_HZ)
         finally:
             with contextlib.suppress(OSError):
                 sock.close()
+
+    def _unread(self, sock: socket.socket) -> int:
+        """How much the server holds unread, bytes: on this machine its socket's receive
+        queue (``/proc/net/tcp``: exact, whether or not a program ever accepted it); else how
+        far its receive window has shrunk from the widest it advertised (0 where the system
+        does not tell)."""
+        queued = _local_peer_queue(sock)
+        if queued is not None:
+            return queued
+        window = _peer_window(sock)
+        if window is None or self._max_window is None:
+            return 0
+        self._max_window = max(self._max_window, window)
+        return self._max_window - window
+
+    def _fail_unread(self, sock: socket.socket) -> None:
+        self._fail(
+            f"the server is not reading: at least {self._unread(sock)} bytes sent were never taken "
+            "(a port that listens but never accepts the connection?)"
+        )
+
+    def _drained(self, sock: socket.socket) -> None:
+        """After the last frame: the server took what was sent, or the stream's error."""
+        deadline = time.monotonic() + DRAIN_WAIT_S
+        while self._unread(sock) > UNREAD_SLACK_BYTES:
+            if time.monotonic() >= deadline:
+                self._fail_unread(sock)
+                return
+            time.sleep(0.01)
 
     def _send(
         self, sock: socket.socket, item: _Frame, *, with_implant: bool, with_drill: bool
@@ -311,6 +365,47 @@ class IgtlStream:
             report.messages[m.device_name] = report.messages.get(m.device_name, 0) + 1
         self._stamps = (self._stamps[0] if report.sent > 1 else stamp, stamp)
         return True
+
+
+def _proc_address(address: tuple[Any, ...], family: int) -> str:
+    """``address`` as ``/proc/net/tcp{,6}`` writes it: the IP's 32-bit words in host order
+    (little-endian here), hex, then ``:PORT`` in hex."""
+    raw = socket.inet_pton(family, address[0])
+    words = "".join(f"{w:08X}" for w in struct.unpack(f"<{len(raw) // 4}I", raw))
+    return f"{words}:{address[1]:04X}"
+
+
+def _local_peer_queue(sock: socket.socket) -> int | None:
+    """The receive queue of the server's end of ``sock`` when it lives on this machine
+    (Linux ``/proc/net/tcp``), bytes; None when it cannot be found."""
+    try:
+        family = sock.family
+        ours = _proc_address(sock.getsockname(), family)
+        theirs = _proc_address(sock.getpeername(), family)
+        table = "/proc/net/tcp6" if family == socket.AF_INET6 else "/proc/net/tcp"
+        with open(table, encoding="ascii") as fh:
+            for line in fh:
+                fields = line.split()
+                if len(fields) > 4 and fields[1] == theirs and fields[2] == ours:
+                    return int(fields[4].partition(":")[2], 16)
+    except (OSError, ValueError, struct.error):
+        return None
+    return None
+
+
+def _peer_window(sock: socket.socket) -> int | None:
+    """The receive window the peer advertises, bytes (Linux ``TCP_INFO``; None elsewhere)."""
+    option = getattr(socket, "TCP_INFO", None)
+    if option is None:
+        return None
+    try:
+        info = sock.getsockopt(socket.IPPROTO_TCP, option, _TCPI_SND_WND_AT + 4)
+    except OSError:
+        return None
+    if len(info) < _TCPI_SND_WND_AT + 4:
+        return None
+    window: int = _TCPI_SND_WND.unpack_from(info, _TCPI_SND_WND_AT)[0]
+    return window
 
 
 def stream_line(report: dict[str, Any]) -> str:

@@ -331,3 +331,44 @@ def test_a_drill_sequence_streams_each_drills_session_named_by_drill(
     assert frames_per_drill[1] > 0 and frames_per_drill[2] > 0
     # each drill's session time starts at 0 again: its own session.csv's
     assert sum(frames_per_drill.values()) == igtl["sent"]
+
+
+def _stream_for(port: int, seconds: float) -> tuple[IgtlStream, list[str]]:
+    """A stream to ``port`` offered a frame every 10 ms for ``seconds`` (a session's pace)."""
+    warnings: list[str] = []
+    stream = IgtlStream(
+        IgtlTarget("127.0.0.1", port),
+        StreamGeometry((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+        on_warning=warnings.append,
+    )
+    for block in _samples(round(seconds / 0.01)):
+        stream.observe(block)
+        time.sleep(0.01)
+    return stream, warnings
+
+
+@pytest.mark.parametrize("seconds", [0.4, 1.2])
+def test_a_listener_that_never_accepts_is_an_error_not_frames_sent(seconds: float) -> None:
+    # The kernel completes the connection and takes bytes into its buffer for the port; no
+    # program ever reads them. The stream sees the server's window shrink: an error (and one
+    # warning), never "sent N of M frames" as if delivered.
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(4)  # and never accept()
+    try:
+        stream, warnings = _stream_for(int(listener.getsockname()[1]), seconds)
+        report = stream.close()
+    finally:
+        listener.close()
+    assert report.connected and report.error is not None, report
+    assert "not reading" in report.error and "never accepts" in report.error
+    assert len(warnings) == 1
+
+
+def test_a_server_that_reads_is_never_taken_for_one_that_does_not(
+    server: tuple[int, Recorder],
+) -> None:
+    port, _ = server
+    stream, warnings = _stream_for(port, 1.6)
+    report = stream.close()
+    assert report.error is None and warnings == [] and report.sent > 100
