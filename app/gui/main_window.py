@@ -38,6 +38,7 @@ from ctdrill.app.gui.plan_panel import PlanPanel
 from ctdrill.app.gui.plots_view import PlotsView
 from ctdrill.app.gui.recent import RecentFolders
 from ctdrill.app.gui.rehearsal_panel import RehearsalPanel
+from ctdrill.app.gui.report_action import ReportCommand
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.screenshot import grab_window
 from ctdrill.app.gui.series_panel import SeriesPanel
@@ -115,6 +116,8 @@ class MainWindow(QMainWindow):
         self.doc.path_changed.connect(self._path_changed)
         self.doc.surface_changed.connect(lambda _s: self.surface_updated.emit())
         self.doc.edit_refused.connect(self._status)
+        self.report_command = ReportCommand(self.doc, self)  # File > Report
+        self.report_command.finished.connect(self._status)
         self.controller.loaded.connect(self._loaded)
         self.controller.failed.connect(self._stage_failed)
         self.recent_menu = build_menus(self)
@@ -378,6 +381,10 @@ class MainWindow(QMainWindow):
     def set_window_preset(self, label: str) -> None:
         """Apply a window/level preset to the slice views."""
         self.slice_grid.set_window_preset(label)
+
+    def write_report(self, path: str) -> bool:
+        """Write the PDF report of the plan to ``path`` in the background (File > Report)."""
+        return self.report_command.write(path)
 
     def suggest_axes(self) -> bool:
         """Show the *Suggest* tab and search nearby axes with its settings (background)."""

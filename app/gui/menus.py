@@ -49,6 +49,8 @@ class MenuWindow(Protocol):
 
     def suggest_axes(self) -> bool: ...
 
+    def write_report(self, path: str) -> bool: ...
+
 
 def _action(
     window: MenuWindow, menu: QMenu, text: str, slot: Callable[[], Any], shortcut: Any = None
@@ -75,6 +77,7 @@ def build_menus(window: MenuWindow) -> QMenu:
     _action(window, file_menu, "Open plan...", lambda: open_plan_dialog(window), "Ctrl+Shift+O")
     _action(window, file_menu, "Save plan...", lambda: save_plan_dialog(window), keys.Save)
     _action(window, file_menu, "Save screenshot...", lambda: screenshot_dialog(window), "Ctrl+P")
+    _action(window, file_menu, "Report...", lambda: report_dialog(window), "Ctrl+R")
     file_menu.addSeparator()
     _action(window, file_menu, "Quit", window.close, keys.Quit)
     edit_menu = bar.addMenu("&Edit")
@@ -160,6 +163,15 @@ def save_plan_dialog(window: MenuWindow) -> None:
     )
     if path:
         window.save_plan(path)
+
+
+def report_dialog(window: MenuWindow) -> None:
+    """Ask where to write the PDF report of the plan (``ctdrill report``'s clinical summary)."""
+    path, _ = QFileDialog.getSaveFileName(
+        window.window(), "Write report", "report.pdf", "PDF (*.pdf)"
+    )
+    if path:
+        window.write_report(path)
 
 
 def screenshot_dialog(window: MenuWindow) -> None:

@@ -3,6 +3,8 @@ either act or say why not (issue 34)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from PySide6.QtCore import QPoint, Qt
@@ -102,3 +104,22 @@ def test_the_banner_keeps_its_height_and_scrolls(qtbot: QtBot, window: MainWindo
     qtbot.waitUntil(banner.isVisible)
     assert banner.height() == BANNER_PX and banner.text() == text
     qtbot.waitUntil(lambda: banner.verticalScrollBar().maximum() > 0)
+
+
+@pytest.mark.slow  # a whole report in the background: ~10 s idle (make fuzz runs it)
+def test_file_report_writes_the_pdf_of_the_plan(
+    qtbot: QtBot, window: MainWindow, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from PySide6.QtGui import QAction
+    from PySide6.QtWidgets import QFileDialog
+
+    assert window.open_plan(DEMO_PLAN)
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        window.open_folder(DEMO_CT)
+    out = tmp_path / "case.pdf"
+    monkeypatch.setattr(QFileDialog, "getSaveFileName", lambda *a, **k: (str(out), "PDF"))
+    (action,) = [a for a in window.findChildren(QAction) if a.text() == "Report..."]
+    action.trigger()
+    qtbot.waitUntil(lambda: "wrote" in window.statusBar().currentMessage(), timeout=120_000)
+    assert out.read_bytes().startswith(b"%PDF-")
+    assert f"wrote {out}" in window.statusBar().currentMessage()
