@@ -27,13 +27,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ctdrill.app.search.shell_kernel import SHELL_KERNEL
 from ctdrill.hu import AIR_HU
 from ctdrill.imaging.misch import BONE_HU
 from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.plan.types import Plan
+from ctdrill.imaging.sampling.trilinear import fits, volume_args
 from ctdrill.imaging.sampling.walls import PERFORATION_DEPTH_MM
-from ctdrill.imaging.teeth import is_tooth_hu
+from ctdrill.imaging.teeth import TOOTH_HU, is_tooth_hu
 from ctdrill.imaging.volume import CTVolume
+from ctdrill.jit import row_spans, run_spans
 
 #: Distances outside the body's surface where the score reads bone, mm: the first millimetre
 #: around the implant, where its threads engage the bone.
@@ -136,6 +139,9 @@ def sample_shells(
     entries_lps : (N, 3) each candidate's entry, LPS mm.
     directions : (N, 3) unit axis directions (entry -> target).
     min_wall_mm : the plan's thinnest wall to keep, mm.
+
+    The compiled kernel (:mod:`~ctdrill.app.search.shell_kernel`) reads them when it is loaded
+    and the volume has no padding; else the NumPy path below (the reference).
     """
     n = len(entries_lps)
     theta = 2.0 * np.pi * np.arange(N_ANGLES) / N_ANGLES
@@ -147,6 +153,30 @@ def sample_shells(
     hu_out = np.full((n, len(depth), N_ANGLES * n_shell), np.nan)
     perforation = np.zeros(n, dtype=bool)
     thin = np.zeros(n, dtype=bool)
+    if n and fits(volume) and SHELL_KERNEL.ready():
+        dirs = np.ascontiguousarray(directions, dtype=np.float64)
+        e1, e2 = axis_frames(dirs)
+        params = np.array([BONE_HU, TOOTH_HU, AIR_HU, TOOTH_SCORE_HU], dtype=np.float64)
+        run_spans(
+            SHELL_KERNEL,
+            row_spans(np.arange(n)),
+            *volume_args(volume),
+            np.ascontiguousarray(entries_lps, dtype=np.float64),
+            dirs,
+            np.ascontiguousarray(e1),
+            np.ascontiguousarray(e2),
+            np.ascontiguousarray(depth, dtype=np.float64),
+            np.ascontiguousarray(radial, dtype=np.float64),
+            np.ascontiguousarray(deep),
+            np.cos(theta),
+            np.sin(theta),
+            n_shell,
+            params,
+            hu_out,
+            perforation,
+            thin,
+        )
+        return ShellSamples(hu_out, perforation, thin)
     for lo in range(0, n, CHUNK):
         sl = slice(lo, min(lo + CHUNK, n))
         d = directions[sl]

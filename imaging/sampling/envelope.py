@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from ctdrill.imaging.sampling.envelope_kernel import envelope_rays, kernel_fits
 from ctdrill.imaging.teeth import bone_along, edge_steps, is_bone_hu, is_tooth_hu
 from ctdrill.imaging.volume import CTVolume
 
@@ -56,16 +57,33 @@ def envelope_walls(
     Returns
     -------
     wall : (N,) mm; unknown, open : (N,) bool.
+
+    The compiled kernel (:mod:`~ctdrill.imaging.sampling.envelope_kernel`) computes it when
+    it is loaded and the volume has no padding; else the NumPy path below (the reference).
     """
+    n_steps = math.ceil((max_wall_mm + gap_mm) / step) + 1
+    gap_steps = math.ceil(gap_mm / step - 1e-9)
+    tooth_edge = edge_steps(volume, step)
+    if kernel_fits(volume):
+        return envelope_rays(
+            volume,
+            origins_lps,
+            dirs_lps,
+            step=step,
+            n_steps=n_steps,
+            gap_steps=gap_steps,
+            tooth_edge=tooth_edge,
+            max_wall_mm=max_wall_mm,
+            reach_mm=reach_mm,
+            air_hu=AIR_HU,
+            bisect_tol_mm=BISECT_TOL_MM,
+        )
     n = len(origins_lps)
     wall = np.zeros(n)
     unknown = np.zeros(n, dtype=bool)
     cross = np.zeros(n, dtype=bool)
     open_ = np.zeros(n, dtype=bool)
-    n_steps = math.ceil((max_wall_mm + gap_mm) / step) + 1
     t = np.arange(n_steps) * step
-    gap_steps = math.ceil(gap_mm / step - 1e-9)
-    tooth_edge = edge_steps(volume, step)
     chunk = max(1, 200_000 // n_steps)
     for lo_i in range(0, n, chunk):
         sl = slice(lo_i, min(n, lo_i + chunk))

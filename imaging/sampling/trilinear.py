@@ -1,0 +1,117 @@
+"""Trilinear sampling of a CT at one point, for compiled kernels (numba helpers).
+
+:func:`trilinear` is :meth:`~ctdrill.imaging.volume.CTVolume.sample` (``order=1``) at one LPS
+point of a volume without padding: the same index arithmetic, hull test (within 1e-6 voxel of
+the voxel-centre hull) and true slice positions of an irregular stack, the weights and summation
+order of ``scipy.ndimage.map_coordinates(order=1, mode="nearest")``; NaN outside. The kernels
+of the bone walls (:mod:`~ctdrill.imaging.sampling.envelope_kernel`) and of suggest's shells
+(:mod:`ctdrill.app.search.shell_kernel`) read the CT through it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ctdrill.imaging.volume import CTVolume
+from ctdrill.jit import helper
+
+
+def volume_args(volume: CTVolume) -> tuple[Any, ...]:
+    """The arguments :func:`trilinear` reads, in its order: voxels (int16 or float32),
+    inverse affine (3, 3) and offset (3,), the index hull's top (3,), the nominal slice
+    positions and whether they are remapped."""
+    return (
+        np.ascontiguousarray(volume.hu),
+        np.ascontiguousarray(volume._inv_lin),
+        np.ascontiguousarray(volume._inv_off),
+        np.ascontiguousarray(volume._top),
+        np.ascontiguousarray(volume._k_nominal, dtype=np.float64),
+        bool(volume._remap_k),
+    )
+
+
+def fits(volume: CTVolume) -> bool:
+    """A compiled kernel can read ``volume`` through :func:`trilinear`: no padding, int16 or
+    float32 voxels."""
+    return volume.valid is None and volume.hu.dtype in (np.int16, np.float32)
+
+
+#: The numba type string of :func:`volume_args` for voxels of type ``{vol}``.
+VOLUME_SIG = "{vol}[:, :, ::1], float64[:, ::1], float64[::1], float64[::1], float64[::1], boolean"
+
+
+@helper
+def trilinear(
+    vol: np.ndarray,
+    inv_lin: np.ndarray,
+    inv_off: np.ndarray,
+    top: np.ndarray,
+    k_nominal: np.ndarray,
+    remap: bool,
+    p0: float,
+    p1: float,
+    p2: float,
+) -> float:  # pragma: no cover - compiled; tested against CTVolume.sample
+    """CTVolume.sample(order=1) at one LPS point of an unpadded volume; NaN outside the hull."""
+    n_k, n_j, n_i = vol.shape
+    n_s = k_nominal.shape[0]
+    tol = 1e-6
+    ck = inv_lin[2, 0] * p0 + inv_lin[2, 1] * p1 + inv_lin[2, 2] * p2
+    ck += inv_off[2]
+    cj = inv_lin[1, 0] * p0 + inv_lin[1, 1] * p1 + inv_lin[1, 2] * p2
+    cj += inv_off[1]
+    ci = inv_lin[0, 0] * p0 + inv_lin[0, 1] * p1 + inv_lin[0, 2] * p2
+    ci += inv_off[0]
+    if remap:  # np.interp on the true slice positions, linear beyond the ends
+        if ck < k_nominal[0]:
+            slope = 1.0 / (k_nominal[1] - k_nominal[0])
+            ck = 0.0 + (ck - k_nominal[0]) * slope
+        elif ck > k_nominal[n_s - 1]:
+            slope = 1.0 / (k_nominal[n_s - 1] - k_nominal[n_s - 2])
+            ck = (n_s - 1.0) + (ck - k_nominal[n_s - 1]) * slope
+        elif ck == k_nominal[n_s - 1]:
+            ck = n_s - 1.0
+        else:
+            j = np.searchsorted(k_nominal, ck, side="right") - 1
+            if k_nominal[j] == ck:
+                ck = float(j)
+            else:
+                slope = 1.0 / (k_nominal[j + 1] - k_nominal[j])
+                ck = slope * (ck - k_nominal[j]) + float(j)
+    if not (
+        ck >= -tol
+        and cj >= -tol
+        and ci >= -tol
+        and ck <= top[2] + tol
+        and cj <= top[1] + tol
+        and ci <= top[0] + tol
+    ):
+        return np.nan
+    sk = math.floor(ck)
+    sj = math.floor(cj)
+    si = math.floor(ci)
+    wk1 = ck - sk
+    wj1 = cj - sj
+    wi1 = ci - si
+    wk0 = 1.0 - wk1
+    wj0 = 1.0 - wj1
+    wi0 = 1.0 - wi1
+    k0 = min(max(sk, 0), n_k - 1)
+    k1 = min(max(sk + 1, 0), n_k - 1)
+    j0 = min(max(sj, 0), n_j - 1)
+    j1 = min(max(sj + 1, 0), n_j - 1)
+    i0 = min(max(si, 0), n_i - 1)
+    i1 = min(max(si + 1, 0), n_i - 1)
+    total = 0.0
+    total += float(vol[k0, j0, i0]) * wk0 * wj0 * wi0
+    total += float(vol[k0, j0, i1]) * wk0 * wj0 * wi1
+    total += float(vol[k0, j1, i0]) * wk0 * wj1 * wi0
+    total += float(vol[k0, j1, i1]) * wk0 * wj1 * wi1
+    total += float(vol[k1, j0, i0]) * wk1 * wj0 * wi0
+    total += float(vol[k1, j0, i1]) * wk1 * wj0 * wi1
+    total += float(vol[k1, j1, i0]) * wk1 * wj1 * wi0
+    total += float(vol[k1, j1, i1]) * wk1 * wj1 * wi1
+    return total
