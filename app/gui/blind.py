@@ -33,8 +33,8 @@ BLIND_SHOWN = frozenset({"rehearsal", "banner"})
 BLIND_NOTE = (
     "Blind trial {trial}: the CT views, the plots and the model's forecasts are hidden.\n\n"
     "Drill the site on the Rehearsal tab and feel the bone: how hard the drill pushes back, "
-    "how fast it goes down, where it gives.\nThen export the session and name the bone's "
-    "class: ctdrill assess SESSION --answer CLASS --db FILE --trainee ID."
+    "how fast it goes down, where it gives.\nThen name the bone's class under \"Name the "
+    'bone" (or export the session: ctdrill assess SESSION --answer CLASS ...).'
 )
 
 

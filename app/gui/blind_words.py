@@ -9,10 +9,7 @@ if TYPE_CHECKING:
     from ctdrill.app.readout import LiveReadout
 
 #: What the panel says instead of the push's prediction (it names none).
-BLIND_PREDICTION = (
-    "A blind trial: feel the bone as the drill goes down, then name its class (export the "
-    "session, then ctdrill assess SESSION --answer CLASS)."
-)
+BLIND_PREDICTION = "A blind trial: feel the bone as the drill goes down, then name its class below."
 
 
 def blind_live_words(r: LiveReadout, push_n: float | None) -> tuple[str, str]:

@@ -12,10 +12,21 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Protocol
 
 from PySide6.QtCore import QObject, Signal
-from PySide6.QtWidgets import QCheckBox, QComboBox, QLabel
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QFormLayout,
+    QGroupBox,
+    QLabel,
+    QLineEdit,
+    QPushButton,
+)
 
+from ctdrill.app.errors import AppInputError
 from ctdrill.app.exercise.aids import AID_LEVELS, AidLevel, aid_level
+from ctdrill.app.exercise.bone_quality import TRIAL_CLASSES
 from ctdrill.app.gui.blind_words import BLIND_PREDICTION
+from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.rehearsal_live import LiveReadouts
 
 if TYPE_CHECKING:
@@ -31,6 +42,8 @@ class Panel(Protocol):
     live: LiveReadouts
     exam: QCheckBox
     timing_label: QLabel
+
+    ctx: ViewContext
 
     def update_exam_toggle(self) -> None: ...
 
@@ -56,6 +69,7 @@ class ExerciseControls(QObject):
             "(docs/exercises.md)"
         )
         self.picker.currentIndexChanged.connect(self._picked)
+        self.answer_box = self._answer_box()
 
     def _picked(self, index: int) -> None:
         self.set_level(None if index <= 0 else aid_level(AID_LEVELS[index - 1].name))
@@ -82,6 +96,61 @@ class ExerciseControls(QObject):
         self.card = card
         self.panel.live.blind = card is not None
         self.panel.timing_label.setToolTip("")
+        self.answer_box.setVisible(card is not None)
+        self.answer_message.setText("")
+
+    # ------------------------------------------------------------------ naming the bone
+    def _answer_box(self) -> QGroupBox:
+        """Name the bone of the blind trial just drilled, into the trainee record."""
+        box = QGroupBox("Name the bone")
+        box.setObjectName("exercise:answer")
+        form = QFormLayout(box)
+        self.answer = QComboBox()
+        self.answer.addItems(["choose", *TRIAL_CLASSES])
+        form.addRow("its class", self.answer)
+        self.answer_db = QLineEdit()
+        self.answer_db.setPlaceholderText("the trainee record's file (SQLite)")
+        form.addRow("record", self.answer_db)
+        self.answer_trainee = QLineEdit()
+        self.answer_trainee.setPlaceholderText("your name or student number")
+        form.addRow("trainee", self.answer_trainee)
+        self.answer_button = QPushButton("Record my answer")
+        self.answer_button.clicked.connect(self.record_answer)
+        form.addRow(self.answer_button)
+        self.answer_message = QLabel("")
+        self.answer_message.setWordWrap(True)
+        form.addRow(self.answer_message)
+        box.setVisible(False)
+        return box
+
+    def record_answer(self) -> bool:
+        """Store the session just drilled and the class named (as ``ctdrill assess --answer``
+        does); the screen says it was recorded, never whether it was right."""
+        from pathlib import Path
+
+        from ctdrill.app.trainee.answers import answer_entries
+
+        debrief = self.panel.ctx.doc.debrief  # the last ended session's
+        entry = getattr(debrief, "entry", None)
+        if self.card is None or entry is None:
+            self.answer_message.setText("Drill the trial first: nothing to answer yet.")
+            return False
+        if self.answer.currentIndex() <= 0 or not self.answer_db.text().strip():
+            self.answer_message.setText("Choose the class and the record's file.")
+            return False
+        try:
+            [(_e, _stored, answer, earlier)] = answer_entries(
+                Path(self.answer_db.text().strip()),
+                [entry()],
+                [self.answer.currentText()],
+                trainee=self.answer_trainee.text(),
+            )
+        except AppInputError as exc:
+            self.answer_message.setText(f"Not recorded: {exc}")
+            return False
+        said = answer.answer if earlier is None else f"{earlier} (your first answer stands)"
+        self.answer_message.setText(f"Recorded: {self.card.trial}, your answer {said}.")
+        return True
 
     def prediction(self) -> str | None:
         """What the panel says instead of the push's prediction (None: the prediction)."""

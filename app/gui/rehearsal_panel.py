@@ -157,6 +157,7 @@ class RehearsalPanel(QWidget):
         self.hand.push_changed.connect(self._push_changed)
         self.hand.retract_requested.connect(self._retract)
         outer.addWidget(self.live)
+        outer.addWidget(self.exercise.answer_box)  # a blind trial's: name the bone
         self.timing_label = QLabel("-")
         self.timing_label.setWordWrap(True)
         outer.addWidget(self.timing_label)

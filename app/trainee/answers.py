@@ -161,8 +161,6 @@ def answer_sessions(
     TrialError, SealError, RecordError
         A session that is not a blind trial's, a key that does not open, an unusable record.
     """
-    from ctdrill.app.exercise.trials import trial_key
-    from ctdrill.app.trainee.record import check_trainee, open_record, record_error
     from ctdrill.app.trainee.session_files import read_session
 
     if len(named) != len(folders):
@@ -170,9 +168,30 @@ def answer_sessions(
             f"--answer given {len(named)} times for {len(folders)} sessions: name the class of "
             "each session, in the order the sessions are given"
         )
-    trainee = check_trainee(trainee)
+    check_trainee_id(trainee)
     classes = [check_answer(a) for a in named]
-    entries = [read_session(f) for f in folders]
+    return answer_entries(
+        path, [read_session(f) for f in folders], classes, trainee=trainee, expert=expert
+    )
+
+
+def check_trainee_id(trainee: str) -> str:
+    """The record's trainee id (:func:`ctdrill.app.trainee.record.check_trainee`)."""
+    from ctdrill.app.trainee.record import check_trainee
+
+    return check_trainee(trainee)
+
+
+def answer_entries(
+    path: Any, entries: Sequence[Any], named: Sequence[str], *, trainee: str, expert: bool = False
+) -> list[tuple[Any, bool, Answer, str | None]]:
+    """:func:`answer_sessions` of sessions already read (the window's, from memory): each
+    key opened and every answer checked before the first write."""
+    from ctdrill.app.exercise.trials import trial_key
+    from ctdrill.app.trainee.record import open_record, record_error
+
+    trainee = check_trainee_id(trainee)
+    classes = [check_answer(a) for a in named]
     keys = [trial_key(e.summary, where=str(e.folder)) for e in entries]
     record = open_record(path, create=True)
     out: list[tuple[Any, bool, Answer, str | None]] = []

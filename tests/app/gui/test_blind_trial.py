@@ -38,12 +38,12 @@ GIVEAWAY = re.compile(
 )
 
 
-def _screen_text(window: MainWindow) -> list[str]:
+def _screen_text(window: MainWindow, *, skip: QWidget | None = None) -> list[str]:
     """Every text a visible widget of the window shows (labels, buttons, fields, tabs, the
-    title and the status line)."""
+    title and the status line), but those inside ``skip``."""
     out = [window.windowTitle(), window.statusBar().currentMessage()]
     for w in window.findChildren(QWidget):
-        if not w.isVisible():
+        if not w.isVisible() or (skip is not None and skip.isAncestorOf(w)):
             continue
         if isinstance(w, QLabel | QAbstractButton | QLineEdit):
             out.append(w.text())
@@ -54,9 +54,14 @@ def _screen_text(window: MainWindow) -> list[str]:
     return [t for t in out if t]
 
 
-def _assert_blind(window: MainWindow) -> None:
-    shown = [t for t in _screen_text(window) if GIVEAWAY.search(t)]
+def _assert_blind(window: MainWindow, truth: str = "") -> None:
+    """No class, CT number or prediction on screen but the trainee's own answer (in the
+    answer box); the true class nowhere at all."""
+    own = window.rehearsal.exercise.answer_box
+    shown = [t for t in _screen_text(window, skip=own) if GIVEAWAY.search(t)]
     assert shown == [], shown
+    if truth:
+        assert not [t for t in _screen_text(window) if re.search(rf"\b{truth}\b", t)]
     for w in window.findChildren(QWidget):
         name = w.objectName()
         if name.startswith(("view:", "plot:")):
@@ -97,7 +102,7 @@ def test_a_trainee_drills_a_blind_trial_with_the_mouse(
     window.grab().save(str(tmp_path / "blind-cutting.png"))
     qtbot.waitUntil(lambda: panel.run is not None and not panel.run.running, timeout=SESSION_MS)
     qtbot.wait(100)
-    _assert_blind(window)  # and at the end (the debrief page stays hidden)
+    _assert_blind(window, trials[0].misch)  # and at the end (the debrief page stays hidden)
     window.grab().save(str(tmp_path / "blind-end.png"))
     files = panel.export(tmp_path / "export")
     assert sorted(f.name for f in files) == ["session.csv", "summary.json", "table.json"]
@@ -126,6 +131,27 @@ def test_a_trainee_drills_a_blind_trial_with_the_mouse(
         assert conn.execute("SELECT answer, truth FROM answers").fetchall() == [
             (named, trials[0].misch)
         ]
+    # the window names the bone too: real clicks and keys into the answer box
+    box = panel.exercise
+    assert box.answer_box.isVisible()
+    wrong = next(c for c in TRIAL_CLASSES if c not in (trials[0].misch, named))
+    box.answer.setFocus()
+    for _ in range(TRIAL_CLASSES.index(wrong) + 1):
+        qtbot.keyClick(box.answer, Qt.Key.Key_Down)
+    assert box.answer.currentText() == wrong
+    qtbot.keyClicks(box.answer_db, str(tmp_path / "window.db"))
+    qtbot.keyClicks(box.answer_trainee, "Bo")
+    qtbot.mouseClick(box.answer_button, Qt.MouseButton.LeftButton)
+    assert box.answer_message.text() == f"Recorded: trial-01, your answer {wrong}."
+    _assert_blind(window, trials[0].misch)  # the answer recorded, the class still hidden
+    window.grab().save(str(tmp_path / "blind-answered.png"))
+    box.answer_box.grab().save(str(tmp_path / "blind-answer-box.png"))
+    with sqlite3.connect(tmp_path / "window.db") as conn:
+        rows = conn.execute(
+            "SELECT s.trainee, a.answer, a.truth FROM answers a JOIN sessions s USING "
+            "(session_hash)"
+        ).fetchall()
+    assert rows == [("bo", wrong, trials[0].misch)]
     # a plan that is no trial shows everything again
     window.open_plan(phantom_case.plan_path)
     assert window.windowTitle() == "ctdrill" and window.pages.isVisible()
