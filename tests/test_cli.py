@@ -88,6 +88,8 @@ LIGHT_FIRST_PARTY = {
     "ctdrill.imaging.errors",
     "ctdrill.imaging.phantom",
     "ctdrill.imaging.phantom.classes",
+    "ctdrill.imaging.plan",
+    "ctdrill.imaging.plan.budget",  # stdlib only: --placement's choices
     "ctdrill.imaging.stack",
     "ctdrill.interrupts",
     "ctdrill.lazy",

@@ -48,7 +48,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ctdrill.haptics.bilateral.params import ENV_STIFFNESS_N_PER_MM
+from ctdrill.hu import AIR_HU
 from ctdrill.model.calibration import Calibration
+from ctdrill.model.force import feed_factor_scalar
 from ctdrill.model.profile import Profile
 
 #: The low-passed force above which the drill touches material, N; the contact is placed
@@ -121,7 +123,7 @@ def plan_prior(profile: Profile, calibration: Calibration, origin_mm: float = 0.
     gate_hi = calibration.gate_hu + 0.5 * calibration.gate_width_hu
     bone = hu[(np.asarray(profile.s_t) >= 0.999) & (hu >= gate_hi)]
     softest = float(bone.min()) if bone.size else gate_hi
-    c = np.log10(np.maximum(hu + 1000.0, 1.0))
+    c = np.log10(np.maximum(hu - AIR_HU, 1.0))
     return Prior(
         origin_mm=origin_mm + float(profile.depth_mm[0]),
         step_mm=step,
@@ -179,7 +181,7 @@ class HuEstimator:
         self.gate_lo = calibration.gate_hu - 0.5 * calibration.gate_width_hu
         self.gate_hi = calibration.gate_hu + 0.5 * calibration.gate_width_hu
         cp_hi = min(
-            max(self.gate_hi + 1000.0, calibration.c_prime_range[0]), calibration.c_prime_range[1]
+            max(self.gate_hi - AIR_HU, calibration.c_prime_range[0]), calibration.c_prime_range[1]
         )
         self.log10_a0_gate = self.b0 + self.n * math.log10(cp_hi)
         self.prior = prior
@@ -198,7 +200,7 @@ class HuEstimator:
         self.k_contact = contact_stiffness_n_per_mm
         self.harmonics = [(h.b0, h.n) for h in calibration.harmonics]
         cp_exit = min(
-            max(prior.exit_hu + 1000.0, calibration.c_prime_range[0]),
+            max(prior.exit_hu - AIR_HU, calibration.c_prime_range[0]),
             calibration.c_prime_range[1],
         )
         self.exit_a0_n = 10.0 ** (self.b0 + self.n * math.log10(cp_exit))
@@ -256,7 +258,7 @@ class HuEstimator:
         s_t = (depth - self.contact_mm) / self.tip  # Eq. 2, the contact state
         if s_t < MIN_ENGAGED:
             return
-        factor = 1.0 + self.ke * (v if v < 50.0 else 50.0)
+        factor = feed_factor_scalar(v, self.ke)
         y = math.log10(f / (factor * min(s_t, 1.0))) if f > 0.0 else -math.inf
         fast = self._fast / self.n_fast
         if s_t >= 1.0 and abs(fast - f) <= STEADY_FRACTION * f:
@@ -265,7 +267,7 @@ class HuEstimator:
         if y_gain >= self.log10_a0_gate:
             c = (y_gain - self.b0) / self.n
             c = self.c_lo if c < self.c_lo else (self.c_hi if c > self.c_hi else c)
-            hu = 10.0**c - 1000.0
+            hu = 10.0**c + AIR_HU
         else:  # the gate ramp: the share of the gate's upper-edge force
             c = self.c_lo
             share = 10.0 ** (y_gain - self.log10_a0_gate) if y > -math.inf else 0.0

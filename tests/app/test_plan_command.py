@@ -131,7 +131,8 @@ def test_no_landmarks_warns_in_summary_and_terminal(tmp_path: Path) -> None:
         ]
     )
     assert code == 0, err
-    assert "no_landmarks" in json.loads((rout / "summary.json").read_text())["warnings"]
+    rehearsed = json.loads((rout / "summary.json").read_text())["warnings"]
+    assert "no_landmarks" in [w["code"] for w in rehearsed]
     assert "warning: the plan has no landmark" in err
 
 
