@@ -21,7 +21,13 @@ from ctdrill.imaging.bounds import MAX_COORDINATE_MM
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.landmarks import Landmark, bind_to_grid
 from ctdrill.imaging.plan.types import Plan
-from ctdrill.imaging.sampling.edge import entry_refusal, face_terms, lip_exit_depths
+from ctdrill.imaging.sampling.edge import (
+    entry_refusal,
+    face_terms,
+    lip_exit_depths,
+    too_wide_refusal,
+    whole_lip_fits,
+)
 from ctdrill.imaging.sampling.lip import axis_basis, ring_radii_mm
 from ctdrill.imaging.sampling.path import (
     PathInputError,
@@ -148,12 +154,16 @@ def check_rows(
                 errors[i] = exc
     oov = np.full(n, np.nan)
     rows = np.array([i for i in range(n) if errors[i] is None], dtype=np.int64)
-    inside, exit_mm = lip_exit_depths(face_terms(volume, entries[rows], targets[rows], plan.drill))
+    terms = face_terms(volume, entries[rows], targets[rows], plan.drill)
+    inside, exit_mm = lip_exit_depths(terms)
+    fits = whole_lip_fits(terms)
     for j, i in enumerate(rows.tolist()):
         if not inside[j]:
             errors[i] = PathInputError(
                 entry_refusal(volume, entries[i], targets[i], plan.drill, name=plan.name)
             )
+        elif not fits[j]:
+            errors[i] = PathInputError(too_wide_refusal(volume, plan.drill, name=plan.name))
         elif exit_mm[j] < planned[i]:
             oov[i] = exit_mm[j]
     gaps: list[tuple[SliceGap, ...]] = [()] * n

@@ -150,6 +150,36 @@ def lip_exit_depths(terms: FaceTerms) -> tuple[np.ndarray, np.ndarray]:
     return inside, np.min(exit_face, axis=1, initial=np.inf)
 
 
+def whole_lip_fits(terms: FaceTerms) -> np.ndarray:
+    """(N,) bool: some tip depth along the axis has the whole lip (rim at radius ``R``)
+    inside the hull. False: the drill is wider than the scan across its axis; no depth of its
+    path can be sampled whole, and the path is refused (a lip read as air there would pass for
+    a drill cutting nothing)."""
+    a, b, c = terms.a, terms.b, terms.c
+    value = a + c  # the whole lip at depth 0, per face; at depth x: value + x b >= 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        bound = -value / b
+    flat = np.abs(b) < _FLAT
+    lo = np.max(np.where(~flat & (b > 0.0), bound, -np.inf), axis=1, initial=-np.inf)
+    hi = np.min(np.where(~flat & (b < 0.0), bound, np.inf), axis=1, initial=np.inf)
+    flat_ok = np.all(~flat | (value >= -EDGE_TOL_VOX), axis=1)
+    return np.asarray(flat_ok & (lo <= hi + EDGE_TOL_VOX))
+
+
+def too_wide_refusal(volume: CTVolume, drill: DrillSpec, *, name: str = "") -> str:
+    """The refusal of a drill whose whole lip fits nowhere along its axis in the scan."""
+    cols, rows, slices = volume.dims
+    sx, sy, sz = volume.spacing_mm
+    where = f"plan {name!r}: " if name else ""
+    return (
+        f"{where}the drill ({drill.diameter_mm:g} mm) is wider than the scan around its axis "
+        f"(the CT spans {cols * sx:.1f} x {rows * sy:.1f} x {slices * sz:.1f} mm): at no depth "
+        "along the axis does its whole cutting lip lie inside the CT, so no force can be "
+        "computed; choose a narrower drill, an axis farther from the scan's edges or a larger "
+        "scan"
+    )
+
+
 def _nearest_inside(volume: CTVolume, entry_lps: np.ndarray) -> np.ndarray:
     """(3,) the point of the hull nearest ``entry_lps`` (LPS mm), exact: the box in affine
     index space under the affine's metric, every active set tried."""

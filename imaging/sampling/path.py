@@ -32,7 +32,14 @@ from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.types import DrillSpec
 from ctdrill.imaging.sampling.annulus import Hole
-from ctdrill.imaging.sampling.edge import entry_refusal, face_terms, index_planes, lip_exit_depths
+from ctdrill.imaging.sampling.edge import (
+    entry_refusal,
+    face_terms,
+    index_planes,
+    lip_exit_depths,
+    too_wide_refusal,
+    whole_lip_fits,
+)
 from ctdrill.imaging.sampling.lip import LipSamples, axis_basis, lip_ring_points
 from ctdrill.imaging.stack import GAP_FACTOR, nominal_step_mm, wide_steps
 from ctdrill.imaging.volume import CTVolume
@@ -173,9 +180,12 @@ def out_of_volume_depth_mm(
     """
     entry = np.asarray(entry_lps, dtype=np.float64)
     target = np.asarray(target_lps, dtype=np.float64)
-    inside, exit_mm = lip_exit_depths(face_terms(volume, entry[None], target[None], drill))
+    terms = face_terms(volume, entry[None], target[None], drill)
+    inside, exit_mm = lip_exit_depths(terms)
     if not inside[0]:
         raise PathInputError(entry_refusal(volume, entry, target, drill, name=name))
+    if not whole_lip_fits(terms)[0]:
+        raise PathInputError(too_wide_refusal(volume, drill, name=name))
     return None if exit_mm[0] >= planned_depth_mm else float(exit_mm[0])
 
 

@@ -91,3 +91,40 @@ def test_an_entry_outside_names_the_part_the_depths_and_the_move() -> None:
     assert "move the entry at least 0.5 mm into the scanned field" in text
     assert "[6.0, 7.5, 0.0]" in text  # the nearest point inside
     assert "only the lip ahead of the entry must lie in the scan" in text
+
+
+@pytest.mark.parametrize(
+    ("diameter_mm", "entry_xy_mm", "tilt_deg"),
+    [(13.0, (6.0, 6.0), 0.0), (11.5, (5.7, 6.2), 20.0), (12.2, (9.0, 3.0), 8.0)],
+)
+def test_a_drill_whose_whole_lip_fits_nowhere_is_refused(
+    diameter_mm: float, entry_xy_mm: tuple[float, float], tilt_deg: float
+) -> None:
+    # The stack is 11.7 x 11.7 mm across (40 columns of 0.3 mm): a drill wider than that
+    # around its axis has no depth with its whole lip inside; its tip is (the entry lies in
+    # the scan), so the entry rule alone would let it drill a few tenths of a millimetre.
+    volume = _tilted_stack()
+    t = math.radians(tilt_deg)
+    entry = np.array([*entry_xy_mm, 2.5])
+    drill = DrillSpec(diameter_mm=diameter_mm, tip_length_mm=0.6)
+    plan = Plan(
+        entry_lps=entry,
+        target_lps=entry + 5.0 * np.array([math.sin(t), 0.0, math.cos(t)]),
+        drill=drill,
+        calibration="bone-illustrative",
+        name="wide",
+    )
+    cal = load_calibration("bone-illustrative")
+    with pytest.raises(PathInputError, match=r"wider than the scan around its axis"):
+        plan_path(volume, plan, cal)
+    batch = evaluate_batch(volume, plan, plan.entry_lps[None], plan.target_lps[None], cal)
+    assert batch.refusal[0] is not None and "wider than the scan" in str(batch.refusal[0])
+    # a drill that fits around the same axis is not refused
+    narrow = Plan(
+        entry_lps=plan.entry_lps,
+        target_lps=plan.target_lps,
+        drill=DrillSpec(diameter_mm=2.0, tip_length_mm=0.6),
+        calibration="bone-illustrative",
+        name="narrow",
+    )
+    assert plan_path(volume, narrow, cal).stop_depth_mm > 0.0
