@@ -4,7 +4,8 @@ Table ``answers`` (created on first use beside ``sessions`` and ``traces``): one
 session answered, keyed by its ``session_hash`` (a ``sessions`` row): ``exercise``,
 ``exercise_id``, ``trial``, ``answer`` (what the trainee named), ``truth`` (the trial's class,
 from its sealed key) and ``answered_at`` (UTC). A session is answered once: the first answer
-stands. The confusion matrix counts answers by (truth, answer), for one trainee or a class.
+stands. The confusion matrix counts answers by (truth, answer), for one trainee (the record's
+view ``confusion``) or a class.
 """
 
 from __future__ import annotations
@@ -66,11 +67,22 @@ class Answer:
         return self.answer == self.truth
 
 
+#: The record's confusion matrix per trainee: answers counted by (trainee, exercise, truth,
+#: answer) (a class's is its trainees' together: ``ctdrill class report``).
+CONFUSION_VIEW = (
+    "CREATE VIEW IF NOT EXISTS confusion AS SELECT s.trainee AS trainee, a.exercise AS "
+    "exercise, a.truth AS truth, a.answer AS answer, COUNT(*) AS answers FROM answers a JOIN "
+    "sessions s USING (session_hash) GROUP BY s.trainee, a.exercise, a.truth, a.answer"
+)
+
+
 def ensure_answers_table(conn: sqlite3.Connection) -> None:
-    """Create ``answers`` when the record has none yet (its own transaction)."""
+    """Create ``answers`` and the ``confusion`` view when the record has none yet (its own
+    transaction)."""
     conn.execute("BEGIN IMMEDIATE")
     try:
         conn.execute(ANSWERS_SCHEMA)
+        conn.execute(CONFUSION_VIEW)
     except BaseException:
         conn.rollback()
         raise

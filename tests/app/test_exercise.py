@@ -140,6 +140,9 @@ def test_answers_are_recorded_with_the_truth_once(
         rows = conn.execute("SELECT trial, answer, truth FROM answers").fetchall()
         assert conn.execute("SELECT COUNT(*) FROM sessions").fetchone()[0] == 1
     assert rows == [("trial-01", wrong, truth)]
+    with sqlite3.connect(db) as conn:  # the record's confusion matrix per trainee
+        matrix = conn.execute("SELECT trainee, truth, answer, answers FROM confusion").fetchall()
+    assert matrix == [("ann", truth, wrong, 1)]
     for bad in (["--answer", "D5"], ["--answer", "D1", "D2"]):
         assert main([*base, *bad]) == 2
         err = capsys.readouterr().err
