@@ -28,7 +28,7 @@ class Debrief:
     Attributes
     ----------
     summary_text, csv_text, table_text : ``summary.json``, ``session.csv`` and ``table.json``
-        as exported.
+        as exported; display_text: ``display.csv`` (None: the window logged no display).
     summary : the parsed summary (``assessment``, ``planned_depth_mm``, ``plan_sha256``...).
     time_s, hand_mm, drill_mm, force_n : (N,) the session's rows (hand = the master).
     """
@@ -41,6 +41,7 @@ class Debrief:
     hand_mm: np.ndarray
     drill_mm: np.ndarray
     force_n: np.ndarray
+    display_text: str | None = None
 
     @property
     def assessment(self) -> dict[str, Any]:
@@ -56,8 +57,9 @@ class Debrief:
     def entry(self) -> SessionEntry:
         """The session as the trainee record stores it (the hash ``ctdrill assess`` gives the
         exported folder)."""
+        display = None if self.display_text is None else self.display_text.encode()
         files = SessionFiles(
-            self.summary_text.encode(), self.csv_text.encode(), self.table_text.encode()
+            self.summary_text.encode(), self.csv_text.encode(), self.table_text.encode(), display
         )
         return session_entry(Path("window"), files)
 
@@ -88,6 +90,7 @@ def debrief_of(run: RehearsalRun) -> Debrief | None:
         rows[:, 1],
         rows[:, 2],
         rows[:, 3],
+        run.display_text(),
     )
 
 

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from serial.tools import list_ports
 
+from ctdrill.app.csv_cells import csv_text
 from ctdrill.app.exercise.aids import AidLevel
 from ctdrill.app.exercise.trials import TrialCard, blind_summary, write_session_only
 from ctdrill.app.export import write_exports
@@ -23,7 +24,13 @@ from ctdrill.app.readout import push_of
 from ctdrill.app.session_csv import session_csv_text
 from ctdrill.app.session_run import rehearsal_summary, summary_json
 from ctdrill.app.trainee.exam import ExamSetup, assessment_context, plan_hash
-from ctdrill.app.trainee.session_table import TABLE_FILE, table_text
+from ctdrill.app.trainee.session_table import (
+    DISPLAY_COLUMNS,
+    DISPLAY_FILE,
+    TABLE_FILE,
+    recompute,
+    table_text,
+)
 from ctdrill.engine.case import ExportJob
 from ctdrill.engine.path import PathResult
 from ctdrill.engine.settings import DEFAULTS
@@ -123,6 +130,10 @@ class RehearsalRun:
         #: The hand is set while the session runs (:meth:`set_push`, :meth:`retract`).
         self.live = live
         self.rows: list[Row] = []
+        #: What the window showed when (:meth:`shown`): ``(time_s of the sample shown,
+        #: session time it was on screen)``, the session's ``display.csv``.
+        self.display: list[tuple[float, float]] = []
+        self._clock0: float | None = None
         #: The newest rows' ``(time_s, force_cmd_n)`` (the live vibration trace).
         self.trace: deque[tuple[float, float]] = deque(maxlen=TRACE_ROWS)
         #: The session's assessment (``Assessment.to_json()``) once it ended (None before).
@@ -268,6 +279,8 @@ class RehearsalRun:
             elif kind == "state":  # the device's state once the session disarmed it
                 if self._latest is not None:
                     self._latest = replace(self._latest, state=str(payload))
+            elif kind == "clock":
+                self._clock0 = float(payload)
             elif kind == "assessment":
                 self.assessment = payload
             elif kind == "warning":
@@ -339,7 +352,7 @@ class RehearsalRun:
             duration_s=self.duration_s,
             seed=0,
             context=self.case(),
-            assessment=self.assessment,
+            assessment=self._assessed() if not self.running else self.assessment,
             exam=self.exam,
         )
         summary.update({"cancelled": self.cancelled, "recorded_rows": len(self.rows)})
@@ -357,6 +370,33 @@ class RehearsalRun:
         """What the window's export and the session's summary share (the same values)."""
         return CaseContext(settings=DEFAULTS, series_uid=self.series_uid, hu_uncertainty=self.hu)
 
+    def shown(self, time_s: float) -> None:
+        """The window has just drawn the sample of session time ``time_s``: logged with the
+        session's time now (the wall clock since the session began: a device that keeps to
+        the wall clock), once per new sample, while the session runs on such a device."""
+        if self._clock0 is None or not self.device.paced or self._ended:
+            return
+        if self.display and self.display[-1][0] >= time_s:
+            return
+        self.display.append((time_s, time.monotonic() - self._clock0))
+
+    def display_text(self) -> str | None:
+        """``display.csv`` (None: the window logged nothing, e.g. an unpaced simulator)."""
+        if not self.display:
+            return None
+        rows = [[f"{t:.4f}", f"{w:.4f}"] for t, w in self.display]
+        return csv_text(DISPLAY_COLUMNS, rows)
+
+    def _assessed(self) -> dict[str, Any] | None:
+        """The session's assessment: with a display log, recomputed from the recorded rows and
+        it (the reaction from when the window showed the breakthrough; a lag over 100 ms
+        flagged), so the summary agrees with ``session.csv`` and ``display.csv``."""
+        display = self.display_text()
+        if display is None or self.assessment is None or not self.rows or not self._record:
+            return self.assessment
+        text = session_csv_text(self.rows)
+        return recompute("window", text, self.table, self.context, display).to_json()
+
     def session_files(self) -> tuple[str, str]:
         """``(summary.json, session.csv)`` texts of the ended session."""
         return summary_json(self.summary()), session_csv_text(self.rows)
@@ -372,9 +412,13 @@ class RehearsalRun:
         ``out_dir``, all in one swap (the folder is replaced whole or not at all); a blind
         trial's session alone."""
         summary_text, csv_text = self.session_files()
+        display = self.display_text()
         if self.blind is not None:  # a blind trial: the session alone (no HU, no profile)
             files = {"summary.json": summary_text, "session.csv": csv_text}
-            return write_session_only(out_dir, files | {TABLE_FILE: self.table_text()})
+            files[TABLE_FILE] = self.table_text()
+            if display is not None:
+                files[DISPLAY_FILE] = display
+            return write_session_only(out_dir, files)
         return write_exports(
             [ExportJob(self.result, "")],
             out_dir,
@@ -383,5 +427,6 @@ class RehearsalRun:
                 "session/session.csv": csv_text,
                 "session/summary.json": summary_text,
                 f"session/{TABLE_FILE}": self.table_text(),
-            },
+            }
+            | ({} if display is None else {f"session/{DISPLAY_FILE}": display}),
         )

@@ -353,6 +353,8 @@ class RehearsalPanel(QWidget):
         tel = run.latest()
         if tel is not None:
             self.show_telemetry(tel)
+            if not ended:  # what the student saw, and when (the reaction is timed from it)
+                run.shown(tel.time_s)
         warning = run.igtl_warning
         if warning is not None and not self.message.text().endswith(warning):
             self.message.setText(f"{self.message.text()}\nwarning: {warning}")

@@ -100,6 +100,7 @@ class WindowObserver:
     def __init__(self, job: SessionJob, out: _Queue, stop: _Event, retract: _Shared | None) -> None:
         self.job, self.out, self.stop, self.retract = job, out, stop, retract
         self.wall0 = time.monotonic()
+        out.put(("clock", self.wall0))  # session time 0 on the shared monotonic clock
         self.stopped_at: float | None = None  # session time of the first auto-stop row
         self.drilled_mm = 0.0
         self.done = False

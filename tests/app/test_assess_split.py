@@ -15,6 +15,7 @@ import pytest
 
 from ctdrill.app.cli import main
 from ctdrill.app.trainee.record import open_record
+from ctdrill.app.trainee.session_table import read_table, recompute
 from tests.app.trainee_sessions import rewrite
 from tests.conftest import ASSETS
 
@@ -142,3 +143,28 @@ def test_percentiles_compare_the_same_case_and_mode_and_leave_faults_out(
     with (tmp_path / "curve" / "learning_curve.csv").open(newline="") as fh:
         curve = list(csv.DictReader(fh))
     assert [(r["mode"], r["expert_sessions"], r["ranked"]) for r in curve] == [("exam", "3", "1")]
+
+
+def test_a_display_log_is_part_of_the_session(
+    sessions: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # the window's display.csv: every 20 ms sample shown 435 ms late (a starved window)
+    folder = tmp_path / "window"
+    shutil.copytree(sessions["exam"], folder)
+    lines = ["time_s,shown_s"] + [f"{0.02 * k:.4f},{0.02 * k + 0.435:.4f}" for k in range(160)]
+    (folder / "display.csv").write_text("\n".join(lines) + "\n")
+    db = tmp_path / "record.sqlite"
+    capsys.readouterr()
+    assert _assess(folder, "--db", db, "--trainee", "ann") == 2  # its summary says no lag
+    assert "assessment.reaction_ms is" in _one_error(capsys)
+    table, context, _ = read_table("t", (folder / "table.json").read_bytes())
+    display = (folder / "display.csv").read_text()
+    a = recompute("t", (folder / "session.csv").read_text(), table, context, display)
+    summary = json.loads((folder / "summary.json").read_text())
+    summary["assessment"] = a.to_json()
+    (folder / "summary.json").write_text(json.dumps(summary))
+    assert _assess(folder, "--db", db, "--trainee", "ann") == 0
+    row = open_record(db, create=False).sessions()[0]
+    assert row["display_lagged"] is True and row["display_lag_ms"] == pytest.approx(435.0)
+    plain = json.loads((sessions["exam"] / "summary.json").read_text())["assessment"]
+    assert row["reaction_ms"] < plain["reaction_ms"]  # timed from when it was shown

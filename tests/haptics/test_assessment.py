@@ -315,3 +315,39 @@ def test_a_sequence_scores_by_the_same_rule(drills: tuple[dict[str, Any], ...]) 
         if one["time_to_planned_s"] is not None:
             one["time_to_planned_s"] = round(one["time_to_planned_s"], 4)
         assert fields == one | {"score": score_of(one)}
+
+
+@pytest.mark.parametrize(("lag_s", "flagged"), [(0.03, False), (0.1, False), (0.435, True)])
+def test_the_reaction_is_timed_from_when_the_window_showed_the_breakthrough(
+    lag_s: float, flagged: bool
+) -> None:
+    # The drill crosses the slab's far face at 2 mm/s; the hand lets go 600 ms later; the
+    # window shows every 20 ms sample lag_s late. The student reacted to what was on screen.
+    table = ProfileTable.slab(s0_n=4.0, top_mm=0.0, bottom_mm=4.0, stop_depth_mm=6.0)
+    table = ProfileTable(**{**table.__dict__, "goal_depth_mm": 4.0})
+
+    def run(display: bool) -> Any:
+        a = Assessor(_context(max_safe_depth_mm=20.0, goal_depth_mm=6.0), table)
+        bt = a.breakthrough_mm
+        assert bt is not None
+        t_let_go = bt / 2.0 + 0.6
+        for i in range(2800):
+            t = i / 1000.0
+            hand = 9.0 if t < t_let_go - 1e-9 else 0.2
+            a.add([_sample(t, 2.0 * t + 0.2, min(2.0 * t, 5.5), 5.0, hand, CUT)])
+        if display:
+            for k in range(140):
+                a.shown(0.02 * k, 0.02 * k + lag_s)
+        return a.result()
+
+    plain, seen = run(False), run(True)
+    assert plain.reaction_ms == pytest.approx(600.0, abs=1.01)
+    assert plain.display_lag_ms is None and not plain.display_lagged
+    assert seen.display_lag_ms == pytest.approx(1e3 * lag_s, abs=0.05)
+    assert seen.display_lagged is flagged
+    # from the first frame at or after the breakthrough (20 ms frames), plus the lag
+    assert 600.0 - 1e3 * lag_s - 21.0 <= seen.reaction_ms <= 600.0 - 1e3 * lag_s + 1.0
+    if flagged:  # its reaction is not scored: no better, no worse than a session without one
+        assert seen.score == score_of(seen.to_json() | {"reaction_ms": None})
+    else:
+        assert seen.score >= plain.score
