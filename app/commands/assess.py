@@ -48,7 +48,21 @@ def register(subparsers: Any) -> None:
         help="merge these station records into --db (idempotent: sessions are keyed by "
         "their content hash)",
     )
-    p.add_argument("--expert", action="store_true", help="tag the stored sessions as an expert's")
+    p.add_argument(
+        "--class",
+        dest="class_file",
+        type=Path,
+        default=None,
+        metavar="CLASS_FILE",
+        help="the class file (ctdrill-class/1) whose roster names the experts: a trainee it "
+        "lists as an expert is stored as one, and --out ranks against the roster's experts",
+    )
+    p.add_argument(
+        "--expert",
+        action="store_true",
+        help="deprecated (name experts in the class file, --class): tag the stored sessions "
+        "as an expert's",
+    )
     p.add_argument(
         "--out", type=Path, default=None, metavar="DIR", help="write the learning curve here"
     )
@@ -80,9 +94,16 @@ def run(args: argparse.Namespace) -> int:
     if args.expert and not args.sessions:
         raise AppInputError("--expert tags stored sessions: give the SESSION_DIR... to store")
     trainee = check_trainee(args.trainee)
+    experts = None if args.class_file is None else _roster_experts(args.class_file)
+    expert = args.expert or (experts is not None and trainee in experts)
+    if args.expert:
+        sys.stderr.write(
+            "note: --expert is deprecated: the instructor names experts in the class file "
+            "(--class CLASS_FILE, roster.experts)\n"
+        )
     if args.sessions:
         for entry, stored in record_sessions(
-            args.db, args.sessions, trainee=trainee, expert=args.expert
+            args.db, args.sessions, trainee=trainee, expert=expert
         ):
             what = "stored" if stored else "already in the record"
             sys.stdout.write(
@@ -92,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         record = open_record(args.db, create=False)
         try:
-            files = write_learning_curve(record, trainee, args.out)
+            files = write_learning_curve(record, trainee, args.out, experts=experts)
         finally:
             record.close()
         sys.stdout.write(f"wrote {', '.join(str(f) for f in files)}\n")
@@ -130,3 +151,10 @@ def _merge(args: argparse.Namespace) -> int:
             f"{count.answers_added} answers new{extra}\n"
         )
     return 0
+
+
+def _roster_experts(path: Path) -> frozenset[str]:
+    """The experts a class file's roster names (trainee ids in their stored form)."""
+    from ctdrill.app.classroom.class_file import load_class
+
+    return frozenset(load_class(path).experts)

@@ -133,7 +133,7 @@ class RehearsalRun:
         #: What the window showed when (:meth:`shown`): ``(time_s of the sample shown,
         #: session time it was on screen)``, the session's ``display.csv``.
         self.display: list[tuple[float, float]] = []
-        self._clock0: float | None = None
+        self._sent_at: float | None = None  # when the newest rows left the control loop
         #: The newest rows' ``(time_s, force_cmd_n)`` (the live vibration trace).
         self.trace: deque[tuple[float, float]] = deque(maxlen=TRACE_ROWS)
         #: The session's assessment (``Assessment.to_json()``) once it ended (None before).
@@ -279,8 +279,8 @@ class RehearsalRun:
             elif kind == "state":  # the device's state once the session disarmed it
                 if self._latest is not None:
                     self._latest = replace(self._latest, state=str(payload))
-            elif kind == "clock":
-                self._clock0 = float(payload)
+            elif kind == "sent":
+                self._sent_at = float(payload)
             elif kind == "assessment":
                 self.assessment = payload
             elif kind == "warning":
@@ -289,6 +289,7 @@ class RehearsalRun:
                 self.igtl = payload
             else:
                 self._ended = True
+                self.assessment = self._assessed()
                 if kind in ("done", "fault", "cancelled"):
                     self.record = payload
                 if kind == "done":
@@ -352,7 +353,7 @@ class RehearsalRun:
             duration_s=self.duration_s,
             seed=0,
             context=self.case(),
-            assessment=self._assessed() if not self.running else self.assessment,
+            assessment=self.assessment,
             exam=self.exam,
         )
         summary.update({"cancelled": self.cancelled, "recorded_rows": len(self.rows)})
@@ -371,14 +372,15 @@ class RehearsalRun:
         return CaseContext(settings=DEFAULTS, series_uid=self.series_uid, hu_uncertainty=self.hu)
 
     def shown(self, time_s: float) -> None:
-        """The window has just drawn the sample of session time ``time_s``: logged with the
-        session's time now (the wall clock since the session began: a device that keeps to
-        the wall clock), once per new sample, while the session runs on such a device."""
-        if self._clock0 is None or not self.device.paced or self._ended:
+        """The window has just drawn the newest sample, of session time ``time_s``: logged
+        with the session time it was on screen, ``time_s`` plus the wall-clock time since the
+        control loop handed it over (the queue's and the window's delay), once per new sample,
+        while the session runs on a device that keeps to the wall clock."""
+        if self._sent_at is None or not self.device.paced or self._ended:
             return
         if self.display and self.display[-1][0] >= time_s:
             return
-        self.display.append((time_s, time.monotonic() - self._clock0))
+        self.display.append((time_s, time_s + max(time.monotonic() - self._sent_at, 0.0)))
 
     def display_text(self) -> str | None:
         """``display.csv`` (None: the window logged nothing, e.g. an unpaced simulator)."""

@@ -100,13 +100,13 @@ class WindowObserver:
     def __init__(self, job: SessionJob, out: _Queue, stop: _Event, retract: _Shared | None) -> None:
         self.job, self.out, self.stop, self.retract = job, out, stop, retract
         self.wall0 = time.monotonic()
-        out.put(("clock", self.wall0))  # session time 0 on the shared monotonic clock
         self.stopped_at: float | None = None  # session time of the first auto-stop row
         self.drilled_mm = 0.0
         self.done = False
 
     def rows(self, rows: list[Row]) -> None:
         self.out.put(("rows", rows))
+        self.out.put(("sent", time.monotonic()))  # when (the window's display lag is from it)
         if self.stopped_at is None:
             self.stopped_at = next((r[0] for r in rows if r[4] == "stopped"), None)
         held = self.stopped_at is not None and rows[-1][0] - self.stopped_at >= AUTO_STOP_HOLD_S

@@ -21,7 +21,7 @@ turns it the metric's better way (:data:`BETTER`): a lower overshoot, a smaller 
 from __future__ import annotations
 
 import io
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +29,7 @@ import numpy as np
 
 from ctdrill.app.csv_cells import csv_text
 from ctdrill.app.records import atomic_output_dir, write_file
-from ctdrill.app.trainee.record import RecordError, TraineeRecord
+from ctdrill.app.trainee.record import RecordError, TraineeRecord, normal_trainee
 from ctdrill.haptics.assessment import ASSESSMENT_FIELDS
 
 METRICS = tuple(f for f in ASSESSMENT_FIELDS if f != "score")
@@ -144,9 +144,11 @@ def _mode(row: Mapping[str, Any]) -> str:
 
 
 def learning_curve(
-    record: TraineeRecord, trainee: str
+    record: TraineeRecord, trainee: str, *, experts: Collection[str] | None = None
 ) -> tuple[list[dict[str, Any]], list[dict[str, Any]], dict[tuple[str, str], list[dict[str, Any]]]]:
-    """``(curve rows, percentile rows, expert sessions by (plan, mode))`` of ``trainee``.
+    """``(curve rows, percentile rows, expert sessions by (plan, mode))`` of ``trainee``;
+    the experts are the sessions of the trainees ``experts`` names (a class file's roster),
+    or without it the sessions stored as an expert's.
 
     Raises
     ------
@@ -156,15 +158,20 @@ def learning_curve(
     sessions = record.sessions(trainee=trainee)
     if not sessions:
         raise RecordError(f"--trainee {trainee!r}: no session of this trainee in {record.path}")
-    experts: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    peers_of: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    names = None if experts is None else {normal_trainee(e) for e in experts}
     for plan in {s["plan_hash"] for s in sessions}:
-        for e in record.sessions(plan_hash=plan, expert=True):
-            if ranked(e):
-                experts.setdefault((plan, _mode(e)), []).append(e)
+        rows = record.sessions(plan_hash=plan, expert=True if names is None else None)
+        for e in rows:
+            if ranked(e) and (names is None or e["trainee"] in names):
+                peers_of.setdefault((plan, _mode(e)), []).append(e)
+    experts_by = peers_of
     curve = []
     for i, s in enumerate(sessions, start=1):
         key = (s["plan_hash"], _mode(s))
-        peers = [e["score"] for e in experts.get(key, []) if e["session_hash"] != s["session_hash"]]
+        peers = [
+            e["score"] for e in experts_by.get(key, []) if e["session_hash"] != s["session_hash"]
+        ]
         row = {c: s.get(c) for c in CURVE_COLUMNS}
         row.update(
             session=i,
@@ -177,7 +184,7 @@ def learning_curve(
     latest = {(s["plan_hash"], _mode(s)): s for s in sessions if ranked(s)}
     pct = []
     for key, s in latest.items():
-        peers = [e for e in experts.get(key, []) if e["session_hash"] != s["session_hash"]]
+        peers = [e for e in experts_by.get(key, []) if e["session_hash"] != s["session_hash"]]
         for metric in ("score", *METRICS):
             value = _number(s[metric])
             values = [v for v in (_number(e[metric]) for e in peers) if v is not None]
@@ -198,7 +205,7 @@ def learning_curve(
                     else f"better than {better:g} % of the experts on this case and mode",
                 }
             )
-    return curve, pct, experts
+    return curve, pct, experts_by
 
 
 def curve_png(
@@ -258,12 +265,15 @@ def curve_png(
     return out.getvalue()
 
 
-def write_learning_curve(record: TraineeRecord, trainee: str, out: Path) -> list[Path]:
+def write_learning_curve(
+    record: TraineeRecord, trainee: str, out: Path, *, experts: Collection[str] | None = None
+) -> list[Path]:
     """Write ``learning_curve.csv``, ``learning_curve.png`` and ``percentiles.csv`` into
-    ``out`` (the folder replaced whole); returns the files."""
-    curve, pct, experts = learning_curve(record, trainee)
+    ``out`` (the folder replaced whole; ``experts``: :func:`learning_curve`); returns the
+    files."""
+    curve, pct, experts_by = learning_curve(record, trainee, experts=experts)
     with atomic_output_dir(out, owned_names=CURVE_FILES) as stage:
         write_file(stage / "learning_curve.csv", _csv(CURVE_COLUMNS, curve))
         write_file(stage / "percentiles.csv", _csv(PERCENTILE_COLUMNS, pct))
-        write_file(stage / "learning_curve.png", curve_png(curve, experts, trainee))
+        write_file(stage / "learning_curve.png", curve_png(curve, experts_by, trainee))
     return [out / name for name in sorted(CURVE_FILES)]

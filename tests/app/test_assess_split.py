@@ -168,3 +168,36 @@ def test_a_display_log_is_part_of_the_session(
     assert row["display_lagged"] is True and row["display_lag_ms"] == pytest.approx(435.0)
     plain = json.loads((sessions["exam"] / "summary.json").read_text())["assessment"]
     assert row["reaction_ms"] < plain["reaction_ms"]  # timed from when it was shown
+
+
+def test_experts_are_named_in_the_class_file(
+    sessions: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    klass = tmp_path / "class.json"
+    klass.write_text(
+        json.dumps(
+            {
+                "format": "ctdrill-class/1",
+                "roster": {"trainees": ["sam"], "experts": ["Dr-É"]},
+                "exercises": [{"name": "demo", "mode": "guarded", "pass_mark": 50, "attempts": 3}],
+            }
+        )
+    )
+    db = tmp_path / "record.sqlite"
+    expert = rewrite(sessions["guarded"], tmp_path / "x", WHEN.format(1), rest_rows=2)
+    mine = rewrite(sessions["guarded"], tmp_path / "m", WHEN.format(2), depth_scale=0.9)
+    # the expert typed another way is the roster's expert, without a flag
+    nfd = unicodedata.normalize("NFD", "dr-é")
+    assert _assess(expert, "--db", db, "--trainee", nfd, "--class", klass) == 0
+    assert _assess(mine, "--db", db, "--trainee", "sam", "--class", klass) == 0
+    rows = {r["trainee"]: r["expert"] for r in open_record(db, create=False).sessions()}
+    assert rows == {"dr-é": True, "sam": False}
+    out = tmp_path / "curve"
+    assert _assess("--db", db, "--trainee", "sam", "--class", klass, "--out", out) == 0
+    with (out / "percentiles.csv").open(newline="") as fh:
+        score = next(r for r in csv.DictReader(fh) if r["metric"] == "score")
+    assert score["expert_sessions"] == "1" and float(score["better_than_pct"]) == 0.0
+    capsys.readouterr()
+    other = rewrite(sessions["guarded"], tmp_path / "o", WHEN.format(3), rest_rows=3)
+    assert _assess(other, "--db", db, "--trainee", "kim", "--expert") == 0
+    assert "--expert is deprecated" in capsys.readouterr().err

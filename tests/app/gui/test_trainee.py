@@ -143,6 +143,10 @@ def test_a_student_drills_with_the_mouse_and_reads_the_debrief(
     assert run.assessment is not None and run.assessment["breach"] is False
     assert run.assessment["peak_hand_force_n"] > 15.0 and run.session is not None
     assert run.session["final_state"] == "stopped"
+    # what the window showed, and when (the reaction is timed from it): every frame drawn at or
+    # after its sample's time; the largest delay is in the assessment
+    assert run.display and all(shown >= t for t, shown in run.display)
+    assert run.assessment["display_lag_ms"] is not None
     # the debrief page: plain words, the replay, the record
     debrief = window.views["debrief"]
     assert isinstance(debrief, DebriefView) and debrief.debrief is not None
