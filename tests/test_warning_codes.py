@@ -30,6 +30,7 @@ NOT_WARNINGS = {
     ("state", "app/gui/session_process.py"),
     ("off", "app/readout.py"),
     ("igtl", "app/gui/session_process.py"),
+    ("sent", "app/gui/session_process.py"),
     # the rows (item, value) of the report's implant page
     ("implant", "app/report/clinical.py"),
     ("angulation", "app/report/clinical.py"),

@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 from serial.tools import list_ports
 
-from ctdrill.app.csv_cells import csv_text
 from ctdrill.app.exercise.aids import AidLevel
 from ctdrill.app.exercise.trials import TrialCard, blind_summary, write_session_only
 from ctdrill.app.export import write_exports
@@ -25,11 +24,11 @@ from ctdrill.app.session_csv import session_csv_text
 from ctdrill.app.session_run import rehearsal_summary, summary_json
 from ctdrill.app.trainee.exam import ExamSetup, assessment_context, plan_hash
 from ctdrill.app.trainee.session_table import (
-    DISPLAY_COLUMNS,
     DISPLAY_FILE,
     TABLE_FILE,
-    recompute,
+    display_csv,
     table_text,
+    with_display,
 )
 from ctdrill.engine.case import ExportJob
 from ctdrill.engine.path import PathResult
@@ -384,20 +383,15 @@ class RehearsalRun:
 
     def display_text(self) -> str | None:
         """``display.csv`` (None: the window logged nothing, e.g. an unpaced simulator)."""
-        if not self.display:
-            return None
-        rows = [[f"{t:.4f}", f"{w:.4f}"] for t, w in self.display]
-        return csv_text(DISPLAY_COLUMNS, rows)
+        return display_csv(self.display)
 
     def _assessed(self) -> dict[str, Any] | None:
-        """The session's assessment: with a display log, recomputed from the recorded rows and
-        it (the reaction from when the window showed the breakthrough; a lag over 100 ms
-        flagged), so the summary agrees with ``session.csv`` and ``display.csv``."""
-        display = self.display_text()
-        if display is None or self.assessment is None or not self.rows or not self._record:
+        """The session's assessment, with a display log recomputed from the recorded rows and
+        it (:func:`~ctdrill.app.trainee.session_table.with_display`)."""
+        if not self.rows or not self._record:
             return self.assessment
-        text = session_csv_text(self.rows)
-        return recompute("window", text, self.table, self.context, display).to_json()
+        rows = session_csv_text(self.rows)
+        return with_display(self.assessment, rows, self.table, self.context, self.display)
 
     def session_files(self) -> tuple[str, str]:
         """``(summary.json, session.csv)`` texts of the ended session."""

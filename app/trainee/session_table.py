@@ -12,11 +12,12 @@ import csv
 import io
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
+from ctdrill.app.csv_cells import csv_text
 from ctdrill.app.errors import AppInputError
 from ctdrill.haptics.assessment import ASSESSMENT_FIELDS, Assessment, AssessmentContext, Assessor
 from ctdrill.haptics.profile_table import ProfileTable, ProfileTableError
@@ -209,3 +210,27 @@ def first_disagreement(
         if name not in claimed or not _agree(name, claimed[name], computed[name]):
             return name, claimed.get(name), computed[name]
     return None
+
+
+def display_csv(display: Sequence[tuple[float, float]]) -> str | None:
+    """``display.csv`` of the window's log ``(time_s, shown_s)`` (None: an empty log)."""
+    if not display:
+        return None
+    return csv_text(DISPLAY_COLUMNS, [[f"{t:.4f}", f"{w:.4f}"] for t, w in display])
+
+
+def with_display(
+    assessment: dict[str, Any] | None,
+    session_csv: str,
+    table: ProfileTable,
+    context: AssessmentContext,
+    display: Sequence[tuple[float, float]],
+) -> dict[str, Any] | None:
+    """A window session's assessment: ``assessment`` (the control loop's) without a display
+    log, else recomputed from its ``session.csv`` text and the log (:func:`recompute`: the
+    reaction from when the breakthrough was shown, a lag over 100 ms flagged), so the summary
+    agrees with the files ``ctdrill assess`` reads."""
+    text = display_csv(display)
+    if text is None or assessment is None:
+        return assessment
+    return recompute("window", session_csv, table, context, text).to_json()
