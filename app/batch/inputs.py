@@ -3,10 +3,10 @@
 A row is complete (``docs/batch.md``, "Resume") when three things hold:
 
 1. its **fingerprint** (:func:`ctdrill.app.batch.task.fingerprint`, computed before the row
-   runs) is unchanged: SHA-256 over the export options, the ctdrill version, the CT by a
-   cheap identity (every file under the row's DICOM folder, or the volume file and a
-   detached header's data file: :func:`volume_files`, by relative path, size and
-   modification time in nanoseconds) and the plan path (a file or a folder) by content;
+   runs) is unchanged: SHA-256 over the export options, the ctdrill version, the CT (every
+   file under the row's DICOM folder, or the volume file and a detached header's data file:
+   :func:`volume_files`, by relative path and content) and the plan path (a file or a
+   folder) by content;
 2. every **input the row read** besides those is unchanged: the mask files (a detached
    header's data file too) and the calibration sets its plans name (a bundled set too),
    recorded by the worker before it exports (:func:`row_inputs`), each by
@@ -15,9 +15,11 @@ A row is complete (``docs/batch.md``, "Resume") when three things hold:
    SHA-256 (:func:`output_digests`), checked at resume (:func:`outputs_intact`), so a
    truncated or damaged ``summary.json`` is redone instead of failing forever.
 
-Small files are identified by content (:data:`HASHED_BYTES`): an edit that keeps the size
-and the timestamp is seen, a ``touch`` or a copy is not a change. Larger ones by size and
-modification time.
+Every file is identified by its content (SHA-256), whatever its size: an edit that keeps the
+size and the timestamp (``cp -p``, ``rsync -t``) is seen, a ``touch`` or a copy is not a
+change. Size and modification time decide nothing; within one batch a file already hashed is
+not hashed again while its device, inode, size and change times are those it was hashed
+with (:func:`content_sha256`; the memo is cleared at every batch's start).
 """
 
 from __future__ import annotations
@@ -28,22 +30,36 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-#: Files up to this size are identified by their content (plans, masks, calibration sets,
-#: the row's outputs); larger ones by size and modification time.
-HASHED_BYTES = 4 * 1024 * 1024
+#: SHA-256 of files hashed in this batch, by what identifies the file on its disk meanwhile:
+#: (path, device, inode, size, mtime_ns, ctime_ns) -> hex digest (:func:`content_sha256`).
+_DIGESTS: dict[tuple[str, int, int, int, int, int], str] = {}
+
+
+def forget_digests() -> None:
+    """Start a batch with no memo of file contents: every file is hashed again."""
+    _DIGESTS.clear()
+
+
+def content_sha256(path: Path) -> str:
+    """SHA-256 of ``path``'s bytes, hex; hashed once per batch while the file's device,
+    inode, size and change times stay those it was hashed with (a rewrite changes its ctime,
+    which no ``touch`` or ``cp -p`` can set back)."""
+    st = path.stat()
+    key = (os.path.abspath(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+    digest = _DIGESTS.get(key)
+    if digest is None:
+        digest = _DIGESTS[key] = _sha256(path)
+    return digest
 
 
 def file_identity(path: Path) -> str:
-    """``size:sha256`` of a file up to :data:`HASHED_BYTES`, else ``size:mtime_ns`` (a folder:
-    its tree's :func:`tree_identity`)."""
+    """``size:sha256:HEX`` of a file's content, whatever its size (a folder: ``tree:`` and
+    the SHA-256 of every file under it by relative path, size and content)."""
     if path.is_dir():
         h = hashlib.sha256()
-        add_tree(h, "tree", path, hash_content=True)
+        add_tree(h, "tree", path)
         return "tree:" + h.hexdigest()
-    st = path.stat()
-    if st.st_size <= HASHED_BYTES:
-        return f"{st.st_size}:sha256:{_sha256(path)}"
-    return f"{st.st_size}:mtime_ns:{st.st_mtime_ns}"
+    return f"{path.stat().st_size}:sha256:{content_sha256(path)}"
 
 
 def _sha256(path: Path) -> str:
@@ -64,18 +80,14 @@ def _walk(root: Path) -> list[Path]:
     return out
 
 
-def add_tree(h: Any, kind: str, root: Path, *, hash_content: bool) -> None:
-    """Feed ``h`` every file under ``root`` (or ``root`` itself): relative path, size, and
-    its content (``hash_content``, files up to :data:`HASHED_BYTES`) or else its
-    modification time."""
+def add_tree(h: Any, kind: str, root: Path) -> None:
+    """Feed ``h`` every file under ``root`` (or ``root`` itself): relative path, size and the
+    SHA-256 of its content (:func:`content_sha256`)."""
     for path in _walk(root):
         st = path.stat()
         rel = path.relative_to(root).as_posix() if path != root else path.name
         h.update(f"{kind}\0{rel}\0{st.st_size}\0".encode())
-        if hash_content and st.st_size <= HASHED_BYTES:
-            h.update(_sha256(path).encode())
-        else:
-            h.update(str(st.st_mtime_ns).encode())
+        h.update(content_sha256(path).encode())
         h.update(b"\n")
 
 

@@ -30,6 +30,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from ctdrill.app.batch.inputs import forget_digests
 from ctdrill.app.batch.manifest import (
     BatchInputError,
     ManifestRow,
@@ -207,6 +208,7 @@ def run_batch(
             )
     if workers < 1:
         raise BatchInputError(f"--workers must be 1 or more, got {workers}")
+    forget_digests()  # every input hashed afresh: a file replaced since is seen
     _check_out_dir(out)
     client = None
     if scheduler is not None:

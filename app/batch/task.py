@@ -84,8 +84,8 @@ class RowOutcome:
 
 def fingerprint(dicom: Path, plan: Path, options: ExportSettings) -> str | None:
     """The row's input fingerprint (:mod:`ctdrill.app.batch.inputs`, 1): the options, the
-    ctdrill version, the series by relative path, size and modification time of each file,
-    the plan path by content; None when an input cannot be read or the series path is not a
+    ctdrill version, the series (each file by relative path and content) and the plan path
+    by content; None when an input cannot be read or the series path is not a
     series folder (the row then runs and reports why)."""
     from ctdrill.imaging.dicom.discovery import check_series_folder
     from ctdrill.imaging.errors import ImagingInputError
@@ -98,8 +98,8 @@ def fingerprint(dicom: Path, plan: Path, options: ExportSettings) -> str | None:
             return None
         check_series_folder(dicom)  # "/" is refused before it is walked
         for f in volume_files(dicom):  # a folder, or a volume file and its data file
-            add_tree(h, "dicom", f, hash_content=False)
-        add_tree(h, "plan", plan, hash_content=True)
+            add_tree(h, "dicom", f)
+        add_tree(h, "plan", plan)
     except (OSError, ImagingInputError):
         return None
     return h.hexdigest()
