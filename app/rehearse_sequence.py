@@ -190,7 +190,7 @@ def rehearse_sequence(
             runs.append((path, doc, reached_depth_mm(doc)))
             if not doc.get("complete"):
                 break
-        top = sequence_summary(plan, runs)
+        top = rehearsed_sequence_summary(plan, runs)
         if signals.caught and len(runs) < len(plan.drills) and runs[-1][1].get("complete"):
             _mark_interrupted(top, signal_name(signals.caught[0]))  # the sequence broke there
         if stream is not None:
@@ -238,7 +238,7 @@ def _mark_interrupted(top: dict[str, Any], signal: str) -> None:
     )
 
 
-def sequence_summary(
+def rehearsed_sequence_summary(
     plan: Plan, runs: Sequence[tuple[PathResult, dict[str, Any], float]]
 ) -> dict[str, Any]:
     """The top-level ``summary.json`` of a rehearsed sequence (module docstring)."""
