@@ -65,3 +65,20 @@ def test_far_from_every_landmark_is_feasible(demo: tuple) -> None:  # type: igno
     volume, plan = demo
     v = plan_verdict(volume, replace(plan, landmarks=(), implant=None))
     assert v.feasible and v.drill_clearance_mm.shape == (1, 0) and v.problems() == ()
+
+
+def test_the_export_warns_of_what_the_banner_shows(demo: tuple) -> None:  # type: ignore[type-arg]
+    """The export's warnings and the verdict agree on every banner problem: a single drill
+    (the path given) and a drill sequence (each drill's path, none given to the verdict)."""
+    from ctdrill.engine.sequence import plan_sequence
+    from ctdrill.engine.verdict import banner_problems
+
+    volume, plan = demo
+    path = plan_path(volume, plan.drilled(0), plan_calibration(plan))
+    assert set(plan_verdict(volume, plan, path=path).problems()) == set(
+        banner_problems(path.warnings)
+    )
+    seq_plan = plan.with_drills((DrillSpec(diameter_mm=2.0), DrillSpec(diameter_mm=2.8)))
+    seq = plan_sequence(volume, seq_plan, plan_calibration(seq_plan))
+    exported = set(banner_problems(seq.warnings))
+    assert set(plan_verdict(volume, seq_plan).problems()) == exported
