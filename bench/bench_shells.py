@@ -1,0 +1,309 @@
+"""The implant's shells and bone walls compiled (issue 37): suggest's shell terms, the exact
+walls, ``suggest`` and ``plan_path`` with the demo's implant, each beside its NumPy path and a
+tight-loop floor reading the same samples, in one run."""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+
+from bench.bench_path import in_loops
+from bench.report import Section, headline_row, table, time_round
+from bench.shell_floor import RAY_FLOOR, SHELL_FLOOR
+from ctdrill import jit
+from ctdrill.app.search.candidates import SearchSpace, make_candidates
+from ctdrill.app.search.shell import (
+    N_ANGLES,
+    SHELL_MM,
+    axis_frames,
+    body_profile,
+    sample_shells,
+)
+from ctdrill.app.search.shell_kernel import SHELL_KERNEL
+from ctdrill.app.search.suggest import Suggestion, suggest
+from ctdrill.app.search.warmup import search_kernels
+from ctdrill.engine.path import plan_path
+from ctdrill.engine.plans import plan_calibration
+from ctdrill.imaging.dicom.series import load_series
+from ctdrill.imaging.plan.implants import implant_placement
+from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.sampling.envelope import ENVELOPE_GAP_MM
+from ctdrill.imaging.sampling.envelope_kernel import ENVELOPE_KERNEL
+from ctdrill.imaging.sampling.trilinear import volume_args
+from ctdrill.imaging.sampling.walls import (
+    DEPTH_STEP_MM,
+    MAX_WALL_MM,
+    plan_bone_walls,
+    ray_step_mm,
+)
+from ctdrill.imaging.sampling.walls import (
+    N_ANGLES as WALL_ANGLES,
+)
+from ctdrill.resources import asset
+
+#: Goals of issue 37: suggest with the demo's implant, ms a candidate (1000 candidates) ...
+SUGGEST_GOAL_MS = 0.5
+#: ... the shell terms within this many times a tight loop reading the same samples ...
+FLOOR_GOAL = 2.0
+#: ... and plan_path with the implant (full-grid walls), ms.
+PATH_GOAL_MS = 5.0
+
+NEW_KERNELS = (ENVELOPE_KERNEL, SHELL_KERNEL)
+
+
+def _off(fn: Callable[[], object]) -> Callable[[], object]:
+    """``fn`` with the shell and wall kernels switched off (their NumPy paths)."""
+
+    def run() -> object:
+        with jit.switched_off(NEW_KERNELS):
+            return fn()
+
+    return run
+
+
+def _load() -> str:
+    one, five, _ = os.getloadavg()
+    return f"{one:.1f} (5-min {five:.1f})"
+
+
+def run(quick: bool) -> Section:
+    """The section (with headline rows)."""
+    jit.warm_up((*search_kernels(), SHELL_FLOOR, RAY_FLOOR))
+    load_before = _load()
+    demo = asset("demo")
+    volume = load_series(demo / "ct")
+    plan = load_plan(demo / "plan.json")
+    cal = plan_calibration(plan)
+    count = 40 if quick else 1000
+    repeats = 2 if quick else 5
+    drawn = plan.for_drill(len(plan.drills) - 1)
+    space = SearchSpace(count=count)
+    cands = make_candidates(volume, drawn, space)
+    dirs = cands.targets_lps - cands.entries_lps
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    body = body_profile(drawn)
+    n = cands.size
+
+    # 1. the shell terms of every candidate, and their floor
+    e1, e2 = axis_frames(dirs)
+    theta = 2.0 * np.pi * np.arange(N_ANGLES) / N_ANGLES
+    radial = np.ascontiguousarray(
+        body.radius_mm[:, None] + np.array([*SHELL_MM, 0.0, plan.min_wall_mm])[None, :]
+    )
+    depth = np.ascontiguousarray(body.top_depth_mm + body.s_mm)
+    floor_out = np.empty(n)
+    vargs = volume_args(volume)
+
+    def shells() -> object:
+        return sample_shells(volume, body, cands.entries_lps, dirs, min_wall_mm=plan.min_wall_mm)
+
+    def shell_floor() -> None:
+        SHELL_FLOOR(
+            *vargs, cands.entries_lps, dirs, e1, e2, depth, radial,
+            np.cos(theta), np.sin(theta), floor_out,
+        )  # fmt: skip
+
+    one_thread = {"shells": shells, "floor": shell_floor}
+    t_sh = time_round({**one_thread, "numpy": _off(shells)}, repeats=repeats * 2, warmup=1)
+    # the kernel's own threads off: one thread each, as the floor
+    saved = jit.cpus
+    jit.cpus = lambda: 1  # type: ignore[assignment]
+    try:
+        t_sh1 = time_round({"shells": shells}, repeats=repeats * 2, warmup=1)["shells"]
+    finally:
+        jit.cpus = saved  # type: ignore[assignment]
+    n_samples = n * len(depth) * N_ANGLES * radial.shape[1]
+
+    # 2. the exact walls of one implant (what each exact check and plan_path compute)
+    place = implant_placement(plan)
+    assert place is not None
+    step = ray_step_mm(volume)
+    n_d = max(2, math.ceil(place.spec.length_mm / DEPTH_STEP_MM) + 1)
+    n_rays = n_d * WALL_ANGLES
+    walls = plan_bone_walls(volume, plan)
+    assert walls is not None
+    ray_o = np.repeat(place.platform_lps[None, :], n_rays, axis=0)
+    ray_v = np.ascontiguousarray(np.tile(walls.directions_lps, (n_d, 1)))
+    full = np.full(n_rays, math.ceil((MAX_WALL_MM + ENVELOPE_GAP_MM) / step) + 1, dtype=np.int64)
+    ray_out = np.empty(n_rays)
+
+    def ray_floor() -> None:
+        RAY_FLOOR(*vargs, ray_o, ray_v, step, full, ray_out)
+
+    t_w = time_round(
+        {
+            "walls": lambda: plan_bone_walls(volume, plan),
+            "numpy": _off(lambda: plan_bone_walls(volume, plan)),
+            "floor": ray_floor,
+        },
+        repeats=repeats * 4,
+        warmup=1,
+    )
+
+    # 3. suggest with the implant, and 4. plan_path with it (in a loop, as the window)
+    got: dict[str, Suggestion] = {}
+
+    def ours() -> None:
+        got["s"] = suggest(volume, plan, cal, space)
+
+    t_sg = time_round(
+        {"ours": ours, "numpy": _off(lambda: suggest(volume, plan, cal, space))},
+        repeats=1 if quick else 3,
+        warmup=1,
+    )
+    s = got["s"]
+    drill_only = replace(plan, implant=None)
+    loops = in_loops(
+        {
+            "implant": lambda: plan_path(volume, plan, cal),
+            "numpy": _off(lambda: plan_path(volume, plan, cal)),
+            "drill": lambda: plan_path(volume, drill_only, cal),
+        },
+        {"implant": 10, "numpy": 3, "drill": 10},
+        3 if quick else 11,
+    )
+    load_after = _load()
+
+    per_c = {k: v.median_s / n * 1e3 for k, v in t_sh.items()}
+    per_c1 = t_sh1.median_s / n * 1e3
+    sg_ms = t_sg["ours"].median_s / n * 1e3
+    sg_np = t_sg["numpy"].median_s / n * 1e3
+    floor_ratio = per_c1 / per_c["floor"]
+    rows_shell = [
+        ["shells, compiled (2 threads)", t_sh["shells"].fmt("ms"), f"{per_c['shells']:.4f}", ""],
+        ["shells, compiled (1 thread)", t_sh1.fmt("ms"), f"{per_c1:.4f}", f"{floor_ratio:.2f}"],
+        [
+            "floor: the same samples read and summed (1 thread)",
+            t_sh["floor"].fmt("ms"),
+            f"{per_c['floor']:.4f}",
+            "1",
+        ],
+        [
+            "shells, NumPy path (the reference)",
+            t_sh["numpy"].fmt("ms"),
+            f"{per_c['numpy']:.4f}",
+            f"{per_c['numpy'] / per_c['floor']:.1f}",
+        ],
+    ]
+    rows_walls = [
+        ["bone walls, compiled", t_w["walls"].fmt("ms"), "1"],
+        [
+            "bone walls, NumPy path (the reference)",
+            t_w["numpy"].fmt("ms"),
+            f"{t_w['numpy'].median_s / t_w['walls'].median_s:.1f}",
+        ],
+        [
+            "floor: every ray's full march read and summed (1 thread)",
+            t_w["floor"].fmt("ms"),
+            f"{t_w['floor'].median_s / t_w['walls'].median_s:.2f}",
+        ],
+    ]
+    rows_sg = [
+        [
+            "suggest, compiled shells and walls",
+            t_sg["ours"].fmt("s"),
+            f"{sg_ms:.2f}",
+            f"{s.evaluate_s:.2f} / {s.check_s:.2f}",
+            f"{s.n_checked}",
+        ],
+        ["suggest, their NumPy paths", t_sg["numpy"].fmt("s"), f"{sg_np:.2f}", "", ""],
+    ]
+    rows_path = [
+        ["plan_path with the implant, compiled walls", f"{loops['implant']:.2f}", "1"],
+        [
+            "plan_path with the implant, NumPy walls",
+            f"{loops['numpy']:.2f}",
+            f"{loops['numpy'] / loops['implant']:.1f}",
+        ],
+        [
+            "plan_path without the implant (the drill only)",
+            f"{loops['drill']:.2f}",
+            f"{loops['drill'] / loops['implant']:.2f}",
+        ],
+    ]
+    md = f"""Case: the bundled demo (``assets/demo``, 0.4 mm voxels) and its plan with its implant
+(tapered 4.1 x 11.5 mm, apex 12 mm deep); {n} candidates of ``suggest``'s default space.
+Load average {load_before} before and {load_after} after this module, on the 2 shared cores:
+absolute times are inflated several-fold by the other processes; the ratios between peers
+measured side by side (round-robin) are what count.
+
+**Shell terms** (``sample_shells``: {len(depth)} depths x {N_ANGLES} directions x
+{radial.shape[1]} offsets = {n_samples // max(n, 1)} trilinear samples a candidate, the score's
+two shells, the surface and the thinnest wall to keep): the compiled kernel (threads across
+the candidates; with one thread for the ratio to the floor), the tight-loop floor (a compiled
+loop reading every one of the same samples and summing them: no rule, no flags) and the NumPy
+path. Medians of {repeats * 2} round-robin repeats [IQR], ms a candidate in the third column.
+
+{table(["work", "all candidates", "ms a candidate", "/ floor"], rows_shell)}
+
+**Exact bone walls of one implant** (``plan_bone_walls``: {n_d} depths x {WALL_ANGLES}
+directions = {n_rays} rays, step {step:.2f} mm; what each exact check of ``suggest``, each
+``plan_path`` and the window compute): compiled (each ray marched only until the envelope
+rule decides it, the exit crossing bisected to 1e-4 mm) against the NumPy path and a floor
+that reads every ray's full march ({int(full[0])} samples, the NumPy path's samples) without
+the rule. Medians of {repeats * 4} round-robin repeats.
+
+{table(["work", "each call", "/ compiled"], rows_walls)}
+
+**suggest** with the implant, {n} candidates: the whole command's search (the batch of the
+final drill, the shells, the exact check of the best-ranked until 20 are feasible or 50 were
+checked), against the same with the shell and wall kernels switched off.
+
+{table(["work", "total", "ms a candidate", "batch / exact check (s)", "checked"], rows_sg)}
+
+**plan_path** with the implant, full-grid walls, time per call in loops of consecutive calls
+(as the window calls it while a plan is edited), median of the loops, ms:
+
+{table(["work", "ms a call", "/ compiled"], rows_path)}
+"""
+    shortfalls = []
+    if sg_ms > SUGGEST_GOAL_MS:
+        shortfalls.append(
+            f"suggest with the demo's implant took {sg_ms:.2f} ms a candidate ({n} candidates; "
+            f"goal <= {SUGGEST_GOAL_MS} ms) at load {load_after}; batch {s.evaluate_s:.2f} s, "
+            f"exact check {s.check_s:.2f} s of it"
+        )
+    if floor_ratio > FLOOR_GOAL:
+        shortfalls.append(
+            f"the compiled shells took {floor_ratio:.2f} x their tight-loop floor "
+            f"(goal <= {FLOOR_GOAL:g} x)"
+        )
+    if loops["implant"] > PATH_GOAL_MS:
+        shortfalls.append(
+            f"plan_path with the implant took {loops['implant']:.2f} ms a call "
+            f"(goal <= {PATH_GOAL_MS:g} ms) at load {load_after}; the drill alone "
+            f"{loops['drill']:.2f} ms"
+        )
+    headline = (
+        headline_row(
+            f"#37 suggest with the demo's implant, {n} candidates (ms a candidate)",
+            f"{sg_ms:.2f} ms",
+            f"NumPy shells and walls {sg_np:.2f} ms",
+            f"{sg_np / sg_ms:.1f}",
+            f"<= {SUGGEST_GOAL_MS} ms",
+        ),
+        headline_row(
+            "#37 suggest's shell terms / a tight loop reading the same samples",
+            f"{per_c1:.4f} ms a candidate",
+            f"floor {per_c['floor']:.4f} ms",
+            f"{floor_ratio:.2f} (ours / floor)",
+            f"<= {FLOOR_GOAL:g} x",
+        ),
+        headline_row(
+            "#37 plan_path with the implant (full-grid walls, in a loop)",
+            f"{loops['implant']:.2f} ms",
+            f"NumPy walls {loops['numpy']:.2f} ms",
+            f"{loops['numpy'] / loops['implant']:.1f}",
+            f"<= {PATH_GOAL_MS:g} ms",
+        ),
+    )
+    return Section(
+        "Search: the implant's shells and bone walls compiled",
+        md,
+        shortfalls=tuple(shortfalls),
+        headline=headline,
+    )
