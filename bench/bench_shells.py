@@ -111,11 +111,11 @@ def run(quick: bool) -> Section:
     t_sh = time_round({**one_thread, "numpy": _off(shells)}, repeats=repeats * 2, warmup=1)
     # the kernel's own threads off: one thread each, as the floor
     saved = jit.cpus
-    jit.cpus = lambda: 1  # type: ignore[assignment]
+    jit.cpus = lambda: 1
     try:
         t_sh1 = time_round({"shells": shells}, repeats=repeats * 2, warmup=1)["shells"]
     finally:
-        jit.cpus = saved  # type: ignore[assignment]
+        jit.cpus = saved
     n_samples = n * len(depth) * N_ANGLES * radial.shape[1]
 
     # 2. the exact walls of one implant (what each exact check and plan_path compute)
