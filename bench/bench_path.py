@@ -137,7 +137,7 @@ call within loops of consecutive calls (20; 5 on the NumPy path), the median of 
 loops, as the window calls it while a plan is edited. One thread; the ratio and the goal are
 on the loops. The last row is the shipped plan with its implant: ``plan_path`` then also
 computes the implant body's clearance and its bone walls (``engine.implant.implant_outcome``,
-NumPy rays; the window reads the walls on a coarser grid while a plan is dragged).
+the compiled envelope rays; ``bench_shells`` sets them beside their NumPy path).
 
 {table(["work", "each call", "in a loop", "/ plan_path (loop)"], rows)}
 
