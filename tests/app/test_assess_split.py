@@ -201,3 +201,54 @@ def test_experts_are_named_in_the_class_file(
     other = rewrite(sessions["guarded"], tmp_path / "o", WHEN.format(3), rest_rows=3)
     assert _assess(other, "--db", db, "--trainee", "kim", "--expert") == 0
     assert "--expert is deprecated" in capsys.readouterr().err
+
+
+#: A version 1 record's schema, as ctdrill wrote it before sessions recorded how they ran.
+V1_SCHEMA = (
+    "CREATE TABLE sessions (session_hash TEXT PRIMARY KEY, trainee TEXT NOT NULL, expert "
+    "INTEGER NOT NULL CHECK (expert IN (0, 1)), plan_hash TEXT NOT NULL, recorded_at TEXT NOT "
+    "NULL, stored_at TEXT NOT NULL, exam INTEGER NOT NULL CHECK (exam IN (0, 1)), operator "
+    "TEXT, device TEXT, calibration TEXT, planned_depth_mm REAL, max_safe_depth_mm REAL, "
+    "depth_error_mm REAL NOT NULL, overshoot_mm REAL NOT NULL, breach INTEGER NOT NULL CHECK "
+    "(breach IN (0, 1)), time_in_margin_s REAL NOT NULL, canal_entered INTEGER NOT NULL CHECK "
+    "(canal_entered IN (0, 1)), peak_hand_force_n REAL NOT NULL, mean_hand_force_n REAL NOT "
+    "NULL, time_to_planned_s REAL, feed_cv REAL, reaction_ms REAL, wall_contacts INTEGER NOT "
+    "NULL, peak_wall_force_n REAL NOT NULL, score REAL NOT NULL)",
+    "CREATE INDEX sessions_by_trainee ON sessions (trainee, recorded_at)",
+    "CREATE INDEX sessions_by_plan ON sessions (plan_hash, expert)",
+    "CREATE TABLE traces (session_hash TEXT PRIMARY KEY REFERENCES sessions (session_hash), "
+    "rate_hz REAL NOT NULL, samples INTEGER NOT NULL, time_s BLOB NOT NULL, master_mm BLOB NOT "
+    "NULL, drill_mm BLOB NOT NULL, force_n BLOB NOT NULL)",
+)
+
+
+def test_a_version_1_record_is_migrated_and_keeps_its_rows(
+    sessions: dict[str, Path], tmp_path: Path
+) -> None:
+    db = tmp_path / "old.sqlite"
+    with sqlite3.connect(db) as conn:
+        for statement in V1_SCHEMA:
+            conn.execute(statement)
+        conn.execute(
+            "INSERT INTO sessions VALUES ('h1', 'ZOË', 0, 'p', '2029-01-01', '2029-01-01', 1, "
+            "'human:force=12,react_ms=150', 'sim', 'bone-illustrative', 12.6, 10.8, 5.2, 6.4, "
+            "1, 2.6, 1, 12.2, 11.9, 2.4, 0.42, 311.0, 0, 0.0, 4.8)"
+        )
+        conn.execute("INSERT INTO traces VALUES ('h1', 100.0, 0, x'', x'', x'', x'')")
+        conn.execute("PRAGMA user_version = 1")
+    conn.close()
+    # storing a new session migrates the file in place (one transaction), the old row kept
+    assert _assess(sessions["guarded"], "--db", db, "--trainee", "zoë") == 0
+    with sqlite3.connect(db) as conn:
+        assert conn.execute("PRAGMA user_version").fetchone()[0] == 2
+        rows = conn.execute(
+            "SELECT session_hash, trainee, mode, operator_kind, device_kind, score, attempted "
+            "FROM sessions ORDER BY session_hash = 'h1' DESC"
+        ).fetchall()
+    conn.close()
+    assert rows[0] == ("h1", "zoë", "exam", "scripted", "sim", 4.8, None)
+    assert rows[1][1:5] == ("zoë", "guarded", "scripted", "sim") and rows[1][6] == 1
+    out = tmp_path / "curve"
+    assert _assess("--db", db, "--trainee", "Zoë", "--out", out) == 0  # one trainee
+    with (out / "learning_curve.csv").open(newline="") as fh:
+        assert {r["session_hash"] for r in csv.DictReader(fh)} == {"h1", rows[1][0]}
