@@ -31,6 +31,8 @@ curvature; :meth:`ArchCurve.min_radius_mm` reports it.
 
 from __future__ import annotations
 
+import bisect
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -73,6 +75,8 @@ class ArchCurve:
     _xy: np.ndarray = field(init=False, repr=False)
     _z: np.ndarray = field(init=False, repr=False)
     _cum: np.ndarray = field(init=False, repr=False)
+    _cum_list: list[float] = field(init=False, repr=False)
+    _xy_list: list[tuple[float, float]] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         arch = np.array(self.arch_lps, dtype=np.float64)
@@ -104,6 +108,8 @@ class ArchCurve:
         object.__setattr__(self, "_xy", xy)
         object.__setattr__(self, "_z", z)
         object.__setattr__(self, "_cum", cum)
+        object.__setattr__(self, "_cum_list", cum.tolist())
+        object.__setattr__(self, "_xy_list", [tuple(p) for p in xy.tolist()])
         # A hairpin within the window makes the chord vanish: refuse, never divide by ~0.
         grid = self.grid_mm(_ROOT_GRID_MM)
         chord = self._chord(grid)
@@ -171,6 +177,44 @@ class ArchCurve:
     def _g(self, xy: np.ndarray, s: np.ndarray) -> np.ndarray:
         return np.asarray(np.sum((xy - self.point_xy(s)) * self.tangent_xy(s), axis=-1))
 
+    def _point_one(self, s_mm: float) -> tuple[float, float]:
+        """:meth:`point_xy` at one arc position, on Python floats (the same IEEE operations)."""
+        cum = self._cum_list
+        s = min(max(s_mm, 0.0), cum[-1])
+        seg = min(max(bisect.bisect_right(cum, s) - 1, 0), len(cum) - 2)
+        f = (s - cum[seg]) / (cum[seg + 1] - cum[seg])
+        (x0, y0), (x1, y1) = self._xy_list[seg], self._xy_list[seg + 1]
+        return x0 + f * (x1 - x0), y0 + f * (y1 - y0)
+
+    def _g_one(self, x: float, y: float, s_mm: float) -> float:
+        """:meth:`_g` of one point at one arc position, on Python floats."""
+        half = 0.5 * self.window_mm
+        if half == 0.0:
+            cum = self._cum_list
+            seg = min(max(bisect.bisect_right(cum, s_mm) - 1, 0), len(cum) - 2)
+            (x0, y0), (x1, y1) = self._xy_list[seg], self._xy_list[seg + 1]
+            cx, cy = x1 - x0, y1 - y0
+        else:
+            (px, py), (qx, qy) = self._point_one(s_mm + half), self._point_one(s_mm - half)
+            cx, cy = px - qx, py - qy
+        norm = math.sqrt(cx * cx + cy * cy)
+        px, py = self._point_one(s_mm)
+        return (x - px) * (cx / norm) + (y - py) * (cy / norm)
+
+    def _bisect_one(
+        self, xy: np.ndarray, a: float, b: float, ga: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The bisection of :meth:`project` for one point, on Python floats: ``(a, b)``."""
+        x, y = float(xy[0]), float(xy[1])
+        for _ in range(_BISECT_STEPS):
+            m = 0.5 * (a + b)
+            gm = self._g_one(x, y, m)
+            if (ga <= 0.0) == (gm <= 0.0):
+                a, ga = m, gm
+            else:
+                b = m
+        return np.array([a]), np.array([b])
+
     def project(self, points_lps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Arc position and signed normal offset of LPS points on the curtain.
 
@@ -213,7 +257,9 @@ class ArchCurve:
             ga0 = _snap(self._g(sub, a))
             gb0 = _snap(self._g(sub, b))
             a0, b0, ga = a.copy(), b.copy(), ga0
-            for _ in range(_BISECT_STEPS):
+            if len(rows) == 1:  # one point (an implant's site): the same steps on floats
+                a, b = self._bisect_one(sub[0], float(a[0]), float(b[0]), float(ga[0]))
+            for _ in range(_BISECT_STEPS if len(rows) > 1 else 0):
                 m = 0.5 * (a + b)
                 gm = self._g(sub, m)
                 left = (ga <= 0.0) == (gm <= 0.0)
