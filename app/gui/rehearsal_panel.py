@@ -46,7 +46,8 @@ from ctdrill.app.gui.rehearsal import (
     RehearsalRun,
     Telemetry,
     device_choices,
-    device_of,
+    exam_settable,
+    session_exam,
 )
 from ctdrill.app.gui.rehearsal_live import WARN_STYLE, LiveReadouts
 from ctdrill.app.gui.rehearsal_words import (
@@ -61,7 +62,7 @@ from ctdrill.app.gui.results import PathView, block_reason, stop_explanation
 from ctdrill.app.gui.sound import VibrationSound
 from ctdrill.app.igtl.frames import SLICER_PORT, parse_target
 from ctdrill.app.igtl.stream import stream_line
-from ctdrill.app.trainee.exam import exam_at_surface, exam_setup, plan_hash
+from ctdrill.app.trainee.exam import plan_hash
 from ctdrill.app.trainee.words import assessment_line
 from ctdrill.engine.path import PathResult
 from ctdrill.haptics.profile_table import ProfileTable
@@ -236,7 +237,7 @@ class RehearsalPanel(QWidget):
     def update_exam_toggle(self) -> None:
         """Exam mode is settable unless a session runs or the aid level locks it on."""
         running = self.run is not None and self.run.running
-        self.exam.setEnabled(not running and not self.exercise.exam_locked)
+        self.exam.setEnabled(exam_settable(running=running, locked=self.exercise.exam_locked))
 
     # ------------------------------------------------------------------ the hand
     def _push_changed(self, push_n: float) -> None:
@@ -291,12 +292,9 @@ class RehearsalPanel(QWidget):
         try:
             igtl_text = self.igtl.text().strip()
             igtl = parse_target(igtl_text, option="stream to Slicer") if igtl_text else None
-            exam = None
-            if self.exam.isChecked():
-                spec = device_of(device, realtime=False)
-                exam = exam_setup(
-                    doc.volume, doc.plan, self.result, at_surface=exam_at_surface(spec)
-                )
+            exam = session_exam(
+                doc.volume, doc.plan, self.result, device, exam=self.exam.isChecked()
+            )
             if (card := self.exercise.card) is not None:  # the trial's plan, as written
                 check_session_plan(card, plan_hash(self.result.plan), where="the plan")
             self.run = RehearsalRun.start(
