@@ -229,7 +229,7 @@ def clinical_pages(pages: TextPages, case: PreparedCase, entries: Sequence[Entry
         problems = [(w.code, w.message) for w in entry.result.warnings if w.code in BANNER]
         for code, message in dict.fromkeys(problems):
             pages.paragraph(f"[{code}] {message}", size_pt=7.5, colour="#a01010")
-        fig, top, height = pages.remaining_figure(2.6)
+        fig, top, height = pages.remaining_figure(2.0)
         why = implant_views(fig, top, height, case, entry, facts, finals, pano)
         if why is not None:
             fig.text(0.1, 1.0 - (top + 0.3) / 8.27, why, fontsize=9)

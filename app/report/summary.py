@@ -165,9 +165,10 @@ def summary_pages(
         colour="#444444",
     )
     pages.gap(0.2)
+    shown: set[str] = set()  # a warning another trajectory (or drill) already gave in full
     for entry in entries:
         pages.paragraph(entry.label, size_pt=10.0, bold=True, keep_with_next_in=0.3)
-        warned = 0
+        warned = repeated = 0
         o = entry.summary.outcome
         engineering = {  # in the appendix
             calibration_line(o.calibration),
@@ -176,6 +177,10 @@ def summary_pages(
         lines = [line for line in summary_lines(entry.summary) if line not in engineering]
         for line in lines:
             warn = line.startswith("warning [")
+            if warn and line in shown:
+                repeated += 1
+                continue
+            shown.add(line)
             warned += warn
             if warn and warned > MAX_WARNING_LINES:
                 continue
@@ -184,6 +189,13 @@ def summary_pages(
             pages.paragraph(
                 f"... and {warned - MAX_WARNING_LINES} more warnings: every one is in this "
                 "trajectory's summary.json (ctdrill export --per-trajectory)",
+                size_pt=8.5,
+                colour="#a01010",
+                indent_in=0.15,
+            )
+        if repeated:
+            pages.paragraph(
+                f"and {repeated} warning{'s' * (repeated > 1)} given in full above",
                 size_pt=8.5,
                 colour="#a01010",
                 indent_in=0.15,
