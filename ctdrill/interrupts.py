@@ -74,6 +74,15 @@ def install() -> None:
             signal.signal(sig, _raise)
 
 
+def uninstall() -> None:
+    """Give SIGTERM and SIGHUP back their default action (the window: a Qt event loop)."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(sig) is _raise:
+            signal.signal(sig, signal.SIG_DFL)
+
+
 class Holding:
     """The signals :func:`held` recorded (:attr:`caught`), and a way to let them through
     for a while (:meth:`released`)."""

@@ -96,7 +96,11 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Validate the arguments, then run the window."""
+    """Validate the arguments, then run the window (SIGTERM and SIGHUP end it as before:
+    a Qt event loop has no place to take them as Ctrl-C)."""
+    from ctdrill.interrupts import uninstall
+
+    uninstall()
     if args.dicom is not None and not args.dicom.exists():
         raise AppInputError(
             f"--ct/--dicom {args.dicom}: no such folder or file; give a DICOM folder or a CT file"
