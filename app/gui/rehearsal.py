@@ -12,23 +12,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from serial.tools import list_ports
 
 from ctdrill.app.exercise.aids import AidLevel
 from ctdrill.app.exercise.trials import TrialCard, blind_summary, write_session_only
 from ctdrill.app.export import write_exports
+from ctdrill.app.gui.rehearsal_choice import SIMULATOR as SIMULATOR
+from ctdrill.app.gui.rehearsal_choice import device_choices as device_choices
+from ctdrill.app.gui.rehearsal_choice import device_of
+from ctdrill.app.gui.rehearsal_choice import exam_settable as exam_settable
+from ctdrill.app.gui.rehearsal_choice import session_exam as session_exam
 from ctdrill.app.gui.session_process import SessionJob, run_job
 from ctdrill.app.igtl.frames import IgtlTarget, StreamSetup
 from ctdrill.app.readout import push_of
 from ctdrill.app.session_csv import session_csv_text
 from ctdrill.app.session_run import rehearsal_summary, summary_json
-from ctdrill.app.trainee.exam import (
-    ExamSetup,
-    assessment_context,
-    exam_at_surface,
-    exam_setup,
-    plan_hash,
-)
+from ctdrill.app.trainee.exam import ExamSetup, assessment_context, plan_hash
 from ctdrill.app.trainee.session_table import (
     DISPLAY_FILE,
     TABLE_FILE,
@@ -42,44 +40,10 @@ from ctdrill.engine.settings import DEFAULTS
 from ctdrill.engine.summarize import CaseContext
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.session import Row
-from ctdrill.haptics.spec import DeviceSpec
-from ctdrill.imaging.plan.types import Plan
-from ctdrill.imaging.volume import CTVolume
 from ctdrill.model.band import HuUncertainty
 
-#: The device-choice label of the simulator.
-SIMULATOR = "simulator"
 #: Rows kept for the live vibration trace (0.5 s at the 1 kHz telemetry).
 TRACE_ROWS = 500
-
-
-def device_choices() -> list[str]:
-    """The simulator, then every serial port present (``serial:<device>``)."""
-    ports = sorted(p.device for p in list_ports.comports())
-    return [SIMULATOR, *(f"serial:{p}" for p in ports)]
-
-
-def device_of(choice: str, *, realtime: bool) -> DeviceSpec:
-    """The device a choice of :func:`device_choices` names (``realtime``: the simulator
-    kept to the wall clock)."""
-    return DeviceSpec.simulator(paced=realtime) if choice == SIMULATOR else DeviceSpec.parse(choice)
-
-
-def session_exam(
-    volume: CTVolume, plan: Plan, result: PathResult, choice: str, *, exam: bool
-) -> ExamSetup | None:
-    """What a session on the device ``choice`` uploads when exam mode is ``exam``: the exam's
-    table (on the robot its wall at the nearest landmark's surface,
-    :func:`~ctdrill.app.trainee.exam.exam_at_surface`), or None for the margin's wall."""
-    if not exam:
-        return None
-    spec = device_of(choice, realtime=False)
-    return exam_setup(volume, plan, result, at_surface=exam_at_surface(spec))
-
-
-def exam_settable(*, running: bool, locked: bool) -> bool:
-    """Exam mode can be switched unless a session runs or the aid level locks it."""
-    return not running and not locked
 
 
 def clearance_at_mm(result: PathResult, depth_mm: float) -> float | None:

@@ -41,10 +41,9 @@ from ctdrill.app.exercise.trials import TrialCard, check_session_plan
 from ctdrill.app.gui.debrief import debrief_of
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.exercise_controls import ExerciseControls
-from ctdrill.app.gui.rehearsal import (
+from ctdrill.app.gui.rehearsal import RehearsalRun, Telemetry
+from ctdrill.app.gui.rehearsal_choice import (
     SIMULATOR,
-    RehearsalRun,
-    Telemetry,
     device_choices,
     exam_settable,
     session_exam,

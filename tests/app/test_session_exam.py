@@ -1,9 +1,9 @@
 """The window's rehearsal decisions, headless: what table a session uploads, when exam mode
-can be switched (``app.gui.rehearsal`` imports no Qt)."""
+can be switched (``app.gui.rehearsal_choice``, like the window's session runs, imports no Qt)."""
 
 from __future__ import annotations
 
-from ctdrill.app.gui.rehearsal import SIMULATOR, exam_settable, session_exam
+from ctdrill.app.gui.rehearsal_choice import SIMULATOR, exam_settable, session_exam
 from ctdrill.engine.path import plan_path
 from ctdrill.engine.plans import plan_calibration
 from ctdrill.imaging import load_series
@@ -37,7 +37,7 @@ def test_the_decisions_import_no_qt() -> None:
     import sys
 
     code = (
-        "import sys, ctdrill.app.gui.rehearsal\n"
+        "import sys, ctdrill.app.gui.rehearsal, ctdrill.app.gui.rehearsal_choice\n"
         "print(sorted(m for m in sys.modules if m.split('.')[0] in ('PySide6', 'vtk', 'pyvista')))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
