@@ -91,6 +91,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return exit_code_of(exc)
     _ignore_file_size_signal()
     try:
+        from ctdrill.app.exercise.blind import guard_args
+
+        guard_args(args)  # a blind trial's plan or CT: what this command may do with it
         code: int = args.func(args)
     except INPUT_ERRORS as exc:
         sys.stderr.write(f"error: {exc}\n")

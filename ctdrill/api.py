@@ -88,6 +88,13 @@ __all__ = [
 ]
 
 
+def _guard(*, plans: Sequence[Path] = (), ct: Path | None = None) -> None:
+    """A blind trial's plan or CT is refused here as by the CLI (docs/exercises.md)."""
+    from ctdrill.app.exercise.blind import blind_guard
+
+    blind_guard("api", plans=plans, ct=ct, keyed=False)
+
+
 def load_series(path: StrPath, *, series_uid: str | None = None) -> CTVolume:
     """The CT series in the folder ``path`` (DICOM) as a volume in LPS mm.
 
@@ -97,6 +104,7 @@ def load_series(path: StrPath, *, series_uid: str | None = None) -> CTVolume:
     """
     from ctdrill.imaging.dicom.series import load_series as load
 
+    _guard(ct=Path(path))
     return load(Path(path), series_uid=series_uid)
 
 
@@ -107,6 +115,7 @@ def load_ct(path: StrPath, *, series_uid: str | None = None) -> CTVolume:
     (``.info.source_format`` says which; docs/volumes.md)."""
     from ctdrill.imaging.volumes.load import load_ct as load
 
+    _guard(ct=Path(path))
     return load(Path(path), series_uid=series_uid)
 
 
@@ -116,6 +125,7 @@ def load_plan(path: StrPath) -> Plan:
     :mod:`ctdrill.imaging`)."""
     from ctdrill.imaging.plan.load import load_plan as load
 
+    _guard(plans=[Path(path)])
     return load(Path(path))
 
 
@@ -246,6 +256,7 @@ def export_case(
     from ctdrill.engine.settings import DEFAULTS
     from ctdrill.engine.summarize import job_summary, sequence_summary
 
+    _guard(plans=[Path(p) for p in plans], ct=Path(dicom))
     case = prepare_case(
         Path(dicom), [Path(p) for p in plans], DEFAULTS if settings is None else settings
     )

@@ -179,6 +179,9 @@ def run_row(task: RowTask) -> RowOutcome:
         inputs = None
     doc = marker_doc(task, inputs)
     try:
+        from ctdrill.app.exercise.blind import blind_guard
+
+        blind_guard("batch", plans=[Path(task.plan_path)], ct=Path(task.dicom_path), keyed=False)
         export_case(
             Path(task.dicom_path),
             [Path(task.plan_path)],

@@ -26,6 +26,14 @@ def add_plan_option(parser: argparse.ArgumentParser, *, required: bool) -> None:
         help="ctdrill-plan/1 JSON, 3D Slicer .mrk.json or segmentation (.seg.nrrd, .nrrd, "
         ".nii.gz, DICOM SEG); repeatable, or a folder: all merge into one plan",
     )
+    parser.add_argument(
+        "--key",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="the instructor's key (ctdrill exercise --key) of a blind trial: run on the "
+        "trial's plan or CT, which is refused without it (docs/exercises.md)",
+    )
 
 
 #: What ``--ct`` takes, for the commands' help.
