@@ -259,6 +259,16 @@ checked), against the same with the shell and wall kernels switched off.
 (as the window calls it while a plan is edited), median of the loops, ms:
 
 {table(["work", "ms a call", "/ compiled"], rows_path)}
+
+Where the time goes: in ``suggest``, the batch of the final drill (the kernels of the
+trajectory search) took {s.evaluate_s / t_sg["ours"].median_s:.0%} and the exact check of
+{s.n_checked} candidates (every drill's and the implant's margins, the full-grid walls)
+{s.check_s / t_sg["ours"].median_s:.0%}: {s.check_s / max(s.n_checked, 1) * 1e3:.0f} ms a
+checked candidate. In ``plan_path`` with the implant, one call of the walls
+({t_w["walls"].median_s * 1e3:.1f} ms) is {t_w["walls"].median_s * 1e3 / loops["implant"]:.0%}
+of the call; the compiled walls take {t_w["walls"].median_s / t_w["floor"].median_s:.2f} x the
+floor that only reads the {n_rays} rays' full marches, so a faster read alone cannot bring
+them much lower: the walls' grid ({n_rays} rays of up to {int(full[0])} samples) sets it.
 """
     shortfalls = []
     if sg_ms > SUGGEST_GOAL_MS:
