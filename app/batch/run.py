@@ -45,7 +45,9 @@ from ctdrill.app.batch.task import (
     RowTask,
     fingerprint,
     is_complete,
+    is_unsealed,
     one_line,
+    remove_row_output,
 )
 from ctdrill.app.batch.workers import NOT_RUN, Interrupt, run_processes, run_serial
 from ctdrill.app.export_table import TABLE_COLUMNS, TABLE_NAME, TEXT_COLUMNS, table_csv, table_row
@@ -268,6 +270,9 @@ def _finish(
             fp = fingerprint(r.dicom_path, r.plan_path, options)
             ok = _complete(r, out, fp, base)
             o = RowOutcome(row=r.row, status="ok" if ok else NOT_RUN, seconds=0.0)
+            folder = out / ROWS_DIR / r.row_id
+            if not ok and is_unsealed(folder):  # a worker cancelled between its swap and
+                remove_row_output(folder)  # its seal: no row folder is half a result
         if o.ok:
             try:
                 cohort += _row_trajectories(r, out)

@@ -206,6 +206,15 @@ def run_row(task: RowTask) -> RowOutcome:
     return RowOutcome(row=task.row, status=status, seconds=time.perf_counter() - t0)
 
 
+def is_unsealed(out_dir: Path) -> bool:
+    """``out_dir`` holds a row marker that was never sealed (a worker killed between the
+    row's swap and its seal): half a row's result, not an earlier output."""
+    if not (out_dir / ROW_MARKER).is_file():
+        return False
+    doc = _read_marker(out_dir)
+    return doc is None or "outputs" not in doc
+
+
 def remove_row_output(out_dir: Path) -> None:
     """Remove a row folder a batch wrote earlier (it holds the row marker); else leave it."""
     if not (out_dir / ROW_MARKER).is_file():
