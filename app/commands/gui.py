@@ -146,4 +146,5 @@ def run(args: argparse.Namespace) -> int:
         screenshot=args.screenshot,
         quit_after_s=quit_after,
         hu_uncertainty=hu,
+        instructor=args.key is not None,  # the command line checked the key (cli.main)
     )

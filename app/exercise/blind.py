@@ -227,3 +227,29 @@ def guard_args(args: argparse.Namespace) -> TrialCard | None:
         key=getattr(args, "key", None),
         keyed=hasattr(args, "key"),
     )
+
+
+def window_trial(plans: Sequence[Path], ct: Path | None) -> TrialCard | None:
+    """The trial the window shows blind: that of its plan when the plan is a trial's own plan
+    alone, else that of its CT when the CT is a trial's (a plan opened on a trial's CT does not
+    show the bone either); None: no trial."""
+    plan_list = [Path(p) for p in plans]
+    card = plan_trial(plan_list[0]) if len(plan_list) == 1 and plan_list[0].is_file() else None
+    if card is None and ct is not None and str(ct):
+        card = ct_trial(Path(ct))[1]
+    return card
+
+
+def check_window_ct(ct: Path, blind: TrialCard | None) -> None:
+    """Refuse opening ``ct`` in the window unless it is no trial's CT, or the window is blind
+    on the same trial (a trial's CT copied elsewhere: any blind trial).
+
+    Raises
+    ------
+    BlindTrialError
+        A trial's CT in a window that would show it (the refusal line).
+    """
+    is_trial_ct, card = ct_trial(Path(ct))
+    if not is_trial_ct or (blind is not None and (card is None or card == blind)):
+        return
+    raise refusal("gui", str(ct), card)

@@ -58,8 +58,12 @@ def run_gui(
     quit_after_s: float | None = None,
     settings: QSettings | None = None,
     hu_uncertainty: HuUncertainty | None = None,
+    instructor: bool = False,
 ) -> int:
     """Run the window until it is closed (or ``quit_after_s``). Returns the exit code.
+
+    ``instructor``: the command line opened a blind trial with the instructor's key (``--key``):
+    its CT opens outside the blind mode.
 
     With ``screenshot``, the composited window is saved as soon as the case is drawn (path
     planned, or right after showing when no series is given), and the window quits.
@@ -73,6 +77,7 @@ def run_gui(
     window.doc.hu_uncertainty = hu_uncertainty  # ``--hu-sigma``: enters the force band
     if implants is not None:  # ``--implants``: the library the implant picker offers
         window.plan_panel.implant.set_library(implants)
+    window.instructor = instructor  # ``--key``: a trial's CT may open outside its blind mode
     window.unattended = screenshot is not None or quit_after_s is not None
     window.ask_series = not window.unattended  # unattended: take the largest series
     if plans:

@@ -46,6 +46,9 @@ class BlindWindow(Protocol):
     pages: QTabWidget
     blind_trial: TrialCard | None
 
+    @property
+    def volume_path(self) -> str: ...
+
     def setWindowTitle(self, title: str) -> None: ...
 
     def _status(self, text: str) -> None: ...
@@ -103,10 +106,12 @@ def _note(window: BlindWindow) -> QLabel | None:
 def show_trial(window: BlindWindow, paths: Sequence[str | os.PathLike[str]]) -> None:
     """Enter the blind trial whose plan is ``paths`` (a ``trial.json`` beside it), or leave
     blind mode for any other plan; a card that cannot be read is said on the status line."""
-    from ctdrill.app.exercise.trials import TrialError, find_trial
+    from ctdrill.app.exercise.blind import window_trial
+    from ctdrill.app.exercise.trials import TrialError
 
-    try:
-        card = find_trial([Path(p) for p in paths])
+    try:  # a plan opened on a trial's CT stays blind too
+        ct = window.volume_path or None
+        card = window_trial([Path(p) for p in paths], Path(ct) if ct else None)
     except TrialError as exc:
         card = None
         window._status(f"not a blind trial: {exc}")

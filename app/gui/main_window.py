@@ -90,6 +90,8 @@ class MainWindow(QMainWindow):
         self.progress: QProgressDialog | None = None
         #: The blind trial shown, if the plan is one (:mod:`ctdrill.app.gui.blind`).
         self.blind_trial: TrialCard | None = None
+        #: Opened with the instructor's key (``ctdrill gui --key``): a trial's CT opens openly.
+        self.instructor = False
 
         self.doc = Document(self)
         #: UI-thread drawing steps, one per event-loop pass (no view holds the thread long).
@@ -203,6 +205,16 @@ class MainWindow(QMainWindow):
             self._status("a rehearsal runs: stop it before opening another series")
             return
         folder = str(path)
+        try:  # a blind trial's CT opens only in the blind trial (docs/exercises.md)
+            from ctdrill.app.exercise.blind import check_window_ct
+
+            if not self.instructor:
+                check_window_ct(Path(folder), self.blind_trial)
+        except ValueError as exc:
+            self.last_error = str(exc)
+            self._status(f"error: {exc}")
+            self.load_failed.emit(str(exc))
+            return
         self.controller.load(folder, series_uid=series_uid, ask_series=self.ask_series)
         self.progress = QProgressDialog(f"Loading {folder} ...", "Cancel", 0, 0, self)
         self.progress.setWindowModality(Qt.WindowModality.WindowModal)

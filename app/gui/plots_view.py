@@ -187,7 +187,9 @@ class PlotsView(FigureCanvasQTAgg):
             return
 
         def show() -> None:
-            if doc.path is view:
+            # a canvas the layout collapsed (hidden in a blind trial) has no axes to draw on;
+            # the next path, once shown, draws
+            if doc.path is view and self.width() > 1 and self.height() > 1:
                 self.show_curves(view.curves)
 
         self.ctx.steps.push(show, first=True)  # before the other views' drawing steps

@@ -156,7 +156,12 @@ def test_a_trainee_drills_a_blind_trial_with_the_mouse(
             "(session_hash)"
         ).fetchall()
     assert rows == [("bo", wrong, trials[0].misch)]
-    # a plan that is no trial shows everything again
+    # a plan that is no trial, opened on the trial's CT, keeps the window blind
+    window.open_plan(phantom_case.plan_path)
+    assert window.blind_trial is not None and not window.pages.isVisible()
+    # on a CT that is no trial's, it shows everything again
+    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
+        window.open_folder(phantom_case.ct_dir)
     window.open_plan(phantom_case.plan_path)
     assert window.windowTitle() == "ctdrill" and window.pages.isVisible()
     assert window.plot_canvas.isVisible()
