@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QLabel, QSplitter, QTabWidget, QWidget
@@ -123,3 +123,21 @@ def apply_aids(window: BlindWindow, level: AidLevel | None) -> None:
     keeps them (a blind trial keeps them hidden whatever the level)."""
     shown = window.blind_trial is None and (level is None or level.plots)
     window.views["plots"].setVisible(shown)
+
+
+def refuse_trial_ct(window: Any, ct: Path) -> bool:
+    """True (the window said why on its status line and ``load_failed``) when ``ct`` is a
+    blind trial's CT the window may not open: outside its own blind trial, unless the window
+    was opened with the instructor's key (:func:`ctdrill.app.exercise.blind.check_window_ct`)."""
+    from ctdrill.app.exercise.blind import check_window_ct
+
+    if window.instructor:
+        return False
+    try:
+        check_window_ct(ct, window.blind_trial)
+    except ValueError as exc:
+        window.last_error = str(exc)
+        window._status(f"error: {exc}")
+        window.load_failed.emit(str(exc))
+        return True
+    return False

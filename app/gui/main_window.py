@@ -30,7 +30,7 @@ from PySide6.QtWidgets import (
 
 from ctdrill.app.exercise.trials import TrialCard
 from ctdrill.app.gui import compute
-from ctdrill.app.gui.blind import apply_aids
+from ctdrill.app.gui.blind import apply_aids, refuse_trial_ct
 from ctdrill.app.gui.controller import Controller
 from ctdrill.app.gui.document import Document, ViewContext
 from ctdrill.app.gui.menus import build_menus, fill_recent
@@ -90,8 +90,7 @@ class MainWindow(QMainWindow):
         self.progress: QProgressDialog | None = None
         #: The blind trial shown, if the plan is one (:mod:`ctdrill.app.gui.blind`).
         self.blind_trial: TrialCard | None = None
-        #: Opened with the instructor's key (``ctdrill gui --key``): a trial's CT opens openly.
-        self.instructor = False
+        self.instructor = False  # ``ctdrill gui --key``: a trial's CT opens openly
 
         self.doc = Document(self)
         #: UI-thread drawing steps, one per event-loop pass (no view holds the thread long).
@@ -205,15 +204,7 @@ class MainWindow(QMainWindow):
             self._status("a rehearsal runs: stop it before opening another series")
             return
         folder = str(path)
-        try:  # a blind trial's CT opens only in the blind trial (docs/exercises.md)
-            from ctdrill.app.exercise.blind import check_window_ct
-
-            if not self.instructor:
-                check_window_ct(Path(folder), self.blind_trial)
-        except ValueError as exc:
-            self.last_error = str(exc)
-            self._status(f"error: {exc}")
-            self.load_failed.emit(str(exc))
+        if refuse_trial_ct(self, Path(folder)):  # only in its blind trial (gui/blind.py)
             return
         self.controller.load(folder, series_uid=series_uid, ask_series=self.ask_series)
         self.progress = QProgressDialog(f"Loading {folder} ...", "Cancel", 0, 0, self)
