@@ -26,7 +26,14 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from ctdrill.app.exercise.seal import SealError, unseal
-from ctdrill.app.exercise.trials import TRIAL_CARD, TrialCard, TrialError, card_from_json
+from ctdrill.app.exercise.trials import (
+    KEY_FORMAT,
+    TRIAL_CARD,
+    TrialCard,
+    TrialError,
+    card_from_json,
+    exercise_digest,
+)
 from ctdrill.safeio import load_json
 
 #: Commands that run on a trial's own plan as they are, blind (what they write names no class).
@@ -35,8 +42,6 @@ BLIND_RUNS = frozenset({"rehearse", "gui"})
 OPEN_ON_CT = frozenset({"inspect"})
 #: Commands that read no plan or CT of a trial (they write trials, or read sessions).
 NOT_TRIAL_READERS = frozenset({"exercise", "assess", "class", "phantom", "warmup"})
-#: The instructor's key file's format (``ctdrill exercise --key``).
-KEY_FORMAT = "ctdrill-exercise-key/1"
 #: The DICOM model name of a trial's CT (``ctdrill exercise`` writes it).
 EXERCISE_CT_MODEL = "ctdrill exercise"
 
@@ -96,7 +101,8 @@ def _exercise_header(path: Path) -> bool:
 def check_instructor_key(card: TrialCard, key_path: Path) -> None:
     """Accept ``key_path`` as the instructor's key of ``card``'s trial.
 
-    It must be a :data:`KEY_FORMAT` file of the card's exercise, list the trial with the
+    It must be a :data:`KEY_FORMAT` file of the card's exercise whose parameters (with the
+    seed, which no trial's file holds) hash to the card's exercise id, list the trial with the
     card's plan hash, and name the class the card's sealed key opens to.
 
     Raises
@@ -111,7 +117,10 @@ def check_instructor_key(card: TrialCard, key_path: Path) -> None:
     )
     if not isinstance(doc, Mapping) or doc.get("format") != KEY_FORMAT:
         raise bad
-    if doc.get("exercise_id") != card.exercise_id:
+    params = doc.get("params")
+    if doc.get("exercise_id") != card.exercise_id or not isinstance(params, list):
+        raise bad
+    if exercise_digest(params)[0] != card.exercise_id:  # the seed: in no trial's files
         raise bad
     entries = doc.get("trials")
     entry = next(

@@ -28,8 +28,15 @@ from typing import Any
 import numpy as np
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.app.exercise.seal import TOKEN_ALPHABET, seal, trial_binding
-from ctdrill.app.exercise.trials import TRIAL_CARD, TrialCard, is_inside, session_plan_hash
+from ctdrill.app.exercise.seal import seal, trial_binding
+from ctdrill.app.exercise.trials import (
+    KEY_FORMAT,
+    TRIAL_CARD,
+    TrialCard,
+    exercise_digest,
+    is_inside,
+    session_plan_hash,
+)
 from ctdrill.app.records import atomic_output_dir, atomic_write_bytes, write_file
 
 #: The exercise's name (the ``mode`` of its sessions in the record).
@@ -51,7 +58,6 @@ TASK = (
     "bone-quality exercise), then name its bone class: ctdrill assess SESSION --answer CLASS "
     "--db FILE --trainee ID."
 )
-_KEY_FORMAT = "ctdrill-exercise-key/1"
 _CT_NAME = re.compile(r"CT\d{5}\.dcm")
 _CLASS_TEXT = re.compile(r"d[1-5]", re.IGNORECASE)
 #: Most series UIDs drawn for one trial (each passes with probability ~0.09).
@@ -99,12 +105,6 @@ class _OwnedNames:
 def trial_name(k: int) -> str:
     """``trial-01`` for ``k`` = 1."""
     return f"trial-{k:02d}"
-
-
-def _symbols(digest: bytes, n: int) -> str:
-    """``n`` symbols of the seal's alphabet (no ``d``) from ``digest``."""
-    bits = int.from_bytes(digest, "big")
-    return "".join(TOKEN_ALPHABET[(bits >> (5 * k)) & 31] for k in range(n))
 
 
 def _check(trials: int, seed: int, spacing_mm: float, calibration: str) -> None:
@@ -324,11 +324,8 @@ def write_bone_quality(
             f"--key {key_path}: inside the trials' folder {out}, where a trainee would read it; "
             "keep the key elsewhere"
         )
-    params = json.dumps(
-        [BONE_QUALITY, trials, seed, calibration, spacing_mm, [str(s.plan) for s in sites]]
-    )
-    digest = hashlib.sha256(params.encode()).digest()
-    exercise_id = _symbols(digest, 12)
+    params = [BONE_QUALITY, trials, seed, calibration, spacing_mm, [str(s.plan) for s in sites]]
+    exercise_id, digest = exercise_digest(params)
     rng = np.random.default_rng([seed, trials])
     real = [_real_site(s) for s in sites]
     counts = {c: sum(s.misch == c for s in real) for c in TRIAL_CLASSES}
@@ -366,14 +363,17 @@ def write_bone_quality(
             write_file(folder / TRIAL_CARD, json.dumps(card.to_json(), indent=2) + "\n")
             written.append(WrittenTrial(name, site.misch, site.source, card))
     if key_path is not None:
-        atomic_write_bytes(key_path, key_json(written).encode("utf-8"), what="--key")
+        text = key_json(written, params=params)
+        atomic_write_bytes(key_path, text.encode("utf-8"), what="--key")
     return written
 
 
-def key_json(trials: Sequence[WrittenTrial]) -> str:
-    """The instructor's plain key: each trial's class and source."""
+def key_json(trials: Sequence[WrittenTrial], *, params: Sequence[Any] = ()) -> str:
+    """The instructor's plain key: each trial's class and source, and the exercise's
+    parameters (``params``: they hash to its id, :func:`exercise_digest`; the seed is in no
+    trial's files, so a key that holds them is the instructor's)."""
     doc = {
-        "format": _KEY_FORMAT,
+        "format": KEY_FORMAT,
         "exercise": BONE_QUALITY,
         "exercise_id": trials[0].card.exercise_id if trials else None,
         "trials": [
@@ -385,5 +385,6 @@ def key_json(trials: Sequence[WrittenTrial]) -> str:
             }
             for t in trials
         ],
+        "params": list(params),
     }
     return json.dumps(doc, indent=2) + "\n"

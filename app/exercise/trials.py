@@ -17,6 +17,8 @@ a card (:func:`find_trial`) is a blind session: its ``summary.json`` carries the
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -24,10 +26,12 @@ from pathlib import Path
 from typing import Any
 
 from ctdrill.app.errors import AppInputError
-from ctdrill.app.exercise.seal import trial_binding, unseal
+from ctdrill.app.exercise.seal import TOKEN_ALPHABET, trial_binding, unseal
 from ctdrill.safeio import load_json
 
 TRIAL_FORMAT = "ctdrill-trial/1"
+#: The instructor's key file's format (``ctdrill exercise --key``).
+KEY_FORMAT = "ctdrill-exercise-key/1"
 #: A trial card's file name, next to the trial's plan.
 TRIAL_CARD = "trial.json"
 #: The card's keys, in the order written.
@@ -61,6 +65,15 @@ BLIND_HIDDEN_KEYS = frozenset(
         "push_too_weak_s0_n",
     }
 )
+
+
+def exercise_digest(params: Sequence[Any]) -> tuple[str, bytes]:
+    """An exercise's id and digest from its parameters (``[exercise, trials, seed,
+    calibration, spacing_mm, [site plans]]``): the id is 12 symbols of the seal's alphabet (no
+    ``d``); the instructor's key holds the parameters, so it proves it is that exercise's."""
+    digest = hashlib.sha256(json.dumps(list(params)).encode()).digest()
+    bits = int.from_bytes(digest, "big")
+    return "".join(TOKEN_ALPHABET[(bits >> (5 * k)) & 31] for k in range(12)), digest
 
 
 class TrialError(AppInputError):

@@ -158,6 +158,9 @@ def test_the_instructors_key_runs_the_command_and_a_forged_one_does_not(
         "other plan": lambda d: d["trials"][0].update(plan_sha256="0" * 64),
         "no trial": lambda d: d.update(trials=[]),
         "other format": lambda d: d.update(format="ctdrill-plan/1"),
+        # the exercise's id, trials and classes copied from the cards and a guessed seed
+        "guessed seed": lambda d: d["params"].__setitem__(2, d["params"][2] + 1),
+        "no parameters": lambda d: d.pop("params"),
     }
     for what, edit in cases.items():
         forged = json.loads(json.dumps(doc))
