@@ -10,8 +10,11 @@ so the file recomputes the assessment exactly. The score is
 Depths are the drill's (``drill_mm``: it never passes the device's stop); the hand force is the
 device's reading of the hand (``hand_force_n``, telemetry ``force_est_n``); the breakthrough is
 the table's decisive one (:func:`ctdrill.haptics.hands.decisive_breakthrough_mm`). Nothing the
-score reads changes after the session's last cutting event unless the hand pushes (at least
-:data:`LET_GO_N`): resting, retracting and waiting change nothing.
+score reads changes after the session's last cutting event: resting, retracting, waiting and
+holding a constant push against the wall change nothing (a contact's pressing counts up to
+:data:`~ctdrill.haptics.score.WALL_GRACE_S` plus
+:data:`~ctdrill.haptics.score.WALL_PRESS_SATURATE_S`; a hand that never let go after the
+breakthrough is charged at least :data:`~ctdrill.haptics.score.REACTION_SCALE_MS`).
 """
 
 from __future__ import annotations
@@ -34,7 +37,14 @@ from ctdrill.haptics.device import TelemetrySample
 from ctdrill.haptics.hands import decisive_breakthrough_mm
 from ctdrill.haptics.plant import COULOMB_N
 from ctdrill.haptics.profile_table import ProfileTable
-from ctdrill.haptics.score import DEPTH_SCALE_MM, score_of, score_terms
+from ctdrill.haptics.score import (
+    DEPTH_SCALE_MM,
+    REACTION_SCALE_MS,
+    WALL_GRACE_S,
+    WALL_PRESS_SATURATE_S,
+    score_of,
+    score_terms,
+)
 from ctdrill.haptics.session import STATE_NAMES, csv_cells, sample_row
 
 __all__ = [
@@ -134,6 +144,8 @@ class Assessor:
         self.wall_press_s = 0.0
         self.wall_overrun_mm = 0.0
         self._in_contact = False
+        self._contact_press_s = 0.0
+        self._last_cut_s = 0.0
         self.t_breakthrough: float | None = None
         self._drill_at_breakthrough = 0.0
         self.t_let_go: float | None = None
@@ -198,6 +210,7 @@ class Assessor:
         if drill > ctx.max_safe_depth_mm + DEPTH_TOLERANCE_MM:
             self._margin_pending_s += dt
         if cut:  # time in the margin counts up to the last cutting event
+            self._last_cut_s = t
             self._margin_s += self._margin_pending_s
             self._margin_pending_s = 0.0
         pushing = hand >= LET_GO_N
@@ -231,7 +244,10 @@ class Assessor:
         pushing (``pushing``: its mean over :data:`HAND_PEAK_WINDOW_S`, so the release
         damper's millisecond blips after a release are not a new contact); how long it pressed
         (``pressing``: the reading itself at 1 N or more, so the mean's fall after a release
-        adds nothing) and how far the handle sank past the drill."""
+        adds nothing), each contact up to :data:`WALL_GRACE_S` + :data:`WALL_PRESS_SATURATE_S`
+        (a hand still pressing then has shown it will not let go within a reaction: pressing
+        longer is waiting, and the session's length changes nothing), and how far the handle
+        sank past the drill."""
         if state == _STOPPED:
             self.wall_peak = max(self.wall_peak, force)
         held = state == _STOPPED and pushing
@@ -242,8 +258,12 @@ class Assessor:
         if contact:
             if not self._in_contact:
                 self.wall_contacts += 1
+                self._contact_press_s = 0.0
             elif pressing:
-                self.wall_press_s += dt
+                cap = WALL_GRACE_S + WALL_PRESS_SATURATE_S
+                add = min(dt, max(cap - self._contact_press_s, 0.0))
+                self._contact_press_s += add
+                self.wall_press_s += add
             if pressing:
                 self.wall_overrun_mm = max(self.wall_overrun_mm, master - drill, 0.0)
         self._in_contact = contact
@@ -314,8 +334,11 @@ class Assessor:
         reaction = None
         if self.t_breakthrough is not None:
             start = self.t_breakthrough if seen_s is None else seen_s
-            end = self.t_let_go if self.t_let_go is not None else self.last_t
-            reaction = round(1e3 * max(end - start, 0.0), 1)
+            if self.t_let_go is not None:
+                reaction = round(1e3 * max(self.t_let_go - start, 0.0), 1)
+            else:  # never let go: the whole reaction term, whatever the session's length
+                late_ms = 1e3 * max(self._last_cut_s - start, 0.0)
+                reaction = round(max(late_ms, REACTION_SCALE_MS), 1)
         plunge = 0.0
         if self.t_breakthrough is not None:
             plunge = self.deepest_mm - self._drill_at_breakthrough

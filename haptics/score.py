@@ -15,8 +15,11 @@ properties (tests/haptics/test_score_properties.py holds them over synthetic ses
 * pushing beyond the device's continuous rating, pressing on the wall (longer than a reaction
   or through it) and plunging after the breakthrough cost points; steadiness is the variation
   of the hand's force, not of the feed (which follows the bone's layers);
-* every field the score reads stops changing after the session's last cutting event unless the
-  hand pushes: resting, retracting and waiting change nothing.
+* every field the score reads stops changing after the session's last cutting event: resting,
+  retracting, waiting and holding a constant push against the wall change nothing (pressing
+  on the wall saturates :data:`WALL_PRESS_SATURATE_S` after the grace; a hand that never let
+  go after the breakthrough takes the whole reaction term), so the score does not depend on
+  the session's length.
 """
 
 from __future__ import annotations
@@ -48,8 +51,13 @@ STEADY_FREE_CV = 0.05
 STEADY_SCALE_CV = 0.25
 #: Pressing on the stop's wall is free for this long per contact (a reaction to the wall), s ...
 WALL_GRACE_S = 0.5
-#: ... and each further this-many seconds halves the wall term, s.
-WALL_PRESS_SCALE_S = 1.0
+#: ... pressing counts for at most this much longer per contact, s (two of the hand's 50 ms
+#: windows: a hand still on the wall then has shown it will not let go within a reaction, and
+#: pressing longer is waiting, which must not change the score: the cost saturates) ...
+WALL_PRESS_SATURATE_S = 0.1
+#: ... and each further this-many seconds of it takes a contact's wall term down by one more
+#: share (``1 / (1 + press / this)``: a saturated contact halves it), s.
+WALL_PRESS_SCALE_S = 0.1
 #: The handle may sink this far past the stopped drill into the wall at no cost (the wall's
 #: stiffness under a firm push), mm; each further this-many mm halves the wall term.
 WALL_OVERRUN_FREE_MM = 2.0
@@ -83,7 +91,7 @@ def score_terms(fields: Mapping[str, Any]) -> dict[str, float]:
     * ``reaction``: ``1 - reaction_ms / 1000 ms`` (1 without a breakthrough, or when the
       display lagged: ``display_lagged``);
     * ``plunge``: ``1 / (1 + plunge_mm / 1 mm)``;
-    * ``wall``: ``1 / (1 + max(wall_press_s - 0.5 s * contacts, 0) / 1 s) / (1 +
+    * ``wall``: ``1 / (1 + max(wall_press_s - 0.5 s * contacts, 0) / 0.1 s) / (1 +
       max(wall_overrun_mm - 2 mm, 0) / 2 mm) / max(wall_contacts, 1)``;
     * ``hand``: ``1 - max(peak_hand_force_n - 21.5 N, 0) / 8 N`` (a push beyond the device's
       continuous rating, 20 N, and the reading's 1.5 N error at the wall).

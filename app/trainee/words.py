@@ -20,6 +20,7 @@ from ctdrill.haptics.score import (
     STEADY_SCALE_CV,
     WALL_GRACE_S,
     WALL_OVERRUN_FREE_MM,
+    WALL_PRESS_SATURATE_S,
 )
 
 #: A hand force varying less than this (coefficient of variation) is "steady" (the score's free
@@ -110,6 +111,16 @@ def _reaction(a: Mapping[str, Any]) -> Line:
     )
 
 
+def _pressed(press_s: float, contacts: int) -> str:
+    """How long the hand pressed on the wall, in words: the record counts each contact up to
+    the grace plus the saturation (a hand still pressing then never let go), so a saturated
+    press reads "more than" that."""
+    cap_s = (WALL_GRACE_S + WALL_PRESS_SATURATE_S) * max(contacts, 1)
+    if press_s >= cap_s - 0.01:
+        return f"more than {cap_s:.1f} s"
+    return f"{press_s:.1f} s"
+
+
 def _wall(a: Mapping[str, Any]) -> Line:
     fields = ("wall_contacts", "peak_wall_force_n", "wall_press_s", "wall_overrun_mm")
     n = int(a["wall_contacts"])
@@ -119,7 +130,7 @@ def _wall(a: Mapping[str, Any]) -> Line:
     overrun = float(a["wall_overrun_mm"])
     text = (
         f"You met the stop {'once' if n == 1 else f'{n} times'} and pressed on it for "
-        f"{press:.1f} s; "
+        f"{_pressed(press, n)}; "
         f"it pushed back with up to {float(a['peak_wall_force_n']):.1f} N"
     )
     if overrun > WALL_OVERRUN_FREE_MM:
@@ -154,7 +165,10 @@ def next_time(a: Mapping[str, Any], summary: Mapping[str, Any] | None = None) ->
         text = f"push at most {CONTINUOUS_FORCE_N:.0f} N (you pushed up to {peak:.0f} N)"
         fields = ("peak_hand_force_n",)
     elif press > WALL_GRACE_S * n or float(a["wall_overrun_mm"]) > WALL_OVERRUN_FREE_MM:
-        text = f"let go within {WALL_GRACE_S:.1f} s of meeting the stop (you pressed {press:.1f} s)"
+        text = (
+            f"let go within {WALL_GRACE_S:.1f} s of meeting the stop (you pressed "
+            f"{_pressed(press, n)})"
+        )
         fields = ("wall_press_s",)
     elif r is not None and not a["display_lagged"] and float(r) > LATE_REACTION_MS:
         text = (

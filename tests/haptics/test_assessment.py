@@ -241,7 +241,7 @@ FINAL = {
     "attempted": True,
     "hand_force_cv": 0.15,
     "plunge_mm": 0.5,
-    "wall_press_s": 1.5,
+    "wall_press_s": 1.05,  # two contacts: 0.6 s (saturated) and 0.45 s
     "wall_overrun_mm": 2.5,
     "display_lag_ms": 40.0,
     "display_lagged": False,
@@ -267,12 +267,12 @@ def test_a_sequence_combines_its_drills_as_documented() -> None:
         "attempted": True,
         "hand_force_cv": 0.15,  # the least steady
         "plunge_mm": 0.5,  # the largest
-        "wall_press_s": 1.5,
+        "wall_press_s": 1.05,
         "wall_overrun_mm": 2.5,
         "display_lag_ms": 40.0,
         "display_lagged": False,
         # score_of: steady 1 - 0.1 / 0.25 = 0.6, reaction 0.85, plunge 1 / 1.5; wall
-        # 1 / (1 + 0.5 / 1) / (1 + 0.5 / 2) / 2 = 0.266667; hand 1: skill = 0.705556 *
+        # 1 / (1 + 0.05 / 0.1) / (1 + 0.5 / 2) / 2 = 0.266667; hand 1: skill = 0.705556 *
         # 0.266667 = 0.188148; breached: 45 (1 + skill) / 2 / (1 + 0.5 / 2) = 21.39
         "score": 21.4,
     }

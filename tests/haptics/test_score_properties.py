@@ -48,7 +48,8 @@ class Script:
     """A synthetic session: push ``push_n`` (noise ``noise_n``, seeded) while the drill
     advances at ``feed_mm_s`` to ``deepest_mm``; at the wall (``deepest_mm`` = the stop) press
     ``press_s`` with the handle ``overrun_mm`` past the drill; then let go and, after, a tail
-    of ``tail`` (``rest``, ``retract``, ``wait``) for ``tail_s``."""
+    of ``tail`` (``rest``, ``retract``, ``wait``) for ``tail_s``; or never let go: ``hold``
+    keeps pressing on the wall with the constant push ``push_n`` for ``tail_s``."""
 
     deepest_mm: float
     push_n: float = 12.0
@@ -96,7 +97,9 @@ def _rows(s: Script, stop_mm: float) -> list[tuple[float, float, float, float, s
             t += dt
         state = "cutting"
     for k in range(round(s.tail_s * RATE_HZ)):
-        if s.tail == "retract":
+        if s.tail == "hold":  # the same push, the handle where the press left it
+            rows.append((t, drill + s.overrun_mm, drill, s.push_n, state, s.push_n))
+        elif s.tail == "retract":
             drill = max(drill - 5.0 * dt, 0.0)
             rows.append((t, drill, drill, 0.0, "cutting", -2.0))
         elif s.tail == "wait":
@@ -252,9 +255,33 @@ def test_pushing_through_the_wall_costs_points(push: float, overrun: float) -> N
     assert brute.wall_overrun_mm == pytest.approx(overrun, abs=1e-4)
 
 
-def test_pressing_on_the_wall_longer_than_a_reaction_costs() -> None:
+def test_pressing_on_the_wall_longer_than_a_reaction_costs_and_saturates() -> None:
     scores = [
         assess(Script(SAFE_MM, 12.0, press_s=p), stop_mm=SAFE_MM).score
-        for p in (0.2, 0.45, 1.0, 3.0)
+        for p in (0.2, 0.45, 0.55, 0.7, 1.0, 3.0)
     ]
+    # free within the grace (a reaction to the wall), dearer up to grace + saturation, then
+    # the same: a hand still on the wall has shown it will not let go, the rest is waiting
     assert scores[0] == scores[1] == 100.0 and scores[1] > scores[2] > scores[3]
+    assert scores[3] == scores[4] == scores[5] < 90.0
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    pushes,
+    st.floats(0.65, 2.0),
+    st.floats(0.0, 3.0),
+    st.floats(0.01, 8.0),
+    st.sampled_from(["rest", "retract", "wait", "hold"]),
+)
+def test_appending_any_tail_never_changes_the_score(
+    push: float, press_s: float, overrun: float, tail_s: float, tail: str
+) -> None:
+    # a guarded session that met the wall and pressed past the grace (or let go, for the tails
+    # after a release): whatever follows, resting, retracting, waiting or holding the same push
+    # against the wall for any time, changes no field the score reads and not the score
+    base = Script(SAFE_MM, push, press_s=press_s, overrun_mm=overrun)
+    short = assess(base, stop_mm=SAFE_MM)
+    longer = assess(replace(base, tail=tail, tail_s=tail_s), stop_mm=SAFE_MM)
+    assert longer.score == short.score
+    assert longer == short
