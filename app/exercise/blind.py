@@ -62,30 +62,62 @@ def plan_trial(path: Path) -> TrialCard | None:
 
 
 def ct_trial(path: Path) -> tuple[bool, TrialCard | None]:
-    """Whether ``path`` is a trial's CT, and the trial's card when its folder holds one.
+    """Whether ``path`` is (or holds) a trial's CT, and the trial's card when there is one.
 
-    A trial's CT is its ``ct/`` folder (or a file in it) beside a ``trial.json``, or a DICOM
-    series whose header's model name is :data:`EXERCISE_CT_MODEL` (a trial's CT copied
-    elsewhere)."""
+    A trial's CT is its ``ct/`` folder (or a file in it) beside a ``trial.json``, a folder
+    holding trials (the series loaders search folders), or a DICOM series whose header's model
+    name is :data:`EXERCISE_CT_MODEL` (a trial's CT copied elsewhere). The card is given when
+    one trial's card is found (a folder of several trials has none)."""
     path = Path(path)
     folder = path if path.is_dir() else path.parent
-    card_path = folder.parent / TRIAL_CARD
-    if card_path.is_file():
-        doc = load_json(card_path, what="trial card", error=TrialError)
-        return True, card_from_json(doc, where=str(card_path))
-    return _exercise_header(path), None
-
-
-def _exercise_header(path: Path) -> bool:
-    """True if the first DICOM file at ``path`` says it was written by ``ctdrill exercise``."""
+    cards = [c for c in (folder / TRIAL_CARD, folder.parent / TRIAL_CARD) if c.is_file()]
+    dicoms: list[Path] = [path] if path.is_file() else []
     if path.is_dir():
+        found_cards, found_dicoms = _walk(path)
+        cards += [c for c in found_cards if c not in cards]
+        dicoms += found_dicoms
+    if len(cards) == 1:
+        doc = load_json(cards[0], what="trial card", error=TrialError)
+        return True, card_from_json(doc, where=str(cards[0]))
+    if cards:
+        return True, None
+    return any(_exercise_header(f) for f in dicoms[:_HEADERS_READ]), None
+
+
+#: How deep and how many entries :func:`ct_trial` looks under a CT folder, and how many DICOM
+#: headers it reads (one per folder holding ``.dcm`` files).
+_WALK_DEPTH = 4
+_WALK_ENTRIES = 20_000
+_HEADERS_READ = 8
+
+
+def _walk(root: Path) -> tuple[list[Path], list[Path]]:
+    """The trial cards under ``root`` and the first ``.dcm`` file of each folder (bounded)."""
+    cards: list[Path] = []
+    dicoms: list[Path] = []
+    seen = 0
+    stack = [(root, 0)]
+    while stack and seen < _WALK_ENTRIES:
+        folder, depth = stack.pop()
         try:
-            first = next((p for p in sorted(path.iterdir()) if p.suffix.lower() == ".dcm"), None)
+            entries = sorted(folder.iterdir())
         except OSError:
-            return False
-    else:
-        first = path if path.suffix.lower() == ".dcm" else None
-    if first is None or not first.is_file():
+            continue
+        seen += len(entries)
+        first_dcm = next((e for e in entries if e.suffix.lower() == ".dcm"), None)
+        if first_dcm is not None:
+            dicoms.append(first_dcm)
+        for e in entries:
+            if e.name == TRIAL_CARD and e.is_file():
+                cards.append(e)
+            elif depth < _WALK_DEPTH and e.is_dir() and not e.is_symlink():
+                stack.append((e, depth + 1))
+    return cards, dicoms
+
+
+def _exercise_header(first: Path) -> bool:
+    """True if the DICOM file ``first`` says it was written by ``ctdrill exercise``."""
+    if first.suffix.lower() != ".dcm" or not first.is_file():
         return False
     try:
         import pydicom

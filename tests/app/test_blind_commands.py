@@ -139,6 +139,22 @@ def test_a_trials_ct_copied_elsewhere_is_known_by_its_header(
         blind_guard("export", plans=[DEMO_PLAN], ct=copy)
     with pytest.raises(BlindTrialError):
         blind_guard("export", plans=[DEMO_PLAN], ct=copy / "CT00000.dcm")
+    nested = tmp_path / "deeper" / "scan"
+    shutil.copytree(folder / "ct", nested)
+    with pytest.raises(BlindTrialError, match="a trial's CT"):
+        blind_guard("export", plans=[DEMO_PLAN], ct=tmp_path / "deeper")  # loaders search
+
+
+def test_a_folder_holding_trials_is_a_trials_ct(
+    trial: tuple[Path, Path, list[WrittenTrial]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder, key, _ = trial
+    for ct in (folder, folder.parent):  # the trial's folder, the exercise's: loaders search
+        with pytest.raises(BlindTrialError, match="blind trial"):
+            blind_guard("export", plans=[DEMO_PLAN], ct=ct)
+    blind_guard("export", plans=[DEMO_PLAN], ct=folder, key=key)  # one trial: the key opens
+    with pytest.raises(BlindTrialError):  # several: from its own folder
+        blind_guard("export", plans=[DEMO_PLAN], ct=folder.parent, key=key)
 
 
 def test_the_instructors_key_runs_the_command_and_a_forged_one_does_not(
