@@ -78,7 +78,7 @@ def export_case(
     written = write_case(case, out_dir, progress=progress, extra_files=extra_files)
     if warn is not None:
         for plan in case.plans:
-            for code, message in plan_warnings(plan):
-                if code == "no_landmarks":
-                    warn(code, message)
+            for w in plan_warnings(plan):
+                if w.code == "no_landmarks":
+                    warn(w.code, w.message)
     return written

@@ -19,8 +19,8 @@ from ctdrill.engine.summary import (
     PlanOutcome,
     SequenceSummary,
     TrajectorySummary,
-    WarningEntry,
 )
+from ctdrill.warning_codes import LoadWarning
 
 
 def calibration_line(cal: CalibrationInfo) -> str:
@@ -101,7 +101,7 @@ def implant_line(outcome: PlanOutcome) -> str | None:
     return f"{outcome.plan}: implant {imp.name!r} " + "; ".join(parts) + known
 
 
-def _warnings(warnings: tuple[WarningEntry, ...]) -> list[str]:
+def _warnings(warnings: tuple[LoadWarning, ...]) -> list[str]:
     return [f"warning [{w.code}]: {w.message}" for w in warnings]
 
 

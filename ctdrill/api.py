@@ -178,9 +178,10 @@ def implant_outcome(volume: CTVolume, plan: Plan) -> ImplantOutcome | None:
     (signed distance from the implant body to the binding landmark, < 0 inside),
     ``.binding_name``/``.binding_margin_mm``, ``.walls`` (the thinnest bone walls,
     ``.walls.min_mm``, ``.buccal_mm``, ``.lingual_mm``, ``.perforation``), ``.accuracy_mm``
-    (what the CT's sampling lets a clearance claim) and ``.warnings`` (``(code, message)``:
-    ``implant_violates_margin``, ``plan_violates_margin``, ``thin_wall``,
-    ``cortical_perforation``, ``bone_walls_unknown``); None when the plan places no implant."""
+    (what the CT's sampling lets a clearance claim) and ``.warnings`` (each a ``LoadWarning``,
+    ``.code`` and ``.message``: ``implant_violates_margin``, ``plan_violates_margin``,
+    ``thin_wall``, ``cortical_perforation``, ``bone_walls_unknown``); None when the plan places no
+    implant."""
     from ctdrill.engine.implant import implant_outcome as outcome
 
     return outcome(volume, plan)

@@ -1,7 +1,8 @@
 """Every warning code ctdrill emits, and what it means: the one registry.
 
-A warning is a ``(code, message)``: the code says what kind of thing the user must know (this
-registry, for readers and programs), the message the particulars (positions, depths, names).
+A warning is one :class:`LoadWarning` (``code``, ``message``): the code says what kind of
+thing the user must know (this registry, for readers and programs), the message the
+particulars (positions, depths, names).
 Every room emits from here: the series' load warnings (``imaging``: ``scope`` ``series``, the
 codes of ``ctdrill inspect``), what reading a plan found (``plan``) and what a computed path
 found (``path``: ``ctdrill.engine.path_warnings``). :data:`WARNING_CODES` of
@@ -324,6 +325,26 @@ def check_code(code: str) -> str:
             "meaning"
         )
     return code
+
+
+@dataclass(frozen=True)
+class LoadWarning:
+    """One warning, wherever it arises (a load, a plan as read, a computed path, the verdict):
+    the one type every room emits and every output lists as ``{"code", "message"}``.
+
+    Attributes
+    ----------
+    code : str
+        A code of this registry; any other is refused (a bug: register it).
+    message : str
+        Human-readable detail (positions, depths, names), built from the values it reports.
+    """
+
+    code: str
+    message: str
+
+    def __post_init__(self) -> None:
+        check_code(self.code)
 
 
 def meaning(code: str) -> str:

@@ -15,6 +15,7 @@ import numpy as np
 from ctdrill.imaging.plan.budget import MarginBudget, canal_source, margin_budget
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.volume import CTVolume
+from ctdrill.warning_codes import LoadWarning
 
 __all__ = ["budget_warnings", "plan_budgets", "summary_budget"]
 
@@ -39,7 +40,7 @@ def budget_warnings(
     margins_mm: np.ndarray,
     drill_clearance_mm: np.ndarray,
     implant_clearance_mm: np.ndarray | None,
-) -> list[tuple[str, str]]:
+) -> list[LoadWarning]:
     """``margin_below_budget`` naming each landmark whose clearance (the least of the drill's
     at its planned depth and the implant body's) keeps its margin but is under its budget."""
     low = []
@@ -57,7 +58,7 @@ def budget_warnings(
     if not low:
         return []
     return [
-        (
+        LoadWarning(
             "margin_below_budget",
             f"plan {plan.name!r}: the clearance keeps the margin but not the margin budget "
             "(the 95th percentile of placement, canal and CT errors combined): "

@@ -36,6 +36,7 @@ from ctdrill.imaging.resolution import volume_clearance_accuracy_mm
 from ctdrill.imaging.sampling.walls import BoneWalls, bone_wall_warnings, plan_bone_walls
 from ctdrill.imaging.teeth import TOOTH_HU, tooth_distance_mm
 from ctdrill.imaging.volume import CTVolume
+from ctdrill.warning_codes import LoadWarning
 
 #: Said in ``bone_walls`` of every summary: how the CT's edge is counted.
 OUTSIDE_CT_RULE = "outside the CT counts as unknown, never as bone"
@@ -52,7 +53,8 @@ class ImplantOutcome:
     walls : the bone walls around the body (:class:`~ctdrill.imaging.sampling.walls.BoneWalls`).
     accuracy_mm : what the CT's sampling lets a clearance claim, +- mm
         (:func:`~ctdrill.imaging.resolution.volume_clearance_accuracy_mm`).
-    warnings : ``(code, message)`` pairs, in the order the summary lists them.
+    warnings : its warnings (:class:`~ctdrill.warning_codes.LoadWarning`), in the order the
+        summary lists them.
     tooth_mm : the distance from the body to the nearest tooth (:mod:`ctdrill.imaging.teeth`;
         negative: it enters one), mm, or None when no tooth is near.
     """
@@ -61,7 +63,7 @@ class ImplantOutcome:
     clearance: ImplantClearance | None
     walls: BoneWalls
     accuracy_mm: float
-    warnings: tuple[tuple[str, str], ...]
+    warnings: tuple[LoadWarning, ...]
     tooth_mm: float | None = None
 
     @property
@@ -90,7 +92,7 @@ class ImplantOutcome:
     @property
     def codes(self) -> tuple[str, ...]:
         """The warning codes, in order."""
-        return tuple(code for code, _ in self.warnings)
+        return tuple(w.code for w in self.warnings)
 
     def bone_walls_json(self) -> dict[str, Any]:
         """``bone_walls`` as the summary writes it (the walls and the CT-edge rule)."""
@@ -104,13 +106,13 @@ def _label(plan: Plan) -> str:
 
 def implant_body_margin_warnings(
     plan: Plan, clearance: ImplantClearance | None
-) -> list[tuple[str, str]]:
+) -> list[LoadWarning]:
     """``implant_violates_margin`` and, for the same break, ``plan_violates_margin`` (the
     plan's margin covers the implant as well as every drill)."""
     out = implant_margin_warnings(plan, clearance)
     if out and plan.implant is not None and clearance is not None:
         out.append(
-            (
+            LoadWarning(
                 "plan_violates_margin",
                 f"plan {plan.name!r}: the implant body at its planned place breaks the safety "
                 f"margin: clearance of implant {plan.implant.name!r} to "
@@ -164,14 +166,14 @@ def implant_tooth_distance_mm(volume: CTVolume, plan: Plan) -> float | None:
     return tooth_distance_mm(volume, place.platform_lps, place.axis_lps, spec.length_mm, radii)
 
 
-def tooth_warnings(plan: Plan, tooth_mm: float | None) -> list[tuple[str, str]]:
+def tooth_warnings(plan: Plan, tooth_mm: float | None) -> list[LoadWarning]:
     """``implant_in_tooth`` (the body enters a tooth) or ``implant_near_tooth`` (closer than
     the clinical implant-tooth distance)."""
     if tooth_mm is None:
         return []
     if tooth_mm < 0.0:
         return [
-            (
+            LoadWarning(
                 "implant_in_tooth",
                 f"{_label(plan)}: the implant body enters a tooth ({-tooth_mm:.1f} mm into it: "
                 f"CT numbers >= {TOOTH_HU:g} HU, enamel, dentin or metal); extract it first or "
@@ -180,7 +182,7 @@ def tooth_warnings(plan: Plan, tooth_mm: float | None) -> list[tuple[str, str]]:
         ]
     if tooth_mm < CLINICAL_TOOTH_DISTANCE_MM:
         return [
-            (
+            LoadWarning(
                 "implant_near_tooth",
                 f"{_label(plan)}: {tooth_mm:.1f} mm from the implant body to the nearest tooth, "
                 f"under the clinical {CLINICAL_TOOTH_DISTANCE_MM:g} mm implant-tooth distance",

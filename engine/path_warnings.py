@@ -2,8 +2,9 @@
 
 :data:`PATH_CHECKS` is the one list of per-trajectory checks: each reads the computed path (a
 :class:`PathView`: the plan, the profile, the clearances, the stop) and the volume, and gives
-``(code, message)`` pairs. A new warning is one function here and its code in
-:mod:`ctdrill.warning_codes`. :func:`path_warnings` gives them all, each code + message once.
+warnings (:class:`~ctdrill.warning_codes.LoadWarning`). A new warning is one function here and
+its code in :mod:`ctdrill.warning_codes`. :func:`path_warnings` gives them all, each code +
+message once.
 """
 
 from __future__ import annotations
@@ -52,38 +53,39 @@ class PathView(Protocol):
     def budgets(self) -> tuple[MarginBudget, ...]: ...
 
 
-Pairs = Iterable[tuple[str, str]]
-#: A per-trajectory check: the volume and the computed path -> ``(code, message)`` pairs.
-PathCheck = Callable[[CTVolume, PathView], Pairs]
+Found = Iterable[LoadWarning]
+#: A per-trajectory check: the volume and the computed path -> its warnings.
+PathCheck = Callable[[CTVolume, PathView], Found]
 
 
-def _series(volume: CTVolume, path: PathView) -> Pairs:
-    return [(w.code, w.message) for w in volume.warnings]
+def _series(volume: CTVolume, path: PathView) -> Found:
+    return volume.warnings
 
 
-def _plan_file(volume: CTVolume, path: PathView) -> Pairs:
+def _plan_file(volume: CTVolume, path: PathView) -> Found:
     return plan_warnings(path.plan)
 
 
-def _gaps(volume: CTVolume, path: PathView) -> Pairs:
+def _gaps(volume: CTVolume, path: PathView) -> Found:
     return [
-        ("gap_interpolated", gap_interpolated_message(path.plan, g)) for g in path.interpolated_gaps
+        LoadWarning("gap_interpolated", gap_interpolated_message(path.plan, g))
+        for g in path.interpolated_gaps
     ]
 
 
-def _margins(volume: CTVolume, path: PathView) -> Pairs:
+def _margins(volume: CTVolume, path: PathView) -> Found:
     at_plan = path.clearance_mm[-1] if path.plan.landmarks else np.empty(0)
     return margin_warnings(path.plan, at_plan, path.margins_mm)
 
 
-def _implant_body(volume: CTVolume, path: PathView) -> Pairs:
+def _implant_body(volume: CTVolume, path: PathView) -> Found:
     """The implant's own: its margin (``implant_violates_margin`` and the plan's
     ``plan_violates_margin``), its walls (``thin_wall``, ``cortical_perforation``,
     ``bone_walls_unknown``)."""
     return () if path.implant is None else path.implant.warnings
 
 
-def _budget(volume: CTVolume, path: PathView) -> Pairs:
+def _budget(volume: CTVolume, path: PathView) -> Found:
     """``margin_below_budget`` (:func:`~ctdrill.engine.budget.budget_warnings`)."""
     if not path.budgets or not path.plan.landmarks:
         return ()
@@ -93,14 +95,14 @@ def _budget(volume: CTVolume, path: PathView) -> Pairs:
     return budget_warnings(path.plan, path.budgets, path.margins_mm, path.clearance_mm[-1], body)
 
 
-def _other_series(volume: CTVolume, path: PathView) -> Pairs:
+def _other_series(volume: CTVolume, path: PathView) -> Found:
     plan = path.plan
     if plan.series_uid_sha256 is None or plan.series_uid_sha256 == series_uid_hash(
         volume.info.series_uid
     ):
         return ()
     return [
-        (
+        LoadWarning(
             "plan_other_series",
             f"plan {plan.name!r} was made on another series than the one loaded (its "
             "recorded series hash differs): check that the CT and the plan belong together",
@@ -108,12 +110,12 @@ def _other_series(volume: CTVolume, path: PathView) -> Pairs:
     ]
 
 
-def _illustrative(volume: CTVolume, path: PathView) -> Pairs:
+def _illustrative(volume: CTVolume, path: PathView) -> Found:
     cal = path.calibration
     if not cal.illustrative:
         return ()
     return [
-        (
+        LoadWarning(
             "calibration_illustrative",
             f"calibration {cal.name!r} is illustrative (not measured on bone): "
             "forces show the pattern, not validated magnitudes",
@@ -121,17 +123,21 @@ def _illustrative(volume: CTVolume, path: PathView) -> Pairs:
     ]
 
 
-def _feed(volume: CTVolume, path: PathView) -> Pairs:
+def _feed(volume: CTVolume, path: PathView) -> Found:
     note = feed_outside_model(path.plan.feed_mm_s, path.calibration)
-    return () if note is None else [("feed_outside_model", f"plan {path.plan.name!r}: {note}")]
+    return (
+        ()
+        if note is None
+        else [LoadWarning("feed_outside_model", f"plan {path.plan.name!r}: {note}")]
+    )
 
 
-def _extrapolated(volume: CTVolume, path: PathView) -> Pairs:
+def _extrapolated(volume: CTVolume, path: PathView) -> Found:
     prof = path.profile
     if not prof.n_clipped:
         return ()
     return [
-        (
+        LoadWarning(
             "extrapolated",
             f"{prof.n_clipped} of {prof.n_samples} cut lip samples lie outside the "
             f"calibration's C' range {list(path.calibration.c_prime_range)}; clipped to it",
@@ -139,15 +145,15 @@ def _extrapolated(volume: CTVolume, path: PathView) -> Pairs:
     ]
 
 
-def _implant(volume: CTVolume, path: PathView) -> Pairs:
+def _implant(volume: CTVolume, path: PathView) -> Found:
     return implant_warnings(path.plan, float(path.stop_depth_mm), path.stop_reason)
 
 
-def _left_volume(volume: CTVolume, path: PathView) -> Pairs:
+def _left_volume(volume: CTVolume, path: PathView) -> Found:
     if path.stop_reason != "out_of_volume":
         return ()
     return [
-        (
+        LoadWarning(
             "out_of_volume",
             f"plan {path.plan.name!r}: the drill leaves the CT volume at "
             f"{path.stop_depth_mm:.3f} mm, before the planned depth "
@@ -175,21 +181,15 @@ PATH_CHECKS: tuple[PathCheck, ...] = (
 
 def dedupe_warnings(warnings: Sequence[LoadWarning]) -> tuple[LoadWarning, ...]:
     """``warnings`` in order, each (code, message) once."""
-    seen: set[tuple[str, str]] = set()
+    seen: set[LoadWarning] = set()
     out: list[LoadWarning] = []
     for w in warnings:
-        if (w.code, w.message) not in seen:
-            seen.add((w.code, w.message))
+        if w not in seen:
+            seen.add(w)
             out.append(w)
     return tuple(out)
 
 
 def path_warnings(volume: CTVolume, path: PathView) -> tuple[LoadWarning, ...]:
     """Every check of :data:`PATH_CHECKS` on ``path``, each code + message once."""
-    return dedupe_warnings(
-        [
-            LoadWarning(code, message)
-            for check in PATH_CHECKS
-            for code, message in check(volume, path)
-        ]
-    )
+    return dedupe_warnings([w for check in PATH_CHECKS for w in check(volume, path)])

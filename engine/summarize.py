@@ -43,14 +43,12 @@ from ctdrill.engine.summary import (
     SequenceSummary,
     SeriesIdentity,
     TrajectorySummary,
-    WarningEntry,
 )
 from ctdrill.imaging.dicom.identity import series_identity
 from ctdrill.imaging.plan.implant_checks import implant_seated
 from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.plan.types import DrillSpec
 from ctdrill.imaging.sampling.annulus import Hole
-from ctdrill.imaging.volume import LoadWarning
 from ctdrill.model.band import ForceBand, HuUncertainty
 from ctdrill.text import printable
 
@@ -146,11 +144,6 @@ def implant_fields(
         binding = ImplantBindingLandmark(printable(out.binding_name), out.binding_margin_mm)
     walls = from_json(BoneWallsInfo, out.bone_walls_json())
     return _num(out.clearance_mm), binding, walls
-
-
-def warning_entries(warnings: tuple[LoadWarning, ...]) -> tuple[WarningEntry, ...]:
-    """Warnings as summaries list them."""
-    return tuple(WarningEntry(w.code, w.message) for w in warnings)
 
 
 def plan_outcome(result: PathResult, context: CaseContext, feed_mm_s: float) -> PlanOutcome:
@@ -249,7 +242,7 @@ def job_summary(result: PathResult, context: CaseContext) -> JobSummary:
             )
             for g in result.interpolated_gaps
         ),
-        warnings=warning_entries(result.warnings),
+        warnings=tuple(result.warnings),
         inner_holes=tuple(hole_info(h) for h in result.inner_holes),
         plot=settings.plot,
     )
@@ -266,7 +259,7 @@ def sequence_summary(seq: SequenceResult, context: CaseContext) -> SequenceSumma
         outcome=steps[-1].outcome,
         final_drill=len(steps),
         drills=tuple(drill_step(k, s) for k, s in enumerate(steps)),
-        warnings=warning_entries(seq.warnings),
+        warnings=tuple(seq.warnings),
     )
 
 

@@ -20,6 +20,7 @@ from typing import Any
 
 from ctdrill.engine.record import added, flat, from_json, key, optional, to_json
 from ctdrill.model.calibration import Calibration
+from ctdrill.warning_codes import LoadWarning
 
 EXPORT_FORMAT = "ctdrill-export/1"
 SEQUENCE_FORMAT = "ctdrill-sequence/1"
@@ -323,14 +324,6 @@ class GapInfo:
 
 
 @dataclass(frozen=True)
-class WarningEntry:
-    """One warning: its code (:mod:`ctdrill.warning_codes`) and message."""
-
-    code: str
-    message: str
-
-
-@dataclass(frozen=True)
 class HoleInfo:
     """A hole an earlier drill of a sequence left, which this drill's profile cut around."""
 
@@ -367,7 +360,7 @@ class TrajectorySummary:
     extrapolation: Extrapolation
     hu_grading: HuGrading
     interpolated_gaps: tuple[GapInfo, ...]
-    warnings: tuple[WarningEntry, ...]
+    warnings: tuple[LoadWarning, ...]
     inner_holes: tuple[HoleInfo, ...] = field(default=(), metadata=optional())
     plot: bool | None = field(default=None, metadata=optional())
 
@@ -410,7 +403,7 @@ class SequenceSummary:
     outcome: PlanOutcome = field(metadata=flat())
     final_drill: int
     drills: tuple[DrillStep, ...]
-    warnings: tuple[WarningEntry, ...]
+    warnings: tuple[LoadWarning, ...]
 
     def to_json(self) -> dict[str, Any]:
         """The ``summary.json`` document."""

@@ -90,25 +90,25 @@ class PlanVerdict:
         """The implant body's and its walls' findings."""
         if self.implant is None:
             return ()
-        return tuple(LoadWarning(code, message) for code, message in self.implant.warnings)
+        return tuple(self.implant.warnings)
 
     @property
     def findings(self) -> tuple[LoadWarning, ...]:
         """Every finding, each code and message once: the path's, the implant's, every
         drill's, the set's."""
-        seen: dict[tuple[str, str], LoadWarning] = {}
+        seen: dict[LoadWarning, None] = {}
         for w in (
             *self.path_findings,
             *self.implant_findings,
             *(w for drill in self.drill_findings for w in drill),
             *self.set_findings,
         ):
-            seen.setdefault((w.code, w.message), w)
-        return tuple(seen.values())
+            seen.setdefault(w)
+        return tuple(seen)
 
-    def problems(self) -> tuple[tuple[str, str], ...]:
+    def problems(self) -> tuple[LoadWarning, ...]:
         """What the window's banner lists: the findings of the registry's ``banner`` codes,
-        ``(code, message)``, each once, by the code's rank."""
+        each once, by the code's rank."""
         return banner_problems(self.findings)
 
     def blocking(self) -> tuple[tuple[int | None, LoadWarning], ...]:
@@ -132,19 +132,12 @@ class PlanVerdict:
         return not self.blocking()
 
 
-def banner_problems(*sources: Iterable[Any]) -> tuple[tuple[str, str], ...]:
-    """The findings among ``sources`` (``(code, message)`` pairs or objects with ``code`` and
-    ``message``) the banner shows, each once, by the registry's ``banner`` rank."""
+def banner_problems(*sources: Iterable[LoadWarning]) -> tuple[LoadWarning, ...]:
+    """The warnings among ``sources`` the banner shows, each once, by the registry's
+    ``banner`` rank."""
     order = banner_codes()
-    seen: set[tuple[str, str]] = set()
-    found: list[tuple[str, str]] = []
-    for source in sources:
-        for w in source:
-            pair = (w[0], w[1]) if isinstance(w, tuple) else (str(w.code), str(w.message))
-            if pair[0] in order and pair not in seen:
-                seen.add(pair)
-                found.append(pair)
-    return tuple(sorted(found, key=lambda p: order.index(p[0])))
+    found = dict.fromkeys(w for source in sources for w in source if w.code in order)
+    return tuple(sorted(found, key=lambda w: order.index(w.code)))
 
 
 def drill_clearances_mm(plan: Plan) -> np.ndarray:
@@ -171,14 +164,14 @@ def _drill_findings(
             out.append(())  # the path's own warnings say it, with the export's numbers
             continue
         found = margin_warnings(drilled, clearance_mm[k], margins)
-        out.append(tuple(LoadWarning(c, m) for c, m in found if c == DRILL_MARGIN))
+        out.append(tuple(w for w in found if w.code == DRILL_MARGIN))
     return tuple(out)
 
 
 def set_findings(plan: Plan) -> tuple[LoadWarning, ...]:
     """The set's checks of ``plan`` that need no CT: ``implant_above_entry``."""
     above = implant_warnings(plan, plan.planned_depth_mm, StopReason.PLANNED_DEPTH)
-    return tuple(LoadWarning(c, m) for c, m in above if c == ABOVE_ENTRY)
+    return tuple(w for w in above if w.code == ABOVE_ENTRY)
 
 
 def plan_verdict(

@@ -7,31 +7,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ctdrill.warning_codes import check_code, codes
+from ctdrill.warning_codes import LoadWarning as LoadWarning  # the one warning type
+from ctdrill.warning_codes import codes
 
 #: Warning codes a load may report (DESIGN.md section 4, plus ``single_slice``): the
 #: registry's ``series`` codes (:mod:`ctdrill.warning_codes` gives each one's meaning).
 WARNING_CODES: tuple[str, ...] = codes("series")
-
-
-@dataclass(frozen=True)
-class LoadWarning:
-    """Something a careful reader of the series must know.
-
-    Attributes
-    ----------
-    code : str
-        A code of the registry (:mod:`ctdrill.warning_codes`; a load's are
-        :data:`WARNING_CODES`); any other is refused (a bug: register it).
-    message : str
-        Human-readable detail (positions, counts, UIDs).
-    """
-
-    code: str
-    message: str
-
-    def __post_init__(self) -> None:
-        check_code(self.code)
 
 
 @dataclass(frozen=True)

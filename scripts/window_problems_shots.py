@@ -86,8 +86,8 @@ def shoot(win: MainWindow, ct: Path, plan: object, out: Path, stem: str) -> None
     win.save_screenshot(out / f"{stem}_panorama.png")
     view = win.view
     print(f"{stem}: {ct.name}")
-    for code, message in () if view is None else view.problems:
-        print(f"  {code}: {message}")
+    for w in () if view is None else view.problems:
+        print(f"  {w.code}: {w.message}")
     banner = win.views["banner"]
     print(f"  banner ({banner.kind}): {banner.text()}")  # type: ignore[attr-defined]
 

@@ -205,3 +205,43 @@ def test_no_warning_is_cut_from_another_warnings_message() -> None:
                 ):
                     found.append(f"{path.relative_to(ROOT)}:{node.lineno}")
     assert found == []
+
+
+def test_every_warning_is_one_type() -> None:
+    """A warning is built as the registry's ``LoadWarning`` only: no registered code is paired
+    with a message in a bare tuple, and no other record holds a code and a message."""
+    assert LoadWarning is warning_codes.LoadWarning
+    pairs, records = [], []
+    for room in ROOMS:
+        for path in sorted((ROOT / room).rglob("*.py")):
+            rel = str(path.relative_to(ROOT))
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if isinstance(node, ast.Tuple) and len(node.elts) == 2:
+                    code, msg = node.elts
+                    if (
+                        isinstance(code, ast.Constant)
+                        and code.value in warning_codes.WARNINGS
+                        and (code.value, rel) not in NOT_WARNINGS
+                        and not isinstance(msg, ast.Constant | ast.Lambda)
+                    ):
+                        pairs.append(f"{rel}:{node.lineno}")
+                if isinstance(node, ast.ClassDef) and node.name != "LoadWarning":
+                    fields = {
+                        s.target.id
+                        for s in node.body
+                        if isinstance(s, ast.AnnAssign) and isinstance(s.target, ast.Name)
+                    }
+                    if fields == {"code", "message"}:
+                        records.append(f"{rel}:{node.name}")
+    assert pairs == []
+    assert records == []
+
+
+def test_the_outputs_list_warnings_as_code_and_message_objects() -> None:
+    from ctdrill.engine.record import from_json, to_json
+
+    w = LoadWarning("thin_wall", "plan 'p': 0.4 mm")
+    assert to_json(w) == {"code": "thin_wall", "message": "plan 'p': 0.4 mm"}
+    assert from_json(LoadWarning, to_json(w)) == w
+    with pytest.raises(UnknownWarningCode):
+        LoadWarning("not_a_code", "x")

@@ -89,22 +89,23 @@ def run(args: argparse.Namespace) -> int:
         plans = tuple(replace(p, implant=spec) for p in plans)
     write_plans(plans, out)
     from ctdrill.imaging.plan.implant_checks import implant_warnings, implants_too_close
+    from ctdrill.warning_codes import LoadWarning
 
     # What the plan alone shows (no CT: the stop is not known, so not implant_beyond_stop).
     pairs = implants_too_close(plans)
-    seen: set[tuple[str, str]] = set()
+    seen: set[LoadWarning] = set()
     for plan in plans:
         found = [
             *plan_warnings(plan),
             *implant_warnings(plan, plan.planned_depth_mm, "planned_depth"),
             *pairs.get(plan.name, ()),
         ]
-        for code, message in found:
-            if (code, message) in seen:
+        for w in found:
+            if w in seen:
                 continue
-            seen.add((code, message))
+            seen.add(w)
             sys.stderr.write(
-                f"warning: {message}\n" if code != "plan_default" else f"note: {message}\n"
+                f"warning: {w.message}\n" if w.code != "plan_default" else f"note: {w.message}\n"
             )
     kind = "3D Slicer markups" if out.name.lower().endswith(".mrk.json") else "ctdrill-plan/1"
     first = plans[0]

@@ -80,7 +80,7 @@ def banner_text(view: PathView | None, path_error: str, coarse: str = "") -> tup
         return (coarse, "coarse") if coarse else None
     n = len(problems)
     head = f"Unsafe plan {view.plan.name!r}{marked_text(view)}: {n} problem{'s' * (n > 1)}."
-    if any(code == "plan_violates_margin" for code, _ in problems):
+    if any(w.code == "plan_violates_margin" for w in problems):
         head += (
             f" The drill stops at {view.curves.stop_depth_mm:.2f} mm; move the target to plan a "
             "safe path."

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 
@@ -34,7 +34,7 @@ from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.resolution import format_clearance_mm
 from ctdrill.imaging.volume import CTVolume
-from ctdrill.warning_codes import banner_codes, words
+from ctdrill.warning_codes import LoadWarning, banner_codes, words
 
 #: The plan problems the banner lists, in this order: the registry's ``banner`` codes
 #: (:func:`ctdrill.warning_codes.banner_codes`; their headings, ``words``).
@@ -135,28 +135,27 @@ def planned_clearance(verdict: PlanVerdict, accuracy_mm: float) -> PlannedCleara
 
 
 def set_problems(
-    plans: Sequence[Plan], index: int, close: dict[str, tuple[tuple[str, str], ...]] | None = None
-) -> list[tuple[str, str]]:
+    plans: Sequence[Plan], index: int, close: dict[str, tuple[LoadWarning, ...]] | None = None
+) -> list[LoadWarning]:
     """The geometric problems of ``plans[index]`` that need no CT: ``implant_above_entry``
     (:func:`ctdrill.engine.verdict.set_findings`) and ``implants_too_close`` with the others
     of the set (the outputs' messages; ``close``: the set's
     :func:`~ctdrill.imaging.plan.implant_checks.implants_too_close`, when known)."""
     plan = plans[index]
-    above = [(w.code, w.message) for w in set_findings(plan)]
+    above = list(set_findings(plan))
     pairs = implants_too_close(tuple(plans)) if close is None else close
     return above + list(pairs.get(plan.name, ()))
 
 
-def plan_problems(*sources: Iterable[Any]) -> tuple[tuple[str, str], ...]:
-    """The problems among ``sources`` (``(code, message)`` pairs or objects with ``code`` and
-    ``message``): those the banner shows, each once, by rank
+def plan_problems(*sources: Iterable[LoadWarning]) -> tuple[LoadWarning, ...]:
+    """The problems among ``sources``: those the banner shows, each once, by rank
     (:func:`ctdrill.engine.verdict.banner_problems`)."""
     return banner_problems(*sources)
 
 
-def problems_text(problems: Sequence[tuple[str, str]]) -> str:
+def problems_text(problems: Sequence[LoadWarning]) -> str:
     """The banner's lines: ``code (words): message``, one per problem."""
-    return "\n".join(f"• {words(code)} ({code}): {message}" for code, message in problems)
+    return "\n".join(f"• {words(w.code)} ({w.code}): {w.message}" for w in problems)
 
 
 #: Written before a planned clearance below the landmark's margin (the landmark table).
@@ -213,7 +212,7 @@ class _Checked(Protocol):
     @property
     def plan(self) -> Plan: ...
     @property
-    def problems(self) -> tuple[tuple[str, str], ...]: ...
+    def problems(self) -> tuple[LoadWarning, ...]: ...
 
 
 def offending_implants(

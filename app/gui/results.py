@@ -29,6 +29,7 @@ from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.resolution import volume_clearance_accuracy_mm
 from ctdrill.model.band import HuUncertainty
+from ctdrill.warning_codes import LoadWarning
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,7 +38,7 @@ class PathView:
 
     ``implant``, ``planned`` and ``problems`` are filled by :func:`compute_path_view` (the
     implant body's check, the planned clearances of the implant and of the osteotomy, the
-    plan problems as ``(code, message)``); a bare :func:`path_view` leaves them empty."""
+    plan problems as warnings); a bare :func:`path_view` leaves them empty."""
 
     plan: Plan
     result: PathResult
@@ -45,7 +46,7 @@ class PathView:
     min_clearance_mm: np.ndarray | None  # (L,) per landmark along the stopped path
     implant: ImplantCheck | None = None
     planned: PlannedClearance | None = None
-    problems: tuple[tuple[str, str], ...] = ()
+    problems: tuple[LoadWarning, ...] = ()
 
 
 def path_view(plan: Plan, result: PathResult, hu: HuUncertainty | None = None) -> PathView:

@@ -31,8 +31,8 @@ def unique_warnings(
 def path_warnings(view: PathView) -> tuple[LoadWarning, ...]:
     """The path's warnings, then the implant check's and the plan problems' (repeats are
     dropped by :func:`unique_warnings`)."""
-    extra = [*(() if view.implant is None else view.implant.warnings), *view.problems]
-    return (*view.result.warnings, *(LoadWarning(code, message) for code, message in extra))
+    extra = () if view.implant is None else view.implant.warnings
+    return (*view.result.warnings, *extra, *view.problems)
 
 
 class SeriesPanel(QWidget):

@@ -29,7 +29,7 @@ from ctdrill.engine.verdict import plan_verdict
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.walls import BoneWalls
 from ctdrill.imaging.volume import CTVolume
-from ctdrill.warning_codes import blocking_codes
+from ctdrill.warning_codes import LoadWarning, blocking_codes
 
 #: The warning codes that make a candidate infeasible (the registry's ``blocks_suggest``).
 BLOCKING_CODES = blocking_codes()
@@ -41,7 +41,7 @@ class Feasibility:
 
     Attributes
     ----------
-    problems : ``(code, message)`` of every rule it breaks (codes of :data:`BLOCKING_CODES`);
+    problems : the warnings of every rule it breaks (codes of :data:`BLOCKING_CODES`);
         empty when feasible.
     implant_clearance_mm : the implant body's signed clearance to the binding landmark, mm
         (None without an implant or landmark).
@@ -52,7 +52,7 @@ class Feasibility:
     walls : the implant's bone walls (None without an implant).
     """
 
-    problems: tuple[tuple[str, str], ...]
+    problems: tuple[LoadWarning, ...]
     implant_clearance_mm: float | None
     min_wall_mm: float | None
     drill_clearance_mm: float | None = None
@@ -66,20 +66,22 @@ class Feasibility:
     @property
     def codes(self) -> tuple[str, ...]:
         """The codes of :attr:`problems`, in order, each once."""
-        return tuple(dict.fromkeys(code for code, _ in self.problems))
+        return tuple(dict.fromkeys(w.code for w in self.problems))
 
 
 def check_candidate(volume: CTVolume, plan: Plan) -> Feasibility:
     """The feasibility of ``plan`` (a candidate's axis, its drills and implant) on ``volume``:
     the blocking findings of its verdict (:func:`ctdrill.engine.verdict.plan_verdict`)."""
     verdict = plan_verdict(volume, plan)
-    problems = []
+    problems: list[LoadWarning] = []
     for k, w in verdict.blocking():
         if k is None:
-            problems.append((w.code, w.message))
+            problems.append(w)
         else:
             drill = verdict.plan.drills[k]
-            problems.append((w.code, f"drill {k + 1} ({drill.diameter_mm:g} mm): {w.message}"))
+            problems.append(
+                LoadWarning(w.code, f"drill {k + 1} ({drill.diameter_mm:g} mm): {w.message}")
+            )
     outcome = verdict.implant
     clear = verdict.drill_clearance_mm
     return Feasibility(

@@ -158,7 +158,7 @@ class Exact:
             ex.wall_mm[i] = _nan(verdict.min_wall_mm)
             ex.balance[i] = wall_balance(verdict.walls)
             if verdict.problems:
-                rows.reason[i] = "; ".join(f"{c}: {m}" for c, m in verdict.problems)
+                rows.reason[i] = "; ".join(f"{w.code}: {w.message}" for w in verdict.problems)
         for i in np.flatnonzero(rows.passed & ~ex.checked):
             rows.reason[i] = "not checked (implant, every drill, bone walls): ranked below the " + (
                 f"{check.wanted} feasible found" if ex.feasible.sum() >= check.wanted

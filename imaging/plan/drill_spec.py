@@ -22,6 +22,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from ctdrill.warning_codes import LoadWarning
+
 #: Keys of a drill object (plan files, markups, summaries).
 _DRILL_KEYS = {"diameter_mm", "tip_length_mm", "blades", "rpm", "point_angle_deg"}
 _MAX_BLADES = 100
@@ -126,11 +128,11 @@ class DrillSpec:
         }
 
 
-def tip_override_warnings(drills: Sequence[DrillSpec], label: str) -> list[tuple[str, str]]:
+def tip_override_warnings(drills: Sequence[DrillSpec], label: str) -> list[LoadWarning]:
     """One ``drill_tip_override`` warning per drill of ``drills`` whose tip differs from the
     rule's, naming the drill by its diameter; ``label`` names the trajectory."""
     return [
-        (
+        LoadWarning(
             TIP_OVERRIDE_CODE,
             f"{label}: the {d.name}'s tip is {d.tip_length_mm:g} mm, an override of the tip "
             f"rule's {d.tip_rule_mm:g} mm ({d.point_angle_deg:g} deg point): its depth, stop "

@@ -23,6 +23,7 @@ from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.protocol import PROTOCOL_NOTE_CODE, protocol_drills, protocol_note
 from ctdrill.imaging.plan.read import _Ctx, _is_number
 from ctdrill.imaging.plan.types import PlanInputError
+from ctdrill.warning_codes import LoadWarning
 
 #: The warning code of a trajectory drill given the tip of its implant's protocol.
 RECONCILED_CODE = "drills_reconciled"
@@ -43,7 +44,7 @@ def drills_field(
     fp = f"{where}.drills" if where else "drills"
     if "drills" not in doc and "drill" not in doc and implant is not None:
         label = f"{ctx.path.name}: {where or 'the trajectory'}"
-        ctx.warnings.append((PROTOCOL_NOTE_CODE, protocol_note(label, implant)))
+        ctx.warnings.append(LoadWarning(PROTOCOL_NOTE_CODE, protocol_note(label, implant)))
         return protocol_drills(implant)[0]
     if "drills" not in doc:
         if "drill" not in doc:
@@ -95,7 +96,7 @@ def reconciled(
     for i, d, p in protocol_conflicts(drills, implant.drills):
         out[i] = replace(d, tip_length_mm=p.tip_length_mm, point_angle_deg=p.point_angle_deg)
         ctx.warnings.append(
-            (
+            LoadWarning(
                 RECONCILED_CODE,
                 f"{label}: drills[{i}] (the {d.name}) gave a {d.tip_length_mm:g} mm tip, but "
                 f"implant {implant.name!r}'s protocol drills it with {p.tip_length_mm:g} mm: "

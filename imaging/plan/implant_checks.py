@@ -32,6 +32,7 @@ from ctdrill.imaging.plan.implants import (
     implant_placement,
 )
 from ctdrill.imaging.plan.types import Plan
+from ctdrill.warning_codes import LoadWarning
 
 #: Depths closer than this (mm) are equal (a stop at the planned depth is at the apex).
 DEPTH_TOL_MM = 1e-9
@@ -46,15 +47,13 @@ def implant_seated(
     return stop_depth_mm - tip_beyond_mm >= place.apex_depth_mm - DEPTH_TOL_MM
 
 
-def implant_warnings(
-    plan: Plan, stop_depth_mm: float, stop_reason: str
-) -> tuple[tuple[str, str], ...]:
+def implant_warnings(plan: Plan, stop_depth_mm: float, stop_reason: str) -> tuple[LoadWarning, ...]:
     """``implant_beyond_stop`` and ``implant_above_entry`` for ``plan`` (see module doc)."""
     place = implant_placement(plan)
     if place is None:
         return ()
     spec = place.spec
-    out: list[tuple[str, str]] = []
+    out: list[LoadWarning] = []
     if not implant_seated(place, stop_depth_mm, plan.overdrill_mm):
         tip = plan.overdrill_mm
         reach = (
@@ -63,7 +62,7 @@ def implant_warnings(
             else f" (its full diameter to {stop_depth_mm - tip:.2f} mm, {tip:g} mm above its tip)"
         )
         out.append(
-            (
+            LoadWarning(
                 "implant_beyond_stop",
                 f"plan {plan.name!r}: implant {spec.name!r} needs an osteotomy "
                 f"{place.apex_depth_mm:.2f} mm deep (its apex at the target) but the drill "
@@ -73,7 +72,7 @@ def implant_warnings(
         )
     if place.platform_depth_mm < -DEPTH_TOL_MM:
         out.append(
-            (
+            LoadWarning(
                 "implant_above_entry",
                 f"plan {plan.name!r}: implant {spec.name!r} ({spec.length_mm:g} mm) is longer "
                 f"than the planned depth ({place.apex_depth_mm:.2f} mm): its platform stands "
@@ -118,9 +117,9 @@ def implant_gap_mm(a: Plan, b: Plan) -> float | None:
     return axis - pa.spec.radius_mm - pb.spec.radius_mm
 
 
-def implants_too_close(plans: tuple[Plan, ...]) -> dict[str, tuple[tuple[str, str], ...]]:
+def implants_too_close(plans: tuple[Plan, ...]) -> dict[str, tuple[LoadWarning, ...]]:
     """``implants_too_close`` warnings of a plan set, by trajectory name (both of each pair)."""
-    out: dict[str, list[tuple[str, str]]] = {}
+    out: dict[str, list[LoadWarning]] = {}
     for i, a in enumerate(plans):
         for b in plans[i + 1 :]:
             gap = implant_gap_mm(a, b)
@@ -134,5 +133,5 @@ def implants_too_close(plans: tuple[Plan, ...]) -> dict[str, tuple[tuple[str, st
             )
             message = f"implants of {a.name!r} and {b.name!r} {how}; move one of them"
             for name in (a.name, b.name):
-                out.setdefault(name, []).append(("implants_too_close", message))
+                out.setdefault(name, []).append(LoadWarning("implants_too_close", message))
     return {k: tuple(v) for k, v in out.items()}

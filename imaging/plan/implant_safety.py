@@ -23,6 +23,7 @@ from ctdrill.imaging.plan.implants import ImplantSpec, implant_placement
 from ctdrill.imaging.plan.landmark_base import Landmark
 from ctdrill.imaging.plan.revolution import Meridian, body_meridian
 from ctdrill.imaging.plan.types import Plan
+from ctdrill.warning_codes import LoadWarning
 
 
 @dataclass(frozen=True, eq=False)
@@ -164,7 +165,7 @@ def broken_margins_text(result: ImplantClearance) -> str:
     )
 
 
-def implant_margin_warnings(plan: Plan, result: ImplantClearance | None) -> list[tuple[str, str]]:
+def implant_margin_warnings(plan: Plan, result: ImplantClearance | None) -> list[LoadWarning]:
     """``implant_violates_margin`` naming every landmark whose margin the implant body breaks
     (its clearance below the margin: the computed clearance is never below the true one, so a
     break reported is a break); empty otherwise."""
@@ -174,7 +175,7 @@ def implant_margin_warnings(plan: Plan, result: ImplantClearance | None) -> list
     if not broken:
         return []
     out = [
-        (
+        LoadWarning(
             "implant_violates_margin",
             f"plan {plan.name!r}: implant {plan.implant.name!r} ({plan.implant.size_text}) at its "
             "planned place breaks the safety margin: clearance of the implant body to " + broken,
@@ -187,7 +188,7 @@ def implant_margin_warnings(plan: Plan, result: ImplantClearance | None) -> list
         if result.clearance_mm[i] < 0.0 and _is_canal(lms.get(result.names[i]), result.names[i])
     ]
     out += [
-        (
+        LoadWarning(
             CANAL_ENTRY_CODE,
             f"plan {plan.name!r}: implant {plan.implant.name!r} ({plan.implant.size_text}) enters "
             f"the canal {name!r}: its body reaches {-c:.2f} mm into it (move the apex up or "

@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING
 from ctdrill.imaging.plan.drill_spec import POINT_ANGLE_DEG as POINT_ANGLE_DEG
 from ctdrill.imaging.plan.drill_spec import DrillSpec, tip_length_rule_mm
 from ctdrill.imaging.plan.implants import ImplantSpec
+from ctdrill.warning_codes import LoadWarning
 
 if TYPE_CHECKING:
     from ctdrill.imaging.plan.types import Plan
@@ -117,7 +118,7 @@ def with_implant_protocol(plan: Plan) -> Plan:
     return plan.with_drills(protocol_drills(plan.implant)[0])
 
 
-def final_drill_warnings(plan: Plan) -> list[tuple[str, str]]:
+def final_drill_warnings(plan: Plan) -> list[LoadWarning]:
     """``final_drill_mismatch`` when ``plan``'s final drill is wider than its implant, or
     narrower than both its apex diameter and its diameter less :data:`MAX_UNDERSIZE_MM`.
 
@@ -143,4 +144,4 @@ def final_drill_warnings(plan: Plan) -> list[tuple[str, str]]:
         )
     else:
         return []
-    return [(MISMATCH_CODE, head + what)]
+    return [LoadWarning(MISMATCH_CODE, head + what)]

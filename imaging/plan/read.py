@@ -34,6 +34,7 @@ from ctdrill.imaging.plan.types import (
     is_series_hash,
 )
 from ctdrill.safeio import load_json
+from ctdrill.warning_codes import LoadWarning
 
 # --------------------------------------------------------------------------- validation
 
@@ -48,7 +49,7 @@ class PlanParts:
     trajectories : its trajectories, as plans without landmarks (possibly none).
     landmarks : its landmarks (possibly none).
     notes : defaults the reader filled in (``plan_default`` warnings).
-    warnings : ``(code, message)`` pairs for the summary (e.g. ``markups_skipped``).
+    warnings : warnings for the summary (e.g. ``markups_skipped``).
     arch : (K, 3) LPS mm dental arch of the file (``arch_mm``, an arch Curve), or None.
     """
 
@@ -56,7 +57,7 @@ class PlanParts:
     trajectories: tuple[Plan, ...] = ()
     landmarks: tuple[Landmark, ...] = ()
     notes: tuple[str, ...] = ()
-    warnings: tuple[tuple[str, str], ...] = field(default_factory=tuple)
+    warnings: tuple[LoadWarning, ...] = field(default_factory=tuple)
     arch: np.ndarray | None = None
 
 
@@ -76,7 +77,7 @@ class _Ctx:
     def __init__(self, path: Path) -> None:
         self.path = path
         self.notes: list[str] = []
-        self.warnings: list[tuple[str, str]] = []
+        self.warnings: list[LoadWarning] = []
 
     def parts(
         self,

@@ -19,6 +19,7 @@ from ctdrill.imaging.plan.clinical import CLINICAL_MARGIN_MM
 from ctdrill.imaging.plan.distance import SEGMENT_TOL_MM, DrillSolid
 from ctdrill.imaging.plan.landmarks import Landmark
 from ctdrill.imaging.plan.types import Plan
+from ctdrill.warning_codes import LoadWarning
 
 #: Tolerance of :func:`safe_depth`, mm.
 SAFE_DEPTH_TOL_MM = 1e-3
@@ -288,8 +289,8 @@ def max_safe_depth_mm(
 
 def margin_warnings(
     plan: Plan, plan_clearance_mm: np.ndarray, margins: np.ndarray
-) -> list[tuple[str, str]]:
-    """``(code, message)`` for a plan that breaks a margin or uses a sub-clinical one.
+) -> list[LoadWarning]:
+    """The warnings of a plan that breaks a margin or uses a sub-clinical one.
 
     Parameters
     ----------
@@ -304,7 +305,7 @@ def margin_warnings(
     breaks) and ``margin_below_clinical`` (every margin under :data:`CLINICAL_MARGIN_MM`,
     0 included), in that order; empty when neither applies.
     """
-    out: list[tuple[str, str]] = []
+    out: list[LoadWarning] = []
     broken = [
         f"{lm.name!r} {float(c):.3f} mm (margin {float(m):g} mm"
         + (", inside it)" if c < 0.0 else ")")
@@ -313,7 +314,7 @@ def margin_warnings(
     ]
     if broken:
         out.append(
-            (
+            LoadWarning(
                 "plan_violates_margin",
                 f"plan {plan.name!r}: the planned path breaks the safety margin: clearance at "
                 f"the planned depth {plan.planned_depth_mm:.3f} mm to " + ", ".join(broken),
@@ -323,7 +324,7 @@ def margin_warnings(
     low = [m for m in low if m < CLINICAL_MARGIN_MM]
     if low:
         out.append(
-            (
+            LoadWarning(
                 "margin_below_clinical",
                 f"plan {plan.name!r}: safety margin {', '.join(f'{m:g}' for m in low)} mm is "
                 f"below the clinical {CLINICAL_MARGIN_MM:g} mm to the nerve canal",

@@ -50,6 +50,7 @@ from ctdrill.imaging.plan.read import PlanParts
 from ctdrill.imaging.volumes.sniff import read_volume_file, volume_format
 from ctdrill.imaging.volumes.types import VolumeData
 from ctdrill.safeio import open_regular
+from ctdrill.warning_codes import LoadWarning
 
 _SEGMENT_KEY = re.compile(r"Segment\d+_ID")
 _SUFFIXES = (".seg.nrrd", ".nii.gz", ".nrrd", ".nhdr", ".nii", ".mha", ".mhd", ".npy", ".dcm")
@@ -368,8 +369,10 @@ def segmentation_parts(path: Path) -> PlanParts:
         )
     if not out:
         raise LandmarkInputError(f"{path}: the segmentation holds no labelled voxel")
-    warnings: tuple[tuple[str, str], ...] = ()
+    warnings: tuple[LoadWarning, ...] = ()
     if empty:
         names = ", ".join(repr(n) for n in empty)
-        warnings = (("segment_empty", f"{path.name}: segments with no voxel skipped: {names}"),)
+        warnings = (
+            LoadWarning("segment_empty", f"{path.name}: segments with no voxel skipped: {names}"),
+        )
     return PlanParts(path, (), tuple(out), (), warnings)

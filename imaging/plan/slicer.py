@@ -86,6 +86,7 @@ from ctdrill.imaging.plan.types import (
     PlanInputError,
 )
 from ctdrill.safeio import loads_json
+from ctdrill.warning_codes import LoadWarning
 
 #: Markup types read; every other type is skipped with a warning.
 READ_TYPES = ("Line", "Curve", "Fiducial")
@@ -171,7 +172,7 @@ def parse_slicer(ctx: _Ctx, doc: dict[str, Any]) -> PlanParts:
             landmarks.extend(_fiducials(ctx, mk, where, pts, cps, only))
     if skipped:
         ctx.warnings.append(
-            (
+            LoadWarning(
                 "markups_skipped",
                 f"{ctx.path.name}: skipped markups ctdrill does not use: {', '.join(skipped)} "
                 "(only Line, Curve and Fiducial markups are read)",
@@ -373,7 +374,9 @@ def _curve(
 ) -> CanalLandmark | None:
     if len(pts) == 0:
         ctx.warnings.append(
-            ("markups_skipped", f"{ctx.path.name}: {where} (Curve) has no placed point; skipped")
+            LoadWarning(
+                "markups_skipped", f"{ctx.path.name}: {where} (Curve) has no placed point; skipped"
+            )
         )
         return None
     if len(pts) > MAX_CURVE_POINTS:

@@ -44,6 +44,7 @@ from ctdrill.imaging.plan.landmarks import (
     Landmark,
 )
 from ctdrill.imaging.plan.site import site_error
+from ctdrill.warning_codes import LoadWarning
 
 PLAN_FORMAT = "ctdrill-plan/1"
 #: Calibration used when a plan names none (patient CT): the literature fit, with its covariance
@@ -103,7 +104,7 @@ class Plan:
     name : a short label (the file stem, or the Slicer line's name).
     source : the file it was read from ("" if built in code).
     notes : defaults the reader filled in that the user should know (e.g. a canal radius).
-    warnings : other ``(code, message)`` pairs from reading it (e.g. ``markups_skipped``);
+    warnings : other warnings from reading it (e.g. ``markups_skipped``);
         :func:`plan_warnings` gives all of them.
     series_uid_sha256 : :func:`series_uid_hash` of the series the plan was made on, or None
         (a plan written by hand or by an older ctdrill).
@@ -135,7 +136,7 @@ class Plan:
     name: str = "plan"
     source: str = ""
     notes: tuple[str, ...] = ()
-    warnings: tuple[tuple[str, str], ...] = ()
+    warnings: tuple[LoadWarning, ...] = ()
     series_uid_sha256: str | None = None
     earlier_drills: tuple[DrillSpec, ...] = ()
     implant: ImplantSpec | None = None
@@ -199,7 +200,7 @@ class Plan:
         for i, d, p in conflicts:
             seq[i] = replace(d, tip_length_mm=p.tip_length_mm, point_angle_deg=p.point_angle_deg)
             notes.append(
-                (
+                LoadWarning(
                     "drills_reconciled",
                     f"plan {self.name!r}: drills[{i}] (the {d.name}) had a "
                     f"{d.tip_length_mm:g} mm tip, but implant {implant.name!r}'s protocol "
@@ -305,8 +306,8 @@ def is_series_hash(value: object) -> bool:
     return isinstance(value, str) and _SERIES_HASH_RE.fullmatch(value) is not None
 
 
-def plan_warnings(plan: Plan) -> tuple[tuple[str, str], ...]:
-    """``(code, message)`` of everything the user must know about ``plan`` itself.
+def plan_warnings(plan: Plan) -> tuple[LoadWarning, ...]:
+    """The warnings of everything the user must know about ``plan`` itself.
 
     ``plan_default`` for each default the reader filled in, the reader's own warnings
     (``markups_skipped``, ``implant_protocol``), and ``no_landmarks`` when nothing is
@@ -314,11 +315,11 @@ def plan_warnings(plan: Plan) -> tuple[tuple[str, str], ...]:
     (Whether the final drill suits the implant is a check of the whole plan, not of one
     drill's plan: :func:`~ctdrill.imaging.plan.protocol.final_drill_warnings`.)
     """
-    out = [("plan_default", note) for note in plan.notes]
+    out = [LoadWarning("plan_default", note) for note in plan.notes]
     out += list(plan.warnings)
     if not plan.landmarks:
         out.append(
-            (
+            LoadWarning(
                 "no_landmarks",
                 f"plan {plan.name!r} has no landmark: no safety margin is enforced, the drill "
                 "stops only at the planned depth; add the canal (a Curve, a segmentation or "

@@ -64,6 +64,7 @@ from ctdrill.imaging.sampling.envelope import ENVELOPE_GAP_MM as ENVELOPE_GAP_MM
 from ctdrill.imaging.sampling.envelope import ENVELOPE_REACH_MM as ENVELOPE_REACH_MM
 from ctdrill.imaging.sampling.envelope import MAX_ENVELOPE_MM, envelope_walls, ring_walls
 from ctdrill.imaging.volume import CTVolume
+from ctdrill.warning_codes import LoadWarning
 
 #: Surface points deeper than this below the platform must lie in bone, mm (above it the
 #: platform may stand at or over a rounded crest).
@@ -322,21 +323,22 @@ def _perforation(
     )
 
 
-def bone_wall_warnings(
-    walls: BoneWalls, *, min_wall_mm: float, label: str
-) -> list[tuple[str, str]]:
+def bone_wall_warnings(walls: BoneWalls, *, min_wall_mm: float, label: str) -> list[LoadWarning]:
     """``thin_wall``, ``cortical_perforation`` and ``bone_walls_unknown`` for ``walls``
     (``label`` names the plan and implant in the messages)."""
-    out: list[tuple[str, str]] = []
+    out: list[LoadWarning] = []
     if walls.min_mm is not None and walls.min_mm < min_wall_mm:
         assert walls.direction_lps is not None and walls.below_platform_mm is not None
         sides = ", ".join(
             f"{name} {value:.1f} mm"
-            for name, value in (("buccal", walls.buccal_mm), ("lingual", walls.lingual_mm))
+            for name, value in (
+                ("buccal", walls.buccal_mm),
+                ("lingual", walls.lingual_mm),
+            )
             if value is not None
         )
         out.append(
-            (
+            LoadWarning(
                 "thin_wall",
                 f"{label}: the thinnest bone wall around the implant is {walls.min_mm:.1f} mm, "
                 f"under {min_wall_mm:g} mm, {walls.below_platform_mm:.1f} mm below the platform "
@@ -347,7 +349,7 @@ def bone_wall_warnings(
     p = walls.perforation
     if p is not None:
         out.append(
-            (
+            LoadWarning(
                 "cortical_perforation",
                 f"{label}: the implant surface lies outside the jaw's bone from "
                 f"{p.below_platform_mm[0]:.1f} to {p.below_platform_mm[1]:.1f} mm below the "
@@ -359,7 +361,7 @@ def bone_wall_warnings(
         )
     if walls.unknown_fraction > 0.0:
         out.append(
-            (
+            LoadWarning(
                 "bone_walls_unknown",
                 f"{label}: {100 * walls.unknown_fraction:.0f} % of the directions around the "
                 "implant leave the CT before bone ends; outside the CT counts as unknown, never "

@@ -40,14 +40,14 @@ def test_the_demo_breaks_its_margin_by_drill_and_by_implant(demo: tuple) -> None
     codes = [w.code for w in v.findings]
     assert {"plan_violates_margin", "implant_violates_margin"} <= set(codes)
     assert len(codes) == len({(w.code, w.message) for w in v.findings})  # each once
-    shown = [c for c, _ in v.problems()]
+    shown = [w.code for w in v.problems()]
     assert shown == sorted(shown, key=banner_codes().index)
     assert all(WARNINGS[w.code].blocks_suggest for _, w in v.blocking())
     assert not v.feasible
     # suggest's feasibility is the verdict's blocking findings, a drill's named
     f = check_candidate(volume, plan)
-    assert [c for c, _ in f.problems] == [w.code for _, w in v.blocking()]
-    assert f.problems[0][1].startswith("drill 1 (2 mm): plan 'plan': the planned path breaks")
+    assert [w.code for w in f.problems] == [w.code for _, w in v.blocking()]
+    assert f.problems[0].message.startswith("drill 1 (2 mm): plan 'plan': the planned path breaks")
 
 
 def test_with_a_path_its_warnings_join_once(demo: tuple) -> None:  # type: ignore[type-arg]

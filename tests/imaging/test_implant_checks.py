@@ -26,14 +26,16 @@ def _plan(x: float, *, depth: float = 12.0, name: str = "a", tilt: float = 0.0) 
 def test_a_stop_shallower_than_the_apex_warns_and_the_planned_depth_does_not() -> None:
     plan = _plan(0.0)
     assert implant_warnings(plan, 12.0, "planned_depth") == ()
-    ((code, msg),) = implant_warnings(plan, 10.8, "margin")
+    (warning,) = implant_warnings(plan, 10.8, "margin")
+    code, msg = warning.code, warning.message
     assert code == "implant_beyond_stop"
     assert "12.00 mm deep" in msg and "stops at 10.80 mm (margin)" in msg
     assert implant_warnings(Plan(entry_lps=[0, 0, 0], target_lps=[0, 0, 1]), 0.5, "margin") == ()
 
 
 def test_an_implant_longer_than_the_planned_depth_stands_above_the_entry() -> None:
-    ((code, msg),) = implant_warnings(_plan(0.0, depth=8.5), 8.5, "planned_depth")
+    (warning,) = implant_warnings(_plan(0.0, depth=8.5), 8.5, "planned_depth")
+    code, msg = warning.code, warning.message
     assert code == "implant_above_entry" and "1.50 mm above the entry point" in msg
     assert implant_warnings(_plan(0.0, depth=10.0), 10.0, "planned_depth") == ()
 
@@ -66,7 +68,8 @@ def test_parallel_implants_gap_is_between_their_platforms() -> None:
     assert implant_gap_mm(a, b) == pytest.approx(6.5 - 4.0, abs=1e-12)
     warned = implants_too_close((a, b, _plan(30.0, name="far")))
     assert set(warned) == {"a", "b"}
-    ((code, msg),) = warned["a"]
+    (warning,) = warned["a"]
+    code, msg = warning.code, warning.message
     assert code == "implants_too_close" and "2.50 mm apart" in msg and warned["b"] == warned["a"]
     assert implants_too_close((a, _plan(7.0, name="c"))) == {}  # exactly 3 mm is kept
 
@@ -79,5 +82,6 @@ def test_gap_without_an_implant_is_none_and_sets_without_pairs_are_quiet() -> No
 
 def test_intersecting_implants_are_said_to_intersect() -> None:
     a, b = _plan(0.0, name="a"), _plan(2.0, name="b")
-    ((_, msg),) = implants_too_close((a, b))["a"]
+    (warning,) = implants_too_close((a, b))["a"]
+    msg = warning.message
     assert "intersect" in msg and "mm of overlap" in msg and "apart" not in msg

@@ -256,7 +256,8 @@ def test_binding_landmark_and_the_margin_warning() -> None:
     doc = result.to_json()
     assert doc["implant_clearance_mm"] == pytest.approx(0.55, abs=1e-7)
     assert doc["implant_binding_landmark"] == {"name": "ian", "margin_mm": 2.0}
-    ((code, message),) = implant_margin_warnings(plan, result)
+    (warning,) = implant_margin_warnings(plan, result)
+    code, message = warning.code, warning.message
     assert code == "implant_violates_margin"
     assert "'ian' 0.55 mm (margin 2 mm)" in message and "root apex" not in message
     far = _vertical_plan(PARALLEL, landmarks=(point,))

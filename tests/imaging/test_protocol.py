@@ -91,19 +91,22 @@ def test_a_plan_without_drills_drills_its_implants_protocol_and_says_so(tmp_path
     plan = load_plan(_write(tmp_path, _doc(implant=spec.to_json())))
     assert plan.drills == spec.drills
     assert plan.notes == ()  # not the default drill
-    codes = [c for c, _ in plan_warnings(plan)]
+    codes = [w.code for w in plan_warnings(plan)]
     assert codes.count("implant_protocol") == 1 and final_drill_warnings(plan) == []
-    note = dict(plan_warnings(plan))["implant_protocol"]
+    note = {w.code: w.message for w in plan_warnings(plan)}["implant_protocol"]
     assert "plan.json" in note and "2 -> 2.8 -> 3.5 mm" in note and "its protocol" in note
     # an implant without a protocol (a plan written before protocols): the generic one
     bare = {k: v for k, v in spec.to_json().items() if k != "drills"}
     old = load_plan(_write(tmp_path, _doc(implant=bare), "old.json"))
     assert old.drills == generic_protocol(4.1)
-    assert "the generic protocol for its size" in dict(old.warnings)["implant_protocol"]
+    assert (
+        "the generic protocol for its size"
+        in {w.code: w.message for w in old.warnings}["implant_protocol"]
+    )
     # explicit drills override it, without a note
     own = load_plan(_write(tmp_path, _doc(implant=bare, drill={"diameter_mm": 3.2}), "own.json"))
     assert own.drills == (DrillSpec(diameter_mm=3.2),)
-    assert "implant_protocol" not in dict(plan_warnings(own))
+    assert "implant_protocol" not in {w.code for w in plan_warnings(own)}
 
 
 def test_each_drill_reaches_the_apex_and_its_tip_beyond() -> None:
@@ -155,12 +158,12 @@ def test_a_final_drill_that_does_not_suit_the_implant_is_reported(
 ) -> None:
     seq = tuple(DrillSpec(diameter_mm=d) for d in drills)
     plan = Plan(np.zeros(3), np.array([0.0, 0.0, -12.0]), implant=spec, name="36").with_drills(seq)
-    found = [m for c, m in final_drill_warnings(plan) if c == "final_drill_mismatch"]
+    found = [w.message for w in final_drill_warnings(plan) if w.code == "final_drill_mismatch"]
     if word is None:
         assert found == []
     else:
         assert len(found) == 1 and word in found[0] and f"({drills[-1]:g} mm)" in found[0]
-    assert [m for c, m in plan_warnings(plan) if c == "final_drill_mismatch"] == []
+    assert [w.message for w in plan_warnings(plan) if w.code == "final_drill_mismatch"] == []
     # a drilled view holds one drill of the sequence: it reports nothing of the final drill
     assert final_drill_warnings(plan.drilled(0)) == []
 

@@ -22,6 +22,7 @@ from ctdrill.imaging.plan.load import load_plan, load_plan_set
 from ctdrill.imaging.plan.segmentation import read_npy
 from ctdrill.imaging.plan.types import PlanInputError
 from ctdrill.imaging.plan.write import save_plan
+from ctdrill.warning_codes import LoadWarning
 from tests.conftest import ASSETS
 
 #: A rotated (axes permuted and flipped), anisotropic grid (LPS): columns are the i, j, k
@@ -153,8 +154,11 @@ def test_slicer_seg_nrrd_segments_by_name(tmp_path: Path, layers: bool) -> None:
     _assert_mask(by_name["IAN canal"], canal, AFFINE_LPS)
     _assert_mask(by_name["mental nerve"], nerve, AFFINE_LPS)
     assert "empty" not in by_name
-    assert ("segment_empty", "Segmentation.seg.nrrd: segments with no voxel skipped: 'empty'") in (
-        p.warnings
+    assert (
+        LoadWarning(
+            "segment_empty", "Segmentation.seg.nrrd: segments with no voxel skipped: 'empty'"
+        )
+        in p.warnings
     )
     with pytest.raises(LandmarkInputError, match=r"no segment named 'nerve' \(segments: 'IAN"):
         load_plan(

@@ -14,6 +14,7 @@ from ctdrill.imaging.plan.load import load_plan, load_plan_set
 from ctdrill.imaging.plan.slicer import MAX_CURVE_POINTS
 from ctdrill.imaging.plan.types import DrillSpec, Plan, PlanInputError, plan_warnings
 from ctdrill.imaging.plan.write import plan_to_markups, save_plan
+from ctdrill.warning_codes import LoadWarning
 from tests.imaging.slicer_files import (
     slicer_control_point,
     slicer_document,
@@ -172,13 +173,13 @@ def test_slicer5_case_in_separate_files_runs_without_edits(tmp_path: Path) -> No
     assert canal.points_lps.shape == (31, 3)
     np.testing.assert_array_equal(canal.points_lps[::10][-1], [30.0, 18.0, 12.0])
     assert isinstance(apex, PointLandmark) and apex.name == "apex 36"  # undefined point ignored
-    codes = [code for code, _ in plan_warnings(plan)]
+    codes = [w.code for w in plan_warnings(plan)]
     assert codes == ["plan_default", "markups_skipped"]  # the line names no drill: said so
-    assert plan_warnings(plan)[0][1] == (
+    assert plan_warnings(plan)[0].message == (
         "L.mrk.json: markups[0] gives no drill; using the default 2 mm drill (0.6 mm tip, "
         "2 blades, 900 rpm)"
     )
-    (message,) = [m for c, m in plan_warnings(plan) if c == "markups_skipped"]
+    (message,) = [w.message for w in plan_warnings(plan) if w.code == "markups_skipped"]
     assert message.startswith("R.mrk.json: skipped markups ctdrill does not use: markups[0] (ROI)")
 
 
@@ -193,7 +194,7 @@ def test_other_markup_types_are_skipped_with_a_warning(tmp_path: Path, mtype: st
     plan = load_plan(path)
     assert len(plan.landmarks) == 2
     assert plan.warnings == (
-        (
+        LoadWarning(
             "markups_skipped",
             f"p.mrk.json: skipped markups ctdrill does not use: markups[3] ({mtype}) (only "
             "Line, Curve and Fiducial markups are read)",
@@ -317,12 +318,12 @@ def test_curve_only_file_is_landmarks_and_line_only_file_warns(tmp_path: Path) -
         load_plan(curve)
     alone = load_plan(line)
     assert alone.landmarks == ()
-    (code, message) = plan_warnings(alone)[-1]
-    assert code == "no_landmarks"
-    assert message.startswith("plan 'implant 36' has no landmark")
+    last = plan_warnings(alone)[-1]
+    assert last.code == "no_landmarks"
+    assert last.message.startswith("plan 'implant 36' has no landmark")
     (both,) = load_plan_set([line, curve])
     assert [lm.name for lm in both.landmarks] == ["left IAN canal"]
-    assert [c for c, _ in plan_warnings(both)] == []
+    assert [w.code for w in plan_warnings(both)] == []
 
 
 def _saved(plan: Plan, folder: Path) -> Path:

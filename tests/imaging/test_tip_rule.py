@@ -55,7 +55,7 @@ def test_a_given_tip_that_differs_is_a_named_override() -> None:
     plan = Plan([0, 0, 0], [0, 0, -12]).with_drills([DrillSpec(2.0), DrillSpec(3.5, 1.4)])
     assert [d.tip_override for d in plan.drills] == [False, True]
     (marked,) = with_set_warnings([plan])
-    found = [m for c, m in plan_warnings(marked) if c == "drill_tip_override"]
+    found = [w.message for w in plan_warnings(marked) if w.code == "drill_tip_override"]
     assert len(found) == 1 and "3.5 mm drill" in found[0] and "1 mm" in found[0]
 
 
@@ -110,7 +110,7 @@ def test_a_plan_contradicting_its_implant_is_reconciled_and_saved_whole(tmp_path
     path.write_text(json.dumps(doc))
     plan = load_plan(path)
     assert [d.tip_length_mm for d in plan.drills] == [0.6, 0.8, 1.0]
-    codes = [c for c, _ in plan_warnings(plan)]
+    codes = [w.code for w in plan_warnings(plan)]
     assert codes.count("drills_reconciled") == 2
     # built in code: reconciled the same way, never held contradicting
     built = Plan([0, 0, 0], [0, 0, -12], implant=spec).with_drills(

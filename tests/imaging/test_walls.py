@@ -74,7 +74,7 @@ def test_implant_in_a_slab_walls_are_the_half_width_less_the_radius() -> None:
         assert walls.perforation is None and walls.unknown_fraction == 0.0
         assert not walls.capped
         np.testing.assert_allclose(walls.buccal_lps, [1.0, 0.0, 0.0], atol=1e-12)
-        codes = [c for c, _ in bone_wall_warnings(walls, min_wall_mm=1.5, label="p")]
+        codes = [w.code for w in bone_wall_warnings(walls, min_wall_mm=1.5, label="p")]
         assert codes == ([] if min(buccal, lingual) >= 1.5 else ["thin_wall"])
     # a tapered body: the wall grows as the body narrows; the thinnest at the platform
     walls = bone_walls(vol, implant_placement(_plan(TAPERED)), max_wall_mm=5.0)  # type: ignore[arg-type]
@@ -90,7 +90,8 @@ def test_thin_wall_names_the_thinnest_wall_and_where() -> None:
     plan = _plan(PARALLEL, 0.95, arch_lps=ARCH, name="36")
     walls = plan_bone_walls(_slab(3.5), plan, max_wall_mm=5.0)
     assert walls is not None and walls.min_mm == pytest.approx(0.5, abs=BISECT_TOL_MM)
-    ((code, msg),) = bone_wall_warnings(walls, min_wall_mm=1.5, label="plan '36'")
+    (warning,) = bone_wall_warnings(walls, min_wall_mm=1.5, label="plan '36'")
+    code, msg = warning.code, warning.message
     assert code == "thin_wall"
     assert msg.startswith("plan '36': the thinnest bone wall around the implant is 0.5 mm")
     assert "towards buccal (" in msg and "buccal 0.5 mm, lingual 2.4 mm" in msg
@@ -118,7 +119,7 @@ def test_a_tilted_implant_leaving_the_slab_perforates_where_the_closed_form_says
     # lingually the thinnest wall is at the platform, along the ray tilted with the axis
     lingual = (4.0 + place.platform_lps[0]) / math.cos(a) - 2.05
     assert walls.lingual_mm == pytest.approx(lingual, abs=BISECT_TOL_MM)
-    codes = [c for c, _ in bone_wall_warnings(walls, min_wall_mm=1.5, label="p")]
+    codes = [w.code for w in bone_wall_warnings(walls, min_wall_mm=1.5, label="p")]
     assert codes == ["thin_wall", "cortical_perforation"]
     # the same tilt the other way stays in bone longer (the slab is centred on the entry)
     assert plan_bone_walls(_slab(8.0), plan, max_wall_mm=5.0).perforation is None  # type: ignore[union-attr]
@@ -147,7 +148,7 @@ def test_outside_the_ct_is_unknown_never_bone() -> None:
     assert walls.min_mm == pytest.approx(8.0) and walls.capped
     assert walls.buccal_mm == pytest.approx(8.0)
     assert np.isnan(walls.wall_mm).any()
-    codes = [c for c, _ in bone_wall_warnings(walls, min_wall_mm=1.5, label="p")]
+    codes = [w.code for w in bone_wall_warnings(walls, min_wall_mm=1.5, label="p")]
     assert codes == ["bone_walls_unknown"]
     # the implant partly above the CT: its surface there is neither bone nor a perforation
     high = _slab(5.0, z_range=(-22.0, -6.0))
@@ -171,5 +172,6 @@ def test_the_buccal_normal_points_out_of_the_arch() -> None:
 def test_without_an_arch_the_direction_is_in_patient_axes() -> None:
     walls = plan_bone_walls(_slab(3.5), _plan(PARALLEL, 0.95), max_wall_mm=5.0)
     assert walls is not None
-    ((_, msg),) = bone_wall_warnings(walls, min_wall_mm=1.5, label="p")
+    (warning,) = bone_wall_warnings(walls, min_wall_mm=1.5, label="p")
+    msg = warning.message
     assert "towards L 1.00" in msg

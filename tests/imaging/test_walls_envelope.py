@@ -63,7 +63,7 @@ def test_intact_cortices_give_the_true_walls_at_any_cancellous_density(
     assert walls.buccal_mm == pytest.approx(true, abs=0.3)
     assert walls.lingual_mm == pytest.approx(true, abs=0.3)
     assert walls.perforation is None
-    codes = [c for c, _ in bone_wall_warnings(walls, min_wall_mm=1.5, label="p")]
+    codes = [w.code for w in bone_wall_warnings(walls, min_wall_mm=1.5, label="p")]
     assert codes == []
 
 
@@ -74,7 +74,7 @@ def test_leaving_the_envelope_is_the_perforation(cancellous_hu: float) -> None:
     assert walls is not None and walls.perforation is not None
     assert walls.perforation.direction_lps[0] > 0.9
     assert walls.min_mm == 0.0
-    codes = [c for c, _ in bone_wall_warnings(walls, min_wall_mm=1.5, label="p")]
+    codes = [w.code for w in bone_wall_warnings(walls, min_wall_mm=1.5, label="p")]
     assert codes == ["thin_wall", "cortical_perforation"]
 
 
@@ -114,9 +114,13 @@ def test_an_apex_in_the_canal_is_named_as_the_canal_not_a_perforation() -> None:
     plan = replace(_plan(), landmarks=(canal,))
     walls = plan_bone_walls(vol, plan, n_angles=24)
     assert walls is not None and walls.perforation is None
-    codes = [c for c, _ in implant_margin_warnings(plan, implant_clearance(plan))]
+    codes = [w.code for w in implant_margin_warnings(plan, implant_clearance(plan))]
     assert codes == ["implant_violates_margin", "canal_entry"]
     ((msg,),) = [
-        [m for c, m in implant_margin_warnings(plan, implant_clearance(plan)) if c == "canal_entry"]
+        [
+            w.message
+            for w in implant_margin_warnings(plan, implant_clearance(plan))
+            if w.code == "canal_entry"
+        ]
     ]
     assert "'IAN canal'" in msg and "0.70 mm into it" in msg

@@ -25,7 +25,7 @@ from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.types import DrillSpec, Plan
 from ctdrill.imaging.provenance import SeriesInfo
 from ctdrill.imaging.sampling.walls import bone_wall_warnings, plan_bone_walls
-from ctdrill.warning_codes import REGISTRY
+from ctdrill.warning_codes import REGISTRY, LoadWarning
 
 IMPLANT = ImplantSpec(name="p 4 x 10", diameter_mm=4.0, length_mm=10.0, apex_diameter_mm=4.0)
 CANAL_R = 1.2
@@ -79,11 +79,11 @@ def test_an_implant_beside_a_canal_breaks_the_margin_the_drills_keep(slab: CTVol
     assert planned.osteotomy_mm[0] == pytest.approx(d - CANAL_R - 1.6, abs=1e-6)
     assert planned.osteotomy_drill[0] == 1  # the wider drill is nearer
     assert planned.broken().tolist() == [True]
-    codes = [code for code, _ in view.problems]
+    codes = [w.code for w in view.problems]
     # the drills keep their margin; the plan's margin covers the implant body too (the engine
     # says so with plan_violates_margin of the body)
     assert codes == ["plan_violates_margin", "implant_violates_margin", "thin_wall"]
-    assert "implant body" in view.problems[0][1]
+    assert "implant body" in view.problems[0].message
     # the messages the outputs write (the imaging functions the engine calls)
     body = implant_margin_warnings(plan, implant_clearance(plan))
     walls = plan_bone_walls(slab, plan)
@@ -107,9 +107,9 @@ def test_each_drill_is_checked_at_the_apex_plus_its_tip(slab: CTVolume) -> None:
     assert view.planned is not None and view.planned.implant_mm is not None
     assert view.planned.implant_mm[0] == pytest.approx(2.5, abs=1e-6)
     assert view.planned.osteotomy_mm[0] == pytest.approx(1.9, abs=1e-6)
-    drill = [m for c, m in view.problems if c == "plan_violates_margin"]
+    drill = [w.message for w in view.problems if w.code == "plan_violates_margin"]
     assert len(drill) == 1 and "planned depth 18.600 mm" in drill[0] and "1.900 mm" in drill[0]
-    assert "implant_violates_margin" not in dict(view.problems)
+    assert "implant_violates_margin" not in {w.code for w in view.problems}
 
 
 def test_implants_too_close_and_above_the_entry_offend_without_a_ct() -> None:
@@ -128,9 +128,12 @@ def test_implants_too_close_and_above_the_entry_offend_without_a_ct() -> None:
 def test_the_banner_lists_every_problem_once_in_order(slab: CTVolume) -> None:
     plan = vertical(landmarks=(canal(5.0, -4.0),))
     view = compute_path_view(slab, plan)
-    warnings = [("implants_too_close", "two implants 2 mm apart"), ("plan_default", "x")]
+    warnings = [
+        LoadWarning("implants_too_close", "two implants 2 mm apart"),
+        LoadWarning("plan_default", "x"),
+    ]
     extra = plan_problems(warnings, view.problems, view.problems)
-    codes = [c for c, _ in extra]
+    codes = [w.code for w in extra]
     assert codes == [*PROBLEM_CODES[:3], "implants_too_close"]
     shown = replace(view, problems=extra)
     content = banner_text(shown, "", "Coarse data (coarse_voxels): slice step 5 mm")
@@ -138,8 +141,8 @@ def test_the_banner_lists_every_problem_once_in_order(slab: CTVolume) -> None:
     text, kind = content
     assert kind == "violation" and "4 problems" in text
     assert "the implant and 'canal' are marked red" in text
-    for code, message in extra:
-        assert f"({code}): {message}" in text
+    for w in extra:
+        assert f"({w.code}): {w.message}" in text
     assert text.endswith("Coarse data (coarse_voxels): slice step 5 mm")
     assert banner_text(None, "", "coarse") == ("coarse", "coarse")
     assert banner_text(None, "", "") is None
@@ -189,7 +192,7 @@ def test_a_drag_reads_the_walls_on_the_coarser_grid_and_the_path_takes_them(
     assert live.result.implant is not None
     assert live.result.implant.walls.directions_lps.shape[0] == 24  # LIVE_WALLS' n_angles
     assert full.implant.walls.directions_lps.shape[0] > 24
-    assert [c for c, _ in live.problems] == [c for c, _ in full.problems]
+    assert [w.code for w in live.problems] == [w.code for w in full.problems]
     assert live.implant.clearance is not None and full.implant.clearance is not None
     # the walls only are coarser
     assert (
@@ -201,5 +204,5 @@ def test_a_drag_reads_the_walls_on_the_coarser_grid_and_the_path_takes_them(
 def test_a_final_drill_that_does_not_suit_the_implant_is_a_banner_problem(slab: CTVolume) -> None:
     plan = vertical().with_drills([DrillSpec(2.0), DrillSpec(2.5)])  # 2.5 < 4.0 - 0.8 mm
     view = compute_path_view(slab, plan, plan_set=(plan,))
-    found = [m for c, m in view.problems if c == "final_drill_mismatch"]
+    found = [w.message for w in view.problems if w.code == "final_drill_mismatch"]
     assert len(found) == 1 and "2.5 mm" in found[0]

@@ -74,7 +74,7 @@ def test_two_implants_typed_too_close_are_listed_and_drawn_red(
     assert banner.kind == "violation"  # type: ignore[attr-defined]
     assert "• implants too close (implants_too_close): implants of " in text
     assert window.view is not None
-    close = [m for c, m in window.view.problems if c == "implants_too_close"]
+    close = [w.message for w in window.view.problems if w.code == "implants_too_close"]
     assert len(close) == 1 and close[0] in text  # the outputs' message, whole
     listed = window.views["series"].path_warnings_list  # type: ignore[attr-defined]
     rows = [listed.item(i).text() for i in range(listed.count())]
