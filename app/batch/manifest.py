@@ -155,6 +155,13 @@ def read_manifest(path: Path) -> list[ManifestRow]:
 HASHED_PATH_PREFIX = "sha256:"
 
 
+def hashed_path(path: Path) -> str:
+    """``path`` as records name it without any folder name: :data:`HASHED_PATH_PREFIX` and
+    16 hex digits of the SHA-256 of its absolute path (the same path, the same name)."""
+    digest = hashlib.sha256(os.fsencode(os.path.abspath(path))).hexdigest()[:16]
+    return f"{HASHED_PATH_PREFIX}{digest}"
+
+
 def display_path(path: Path, base: Path) -> str:
     """``path`` as outputs show it: relative to ``base`` (the manifest's folder, POSIX
     separators) when inside it, else :data:`HASHED_PATH_PREFIX` and a hash."""
@@ -162,8 +169,7 @@ def display_path(path: Path, base: Path) -> str:
     rel = os.path.relpath(absolute, os.path.abspath(base))
     if rel != os.pardir and not rel.startswith(os.pardir + os.sep) and not os.path.isabs(rel):
         return Path(rel).as_posix()
-    digest = hashlib.sha256(os.fsencode(absolute)).hexdigest()[:16]
-    return f"{HASHED_PATH_PREFIX}{digest}"
+    return hashed_path(Path(absolute))
 
 
 def redact_paths(text: str, rows: list[tuple[Path, str]], base: Path) -> str:

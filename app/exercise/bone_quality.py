@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from ctdrill.app.batch.manifest import hashed_path
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.exercise.seal import seal, trial_binding
 from ctdrill.app.exercise.trials import (
@@ -201,7 +202,8 @@ def _real_site(site: RealSite) -> _Site:
     pts = [plan.entry_lps, far] + [np.asarray(p) for p in _landmark_points(doc)]
     hu, affine = _crop(volume.hu, volume.affine_lps, np.asarray(pts, dtype=float))
     doc.pop("name", None)
-    return _Site(hu, affine, doc, misch, f"real CT {site.ct.name}")
+    # the CT's folder is often named after the patient: the key names it by a hash
+    return _Site(hu, affine, doc, misch, f"real CT {hashed_path(site.ct)}")
 
 
 def _landmark_points(doc: dict[str, Any]) -> list[list[float]]:
