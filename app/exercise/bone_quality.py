@@ -326,7 +326,9 @@ def write_bone_quality(
             f"--key {key_path}: inside the trials' folder {out}, where a trainee would read it; "
             "keep the key elsewhere"
         )
-    params = [BONE_QUALITY, trials, seed, calibration, spacing_mm, [str(s.plan) for s in sites]]
+    # the sites' plans by the hash of their paths: the key names no folder (a patient's)
+    sites_shown = [hashed_path(s.plan) for s in sites]
+    params = [BONE_QUALITY, trials, seed, calibration, spacing_mm, sites_shown]
     exercise_id, digest = exercise_digest(params)
     rng = np.random.default_rng([seed, trials])
     real = [_real_site(s) for s in sites]
