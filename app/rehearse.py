@@ -255,7 +255,12 @@ def rehearse(
         write_file(stage / "summary.json", summary_json(summary))
         write_file(
             stage / TABLE_FILE,
-            table_text(loaded.table, loaded.context, str(summary["plan_sha256"])),
+            table_text(
+                loaded.table,
+                loaded.context,
+                str(summary["plan_sha256"]),
+                trial=None if card is None else (card.exercise_id, card.trial),
+            ),
         )
     return summary
 

@@ -102,3 +102,63 @@ def unseal(token: str, *, binding: str) -> str:
 def trial_binding(exercise_id: str, trial: str, plan_sha256: str) -> str:
     """What a trial's key is bound to: its exercise, its name and its plan's hash."""
     return f"{exercise_id}\0{trial}\0{plan_sha256}"
+
+
+_BLOB_CONTEXT = b"ctdrill-trial-blob/1"
+
+
+def _blob_keys(nonce: bytes, binding: str, n: int) -> tuple[bytes, bytes]:
+    base = hashlib.sha256(_BLOB_CONTEXT + b"\0" + nonce + b"\0" + binding.encode("utf-8")).digest()
+    stream = hashlib.shake_256(b"stream\0" + base).digest(n)
+    return stream, hashlib.sha256(b"mac\0" + base).digest()
+
+
+def seal_bytes(data: bytes, *, binding: str, nonce: bytes) -> str:
+    """``data`` (any length) sealed to ``binding`` as :func:`seal` seals a class: encrypted
+    with a keystream of the nonce and the binding, authenticated by a tag, written in
+    :data:`TOKEN_ALPHABET` (no ``d``: no ``D1``..``D4`` by chance). A blind trial's session
+    table (``table.json``) keeps its force table so: its values would give the bone away."""
+    if len(nonce) != _NONCE_BYTES:
+        raise ValueError("seal_bytes: a 15-byte nonce")
+    stream, mac_key = _blob_keys(nonce, binding, len(data))
+    cipher = bytes(a ^ b for a, b in zip(data, stream, strict=True))
+    tag = hmac.new(mac_key, nonce + cipher, hashlib.sha256).digest()[:_TAG_BYTES]
+    raw = nonce + tag + cipher
+    raw += b"\0" * (-len(raw) % 5)  # whole 40-bit groups: 8 symbols each
+    return f"{len(data)}:" + "".join(_encode(raw[i : i + 5]) for i in range(0, len(raw), 5))
+
+
+def unseal_bytes(token: str, *, binding: str) -> bytes:
+    """The bytes :func:`seal_bytes` sealed in ``token`` for ``binding``.
+
+    Raises
+    ------
+    SealError
+        Not such a token, edited, or sealed for another binding (another trial).
+    """
+    size_text, _, body = token.partition(":") if isinstance(token, str) else ("", "", "")
+    if not size_text.isdigit() or len(body) % 8 or not body:
+        raise SealError("sealed data: not data sealed by ctdrill")
+    size = int(size_text)
+    groups = bytearray()
+    for i in range(0, len(body), 8):  # 8 symbols, 5 bytes
+        bits = 0
+        for ch in body[i : i + 8]:
+            k = TOKEN_ALPHABET.find(ch)
+            if k < 0:
+                raise SealError(f"sealed data: {ch!r} is not a symbol of sealed data")
+            bits = (bits << 5) | k
+        groups += bits.to_bytes(5, "big")
+    raw = bytes(groups)
+    head = _NONCE_BYTES + _TAG_BYTES
+    if len(raw) < head + size or any(raw[head + size :]):
+        raise SealError("sealed data: its length does not match its contents")
+    nonce, tag, cipher = raw[:_NONCE_BYTES], raw[_NONCE_BYTES:head], raw[head : head + size]
+    stream, mac_key = _blob_keys(nonce, binding, size)
+    want = hmac.new(mac_key, nonce + cipher, hashlib.sha256).digest()[:_TAG_BYTES]
+    if not hmac.compare_digest(want, tag):
+        raise SealError(
+            "sealed data: it does not belong to this trial (edited, or copied from another "
+            "trial); use the session's files as ctdrill rehearse wrote them"
+        )
+    return bytes(a ^ b for a, b in zip(cipher, stream, strict=True))

@@ -388,7 +388,9 @@ class RehearsalRun:
 
     def table_text(self) -> str:
         """``table.json``: what the session is assessed against (``ctdrill assess``)."""
-        return table_text(self.table, self.context, plan_hash(self.result.plan))
+        blind = self.blind  # a blind trial's force table is sealed to it
+        trial = None if blind is None else (blind.exercise_id, blind.trial)
+        return table_text(self.table, self.context, plan_hash(self.result.plan), trial=trial)
 
     def export(self, out_dir: Path) -> list[Path]:
         """Write the path export (``force.csv``, ``profile.csv``, ``summary.json``,

@@ -4,14 +4,22 @@ A rehearsal's folder holds the force table the device ran (its rows, step, stop 
 and what the plan measures the session against (planned depth, max safe depth, goal, the
 clearance along the path) with the plan's hash. ``ctdrill assess`` recomputes the assessment
 from ``session.csv`` and this file alone (:func:`recompute`), never from ``summary.json``.
+
+A blind trial's session keeps its force table **sealed** (``table_sealed``, with the trial it
+is bound to as ``trial``: the exercise's id and the trial's name; no ``table``): its cutting
+forces would give the bone's class away to anyone opening the file. It is sealed as the
+trial's key is (:func:`ctdrill.app.exercise.seal.seal_bytes`, bound to the exercise, the trial
+and the plan's hash), so an edited table, or one copied from another trial, does not open.
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
 import math
+import zlib
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -19,6 +27,7 @@ import numpy as np
 
 from ctdrill.app.csv_cells import csv_text
 from ctdrill.app.errors import AppInputError
+from ctdrill.app.exercise.seal import SealError, seal_bytes, trial_binding, unseal_bytes
 from ctdrill.haptics.assessment import ASSESSMENT_FIELDS, Assessment, AssessmentContext, Assessor
 from ctdrill.haptics.profile_table import ProfileTable, ProfileTableError
 from ctdrill.haptics.session import SESSION_COLUMNS
@@ -33,6 +42,8 @@ DISPLAY_COLUMNS = ("time_s", "shown_s")
 #: Two values of a field agree within these (the summary's rounding of the same computation).
 _TOLERANCE = {"score": 0.051, "reaction_ms": 0.051, "display_lag_ms": 0.051}
 _DEFAULT_TOLERANCE = 1.5e-3
+#: A sealed table larger than this once opened is refused, bytes (a real one is well under 1 MB).
+_SEALED_MAX_BYTES = 64 << 20
 
 
 class SessionTraceError(AppInputError):
@@ -43,10 +54,17 @@ def _floats(values: np.ndarray) -> list[float]:
     return [float(v) for v in np.asarray(values, dtype=np.float64)]
 
 
-def table_doc(table: ProfileTable, context: AssessmentContext, plan_sha256: str) -> dict[str, Any]:
-    """``table.json``'s document (float32 table values written exactly)."""
+def table_doc(
+    table: ProfileTable,
+    context: AssessmentContext,
+    plan_sha256: str,
+    *,
+    trial: tuple[str, str] | None = None,
+) -> dict[str, Any]:
+    """``table.json``'s document (float32 table values written exactly); ``trial`` (a blind
+    trial's exercise id and name): the force table sealed to it (module docstring)."""
     safe = context.max_safe_depth_mm
-    return {
+    doc = {
         "format": TABLE_FORMAT,
         "plan_sha256": plan_sha256,
         "planned_depth_mm": context.planned_depth_mm,
@@ -65,11 +83,47 @@ def table_doc(table: ProfileTable, context: AssessmentContext, plan_sha256: str)
             "s2_n": _floats(table.s2_n),
         },
     }
+    if trial is not None:
+        binding = trial_binding(trial[0], trial[1], plan_sha256)
+        data = zlib.compress(json.dumps(doc.pop("table"), allow_nan=False).encode("utf-8"), 9)
+        nonce = hashlib.sha256(binding.encode("utf-8") + b"\0" + data).digest()[:15]
+        doc["trial"] = {"exercise_id": trial[0], "trial": trial[1]}
+        doc["table_sealed"] = seal_bytes(data, binding=binding, nonce=nonce)
+    return doc
 
 
-def table_text(table: ProfileTable, context: AssessmentContext, plan_sha256: str) -> str:
-    """``table.json``'s text."""
-    return json.dumps(table_doc(table, context, plan_sha256), allow_nan=False) + "\n"
+def table_text(
+    table: ProfileTable,
+    context: AssessmentContext,
+    plan_sha256: str,
+    *,
+    trial: tuple[str, str] | None = None,
+) -> str:
+    """``table.json``'s text (``trial``: :func:`table_doc`)."""
+    return json.dumps(table_doc(table, context, plan_sha256, trial=trial), allow_nan=False) + "\n"
+
+
+def _unsealed_table(where: str, doc: Mapping[str, Any]) -> object:
+    """The force table a blind trial's ``table.json`` holds sealed."""
+    trial, plan = doc.get("trial"), doc.get("plan_sha256")
+    if not isinstance(trial, dict) or not all(
+        isinstance(trial.get(k), str) for k in ("exercise_id", "trial")
+    ):
+        raise SessionTraceError(f"{where}: trial (the exercise_id and trial sealed to) is missing")
+    if not isinstance(plan, str):
+        raise SessionTraceError(f"{where}: plan_sha256 is missing")
+    binding = trial_binding(trial["exercise_id"], trial["trial"], plan)
+    try:
+        data = unseal_bytes(doc.get("table_sealed"), binding=binding)  # type: ignore[arg-type]
+        inflate = zlib.decompressobj()
+        text = inflate.decompress(data, _SEALED_MAX_BYTES)
+        if inflate.unconsumed_tail or not inflate.eof:
+            raise SealError("sealed data: not a whole table, or too large")
+    except (SealError, zlib.error) as exc:
+        raise SessionTraceError(f"{where}: table_sealed: {exc}") from exc
+    return loads_json(
+        text.decode("utf-8", "replace"), where=where, what="sealed table", error=SessionTraceError
+    )
 
 
 def _number(where: str, doc: Mapping[str, Any], key: str, *, nullable: bool = False) -> float:
@@ -110,7 +164,7 @@ def read_table(where: str, data: bytes) -> tuple[ProfileTable, AssessmentContext
         raise SessionTraceError(
             f"{where}: not a session table ({TABLE_FORMAT}); rehearse the session again"
         )
-    t = doc.get("table")
+    t = _unsealed_table(where, doc) if "table_sealed" in doc else doc.get("table")
     if not isinstance(t, dict):
         raise SessionTraceError(f"{where}: table is missing")
     depth, clearance = (_array(where, doc, k) for k in ("clearance_depth_mm", "clearance_mm"))

@@ -114,6 +114,9 @@ def test_a_trainee_drills_a_blind_trial_with_the_mouse(
     assert summary["exercise"]["trial"] == "trial-01"
     assert not re.search(r"\bD[1-5]\b|misch", json.dumps(summary), re.IGNORECASE)
     assert not set(summary) & BLIND_HIDDEN_KEYS
+    table = (tmp_path / "export" / "session" / "table.json").read_text()
+    assert "table_sealed" in json.loads(table) and "s0_n" not in table  # forces sealed
+    assert not re.search(r"\bD[1-5]\b|misch", table, re.IGNORECASE)
     db = tmp_path / "record.db"
     named = next(c for c in TRIAL_CLASSES if c != trials[0].misch)
     assert (
