@@ -156,7 +156,7 @@ def write_exports(
         for n, job in enumerate(jobs):
             if progress is not None:
                 progress(n, len(jobs), job.result.plan.name)
-            one = job_summary(job.result, context) if done is None else done[n]
+            one = job_summary(job.result, context, job.verdict) if done is None else done[n]
             if table:
                 rows.append(table_row(one.summary, job.subdir if files else ""))
             if not files:

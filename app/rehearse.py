@@ -48,6 +48,7 @@ from ctdrill.engine.path import PathResult, plan_path
 from ctdrill.engine.plans import one_trajectory, plan_calibration
 from ctdrill.engine.settings import DEFAULTS, GreyMapSpec
 from ctdrill.engine.summarize import CaseContext
+from ctdrill.engine.verdict import PlanVerdict, plan_verdict
 from ctdrill.haptics.assessment import AssessmentContext, Assessor
 from ctdrill.haptics.device import Device
 from ctdrill.haptics.profile_table import ProfileTable
@@ -67,13 +68,15 @@ EXIT_INTERRUPTED = 130
 @dataclass(frozen=True, eq=False)
 class RehearsalTable:
     """The uploaded table and where it came from: ``path`` is the plan's own (guarded) path;
-    in exam mode ``exam`` holds the table without the margin's wall (then ``table`` is its)."""
+    in exam mode ``exam`` holds the table without the margin's wall (then ``table`` is its);
+    ``verdict`` is the trajectory's (the warnings its summary lists, as the export's)."""
 
     table: ProfileTable
     path: PathResult
     case: CaseContext
     grey_map: GreyToHu | None = None
     exam: ExamSetup | None = None
+    verdict: PlanVerdict | None = None
 
     @property
     def context(self) -> AssessmentContext:
@@ -107,17 +110,18 @@ def load_table(
     plan = one_trajectory(
         [plan_file] if isinstance(plan_file, Path) else plan_file, trajectory=trajectory
     )
+    whole = plan
     if not plan.earlier_drills:  # with an implant: to its apex plus the drill's tip
         plan = plan.drilled(0)
     path = plan_path(volume, plan, plan_calibration(plan), interpolate_gaps=interpolate_gaps)
+    verdict = None if plan.earlier_drills else plan_verdict(volume, whole, path=path)
     if exam:
         setup = exam_setup(
             volume, plan, path, interpolate_gaps=interpolate_gaps, at_surface=exam_surface
         )
-        return RehearsalTable(setup.table, path, case, grey_map, setup)
-    return RehearsalTable(
-        ProfileTable.from_profile(path.profile, path.stop_depth_mm), path, case, grey_map
-    )
+        return RehearsalTable(setup.table, path, case, grey_map, setup, verdict)
+    table = ProfileTable.from_profile(path.profile, path.stop_depth_mm)
+    return RehearsalTable(table, path, case, grey_map, verdict=verdict)
 
 
 def open_device(spec: DeviceSpec, *, seed: int = 0) -> Device:
@@ -245,6 +249,7 @@ def rehearse(
             context=loaded.case,
             assessment=records["assessment"],
             exam=loaded.exam,
+            verdict=loaded.verdict,
         )
         if "igtl" in records:
             summary["igtl"] = records["igtl"]

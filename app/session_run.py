@@ -29,6 +29,7 @@ from ctdrill.app.trainee.kinds import mode_of, operator_kind_of
 from ctdrill.engine.path import PathResult
 from ctdrill.engine.rehearsal_summary import RehearsalSummary, rehearsal_plan_summary
 from ctdrill.engine.summarize import CaseContext
+from ctdrill.engine.verdict import PlanVerdict
 from ctdrill.haptics.assessment import Assessor
 from ctdrill.haptics.device import Device, TelemetrySample
 from ctdrill.haptics.hands import Hand
@@ -189,6 +190,7 @@ def rehearsal_summary(
     seed: int,
     assessment: dict[str, Any] | None = None,
     exam: ExamSetup | None = None,
+    verdict: PlanVerdict | None = None,
 ) -> dict[str, Any]:
     """The one ``summary.json`` of a rehearsal (CLI, drill sequence and window): a
     :class:`~ctdrill.engine.rehearsal_summary.RehearsalSummary` of the session's fields, the
@@ -200,7 +202,8 @@ def rehearsal_summary(
     (:func:`ctdrill.app.readout.wall_summary`); ``exam`` (exam mode: the device's stop and why
     there, or ``{"enabled": false}``), ``operator_kind`` and ``mode``
     (:mod:`ctdrill.app.trainee.kinds`), ``plan_sha256``, ``recorded_at`` (UTC) and the session's
-    ``assessment`` (:meth:`ctdrill.haptics.assessment.Assessment.to_json`), when given."""
+    ``assessment`` (:meth:`ctdrill.haptics.assessment.Assessment.to_json`), when given. The
+    warnings are ``verdict``'s (the trajectory's, as the export lists them), when given."""
     fields = dict(session.to_json() if isinstance(session, SessionResult) else session)
     run: dict[str, Any] = {
         "operator": operator,
@@ -218,7 +221,8 @@ def rehearsal_summary(
     run["recorded_at"] = datetime.now(UTC).isoformat(timespec="seconds")
     if assessment is not None:
         run["assessment"] = assessment
-    return RehearsalSummary(fields, rehearsal_plan_summary(path, context), run).to_json()
+    plan_summary = rehearsal_plan_summary(path, context, verdict)
+    return RehearsalSummary(fields, plan_summary, run).to_json()
 
 
 def summary_json(summary: dict[str, Any]) -> str:

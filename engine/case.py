@@ -24,6 +24,7 @@ from ctdrill.engine.sequence import SequenceResult, drill_folder, plan_sequence
 from ctdrill.engine.settings import DEFAULTS, ExportSettings
 from ctdrill.engine.summarize import CaseContext
 from ctdrill.engine.summary import GreyMapInfo
+from ctdrill.engine.verdict import PlanVerdict, plan_verdict
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.dicom.grey import GreyToHu
 from ctdrill.imaging.plan.load import load_plan_set
@@ -52,10 +53,13 @@ class DuplicateTrajectoryError(ExportInputError):
 
 @dataclass(frozen=True)
 class ExportJob:
-    """One trajectory's (or one drill's) path, and the subfolder its files go into."""
+    """One trajectory's (or one drill's) path, the subfolder its files go into, and the
+    trajectory's verdict (:class:`~ctdrill.engine.verdict.PlanVerdict`: the warnings every
+    output lists), or None for one drill of a sequence (its own path's warnings)."""
 
     result: PathResult
     subdir: str
+    verdict: PlanVerdict | None = None
 
 
 def _subdir(name: str) -> str:
@@ -209,7 +213,8 @@ def prepare_case(
             jobs.extend(sequence_jobs(seq, sub))
             continue
         # with an implant the drill reaches the apex plus its tip (Plan.drilled)
-        jobs.append(ExportJob(plan_path(volume, plan.drilled(0), cal, interpolate_gaps=gaps), sub))
+        result = plan_path(volume, plan.drilled(0), cal, interpolate_gaps=gaps)
+        jobs.append(ExportJob(result, sub, plan_verdict(volume, plan, path=result)))
     patient = None
     if settings.include_phi:
         patient = (

@@ -25,6 +25,7 @@ from typing import Any
 from ctdrill.engine.path import PathResult
 from ctdrill.engine.summarize import CaseContext, job_summary
 from ctdrill.engine.summary import REHEARSAL_FORMAT, PlanOutcome, TrajectorySummary
+from ctdrill.engine.verdict import PlanVerdict
 
 #: Session keys the plan's summary also has, written under another name: the stop the device
 #: was given (the plan's to float32; in exam mode past it) beside the plan's ``stop_depth_mm``.
@@ -63,7 +64,9 @@ class RehearsalSummary:
         return doc
 
 
-def rehearsal_plan_summary(path: PathResult, context: CaseContext) -> TrajectorySummary:
+def rehearsal_plan_summary(
+    path: PathResult, context: CaseContext, verdict: PlanVerdict | None = None
+) -> TrajectorySummary:
     """The export's summary of ``path`` on the case ``context`` (the export's code, its
     values), without ``plot`` (no ``force.png`` beside a rehearsal)."""
-    return replace(job_summary(path, context).summary, plot=None)
+    return replace(job_summary(path, context, verdict).summary, plot=None)

@@ -44,6 +44,7 @@ from ctdrill.engine.summary import (
     SeriesIdentity,
     TrajectorySummary,
 )
+from ctdrill.engine.verdict import PlanVerdict
 from ctdrill.imaging.dicom.identity import series_identity
 from ctdrill.imaging.plan.implant_checks import implant_seated
 from ctdrill.imaging.plan.implants import implant_placement
@@ -204,10 +205,14 @@ def plan_outcome(result: PathResult, context: CaseContext, feed_mm_s: float) -> 
     )
 
 
-def job_summary(result: PathResult, context: CaseContext) -> JobSummary:
+def job_summary(
+    result: PathResult, context: CaseContext, verdict: PlanVerdict | None = None
+) -> JobSummary:
     """One trajectory's force series, force band and summary, exactly as ``ctdrill export``
     writes them (``ctdrill report`` shows the same numbers); the feed is the settings'
-    override, else the plan's."""
+    override, else the plan's. The warnings are ``verdict``'s findings (the trajectory's
+    :class:`~ctdrill.engine.verdict.PlanVerdict`), else the path's own (one drill of a
+    sequence)."""
     settings = context.settings
     feed = settings.feed_for(result.plan.feed_mm_s)
     series = force_time_series(
@@ -242,7 +247,7 @@ def job_summary(result: PathResult, context: CaseContext) -> JobSummary:
             )
             for g in result.interpolated_gaps
         ),
-        warnings=tuple(result.warnings),
+        warnings=tuple(result.warnings) if verdict is None else verdict.findings,
         inner_holes=tuple(hole_info(h) for h in result.inner_holes),
         plot=settings.plot,
     )

@@ -226,7 +226,7 @@ def clinical_pages(pages: TextPages, case: PreparedCase, entries: Sequence[Entry
         pages.gap(0.06)
         mine = [e for e in entries if e.result.plan.name == plan.name]
         pages.table(DRILL_COLUMNS, drill_rows(facts, mine), size_pt=8.0)
-        problems = [w for w in entry.result.warnings if w.code in BANNER]
+        problems = [w for w in entry.summary.warnings if w.code in BANNER]
         for w in dict.fromkeys(problems):
             pages.paragraph(f"[{w.code}] {w.message}", size_pt=7.5, colour="#a01010")
         fig, top, height = pages.remaining_figure(2.0)

@@ -56,7 +56,7 @@ def report_entries(case: PreparedCase) -> list[Entry]:
             in_sequence[id(step)] = (k + 1, len(seq.steps))
     out = []
     for job in case.jobs:
-        done = job_summary(job.result, case.context)
+        done = job_summary(job.result, case.context, job.verdict)
         index = in_sequence.get(id(job.result))
         label = done.summary.outcome.plan
         if index is not None:

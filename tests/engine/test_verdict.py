@@ -82,3 +82,38 @@ def test_the_export_warns_of_what_the_banner_shows(demo: tuple) -> None:  # type
     seq = plan_sequence(volume, seq_plan, plan_calibration(seq_plan))
     exported = set(banner_problems(seq.warnings))
     assert set(plan_verdict(volume, seq_plan).problems()) == exported
+
+
+def test_the_export_report_and_rehearsal_list_the_verdicts_findings() -> None:
+    """One trajectory's export job carries its verdict; the export's summary, the report's
+    entry and the rehearsal's summary list its findings, each the same warnings."""
+    from ctdrill.app.rehearse import load_table
+    from ctdrill.app.report.entries import report_entries
+    from ctdrill.app.session_run import rehearsal_summary
+    from ctdrill.engine.case import prepare_case
+    from ctdrill.engine.settings import DEFAULTS
+    from ctdrill.engine.summarize import job_summary
+
+    case = prepare_case(DEMO / "ct", [DEMO / "plan.json"], DEFAULTS)
+    (job,) = case.jobs
+    assert job.verdict is not None
+    findings = job.verdict.findings
+    assert {w.code for w in findings} >= {"plan_violates_margin"}
+    exported = job_summary(job.result, case.context, job.verdict).summary
+    assert exported.warnings == findings
+    (entry,) = report_entries(case)
+    assert entry.summary.warnings == findings
+    loaded = load_table(DEMO / "ct", DEMO / "plan.json")
+    assert loaded.verdict is not None and loaded.verdict.findings == findings
+    doc = rehearsal_summary(
+        {},
+        loaded.path,
+        loaded.table,
+        context=loaded.case,
+        operator="push:20",
+        device="sim",
+        duration_s=1.0,
+        seed=0,
+        verdict=loaded.verdict,
+    )
+    assert doc["warnings"] == [{"code": w.code, "message": w.message} for w in findings]
