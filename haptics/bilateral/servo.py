@@ -8,16 +8,20 @@ Coulomb friction model removed. Internally SI; encoder in mm.
 
 from __future__ import annotations
 
-#: Below this speed the servos' friction model fades linearly to 0, m/s. The master's force
-#: controller fades it below 0.1 mm/s (:data:`ctdrill.haptics.plant.FRICTION_VEL_M_S`); in the
-#: bilateral loop that leaves a 1-4 um stick-slip cycle between the stages at rest (the model's
-#: 1 N steps in at every slip and kicks the force loop). Fading it over 1 mm/s lets both stages
-#: settle at the stop within 0.04 um RMS with ``|F_h + F_e|`` within 2.5 % (pushes 12-30 N);
-#: the price is at slow feeds, where the friction is only partly removed from the force
-#: estimates: the hand feels the cut 2 % off at 2 mm/s, 15 % at 0.4 mm/s (measured in
-#: bench/bench_teleop.py). A 0.3 mm/s fade on a 30 rad/s low-passed velocity gives 2.6 % at
-#: 0.4 mm/s and 0.2-0.5 um at the stop, but 7-10 % force error at the stop for 12-15 N pushes.
-SERVO_FRICTION_VEL_M_S = 1e-3
+#: The servos' friction model is a Dahl state ``z`` in [-1, 1] (the model is ``Fc z``) that
+#: follows the travel, ``dz = dx / x0 (1 - z sign(dx))``, and relaxes to 0 at rest with the time
+#: constant :data:`SERVO_FRICTION_RELAX_S`. Travel, not speed, sets the sign: a stage fed at
+#: 0.4 mm/s has its friction wholly modelled after a few um, where a model that fades below a
+#: speed removes only part of it (the former 1 mm/s linear fade: the hand felt the cut 14.6 %
+#: off at 0.4 mm/s); at rest, where the friction is static and cannot be observed, the model
+#: goes to 0 as the fade did, so the stop's ``|F_h + F_e|`` stays small. Measured on the demo
+#: (bench/bench_teleop.py, seed 0): 1.7 % at 0.4 mm/s; at the stop (pushes 12-30 N) force within
+#: 2.7 % and tracking within 0.85 um RMS. A longer relaxation (0.2 s) or shorter travel (1 um)
+#: gave 1.1-1.5 % at 0.4 mm/s but 1-2 um at the stop (the held model kicks a stick-slip cycle);
+#: a longer travel (3-5 um) 4-6 % at 0.4 mm/s. Travel, m.
+SERVO_FRICTION_TRAVEL_M = 2e-6
+#: Relaxation time of the friction model at rest, s (see :data:`SERVO_FRICTION_TRAVEL_M`).
+SERVO_FRICTION_RELAX_S = 0.05
 
 
 class Servo:
@@ -58,6 +62,7 @@ class Servo:
         self._yd = 0.0
         self._yr = 0.0
         self._d_hat = 0.0
+        self._fric_z = 0.0
         self.velocity_m_s = 0.0
         self.external_n = 0.0
         self.current_a = 0.0
@@ -77,8 +82,13 @@ class Servo:
         self._yd += dt * self.gd * (ti + mn * self.gd * v - self._yd)
         self._d_hat = self._yd - mn * self.gd * v
         self._yr += dt * self.gr * (ti + mn * self.gr * v - self._yr)
-        r = v / SERVO_FRICTION_VEL_M_S
-        fric = self.fc * (-1.0 if r < -1.0 else (1.0 if r > 1.0 else r))
+        dx = v * dt
+        z = self._fric_z
+        z += dx / SERVO_FRICTION_TRAVEL_M * (1.0 - (z if dx > 0.0 else -z))
+        z -= z * dt / SERVO_FRICTION_RELAX_S
+        z = -1.0 if z < -1.0 else (1.0 if z > 1.0 else z)
+        self._fric_z = z
+        fric = self.fc * z
         self.external_n = -(self._yr - mn * self.gr * v) + fric
         self.velocity_m_s = v
 
