@@ -10,15 +10,16 @@ from __future__ import annotations
 
 #: The servos' friction model is a Dahl state ``z`` in [-1, 1] (the model is ``Fc z``) that
 #: follows the travel, ``dz = dx / x0 (1 - z sign(dx))``, and relaxes to 0 at rest with the time
-#: constant :data:`SERVO_FRICTION_RELAX_S`. Travel, not speed, sets the sign: a stage fed at
-#: 0.4 mm/s has its friction wholly modelled after a few um, where a model that fades below a
-#: speed removes only part of it (the former 1 mm/s linear fade: the hand felt the cut 14.6 %
-#: off at 0.4 mm/s); at rest, where the friction is static and cannot be observed, the model
-#: goes to 0 as the fade did, so the stop's ``|F_h + F_e|`` stays small. Measured on the demo
-#: (bench/bench_teleop.py, seed 0): 1.7 % at 0.4 mm/s; at the stop (pushes 12-30 N) force within
-#: 2.7 % and tracking within 0.85 um RMS. A longer relaxation (0.2 s) or shorter travel (1 um)
-#: gave 1.1-1.5 % at 0.4 mm/s but 1-2 um at the stop (the held model kicks a stick-slip cycle);
-#: a longer travel (3-5 um) 4-6 % at 0.4 mm/s. Travel, m.
+#: constant :data:`SERVO_FRICTION_RELAX_S`. Travel, not speed, sets it: at a steady feed ``v``
+#: it holds ``Fc v tau / (x0 + v tau)`` (91 % of the friction at 0.4 mm/s, 98 % at 2 mm/s),
+#: where the former model, a linear fade below 1 mm/s, removed 40 % at 0.4 mm/s (the hand felt
+#: the cut 14.6 % off there); at rest, where the friction is static and cannot be observed, it
+#: goes to 0 as the fade did, so the stop's ``|F_h + F_e|`` stays small. The figures this gives
+#: (the hand at 0.4 mm/s; force and tracking at the stop, pushes 12-30 N) are measured in
+#: bench/bench_teleop.py and quoted in docs/benchmarks.md. Tried on the same runs: a longer
+#: relaxation (0.2 s) or a shorter travel (1 um) brings the 0.4 mm/s figure closer but the
+#: held model kicks a 1-2 um stick-slip cycle at the stop (goal 1 um); a longer travel
+#: (3-5 um) leaves 4-6 % at 0.4 mm/s. Travel ``x0``, m.
 SERVO_FRICTION_TRAVEL_M = 2e-6
 #: Relaxation time of the friction model at rest, s (see :data:`SERVO_FRICTION_TRAVEL_M`).
 SERVO_FRICTION_RELAX_S = 0.05

@@ -13,6 +13,11 @@ from ctdrill.app.teleop import TeleopCase, prepare_teleop, run_teleop
 from ctdrill.haptics.bilateral.channel import Channel
 from ctdrill.haptics.bilateral.estimator import HuEstimator, plan_prior
 from ctdrill.haptics.bilateral.params import ChannelSpec
+from ctdrill.haptics.bilateral.servo import (
+    SERVO_FRICTION_RELAX_S,
+    SERVO_FRICTION_TRAVEL_M,
+    Servo,
+)
 from ctdrill.haptics.bilateral.stability import SPREAD_LIMIT_UM, stability_point
 from ctdrill.haptics.session import parse_operator
 from ctdrill.model.calibration import load_calibration
@@ -21,6 +26,31 @@ from ctdrill.model.profile import build_profile
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "assets" / "demo"
+
+
+def test_servo_friction_model_follows_travel_and_relaxes_at_rest() -> None:
+    """No current, an encoder ramp at v: the RFOB's external force is the friction model alone,
+    which settles at ``Fc v tau / (x0 + v tau)`` (its travel gain against its relaxation, per
+    tick) and then decays as ``exp(-t / tau)`` once the stage rests."""
+    dt = 1e-4
+    fc = 1.0
+    servo = Servo(
+        mass_kg=1.2, kt_n_per_a=33.0, coulomb_n=fc, current_limit_a=4.5,
+        g_dob=1000.0, g_rfob=1000.0, g_vel=1000.0, dt_s=dt, start_mm=0.0,
+    )  # fmt: skip
+    v_mm_s = 0.4
+    x_mm = 0.0
+    for _ in range(20_000):  # 2 s: 40 relaxation times
+        x_mm += v_mm_s * dt
+        servo.observe(x_mm)
+    a = v_mm_s * 1e-3 * dt / SERVO_FRICTION_TRAVEL_M
+    b = dt / SERVO_FRICTION_RELAX_S
+    z_ss = a * (1.0 - b) / (a * (1.0 - b) + b)  # fixed point of z += a (1 - z); z -= b z
+    assert servo.external_n == pytest.approx(fc * z_ss, rel=1e-6)
+    assert z_ss > 0.9  # a slow feed has nearly all its friction modelled
+    for _ in range(1000):  # 0.1 s at rest (the velocity observer settles in ~5 ms)
+        servo.observe(x_mm)
+    assert servo.external_n == pytest.approx(fc * z_ss * math.exp(-2.0), rel=0.02)
 
 
 def test_channel_delays_by_whole_ticks_keeps_order_and_holds_over_loss() -> None:
