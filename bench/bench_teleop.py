@@ -554,8 +554,8 @@ def run(quick: bool) -> Section:
         f"**Boundary lag by feed** (seed 0, force law -20 %, 0, +20 %: the worst of the three; "
         f"goal <= {LAG_GOAL_MM:g} mm; front speed over the lag: the worst lag's mm over its ms): "
         f"{_lag_sentence(lag_kinds)}. The estimate averages one drill rotation (33 ms), so its "
-        "lag in depth grows with the front's speed there; a pushing hand bursts through the "
-        "cortex's exit faster than its mean feed:",
+        "lag in depth grows with the front's speed; a pushing hand's estimate also lags longer "
+        "in time than a held feed's:",
         "",
         table(
             ["operator", "mean feed mm/s", "lag mm", "lag ms", "front speed over the lag mm/s", ""],
