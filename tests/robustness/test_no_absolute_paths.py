@@ -29,12 +29,21 @@ DEMO = ROOT / "assets" / "demo"
 #: A folder named as a clinic files a patient: name components and the birth date.
 PATIENT = "Doe^Jane 1950-01-01"
 TOKENS = ("Doe^Jane", "1950-01-01")
+#: The DICOM form of the birth date the series carries (written only with --include-phi).
+BIRTH_DICOM = "19500101"
 
 
 def _inflated(blob: bytes) -> bytes:
-    """``blob`` plus the inflated content of its zlib streams (PDF FlateDecode, PNG zTXt/iTXt)
-    and of the members of a zip archive (``.npz``)."""
+    """``blob`` plus the inflated content of its zlib streams (PDF FlateDecode, PNG zTXt/iTXt),
+    a PDF's text as a reader extracts it (glyph codes are not the characters), and the members
+    of a zip archive (``.npz``)."""
     parts = [blob]
+    if blob[:5] == b"%PDF-":
+        import pypdf
+
+        reader = pypdf.PdfReader(io.BytesIO(blob))
+        parts += [page.extract_text().encode() for page in reader.pages]
+        parts.append(repr(reader.metadata).encode())
     if blob[:4] == b"PK\x03\x04":
         with zipfile.ZipFile(io.BytesIO(blob)) as archive:
             parts += [archive.read(name) for name in archive.namelist()]
@@ -54,13 +63,20 @@ class Case:
         for source in sorted((DEMO / "ct").iterdir()):  # the series names the patient too
             ds = pydicom.dcmread(source)
             ds.PatientName = TOKENS[0]
-            ds.PatientBirthDate = TOKENS[1].replace("-", "")
+            ds.PatientBirthDate = BIRTH_DICOM
             ds.save_as(self.home / f"{PATIENT} CBCT" / source.name)
         shutil.copy(DEMO / "plan.json", self.home / "plan.json")
         self.ct = str(self.home / f"{PATIENT} CBCT")
         self.plan = str(self.home / "plan.json")
         self.needles = sorted(
-            {str(self.home), str(self.home.resolve()), str(base), str(base.resolve()), *TOKENS}
+            {
+                str(self.home),
+                str(self.home.resolve()),
+                str(base),
+                str(base.resolve()),
+                *TOKENS,
+                BIRTH_DICOM,
+            }
         )
 
     def leaks(self, blob: bytes) -> list[str]:
@@ -188,22 +204,31 @@ def test_no_output_of_any_command_names_the_patients_folder(case: Case) -> None:
             "--duration-s",
             "0.3",
         ]
-    leaking: dict[str, dict[str, list[str]]] = {}
     (out / "plan").mkdir(parents=True)
     (out / "cal").mkdir()
+    runs["teleop-script"] = [
+        "teleop",
+        *common,
+        "--out",
+        str(out / "teleop-script"),
+        "--operator",
+        f"script:{script}",
+        "--duration-s",
+        "0.05",
+    ]
+    runs["phantom"] = ["phantom", str(out / "phantom"), "--spacing-mm", "0.8"]
+    runs["demo"] = ["demo", "--out", str(out / "demo")]
     printed: dict[str, str] = {}
+    inputs = set(case.home.rglob("*"))
     for args in runs.values():
         case.run(args, printed)
-    for folder in sorted(out.iterdir()):
-        if found := case.files_leaking(folder):
-            leaking[folder.name] = found
     db = case.home / "record.sqlite"
     sessions = [str(out / "rehearse-push"), str(out / "rehearse-script")]
-    case.run(["assess", *sessions, "--db", str(db), "--trainee", "ann"], printed)
+    station = case.home / "station.sqlite"  # a second station's record, merged
+    case.run(["assess", sessions[0], "--db", str(db), "--trainee", "ann"], printed)
+    case.run(["assess", sessions[1], "--db", str(station), "--trainee", "ann"], printed)
+    case.run(["assess", "--db", str(db), "--merge", str(station)], printed)
     case.run(["assess", "--db", str(db), "--trainee", "ann", "--out", str(out / "assess")], printed)
-    for path in (db, out / "assess", key):
-        if found := case.files_leaking(path):
-            leaking[path.name] = found
     klass = case.home / "class.json"
     klass.write_text(
         json.dumps(
@@ -224,21 +249,25 @@ def test_no_output_of_any_command_names_the_patients_folder(case: Case) -> None:
         ),
         encoding="utf-8",
     )
+    inputs.add(klass)
     case.run(
         ["class", "report", "--db", str(db), "--class", str(klass), "--out", str(out / "class")],
         printed,
     )
-    if found := case.files_leaking(out / "class"):
-        leaking["class"] = found
     manifest = write_campaign(case.home / "campaign", hus=(-700.0, -500.0), feeds=(0.25, 0.5))
+    inputs |= set(manifest.parent.rglob("*"))
     calibrate = ["calibrate", str(manifest), "--rpm", "900", "--blades", "2", "--ke", "0.25"]
     case.run(
         [*calibrate, "--out", str(out / "cal" / "cal.json"), "--depth-window-mm", "1", "3"], printed
     )
-    if found := case.files_leaking(out / "cal"):
-        leaking["calibrate"] = found
     inspect = case.run(["inspect", case.ct, "--json"], printed)
     json.loads(inspect.stdout)
+    # every file any command wrote (records, keys, journals included), the inputs excepted
+    written = [p for p in sorted(case.home.rglob("*")) if p.is_file() and p not in inputs]
+    assert len(written) > 50 and key in written and db in written
+    leaking = {
+        str(p.relative_to(case.home)): hits for p in written if (hits := case.leaks(p.read_bytes()))
+    }
     assert leaking == {}
     assert printed == {}, "\n".join(f"{k}: {v}" for k, v in printed.items())
 
@@ -251,10 +280,13 @@ def test_the_scan_finds_what_include_phi_writes(case: Case) -> None:
     assert TOKENS[0] in case.files_leaking(out)["summary.json"]
 
 
-@pytest.mark.slow
 def test_the_report_names_no_patients_folder(case: Case) -> None:
+    """The PDF's text, streams and metadata; ``--include-phi`` is the positive control."""
     pdf = case.home / "report.pdf"
     printed: dict[str, str] = {}
-    case.run(["report", "--ct", case.ct, "--plan", case.plan, "--out", str(pdf)], printed)
+    args = ["report", "--ct", case.ct, "--plan", case.plan]
+    case.run([*args, "--out", str(pdf), "--include-phi"], printed)
+    assert {TOKENS[0], BIRTH_DICOM} <= set(case.files_leaking(pdf)["report.pdf"])
+    case.run([*args, "--out", str(pdf)], printed)
     assert printed == {}, "\n".join(f"{k}: {v}" for k, v in printed.items())
     assert case.files_leaking(pdf) == {}
