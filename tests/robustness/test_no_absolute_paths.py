@@ -113,7 +113,8 @@ def case(tmp_path: Path) -> Case:
 
 
 def test_no_output_of_any_command_names_the_patients_folder(case: Case) -> None:
-    out = case.home / "out"  # outputs inside the patient's folder: relative paths stay clean
+    # outputs outside the patient's folder: a path relative to them would name it
+    out = case.home.parent / "out"
     common = ["--ct", case.ct, "--plan", case.plan]
     # inputs named by path beside the CT: a calibration set and an implant library
     calibration = case.home / f"{PATIENT} bone.json"
@@ -219,7 +220,7 @@ def test_no_output_of_any_command_names_the_patients_folder(case: Case) -> None:
     runs["phantom"] = ["phantom", str(out / "phantom"), "--spacing-mm", "0.8"]
     runs["demo"] = ["demo", "--out", str(out / "demo")]
     printed: dict[str, str] = {}
-    inputs = set(case.home.rglob("*"))
+    inputs = set(case.home.parent.rglob("*"))
     for args in runs.values():
         case.run(args, printed)
     db = case.home / "record.sqlite"
@@ -263,10 +264,12 @@ def test_no_output_of_any_command_names_the_patients_folder(case: Case) -> None:
     inspect = case.run(["inspect", case.ct, "--json"], printed)
     json.loads(inspect.stdout)
     # every file any command wrote (records, keys, journals included), the inputs excepted
-    written = [p for p in sorted(case.home.rglob("*")) if p.is_file() and p not in inputs]
+    written = [p for p in sorted(case.home.parent.rglob("*")) if p.is_file() and p not in inputs]
     assert len(written) > 50 and key in written and db in written
     leaking = {
-        str(p.relative_to(case.home)): hits for p in written if (hits := case.leaks(p.read_bytes()))
+        str(p.relative_to(case.home.parent)): hits
+        for p in written
+        if (hits := case.leaks(p.read_bytes()))
     }
     assert leaking == {}
     assert printed == {}, "\n".join(f"{k}: {v}" for k, v in printed.items())
@@ -290,3 +293,28 @@ def test_the_report_names_no_patients_folder(case: Case) -> None:
     case.run([*args, "--out", str(pdf)], printed)
     assert printed == {}, "\n".join(f"{k}: {v}" for k, v in printed.items())
     assert case.files_leaking(pdf) == {}
+
+
+def test_relative_paths_typed_from_above_the_patients_folder(
+    case: Case, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Paths typed relative to the working folder (``Doe^Jane .../plan.json``) are not copied
+    into the outputs either: they name the patient's folder too."""
+    monkeypatch.chdir(case.home.parent)
+    script = case.home / "hand.csv"
+    script.write_text("time_s,force_n\n0,8\n0.3,8\n", encoding="utf-8")
+    ct, plan = f"{PATIENT}/{PATIENT} CBCT", f"{PATIENT}/plan.json"
+    common = ["--ct", ct, "--plan", plan]
+    printed: dict[str, str] = {}
+    hand = ["--operator", f"script:{PATIENT}/hand.csv", "--duration-s", "0.2"]
+    case.run(["export", *common, "--out", "out/export"], printed)
+    case.run(["rehearse", *common, "--out", "out/rehearse", *hand], printed)
+    case.run(["teleop", *common, "--out", "out/teleop", *hand[:2], "--duration-s", "0.05"], printed)
+    key = ["--key", "out/instructor.key"]
+    bone = ["exercise", "bone-quality", "--out", "out/trials", "--trials", "1", "--seed", "2"]
+    case.run([*bone, *common, *key], printed)
+    case.run(["assess", "out/rehearse", "--db", "out/record.sqlite", "--trainee", "bo"], printed)
+    written = [p for p in sorted(Path("out").rglob("*")) if p.is_file()]
+    assert len(written) > 10
+    assert {str(p): hits for p in written if (hits := case.leaks(p.read_bytes()))} == {}
+    assert printed == {}
