@@ -16,6 +16,7 @@ the plan's 2 mm drill):
 from __future__ import annotations
 
 import math
+import os
 import random
 import time
 from pathlib import Path
@@ -393,6 +394,7 @@ def run(quick: bool) -> Section:
     shifts = [0.0, 3.0] if quick else [-1.0, 0.0, 1.0, 2.5, 3.0, 4.0]
     cases = _cases(shifts)
     base = cases[0.0]
+    load_start = os.getloadavg()[0]
     cost_us = _tick_cost(base, 0.3 if quick else 2.0)
     stop_rows, stop_um, stop_pct = _stop_goal(
         base, [20.0] if quick else [12.0, 15.0, 20.0, 25.0, 30.0]
@@ -476,9 +478,12 @@ def run(quick: bool) -> Section:
     md = [
         f"Demo phantom, bone-illustrative; each run simulates the 10 kHz loop in Python at "
         f"{cost_us:.1f} us a tick (the 10 kHz budget is 100 us: {100.0 / cost_us:.1f} x real "
-        "time on this host, one core). Operators: `push:N` or `human:force=N,react_ms=200,"
-        "noise_n=1,seed=K` (the seed also seeds the channel); firm hand 20 N s/m; no delay "
-        "unless stated. The hand and channel noise come from the seeds listed.",
+        "time on this host, one core; the tick's cost depends on the machine's load, every other "
+        f"figure is deterministic: load average {load_start:.1f} at the start of this section, "
+        f"{os.getloadavg()[0]:.1f} at its end, 2 cores). Operators: `push:N` or "
+        "`human:force=N,react_ms=200,noise_n=1,seed=K` (the seed also seeds the channel); "
+        "firm hand 20 N s/m; no delay unless stated. The hand and channel noise come from the "
+        "seeds listed.",
         "",
         table(["goal", "measured", "goal", ""], goal_rows),
         "",
