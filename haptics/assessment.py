@@ -87,6 +87,9 @@ HAND_PEAK_WINDOW_S = 0.05
 #: A display that showed a sample later than this after its time lagged: the session is
 #: flagged (``display_lagged``) and its reaction not scored, ms.
 DISPLAY_LAG_LIMIT_MS = 100.0
+#: A contact's pressing counts up to this, s; then the contact is saturated: the hand's peak and
+#: the handle's overrun are not measured again until it lets go (:meth:`Assessor._saturated`).
+_PRESS_CAP_S = WALL_GRACE_S + WALL_PRESS_SATURATE_S
 
 
 class _Welford:
@@ -218,7 +221,7 @@ class Assessor:
         cutting_front = state == _CUTTING and pushing and self._s0_at(self.deepest_mm) > 0.0
         held = False  # the hand's mean over the peak window pushes (a 1 ms blip does not)
         if armed:
-            held = self._hand(t, hand, cutting_front) >= LET_GO_N
+            held = self._hand(t, hand, cutting_front, self._saturated()) >= LET_GO_N
             if pushing:
                 self._hand_mean.add(hand)
         self._wall(dt, master, drill, force, state, held, pushing)
@@ -251,6 +254,7 @@ class Assessor:
         if state == _STOPPED:
             self.wall_peak = max(self.wall_peak, force)
         held = state == _STOPPED and pushing
+        add = 0.0
         if self._in_contact:
             contact = held and master > drill - WALL_RELEASE_MM
         else:
@@ -260,19 +264,23 @@ class Assessor:
                 self.wall_contacts += 1
                 self._contact_press_s = 0.0
             elif pressing:
-                cap = WALL_GRACE_S + WALL_PRESS_SATURATE_S
-                add = min(dt, max(cap - self._contact_press_s, 0.0))
+                add = min(dt, max(_PRESS_CAP_S - self._contact_press_s, 0.0))
                 self._contact_press_s += add
                 self.wall_press_s += add
-            if pressing:
+            if pressing and (add > 0.0 or self._contact_press_s == 0.0):
                 self.wall_overrun_mm = max(self.wall_overrun_mm, master - drill, 0.0)
         self._in_contact = contact
 
-    def _hand(self, t: float, force_n: float, cutting: bool) -> float:
+    def _saturated(self) -> bool:
+        """In a contact with the wall whose pressing has saturated: the hand has shown it will
+        not let go, and how it goes on leaning (harder, deeper) is not measured again."""
+        return self._in_contact and self._contact_press_s >= _PRESS_CAP_S
+
+    def _hand(self, t: float, force_n: float, cutting: bool, saturated: bool) -> float:
         """The hand's peak: the largest mean reading over :data:`HAND_PEAK_WINDOW_S` of armed
         samples (a session armed for less than that: the mean of all its readings); its
-        steadiness: the spread of those means over windows spent cutting. Returns the
-        current window's mean, N."""
+        steadiness: the spread of those means over windows spent cutting. The peak is not
+        taken while ``saturated`` (:meth:`_saturated`). Returns the current window's mean, N."""
         if self._hand_start_s is None:
             self._hand_start_s = t
         window = self._hand_window
@@ -286,7 +294,7 @@ class Assessor:
         mean = self._hand_window_sum / len(window)
         if t - self._hand_start_s >= HAND_PEAK_WINDOW_S - 1e-9:
             self._hand_window_full = True
-        if self._hand_window_full:
+        if self._hand_window_full and not saturated:
             self.hand_peak = max(self.hand_peak, mean)
             if self._hand_window_idle == 0:
                 self._hand_steady.add(mean)

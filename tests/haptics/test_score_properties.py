@@ -49,7 +49,8 @@ class Script:
     advances at ``feed_mm_s`` to ``deepest_mm``; at the wall (``deepest_mm`` = the stop) press
     ``press_s`` with the handle ``overrun_mm`` past the drill; then let go and, after, a tail
     of ``tail`` (``rest``, ``retract``, ``wait``) for ``tail_s``; or never let go: ``hold``
-    keeps pressing on the wall with the constant push ``push_n`` for ``tail_s``."""
+    keeps pressing on the wall with the constant push ``push_n`` for ``tail_s``, ``lean`` leans
+    on it ever harder (10 N and 1 mm more a second)."""
 
     deepest_mm: float
     push_n: float = 12.0
@@ -99,6 +100,11 @@ def _rows(s: Script, stop_mm: float) -> list[tuple[float, float, float, float, s
     for k in range(round(s.tail_s * RATE_HZ)):
         if s.tail == "hold":  # the same push, the handle where the press left it
             rows.append((t, drill + s.overrun_mm, drill, s.push_n, state, s.push_n))
+        elif s.tail == "lean":  # never letting go, leaning harder and deeper (a stiff hand)
+            lean = k / RATE_HZ
+            rows.append(
+                (t, drill + s.overrun_mm + lean, drill, s.push_n, state, s.push_n + 10.0 * lean)
+            )
         elif s.tail == "retract":
             drill = max(drill - 5.0 * dt, 0.0)
             rows.append((t, drill, drill, 0.0, "cutting", -2.0))
@@ -270,18 +276,21 @@ def test_pressing_on_the_wall_longer_than_a_reaction_costs_and_saturates() -> No
 @given(
     pushes,
     st.floats(0.65, 2.0),
-    st.floats(0.0, 3.0),
+    st.floats(0.01, 3.0),  # the handle beyond the drill: a contact with the wall
     st.floats(0.01, 8.0),
-    st.sampled_from(["rest", "retract", "wait", "hold"]),
+    st.sampled_from(["rest", "retract", "wait", "hold", "lean"]),
 )
 def test_appending_any_tail_never_changes_the_score(
     push: float, press_s: float, overrun: float, tail_s: float, tail: str
 ) -> None:
     # a guarded session that met the wall and pressed past the grace (or let go, for the tails
     # after a release): whatever follows, resting, retracting, waiting or holding the same push
-    # against the wall for any time, changes no field the score reads and not the score
+    # against the wall for any time, or leaning on it ever harder (the pressing has
+    # saturated: the hand has shown it will not let go), changes nothing the score reads
     base = Script(SAFE_MM, push, press_s=press_s, overrun_mm=overrun)
     short = assess(base, stop_mm=SAFE_MM)
     longer = assess(replace(base, tail=tail, tail_s=tail_s), stop_mm=SAFE_MM)
     assert longer.score == short.score
+    if tail == "lean":  # the mean push (reported, not scored) is the whole session's
+        longer = replace(longer, mean_hand_force_n=short.mean_hand_force_n)
     assert longer == short
