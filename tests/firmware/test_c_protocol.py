@@ -13,7 +13,15 @@ import pytest
 
 from ctdrill.haptics.ccore import CDeviceEmulator, Precision, load_core
 from ctdrill.haptics.framing import cobs_decode, cobs_encode, crc32c
-from tests.haptics.test_protocol_doc import BLOCKS, DOC, HELLO, HOST_BLOCKS, _bytes, _lines
+from tests.haptics.test_protocol_doc import (
+    BLOCKS,
+    DOC,
+    HELLO,
+    HOST_BLOCKS,
+    _bytes,
+    _lines,
+    replay_block,
+)
 
 PRECISIONS: tuple[Precision, ...] = ("double", "single")
 ROOT = Path(__file__).resolve().parents[2]
@@ -23,31 +31,7 @@ ROOT = Path(__file__).resolve().parents[2]
 @pytest.mark.parametrize("block", BLOCKS, ids=[f"example{i}" for i in range(len(BLOCKS))])
 def test_byte_example_replays_on_the_c_core(block: str, precision: Precision) -> None:
     emu = CDeviceEmulator(nonce_seed=0, precision=precision)
-    expected = b""
-
-    def check() -> None:
-        nonlocal expected
-        assert emu.take_output().hex(" ") == expected.hex(" ")
-        expected = b""
-
-    for kind, arg in _lines(block):
-        if kind == "<":
-            expected += _bytes(arg)
-            continue
-        check()
-        if kind == ">":
-            emu.receive(_bytes(arg))
-        elif arg == "hello":
-            emu.receive(HELLO)
-            emu.take_output()
-        else:
-            verb, n = arg.split()
-            if verb == "device-seq":
-                emu.set_device_seq(int(n))
-            else:
-                assert verb == "ticks"
-                emu.run_ticks(int(n))
-    check()
+    replay_block(block, emu, set_device_seq=emu.set_device_seq)
 
 
 def _doc_frames() -> list[bytes]:
@@ -130,35 +114,13 @@ def test_the_boards_split_decode_then_poll_gives_the_same_bytes(block: str) -> N
     emu = CDeviceEmulator(nonce_seed=0)
     lib, h = load_core("double"), emu.handle
     lib.fw_host_set_defer(h, 1)
-    expected = b""
 
-    def check() -> None:
-        nonlocal expected
-        assert emu.take_output().hex(" ") == expected.hex(" ")
-        expected = b""
+    def poll() -> None:
+        assert emu.take_output() == b""  # nothing handled before the poll
+        while lib.fw_host_poll(h, 2):
+            pass
 
-    for kind, arg in _lines(block):
-        if kind == "<":
-            expected += _bytes(arg)
-            continue
-        check()
-        if kind == ">":
-            emu.receive(_bytes(arg))
-            assert emu.take_output() == b""  # nothing handled before the poll
-            while lib.fw_host_poll(h, 2):
-                pass
-        elif arg == "hello":
-            emu.receive(HELLO)
-            while lib.fw_host_poll(h, 2):
-                pass
-            emu.take_output()
-        else:
-            verb, n = arg.split()
-            if verb == "device-seq":
-                emu.set_device_seq(int(n))
-            else:
-                emu.run_ticks(int(n))
-    check()
+    replay_block(block, emu, set_device_seq=emu.set_device_seq, handle=poll)
     assert lib.fw_host_frames_dropped(h) == 0
 
 

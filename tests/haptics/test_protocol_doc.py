@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import re
 import struct
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 import pytest
@@ -69,6 +71,54 @@ def _lines(block: str) -> list[tuple[str, str]]:
     return out
 
 
+class ReplayDevice(Protocol):
+    """What :func:`replay_block` drives: the Python emulator or the C core's."""
+
+    def receive(self, data: bytes) -> None: ...
+    def take_output(self) -> bytes: ...
+    def run_ticks(self, n: int) -> Any: ...
+
+
+def replay_block(
+    block: str,
+    emu: ReplayDevice,
+    *,
+    set_device_seq: Callable[[int], None],
+    handle: Callable[[], None] = lambda: None,
+) -> None:
+    """Replay one example block of the document on ``emu``: each ``>`` line received, each
+    ``<`` line expected byte for byte before the next action; ``= hello``, ``= device-seq N``
+    and ``= ticks N`` as the document defines them. ``handle`` runs after every receive (a
+    board's deferred frame handling)."""
+    expected = b""
+
+    def check() -> None:
+        nonlocal expected
+        assert emu.take_output().hex(" ") == expected.hex(" ")
+        expected = b""
+
+    for kind, arg in _lines(block):
+        if kind == "<":
+            expected += _bytes(arg)
+            continue
+        check()
+        if kind == ">":
+            emu.receive(_bytes(arg))
+            handle()
+        elif arg == "hello":
+            emu.receive(HELLO)
+            handle()
+            emu.take_output()
+        else:
+            verb, n = arg.split()
+            if verb == "device-seq":
+                set_device_seq(int(n))
+            else:
+                assert verb == "ticks"
+                emu.run_ticks(int(n))
+    check()
+
+
 HELLO = _bytes(next(arg for kind, arg in _lines(BLOCKS[0]) if kind == ">"))
 
 
@@ -103,31 +153,11 @@ def test_the_document_has_the_examples_it_promises() -> None:
 @pytest.mark.parametrize("block", BLOCKS, ids=[f"example{i}" for i in range(len(BLOCKS))])
 def test_byte_example_replays_on_the_emulator(block: str) -> None:
     emu = DeviceEmulator(nonce_seed=0)
-    expected = b""
 
-    def check() -> None:
-        nonlocal expected
-        assert emu.take_output().hex(" ") == expected.hex(" ")
-        expected = b""
+    def set_seq(n: int) -> None:
+        emu._seq = n
 
-    for kind, arg in _lines(block):
-        if kind == "<":
-            expected += _bytes(arg)
-            continue
-        check()
-        if kind == ">":
-            emu.receive(_bytes(arg))
-        elif arg == "hello":
-            emu.receive(HELLO)
-            emu.take_output()
-        else:
-            verb, n = arg.split()
-            if verb == "device-seq":
-                emu._seq = int(n)
-            else:
-                assert verb == "ticks"
-                emu.run_ticks(int(n))
-    check()
+    replay_block(block, emu, set_device_seq=set_seq)
 
 
 class _ScriptedLink:
