@@ -28,6 +28,7 @@ from typing import Protocol
 import numpy as np
 
 from ctdrill.imaging.plan.revolution import Meridian, drill_meridian
+from ctdrill.imaging.plan.segments_kernel import SEGMENTS_KERNEL, meridian_rows
 
 #: Accuracy of the segment minimisation, mm: golden-section steps continue until the bracket
 #: times the segment length (the Lipschitz bound of the distance) is below it.
@@ -193,6 +194,8 @@ def segments_distance_mm(
     """Signed distance from the union of segments ``[a, b]`` to a solid at each depth.
 
     The minimum over the union is exact to :data:`SEGMENT_TOL_MM` (see :func:`_golden_min`).
+    The compiled kernel of :mod:`ctdrill.imaging.plan.segments_kernel` computes it when its
+    cache is present (the same algorithm point by point; this NumPy path is its reference).
     Segments that cannot hold the minimum are skipped exactly: the signed distance is
     1-Lipschitz in space, which bounds a segment's minimum from below by its values at the
     ends and the midpoint, and it is skipped when that bound exceeds a value already reached.
@@ -218,6 +221,21 @@ def segments_distance_mm(
     if len(a) > _BLOCK * 16:
         keep = _near_segments(a, b, x, solid)
         a, b = a[keep], b[keep]
+    meridian = getattr(solid, "meridian", None)
+    if isinstance(meridian, Meridian) and SEGMENTS_KERNEL.ready():
+        # the same minimum, point by point (:mod:`ctdrill.imaging.plan.segments_kernel`)
+        SEGMENTS_KERNEL(
+            meridian_rows(meridian),
+            np.ascontiguousarray(solid.entry_lps, dtype=np.float64),
+            np.ascontiguousarray(solid.direction, dtype=np.float64),
+            np.ascontiguousarray(a),
+            np.ascontiguousarray(b),
+            np.ascontiguousarray(x),
+            SEGMENT_TOL_MM,
+            float(_INV_PHI),
+            best,
+        )
+        return best
     per = max(1, _CHUNK_ELEMENTS // x.size)
     half = 0.5 * np.linalg.norm(b - a, axis=-1)
 
