@@ -30,7 +30,7 @@ from ctdrill.engine import refusals
 from ctdrill.engine.checks import check_arguments, check_rows
 from ctdrill.engine.clearance import evaluate_stops
 from ctdrill.engine.grid import DEFAULT_DEPTH_STEP_MM, depth_grids
-from ctdrill.engine.lips import sample_rows
+from ctdrill.engine.lips import no_lips, sample_rows
 from ctdrill.imaging.plan.clearance_batch import ClearanceField
 from ctdrill.imaging.plan.safety import margins_mm
 from ctdrill.imaging.plan.types import Plan
@@ -159,10 +159,12 @@ def evaluate_rows(
     interpolate_gaps: bool = False,
     holes: tuple[Hole, ...] = (),
     keep_lips: bool = False,
+    profiles: bool = True,
 ) -> RowsRun:
     """The engine on ``N`` rows (see the module docstring); ``holes`` are the earlier drills'
     of a sequence (shared along every axis: the profile counts the lip outside them),
-    ``keep_lips`` keeps each row's ring samples."""
+    ``keep_lips`` keeps each row's ring samples; ``profiles=False`` computes the stops only
+    (:func:`evaluate_batch`)."""
     entries, targets = check_arguments(
         volume,
         entries_lps,
@@ -181,7 +183,9 @@ def evaluate_rows(
     planned, oov = checks.planned_mm, checks.out_of_volume_mm
     ok_rows = checks.ok_rows()
     n_dep, depth = depth_grids(planned, depth_step_mm, ok_rows)
-    lips = sample_rows(
+    # the lip is sampled for its profile, and on a padded volume for the padding rule too
+    sample = sample_rows if profiles or keep_lips or volume.valid is not None else no_lips
+    lips = sample(
         volume,
         plan,
         calibration,
@@ -202,7 +206,7 @@ def evaluate_rows(
     field = ClearanceField.prepare(
         plan.landmarks, plan.drill.radius_mm, plan.drill.tip_length_mm, entries, targets, ok_rows
     )
-    stops = evaluate_stops(field, margins, depth, n_dep, planned, oov, ok_rows)
+    stops = evaluate_stops(field, margins, depth, n_dep, planned, oov, ok_rows, full_grid=profiles)
     bad = np.array([e is not None for e in errors], dtype=bool)
     arrays = (depth, lips.s_t, lips.hu_mean, lips.s0_n, lips.disc_hu, lips.sk_n, stops.clearance_mm)
     for arr in arrays:
@@ -251,6 +255,7 @@ def evaluate_batch(
     n_rings: int = DEFAULT_N_RINGS,
     n_angles: int = DEFAULT_N_ANGLES,
     interpolate_gaps: bool = False,
+    profiles: bool = True,
 ) -> BatchResult:
     """Evaluate ``N`` trajectories sharing ``plan``'s drill, landmarks and margins.
 
@@ -261,6 +266,12 @@ def evaluate_batch(
     entries_lps, targets_lps : (N, 3) LPS mm; row ``n`` is one trajectory.
     calibration : force-law coefficients.
     depth_step_mm, n_rings, n_angles, interpolate_gaps : as for ``plan_path``.
+    profiles : False: the stops only (what a search that reads the max safe depth, the
+        binding landmark, the clearance at the planned depth and the stop needs): no lip
+        profile (``disc_hu``, ``hu_mean``, ``s_t``, ``s0_n``, ``sk_n`` NaN, the sample counts
+        0) and the clearance on the grid only where the stops need it (``clearance_mm`` NaN
+        elsewhere; the planned depth's is kept). Every stop, max safe depth, binding landmark
+        and refusal is the one of the full evaluation.
 
     Returns
     -------
@@ -289,4 +300,5 @@ def evaluate_batch(
         n_rings=n_rings,
         n_angles=n_angles,
         interpolate_gaps=interpolate_gaps,
+        profiles=profiles,
     ).batch

@@ -6,6 +6,12 @@ The clearance arrays come from :class:`~ctdrill.imaging.plan.clearance_batch.Cle
 margin is first broken; the stop is ``min(planned depth, max safe depth, where the lip leaves
 the scan)``, ties to the first listed (:data:`STOP_REASONS`); the binding landmark is the
 one whose margin sets the max safe depth, else the one nearest the drill at the stop.
+
+With ``full_grid=False`` (a search that reads only the stops: ``suggest``) the clearance is
+not computed on the whole grid: the grid step where a margin is first broken is found on every
+:data:`COARSE_EVERY`-th grid depth (the planned depth among them), then on the grid depths of
+the one coarse step that holds it. The clearance never increases with depth (the drill solid
+only grows), so that is the step the whole grid gives, and the stops are the same.
 """
 
 from __future__ import annotations
@@ -21,6 +27,9 @@ from ctdrill.imaging.plan.safety import SEARCH_BEYOND_PLAN_MM, search_safe_depth
 
 #: Stop reasons in the order ties are broken (the first listed wins).
 STOP_REASONS = tuple(StopReason)
+#: Without the full grid, the first broken margin is looked for on every this-many-th grid
+#: depth first (then on the grid depths of one coarse step): about ``2 sqrt(D)`` depths.
+COARSE_EVERY = 16
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,6 +66,8 @@ def evaluate_stops(
     planned_mm: np.ndarray,
     out_of_volume_mm: np.ndarray,
     rows: np.ndarray,
+    *,
+    full_grid: bool = True,
 ) -> Stops:
     """Clearances on each row's grid, its max safe depth, stop and binding landmark.
 
@@ -68,12 +79,19 @@ def evaluate_stops(
     planned_mm : (N,) planned depths, mm.
     out_of_volume_mm : (N,) where the lip leaves the scan (NaN: not before the planned depth).
     rows : the rows to compute.
+    full_grid : False: ``clearance_mm`` is NaN except at each row's planned depth (its last
+        grid depth), and the first broken margin is found on a sparse part of the grid
+        (module docstring); the stops are the same.
     """
     n, d_max = depth_mm.shape
     n_l = margins.shape[0]
     rows = np.asarray(rows, dtype=np.int64)
     clear = np.full((n, d_max, n_l), np.nan)
-    clear[rows] = field.at(rows, np.nan_to_num(depth_mm[rows]), n_depths[rows])
+    if full_grid:
+        clear[rows] = field.at(rows, np.nan_to_num(depth_mm[rows]), n_depths[rows])
+        brackets = grid_brackets(depth_mm, n_depths, clear, margins)
+    else:
+        brackets = _sparse_brackets(field, margins, depth_mm, n_depths, rows, clear)
     limit = planned_mm + SEARCH_BEYOND_PLAN_MM
     if n_l:
         safe = search_safe_depths(
@@ -81,7 +99,7 @@ def evaluate_stops(
             margins,
             limit,
             rows,
-            bracket_mm=grid_brackets(depth_mm, n_depths, clear, margins),
+            bracket_mm=brackets,
         )
         max_safe, capped, binding = safe.depth_mm, safe.capped, safe.binding
     else:  # nothing to keep away from: "safe at least" the search limit
@@ -107,3 +125,40 @@ def evaluate_stops(
             binding[free] = np.argmin(stop_clear[free], axis=1)
             plan_clear[rows] = np.min(clear[rows, n_depths[rows] - 1], axis=1)
     return Stops(clear, max_safe, capped, binding, plan_clear, stop, reason, stop_clear)
+
+
+def _sparse_brackets(
+    field: ClearanceField,
+    margins: np.ndarray,
+    depth_mm: np.ndarray,
+    n_depths: np.ndarray,
+    rows: np.ndarray,
+    clear: np.ndarray,
+) -> np.ndarray:
+    """:func:`~ctdrill.engine.grid.grid_brackets` from the clearance of ``rows`` on every
+    :data:`COARSE_EVERY`-th grid depth and the last, then on the grid depths of the coarse
+    step where a margin is first broken; fills ``clear`` at the depths computed."""
+    n_l = margins.shape[0]
+    if not (rows.size and n_l and depth_mm.shape[1]):
+        return np.full((depth_mm.shape[0], 2), np.nan)
+    m = n_depths[rows]
+    width = -(-(int(m.max()) - 1) // COARSE_EVERY) + 1
+    # coarse indices 0, k, 2k, ... clipped to the last: repeated last ones change nothing
+    coarse = np.minimum(np.arange(width)[None, :] * COARSE_EVERY, (m - 1)[:, None])
+    got = field.at(rows, np.take_along_axis(depth_mm[rows], coarse, axis=1))
+    clear[rows[:, None], coarse] = got
+    with np.errstate(invalid="ignore"):
+        bad = np.any(got < margins, axis=2)
+    first = np.argmax(bad, axis=1)
+    broken = bad.any(axis=1) & (first > 0)
+    sub = np.flatnonzero(broken)
+    if sub.size:  # the fine grid depths inside the coarse step: (its start, its end]
+        start = coarse[sub, first[sub] - 1]
+        fine = np.minimum(
+            start[:, None] + 1 + np.arange(COARSE_EVERY)[None, :], coarse[sub, first[sub]][:, None]
+        )
+        r = rows[sub]
+        fine_got = field.at(r, np.take_along_axis(depth_mm[r], fine, axis=1))
+        clear[r[:, None], fine] = fine_got
+    # the depths not computed are NaN: never "broken", so the first broken one is the grid's
+    return grid_brackets(depth_mm, n_depths, clear, margins)

@@ -171,6 +171,32 @@ def sample_rows(
     return LipRun(hu_mean, s_t, s0, disc, sk, n_clipped, n_samples, lips)
 
 
+def no_lips(
+    volume: CTVolume,
+    plan: Plan,
+    calibration: Calibration,
+    entries: np.ndarray,
+    targets: np.ndarray,
+    depth: np.ndarray,
+    n_dep: np.ndarray,
+    rows: np.ndarray,
+    errors: list[Exception | None],
+    *,
+    n_rings: int,
+    n_angles: int,
+    n_harmonics: int,
+    holes: tuple[Hole, ...] = (),
+    keep: bool = False,
+) -> LipRun:
+    """:func:`sample_rows`' arrays, not computed (NaN; no sample): for an evaluation of the
+    stops only on a volume without padding (no padding rule to apply)."""
+    n, d_max = depth.shape
+    nan = np.full((n, d_max), np.nan)
+    zero = np.zeros(n, dtype=np.int64)
+    sk = np.full((n, n_harmonics, d_max), np.nan)
+    return LipRun(nan, nan.copy(), nan.copy(), nan.copy(), sk, zero, zero.copy(), {})
+
+
 def _padding(
     volume: CTVolume,
     plan: Plan,

@@ -43,7 +43,8 @@ class BatchLike(Protocol):
     def refusal(self) -> tuple[str | None, ...]: ...
 
 
-#: ``evaluate(volume, plan, entries_lps, targets_lps, calibration, interpolate_gaps=...)``.
+#: ``evaluate(volume, plan, entries_lps, targets_lps, calibration, interpolate_gaps=...,
+#: profiles=False)`` (the stops only: :func:`ctdrill.engine.batch.evaluate_batch`).
 Evaluator = Callable[..., BatchLike]
 #: ``check(volume, candidate_plan) -> Feasibility`` (default :func:`check_candidate`).
 Checker = Callable[[CTVolume, Plan], Feasibility]

@@ -221,6 +221,7 @@ def suggest(
             cands.entries_lps[part] + drilled.planned_depth_mm * dirs[part],
             calibration,
             interpolate_gaps=interpolate_gaps,
+            profiles=False,
         )
         out.take(part, batch, drilled)
     evaluate_s = time.perf_counter() - t1

@@ -94,7 +94,7 @@ def _point_sd(
     x: float,
 ) -> float:  # pragma: no cover - compiled
     """Signed distance from the point ``(p0, p1, p2)`` (LPS mm) to the solid placed at ``x``
-    (its axial coordinate and offset as :func:`~ctdrill.imaging.plan.distance.axial_coordinates`)."""
+    (axial coordinate and offset as ``distance.axial_coordinates``)."""
     r0, r1, r2 = p0 - entry[0], p1 - entry[1], p2 - entry[2]
     s = r0 * axis[0] + r1 * axis[1] + r2 * axis[2]
     q0, q1, q2 = r0 - s * axis[0], r1 - s * axis[1], r2 - s * axis[2]
@@ -176,9 +176,7 @@ def _segments_kernel(
             best = min(best, fa, fb, fm)
         for g in range(n_s):
             if lower[g] < best:
-                val = _golden(
-                    pieces, entry, axis, a, b, g, x, tol, inv_phi, min(va[g], vb[g])
-                )
+                val = _golden(pieces, entry, axis, a, b, g, x, tol, inv_phi, min(va[g], vb[g]))
                 best = min(best, val)
         out[j] = best
 

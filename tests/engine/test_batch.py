@@ -299,3 +299,46 @@ def test_law_tables_are_the_power_laws_to_1e_10() -> None:
             got = a[:, 0] + u * (a[:, 1] + u * (a[:, 2] + u * a[:, 3]))
             want = 10.0**law.b0 * c**law.n
             assert np.max(np.abs(got / want - 1.0)) < 1e-10, (name, k)
+
+
+def test_stops_only_give_the_full_evaluation_stops(
+    demo: tuple[CTVolume, Plan, Calibration],
+) -> None:
+    """``profiles=False`` (suggest's stage 1): no profile, the clearance on a sparse part of
+    the grid, and every stop, max safe depth, binding landmark and refusal of the full
+    evaluation (the first broken grid step is the same: the clearance never increases)."""
+    volume, plan, cal = demo
+    mask = np.zeros(volume.hu.shape, dtype=bool)
+    mask[8:14, 55:62, 62:70] = True
+    plans = (
+        plan,
+        replace(
+            plan,
+            landmarks=(
+                *plan.landmarks,
+                PointLandmark("apex", plan.target_lps + np.array([1.5, 0.5, -2.5]), margin_mm=1),
+                MaskLandmark("block", mask, margin_mm=1.5),
+            ),
+        ),
+        replace(plan, landmarks=()),
+    )
+    for k, p in enumerate(plans):
+        entries, targets = random_axes(p, 40, seed=10 + k)
+        entries = np.vstack([entries, plan.entry_lps, [500.0, 0.0, 0.0]])
+        targets = np.vstack([targets, plan.target_lps + [-4.0, -20.0, -3.0], [500, 0, -10.0]])
+        full = evaluate_batch(volume, p, entries, targets, cal)
+        got = evaluate_batch(volume, p, entries, targets, cal, profiles=False)
+        assert got.refusal == full.refusal
+        assert got.stop_reason.tolist() == full.stop_reason.tolist()
+        assert np.array_equal(got.binding_landmark, full.binding_landmark)
+        assert np.array_equal(got.max_safe_depth_capped, full.max_safe_depth_capped)
+        for name in ("max_safe_depth_mm", "stop_depth_mm", "out_of_volume_depth_mm"):
+            _close(getattr(got, name), getattr(full, name), name)
+        for name in ("plan_clearance_mm", "stop_clearance_mm"):
+            _close(getattr(got, name), getattr(full, name), name)
+        assert np.all(np.isnan(got.s0_n)) and np.all(np.isnan(got.disc_hu))
+        if p.landmarks:
+            assert {"planned_depth", "margin"} <= set(full.stop_reason.tolist())
+            last = got.n_depths[got.ok] - 1
+            planned = got.clearance_mm[got.ok][np.arange(last.size), last]
+            assert np.all(np.isfinite(planned))
