@@ -32,6 +32,7 @@ curvature; :meth:`ArchCurve.min_radius_mm` reports it.
 from __future__ import annotations
 
 import bisect
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -215,6 +216,26 @@ class ArchCurve:
                 b = m
         return np.array([a]), np.array([b])
 
+    @functools.cached_property
+    def _root_grid(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The grid on which :meth:`project` brackets roots: positions, points, tangents,
+        normals (the curve's own: computed once)."""
+        grid = self.grid_mm(min(_ROOT_GRID_MM, self.length_mm / 8.0))
+        g_pts = self.point_xy(grid)
+        g_tan = self.tangent_xy(grid)
+        g_nrm = np.stack([-g_tan[:, 1], g_tan[:, 0]], axis=1)
+        for arr in (grid, g_pts, g_tan, g_nrm):
+            arr.flags.writeable = False
+        return grid, g_pts, g_tan, g_nrm
+
+    @functools.cached_property
+    def _centroid_xy(self) -> np.ndarray:
+        """(2,) the centroid of the curve's points every 1 mm of arc (lingual of a curved
+        arch)."""
+        out = np.asarray(np.mean(self.point_xy(self.grid_mm(1.0)), axis=0))
+        out.flags.writeable = False
+        return out
+
     def project(self, points_lps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Arc position and signed normal offset of LPS points on the curtain.
 
@@ -232,10 +253,7 @@ class ArchCurve:
         pts = np.asarray(points_lps, dtype=np.float64).reshape(-1, 3)
         s_out = np.full(len(pts), np.nan)
         t_out = np.full(len(pts), np.nan)
-        grid = self.grid_mm(min(_ROOT_GRID_MM, self.length_mm / 8.0))
-        g_pts = self.point_xy(grid)
-        g_tan = self.tangent_xy(grid)
-        g_nrm = np.stack([-g_tan[:, 1], g_tan[:, 0]], axis=1)
+        grid, g_pts, g_tan, g_nrm = self._root_grid
         for start in range(0, len(pts), _PROJECT_CHUNK):
             xy = pts[start : start + _PROJECT_CHUNK, :2]
             d = xy[:, None, :] - g_pts[None, :, :]
@@ -277,7 +295,7 @@ class ArchCurve:
         """(2,) the unit normal at arc ``s_mm`` that points to the **buccal** side: away from
         the centroid of the arch (which lies on the concave, lingual side of any curved arch
         or arc of one); None where the arch is straight (its centroid on the normal line)."""
-        centroid = np.mean(self.point_xy(self.grid_mm(1.0)), axis=0)
+        centroid = self._centroid_xy
         _, _, normal = self.frame(np.array([s_mm]))
         inward = float((centroid - self.point_xy(np.array([s_mm]))[0]) @ normal[0, :2])
         if abs(inward) < STRAIGHT_MM:
@@ -324,13 +342,25 @@ def arc_position_mm(
     return float(s[0])
 
 
+def arch_curve(arch_lps: np.ndarray, window_mm: float = TANGENT_WINDOW_MM) -> ArchCurve:
+    """The :class:`ArchCurve` of ``arch_lps``, built once per arch (a plan's arch is read for
+    every implant placed on it: ``suggest`` checks many axes of one plan)."""
+    arch = np.ascontiguousarray(arch_lps, dtype=np.float64)
+    return _cached_curve(arch.tobytes(), arch.shape, float(window_mm))
+
+
+@functools.lru_cache(maxsize=32)
+def _cached_curve(data: bytes, shape: tuple[int, ...], window_mm: float) -> ArchCurve:
+    return ArchCurve(np.frombuffer(data, dtype=np.float64).reshape(shape), window_mm)
+
+
 def buccal_normal_lps(
     arch_lps: np.ndarray, point_lps: np.ndarray, *, window_mm: float = TANGENT_WINDOW_MM
 ) -> np.ndarray | None:
     """(3,) horizontal unit vector to the buccal side of the arch at the panorama column
     through ``point_lps`` (:meth:`ArchCurve.buccal_normal_xy`); None when the point lies
     beyond the arch's ends or the arch is straight there."""
-    curve = ArchCurve(np.asarray(arch_lps), window_mm)
+    curve = arch_curve(arch_lps, window_mm)
     s, _ = curve.project(np.asarray(point_lps, dtype=np.float64).reshape(1, 3))
     if not np.isfinite(s[0]):
         return None
