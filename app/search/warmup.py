@@ -16,12 +16,13 @@ from ctdrill import jit
 
 def search_kernels() -> tuple[jit.Kernel, ...]:
     """The kernels :func:`ctdrill.engine.batch.evaluate_batch`, the landmarks' clearances to
-    a drill or an implant body, the bone walls and suggest's shells use."""
+    a drill or an implant body, the bone walls, suggest's bone surfaces and shells use."""
     from ctdrill.app.search.shell_kernel import SHELL_KERNEL
     from ctdrill.imaging.plan.clearance_kernel import CLEARANCE_KERNEL
     from ctdrill.imaging.plan.segments_kernel import SEGMENTS_KERNEL
     from ctdrill.imaging.sampling.envelope_kernel import ENVELOPE_KERNEL
     from ctdrill.imaging.sampling.lip_batch import LIP_KERNEL
+    from ctdrill.imaging.sampling.surface_kernel import SURFACE_KERNEL
     from ctdrill.model.profile_batch import PROFILE_KERNEL
 
     return (
@@ -31,6 +32,7 @@ def search_kernels() -> tuple[jit.Kernel, ...]:
         SEGMENTS_KERNEL,
         ENVELOPE_KERNEL,
         SHELL_KERNEL,
+        SURFACE_KERNEL,
     )
 
 
