@@ -113,14 +113,14 @@ class _Probe:
 
         plots.show_curves = timed_show
         drill = window.slice_canvases["trajectory"]
-        ghost = drill.show_ghost
+        ghost = drill.draw_ghost_of
 
         def timed_ghost(*args: Any) -> None:
             t0 = time.perf_counter()
             ghost(*args)
             self.ghost.append(time.perf_counter() - t0)
 
-        drill.show_ghost = timed_ghost
+        drill.draw_ghost_of = timed_ghost
 
     def close(self) -> None:
         self._restore()

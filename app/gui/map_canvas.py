@@ -2,10 +2,10 @@
 panoramic and the cross-section share.
 
 The image is drawn in millimetres (``uv``: along its columns and down its rows); a
-:class:`PlaneMap` maps ``uv`` to LPS and back (a slice plane, the panoramic's curved curtain, a
-cross-section plane). On top of that mapping the canvas offers, in widget pixels,
-:meth:`MapCanvas.pixel_to_lps` and :meth:`MapCanvas.lps_to_pixel`, and these mouse tools
-(:attr:`MapCanvas.mode`):
+:class:`~ctdrill.app.gui.map_ghost.PlaneMap` maps ``uv`` to LPS and back (a slice plane, the
+panoramic's curved curtain, a cross-section plane). On top of that mapping the canvas offers,
+in widget pixels, :meth:`MapCanvas.pixel_to_lps` and :meth:`MapCanvas.lps_to_pixel`, and these
+mouse tools (:attr:`MapCanvas.mode`):
 
 - ``navigate``: a press on a grip of the current trajectory (entry, target, platform, or the
   body) starts a drag (``grip_dragged`` on every move and at the release; Shift and Ctrl
@@ -18,20 +18,22 @@ cross-section plane). On top of that mapping the canvas offers, in widget pixels
 
 While something is dragged only its outline (the **ghost**) is redrawn, over a bitmap of the
 image kept at the press (matplotlib blitting): a move costs a few milliseconds, not a redraw.
+Mouse moves are coalesced: a grip drag reports only the latest position, once per event-loop
+pass (``grip_dragged``; however many moves Qt delivered meanwhile, none is queued), and the
+ghost of a dragged plan is computed when the canvas paints
+(:mod:`ctdrill.app.gui.map_ghost`: at most once per repaint, for the latest plan).
 """
 
 from __future__ import annotations
 
-import contextlib
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 from matplotlib.backend_bases import MouseEvent
-from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
-from matplotlib.lines import Line2D
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import Qt, QTimer, Signal
 
-from ctdrill.app.gui.implant_drag import body_hit, drag_mode, grips_lps
+from ctdrill.app.gui.implant_drag import body_hit, drag_mode
+from ctdrill.app.gui.map_ghost import GhostCanvas
 from ctdrill.app.gui.slice_tools import PICK_PX, ToolState
 from ctdrill.imaging.plan.types import Plan
 
@@ -39,22 +41,9 @@ from ctdrill.imaging.plan.types import Plan
 BODY_REACH_MM = 0.5
 #: A press that moves less than this before its release is a click, display pixels.
 CLICK_PX = 4.0
-GHOST_COLOUR = "#ffffff"
 CROSSHAIR_COLOUR = "#b0ff40"
 #: Half length of the crosshair's arms, mm.
 CROSSHAIR_MM = 6.0
-
-
-class PlaneMap(Protocol):
-    """Image millimetres (uv) <-> LPS of one view's image."""
-
-    def to_lps(self, uv_mm: np.ndarray) -> np.ndarray:
-        """(..., 2) uv mm -> (..., 3) LPS mm on the image's surface (NaN off it)."""
-        ...
-
-    def to_uv(self, points_lps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(..., 3) LPS -> (..., 2) uv mm and (...) offset from the surface, mm."""
-        ...
 
 
 def modifiers(event: MouseEvent) -> tuple[bool, bool]:
@@ -70,7 +59,7 @@ def modifiers(event: MouseEvent) -> tuple[bool, bool]:
     return "shift" in keys, "ctrl" in keys
 
 
-class MapCanvas(FigureCanvasQTAgg):
+class MapCanvas(GhostCanvas):
     """A canvas with an image in uv mm mapped to LPS (``plane_map``) and the shared tools.
 
     Subclasses create :attr:`ax`, set :attr:`plane_map` when an image is shown, fill
@@ -89,7 +78,6 @@ class MapCanvas(FigureCanvasQTAgg):
 
     def __init__(self, figure: Any) -> None:
         super().__init__(figure)
-        self.plane_map: PlaneMap | None = None
         #: ``navigate``, ``canal``, ``distance``, ``angle`` or ``arch``.
         self.mode = "navigate"
         #: Report drags on every move (True) or only at the release (the older behaviour).
@@ -107,13 +95,12 @@ class MapCanvas(FigureCanvasQTAgg):
             None  # ("grip", name, mode, lps0, uv0) | ("canal", ...)
         )
         self._click: tuple[float, float, np.ndarray] | None = None
-        self._ghost: list[Any] = []
-        self._ghost_bg: Any = None
+        #: A grip drag's latest move not reported yet (coalescing, :meth:`_report_move`).
+        self._move: tuple[Any, ...] | None = None
         self._hover_px: tuple[float, float] | None = None
         self.mpl_connect("button_press_event", self._press)
         self.mpl_connect("motion_notify_event", self._motion)
         self.mpl_connect("button_release_event", self._release)
-        self.mpl_connect("draw_event", self._drawn)
 
     # ------------------------------------------------------------------ mapping
     def display_of(self, uv_mm: np.ndarray) -> np.ndarray:
@@ -256,11 +243,24 @@ class MapCanvas(FigureCanvasQTAgg):
             if now is None:
                 return
             if self.live_drag:
-                self.grip_dragged.emit(grip, mode, start, now, False)
+                self._report_latest((grip, mode, start, now))
             else:
                 self.show_ghost([], {grip: uv})
         else:
             self.show_ghost([], {"canal": uv})
+
+    def _report_latest(self, move: tuple[Any, ...]) -> None:
+        """Keep ``move`` (grip, mode, from, to) as the drag's latest and report it at the next
+        event-loop pass: moves that arrive meanwhile replace it (none is queued)."""
+        queued = self._move is not None
+        self._move = move
+        if not queued:
+            QTimer.singleShot(0, self._report_move)
+
+    def _report_move(self) -> None:
+        move, self._move = self._move, None
+        if move is not None and self._drag is not None:
+            self.grip_dragged.emit(*move, False)
 
     def _dragged_to(self, start: np.ndarray, uv0: np.ndarray, uv: np.ndarray) -> np.ndarray | None:
         """Where a grip taken at ``start`` (LPS) under ``uv0`` is, with the mouse at ``uv``:
@@ -279,6 +279,7 @@ class MapCanvas(FigureCanvasQTAgg):
             return
         drag, self._drag = self._drag, None
         click, self._click = self._click, None
+        self._move = None  # the release reports the final position itself
         if drag is not None:
             if drag[0] == "grip":
                 _, grip, mode, start, uv0 = drag
@@ -340,67 +341,6 @@ class MapCanvas(FigureCanvasQTAgg):
                 self.canal_edited.emit("delete", hit[0], hit[1], None)
                 return
         self.tools.delete()
-
-    # ------------------------------------------------------------------ ghost (blitting)
-    def ghost_lines(self, plan: Plan) -> list[np.ndarray]:
-        """The outline of ``plan``'s drill and implant on this image, (M, 2) uv mm each."""
-        return []
-
-    def show_ghost_of(self, plan: Plan) -> None:
-        """Draw ``plan`` (a dragged trajectory) as a ghost with its grips."""
-        if self.plane_map is None:
-            return
-        points = {}
-        for name, pt in grips_lps(plan).items():
-            uv, _off = self.plane_map.to_uv(np.asarray(pt).reshape(1, 3))
-            if np.all(np.isfinite(uv)):
-                points[name] = uv[0]
-        self.show_ghost(self.ghost_lines(plan), points)
-
-    def show_ghost(self, lines_uv: list[np.ndarray], points_uv: dict[str, np.ndarray]) -> None:
-        """Redraw the ghost only: ``lines_uv`` outlines and ``points_uv`` markers, over the
-        image as it was at the drag's first move."""
-        if self._ghost_bg is None:
-            self._ghost_bg = self.copy_from_bbox(self.ax.bbox)
-        self._clear_ghost()
-        for line in lines_uv:
-            art = Line2D(line[:, 0], line[:, 1], color=GHOST_COLOUR, lw=1.4, ls="-", animated=True)
-            self._ghost.append(self.ax.add_line(art))
-        for uv in points_uv.values():
-            art = Line2D([uv[0]], [uv[1]], marker="o", mfc="none", mec=GHOST_COLOUR, mew=2, ms=9)
-            art.set_animated(True)
-            self._ghost.append(self.ax.add_line(art))
-        self._blit_ghost()
-
-    def _blit_ghost(self) -> None:
-        """The ghost over the kept bitmap, shown at the next paint (one screen update per
-        event-loop pass however many moves arrived)."""
-        self.restore_region(self._ghost_bg)
-        for art in self._ghost:
-            self.ax.draw_artist(art)
-        ratio = self.devicePixelRatioF()
-        x0, y0, x1, y1 = self.ax.bbox.extents / ratio
-        top = self.height() - y1
-        self.update(int(x0) - 1, int(top) - 1, int(x1 - x0) + 3, int(y1 - y0) + 3)
-
-    def _clear_ghost(self) -> None:
-        for art in self._ghost:
-            with contextlib.suppress(ValueError, NotImplementedError):
-                art.remove()
-        self._ghost = []
-
-    def end_ghost(self) -> None:
-        """Remove the ghost (the next redraw shows the plan as it is)."""
-        self._clear_ghost()
-        if self._ghost_bg is not None:
-            self._ghost_bg = None
-            self.draw_idle()
-
-    def _drawn(self, _event: object) -> None:
-        if self._ghost_bg is not None:  # redrawn under a drag: keep the ghost on top
-            self._ghost_bg = self.copy_from_bbox(self.ax.bbox)
-            for art in self._ghost:
-                self.ax.draw_artist(art)
 
     # ------------------------------------------------------------------ crosshair
     def draw_crosshair(self) -> None:

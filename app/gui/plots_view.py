@@ -12,8 +12,10 @@ the plots (text is the slowest thing matplotlib draws).
 The widget's Qt ``objectName`` is ``plot:force``; its ``stopDepthMm`` property (float, mm) is
 the stop depth of the curves it shows, set by the paint that puts them on the widget, and
 ``stopDepthMmChanged`` is emitted each time new curves are painted (even at the same stop).
-Curves drawn live are painted with the event loop's next paint (one screen update for the
-plots and the dragged view's outline together), not by a paint of their own.
+Curves of a drag are drawn by the paint that shows them: a result asks for a paint of the
+axes, and that paint draws the latest result's curves (results that arrive before it replace
+each other: each paint draws once, the newest), with the dragged view's outline in the same
+screen update.
 """
 
 from __future__ import annotations
@@ -66,6 +68,9 @@ class PlotsView(FigureCanvasQTAgg):
         self._background: Any = None
         #: Curves drawn into the canvas, waiting for the paint that shows them.
         self._painting: DepthCurves | None = None
+        #: A drag's latest curves, drawn by the next paint.
+        self._live_pending: DepthCurves | None = None
+        self._in_paint = False
         #: Curves drawn by blitting over the kept axes / by a whole redraw (for tests, bench).
         self.blits = 0
         self.full_draws = 0
@@ -126,6 +131,7 @@ class PlotsView(FigureCanvasQTAgg):
 
     def show_message(self, message: str) -> None:
         """Empty axes with ``message``."""
+        self._live_pending = None
         draw_depth_plots(self.plot_fig, None, message=message)
         self._animate([])
         self._shown(None)
@@ -134,6 +140,7 @@ class PlotsView(FigureCanvasQTAgg):
     def show_curves(self, curves: DepthCurves, *, live: bool = False) -> None:
         """Draw ``curves`` now: over the kept axes when ``live`` and they fit, else whole
         (with room to spare when ``live``); then ``stopDepthMm`` says their stop."""
+        self._live_pending = None
         if live and self._background is not None:
             artists = update_depth_plots(self.plot_fig, curves)
             if artists is not None:
@@ -162,13 +169,24 @@ class PlotsView(FigureCanvasQTAgg):
         self.update()
 
     def _update_region(self, bbox: Bbox) -> None:
-        """Ask for a paint of ``bbox`` (display pixels) with the next event-loop pass."""
+        """Ask for a paint of ``bbox`` (display pixels) with the next event-loop pass (none
+        from within a paint: that paint shows it)."""
+        if self._in_paint:
+            return
         ratio = self.device_pixel_ratio
         x0, y0, x1, y1 = (float(v) / ratio for v in bbox.extents)
         self.update(int(x0) - 1, int(self.height() - y1) - 1, int(x1 - x0) + 3, int(y1 - y0) + 3)
 
     def paintEvent(self, event: QPaintEvent) -> None:
-        """Paint, then say which curves are on the widget (``stopDepthMm``)."""
+        """Draw a drag's latest curves (if any came since the last paint), paint, then say
+        which curves are on the widget (``stopDepthMm``)."""
+        live = self._live_pending
+        if live is not None:
+            self._in_paint = True
+            try:
+                self.show_curves(live, live=True)
+            finally:
+                self._in_paint = False
         super().paintEvent(event)
         curves, self._painting = self._painting, None
         if curves is not None:
@@ -200,7 +218,11 @@ class PlotsView(FigureCanvasQTAgg):
         if view is None and live.error:
             self.show_message(f"no force profile: {live.error}")
         elif view is not None and view is live.path:
-            self.show_curves(view.curves, live=True)
+            if self._background is None or not self.isVisible():
+                self.show_curves(view.curves, live=True)
+            else:  # drawn by the paint that shows it (the newest by then)
+                self._live_pending = view.curves
+                self._update_region(Bbox.union([ax.bbox for ax in self.plot_fig.axes]))
 
     def _live_depth(self, depth_mm: float) -> None:
         if not self.isVisible():  # hidden (a blind trial): its axes have no size to draw in

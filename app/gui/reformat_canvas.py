@@ -65,7 +65,7 @@ AUTO_CANAL = "left / right by side"
 
 
 class ReformatMap:
-    """A reformat as a :class:`~ctdrill.app.gui.map_canvas.PlaneMap`."""
+    """A reformat as a :class:`~ctdrill.app.gui.map_ghost.PlaneMap`."""
 
     def __init__(self, reformat: Reformat) -> None:
         self.reformat = reformat

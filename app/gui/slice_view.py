@@ -65,7 +65,7 @@ OBJECT_NAMES = {
 
 
 class SliceMap:
-    """A slice plane as a :class:`~ctdrill.app.gui.map_canvas.PlaneMap`."""
+    """A slice plane as a :class:`~ctdrill.app.gui.map_ghost.PlaneMap`."""
 
     def __init__(self, image: SliceImage) -> None:
         self.image = image

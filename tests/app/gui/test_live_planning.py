@@ -213,3 +213,47 @@ def test_a_canal_traced_on_the_panorama_is_saved_where_the_pixels_were(
     assert slid is not None and np.array_equal(slid.entry_lps, plan.entry_lps)
     assert slid.planned_depth_mm > plan.planned_depth_mm  # down the image: deeper
     assert demo.undo_action.text() == "Undo slide implant along its axis"
+
+
+def test_a_fast_drag_is_coalesced_to_its_latest_position_once_per_pass(
+    qtbot: QtBot, demo: MainWindow
+) -> None:
+    """Moves delivered in one burst report one plan (the last position's), its ghost computed
+    once by the paint; the plots draw the latest result once at their paint."""
+    drill, plot = view(demo, "view:drill"), view(demo, "plot:force")
+    plan = demo.doc.plan
+    assert plan is not None
+    x, y = drill.lps_to_pixel(plan.target_lps)  # type: ignore[attr-defined]
+    reported: list[object] = []
+    drill.grip_dragged.connect(lambda *args: reported.append(args))  # type: ignore[attr-defined]
+    ghosts: list[object] = []
+    draw_ghost = drill.draw_ghost_of  # type: ignore[attr-defined]
+    drill.draw_ghost_of = lambda p: (ghosts.append(p), draw_ghost(p))  # type: ignore[attr-defined]
+    qtbot.mousePress(drill, Qt.MouseButton.LeftButton, pos=at((x, y)))
+    qtbot.waitUntil(lambda: demo.doc.live.path is not None, timeout=LOAD_TIMEOUT_MS)
+    qtbot.waitUntil(lambda: len(ghosts) > 0, timeout=LOAD_TIMEOUT_MS)  # the press's preview
+    reported.clear()
+    ghosts.clear()
+    for k in range(1, 6):  # five moves before the event loop runs
+        qtbot.mouseMove(drill, at((x, y + 3 * k)))
+    assert reported == []  # nothing reported yet: the latest waits for the next pass
+    with qtbot.waitSignal(plot.stopDepthMmChanged, timeout=LOAD_TIMEOUT_MS):
+        qtbot.waitUntil(lambda: len(reported) > 0, timeout=LOAD_TIMEOUT_MS)
+    assert len(reported) == 1
+    here = drill.pixel_to_lps(x, y + 15)  # type: ignore[attr-defined]
+    grabbed = drill.pixel_to_lps(x, y)  # type: ignore[attr-defined]
+    dragged = demo.doc.live.plan
+    assert dragged is not None
+    np.testing.assert_allclose(dragged.target_lps, plan.target_lps + here - grabbed, atol=1e-9)
+    qtbot.waitUntil(lambda: len(ghosts) > 0, timeout=LOAD_TIMEOUT_MS)
+    assert (
+        len(ghosts) == 1 and ghosts[0] is dragged
+    )  # one ghost, the latest plan's, drawn by the paint
+    qtbot.waitUntil(
+        lambda: demo.doc.live.path is not None and demo.doc.live.path.plan is dragged,
+        timeout=LOAD_TIMEOUT_MS,
+    )
+    qtbot.waitUntil(lambda: plot.curves is demo.doc.live.path.curves, timeout=LOAD_TIMEOUT_MS)  # type: ignore[attr-defined,union-attr]
+    with qtbot.waitSignal(demo.path_updated, timeout=LOAD_TIMEOUT_MS):
+        qtbot.mouseRelease(drill, Qt.MouseButton.LeftButton, pos=at((x, y + 15)))
+    assert demo.doc.plan is dragged
