@@ -100,12 +100,17 @@ typedef struct fw_renderer {
     real_t ke, w1, w2, f1_hz, f2_hz, stop_depth_mm, stop_anchor_mm, inv_step;
     real_t contact_n; /* the coupling's force when the hand met the wall short of the stop */
     int32_t last; /* index of the last row, -1 without a table */
+    uint8_t release_on;   /* the release damper's gate */
+    uint16_t pull_ticks;  /* ticks in a row the hand reading has pulled past the gate's off */
 #if !FW_REAL_IS_DOUBLE
     real_t turn1, turn2; /* vibration phases in turns since ARM */
     real_t turn1_step, turn2_step; /* f T modulo 1: turns a tick */
     real_t glide_from;   /* float: the anchor where its glide began, and the ticks since */
     uint32_t glide_n;
     real_t thermal_lo;   /* compensation of the I2t sum (Kahan): float keeps its threshold tick */
+    real_t front_lo;     /* the front is front_mm + front_lo: its sub-ulp steps add up */
+    real_t inv_step_lo;  /* 1 / step = inv_step + inv_step_lo */
+    real_t master_lo;    /* this tick's encoder depth is master_mm + master_lo (set by fw_tick) */
 #endif
 } fw_renderer;
 

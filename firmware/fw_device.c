@@ -136,6 +136,9 @@ static void clear_table(fw_device *dev)
 {
     dev->r.last = -1;
     dev->r.front_mm = R(0.0);
+#if !FW_REAL_IS_DOUBLE
+    dev->r.front_lo = R(0.0);
+#endif
     disarm(&dev->r);
 }
 
@@ -151,6 +154,8 @@ static uint8_t arm(fw_device *dev)
     r->faults = 0;
     r->new_faults = 0;
     r->hand_n = R(0.0);
+    r->release_on = 1;
+    r->pull_ticks = 0;
     r->last_host_tick = dev->ticks;
     r->arm_tick = dev->ticks;
 #if !FW_REAL_IS_DOUBLE
@@ -177,6 +182,9 @@ static void install_table(fw_device *dev)
 #else
     /* a step below 1e-30 mm would overflow its inverse: every depth is then off the table */
     r->inv_step = dev->up_step < 1e-30f ? R(1e30) : R(1.0) / dev->up_step;
+    /* 1 / step = inv_step + inv_step_lo (to a float's rounding of the low part) */
+    r->inv_step_lo =
+        dev->up_step < 1e-30f ? R(0.0) : r->inv_step * fmaf(-dev->up_step, r->inv_step, R(1.0));
     r->turn1_step = frac_turns((real_t)dev->up_f1 * (real_t)(1.0 / FW_TICK_HZ));
     r->turn2_step = frac_turns((real_t)dev->up_f2 * (real_t)(1.0 / FW_TICK_HZ));
 #endif
@@ -189,6 +197,9 @@ static void install_table(fw_device *dev)
     r->stop_depth_mm = (real_t)dev->up_stop;
     r->stop_anchor_mm = (real_t)INFINITY;
     r->front_mm = R(0.0);
+#if !FW_REAL_IS_DOUBLE
+    r->front_lo = R(0.0);
+#endif
     disarm(r);
 }
 
@@ -567,6 +578,11 @@ void fw_tick(fw_device *dev)
     dev->ticks += 1u;
     counts = dev->hal.encoder_counts(dev->hal.ctx);
     x = counts_mm(counts);
+#if !FW_REAL_IS_DOUBLE
+    /* the float's rounding of counts * 0.1 um (up to 1 nm at 20 mm): the breakthrough's 1 / S0
+     * would amplify it */
+    dev->r.master_lo = fmaf((real_t)counts, R(1e-4), -x) + (real_t)counts * (real_t)(1e-4 - (double)1e-4f);
+#endif
     /* the velocity and hand estimates are the previous tick's */
     force = fw_render_tick(dev, x, dev->c.velocity_mm_s, dev->c.hand_est_n);
     if (dev->r.state == FW_CUTTING || dev->r.state == FW_STOPPED)

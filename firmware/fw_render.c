@@ -52,7 +52,10 @@ void fw_render_init(fw_renderer *r)
     r->contact_n = R(0.0);
     r->inv_step = R(0.0);
     r->last = -1;
+    r->release_on = 1;
+    r->pull_ticks = 0;
 #if !FW_REAL_IS_DOUBLE
+    r->front_lo = R(0.0);
     r->turn1 = r->turn2 = R(0.0);
     r->turn1_step = r->turn2_step = R(0.0);
     r->thermal_lo = R(0.0);
@@ -96,12 +99,15 @@ static real_t go_safe(fw_renderer *r, uint16_t fault)
     return R(0.0);
 }
 
-static void coefficients(const fw_device *dev, real_t depth_mm, real_t *s0, real_t *s1,
-                         real_t *s2)
+static void coefficients(const fw_device *dev, real_t depth_mm, real_t depth_lo, real_t *s0,
+                         real_t *s1, real_t *s2)
 {
     const fw_renderer *r = &dev->r;
     real_t pos = depth_mm * r->inv_step, frac;
     int32_t i;
+#if FW_REAL_IS_DOUBLE
+    (void)depth_lo;
+#endif
     if (!(R(0.0) <= pos && pos <= (real_t)r->last)) {
         *s0 = *s1 = *s2 = R(0.0);
         return;
@@ -119,6 +125,11 @@ static void coefficients(const fw_device *dev, real_t depth_mm, real_t *s0, real
     *s1 = (real_t)dev->s1[i] + frac * ((real_t)dev->s1[i + 1] - (real_t)dev->s1[i]);
     *s2 = (real_t)dev->s2[i] + frac * ((real_t)dev->s2[i + 1] - (real_t)dev->s2[i]);
 #else
+    /* the roundings of pos (of the product, of 1 / step) and the front's low part, added to
+     * frac: a breakthrough's S0 is the small end of a row (S0 -> 0), the front's step goes as
+     * 1 / S0, and frac's error is its relative error there */
+    frac += fmaf(depth_mm, r->inv_step, -pos) + depth_mm * r->inv_step_lo + depth_lo * r->inv_step;
+    frac = frac > R(0.0) ? (frac < R(1.0) ? frac : R(1.0)) : R(0.0);
     /* weighted, so that rows near the float range cannot overflow their difference */
     *s0 = dev->s0[i] * (R(1.0) - frac) + dev->s0[i + 1] * frac;
     *s1 = dev->s1[i] * (R(1.0) - frac) + dev->s1[i + 1] * frac;
@@ -126,19 +137,38 @@ static void coefficients(const fw_device *dev, real_t depth_mm, real_t *s0, real
 #endif
 }
 
-static real_t release_gain(const fw_renderer *r)
+/* the release damper's switch, once a tick from the hand reading: on while the hand pulls
+ * less than 1 N; off after RELEASE_HOLD_TICKS ticks in a row of more than RELEASE_OFF_PULL_N
+ * (past the dip and the bias its own force makes in the reading); between, as it was */
+static void release_gate(fw_renderer *r)
 {
-    real_t pull = -r->hand_n - RELEASE_PULL_N;
-    if (pull <= R(0.0))
-        return R(1.0);
-    return pull < RELEASE_PULL_N ? R(1.0) - pull / RELEASE_PULL_N : R(0.0);
+    if (r->hand_n > -RELEASE_PULL_N) {
+        r->release_on = 1;
+        r->pull_ticks = 0;
+    } else if (r->hand_n < -RELEASE_OFF_PULL_N) {
+        if (r->pull_ticks < RELEASE_HOLD_TICKS)
+            r->pull_ticks++;
+        if (r->pull_ticks >= RELEASE_HOLD_TICKS)
+            r->release_on = 0;
+    } else {
+        r->pull_ticks = 0;
+    }
 }
 
 /* model/cutting.py cut_step: the yielding front and the coupling force it sustained */
-static real_t cut_step(real_t front, real_t master, real_t s0, real_t ke, real_t limit,
-                       real_t *coupling)
+static real_t cut_step(real_t front, real_t *front_lo, real_t master, real_t master_lo,
+                       real_t s0, real_t ke, real_t limit, real_t *coupling)
 {
+#if FW_REAL_IS_DOUBLE
     real_t e = master - front, e_star, room, step, new_front, e_after;
+    (void)front_lo;
+    (void)master_lo;
+#else
+    /* the front is front + *front_lo (a float's 1 ulp at 12 mm is 1 nm; the steps of a slow
+     * cut are 0.1-1 um: summed plainly, their roundings walk the front off by tens of nm and
+     * the breakthrough's 1/S0 amplifies that) */
+    real_t e = (master - front) + (master_lo - *front_lo), e_star, room, step, new_front, e_after, sum, lo;
+#endif
     int free_ = 0;
     if (e <= R(0.0) || front >= limit) {
         *coupling = e > R(0.0) ? K_N_PER_MM * e : R(0.0);
@@ -164,16 +194,34 @@ static real_t cut_step(real_t front, real_t master, real_t s0, real_t ke, real_t
         if (!free_)
             step = room;
     }
+#if FW_REAL_IS_DOUBLE
     new_front = front + step;
+#else
+    /* two-sum: new_front + lo is front + front_lo + step to a float's rounding of lo */
+    sum = *front_lo + step;
+    new_front = front + sum;
+    {
+        real_t bp = new_front - front;
+        lo = (front - (new_front - bp)) + (sum - bp);
+    }
+    *front_lo = lo;
+#endif
     if (new_front >= limit) {
         new_front = limit;
+#if !FW_REAL_IS_DOUBLE
+        *front_lo = R(0.0);
+#endif
         free_ = 0;
     }
     if (free_) {
         *coupling = K_N_PER_MM * e;
         return new_front;
     }
+#if FW_REAL_IS_DOUBLE
     e_after = master - new_front;
+#else
+    e_after = (master - new_front) + (master_lo - *front_lo);
+#endif
     *coupling = e_after > R(0.0) ? K_N_PER_MM * e_after : R(0.0);
     return new_front;
 }
@@ -185,6 +233,7 @@ real_t fw_render_tick(fw_device *dev, real_t master_mm, real_t v_mm_s, real_t ha
     real_t glided, spring, damper, fc, drive_mm, push;
     if (finite_r(hand_n))
         r->hand_n += HAND_GAIN * (hand_n - r->hand_n);
+    release_gate(r);
     if (r->state == FW_IDLE || r->state == FW_SAFE) {
         r->force_cmd_n = R(0.0);
         thermal_add(r, -(CONTINUOUS_FORCE_N * CONTINUOUS_FORCE_N * DT_S));
@@ -242,7 +291,11 @@ real_t fw_render_tick(fw_device *dev, real_t master_mm, real_t v_mm_s, real_t ha
 #endif
     r->stop_anchor_mm = anchor;
     spring = master_mm > anchor ? K_STOP_N_PER_MM * (master_mm - anchor) : R(0.0);
-    coefficients(dev, front, &s0, &s1, &s2);
+#if FW_REAL_IS_DOUBLE
+    coefficients(dev, front, R(0.0), &s0, &s1, &s2);
+#else
+    coefficients(dev, front, r->front_lo, &s0, &s1, &s2);
+#endif
     /* short of the stop the front is driven by the whole force the hand meets (coupling and
      * wall): the drill cuts on to the stop behind a hand the wall holds */
     drive_mm = master_mm;
@@ -256,10 +309,20 @@ real_t fw_render_tick(fw_device *dev, real_t master_mm, real_t v_mm_s, real_t ha
     } else {
         r->contact_n = R(0.0);
     }
-    new_front = cut_step(front, drive_mm, s0, r->ke, stop, &coupling);
+#if FW_REAL_IS_DOUBLE
+    new_front = cut_step(front, NULL, drive_mm, R(0.0), s0, r->ke, stop, &coupling);
+    front_v = (new_front - front) / DT_S;
+#else
+    {
+        real_t lo0 = r->front_lo;
+        /* driven by the wall, the drive is the front plus the push's stretch */
+        real_t drive_lo = drive_mm != master_mm ? lo0 : r->master_lo;
+        new_front = cut_step(front, &r->front_lo, drive_mm, drive_lo, s0, r->ke, stop, &coupling);
+        front_v = ((new_front - front) + (r->front_lo - lo0)) / DT_S;
+    }
+#endif
     if (drive_mm != master_mm) /* the coupling's own share of the force */
         coupling -= K_N_PER_MM * (drive_mm - master_mm);
-    front_v = (new_front - front) / DT_S;
     vib = R(0.0);
 #if !FW_REAL_IS_DOUBLE
     /* phases kept in turns (exact enough in float over any session's length) */
@@ -298,7 +361,7 @@ real_t fw_render_tick(fw_device *dev, real_t master_mm, real_t v_mm_s, real_t ha
             force += spring + COPYSIGN(spring, damper);
     }
     if (back_v < R(0.0)) {
-        force += B_RELEASE_N_S_PER_MM * release_gain(r) * back_v;
+        force += B_RELEASE_N_S_PER_MM * (r->release_on ? R(1.0) : R(0.0)) * back_v;
         if (force < -RELEASE_MAX_N)
             force = -RELEASE_MAX_N;
     }

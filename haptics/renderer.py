@@ -14,13 +14,17 @@ Per tick, from the encoder depth of the master and its velocity estimate:
    depth itself), so a push up to the peak force holds the hand within
    :data:`WALL_HOLD_MM` of the drill;
 4. the release damper: while the master moves back (``v < 0``) and the hand does not draw it
-   back (the device's reading of the hand, low-passed at :data:`RELEASE_FILTER_RAD_S`, pulls
-   less than :data:`RELEASE_PULL_N`; the damper fades out over the next newton of pull),
-   ``RELEASE_DAMPING_N_S_PER_MM * v`` is added: a hand that lets go is not thrown back by the
-   springs it compressed nor by the force controller still balancing the push it no longer
+   back, ``RELEASE_DAMPING_N_S_PER_MM * v`` is added: a hand that lets go is not thrown back by
+   the springs it compressed nor by the force controller still balancing the push it no longer
    makes; the damper takes that energy out and the master comes to rest at the surface it left
-   (docs/haptics-stability.md, "Letting go"). It may pull (a negative force, at most
-   :data:`RELEASE_MAX_N`) on a master the hand does not draw back; a retraction is free;
+   (docs/haptics-stability.md, "Letting go"). Its gate is a switch with hysteresis on the
+   device's reading of the hand (low-passed at :data:`RELEASE_FILTER_RAD_S`): on while it pulls
+   less than :data:`RELEASE_PULL_N`, off once it has pulled more than
+   :data:`RELEASE_OFF_PULL_N` for :data:`RELEASE_HOLD_TICKS` ticks in a row (past the dip and
+   the bias the damper's own force makes in the reading: the gate is not driven by the force
+   it sets, and a rounding cannot flip it short of a threshold's crossing). It may pull (a
+   negative force, at most :data:`RELEASE_MAX_N`) on a master the hand does not draw back; a
+   retraction is free;
 5. force limits: 78 N peak, and an I^2t thermal model that limits the force to the
    continuous rating (20 N) once ``thermal_budget_n2_s`` of excess ``F^2 - Fc^2`` has
    accumulated, until it has cooled to half.
@@ -84,6 +88,15 @@ RELEASE_MAX_N = CONTINUOUS_FORCE_N
 #: The hand reading that gates the release damper is low-passed at this, rad/s (the reaction
 #: force observer's own bandwidth: its transient after a release dips a few newtons below 0).
 RELEASE_FILTER_RAD_S = G_RFOB
+#: The release damper switches off once the hand reading has pulled more than this, N, for
+#: :data:`RELEASE_HOLD_TICKS` ticks in a row: twice :data:`RELEASE_PULL_N` plus what the
+#: reading shows of the damper's own braking of a free master (the observer's one-tick lag
+#: reads ``0.1 Mn a``, up to 0.1 * 1.2 * 20 N = 2.4 N), so the damper cannot switch itself off.
+RELEASE_OFF_PULL_N = 4.5
+#: ... and the ticks in a row (8 ms): longer than the dip a step of the damper's own force
+#: makes in the reading (the observer reads a step of the motor's force as a pull for a few
+#: milliseconds: a 40 N step keeps the filtered reading past 4.5 N of pull for about 4 ms).
+RELEASE_HOLD_TICKS = 80
 
 
 class Renderer:
@@ -134,6 +147,10 @@ class Renderer:
         self.b_release = release_damping_n_s_per_mm
         self._hand_gain = min(1.0, RELEASE_FILTER_RAD_S * self.dt_s)
         self.hand_n = 0.0
+        #: The release damper's gate (see :meth:`release_gain`) and the ticks the hand reading
+        #: has pulled more than :data:`RELEASE_OFF_PULL_N` in a row (up to the hold).
+        self.release_on = True
+        self.pull_ticks = 0
         self.state = int(DeviceState.IDLE)
         self.faults = 0
         self.new_faults = 0
@@ -211,6 +228,8 @@ class Renderer:
         self.faults = 0
         self.new_faults = 0
         self.hand_n = 0.0
+        self.release_on = True
+        self.pull_ticks = 0
         self.last_host_s = now_s
         self.t_arm_s = now_s
         self.safe_since_s = math.nan
@@ -262,12 +281,26 @@ class Renderer:
         )
 
     def release_gain(self) -> float:
-        """How much of the release damper acts, 0..1, from the hand reading :attr:`hand_n`:
-        1 unless the hand pulls more than :data:`RELEASE_PULL_N`, 0 from twice that."""
-        pull = -self.hand_n - RELEASE_PULL_N
-        if pull <= 0.0:
-            return 1.0
-        return 1.0 - pull / RELEASE_PULL_N if pull < RELEASE_PULL_N else 0.0
+        """How much of the release damper acts: 1 (on) or 0 (off, the hand draws the handle
+        back), the gate :meth:`_gate` keeps from the hand reading :attr:`hand_n`."""
+        return 1.0 if self.release_on else 0.0
+
+    def _gate(self) -> None:
+        """The release damper's switch, once a tick from :attr:`hand_n`: on while the hand
+        pulls less than :data:`RELEASE_PULL_N`; off after :data:`RELEASE_HOLD_TICKS` ticks in
+        a row of more than :data:`RELEASE_OFF_PULL_N`; between the two it keeps its state
+        (hysteresis)."""
+        hand = self.hand_n
+        if hand > -RELEASE_PULL_N:
+            self.release_on = True
+            self.pull_ticks = 0
+        elif hand < -RELEASE_OFF_PULL_N:
+            if self.pull_ticks < RELEASE_HOLD_TICKS:
+                self.pull_ticks += 1
+            if self.pull_ticks >= RELEASE_HOLD_TICKS:
+                self.release_on = False
+        else:
+            self.pull_ticks = 0
 
     def tick(
         self, now_s: float, master_mm: float, master_v_mm_s: float, hand_n: float = 0.0
@@ -279,6 +312,7 @@ class Renderer:
         """
         if math.isfinite(hand_n):  # a non-finite reading ends the session below
             self.hand_n += self._hand_gain * (hand_n - self.hand_n)
+        self._gate()
         state = self.state
         if state == DeviceState.IDLE or state == DeviceState.SAFE:
             self.force_cmd_n = 0.0

@@ -41,6 +41,8 @@ def test_the_laws_constants_are_the_python_devices() -> None:
         "B_RELEASE_N_S_PER_MM": renderer.RELEASE_DAMPING_N_S_PER_MM,
         "RELEASE_PULL_N": renderer.RELEASE_PULL_N,
         "RELEASE_MAX_N": renderer.RELEASE_MAX_N,
+        "RELEASE_OFF_PULL_N": renderer.RELEASE_OFF_PULL_N,
+        "RELEASE_HOLD_TICKS": renderer.RELEASE_HOLD_TICKS,
         "MASS_KG": plant.MASS_KG,
         "KT_N_PER_A": plant.KT_N_PER_A,
         "COULOMB_N": plant.COULOMB_N,

@@ -8,11 +8,11 @@ emulator once (about 6 s) and on the C core:
 * the double build, closed loop with its simulated master: every tick's position, force
   command, drill depth, motor current and hand estimate within 1e-9 (mm, N, A) of Python's,
   the states and fault flags equal, and the same frames on the wire;
-* the single build, open loop on the recorded encoder readings: the drill depth within one
-  encoder count (1e-4 mm) and the force within 0.01 N at every tick except around the law's
-  switches (the reference's force jumping by more than 2 N in a tick, its state or flags
-  changing, a breakthrough), where a float's rounding may move the switch by a tick; those
-  windows are few and bounded.
+* the single build, open loop on the recorded encoder readings: at every tick the force
+  within 0.01 N and the states and faults equal; the drill depth within one encoder count
+  (1e-4 mm), except where the reference's front jumps through a breakthrough in one tick: the
+  jump goes as 1 / S0 with S0 -> 0 at the end of a row (ill-conditioned in any precision), and
+  there the drill is within 1e-3 of the jump.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from ctdrill.haptics.protocol import FrameReader, Packet, Telemetry
+from ctdrill.haptics.renderer import RELEASE_MAX_N
 from tests.firmware.sessions import record_c, record_python, replay_c, sessions
 
 TICKS = 1_000_000
@@ -53,6 +54,21 @@ def test_the_sessions_cover_what_the_issue_asks(recorded) -> None:
     # the wall held the drill at the stop (15 mm) while the hand pushed past it
     assert np.max(drill[:100_000]) == pytest.approx(15.0, abs=1e-6)
     assert np.max(rec[:100_000, 0]) > 15.1
+
+
+def test_the_release_damper_does_not_switch_itself_off(recorded) -> None:
+    # let go at the travel's end after the thermal limit let the hand through: the wall throws
+    # the master back past the stop at up to 1.9 m/s; out of contact only the release damper
+    # acts, and its own braking moves the hand reading (the observer's transient and lag). Its
+    # gate holds: the whole way back it brakes at the 20 N it is bounded to (a gain faded by
+    # the reading switched 0 / -20 N every few ticks here).
+    _, rec, _ = recorded
+    x = rec[:200_000, 0]
+    v = np.zeros(len(x))
+    v[1:] = np.diff(x) / 1e-4
+    fast_back = (v < -500.0) & (x < 14.9)
+    assert np.count_nonzero(fast_back) > 200
+    assert np.all(rec[:200_000][fast_back, 1] == -RELEASE_MAX_N)
 
 
 def _packets(data: bytes) -> list[Packet]:
@@ -96,20 +112,6 @@ def test_double_build_reproduces_the_python_device_tick_for_tick(recorded) -> No
             assert a.message == b.message
 
 
-def _switch_windows(ref: np.ndarray, half_width: int = 16) -> np.ndarray:
-    """Ticks near a switch of the reference's law (mask)."""
-    force, drill, flags = ref[:, 1], ref[:, 2], ref[:, 5]
-    jump = np.zeros(len(ref), dtype=bool)
-    jump[1:] = (
-        (np.abs(np.diff(force)) > 2.0) | (np.abs(np.diff(drill)) > 0.01) | (np.diff(flags) != 0)
-    )
-    idx = np.flatnonzero(jump)
-    mask = np.zeros(len(ref) + 1, dtype=np.int64)
-    np.add.at(mask, np.clip(idx - half_width, 0, len(ref)), 1)
-    np.add.at(mask, np.clip(idx + half_width + 1, 0, len(ref)), -1)
-    return np.cumsum(mask)[: len(ref)] > 0
-
-
 def test_single_build_stays_within_a_count_and_a_hundredth_of_a_newton(recorded) -> None:
     script, ref, _ = recorded
     counts = np.empty(TICKS + 1, dtype=np.int32)
@@ -120,15 +122,19 @@ def test_single_build_stays_within_a_count_and_a_hundredth_of_a_newton(recorded)
     np.testing.assert_allclose(
         replay_c(script, counts, precision="double")[:, 1:3], ref[:, 1:3], atol=1e-9, rtol=0
     )
-    near = _switch_windows(ref)
-    assert near.mean() < 0.05  # the switches are a small part of the session
+    # at every tick: the same states and faults, the force within 0.01 N (the release damper's
+    # gate is a switch with hysteresis its own force cannot flip, the front is held to a
+    # float's rounding of the encoder counts)
+    np.testing.assert_array_equal(rec[:, 5], ref[:, 5])
     force_err = np.abs(rec[:, 1] - ref[:, 1])
+    assert force_err.max() <= FORCE_TOL_N, int(np.argmax(force_err))
+    # the drill depth within a count, but where the front jumps through a breakthrough
     drill_err = np.abs(rec[:, 2] - ref[:, 2])
-    assert force_err[~near].max() <= FORCE_TOL_N
-    assert drill_err[~near].max() <= ENCODER_MM
-    assert np.all(rec[~near, 5] == ref[~near, 5])
-    # at the switches: at most a tick's shift of the switch (the force within the size of the
-    # reference's own jumps there, the drill within the breakthrough's step)
-    assert np.mean(force_err > FORCE_TOL_N) < 1e-4
-    assert force_err.max() <= 20.0 + FORCE_TOL_N
-    assert np.percentile(force_err, 99.9) <= FORCE_TOL_N / 4
+    jump = np.zeros(TICKS)
+    jump[1:] = np.diff(ref[:, 2])
+    # the drill deeper by 10 um in one tick: a fast push (the drill at the master: exact) or
+    # the front through a breakthrough (the 1 / S0 jump)
+    breakthrough = jump > 100 * ENCODER_MM
+    assert np.mean(breakthrough) < 0.01
+    assert drill_err[~breakthrough].max() <= ENCODER_MM
+    assert np.all(drill_err[breakthrough] <= np.maximum(ENCODER_MM, 1e-3 * jump[breakthrough]))
