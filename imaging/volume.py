@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
-from scipy import ndimage
 
 from ctdrill.hu import AIR_HU
 from ctdrill.imaging.errors import ImagingInputError
@@ -307,9 +306,14 @@ class CTVolume:
         if any_outside:
             coords_kji[:, outside] = 0.0
         out = np.empty(coords_kji.shape[1], dtype=np.float64)
-        ndimage.map_coordinates(
-            self.hu, coords_kji, output=out, order=1, mode="nearest", prefilter=False
-        )
+        from ctdrill.imaging.sampling.points_kernel import sample_index_points
+
+        if not sample_index_points(self.hu, coords_kji, out):
+            from scipy import ndimage  # 0.3-0.6 s to import: only without the kernel
+
+            ndimage.map_coordinates(
+                self.hu, coords_kji, output=out, order=1, mode="nearest", prefilter=False
+            )
         if any_outside:
             out[outside] = outside_hu
         return out.reshape(batch)

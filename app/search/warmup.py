@@ -23,6 +23,7 @@ def search_kernels() -> tuple[jit.Kernel, ...]:
     from ctdrill.imaging.sampling.envelope_kernel import ENVELOPE_KERNEL
     from ctdrill.imaging.sampling.lip_batch import LIP_KERNEL
     from ctdrill.imaging.sampling.surface_kernel import SURFACE_KERNEL
+    from ctdrill.imaging.sampling.points_kernel import POINTS_KERNEL
     from ctdrill.model.profile_batch import PROFILE_KERNEL
 
     return (
@@ -33,6 +34,7 @@ def search_kernels() -> tuple[jit.Kernel, ...]:
         ENVELOPE_KERNEL,
         SHELL_KERNEL,
         SURFACE_KERNEL,
+        POINTS_KERNEL,
     )
 
 

@@ -17,7 +17,6 @@ always this spline, which is what Slicer shows after loading the same file.
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 #: Samples per segment between two control points (Slicer's curve generator default).
 POINTS_PER_SEGMENT = 10
@@ -33,6 +32,8 @@ def slicer_curve(control_points: np.ndarray) -> np.ndarray:
     n = len(pts)
     if n < 2:
         return pts.copy()
+    from scipy.interpolate import CubicSpline  # 0.2-0.4 s to import: only Slicer curves
+
     knots = np.arange(n, dtype=np.float64)
     spline = CubicSpline(knots, pts, axis=0, bc_type=((1, np.zeros(3)), (1, np.zeros(3))))
     total = POINTS_PER_SEGMENT * (n - 1) + 1
