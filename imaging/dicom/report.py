@@ -20,7 +20,7 @@ def volume_report(
 
     ``series_uid`` is the SHA-256 of the SeriesInstanceUID (as plans record it; the raw UID
     only with ``include_phi``; for a NIfTI, NRRD or MetaImage file the UID is ``sha256:`` + the
-    volume's content hash, :func:`ctdrill.imaging.volumes.load.content_uid`),
+    volume's content hash, :func:`ctdrill.imaging.volumes.identity.content_uid`),
     ``series_uid_sha256`` always, ``include_phi`` says which; the
     free-text study and series descriptions (which often hold a name) appear only with
     ``include_phi`` (:mod:`ctdrill.imaging.dicom.identity`).

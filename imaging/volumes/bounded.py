@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import bz2
 import zlib
+from collections.abc import Callable
 from typing import IO, Any
 
 import numpy as np
@@ -234,7 +235,13 @@ def _decompressor(codec: str) -> Any:
 
 
 def _inflate(
-    fh: IO[bytes], codec: str, out: memoryview, skip: int, where: str, error: ErrorType
+    fh: IO[bytes],
+    codec: str,
+    out: memoryview,
+    skip: int,
+    where: str,
+    error: ErrorType,
+    on_chunk: Callable[[memoryview], None] | None = None,
 ) -> int:
     """Inflate into ``out`` after dropping ``skip`` bytes; the number of bytes filled."""
     total = skip + len(out)
@@ -264,6 +271,8 @@ def _inflate(
         if start < len(chunk):
             at = pos + start - skip
             out[at : at + len(chunk) - start] = memoryview(chunk)[start:]  # no copy of a slice
+            if on_chunk is not None:
+                on_chunk(out[at : at + len(chunk) - start])
         pos += len(chunk)
     if pos >= total and _more_output(dec, pending, fh, codec):
         raise error(
@@ -301,6 +310,7 @@ def fill_array(
     where: str,
     error: ErrorType,
     skip: int = 0,
+    on_chunk: Callable[[memoryview], None] | None = None,
 ) -> None:
     """Fill the C-contiguous ``out`` with the voxel bytes at ``fh``'s position.
 
@@ -310,6 +320,8 @@ def fill_array(
     out : the preallocated array; exactly ``out.nbytes`` bytes are read.
     codec : ``raw``, ``gzip``, ``zlib`` or ``bzip2``.
     skip : bytes dropped first (after decompression for a compressed stream).
+    on_chunk : called with each filled span of ``out`` (a byte view), in order, as soon as
+        it is filled (e.g. :class:`.identity.VoxelDigest.feed`); the spans cover ``out``.
     """
     if not out.flags.c_contiguous:  # a reshape would fill a copy
         raise ValueError("fill_array needs a C-contiguous array")
@@ -318,13 +330,16 @@ def fill_array(
         if skip:
             fh.seek(skip, 1)
         got = 0
+        step = _STEP if on_chunk is not None else len(view)
         while got < len(view):
-            n = fh.readinto(view[got:])  # type: ignore[attr-defined]
+            n = fh.readinto(view[got : got + step])  # type: ignore[attr-defined]
             if not n:
                 break
+            if on_chunk is not None:
+                on_chunk(view[got : got + n])
             got += n
     elif codec in CODECS:
-        got = _inflate(fh, codec, view, skip, where, error)
+        got = _inflate(fh, codec, view, skip, where, error, on_chunk)
     else:
         raise error(f"{where}: encoding {codec!r} is not read; save the volume raw or gzip")
     if got < len(view):

@@ -13,7 +13,9 @@ here, where the file's values become a :class:`~ctdrill.imaging.volume.CTVolume`
   map them (``--grey-to-hu``), and ``info.is_hu`` False (the force path refuses them until
   mapped).
 - **identity**: ``info.series_uid`` is ``sha256:`` + the SHA-256 of the volume's content
-  (:func:`content_uid`: its shape, its LPS affine and its HU voxels), so the same volume read
+  (:func:`~.identity.content_uid`: its shape, its LPS affine and its HU voxels; hashed as
+  the voxels are read when the file stores them as the HU bytes, :class:`.identity.VoxelDigest`),
+  so the same volume read
   from any of these formats, or written again with another compression, has one identity; as
   for DICOM, outputs show it hashed once more (``series_uid``) unless ``--include-phi``.
 - **privacy**: the header's free text (NIfTI ``descrip``, NRRD ``content``) becomes
@@ -23,7 +25,6 @@ here, where the file's values become a :class:`~ctdrill.imaging.volume.CTVolume`
 
 from __future__ import annotations
 
-import hashlib
 import os
 from dataclasses import replace
 from pathlib import Path
@@ -35,6 +36,7 @@ from ctdrill.imaging.provenance import LoadWarning, SeriesInfo
 from ctdrill.imaging.resolution import coarse_voxels_warning, volume_sampling_mm
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.imaging.volumes.grid import TILT_REPORT_DEG
+from ctdrill.imaging.volumes.identity import content_uid
 from ctdrill.imaging.volumes.sniff import read_volume_file, volume_format
 from ctdrill.imaging.volumes.types import DEFAULT_MAX_BYTES, VolumeData, VolumeFileError
 
@@ -48,8 +50,6 @@ LOW_TAIL_PERCENT = 0.1
 MIN_HU_LOW_TAIL = -50.0
 #: Voxels sampled (evenly) for the low tail.
 _TAIL_SAMPLES = 1 << 20
-#: Prefix of a file volume's content identity.
-CONTENT_UID_PREFIX = "sha256:"
 _INT16 = np.iinfo(np.int16)
 
 
@@ -84,18 +84,6 @@ def low_tail(values: np.ndarray) -> float:
     flat = values.reshape(-1)
     step = max(1, flat.size // _TAIL_SAMPLES)
     return float(np.percentile(flat[::step], LOW_TAIL_PERCENT))
-
-
-def content_uid(hu: np.ndarray, affine_lps: np.ndarray) -> str:
-    """``sha256:`` + the SHA-256 of ``b"ctdrill-volume/1"``, the shape (text), the affine
-    (float64, little endian) and the voxels (C order, little endian)."""
-    h = hashlib.sha256(b"ctdrill-volume/1\0")
-    h.update(repr(tuple(int(n) for n in hu.shape)).encode() + b"\0" + str(hu.dtype).encode())
-    h.update(np.ascontiguousarray(affine_lps, dtype="<f8").tobytes())
-    h.update(
-        np.ascontiguousarray(hu, dtype=hu.dtype.newbyteorder("<")).reshape(-1).view(np.uint8).data
-    )
-    return CONTENT_UID_PREFIX + h.hexdigest()
 
 
 def _scaled(path: Path, vol: VolumeData, max_bytes: int) -> np.ndarray:
@@ -170,7 +158,9 @@ def ct_volume(path: str | Path, vol: VolumeData, *, max_bytes: int = DEFAULT_MAX
         )
     scaled = vol.scale is not None
     info = SeriesInfo(
-        series_uid=content_uid(hu, vol.affine_lps),
+        series_uid=vol.content_uid
+        if vol.content_uid is not None and hu is vol.data
+        else content_uid(hu, vol.affine_lps),
         modality="",
         is_hu=problem is None,
         series_description=vol.description,

@@ -2,8 +2,9 @@
 
 The header is parsed by nibabel from its fixed-size block (extensions are skipped, never read:
 they may hold a DICOM header); the voxels are read or inflated into one array of the declared
-size (:mod:`.bounded`). The file type comes from its content (gzip magic, ``sizeof_hdr`` and
-the magic string), not from its name.
+size (:mod:`.bounded`); int16 voxels stored unscaled are hashed into the volume's identity as
+they are read (:class:`.identity.VoxelDigest`). The file type comes from its content (gzip
+magic, ``sizeof_hdr`` and the magic string), not from its name.
 
 Geometry, in the file RAS and converted to LPS (x, y negated):
 
@@ -48,6 +49,7 @@ from ctdrill.imaging.volumes.grid import (
     check_grid,
     grid_distance_mm,
 )
+from ctdrill.imaging.volumes.identity import STREAMED_DTYPE, VoxelDigest
 from ctdrill.imaging.volumes.itk_header import check_itk_agrees
 from ctdrill.imaging.volumes.types import VolumeData, native
 from ctdrill.safeio import open_regular
@@ -282,7 +284,16 @@ def read_nifti(
         )
         fh.seek(0)
         data = allocate(shape_kji, dtype, where=where, error=error)
-        fill_array(fh, data, codec=codec, skip=int(offset), where=str(path), error=error)
+        uid = None
+        if dtype == STREAMED_DTYPE and scale is None:  # the stored bytes are the HU bytes
+            with VoxelDigest(shape_kji, affine) as digest:
+                fill_array(
+                    fh, data, codec=codec, skip=int(offset), where=where, error=error,
+                    on_chunk=digest.feed,
+                )  # fmt: skip
+                uid = digest.uid()
+        else:
+            fill_array(fh, data, codec=codec, skip=int(offset), where=where, error=error)
     return VolumeData(
         format="NIfTI-1" if int(hdr["sizeof_hdr"]) == NIFTI1_BYTES else "NIfTI-2",
         data=native(data),
@@ -291,4 +302,5 @@ def read_nifti(
         tilt_deg=tilt,
         warnings=warnings,
         description=_text(hdr["descrip"]),
+        content_uid=uid,
     )

@@ -34,6 +34,9 @@ class VolumeData:
     description : free text of the header (NIfTI ``descrip``, NRRD ``content``): may identify
         the patient; outputs carry it only with ``--include-phi``.
     fields : the header's other key/value pairs (NRRD), for segment names; same privacy.
+    content_uid : the volume's identity (:func:`.identity.content_uid` of ``data`` and
+        ``affine_lps``) when the reader hashed the voxels as it read them (stored int16, little
+        endian, unscaled: the stored bytes are the HU bytes), else None.
     """
 
     format: str
@@ -44,6 +47,7 @@ class VolumeData:
     warnings: tuple[LoadWarning, ...] = ()
     description: str = ""
     fields: dict[str, str] = field(default_factory=dict)
+    content_uid: str | None = None
 
     @property
     def shape_kji(self) -> tuple[int, int, int]:

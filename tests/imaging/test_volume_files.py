@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from ctdrill.imaging import load_ct
-from ctdrill.imaging.volumes.load import CONTENT_UID_PREFIX, hu_problem
+from ctdrill.imaging.volumes.identity import CONTENT_UID_PREFIX
+from ctdrill.imaging.volumes.load import hu_problem
 from ctdrill.imaging.volumes.types import VolumeFileError
 from tests.imaging.volume_writers import (
     FLIP,
@@ -312,3 +313,50 @@ def test_a_grey_map_on_a_file_in_hu_names_the_file_type_not_a_rescale_type(
     mapped = apply_grey_map(v, GreyToHu(1.0, 0.0, None, "given"))
     (w,) = [w for w in mapped.warnings if w.code == "grey_map_on_hu"]
     assert "a NRRD file whose values read as HU" in w.message and "RescaleType" not in w.message
+
+
+def _identity_by_hand(data: np.ndarray, affine_lps: np.ndarray) -> str:
+    """The identity's definition written out: hashlib over the header text, the affine and
+    the voxels' little-endian bytes."""
+    import hashlib
+
+    h = hashlib.sha256(b"ctdrill-volume/1\0" + repr(data.shape).encode() + b"\0int16")
+    h.update(np.asarray(affine_lps, dtype="<f8").tobytes() + data.astype("<i2").tobytes())
+    return "sha256:" + h.hexdigest()
+
+
+def _nifti(path: Path, data: np.ndarray, affine: np.ndarray) -> Path:
+    """``data`` as ``path`` (.nii, or .nii.gz compressed at level 1: fast to write)."""
+    import gzip
+
+    raw = write_nifti(path.with_suffix(".raw.nii"), data, affine)
+    if path.name.endswith(".gz"):
+        path.write_bytes(gzip.compress(raw.read_bytes(), compresslevel=1))
+        return path
+    return raw.rename(path)
+
+
+@pytest.mark.parametrize(("name", "slices"), [("ct.nii", 40), ("ct.nii.gz", 8)])
+def test_the_identity_hashed_while_reading_is_the_definition(
+    tmp_path: Path, name: str, slices: int
+) -> None:
+    # raw: 40 x 512 x 520 int16 (21 MB), more than one 16 MiB read; gzip: 1 MiB inflate steps
+    plane = np.random.default_rng(5).integers(-1000, 2000, size=(512, 520), dtype=np.int16)
+    data = plane[None] + np.arange(slices, dtype=np.int16)[:, None, None]
+    affine = np.diag([0.5, 0.25, 1.0, 1.0])
+    affine[:3, 3] = [-12.5, 30.0, -7.75]
+    volume = load_ct(_nifti(tmp_path / name, data, affine))
+    assert volume.info.series_uid == _identity_by_hand(data, volume.affine_lps)
+    data[-1, 511, 519] += 1  # the last voxel
+    changed = load_ct(_nifti(tmp_path / ("x" + name), data, affine))
+    assert changed.info.series_uid == _identity_by_hand(data, volume.affine_lps)
+    assert changed.info.series_uid != volume.info.series_uid
+
+
+def test_a_digest_fed_short_refuses_to_name_the_volume() -> None:
+    from ctdrill.imaging.volumes.identity import VoxelDigest
+
+    with VoxelDigest((2, 2, 2), np.eye(4)) as digest:
+        digest.feed(memoryview(bytes(14)))
+        with pytest.raises(ValueError, match="fed 14 voxel bytes of 16"):
+            digest.uid()
