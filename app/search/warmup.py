@@ -22,8 +22,8 @@ def search_kernels() -> tuple[jit.Kernel, ...]:
     from ctdrill.imaging.plan.segments_kernel import SEGMENTS_KERNEL
     from ctdrill.imaging.sampling.envelope_kernel import ENVELOPE_KERNEL
     from ctdrill.imaging.sampling.lip_batch import LIP_KERNEL
-    from ctdrill.imaging.sampling.surface_kernel import SURFACE_KERNEL
     from ctdrill.imaging.sampling.points_kernel import POINTS_KERNEL
+    from ctdrill.imaging.sampling.surface_kernel import SURFACE_KERNEL
     from ctdrill.model.profile_batch import PROFILE_KERNEL
 
     return (
