@@ -189,7 +189,13 @@ static real_t cut_step(real_t front, real_t *front_lo, real_t master, real_t mas
 #endif
         step = room;
     } else {
+#if FW_REAL_IS_DOUBLE
         step = (K_N_PER_MM * e / s0 - R(1.0)) / ke * DT_S;
+#else
+        /* / 10^4, not * 1e-4f: the float 1e-4 is 2.5e-8 short, a bias the front's steps sum
+         * (0.2 nm over 8 mm of cut, amplified by 1 / S0 at a breakthrough) */
+        step = (K_N_PER_MM * e / s0 - R(1.0)) / ke / (real_t)FW_TICK_HZ;
+#endif
         free_ = step < room;
         if (!free_)
             step = room;

@@ -9,10 +9,8 @@ emulator once (about 6 s) and on the C core:
   command, drill depth, motor current and hand estimate within 1e-9 (mm, N, A) of Python's,
   the states and fault flags equal, and the same frames on the wire;
 * the single build, open loop on the recorded encoder readings: at every tick the force
-  within 0.01 N and the states and faults equal; the drill depth within one encoder count
-  (1e-4 mm), except where the reference's front jumps through a breakthrough in one tick: the
-  jump goes as 1 / S0 with S0 -> 0 at the end of a row (ill-conditioned in any precision), and
-  there the drill is within 1e-3 of the jump.
+  within 0.01 N, the drill depth within one encoder count (1e-4 mm) and the states and faults
+  equal.
 """
 
 from __future__ import annotations
@@ -128,13 +126,8 @@ def test_single_build_stays_within_a_count_and_a_hundredth_of_a_newton(recorded)
     np.testing.assert_array_equal(rec[:, 5], ref[:, 5])
     force_err = np.abs(rec[:, 1] - ref[:, 1])
     assert force_err.max() <= FORCE_TOL_N, int(np.argmax(force_err))
-    # the drill depth within a count, but where the front jumps through a breakthrough
+    # the drill depth within a count, also where the front jumps through a breakthrough
+    # (a step that goes as 1 / S0, S0 -> 0 at the end of a row: 0.38 mm in one tick here)
     drill_err = np.abs(rec[:, 2] - ref[:, 2])
-    jump = np.zeros(TICKS)
-    jump[1:] = np.diff(ref[:, 2])
-    # the drill deeper by 10 um in one tick: a fast push (the drill at the master: exact) or
-    # the front through a breakthrough (the 1 / S0 jump)
-    breakthrough = jump > 100 * ENCODER_MM
-    assert np.mean(breakthrough) < 0.01
-    assert drill_err[~breakthrough].max() <= ENCODER_MM
-    assert np.all(drill_err[breakthrough] <= np.maximum(ENCODER_MM, 1e-3 * jump[breakthrough]))
+    assert drill_err.max() <= ENCODER_MM, int(np.argmax(drill_err))
+    assert np.diff(ref[:, 2]).max() > 0.3
