@@ -3,6 +3,7 @@ and the bone walls, against the previous objective (``bench/suggest_peer.py``) i
 
 from __future__ import annotations
 
+import os
 from dataclasses import replace
 
 import numpy as np
@@ -80,6 +81,11 @@ def _case(
     return _row(name, mine, got["s"], old, old_best[0], verdict), head
 
 
+def _load() -> str:
+    one, five, _ = os.getloadavg()
+    return f"{one:.1f} (5-min {five:.1f})"
+
+
 def run(quick: bool) -> Section:
     """The suggest benchmark's section (with headline rows)."""
     demo = asset("demo")
@@ -100,12 +106,14 @@ def run(quick: bool) -> Section:
     md = f"""Case: the bundled demo phantom (``assets/demo``, 0.4 mm voxels) with its plan (the
 tapered 4.1 x 11.5 mm implant, apex 12 mm deep, the 2 mm drill) and the same plan with a
 tapered 4.1 x 8 mm implant, apex 10.5 mm deep; {count} candidates (the command's default
-space). **Ours** is ``suggest``: one batch of the final drill drilled beyond the apex, the shell
-HU around the implant for every candidate, then the exact check (every drill's and the
-implant's margins, ``plan_bone_walls``) of the best-ranked until 20 are feasible or 50 were
-checked. **Previous** is the objective before issue 25 (``bench/suggest_peer.py``): the batch
+space). **Ours** is ``suggest``: one batch of the final drill drilled beyond the apex (its
+stops only: ``evaluate_batch(profiles=False)``), the shell HU around the implant for every
+candidate, then the exact check (every drill's and the implant's margins, ``plan_bone_walls``)
+of the best-ranked until 20 are feasible or 50 were checked. **Previous** is the objective
+before issue 25 (``bench/suggest_peer.py``): the batch
 of the final drill to the target and a score read on the drill's axis, the stop reason as the
-whole rule. Medians of {repeats} round-robin repeats [IQR], one warm-up each.
+whole rule (with the lip profile it scores). Medians of {repeats} round-robin repeats [IQR],
+one warm-up each; load average {_load()} after the runs (2 shared cores).
 
 {
         table(
@@ -117,6 +125,7 @@ whole rule. Medians of {repeats} round-robin repeats [IQR], one warm-up each.
                 "best",
                 "previous",
                 "previous best",
+                "its verdict now",
                 "ours / previous",
             ],
             rows,
