@@ -40,6 +40,8 @@ __all__ = [
     "PathResult",
     "SliceGap",
     "binding_landmark_doc",
+    "complete_path",
+    "path_curves",
     "plan_path",
 ]
 
@@ -193,6 +195,40 @@ def plan_path(
     PathInputError
         When the CT cannot carry a force map along the path (see the module docstring).
     """
+    result = path_curves(
+        volume,
+        plan,
+        calibration,
+        depth_step_mm=depth_step_mm,
+        n_rings=n_rings,
+        n_angles=n_angles,
+        interpolate_gaps=interpolate_gaps,
+        inner_holes=inner_holes,
+    )
+    return complete_path(volume, result, implant)
+
+
+def path_curves(
+    volume: CTVolume,
+    plan: Plan,
+    calibration: Calibration,
+    *,
+    depth_step_mm: float = DEFAULT_DEPTH_STEP_MM,
+    n_rings: int = DEFAULT_N_RINGS,
+    n_angles: int = DEFAULT_N_ANGLES,
+    interpolate_gaps: bool = False,
+    inner_holes: Sequence[Hole] = (),
+) -> PathResult:
+    """The first part of :func:`plan_path` (same arguments): the lip, the force profile, the
+    clearances and the stop, exactly as :func:`plan_path` gives them, without the implant's
+    outcome, the budgets and the warnings (:func:`complete_path` adds them). A window shows
+    these curves while the rest is computed.
+
+    Raises
+    ------
+    PathInputError
+        As :func:`plan_path`.
+    """
     run = evaluate_rows(
         volume,
         plan,
@@ -208,9 +244,18 @@ def plan_path(
     )
     if run.errors[0] is not None:
         raise run.errors[0]
-    result = path_row(
+    return path_row(
         run, 0, calibration, interpolate_gaps=interpolate_gaps, inner_holes=tuple(inner_holes)
     )
+
+
+def complete_path(
+    volume: CTVolume, result: PathResult, implant: ImplantOutcome | None = None
+) -> PathResult:
+    """``result`` of :func:`path_curves` completed as :func:`plan_path` returns it: the
+    implant's outcome (``implant``, else computed here for a plan with an implant), the
+    margin budgets and the warnings."""
+    plan = result.plan
     if implant is None and plan.implant is not None:
         implant = implant_outcome(volume, result.plan)
     result = replace(result, implant=implant, budgets=plan_budgets(volume, result.plan))

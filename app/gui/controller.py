@@ -6,10 +6,12 @@ a worker thread and hands the result to the document on the UI thread.
 
 The path is planned at once after an edit and for every position of a drag: one computation
 at a time, the latest plan next (``Runner.submit_latest``), so a fast drag never queues stale
-work and the plots follow the mouse. Each path result is followed by the implant's readout
-(:func:`ctdrill.app.gui.readouts.implant_readout`, its walls on the coarser grid while a drag
-runs) in a runner of its own, so the plots never wait for it; while a drag outpaces the
-computation the readout is read only when no newer path is computing.
+work and the plots follow the mouse. A dragged plan's job hands its curves and stop to the
+plots as soon as they are computed (``curves_ready``), then computes the implant's check and
+the plan's problems for the banner and the readout. Each path result is followed by the
+implant's readout (:func:`ctdrill.app.gui.readouts.implant_readout`, its walls on the coarser
+grid while a drag runs) in a runner of its own, so the plots never wait for it; while a drag
+outpaces the computation the readout is read only when no newer path is computing.
 """
 
 from __future__ import annotations
@@ -47,6 +49,8 @@ class Controller(QObject):
 
     loaded = Signal(object)
     failed = Signal(str, object, str)
+    #: A dragged plan's curves, from the worker (delivered queued on the UI thread).
+    curves_ready = Signal(object)
 
     def __init__(self, doc: Document, parent: QObject | None = None) -> None:
         super().__init__(parent)
@@ -63,6 +67,7 @@ class Controller(QObject):
         self._live_for: Plan | None = None
         self._suggesting: Plan | None = None
         doc.live.plan_dragged.connect(self._dragged)
+        self.curves_ready.connect(self._curves_done)
         doc.path_changed.connect(self._read_out)
         doc.live.path_changed.connect(self._read_out)
         doc.suggestion_requested.connect(self.run_suggest)
@@ -116,7 +121,9 @@ class Controller(QObject):
 
         def job() -> PathView | tuple[Plan, str]:
             try:
-                return compute_path_view(volume, plan, hu, plan_set=others, live=True)
+                return compute_path_view(
+                    volume, plan, hu, plan_set=others, live=True, on_curves=self.curves_ready.emit
+                )
             except ValueError as exc:  # bad input (an axis leaving the scan): said, no curve
                 return plan, str(exc)
 
@@ -138,6 +145,10 @@ class Controller(QObject):
 
     def _readout_done(self, result: tuple[Plan, ImplantReadout]) -> None:
         self.doc.live.set_readout(*result)
+
+    def _curves_done(self, view: PathView) -> None:
+        """A dragged plan's curves, before its checks: the plots show them at once."""
+        self.doc.live.offer_curves(view)
 
     def _live_done(self, result: PathView | tuple[Plan, str]) -> None:
         if isinstance(result, PathView):

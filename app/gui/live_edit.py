@@ -56,6 +56,8 @@ class LiveEdit(QObject):
     plan_dragged(plan) : the current trajectory is being dragged to ``plan``; None when the
         drag ended (after the edit, if any, is in the document).
     path_changed(view) : the path result of the dragged plan (``path``).
+    curves_changed(view) : the curves to plot of a dragged plan (``curves``): a path result
+        whose checks may still be computing (they follow with ``path_changed``).
     crosshair_changed(point) : the views are linked at a (3,) LPS point, or None.
     trace_changed() : the trace settings changed.
     readout_changed(readout) : the current (or dragged) implant's readout
@@ -64,6 +66,7 @@ class LiveEdit(QObject):
 
     plan_dragged = Signal(object)
     path_changed = Signal(object)
+    curves_changed = Signal(object)
     crosshair_changed = Signal(object)
     trace_changed = Signal()
     readout_changed = Signal(object)
@@ -76,6 +79,9 @@ class LiveEdit(QObject):
         #: The latest path computed during the drag (the plan under the mouse's, or one a
         #: little behind it while the mouse outpaces the computation); or why there is none.
         self.path: PathView | None = None
+        #: The newest curves computed during the drag (``path``'s, or a newer plan's whose
+        #: checks are still computing).
+        self.curves: PathView | None = None
         self.error = ""
         #: This drag's plans, oldest first (a result for one of them is shown if newer than
         #: the one shown).
@@ -121,13 +127,24 @@ class LiveEdit(QObject):
         shown = -1 if self.path is None else self._rank(self.path.plan)
         if rank > shown:
             self.path, self.error = view, ""
+            self.offer_curves(view)
             self.path_changed.emit(view)
         return True
+
+    def offer_curves(self, view: PathView) -> None:
+        """Curves computed for a plan of this drag: kept and announced (``curves_changed``)
+        when for a newer plan than those shown."""
+        rank = self._rank(view.plan)
+        if self.plan is None or rank < 0:
+            return
+        if rank > (-1 if self.curves is None else self._rank(self.curves.plan)):
+            self.curves = view
+            self.curves_changed.emit(view)
 
     def fail(self, plan: Plan, message: str) -> None:
         """No path for the dragged ``plan``: ``path_changed(None)`` with ``error`` saying why."""
         if plan is self.plan:
-            self.path, self.error = None, message
+            self.path, self.curves, self.error = None, None, message
             self.path_changed.emit(None)
 
     def end_drag(self, plan: Plan | None, *, edit: str = "") -> bool:
@@ -135,7 +152,7 @@ class LiveEdit(QObject):
         ``edit``, its path shown at once when computed during the drag; None cancels (the
         trajectory stays). Returns True when the edit was made."""
         live = self.path
-        self.plan, self.path, self.error = None, None, ""
+        self.plan, self.path, self.curves, self.error = None, None, None, ""
         self._trail = []
         done = plan is not None and self.doc.set_plan(plan, edit=edit or None)
         if done and live is not None and live.plan is plan:

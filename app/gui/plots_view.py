@@ -2,8 +2,8 @@
 arrives or fails, with the rehearsal's live depth as a cursor (drawing:
 :mod:`ctdrill.app.gui.plots`).
 
-While a plan is dragged (``Document.live``: ``path_changed``) only the curves are redrawn: the axes,
-ticks, bands and titles drawn last are kept as a bitmap, the curve artists get the new data
+While a plan is dragged (``Document.live``: ``curves_changed``) only the curves are redrawn: the
+axes, ticks, bands and titles drawn last are kept as a bitmap, the curve artists get the new data
 (:mod:`ctdrill.app.gui.plots_live`) and are drawn over it and copied to the screen
 (matplotlib's blitting), a few milliseconds instead of a whole figure; the axes are drawn
 again (with room to spare) only when the curves leave them. The stop in words is a label over
@@ -83,6 +83,7 @@ class PlotsView(FigureCanvasQTAgg):
         draw_depth_plots(self.plot_fig, None, message=NO_SERIES)
         ctx.doc.path_changed.connect(self._path)
         ctx.doc.live.path_changed.connect(self._live_path)
+        ctx.doc.live.curves_changed.connect(self._live_curves)
         ctx.doc.plan_changed.connect(self._plan)
         ctx.doc.volume_changed.connect(lambda _v: self._plan(ctx.doc.plan))
         ctx.doc.live_depth_changed.connect(self._live_depth)
@@ -213,11 +214,14 @@ class PlotsView(FigureCanvasQTAgg):
         self.ctx.steps.push(show, first=True)  # before the other views' drawing steps
 
     def _live_path(self, view: PathView | None) -> None:
-        """A dragged plan's path: its curves at once, over the kept axes."""
+        """No path for a dragged plan: why."""
         live = self.ctx.doc.live
         if view is None and live.error:
             self.show_message(f"no force profile: {live.error}")
-        elif view is not None and view is live.path:
+
+    def _live_curves(self, view: PathView) -> None:
+        """A dragged plan's curves: at the next paint, over the kept axes."""
+        if view is self.ctx.doc.live.curves:
             if self._background is None or not self.isVisible():
                 self.show_curves(view.curves, live=True)
             else:  # drawn by the paint that shows it (the newest by then)

@@ -5,7 +5,7 @@ any."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -19,8 +19,8 @@ from ctdrill.app.gui.problems import (
     planned_clearance,
 )
 from ctdrill.engine.band import path_band
-from ctdrill.engine.implant import implant_outcome
-from ctdrill.engine.path import PathResult, plan_path
+from ctdrill.engine.implant import ImplantOutcome, implant_outcome
+from ctdrill.engine.path import PathResult, complete_path, path_curves, plan_path
 from ctdrill.engine.plans import plan_calibration, with_set_warnings
 from ctdrill.engine.sequence import plan_sequence
 from ctdrill.engine.stop import stop_words
@@ -126,6 +126,7 @@ def compute_path_view(
     *,
     plan_set: Sequence[Plan] = (),
     live: bool = False,
+    on_curves: Callable[[PathView], None] | None = None,
 ) -> PathView:
     """Plan the path of ``plan`` through ``volume`` (the pipeline the CLI uses) for display;
     ``hu`` enters the force band. ``plan_set`` (every trajectory of the document, ``plan``
@@ -133,6 +134,11 @@ def compute_path_view(
     :func:`~ctdrill.engine.path.with_set_warnings`), as ``ctdrill export`` reports them.
     The view carries the plan's problems (:func:`checked`; ``live``: the implant's walls on
     the drag's coarser grid).
+
+    ``on_curves`` (a drag's progressive display) is called first with the view of the path's
+    curves and stop (:func:`~ctdrill.engine.path.path_curves`: the same numbers as the whole
+    result's, without its implant check, warnings and problems); the rest is then computed
+    and returned with the same curves. A drill sequence does not call it.
 
     For a drill sequence the window shows and rehearses the **final** drill, cutting around
     the holes the drills before it leave at their stop depths (the export's last folder,
@@ -142,12 +148,19 @@ def compute_path_view(
         (w for p, w in zip(plan_set, with_set_warnings(plan_set), strict=True) if p is plan), plan
     )
     cal = plan_calibration(own)
+
     # while dragging, the implant's walls on the coarser grid (the path then takes them)
-    implant = implant_outcome(volume, own, **LIVE_WALLS) if live else None
+    def implant() -> ImplantOutcome | None:
+        return implant_outcome(volume, own, **LIVE_WALLS) if live else None
+
     if len(own.drills) > 1:
-        view = path_view(plan, plan_sequence(volume, own, cal, implant=implant).final, hu)
+        view = path_view(plan, plan_sequence(volume, own, cal, implant=implant()).final, hu)
+    elif on_curves is not None:  # the curves first, then the implant and the checks
+        view = path_view(plan, path_curves(volume, own.drilled(0), cal), hu)
+        on_curves(view)
+        view = replace(view, result=complete_path(volume, view.result, implant()))
     else:  # to apex + tip
-        view = path_view(plan, plan_path(volume, own.drilled(0), cal, implant=implant), hu)
+        view = path_view(plan, plan_path(volume, own.drilled(0), cal, implant=implant()), hu)
     return checked(volume, view, live=live)
 
 
