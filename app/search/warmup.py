@@ -16,10 +16,12 @@ from ctdrill import jit
 
 def search_kernels() -> tuple[jit.Kernel, ...]:
     """The kernels :func:`ctdrill.engine.batch.evaluate_batch`, the landmarks' clearances to
-    a drill or an implant body, the bone walls, suggest's bone surfaces and shells use."""
+    a drill or an implant body, the bone walls (and the arch's buccal side), suggest's bone surfaces
+    and shells use."""
     from ctdrill.app.search.shell_kernel import SHELL_KERNEL
     from ctdrill.imaging.plan.clearance_kernel import CLEARANCE_KERNEL
     from ctdrill.imaging.plan.segments_kernel import SEGMENTS_KERNEL
+    from ctdrill.imaging.sampling.arch_kernel import ARCH_KERNEL
     from ctdrill.imaging.sampling.envelope_kernel import ENVELOPE_KERNEL
     from ctdrill.imaging.sampling.lip_batch import LIP_KERNEL
     from ctdrill.imaging.sampling.points_kernel import POINTS_KERNEL
@@ -35,6 +37,7 @@ def search_kernels() -> tuple[jit.Kernel, ...]:
         SHELL_KERNEL,
         SURFACE_KERNEL,
         POINTS_KERNEL,
+        ARCH_KERNEL,
     )
 
 

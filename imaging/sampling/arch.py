@@ -205,8 +205,17 @@ class ArchCurve:
     def _bisect_one(
         self, xy: np.ndarray, a: float, b: float, ga: float
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The bisection of :meth:`project` for one point, on Python floats: ``(a, b)``."""
+        """The bisection of :meth:`project` for one point, on Python floats: ``(a, b)``
+        (compiled, the same operations, when its kernel is ready)."""
+        from ctdrill.imaging.sampling.arch_kernel import ARCH_KERNEL  # numba: imported late
+
         x, y = float(xy[0]), float(xy[1])
+        if ARCH_KERNEL.ready():
+            out = np.empty(2)
+            ARCH_KERNEL(
+                self._cum, self._xy, 0.5 * self.window_mm, x, y, a, b, ga, _BISECT_STEPS, out
+            )
+            return out[:1], out[1:]
         for _ in range(_BISECT_STEPS):
             m = 0.5 * (a + b)
             gm = self._g_one(x, y, m)
