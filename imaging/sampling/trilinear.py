@@ -44,6 +44,40 @@ VOLUME_SIG = "{vol}[:, :, ::1], float64[:, ::1], float64[::1], float64[::1], flo
 
 
 @helper
+def at_index(
+    vol: np.ndarray, ck: float, cj: float, ci: float
+) -> float:  # pragma: no cover - compiled; tested through trilinear
+    """The trilinear sample at index coordinates (k, j, i) inside the hull (within its
+    tolerance): ``map_coordinates(order=1, mode="nearest")``'s weights and summation order."""
+    n_k, n_j, n_i = vol.shape
+    sk = math.floor(ck)
+    sj = math.floor(cj)
+    si = math.floor(ci)
+    wk1 = ck - sk
+    wj1 = cj - sj
+    wi1 = ci - si
+    wk0 = 1.0 - wk1
+    wj0 = 1.0 - wj1
+    wi0 = 1.0 - wi1
+    k0 = min(max(sk, 0), n_k - 1)
+    k1 = min(max(sk + 1, 0), n_k - 1)
+    j0 = min(max(sj, 0), n_j - 1)
+    j1 = min(max(sj + 1, 0), n_j - 1)
+    i0 = min(max(si, 0), n_i - 1)
+    i1 = min(max(si + 1, 0), n_i - 1)
+    total = 0.0
+    total += float(vol[k0, j0, i0]) * wk0 * wj0 * wi0
+    total += float(vol[k0, j0, i1]) * wk0 * wj0 * wi1
+    total += float(vol[k0, j1, i0]) * wk0 * wj1 * wi0
+    total += float(vol[k0, j1, i1]) * wk0 * wj1 * wi1
+    total += float(vol[k1, j0, i0]) * wk1 * wj0 * wi0
+    total += float(vol[k1, j0, i1]) * wk1 * wj0 * wi1
+    total += float(vol[k1, j1, i0]) * wk1 * wj1 * wi0
+    total += float(vol[k1, j1, i1]) * wk1 * wj1 * wi1
+    return total
+
+
+@helper
 def trilinear(
     vol: np.ndarray,
     inv_lin: np.ndarray,
@@ -56,7 +90,6 @@ def trilinear(
     p2: float,
 ) -> float:  # pragma: no cover - compiled; tested against CTVolume.sample
     """CTVolume.sample(order=1) at one LPS point of an unpadded volume; NaN outside the hull."""
-    n_k, n_j, n_i = vol.shape
     n_s = k_nominal.shape[0]
     tol = 1e-6
     ck = inv_lin[2, 0] * p0 + inv_lin[2, 1] * p1 + inv_lin[2, 2] * p2
@@ -90,28 +123,4 @@ def trilinear(
         and ci <= top[0] + tol
     ):
         return np.nan
-    sk = math.floor(ck)
-    sj = math.floor(cj)
-    si = math.floor(ci)
-    wk1 = ck - sk
-    wj1 = cj - sj
-    wi1 = ci - si
-    wk0 = 1.0 - wk1
-    wj0 = 1.0 - wj1
-    wi0 = 1.0 - wi1
-    k0 = min(max(sk, 0), n_k - 1)
-    k1 = min(max(sk + 1, 0), n_k - 1)
-    j0 = min(max(sj, 0), n_j - 1)
-    j1 = min(max(sj + 1, 0), n_j - 1)
-    i0 = min(max(si, 0), n_i - 1)
-    i1 = min(max(si + 1, 0), n_i - 1)
-    total = 0.0
-    total += float(vol[k0, j0, i0]) * wk0 * wj0 * wi0
-    total += float(vol[k0, j0, i1]) * wk0 * wj0 * wi1
-    total += float(vol[k0, j1, i0]) * wk0 * wj1 * wi0
-    total += float(vol[k0, j1, i1]) * wk0 * wj1 * wi1
-    total += float(vol[k1, j0, i0]) * wk1 * wj0 * wi0
-    total += float(vol[k1, j0, i1]) * wk1 * wj0 * wi1
-    total += float(vol[k1, j1, i0]) * wk1 * wj1 * wi0
-    total += float(vol[k1, j1, i1]) * wk1 * wj1 * wi1
-    return total
+    return at_index(vol, ck, cj, ci)
