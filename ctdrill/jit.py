@@ -197,9 +197,11 @@ def row_spans(rows: np.ndarray, parts: int | None = None) -> list[tuple[int, int
     rows = np.asarray(rows, dtype=np.int64)
     if rows.size == 1:  # the single trajectory: no sorting, no threads
         return [(int(rows[0]), int(rows[0]) + 1)]
-    uniq = np.unique(rows)
-    if uniq.size == 0:
+    if rows.size == 0:
         return []
+    steps = np.diff(rows)
+    # consecutive already (the usual call: every row of a batch): no sort needed
+    uniq = rows if bool(np.all(steps == 1)) else np.unique(rows)
     breaks = np.flatnonzero(np.diff(uniq) != 1) + 1
     out: list[tuple[int, int]] = []
     for run in np.split(uniq, breaks):
