@@ -23,6 +23,7 @@ import numpy as np
 from ctdrill.engine.grid import grid_brackets
 from ctdrill.engine.stop import StopReason
 from ctdrill.imaging.plan.clearance_batch import ClearanceField
+from ctdrill.imaging.plan.distance import SEGMENT_TOL_MM
 from ctdrill.imaging.plan.safety import SEARCH_BEYOND_PLAN_MM, search_safe_depths
 
 #: Stop reasons in the order ties are broken (the first listed wins).
@@ -94,8 +95,10 @@ def evaluate_stops(
         brackets = _sparse_brackets(field, margins, depth_mm, n_depths, rows, clear)
     limit = planned_mm + SEARCH_BEYOND_PLAN_MM
     if n_l:
+        # the search's passes read each row up to its first broken depth: no further
+        slack = (margins, SEGMENT_TOL_MM)
         safe = search_safe_depths(
-            lambda r, x: field.at(r, x),
+            lambda r, x: field.at(r, x, stop_slack=slack),
             margins,
             limit,
             rows,

@@ -108,10 +108,18 @@ class ClearanceField:
         return self.segments is not None
 
     def at(
-        self, rows: np.ndarray, depth_mm: np.ndarray, n_depths: np.ndarray | None = None
+        self,
+        rows: np.ndarray,
+        depth_mm: np.ndarray,
+        n_depths: np.ndarray | None = None,
+        *,
+        stop_slack: tuple[np.ndarray, float] | None = None,
     ) -> np.ndarray:
         """(n, P, L) signed clearance of ``rows`` at ``depth_mm`` (n, P), mm; columns past a
-        row's ``n_depths`` (default all P) are NaN."""
+        row's ``n_depths`` (default all P) are NaN. With ``stop_slack = (margins (L,), tol)``
+        and ``depth_mm`` increasing along each row, the compiled kernel leaves NaN the columns
+        after a row's first depth where ``clearance - margin - tol < 0`` for some landmark (a
+        search for that depth reads no later one); the NumPy path computes them all."""
         rows = np.asarray(rows, dtype=np.int64)
         depth = np.ascontiguousarray(depth_mm, dtype=np.float64)
         n, p = rows.size, (depth.shape[1] if depth.ndim == 2 else 0)
@@ -134,6 +142,11 @@ class ClearanceField:
                 for k, lm in enumerate(self.landmarks):
                     out[j, :m, k] = lm.clearance_mm(solid, depth[j, :m])
             return out
+        if stop_slack is None:
+            stop_margin, stop_tol = np.full(len(self.landmarks), -np.inf), 0.0
+        else:
+            stop_margin = np.ascontiguousarray(stop_slack[0], dtype=np.float64)
+            stop_tol = float(stop_slack[1])
         run_spans(
             CLEARANCE_KERNEL,
             row_spans(np.arange(n)),
@@ -147,6 +160,8 @@ class ClearanceField:
             counts,
             self.radius_mm,
             self.tip_length_mm,
+            stop_margin,
+            stop_tol,
             out,
         )
         return out

@@ -2,8 +2,10 @@
 
 For ``N`` drill axes sharing one drill and one set of landmarks, the kernel fills the signed
 clearance from the drill solid to every landmark at the depths asked for each row, the array
-:func:`~ctdrill.imaging.plan.safety.clearance_profile_mm` gives for that axis. The rules that
-read it (the safe-depth search, the stop) are written once, in Python
+:func:`~ctdrill.imaging.plan.safety.clearance_profile_mm` gives for that axis. Asked to
+(``stop_margin``, ``stop_tol``), a row stops at the first depth where some landmark's slack
+``clearance - margin - tol`` is negative: the safe-depth search's passes read no depth after
+that one. The rules that read it (the safe-depth search, the stop) are written once, in Python
 (:func:`~ctdrill.imaging.plan.safety.search_safe_depths`, :mod:`ctdrill.engine.clearance`).
 
 Every landmark is a union of segments (a canal's centreline with its radius, a point, a mask's
@@ -200,6 +202,8 @@ def _rows_kernel(
     n_depth: np.ndarray,
     radius: float,
     tip_len: float,
+    stop_margin: np.ndarray,
+    stop_tol: float,
     clear_out: np.ndarray,
     row_lo: int,
     row_hi: int,
@@ -258,13 +262,19 @@ def _rows_kernel(
         warm[:, 0] = -1.0
         for d in range(n_depth[n]):
             _clear_at(geo, order, lms, depth[n, d], radius, tip_len, radii_l, warm, tmp)
+            broken = False
             for lm_i in range(n_l):
                 clear_out[n, d, lm_i] = tmp[lm_i]
+                # the safe-depth rule's slack, with its operations: (c - margin) - tol
+                if (tmp[lm_i] - stop_margin[lm_i]) - stop_tol < 0.0:
+                    broken = True
+            if broken:  # the depths after it are not read (stop_margin -inf: never)
+                break
 
 
 _SIG = (
     "void(float64[:, ::1], float64[:, ::1], int64[:, :, ::1], float64[::1], "
     "float64[:, ::1], float64[:, ::1], float64[:, ::1], int64[::1], float64, float64, "
-    "float64[:, :, ::1], int64, int64)"
+    "float64[::1], float64, float64[:, :, ::1], int64, int64)"
 )
 CLEARANCE_KERNEL = Kernel(_rows_kernel, [_SIG])

@@ -344,3 +344,31 @@ def test_stops_only_give_the_full_evaluation_stops(
             last = got.n_depths[got.ok] - 1
             planned = got.clearance_mm[got.ok][np.arange(last.size), last]
             assert np.all(np.isfinite(planned))
+
+
+def test_clearance_stops_after_the_first_broken_depth(
+    demo: tuple[CTVolume, Plan, Calibration],
+) -> None:
+    """``ClearanceField.at(stop_slack=...)``: each row the same up to and including its first
+    depth whose slack ``clearance - margin - tol`` is negative, NaN after it (the safe-depth
+    search reads no later depth)."""
+    from ctdrill.imaging.plan.clearance_batch import ClearanceField
+    from ctdrill.imaging.plan.safety import margins_mm
+
+    _, plan, _ = demo
+    entries, targets = random_axes(plan, 30, seed=21)
+    rows = np.arange(30)
+    field = ClearanceField.prepare(
+        plan.landmarks, plan.drill.radius_mm, plan.drill.tip_length_mm, entries, targets, rows
+    )
+    assert field.compiled
+    depth = np.tile(np.linspace(0.0, 25.0, 101), (30, 1))
+    margins = margins_mm(plan)
+    full = field.at(rows, depth)
+    got = field.at(rows, depth, stop_slack=(margins, SEGMENT_TOL_MM))
+    broken = np.any(full - margins - SEGMENT_TOL_MM < 0.0, axis=2)
+    assert 0 < broken[:, -1].sum() < 30  # some rows break a margin, some never do
+    for n in range(30):
+        last = int(np.argmax(broken[n])) if broken[n].any() else depth.shape[1] - 1
+        assert np.array_equal(got[n, : last + 1], full[n, : last + 1])
+        assert np.all(np.isnan(got[n, last + 1 :]))
