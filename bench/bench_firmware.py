@@ -112,11 +112,23 @@ def _emulate(link: Path, core: str, duration_s: float, *, rt: bool) -> subproces
     return proc
 
 
+def _cpu_times() -> tuple[int, int]:
+    """``(busy, total)`` jiffies of all the machine's CPUs (``/proc/stat``; zeros elsewhere)."""
+    try:
+        with open("/proc/stat", encoding="ascii") as fh:
+            fields = [int(v) for v in fh.readline().split()[1:]]
+    except (OSError, ValueError):
+        return 0, 0
+    idle = fields[3] + (fields[4] if len(fields) > 4 else 0)  # idle + iowait
+    return sum(fields[:8]) - idle, sum(fields[:8])
+
+
 def _session(core: str, duration_s: float, *, rt: bool = True) -> list[str]:
     with tempfile.TemporaryDirectory() as tmp:
         link = Path(tmp) / "dev"
         proc = _emulate(link, core, duration_s + 10.0, rt=rt)
         load0 = os.getloadavg()[0]
+        cpu0 = _cpu_times()
         dev = SerialDevice(str(link))
         dev.hello()
         dev.upload_profile(SLAB)
@@ -128,6 +140,7 @@ def _session(core: str, duration_s: float, *, rt: bool = True) -> list[str]:
             dev.set_operator(int(OperatorKind.PUSH), 6.0)
             dev.wait(0.01)
             dev.poll()
+        cpu1 = _cpu_times()
         dev.close()
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=30)
@@ -150,7 +163,16 @@ def _session(core: str, duration_s: float, *, rt: bool = True) -> list[str]:
         mx,
         cost,
         f"{(load0 + os.getloadavg()[0]) / 2:.1f}",
+        _busy(cpu0, cpu1),
     ]
+
+
+def _busy(before: tuple[int, int], after: tuple[int, int]) -> str:
+    """CPUs busy over a run (every process: this session's own emulator and host included),
+    of how many."""
+    busy, total = after[0] - before[0], after[1] - before[1]
+    n = os.cpu_count() or 1
+    return f"{busy / total * n:.1f} of {n}" if total > 0 else "?"
 
 
 def run(quick: bool) -> Section:
@@ -179,7 +201,9 @@ def run(quick: bool) -> Section:
         f"Real time, {seconds:g} s of a host session over the pty per core (SerialDevice, "
         "heartbeat and a 6 N push every 10 ms), one core after the other in this run; "
         "lateness is how long after its due time each tick ran (every tick, 10 us bins); "
-        "load = the 1-minute load average around the run (2 cores). The C core's pacer sleeps "
+        "load = the 1-minute load average around the run; CPUs busy = how many of the "
+        "machine's CPUs were busy on average during the run (/proc/stat, every process: the "
+        "emulator and this host session take a few per cent of one). The C core's pacer sleeps "
         "to each tick's due time at the lowest real-time priority where the system grants it "
         "(`SCHED_FIFO` 1; the second row declines it, `CTDRILL_EMULATE_RT=0`); the Python "
         "loop runs the due ticks at ~1 ms wakeups, so half a millisecond is its median's floor.",
@@ -197,6 +221,7 @@ def run(quick: bool) -> Section:
                 "max (us)",
                 "tick cost (us)",
                 "load",
+                "CPUs busy",
             ],
             realtime,
         ),
@@ -207,7 +232,7 @@ def run(quick: bool) -> Section:
     if c_p99 > GOAL_P99_US:
         shortfalls.append(
             f"`emulate --core c` ran late by {c_p99:.0f} us at p99 (goal {GOAL_P99_US:g} us on "
-            f"an idle machine; load {realtime[0][-1]} here)"
+            f"an idle machine; load {realtime[0][-2]}, {realtime[0][-1]} CPUs busy here)"
         )
     return Section(
         title="Firmware: the C core against the Python device",

@@ -90,9 +90,10 @@ class Device(Protocol):
         """Send the table; returns once the device verified its CRC-32 (else DeviceError)."""
         ...
 
-    def arm(self) -> None:
+    def arm(self, *, operator: tuple[int, float] | None = None) -> None:
         """Start rendering the table uploaded in this session (the only way out of a latched
-        safe state)."""
+        safe state); ``operator``: the simulated hand's first command, sent with the ARM (the
+        hand starts at the tick the device arms)."""
         ...
 
     def disarm(self) -> None:

@@ -16,6 +16,7 @@ by :class:`ctdrill.haptics.watch.TelemetryWatch`.
 from __future__ import annotations
 
 import random
+from collections.abc import Sequence
 from typing import Protocol
 
 from ctdrill.haptics.codes import KNOWN_FAULT_BITS, KNOWN_STATES
@@ -129,11 +130,18 @@ class HostDevice:
 
     # ------------------------------------------------------------ plumbing
 
-    def send(self, message: Message) -> int:
-        """Send one message in this session; returns its sequence number."""
+    def send(self, message: Message, *, then: Sequence[Message] = ()) -> int:
+        """Send one message in this session, and ``then`` right behind it in the same write
+        (the device takes them in at the same tick); returns the first one's sequence
+        number."""
         self._seq = (self._seq + 1) & 0xFFFFFFFF
-        self.transport.write(encode(message, seq=self._seq, session=self.session))
-        return self._seq
+        first = self._seq
+        data = encode(message, seq=first, session=self.session)
+        for extra in then:
+            self._seq = (self._seq + 1) & 0xFFFFFFFF
+            data += encode(extra, seq=self._seq, session=self.session)
+        self.transport.write(data)
+        return first
 
     def _pump(self) -> None:
         for item in self._reader.feed(self.transport.read()):
@@ -230,12 +238,15 @@ class HostDevice:
                 )
             self.transport.wait(self.poll_s)
 
-    def command(self, message: Message, *, resend_s: float | None = None) -> None:
+    def command(
+        self, message: Message, *, resend_s: float | None = None, then: Sequence[Message] = ()
+    ) -> None:
         """Send a command and wait for its ACK; :class:`DeviceError` on NAK or timeout.
 
         With ``resend_s`` the command is sent again (with a new seq) every ``resend_s`` until
         one of its copies is answered: for STOP and DISARM, which the device obeys whatever
-        their seq, so a copy lost to noise costs ``resend_s``, not the whole timeout.
+        their seq, so a copy lost to noise costs ``resend_s``, not the whole timeout. ``then``
+        (unacknowledged messages) goes in the same write as the command.
         """
         name = message.TYPE.name
         deadline = self.transport.clock_s() + self.timeout_s
@@ -243,7 +254,7 @@ class HostDevice:
         while True:
             if isinstance(message, Arm):
                 self._arm_seq = (self._seq + 1) & 0xFFFFFFFF
-            sent.add(self.send(message))
+            sent.add(self.send(message, then=then))
             again = deadline if resend_s is None else self.transport.clock_s() + resend_s
             while True:
                 self._pump()
@@ -318,9 +329,12 @@ class HostDevice:
             if isinstance(message, ProfileEnd):
                 self.table_crc32 = message.crc32
 
-    def arm(self) -> None:
-        """ARM the table uploaded in this session (named by its CRC-32)."""
-        self.command(Arm(self.table_crc32))
+    def arm(self, *, operator: tuple[int, float] | None = None) -> None:
+        """ARM the table uploaded in this session (named by its CRC-32); with ``operator``
+        (``(kind, value)``) the simulated hand's first command goes in the same write, so the
+        hand starts at the tick the device arms (a session deterministic in device time)."""
+        then = () if operator is None else (SimOperator(*operator),)
+        self.command(Arm(self.table_crc32), then=then)
 
     def disarm(self) -> None:
         """DISARM (re-sent every :data:`RESEND_S` until acknowledged)."""

@@ -1,11 +1,13 @@
 """Run the device emulator at real time on a file descriptor (a pty master): ``ctdrill emulate``.
 
 Device time is 10 kHz ticks on the monotonic clock: each wakeup (about every millisecond) reads
-what the host wrote, runs the ticks that have come due one after the other, writes the device's
-frames and sleeps. A tick's *lateness* is how long after its due time it ran, measured for every
-tick (the clock is read before each one): with ~1 ms wakeups the ticks due since the last
-wakeup all run late by up to a wakeup period, so the median is about half of it. A wakeup that
-finds more than :data:`OVERRUN_S` of ticks due counts as an overrun (reported in TELEMETRY).
+what the host wrote, runs the ticks that have come due one after the other (the host's bytes
+handed to the device at the first tick count that is a multiple of
+:data:`RECEIVE_EVERY_TICKS`), writes the device's frames and sleeps. A tick's *lateness* is how
+long after its due time it ran, measured for every tick (the clock is read before each one):
+with ~1 ms wakeups the ticks due since the last wakeup all run late by up to a wakeup period,
+so the median is about half of it. A wakeup that finds more than :data:`OVERRUN_S` of ticks
+due counts as an overrun (reported in TELEMETRY).
 
 After a stall of the emulator itself longer than :data:`RESYNC_S` (a machine too busy to run
 it) the clock slips instead of replaying the backlog: the emulator reads the host's bytes only
@@ -33,6 +35,12 @@ from ctdrill.haptics.core import DeviceCore, make_core
 from ctdrill.haptics.errors import HapticsInputError
 
 OVERRUN_S = 0.005
+#: The host's bytes are handed to the device only while its tick count is a multiple of this
+#: (every millisecond of device time, the 1 ms frames of a USB serial adapter): a frame is
+#: handled at the same tick phase whatever the machine's timing, on either core, so a host
+#: whose commands ride with its ARM (:meth:`ctdrill.haptics.host.HostDevice.arm`) gets a
+#: session deterministic in device time (firmware/host/fw_host.c: ``RECEIVE_EVERY_TICKS``).
+RECEIVE_EVERY_TICKS = 10
 #: A stall longer than this slips the clock (well under the 50 ms watchdog: several host frames).
 RESYNC_S = 0.020
 WAKE_S = 0.001
@@ -143,6 +151,7 @@ def run_realtime(
     t0 = time.monotonic() - emulator.ticks / hz
     end = None if duration_s is None else time.monotonic() + duration_s
     pending = b""
+    inbox = b""  # the host's bytes not yet handed to the device
     next_wake = time.monotonic()
     while not should_stop():
         now = time.monotonic()
@@ -157,8 +166,10 @@ def run_realtime(
                 data = b""
             except OSError:  # EIO: no process has the slave open
                 data = b""
-            if data:
-                emulator.receive(data)
+            inbox += data
+        if inbox and emulator.ticks % RECEIVE_EVERY_TICKS == 0:
+            emulator.receive(inbox)
+            inbox = b""
         due = int((now - t0) * hz) - emulator.ticks
         if due > 0:
             late = now - (t0 + (emulator.ticks + 1) / hz)
@@ -177,6 +188,9 @@ def run_realtime(
                 start = time.monotonic()
                 st.record_lateness(stall or start - (t0 + (emulator.ticks + 1) / hz))
                 emulator.run_ticks(1)
+                if inbox and emulator.ticks % RECEIVE_EVERY_TICKS == 0:
+                    emulator.receive(inbox)
+                    inbox = b""
                 busy += time.monotonic() - start
             st.busy_s += busy
             st.ticks += due

@@ -54,12 +54,15 @@ def arm_retracted(
     block_s: float = 0.01,
     notice: Callable[[str], None] | None = None,
     limits: Limits | None = None,
+    operator: tuple[int, float] | None = None,
 ) -> Retraction | None:
     """ARM ``device`` (a table uploaded in this session); if it refuses NOT_RETRACTED, retract
     the handle and arm again. Returns the retraction (None: armed at once).
 
     The handle's depth is read from the session's idle telemetry; with ``limits`` (what the
     device announced) a report outside them or not finite is refused, as after ARM.
+    ``operator`` (the simulated hand's first command) is sent with each ARM
+    (:meth:`Device.arm`); after a refusal the retraction takes the hand over.
 
     Raises
     ------
@@ -68,7 +71,7 @@ def arm_retracted(
         ``wait_s`` (then nothing is armed and the simulated hand is let go).
     """
     try:
-        device.arm()
+        device.arm(operator=operator)
         return None
     except DeviceRefused as exc:
         if exc.reason != NakReason.NOT_RETRACTED:
@@ -94,7 +97,7 @@ def arm_retracted(
         device.wait(SETTLE_S)
         depth = _depth(device, 0.0, depth, limits=limits)
         try:
-            device.arm()
+            device.arm(operator=operator)
         except DeviceRefused as exc:
             if exc.reason != NakReason.NOT_RETRACTED:
                 raise

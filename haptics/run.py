@@ -1,9 +1,9 @@
 """The host loop of a rehearsal: arm, stream heartbeats and the operator, log and watch telemetry.
 
-The host runs in blocks of ``block_s`` (10 ms): send a heartbeat and the operator's input,
-let the block's time pass (:meth:`Device.wait`), read the telemetry and hand the rows to a sink
-(``session.csv`` is written and flushed block by block). The same loop runs against the
-simulator (device time, deterministic for a given seed) and a serial device (real time).
+The host runs in blocks of ``block_s`` (10 ms): send a heartbeat and the operator's input (the
+first one with the ARM: the hand starts at the tick the device arms), let the block's time pass
+(:meth:`Device.wait`), read the telemetry and hand the rows to a sink (``session.csv``, flushed
+block by block). The same loop runs against the simulator and a serial device (real time).
 
 The host does not trust the device to be right: every block it checks the telemetry
 (:class:`ctdrill.haptics.watch.TelemetryWatch`: a report it cannot trust, which is not
@@ -13,8 +13,7 @@ step failed (a write or read error, a sink that cannot write, an unacknowledged 
 
 It then sends STOP and DISARM (unless an injected ``link-loss`` cut the line), records the
 event in ``faults`` and returns a result with ``complete = False``, ``outcome = "fault"`` and
-the reason: ``ctdrill rehearse`` exits 3. Telemetry from before ARM is not part of the session
-(the host device discards it when the ARM is acknowledged).
+the reason: ``ctdrill rehearse`` exits 3. Telemetry from before the ARM's ACK is discarded.
 """
 
 from __future__ import annotations
@@ -391,8 +390,8 @@ def run_session(
     Raises
     ------
     DeviceError
-        Before ARM (no answer, VERSION or LIMITS outside the host's bounds, a refused upload, a
-        refused ARM, a handle not retracted): nothing was armed.
+        Before ARM (no answer, VERSION or LIMITS outside the host's bounds, a refused upload or
+        ARM, a handle not retracted): nothing was armed.
     """
     if not (math.isfinite(duration_s) and duration_s > 0.0):
         raise SessionInputError(f"--duration-s must be > 0, got {duration_s}")
@@ -402,8 +401,9 @@ def run_session(
     driver = hand if hand is not None else hand_for(operator, table)
     loop = _Loop(device, operator, faults, seed, result, sink, on_samples, driver)
     loop.operate(int(OperatorKind.NONE), 0.0)
+    first = driver.command(0.0) if loop.sim is not None else None  # sent with the ARM
     try:
-        retraction = arm_retracted(device, notice=notice, limits=info.limits)
+        retraction = arm_retracted(device, notice=notice, limits=info.limits, operator=first)
     except DeviceRefused:
         raise  # NAK: the device did not arm
     except (DeviceError, OSError) as exc:  # the ARM may have reached the device: end it safely

@@ -32,6 +32,9 @@
 #define OUT_CAP (1u << 20)
 #define NONCES 512u
 #define REC_COLS 6u
+/* the pacer hands the host's bytes to the device only while the tick count is a multiple of
+ * this (haptics/realtime.py RECEIVE_EVERY_TICKS: every ms, the same tick phase on either core) */
+#define RECEIVE_EVERY_TICKS 10u
 
 typedef struct fw_host {
     fw_device dev;
@@ -336,6 +339,19 @@ static void record_late(fw_rt_stats *st, double late_s)
         st->late_max_s = late_s;
 }
 
+/* the host's bytes, all that have arrived, to the device */
+static void take_in(fw_host *h, int fd)
+{
+    uint8_t buf[4096];
+    ssize_t got;
+    for (;;) {
+        got = read(fd, buf, sizeof buf);
+        if (got <= 0)
+            break;
+        fw_receive(&h->dev, buf, (size_t)got);
+    }
+}
+
 static void flush_out(fw_host *h, int fd, fw_rt_stats *st)
 {
     size_t room = sizeof st->pending - st->pending_len;
@@ -360,15 +376,15 @@ static void flush_out(fw_host *h, int fd, fw_rt_stats *st)
 
 /*
  * Serve the device on fd (non-blocking) until CLOCK_MONOTONIC reaches until_ns or a signal
- * interrupts a sleep; returns 1 when interrupted. Each wakeup reads the host's bytes, runs
- * the ticks that have come due (each one's lateness measured), writes the device's frames
- * and sleeps to the next tick's due time (timer slack 1 ns). A wakeup finding more than 5 ms
+ * interrupts a sleep; returns 1 when interrupted. Each wakeup runs the ticks that have come
+ * due (each one's lateness measured; the host's bytes handed in while the tick count is a
+ * multiple of RECEIVE_EVERY_TICKS), writes the device's frames and sleeps to the next tick's
+ * due time (timer slack 1 ns). A wakeup finding more than 5 ms
  * of ticks due is an overrun; over 20 ms the clock slips instead of replaying the backlog.
  */
 int fw_host_serve(fw_host *h, int fd, int64_t until_ns, fw_rt_stats *st, int want_realtime)
 {
     const int64_t tick_ns = 1000000000 / FW_TICK_HZ;
-    uint8_t buf[4096];
     prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);
     if (!st->started) {
         /* the lowest real-time priority where the system grants it (root, CAP_SYS_NICE,
@@ -383,17 +399,12 @@ int fw_host_serve(fw_host *h, int fd, int64_t until_ns, fw_rt_stats *st, int wan
     for (;;) {
         int64_t now = now_ns(), due_ns, next;
         int64_t due;
-        ssize_t got;
         struct timespec ts;
         if (now >= until_ns)
             return 0;
         st->wakeups++;
-        for (;;) {
-            got = read(fd, buf, sizeof buf);
-            if (got <= 0)
-                break;
-            fw_receive(&h->dev, buf, (size_t)got);
-        }
+        if (h->dev.ticks % RECEIVE_EVERY_TICKS == 0u)
+            take_in(h, fd);
         due = (now - st->t0_ns) / tick_ns - (int64_t)h->dev.ticks;
         if (due > 0) {
             double late = (double)(now - (st->t0_ns + ((int64_t)h->dev.ticks + 1) * tick_ns)) * 1e-9;
@@ -415,6 +426,8 @@ int fw_host_serve(fw_host *h, int fd, int64_t until_ns, fw_rt_stats *st, int wan
                 record_late(st, stall > 0.0 ? stall
                                             : (double)(start - (st->t0_ns + ((int64_t)h->dev.ticks + 1) * tick_ns)) * 1e-9);
                 fw_tick(&h->dev);
+                if (h->dev.ticks % RECEIVE_EVERY_TICKS == 0u)
+                    take_in(h, fd);
                 end = now_ns();
                 st->busy_s += (double)(end - start) * 1e-9;
                 if (h->out_len > OUT_CAP / 2u)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ctdrill.haptics import emulator, physics, plant, renderer
+from ctdrill.haptics import emulator, physics, plant, realtime, renderer
 from ctdrill.haptics.profile_table import MAX_PROFILE_STEPS
 from ctdrill.haptics.protocol import MAX_CHUNK_ROWS, MAX_DECODED, PROTOCOL_VERSION
 from ctdrill.haptics.tick import TICK_HZ
@@ -83,3 +83,4 @@ def test_the_host_builds_master_and_hand_are_the_simulators() -> None:
     assert host["HAND_B"] == physics.HAND_DAMPING_N_S_PER_MM
     assert host["HAND_MAX_N"] == physics.HAND_MAX_N
     assert host["HAND_MAX_FEED"] == physics.HAND_MAX_FEED_MM_S
+    assert host["RECEIVE_EVERY_TICKS"] == realtime.RECEIVE_EVERY_TICKS

@@ -5,18 +5,21 @@ In process (the simulator's link, device time advanced by the host's waits: the 
 reach the device at the same ticks) the two ``session.csv`` agree sample for sample within one
 encoder count (1e-4 mm) and 0.01 N (they are the same to the last digit written).
 
-Over a pty (``--device serial:PTY``) the host's frames reach the device at ticks that depend on
-the machine's timing: the push starts within a few milliseconds of ARM, differently each run
-and each core, so the cut's first milliseconds differ by that offset, and the hand comes to
-rest at the wall anywhere within the master's 1 N Coulomb friction (1 N / 211 N/mm = 4.7 um
-either side). What the device decides is compared: the states in order, the time to the stop
-within the jitter, the stopped drill to its float, the resting hand within the friction band.
+Over a pty (``--device serial:PTY``) the host's frames reach the device at wall-clock times.
+The session is still deterministic in device time: the emulators hand the host's bytes to the
+device only at tick counts that are multiples of 10 (every millisecond, either core), and the
+host sends its hand's first command with the ARM, so the hand starts at the tick the device
+arms, at the same phase of the telemetry's 1 ms grid. The two ``session.csv`` are then
+compared row by row, matched by their device time since ARM, within one encoder count and
+0.01 N (the double core does the Python device's arithmetic: in fact they agree to the last
+digit written), until the first of the two sessions ends (the host ends it by its own clock).
 Without a C compiler ``--core c`` says so in one ``error:`` line (exit 2) and creates no link.
 """
 
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 import os
 import signal
@@ -68,14 +71,17 @@ def _emulator(link: Path, core: str) -> Iterator[subprocess.Popen[str]]:
 
 def _session(tmp_path: Path, core: str) -> tuple[list[dict[str, str]], dict[str, object]]:
     out = tmp_path / f"out-{core}"
-    for attempt in range(2):  # a machine too busy to beat within the watchdog: once more
+    for attempt in range(3):  # a machine too busy to beat within the watchdog: again
         with _emulator(tmp_path / f"dev-{core}", core) as _:
             link = tmp_path / f"dev-{core}"
             code = main(demo_rehearsal(out, "push:20", "1.6", "--device", f"serial:{link}"))
-        if code == 0 or attempt == 1:
+        if code == 0 or attempt == 2:
             break
+        # only the watchdog: the host's heartbeats (every 10 ms) reached the device more than
+        # 50 ms of ticks apart, the host or the emulator held up by the machine's load
         summary = json.loads((out / "summary.json").read_text())
-        assert float(summary["max_heartbeat_gap_s"]) > 0.04, summary  # the host's own lateness
+        assert "the device raised watchdog" in str(summary["reason"]), summary
+        assert float(summary["max_heartbeat_gap_s"]) > 0.02, summary  # the host was late too
     assert code == 0
     with (out / "session.csv").open(newline="") as fh:
         rows = list(csv.DictReader(fh))
@@ -88,33 +94,30 @@ def test_the_same_rehearsal_against_the_c_and_the_python_core(tmp_path: Path) ->
     py_rows, py_sum = _session(tmp_path, "python")
     for rows in (c_rows, py_rows):
         assert list(rows[0])[:5] == ["time_s", "master_mm", "drill_mm", "force_cmd_n", "state"]
-
-    def states(rows: list[dict[str, str]]) -> list[str]:
-        seq = [rows[0]["state"]]
-        for r in rows[1:]:
-            if r["state"] != seq[-1]:
-                seq.append(r["state"])
-        return seq
-
-    assert states(c_rows) == states(py_rows) == ["cutting", "stopped"]
     assert c_sum["complete"] is py_sum["complete"] is True
-    # the push's onset moves with the pacing of the host's frames: a few ms
-    assert abs(float(c_sum["time_to_stop_s"]) - float(py_sum["time_to_stop_s"])) < 0.02
+    # rows matched by the device's own time since ARM: the shorter session is the other's
+    # prefix, row for row (the host ends each by its own clock: the last rows differ in number)
+    n = min(len(c_rows), len(py_rows))
+    assert n > 1400  # 1.6 s of telemetry at 1 kHz, the cut to the stop and the wall
+    assert [r["time_s"] for r in c_rows[:n]] == [r["time_s"] for r in py_rows[:n]]
+    times = [float(r["time_s"]) for r in c_rows[:n]]
+    assert all(0.0009 < b - a < 0.0011 for a, b in itertools.pairwise(times))
+    exact = 0
+    for a, b in zip(c_rows[:n], py_rows[:n], strict=True):
+        assert a["state"] == b["state"], (a, b)
+        for name, tol in (
+            ("master_mm", 1e-4),
+            ("drill_mm", 1e-4),
+            ("force_cmd_n", 0.01),
+            ("hand_force_n", 0.01),
+        ):
+            assert float(a[name]) == pytest.approx(float(b[name]), abs=tol), (name, a, b)
+        exact += a == b
+    assert {r["state"] for r in py_rows[:n]} == {"cutting", "stopped"}
+    assert max(float(r["force_cmd_n"]) for r in py_rows[:n]) > 15.0  # the push met the wall
+    assert c_sum["time_to_stop_s"] == py_sum["time_to_stop_s"]
     assert c_sum["device_stop_depth_mm"] == py_sum["device_stop_depth_mm"]
-    assert c_sum["final_drill_mm"] == py_sum["final_drill_mm"] == c_sum["device_stop_depth_mm"]
-
-    def settled(rows: list[dict[str, str]], summary: dict[str, object]) -> dict[str, str]:
-        # the last sample, at least 0.3 s after the stop (the wall's glide and ring are over)
-        last = rows[-1]
-        assert float(last["time_s"]) > float(summary["time_to_stop_s"]) + 0.3  # type: ignore[arg-type]
-        return last
-
-    a, b = settled(c_rows, c_sum), settled(py_rows, py_sum)
-    friction_n = 2 * 1.0  # either side of the push, the master's Coulomb friction
-    assert float(a["drill_mm"]) == float(b["drill_mm"])
-    assert float(a["master_mm"]) == pytest.approx(float(b["master_mm"]), abs=friction_n / 211.0)
-    assert float(a["force_cmd_n"]) == pytest.approx(float(b["force_cmd_n"]), abs=friction_n)
-    assert float(a["force_cmd_n"]) == pytest.approx(20.0, abs=friction_n / 2 + 0.2)
+    assert exact == n  # in fact the same to the last digit written
 
 
 def _sim_session(tmp_path: Path, core: str, monkeypatch: pytest.MonkeyPatch) -> list[list[str]]:
