@@ -55,7 +55,7 @@ def open_window(
         The series did not load, or its path was not computed, within
         :data:`OPEN_TIMEOUT_MS`.
     """
-    from PySide6.QtCore import QEventLoop, QTimer
+    from PySide6.QtCore import QDeadlineTimer, QEventLoop, QTimer
 
     from ctdrill.app.gui.app import make_window
     from ctdrill.imaging.plan.implants import load_implant_library
@@ -99,6 +99,10 @@ def open_window(
     if not state["done"]:
         window.close()
         raise TimeoutError(f"{dicom}: not loaded and computed within {OPEN_TIMEOUT_MS} ms")
-    while window.ui_steps.pending:  # every view drawn: the window is ready to be driven
-        loop.processEvents()
+    view3d = window.view3d
+    deadline = QDeadlineTimer(OPEN_TIMEOUT_MS)
+    # every view drawn (the 3D view's bone surface is contoured after the slices and the
+    # path): the window is ready to be driven
+    while (window.ui_steps.pending or not view3d.surface_is_shown()) and not deadline.hasExpired():
+        loop.processEvents(QEventLoop.ProcessEventsFlag.WaitForMoreEvents, 50)
     return window

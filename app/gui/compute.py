@@ -30,11 +30,11 @@ SURFACE_MAX_DIM: int | None = None
 
 @dataclass(frozen=True, eq=False)
 class Loaded:
-    """A loaded series and its bone surface at ``iso_hu``."""
+    """A loaded series and its bone surface at ``iso_hu`` (None: contoured afterwards)."""
 
     path: str
     volume: CTVolume
-    surface: pv.PolyData
+    surface: pv.PolyData | None
     iso_hu: float
 
 
@@ -53,8 +53,10 @@ def load_case(
     iso_hu: float = BONE_SURFACE_HU,
     max_dim: int | None = SURFACE_MAX_DIM,
     ask_series: bool = False,
+    surface: bool = True,
 ) -> Loaded | SeriesChoice:
-    """Load the series at ``path`` and contour its bone surface.
+    """Load the series at ``path`` and contour its bone surface (``surface`` False: leave it
+    to :func:`volume_surface` afterwards; the window draws its slices and path first).
 
     With ``ask_series`` and no ``series_uid``, a folder holding several CT stacks returns a
     :class:`SeriesChoice` instead (the loader alone would take the largest, with a
@@ -65,8 +67,12 @@ def load_case(
         if len(series) > 1:
             return SeriesChoice(path=str(path), series=series)
     volume = load_ct(str(path), series_uid=series_uid)
-    surface = volume_surface(volume, iso_hu=iso_hu, max_dim=max_dim, max_triangles=FIRST_TRIANGLES)
-    return Loaded(path=str(path), volume=volume, surface=surface, iso_hu=iso_hu)
+    bone = (
+        volume_surface(volume, iso_hu=iso_hu, max_dim=max_dim, max_triangles=FIRST_TRIANGLES)
+        if surface
+        else None
+    )
+    return Loaded(path=str(path), volume=volume, surface=bone, iso_hu=iso_hu)
 
 
 def is_volume_file(path: Path) -> bool:

@@ -1,6 +1,7 @@
-"""The document's background work: loading a series (with its bone surface), re-contouring the
-surface, planning the path whenever the plan changes (and while it is dragged) and searching
-nearby axes when asked (:func:`ctdrill.app.search.suggest.suggest`). Each runs a headless
+"""The document's background work: loading a series (then its bone surface, queued after the
+slices' and the path's jobs so that the 2D views come first), re-contouring the surface,
+planning the path whenever the plan changes (and while it is dragged) and searching nearby axes
+when asked (:func:`ctdrill.app.search.suggest.suggest`). Each runs a headless
 function (:mod:`ctdrill.app.gui.compute`, :func:`ctdrill.app.gui.results.compute_path_view`) in
 a worker thread and hands the result to the document on the UI thread.
 
@@ -82,12 +83,16 @@ class Controller(QObject):
         gives a ``SeriesChoice`` instead)."""
         iso, ask = self.iso_hu, ask_series
         self.load_runner.submit(
-            lambda: compute.load_case(folder, series_uid=series_uid, iso_hu=iso, ask_series=ask)
+            lambda: compute.load_case(
+                folder, series_uid=series_uid, iso_hu=iso, ask_series=ask, surface=False
+            )
         )
 
     def _loaded(self, loaded: compute.Loaded | compute.SeriesChoice) -> None:
         if isinstance(loaded, compute.Loaded):
             self.doc.set_volume(loaded.volume, loaded.path, loaded.surface)
+            if loaded.surface is None:  # contoured after the slices' and the path's jobs
+                self.set_iso(loaded.iso_hu)
         self.loaded.emit(loaded)
 
     def recompute(self) -> None:

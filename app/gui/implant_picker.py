@@ -63,6 +63,13 @@ class ImplantPicker(QComboBox):
         specs: list[ImplantSpec | None] = [None, *self.library]
         if current is not None and current not in self.library:
             specs.append(current)
+        if specs == self._specs:  # the same list (an edit elsewhere in the plan): select only
+            self._updating = True
+            try:
+                self.setCurrentIndex(specs.index(current))
+            finally:
+                self._updating = False
+            return
         self._updating = True
         try:
             self.clear()

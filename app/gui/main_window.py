@@ -273,6 +273,8 @@ class MainWindow(QMainWindow):
             self.load_failed.emit(str(exc))
         elif stage == "path":
             self.path_failed.emit(str(exc))
+        elif stage == "surface":
+            self.view3d.surface_failed()
 
     def _failed(self, exc: BaseException, tb: str) -> None:
         self.last_error = str(exc)

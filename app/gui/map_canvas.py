@@ -78,6 +78,10 @@ class MapCanvas(GhostCanvas):
 
     def __init__(self, figure: Any) -> None:
         super().__init__(figure)
+        # No pick events: matplotlib's default pick on every press and scroll walks every
+        # artist (building the axes' ticks), 0.05-0.2 s a click; the views hit-test themselves.
+        self.mpl_disconnect(self.button_pick_id)
+        self.mpl_disconnect(self.scroll_pick_id)
         #: ``navigate``, ``canal``, ``distance``, ``angle`` or ``arch``.
         self.mode = "navigate"
         #: Report drags on every move (True) or only at the release (the older behaviour).

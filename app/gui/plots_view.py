@@ -59,6 +59,8 @@ class PlotsView(FigureCanvasQTAgg):
     def __init__(self, ctx: ViewContext) -> None:
         fig = Figure(figsize=(6, 4), dpi=WINDOW_DPI)
         super().__init__(fig)
+        self.mpl_disconnect(self.button_pick_id)  # no pick events (a walk of every artist)
+        self.mpl_disconnect(self.scroll_pick_id)
         self.setObjectName("plot:force")
         self.plot_fig = fig
         self.ctx = ctx

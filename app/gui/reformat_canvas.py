@@ -277,16 +277,21 @@ class CanalChoice(QWidget):
         """The canal choices: by side, then the plan's canals; the settings shown."""
         plan = self.doc.plan
         names = [] if plan is None else [n for _i, n in _canal_names(plan)]
+        items = [AUTO_CANAL, *names]
+        wanted = self.doc.live.trace_canal or AUTO_CANAL
         self.canal.blockSignals(True)
-        try:
-            self.canal.clear()
-            self.canal.addItems([AUTO_CANAL, *names])
-            self.canal.setCurrentText(self.doc.live.trace_canal or AUTO_CANAL)
+        try:  # only what changed: each plan edit (a canal click) refreshes this row
+            if [self.canal.itemText(i) for i in range(self.canal.count())] != items:
+                self.canal.clear()
+                self.canal.addItems(items)
+            if self.canal.currentText() != wanted:
+                self.canal.setCurrentText(wanted)
         finally:
             self.canal.blockSignals(False)
-        self.radius.blockSignals(True)
-        self.radius.setValue(self.doc.live.trace_radius_mm)
-        self.radius.blockSignals(False)
+        if self.radius.value() != self.doc.live.trace_radius_mm:
+            self.radius.blockSignals(True)
+            self.radius.setValue(self.doc.live.trace_radius_mm)
+            self.radius.blockSignals(False)
 
     def _canal_chosen(self) -> None:
         text = self.canal.currentText().strip()

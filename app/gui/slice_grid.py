@@ -37,7 +37,7 @@ from ctdrill.app.gui.slice_nav import (
     slice_stack,
     window_text,
 )
-from ctdrill.app.gui.slice_scene import overlay_scene
+from ctdrill.app.gui.slice_scene import OverlayScene, overlay_scene
 from ctdrill.app.gui.slice_toolbar import SliceToolbar
 from ctdrill.app.gui.slice_tools import edit_arch
 from ctdrill.app.gui.slice_view import SliceCanvas
@@ -84,6 +84,8 @@ class SliceGrid(QWidget):
         #: Where each view centres once its next plane is shown: (LPS point, field of view
         #: in mm or None to keep the zoom).
         self._focus: dict[str, tuple[np.ndarray, float | None]] = {}
+        #: Canvases whose overlays wait for their drawing step (one step each, coalesced).
+        self._overlays_due: set[str] = set()
         self.editor = PlanEditor(ctx)
         self.toolbar = SliceToolbar(self)
         #: The readout line: window/level, then HU and position at the cursor.
@@ -267,7 +269,7 @@ class SliceGrid(QWidget):
         self._apply_focus(view, image)
         canvas.show_slice(image, level_hu=level, width_hu=width)
         canvas.set_position_text(self.position_text(view))
-        self.draw_overlays(only=view)
+        self.overlays_now(only=view)  # a drawing step already: the overlays with the image
         self._maybe_updated()
 
     def _maybe_updated(self) -> None:
@@ -308,15 +310,40 @@ class SliceGrid(QWidget):
 
     # ------------------------------------------------------------------ overlays
     def draw_overlays(self, only: str | None = None) -> None:
-        """Overlay the plan (or the points placed so far) on every canvas (or on ``only``)."""
+        """Overlay the plan (or the points placed so far) on every canvas (or on ``only``).
+
+        The canvases hit-test the new scene at once; each one draws it in a step of its own
+        (the drawing steps' queue), so an edit (a canal click, an undo) returns at once, and
+        several requests before the step (the plan, then its path) draw once."""
+        scene = self._scene()
+        for name, canvas in self.canvases.items():
+            if only is not None and name != only:
+                continue
+            canvas.take_scene(scene)
+            if name not in self._overlays_due:
+                self._overlays_due.add(name)
+                self.ctx.steps.push(partial(self._overlay_step, name))
+
+    def _overlay_step(self, name: str) -> None:
+        if name in self._overlays_due:
+            self._overlays_due.discard(name)
+            canvas = self.canvases[name]
+            canvas.set_overlays(canvas.scene)
+
+    def overlays_now(self, only: str | None = None) -> None:
+        """Draw the overlays at once (on every canvas, or on ``only``)."""
+        scene = self._scene()
+        for name, canvas in self.canvases.items():
+            if only is None or name == only:
+                self._overlays_due.discard(name)
+                canvas.set_overlays(scene)
+
+    def _scene(self) -> OverlayScene:
         doc = self.ctx.doc
         plans, current = doc.plans, doc.current
         views = [doc.path if i == current else doc.cached_path(p) for i, p in enumerate(plans)]
         arch = self.arch_draft if self.arch_draft is not None else doc.arch_lps
-        scene = overlay_scene(plans, current, views, draft=doc.draft, arch_lps=arch)
-        for name, canvas in self.canvases.items():
-            if only is None or name == only:
-                canvas.set_overlays(scene)
+        return overlay_scene(plans, current, views, draft=doc.draft, arch_lps=arch)
 
     # ------------------------------------------------------------------ window, cursor
     def set_window_preset(self, label: str) -> None:

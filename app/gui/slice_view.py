@@ -234,14 +234,19 @@ class SliceCanvas(MapCanvas):
         self.ax.set_xlim(cu - half, cu + half)
         self.ax.set_ylim(cv + half, cv - half)  # rows grow downwards
 
-    def set_overlays(self, scene: OverlayScene) -> None:
-        """Draw ``scene`` (every trajectory, landmarks, arch, handles) and the tools' marks."""
+    def take_scene(self, scene: OverlayScene) -> None:
+        """Hit-test against ``scene`` from now on (its grips and canal points); drawing it is
+        :meth:`set_overlays`, which may follow in a later step."""
         self.scene = scene
-        for artist in [*self.ax.lines, *self.ax.patches, *self.ax.collections, *self.ax.texts]:
-            artist.remove()
         self.grips = dict(scene.handles)
         self.grip_plan = scene.plan
         self.canals = list(scene.canals)
+
+    def set_overlays(self, scene: OverlayScene) -> None:
+        """Draw ``scene`` (every trajectory, landmarks, arch, handles) and the tools' marks."""
+        self.take_scene(scene)
+        for artist in [*self.ax.lines, *self.ax.patches, *self.ax.collections, *self.ax.texts]:
+            artist.remove()
         if self.image is not None:
             draw_scene(self.ax, self.image, scene, arch=self.view == "axial")
             self.tools.draw()

@@ -126,7 +126,10 @@ class View3D(QWidget):
 
     # ------------------------------------------------------------------ document
     def _surface(self, surface: pv.PolyData | None) -> None:
-        self.set_surface(surface)
+        if surface is None and self.ctx.doc.volume is not None:
+            self.surface_follows()
+        else:
+            self.set_surface(surface)
         if self.ctx.doc.plan is None:  # no trajectory yet: the anatomy alone
             self.ctx.steps.push(lambda: self.show_scene(scene_input(None, None)))
 
@@ -204,6 +207,29 @@ class View3D(QWidget):
             self.ctx.steps.push(lambda i=index: self._add_piece(gen, i, n))  # type: ignore[misc]
         if n == 0:
             self.ctx.steps.push(lambda: self._surface_done(gen))
+
+    def surface_is_shown(self) -> bool:
+        """The current bone surface is drawn whole, or none is coming (no series, or its
+        contour failed)."""
+        shown = np.isfinite(self.surface_shown_s) or np.isfinite(self.settled_s)
+        return bool(shown) or self.ctx.doc.volume is None
+
+    def surface_failed(self) -> None:
+        """The series' bone surface could not be contoured: no surface follows (the window
+        says why); the view is settled without it."""
+        self._settle()
+
+    def surface_follows(self) -> None:
+        """A new series opened whose bone surface is still being contoured: the previous
+        surface goes (nothing is shown or settled until the new one arrives)."""
+        self.surface = None
+        self._refiner.cancel()
+        self._camera_for = None
+        self._surface_gen += 1
+        gen = self._surface_gen
+        self.surface_shown_s = float("nan")
+        self.settled_s = float("nan")
+        self.ctx.steps.push(lambda: self._drop_bone(gen))
 
     def _drop_bone(self, gen: int) -> None:
         """Remove the previous surfaces' actors (the GPU buffers go with them)."""

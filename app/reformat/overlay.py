@@ -24,7 +24,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ctdrill.imaging.sampling.reformat import Reformat
 
@@ -121,6 +120,8 @@ def tube_overlay(
     gap = float(max(np.min(excess[ok]) - reach, 0.0))
     runs = _runs(ok & (excess == 0.0), uv)
     if near.any():
+        from scipy.spatial import cKDTree  # here: its import costs start-up, few need it
+
         p = reformat.pixel_mm
         tree = cKDTree(np.column_stack([uv[near], excess[near]]))
         lo = np.floor((uv[near].min(axis=0) - reach) / p).astype(int) - 2

@@ -15,7 +15,9 @@ SEARCH_TIMEOUT_MS = 240_000
 
 
 def open_case(qtbot: QtBot, win: MainWindow, case: PhantomCase) -> None:
-    """Open the case's plan and series and wait until the path is drawn."""
+    """Open the case's plan and series and wait until the path and the bone surface are drawn."""
     win.open_plan(case.plan_path)
     with qtbot.waitSignal(win.path_updated, timeout=LOAD_TIMEOUT_MS):
         win.open_folder(case.ct_dir)
+    # the bone surface is contoured after the slices and the path
+    qtbot.waitUntil(win.view3d.surface_is_shown, timeout=LOAD_TIMEOUT_MS)
