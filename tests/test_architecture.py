@@ -302,10 +302,10 @@ def _importers_of(prefixes: tuple[str, ...]) -> dict[str, list[str]]:
     }
 
 
-#: The GUI's entries from outside it: ``ctdrill gui`` loads the window inside ``run()``, and the
-#: Python API's ``open_window`` inside that function.
+#: The GUI's entries from outside it: ``ctdrill gui`` loads the window inside ``run()`` (its
+#: Qt-free modules first, ``preload``), and the Python API's ``open_window`` inside that function.
 GUI_ENTRY = {
-    "ctdrill.app.commands.gui": ["ctdrill.app.gui.app"],
+    "ctdrill.app.commands.gui": ["ctdrill.app.gui.app", "ctdrill.app.gui.preload"],
     "ctdrill.api": ["ctdrill.app.gui.api"],
 }
 #: Left for later, named exactly so it cannot grow or go stale: the report's 3D view renders the
