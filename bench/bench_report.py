@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -30,6 +31,8 @@ ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "assets" / "demo"
 REAL_CT = ROOT.parent / "shared" / "data" / "dcmqa_ct_Philips_phantom_notilt_5mm"
 GOAL_S = 5.0
+#: Fresh ``ctdrill report`` processes timed per case (full mode).
+FRESH_RUNS = 3
 #: The arch: the anterior skull wall's mid-line at z = 766.21 mm (the ring of bone above 300 HU
 #: on that slice, every 10 degrees about its centre), LPS mm.
 REAL_ARCH_XY = (
@@ -85,18 +88,30 @@ def real_plan(root: Path) -> Path:
     return path
 
 
-def _cli(ct: Path, plan: Path, out: Path) -> float:
-    """Wall time of ``ctdrill report`` in a fresh process, s."""
+def _cli(ct: Path, plan: Path, out: Path) -> tuple[float, float]:
+    """Wall and CPU time (user + system) of ``ctdrill report`` in a fresh process, s."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     cmd = [sys.executable, "-m", "ctdrill.app.cli", "report", "--dicom", str(ct)]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     done = subprocess.run(
         [*cmd, "--plan", str(plan), "--out", str(out)], env=env, capture_output=True, text=True
     )
     elapsed = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode != 0:
         raise RuntimeError(f"ctdrill report failed ({done.returncode}): {done.stderr[-400:]}")
-    return elapsed
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return elapsed, cpu
+
+
+def _fresh(ct: Path, plan: Path, out: Path, runs: int) -> tuple[float, float]:
+    """Median wall and CPU seconds of ``runs`` fresh ``ctdrill report`` processes."""
+    samples = [_cli(ct, plan, out) for _ in range(runs)]
+    return (
+        float(np.median([w for w, _ in samples])),
+        float(np.median([c for _, c in samples])),
+    )
 
 
 def run(quick: bool) -> Section:
@@ -104,6 +119,7 @@ def run(quick: bool) -> Section:
     repeats = 1 if quick else 5
     rows: list[list[str]] = []
     headline = []
+    shortfalls: list[str] = []
     stages: list[str] = []
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
@@ -124,30 +140,60 @@ def run(quick: bool) -> Section:
                 stages += [s for s in t.stages if s not in stages]
             med = {s: float(np.median([t.stages.get(s, 0.0) for t in samples])) for s in stages}
             total = float(np.median([sum(t.stages.values()) for t in samples]))
-            fresh = None if quick else _cli(ct, plan, root / "cli.pdf")
-            per_case.append((name, pages, med, total, fresh))
-        for name, pages, med, total, fresh in per_case:
+            load0 = os.getloadavg()[0]
+            fresh = None if quick else _fresh(ct, plan, root / "cli.pdf", FRESH_RUNS)
+            load = 0.5 * (load0 + os.getloadavg()[0])
+            per_case.append((name, pages, med, total, fresh, load))
+        for name, pages, med, total, fresh, load in per_case:
             rows.append(
                 [
                     name,
                     str(pages),
                     *(f"{med.get(s, 0.0):.2f}" for s in stages),
                     f"{total:.2f}",
-                    "-" if fresh is None else f"{fresh:.2f}",
+                    "-" if fresh is None else f"{fresh[0]:.2f}",
+                    "-" if fresh is None else f"{fresh[1]:.2f}",
+                    f"{load:.1f}",
                 ]
             )
             headline.append(
                 headline_row(
                     f"ctdrill report, {name}",
-                    f"{total:.2f} s" + ("" if fresh is None else f" ({fresh:.2f} s fresh process)"),
+                    f"{total:.2f} s"
+                    + ("" if fresh is None else f" ({fresh[0]:.2f} s fresh process)"),
                     goal=f"a few seconds (<= {GOAL_S:g} s)",
                 )
             )
-    md = table(["case", "pages", *(f"{s} (s)" for s in stages), "total (s)", "command (s)"], rows)
+            if fresh is not None and fresh[0] > GOAL_S:
+                shortfalls.append(
+                    f"`ctdrill report` of the {name} took {fresh[0]:.2f} s as a fresh process "
+                    f"(goal <= {GOAL_S:g} s) at load {load:.1f} on the 2 cores; its CPU time "
+                    f"was {fresh[1]:.2f} s (imports, matplotlib's text layout, the panorama)"
+                )
+    md = table(
+        [
+            "case",
+            "pages",
+            *(f"{s} (s)" for s in stages),
+            "total (s)",
+            "command (s)",
+            "command CPU (s)",
+            "load",
+        ],
+        rows,
+    )
     md += (
         f"\n\nMedians of {repeats} report(s) per case in one process (imports done); "
-        "'command' is one run of `ctdrill report` in a fresh process (imports and VTK's off-screen "
-        "context included). The 3D view renders with software OpenGL (EGL, no GPU) here."
+        f"'command' is the median of {FRESH_RUNS} runs of `ctdrill report` (the default "
+        "clinical report, as a user runs it) in a fresh process (imports included), its wall "
+        "and its CPU time (user + system: what the work costs when the 2 cores are shared); "
+        "'load' is the load average while they ran. The real head CT's plan has two implants "
+        f"(issue 37's goal: <= {GOAL_S:g} s as a fresh process)."
         f" Mode: {'quick' if quick else 'full'}."
     )
-    return Section(title="Report (ctdrill report)", markdown=md, headline=tuple(headline))
+    return Section(
+        title="Report (ctdrill report)",
+        markdown=md,
+        headline=tuple(headline),
+        shortfalls=tuple(shortfalls),
+    )
