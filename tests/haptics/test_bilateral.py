@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -104,6 +105,56 @@ def test_a_force_that_vanishes_after_bone_is_a_cortex_exit() -> None:
         k += 1
     assert est.stop_reason == "cortex_exit"
     assert 3.0 < 1.0 + 0.5 * k * 1e-4 < 3.6
+
+
+def _drill(
+    est: HuEstimator, force_at: Callable[[float], float], x0: float, feed_mm_s: float, ticks: int
+) -> None:
+    for k in range(ticks):
+        x = x0 + feed_mm_s * k * 1e-4
+        f = force_at(x)
+        est.update(x + f / 100.0, f)
+
+
+def test_a_start_transient_is_not_the_contact() -> None:
+    """The RFOB reads the start of a motion as a force (over 1 N for a window) in free flight;
+    the contact it would place there is dropped when the force lets go before the lip engages,
+    and the real one is found where the force rises."""
+    cal, prior = _slab_prior(1050.0)
+    est = HuEstimator(cal, prior, tip_length_mm=0.6, window_ticks=333, tick_s=1e-4)
+    full = float(a0_n(1050.0, 0.5, cal))
+    surface = 1.0
+
+    def force(x: float) -> float:
+        if x < 0.02:  # the start: 3 N over 0.02 mm of free flight
+            return 3.0
+        return full * min(1.0, max(0.0, (x - surface) / 0.6))
+
+    _drill(est, force, 0.0, 0.5, 40_000)  # to 2 mm
+    assert surface < est.contact_mm < surface + 0.6 / full + 0.01  # where it passes 1 N
+    assert est.hu == pytest.approx(1050.0, abs=1.0)
+
+
+@pytest.mark.parametrize("shift_mm", [-1.0, 1.5])
+def test_the_plan_is_registered_by_the_contact_so_the_gain_learns_in_the_first_layer(
+    shift_mm: float,
+) -> None:
+    """The plan shows a 1050 HU slab from 3 mm; the slave meets it ``shift_mm`` shallower and
+    its force law is 20 % high. Registered by the contact, the first layer's votes agree with
+    the plan and the gain is learnt there; without it they would be read against air."""
+    cal = load_calibration("bone-illustrative")
+    depth = np.arange(0.0, 12.0, 0.05)
+    lip = np.where(depth >= 3.0, 1050.0, -1000.0).reshape(-1, 1, 1)
+    prior = plan_prior(build_profile(lip, np.ones(1), depth, cal, blades=2, rpm=900), cal)
+    assert prior.contact_mm == pytest.approx(3.0)
+    est = HuEstimator(cal, prior, tip_length_mm=0.6, window_ticks=333, tick_s=1e-4)
+    full = 1.2 * float(a0_n(1050.0, 0.5, cal))
+    surface = 3.0 - shift_mm
+    _drill(est, lambda x: full * min(1.0, max(0.0, (x - surface) / 0.6)), 1.0, 0.5, 80_000)
+    assert est.registration_mm == pytest.approx(-shift_mm, abs=0.1)
+    assert est.gain_updates > 0 and est.votes_rejected == 0
+    assert 10.0**est.log10_gain == pytest.approx(1.2, rel=1e-9)
+    assert est.hu == pytest.approx(1050.0, abs=1e-6)
 
 
 @pytest.fixture(scope="module")
