@@ -1,17 +1,28 @@
-"""Planning at the speed of a drag (issue 27): from a mouse move to updated plots, with real Qt
-mouse events on the window, against the older chain measured in the same run.
+"""Planning at the speed of a drag (issues 27 and 37): from a mouse move to the repainted force
+plot, with real Qt mouse events on the window, idle and beside two busy processes, against the
+older chain measured in the same run.
 
-Cases: the bundled demo phantom and a synthetic 640 x 640 x 480 series (0.3 mm voxels, a bone
+Cases: the bundled demo phantom and a synthetic 640 x 640 x 480 series (0.2 mm voxels, a bone
 bar with a cortical shell and a canal 16 mm below its top, the drill 14.5 mm long:
 ``bench.bench_gui.synthetic_case``). The window is
 opened by ``ctdrill.api``'s ``open_window`` and driven through ``QTest`` mouse events on
 ``view:drill`` (the drill's target grip); the time is read when ``plot:force`` says it has drawn
-the new curves (its ``stopDepthMmChanged``, emitted once they are on the screen).
+the new curves (its ``stopDepthMmChanged``, emitted by the paint that puts them on the screen).
 
-- **live** (today): each move previews the dragged plan: its path is planned at once in a
-  worker (one at a time, the latest next) and the curves are redrawn over the kept axes.
-  Latency: a move, then the time until the plots show that move's curves; one move at a time.
-  Rate: moves sent every 16 ms (a 60 Hz mouse) for a while, plot updates counted per second.
+- **live** (today): mouse moves are coalesced to the latest; each previews the dragged plan:
+  its path is planned at once in a worker (one at a time, the latest next), its curves and
+  stop handed to the plots before the implant's check, and drawn over the kept axes by the
+  paint that shows them.
+  *Latency*: from rest (nothing computing), a move, then the time until the plot is repainted
+  with that move's curves; one move at a time.
+  *Continuous drag*: a 60 Hz mouse (a move every 16 ms, a triangle wave of 2 px steps over
+  40 px) for a few seconds: repaints of the force plot per second, the moves Qt delivered per
+  second, and the **lag** of each repaint: the time since the mouse was at the position it
+  draws (median and 90th percentile). Each repaint's position is checked against the order of
+  the mouse (never an older one after a newer) and each computation against the latest
+  position when it started (``latest next``).
+  Both idle and beside two busy processes (``python -c 'while 1: pass'``, started here) that
+  take the 2 cores' time.
 - **older chain** (:func:`older_chain`, the window before issue 27, rebuilt here from the
   window's own options: the product keeps none of it): the plan changes only at the release
   (the canvases' ``live_drag`` off), the path waits :data:`LEGACY_DEBOUNCE_MS` (150 ms) and
@@ -26,7 +37,10 @@ by ``make bench``; the 3D view and the slice contours catch up after the release
 
 from __future__ import annotations
 
+import itertools
 import os
+import subprocess
+import sys
 import tempfile
 import time
 from collections.abc import Callable
@@ -36,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from bench.bench_gui import synthetic_case
-from bench.report import Section, Timing, headline_row, table
+from bench.report import Section, Timing, figure_path, headline_row, table
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The wait the window used after an edit before live editing, ms (the older chain's).
@@ -62,46 +76,106 @@ def older_chain(window: Any, on: bool) -> None:
 
 
 DEMO = ROOT / "assets" / "demo"
-#: Goals of issue 27: mouse move to updated plots (median), plot updates per second.
-GOAL_LATENCY_MS = 50.0
+#: Goals of issue 37: a move to the repainted force plot (median, idle), repaints per second
+#: beside two busy processes.
+GOAL_LATENCY_MS = 16.0
 GOAL_RATE_HZ = 20.0
 #: Mouse step per move, widget pixels (down the drill view: the implant goes deeper).
 STEP_PX = 2
+#: The continuous drag's triangle wave, in steps (up and back).
+WAVE_STEPS = 20
 #: The synthetic case's canal below the bone's top, mm: a dental path (entry 1 mm above the
 #: bone, target 2.5 mm above the canal: 14.5 mm), as the demo's 12 mm.
 CANAL_BELOW_TOP_MM = 16.0
+#: The synthetic series' voxel size, mm.
+SYNTHETIC_MM = 0.2
+#: Busy processes beside the window in the loaded runs.
+BUSY = 2
+LOADS = (("idle", 0), (f"{BUSY} busy processes", BUSY))
 
 
 def _wait(app: Any, done: Callable[[], bool], timeout_s: float = 60.0) -> bool:
+    """Run the event loop (blocking between events, as a window's does) until ``done()``,
+    checked every millisecond; False on timeout."""
+    from PySide6.QtCore import QEventLoop, QTimer
+
+    if done():
+        return True
     t0 = time.perf_counter()
-    while not done():
-        if time.perf_counter() - t0 > timeout_s:
-            return False
-        app.processEvents()
-        time.sleep(0.0005)
-    return True
+    loop = QEventLoop()
+    ok = {"done": False}
+
+    def check() -> None:
+        if done():
+            ok["done"] = True
+            loop.quit()
+        elif time.perf_counter() - t0 > timeout_s:
+            loop.quit()
+
+    timer = QTimer()
+    timer.setInterval(1)
+    timer.timeout.connect(check)
+    timer.start()
+    loop.exec()
+    timer.stop()
+    return ok["done"]
 
 
 class _Probe:
-    """Times the chain's parts: the worker's path computation, the plots' redraw, the
-    dragged view's outline (wrappers around the window's own calls)."""
+    """Times the chain's parts (the worker's path computation, its curves, the plots' redraw,
+    the dragged view's outline) and ties each dragged plan to the mouse move it came from
+    (wrappers around the window's own calls)."""
 
     def __init__(self, window: Any) -> None:
         import ctdrill.app.gui.controller as controller
+        import ctdrill.app.gui.plan_editor as plan_editor
+        import ctdrill.app.gui.results as results
 
         self.compute: list[float] = []
+        self.compute_cpu: list[float] = []
+        self.curves: list[float] = []
         self.plots: list[float] = []
         self.ghost: list[float] = []
+        #: id(plan) -> index of the mouse move it was dragged to (the latest sent).
+        self.move_of: dict[int, int] = {}
+        self.sent = 0
+        #: Computations started on a position older than the latest one dragged to.
+        self.stale_starts = 0
+        restore: list[Callable[[], None]] = []
+        live = window.doc.live
         original = controller.compute_path_view
 
         def timed_compute(*args: Any, **kw: Any) -> Any:
-            t0 = time.perf_counter()
+            if kw.get("live") and args[1] is not live.plan:
+                self.stale_starts += 1
+            t0, c0 = time.perf_counter(), time.thread_time()
             out = original(*args, **kw)
             self.compute.append(time.perf_counter() - t0)
+            self.compute_cpu.append(time.thread_time() - c0)
             return out
 
         controller.compute_path_view = timed_compute
-        self._restore = lambda: setattr(controller, "compute_path_view", original)
+        restore.append(lambda: setattr(controller, "compute_path_view", original))
+        curves = results.path_curves
+
+        def timed_curves(*args: Any, **kw: Any) -> Any:
+            t0 = time.perf_counter()
+            out = curves(*args, **kw)
+            self.curves.append(time.perf_counter() - t0)
+            return out
+
+        results.path_curves = timed_curves
+        restore.append(lambda: setattr(results, "path_curves", curves))
+        dragged = plan_editor.dragged_plan
+
+        def tagged(*args: Any, **kw: Any) -> Any:
+            plan = dragged(*args, **kw)
+            self.move_of[id(plan)] = self.sent
+            return plan
+
+        plan_editor.dragged_plan = tagged
+        restore.append(lambda: setattr(plan_editor, "dragged_plan", dragged))
+        self._restore = restore
         plots = window.plot_canvas
         show = plots.show_curves
 
@@ -123,14 +197,114 @@ class _Probe:
         drill.draw_ghost_of = timed_ghost
 
     def close(self) -> None:
-        self._restore()
+        for fn in self._restore:
+            fn()
+
+
+def _busy(n: int) -> list[subprocess.Popen[bytes]]:
+    return [subprocess.Popen([sys.executable, "-c", "while 1: pass"]) for _ in range(n)]
+
+
+def _measure(
+    window: Any, probe: _Probe, moves: int, rate_s: float, shot: Path | None
+) -> dict[str, Any]:
+    """One press, ``moves`` timed moves from rest, a continuous 60 Hz drag for ``rate_s``,
+    the release and its undo."""
+    from PySide6.QtCore import QPoint, Qt, QTimer
+    from PySide6.QtTest import QTest
+    from PySide6.QtWidgets import QApplication, QWidget
+
+    app = QApplication.instance()
+    drill = window.findChild(QWidget, "view:drill")
+    plot = window.findChild(QWidget, "plot:force")
+    live, ctl = window.doc.live, window.controller
+    drawn: list[tuple[float, int]] = []  # (time, move index drawn)
+
+    def on_drawn(_v: float) -> None:
+        view = live.curves
+        move = -1 if view is None else probe.move_of.get(id(view.plan), -1)
+        drawn.append((time.perf_counter(), move))
+
+    plot.stopDepthMmChanged.connect(on_drawn)
+    left, none = Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier
+
+    def at_rest() -> bool:
+        busy = ctl.live_runner.busy or ctl.readout_runner.busy or ctl.path_runner.busy
+        return not busy and window.ui_steps.pending == 0
+
+    try:
+        grip = drill.lps_to_pixel(window.doc.plan.target_lps)
+        x, y = round(grip[0]), round(grip[1])
+        QTest.mousePress(drill, left, none, QPoint(x, y))
+        _wait(app, lambda: live.path is not None)  # the press previews the plan
+        latency = []
+        for k in range(1, moves + 1):
+            _wait(app, at_rest)
+            n = len(drawn)
+            probe.sent += 1
+            t0 = time.perf_counter()
+            QTest.mouseMove(drill, QPoint(x, y + STEP_PX * (k % WAVE_STEPS)))
+            if _wait(app, lambda n=n: len(drawn) > n):  # type: ignore[misc]
+                latency.append(drawn[-1][0] - t0)
+        _wait(app, at_rest)
+        sent_t: dict[int, float] = {}
+        n0 = len(drawn)
+        state = {"k": 0}
+
+        def move() -> None:
+            state["k"] += 1
+            k = state["k"] % (2 * WAVE_STEPS)
+            step = k if k <= WAVE_STEPS else 2 * WAVE_STEPS - k
+            probe.sent += 1
+            sent_t[probe.sent] = time.perf_counter()
+            QTest.mouseMove(drill, QPoint(x, y + STEP_PX * step))
+
+        timer = QTimer()
+        timer.setInterval(16)
+        timer.timeout.connect(move)
+        t0, c0 = time.perf_counter(), time.thread_time()
+        timer.start()
+        if shot is not None:
+            _wait(app, lambda: time.perf_counter() - t0 > rate_s / 2, timeout_s=rate_s)
+            window.grab().save(str(shot))
+        _wait(app, lambda: time.perf_counter() - t0 > rate_s, timeout_s=rate_s + 5)
+        timer.stop()
+        elapsed = time.perf_counter() - t0
+        ui_cpu_s = time.thread_time() - c0
+        during = drawn[n0:]
+        lags = [t - sent_t[m] for t, m in during if m in sent_t]
+        order = [m for _, m in during]
+        out_of_order = sum(1 for a, b in itertools.pairwise(order) if b < a)
+        QTest.mouseRelease(drill, left, none, QPoint(x, y))
+        _wait(app, lambda: at_rest() and not ctl.path_runner.busy)
+        window.undo_action.trigger()
+        _wait(app, at_rest)
+    finally:
+        plot.stopDepthMmChanged.disconnect(on_drawn)
+    return {
+        "latency": Timing.from_samples(latency or [np.nan]),
+        "latency_p90_s": float(np.percentile(latency, 90)) if latency else np.nan,
+        "rate_hz": len(during) / elapsed,
+        "sent_hz": state["k"] / elapsed,
+        "lag": Timing.from_samples(lags or [np.nan]),
+        "lag_p90_s": float(np.percentile(lags, 90)) if lags else np.nan,
+        "out_of_order": out_of_order,
+        "repaints": len(during),
+        "ui_cpu_s": ui_cpu_s / max(1, len(during)),
+    }
 
 
 def _drag_case(
-    ct_dir: Path, plan_path: Path, moves: int, legacy_steps: int, rate_s: float, settle: bool
+    ct_dir: Path,
+    plan_path: Path,
+    moves: int,
+    legacy_steps: int,
+    rate_s: float,
+    settle: bool,
+    name: str,
 ) -> dict[str, Any]:
     """Drag on one case (``settle``: first wait for the 3D view's finest surface)."""
-    from PySide6.QtCore import QPoint, QSettings, Qt, QTimer
+    from PySide6.QtCore import QPoint, QSettings, Qt
     from PySide6.QtTest import QTest
     from PySide6.QtWidgets import QApplication, QWidget
 
@@ -150,52 +324,35 @@ def _drag_case(
     plot = window.findChild(QWidget, "plot:force")
     assert isinstance(drill, SliceCanvas) and isinstance(plot, PlotsView)
     assert window.doc.plan is not None
-    drawn: list[float] = []
-    plot.stopDepthMmChanged.connect(lambda _v: drawn.append(time.perf_counter()))
     left = Qt.MouseButton.LeftButton
     none = Qt.KeyboardModifier.NoModifier
     probe = _Probe(window)
+    runs: dict[str, dict[str, Any]] = {}
     try:
-        # live: one move at a time, each timed to its curves on the screen
-        grip = drill.lps_to_pixel(window.doc.plan.target_lps)
-        assert grip is not None
-        x, y = round(grip[0]), round(grip[1])
-        QTest.mousePress(drill, left, none, QPoint(x, y))
-        _wait(app, lambda: window.doc.live.path is not None)  # the press previews the plan
-        live = []
-        for k in range(1, moves + 1):
-            n = len(drawn)
-            t0 = time.perf_counter()
-            QTest.mouseMove(drill, QPoint(x, y + STEP_PX * k))
-            if _wait(app, lambda n=n: len(drawn) > n):  # type: ignore[misc]
-                live.append(drawn[-1] - t0)
-        # rate: a 60 Hz mouse for rate_s
-        n0, k0 = len(drawn), moves
-        state = {"k": k0}
-
-        def move() -> None:
-            state["k"] += 1
-            QTest.mouseMove(drill, QPoint(x, y + STEP_PX * (state["k"] % 40)))
-
-        timer = QTimer()
-        timer.setInterval(16)
-        timer.timeout.connect(move)
-        t0 = time.perf_counter()
-        timer.start()
-        _wait(app, lambda: time.perf_counter() - t0 > rate_s, timeout_s=rate_s + 5)
-        timer.stop()
-        rate_hz = (len(drawn) - n0) / (time.perf_counter() - t0)
-        sent_hz = (state["k"] - k0) / (time.perf_counter() - t0)
-        QTest.mouseRelease(drill, left, none, QPoint(x, y + STEP_PX * (state["k"] % 40)))
-        _wait(app, lambda: window.ui_steps.pending == 0 and not window.controller.path_runner.busy)
-        window.undo_action.trigger()
-        _wait(app, lambda: window.ui_steps.pending == 0)
+        for load_name, busy in LOADS:
+            procs = _busy(busy)
+            try:
+                time.sleep(0.5 if busy else 0.0)
+                shot = figure_path(f"drag_{name}_{busy}.png") if settle else None
+                runs[load_name] = _measure(window, probe, moves, rate_s, shot)
+                runs[load_name]["load"] = os.getloadavg()[0]
+            finally:
+                for proc in procs:
+                    proc.kill()
+                    proc.wait()
         parts = {
-            "path in the worker": Timing.from_samples(probe.compute or [np.nan]),
+            "path in the worker (curves, then checks)": Timing.from_samples(
+                probe.compute or [np.nan]
+            ),
+            "its CPU time": Timing.from_samples(probe.compute_cpu or [np.nan]),
+            "curves in the worker": Timing.from_samples(probe.curves or [np.nan]),
             "plots redrawn (live)": Timing.from_samples(probe.plots or [np.nan]),
             "dragged outline": Timing.from_samples(probe.ghost or [np.nan]),
         }
+        stale = probe.stale_starts
         # the older chain: a short drag, its release, the plots
+        drawn: list[float] = []
+        plot.stopDepthMmChanged.connect(lambda _v: drawn.append(time.perf_counter()))
         older_chain(window, True)
         older = []
         for k in range(legacy_steps):
@@ -219,85 +376,129 @@ def _drag_case(
         probe.close()
         window.close()
     return {
-        "load": os.getloadavg()[0],
         "dims": dims,
-        "live": Timing.from_samples(live),
-        "older": Timing.from_samples(older),
-        "rate_hz": rate_hz,
-        "sent_hz": sent_hz,
+        "runs": runs,
+        "older": Timing.from_samples(older or [np.nan]),
         "parts": parts,
+        "stale": stale,
+        "shots": settle,
     }
 
 
 def run(quick: bool) -> Section:
     """Drag the target on the drill view of the demo and of a 640 x 640 x 480 series."""
-    moves, legacy, rate_s = (3, 1, 0.3) if quick else (30, 10, 3.0)
+    moves, legacy, rate_s = (3, 1, 0.3) if quick else (30, 6, 4.0)
     results: dict[str, dict[str, Any]] = {}
-    results["demo"] = _drag_case(DEMO / "ct", DEMO / "plan.json", moves, legacy, rate_s, not quick)
+    results["demo"] = _drag_case(
+        DEMO / "ct", DEMO / "plan.json", moves, legacy, rate_s, not quick, "demo"
+    )
+    write_s = 0.0
     if not quick:
         with tempfile.TemporaryDirectory(prefix="ctdrill-bench-drag-big-") as tmp:
             t0 = time.perf_counter()
             plan = synthetic_case(
-                Path(tmp), (480, 640, 640), 0.3, canal_below_top_mm=CANAL_BELOW_TOP_MM
+                Path(tmp), (480, 640, 640), SYNTHETIC_MM, canal_below_top_mm=CANAL_BELOW_TOP_MM
             )
             write_s = time.perf_counter() - t0
             results["synthetic 640x640x480"] = _drag_case(
-                Path(tmp) / "ct", plan, moves, legacy, rate_s, True
+                Path(tmp) / "ct", plan, moves, legacy, rate_s, True, "synthetic"
             )
-    rows, part_rows, headline, shortfalls = [], [], [], []
+    rows, part_rows, headline, shortfalls, shots = [], [], [], [], []
     for name, r in results.items():
-        live, older = r["live"], r["older"]
-        ratio = older.median_s / live.median_s if live.median_s > 0 else float("nan")
-        rows.append(
-            [
-                name,
-                r["dims"],
-                live.fmt("ms"),
-                older.fmt("ms"),
-                f"{ratio:.1f}",
-                f"{r['rate_hz']:.1f} (mouse {r['sent_hz']:.0f})",
-                f"{r['load']:.1f}",
-            ]
-        )
-        part_rows.append([name, *(t.fmt("ms") for t in r["parts"].values())])
+        older = r["older"]
+        idle = r["runs"]["idle"]
+        busy = r["runs"][LOADS[1][0]]
+        ratio = older.median_s / idle["latency"].median_s
+        for load_name, m in r["runs"].items():
+            rows.append(
+                [
+                    name,
+                    r["dims"],
+                    load_name,
+                    f"{m['load']:.1f}",
+                    m["latency"].fmt("ms") + f" p90 {1e3 * m['latency_p90_s']:.3g}",
+                    f"{m['rate_hz']:.1f} (mouse {m['sent_hz']:.0f}/s)",
+                    m["lag"].fmt("ms") + f" p90 {1e3 * m['lag_p90_s']:.3g}",
+                    f"{m['out_of_order']} of {m['repaints']}",
+                    f"{1e3 * m['ui_cpu_s']:.1f} ms",
+                ]
+            )
+        part_rows.append([name, *(t.fmt("ms") for t in r["parts"].values()), str(r["stale"])])
         headline.append(
             headline_row(
-                f"drag: mouse move to updated plots, {name}",
-                live.fmt("ms"),
+                f"drag: mouse move to repainted force plot, {name} (idle)",
+                idle["latency"].fmt("ms"),
                 f"older chain (release to plots) {older.fmt('ms')}",
                 f"{ratio:.1f}",
-                f"<= {GOAL_LATENCY_MS:g} ms median, >= {GOAL_RATE_HZ:g} updates/s",
+                f"<= {GOAL_LATENCY_MS:g} ms median idle",
             )
         )
-        if 1e3 * live.median_s > GOAL_LATENCY_MS:
-            shortfalls.append(
-                f"drag on {name}: {1e3 * live.median_s:.0f} ms from a mouse move to updated "
-                f"plots (median) against the {GOAL_LATENCY_MS:g} ms goal"
+        headline.append(
+            headline_row(
+                f"drag: repaints/s at a 60 Hz mouse, {name}, beside {BUSY} busy processes",
+                f"{busy['rate_hz']:.1f}/s (lag {1e3 * busy['lag'].median_s:.0f} ms)",
+                f"idle {idle['rate_hz']:.1f}/s (lag {1e3 * idle['lag'].median_s:.0f} ms)",
+                "",
+                f">= {GOAL_RATE_HZ:g}/s, the latest next",
             )
-        if r["rate_hz"] < GOAL_RATE_HZ:
+        )
+        if 1e3 * idle["latency"].median_s > GOAL_LATENCY_MS:
             shortfalls.append(
-                f"drag on {name}: {r['rate_hz']:.1f} plot updates/s against {GOAL_RATE_HZ:g}"
+                f"drag on {name}: {1e3 * idle['latency'].median_s:.0f} ms from a mouse move "
+                f"to the repainted force plot (median, idle, load {idle['load']:.1f}) against "
+                f"the {GOAL_LATENCY_MS:g} ms goal"
             )
+        if busy["rate_hz"] < GOAL_RATE_HZ:
+            shortfalls.append(
+                f"drag on {name}: {busy['rate_hz']:.1f} repaints/s beside {BUSY} busy "
+                f"processes (load {busy['load']:.1f}) against {GOAL_RATE_HZ:g}"
+            )
+        if r["shots"]:
+            shots.append(name)
     notes = [
         __doc__.split("\n\n", 1)[1].strip() if __doc__ else "",
-        f"{moves} timed moves of {STEP_PX} px and {legacy} older-chain drags per case"
+        f"{moves} timed moves of {STEP_PX} px from rest, a {rate_s:g} s continuous drag, "
+        f"and {legacy} older-chain drags per case and load"
         + ("" if quick else f"; the synthetic series took {write_s:.0f} s to write (not timed)")
-        + ". The load column is the machine's 1-minute load average when the case ended (2 "
-        "cores shared with other work): the chain runs in two threads and competes for them.",
+        + ". The load column is the machine's 1-minute load average at the end of the run (2 "
+        "cores shared with other work, the busy processes included): the chain runs in two "
+        "threads and competes for them.",
         table(
             [
                 "case",
                 "dims",
-                "live: move to plots",
-                "older chain: release to plots",
-                "older / live",
-                "plot updates/s",
+                "beside",
                 "load (1 min)",
+                "move to repainted plot (from rest)",
+                "repaints/s (60 Hz mouse)",
+                "lag of the drawn position",
+                "drawn out of order",
+                "UI thread CPU per repaint",
             ],
             rows,
         ),
-        table(["case", "path in the worker", "plots redrawn (live)", "dragged outline"], part_rows),
+        table(
+            [
+                "case",
+                "path in the worker (curves, then checks)",
+                "its CPU time",
+                "curves in the worker",
+                "plots redrawn (live)",
+                "dragged outline",
+                "computations started on an older position",
+            ],
+            part_rows,
+        ),
+        "Older chain, release to plots: "
+        + "; ".join(f"{n} {r['older'].fmt('ms')}" for n, r in results.items())
+        + ".",
     ]
+    for name in shots:
+        tag = "demo" if name == "demo" else "synthetic"
+        notes.append(
+            f"Mid-drag beside {BUSY} busy processes, {name}: "
+            f"![drag_{tag}](benchmarks/drag_{tag}_{BUSY}.png)"
+        )
     return Section(
         title="Dragging a plan (bench_drag)",
         markdown="\n\n".join(notes),

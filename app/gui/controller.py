@@ -8,11 +8,11 @@ a worker thread and hands the result to the document on the UI thread.
 The path is planned at once after an edit and for every position of a drag: one computation
 at a time, the latest plan next (``Runner.submit_latest``), so a fast drag never queues stale
 work and the plots follow the mouse. A dragged plan's job hands its curves and stop to the
-plots as soon as they are computed (``curves_ready``), then computes the implant's check and
-the plan's problems for the banner and the readout. Each path result is followed by the
-implant's readout (:func:`ctdrill.app.gui.readouts.implant_readout`, its walls on the coarser
-grid while a drag runs) in a runner of its own, so the plots never wait for it; while a drag
-outpaces the computation the readout is read only when no newer path is computing.
+plots as soon as they are computed (``curves_ready``), then computes the implant's check, the
+plan's problems and the cross-section's readout
+(:func:`ctdrill.app.gui.readouts.implant_readout`, its walls on the coarser grid) for the
+banner and the readout: both follow every position the drag computes. Any other path result
+is followed by the readout in a runner of its own, so the plots never wait for it.
 """
 
 from __future__ import annotations
@@ -124,13 +124,15 @@ class Controller(QObject):
         hu = self.doc.hu_uncertainty
         others = tuple(plan if p is self.doc.plan else p for p in self.doc.plans)
 
-        def job() -> PathView | tuple[Plan, str]:
+        def job() -> tuple[PathView, ImplantReadout] | tuple[Plan, str]:
             try:
-                return compute_path_view(
+                view = compute_path_view(
                     volume, plan, hu, plan_set=others, live=True, on_curves=self.curves_ready.emit
                 )
             except ValueError as exc:  # bad input (an axis leaving the scan): said, no curve
                 return plan, str(exc)
+            # the cross-section's readout with every position computed (it follows the drag)
+            return view, implant_readout(volume, plan, view, live=True)
 
         self.live_runner.submit_latest(job)
 
@@ -140,8 +142,8 @@ class Controller(QObject):
         if view is None or volume is None:
             return
         live = self.doc.live.dragging
-        if live and self.live_runner.busy:
-            return  # a newer plan's path is computing: the readout waits for it, not the plots
+        if live:
+            return  # a dragged plan's readout comes with its path (``_dragged``)
 
         def job() -> tuple[Plan, ImplantReadout]:
             return view.plan, implant_readout(volume, view.plan, view, live=live)
@@ -155,11 +157,14 @@ class Controller(QObject):
         """A dragged plan's curves, before its checks: the plots show them at once."""
         self.doc.live.offer_curves(view)
 
-    def _live_done(self, result: PathView | tuple[Plan, str]) -> None:
-        if isinstance(result, PathView):
-            self.doc.set_path(result)
-        else:
-            self.doc.live.fail(*result)
+    def _live_done(self, result: tuple[PathView, ImplantReadout] | tuple[Plan, str]) -> None:
+        view, extra = result
+        if isinstance(view, PathView) and isinstance(extra, ImplantReadout):
+            self.doc.set_path(view)
+            if self.doc.live.dragging:
+                self.doc.live.set_readout(view.plan, extra)
+        elif isinstance(view, Plan) and isinstance(extra, str):
+            self.doc.live.fail(view, extra)
 
     def _path_done(self, view: Any) -> None:
         self.doc.set_path(view)

@@ -26,6 +26,7 @@ from ctdrill.api import open_window
 from ctdrill.app.gui import slice_grid
 from ctdrill.app.gui.implant_drag import dragged_plan, site_lps
 from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.app.gui.readouts import implant_readout
 from ctdrill.app.gui.results import compute_path_view
 from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.load import load_plan_set
@@ -254,6 +255,10 @@ def test_a_fast_drag_is_coalesced_to_its_latest_position_once_per_pass(
         timeout=LOAD_TIMEOUT_MS,
     )
     qtbot.waitUntil(lambda: plot.curves is demo.doc.live.path.curves, timeout=LOAD_TIMEOUT_MS)  # type: ignore[attr-defined,union-attr]
+    # the cross-section's readout follows the drag: the dragged position's, before the release
+    assert demo.doc.volume is not None
+    expected = implant_readout(demo.doc.volume, dragged, demo.doc.live.path, live=True)
+    qtbot.waitUntil(lambda: demo.doc.live.readout == expected, timeout=LOAD_TIMEOUT_MS)
     with qtbot.waitSignal(demo.path_updated, timeout=LOAD_TIMEOUT_MS):
         qtbot.mouseRelease(drill, Qt.MouseButton.LeftButton, pos=at((x, y + 15)))
     assert demo.doc.plan is dragged
