@@ -274,8 +274,12 @@ kernels of the shells and walls switched off (their NumPy paths). The **floor**
 (``bench/suggest_floor.py``) is one compiled loop reading every CT sample the search reads and
 summing it, no rule: the {floor.line_samples:,} samples of the candidates' entry-search lines,
 the {floor.shell_samples:,} shell samples and, for the {s.n_checked} candidates checked, every
-wall ray's full march ({floor.wall_samples:,} samples: the compiled walls stop a ray once it is
-decided, so they read fewer); {floor.samples / max(n, 1):,.0f} samples a candidate. The
+wall ray marched as far as the envelope rule needs to decide it (its wall plus the 3 mm gap of
+non-bone, an unknown ray the whole march) and its exit's bisection: {floor.wall_samples:,}
+samples (the rays' full marches would be {floor.wall_full_samples:,}); in all
+{floor.samples / max(n, 1):,.0f} samples a candidate. The compiled walls step over uniform
+blocks of the CT without reading each sample (``imaging/sampling/hu_blocks.py``), so they can
+beat this floor. The
 clearances to the canal are distances to its segments, not samples: not in the floor. Medians
 of {1 if quick else 5} round-robin repeats [IQR].
 

@@ -7,9 +7,11 @@ What the search reads, per run of ``suggest``:
   its anchor every ``SURFACE_STEP_MM`` (the bisection's few samples more are not counted);
 - every evaluated candidate's shells (``sample_shells``: depths x directions x offsets);
 - for every candidate checked exactly, its implant's bone walls: every ray from the body's
-  surface, each ray's full march (``MAX_WALL_MM`` plus the envelope's gap, the NumPy path's
-  samples; the compiled walls stop a ray once it is decided and read fewer, so this part of
-  the floor is above what the search reads).
+  surface, marched as far as the envelope rule needs to decide it (its wall plus the
+  envelope's gap of non-bone, at most ``MAX_WALL_MM`` plus the gap; an unknown ray the whole
+  march) and the bisection of its exit crossing (``ceil(log2(step / BISECT_TOL_MM))`` samples
+  for a ray with a wall inside the march). The rays' full marches (the NumPy path's samples)
+  are counted too, for comparison.
 
 The clearances (the batch's and the exact check's) are distances to the landmarks' segments,
 not samples of the CT: they are not in the floor. The floor runs on one thread.
@@ -28,7 +30,7 @@ from ctdrill.app.search.candidates import SURFACE_SEARCH_MM
 from ctdrill.app.search.shell import N_ANGLES, SHELL_MM, axis_frames, body_profile
 from ctdrill.app.search.suggest import Suggestion
 from ctdrill.imaging.plan.implants import implant_placement
-from ctdrill.imaging.sampling.envelope import ENVELOPE_GAP_MM
+from ctdrill.imaging.sampling.envelope import BISECT_TOL_MM, ENVELOPE_GAP_MM
 from ctdrill.imaging.sampling.surface import SURFACE_STEP_MM
 from ctdrill.imaging.sampling.trilinear import volume_args
 from ctdrill.imaging.sampling.walls import DEPTH_STEP_MM, MAX_WALL_MM, plan_bone_walls, ray_step_mm
@@ -43,12 +45,14 @@ class SearchFloor:
     ----------
     run : one pass of every loop.
     line_samples, shell_samples, wall_samples : samples read by each part.
+    wall_full_samples : the wall rays' full marches (not read by the floor).
     """
 
     run: Callable[[], None]
     line_samples: int
     shell_samples: int
     wall_samples: int
+    wall_full_samples: int
 
     @property
     def samples(self) -> int:
@@ -83,7 +87,8 @@ def search_floor(volume: CTVolume, s: Suggestion) -> SearchFloor:
     # 3. the bone walls of every candidate checked exactly
     step = ray_step_mm(volume)
     march = math.ceil((MAX_WALL_MM + ENVELOPE_GAP_MM) / step) + 1
-    origins, ray_dirs = [], []
+    bisect = math.ceil(math.log2(step / BISECT_TOL_MM))
+    origins, ray_dirs, counts = [], [], []
     for i in np.flatnonzero(s.checked).tolist():
         plan = s.plan_of(i)
         place = implant_placement(plan)
@@ -100,9 +105,17 @@ def search_floor(volume: CTVolume, s: Suggestion) -> SearchFloor:
         )
         origins.append(surface.reshape(-1, 3))
         ray_dirs.append(np.tile(a, (n_d, 1)))
+        wall = walls.wall_mm.reshape(-1)
+        known = np.isfinite(wall)
+        reach = np.minimum(np.where(known, wall, MAX_WALL_MM), MAX_WALL_MM) + ENVELOPE_GAP_MM
+        n = np.minimum(np.ceil(reach / step).astype(np.int64) + 1, march)
+        n += np.where(known & (wall < MAX_WALL_MM), bisect, 0)
+        counts.append(n)
     ray_o = np.ascontiguousarray(np.concatenate(origins) if origins else np.empty((0, 3)))
     ray_v = np.ascontiguousarray(np.concatenate(ray_dirs) if ray_dirs else np.empty((0, 3)))
-    ray_n = np.full(ray_o.shape[0], march, dtype=np.int64)
+    ray_n = np.ascontiguousarray(
+        np.concatenate(counts) if counts else np.empty(0, dtype=np.int64), dtype=np.int64
+    )
     ray_out = np.empty(ray_o.shape[0])
 
     def run() -> None:
@@ -117,4 +130,5 @@ def search_floor(volume: CTVolume, s: Suggestion) -> SearchFloor:
         line_samples=int(line_n.sum()),
         shell_samples=int(rows.size * depth.size * N_ANGLES * radial.shape[1]),
         wall_samples=int(ray_n.sum()),
+        wall_full_samples=int(ray_o.shape[0] * march),
     )
