@@ -140,11 +140,14 @@ def banner_problems(*sources: Iterable[LoadWarning]) -> tuple[LoadWarning, ...]:
     return tuple(sorted(found, key=lambda w: order.index(w.code)))
 
 
-def drill_clearances_mm(plan: Plan) -> np.ndarray:
+def drill_clearances_mm(plan: Plan, drilled: tuple[Plan, ...] | None = None) -> np.ndarray:
     """(K, L) planned clearance of each drill of ``plan`` (drilled to its planned depth) to
-    each landmark (masks bound to the CT grid), mm."""
+    each landmark (masks bound to the CT grid), mm; ``drilled`` the plans
+    ``plan.drilled(k)`` when already built."""
     n_l = len(plan.landmarks)
-    rows = [clearance_profile_mm(plan.drilled(k))[0] for k in range(len(plan.drills))]
+    if drilled is None:
+        drilled = tuple(plan.drilled(k) for k in range(len(plan.drills)))
+    rows = [clearance_profile_mm(d)[0] for d in drilled]
     return np.array(rows, dtype=np.float64).reshape(len(plan.drills), n_l)
 
 
@@ -154,12 +157,11 @@ def _same_drill(a: Plan, b: Plan) -> bool:
 
 
 def _drill_findings(
-    plan: Plan, clearance_mm: np.ndarray, covered: Plan | None
+    plan: Plan, drilled_plans: tuple[Plan, ...], clearance_mm: np.ndarray, covered: Plan | None
 ) -> tuple[tuple[LoadWarning, ...], ...]:
     margins = margins_mm(plan)
     out: list[tuple[LoadWarning, ...]] = []
-    for k in range(len(plan.drills)):
-        drilled = plan.drilled(k)
+    for k, drilled in enumerate(drilled_plans):
         if covered is not None and _same_drill(drilled, covered):
             out.append(())  # the path's own warnings say it, with the export's numbers
             continue
@@ -206,11 +208,12 @@ def plan_verdict(
         to_apex = plan.implant is not None and path.plan.overdrill_mm == 0.0
         own = tuple(w for w in path.warnings if not (to_apex and w.code == DRILL_MARGIN))
         covered = None if to_apex else path.plan
-    clearance = drill_clearances_mm(plan)
+    drilled = tuple(plan.drilled(k) for k in range(len(plan.drills)))  # each built once
+    clearance = drill_clearances_mm(plan, drilled)
     return PlanVerdict(
         plan=plan,
         drill_clearance_mm=clearance,
-        drill_findings=_drill_findings(plan, clearance, covered),
+        drill_findings=_drill_findings(plan, drilled, clearance, covered),
         implant=implant,
         set_findings=set_findings(plan),
         path_findings=own,
