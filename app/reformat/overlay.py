@@ -21,6 +21,8 @@ centre, ``u`` along the columns and ``v`` down the rows.
 
 from __future__ import annotations
 
+import threading
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -103,12 +105,42 @@ def _runs(mask: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, ...]:
     return tuple(runs)
 
 
+#: Tube overlays kept per reformat (the same canal drawn again on the same image: the report's
+#: implant pages share the case's panorama; a window redraw). They die with the reformat.
+_TUBES: weakref.WeakKeyDictionary[Reformat, dict[tuple[object, ...], TubeOverlay]] = (
+    weakref.WeakKeyDictionary()
+)
+_TUBES_LOCK = threading.Lock()
+#: Most tube overlays kept for one reformat.
+_TUBES_PER_REFORMAT = 8
+
+
 def tube_overlay(
     reformat: Reformat, polyline_lps: np.ndarray, radius_mm: float, margin_mm: float, name: str
 ) -> TubeOverlay:
-    """The canal's tube and margin zone on the reformat (module docstring)."""
+    """The canal's tube and margin zone on the reformat (module docstring); the same
+    arguments on the same reformat give the overlay already computed (its arrays read-only)."""
+    line = np.ascontiguousarray(polyline_lps, dtype=np.float64)
+    key = (line.shape, line.tobytes(), float(radius_mm), float(margin_mm), name)
+    with _TUBES_LOCK:
+        kept = _TUBES.get(reformat)
+        if kept is not None and key in kept:
+            return kept[key]
+    tube = _tube_overlay(reformat, line, radius_mm, margin_mm, name)
+    with _TUBES_LOCK:
+        kept = _TUBES.setdefault(reformat, {})
+        if len(kept) >= _TUBES_PER_REFORMAT:
+            kept.clear()
+        kept[key] = tube
+    return tube
+
+
+def _tube_overlay(
+    reformat: Reformat, polyline_lps: np.ndarray, radius_mm: float, margin_mm: float, name: str
+) -> TubeOverlay:
     pts = resample_polyline(polyline_lps, min(_TUBE_STEP_MM, reformat.pixel_mm / 4.0))
     uv, off = reformat.project(pts)
+    uv.flags.writeable = False  # the centre runs are views of it, kept with the overlay
     h, w = reformat.shape
     reach = float(radius_mm) + max(float(margin_mm), 0.0)
     dist = np.full((h, w), np.inf)

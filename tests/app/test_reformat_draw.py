@@ -51,6 +51,30 @@ def test_tube_across_a_cross_section_is_a_disc_of_its_radius() -> None:
     assert tube.visible and tube.caption() is None and tube.gap_mm == 0.0
 
 
+def test_a_tube_drawn_again_on_the_same_reformat_is_the_one_computed() -> None:
+    vol = flat_volume()
+    cs = cross_section(
+        vol, ARCH, at_arc_mm=15.0, pixel_mm=0.5, width_mm=20.0, height_mm=20.0, slab_mm=0.0
+    )
+    canal = np.array([[-6.0, 2.0, -3.0], [0.0, 2.0, -3.0], [6.0, 2.0, -3.0]])
+    tube = tube_overlay(cs, canal, 1.2, 2.0, "canal")
+    assert tube_overlay(cs, canal.copy(), 1.2, 2.0, "canal") is tube
+    wider = tube_overlay(cs, canal, 1.5, 2.0, "canal")
+    assert wider is not tube and wider.radius_mm == 1.5
+    moved = canal + np.array([0.0, 0.5, 0.0])
+    assert not np.array_equal(
+        tube_overlay(cs, moved, 1.2, 2.0, "canal").distance_mm, tube.distance_mm
+    )
+    other = cross_section(
+        vol, ARCH, at_arc_mm=15.0, pixel_mm=0.5, width_mm=20.0, height_mm=20.0, slab_mm=0.0
+    )
+    again = tube_overlay(other, canal, 1.2, 2.0, "canal")  # another image: computed, the same
+    assert again is not tube
+    np.testing.assert_array_equal(again.distance_mm, tube.distance_mm)
+    assert not tube.distance_mm.flags.writeable
+    assert all(not run.flags.writeable for run in tube.centre_runs_uv)
+
+
 def test_tube_outside_the_slab_is_named_with_its_distance() -> None:
     vol = flat_volume()
     cs = cross_section(vol, ARCH, at_arc_mm=15.0, pixel_mm=0.5, slab_mm=2.0)
