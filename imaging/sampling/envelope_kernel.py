@@ -40,7 +40,13 @@ from ctdrill.imaging.sampling.hu_blocks import (
     block_run,
     hu_bound,
 )
-from ctdrill.imaging.sampling.trilinear import VOLUME_SIG, at_index, fits, trilinear, volume_args
+from ctdrill.imaging.sampling.trilinear import (
+    VOLUME_SIG,
+    at_index,
+    fits,
+    trilinear,
+    volume_args,
+)
 from ctdrill.imaging.teeth import TOOTH_HU
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.jit import Kernel, helper, row_spans, run_spans
@@ -60,7 +66,7 @@ def _fast(
     bone_hu: float,
     tooth_hu: float,
     eps_hu: float,
-) -> float:  # pragma: no cover - compiled; tested against the NumPy path
+) -> float:  # pragma: no cover - compiled; tested against the full march
     """The trilinear sample at index coordinates extrapolated along a ray (not the exact
     point's own affine arithmetic: they differ by ~1e-12 voxel), or NaN when the exact sample
     must be read: near the hull's faces, or within ``eps_hu`` of a threshold (where that
