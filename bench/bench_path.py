@@ -42,18 +42,22 @@ def _on_numpy(fn: Callable[[], object]) -> Callable[[], object]:
 
 
 def in_loops(
-    fns: dict[str, Callable[[], object]], calls: dict[str, int], loops: int
+    fns: dict[str, Callable[[], object]],
+    calls: dict[str, int],
+    loops: int,
+    *,
+    clock: Callable[[], float] = time.perf_counter,
 ) -> dict[str, float]:
-    """Wall time per call of each peer within ``calls`` consecutive calls (no collection in
-    between, as an interactive caller recomputing on every edit calls it), median over
-    ``loops`` round-robin loops, ms."""
+    """Wall time (or ``clock``'s) per call of each peer within ``calls`` consecutive calls (no
+    collection in between, as an interactive caller recomputing on every edit calls it),
+    median over ``loops`` round-robin loops, ms."""
     samples: dict[str, list[float]] = {name: [] for name in fns}
     for _ in range(loops):
         for name, fn in fns.items():
-            t0 = time.perf_counter()
+            t0 = clock()
             for _ in range(calls[name]):
                 fn()
-            samples[name].append((time.perf_counter() - t0) / calls[name])
+            samples[name].append((clock() - t0) / calls[name])
     return {name: float(np.median(v)) * 1e3 for name, v in samples.items()}
 
 

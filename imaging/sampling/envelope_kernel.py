@@ -25,6 +25,9 @@ kernel take the NumPy path.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
+
 import numpy as np
 
 from ctdrill.imaging.misch import BONE_HU
@@ -318,6 +321,22 @@ ENVELOPE_KERNEL = Kernel(
 )
 
 
+#: Set within :func:`full_march`.
+_FULL_MARCH = [False]
+
+
+@contextlib.contextmanager
+def full_march() -> Iterator[None]:
+    """Within the block every ray reads every sample, no block stepped over (the walls'
+    reference march, timed beside the skipping one by ``bench/bench_shells.py``)."""
+    saved = _FULL_MARCH[0]
+    _FULL_MARCH[0] = True
+    try:
+        yield
+    finally:
+        _FULL_MARCH[0] = saved
+
+
 def kernel_fits(volume: CTVolume) -> bool:
     """The compiled kernel can read ``volume`` (no padding, int16 or float32 voxels) and is
     loaded from the cache."""
@@ -337,12 +356,15 @@ def envelope_rays(
     reach_mm: float,
     air_hu: float,
     bisect_tol_mm: float,
-    skip_blocks: bool = True,
+    skip_blocks: bool | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(wall, unknown, open)`` (N,) of each ray by the compiled kernel (only when
     :func:`kernel_fits`); the arguments are those of ``envelope_walls`` and its constants.
     ``skip_blocks`` False: every sample read, no block stepped over (the full march the
-    tests and the benchmark hold the skipping one to: the same answers)."""
+    tests and the benchmark hold the skipping one to: the same answers); None: as
+    :func:`full_march` says (True outside it)."""
+    if skip_blocks is None:
+        skip_blocks = not _FULL_MARCH[0]
     n = len(origins_lps)
     wall = np.zeros(n)
     unknown = np.zeros(n, dtype=np.bool_)
