@@ -10,7 +10,7 @@ at a time, the latest plan next (``Runner.submit_latest``), so a fast drag never
 work and the plots follow the mouse. A dragged plan's job hands its curves and stop to the
 plots as soon as they are computed (``curves_ready``), then computes the implant's check, the
 plan's problems and the cross-section's readout
-(:func:`ctdrill.app.gui.readouts.implant_readout`, its walls on the coarser grid) for the
+(:func:`ctdrill.app.gui.readouts.implant_readout`, its walls on the full grid) for the
 banner and the readout: both follow every position the drag computes. Any other path result
 is followed by the readout in a runner of its own, so the plots never wait for it.
 """

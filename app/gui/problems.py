@@ -39,10 +39,10 @@ from ctdrill.warning_codes import LoadWarning, banner_codes, words
 #: The plan problems the banner lists, in this order: the registry's ``banner`` codes
 #: (:func:`ctdrill.warning_codes.banner_codes`; their headings, ``words``).
 PROBLEM_CODES = banner_codes()
-#: The bone walls' grid while a trajectory is dragged (``plan_bone_walls`` options: 24
-#: directions, 1 mm apart along the body, about a sixth of the cost; never thinner than the
-#: fine grid's, said with "~").
-LIVE_WALLS: dict[str, float] = {"n_angles": 24, "depth_step_mm": 1.0}
+#: The bone walls' grid while a trajectory is dragged (``plan_bone_walls`` options; a coarser
+#: grid is said with "~"): none, the full grid, since the walls' rays step over the CT's
+#: uniform blocks (issue 37: a few ms on the demo, docs/benchmarks.md).
+LIVE_WALLS: dict[str, float] = {}
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,7 +73,12 @@ def implant_check(
     if landmarks is not None:
         plan = replace(plan, landmarks=landmarks)
     out = implant_outcome(volume, plan, **(LIVE_WALLS if live else {}))
-    return None if out is None else checked_implant(out, coarse=live)
+    return None if out is None else checked_implant(out, coarse=live_coarse(live))
+
+
+def live_coarse(live: bool) -> bool:
+    """The walls of a ``live`` (dragged) check are read on a coarser grid than the full one."""
+    return live and bool(LIVE_WALLS)
 
 
 def checked_implant(out: ImplantOutcome, *, coarse: bool = False) -> ImplantCheck:

@@ -16,10 +16,9 @@ in words by the cross-section view (:func:`readout_text`).
   result's implant check (:func:`ctdrill.app.gui.problems.implant_check`, the one place
   these come from): the implant body's own clearance to the landmark with the least slack
   (without an implant the final drill's at the planned depth) and its bone walls (the
-  thinnest wall, buccal and lingual). While the implant is dragged the walls are read on a
-  coarser grid (:data:`~ctdrill.app.gui.problems.LIVE_WALLS`: 24 directions, 1 mm apart
-  along the body, about a sixth of the cost; never thinner than the fine grid's, said with
-  "~"); the release reads them on the owner's grid. Lengths are written with the digits the
+  thinnest wall, buccal and lingual). While the implant is dragged the walls are read on
+  the drag's grid (:data:`~ctdrill.app.gui.problems.LIVE_WALLS`: the full grid; a coarser
+  one would be said with "~"). Lengths are written with the digits the
   CT supports.
 """
 
@@ -160,7 +159,7 @@ def implant_safety(
     Returns ``((clearance_mm, landmark name, what was measured) | None, walls | None,
     coarse)``: from the implant check of the path result ``view`` when it was computed for
     ``plan`` (:func:`~ctdrill.app.gui.problems.implant_check`, the one place these come
-    from), else that check computed here (walls on the coarser
+    from), else that check computed here (walls on the drag's
     :data:`~ctdrill.app.gui.problems.LIVE_WALLS` grid when ``live``); without an implant, the
     final drill's clearance at the planned depth from ``view``. ``coarse``: the walls were
     read on the coarser grid.

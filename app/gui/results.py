@@ -16,6 +16,7 @@ from ctdrill.app.gui.problems import (
     ImplantCheck,
     PlannedClearance,
     checked_implant,
+    live_coarse,
     planned_clearance,
 )
 from ctdrill.engine.band import path_band
@@ -133,7 +134,7 @@ def compute_path_view(
     among them) adds the warnings only the whole set shows (``implants_too_close``,
     :func:`~ctdrill.engine.path.with_set_warnings`), as ``ctdrill export`` reports them.
     The view carries the plan's problems (:func:`checked`; ``live``: the implant's walls on
-    the drag's coarser grid).
+    the drag's grid, :data:`~ctdrill.app.gui.problems.LIVE_WALLS`).
 
     ``on_curves`` (a drag's progressive display) is called first with the view of the path's
     curves and stop (:func:`~ctdrill.engine.path.path_curves`: the same numbers as the whole
@@ -149,7 +150,7 @@ def compute_path_view(
     )
     cal = plan_calibration(own)
 
-    # while dragging, the implant's walls on the coarser grid (the path then takes them)
+    # while dragging, the implant's walls on the drag's grid (the path then takes them)
     def implant() -> ImplantOutcome | None:
         return implant_outcome(volume, own, **LIVE_WALLS) if live else None
 
@@ -166,7 +167,7 @@ def compute_path_view(
 
 def checked(volume: CTVolume, view: PathView, *, live: bool = False) -> PathView:
     """``view`` with its implant check (the engine's outcome, ``PathResult.implant``, when the
-    path computed one; else :func:`~ctdrill.app.gui.problems.implant_check`, on the coarser
+    path computed one; else :func:`~ctdrill.app.gui.problems.implant_check`, on the drag's
     grid when ``live``), planned clearances and problems: the path's warnings
     of :data:`~ctdrill.app.gui.problems.PROBLEM_CODES`, the implant's, and every drill's
     margin at its drilled depth (a path computed to the apex rather than drilled to the apex
@@ -177,7 +178,11 @@ def checked(volume: CTVolume, view: PathView, *, live: bool = False) -> PathView
     if out is None and plan.implant is not None:
         out = implant_outcome(volume, with_lms, **(LIVE_WALLS if live else {}))
     verdict = plan_verdict(volume, with_lms, path=result, implant=out)
-    check = None if verdict.implant is None else checked_implant(verdict.implant, coarse=live)
+    check = (
+        None
+        if verdict.implant is None
+        else checked_implant(verdict.implant, coarse=live_coarse(live))
+    )
     planned = planned_clearance(verdict, volume_clearance_accuracy_mm(volume))
     return replace(view, implant=check, planned=planned, problems=verdict.problems())
 
