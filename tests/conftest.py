@@ -8,6 +8,12 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, settings
 
+# One BLAS thread per test process (and its subprocesses), set before NumPy is first imported.
+# The tests' many small products (points (N, 3) @ (3, 3)) otherwise wake OpenBLAS's second
+# thread, which spins: 46x the CPU of one thread for a 59k-point transform beside other work,
+# and with ``-n 2`` each worker would contend with the other's BLAS threads for the 2 cores.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 ROOT = Path(__file__).resolve().parents[1]
 #: ``../shared`` beside the repository (DESIGN.md, real CT series, the paper), or the folder
 #: ``CTDRILL_SHARED`` names (a checkout elsewhere).
