@@ -329,6 +329,7 @@ class SliceGrid(QWidget):
             self._overlays_due.discard(name)
             canvas = self.canvases[name]
             canvas.set_overlays(canvas.scene)
+            canvas.draw_idle(next_step=True)  # this view whole before the next one starts
 
     def overlays_now(self, only: str | None = None) -> None:
         """Draw the overlays at once (on every canvas, or on ``only``)."""

@@ -11,6 +11,7 @@ where the plane cuts each solid (:mod:`ctdrill.app.gui.sections`), in in-plane m
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from typing import Any
 
 import numpy as np
@@ -18,7 +19,7 @@ from matplotlib.colors import to_rgb
 from matplotlib.patches import Polygon
 
 from ctdrill.app.gui.scene import LandmarkGeometry
-from ctdrill.app.gui.sections import Plane, revolved_section, tube_field
+from ctdrill.app.gui.sections import Plane, TubeField, revolved_section, tube_field
 from ctdrill.app.gui.slice_scene import BodyDrawing, OverlayScene, TrajectoryDrawing
 from ctdrill.app.gui.slices import SliceImage, polyline_in_plane
 
@@ -36,6 +37,34 @@ STOP_COLOUR = "#ff40b0"
 HANDLE_COLOURS = {"entry": "#40e0ff", "target": "#ff6060", "platform": "#40e080"}
 
 
+#: Tube fields kept (the latest first): a plan edit that leaves a canal and a view's plane
+#: as they were (a target moved, an undo, an implant picked) redraws it without recomputing.
+TUBE_CACHE_SIZE = 16
+_tubes: OrderedDict[bytes, TubeField | None] = OrderedDict()
+
+
+def cached_tube_field(
+    plane: Plane, polyline_lps: np.ndarray, reach_mm: float, step_mm: float
+) -> TubeField | None:
+    """:func:`~ctdrill.app.gui.sections.tube_field`, kept for the same arguments (by value)."""
+    pts = np.ascontiguousarray(polyline_lps, dtype=np.float64)
+    key = b"".join(
+        [
+            np.asarray(a, dtype=np.float64).tobytes()
+            for a in (plane.origin_lps, plane.u_lps, plane.v_lps, [reach_mm, step_mm])
+        ]
+        + [pts.tobytes()]
+    )
+    if key in _tubes:
+        _tubes.move_to_end(key)
+        return _tubes[key]
+    field = tube_field(plane, pts, reach_mm, step_mm)
+    _tubes[key] = field
+    while len(_tubes) > TUBE_CACHE_SIZE:
+        _tubes.popitem(last=False)
+    return field
+
+
 def plane_of(image: SliceImage) -> Plane:
     """The plane of a slice image."""
     return Plane(origin_lps=image.origin_lps, u_lps=image.u_lps, v_lps=image.v_lps)
@@ -50,7 +79,7 @@ def _draw_canal(ax: Any, image: SliceImage, lm: LandmarkGeometry) -> None:
         return
     ax.plot(uv[:, 0], uv[:, 1], "-" if near.any() else ":", color=colour, lw=0.8, zorder=3)
     step = float(np.clip(min(image.pixel_mm, lm.radius_mm / 4.0), 0.05, 1.0))
-    field = tube_field(plane_of(image), lm.points_lps, reach, step)
+    field = cached_tube_field(plane_of(image), lm.points_lps, reach, step)
     if field is None or field.distance_mm.min() > reach:
         return
     u, v, d = field.u_mm, field.v_mm, field.distance_mm

@@ -128,16 +128,22 @@ class SliceCanvas(MapCanvas):
         self.mode = "canal" if on else "navigate"
 
     # ------------------------------------------------------------------ drawing
-    def draw_idle(self) -> None:
+    def draw_idle(self, *, next_step: bool = False) -> None:
         """Queue a redraw (on the step queue when given: the canvases' expensive Agg draws
-        never hold the UI thread back to back)."""
+        never hold the UI thread back to back); ``next_step``: as the next step, before those
+        queued (the view just changed shows it before the other views' work)."""
         if self._steps is None:
             super().draw_idle()
+        elif next_step:
+            self._draw_queued = True
+            self._steps.push(self._draw_now, first=True)
         elif not self._draw_queued:
             self._draw_queued = True
             self._steps.push(self._draw_now)
 
     def _draw_now(self) -> None:
+        if not self._draw_queued:  # drawn already (queued twice: next, then at the end)
+            return
         self._draw_queued = False
         self.draw()
 

@@ -1,0 +1,54 @@
+"""What keeps the window's edits off the UI thread's back: slice overlays drawn one canvas a
+step and coalesced, canal tube fields kept, the implant list left alone on other edits.
+
+The times themselves (a canal click, the longest stall of a session) are measured in
+``bench/bench_window.py``; these tests check the mechanisms, which do not depend on load.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.app.gui.sections import Plane, tube_field
+from ctdrill.app.gui.slice_overlays import cached_tube_field
+
+
+def test_tube_fields_are_kept_by_value() -> None:
+    plane = Plane(
+        origin_lps=np.zeros(3), u_lps=np.array([1.0, 0.0, 0.0]), v_lps=np.array([0.0, 1.0, 0.0])
+    )
+    canal = np.array([[-10.0, 0.0, 0.5], [0.0, 1.0, 0.2], [10.0, 0.0, 0.4]])
+    first = cached_tube_field(plane, canal, 3.0, 0.3)
+    again = cached_tube_field(plane, canal.copy(), 3.0, 0.3)  # equal values: the same field
+    assert first is not None and again is first
+    fresh = tube_field(plane, canal, 3.0, 0.3)
+    assert fresh is not None
+    np.testing.assert_array_equal(first.distance_mm, fresh.distance_mm)
+    moved = canal.copy()
+    moved[1, 1] += 1.0  # a point moved: computed again
+    other = cached_tube_field(plane, moved, 3.0, 0.3)
+    assert other is not first and other is not None
+    assert not np.array_equal(other.distance_mm, first.distance_mm)
+
+
+def test_overlay_requests_coalesce_into_one_step_per_canvas(window: MainWindow) -> None:
+    grid = window.slice_grid
+    before = window.ui_steps.pending
+    grid.draw_overlays()
+    grid.draw_overlays()  # the plan, then its path: drawn once
+    grid.draw_overlays(only="axial")
+    assert window.ui_steps.pending - before == len(grid.canvases)
+    scene = grid.canvases["axial"].scene  # hit-testing has the new scene at once
+    while window.ui_steps.pending:
+        window.ui_steps._step()
+    assert grid.canvases["axial"].scene is scene
+
+
+def test_the_implant_list_is_rebuilt_only_when_it_changes(window: MainWindow) -> None:
+    picker = window.plan_panel.implant
+    specs = list(picker._specs)
+    items = picker.count()
+    picker.show_plan(None)  # an edit elsewhere in the plan: the same list
+    assert picker._specs == specs and picker.count() == items
+    assert picker._specs is not None
