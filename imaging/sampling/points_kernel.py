@@ -6,24 +6,27 @@ interpolation as ``scipy.ndimage.map_coordinates(order=1, mode="nearest", prefil
 does (the weights ``1 - t`` and ``1 - (1 - t)``, the corners in the same order, each term
 ``value * wk * wj * wi``, indices beyond an edge on the edge), so the two give the same bits.
 It needs no SciPy import (0.3-0.6 s of a fresh process's start: SciPy's array-API layer) and
-runs over the points in one compiled loop. Without the kernel in numba's disk cache
-(:mod:`ctdrill.jit`) the caller takes ``map_coordinates``.
+runs over the points in one compiled loop (split between threads from :data:`THREAD_POINTS`
+points: each point is independent, so the bits do not depend on the split). Without the
+kernel in numba's disk cache (:mod:`ctdrill.jit`) the caller takes ``map_coordinates``.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
 
+from ctdrill import jit
 from ctdrill.jit import Kernel
 
 
 def _points_kernel(
-    vol: np.ndarray, coords_kji: np.ndarray, out: np.ndarray
+    vol: np.ndarray, coords_kji: np.ndarray, out: np.ndarray, lo: int, hi: int
 ) -> None:  # pragma: no cover - compiled; tested against map_coordinates
     n_k, n_j, n_i = vol.shape
-    for n in range(out.shape[0]):
+    for n in range(lo, hi):
         ck = coords_kji[0, n]
         cj = coords_kji[1, n]
         ci = coords_kji[2, n]
@@ -54,7 +57,9 @@ def _points_kernel(
         out[n] = total
 
 
-_SIG = "void({vol}[:, :, ::1], float64[:, ::1], float64[::1])"
+_SIG = "void({vol}[:, :, ::1], float64[:, ::1], float64[::1], int64, int64)"
+#: Points below which one thread samples them all (a thread costs more than it saves).
+THREAD_POINTS = 1 << 16
 POINTS_KERNEL = Kernel(
     _points_kernel, [_SIG.format(vol="int16"), _SIG.format(vol="float32")], readonly=(0,)
 )
@@ -76,5 +81,8 @@ def sample_index_points(vol: np.ndarray, coords_kji: np.ndarray, out: np.ndarray
         and POINTS_KERNEL.ready()
     ):
         return False
-    POINTS_KERNEL(vol, coords_kji, out)
+    n = out.shape[0]
+    parts = max(1, min(jit.cpus(), 8, n // THREAD_POINTS))
+    edges = [n * p // parts for p in range(parts + 1)]
+    jit.run_spans(POINTS_KERNEL, list(itertools.pairwise(edges)), vol, coords_kji, out)
     return True

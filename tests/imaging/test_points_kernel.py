@@ -40,7 +40,7 @@ def _points(shape: tuple[int, ...], n: int, rng: np.random.Generator) -> np.ndar
 def test_the_kernel_gives_map_coordinates_bits(dtype: type) -> None:
     rng = np.random.default_rng(7)
     vol = (rng.normal(size=(6, 9, 11)) * 900).astype(dtype)
-    coords = _points(vol.shape, 40_000, rng)
+    coords = _points(vol.shape, 150_000, rng)  # more than THREAD_POINTS: split in threads
     out = np.empty(coords.shape[1])
     assert sample_index_points(vol, coords, out)
     ref = np.empty_like(out)
