@@ -100,6 +100,7 @@ typedef struct fw_renderer {
     real_t ke, w1, w2, f1_hz, f2_hz, stop_depth_mm, stop_anchor_mm, inv_step;
     real_t contact_n; /* the coupling's force when the hand met the wall short of the stop */
     int32_t last; /* index of the last row, -1 without a table */
+    real_t last_v_mm_s;   /* the last velocity estimate (the hand reading's lag correction) */
     uint8_t release_on;   /* the release damper's gate */
     uint16_t pull_ticks;  /* ticks in a row the hand reading has pulled past the gate's off */
 #if !FW_REAL_IS_DOUBLE

@@ -21,7 +21,7 @@
 #define B_RELEASE_N_S_PER_MM R(0.4)
 #define RELEASE_PULL_N R(1.0)
 #define RELEASE_MAX_N R(20.0)
-#define RELEASE_OFF_PULL_N R(4.5)
+#define RELEASE_OFF_PULL_N R(2.0)
 #define RELEASE_HOLD_TICKS 80u
 /* the force controller (paper Table 4) */
 #define MASS_KG R(0.5)

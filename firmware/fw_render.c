@@ -54,6 +54,7 @@ void fw_render_init(fw_renderer *r)
     r->last = -1;
     r->release_on = 1;
     r->pull_ticks = 0;
+    r->last_v_mm_s = R(0.0);
 #if !FW_REAL_IS_DOUBLE
     r->front_lo = R(0.0);
     r->turn1 = r->turn2 = R(0.0);
@@ -237,8 +238,14 @@ real_t fw_render_tick(fw_device *dev, real_t master_mm, real_t v_mm_s, real_t ha
     fw_renderer *r = &dev->r;
     real_t front, stop, s0, s1, s2, new_front, coupling, front_v, vib, force, anchor, back_v;
     real_t glided, spring, damper, fc, drive_mm, push;
-    if (finite_r(hand_n))
-        r->hand_n += HAND_GAIN * (hand_n - r->hand_n);
+    if (finite_r(hand_n) && finite_r(v_mm_s)) {
+        /* the observer reads a steady acceleration a as a push of -G_RFOB T Mn a (its step
+         * lags a tick): added back from the change of the velocity estimate */
+        real_t accel = (v_mm_s - r->last_v_mm_s) * (real_t)FW_TICK_HZ;
+        real_t reading = hand_n + G_RFOB * DT_S * MASS_KG * R(1e-3) * accel;
+        r->hand_n += HAND_GAIN * (reading - r->hand_n);
+        r->last_v_mm_s = v_mm_s;
+    }
     release_gate(r);
     if (r->state == FW_IDLE || r->state == FW_SAFE) {
         r->force_cmd_n = R(0.0);

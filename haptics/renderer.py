@@ -18,13 +18,14 @@ Per tick, from the encoder depth of the master and its velocity estimate:
    the springs it compressed nor by the force controller still balancing the push it no longer
    makes; the damper takes that energy out and the master comes to rest at the surface it left
    (docs/haptics-stability.md, "Letting go"). Its gate is a switch with hysteresis on the
-   device's reading of the hand (low-passed at :data:`RELEASE_FILTER_RAD_S`): on while it pulls
-   less than :data:`RELEASE_PULL_N`, off once it has pulled more than
+   device's reading of the hand (corrected for the observer's lag behind an acceleration,
+   low-passed at :data:`RELEASE_FILTER_RAD_S`): on while it pulls less than
+   :data:`RELEASE_PULL_N`, off once it has pulled more than
    :data:`RELEASE_OFF_PULL_N` for :data:`RELEASE_HOLD_TICKS` ticks in a row (past the dip and
    the bias the damper's own force makes in the reading: the gate is not driven by the force
    it sets, and a rounding cannot flip it short of a threshold's crossing). It may pull (a
    negative force, at most :data:`RELEASE_MAX_N`) on a master the hand does not draw back; a
-   retraction is free;
+   retraction is free (once the hand has pulled for :data:`RELEASE_HOLD_TICKS`);
 5. force limits: 78 N peak, and an I^2t thermal model that limits the force to the
    continuous rating (20 N) once ``thermal_budget_n2_s`` of excess ``F^2 - Fc^2`` has
    accumulated, until it has cooled to half.
@@ -45,7 +46,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from ctdrill.haptics.plant import COULOMB_N, G_RFOB
+from ctdrill.haptics.plant import COULOMB_N, G_RFOB, MASS_KG
 from ctdrill.haptics.protocol import DeviceState, Fault, NakReason, ProfileBegin
 from ctdrill.haptics.tick import TICK_HZ
 from ctdrill.model.cutting import (
@@ -89,13 +90,11 @@ RELEASE_MAX_N = CONTINUOUS_FORCE_N
 #: force observer's own bandwidth: its transient after a release dips a few newtons below 0).
 RELEASE_FILTER_RAD_S = G_RFOB
 #: The release damper switches off once the hand reading has pulled more than this, N, for
-#: :data:`RELEASE_HOLD_TICKS` ticks in a row: twice :data:`RELEASE_PULL_N` plus what the
-#: reading shows of the damper's own braking of a free master (the observer's one-tick lag
-#: reads ``0.1 Mn a``, up to 0.1 * 1.2 * 20 N = 2.4 N), so the damper cannot switch itself off.
-RELEASE_OFF_PULL_N = 4.5
+#: :data:`RELEASE_HOLD_TICKS` ticks in a row (twice :data:`RELEASE_PULL_N`).
+RELEASE_OFF_PULL_N = 2.0 * RELEASE_PULL_N
 #: ... and the ticks in a row (8 ms): longer than the dip a step of the damper's own force
 #: makes in the reading (the observer reads a step of the motor's force as a pull for a few
-#: milliseconds: a 40 N step keeps the filtered reading past 4.5 N of pull for about 4 ms).
+#: milliseconds: a 40 N step keeps the filtered reading past 2 N of pull for about 6 ms).
 RELEASE_HOLD_TICKS = 80
 
 
@@ -114,8 +113,9 @@ class Renderer:
         Force command of the last tick, N (> 0 opposes the advance; < 0 only from the release
         damper).
     hand_n : float
-        The device's reading of the hand low-passed at :data:`RELEASE_FILTER_RAD_S`, N (> 0
-        pushes): what gates the release damper.
+        The device's reading of the hand (the observer's lag behind an acceleration added
+        back) low-passed at :data:`RELEASE_FILTER_RAD_S`, N (> 0 pushes): what gates the
+        release damper.
     """
 
     def __init__(
@@ -146,6 +146,12 @@ class Renderer:
         self.glide_mm = stop_glide_mm_s * self.dt_s
         self.b_release = release_damping_n_s_per_mm
         self._hand_gain = min(1.0, RELEASE_FILTER_RAD_S * self.dt_s)
+        # The reaction force observer reads a steady acceleration ``a`` of the master as a push
+        # of ``-G_RFOB T Mn a`` (its forward-Euler step lags a tick): the damper braking a free
+        # master at 20 N read as a 2.4 N pull. The reading that gates it adds that back, from
+        # the change of the velocity estimate, N per mm/s^2.
+        self._lag_n_per_mm_s2 = G_RFOB * self.dt_s * MASS_KG * 1e-3
+        self._last_v_mm_s = 0.0
         self.hand_n = 0.0
         #: The release damper's gate (see :meth:`release_gain`) and the ticks the hand reading
         #: has pulled more than :data:`RELEASE_OFF_PULL_N` in a row (up to the hold).
@@ -310,8 +316,12 @@ class Renderer:
         ``hand_n`` is the device's reading of the hand (the force controller's reaction force
         observer, N, > 0 pushing; 0: no hand); it gates the release damper.
         """
-        if math.isfinite(hand_n):  # a non-finite reading ends the session below
-            self.hand_n += self._hand_gain * (hand_n - self.hand_n)
+        if math.isfinite(hand_n) and math.isfinite(master_v_mm_s):  # else: ends below
+            # the observer's lag behind an acceleration added back (see __init__)
+            accel = (master_v_mm_s - self._last_v_mm_s) * self._tick_hz
+            reading = hand_n + self._lag_n_per_mm_s2 * accel
+            self.hand_n += self._hand_gain * (reading - self.hand_n)
+            self._last_v_mm_s = master_v_mm_s
         self._gate()
         state = self.state
         if state == DeviceState.IDLE or state == DeviceState.SAFE:

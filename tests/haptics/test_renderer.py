@@ -13,6 +13,7 @@ from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.protocol import DeviceState, Fault, NakReason
 from ctdrill.haptics.renderer import (
     RELEASE_DAMPING_N_S_PER_MM,
+    RELEASE_HOLD_TICKS,
     RELEASE_MAX_N,
     STOP_GLIDE_MM_S,
     STOP_WALL_N_PER_MM,
@@ -153,11 +154,19 @@ def test_the_wall_damper_stays_within_the_spring_force(hand_n: float) -> None:
         r.tick(now, 1.5, 0.0, hand_n)
     assert r.stop_anchor_mm == 1.0
     # the hand eases back onto the stop depth (the anchor follows it there), then moves in
-    # 20 um at 200 mm/s: the damper alone would add 0.4 * 200 = 80 N at once
+    # 20 um at 200 mm/s: the damper alone would add 0.4 * 200 = 80 N at once. The reading the
+    # renderer gets is the observer's: the hand's force less its lag behind the acceleration
+    # (0.1 ms * 1000 rad/s * 0.5 kg * a), which the renderer adds back.
+    v_prev = 0.0
+
+    def observed(v: float) -> float:
+        return hand_n - 1e-4 * 1000.0 * 0.5 * 1e-3 * (v - v_prev) / DT
+
     for x, v in ((1.0, 0.0), (1.02, 200.0)):
         now += DT
         r.host_frame(now)
-        force = r.tick(now, x, v, hand_n)
+        force = r.tick(now, x, v, observed(v))
+        v_prev = v
     spring = STOP_WALL_N_PER_MM * 0.02
     assert force == pytest.approx(11.0 * 0.02 + 0.08 * 200.0 + 2.0 * spring)
     for x, v, release in ((1.01, -200.0, -RELEASE_MAX_N), (1.0, -30.0, -12.0)):
@@ -165,7 +174,8 @@ def test_the_wall_damper_stays_within_the_spring_force(hand_n: float) -> None:
         r.host_frame(now)
         assert RELEASE_DAMPING_N_S_PER_MM * v <= release
         expected = release if hand_n == 0.0 else 0.0
-        assert r.tick(now, x, v, hand_n) == pytest.approx(expected, abs=1e-12)
+        assert r.tick(now, x, v, observed(v)) == pytest.approx(expected, abs=1e-12)
+        v_prev = v
 
 
 def test_peak_and_thermal_limits() -> None:
@@ -261,3 +271,38 @@ def test_any_trajectory_keeps_force_bounded_and_drill_above_stop(
             assert force >= 0.0 or velocity < 0.0
             assert r.drill_mm <= table.stop_depth_mm
             assert r.front_mm <= table.stop_depth_mm
+
+
+@pytest.mark.parametrize("accel_mm_s2", [48_000.0, 0.0])
+def test_the_release_gate_reads_through_the_observers_lag(accel_mm_s2: float) -> None:
+    # The observer reads a master braked at 20 N (a = Kf 20 N / Mn = 48 m/s^2, no hand) as a
+    # steady 2.4 N pull (0.1 ms * 1000 rad/s * 0.5 kg * a): the gate adds that back and its
+    # reading is 0, so the damper stays on. The same 2.4 N at rest (no acceleration) is a hand
+    # pulling: the damper switches off after the hold (80 ticks), and on again when it stops.
+    table = ProfileTable.slab(s0_n=2.0, top_mm=0.0, bottom_mm=40.0, stop_depth_mm=30.0)
+    r = armed(table)
+    now, v = 0.0, -1500.0
+    for _ in range(400):  # moving back steadily, no hand
+        now += DT
+        r.host_frame(now)
+        r.tick(now, -1.0, v, 0.0)
+    assert r.release_gain() == 1.0
+    switched_off = None
+    for i in range(1, 2001):
+        now += DT
+        r.host_frame(now)
+        v += accel_mm_s2 * DT
+        r.tick(now, -1.0, v, -2.4)
+        if switched_off is None and r.release_gain() == 0.0:
+            switched_off = i
+    if accel_mm_s2:
+        assert switched_off is None and abs(r.hand_n) < 1e-6
+    else:
+        assert r.hand_n == pytest.approx(-2.4)
+        # the filtered reading passes -2 N after 18 ticks (1 - 0.9^n > 2 / 2.4), then the hold
+        assert switched_off == 18 + RELEASE_HOLD_TICKS - 1
+    for _ in range(30):  # the hand lets go: on again once the reading is within 1 N
+        now += DT
+        r.host_frame(now)
+        r.tick(now, -1.0, v, 0.0)
+    assert r.release_gain() == 1.0
