@@ -323,7 +323,7 @@ def test_stops_only_give_the_full_evaluation_stops(
         replace(plan, landmarks=()),
     )
     for k, p in enumerate(plans):
-        entries, targets = random_axes(p, 40, seed=10 + k)
+        entries, targets = random_axes(p, 24, seed=10 + k)
         entries = np.vstack([entries, plan.entry_lps, [500.0, 0.0, 0.0]])
         targets = np.vstack(
             [targets, plan.target_lps + np.array([-4.0, -20.0, -3.0]), [500, 0, -10.0]]
