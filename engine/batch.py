@@ -210,7 +210,8 @@ def evaluate_rows(
     bad = np.array([e is not None for e in errors], dtype=bool)
     arrays = (depth, lips.s_t, lips.hu_mean, lips.s0_n, lips.disc_hu, lips.sk_n, stops.clearance_mm)
     for arr in arrays:
-        arr[bad] = np.nan
+        if arr.flags.writeable:  # not computed (stops only): already NaN everywhere
+            arr[bad] = np.nan
     for arr in (n_dep, lips.n_clipped, lips.n_samples):
         arr[bad] = 0
     oov[bad] = np.nan

@@ -188,13 +188,14 @@ def no_lips(
     holes: tuple[Hole, ...] = (),
     keep: bool = False,
 ) -> LipRun:
-    """:func:`sample_rows`' arrays, not computed (NaN; no sample): for an evaluation of the
-    stops only on a volume without padding (no padding rule to apply)."""
+    """:func:`sample_rows`' arrays, not computed (NaN, read-only views of one value; no
+    sample): for an evaluation of the stops only on a volume without padding (no padding rule
+    to apply)."""
     n, d_max = depth.shape
-    nan = np.full((n, d_max), np.nan)
+    nan = np.broadcast_to(np.float64(np.nan), (n, d_max))
     zero = np.zeros(n, dtype=np.int64)
-    sk = np.full((n, n_harmonics, d_max), np.nan)
-    return LipRun(nan, nan.copy(), nan.copy(), nan.copy(), sk, zero, zero.copy(), {})
+    sk = np.broadcast_to(np.float64(np.nan), (n, n_harmonics, d_max))
+    return LipRun(nan, nan, nan, nan, sk, zero, zero.copy(), {})
 
 
 def _padding(
