@@ -30,8 +30,11 @@ the new curves (its ``stopDepthMmChanged``, emitted by the paint that puts them 
   last). Latency: the release of a short
   drag, then the time until the plots show its curves.
 
-The breakdown (each median): the path computation in the worker, the plots' redraw on the UI
-thread, the dragged view's outline. Under Xvfb with software OpenGL (Mesa llvmpipe) when run
+The breakdown (each median): the dragged plan's job in the worker (its curves, then the
+implant's check, the problems and the readout) with the CPU time its thread spent (the rest of
+the wall time is waiting for a core or the interpreter lock), the curves' part alone, the
+plots' redraw on the UI thread, the dragged view's outline; and the UI thread's CPU time over
+the continuous drag per repaint. Under Xvfb with software OpenGL (Mesa llvmpipe) when run
 by ``make bench``; the 3D view and the slice contours catch up after the release.
 """
 
@@ -134,20 +137,16 @@ class _Probe:
         self.compute: list[float] = []
         self.compute_cpu: list[float] = []
         self.curves: list[float] = []
+        self.curves_cpu: list[float] = []
         self.plots: list[float] = []
         self.ghost: list[float] = []
         #: id(plan) -> index of the mouse move it was dragged to (the latest sent).
         self.move_of: dict[int, int] = {}
         self.sent = 0
-        #: Computations started on a position older than the latest one dragged to.
-        self.stale_starts = 0
         restore: list[Callable[[], None]] = []
-        live = window.doc.live
         original = controller.compute_path_view
 
         def timed_compute(*args: Any, **kw: Any) -> Any:
-            if kw.get("live") and args[1] is not live.plan:
-                self.stale_starts += 1
             t0, c0 = time.perf_counter(), time.thread_time()
             out = original(*args, **kw)
             self.compute.append(time.perf_counter() - t0)
@@ -159,9 +158,10 @@ class _Probe:
         curves = results.path_curves
 
         def timed_curves(*args: Any, **kw: Any) -> Any:
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.thread_time()
             out = curves(*args, **kw)
             self.curves.append(time.perf_counter() - t0)
+            self.curves_cpu.append(time.thread_time() - c0)
             return out
 
         results.path_curves = timed_curves
@@ -201,6 +201,25 @@ class _Probe:
             fn()
 
 
+def _wait_drawn(plot: Any, timeout_s: float = 60.0) -> bool:
+    """Run the event loop until ``plot`` is repainted with new curves (no polling, so the
+    UI thread's CPU time is the window's own); False on timeout."""
+    from PySide6.QtCore import QEventLoop, QTimer
+
+    loop = QEventLoop()
+    ok = {"done": False}
+
+    def drawn(_v: float) -> None:
+        ok["done"] = True
+        loop.quit()
+
+    plot.stopDepthMmChanged.connect(drawn)
+    QTimer.singleShot(int(timeout_s * 1e3), loop.quit)
+    loop.exec()
+    plot.stopDepthMmChanged.disconnect(drawn)
+    return ok["done"]
+
+
 def _busy(n: int) -> list[subprocess.Popen[bytes]]:
     return [subprocess.Popen([sys.executable, "-c", "while 1: pass"]) for _ in range(n)]
 
@@ -237,15 +256,18 @@ def _measure(
         x, y = round(grip[0]), round(grip[1])
         QTest.mousePress(drill, left, none, QPoint(x, y))
         _wait(app, lambda: live.path is not None)  # the press previews the plan
-        latency = []
+        latency, latency_cpu = [], []
         for k in range(1, moves + 1):
             _wait(app, at_rest)
-            n = len(drawn)
+            m = len(probe.curves_cpu)
             probe.sent += 1
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.thread_time()
             QTest.mouseMove(drill, QPoint(x, y + STEP_PX * (k % WAVE_STEPS)))
-            if _wait(app, lambda n=n: len(drawn) > n):  # type: ignore[misc]
+            if _wait_drawn(plot):
                 latency.append(drawn[-1][0] - t0)
+                # the UI thread's CPU from the move to the repaint, and the worker's curves
+                ui = time.thread_time() - c0
+                latency_cpu.append(ui + sum(probe.curves_cpu[m:]))
         _wait(app, at_rest)
         sent_t: dict[int, float] = {}
         n0 = len(drawn)
@@ -266,7 +288,10 @@ def _measure(
         timer.start()
         if shot is not None:
             _wait(app, lambda: time.perf_counter() - t0 > rate_s / 2, timeout_s=rate_s)
-            window.grab().save(str(shot))
+            grab = window.grab()  # half size: enough to see the outline, the plots, the banner
+            grab.scaledToWidth(grab.width() // 2, Qt.TransformationMode.SmoothTransformation).save(
+                str(shot)
+            )
         _wait(app, lambda: time.perf_counter() - t0 > rate_s, timeout_s=rate_s + 5)
         timer.stop()
         elapsed = time.perf_counter() - t0
@@ -284,6 +309,7 @@ def _measure(
     return {
         "latency": Timing.from_samples(latency or [np.nan]),
         "latency_p90_s": float(np.percentile(latency, 90)) if latency else np.nan,
+        "latency_cpu": Timing.from_samples(latency_cpu or [np.nan]),
         "rate_hz": len(during) / elapsed,
         "sent_hz": state["k"] / elapsed,
         "lag": Timing.from_samples(lags or [np.nan]),
@@ -333,7 +359,7 @@ def _drag_case(
             procs = _busy(busy)
             try:
                 time.sleep(0.5 if busy else 0.0)
-                shot = figure_path(f"drag_{name}_{busy}.png") if settle else None
+                shot = figure_path(f"drag_{name}.png") if settle and busy else None
                 runs[load_name] = _measure(window, probe, moves, rate_s, shot)
                 runs[load_name]["load"] = os.getloadavg()[0]
             finally:
@@ -349,7 +375,6 @@ def _drag_case(
             "plots redrawn (live)": Timing.from_samples(probe.plots or [np.nan]),
             "dragged outline": Timing.from_samples(probe.ghost or [np.nan]),
         }
-        stale = probe.stale_starts
         # the older chain: a short drag, its release, the plots
         drawn: list[float] = []
         plot.stopDepthMmChanged.connect(lambda _v: drawn.append(time.perf_counter()))
@@ -380,8 +405,7 @@ def _drag_case(
         "runs": runs,
         "older": Timing.from_samples(older or [np.nan]),
         "parts": parts,
-        "stale": stale,
-        "shots": settle,
+        "shot": figure_path(f"drag_{name}.png") if settle else None,
     }
 
 
@@ -417,13 +441,14 @@ def run(quick: bool) -> Section:
                     load_name,
                     f"{m['load']:.1f}",
                     m["latency"].fmt("ms") + f" p90 {1e3 * m['latency_p90_s']:.3g}",
+                    m["latency_cpu"].fmt("ms"),
                     f"{m['rate_hz']:.1f} (mouse {m['sent_hz']:.0f}/s)",
                     m["lag"].fmt("ms") + f" p90 {1e3 * m['lag_p90_s']:.3g}",
                     f"{m['out_of_order']} of {m['repaints']}",
                     f"{1e3 * m['ui_cpu_s']:.1f} ms",
                 ]
             )
-        part_rows.append([name, *(t.fmt("ms") for t in r["parts"].values()), str(r["stale"])])
+        part_rows.append([name, *(t.fmt("ms") for t in r["parts"].values())])
         headline.append(
             headline_row(
                 f"drag: mouse move to repainted force plot, {name} (idle)",
@@ -453,8 +478,8 @@ def run(quick: bool) -> Section:
                 f"drag on {name}: {busy['rate_hz']:.1f} repaints/s beside {BUSY} busy "
                 f"processes (load {busy['load']:.1f}) against {GOAL_RATE_HZ:g}"
             )
-        if r["shots"]:
-            shots.append(name)
+        if r["shot"] is not None:
+            shots.append(r["shot"])
     notes = [
         __doc__.split("\n\n", 1)[1].strip() if __doc__ else "",
         f"{moves} timed moves of {STEP_PX} px from rest, a {rate_s:g} s continuous drag, "
@@ -470,6 +495,7 @@ def run(quick: bool) -> Section:
                 "beside",
                 "load (1 min)",
                 "move to repainted plot (from rest)",
+                "its CPU time (UI thread + curves)",
                 "repaints/s (60 Hz mouse)",
                 "lag of the drawn position",
                 "drawn out of order",
@@ -485,7 +511,6 @@ def run(quick: bool) -> Section:
                 "curves in the worker",
                 "plots redrawn (live)",
                 "dragged outline",
-                "computations started on an older position",
             ],
             part_rows,
         ),
@@ -493,15 +518,17 @@ def run(quick: bool) -> Section:
         + "; ".join(f"{n} {r['older'].fmt('ms')}" for n, r in results.items())
         + ".",
     ]
-    for name in shots:
-        tag = "demo" if name == "demo" else "synthetic"
+    if shots:
         notes.append(
-            f"Mid-drag beside {BUSY} busy processes, {name}: "
-            f"![drag_{tag}](benchmarks/drag_{tag}_{BUSY}.png)"
+            f"The window mid-drag beside {BUSY} busy processes (the dragged outline in white on "
+            "the drill view, the plots and the banner of the position drawn): "
+            + ", ".join(f"`{Path(shot).name}`" for shot in shots)
+            + "."
         )
     return Section(
         title="Dragging a plan (bench_drag)",
         markdown="\n\n".join(notes),
+        figures=tuple(str(shot) for shot in shots),
         shortfalls=tuple(shortfalls),
         headline=tuple(headline),
     )

@@ -106,11 +106,18 @@ class PlotsView(FigureCanvasQTAgg):
         if curves is None:
             self.stop_label.hide()
             return
-        self.stop_label.setText(stop_title(curves))
-        self.stop_label.adjustSize()
-        self.stop_label.show()
+        self._label(curves)
         self._stop_mm = float(curves.stop_depth_mm)
         self.stopDepthMmChanged.emit(self._stop_mm)
+
+    def _label(self, curves: DepthCurves) -> None:
+        """The stop in words (a label: unchanged text costs nothing)."""
+        text = stop_title(curves)
+        if self.stop_label.text() != text:
+            self.stop_label.setText(text)
+            self.stop_label.adjustSize()
+        if self.stop_label.isHidden():
+            self.stop_label.show()
 
     # ------------------------------------------------------------------ drawing
     def resizeEvent(self, event: QResizeEvent) -> None:
@@ -228,6 +235,7 @@ class PlotsView(FigureCanvasQTAgg):
                 self.show_curves(view.curves, live=True)
             else:  # drawn by the paint that shows it (the newest by then)
                 self._live_pending = view.curves
+                self._label(view.curves)  # its label painted in the same screen update
                 self._update_region(Bbox.union([ax.bbox for ax in self.plot_fig.axes]))
 
     def _live_depth(self, depth_mm: float) -> None:
