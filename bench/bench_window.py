@@ -13,7 +13,8 @@ alone (PySide6's widgets, matplotlib's Qt canvas, pyvistaqt, pydicom, numba, Sci
 comes first (Python's bytecode of ctdrill written, as an installed wheel has it; the disk and
 numba caches warm).
 
-**In-process open.** ``ctdrill.api.open_window`` on the series (imports already done), with the
+**In-process open.** ``ctdrill.api.open_window`` on the series, the window's modules imported
+before (its first window in the process: Qt's and OpenGL's first-use costs are in it), with the
 longest gap between ticks of a 5 ms heartbeat timer on the UI thread.
 
 **A scripted session** in that window: each action a person takes, one after the other, timed
@@ -202,7 +203,10 @@ def session(ct: Path, plan: Path, canal_repeats: int) -> dict[str, Any]:
     from PySide6.QtWidgets import QTabWidget
 
     from ctdrill.api import open_window
-    from ctdrill.app.gui.app import application
+    from ctdrill.app.gui.preload import before_qt
+
+    before_qt()
+    from ctdrill.app.gui.app import application  # every module of the window imported
 
     app = application()
     beat = Heartbeat()
