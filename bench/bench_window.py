@@ -401,7 +401,8 @@ def run(quick: bool) -> Section:
         if worst["stall_s"] > GOAL_STALL_S:
             shortfalls.append(
                 f"window: the longest UI stall of the session on {name} is "
-                f"{_ms(worst['stall_s'])} ({worst['action']}; slowest step {worst['step']}; "
+                f"{_ms(worst['stall_s'])} ({worst['action']}; slowest drawing step "
+                f"{worst['step'] or 'none: the stall is outside them'}; "
                 f"goal {1e3 * GOAL_STALL_S:.0f} ms) at load {load_after}"
             )
 
