@@ -327,6 +327,11 @@ def run(quick: bool) -> Section:
             f"{loops['drill'] / loops['implant']:.2f}",
         ],
     ]
+    thread_note = (
+        "under this load the second thread waits for a core"
+        if t_w1["walls"].median_s < w_ms
+        else "the second thread helps"
+    )
     md = f"""Case: the bundled demo (``assets/demo``, 0.4 mm voxels) and its plan with its implant
 (tapered 4.1 x 11.5 mm, apex 12 mm deep); {n} candidates of ``suggest``'s default space.
 Load average {load_before} before and {load_after} after this module, on the 2 shared cores:
@@ -383,16 +388,18 @@ processes on the 2 shared cores inflate less than the wall time:
 
 {table(["work", "ms a call", "CPU ms a call", "/ compiled"], rows_path)}
 
-Where the time goes in ``plan_path`` with the implant: one call of the walls
-({w_ms * 1e3:.1f} ms) is {w_ms * 1e3 / loops["implant"]:.0%} of the call, the drill's path
-{loops["drill"] / loops["implant"]:.0%}. The walls' rays step over the CT's blocks of 4 x 4 x 4
-cells whose corners all lie inside one class (soft, or bone-range), classed once per series as
-rays reach them (``imaging/sampling/hu_blocks.py``), and read the rest at extrapolated index
-coordinates: {t_w1["walls"].median_s / t_w["floor"].median_s:.2f} x (one thread) the floor that
-reads every ray's full march, {t_w1["full"].median_s / t_w1["walls"].median_s:.1f} x faster
-than the same kernel reading every sample. Same answers: the walls, unknown and open flags of
-every ray equal the full march's bit for bit here ({same}), and on random small CTs with thin
-walls, values exactly at the thresholds and rays grazing voxel faces
+Where the time goes in ``plan_path`` with the implant: of its {cpu["implant"]:.2f} ms of CPU a
+call, the drill's path takes {cpu["drill"]:.2f} ms, the walls' full march would add
+{cpu["full"] - cpu["implant"]:.2f} ms more; the walls alone take {w_ms * 1e3:.1f} ms a call on
+two threads, {t_w1["walls"].median_s * 1e3:.1f} ms on one ({thread_note}).
+The walls' rays step over the CT's blocks of 4 x 4 x 4 cells whose corners all lie inside one
+class (soft, or bone-range), classed once per series as rays reach them
+(``imaging/sampling/hu_blocks.py``), and read the rest at extrapolated index coordinates:
+{t_w1["walls"].median_s / t_w["floor"].median_s:.2f} x (one thread) the floor that reads every
+ray's full march, {t_w1["full"].median_s / t_w1["walls"].median_s:.1f} x faster than the same
+kernel reading every sample. Same answers: the walls, unknown and open flags of every ray equal
+the full march's bit for bit here ({same}), and on random small CTs with thin walls, values
+exactly at the thresholds and rays grazing voxel faces
 (``tests/imaging/test_walls_blocks.py``).
 """
     shortfalls = []
