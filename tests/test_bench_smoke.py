@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+import bench.report
 from bench.__main__ import discover
 from bench.bench_scaling import goal_rows
 from bench.report import (
@@ -165,23 +166,34 @@ def test_parallel_modules_only_in_quick_mode(tmp_path: Path) -> None:
     assert not (tmp_path / "b.md").exists()
 
 
-def test_time_pair_alternates_and_times_each_peer() -> None:
+def _record_gc(monkeypatch: pytest.MonkeyPatch, calls: list[str]) -> None:
+    """``gc.collect`` as the timers call it, recorded in ``calls`` instead of run: a full
+    collection costs ~2 s of CPU late in the suite's process, whose heap is large."""
+    monkeypatch.setattr(bench.report.gc, "collect", lambda: calls.append("gc"))
+
+
+def test_time_pair_alternates_and_times_each_peer(monkeypatch: pytest.MonkeyPatch) -> None:
     calls: list[str] = []
+    _record_gc(monkeypatch, calls)
     a, b = time_pair(lambda: calls.append("a"), lambda: calls.append("b"), repeats=3, warmup=1)
-    assert calls == ["a", "b"] * 4
+    # the warm-up round untimed, then a garbage collection before each timed call
+    assert calls == ["a", "b"] + ["gc", "a", "gc", "b"] * 3
     assert a.repeats == b.repeats == 3
     assert 0.0 <= a.min_s <= a.median_s and 0.0 <= b.min_s <= b.median_s
 
 
-def test_time_round_runs_peers_in_turn_with_the_hook_before_each() -> None:
+def test_time_round_runs_peers_in_turn_with_the_hook_before_each(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     calls: list[str] = []
+    _record_gc(monkeypatch, calls)
     got = time_round(
         {"x": lambda: calls.append("x"), "y": lambda: calls.append("y")},
         repeats=2,
         warmup=0,
         before_each=lambda: calls.append("-"),
     )
-    assert calls == ["-", "x", "-", "y"] * 2
+    assert calls == ["-", "gc", "x", "-", "gc", "y"] * 2
     assert sorted(got) == ["x", "y"] and got["x"].repeats == 2
 
 
