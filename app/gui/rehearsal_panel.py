@@ -190,6 +190,8 @@ class RehearsalPanel(QWidget):
         self.result = result
         self.set_blocked(block_reason(doc.volume, doc.plan, view, doc.path_error))
         if result is not None and not self.blocked and self.run is None:
+            if self.sound_box.isChecked():
+                self.sound.prepare()  # a rehearsal may start: its audio library, loaded aside
             self.auto_stop_label.setText(f"auto-stop: at {stop_explanation(result)}")
             self._show_path(result)
             self._predict()

@@ -4,7 +4,8 @@ depth, while the drill cuts, on the platform's audio output.
 Audio goes through ``sounddevice`` (PortAudio): PySide6-Essentials has no QtMultimedia, and
 PortAudio plays on Linux (ALSA, PulseAudio, PipeWire through ALSA), macOS and Windows from a
 callback that synthesises each block from the current amplitudes. ``sounddevice`` is imported
-only when sound is switched on; where it or an output device is missing (no PortAudio
+in the background once a rehearsal can start (:meth:`VibrationSound.prepare`), never at
+start-up; where it or an output device is missing (no PortAudio
 library, a server without sound, Xvfb) :meth:`VibrationSound.start` says why and the window
 goes on silent. Frequencies and amplitudes are the model's (the table's ``S1, S2`` and
 ``f1, f2``); :data:`FULL_SCALE_N` of vibration is full scale. Small speakers reproduce little
@@ -13,6 +14,7 @@ at 30 Hz: a headset carries it.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 from collections.abc import Callable
@@ -68,6 +70,12 @@ def _open_default(callback: Callable[..., None]) -> Any:
     )
 
 
+def _import_backend() -> None:
+    # no PortAudio here: start() says so when sound is switched on
+    with contextlib.suppress(Exception):
+        import sounddevice  # noqa: F401
+
+
 class VibrationSound:
     """Plays the vibration of :meth:`set_vibration` on the audio output (module docstring).
 
@@ -85,6 +93,16 @@ class VibrationSound:
         self._now = (0.0, 0.0)
         self._freqs = (30.0, 60.0)
         self._phases = (0.0, 0.0)
+        self._prepared = False
+
+    def prepare(self) -> None:
+        """Load the audio library in a background thread, once (its import finds and starts
+        PortAudio: 0.1-0.2 s that would otherwise hold the UI thread when a rehearsal with
+        sound starts)."""
+        if self._prepared or self._opener is not _open_default:
+            return
+        self._prepared = True
+        threading.Thread(target=_import_backend, name="ctdrill-audio", daemon=True).start()
 
     @property
     def playing(self) -> bool:

@@ -52,3 +52,22 @@ def test_the_implant_list_is_rebuilt_only_when_it_changes(window: MainWindow) ->
     picker.show_plan(None)  # an edit elsewhere in the plan: the same list
     assert picker._specs == specs and picker.count() == items
     assert picker._specs is not None
+
+
+def test_the_audio_library_is_loaded_aside_once() -> None:
+    import threading
+
+    from ctdrill.app.gui.sound import VibrationSound
+
+    fake = VibrationSound(opener=lambda _cb: None)
+    before = threading.active_count()
+    fake.prepare()  # a test's own output: nothing to load
+    assert threading.active_count() == before
+    sound = VibrationSound()
+    sound.prepare()
+    sound.prepare()  # once
+    loaders = [t for t in threading.enumerate() if t.name == "ctdrill-audio"]
+    assert len(loaders) <= 1
+    for t in loaders:
+        t.join(timeout=60)
+    assert not any(t.name == "ctdrill-audio" and t.is_alive() for t in threading.enumerate())
