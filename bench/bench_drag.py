@@ -487,7 +487,10 @@ def run(quick: bool) -> Section:
         + ("" if quick else f"; the synthetic series took {write_s:.0f} s to write (not timed)")
         + ". The load column is the machine's 1-minute load average at the end of the run (2 "
         "cores shared with other work, the busy processes included): the chain runs in two "
-        "threads and competes for them.",
+        "threads and competes for them. *idle* means no busy process started here; the load "
+        "says what else ran. The CPU time of a move (the UI thread's from the move to the "
+        "repaint, plus the worker's for the curves) is what the latency would be on cores of "
+        "its own.",
         table(
             [
                 "case",
