@@ -13,6 +13,15 @@ writable (a source checkout), else the user-wide cache (``~/.cache/numba`` or
 ``$NUMBA_CACHE_DIR``), which is where a wheel installed as root and used by another user
 keeps it. Set ``NUMBA_CACHE_DIR`` to choose one (CI runs as root: a cache folder it
 restores between runs).
+
+numba itself is imported only when a kernel is first asked for (:meth:`Kernel.ready`): its
+import (with SciPy's linear algebra, which numba loads for a BLAS check) and its first cache
+load cost a fresh process 0.5-0.8 s, more than a one-plan export's whole work on the NumPy
+paths. Functions marked :func:`helper` stay plain Python until then and are compiled (and
+rebound in the modules of the kernels and helpers) when numba is loaded. Inside
+:func:`job` a small job (fewer than :data:`COMPILED_MIN_TRAJECTORIES` trajectories) does not
+load numba at all and takes the NumPy paths, unless numba is loaded in the process already
+(its cost is paid: the window, ``suggest``); the answers are the same bits either way.
 """
 
 from __future__ import annotations
@@ -20,27 +29,83 @@ from __future__ import annotations
 import contextlib
 import itertools
 import os
+import sys
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
 
-_numba: Any
-try:  # numba is a dependency, but a missing or broken one only costs speed
-    import numba as _numba
-except Exception:  # pragma: no cover - exercised by CTDRILL_NO_JIT in the tests
-    _numba = None
-
 #: Environment variable that switches every kernel off (NumPy paths only).
 NO_JIT_ENV = "CTDRILL_NO_JIT"
+#: A job of fewer trajectories than this (a one-plan export) runs on the NumPy paths when
+#: numba is not loaded yet: numba's import and first cache load (0.5-0.8 s of CPU) cost more
+#: than the whole job's work there. Larger jobs, and every call outside :func:`job`, use the
+#: kernels.
+COMPILED_MIN_TRAJECTORIES = 2
 
 _KERNELS: list[Kernel] = []
+#: Functions marked :func:`helper` before numba was loaded (compiled when it is).
+_HELPERS: list[Callable[..., Any]] = []
+#: numba once imported (``False``: the import failed); ``None``: not tried yet.
+_NUMBA: list[Any] = [None]
+_NUMBA_LOCK = threading.RLock()
+#: Trajectories of the job in progress (:func:`job`); ``None``: no job declared.
+_JOB: list[int | None] = [None]
+
+
+def _numba() -> Any:
+    """The numba module, imported on first use (None when it does not import); every
+    :func:`helper` marked so far is compiled and rebound where kernels and helpers see it."""
+    with _NUMBA_LOCK:
+        if _NUMBA[0] is None:
+            try:  # numba is a dependency, but a missing or broken one only costs speed
+                import numba
+            except Exception:  # pragma: no cover - exercised by CTDRILL_NO_JIT in the tests
+                _NUMBA[0] = False
+                return None
+            _NUMBA[0] = numba
+            _bind_helpers(numba)
+        return _NUMBA[0] or None
+
+
+def _bind_helpers(numba: Any) -> None:
+    """Replace each plain :func:`helper` by its compiled dispatcher in the globals of every
+    module that defines a kernel or a helper (where numba resolves the names it calls)."""
+    plain = {id(f): f for f in _HELPERS}
+    compiled = {id(f): numba.njit(nogil=True, error_model="numpy")(f) for f in _HELPERS}
+    spaces = {id(f.__globals__): f.__globals__ for f in _HELPERS}
+    spaces |= {id(k.pyfunc.__globals__): k.pyfunc.__globals__ for k in _KERNELS}
+    for space in spaces.values():
+        for name, value in list(space.items()):
+            if plain.get(id(value)) is value:
+                space[name] = compiled[id(value)]
+    _HELPERS.clear()
 
 
 def available() -> bool:
-    """numba imports and ``CTDRILL_NO_JIT`` is not set."""
-    return _numba is not None and os.environ.get(NO_JIT_ENV, "") in ("", "0")
+    """``CTDRILL_NO_JIT`` is not set and numba imports (importing it)."""
+    return os.environ.get(NO_JIT_ENV, "") in ("", "0") and _numba() is not None
+
+
+def worth_loading() -> bool:
+    """The kernels are worth numba's import here: no small :func:`job` is in progress, or
+    numba is loaded in this process already."""
+    n = _JOB[0]
+    return n is None or n >= COMPILED_MIN_TRAJECTORIES or sys.modules.get("numba") is not None
+
+
+@contextlib.contextmanager
+def job(trajectories: int) -> Iterator[None]:
+    """Within the block, a job of ``trajectories`` trajectories: below
+    :data:`COMPILED_MIN_TRAJECTORIES` the kernels are not loaded (NumPy paths, same bits)."""
+    saved = _JOB[0]
+    _JOB[0] = int(trajectories)
+    try:
+        yield
+    finally:
+        _JOB[0] = saved
 
 
 class Kernel:
@@ -75,12 +140,16 @@ class Kernel:
 
     def _dispatch(self) -> Any:
         if self._dispatcher is None:
-            assert _numba is not None
-            self._dispatcher = _numba.njit(cache=True, nogil=True, error_model="numpy")(self.pyfunc)
+            numba = _numba()
+            assert numba is not None
+            self._dispatcher = numba.njit(cache=True, nogil=True, error_model="numpy")(self.pyfunc)
         return self._dispatcher
 
     def ready(self) -> bool:
-        """True when every signature is loaded from the disk cache (never compiles)."""
+        """True when every signature is loaded from the disk cache (never compiles); False
+        without loading anything inside a small :func:`job`."""
+        if self._ready is None and not worth_loading():
+            return False
         if self._ready is None:
             self._ready = available() and self._load()
         return self._ready
@@ -137,10 +206,16 @@ class Kernel:
 
 
 def helper(pyfunc: Callable[..., Any]) -> Any:
-    """A function the kernels call (compiled into them; plain Python without numba)."""
-    if _numba is None:
+    """A function the kernels call (compiled into them; plain Python until numba is loaded,
+    then compiled and rebound by :func:`_numba`)."""
+    with _NUMBA_LOCK:
+        numba = _NUMBA[0]
+        if numba is None:
+            _HELPERS.append(pyfunc)
+            return pyfunc
+    if numba is False:
         return pyfunc
-    return _numba.njit(nogil=True, error_model="numpy")(pyfunc)
+    return numba.njit(nogil=True, error_model="numpy")(pyfunc)
 
 
 @contextlib.contextmanager

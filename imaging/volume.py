@@ -278,7 +278,7 @@ class CTVolume:
         return flats, weights, inside, batch
 
     def _sample_trilinear_unpadded(self, points_lps: np.ndarray, outside_hu: float) -> np.ndarray:
-        """:meth:`sample` with ``order=1`` on a volume without padding, via scipy.
+        """:meth:`sample` with ``order=1`` on a volume without padding (``map_coordinates``' bits).
 
         Index coordinates are built directly as (3, N) rows ``(k, j, i)``. In-hull points
         within the edge tolerance need no clipping: order-1 ``mode="nearest"`` repeats the edge
@@ -306,14 +306,13 @@ class CTVolume:
         if any_outside:
             coords_kji[:, outside] = 0.0
         out = np.empty(coords_kji.shape[1], dtype=np.float64)
-        from ctdrill.imaging.sampling.points_kernel import sample_index_points
+        from ctdrill.imaging.sampling.points_kernel import (
+            sample_index_points,
+            sample_index_points_numpy,
+        )
 
         if not sample_index_points(self.hu, coords_kji, out):
-            from scipy import ndimage  # 0.3-0.6 s to import: only without the kernel
-
-            ndimage.map_coordinates(
-                self.hu, coords_kji, output=out, order=1, mode="nearest", prefilter=False
-            )
+            sample_index_points_numpy(self.hu, coords_kji, out)  # the same bits, no SciPy
         if any_outside:
             out[outside] = outside_hu
         return out.reshape(batch)

@@ -8,7 +8,9 @@ does (the weights ``1 - t`` and ``1 - (1 - t)``, the corners in the same order, 
 It needs no SciPy import (0.3-0.6 s of a fresh process's start: SciPy's array-API layer) and
 runs over the points in one compiled loop (split between threads from :data:`THREAD_POINTS`
 points: each point is independent, so the bits do not depend on the split). Without the
-kernel in numba's disk cache (:mod:`ctdrill.jit`) the caller takes ``map_coordinates``.
+kernel (not in numba's disk cache, or a small job: :mod:`ctdrill.jit`)
+:func:`sample_index_points_numpy` does the same operations in NumPy, in blocks of
+:data:`NUMPY_BLOCK_POINTS` points: the same bits, and still no SciPy import.
 """
 
 from __future__ import annotations
@@ -86,3 +88,31 @@ def sample_index_points(vol: np.ndarray, coords_kji: np.ndarray, out: np.ndarray
     edges = [n * p // parts for p in range(parts + 1)]
     jit.run_spans(POINTS_KERNEL, list(itertools.pairwise(edges)), vol, coords_kji, out)
     return True
+
+
+#: Points per block of :func:`sample_index_points_numpy` (bounds its temporaries to ~20 MB).
+NUMPY_BLOCK_POINTS = 1 << 18
+
+
+def sample_index_points_numpy(vol: np.ndarray, coords_kji: np.ndarray, out: np.ndarray) -> None:
+    """:func:`sample_index_points` in NumPy: the kernel's weights, corner order and sums
+    (``value * wk * wj * wi``, added one corner after another), hence its bits. ``vol``
+    (K, J, I) of any real dtype, ``coords_kji`` (3, N) float64, ``out`` (N,) float64."""
+    n_kji = vol.shape
+    flat = vol.reshape(-1)
+    strides = (n_kji[1] * n_kji[2], n_kji[2], 1)
+    for lo in range(0, out.shape[0], NUMPY_BLOCK_POINTS):
+        c = coords_kji[:, lo : lo + NUMPY_BLOCK_POINTS]
+        s = np.floor(c)
+        w0 = 1.0 - (c - s)  # scipy's weights: 1 - t, then 1 minus that (not t)
+        w1 = 1.0 - w0
+        top = np.array(n_kji, dtype=np.float64)[:, None] - 1.0
+        i0 = np.clip(s, 0.0, top).astype(np.int64)
+        i1 = np.clip(s + 1.0, 0.0, top).astype(np.int64)
+        total = np.zeros(c.shape[1])
+        for k, wk in ((i0[0], w0[0]), (i1[0], w1[0])):
+            for j, wj in ((i0[1], w0[1]), (i1[1], w1[1])):
+                for i, wi in ((i0[2], w0[2]), (i1[2], w1[2])):
+                    at = k * strides[0] + j * strides[1] + i
+                    total += flat[at].astype(np.float64) * wk * wj * wi
+        out[lo : lo + c.shape[1]] = total

@@ -10,7 +10,12 @@ from scipy import ndimage
 
 from ctdrill import jit
 from ctdrill.imaging.dicom.series import load_series
-from ctdrill.imaging.sampling.points_kernel import POINTS_KERNEL, sample_index_points
+from ctdrill.imaging.sampling import points_kernel
+from ctdrill.imaging.sampling.points_kernel import (
+    POINTS_KERNEL,
+    sample_index_points,
+    sample_index_points_numpy,
+)
 
 ASSETS = Path(__file__).resolve().parents[2] / "assets"
 
@@ -43,6 +48,21 @@ def test_the_kernel_gives_map_coordinates_bits(dtype: type) -> None:
     coords = _points(vol.shape, 150_000, rng)  # more than THREAD_POINTS: split in threads
     out = np.empty(coords.shape[1])
     assert sample_index_points(vol, coords, out)
+    ref = np.empty_like(out)
+    ndimage.map_coordinates(vol, coords, output=ref, order=1, mode="nearest", prefilter=False)
+    np.testing.assert_array_equal(out, ref)
+
+
+@pytest.mark.parametrize("dtype", [np.int16, np.float32])
+def test_the_numpy_path_gives_map_coordinates_bits(
+    dtype: type, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    rng = np.random.default_rng(11)
+    vol = (rng.normal(size=(5, 7, 4)) * 900).astype(dtype)
+    coords = _points(vol.shape, 20_000, rng)
+    monkeypatch.setattr(points_kernel, "NUMPY_BLOCK_POINTS", 3001)  # several blocks, one short
+    out = np.empty(coords.shape[1])
+    sample_index_points_numpy(vol, coords, out)
     ref = np.empty_like(out)
     ndimage.map_coordinates(vol, coords, output=ref, order=1, mode="nearest", prefilter=False)
     np.testing.assert_array_equal(out, ref)

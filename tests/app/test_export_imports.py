@@ -1,0 +1,39 @@
+"""A one-plan export as a fresh process imports only what it uses (start-up time, issue 37).
+
+``ctdrill export`` of one plan runs the NumPy paths (:func:`ctdrill.jit.job`): numba (with
+SciPy's linear algebra) is not imported, nor SciPy (the sampler gives ``map_coordinates``' bits
+without it), nor any GUI or 3D toolkit; with ``--no-plot`` not matplotlib either.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+DEMO = ROOT / "assets" / "demo"
+#: Top-level packages a one-plan export without the plot does not need.
+NOT_NEEDED = {"numba", "llvmlite", "scipy", "matplotlib", "PySide6", "vtk", "vtkmodules", "pyvista"}
+
+
+def test_a_one_plan_export_imports_no_heavy_module_it_does_not_use(tmp_path: Path) -> None:
+    argv = ["export", "--ct", str(DEMO / "ct"), "--plan", str(DEMO / "plan.json")]
+    argv += ["--out", str(tmp_path / "out"), "--no-plot"]
+    code = (
+        "import json, sys\n"
+        "from ctdrill.app.cli import main\n"
+        f"code = main({argv!r})\n"
+        "sys.stderr.write('\\n' + json.dumps([code, sorted(sys.modules)]))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "CTDRILL_NO_JIT"}
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    )
+    exit_code, names = json.loads(out.stderr.splitlines()[-1])
+    assert exit_code == 0
+    assert (tmp_path / "out" / "summary.json").is_file()
+    assert "pydicom" in names  # the series was read in this process
+    assert sorted(n for n in names if n.split(".")[0] in NOT_NEEDED) == []
