@@ -26,10 +26,10 @@ from ctdrill.app.errors import AppInputError
 from ctdrill.app.records import atomic_output_dir, write_file
 from ctdrill.engine.path import PathInputError, PathResult, plan_path
 from ctdrill.engine.plans import plan_calibration
-from ctdrill.haptics.bilateral.estimator import Prior, plan_prior
 from ctdrill.haptics.bilateral.loop import STATE_NAMES, TeleopRun, TeleopSetup, simulate_teleop
 from ctdrill.haptics.bilateral.metrics import fig14, teleop_metrics
 from ctdrill.haptics.bilateral.params import ChannelSpec, EnvSpec, HandSpec
+from ctdrill.haptics.bilateral.prior import Prior, plan_prior
 from ctdrill.haptics.hands import breakthrough_depths_mm
 from ctdrill.haptics.profile_table import ProfileTable
 from ctdrill.haptics.session import Operator, parse_operator

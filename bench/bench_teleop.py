@@ -475,9 +475,9 @@ def run(quick: bool) -> Section:
             )
     if not all(ok for *_, ok in lag_kinds.values()):
         shortfalls.append(
-            f"teleop: boundary lag <= {LAG_GOAL_MM:g} mm: {_lag_sentence(lag_kinds)} (the "
-            "estimate averages one drill rotation, 33 ms, and a push meets the surface at "
-            "30-50 mm/s); see the lag-by-feed table"
+            f"teleop: boundary lag <= {LAG_GOAL_MM:g} mm: {_lag_sentence(lag_kinds)} (a front "
+            "over 5 mm/s is read over half a drill rotation, 16.7 ms; a push meets the surface "
+            "at 30-80 mm/s); see the lag-by-feed table"
         )
     if worst["lag_ms"] > 50.0:
         shortfalls.append(
@@ -579,9 +579,9 @@ def run(quick: bool) -> Section:
         "",
         f"**Boundary lag by feed** (seed 0, force law -20 %, 0, +20 %: the worst of the three; "
         f"goal <= {LAG_GOAL_MM:g} mm; front speed over the lag: the worst lag's mm over its ms): "
-        f"{_lag_sentence(lag_kinds)}. The estimate averages one drill rotation (33 ms), so its "
-        "lag in depth grows with the front's speed; a pushing hand's estimate also lags longer "
-        "in time than a held feed's:",
+        f"{_lag_sentence(lag_kinds)}. The estimate averages one drill rotation (33 ms) below "
+        "5 mm/s of front and half a rotation above, so its lag in depth grows with the front's "
+        "speed up to 5 mm/s and halves there:",
         "",
         table(
             ["operator", "mean feed mm/s", "lag mm", "lag ms", "front speed over the lag mm/s", ""],

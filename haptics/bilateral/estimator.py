@@ -5,12 +5,25 @@ Per tick of the slave's loop (:meth:`HuEstimator.update`):
 1. **Low-pass**: the slave's environment force estimate (RFOB) is averaged over one period of
    the lowest vibration harmonic, ``60 / (blades rpm)`` s: every term of Eq. 19's vibration
    averages to exactly 0 over it (docs/model.md, "What the paper leaves open"). The feed is
-   the cut front's mean feed over the same window (the front: the slave's depth less its
-   contact deflection ``F / k``), so ``F / (1 + Ke v)`` is exact for Eq. 20, linear in ``v``.
+   the cut front's mean feed over the same window (the front: the slave's depth, through the
+   RFOB's own first-order lag so that depth and force agree in time, less its contact
+   deflection ``F / k``), so ``F / (1 + Ke v)`` is exact for Eq. 20, linear in ``v``. This
+   estimate learns the gain and drives the stops. The estimate reported reads a **fast front**
+   (the front's feed over the last half rotation at least :data:`FAST_FEED_MM_S`) over the last
+   half rotation instead, as the force's sum over the sum of the regressor
+   ``s_t (1 + Ke v)`` of every tick (Eq. 2 from the contact, Eq. 20 with that tick's feed;
+   exact for a uniform material whatever the engagement and the feed do within the window):
+   its lag in depth is half the whole rotation's. The half rotation cancels the even
+   harmonics exactly and leaves at most 0.64 of the first's amplitude, which a fast front's
+   force (at least ``2.25 S0`` at 5 mm/s) carries as a few per cent. Demodulating the first
+   harmonic over the whole rotation (its amplitude and phase locked to the rotation's
+   frequency) was tried on the same runs: an impact's transient leaks into the demodulated
+   amplitude and the cortex's RMS error rose to 97 HU (84 HU without).
 2. **Contact state**: from the contact (the low-passed force above :data:`CONTACT_N`, placed
-   where the force last was below :data:`FREE_N`; dropped again if the low-passed force falls
-   below :data:`RELEASE_N` before the lip is engaged, which a start or an approach that the
-   RFOB reads as a force in free flight does) the lip engages as Eq. 2 says,
+   where the force last was below :data:`FREE_N` or fell by :data:`FALLING_N` in a tick;
+   dropped again if the low-passed force falls below :data:`RELEASE_N` before the lip is
+   engaged, moved to where the force was last free if an impact follows there: a start or an
+   approach that the RFOB reads as a force in free flight) the lip engages as Eq. 2 says,
    ``s_t = (x - x_c) / l_t``; the estimate divides by it and waits while
    ``s_t < MIN_ENGAGED``; beyond ``l_t``, ``s_t = 1``. It holds while the drill does not cut
    (feed below :data:`MIN_FEED_MM_S`: a resting drill's force is any value below ``S0``).
@@ -22,7 +35,7 @@ Per tick of the slave's loop (:meth:`HuEstimator.update`):
    :attr:`HuEstimator.registration_mm`, the slave's contact less the depth where the plan's
    force first exceeds :data:`CONTACT_N` (:attr:`Prior.contact_mm`), so a plan shifted against
    the CT the slave cuts is shifted back before the first layer's votes. Once per profile
-   step of new depth, where the plan's CT is uniform within :data:`PRIOR_WINDOW_MM`, the lip
+   step of new depth, where the plan's CT is uniform within :data:`~.prior.PRIOR_WINDOW_MM`, the lip
    fully engaged and the cut steady (:data:`STEADY_FRACTION`), the residual
    ``z = log10(F / (1 + Ke v)) - b0 - n log10 C'_plan`` is one vote, unless it lies further
    than :data:`MAX_VOTE_LOG10` from the model's gain (the plan's CT then shows another layer
@@ -44,34 +57,43 @@ Per tick of the slave's loop (:meth:`HuEstimator.update`):
    the vibration's crest (the model's ``sum Bk`` at the current estimate) the force is below
    the exit level's ``A0`` at the current feed and gain: a fast feed crosses the lip's exit in
    less than a window. ``density_rise`` when the estimate exceeds the plan's CT anywhere within
-   :data:`RISE_WINDOW_MM` by :data:`RISE_MARGIN_HU`.
+   :data:`~.prior.RISE_WINDOW_MM` by :data:`RISE_MARGIN_HU`.
 """
 
 from __future__ import annotations
 
 import bisect
 import math
-from dataclasses import dataclass
-
-import numpy as np
 
 from ctdrill.haptics.bilateral.params import ENV_STIFFNESS_N_PER_MM
+from ctdrill.haptics.bilateral.prior import CONTACT_N, Prior
 from ctdrill.hu import AIR_HU
 from ctdrill.model.calibration import Calibration
-from ctdrill.model.force import feed_factor_scalar
-from ctdrill.model.profile import Profile
+from ctdrill.model.force import MAX_FEED_MM_S, feed_factor_scalar
 
-#: The low-passed force above which the drill touches material, N; the contact is placed
-#: where the force last was below :data:`FREE_N` (the low-pass lags half a window).
-CONTACT_N = 1.0
+#: The contact is placed where the force last was below this, N (the low-pass lags half a
+#: window).
 FREE_N = 1.0
 #: A contact whose low-passed force falls below this before the lip is engaged was none (the
 #: RFOB reading the start or an approach as a force, a bounce): it is dropped and found again
 #: where the force last was below :data:`FREE_N`, N.
 RELEASE_N = 0.5
+#: The contact is placed where the force last was below :data:`FREE_N` or fell by more than
+#: this in a tick, N: the RFOB's transient at the start of a motion (a few N, decaying over
+#: milliseconds) is free flight, a cut's force does not fall that fast while it presses on.
+FALLING_N = 0.02
+#: Before the lip is engaged, a force this far above the force where it was last free, from
+#: below it and beyond the contact, moves the contact there: the first was the transient
+#: the low-pass took for a contact, this is an impact, N.
+IMPACT_N = 2.0
 #: Below this share of the lip engaged (Eq. 2) the force is too small to read, so the
 #: estimate waits.
 MIN_ENGAGED = 0.25
+#: From this feed of the front over the last half rotation the estimate reads the half
+#: rotation (its lag in depth half the whole rotation's); below it the whole rotation, whose
+#: 17-20 ms lag is within 0.1 mm of front and whose mean is steadier where the force is small
+#: against the vibration and the hand's stick-slip, mm/s.
+FAST_FEED_MM_S = 5.0
 #: The fast exit test averages over this fraction of the low-pass window.
 FAST_FRACTION = 8
 #: The gain learns only while the fast average is within this fraction of the low-passed
@@ -79,13 +101,6 @@ FAST_FRACTION = 8
 STEADY_FRACTION = 0.15
 #: Below this feed the drill does not cut and the force says nothing of the material, mm/s.
 MIN_FEED_MM_S = 0.05
-#: The plan's CT must be uniform within this many HU ...
-PRIOR_UNIFORM_HU = 100.0
-#: ... over this far either side of the drill, mm, for the gain to learn there.
-PRIOR_WINDOW_MM = 0.15
-#: A density rise counts where the plan's CT shows none within this far either side, mm
-#: (the registration error it tolerates).
-RISE_WINDOW_MM = 3.0
 #: A vote further than this from the model's gain (log10: a factor 1.5) is the plan's CT
 #: disagreeing with the slave's (another layer: a misregistration), not the force law. (Gated
 #: against the current gain instead, a run of wrong votes first locks the gain out of the
@@ -93,63 +108,8 @@ RISE_WINDOW_MM = 3.0
 MAX_VOTE_LOG10 = math.log10(1.5)
 #: Depth in bone before an exit counts, mm.
 IN_BONE_MM = 0.5
-#: The exit level: this fraction of the way from the gate's upper edge up to the softest bone
-#: the plan's CT shows along the whole path.
-EXIT_LEVEL_FRACTION = 0.5
 #: A density rise the plan does not expect: this much above its CT's maximum nearby, HU.
 RISE_MARGIN_HU = 500.0
-
-
-@dataclass(frozen=True, eq=False)
-class Prior:
-    """The plan's CT along the path, as the slave's loop reads it (plain lists).
-
-    Built by :func:`plan_prior`; ``origin_mm`` is the slave depth of the plan's depth 0.
-    """
-
-    origin_mm: float
-    step_mm: float
-    log10_c: list[float]
-    usable: list[bool]
-    window_max_hu: list[float]
-    exit_hu: float
-    #: Where the plan's force at rest first exceeds :data:`CONTACT_N` (slave depth, mm; NaN:
-    #: nowhere): the contact the slave should find there if the plan is registered.
-    contact_mm: float = math.nan
-
-
-def _window(values: np.ndarray, half: int, pad: float) -> np.ndarray:
-    padded = np.concatenate([np.full(half, pad), values, np.full(half, pad)])
-    return np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)
-
-
-def plan_prior(profile: Profile, calibration: Calibration, origin_mm: float = 0.0) -> Prior:
-    """The plan's profile as the estimator's prior: its CT number, where the gain may learn
-    from it (uniform within :data:`PRIOR_WINDOW_MM`, lip fully engaged), its maximum within
-    :data:`RISE_WINDOW_MM`, and the exit level (module docstring)."""
-    hu = np.asarray(profile.hu_mean, dtype=np.float64)
-    step = profile.step_mm
-    w = max(1, round(PRIOR_WINDOW_MM / step))
-    win = _window(hu, w, math.nan)
-    usable = (np.nanmax(win, axis=1) - np.nanmin(win, axis=1) <= PRIOR_UNIFORM_HU) & (
-        _window(np.asarray(profile.s_t), w, 0.0).min(axis=1) >= 0.999
-    )
-    hi = _window(hu, max(1, round(RISE_WINDOW_MM / step)), -math.inf).max(axis=1)
-    gate_hi = calibration.gate_hu + 0.5 * calibration.gate_width_hu
-    bone = hu[(np.asarray(profile.s_t) >= 0.999) & (hu >= gate_hi)]
-    softest = float(bone.min()) if bone.size else gate_hi
-    c = np.log10(np.maximum(hu - AIR_HU, 1.0))
-    touching = np.flatnonzero(np.asarray(profile.s0_n) > CONTACT_N)
-    contact = float(profile.depth_mm[touching[0]]) + origin_mm if touching.size else math.nan
-    return Prior(
-        origin_mm=origin_mm + float(profile.depth_mm[0]),
-        step_mm=step,
-        log10_c=[float(v) for v in c],
-        usable=[bool(v) for v in usable],
-        window_max_hu=[float(v) for v in hi],
-        exit_hu=gate_hi + EXIT_LEVEL_FRACTION * (softest - gate_hi),
-        contact_mm=contact,
-    )
 
 
 class HuEstimator:
@@ -190,6 +150,7 @@ class HuEstimator:
         window_ticks: int,
         tick_s: float,
         contact_stiffness_n_per_mm: float = ENV_STIFFNESS_N_PER_MM,
+        rfob_gain_rad_s: float = math.inf,
     ) -> None:
         self.b0 = calibration.a0.b0
         self.n = calibration.a0.n
@@ -217,6 +178,18 @@ class HuEstimator:
         self._free_mm = math.nan
         self.k_contact = contact_stiffness_n_per_mm
         self.harmonics = [(h.b0, h.n) for h in calibration.harmonics]
+        # a fast front's estimate (module docstring, step 1): the last half rotation
+        self.n_half = max(1, self.n_win // 2)
+        self._phi = [0.0] * self.n_win
+        self._hf = 0.0  # sums over the half rotation: the force, the regressor
+        self._hphi = 0.0
+        self._last_front = math.nan
+        # the slave's depth through the RFOB's own lag, so that depth and force agree in time
+        self._a_rfob = min(1.0, rfob_gain_rad_s * tick_s)
+        self._x_lag = math.nan
+        self._last_force_n = math.inf
+        self._free_n = math.inf
+        self._feed_cap = MAX_FEED_MM_S
         cp_exit = min(
             max(prior.exit_hu - AIR_HU, calibration.c_prime_range[0]),
             calibration.c_prime_range[1],
@@ -226,6 +199,9 @@ class HuEstimator:
         self.log10_gain = 0.0
         self._next_update_mm = -math.inf
         self.hu = math.nan
+        self.hu_slow = math.nan
+        self.hu_fast = math.nan
+        self.tick_s = tick_s
         self.valid = False
         self.bone_since_mm = math.nan
         self.stop_reason: str | None = None
@@ -251,33 +227,59 @@ class HuEstimator:
         """One tick: the slave's depth (mm) and its environment force estimate (N, + against
         the advance)."""
         i = self._i
+        n_win = self.n_win
+        h = (i - self.n_half) % n_win  # the sample leaving the half rotation
+        j = (i - self.n_fast) % n_win
+        last_force = self._last_force_n
+        self._last_force_n = force_n
+        x_lag = self._x_lag
+        x_lag = slave_mm if x_lag != x_lag else x_lag + self._a_rfob * (slave_mm - x_lag)
+        self._x_lag = x_lag
+        front = x_lag - force_n / self.k_contact  # the cut front: less the deflection
+        phi = self._regressor(front, self._last_front)
+        self._last_front = front
         self._fsum += force_n - self._f[i]
-        j = (i - self.n_fast) % self.n_win
         self._fast += force_n - self._f[j]
+        self._hf += force_n - self._f[h]
+        self._hphi += phi - self._phi[h]
         self._f[i] = force_n
-        f = self._fsum / self.n_win
-        front = slave_mm - force_n / self.k_contact  # the cut front: less the deflection
+        self._phi[i] = phi
         oldest = self._x[i]
+        front_half = self._x[h]
         self._x[i] = front
         i += 1
-        if i == self.n_win:  # re-sum once a window: no drift of the running sums
+        if i == n_win:
             i = 0
-            self._fsum = math.fsum(self._f)
-            self._fast = math.fsum(self._f[-self.n_fast :])
         self._i = i
+        if i == 0:  # re-sum once a window: no drift of the running sums
+            self._resum()
         self._ticks += 1
+        f = self._fsum / n_win
         # the front's mean feed over the window (exact for Eq. 20, linear in the feed)
-        v = (front - oldest) / self._window_s if self._ticks > self.n_win else 0.0
+        v = (front - oldest) / self._window_s if self._ticks > n_win else 0.0
         self.force_lp_n = f
         self.feed_lp_mm_s = v
         self.valid = False
         depth = front
-        if math.isnan(self.contact_mm):
-            if force_n <= FREE_N:
+        no_contact = math.isnan(self.contact_mm)
+        if no_contact or depth < self.contact_mm + self.tip:
+            # free where the force is small or falls (an observer's transient decaying)
+            if force_n <= FREE_N or force_n < last_force - FALLING_N:
                 self._free_mm = depth
-            elif f > CONTACT_N:
-                self.contact_mm = depth if math.isnan(self._free_mm) else self._free_mm
-            return
+                self._free_n = force_n
+            if no_contact:
+                if f > CONTACT_N:
+                    self.contact_mm = depth if math.isnan(self._free_mm) else self._free_mm
+                    self._rebuild_regressor()
+                return
+            if (
+                force_n > self._free_n + IMPACT_N
+                and self._free_n < IMPACT_N
+                and self._free_mm > self.contact_mm
+            ):
+                # an impact from a valley beyond the contact: the contact was a transient
+                self.contact_mm = self._free_mm
+                self._rebuild_regressor()
         if self.stop_reason:
             return
         s_t = (depth - self.contact_mm) / self.tip  # Eq. 2, the contact state
@@ -285,26 +287,76 @@ class HuEstimator:
             self.contact_mm = math.nan
             self._free_mm = depth
             return
-        if v < MIN_FEED_MM_S or s_t < MIN_ENGAGED:
+        if s_t < MIN_ENGAGED:
             return
-        factor = feed_factor_scalar(v, self.ke)
-        y = math.log10(f / (factor * min(s_t, 1.0))) if f > 0.0 else -math.inf
-        fast = self._fast / self.n_fast
-        if s_t >= 1.0 and abs(fast - f) <= STEADY_FRACTION * f:
-            self._adapt(depth, y)
+        slow = False
+        if v >= MIN_FEED_MM_S and self._ticks > n_win:  # the whole rotation: gain and stops
+            factor = feed_factor_scalar(v, self.ke)
+            y = math.log10(f / (factor * min(s_t, 1.0))) if f > 0.0 else -math.inf
+            fast = self._fast / self.n_fast
+            if s_t >= 1.0 and abs(fast - f) <= STEADY_FRACTION * f:
+                self._adapt(depth, y)
+            hu_slow, c_slow = self._invert(y)
+            self.hu_slow = hu_slow
+            slow = True
+            if s_t >= 1.0:  # the stops read a fully engaged lip only
+                self._check_stop(depth, hu_slow, c_slow, factor)
+        # a fast front: the force over the regressor, each summed over the last half rotation
+        v_half = (front - front_half) / (self.n_half * self.tick_s)
+        if v_half >= FAST_FEED_MM_S and self._hphi > 0.0:
+            num = self._hf
+            y_q = math.log10(num / self._hphi) if num > 0.0 else -math.inf
+            self.hu, _ = self._invert(y_q)
+            self.hu_fast = self.hu
+            self.valid = True
+        elif slow:
+            self.hu = self.hu_slow
+            self.valid = True
+
+    def _regressor(self, front_mm: float, previous_mm: float) -> float:
+        """One tick's ``s_t (1 + Ke v)`` (Eq. 2 from the contact, Eq. 20's feed factor with this
+        tick's feed): the force is the material's ``gamma 10^b0 C'^n`` times it."""
+        if math.isnan(self.contact_mm) or math.isnan(previous_mm):
+            return 0.0
+        e = (front_mm - self.contact_mm) / self.tip
+        if e <= 0.0:
+            return 0.0
+        v = (front_mm - previous_mm) / self.tick_s
+        if v > self._feed_cap:
+            v = self._feed_cap
+        return (e if e < 1.0 else 1.0) * (1.0 + self.ke * v)
+
+    def _rebuild_regressor(self) -> None:
+        """The regressor of the ring's samples once the contact is placed behind them."""
+        n = self.n_win
+        order = [(self._i + k) % n for k in range(n)]  # oldest first
+        prev = math.nan
+        for k in order:
+            x = self._x[k]
+            self._phi[k] = self._regressor(x, prev)
+            prev = x
+        self._resum()
+
+    def _resum(self) -> None:
+        n = self.n_win
+        i = self._i % n
+        half = [(i - 1 - k) % n for k in range(self.n_half)]
+        fast = [(i - 1 - k) % n for k in range(self.n_fast)]
+        self._fsum = math.fsum(self._f)
+        self._fast = math.fsum(self._f[k] for k in fast)
+        self._hf = math.fsum(self._f[k] for k in half)
+        self._hphi = math.fsum(self._phi[k] for k in half)
+
+    def _invert(self, y: float) -> tuple[float, float]:
+        """Eq. 25 on ``y = log10(F / (s_t (1 + Ke v)))`` with the gain: the CT number and
+        ``log10 C'`` (clipped; the gate's ramp below its upper edge)."""
         y_gain = y - self.log10_gain
         if y_gain >= self.log10_a0_gate:
             c = (y_gain - self.b0) / self.n
             c = self.c_lo if c < self.c_lo else (self.c_hi if c > self.c_hi else c)
-            hu = 10.0**c + AIR_HU
-        else:  # the gate ramp: the share of the gate's upper-edge force
-            c = self.c_lo
-            share = 10.0 ** (y_gain - self.log10_a0_gate) if y > -math.inf else 0.0
-            hu = self.gate_lo + (self.gate_hi - self.gate_lo) * share
-        self.hu = hu
-        self.valid = True
-        if s_t >= 1.0:  # the stops read a fully engaged lip only
-            self._check_stop(depth, hu, c, factor)
+            return 10.0**c + AIR_HU, c
+        share = 10.0 ** (y_gain - self.log10_a0_gate) if y > -math.inf else 0.0
+        return self.gate_lo + (self.gate_hi - self.gate_lo) * share, self.c_lo
 
     def _adapt(self, slave_mm: float, y: float) -> None:
         if slave_mm < self._next_update_mm or not math.isfinite(y):

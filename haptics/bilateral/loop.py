@@ -31,7 +31,7 @@ import numpy as np
 
 from ctdrill.haptics.bilateral.channel import Channel
 from ctdrill.haptics.bilateral.environment import CuttingEnvironment
-from ctdrill.haptics.bilateral.estimator import HuEstimator, Prior
+from ctdrill.haptics.bilateral.estimator import HuEstimator
 from ctdrill.haptics.bilateral.params import (
     HAND_FEED_STIFFNESS_N_PER_M,
     ChannelSpec,
@@ -40,6 +40,7 @@ from ctdrill.haptics.bilateral.params import (
     HandSpec,
     SlaveSpec,
 )
+from ctdrill.haptics.bilateral.prior import Prior
 from ctdrill.haptics.bilateral.servo import Servo
 from ctdrill.haptics.plant import (
     COULOMB_N,
@@ -212,6 +213,7 @@ def simulate_teleop(
         tip_length_mm=tip_length_mm,
         window_ticks=round(setup.tick_hz / f1),
         tick_s=dt,
+        rfob_gain_rad_s=g.g_rfob,
     )
     to_slave = Channel(setup.channel, setup.tick_hz, 2 * setup.seed + 1, (xm0, 0.0, 0.0))
     to_master = Channel(

@@ -14,10 +14,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ctdrill.haptics.bilateral.estimator import plan_prior
 from ctdrill.haptics.bilateral.loop import TeleopSetup, simulate_teleop
 from ctdrill.haptics.bilateral.metrics import PASSIVITY_TOL_J
 from ctdrill.haptics.bilateral.params import ChannelSpec, EnvSpec, HandSpec
+from ctdrill.haptics.bilateral.prior import plan_prior
 from ctdrill.haptics.session import Operator
 from ctdrill.model.calibration import Calibration, load_calibration
 from ctdrill.model.force import a0_n

@@ -12,8 +12,9 @@ import pytest
 
 from ctdrill.app.teleop import TeleopCase, prepare_teleop, run_teleop
 from ctdrill.haptics.bilateral.channel import Channel
-from ctdrill.haptics.bilateral.estimator import HuEstimator, plan_prior
+from ctdrill.haptics.bilateral.estimator import HuEstimator
 from ctdrill.haptics.bilateral.params import ChannelSpec
+from ctdrill.haptics.bilateral.prior import plan_prior
 from ctdrill.haptics.bilateral.servo import (
     SERVO_FRICTION_RELAX_S,
     SERVO_FRICTION_TRAVEL_M,
@@ -155,6 +156,39 @@ def test_the_plan_is_registered_by_the_contact_so_the_gain_learns_in_the_first_l
     assert est.gain_updates > 0 and est.votes_rejected == 0
     assert 10.0**est.log10_gain == pytest.approx(1.2, rel=1e-9)
     assert est.hu == pytest.approx(1050.0, abs=1e-6)
+
+
+@pytest.mark.parametrize(("feed_mm_s", "window_ticks"), [(12.0, 166), (2.0, 333)])
+def test_a_fast_front_is_read_over_half_a_rotation(feed_mm_s: float, window_ticks: int) -> None:
+    """1050 HU then 800 HU from 3 mm, the force law exact and instantaneous: on each plateau
+    the estimate is the CT number exactly (the force over the regressor ``s_t (1 + Ke v)``),
+    and it crosses the mid-level a moving average's delay after the front: over half a
+    rotation at 12 mm/s, over the whole rotation at 2 mm/s."""
+    cal, prior = _slab_prior(1050.0)
+    est = HuEstimator(cal, prior, tip_length_mm=0.6, window_ticks=333, tick_s=1e-4)
+
+    def force(x: float) -> float:
+        hu = 1050.0 if x < 3.0 else 800.0
+        return float(a0_n(hu, feed_mm_s, cal)) * min(1.0, max(0.0, (x - 1.0) / 0.6))
+
+    x = 0.9
+    crossed = math.nan
+    hu_before = math.nan
+    while x < 3.5:
+        f = force(x)
+        est.update(x + f / 100.0, f)
+        if x < 2.99:
+            hu_before = est.hu
+        if math.isnan(crossed) and x > 3.0 and est.hu < 925.0:
+            crossed = x
+        x += feed_mm_s * 1e-4
+    assert hu_before == pytest.approx(1050.0, abs=1e-6)
+    assert est.stop_reason is None and est.hu == pytest.approx(800.0, abs=1e-6)
+    # the share p of the window in the new layer at which the mean force (C'^2, n = 2) is
+    # the mid-level's: (1 - p) 2050^2 + p 1800^2 = 1925^2
+    p = (2050.0**2 - 1925.0**2) / (2050.0**2 - 1800.0**2)
+    delay_mm = feed_mm_s * 1e-4 * window_ticks * p
+    assert crossed - 3.0 == pytest.approx(delay_mm, abs=feed_mm_s * 2e-4)
 
 
 @pytest.fixture(scope="module")
