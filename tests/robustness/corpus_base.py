@@ -289,11 +289,22 @@ def colour_slice(position_lps: Sequence[float], *, series: str, instance: int) -
 
 
 def nested_sequence(depth: int) -> DicomSequence:
-    """A sequence nested ``depth`` levels deep (a recursion bomb for naive parsers)."""
-    inner = Dataset()
+    """A sequence nested ``depth`` levels deep (a recursion bomb for naive parsers).
+
+    Each item is marked as already in the file's encoding (explicit VR, little endian): pydicom
+    then checks the tree for ambiguous VRs once from the top instead of again under every
+    level (quadratic: 3.4 s of CPU at 1500 levels, 0.07 s so); the bytes written are the same.
+    """
+
+    def new_item() -> Dataset:
+        item = Dataset()
+        item.set_original_encoding(False, True, item._character_set)
+        return item
+
+    inner = new_item()
     inner.CodeValue = "X"
     for _ in range(depth):
-        item = Dataset()
+        item = new_item()
         item.ContentSequence = DicomSequence([inner])
         inner = item
     return DicomSequence([inner])
