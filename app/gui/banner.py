@@ -130,7 +130,9 @@ class Banner(QScrollArea):
 
     def _coarse(self) -> str:
         volume = self.ctx.doc.volume
-        self.setToolTip(coarse_tooltip(volume))
+        tip = coarse_tooltip(volume)
+        if self.toolTip() != tip:  # a drag asks on every move: no event for the same tip
+            self.setToolTip(tip)
         return coarse_note(volume)
 
     def _plan(self, plan: object) -> None:

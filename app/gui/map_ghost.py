@@ -92,31 +92,23 @@ class GhostCanvas(FigureCanvasQTAgg):
         self._blit_ghost()
 
     def _ghost_artists(self, lines_uv: list[np.ndarray], points_uv: dict[str, np.ndarray]) -> None:
-        """The ghost's artists with new data (the same artists when their number is kept)."""
+        """The ghost's two artists with new data: every outline as one line (NaN between
+        them) and every grip as one set of markers; made once per drag, then only their data
+        change (one artist update each per repaint)."""
         if self._ghost_bg is None:
             self._ghost_bg = self.copy_from_bbox(self.ax.bbox)
-        shapes = [
-            *(("line", line) for line in lines_uv),
-            *(("point", uv) for uv in points_uv.values()),
-        ]
-        if len(shapes) == len(self._ghost) and all(
-            (kind == "point") == (art.get_marker() == "o")
-            for (kind, _), art in zip(shapes, self._ghost, strict=True)
-        ):
-            for (kind, xy), art in zip(shapes, self._ghost, strict=True):
-                if kind == "line":
-                    art.set_data(xy[:, 0], xy[:, 1])
-                else:
-                    art.set_data([xy[0]], [xy[1]])
-            return
-        self._clear_ghost()
-        for line in lines_uv:
-            art = Line2D(line[:, 0], line[:, 1], color=GHOST_COLOUR, lw=1.4, ls="-", animated=True)
-            self._ghost.append(self.ax.add_line(art))
-        for uv in points_uv.values():
-            art = Line2D([uv[0]], [uv[1]], marker="o", mfc="none", mec=GHOST_COLOUR, mew=2, ms=9)
-            art.set_animated(True)
-            self._ghost.append(self.ax.add_line(art))
+        gap = np.full((1, 2), np.nan)
+        pieces = [part for line in lines_uv for part in (np.asarray(line, float), gap)]
+        outline = np.concatenate(pieces) if pieces else np.empty((0, 2))
+        grips = np.array(list(points_uv.values()), float).reshape(-1, 2)
+        if len(self._ghost) != 2:
+            self._clear_ghost()
+            line = Line2D([], [], color=GHOST_COLOUR, lw=1.4, ls="-", animated=True)
+            marks = Line2D([], [], ls="none", marker="o", mfc="none", mec=GHOST_COLOUR, mew=2, ms=9)
+            marks.set_animated(True)
+            self._ghost = [self.ax.add_line(line), self.ax.add_line(marks)]
+        self._ghost[0].set_data(outline[:, 0], outline[:, 1])
+        self._ghost[1].set_data(grips[:, 0], grips[:, 1])
 
     def _blit_ghost(self) -> None:
         """The ghost over the kept bitmap, shown at the next paint (one screen update per

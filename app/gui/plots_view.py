@@ -26,8 +26,7 @@ from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 from matplotlib.transforms import Bbox
 from PySide6.QtCore import Property, Signal
-from PySide6.QtGui import QPaintEvent, QResizeEvent
-from PySide6.QtWidgets import QLabel
+from PySide6.QtGui import QColor, QPaintEvent, QPalette, QResizeEvent
 
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.plots import (
@@ -42,6 +41,7 @@ from ctdrill.app.gui.plots import (
 )
 from ctdrill.app.gui.plots_live import update_depth_plots
 from ctdrill.app.gui.results import PathView
+from ctdrill.app.gui.text_line import TextLine
 from ctdrill.imaging.plan.types import Plan
 
 #: What the plots say before there is anything to plot.
@@ -77,9 +77,14 @@ class PlotsView(FigureCanvasQTAgg):
         self.blits = 0
         self.full_draws = 0
         self.mpl_connect("draw_event", self._drawn)
-        #: The stop in words, over the HU plot.
-        self.stop_label = QLabel("", self)
-        self.stop_label.setStyleSheet("background: rgba(255,255,255,200); padding: 1px 3px")
+        #: The stop in words, over the HU plot (an opaque line: a new stop repaints it alone,
+        #: not the plots' bitmap under it).
+        self.stop_label = TextLine("", self)
+        palette = self.stop_label.palette()
+        palette.setColor(QPalette.ColorRole.Window, QColor("white"))
+        self.stop_label.setPalette(palette)
+        self.stop_label.setContentsMargins(3, 1, 3, 1)
+        self.stop_label.fit_height()
         self.stop_label.move(60, 2)
         self.stop_label.hide()
         draw_depth_plots(self.plot_fig, None, message=NO_SERIES)
@@ -113,9 +118,13 @@ class PlotsView(FigureCanvasQTAgg):
     def _label(self, curves: DepthCurves) -> None:
         """The stop in words (a label: unchanged text costs nothing)."""
         text = stop_title(curves)
-        if self.stop_label.text() != text:
-            self.stop_label.setText(text)
-            self.stop_label.adjustSize()
+        label = self.stop_label
+        if label.text() != text:
+            label.setText(text)
+            # it only grows: a resize would repaint the plots' bitmap under its old rectangle
+            width = label.fontMetrics().horizontalAdvance(text) + 8
+            if width > label.width():
+                label.resize(width, label.height())
         if self.stop_label.isHidden():
             self.stop_label.show()
 
@@ -175,6 +184,9 @@ class PlotsView(FigureCanvasQTAgg):
     def _finish(self, curves: DepthCurves) -> None:
         self.draw()
         self.full_draws += 1
+        self._label(curves)
+        label = self.stop_label  # the whole plot repaints: the label may shrink too
+        label.resize(label.fontMetrics().horizontalAdvance(label.text()) + 8, label.height())
         self._painting = curves
         self.update()
 

@@ -23,7 +23,7 @@ from functools import partial
 
 import numpy as np
 from PySide6.QtCore import Signal
-from PySide6.QtWidgets import QGridLayout, QHBoxLayout, QLabel, QSizePolicy, QVBoxLayout, QWidget
+from PySide6.QtWidgets import QGridLayout, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
 from ctdrill.app.gui import planning
 from ctdrill.app.gui.document import ViewContext
@@ -42,6 +42,7 @@ from ctdrill.app.gui.slice_toolbar import SliceToolbar
 from ctdrill.app.gui.slice_tools import edit_arch
 from ctdrill.app.gui.slice_view import SliceCanvas
 from ctdrill.app.gui.slices import VIEWS, SliceImage, reslice, volume_center_lps
+from ctdrill.app.gui.text_line import TextLine
 from ctdrill.app.gui.workers import Runner, RunnerGroup
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.display import WINDOW_PRESETS
@@ -90,13 +91,14 @@ class SliceGrid(QWidget):
         self.toolbar = SliceToolbar(self)
         #: The readout line: window/level, then HU and position at the cursor.
         self.wl_label = QLabel("")
-        self.readout = QLabel("")
+        # the cursor's readout changes with every mouse move (a drag too): a line that repaints
+        # itself only (a QLabel would re-lay out, and repaint, the whole window each time)
+        self.readout = TextLine("")
         for label in (self.wl_label, self.readout):
             label.setStyleSheet("font-family: monospace")
         wl_width = self.wl_label.fontMetrics().horizontalAdvance("W 99999 L -9999 ")
-        self.wl_label.setFixedWidth(wl_width)
-        # a long readout must not widen the grid (the canvases would move under the cursor)
-        self.readout.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Fixed)
+        # a fixed size: a new window/level text asks no layout for room
+        self.wl_label.setFixedSize(wl_width, self.wl_label.fontMetrics().height())
         grid = QGridLayout()
         grid.setContentsMargins(0, 0, 0, 0)
         grid.setSpacing(2)
