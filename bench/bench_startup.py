@@ -191,7 +191,9 @@ def run(quick: bool) -> Section:
 
     md = [
         f"{repeats} runs of each command, round-robin (median [IQR], and the median above "
-        "the `python -c pass` floor):",
+        "the `python -c pass` floor); every process may write its `.pyc` files "
+        "(`PYTHONDONTWRITEBYTECODE` unset, as for an installed wheel), so after the warm-up "
+        "run no module is compiled from source:",
         "",
         table(["command", "wall", "above the floor", "fastest run"], _rows(timings, floor)),
         "",
