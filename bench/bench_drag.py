@@ -34,7 +34,9 @@ The breakdown (each median): the dragged plan's job in the worker (its curves, t
 implant's check, the problems and the readout) with the CPU time its thread spent (the rest of
 the wall time is waiting for a core or the interpreter lock), the curves' part alone, the
 plots' redraw on the UI thread, the dragged view's outline; and the UI thread's CPU time over
-the continuous drag per repaint. Under Xvfb with software OpenGL (Mesa llvmpipe) when run
+the continuous drag per repaint, and the paints per mouse move of the drill view, the force
+plot, the other slices and the 3D view (an event filter on each: a move repaints only the
+views it changes). Under Xvfb with software OpenGL (Mesa llvmpipe) when run
 by ``make bench``; the 3D view and the slice contours catch up after the release.
 """
 
@@ -220,6 +222,44 @@ def _wait_drawn(plot: Any, timeout_s: float = 60.0) -> bool:
     return ok["done"]
 
 
+def _paint_counter(window: Any) -> Any:
+    """An event filter counting the paint events of the drill view, the force plot, the 3D
+    view and the other slices (``install`` / ``remove`` on them; ``per_move``)."""
+    from PySide6.QtCore import QEvent, QObject
+    from PySide6.QtWidgets import QWidget
+
+    views = {
+        "drill": ["view:drill"],
+        "plot": ["plot:force"],
+        "other slices": ["view:axial", "view:coronal", "view:sagittal"],
+    }
+    widgets = {k: [window.findChild(QWidget, n) for n in names] for k, names in views.items()}
+    widgets["3D"] = [window.view3d]
+    of = {id(w): k for k, ws in widgets.items() for w in ws if w is not None}
+
+    class Counter(QObject):
+        def __init__(self) -> None:
+            super().__init__()
+            self.counts = dict.fromkeys(widgets, 0)
+
+        def eventFilter(self, obj: QObject, event: QEvent) -> bool:
+            if event.type() == QEvent.Type.Paint and id(obj) in of:
+                self.counts[of[id(obj)]] += 1
+            return False
+
+        def install(self, on: bool) -> None:
+            for ws in widgets.values():
+                for w in ws:
+                    if w is not None:
+                        (w.installEventFilter if on else w.removeEventFilter)(self)
+
+        def per_move(self, moves: int) -> str:
+            """Paints per mouse move of each view."""
+            return ", ".join(f"{k} {n / max(1, moves):.2f}" for k, n in self.counts.items())
+
+    return Counter()
+
+
 def _busy(n: int) -> list[subprocess.Popen[bytes]]:
     return [subprocess.Popen([sys.executable, "-c", "while 1: pass"]) for _ in range(n)]
 
@@ -246,6 +286,7 @@ def _measure(
 
     plot.stopDepthMmChanged.connect(on_drawn)
     left, none = Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier
+    paints = _paint_counter(window)
 
     def at_rest() -> bool:
         busy = ctl.live_runner.busy or ctl.readout_runner.busy or ctl.path_runner.busy
@@ -285,6 +326,7 @@ def _measure(
         timer.setInterval(16)
         timer.timeout.connect(move)
         t0, c0 = time.perf_counter(), time.thread_time()
+        paints.install(True)
         timer.start()
         if shot is not None:
             _wait(app, lambda: time.perf_counter() - t0 > rate_s / 2, timeout_s=rate_s)
@@ -296,6 +338,7 @@ def _measure(
         timer.stop()
         elapsed = time.perf_counter() - t0
         ui_cpu_s = time.thread_time() - c0
+        paints.install(False)
         during = drawn[n0:]
         lags = [t - sent_t[m] for t, m in during if m in sent_t]
         order = [m for _, m in during]
@@ -317,6 +360,7 @@ def _measure(
         "out_of_order": out_of_order,
         "repaints": len(during),
         "ui_cpu_s": ui_cpu_s / max(1, len(during)),
+        "paints": paints.per_move(state["k"]),
     }
 
 
@@ -446,6 +490,7 @@ def run(quick: bool) -> Section:
                     m["lag"].fmt("ms") + f" p90 {1e3 * m['lag_p90_s']:.3g}",
                     f"{m['out_of_order']} of {m['repaints']}",
                     f"{1e3 * m['ui_cpu_s']:.1f} ms",
+                    m["paints"],
                 ]
             )
         part_rows.append([name, *(t.fmt("ms") for t in r["parts"].values())])
@@ -503,6 +548,7 @@ def run(quick: bool) -> Section:
                 "lag of the drawn position",
                 "drawn out of order",
                 "UI thread CPU per repaint",
+                "paints per mouse move (60 Hz drag)",
             ],
             rows,
         ),
