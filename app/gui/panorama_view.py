@@ -42,6 +42,7 @@ from ctdrill.app.gui.plan_editor import PlanEditor
 from ctdrill.app.gui.problems import offending_implants
 from ctdrill.app.gui.readouts import ImplantReadout, readout_text
 from ctdrill.app.gui.reformat_canvas import ReformatCanvas, ReformatTools, SlabControls
+from ctdrill.app.gui.text_line import SteadyLabel
 from ctdrill.app.gui.workers import Runner
 from ctdrill.app.reformat.draw import draw_reformat
 from ctdrill.app.reformat.region import PANORAMA_HEIGHT_MM, arch_region
@@ -74,8 +75,8 @@ class PanoramaView(QWidget):
         self.pano_controls.row.addWidget(self.height_box)
         self.tools = ReformatTools(ctx.doc)
         #: The current implant's figures (live while it is dragged).
-        self.readout = QLabel("")
-        self.readout.setWordWrap(True)
+        # it follows a drag: a label that re-lays out the window only for a new line count
+        self.readout = SteadyLabel("")
         self.readout.setToolTip(
             "tilt from the vertical (bucco-lingual B/Li and mesio-distal M/D in the arch's "
             "frame), the platform's depth below the bone crest along the axis, the distance "

@@ -20,7 +20,7 @@ from pytestqt.qtbot import QtBot
 
 from ctdrill.api import open_window
 from ctdrill.app.gui.main_window import MainWindow
-from ctdrill.app.gui.text_line import TextLine
+from ctdrill.app.gui.text_line import SteadyLabel, TextLine
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
@@ -61,19 +61,25 @@ def counter() -> Iterator[PaintCounter]:
     app.removeEventFilter(found)
 
 
-def test_a_new_readout_text_repaints_the_line_alone(qtbot: QtBot, counter: PaintCounter) -> None:
+def _tabbed(qtbot: QtBot, readout: QWidget) -> tuple[QTabWidget, QLabel]:
+    """``readout`` under a neighbour in a tab widget, shown."""
     tabs = QTabWidget()
     page = QWidget()
     box = QVBoxLayout(page)
     neighbour = QLabel("a view beside the readout")
-    line = TextLine("HU 100")
     box.addWidget(neighbour)
-    box.addWidget(line)
+    box.addWidget(readout)
     tabs.addTab(page, "views")
     qtbot.addWidget(tabs)
-    tabs.resize(300, 120)
+    tabs.resize(300, 160)
     tabs.show()
     qtbot.waitExposed(tabs)
+    return tabs, neighbour
+
+
+def test_a_new_readout_text_repaints_the_line_alone(qtbot: QtBot, counter: PaintCounter) -> None:
+    line = TextLine("HU 100")
+    tabs, neighbour = _tabbed(qtbot, line)
     qtbot.waitUntil(lambda: counter.count(neighbour) > 0)
     height = line.height()
     counter.paints.clear()
@@ -87,6 +93,28 @@ def test_a_new_readout_text_repaints_the_line_alone(qtbot: QtBot, counter: Paint
     line.setText(line.text())  # the same text: nothing to repaint
     QApplication.processEvents()
     assert counter.count(line) == 0
+
+
+def test_a_wrapped_readout_asks_for_room_only_for_a_new_line_count(
+    qtbot: QtBot, counter: PaintCounter
+) -> None:
+    readout = SteadyLabel("tilt 1.0 deg, depth 2.0 mm")
+    tabs, neighbour = _tabbed(qtbot, readout)
+    qtbot.waitUntil(lambda: counter.count(neighbour) > 0)
+    one_line = readout.height()
+    counter.paints.clear()
+    for k in range(3):  # the same line count: the label alone repaints
+        readout.setText(f"tilt {k}.5 deg, depth {k}.25 mm")
+        qtbot.waitUntil(lambda: counter.count(readout.label) > 0)
+        QApplication.processEvents()
+        assert counter.count(tabs) == 0 and counter.count(neighbour) == 0
+        assert readout.height() == one_line
+        counter.paints.clear()
+    long = " ".join(f"figure {k}: {k}.0 mm" for k in range(30))  # more lines: more room
+    readout.setText(long)
+    qtbot.waitUntil(lambda: readout.height() > 2 * one_line)
+    assert readout.text() == long
+    assert readout.label.height() == readout.height()
 
 
 @pytest.fixture
