@@ -20,13 +20,18 @@ Per tick of the slave's loop (:meth:`HuEstimator.update`):
    frequency) was tried on the same runs: an impact's transient leaks into the demodulated
    amplitude and the cortex's RMS error rose to 97 HU (84 HU without).
 2. **Contact state**: from the contact (the low-passed force above :data:`CONTACT_N`, placed
-   where the force last was below :data:`FREE_N` or fell by :data:`FALLING_N` in a tick;
-   dropped again if the low-passed force falls below :data:`RELEASE_N` before the lip is
-   engaged, moved to where the force was last free if an impact follows there: a start or an
-   approach that the RFOB reads as a force in free flight) the lip engages as Eq. 2 says,
-   ``s_t = (x - x_c) / l_t``; the estimate divides by it and waits while
-   ``s_t < MIN_ENGAGED``; beyond ``l_t``, ``s_t = 1``. It holds while the drill does not cut
-   (feed below :data:`MIN_FEED_MM_S`: a resting drill's force is any value below ``S0``).
+   where the **force at rest** ``F / (1 + Ke v)`` (the tick's feed) last was below
+   :data:`FREE_N` or the force fell by :data:`FALLING_N` in a tick, and following the force at
+   rest down until it first passes :data:`FREE_N`: as the plan's contact is defined; a push
+   meets the surface at 30-80 mm/s, where ``1 + Ke v`` is up to 13.5 and the raw force passes
+   1 N on a lip that has barely touched; dropped again if the low-passed force falls below
+   :data:`RELEASE_N` before the lip is engaged; moved to where the force was last free if an
+   impact follows there before a force at rest over :data:`IMPACT_N` met a quarter-engaged
+   lip: a start or an approach that the RFOB reads as a force in free flight, not an impact's
+   bounce) the lip engages as Eq. 2 says, ``s_t = (x - x_c) / l_t``; the estimate divides by
+   it and waits while ``s_t < MIN_ENGAGED``; beyond ``l_t``, ``s_t = 1``. It holds while the
+   drill does not cut (feed below :data:`MIN_FEED_MM_S`: a resting drill's force is any
+   value below ``S0``).
 3. **Inverse of Eq. 20 with the adapted gain** (Eq. 25):
    ``log10 C' = (log10(F / (s_t (1 + Ke v))) - log10 gamma - b0) / n``, clipped to the set's
    range; below the gate's upper edge the gate ramp is inverted linearly.
@@ -176,6 +181,9 @@ class HuEstimator:
         self.n_fast = max(1, self.n_win // FAST_FRACTION)
         self._fast = 0.0
         self._free_mm = math.nan
+        self._rest_mm = math.nan  # where the force at rest, F / (1 + Ke v), was last free
+        self._found = False  # the force at rest has passed FREE_N since the contact
+        self._material = False  # a material's force at rest on an engaged lip since the contact
         self.k_contact = contact_stiffness_n_per_mm
         self.harmonics = [(h.b0, h.n) for h in calibration.harmonics]
         # a fast front's estimate (module docstring, step 1): the last half rotation
@@ -237,6 +245,7 @@ class HuEstimator:
         self._x_lag = x_lag
         front = x_lag - force_n / self.k_contact  # the cut front: less the deflection
         phi = self._regressor(front, self._last_front)
+        rest_n = force_n / self._feed_factor_tick(front, self._last_front)  # the force at rest
         self._last_front = front
         self._fsum += force_n - self._f[i]
         self._fast += force_n - self._f[j]
@@ -267,18 +276,33 @@ class HuEstimator:
             if force_n <= FREE_N or force_n < last_force - FALLING_N:
                 self._free_mm = depth
                 self._free_n = force_n
+                self._rest_mm = depth
+            elif rest_n <= FREE_N:
+                self._rest_mm = depth
             if no_contact:
                 if f > CONTACT_N:
-                    self.contact_mm = depth if math.isnan(self._free_mm) else self._free_mm
+                    self.contact_mm = depth if math.isnan(self._rest_mm) else self._rest_mm
+                    self._found = rest_n > FREE_N
+                    self._material = False
                     self._rebuild_regressor()
                 return
+            if not self._found:
+                if rest_n > FREE_N:
+                    self._found = True  # the force at rest passed the contact's level
+                elif depth > self.contact_mm:
+                    # the force at rest is still free here: the material begins beyond
+                    self.contact_mm = depth
+                    self._rebuild_regressor()
+            if rest_n > IMPACT_N and depth >= self.contact_mm + MIN_ENGAGED * self.tip:
+                self._material = True  # cut material: a later rise is a bounce, not an impact
             if (
                 force_n > self._free_n + IMPACT_N
                 and self._free_n < IMPACT_N
                 and self._free_mm > self.contact_mm
+                and not self._material
             ):
                 # an impact from a valley beyond the contact: the contact was a transient
-                self.contact_mm = self._free_mm
+                self.contact_mm = self._rest_mm
                 self._rebuild_regressor()
         if self.stop_reason:
             return
@@ -286,6 +310,7 @@ class HuEstimator:
         if s_t < 1.0 and f < RELEASE_N:  # the force let go before the lip engaged: no contact
             self.contact_mm = math.nan
             self._free_mm = depth
+            self._rest_mm = depth
             return
         if s_t < MIN_ENGAGED:
             return
@@ -325,6 +350,14 @@ class HuEstimator:
         if v > self._feed_cap:
             v = self._feed_cap
         return (e if e < 1.0 else 1.0) * (1.0 + self.ke * v)
+
+    def _feed_factor_tick(self, front_mm: float, previous_mm: float) -> float:
+        """Eq. 20's ``1 + Ke v`` with this tick's feed of the front (0 when it retreats)."""
+        if math.isnan(previous_mm):
+            return 1.0
+        v = (front_mm - previous_mm) / self.tick_s
+        v = 0.0 if v < 0.0 else (self._feed_cap if v > self._feed_cap else v)
+        return 1.0 + self.ke * v
 
     def _rebuild_regressor(self) -> None:
         """The regressor of the ring's samples once the contact is placed behind them."""
