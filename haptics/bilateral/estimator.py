@@ -74,7 +74,7 @@ from ctdrill.haptics.bilateral.params import ENV_STIFFNESS_N_PER_MM
 from ctdrill.haptics.bilateral.prior import CONTACT_N, Prior
 from ctdrill.hu import AIR_HU
 from ctdrill.model.calibration import Calibration
-from ctdrill.model.force import MAX_FEED_MM_S, feed_factor_scalar
+from ctdrill.model.force import feed_factor_scalar
 
 #: The contact is placed where the force last was below this, N (the low-pass lags half a
 #: window).
@@ -197,7 +197,6 @@ class HuEstimator:
         self._x_lag = math.nan
         self._last_force_n = math.inf
         self._free_n = math.inf
-        self._feed_cap = MAX_FEED_MM_S
         cp_exit = min(
             max(prior.exit_hu - AIR_HU, calibration.c_prime_range[0]),
             calibration.c_prime_range[1],
@@ -347,17 +346,13 @@ class HuEstimator:
         if e <= 0.0:
             return 0.0
         v = (front_mm - previous_mm) / self.tick_s
-        if v > self._feed_cap:
-            v = self._feed_cap
-        return (e if e < 1.0 else 1.0) * (1.0 + self.ke * v)
+        return (e if e < 1.0 else 1.0) * feed_factor_scalar(v, self.ke)
 
     def _feed_factor_tick(self, front_mm: float, previous_mm: float) -> float:
         """Eq. 20's ``1 + Ke v`` with this tick's feed of the front (0 when it retreats)."""
         if math.isnan(previous_mm):
             return 1.0
-        v = (front_mm - previous_mm) / self.tick_s
-        v = 0.0 if v < 0.0 else (self._feed_cap if v > self._feed_cap else v)
-        return 1.0 + self.ke * v
+        return feed_factor_scalar((front_mm - previous_mm) / self.tick_s, self.ke)
 
     def _rebuild_regressor(self) -> None:
         """The regressor of the ring's samples once the contact is placed behind them."""

@@ -72,13 +72,21 @@ def check_series_folder(path: Path) -> None:
     or a home folder would otherwise be walked whole (150 s and more); a smaller one is left
     to the scan, which says what it found.
 
+    The file system's root and the user's home folder are refused whatever they hold.
+
     Raises
     ------
     DiscoveryInputError
-        More than :data:`MAX_ENTRIES_WITHOUT_DICOM` entries and no DICOM file near the top.
+        The root or a home folder, or more than :data:`MAX_ENTRIES_WITHOUT_DICOM` entries and
+        no DICOM file near the top.
     """
     if not path.is_dir():
         return
+    if _is_root_or_home(path):
+        raise DiscoveryInputError(
+            f"{path}: not a series folder: it is the file system's root or a home folder, "
+            "whatever lies under it; name the folder of one series (or one of its files)"
+        )
     device = path.stat().st_dev
     queue = collections.deque([(path, 1)])
     read = entries = 0
@@ -113,6 +121,19 @@ def check_series_folder(path: Path) -> None:
                         return
             except OSError:
                 pass
+
+
+def _is_root_or_home(path: Path) -> bool:
+    """True for the file system's root (``/``) and the user's home folder, links resolved.
+
+    Neither is a series folder even when a DICOM file lies near its top (a series left in a
+    temporary folder would otherwise make ``/`` one); a mounted disc is not refused here."""
+    try:
+        where = path.resolve()
+        home = Path.home().resolve()
+    except (OSError, RuntimeError):
+        return False
+    return where == Path(where.anchor) or where == home
 
 
 def iter_files(path: Path, unreadable: list[Path] | None = None) -> Iterator[Path]:

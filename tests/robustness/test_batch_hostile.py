@@ -426,6 +426,25 @@ def test_series_folder_check_bounds(tmp_path: Path, monkeypatch: pytest.MonkeyPa
     check_series_folder(small)  # few entries: the scan says what it found
 
 
+def test_a_home_folder_with_a_series_near_its_top_is_still_not_a_series_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A series left near the top of the home folder (or of ``/``, say in a temporary folder)
+    does not make the home folder a series folder: it would be walked whole."""
+    from ctdrill.imaging.dicom.discovery import DiscoveryInputError, check_series_folder
+
+    home = tmp_path / "home"
+    series = home / "tmpabc"
+    series.mkdir(parents=True)
+    slice_file = next(p for p in sorted((DEMO / "ct").iterdir()) if p.is_file())
+    shutil.copy(slice_file, series / "IM0000")
+    check_series_folder(home)  # not the home folder yet: a DICOM file near the top
+    monkeypatch.setenv("HOME", str(home))
+    with pytest.raises(DiscoveryInputError, match="root or a home folder"):
+        check_series_folder(home)
+    check_series_folder(series)  # the series' own folder still is one
+
+
 # -- --scheduler is bounded -------------------------------------------------------------------
 
 
