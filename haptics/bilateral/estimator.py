@@ -15,10 +15,8 @@ Per tick of the slave's loop (:meth:`HuEstimator.update`):
    exact for a uniform material whatever the engagement and the feed do within the window):
    its lag in depth is half the whole rotation's. The half rotation cancels the even
    harmonics exactly and leaves at most 0.64 of the first's amplitude, which a fast front's
-   force (at least ``2.25 S0`` at 5 mm/s) carries as a few per cent. Demodulating the first
-   harmonic over the whole rotation (its amplitude and phase locked to the rotation's
-   frequency) was tried on the same runs: an impact's transient leaks into the demodulated
-   amplitude and the cortex's RMS error rose to 97 HU (84 HU without).
+   force (at least ``2.25 S0`` at 5 mm/s) carries as a few per cent (demodulating the first
+   harmonic instead: docs/teleop.md).
 2. **Contact state**: from the contact (the low-passed force above :data:`CONTACT_N`, placed
    where the **force at rest** ``F / (1 + Ke v)`` (the tick's feed) last was below
    :data:`FREE_N` or the force fell by :data:`FALLING_N` in a tick, and following the force at
@@ -45,24 +43,15 @@ Per tick of the slave's loop (:meth:`HuEstimator.update`):
    ``z = log10(F / (1 + Ke v)) - b0 - n log10 C'_plan`` is one vote, unless it lies further
    than :data:`MAX_VOTE_LOG10` from the model's gain (the plan's CT then shows another layer
    than the one cut: a misregistration). The gain is the model's own (``z = 0``) until the
-   first vote, then the median of the votes; it learns force laws off by up to a factor 1.5. A
-   Kalman filter on the same residual (the joint filter on gain and CT number, marginalised
-   over the CT number with the plan as its prior) was tried first: under a misregistration its
-   first votes come from the wrong layer, it locks onto them and rejects the right ones after;
-   the median follows the majority of the path, where plan and slave agree. Without the
+   first vote, then the median of the votes; it learns force laws off by up to a factor 1.5 (a
+   Kalman filter instead locked onto the wrong layer: docs/teleop.md). Without the
    registration the first layer cut (the cortex) had no vote under a misregistration of 1 mm
    or more and kept the force law's error (231-276 HU RMS with the law 20 % off). The CT number
    reported is the force's own with this gain (the prior's weight on it is 0), so a
    misregistered plan cannot pull it except through the gain.
 5. **Stop** (:attr:`HuEstimator.stop_reason`), on a fully engaged lip only: ``cortex_exit``
-   when the estimate, after :data:`IN_BONE_MM` in bone, falls below the exit level: half-way
-   from the gate's upper edge to the softest bone of the plan's CT along the whole path
-   (:attr:`Prior.exit_hu`: a level, never a position, so the registration does not enter).
-   The same fires sooner from a fast average (:data:`FAST_FRACTION` of the window) when even at
-   the vibration's crest (the model's ``sum Bk`` at the current estimate) the force is below
-   the exit level's ``A0`` at the current feed and gain: a fast feed crosses the lip's exit in
-   less than a window. ``density_rise`` when the estimate exceeds the plan's CT anywhere within
-   :data:`~.prior.RISE_WINDOW_MM` by :data:`RISE_MARGIN_HU`.
+   and ``density_rise`` from the whole rotation's estimate and a fast average of the force
+   (:mod:`~ctdrill.haptics.bilateral.stop`).
 """
 
 from __future__ import annotations
@@ -72,6 +61,7 @@ import math
 
 from ctdrill.haptics.bilateral.params import ENV_STIFFNESS_N_PER_MM
 from ctdrill.haptics.bilateral.prior import CONTACT_N, Prior
+from ctdrill.haptics.bilateral.stop import FAST_FRACTION, ForceStop
 from ctdrill.hu import AIR_HU
 from ctdrill.model.calibration import Calibration
 from ctdrill.model.force import feed_factor_scalar
@@ -99,8 +89,6 @@ MIN_ENGAGED = 0.25
 #: 17-20 ms lag is within 0.1 mm of front and whose mean is steadier where the force is small
 #: against the vibration and the hand's stick-slip, mm/s.
 FAST_FEED_MM_S = 5.0
-#: The fast exit test averages over this fraction of the low-pass window.
-FAST_FRACTION = 8
 #: The gain learns only while the fast average is within this fraction of the low-passed
 #: force (a steady cut, not the bounce of an impact).
 STEADY_FRACTION = 0.15
@@ -111,10 +99,6 @@ MIN_FEED_MM_S = 0.05
 #: against the current gain instead, a run of wrong votes first locks the gain out of the
 #: right ones.)
 MAX_VOTE_LOG10 = math.log10(1.5)
-#: Depth in bone before an exit counts, mm.
-IN_BONE_MM = 0.5
-#: A density rise the plan does not expect: this much above its CT's maximum nearby, HU.
-RISE_MARGIN_HU = 500.0
 
 
 class HuEstimator:
@@ -185,7 +169,6 @@ class HuEstimator:
         self._found = False  # the force at rest has passed FREE_N since the contact
         self._material = False  # a material's force at rest on an engaged lip since the contact
         self.k_contact = contact_stiffness_n_per_mm
-        self.harmonics = [(h.b0, h.n) for h in calibration.harmonics]
         # a fast front's estimate (module docstring, step 1): the last half rotation
         self.n_half = max(1, self.n_win // 2)
         self._phi = [0.0] * self.n_win
@@ -201,7 +184,11 @@ class HuEstimator:
             max(prior.exit_hu - AIR_HU, calibration.c_prime_range[0]),
             calibration.c_prime_range[1],
         )
-        self.exit_a0_n = 10.0 ** (self.b0 + self.n * math.log10(cp_exit))
+        self.force_stop = ForceStop(
+            prior,
+            10.0 ** (self.b0 + self.n * math.log10(cp_exit)),
+            [(h.b0, h.n) for h in calibration.harmonics],
+        )
         self.contact_mm = math.nan
         self.log10_gain = 0.0
         self._next_update_mm = -math.inf
@@ -210,7 +197,6 @@ class HuEstimator:
         self.hu_fast = math.nan
         self.tick_s = tick_s
         self.valid = False
-        self.bone_since_mm = math.nan
         self.stop_reason: str | None = None
         self.force_lp_n = 0.0
         self.feed_lp_mm_s = 0.0
@@ -254,6 +240,7 @@ class HuEstimator:
         self._phi[i] = phi
         oldest = self._x[i]
         front_half = self._x[h]
+        front_fast = self._x[j]
         self._x[i] = front
         i += 1
         if i == n_win:
@@ -324,7 +311,18 @@ class HuEstimator:
             self.hu_slow = hu_slow
             slow = True
             if s_t >= 1.0:  # the stops read a fully engaged lip only
-                self._check_stop(depth, hu_slow, c_slow, factor)
+                # the fast test's feed: the slower of the window's and the fast average's own
+                # (a front slowing down lowers the force with its feed, not its material)
+                v_fast = (front - front_fast) / (self.n_fast * self.tick_s)
+                self.stop_reason = self.force_stop.check(
+                    depth,
+                    hu_slow,
+                    c_slow,
+                    fast_force_n=fast,
+                    feed_factor=min(factor, feed_factor_scalar(v_fast, self.ke)),
+                    log10_gain=self.log10_gain,
+                    prior_index=self._prior_index(depth),
+                )
         # a fast front: the force over the regressor, each summed over the last half rotation
         v_half = (front - front_half) / (self.n_half * self.tick_s)
         if v_half >= FAST_FEED_MM_S and self._hphi > 0.0:
@@ -402,23 +400,3 @@ class HuEstimator:
         mid = m // 2
         self.log10_gain = self._z[mid] if m % 2 else 0.5 * (self._z[mid - 1] + self._z[mid])
         self.gain_updates += 1
-
-    def _check_stop(self, depth_mm: float, hu: float, log10_c: float, factor: float) -> None:
-        if hu >= self.prior.exit_hu:
-            if math.isnan(self.bone_since_mm):
-                self.bone_since_mm = depth_mm
-        elif not math.isnan(self.bone_since_mm):
-            if depth_mm - self.bone_since_mm >= IN_BONE_MM:
-                self.stop_reason = "cortex_exit"
-                return
-            self.bone_since_mm = math.nan
-        if not math.isnan(self.bone_since_mm) and depth_mm - self.bone_since_mm >= IN_BONE_MM:
-            # the fast test: even at the vibration's crest the force is below the exit level
-            gain = 10.0**self.log10_gain
-            vib = gain * sum(10.0 ** (b0 + n * log10_c) for b0, n in self.harmonics)
-            if self._fast / self.n_fast + vib < gain * self.exit_a0_n * factor:
-                self.stop_reason = "cortex_exit"
-                return
-        k = self._prior_index(depth_mm)
-        if k >= 0 and hu > self.prior.window_max_hu[k] + RISE_MARGIN_HU:
-            self.stop_reason = "density_rise"

@@ -108,6 +108,36 @@ def test_a_force_that_vanishes_after_bone_is_a_cortex_exit() -> None:
     assert 3.0 < 1.0 + 0.5 * k * 1e-4 < 3.6
 
 
+def test_a_front_slowing_down_in_bone_is_no_cortex_exit() -> None:
+    """A push meets the bone at 60 mm/s and slows to 3 mm/s in it (as on the Philips head
+    phantom, below): the force falls with the feed's factor, not the material; the fast exit
+    test compared it with the exit level's force at the window's mean feed, 33 ms behind."""
+    cal, prior = _slab_prior(1050.0)
+    est = HuEstimator(cal, prior, tip_length_mm=0.6, window_ticks=333, tick_s=1e-4)
+    x = 0.0
+    for _ in range(5000):
+        feed = 60.0 if x < 4.0 else 3.0
+        x += feed * 1e-4
+        f = 0.8 * float(a0_n(1050.0, feed, cal)) * min(1.0, max(0.0, (x - 1.0) / 0.6))
+        est.update(x + f / 100.0, f)
+    assert est.stop_reason is None
+    assert x > 4.1 and est.hu == pytest.approx(1050.0, abs=1.0)
+
+
+def test_a_push_on_the_philips_phantom_is_not_stopped_in_bone(shared_data: Path) -> None:
+    """``push:20`` with the force law 20 % low on the real Philips head CT: the front meets the
+    bone at ~180 mm/s and slows in it; it was stopped 2.1 mm into bone as ``cortex_exit``
+    (the CT shows no exit before the plan's stop)."""
+    case = prepare_teleop(
+        shared_data / "dcmqa_ct_Philips_phantom_notilt_5mm",
+        ROOT / "tests" / "data" / "philips_head_arch.plan.json",
+    )
+    assert case.exit_mm is None
+    run, f = run_teleop(case, parse_operator("push:20"), duration_s=0.25, model_error=-0.2)
+    assert f["stop_reason"] == "none"  # 0.25 s: 3 mm into bone, the plan's stop not yet reached
+    assert run.front_mm[-1] > case.prior.contact_mm + 2.5
+
+
 def _drill(
     est: HuEstimator, force_at: Callable[[float], float], x0: float, feed_mm_s: float, ticks: int
 ) -> None:
