@@ -311,15 +311,17 @@ class HuEstimator:
             self.hu_slow = hu_slow
             slow = True
             if s_t >= 1.0:  # the stops read a fully engaged lip only
-                # the fast test's feed: the slower of the window's and the fast average's own
-                # (a front slowing down lowers the force with its feed, not its material)
-                v_fast = (front - front_fast) / (self.n_fast * self.tick_s)
+                # the fast test's feed (stop.py): its own or the half rotation's, the slower
+                v_fast = min(
+                    (front - front_fast) / (self.n_fast * self.tick_s),
+                    (front - front_half) / (self.n_half * self.tick_s),
+                )
                 self.stop_reason = self.force_stop.check(
                     depth,
                     hu_slow,
                     c_slow,
                     fast_force_n=fast,
-                    feed_factor=min(factor, feed_factor_scalar(v_fast, self.ke)),
+                    feed_factor=feed_factor_scalar(v_fast, self.ke),
                     log10_gain=self.log10_gain,
                     prior_index=self._prior_index(depth),
                 )
