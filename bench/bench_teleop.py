@@ -420,7 +420,7 @@ def run(quick: bool) -> Section:
     )
     est_rows, worst, lag_ms_where = _estimation(base, [0] if quick else [0, 1, 2])
     fig14_rows, fig14_pct = ([], {}) if quick else _fig14(base)
-    lag_ops = (("feed:2", 0.0), ("push:20", 0.0), ("push:25", 3.0))
+    lag_ops: tuple[tuple[str, float], ...] = (("feed:2", 0.0), ("push:20", 0.0), ("push:25", 3.0))
     if not quick:
         lag_ops = tuple((spec, 0.0) for spec in LAG_OPERATORS) + LAG_MISREGISTERED
     lag_rows, lag_kinds = _lag_by_feed(cases, lag_ops)

@@ -264,6 +264,27 @@ def teleop_metrics(
                 b_mm, names[j - 1], names[j], level, abs(lag_mm) <= DETECT_TOL_MM, lag_mm, lag_ms
             )
         )
+    # a force stop on the lip's way out: the CT's lip-mean number crossed the mid-level to the
+    # gate before the brake, but never reached the gate (the class of the layer beyond), so
+    # the boundary has no samples of its own; its lag is the stop's
+    if run.stop_reason == "cortex_exit" and layers and layers[-1][0] != 0:
+        c0, a0, b0 = layers[-1]
+        stop_i = min(int(np.searchsorted(run.time_s, run.stop_time_s)), len(run.hu_ct) - 1)
+        m0 = float(np.mean(run.hu_ct[a0 : b0 + 1]))
+        level = 0.5 * (m0 + gate_hu)
+        ct = run.hu_ct[a0 : stop_i + 1]
+        past = np.flatnonzero(ct <= level)
+        if past.size and b0 <= stop_i:
+            t_truth = a0 + int(past[0])
+            b_mm = float(run.front_mm[t_truth])
+            t_est = _crossing(np.nan_to_num(est, nan=m0)[: stop_i + 1], level, True, a0)
+            t_est = stop_i if t_est < 0 else min(t_est, stop_i)
+            lag_mm = float(run.front_mm[t_est]) - b_mm
+            lag_ms = 1e3 * float(run.time_s[t_est] - run.time_s[t_truth])
+            name = LAYER_NAMES[0] + (f" {counts[0] + 1}" if counts.get(0) else "")
+            boundaries.append(
+                Boundary(b_mm, names[-1], name, level, abs(lag_mm) <= DETECT_TOL_MM, lag_mm, lag_ms)
+            )
     # false alarms: changes of the estimate's layer away from every true boundary
     false_alarms = 0
     alarm_mm: list[float] = []
