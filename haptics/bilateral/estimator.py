@@ -312,10 +312,7 @@ class HuEstimator:
             slow = True
             if s_t >= 1.0:  # the stops read a fully engaged lip only
                 # the fast test's feed (stop.py): its own or the half rotation's, the slower
-                v_fast = min(
-                    (front - front_fast) / (self.n_fast * self.tick_s),
-                    (front - front_half) / (self.n_half * self.tick_s),
-                )
+                v_fast = (front - front_fast) / (self.n_fast * self.tick_s)
                 self.stop_reason = self.force_stop.check(
                     depth,
                     hu_slow,
@@ -324,6 +321,7 @@ class HuEstimator:
                     feed_factor=feed_factor_scalar(v_fast, self.ke),
                     log10_gain=self.log10_gain,
                     prior_index=self._prior_index(depth),
+                    rest_n=f / factor,
                 )
         # a fast front: the force over the regressor, each summed over the last half rotation
         v_half = (front - front_half) / (self.n_half * self.tick_s)

@@ -2,25 +2,31 @@
 force", step 5).
 
 :class:`ForceStop` reads the estimator's whole-rotation estimate on a fully engaged lip:
-``cortex_exit`` when the estimate, after :data:`IN_BONE_MM` in bone, falls below the exit
-level (half-way from the gate's upper edge to the softest bone of the plan's CT along the
-whole path, :attr:`~.prior.Prior.exit_hu`: a level, never a position, so the registration does
-not enter). The same fires sooner from a fast average (:data:`FAST_FRACTION` of the window)
-when even at the vibration's crest (the model's ``sum Bk`` at the current estimate) the force
-is below the exit level's ``A0`` times the feed factor ``1 + Ke v``: a fast feed crosses the
-lip's exit in less than a window. The feed there is the slower of the window's mean and the
-fast average's own: a front slowing down in bone (a push's impact decelerating) lowers its
-force with its feed while the window's mean feed, 33 ms behind, still expects the faster
-front's force (on the Philips head phantom, ``push:20`` with the force law 20 % low, that read
-as an exit 2.1 mm into bone). ``density_rise`` when the estimate exceeds the plan's CT anywhere
-within :data:`~.prior.RISE_WINDOW_MM` by :data:`RISE_MARGIN_HU`.
+``cortex_exit`` when the estimate, after :data:`IN_BONE_MM` in bone, falls below the exit level
+(half-way from the gate's upper edge to the softest bone of the plan's CT along the whole path,
+:attr:`~.prior.Prior.exit_hu`: a level, never a position, so the registration does not enter). The
+same fires sooner from a fast average (:data:`FAST_FRACTION` of the window) when even at the
+vibration's crest (the model's ``sum Bk`` at the current estimate) the force is below the exit
+level's ``A0`` times the feed factor ``1 + Ke v`` (a fast feed crosses the lip's exit in less than
+a window) **and** below :data:`~ctdrill.haptics.hands.BREAKTHROUGH_RATIO` of the peak force at rest
+over the last :data:`~ctdrill.haptics.hands.BREAKTHROUGH_WINDOW_MM` times that factor (the
+sessions' breakthrough rule: the stop never comes before the exit it is meant to catch). The feed
+is the fast average's own: a front slowing down in bone (a push's impact decelerating) lowers its
+force with its feed, and a drill plunging through an exit (~58 mm/s) raises it. With the window's
+mean feed, 33 ms behind, the first read as an exit 2.1 mm into bone on the Philips head phantom
+(``push:20``, force law 20 % low) and the second fired 0.33-0.36 mm past the exit (the canal's roof
+lag 0.29-0.41 mm); with the fast feed alone, without the breakthrough ratio, ``push:15`` onto a
+plan misregistered by 3 mm was stopped 0.056 mm before the exit. ``density_rise`` when the estimate
+exceeds the plan's CT anywhere within :data:`~.prior.RISE_WINDOW_MM` by :data:`RISE_MARGIN_HU`.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 
 from ctdrill.haptics.bilateral.prior import Prior
+from ctdrill.haptics.hands import BREAKTHROUGH_RATIO, BREAKTHROUGH_WINDOW_MM
 
 #: The fast exit test averages over this fraction of the low-pass window.
 FAST_FRACTION = 8
@@ -56,6 +62,7 @@ class ForceStop:
         self.harmonics = harmonics
         self.bone_since_mm = math.nan
         self.reason: str | None = None
+        self._peak: deque[tuple[float, float]] = deque()  # (depth, force at rest), falling
 
     def check(
         self,
@@ -67,11 +74,18 @@ class ForceStop:
         feed_factor: float,
         log10_gain: float,
         prior_index: int,
+        rest_n: float = math.inf,
     ) -> str | None:
         """One tick on a fully engaged lip: the front's depth (mm), the whole rotation's
-        estimate (HU, ``log10 C'``), the fast average's force (N), the fast test's feed factor,
-        the learnt gain and the plan's index at the depth (-1: off the plan). Returns the
-        reason once fired."""
+        estimate (HU, ``log10 C'``), the fast average's force (N), its feed factor, the learnt
+        gain, the plan's index at the depth (-1: off the plan) and the whole rotation's force
+        at rest (N). Returns the reason once fired."""
+        pk = self._peak
+        while pk and pk[-1][1] <= rest_n:
+            pk.pop()
+        pk.append((depth_mm, rest_n))
+        while pk[0][0] < depth_mm - BREAKTHROUGH_WINDOW_MM:
+            pk.popleft()
         if hu >= self.prior.exit_hu:
             if math.isnan(self.bone_since_mm):
                 self.bone_since_mm = depth_mm
@@ -84,7 +98,11 @@ class ForceStop:
             # the fast test: even at the vibration's crest the force is below the exit level
             gain = 10.0**log10_gain
             vib = gain * sum(10.0 ** (b0 + n * log10_c) for b0, n in self.harmonics)
-            if fast_force_n + vib < gain * self.exit_a0_n * feed_factor:
+            crest = fast_force_n + vib
+            if (
+                crest < gain * self.exit_a0_n * feed_factor
+                and crest < BREAKTHROUGH_RATIO * pk[0][1] * feed_factor
+            ):
                 self.reason = "cortex_exit"
                 return self.reason
         k = prior_index

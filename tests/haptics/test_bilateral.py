@@ -124,6 +124,24 @@ def test_a_front_slowing_down_in_bone_is_no_cortex_exit() -> None:
     assert x > 4.1 and est.hu == pytest.approx(1050.0, abs=1.0)
 
 
+def test_a_plunge_through_the_exit_is_stopped_past_the_breakthrough_and_soon() -> None:
+    """The lip leaves a slab at 3.0-3.6 mm while the front jumps from 10 to 60 mm/s (the plunge
+    after a breakthrough): the sessions' breakthrough (the force at rest below half its peak)
+    is at 3.3 mm; the fast test reads the force at the plunge's feed, so the stop comes past
+    it, 0.13 mm past (with the window's mean feed, 33 ms behind: 0.24 mm)."""
+    cal, prior = _slab_prior(1050.0)
+    est = HuEstimator(cal, prior, tip_length_mm=0.6, window_ticks=333, tick_s=1e-4)
+    x = 0.0
+    while est.stop_reason is None and x < 4.0:
+        feed = 10.0 if x < 3.0 else 60.0
+        x += feed * 1e-4
+        s_t = min(1.0, max(0.0, (x - 1.0) / 0.6), max(0.0, 1.0 - (x - 3.0) / 0.6))
+        f = float(a0_n(1050.0, feed, cal)) * s_t
+        est.update(x + f / 100.0, f)
+    assert est.stop_reason == "cortex_exit"
+    assert 3.3 <= x <= 3.45
+
+
 def test_a_push_on_the_philips_phantom_is_not_stopped_in_bone(shared_data: Path) -> None:
     """``push:20`` with the force law 20 % low on the real Philips head CT: the front meets the
     bone at ~180 mm/s and slows in it; it was stopped 2.1 mm into bone as ``cortex_exit``
