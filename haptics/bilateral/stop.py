@@ -10,7 +10,7 @@ vibration's crest (the model's ``sum Bk`` at the current estimate) the force is 
 level's ``A0`` times the feed factor ``1 + Ke v`` (a fast feed crosses the lip's exit in less than
 a window) **and** below :data:`~ctdrill.haptics.hands.BREAKTHROUGH_RATIO` of the peak force at rest
 over the last :data:`~ctdrill.haptics.hands.BREAKTHROUGH_WINDOW_MM` times that factor (the
-sessions' breakthrough rule: the stop never comes before the exit it is meant to catch). The feed
+sessions' breakthrough rule, so that the stop does not come before the exit it catches). The feed
 is the fast average's own: a front slowing down in bone (a push's impact decelerating) lowers its
 force with its feed, and a drill plunging through an exit (~58 mm/s) raises it. With the window's
 mean feed, 33 ms behind, the first read as an exit 2.1 mm into bone on the Philips head phantom
