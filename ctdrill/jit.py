@@ -19,9 +19,11 @@ import (with SciPy's linear algebra, which numba loads for a BLAS check) and its
 load cost a fresh process 0.5-0.8 s, more than a one-plan export's whole work on the NumPy
 paths. Functions marked :func:`helper` stay plain Python until then and are compiled (and
 rebound in the modules of the kernels and helpers) when numba is loaded. Inside
-:func:`job` a small job (fewer than :data:`COMPILED_MIN_TRAJECTORIES` trajectories) does not
-load numba at all and takes the NumPy paths, unless numba is loaded in the process already
-(its cost is paid: the window, ``suggest``); the answers are the same bits either way.
+:func:`job` a job of fewer than :data:`COMPILED_MIN_TRAJECTORIES` trajectories would not load
+numba and would take the NumPy paths; the bound is 1, so every job takes the kernels: some
+kernels (the landmark clearances' golden section) agree with their NumPy paths to their
+tolerance, not to the bit, and a trajectory's stop must not depend on the process computing it
+(a batch row in a worker, the same row in one process, the window).
 """
 
 from __future__ import annotations
@@ -39,11 +41,13 @@ import numpy as np
 
 #: Environment variable that switches every kernel off (NumPy paths only).
 NO_JIT_ENV = "CTDRILL_NO_JIT"
-#: A job of fewer trajectories than this (a one-plan export) runs on the NumPy paths when
-#: numba is not loaded yet: numba's import and first cache load (0.5-0.8 s of CPU) cost more
-#: than the whole job's work there. Larger jobs, and every call outside :func:`job`, use the
-#: kernels.
-COMPILED_MIN_TRAJECTORIES = 2
+#: A job of fewer trajectories than this would run on the NumPy paths when numba is not
+#: loaded yet (numba's import and first cache load cost a fresh process 0.5-0.8 s of CPU, more
+#: than a one-plan export's work). It is 1: every job uses the kernels, because the landmark
+#: clearances' kernel agrees with its NumPy path within ``SEGMENT_TOL_MM``, not bit for bit,
+#: so a one-plan row would stop 1e-4 mm apart in a worker and in a process that had loaded
+#: numba (tests/app/test_batch.py). Raise it only with every kernel bitwise equal.
+COMPILED_MIN_TRAJECTORIES = 1
 
 _KERNELS: list[Kernel] = []
 #: Functions marked :func:`helper` before numba was loaded (compiled when it is).

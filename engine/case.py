@@ -175,7 +175,7 @@ def prepare_case(
     check_settings(settings)
     hu_sigma_uncertainty(settings.hu_sigma)  # a bad --hu-sigma is refused before any load
     plans = list(with_set_warnings(load_plan_set(plan_paths)))
-    # a one-plan case: the NumPy paths, without numba's import (ctdrill.jit.job)
+    # the job's size decides the kernels' use (ctdrill.jit.job)
     with jit.job(len(plans)):
         per_file = Counter(plan.source for plan in plans)
         volume, grey_map = map_volume(load_ct(dicom, series_uid=settings.series), settings.grey)
