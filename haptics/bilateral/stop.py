@@ -29,7 +29,7 @@ from ctdrill.haptics.bilateral.prior import Prior
 from ctdrill.haptics.hands import BREAKTHROUGH_RATIO, BREAKTHROUGH_WINDOW_MM
 
 #: The fast exit test averages over this fraction of the low-pass window.
-FAST_FRACTION = 8
+FAST_FRACTION = 10
 #: Depth in bone before an exit counts, mm.
 IN_BONE_MM = 0.5
 #: A density rise the plan does not expect: this much above its CT's maximum nearby, HU.
