@@ -37,7 +37,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from bench.report import Section, Timing, table
-from ctdrill.jit import COMPILED_MIN_TRAJECTORIES
 
 ROOT = Path(__file__).resolve().parents[1]
 HELP_GOAL_S = 0.15
@@ -222,8 +221,7 @@ def run(quick: bool) -> Section:
         f"Goal: the export <= {EXPORT_GOAL_X:g} x its import floor; measured "
         f"{export_x:.2f} x in CPU time ({wall_x:.2f} x wall) with force.png, "
         f"{no_plot_x:.2f} x with `--no-plot`. A one-plan export loads numba and its kernels "
-        "(`ctdrill.jit.job`: jobs of at least "
-        f"{COMPILED_MIN_TRAJECTORIES} trajectory take the kernels, so a stop does not depend on "
+        "(`ctdrill.jit`: every job takes the kernels, so a stop does not depend on "
         "the process computing it: some kernels agree with their NumPy paths to their "
         "tolerance, not to the bit); what lies above the floor is numba's import with SciPy's "
         "linear algebra and its first cache load, matplotlib for force.png (its import and the "

@@ -18,12 +18,11 @@ numba itself is imported only when a kernel is first asked for (:meth:`Kernel.re
 import (with SciPy's linear algebra, which numba loads for a BLAS check) and its first cache
 load cost a fresh process 0.5-0.8 s, more than a one-plan export's whole work on the NumPy
 paths. Functions marked :func:`helper` stay plain Python until then and are compiled (and
-rebound in the modules of the kernels and helpers) when numba is loaded. Inside
-:func:`job` a job of fewer than :data:`COMPILED_MIN_TRAJECTORIES` trajectories would not load
-numba and would take the NumPy paths; the bound is 1, so every job takes the kernels: some
-kernels (the landmark clearances' golden section) agree with their NumPy paths to their
-tolerance, not to the bit, and a trajectory's stop must not depend on the process computing it
-(a batch row in a worker, the same row in one process, the window).
+rebound in the modules of the kernels and helpers) when numba is loaded. Every job takes the
+kernels where their cache is present, a one-plan export too: some kernels (the landmark
+clearances' golden section) agree with their NumPy paths to their tolerance, not to the bit,
+and a trajectory's stop must not depend on the process computing it (a batch row in a worker,
+the same row in one process, the window).
 """
 
 from __future__ import annotations
@@ -31,7 +30,6 @@ from __future__ import annotations
 import contextlib
 import itertools
 import os
-import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -41,22 +39,12 @@ import numpy as np
 
 #: Environment variable that switches every kernel off (NumPy paths only).
 NO_JIT_ENV = "CTDRILL_NO_JIT"
-#: A job of fewer trajectories than this would run on the NumPy paths when numba is not
-#: loaded yet (numba's import and first cache load cost a fresh process 0.5-0.8 s of CPU, more
-#: than a one-plan export's work). It is 1: every job uses the kernels, because the landmark
-#: clearances' kernel agrees with its NumPy path within ``SEGMENT_TOL_MM``, not bit for bit,
-#: so a one-plan row would stop 1e-4 mm apart in a worker and in a process that had loaded
-#: numba (tests/app/test_batch.py). Raise it only with every kernel bitwise equal.
-COMPILED_MIN_TRAJECTORIES = 1
-
 _KERNELS: list[Kernel] = []
 #: Functions marked :func:`helper` before numba was loaded (compiled when it is).
 _HELPERS: list[Callable[..., Any]] = []
 #: numba once imported (``False``: the import failed); ``None``: not tried yet.
 _NUMBA: list[Any] = [None]
 _NUMBA_LOCK = threading.RLock()
-#: Trajectories of the job in progress (:func:`job`); ``None``: no job declared.
-_JOB: list[int | None] = [None]
 
 
 def _numba() -> Any:
@@ -91,25 +79,6 @@ def _bind_helpers(numba: Any) -> None:
 def available() -> bool:
     """``CTDRILL_NO_JIT`` is not set and numba imports (importing it)."""
     return os.environ.get(NO_JIT_ENV, "") in ("", "0") and _numba() is not None
-
-
-def worth_loading() -> bool:
-    """The kernels are worth numba's import here: no small :func:`job` is in progress, or
-    numba is loaded in this process already."""
-    n = _JOB[0]
-    return n is None or n >= COMPILED_MIN_TRAJECTORIES or sys.modules.get("numba") is not None
-
-
-@contextlib.contextmanager
-def job(trajectories: int) -> Iterator[None]:
-    """Within the block, a job of ``trajectories`` trajectories: below
-    :data:`COMPILED_MIN_TRAJECTORIES` the kernels are not loaded (NumPy paths, same bits)."""
-    saved = _JOB[0]
-    _JOB[0] = int(trajectories)
-    try:
-        yield
-    finally:
-        _JOB[0] = saved
 
 
 class Kernel:
@@ -150,10 +119,7 @@ class Kernel:
         return self._dispatcher
 
     def ready(self) -> bool:
-        """True when every signature is loaded from the disk cache (never compiles); False
-        without loading anything inside a small :func:`job`."""
-        if self._ready is None and not worth_loading():
-            return False
+        """True when every signature is loaded from the disk cache (never compiles)."""
         if self._ready is None:
             self._ready = available() and self._load()
         return self._ready

@@ -15,7 +15,6 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from ctdrill import jit
 from ctdrill.engine.errors import ExportInputError
 from ctdrill.engine.grey import hu_sigma_uncertainty, hu_uncertainty, map_volume
 from ctdrill.engine.path import PathResult, plan_path
@@ -175,60 +174,56 @@ def prepare_case(
     check_settings(settings)
     hu_sigma_uncertainty(settings.hu_sigma)  # a bad --hu-sigma is refused before any load
     plans = list(with_set_warnings(load_plan_set(plan_paths)))
-    # the job's size decides the kernels' use (ctdrill.jit.job)
-    with jit.job(len(plans)):
-        per_file = Counter(plan.source for plan in plans)
-        volume, grey_map = map_volume(load_ct(dicom, series_uid=settings.series), settings.grey)
-        cache: dict[str, Calibration] = {}
-        override = None if settings.calibration is None else load_calibration(settings.calibration)
-        jobs: list[ExportJob] = []
-        sequences: list[tuple[SequenceResult, str]] = []
-        seen: dict[str, tuple[str, str]] = {}
-        gaps = settings.interpolate_gaps
-        for n, plan in enumerate(plans):
-            if progress is not None:
-                progress(n, len(plans), plan.name)
-            if override is not None:
-                cal = override
-            else:
-                key = plan_calibration_key(plan)
-                if key not in cache:
-                    cache[key] = load_calibration(key)
-                cal = cache[key]
-            if settings.feed_mm_s is not None:
-                plan = replace(
-                    plan, feed_mm_s=settings.feed_mm_s
-                )  # the path's feed warnings see it
-                plans[n] = plan
-            if settings.placement is not None:
-                plan = replace(plan, placement=settings.placement)  # the margin budget's mode
-                plans[n] = plan
-            sub = "" if len(plans) == 1 else _subdir(_stem(plan, per_file[plan.source]))
-            if sub in seen:
-                first, source = seen[sub]
-                raise DuplicateTrajectoryError(
-                    f"--plan: trajectories {first!r} ({Path(source).name}) and {plan.name!r} "
-                    f"({Path(plan.source).name}) would both write the output folder {sub!r}; "
-                    "rename one so their outputs do not overwrite each other"
-                )
-            seen[sub] = (plan.name, plan.source)
-            if len(plan.drills) > 1:  # a drill sequence: OUT[/plan]/drill_k/ + summary.json
-                seq = plan_sequence(volume, plan, cal, interpolate_gaps=gaps)
-                sequences.append((seq, sub))
-                jobs.extend(sequence_jobs(seq, sub))
-                continue
-            # with an implant the drill reaches the apex plus its tip (Plan.drilled)
-            result = plan_path(volume, plan.drilled(0), cal, interpolate_gaps=gaps)
-            jobs.append(ExportJob(result, sub, plan_verdict(volume, plan, path=result)))
-        patient = None
-        if settings.include_phi:
-            patient = (
-                read_patient_fields(dicom, volume.info.series_uid)
-                if volume.info.source_format == "DICOM"
-                else {"description": volume.info.series_description}  # NIfTI descrip, NRRD content
+    per_file = Counter(plan.source for plan in plans)
+    volume, grey_map = map_volume(load_ct(dicom, series_uid=settings.series), settings.grey)
+    cache: dict[str, Calibration] = {}
+    override = None if settings.calibration is None else load_calibration(settings.calibration)
+    jobs: list[ExportJob] = []
+    sequences: list[tuple[SequenceResult, str]] = []
+    seen: dict[str, tuple[str, str]] = {}
+    gaps = settings.interpolate_gaps
+    for n, plan in enumerate(plans):
+        if progress is not None:
+            progress(n, len(plans), plan.name)
+        if override is not None:
+            cal = override
+        else:
+            key = plan_calibration_key(plan)
+            if key not in cache:
+                cache[key] = load_calibration(key)
+            cal = cache[key]
+        if settings.feed_mm_s is not None:
+            plan = replace(plan, feed_mm_s=settings.feed_mm_s)  # the path's feed warnings see it
+            plans[n] = plan
+        if settings.placement is not None:
+            plan = replace(plan, placement=settings.placement)  # the margin budget's mode
+            plans[n] = plan
+        sub = "" if len(plans) == 1 else _subdir(_stem(plan, per_file[plan.source]))
+        if sub in seen:
+            first, source = seen[sub]
+            raise DuplicateTrajectoryError(
+                f"--plan: trajectories {first!r} ({Path(source).name}) and {plan.name!r} "
+                f"({Path(plan.source).name}) would both write the output folder {sub!r}; "
+                "rename one so their outputs do not overwrite each other"
             )
-        context = case_context(volume, grey_map, settings, patient=patient)
-        return PreparedCase(volume, tuple(plans), tuple(jobs), tuple(sequences), context)
+        seen[sub] = (plan.name, plan.source)
+        if len(plan.drills) > 1:  # a drill sequence: OUT[/plan]/drill_k/ + summary.json
+            seq = plan_sequence(volume, plan, cal, interpolate_gaps=gaps)
+            sequences.append((seq, sub))
+            jobs.extend(sequence_jobs(seq, sub))
+            continue
+        # with an implant the drill reaches the apex plus its tip (Plan.drilled)
+        result = plan_path(volume, plan.drilled(0), cal, interpolate_gaps=gaps)
+        jobs.append(ExportJob(result, sub, plan_verdict(volume, plan, path=result)))
+    patient = None
+    if settings.include_phi:
+        patient = (
+            read_patient_fields(dicom, volume.info.series_uid)
+            if volume.info.source_format == "DICOM"
+            else {"description": volume.info.series_description}  # NIfTI descrip, NRRD content
+        )
+    context = case_context(volume, grey_map, settings, patient=patient)
+    return PreparedCase(volume, tuple(plans), tuple(jobs), tuple(sequences), context)
 
 
 def case_context(

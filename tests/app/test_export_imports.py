@@ -2,7 +2,7 @@
 
 ``ctdrill export`` of one plan imports no SciPy module of its own (the sampler gives
 ``map_coordinates``' bits without ``scipy.ndimage``; numba loads SciPy's linear algebra for its
-BLAS check, and the kernels are used by every job: :data:`ctdrill.jit.COMPILED_MIN_TRAJECTORIES`),
+BLAS check, and every job takes the kernels: :mod:`ctdrill.jit`),
 nor any GUI or 3D toolkit; with ``--no-plot`` not matplotlib either.
 """
 
