@@ -1,24 +1,25 @@
 """The report's curves page of a trajectory: force, HU (with the Misch bands) and clearance
 against depth, the stop, the max safe depth and the planned depth marked on each.
 
-Drawn by the same functions as the export's ``force.png``
-(:func:`ctdrill.app.export_plot.draw_template` and :func:`~ctdrill.app.export_plot.draw_trajectory`:
+The same figure as the export's ``force.png`` (:func:`ctdrill.app.force_figure.force_figure`:
 the force axis from 0, the vibration envelope, the mean force and its 68 % band when the set
-gives one), on an A4 landscape page with a line naming what is drawn.
+gives one), drawn by :func:`ctdrill.app.export_plot.draw_force_figure` on an A4 landscape page
+with a line naming what is drawn.
 """
 
 from __future__ import annotations
 
 from matplotlib.figure import Figure
 
-from ctdrill.app.export_plot import draw_template, draw_trajectory
+from ctdrill.app.export_plot import draw_force_figure
+from ctdrill.app.force_figure import force_figure
 from ctdrill.app.report.entries import Entry
 from ctdrill.app.report.layout import LINE_SPACING, MARGIN_IN, PAGE_IN, wrap
 from ctdrill.engine.stop import stop_words
 from ctdrill.text import printable
 
 #: Axes placement on the A4 page (figure fractions): room for the y labels at the left
-#: (draw_template places them 0.075 axes widths left of the axes), the title and the stop
+#: (the export's figure places them 0.075 axes widths left of the axes), the title and the stop
 #: label above, the x label below.
 _ADJUST = {"left": 0.085, "right": 0.965, "bottom": 0.1, "top": 0.79, "hspace": 0.16}
 #: The y labels' position on this wider page (axes fractions, left of the tick labels).
@@ -29,10 +30,10 @@ def curves_page(fig: Figure, entry: Entry) -> None:
     """Draw ``entry``'s curves on the page ``fig`` (titled by :class:`TextPages`)."""
     fig.subplots_adjust(**_ADJUST)
     ax_f, ax_h, ax_c = fig.subplots(3, 1, sharex=True)
-    draw_template(ax_f, ax_h, ax_c)
+    figure = force_figure(entry.result, entry.series, entry.band)
+    draw_force_figure(fig, (ax_f, ax_h, ax_c), figure, title=False)
     for ax in (ax_f, ax_h, ax_c):
         ax.yaxis.set_label_coords(*_YLABEL_AT)
-    draw_trajectory(fig, ax_f, ax_h, ax_c, entry.result, entry.series, entry.band)
     o = entry.summary.outcome
     fig.suptitle(
         printable(f"{entry.label}: force, HU and clearance against depth"),

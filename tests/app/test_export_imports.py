@@ -3,7 +3,8 @@
 ``ctdrill export`` of one plan imports no SciPy module of its own (the sampler gives
 ``map_coordinates``' bits without ``scipy.ndimage``; numba loads SciPy's linear algebra for its
 BLAS check, and every job takes the kernels: :mod:`ctdrill.jit`),
-nor any GUI or 3D toolkit; with ``--no-plot`` not matplotlib either.
+nor any GUI or 3D toolkit, nor matplotlib: ``force.png`` is drawn with Pillow
+(:mod:`ctdrill.app.raster_plot`).
 """
 
 from __future__ import annotations
@@ -14,17 +15,22 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "assets" / "demo"
-#: Top-level packages a one-plan export without the plot does not need.
+#: Top-level packages a one-plan export (with its plot or without) does not need.
 NOT_NEEDED = {"matplotlib", "PySide6", "vtk", "vtkmodules", "pyvista"}
 #: SciPy modules the export never uses (numba itself imports scipy.linalg).
 NOT_NEEDED_SCIPY = ("scipy.ndimage", "scipy.interpolate", "scipy.spatial", "scipy.optimize")
 
 
-def test_a_one_plan_export_imports_no_heavy_module_it_does_not_use(tmp_path: Path) -> None:
+@pytest.mark.parametrize("plot", [True, False])
+def test_a_one_plan_export_imports_no_heavy_module_it_does_not_use(
+    tmp_path: Path, plot: bool
+) -> None:
     argv = ["export", "--ct", str(DEMO / "ct"), "--plan", str(DEMO / "plan.json")]
-    argv += ["--out", str(tmp_path / "out"), "--no-plot"]
+    argv += ["--out", str(tmp_path / "out")] + ([] if plot else ["--no-plot"])
     code = (
         "import json, sys\n"
         "from ctdrill.app.cli import main\n"
@@ -38,6 +44,7 @@ def test_a_one_plan_export_imports_no_heavy_module_it_does_not_use(tmp_path: Pat
     exit_code, names = json.loads(out.stderr.splitlines()[-1])
     assert exit_code == 0
     assert (tmp_path / "out" / "summary.json").is_file()
+    assert (tmp_path / "out" / "force.png").is_file() == plot
     assert "pydicom" in names  # the series was read in this process
     assert sorted(n for n in names if n.split(".")[0] in NOT_NEEDED) == []
     assert sorted(n for n in names if n.startswith(NOT_NEEDED_SCIPY)) == []

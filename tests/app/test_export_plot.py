@@ -1,4 +1,5 @@
-"""force.png drawn lean: the envelope, the PNG encoder and the reused figure (issue 17)."""
+"""force.png drawn lean: the envelope, the PNG encoder (issue 17), the figure's content decided
+once and rasterised with Pillow (issue 37), its ticks against matplotlib's locator."""
 
 from __future__ import annotations
 
@@ -7,10 +8,14 @@ import zlib
 from dataclasses import replace
 
 import numpy as np
+import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 from PIL import Image
 
-import ctdrill.app.export_plot as plot
-from ctdrill.app.export_plot import envelope, force_png, png_bytes
+from ctdrill.app.export_plot import draw_force_figure, force_png, png_bytes
+from ctdrill.app.force_figure import envelope, force_figure
+from ctdrill.app.raster_plot import X_BINS, Y_BINS, nice_ticks
 from ctdrill.engine.path import PathResult, plan_path
 from ctdrill.engine.series import ForceSeries, force_time_series
 from ctdrill.imaging import load_series
@@ -70,29 +75,46 @@ def _demo() -> tuple[PathResult, ForceSeries, PathResult, ForceSeries]:
     )
 
 
-def test_reused_figure_leaves_nothing_behind() -> None:
-    """The figure is built once per process: a plot drawn after another trajectory's (with
-    other landmarks, limits and legend) is the same image as on a fresh figure."""
+def _png_pixels(data: bytes) -> np.ndarray:
+    with Image.open(io.BytesIO(data)) as im:
+        assert im.size == (1200, 1000)
+        return np.asarray(im.convert("RGB")).astype(int)
+
+
+def test_the_plot_is_drawn_from_the_trajectory_alone() -> None:
+    """The same trajectory gives the same bytes, before and after another one is drawn; two
+    trajectories differ; the force envelope is a solid area of the default blue; nothing of
+    matplotlib is imported to draw it."""
     a, sa, b, sb = _demo()
-    plot._CANVAS = None
-    first = io.BytesIO()
+    first, other, again = io.BytesIO(), io.BytesIO(), io.BytesIO()
     force_png(a, sa, first)
-    other = io.BytesIO()
     force_png(b, sb, other)
-    again = io.BytesIO()
     force_png(a, sa, again)
     assert first.getvalue() == again.getvalue()
     assert first.getvalue() != other.getvalue()
-    plot._CANVAS = None
-    fresh = io.BytesIO()
-    force_png(b, sb, fresh)
-    assert fresh.getvalue() == other.getvalue()
-    with Image.open(io.BytesIO(first.getvalue())) as im:
-        assert im.size == (1200, 1000)
-        px = np.asarray(im.convert("RGB")).astype(int)
-    # the force band is drawn: the default blue (#1f77b4) covers a solid area
+    px = _png_pixels(first.getvalue())
     blue = np.all(np.abs(px - [0x1F, 0x77, 0xB4]) < 8, axis=2)
     assert blue.sum() > 10_000
+    # the red stop line crosses all three panels at the stop depth's column
+    red = np.all(np.abs(px - [0xD6, 0x27, 0x28]) < 40, axis=2)
+    col = np.flatnonzero(red.sum(axis=0) > 250)  # the max safe depth dots over it
+    assert col.size, "no vertical red line"
+    left, right = 0.095 * 1200, 0.975 * 1200
+    stop_px = left + a.stop_depth_mm / a.planned_depth_mm * (right - left)
+    assert np.min(np.abs(col - stop_px)) <= 2.0
+
+
+def test_the_png_has_text_where_the_labels_go() -> None:
+    """Tick labels left of each panel, the x label below, the title above: dark pixels there
+    (the renderer's layout; the text itself is looked at in docs/export.md's figure)."""
+    a, sa, _, _ = _demo()
+    out = io.BytesIO()
+    force_png(a, sa, out)
+    dark = _png_pixels(out.getvalue()).sum(axis=2) < 200
+    assert dark[:60, 300:900].any()  # the title
+    assert dark[960:, 450:750].any()  # "tip depth from the entry (mm)"
+    assert dark[100:900, 40:100].any()  # tick labels
+    assert dark[100:900, :35].any()  # the rotated axis labels
 
 
 def test_the_force_axis_starts_at_zero_so_a_flat_curve_looks_flat() -> None:
@@ -106,16 +128,80 @@ def test_the_force_axis_starts_at_zero_so_a_flat_curve_looks_flat() -> None:
     )
     result = plan_path(volume, flat, load_calibration(plan.calibration))
     series = force_time_series(result, feed_mm_s=0.4, rate_hz=1000.0)
-    c = plot._canvas()
-    with c.lock:
-        try:
-            plot._draw(c, result, series, None)
-            lo, hi = c.ax_f.get_ylim()
-        finally:
-            c.reset()
+    lo, hi = force_figure(result, series, None).panels[0].ylim
     inside = series.force_n[series.depth_mm > 1.0]  # the lip fully in the bone
     assert lo == 0.0
     assert hi >= float(series.force_n.max())
     # the curve's own swing is a small part of the axis (it filled the axis when zoomed)
     assert (float(inside.max()) - float(inside.min())) / (hi - lo) < 0.25
-    assert c.ax_f.get_autoscaley_on()  # reset hands the next trajectory an autoscaled axis
+
+
+def test_the_report_draws_the_same_figure_on_matplotlib_axes() -> None:
+    """draw_force_figure puts every line, fill and limit of the figure on the axes."""
+    from matplotlib.figure import Figure
+
+    a, sa, _, _ = _demo()
+    figure = force_figure(a, sa, None)
+    fig = Figure()
+    axes = fig.subplots(3, 1, sharex=True)
+    draw_force_figure(fig, tuple(axes), figure)
+    for ax, panel in zip(axes, figure.panels, strict=True):
+        assert ax.get_ylim() == panel.ylim
+        assert ax.get_ylabel() == panel.ylabel
+        labels = [ln.get_label() for ln in ax.lines if not ln.get_label().startswith("_")]
+        assert labels == [ln.label for ln in panel.lines]
+        assert len(ax.collections) == len(panel.fills)
+    assert axes[2].get_xlim() == figure.xlim
+    assert fig.get_suptitle() == figure.title
+
+
+def _mpl_ticks(lo: float, hi: float, bins: int) -> np.ndarray:
+    from matplotlib.ticker import MaxNLocator
+
+    ticks = MaxNLocator(nbins=bins, steps=[1, 2, 2.5, 5, 10]).tick_values(lo, hi)
+    return ticks[(ticks >= lo) & (ticks <= hi)]  # the ticks matplotlib shows
+
+
+@pytest.mark.parametrize(
+    ("lo", "hi", "bins"),
+    [(0.0, 12.6, X_BINS), (0.0, 11.8, Y_BINS), (-1100.0, 2000.0, Y_BINS), (-1.0, 13.3, Y_BINS)],
+)
+def test_ticks_are_matplotlibs_on_the_demo_axes(lo: float, hi: float, bins: int) -> None:
+    got, _ = nice_ticks(lo, hi, bins)
+    np.testing.assert_allclose(got, _mpl_ticks(lo, hi, bins), rtol=0, atol=1e-9 * (hi - lo))
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.floats(-1e4, 1e4, allow_nan=False),
+    st.floats(1e-3, 1e4, allow_nan=False),
+    st.integers(3, 10),
+)
+def test_ticks_are_nice_and_cover_the_range(lo: float, span: float, bins: int) -> None:
+    """At most ``bins`` intervals of 1, 2, 2.5 or 5 times a power of ten, every tick inside
+    the range, none of the step's multiples inside it left out, and labels that tell the
+    ticks apart."""
+    hi = lo + span
+    ticks, decimals = nice_ticks(lo, hi, bins)
+    assert 1 <= ticks.size <= bins + 1
+    eps = 1e-9 * span + 1e-12 * abs(lo + span)
+    assert ticks[0] >= lo - eps and ticks[-1] <= hi + eps
+    if ticks.size > 1:
+        step = float(ticks[1] - ticks[0])
+        mantissa = step / 10.0 ** np.floor(np.log10(step))
+        assert min(abs(mantissa - m) for m in (1.0, 2.0, 2.5, 5.0, 10.0)) < 1e-6
+        assert ticks[0] - step < lo + eps and ticks[-1] + step > hi - eps
+        labels = [f"{v:.{decimals}f}" for v in ticks]
+        assert len(set(labels)) == len(labels)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(-8000, 8000), st.integers(1, 80_000), st.integers(-3, 2), st.integers(3, 10))
+def test_ticks_are_matplotlibs(lo_8: int, span_8: int, power: int, bins: int) -> None:
+    """The same ticks as matplotlib's MaxNLocator wherever it uses no offset (a range not
+    far from 0 for its width: every axis of the export figure, which starts at or below 0)."""
+    lo, span = lo_8 / 8 * 10.0**power, span_8 / 8 * 10.0**power
+    assume(abs(lo + span / 2) / span < 100)
+    got, _ = nice_ticks(lo, lo + span, bins)
+    want = _mpl_ticks(lo, lo + span, bins)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9 * span)
