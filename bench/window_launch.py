@@ -31,6 +31,9 @@ def main() -> int:
     ct, plan = sys.argv[2], sys.argv[3]
     marks: dict[str, float] = {"started": _since_launch()}
     from ctdrill.app.cli import main as cli_main
+    from ctdrill.app.gui.preload import before_qt
+
+    before_qt()  # as the command line does before it imports the window
     from ctdrill.app.gui import app as gui_app
 
     make_window = gui_app.make_window
