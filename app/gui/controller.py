@@ -21,6 +21,7 @@ from typing import Any
 
 from PySide6.QtCore import QObject, Signal
 
+from ctdrill import jit
 from ctdrill.app.gui import compute
 from ctdrill.app.gui.document import Document
 from ctdrill.app.gui.readouts import ImplantReadout, implant_readout
@@ -81,6 +82,7 @@ class Controller(QObject):
     def load(self, folder: str, *, series_uid: str | None, ask_series: bool) -> None:
         """Load ``folder`` in the background (``ask_series``: a folder of several CT stacks
         gives a ``SeriesChoice`` instead)."""
+        jit.preload()  # the path's kernels load beside the series, not after it
         iso, ask = self.iso_hu, ask_series
         self.load_runner.submit(
             lambda: compute.load_case(

@@ -16,6 +16,7 @@ import importlib
 QT_FREE = (
     "numpy",
     "scipy.ndimage",
+    "numba",
     "matplotlib.figure",
     "matplotlib.backends.backend_agg",
     "pyvista",

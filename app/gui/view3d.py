@@ -18,11 +18,11 @@ import numpy as np
 import pyvista as pv
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QVBoxLayout, QWidget
-from pyvistaqt import QtInteractor
 
 from ctdrill.app.gui.camera import add_orientation_marker, apply_camera
 from ctdrill.app.gui.compute import volume_surface
 from ctdrill.app.gui.document import ViewContext
+from ctdrill.app.gui.interactor import Interactor
 from ctdrill.app.gui.planning import scene_input
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.scene import (
@@ -63,44 +63,6 @@ def refine_budget(n_triangles: int, frame_without_s: float, frame_with_s: float)
     return budget if budget >= REFINE_GAIN * n_triangles else None
 
 
-class _Interactor(QtInteractor):  # type: ignore[misc]
-    """pyvistaqt's interactor with one render per frame.
-
-    pyvistaqt renders in every ``paintGL``, also when the paint was scheduled by a render that
-    just finished (the frame event of :meth:`View3D.render_now`, or of the interactor style
-    turning the camera): each frame was rendered twice, twice the time the UI thread is held
-    on software OpenGL. Here a paint that follows a finished render, with nothing resized in
-    between, only shows (blits) that frame, as VTK's own ``QVTKOpenGLNativeWidget`` does; any
-    other paint (exposed, resized) renders as before."""
-
-    _fresh = False  # a render finished and its frame is not shown yet
-
-    def _cb_frame(self, obj: Any, evt: Any) -> None:
-        rw = self._RenderWindow
-        if (
-            rw is not None
-            and not self._in_paint
-            and not (rw.GetDoubleBuffer() and not rw.GetSwapBuffers())
-        ):
-            self._fresh = True
-        super()._cb_frame(obj, evt)
-
-    def resizeGL(self, w: int, h: int) -> None:
-        self._fresh = False
-        super().resizeGL(w, h)
-
-    def paintGL(self) -> None:
-        if not self._fresh:
-            super().paintGL()
-            return
-        self._fresh = False
-        self._in_paint = True  # pyvistaqt's paintGL then blits without rendering
-        try:
-            super().paintGL()
-        finally:
-            self._in_paint = False
-
-
 class View3D(QWidget):
     """3D view of the bone surface, trajectories, implants, drill and landmarks.
 
@@ -128,7 +90,7 @@ class View3D(QWidget):
         layout.setContentsMargins(0, 0, 0, 0)
         # No periodic re-render (pyvistaqt's default is 5 Hz even when nothing changes, ~50 ms a
         # frame on software GL): the view renders when the scene changes or the user interacts.
-        plotter: Any = _Interactor(self, multi_samples=multi_samples, auto_update=False)
+        plotter: Any = Interactor(self, multi_samples=multi_samples, auto_update=False)
         self.plotter = plotter
         layout.addWidget(plotter.interactor)
         plotter.set_background(BACKGROUND[0], top=BACKGROUND[1])
