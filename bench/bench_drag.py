@@ -11,8 +11,8 @@ the new curves (its ``stopDepthMmChanged``, emitted by the paint that puts them 
 
 - **live** (today): mouse moves are coalesced to the latest; each previews the dragged plan:
   its path is planned at once in a worker (one at a time, the latest next), its curves and
-  stop handed to the plots before the implant's check, and drawn over the kept axes by the
-  paint that shows them.
+  stop handed to the plots before the implant's check, and painted over the kept axes (a
+  pixmap) by the paint that shows them.
   *Latency*: from rest (nothing computing), a move, then the time until the plot is repainted
   with that move's curves; one move at a time.
   *Continuous drag*: a 60 Hz mouse (a move every 16 ms, a triangle wave of 2 px steps over
@@ -33,10 +33,11 @@ the new curves (its ``stopDepthMmChanged``, emitted by the paint that puts them 
 The breakdown (each median): the dragged plan's job in the worker (its curves, then the
 implant's check, the problems and the readout) with the CPU time its thread spent (the rest of
 the wall time is waiting for a core or the interpreter lock), the curves' part alone, the
-plots' redraw on the UI thread, the dragged view's outline; and the UI thread's CPU time over
-the continuous drag per repaint, and the paints per mouse move of the drill view, the force
-plot, the other slices and the 3D view (an event filter on each: a move repaints only the
-views it changes). Under Xvfb with software OpenGL (Mesa llvmpipe) when run
+force plot's paint with new curves on the UI thread (its CPU time), the dragged view's
+outline; and the UI thread's CPU time over the continuous drag per repaint, and the paints per
+mouse move of the drill view, the force plot, the other slices and the 3D view (an event
+filter on each: a move repaints only the views it changes). Under Xvfb with software OpenGL
+(Mesa llvmpipe) when run
 by ``make bench``; the 3D view and the slice contours catch up after the release.
 """
 
@@ -179,15 +180,13 @@ class _Probe:
         restore.append(lambda: setattr(plan_editor, "dragged_plan", dragged))
         self._restore = restore
         plots = window.plot_canvas
-        show = plots.show_curves
 
-        def timed_show(curves: Any, *, live: bool = False) -> None:
-            t0 = time.perf_counter()
-            show(curves, live=live)
-            if live:
-                self.plots.append(time.perf_counter() - t0)
+        def painted(_stop: float) -> None:  # the paint that put new curves on the screen
+            if window.doc.live.dragging:
+                self.plots.append(plots.paint_cpu_s)
 
-        plots.show_curves = timed_show
+        plots.stopDepthMmChanged.connect(painted)
+        restore.append(lambda: plots.stopDepthMmChanged.disconnect(painted))
         drill = window.slice_canvases["trajectory"]
         ghost = drill.draw_ghost_of
 
@@ -416,7 +415,7 @@ def _drag_case(
             ),
             "its CPU time": Timing.from_samples(probe.compute_cpu or [np.nan]),
             "curves in the worker": Timing.from_samples(probe.curves or [np.nan]),
-            "plots redrawn (live)": Timing.from_samples(probe.plots or [np.nan]),
+            "force plot painted (live), CPU": Timing.from_samples(probe.plots or [np.nan]),
             "dragged outline": Timing.from_samples(probe.ghost or [np.nan]),
         }
         # the older chain: a short drag, its release, the plots
@@ -558,7 +557,7 @@ def run(quick: bool) -> Section:
                 "path in the worker (curves, then checks)",
                 "its CPU time",
                 "curves in the worker",
-                "plots redrawn (live)",
+                "force plot painted (live), CPU",
                 "dragged outline",
             ],
             part_rows,

@@ -48,7 +48,6 @@ from ctdrill.app.gui.suggest_panel import SuggestPanel
 from ctdrill.app.gui.view3d import View3D
 from ctdrill.app.gui.views import VIEWS, build_views
 from ctdrill.app.gui.workers import StepQueue
-from ctdrill.engine.stop import stop_words
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.plan.load import load_plan_set
 from ctdrill.imaging.plan.types import Plan
@@ -105,7 +104,6 @@ class MainWindow(QMainWindow):
         self.rehearsal: RehearsalPanel = self.views["rehearsal"]  # type: ignore[assignment]
         self.series_panel: SeriesPanel = self.views["series"]  # type: ignore[assignment]
         self.suggest_panel: SuggestPanel = self.views["suggest"]  # type: ignore[assignment]
-        self.plot_fig = self.plot_canvas.plot_fig
         self.slice_canvases = self.slice_grid.canvases
         self.slices_updated = self.slice_grid.slices_updated
         self.warnings_list = self.series_panel.warnings_list
@@ -366,15 +364,9 @@ class MainWindow(QMainWindow):
         if view is None:
             return
 
-        def finish() -> None:  # after the views' drawing steps
-            if self.doc.path is not view:
-                return
-            c = view.curves
-            self._status(
-                f"stop at {c.stop_depth_mm:.2f} mm ({stop_words(c.stop_reason, form='code')}) of "
-                f"{c.planned_depth_mm:.2f} mm planned"
-            )
-            self.path_updated.emit()
+        def finish() -> None:  # after the views' drawing steps (the plots say the stop)
+            if self.doc.path is view:
+                self.path_updated.emit()
 
         self.ui_steps.push(finish)
 

@@ -1,16 +1,15 @@
-"""Depth plots (HU with Misch bands, predicted force, clearance with the margin), drawn on any
-matplotlib ``Figure``: the window's ``FigureCanvasQTAgg`` and headless tests use the same code.
+"""Depth plots (HU with Misch bands, predicted force, clearance with the margin): what they
+show and where, as pure functions (the curves, the axes' ranges, their ticks, the frames in a
+widget of a given size, the titles). The window paints them with ``QPainter``
+(:mod:`ctdrill.app.gui.plots_paint`); ``force.png`` is drawn by :mod:`ctdrill.app.export_plot`.
 """
 
 from __future__ import annotations
 
-import textwrap
+import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
-from matplotlib.axes import Axes
-from matplotlib.figure import Figure
 
 from ctdrill.engine.stop import stop_words
 from ctdrill.hu import AIR_HU
@@ -21,9 +20,24 @@ from ctdrill.imaging.misch import MISCH_BANDS_HU
 MISCH_BANDS: tuple[tuple[str, float, float], ...] = tuple(
     (label, max(lo, AIR_HU), min(hi, 3000.0)) for label, lo, hi in MISCH_BANDS_HU
 )
-_BAND_COLOURS = ("#c8d7f0", "#d4e8d0", "#f2ecc4", "#f5dcc4", "#f1d0d0")
+#: Each Misch band's fill, in the order of :data:`MISCH_BANDS`.
+BAND_COLOURS = ("#c8d7f0", "#d4e8d0", "#f2ecc4", "#f5dcc4", "#f1d0d0")
+#: The plots' colours by role.
+COLOURS = {
+    "hu": "#203060",
+    "force": "#c04000",
+    "force_band": "#e07020",
+    "mean": "#4060c0",
+    "clearance": "#207040",
+    "stop": "#d02080",
+    "planned": "#808080",
+    "margin": "#d02020",
+    "live": "#1060ff",
+    "grid": "#d8d8d8",
+    "text": "#202020",
+}
 
-#: Resolution the window's figure is made at (:class:`ctdrill.app.gui.plots_view.PlotsView`),
+#: Resolution the window's matplotlib figures are made at (the teleop and debrief views),
 #: dots per inch: a point is 80/72 px there.
 WINDOW_DPI = 80.0
 #: Smallest text, pt: 9 pt is 10 px at :data:`WINDOW_DPI` (issue 16: 7-8 pt, 8-9 px, was
@@ -31,11 +45,16 @@ WINDOW_DPI = 80.0
 TEXT_PT = 9.0
 #: Titles above each axes, pt (11 px at the window's resolution).
 TITLE_PT = 10.0
-#: Room around the axes, px (converted to figure fractions for the figure's current size, so
-#: the tick and axis labels are never clipped however the window is sized): left of the y tick
-#: labels and axis label, right of the Misch labels, above the first title, below the x label,
-#: and between axes for a title.
-_MARGIN_PX = {"left": 62.0, "right": 34.0, "top": 6.0, "bottom": 40.0, "gap": 22.0}
+#: The same sizes in pixels (the depth plots are painted in pixels).
+TEXT_PX = round(TEXT_PT * WINDOW_DPI / 72.0)
+TITLE_PX = round(TITLE_PT * WINDOW_DPI / 72.0)
+#: Room around the axes, px (the tick and axis labels are never clipped however the window is
+#: sized): left of the y tick labels and axis label, right of the Misch labels, above the
+#: first title, below the x label, and between axes for a title.
+MARGIN_PX = {"left": 62.0, "right": 34.0, "top": 6.0, "bottom": 40.0, "gap": 22.0}
+#: Pixels per tick at least, along the depth axis and up a value axis (a 60 px axis has 3
+#: ticks: labels 10 px high).
+TICK_SPACING_PX = {"x": 48.0, "y": 18.0}
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,10 +149,11 @@ def depth_limits(curves: DepthCurves, headroom: float = 1.0) -> DepthLimits:
 
 
 def stop_title(curves: DepthCurves) -> str:
-    """The stop in words, as the HU plot's title says it."""
+    """The stop in words, the one summary the plots' title and the status bar show (of the
+    dragged plan during a drag)."""
     return (
-        f"stop {curves.stop_depth_mm:.2f} mm ({stop_words(curves.stop_reason, form='code')}) of "
-        f"{curves.planned_depth_mm:.2f} mm planned"
+        f"stop at {curves.stop_depth_mm:.2f} mm ({stop_words(curves.stop_reason, form='code')}) "
+        f"of {curves.planned_depth_mm:.2f} mm planned"
     )
 
 
@@ -147,32 +167,9 @@ def force_title(curves: DepthCurves) -> str:
     return title
 
 
-@dataclass
-class CurveArtists:
-    """The artists that depend on the curves, by role (what a live update changes in place).
-
-    ``key`` is what must not change for an in-place update (which pieces exist, the force
-    title, the margin); ``limits`` the axes' ranges they were drawn in.
-    """
-
-    key: tuple[object, ...]
-    limits: DepthLimits
-    lines: dict[str, Any]
-    fills: dict[str, Any]
-    stops: list[Any]
-    planned: list[Any]
-    spans: list[Any]
-    stop_text: Any = None
-
-    def all(self) -> list[Any]:
-        """Every artist, in drawing order."""
-        out = [*self.fills.values(), *self.lines.values(), *self.spans, *self.planned]
-        out += self.stops
-        return out if self.stop_text is None else [*out, self.stop_text]
-
-
 def curves_key(curves: DepthCurves) -> tuple[object, ...]:
-    """What the curves' drawing is made of (see :class:`CurveArtists`)."""
+    """What the lasting layer of some curves' plots is made of (which pieces exist, the force
+    title, the margin): curves of the same key are drawn on the same axes."""
     return (
         curves.force_band_n is not None,
         curves.mean_lo_n is not None and curves.mean_hi_n is not None,
@@ -180,133 +177,6 @@ def curves_key(curves: DepthCurves) -> tuple[object, ...]:
         force_title(curves),
         curves.margin_mm,
     )
-
-
-def draw_depth_plots(
-    fig: Figure,
-    curves: DepthCurves | None,
-    *,
-    message: str = "",
-    headroom: float = 1.0,
-    title_stop: bool = True,
-) -> None:
-    """Redraw ``fig`` with three stacked axes sharing depth: HU, force, clearance.
-
-    With ``curves`` None the axes are drawn empty with ``message`` (e.g. "computing...").
-    The axes are created once and reused. ``headroom`` widens the ranges (a dragged plan's
-    next curves then fit them: :mod:`ctdrill.app.gui.plots_live`); ``title_stop`` writes the
-    stop as the HU plot's title (the window shows it in a label instead). The artists that
-    depend on the curves are kept as :func:`curve_artists`.
-    """
-    ax_hu, ax_f, ax_c = _axes(fig)
-    for ax in (ax_hu, ax_f, ax_c):
-        ax.tick_params(labelsize=TEXT_PT)
-    for label, lo, hi in MISCH_BANDS:
-        colour = _BAND_COLOURS[[b[0] for b in MISCH_BANDS].index(label)]
-        ax_hu.axhspan(lo, hi, color=colour, alpha=0.8, lw=0, zorder=0)
-    ax_hu.set_ylabel("HU", fontsize=TEXT_PT)
-    ax_f.set_ylabel("force (N)", fontsize=TEXT_PT)
-    ax_c.set_ylabel("clearance (mm)", fontsize=TEXT_PT)
-    ax_c.set_xlabel("depth (mm)", fontsize=TEXT_PT)
-    for ax in (ax_hu, ax_f, ax_c):
-        ax.grid(True, alpha=0.3)
-    if curves is None or curves.depth_mm.size == 0:
-        ax_hu.set_ylim(AIR_HU, 2000)
-        ax_f.text(
-            0.5,
-            0.5,
-            textwrap.fill(message or "no plan", 120),
-            ha="center",
-            va="center",
-            fontsize=TEXT_PT,
-            transform=ax_f.transAxes,
-        )
-        return
-    lims = depth_limits(curves, headroom)
-    ax_hu.set_ylim(*lims.hu)
-    _misch_labels(fig, ax_hu, *lims.hu)
-    ax_f.set_ylim(*lims.force)
-    if lims.clearance is not None:
-        ax_c.set_ylim(*lims.clearance)
-    ax_c.set_xlim(0.0, lims.depth_max)
-    ax_f.set_title(force_title(curves), fontsize=TITLE_PT, loc="left")
-    if not np.isfinite(curves.clearance_mm).any():
-        ax_c.text(0.5, 0.5, "no landmarks", ha="center", va="center", transform=ax_c.transAxes)
-    ax_c.axhline(curves.margin_mm, color="#d02020", ls="--", lw=1.0)
-    ax_c.text(
-        0.0,
-        curves.margin_mm,
-        f" margin {curves.margin_mm:g} mm",
-        color="#d02020",
-        fontsize=TEXT_PT,
-        va="bottom",
-        transform=ax_c.get_yaxis_transform(),
-    )
-    arts = _draw_curves(fig, curves, lims)
-    if title_stop:
-        arts.stop_text = ax_hu.set_title(stop_title(curves), fontsize=TITLE_PT, loc="left")
-    fig._ctdrill_curves = arts  # type: ignore[attr-defined]
-
-
-def curve_artists(fig: Figure) -> CurveArtists | None:
-    """The curve artists :func:`draw_depth_plots` last drew on ``fig`` (None: a message)."""
-    arts = getattr(fig, "_ctdrill_curves", None)
-    return arts if isinstance(arts, CurveArtists) else None
-
-
-def _draw_curves(fig: Figure, curves: DepthCurves, lims: DepthLimits) -> CurveArtists:
-    """Draw what depends on ``curves`` on the three axes."""
-    ax_hu, ax_f, ax_c = fig.axes
-    d = curves.depth_mm
-    fills: dict[str, Any] = {}
-    lines: dict[str, Any] = {}
-    if curves.force_band_n is not None:
-        fills["band"] = ax_f.fill_between(
-            d,
-            curves.force_n - curves.force_band_n,
-            curves.force_n + curves.force_band_n,
-            color="#e07020",
-            alpha=0.25,
-            lw=0,
-        )
-    if curves.mean_lo_n is not None and curves.mean_hi_n is not None:
-        fills["mean"] = ax_f.fill_between(
-            d, curves.mean_lo_n, curves.mean_hi_n, color="#4060c0", alpha=0.18, lw=0, zorder=0
-        )
-        (lines["mean_lo"],) = ax_f.plot(d, curves.mean_lo_n, color="#4060c0", lw=0.7, ls="--")
-        (lines["mean_hi"],) = ax_f.plot(d, curves.mean_hi_n, color="#4060c0", lw=0.7, ls="--")
-    (lines["hu"],) = ax_hu.plot(d, curves.hu, color="#203060", lw=1.2)
-    (lines["force"],) = ax_f.plot(d, curves.force_n, color="#c04000", lw=1.2)
-    finite = np.isfinite(curves.clearance_mm)
-    if finite.any():
-        (lines["clearance"],) = ax_c.plot(
-            d[finite], curves.clearance_mm[finite], color="#207040", lw=1.2
-        )
-    beyond = curves.planned_depth_mm > curves.stop_depth_mm + 1e-6
-    stops, planned, spans = [], [], []
-    for ax in (ax_hu, ax_f, ax_c):
-        stops.append(ax.axvline(curves.stop_depth_mm, color="#d02080", lw=1.4))
-        planned.append(ax.axvline(curves.planned_depth_mm, color="#808080", ls=":", lw=1.0))
-        spans.append(
-            ax.axvspan(
-                curves.stop_depth_mm, curves.planned_depth_mm, color="#d02080", alpha=0.08, lw=0
-            )
-        )
-        planned[-1].set_visible(beyond)
-        spans[-1].set_visible(beyond)
-    return CurveArtists(curves_key(curves), lims, lines, fills, stops, planned, spans)
-
-
-LIVE_GID = "live-depth"
-
-
-def set_live_depth(fig: Figure, depth_mm: float | None) -> None:
-    """Show (or with None remove) the live drill depth as a vertical cursor on every axis."""
-    for ax in fig.axes:
-        for line in [ln for ln in ax.lines if ln.get_gid() == LIVE_GID]:
-            line.remove()
-        if depth_mm is not None:
-            ax.axvline(depth_mm, color="#1060ff", lw=1.6, gid=LIVE_GID)
 
 
 def force_limits_n(curves: DepthCurves) -> tuple[float, float]:
@@ -326,51 +196,97 @@ def force_limits_n(curves: DepthCurves) -> tuple[float, float]:
     return lo, hi + 0.08 * (hi - lo)
 
 
-def _misch_labels(fig: Figure, ax: Axes, hu_lo: float, hu_hi: float) -> None:
-    """Name each Misch band at the right of the HU axes where its visible part is tall
-    enough for the text; thinner bands keep their colour only (labels would overlap)."""
-    px_per_hu = ax.get_position().height * fig.get_figheight() * fig.dpi / (hu_hi - hu_lo)
-    text_px = TEXT_PT * fig.dpi / 72.0
-    for label, lo, hi in MISCH_BANDS:
-        a, b = max(lo, hu_lo), min(hi, hu_hi)
-        if b <= a or (b - a) * px_per_hu < text_px:
-            continue
-        ax.text(
-            1.005,
-            (a + b) / 2.0,
-            label,
-            transform=ax.get_yaxis_transform(),
-            fontsize=TEXT_PT,
-            va="center",
-        )
+def nice_ticks(lo: float, hi: float, max_ticks: int) -> np.ndarray:
+    """Round tick values inside ``[lo, hi]``: steps of 1, 2, 2.5 or 5 times a power of ten,
+    the finest that puts at most ``max_ticks`` (>= 2) ticks inside."""
+    span = hi - lo
+    if not (math.isfinite(span) and span > 0.0):
+        return np.array([lo]) if math.isfinite(lo) else np.zeros(0)
+    n = max(2, int(max_ticks))
+    power = 10.0 ** math.floor(math.log10(span / n))
+    for step in (m * power for m in (1.0, 2.0, 2.5, 5.0, 10.0, 20.0, 25.0, 50.0, 100.0)):
+        first = math.ceil(lo / step - 1e-9)
+        last = math.floor(hi / step + 1e-9)
+        if last - first + 1 <= n:
+            break
+    ticks = np.arange(first, last + 1, dtype=np.float64) * step
+    ticks[np.abs(ticks) < step * 1e-9] = 0.0  # -0 and round-off at zero
+    return ticks
 
 
-def fit_margins(fig: Figure) -> None:
-    """Place the three axes with :data:`_MARGIN_PX` of room at the figure's current size."""
-    w_px = max(fig.get_figwidth() * fig.dpi, 1.0)
-    h_px = max(fig.get_figheight() * fig.dpi, 1.0)
-    m = _MARGIN_PX
-    left, right = m["left"] / w_px, 1.0 - m["right"] / w_px
-    bottom, top = m["bottom"] / h_px, 1.0 - (m["top"] + m["gap"]) / h_px
-    if not (right > left + 0.05 and top > bottom + 0.05):
-        return  # a window squeezed to nothing: keep the last layout
-    axes_h = (top - bottom) * h_px
-    each = (axes_h - 2.0 * m["gap"]) / 3.0
-    hspace = m["gap"] / each if each > 1.0 else 0.5
-    fig.subplots_adjust(left=left, right=right, bottom=bottom, top=top, hspace=hspace)
+def tick_labels(ticks: np.ndarray) -> list[str]:
+    """The labels of ``ticks`` with the decimals their step needs (``0``, ``2.5``, ``1000``)."""
+    if ticks.size < 2:
+        return [f"{v:g}" for v in ticks]
+    step = float(np.min(np.diff(ticks)))
+    decimals = 0
+    while decimals < 6 and abs(round(step, decimals) - step) > 1e-9 * max(1.0, abs(step)):
+        decimals += 1
+    return [f"{v:.{decimals}f}" for v in ticks]
 
 
-def _axes(fig: Figure) -> tuple[Axes, Axes, Axes]:
-    """The figure's three depth axes, emptied (created on first use)."""
-    if len(fig.axes) != 3:
-        fig.clear()
-        fig.subplots(3, 1, sharex=True)
-    fit_margins(fig)
-    ax_hu, ax_f, ax_c = fig.axes
-    for ax in (ax_hu, ax_f, ax_c):
-        for artist in [*ax.lines, *ax.collections, *ax.patches, *ax.texts]:
-            artist.remove()
-        ax.set_title("")
-        ax.set_title("", loc="left")
-    fig._ctdrill_curves = None  # type: ignore[attr-defined]  # set again with curves
-    return ax_hu, ax_f, ax_c
+@dataclass(frozen=True)
+class Frame:
+    """One axes' rectangle in the widget, px (``x0`` left, ``y0`` top) and its data range."""
+
+    x0: float
+    y0: float
+    x1: float
+    y1: float
+    lo: float
+    hi: float
+
+    def y_px(self, value: np.ndarray | float) -> np.ndarray:
+        """Pixel row of data ``value`` (the range's ``lo`` at the bottom)."""
+        scale = (self.y1 - self.y0) / (self.hi - self.lo) if self.hi > self.lo else 0.0
+        return self.y1 - (np.asarray(value, dtype=np.float64) - self.lo) * scale
+
+    def value_at(self, y_px: float) -> float:
+        """Data value at pixel row ``y_px`` (the inverse of :meth:`y_px`)."""
+        return self.lo + (self.y1 - y_px) / (self.y1 - self.y0) * (self.hi - self.lo)
+
+
+@dataclass(frozen=True)
+class PlotLayout:
+    """Where the three axes (HU, force, clearance) sit in a widget of ``width`` x ``height``
+    px, sharing the depth axis 0 .. ``depth_max``."""
+
+    width: int
+    height: int
+    depth_max: float
+    frames: tuple[Frame, Frame, Frame]
+
+    def x_px(self, depth_mm: np.ndarray | float) -> np.ndarray:
+        """Pixel column of ``depth_mm``."""
+        f = self.frames[0]
+        scale = (f.x1 - f.x0) / self.depth_max if self.depth_max > 0 else 0.0
+        return f.x0 + np.asarray(depth_mm, dtype=np.float64) * scale
+
+    def depth_at(self, x_px: float) -> float:
+        """Depth, mm, at pixel column ``x_px`` (the inverse of :meth:`x_px`)."""
+        f = self.frames[0]
+        return (x_px - f.x0) / (f.x1 - f.x0) * self.depth_max
+
+
+def plot_layout(width: int, height: int, limits: DepthLimits | None) -> PlotLayout | None:
+    """The three frames with :data:`MARGIN_PX` of room in ``width`` x ``height`` px; None when
+    the widget is too small to hold them. Without ``limits`` (a message) the ranges are the
+    empty plots' (depth 0-1 mm, HU from air to 2000)."""
+    m = MARGIN_PX
+    left, right = m["left"], width - m["right"]
+    top, bottom = m["top"] + m["gap"], height - m["bottom"]
+    each = (bottom - top - 2.0 * m["gap"]) / 3.0
+    if right - left < 20.0 or each < 8.0:
+        return None
+    if limits is None:
+        ranges = ((AIR_HU, 2000.0), (0.0, 1.0), (0.0, 1.0))
+        depth = 1.0
+    else:
+        ranges = (limits.hu, limits.force, limits.clearance or (0.0, 1.0))
+        depth = limits.depth_max
+    frames = []
+    y = top
+    for lo, hi in ranges:
+        frames.append(Frame(left, y, right, y + each, float(lo), float(hi)))
+        y += each + m["gap"]
+    return PlotLayout(width, height, float(depth), (frames[0], frames[1], frames[2]))

@@ -26,6 +26,7 @@ from ctdrill.api import open_window
 from ctdrill.app.gui import slice_grid
 from ctdrill.app.gui.implant_drag import dragged_plan, site_lps
 from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.app.gui.plots import stop_title
 from ctdrill.app.gui.readouts import implant_readout
 from ctdrill.app.gui.results import compute_path_view
 from ctdrill.imaging.plan.landmarks import CanalLandmark
@@ -91,6 +92,9 @@ def test_drag_on_the_drill_view_and_the_stop_follows_each_step(
             timeout=LOAD_TIMEOUT_MS,
         )
         followed.append(plot.property("stopDepthMm"))
+        # the status bar says the dragged plan's stop, as the plot does (not the plan's own)
+        assert demo.statusBar().currentMessage() == stop_title(plot.curves)  # type: ignore[attr-defined]
+        assert f"stop at {expected:.2f} mm" in demo.statusBar().currentMessage()
     assert followed[-1] < followed[0]  # deeper toward the canal: the margin stops it sooner
     assert plot.blits > 0  # the curves were redrawn over the kept axes
     with qtbot.waitSignal(demo.path_updated, timeout=LOAD_TIMEOUT_MS):

@@ -1,16 +1,32 @@
-"""Depth plots drawn headless on a matplotlib Figure: what is drawn where."""
+"""Depth plots painted headless into an image: what is drawn where (read back from the pixels),
+the ticks, the ranges, the text's size and room."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
-from matplotlib.figure import Figure
+import pytest
+from PySide6.QtGui import QImage, QPainter
+from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui.plots import (
-    LIVE_GID,
+    MARGIN_PX,
+    TEXT_PX,
     DepthCurves,
-    draw_depth_plots,
-    set_live_depth,
+    PlotLayout,
+    depth_limits,
+    nice_ticks,
+    plot_layout,
+    tick_labels,
 )
+from ctdrill.app.gui.plots_paint import paint_axes, paint_curves, paint_live_depth
+from ctdrill.app.gui.screenshot import qimage_to_rgb
+from tests.app.gui.plot_marks import horizontal_marks, rgb, vertical_marks_mm
+
+#: The plots' size in the window at its default 1440 x 900 (measured: 1072 x 273 px), and in a
+#: window shrunk to 1280 x 800.
+SIZES = ((1072, 273), (900, 220))
 
 
 def curves(stop: float = 7.5, reason: str = "margin") -> DepthCurves:
@@ -29,145 +45,131 @@ def curves(stop: float = 7.5, reason: str = "margin") -> DepthCurves:
     )
 
 
-def vlines(ax: object, colour: str) -> list[float]:
-    out = []
-    for line in ax.lines:  # type: ignore[attr-defined]
-        x = np.asarray(line.get_xdata(), dtype=float)
-        visible = line.get_visible()
-        if visible and line.get_color() == colour and x.size == 2 and x[0] == x[1]:
-            out.append(float(x[0]))
-    return out
+def paint(
+    c: DepthCurves | None, size: tuple[int, int] = SIZES[0], message: str = "", live: float = -1
+) -> tuple[np.ndarray, PlotLayout]:
+    layout = plot_layout(*size, None if c is None else depth_limits(c))
+    assert layout is not None
+    img = QImage(*size, QImage.Format.Format_RGB32)
+    p = QPainter(img)
+    paint_axes(p, layout, c, message)
+    if c is not None:
+        paint_curves(p, layout, c)
+    if live >= 0:
+        paint_live_depth(p, layout, live)
+    p.end()
+    return qimage_to_rgb(img), layout
 
 
-def test_three_axes_with_stop_planned_and_margin() -> None:
-    fig = Figure()
-    draw_depth_plots(fig, curves())
-    ax_hu, ax_f, ax_c = fig.axes
-    for ax in fig.axes:
-        assert vlines(ax, "#d02080") == [7.5]
-        assert vlines(ax, "#808080") == [10.0]
-    margin = [ln for ln in ax_c.lines if ln.get_color() == "#d02020"]
-    assert np.allclose(margin[0].get_ydata(), 2.5)
-    assert len(ax_hu.patches) >= 5  # the five Misch bands
-    assert "7.50 mm (margin)" in ax_hu.get_title(loc="left")
-    assert "bone-illustrative" in ax_f.get_title(loc="left")
-    assert np.array_equal(ax_f.lines[0].get_ydata(), curves().force_n)
+def px_mm(layout: PlotLayout) -> float:
+    """One pixel of depth, mm."""
+    return layout.depth_at(layout.frames[0].x0 + 1.0) - layout.depth_at(layout.frames[0].x0)
 
 
-def test_redraw_reuses_the_axes_and_replaces_the_data() -> None:
-    fig = Figure()
-    draw_depth_plots(fig, curves())
-    axes = list(fig.axes)
-    draw_depth_plots(fig, curves(stop=10.0, reason="planned_depth"))
-    assert list(fig.axes) == axes
-    assert all(vlines(ax, "#d02080") == [10.0] for ax in fig.axes)
-    assert all(vlines(ax, "#808080") == [] for ax in fig.axes)  # nothing beyond the stop
+def test_nice_ticks_are_round_inside_and_few_enough() -> None:
+    assert list(nice_ticks(-200.0, 1900.0, 3)) == [0.0, 1000.0]
+    assert list(nice_ticks(0.0, 13.1, 20)) == list(np.arange(14.0))
+    assert list(nice_ticks(-3.2, 15.0, 5)) == [0.0, 5.0, 10.0, 15.0]
+    assert tick_labels(nice_ticks(0.0, 0.37, 4)) == ["0.0", "0.1", "0.2", "0.3"]
+    assert tick_labels(np.array([0.0, 2.5, 5.0])) == ["0.0", "2.5", "5.0"]
+    for lo, hi, n in ((0.0, 1.0, 2), (-7.0, 3.0, 7), (1e-3, 2e-3, 4), (0.0, 3000.0, 9)):
+        ticks = nice_ticks(lo, hi, n)
+        assert 1 <= ticks.size <= n and ticks[0] >= lo and ticks[-1] <= hi
 
 
-def test_live_cursor_moves_and_goes() -> None:
-    fig = Figure()
-    draw_depth_plots(fig, curves())
-    set_live_depth(fig, 3.0)
-    set_live_depth(fig, 4.0)
-    for ax in fig.axes:
-        live = [ln for ln in ax.lines if ln.get_gid() == LIVE_GID]
-        assert len(live) == 1 and list(live[0].get_xdata()) == [4.0, 4.0]
-    set_live_depth(fig, None)
-    assert not any(ln.get_gid() == LIVE_GID for ax in fig.axes for ln in ax.lines)
+def test_stop_planned_and_margin_are_painted_where_they_are(qtbot: QtBot) -> None:
+    img, layout = paint(curves())
+    tol = 1.5 * px_mm(layout)
+    assert vertical_marks_mm(img, layout, "stop") == [[pytest.approx(7.5, abs=tol)]] * 3
+    # the planned depth (dotted: a third of the height or so) beyond the stop
+    for f in layout.frames:
+        x = round(float(layout.x_px(10.0)))
+        column = img[int(f.y0) + 2 : int(f.y1) - 1, x - 1 : x + 2]
+        assert np.all(column == rgb("planned"), axis=-1).any(axis=1).mean() > 0.3
+    margin = horizontal_marks(img, layout.frames[2], "margin")
+    assert margin == [
+        pytest.approx(2.5, abs=2.0 * (layout.frames[2].hi - layout.frames[2].lo) / 60)
+    ]
+    # the curves: the force line's colour at 5 mm sits at 3 N
+    f = layout.frames[1]
+    x = int(float(layout.x_px(5.0)))
+    rows = np.flatnonzero(np.abs(img[:, x].astype(int) - rgb("force")).sum(axis=1) < 120)
+    rows = rows[(rows > f.y0) & (rows < f.y1)]
+    assert rows.size and f.value_at(float(rows.mean()) + 0.5) == pytest.approx(3.0, abs=0.3)
 
 
-def test_empty_plots_show_the_message() -> None:
-    fig = Figure()
-    draw_depth_plots(fig, None, message="open a DICOM folder")
-    assert any(t.get_text() == "open a DICOM folder" for t in fig.axes[1].texts)
-    draw_depth_plots(fig, None, message="no force profile: " + "x " * 100)
-    (text,) = fig.axes[1].texts
-    assert text.get_text().count("\n") == 1  # long messages are wrapped
+def test_a_stop_at_the_planned_depth_has_no_planned_mark(qtbot: QtBot) -> None:
+    img, layout = paint(curves(stop=10.0, reason="planned_depth"))
+    assert vertical_marks_mm(img, layout, "stop") == [[pytest.approx(10.0, abs=0.1)]] * 3
+    for f in layout.frames:  # no dotted column of the planned depth's grey
+        area = img[int(f.y0) + 2 : int(f.y1) - 1, int(f.x0) + 2 : int(f.x1) - 1]
+        assert np.all(area == rgb("planned"), axis=-1).mean(axis=0).max() < 0.2
 
 
-def test_the_mean_force_band_is_drawn_or_its_absence_said() -> None:
-    from dataclasses import replace
-
-    base = curves()
-    with_band = replace(
-        base,
-        mean_lo_n=base.force_n * 0.6,
-        mean_hi_n=base.force_n * 1.6,
-        band_note="blue: 68 % band of the mean (calibration)",
-    )
-    fig = Figure()
-    draw_depth_plots(fig, with_band)
-    ax_f = fig.axes[1]
-    edges = [ln for ln in ax_f.lines if ln.get_color() == "#4060c0"]
-    assert len(edges) == 2
-    assert np.allclose(edges[0].get_ydata(), base.force_n * 0.6)
-    assert np.allclose(edges[1].get_ydata(), base.force_n * 1.6)
-    assert "68 % band" in ax_f.get_title(loc="left")
-    draw_depth_plots(fig, replace(base, band_note="no uncertainty band: x gives no covariance"))
-    assert not [ln for ln in fig.axes[1].lines if ln.get_color() == "#4060c0"]
-    assert "no uncertainty band" in fig.axes[1].get_title(loc="left")
+def test_live_cursor(qtbot: QtBot) -> None:
+    img, layout = paint(curves(), live=4.0)
+    tol = 1.5 * px_mm(layout)
+    assert vertical_marks_mm(img, layout, "live") == [[pytest.approx(4.0, abs=tol)]] * 3
 
 
-def _window_figure() -> Figure:
-    """The plots at the size the window gives them at its default 1440 x 900 (measured on a
-    screenshot: about 1070 x 290 px) and its resolution."""
-    from ctdrill.app.gui.plots import WINDOW_DPI
+def test_empty_plots_show_the_message(qtbot: QtBot) -> None:
+    blank, layout = paint(None, message="")
+    for message in ("open a DICOM folder", "no force profile: " + "x " * 100):
+        img, _ = paint(None, message=message)
+        f = layout.frames[1]
+        changed = np.any(img != blank, axis=-1)
+        rows = np.flatnonzero(changed[int(f.y0) + 1 : int(f.y1)].any(axis=1))
+        assert rows.size >= TEXT_PX - 3  # a line of text at least
+        if len(message) > 100:  # wrapped: two lines of text
+            assert rows[-1] - rows[0] > 1.5 * TEXT_PX
+        assert not changed[: int(f.y0)].any() and not changed[int(f.y1) + 1 :].any()
 
-    return Figure(figsize=(1070 / WINDOW_DPI, 290 / WINDOW_DPI), dpi=WINDOW_DPI)
 
-
-def test_every_text_is_at_least_10_px_and_inside_the_figure() -> None:
-    from dataclasses import replace
-
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    from ctdrill.app.gui.plots import WINDOW_DPI
-
-    for small in (False, True):
-        fig = _window_figure()
-        if small:  # a window shrunk to 1280 x 800: the labels keep their room
-            fig.set_size_inches(900 / WINDOW_DPI, 220 / WINDOW_DPI)
-        canvas = FigureCanvasAgg(fig)
-        draw_depth_plots(fig, replace(curves(), calibration="bone-illustrative"))
-        canvas.draw()
-        renderer = canvas.get_renderer()
-        box = fig.bbox
-        hidden = set()  # tick labels of ticks outside the view are not drawn
-        for ax in fig.axes:
-            x0, x1 = sorted(ax.get_xlim())
-            y0, y1 = sorted(ax.get_ylim())
-            hidden |= {id(t) for t in ax.get_xticklabels() if not x0 <= t.get_position()[0] <= x1}
-            hidden |= {id(t) for t in ax.get_yticklabels() if not y0 <= t.get_position()[1] <= y1}
-        texts = [
-            t
-            for t in fig.findobj(lambda a: hasattr(a, "get_fontsize"))
-            if t.get_text() and t.get_visible() and id(t) not in hidden
-        ]
-        assert len(texts) > 15  # tick labels, axis labels, titles, Misch names, margin
-        for t in texts:
-            assert t.get_fontsize() * WINDOW_DPI / 72.0 >= 10.0 - 1e-9, t.get_text()
-            ext = t.get_window_extent(renderer)
-            assert ext.x0 >= box.x0 - 0.5 and ext.x1 <= box.x1 + 0.5, t.get_text()
-            assert ext.y0 >= box.y0 - 0.5 and ext.y1 <= box.y1 + 0.5, t.get_text()
+def test_every_text_fits_the_widget_and_is_10_px(qtbot: QtBot) -> None:
+    assert TEXT_PX >= 10
+    base = replace(curves(), mean_lo_n=curves().force_n * 0.6, mean_hi_n=curves().force_n * 1.6)
+    for size in SIZES:
+        img, layout = paint(base, size)
+        white = np.all(img == 255, axis=-1)
+        # nothing cut at the widget's edges: the outermost pixels stay white
+        assert white[:, 0].all() and white[:, -1].all() and white[-1, :].all() and white[0].all()
+        # the tick labels and axis labels are painted in the margins
+        left = ~white[:, : int(MARGIN_PX["left"]) - 4]
+        assert left.any(axis=0).sum() > 20
+        assert (~white[int(layout.frames[2].y1) + 6 :, :]).any(axis=1).sum() >= 2 * TEXT_PX - 6
 
 
 def test_the_force_axis_starts_at_zero_so_a_flat_curve_looks_flat() -> None:
-    from dataclasses import replace
-
     d = np.linspace(0.0, 10.0, 201)
-    flat = replace(
-        curves(),
-        force_n=5.0 + 0.05 * np.sin(d),  # 4.95 .. 5.05 N: a ripple of 2 %
-        force_band_n=None,
-    )
-    fig = _window_figure()
-    draw_depth_plots(fig, flat)
-    lo, hi = fig.axes[1].get_ylim()
+    flat = replace(curves(), force_n=5.0 + 0.05 * np.sin(d), force_band_n=None)
+    lo, hi = depth_limits(flat).force
     assert lo == 0.0
     # the ripple spans at most 2.2 % of the axis (it spanned all of it when zoomed)
     assert 0.1 / (hi - lo) < 0.022 and hi >= 5.05
-    # a band reaching below 0 is shown whole
-    neg = replace(flat, force_band_n=np.full_like(d, 6.0))
-    draw_depth_plots(fig, neg)
-    lo, hi = fig.axes[1].get_ylim()
+    neg = replace(flat, force_band_n=np.full_like(d, 6.0))  # a band below 0: shown whole
+    lo, hi = depth_limits(neg).force
     assert lo == np.min(neg.force_n - 6.0) and hi > np.max(neg.force_n + 6.0)
+
+
+def test_nan_gaps_break_the_curves(qtbot: QtBot) -> None:
+    c = curves()
+    hu = c.hu.copy()
+    hu[80:120] = np.nan  # 4-6 mm: outside the volume
+    img, layout = paint(replace(c, hu=hu))
+    f = layout.frames[0]
+    x = int(float(layout.x_px(5.0)))
+    column = img[int(f.y0) + 1 : int(f.y1), x].astype(int)
+    assert not (np.abs(column - rgb("hu")).sum(axis=1) < 120).any()
+    x = int(float(layout.x_px(3.0)))
+    column = img[int(f.y0) + 1 : int(f.y1), x].astype(int)
+    assert (np.abs(column - rgb("hu")).sum(axis=1) < 120).any()
+
+
+def test_the_force_title_says_the_mean_band_or_its_absence() -> None:
+    from ctdrill.app.gui.plots import force_title
+
+    base = curves()
+    shown = replace(base, band_note="blue: 68 % band of the mean (calibration)")
+    assert "68 % band" in force_title(shown) and "bone-illustrative" in force_title(shown)
+    absent = replace(base, band_note="no uncertainty band: x gives no covariance")
+    assert "no uncertainty band" in force_title(absent)

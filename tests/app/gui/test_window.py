@@ -14,20 +14,19 @@ from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.imaging.phantom.io import PhantomCase
 from ctdrill.imaging.plan.load import load_plan
 from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
+from tests.app.gui.plot_marks import painted, vertical_marks_mm
 from tests.imaging.slicer_files import slicer_save, validate_markups
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
 
 
 def plot_stop_lines(win: MainWindow) -> list[float]:
-    """x of the stop-depth line (magenta, solid) on each of the three plot axes."""
-    xs = []
-    for ax in win.plot_fig.axes:
-        for line in ax.lines:
-            x = np.asarray(line.get_xdata(), dtype=float)
-            if line.get_color() == "#d02080" and x.size == 2 and x[0] == x[1]:
-                xs.append(float(x[0]))
-    return xs
+    """Depth of the stop line (magenta, solid) on each of the three plot axes, read from the
+    plot's pixels (to a pixel and a half: under 0.02 mm)."""
+    img, layout = painted(win.plot_canvas)
+    tol = 1.5 * (layout.depth_at(layout.frames[0].x0 + 1.0) - layout.depth_at(layout.frames[0].x0))
+    assert tol < 0.02
+    return [x for marks in vertical_marks_mm(img, layout, "stop") for x in marks]
 
 
 def test_window_opens_large_enough(window: MainWindow) -> None:
@@ -47,7 +46,7 @@ def test_open_the_phantom_stops_at_the_true_safe_depth(
     assert window.plan is not None and window.plan.implant is not None
     tip = window.plan.drill.tip_length_mm
     assert curves.planned_depth_mm == pytest.approx(truth["planned_depth_mm"] + tip)
-    assert plot_stop_lines(window) == pytest.approx([curves.stop_depth_mm] * 3)
+    assert plot_stop_lines(window) == pytest.approx([curves.stop_depth_mm] * 3, abs=0.02)
     # The trabecular bone's force shows on the plot: D2 bone, well above air.
     mid = (curves.depth_mm > 4.0) & (curves.depth_mm < 8.0)
     assert np.all(curves.force_n[mid] > 1.0)
@@ -69,7 +68,9 @@ def test_moving_the_target_recomputes_the_plots_and_the_stop(
     assert window.view.curves.stop_reason == "planned_depth"
     # the implant's apex 6 mm down, the drill's tip beyond it
     assert window.view.curves.stop_depth_mm == pytest.approx(6.0 + window.plan.drill.tip_length_mm)
-    assert plot_stop_lines(window) == pytest.approx([6.0 + window.plan.drill.tip_length_mm] * 3)
+    assert plot_stop_lines(window) == pytest.approx(
+        [6.0 + window.plan.drill.tip_length_mm] * 3, abs=0.02
+    )
     # canal top at z = -43 + 1.2; the apex at z = -35, the tip 0.6 mm below: 6.2 mm clear
     assert window.view.min_clearance_mm is not None
     assert float(window.view.min_clearance_mm[0]) == pytest.approx(6.2, abs=0.02)
