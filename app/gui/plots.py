@@ -6,7 +6,6 @@ widget of a given size, the titles). The window paints them with ``QPainter``
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,8 +51,8 @@ TITLE_PX = round(TITLE_PT * WINDOW_DPI / 72.0)
 #: sized): left of the y tick labels and axis label, right of the Misch labels, above the
 #: first title, below the x label, and between axes for a title.
 MARGIN_PX = {"left": 62.0, "right": 34.0, "top": 6.0, "bottom": 40.0, "gap": 22.0}
-#: Pixels per tick at least, along the depth axis and up a value axis (a 60 px axis has 3
-#: ticks: labels 10 px high).
+#: Pixels per tick step at least, along the depth axis and up a value axis (labels 10 px
+#: high; the steps: :func:`ctdrill.app.raster_plot.nice_ticks`, as ``force.png``'s).
 TICK_SPACING_PX = {"x": 48.0, "y": 18.0}
 
 
@@ -194,35 +193,6 @@ def force_limits_n(curves: DepthCurves) -> tuple[float, float]:
     hi = float(values.max()) if values.size else 1.0
     hi = max(hi, lo + 1.0) if hi <= lo else hi
     return lo, hi + 0.08 * (hi - lo)
-
-
-def nice_ticks(lo: float, hi: float, max_ticks: int) -> np.ndarray:
-    """Round tick values inside ``[lo, hi]``: steps of 1, 2, 2.5 or 5 times a power of ten,
-    the finest that puts at most ``max_ticks`` (>= 2) ticks inside."""
-    span = hi - lo
-    if not (math.isfinite(span) and span > 0.0):
-        return np.array([lo]) if math.isfinite(lo) else np.zeros(0)
-    n = max(2, int(max_ticks))
-    power = 10.0 ** math.floor(math.log10(span / n))
-    for step in (m * power for m in (1.0, 2.0, 2.5, 5.0, 10.0, 20.0, 25.0, 50.0, 100.0)):
-        first = math.ceil(lo / step - 1e-9)
-        last = math.floor(hi / step + 1e-9)
-        if last - first + 1 <= n:
-            break
-    ticks = np.arange(first, last + 1, dtype=np.float64) * step
-    ticks[np.abs(ticks) < step * 1e-9] = 0.0  # -0 and round-off at zero
-    return ticks
-
-
-def tick_labels(ticks: np.ndarray) -> list[str]:
-    """The labels of ``ticks`` with the decimals their step needs (``0``, ``2.5``, ``1000``)."""
-    if ticks.size < 2:
-        return [f"{v:g}" for v in ticks]
-    step = float(np.min(np.diff(ticks)))
-    decimals = 0
-    while decimals < 6 and abs(round(step, decimals) - step) > 1e-9 * max(1.0, abs(step)):
-        decimals += 1
-    return [f"{v:.{decimals}f}" for v in ticks]
 
 
 @dataclass(frozen=True)

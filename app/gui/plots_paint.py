@@ -24,10 +24,9 @@ from ctdrill.app.gui.plots import (
     Frame,
     PlotLayout,
     force_title,
-    nice_ticks,
     stop_title,
-    tick_labels,
 )
+from ctdrill.app.raster_plot import nice_ticks
 
 #: Tick mark length, px.
 TICK_PX = 4.0
@@ -92,6 +91,10 @@ def _font(px: int) -> QFont:
     return font
 
 
+def _labels(ticks: np.ndarray, decimals: int) -> list[str]:
+    return [f"{v:.{decimals}f}" for v in ticks]
+
+
 def _rect(f: Frame) -> QRectF:
     return QRectF(f.x0, f.y0, f.x1 - f.x0, f.y1 - f.y0)
 
@@ -128,10 +131,14 @@ def paint_axes(
             y = float(f_hu.y_px((a + b) / 2.0))
             p.drawText(QPointF(f_hu.x1 + 3.0, y + metrics.ascent() / 2.0 - 1.0), label)
     # grid, frames, ticks
-    depth_ticks = nice_ticks(0.0, layout.depth_max, int((f_hu.x1 - f_hu.x0) / TICK_SPACING_PX["x"]))
+    depth_ticks, depth_decimals = nice_ticks(
+        0.0, layout.depth_max, max(1, int((f_hu.x1 - f_hu.x0) / TICK_SPACING_PX["x"]))
+    )
     xs = layout.x_px(depth_ticks)
     for frame in layout.frames:
-        y_ticks = nice_ticks(frame.lo, frame.hi, int((frame.y1 - frame.y0) / TICK_SPACING_PX["y"]))
+        y_ticks, decimals = nice_ticks(
+            frame.lo, frame.hi, max(1, int((frame.y1 - frame.y0) / TICK_SPACING_PX["y"]))
+        )
         ys = frame.y_px(y_ticks)
         p.setPen(QPen(_colour("grid"), 1.0))
         for x in xs:
@@ -140,13 +147,13 @@ def paint_axes(
             p.drawLine(QPointF(frame.x0, y), QPointF(frame.x1, y))
         p.setPen(QPen(_colour("text"), 1.0))
         p.drawRect(_rect(frame))
-        for y, label in zip(ys, tick_labels(y_ticks), strict=True):
+        for y, label in zip(ys, _labels(y_ticks, decimals), strict=True):
             p.drawLine(QPointF(frame.x0 - TICK_PX, y), QPointF(frame.x0, y))
             w = metrics.horizontalAdvance(label)
             p.drawText(QPointF(frame.x0 - TICK_PX - 2.0 - w, y + metrics.ascent() / 2.0 - 1), label)
         for x in xs:
             p.drawLine(QPointF(x, frame.y1), QPointF(x, frame.y1 + TICK_PX))
-    for x, label in zip(xs, tick_labels(depth_ticks), strict=True):
+    for x, label in zip(xs, _labels(depth_ticks, depth_decimals), strict=True):
         w = metrics.horizontalAdvance(label)
         p.drawText(QPointF(x - w / 2.0, f_clear.y1 + TICK_PX + 1.0 + metrics.ascent()), label)
     # axis labels

@@ -16,9 +16,7 @@ from ctdrill.app.gui.plots import (
     DepthCurves,
     PlotLayout,
     depth_limits,
-    nice_ticks,
     plot_layout,
-    tick_labels,
 )
 from ctdrill.app.gui.plots_paint import paint_axes, paint_curves, paint_live_depth
 from ctdrill.app.gui.screenshot import qimage_to_rgb
@@ -64,17 +62,6 @@ def paint(
 def px_mm(layout: PlotLayout) -> float:
     """One pixel of depth, mm."""
     return layout.depth_at(layout.frames[0].x0 + 1.0) - layout.depth_at(layout.frames[0].x0)
-
-
-def test_nice_ticks_are_round_inside_and_few_enough() -> None:
-    assert list(nice_ticks(-200.0, 1900.0, 3)) == [0.0, 1000.0]
-    assert list(nice_ticks(0.0, 13.1, 20)) == list(np.arange(14.0))
-    assert list(nice_ticks(-3.2, 15.0, 5)) == [0.0, 5.0, 10.0, 15.0]
-    assert tick_labels(nice_ticks(0.0, 0.37, 4)) == ["0.0", "0.1", "0.2", "0.3"]
-    assert tick_labels(np.array([0.0, 2.5, 5.0])) == ["0.0", "2.5", "5.0"]
-    for lo, hi, n in ((0.0, 1.0, 2), (-7.0, 3.0, 7), (1e-3, 2e-3, 4), (0.0, 3000.0, 9)):
-        ticks = nice_ticks(lo, hi, n)
-        assert 1 <= ticks.size <= n and ticks[0] >= lo and ticks[-1] <= hi
 
 
 def test_stop_planned_and_margin_are_painted_where_they_are(qtbot: QtBot) -> None:
