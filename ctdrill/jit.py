@@ -15,21 +15,30 @@ keeps it. Set ``NUMBA_CACHE_DIR`` to choose one (CI runs as root: a cache folder
 restores between runs).
 
 numba itself is imported only when a kernel is first asked for (:meth:`Kernel.ready`): its
-import (with SciPy's linear algebra, which numba loads for a BLAS check) and its first cache
-load cost a fresh process 0.5-0.8 s, more than a one-plan export's whole work on the NumPy
-paths. Functions marked :func:`helper` stay plain Python until then and are compiled (and
-rebound in the modules of the kernels and helpers) when numba is loaded. Every job takes the
-kernels where their cache is present, a one-plan export too: some kernels (the landmark
-clearances' golden section) agree with their NumPy paths to their tolerance, not to the bit,
-and a trajectory's stop must not depend on the process computing it (a batch row in a worker,
-the same row in one process, the window).
+import and its first cache load cost a fresh process 0.3-0.5 s of CPU, more than a one-plan
+export's whole work on the NumPy paths. Functions marked :func:`helper` stay plain Python
+until then and are compiled (and rebound in the modules of the kernels and helpers) when
+numba is loaded. Every job takes the kernels where their cache is present, a one-plan export
+too: some kernels (the landmark clearances' golden section) agree with their NumPy paths to
+their tolerance, not to the bit, and a trajectory's stop must not depend on the process
+computing it (a batch row in a worker, the same row in one process, the window).
+
+numba's first cache load imports ``numba.np.arraymath``, which imports
+``scipy.linalg.cython_blas`` to learn whether BLAS is there (``_HAVE_BLAS``); through the
+``scipy.linalg`` package that cost about 0.15 s of CPU (SciPy's array-API layer). The first
+load gets that extension module itself, loaded from its file without the package
+(:func:`_cython_blas_alone`): numba finds the same BLAS, and ``scipy.linalg``, imported later,
+gets the same module.
 """
 
 from __future__ import annotations
 
 import contextlib
+import importlib.machinery
+import importlib.util
 import itertools
 import os
+import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -141,6 +150,10 @@ class Kernel:
 
     def _load(self) -> bool:
         disp = self._dispatch()
+        with _NUMBA_LOCK, _cython_blas_alone():
+            return self._load_overloads(disp)
+
+    def _load_overloads(self, disp: Any) -> bool:
         for sig in self._arg_types():
             if sig in disp.overloads:
                 continue
@@ -175,6 +188,50 @@ class Kernel:
         for sig in self._arg_types():
             disp.compile(sig)
         self._ready = None
+
+
+_BLAS_MODULE = "scipy.linalg.cython_blas"
+
+
+@contextlib.contextmanager
+def _cython_blas_alone() -> Iterator[None]:
+    """Within the block, ``scipy.linalg.cython_blas`` is imported (when ``scipy.linalg`` is
+    not yet) by loading its extension file alone, without running the ``scipy.linalg``
+    package; afterwards the name is dropped from ``sys.modules`` again, so a later
+    ``import scipy.linalg.cython_blas`` goes through the package (CPython hands it the same
+    module: an extension is initialised once per process)."""
+    if _BLAS_MODULE in sys.modules or "scipy.linalg" in sys.modules:
+        yield
+        return
+    loaded = False
+    try:
+        spec = importlib.util.find_spec("scipy")
+        folders = list(spec.submodule_search_locations or ()) if spec else []
+        for folder in folders:
+            for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+                path = os.path.join(folder, "linalg", "cython_blas" + suffix)
+                if os.path.isfile(path):
+                    loader = importlib.machinery.ExtensionFileLoader(_BLAS_MODULE, path)
+                    bspec = importlib.util.spec_from_file_location(
+                        _BLAS_MODULE, path, loader=loader
+                    )
+                    assert bspec is not None
+                    module = importlib.util.module_from_spec(bspec)
+                    sys.modules[_BLAS_MODULE] = module
+                    loaded = True
+                    loader.exec_module(module)
+                    break
+            if loaded:
+                break
+    except Exception:  # pragma: no cover - numba then imports it through the package
+        if loaded:
+            sys.modules.pop(_BLAS_MODULE, None)
+        loaded = False
+    try:
+        yield
+    finally:
+        if loaded and "scipy.linalg" not in sys.modules:
+            sys.modules.pop(_BLAS_MODULE, None)
 
 
 def helper(pyfunc: Callable[..., Any]) -> Any:
