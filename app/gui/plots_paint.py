@@ -9,9 +9,8 @@ marks and the stop in words over it, a millisecond or two for a few hundred poin
 from __future__ import annotations
 
 import numpy as np
-import shiboken6
 from PySide6.QtCore import QPointF, QRectF, Qt
-from PySide6.QtGui import QBrush, QColor, QFont, QPainter, QPen, QPolygonF
+from PySide6.QtGui import QBrush, QColor, QFont, QPainter, QPen
 
 from ctdrill.app.gui.plots import (
     BAND_COLOURS,
@@ -26,41 +25,11 @@ from ctdrill.app.gui.plots import (
     force_title,
     stop_title,
 )
+from ctdrill.app.gui.polylines import polygon, polyline, runs
 from ctdrill.app.raster_plot import nice_ticks
 
 #: Tick mark length, px.
 TICK_PX = 4.0
-
-
-def polygon(x_px: np.ndarray, y_px: np.ndarray) -> QPolygonF:
-    """A ``QPolygonF`` of the points (x, y) px, filled from NumPy in one copy."""
-    n = int(x_px.size)
-    poly = QPolygonF()
-    poly.resize(n)
-    if n:
-        buf = shiboken6.VoidPtr(poly.data(), n * 16, True)  # type: ignore[call-arg,arg-type]
-        xy = np.frombuffer(buf, dtype=np.float64).reshape(n, 2)  # type: ignore[call-overload]
-        xy[:, 0] = x_px
-        xy[:, 1] = y_px
-    return poly
-
-
-def _runs(finite: np.ndarray) -> list[tuple[int, int]]:
-    """[start, stop) index ranges where ``finite`` is True."""
-    if finite.all():
-        return [(0, int(finite.size))]
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], finite.view(np.int8), [0]])))
-    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
-
-
-def _polyline(p: QPainter, x: np.ndarray, y: np.ndarray, *, bold: bool = False) -> None:
-    """Draw the finite runs of (x, y) px as polylines; ``bold`` draws a second one 0.6 px
-    lower (two 1 px antialiased lines cost a twentieth of one wider line)."""
-    for a, b in _runs(np.isfinite(y) & np.isfinite(x)):
-        if b - a >= 2:
-            p.drawPolyline(polygon(x[a:b], y[a:b]))
-            if bold:
-                p.drawPolyline(polygon(x[a:b], y[a:b] + 0.6))
 
 
 def _fill(p: QPainter, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, colour: QColor) -> None:
@@ -71,7 +40,7 @@ def _fill(p: QPainter, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, colour: QC
     p.setRenderHint(hint, False)
     p.setPen(Qt.PenStyle.NoPen)
     p.setBrush(QBrush(colour))
-    for a, b in _runs(np.isfinite(lo) & np.isfinite(hi)):
+    for a, b in runs(np.isfinite(lo) & np.isfinite(hi)):
         if b - a >= 2:
             xs = np.concatenate([x[a:b], x[a:b][::-1]])
             p.drawPolygon(polygon(xs, np.concatenate([lo[a:b], hi[a:b][::-1]])))
@@ -208,16 +177,16 @@ def paint_curves(p: QPainter, layout: PlotLayout, curves: DepthCurves) -> None:
         lo, hi = f_force.y_px(curves.mean_lo_n), f_force.y_px(curves.mean_hi_n)
         _fill(p, x, lo, hi, _colour("mean", 0.18))
         p.setPen(QPen(_colour("mean"), 1.0, Qt.PenStyle.DashLine))
-        _polyline(p, x, lo)
-        _polyline(p, x, hi)
+        polyline(p, x, lo)
+        polyline(p, x, hi)
     p.setPen(QPen(_colour("force"), 1.0))
-    _polyline(p, x, f_force.y_px(curves.force_n), bold=True)
+    polyline(p, x, f_force.y_px(curves.force_n), bold=True)
     p.setClipRect(_rect(f_hu))
     p.setPen(QPen(_colour("hu"), 1.0))
-    _polyline(p, x, f_hu.y_px(curves.hu), bold=True)
+    polyline(p, x, f_hu.y_px(curves.hu), bold=True)
     p.setClipRect(_rect(f_clear))
     p.setPen(QPen(_colour("clearance"), 1.0))
-    _polyline(p, x, f_clear.y_px(curves.clearance_mm), bold=True)
+    polyline(p, x, f_clear.y_px(curves.clearance_mm), bold=True)
     p.restore()
     p.setRenderHint(QPainter.RenderHint.Antialiasing, False)
     stop, planned = layout.x_px(np.array([curves.stop_depth_mm, curves.planned_depth_mm]))

@@ -26,9 +26,11 @@ from ctdrill.api import open_window
 from ctdrill.app.gui import slice_grid
 from ctdrill.app.gui.implant_drag import dragged_plan, site_lps
 from ctdrill.app.gui.main_window import MainWindow
+from ctdrill.app.gui.map_ghost import GRIP_RADIUS_PX
 from ctdrill.app.gui.plots import stop_title
 from ctdrill.app.gui.readouts import implant_readout
 from ctdrill.app.gui.results import compute_path_view
+from ctdrill.app.gui.screenshot import qimage_to_rgb
 from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.load import load_plan_set
 from ctdrill.imaging.sampling.arch import ArchCurve
@@ -220,6 +222,29 @@ def test_a_canal_traced_on_the_panorama_is_saved_where_the_pixels_were(
     assert demo.undo_action.text() == "Undo slide implant along its axis"
 
 
+def ghost_is_painted_at_its_grips(canvas: QWidget) -> None:
+    """The ghost's grips are rings painted over the image (the pixels a ghost-less paint
+    shows differ on each ring), and the ghost changes nothing outside the axes."""
+    ghost = canvas.ghost_uv  # type: ignore[attr-defined]
+    assert ghost is not None and ghost[1].shape[0] >= 1
+    with_ghost = qimage_to_rgb(canvas.grab().toImage())
+    canvas.end_ghost()  # type: ignore[attr-defined]
+    without = qimage_to_rgb(canvas.grab().toImage())
+    changed = np.any(with_ghost != without, axis=-1)
+    ratio = canvas.devicePixelRatioF()
+    xy = canvas.ax.transData.transform(ghost[1]) / ratio  # type: ignore[attr-defined]
+    h = canvas.height()
+    for gx, gy in zip(xy[:, 0], h - xy[:, 1], strict=True):
+        ring = [(gx + GRIP_RADIUS_PX * np.cos(a), gy + GRIP_RADIUS_PX * np.sin(a)) for a in
+                np.linspace(0.0, 2.0 * np.pi, 8, endpoint=False)]  # fmt: skip
+        hits = [changed[int(v) - 1 : int(v) + 2, int(u) - 1 : int(u) + 2].any() for u, v in ring]
+        assert sum(hits) >= 6, (gx, gy, hits)
+    x0, y0, x1, y1 = canvas.ax.bbox.extents / ratio  # type: ignore[attr-defined]
+    outside = changed.copy()
+    outside[int(h - y1) : int(h - y0) + 1, int(x0) : int(x1) + 1] = False
+    assert not outside.any()
+
+
 def test_a_fast_drag_is_coalesced_to_its_latest_position_once_per_pass(
     qtbot: QtBot, demo: MainWindow
 ) -> None:
@@ -259,6 +284,7 @@ def test_a_fast_drag_is_coalesced_to_its_latest_position_once_per_pass(
         timeout=LOAD_TIMEOUT_MS,
     )
     qtbot.waitUntil(lambda: plot.curves is demo.doc.live.path.curves, timeout=LOAD_TIMEOUT_MS)  # type: ignore[attr-defined,union-attr]
+    ghost_is_painted_at_its_grips(drill)
     # the cross-section's readout follows the drag: the dragged position's, before the release
     assert demo.doc.volume is not None
     expected = implant_readout(demo.doc.volume, dragged, demo.doc.live.path, live=True)
