@@ -17,6 +17,7 @@ same outcome.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -33,7 +34,8 @@ from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.plan.landmarks import bind_to_grid
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.resolution import volume_clearance_accuracy_mm
-from ctdrill.imaging.sampling.walls import BoneWalls, bone_wall_warnings, plan_bone_walls
+from ctdrill.imaging.sampling.wall_warnings import bone_wall_warnings
+from ctdrill.imaging.sampling.walls import BoneWalls, start_plan_bone_walls
 from ctdrill.imaging.teeth import TOOTH_HU, tooth_distance_mm
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.warning_codes import LoadWarning
@@ -132,23 +134,30 @@ def implant_outcome(volume: CTVolume, plan: Plan, **wall_options: Any) -> Implan
     wall_options : passed to :func:`~ctdrill.imaging.sampling.walls.bone_walls`
         (``depth_step_mm``, ``n_angles``, ``max_wall_mm``, ``ray_step``).
     """
-    if plan.implant is None:
-        return None
+    walls = start_plan_bone_walls(volume, plan, **wall_options)
+    return None if walls is None else implant_outcome_with(volume, plan, walls)
+
+
+def implant_outcome_with(
+    volume: CTVolume, plan: Plan, walls: Callable[[], BoneWalls]
+) -> ImplantOutcome:
+    """:func:`implant_outcome` of ``plan`` (which has an implant) with its bone walls already
+    started (:func:`~ctdrill.imaging.sampling.walls.start_plan_bone_walls`: their rays run on
+    the worker threads meanwhile); ``walls()`` finishes them once the rest is computed."""
     if plan.landmarks:
         landmarks = bind_to_grid(plan.landmarks, volume.affine_lps, tuple(volume.hu.shape))
         if any(a is not b for a, b in zip(landmarks, plan.landmarks, strict=True)):
             plan = replace(plan, landmarks=landmarks)
     clearance = implant_clearance(plan)
-    walls = plan_bone_walls(volume, plan, **wall_options)
-    assert walls is not None  # the plan has an implant
-    warnings = implant_body_margin_warnings(plan, clearance)
-    warnings += bone_wall_warnings(walls, min_wall_mm=plan.min_wall_mm, label=_label(plan))
     tooth = implant_tooth_distance_mm(volume, plan)
+    bone = walls()
+    warnings = implant_body_margin_warnings(plan, clearance)
+    warnings += bone_wall_warnings(bone, min_wall_mm=plan.min_wall_mm, label=_label(plan))
     warnings += tooth_warnings(plan, tooth)
     return ImplantOutcome(
         plan=plan,
         clearance=clearance,
-        walls=walls,
+        walls=bone,
         accuracy_mm=volume_clearance_accuracy_mm(volume),
         warnings=tuple(warnings),
         tooth_mm=tooth,

@@ -14,6 +14,7 @@ gathered once (:mod:`ctdrill.engine.path_warnings`), each code + message once.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -22,7 +23,7 @@ import numpy as np
 from ctdrill.engine.batch import RowsRun, evaluate_rows
 from ctdrill.engine.budget import plan_budgets
 from ctdrill.engine.grid import DEFAULT_DEPTH_STEP_MM
-from ctdrill.engine.implant import ImplantOutcome, implant_outcome
+from ctdrill.engine.implant import ImplantOutcome, implant_outcome, implant_outcome_with
 from ctdrill.engine.path_warnings import path_warnings
 from ctdrill.engine.stop import StopReason
 from ctdrill.imaging.plan.budget import MarginBudget
@@ -31,6 +32,7 @@ from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.annulus import Hole
 from ctdrill.imaging.sampling.lip import DEFAULT_N_ANGLES, DEFAULT_N_RINGS, LipSamples
 from ctdrill.imaging.sampling.path import PathInputError, SliceGap
+from ctdrill.imaging.sampling.walls import start_plan_bone_walls
 from ctdrill.imaging.volume import CTVolume, LoadWarning
 from ctdrill.model.calibration import Calibration
 from ctdrill.model.profile import Profile
@@ -195,16 +197,27 @@ def plan_path(
     PathInputError
         When the CT cannot carry a force map along the path (see the module docstring).
     """
-    result = path_curves(
-        volume,
-        plan,
-        calibration,
-        depth_step_mm=depth_step_mm,
-        n_rings=n_rings,
-        n_angles=n_angles,
-        interpolate_gaps=interpolate_gaps,
-        inner_holes=inner_holes,
-    )
+    # the implant's bone walls start on the worker threads (compiled rays, no interpreter
+    # lock) while this thread computes the drill's path, then lends itself to the rays left
+    walls = start_plan_bone_walls(volume, plan) if implant is None else None
+    try:
+        result = path_curves(
+            volume,
+            plan,
+            calibration,
+            depth_step_mm=depth_step_mm,
+            n_rings=n_rings,
+            n_angles=n_angles,
+            interpolate_gaps=interpolate_gaps,
+            inner_holes=inner_holes,
+        )
+    except BaseException:
+        if walls is not None:
+            with contextlib.suppress(Exception):
+                walls()  # no rays left running behind a refusal
+        raise
+    if walls is not None:
+        implant = implant_outcome_with(volume, result.plan, walls)
     return complete_path(volume, result, implant)
 
 

@@ -1,9 +1,12 @@
-"""``ctdrill.jit.row_spans``: rows as half-open spans of consecutive rows, split for threads."""
+"""``ctdrill.jit.row_spans``: rows as half-open spans of consecutive rows, split for threads;
+``ctdrill.jit.start_claimed``: rows claimed one by one by threads walking spans from both ends."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from ctdrill import jit
 from ctdrill.jit import row_spans
 
 
@@ -26,3 +29,65 @@ def test_unsorted_and_repeated_rows_are_each_covered_once() -> None:
     rng = np.random.default_rng(1)
     rows = rng.integers(0, 200, 150)
     assert _covered(row_spans(rows, parts=3)) == sorted(set(rows.tolist()))
+
+
+class _Squares:
+    """A claiming kernel in Python (the protocol of :class:`ctdrill.jit.Claimed`): row ``n``
+    gets ``n * n``; ``seen`` counts how often each row was computed."""
+
+    name = "squares"
+
+    def __init__(self, n: int) -> None:
+        self.out = np.zeros(n)
+        self.seen = np.zeros(n, dtype=np.int64)
+
+    def ready(self) -> bool:
+        return True
+
+    def fixed_args(self, args: tuple[object, ...]) -> tuple[object, ...]:
+        return tuple(args)
+
+    def _dispatch(self) -> object:
+        def walk(out: np.ndarray, taken: np.ndarray, lo: int, hi: int, backward: bool) -> None:
+            rows = range(hi - 1, lo - 1, -1) if backward else range(lo, hi)
+            for n in rows:
+                if taken[n] != 0:
+                    break
+                taken[n] = 1
+                out[n] = n * n
+                self.seen[n] += 1
+                taken[n] = 2
+
+        return walk
+
+
+def test_claimed_rows_are_each_computed_and_done(monkeypatch: pytest.MonkeyPatch) -> None:
+    for cpus in (1, 2, 3, 8):
+        monkeypatch.setattr(jit, "cpus", lambda c=cpus: c)
+        k = _Squares(1000)
+        job = jit.start_claimed(k, 1000, k.out)  # type: ignore[arg-type]
+        job.join()
+        assert np.array_equal(k.out, np.arange(1000.0) ** 2)
+        assert np.all(job.taken == 2)
+        # two threads meeting on a row may both compute it; never more, never none
+        assert k.seen.min() == 1 and k.seen.max() <= 2
+
+
+def test_a_walk_stops_at_a_row_another_thread_took() -> None:
+    k = _Squares(10)
+    walk = k._dispatch()
+    taken = np.zeros(10, dtype=np.uint8)
+    taken[6] = 1
+    walk(k.out, taken, 0, 10, True)  # type: ignore[operator]
+    assert taken.tolist() == [0] * 6 + [1, 2, 2, 2]
+    walk(k.out, taken, 0, 10, False)  # type: ignore[operator]
+    assert taken.tolist() == [2] * 6 + [1, 2, 2, 2]
+
+
+def test_a_cancelled_job_takes_no_more_rows(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(jit, "cpus", lambda: 1)  # nothing starts before join
+    k = _Squares(50)
+    job = jit.start_claimed(k, 50, k.out)  # type: ignore[arg-type]
+    job.cancel()
+    job.join()
+    assert k.seen.sum() == 0

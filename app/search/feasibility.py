@@ -9,7 +9,7 @@ A candidate (the plan with the candidate's entry and target) is **feasible** whe
 - the implant body at its placement keeps every landmark's margin
   (``implant_violates_margin``) and its bone walls show no
   ``cortical_perforation`` and no ``thin_wall`` (``min_mm`` at least the plan's
-  ``min_wall_mm``, :func:`~ctdrill.imaging.sampling.walls.bone_wall_warnings`); walls with
+  ``min_wall_mm``, :func:`~ctdrill.imaging.sampling.wall_warnings.bone_wall_warnings`); walls with
   no known direction at all (``min_mm`` None: the CT ends around the implant) are not a
   known wall, so the candidate is not feasible (``bone_walls_unknown``).
 

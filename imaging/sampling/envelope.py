@@ -13,10 +13,11 @@ is not wall) but no gap either (a root inside the jaw does not end it).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
-from ctdrill.imaging.sampling.envelope_kernel import envelope_rays, kernel_fits
+from ctdrill.imaging.sampling.envelope_march import kernel_fits, start_envelope_rays
 from ctdrill.imaging.teeth import bone_along, edge_steps, is_bone_hu, is_tooth_hu
 from ctdrill.imaging.volume import CTVolume
 
@@ -61,11 +62,35 @@ def envelope_walls(
     The compiled kernel (:mod:`~ctdrill.imaging.sampling.envelope_kernel`) computes it when
     it is loaded and the volume has no padding; else the NumPy path below (the reference).
     """
+    return start_envelope_walls(
+        volume,
+        origins_lps,
+        dirs_lps,
+        step=step,
+        max_wall_mm=max_wall_mm,
+        gap_mm=gap_mm,
+        reach_mm=reach_mm,
+    )()
+
+
+def start_envelope_walls(
+    volume: CTVolume,
+    origins_lps: np.ndarray,
+    dirs_lps: np.ndarray,
+    *,
+    step: float,
+    max_wall_mm: float = MAX_ENVELOPE_MM,
+    gap_mm: float = ENVELOPE_GAP_MM,
+    reach_mm: float = ENVELOPE_REACH_MM,
+) -> Callable[[], tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """:func:`envelope_walls` started: the compiled kernel's rays begin on the worker threads
+    and this returns at once a function giving ``(wall, unknown, open)`` when called (the
+    NumPy path computes them here)."""
     n_steps = math.ceil((max_wall_mm + gap_mm) / step) + 1
     gap_steps = math.ceil(gap_mm / step - 1e-9)
     tooth_edge = edge_steps(volume, step)
     if kernel_fits(volume):
-        return envelope_rays(
+        return start_envelope_rays(
             volume,
             origins_lps,
             dirs_lps,
@@ -78,6 +103,24 @@ def envelope_walls(
             air_hu=AIR_HU,
             bisect_tol_mm=BISECT_TOL_MM,
         )
+    done = _envelope_numpy(
+        volume, origins_lps, dirs_lps, step, n_steps, gap_steps, tooth_edge, max_wall_mm, reach_mm
+    )
+    return lambda: done
+
+
+def _envelope_numpy(
+    volume: CTVolume,
+    origins_lps: np.ndarray,
+    dirs_lps: np.ndarray,
+    step: float,
+    n_steps: int,
+    gap_steps: int,
+    tooth_edge: int,
+    max_wall_mm: float,
+    reach_mm: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`envelope_walls` by NumPy (the reference)."""
     n = len(origins_lps)
     wall = np.zeros(n)
     unknown = np.zeros(n, dtype=bool)
@@ -169,6 +212,19 @@ def ring_walls(
     max_wall_mm: float,
     buccal_perp: np.ndarray | None,
 ) -> tuple[np.ndarray, np.ndarray]:
+    """Each ray's wall (D, A) to the jaw's envelope and whether it is unknown (D, A):
+    :func:`start_ring_walls` (same arguments) computed at once."""
+    return start_ring_walls(volume, origin, dirs, step, max_wall_mm, buccal_perp)()
+
+
+def start_ring_walls(
+    volume: CTVolume,
+    origin: np.ndarray,
+    dirs: np.ndarray,
+    step: float,
+    max_wall_mm: float,
+    buccal_perp: np.ndarray | None,
+) -> Callable[[], tuple[np.ndarray, np.ndarray]]:
     """Each ray's wall (D, A) to the jaw's envelope and whether it is unknown (D, A): rays from
     ``origin`` (D, A, 3), the implant's surface at D depths, along ``dirs`` (A, 3).
 
@@ -176,12 +232,26 @@ def ring_walls(
     45 deg of the jaw's long direction at its depth (perpendicular to ``buccal_perp``, the
     arch's buccal direction; without an arch, perpendicular to the mean axis of the rays
     that cross the jaw's surface, by doubled angles) the jaw goes on (capped); across it the
-    surface point is outside the jaw (0)."""
+    surface point is outside the jaw (0).
+
+    The rays start on the worker threads (:func:`start_envelope_walls`); the function returned
+    finishes them and gives ``(wall, unknown)``."""
     shape = origin.shape[:2]
     o = origin.reshape(-1, 3)
     v = np.broadcast_to(dirs[None, :, :], origin.shape).reshape(-1, 3)
-    wall, unknown, open_ = envelope_walls(volume, o, v, step=step, max_wall_mm=max_wall_mm)
-    wall, unknown, open_ = wall.reshape(shape), unknown.reshape(shape), open_.reshape(shape)
+    rays = start_envelope_walls(volume, o, v, step=step, max_wall_mm=max_wall_mm)
+    return lambda: _ring_rule(rays(), shape, dirs, max_wall_mm, buccal_perp)
+
+
+def _ring_rule(
+    rays: tuple[np.ndarray, np.ndarray, np.ndarray],
+    shape: tuple[int, ...],
+    dirs: np.ndarray,
+    max_wall_mm: float,
+    buccal_perp: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The open rays of :func:`start_ring_walls` judged along or across the jaw."""
+    wall, unknown, open_ = (a.reshape(shape) for a in rays)
     if open_.any():
         # (D, A) rays that cross the jaw's surface (an exit short of the cap: across it)
         met = ~unknown & ~open_ & (wall > 0.0) & (wall < max_wall_mm)

@@ -1,6 +1,6 @@
 """The envelope rule of :mod:`ctdrill.imaging.sampling.envelope`, compiled: one ray at a time.
 
-:func:`envelope_rays` gives, for ``N`` rays, what
+:func:`~ctdrill.imaging.sampling.envelope_march.envelope_rays` gives, for ``N`` rays, what
 :func:`~ctdrill.imaging.sampling.envelope.envelope_walls` gives (the wall to the jaw's envelope,
 unknown, open): each ray is marched and sampled (trilinear, the weights and summation order of
 ``scipy.ndimage.map_coordinates(order=1, mode="nearest")`` that
@@ -15,9 +15,15 @@ the CT whose trilinear field lies inside one class (:mod:`~ctdrill.imaging.sampl
 all soft, or all bone-range, cached with the volume) as one segment, and reads the other
 samples (and the bisection's) at index coordinates extrapolated along the ray, the exact point's
 own arithmetic taken wherever a sample lies within ``eps_hu`` of a threshold or near the CT's
-faces. Every decision of the rule is therefore the full march's: the walls, unknown and open
-flags are bit for bit those of the march reading every sample (``skip_blocks=False``; a
-Hypothesis test holds them so on adversarial fields).
+faces. Once the exit's bisection bracket lies inside one trilinear cell, its midpoints are read
+off the cell's cubic along the ray (:mod:`~ctdrill.imaging.sampling.cell_cubic`) under the
+same guard. A ray that meets bone at or past the cap with the CT still there is decided
+(capped, known, closed) and its march stops. Every decision of the rule is therefore the full
+march's: the walls, unknown and open flags are bit for bit those of the march reading every
+sample (``skip_blocks=False``; a Hypothesis test holds them so on adversarial fields).
+
+Each call walks a span of rays up or down, claiming each (``taken``,
+:func:`ctdrill.jit.start_claimed`), so two threads meet wherever the rays' costs put the middle.
 
 The kernel covers volumes without padding; a padded volume and a process without the compiled
 kernel take the NumPy path.
@@ -25,12 +31,9 @@ kernel take the NumPy path.
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterator
-
 import numpy as np
 
-from ctdrill.imaging.misch import BONE_HU
+from ctdrill.imaging.sampling.cell_cubic import cell_cubic
 from ctdrill.imaging.sampling.hu_blocks import (
     AIR,
     BONE,
@@ -39,23 +42,14 @@ from ctdrill.imaging.sampling.hu_blocks import (
     MIXED,
     SOFT,
     TOOTH,
-    block_classes,
     block_run,
-    hu_bound,
 )
 from ctdrill.imaging.sampling.trilinear import (
     VOLUME_SIG,
     at_index,
-    fits,
     trilinear,
-    volume_args,
 )
-from ctdrill.imaging.teeth import TOOTH_HU
-from ctdrill.imaging.volume import CTVolume
-from ctdrill.jit import Kernel, helper, row_spans, run_spans
-
-#: Rays per thread span below which one thread does all (waking threads costs more).
-_MIN_SPAN = 64
+from ctdrill.jit import Kernel, helper
 
 
 @helper
@@ -104,8 +98,10 @@ def _envelope_kernel(
     wall: np.ndarray,
     unknown: np.ndarray,
     open_: np.ndarray,
+    taken: np.ndarray,
     row_lo: int,
     row_hi: int,
+    backward: bool,
 ) -> None:  # pragma: no cover - compiled by numba; tested against the NumPy path
     step, max_wall, reach, bone_hu, tooth_hu, air_hu, tol, eps_hu = (
         params[0],
@@ -122,10 +118,17 @@ def _envelope_kernel(
     accel = not remap and blocks.shape[0] > 0
     cls = np.empty(n_steps, dtype=np.int8)  # each sample's class, known for [0, filled)
     rend = np.empty(n_steps, dtype=np.int64)  # at a segment's start, its last sample
+    coef = np.empty(4)  # the bisected cell's cubic along the ray
     k_reach = 0  # the first sample beyond the reach
     while k_reach < n_steps and not (k_reach * step > reach):
         k_reach += 1
-    for n in range(row_lo, row_hi):
+    for idx in range(row_lo, row_hi):
+        # rays claimed one by one (:func:`ctdrill.jit.start_claimed`): from the span's first
+        # ray up, or from its last down; a ray another thread took ends this run
+        n = row_hi - 1 - (idx - row_lo) if backward else idx
+        if taken[n] != 0:
+            break
+        taken[n] = 1
         o0, o1, o2 = origins[n, 0], origins[n, 1], origins[n, 2]
         v0, v1, v2 = dirs[n, 0], dirs[n, 1], dirs[n, 2]
         # index coordinates along the ray (regular grids): c(t) = c0 + t e, a sample d apart
@@ -153,6 +156,9 @@ def _envelope_kernel(
         lb = -1
         k_far = -1
         prev_ok = False  # sample k-1: seen, not solid, not gone (a gap inside the CT)
+        # bone met at or past the cap with the CT still there: capped, known, closed, whatever
+        # follows (the full rule's far_first below), so the march stops there
+        far_done = False
         k = 0  # the next sample the rule reads: the start of a segment (rend[k] its end)
         while k < n_steps:
             # class the samples up to `edge` past this segment's end (a tooth's edge)
@@ -238,8 +244,11 @@ def _envelope_kernel(
                         last_solid = b_hi
                         if k_far < 0 and b_hi >= k_cap:
                             k_far = max(b_lo, k_cap)
+                            if first_gone == n_steps:
+                                far_done = True
+                                break
                         prev_ok = False
-                if k_end >= 0:
+                if k_end >= 0 or far_done:
                     break
                 k = e + 1
                 continue
@@ -269,6 +278,12 @@ def _envelope_kernel(
                 break
             prev_ok = seen and not solid and not gone
             k += 1
+        if far_done:
+            wall[n] = max_wall
+            unknown[n] = False
+            open_[n] = False
+            taken[n] = 2
+            continue
         has_end = k_end >= 0
         if not has_end:
             k_end = n_steps - 1
@@ -288,10 +303,26 @@ def _envelope_kernel(
         if not unk and lb >= 0 and not capped:  # bisect the exit crossing
             a = lb * step
             b_t = min(lb + 1, n_steps - 1) * step
+            # once the bracket lies inside one cell its midpoints are read off the cell's
+            # cubic, where it is farther than eps_hu from the thresholds decided on (else,
+            # and while the bracket spans cells, as the march reads them)
+            a0 = a
+            cubic = False
             while b_t - a > tol:
+                if accel and not cubic:
+                    a0 = a
+                    cubic = cell_cubic(
+                        vol, top, ci0 + a0 * ei, cj0 + a0 * ej, ck0 + a0 * ek,
+                        ei, ej, ek, b_t - a0, coef,
+                    )  # fmt: skip
                 mid = 0.5 * (a + b_t)
                 h = np.nan
-                if accel:
+                if cubic:
+                    x = mid - a0
+                    h = coef[0] + x * (coef[1] + x * (coef[2] + x * coef[3]))
+                    if abs(h - bone_hu) < eps_hu or abs(h - tooth_hu) < eps_hu:
+                        h = np.nan
+                if accel and np.isnan(h):
                     h = _fast(
                         vol, top, ci0 + mid * ei, cj0 + mid * ej, ck0 + mid * ek,
                         air_hu, bone_hu, tooth_hu, eps_hu,
@@ -309,93 +340,14 @@ def _envelope_kernel(
         wall[n] = w
         unknown[n] = unk
         open_[n] = op
+        taken[n] = 2
 
 
 _SIG = (
     "void(" + VOLUME_SIG + ", int8[:, :, ::1], "
     "float64[:, ::1], float64[:, ::1], float64[::1], int64[::1], float64[::1], boolean[::1], "
-    "boolean[::1], int64, int64)"
+    "boolean[::1], uint8[::1], int64, int64, boolean)"
 )
 ENVELOPE_KERNEL = Kernel(
     _envelope_kernel, [_SIG.format(vol="int16"), _SIG.format(vol="float32")], readonly=(0, 4)
 )
-
-
-#: Set within :func:`full_march`.
-_FULL_MARCH = [False]
-
-
-@contextlib.contextmanager
-def full_march() -> Iterator[None]:
-    """Within the block every ray reads every sample, no block stepped over (the walls'
-    reference march, timed beside the skipping one by ``bench/bench_shells.py``)."""
-    saved = _FULL_MARCH[0]
-    _FULL_MARCH[0] = True
-    try:
-        yield
-    finally:
-        _FULL_MARCH[0] = saved
-
-
-def kernel_fits(volume: CTVolume) -> bool:
-    """The compiled kernel can read ``volume`` (no padding, int16 or float32 voxels) and is
-    loaded from the cache."""
-    return fits(volume) and ENVELOPE_KERNEL.ready()
-
-
-def envelope_rays(
-    volume: CTVolume,
-    origins_lps: np.ndarray,
-    dirs_lps: np.ndarray,
-    *,
-    step: float,
-    n_steps: int,
-    gap_steps: int,
-    tooth_edge: int,
-    max_wall_mm: float,
-    reach_mm: float,
-    air_hu: float,
-    bisect_tol_mm: float,
-    skip_blocks: bool | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(wall, unknown, open)`` (N,) of each ray by the compiled kernel (only when
-    :func:`kernel_fits`); the arguments are those of ``envelope_walls`` and its constants.
-    ``skip_blocks`` False: every sample read, no block stepped over (the full march the
-    tests and the benchmark hold the skipping one to: the same answers); None: as
-    :func:`full_march` says (True outside it)."""
-    if skip_blocks is None:
-        skip_blocks = not _FULL_MARCH[0]
-    n = len(origins_lps)
-    wall = np.zeros(n)
-    unknown = np.zeros(n, dtype=np.bool_)
-    open_ = np.zeros(n, dtype=np.bool_)
-    if n == 0:
-        return wall, unknown, open_
-    k_cap = int(np.searchsorted(np.arange(n_steps) * step, max_wall_mm - 1e-12))
-    # a sample within this of a threshold is read with the exact point's arithmetic: far
-    # beyond the ~1e-12 voxel rounding of the extrapolated index times the steepest edge
-    eps_hu = 1e-3 + 1e-9 * hu_bound(volume)
-    params = np.array(
-        [step, max_wall_mm, reach_mm, BONE_HU, TOOTH_HU, air_hu, bisect_tol_mm, eps_hu],
-        dtype=np.float64,
-    )
-    ints = np.array([n_steps, gap_steps, tooth_edge, k_cap], dtype=np.int64)
-    spans = row_spans(np.arange(n)) if n >= 2 * _MIN_SPAN else [(0, n)]
-    run_spans(
-        ENVELOPE_KERNEL,
-        spans,
-        *volume_args(volume),
-        (
-            block_classes(volume, air_hu, BONE_HU, TOOTH_HU)
-            if skip_blocks
-            else np.zeros((0, 0, 0), dtype=np.int8)
-        ),
-        np.ascontiguousarray(origins_lps, dtype=np.float64),
-        np.ascontiguousarray(dirs_lps, dtype=np.float64),
-        params,
-        ints,
-        wall,
-        unknown,
-        open_,
-    )
-    return wall, unknown, open_

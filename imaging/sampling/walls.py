@@ -49,6 +49,7 @@ chosen by measured cost against error (docs/plan.md, "Bone walls").
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -62,9 +63,12 @@ from ctdrill.imaging.sampling.envelope import AIR_HU as AIR_HU
 from ctdrill.imaging.sampling.envelope import BISECT_TOL_MM as BISECT_TOL_MM
 from ctdrill.imaging.sampling.envelope import ENVELOPE_GAP_MM as ENVELOPE_GAP_MM
 from ctdrill.imaging.sampling.envelope import ENVELOPE_REACH_MM as ENVELOPE_REACH_MM
-from ctdrill.imaging.sampling.envelope import MAX_ENVELOPE_MM, envelope_walls, ring_walls
+from ctdrill.imaging.sampling.envelope import (
+    MAX_ENVELOPE_MM,
+    envelope_walls,
+    start_ring_walls,
+)
 from ctdrill.imaging.volume import CTVolume
-from ctdrill.warning_codes import LoadWarning
 
 #: Surface points deeper than this below the platform must lie in bone, mm (above it the
 #: platform may stand at or over a rounded crest).
@@ -171,10 +175,19 @@ class BoneWalls:
 
 def plan_bone_walls(volume: CTVolume, plan: Plan, **options: Any) -> BoneWalls | None:
     """:func:`bone_walls` of ``plan``'s implant with its arch; None without an implant."""
+    started = start_plan_bone_walls(volume, plan, **options)
+    return None if started is None else started()
+
+
+def start_plan_bone_walls(
+    volume: CTVolume, plan: Plan, **options: Any
+) -> Callable[[], BoneWalls] | None:
+    """:func:`start_bone_walls` of ``plan``'s implant with its arch; None without an
+    implant."""
     place = implant_placement(plan)
     if place is None:
         return None
-    return bone_walls(volume, place, arch_lps=plan.arch_lps, **options)
+    return start_bone_walls(volume, place, arch_lps=plan.arch_lps, **options)
 
 
 def _frame(axis: np.ndarray, towards: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
@@ -212,6 +225,31 @@ def bone_walls(
     ray_step : ray step, mm (default :func:`ray_step_mm`).
     max_wall_mm : how far each ray is followed, mm.
     """
+    return start_bone_walls(
+        volume,
+        placement,
+        arch_lps=arch_lps,
+        depth_step_mm=depth_step_mm,
+        n_angles=n_angles,
+        ray_step=ray_step,
+        max_wall_mm=max_wall_mm,
+    )()
+
+
+def start_bone_walls(
+    volume: CTVolume,
+    placement: ImplantPlacement,
+    *,
+    arch_lps: np.ndarray | None = None,
+    depth_step_mm: float = DEPTH_STEP_MM,
+    n_angles: int = N_ANGLES,
+    ray_step: float | None = None,
+    max_wall_mm: float = MAX_WALL_MM,
+) -> Callable[[], BoneWalls]:
+    """:func:`bone_walls` (same arguments) started: the rays begin on the worker threads
+    (compiled kernel) and this returns at once a function that finishes them (lending the
+    calling thread) and gives the :class:`BoneWalls`. A caller with other work (the drill's
+    path of ``plan_path``) does it in between."""
     if not (depth_step_mm > 0.0 and n_angles >= 4 and max_wall_mm > 0.0):
         raise ValueError("bone walls: depth step and max wall must be > 0, n_angles >= 4")
     spec, axis = placement.spec, placement.axis_lps
@@ -231,7 +269,33 @@ def bone_walls(
         if buccal is not None and np.linalg.norm(buccal - (buccal @ axis) * axis) > 1e-6
         else None
     )
-    wall, unknown = ring_walls(volume, surface, dirs, step, max_wall_mm, buccal_perp)
+    rays = start_ring_walls(volume, surface, dirs, step, max_wall_mm, buccal_perp)
+
+    def finish() -> BoneWalls:
+        wall, unknown = rays()
+        return _walls_of(
+            volume, placement, wall, unknown, s, dirs, surface, buccal, e1, axis, step, max_wall_mm
+        )
+
+    return finish
+
+
+def _walls_of(
+    volume: CTVolume,
+    placement: ImplantPlacement,
+    wall: np.ndarray,
+    unknown: np.ndarray,
+    s: np.ndarray,
+    dirs: np.ndarray,
+    surface: np.ndarray,
+    buccal: np.ndarray | None,
+    e1: np.ndarray,
+    axis: np.ndarray,
+    step: float,
+    max_wall_mm: float,
+) -> BoneWalls:
+    """The :class:`BoneWalls` of the rays' ``wall`` and ``unknown`` (D, A) of
+    :func:`start_bone_walls`."""
     known = ~unknown
     depth = placement.platform_depth_mm + s
     out: dict[str, Any] = {"min_mm": None, "depth_mm": None, "below_platform_mm": None}
@@ -321,76 +385,3 @@ def _perforation(
         direction_lps=direction,
         fraction=float(exposed.mean()),
     )
-
-
-def bone_wall_warnings(walls: BoneWalls, *, min_wall_mm: float, label: str) -> list[LoadWarning]:
-    """``thin_wall``, ``cortical_perforation`` and ``bone_walls_unknown`` for ``walls``
-    (``label`` names the plan and implant in the messages)."""
-    out: list[LoadWarning] = []
-    if walls.min_mm is not None and walls.min_mm < min_wall_mm:
-        assert walls.direction_lps is not None and walls.below_platform_mm is not None
-        sides = ", ".join(
-            f"{name} {value:.1f} mm"
-            for name, value in (
-                ("buccal", walls.buccal_mm),
-                ("lingual", walls.lingual_mm),
-            )
-            if value is not None
-        )
-        out.append(
-            LoadWarning(
-                "thin_wall",
-                f"{label}: the thinnest bone wall around the implant is {walls.min_mm:.1f} mm, "
-                f"under {min_wall_mm:g} mm, {walls.below_platform_mm:.1f} mm below the platform "
-                f"towards {_direction_text(walls.direction_lps, walls.buccal_lps)}"
-                + (f" ({sides})" if sides else ""),
-            )
-        )
-    p = walls.perforation
-    if p is not None:
-        out.append(
-            LoadWarning(
-                "cortical_perforation",
-                f"{label}: the implant surface lies outside the jaw's bone from "
-                f"{p.below_platform_mm[0]:.1f} to {p.below_platform_mm[1]:.1f} mm below the "
-                f"platform, towards {_direction_text(p.direction_lps, walls.buccal_lps)} "
-                f"({100 * p.fraction:.0f} % of "
-                "the surface deeper than "
-                f"{PERFORATION_DEPTH_MM:g} mm): the implant perforates the cortical plate",
-            )
-        )
-    if walls.unknown_fraction > 0.0:
-        out.append(
-            LoadWarning(
-                "bone_walls_unknown",
-                f"{label}: {100 * walls.unknown_fraction:.0f} % of the directions around the "
-                "implant leave the CT before bone ends; outside the CT counts as unknown, never "
-                "as bone, so the walls there are not measured",
-            )
-        )
-    return out
-
-
-def _direction_text(direction: np.ndarray, buccal_lps: np.ndarray | None) -> str:
-    """A direction in a surgeon's words where the arch is known (``buccal``, ``lingual``, or
-    ``along the arch`` (mesial or distal), by the nearest within 45 deg), else in patient
-    axes (:func:`_lps_text`)."""
-    if buccal_lps is None:
-        return _lps_text(direction)
-    c = float(np.dot(direction, buccal_lps))
-    if c >= np.cos(np.radians(45.0)):
-        return "buccal"
-    if c <= -np.cos(np.radians(45.0)):
-        return "lingual"
-    return "along the arch (mesial or distal)"
-
-
-def _lps_text(direction: np.ndarray) -> str:
-    """``"L 0.71 P 0.71"``-style patient direction of a unit vector (its main components)."""
-    letters = (("R", "L"), ("A", "P"), ("I", "S"))
-    parts = [
-        f"{letters[i][int(direction[i] > 0)]} {abs(float(direction[i])):.2f}"
-        for i in np.argsort(-np.abs(direction))
-        if abs(float(direction[i])) >= 0.1
-    ]
-    return " ".join(parts)

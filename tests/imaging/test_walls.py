@@ -18,10 +18,10 @@ from ctdrill.imaging.plan.implants import ImplantSpec, implant_placement
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.provenance import SeriesInfo
 from ctdrill.imaging.sampling.arch import buccal_normal_lps
+from ctdrill.imaging.sampling.wall_warnings import bone_wall_warnings
 from ctdrill.imaging.sampling.walls import (
     BISECT_TOL_MM,
     PERFORATION_DEPTH_MM,
-    bone_wall_warnings,
     bone_walls,
     plan_bone_walls,
 )

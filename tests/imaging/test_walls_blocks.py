@@ -29,7 +29,8 @@ from ctdrill.imaging.sampling.envelope import (
     MAX_ENVELOPE_MM,
     envelope_walls,
 )
-from ctdrill.imaging.sampling.envelope_kernel import ENVELOPE_KERNEL, envelope_rays
+from ctdrill.imaging.sampling.envelope_kernel import ENVELOPE_KERNEL
+from ctdrill.imaging.sampling.envelope_march import envelope_rays
 from ctdrill.imaging.sampling.hu_blocks import (
     BLOCK,
     BONE,

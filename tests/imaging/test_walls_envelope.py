@@ -12,7 +12,8 @@ import pytest
 from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.provenance import SeriesInfo
-from ctdrill.imaging.sampling.walls import bone_wall_warnings, plan_bone_walls
+from ctdrill.imaging.sampling.wall_warnings import bone_wall_warnings
+from ctdrill.imaging.sampling.walls import plan_bone_walls
 from ctdrill.imaging.volume import CTVolume
 
 SP = 0.25

@@ -24,7 +24,8 @@ from ctdrill.imaging.plan.implants import ImplantSpec
 from ctdrill.imaging.plan.landmarks import CanalLandmark
 from ctdrill.imaging.plan.types import DrillSpec, Plan
 from ctdrill.imaging.provenance import SeriesInfo
-from ctdrill.imaging.sampling.walls import bone_wall_warnings, plan_bone_walls
+from ctdrill.imaging.sampling.wall_warnings import bone_wall_warnings
+from ctdrill.imaging.sampling.walls import plan_bone_walls
 from ctdrill.warning_codes import REGISTRY, LoadWarning
 
 IMPLANT = ImplantSpec(name="p 4 x 10", diameter_mm=4.0, length_mm=10.0, apex_diameter_mm=4.0)
