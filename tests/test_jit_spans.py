@@ -1,12 +1,13 @@
 """``ctdrill.jit.row_spans``: rows as half-open spans of consecutive rows, split for threads;
-``ctdrill.jit.start_claimed``: rows claimed one by one by threads walking spans from both ends."""
+``ctdrill.claims.start_claimed``: rows claimed one by one by threads walking spans from both
+ends."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from ctdrill import jit
+from ctdrill import claims
 from ctdrill.jit import row_spans
 
 
@@ -32,7 +33,7 @@ def test_unsorted_and_repeated_rows_are_each_covered_once() -> None:
 
 
 class _Squares:
-    """A claiming kernel in Python (the protocol of :class:`ctdrill.jit.Claimed`): row ``n``
+    """A claiming kernel in Python (the protocol of :class:`ctdrill.claims.Claimed`): row ``n``
     gets ``n * n``; ``seen`` counts how often each row was computed."""
 
     name = "squares"
@@ -63,9 +64,9 @@ class _Squares:
 
 def test_claimed_rows_are_each_computed_and_done(monkeypatch: pytest.MonkeyPatch) -> None:
     for cpus in (1, 2, 3, 8):
-        monkeypatch.setattr(jit, "cpus", lambda c=cpus: c)
+        monkeypatch.setattr(claims, "cpus", lambda c=cpus: c)
         k = _Squares(1000)
-        job = jit.start_claimed(k, 1000, k.out)  # type: ignore[arg-type]
+        job = claims.start_claimed(k, 1000, k.out)  # type: ignore[arg-type]
         job.join()
         assert np.array_equal(k.out, np.arange(1000.0) ** 2)
         assert np.all(job.taken == 2)
@@ -85,9 +86,9 @@ def test_a_walk_stops_at_a_row_another_thread_took() -> None:
 
 
 def test_a_cancelled_job_takes_no_more_rows(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(jit, "cpus", lambda: 1)  # nothing starts before join
+    monkeypatch.setattr(claims, "cpus", lambda: 1)  # nothing starts before join
     k = _Squares(50)
-    job = jit.start_claimed(k, 50, k.out)  # type: ignore[arg-type]
+    job = claims.start_claimed(k, 50, k.out)  # type: ignore[arg-type]
     job.cancel()
     job.join()
     assert k.seen.sum() == 0

@@ -23,7 +23,7 @@ march's: the walls, unknown and open flags are bit for bit those of the march re
 sample (``skip_blocks=False``; a Hypothesis test holds them so on adversarial fields).
 
 Each call walks a span of rays up or down, claiming each (``taken``,
-:func:`ctdrill.jit.start_claimed`), so two threads meet wherever the rays' costs put the middle.
+:func:`ctdrill.claims.start_claimed`), so two threads meet wherever the rays' costs put the middle.
 
 The kernel covers volumes without padding; a padded volume and a process without the compiled
 kernel take the NumPy path.
@@ -123,7 +123,7 @@ def _envelope_kernel(
     while k_reach < n_steps and not (k_reach * step > reach):
         k_reach += 1
     for idx in range(row_lo, row_hi):
-        # rays claimed one by one (:func:`ctdrill.jit.start_claimed`): from the span's first
+        # rays claimed one by one (:func:`ctdrill.claims.start_claimed`): from the span's first
         # ray up, or from its last down; a ray another thread took ends this run
         n = row_hi - 1 - (idx - row_lo) if backward else idx
         if taken[n] != 0:

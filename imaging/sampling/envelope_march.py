@@ -1,6 +1,6 @@
 """The compiled envelope rays started and finished: the kernel
 (:mod:`~ctdrill.imaging.sampling.envelope_kernel`) runs on the worker threads and the calling
-thread, each claiming rays (:func:`ctdrill.jit.start_claimed`), so a caller can start them, do
+thread, each claiming rays (:func:`ctdrill.claims.start_claimed`), so a caller can start them, do
 other work, and finish them; and the full march the tests and benchmarks hold it to.
 """
 
@@ -11,13 +11,13 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from ctdrill.claims import start_claimed
 from ctdrill.imaging.misch import BONE_HU
 from ctdrill.imaging.sampling.envelope_kernel import ENVELOPE_KERNEL
 from ctdrill.imaging.sampling.hu_blocks import block_classes, hu_bound
 from ctdrill.imaging.sampling.trilinear import fits, volume_args
 from ctdrill.imaging.teeth import TOOTH_HU
 from ctdrill.imaging.volume import CTVolume
-from ctdrill.jit import start_claimed
 
 #: Rays below twice this are all marched by one thread (waking threads costs more).
 _MIN_SPAN = 64
@@ -97,7 +97,7 @@ def start_envelope_rays(
 ) -> Callable[[], tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """:func:`envelope_rays` started on the worker threads: returns at once a function that
     lends the calling thread to the rays still free, waits for the rest and returns
-    ``(wall, unknown, open)`` (:func:`ctdrill.jit.start_claimed`)."""
+    ``(wall, unknown, open)`` (:func:`ctdrill.claims.start_claimed`)."""
     if skip_blocks is None:
         skip_blocks = not _FULL_MARCH[0]
     n = len(origins_lps)
