@@ -46,7 +46,7 @@ class Plane:
     @property
     def normal_lps(self) -> np.ndarray:
         """(3,) unit normal ``u x v``."""
-        return np.asarray(np.cross(self.u_lps, self.v_lps), dtype=np.float64)
+        return cross3(self.u_lps, self.v_lps)
 
     def to_uv(self, points_lps: np.ndarray) -> np.ndarray:
         """(..., 3) LPS -> (..., 2) in-plane mm (the off-plane part dropped)."""
@@ -57,6 +57,14 @@ class Plane:
         """(..., 2) in-plane mm -> (..., 3) LPS on the plane."""
         uv = np.asarray(uv_mm, dtype=np.float64)
         return np.asarray(self.origin_lps + uv[..., :1] * self.u_lps + uv[..., 1:2] * self.v_lps)
+
+
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(3,) cross product of two (3,) vectors (``np.cross`` costs ~0.2 ms a call for its
+    generality; a dragged outline takes several per repaint)."""
+    a0, a1, a2 = (float(v) for v in a)
+    b0, b1, b2 = (float(v) for v in b)
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def _profile_r(s: np.ndarray, s_knots: np.ndarray, r_knots: np.ndarray) -> np.ndarray:
@@ -110,48 +118,50 @@ def revolved_section(
         centre = plane.to_uv(p0 + s_star * a)
         return [centre + radius * np.stack([np.cos(phi), np.sin(phi)], axis=-1)]
     a_hat = (a - c * n) / sigma  # in-plane direction of the axis
-    b = np.cross(n, a_hat)  # in-plane, across the axis
+    b = cross3(n, a_hat)  # in-plane, across the axis
     q_uv = plane.to_uv(p0 - h * n)
     along = np.array([a_hat @ plane.u_lps, a_hat @ plane.v_lps])
     across = np.array([b @ plane.u_lps, b @ plane.v_lps])
 
-    def slack(s: np.ndarray) -> np.ndarray:  # r(s) sigma - |h + c s|: >= 0 where a chord is
-        return _profile_r(s, s_k, r_k) * sigma - np.abs(h + c * s)
-
-    nodes = [*s_k.tolist()]
-    if c != 0.0:
-        nodes.append(-h / c)
-    for s_a, s_b, r_a, r_b in zip(s_k[:-1], s_k[1:], r_k[:-1], r_k[1:], strict=True):
-        if s_b <= s_a:
-            continue
-        k = (r_b - r_a) / (s_b - s_a)  # r(s) = r_a + k (s - s_a)
-        for sign in (1.0, -1.0):  # (r_a + k (s - s_a)) sigma = sign (h + c s)
-            den = k * sigma - sign * c
-            if den != 0.0:
-                nodes.append((sign * h - (r_a - k * s_a) * sigma) / den)
-    knots = np.unique(np.clip(np.array(nodes), s_k[0], s_k[-1]))
-    # runs of consecutive valid pieces, each piece's radius from its own profile segment (so a
-    # step in the profile, such as a flat apex, keeps both its sides)
-    runs: list[tuple[list[np.ndarray], list[np.ndarray]]] = []
+    # the knots: the profile's, where the axis crosses the plane, and where a segment's chord
+    # closes (r(s) sigma = +-(h + c s), r(s) = r0 + k s on each segment)
+    seg = s_k[1:] > s_k[:-1]
+    k = (r_k[1:] - r_k[:-1])[seg] / (s_k[1:] - s_k[:-1])[seg]
+    r0 = r_k[:-1][seg] - k * s_k[:-1][seg]
+    nodes = [s_k, np.array([-h / c]) if c != 0.0 else np.empty(0)]
+    for sign in (1.0, -1.0):
+        den = k * sigma - sign * c
+        nz = den != 0.0
+        nodes.append((sign * h - r0[nz] * sigma) / den[nz])
+    knots = np.unique(np.clip(np.concatenate(nodes), s_k[0], s_k[-1]))
+    # every piece between knots at once: a piece has chords where r(s) sigma >= |h + c s| (at
+    # its middle); its radius from its own profile segment (so a step in the profile, such as
+    # a flat apex, keeps both its sides)
+    s_a, s_b = knots[:-1], knots[1:]
+    mid = 0.5 * (s_a + s_b)
+    valid = ~(_profile_r(mid, s_k, r_k) * sigma - np.abs(h + c * mid) < 0.0)
     phi = np.linspace(0.0, np.pi, chords + 1)
-    last_end = None
-    for s_a, s_b in itertools.pairwise(knots):
-        mid = 0.5 * (s_a + s_b)
-        if slack(np.array(mid)) < 0.0:
-            continue
-        s = mid - 0.5 * (s_b - s_a) * np.cos(phi)
-        s[0], s[-1] = s_a, s_b
-        j = int(np.clip(np.searchsorted(s_k, mid, side="right") - 1, 0, s_k.size - 2))
-        r = r_k[j] + (r_k[j + 1] - r_k[j]) * (s - s_k[j]) / (s_k[j + 1] - s_k[j])
-        if runs and last_end == s_a:
-            runs[-1][0].append(s[1:])
-            runs[-1][1].append(r[1:])
-        else:
-            runs.append(([s], [r]))
-        last_end = s_b
+    s_all = mid[:, None] - (0.5 * (s_b - s_a))[:, None] * np.cos(phi)[None, :]
+    s_all[:, 0], s_all[:, -1] = s_a, s_b
+    j = np.clip(np.searchsorted(s_k, mid, side="right") - 1, 0, s_k.size - 2)
+    with np.errstate(divide="ignore", invalid="ignore"):  # pieces without chords: unused
+        r_all = (
+            r_k[j][:, None]
+            + (r_k[j + 1] - r_k[j])[:, None]
+            * (s_all - s_k[j][:, None])
+            / (s_k[j + 1] - s_k[j])[:, None]
+        )
+    # runs of consecutive valid pieces, joined at their shared ends
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], valid.view(np.int8), [0]])))
+    runs = [
+        (
+            np.concatenate([s_all[i0], s_all[i0 + 1 : i1, 1:].ravel()]),
+            np.concatenate([r_all[i0], r_all[i0 + 1 : i1, 1:].ravel()]),
+        )
+        for i0, i1 in zip(edges[::2], edges[1::2], strict=True)
+    ]
     out = []
-    for s_parts, r_parts in runs:
-        s, r = np.concatenate(s_parts), np.concatenate(r_parts)
+    for s, r in runs:
         t = np.sqrt(np.maximum(0.0, r**2 - ((h + c * s) / sigma) ** 2))
         w = (s + h * c) / sigma
         foot = q_uv + w[:, None] * along

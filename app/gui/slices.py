@@ -16,6 +16,7 @@ from typing import Literal, Protocol
 
 import numpy as np
 
+from ctdrill.app.gui.sections import cross3
 from ctdrill.hu import AIR_HU
 
 ViewName = Literal["axial", "coronal", "sagittal", "trajectory"]
@@ -60,7 +61,7 @@ class SliceImage:
     @property
     def normal_lps(self) -> np.ndarray:
         """(3,) unit normal of the plane (u x v)."""
-        return np.cross(self.u_lps, self.v_lps)
+        return cross3(self.u_lps, self.v_lps)
 
     @property
     def extent_mm(self) -> tuple[float, float, float, float]:
