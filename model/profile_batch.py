@@ -9,7 +9,10 @@ come from cubic Hermite tables of the laws on the calibration's ``C'`` range
 one log and three exps per lip sample (most of the kernel's time) by three polynomials; the
 sums differ from NumPy's pairwise ones only in the last bits. A second set of ring weights
 gives another weighted mean HU (e.g. by annulus area). The compiled kernel runs when its
-cache is present; otherwise :func:`build_profile` itself runs row by row.
+cache is present; otherwise :func:`_profile_numpy` does the kernel's operations in the
+kernel's order with NumPy, vectorised over rows and depths (the same bits: a row's profile does
+not depend on whether its process loaded numba). :func:`build_profile` is the reference both
+are tested against.
 """
 
 from __future__ import annotations
@@ -23,7 +26,6 @@ import numpy as np
 from ctdrill.hu import AIR_HU
 from ctdrill.jit import Kernel, row_spans, run_spans
 from ctdrill.model.calibration import Calibration, Harmonic, PowerLaw
-from ctdrill.model.profile import build_profile
 
 _LN10 = math.log(10.0)
 
@@ -149,6 +151,62 @@ def _profile_kernel(
         clipped[n] = count
 
 
+def _profile_numpy(
+    hu: np.ndarray,
+    n_depth: np.ndarray,
+    ring_w: np.ndarray,
+    alt_w: np.ndarray,
+    gate_lo: float,
+    gate_w: float,
+    cp_lo: float,
+    cp_hi: float,
+    air_hu: float,
+    inv_step: float,
+    coefs: np.ndarray,
+    sums: np.ndarray,
+    alt: np.ndarray,
+    clipped: np.ndarray,
+    rows: np.ndarray,
+) -> None:
+    """:func:`_profile_kernel` for ``rows`` with NumPy: every sum is taken in the kernel's order
+    (angles, then rings, one addition at a time), every product and polynomial the same, so
+    the results are the kernel's bits. Vectorised over the rows and their depths."""
+    n_law = coefs.shape[1]
+    last = coefs.shape[0] - 1
+    with np.errstate(invalid="ignore"):  # past a row's depths the buffer holds anything
+        h_all = hu[rows].astype(np.float64)  # (T, D, R, A): float32 to float64 is exact
+    t, d_max, n_r, n_a = h_all.shape
+    valid = np.arange(d_max)[None, :] < n_depth[rows][:, None]
+    acc = np.zeros((n_law + 2, t, d_max))
+    acc_alt = np.zeros((t, d_max))
+    count = np.zeros(t, dtype=np.int64)
+    for r in range(n_r):
+        ring = np.zeros((n_law + 2, t, d_max))
+        for a in range(n_a):
+            h = h_all[:, :, r, a]
+            g = np.minimum(np.maximum((h - gate_lo) / gate_w, 0.0), 1.0)
+            ring[0] += g
+            ring[1] += h
+            cut = g > 0.0  # where g = 0 the kernel adds nothing (it would add exactly 0)
+            out = cut & valid & ((h < cp_lo + air_hu) | (h > cp_hi + air_hu))
+            count += out.sum(axis=1)
+            pos = (np.minimum(np.maximum(h - air_hu, cp_lo), cp_hi) - cp_lo) * inv_step
+            pos[~cut] = 0.0  # not read (NaN HU there: an index of its own)
+            j = np.minimum(pos.astype(np.int64), last)
+            u = pos - j
+            for k in range(n_law):
+                c = coefs[j, k]
+                val = c[..., 0] + u * (c[..., 1] + u * (c[..., 2] + u * c[..., 3]))
+                np.add(ring[2 + k], val * g, out=ring[2 + k], where=cut)
+        acc += ring * ring_w[r]
+        acc_alt += ring[1] * alt_w[r]
+    for i, n in enumerate(rows.tolist()):
+        m = int(n_depth[n])
+        sums[n, :, :m] = acc[:, i, :m]
+        alt[n, :m] = acc_alt[i, :m]
+        clipped[n] = count[i]
+
+
 _SIG = (
     "void(float32[:, :, :, ::1], int64[::1], float64[::1], float64[::1], float64, float64, "
     "float64, float64, float64, float64, float64[:, :, ::1], float64[:, :, ::1], "
@@ -195,24 +253,17 @@ def build_profiles(
     clipped = np.zeros(n, dtype=np.int64)
     todo = np.arange(n) if rows is None else np.asarray(rows, dtype=np.int64)
     nd = np.ascontiguousarray(n_depths, dtype=np.int64)
-    if todo.size and PROFILE_KERNEL.ready():
+    if todo.size:
         gate_w = float(calibration.gate_width_hu)
         gate_lo = float(calibration.gate_hu) - 0.5 * gate_w
         lo, hi = (float(v) for v in calibration.c_prime_range)
         _, inv_step, coefs = law_tables(calibration)
         args = (np.ascontiguousarray(hu, dtype=np.float32), nd, w / n_a, alt_w / n_a)
         args2 = (gate_lo, gate_w, lo, hi, float(AIR_HU), inv_step, coefs, sums, alt, clipped)
-        run_spans(PROFILE_KERNEL, row_spans(todo), *args, *args2)
-    else:
-        for i in todo.tolist():
-            m = int(n_depths[i])
-            prof = build_profile(hu[i, :m], w, depth_mm[i, :m], calibration, blades=blades, rpm=rpm)
-            sums[i, 0, :m] = prof.s_t
-            sums[i, 1, :m] = prof.hu_mean
-            sums[i, 2, :m] = prof.s0_n
-            sums[i, 3:, :m] = prof.sk_n
-            alt[i, :m] = hu[i, :m].astype(np.float64).sum(axis=2) @ (alt_w / n_a)
-            clipped[i] = prof.n_clipped
+        if PROFILE_KERNEL.ready():
+            run_spans(PROFILE_KERNEL, row_spans(todo), *args, *args2)
+        else:
+            _profile_numpy(*args, *args2, todo)
     # layout of ``sums``: s_t, lip-mean HU, S0, then each harmonic's Sk
     return ProfileBatch(
         s0_n=sums[:, 2],
