@@ -44,6 +44,14 @@ QT_FREE = (
     "ctdrill.app.reformat.region",
     "ctdrill.app.batch.manifest",
     "ctdrill.app.teleop_plot",
+    # a rehearsal's session process (spawned): imported on its first start otherwise, with
+    # the hook reading each module (0.1-0.4 s of the Start button's click)
+    "multiprocessing.popen_spawn_posix",
+    "multiprocessing.queues",
+    "multiprocessing.sharedctypes",
+    "multiprocessing.synchronize",
+    "multiprocessing.resource_tracker",
+    "runpy",
 )
 
 
