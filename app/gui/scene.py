@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -41,6 +42,8 @@ DRILL_COLOUR = (0.75, 0.75, 0.80)
 IMPLANT_COLOUR = (0.30, 0.80, 0.95)
 OTHER_IMPLANT_COLOUR = (0.45, 0.55, 0.70)
 OTHER_TRAJECTORY_COLOUR = (0.55, 0.65, 0.90)
+LANDMARK_BODY_RGB = (0.95, 0.85, 0.20)
+STOP_RGB = (0.9, 0.15, 0.6)
 #: Background gradient (bottom, top): dark, so labels are white.
 BACKGROUND = ("#1e2430", "#46526a")
 
@@ -201,8 +204,41 @@ def build_scene(
     return actors
 
 
-def plan_actors(plotter: Any, scene: SceneInput) -> dict[str, Any]:
+#: The plan's actors shown, by name: what each draws (its key) and the actor.
+Kept = dict[str, tuple[tuple[Any, ...], Any]]
+
+
+def _mesh_actor(
+    plotter: Any,
+    kept: Kept | None,
+    out: dict[str, Any],
+    name: str,
+    shape: tuple[Any, ...],
+    mesh: Any,
+    **style: Any,
+) -> None:
+    """``out[name]``: the actor ``kept`` holds for ``name`` when it draws the same ``shape``
+    (the mesh's inputs; arrays by value) in the same ``style``, else ``mesh()`` added with
+    ``style`` (and kept)."""
+    key = tuple(
+        np.asarray(p, dtype=np.float64).tobytes() if isinstance(p, np.ndarray) else p for p in shape
+    ) + tuple(sorted(style.items()))
+    old = None if kept is None else kept.get(name)
+    if old is not None and old[0] == key:
+        out[name] = old[1]
+        return
+    out[name] = plotter.add_mesh(render=False, mesh=mesh(), name=name, **style)
+    if kept is not None:
+        kept[name] = (key, out[name])
+
+
+def plan_actors(plotter: Any, scene: SceneInput, kept: Kept | None = None) -> dict[str, Any]:
     """Add the plan's actors of ``scene`` (no render, nothing removed).
+
+    ``kept``: the actors of the scene shown, with what each draws; one whose mesh and style
+    are unchanged is kept instead of built and added again (a canal point, an undo or a new
+    stop changes one or two of them). Updated in place to the returned actors; the caller
+    removes the others.
 
     Returns
     -------
@@ -212,37 +248,56 @@ def plan_actors(plotter: Any, scene: SceneInput) -> dict[str, Any]:
     """
     actors: dict[str, Any] = {}
     if scene.entry_lps is not None and scene.target_lps is not None:
-        actors.update(_trajectory_actors(plotter, scene, scene.entry_lps, scene.target_lps))
+        _trajectory_actors(plotter, scene, scene.entry_lps, scene.target_lps, kept, actors)
     for lm in scene.landmarks:
         if len(lm.points_lps) == 0:
             continue
-        body, env = landmark_meshes(lm)
         colour = CLEARANCE_COLOURS[clearance_state(lm.clearance_mm, lm.margin_mm, lm.violated)]
-        actors[f"landmark:{lm.name}"] = plotter.add_mesh(
-            render=False, mesh=body, color=(0.95, 0.85, 0.20), name=f"landmark:{lm.name}"
+        shape = (lm.points_lps, lm.radius_mm, lm.margin_mm, lm.cloud)
+        meshes: list[Any] = []
+
+        def mesh(i: int, lm: LandmarkGeometry = lm, meshes: list[Any] = meshes) -> Any:
+            if not meshes:  # body and envelope made together, once
+                meshes.extend(landmark_meshes(lm))
+            return meshes[i]
+
+        body, env = partial(mesh, 0), partial(mesh, 1)
+        _mesh_actor(
+            plotter, kept, actors, f"landmark:{lm.name}", shape, body, color=LANDMARK_BODY_RGB
         )
-        if env is not None:
-            actors[f"margin:{lm.name}"] = plotter.add_mesh(
-                render=False, mesh=env, color=colour, opacity=0.3, name=f"margin:{lm.name}"
-            )
+        if not lm.cloud:  # a surface cloud has no envelope
+            margin = f"margin:{lm.name}"
+            _mesh_actor(plotter, kept, actors, margin, shape, env, color=colour, opacity=0.3)
     for i, imp in enumerate(scene.implants):
-        mesh = implant_mesh(imp.platform_lps, imp.axis_lps, imp.s_mm, imp.r_mm)
-        actors[f"implant:{i}"] = plotter.add_mesh(
-            render=False,
-            mesh=mesh,
+        body_of = (imp.platform_lps, imp.axis_lps, imp.s_mm, imp.r_mm)
+        _mesh_actor(
+            plotter,
+            kept,
+            actors,
+            f"implant:{i}",
+            body_of,
+            partial(implant_mesh, *body_of),
             color=implant_colour(imp),
             opacity=0.85 if imp.current else 0.6,
             specular=0.5,
-            name=f"implant:{i}",
         )
     for i, other in enumerate(scene.others):
-        tube = pv.Line(other.entry_lps, other.target_lps).tube(
-            radius=max(other.diameter_mm / 2.0, 0.2)
-        )
-        actors[f"other:{i}"] = plotter.add_mesh(
-            render=False, mesh=tube, color=OTHER_TRAJECTORY_COLOUR, opacity=0.7, name=f"other:{i}"
+        _mesh_actor(
+            plotter,
+            kept,
+            actors,
+            f"other:{i}",
+            (other.entry_lps, other.target_lps, other.diameter_mm),
+            lambda o=other: pv.Line(o.entry_lps, o.target_lps).tube(
+                radius=max(o.diameter_mm / 2.0, 0.2)
+            ),
+            color=OTHER_TRAJECTORY_COLOUR,
+            opacity=0.7,
         )
     actors.update(_candidate_actors(plotter, scene.candidates))
+    if kept is not None:  # what is not drawn now is not kept
+        for name in [n for n in kept if n not in actors]:
+            del kept[name]
     return actors
 
 
@@ -271,42 +326,48 @@ def _candidate_actors(plotter: Any, lines: Sequence[CandidateLine]) -> dict[str,
 
 
 def _trajectory_actors(
-    plotter: Any, scene: SceneInput, entry_lps: np.ndarray, target_lps: np.ndarray
+    plotter: Any,
+    scene: SceneInput,
+    entry_lps: np.ndarray,
+    target_lps: np.ndarray,
+    kept: Kept | None = None,
+    actors: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """The trajectory line, target, drill and stop point of ``scene``."""
+    """The trajectory line, target, drill and stop point of ``scene``, added to ``actors``
+    (``kept``: as in :func:`plan_actors`)."""
     entry = np.asarray(entry_lps, dtype=np.float64)
     target = np.asarray(target_lps, dtype=np.float64)
-    actors: dict[str, Any] = {}
+    actors = {} if actors is None else actors
     axis = unit(target - entry)
-    path = pv.Line(entry - axis * 10.0, target)
-    actors["trajectory"] = plotter.add_mesh(
-        render=False, mesh=path.tube(radius=0.15), color=TRAJECTORY_COLOUR, name="trajectory"
-    )
-    actors["target"] = plotter.add_mesh(
-        render=False,
-        mesh=pv.Sphere(radius=0.5, center=target),
-        color=TRAJECTORY_COLOUR,
-        name="target",
-    )
-    drill = drill_mesh(
-        entry, target, diameter_mm=scene.diameter_mm, tip_length_mm=scene.tip_length_mm
-    )
-    actors["drill"] = plotter.add_mesh(
-        render=False,
-        mesh=drill,
+    line = lambda: pv.Line(entry - axis * 10.0, target).tube(radius=0.15)  # noqa: E731
+    _mesh_actor(plotter, kept, actors, "trajectory", (entry, target), line, color=TRAJECTORY_COLOUR)
+    ball = lambda: pv.Sphere(radius=0.5, center=target)  # noqa: E731
+    _mesh_actor(plotter, kept, actors, "target", (target,), ball, color=TRAJECTORY_COLOUR)
+    size = (scene.diameter_mm, scene.tip_length_mm)
+    _mesh_actor(
+        plotter,
+        kept,
+        actors,
+        "drill",
+        (entry, target, *size),
+        lambda: drill_mesh(entry, target, diameter_mm=size[0], tip_length_mm=size[1]),
         color=DRILL_COLOUR,
         specular=0.6,
         smooth_shading=True,
-        name="drill",
     )
+    actors["drill"].SetPosition(0.0, 0.0, 0.0)  # at the plan (a rehearsal moves it)
     if scene.stop_depth_mm is not None:
         stop = entry + axis * scene.stop_depth_mm
-        actors["stop"] = plotter.add_mesh(
-            render=False,
-            mesh=pv.Sphere(radius=max(scene.diameter_mm / 2.0, 0.4) * 1.15, center=stop),
-            color=(0.9, 0.15, 0.6),
+        radius = max(scene.diameter_mm / 2.0, 0.4) * 1.15
+        _mesh_actor(
+            plotter,
+            kept,
+            actors,
+            "stop",
+            (stop, radius),
+            lambda: pv.Sphere(radius=radius, center=stop),
+            color=STOP_RGB,
             opacity=0.6,
-            name="stop",
         )
     return actors
 

@@ -27,6 +27,7 @@ from ctdrill.app.gui.planning import scene_input
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.scene import (
     BACKGROUND,
+    Kept,
     SceneInput,
     add_bone,
     plan_actors,
@@ -97,6 +98,8 @@ class View3D(QWidget):
         add_orientation_marker(plotter)
         self.surface: pv.PolyData | None = None
         self.scene: SceneInput | None = None
+        #: The plan's actors shown, with what each draws (a rebuild keeps the unchanged).
+        self._kept: Kept = {}
         #: Every actor by name: the bone pieces (``bone:<surface>:<piece>``, the current
         #: surface's first also as ``bone``) and the plan's.
         self.actors: dict[str, Any] = {}
@@ -356,11 +359,13 @@ class View3D(QWidget):
         self.scene = scene
         cam = self.plotter.camera_position
         bone = {**self._old_bone, **self._bone}
-        for name, actor in list(self.actors.items()):
-            if name not in bone and name != "bone":
-                self.plotter.remove_actor(actor, render=False)
         first = {"bone": self.actors["bone"]} if "bone" in self.actors else {}
-        self.actors = {**bone, **first, **plan_actors(self.plotter, scene)}
+        plan = plan_actors(self.plotter, scene, self._kept)  # the unchanged ones kept
+        kept = {id(a) for a in plan.values()}
+        for name, actor in list(self.actors.items()):
+            if name not in bone and name != "bone" and id(actor) not in kept:
+                self.plotter.remove_actor(actor, render=False)
+        self.actors = {**bone, **first, **plan}
         if refocus or self._camera_for is None:
             self._aim(scene)
         else:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import pyvista as pv
@@ -10,11 +12,13 @@ from ctdrill.app.gui.camera import apply_camera
 from ctdrill.app.gui.meshes import drill_mesh, landmark_meshes
 from ctdrill.app.gui.scene import (
     CLEARANCE_COLOURS,
+    Kept,
     LandmarkGeometry,
     SceneInput,
     bone_surface,
     build_scene,
     clearance_state,
+    plan_actors,
     scene_camera,
     set_drill_depth,
 )
@@ -118,5 +122,35 @@ def test_a_scene_without_a_trajectory_draws_the_anatomy_and_unknown_landmarks() 
         assert not {"trajectory", "drill", "stop", "target"} & set(actors)
         colour = actors["margin:canal"].GetProperty().GetColor()
         assert colour == pytest.approx(CLEARANCE_COLOURS["unknown"], abs=1 / 255)
+    finally:
+        plotter.close()
+
+
+def test_a_rebuild_keeps_the_unchanged_actors_and_redraws_the_changed() -> None:
+    entry, target = np.array([0.0, 0.0, 12.0]), np.array([0.0, 0.0, 0.0])
+    canal = np.array([[-20.0, 0, -4], [20.0, 0, -4]])
+    lm = LandmarkGeometry("canal", canal, 1.2, 2.0, 3.5)
+    scene = SceneInput(entry, target, 2.0, 0.6, 9.0, (lm,))
+    plotter = pv.Plotter(off_screen=True, window_size=(200, 150))
+    try:
+        kept: Kept = {}
+        first = plan_actors(plotter, scene, kept)
+        assert set(kept) == set(first)
+        # the same scene built from equal (not identical) arrays: every actor kept
+        again = plan_actors(plotter, replace(scene, entry_lps=entry.copy()), kept)
+        assert all(again[n] is first[n] for n in first)
+        # a canal point added and the margin now broken: the canal's two actors and the
+        # stop are new, the rest kept; the drill, moved by a rehearsal, is back at the plan
+        first["drill"].SetPosition(0.0, 0.0, -3.0)
+        lm2 = LandmarkGeometry("canal", np.vstack([canal, [[25.0, 0, -4]]]), 1.2, 2.0, 0.5)
+        edited = plan_actors(plotter, replace(scene, landmarks=(lm2,), stop_depth_mm=8.0), kept)
+        changed = {n for n in first if edited[n] is not first[n]}
+        assert changed == {"landmark:canal", "margin:canal", "stop"}
+        assert edited["drill"].GetPosition() == (0.0, 0.0, 0.0)
+        colour = edited["margin:canal"].GetProperty().GetColor()
+        assert colour == pytest.approx(CLEARANCE_COLOURS["violated"], abs=1 / 255)
+        # the canal removed: no longer returned nor kept
+        gone = plan_actors(plotter, replace(scene, landmarks=()), kept)
+        assert not {"landmark:canal", "margin:canal"} & (set(gone) | set(kept))
     finally:
         plotter.close()
