@@ -37,6 +37,9 @@ MAX_HEADER_BYTES = 1 << 20
 _CHUNK = 1 << 20
 #: Most output asked of the decompressor per step, bytes.
 _STEP = 16 << 20
+#: Raw bytes read per step when each filled span is handed on (``on_chunk``): small enough
+#: that the span is still in the cache when it is measured and hashed.
+_CHUNK_STEP = 1 << 20
 #: Codecs :func:`fill_array` inflates: gzip (or zlib: both detected by the header), bzip2.
 CODECS = ("raw", "gzip", "zlib", "bzip2")
 #: Deflate's largest expansion (a run of one byte: 258 bytes per 2 bits), plus header slack:
@@ -330,7 +333,7 @@ def fill_array(
         if skip:
             fh.seek(skip, 1)
         got = 0
-        step = _STEP if on_chunk is not None else len(view)
+        step = _CHUNK_STEP if on_chunk is not None else len(view)
         while got < len(view):
             n = fh.readinto(view[got : got + step])  # type: ignore[attr-defined]
             if not n:

@@ -14,12 +14,19 @@ ITK reads exactly the file ctdrill opened: it is handed ``/proc/self/fd/N`` of c
 descriptor (opened without blocking and checked to be a regular file), through a link named
 with the format's extension (ITK chooses its reader by name), so a path swapped for a FIFO
 after the checks is never opened by ITK. A detached NRRD header is given to ITK with its data
-file named the same way (the one ``data file`` line pointing at ctdrill's open data file).
+file named the same way (the one ``data file`` line pointing at ctdrill's open data file). A
+gzip NIfTI's header is given to ITK as ctdrill inflated it (header and extensions, up to
+``vox_offset``), written aside as a ``.nii``: ITK's NIfTI reader reads the header only, but
+through gzip it inflated about 3 ms of a small CT's voxels as well. The links and files live
+in one private folder per process (created on first use, removed at exit), each call's
+names its own.
 """
 
 from __future__ import annotations
 
+import atexit
 import contextlib
+import itertools
 import os
 import re
 import shutil
@@ -50,6 +57,22 @@ _HINT = {
 }
 #: Serialises the redirection of the process's stderr around ITK's header read.
 _STDERR_LOCK = threading.Lock()
+#: The process's folder of links and headers for ITK (:func:`_link_folder`), and its lock.
+_FOLDER: dict[str, str] = {}
+_FOLDER_LOCK = threading.Lock()
+_NAMES = itertools.count()
+
+
+def _link_folder() -> str:
+    """The private folder (mode 0700) this process hands ITK its files in, made on first
+    use and removed at exit (again if it was removed meanwhile)."""
+    with _FOLDER_LOCK:
+        folder = _FOLDER.get("path")
+        if folder is None or _FOLDER.get("pid") != str(os.getpid()) or not os.path.isdir(folder):
+            folder = tempfile.mkdtemp(prefix="ctdrill-itk-")
+            _FOLDER.update(path=folder, pid=str(os.getpid()))
+            atexit.register(shutil.rmtree, folder, True)
+        return folder
 
 
 @contextlib.contextmanager
@@ -126,6 +149,7 @@ def itk_grid(
     gzip: bool = False,
     data_fh: IO[bytes] | None = None,
     header_text: str | None = None,
+    header_bytes: bytes | None = None,
 ) -> ItkGrid:
     """The grid SimpleITK reads from the header of the open file ``fh`` (no voxels read).
 
@@ -138,36 +162,47 @@ def itk_grid(
     gzip : a gzip-compressed NIfTI (named ``.nii.gz`` for ITK).
     data_fh, header_text : a detached NRRD's open data file and its header text: ITK is given
         this header with its one data file line naming ``data_fh``.
+    header_bytes : a NIfTI's header and extensions (up to ``vox_offset``) as ctdrill read
+        them, uncompressed: ITK reads these, written aside as a ``.nii``, instead of ``fh``.
 
     Raises
     ------
     error : ITK refuses the header (its message, one line).
     """
     sitk = _sitk()
-    tmp = tempfile.mkdtemp(prefix="ctdrill-itk-")
+    folder = _link_folder()
+    stem = f"v{os.getpid()}-{next(_NAMES)}"
     names: dict[str, str] = {}
+    made: list[str] = []
     try:
         if fmt == "nifti":
-            name = "volume.nii.gz" if gzip else "volume.nii"
+            name = f"{stem}.nii.gz" if gzip and header_bytes is None else f"{stem}.nii"
         elif fmt == "nrrd":
-            name = "volume.nhdr" if data_fh is not None else "volume.nrrd"
+            name = f"{stem}.nhdr" if data_fh is not None else f"{stem}.nrrd"
         else:
-            name = "volume.mhd"
-        link = os.path.join(tmp, name)
+            name = f"{stem}.mhd"
+        link = os.path.join(folder, name)
         names[link] = where
-        names[tmp] = os.path.dirname(where) or "."
+        names[folder] = os.path.dirname(where) or "."
         source = _fd_path(fh)
-        if data_fh is not None and header_text is not None:
+        if header_bytes is not None:
+            made.append(link)
+            with open(link, "xb") as out:
+                out.write(header_bytes)
+        elif data_fh is not None and header_text is not None:
             data_source = _fd_path(data_fh)
             text = header_text
             if data_source is not None:
-                os.symlink(data_source, os.path.join(tmp, "volume.data"))
+                made.append(os.path.join(folder, f"{stem}.data"))
+                os.symlink(data_source, made[-1])
                 text = re.sub(
-                    r"(?im)^(data ?file)\s*:.*$", r"\1: volume.data", header_text, count=1
+                    r"(?im)^(data ?file)\s*:.*$", rf"\1: {stem}.data", header_text, count=1
                 )
+            made.append(link)
             with open(link, "w", encoding="latin-1") as out:
                 out.write(text.rstrip("\n") + "\n")
         elif source is not None:
+            made.append(link)
             os.symlink(source, link)
         else:  # no /proc: ITK opens the path itself
             link = where
@@ -189,7 +224,9 @@ def itk_grid(
         origin = tuple(float(v) for v in reader.GetOrigin())
         direction = np.asarray(reader.GetDirection(), dtype=np.float64).reshape(dim, dim)
     finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        for path in made:
+            with contextlib.suppress(OSError):
+                os.unlink(path)
     n = min(dim, 3)
     affine = np.eye(4)
     affine[:n, :n] = (direction * np.asarray(spacing)[None, :])[:n, :n]
@@ -209,6 +246,7 @@ def check_itk_agrees(
     gzip: bool = False,
     data_fh: IO[bytes] | None = None,
     header_text: str | None = None,
+    header_bytes: bytes | None = None,
 ) -> None:
     """Refuse the file unless ITK reads the grid ctdrill read (module docstring).
 
@@ -226,6 +264,7 @@ def check_itk_agrees(
         gzip=gzip,
         data_fh=data_fh,
         header_text=header_text,
+        header_bytes=header_bytes,
     )
     ours_ijk = tuple(int(n) for n in reversed(shape_kji[-3:]))
     itk_ijk = itk.size[:3]

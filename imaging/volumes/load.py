@@ -78,12 +78,40 @@ def hu_problem(lo: float, hi: float, low_tail: float | None = None) -> str | Non
     return None
 
 
+def _tail_sample(values: np.ndarray) -> np.ndarray:
+    """At most ``_TAIL_SAMPLES`` of ``values`` (any shape), evenly spaced (a strided view)."""
+    flat = values.reshape(-1)
+    return flat[:: max(1, flat.size // _TAIL_SAMPLES)]
+
+
+def tail_below(values: np.ndarray, bound: float) -> bool:
+    """True when :func:`low_tail` of ``values`` is certainly below ``bound``: both order
+    statistics it interpolates between are below it (one count, no sort); False when it
+    may not be (then compute it)."""
+    sample = _tail_sample(values)
+    if sample.size < 2:
+        return False
+    below = int(np.floor((sample.size - 1) * (LOW_TAIL_PERCENT / 100.0)))
+    return int(np.count_nonzero(sample < bound)) >= below + 2
+
+
 def low_tail(values: np.ndarray) -> float:
     """The ``LOW_TAIL_PERCENT`` percentile of ``values`` (any shape; at most
-    ``_TAIL_SAMPLES`` voxels sampled evenly)."""
-    flat = values.reshape(-1)
-    step = max(1, flat.size // _TAIL_SAMPLES)
-    return float(np.percentile(flat[::step], LOW_TAIL_PERCENT))
+    ``_TAIL_SAMPLES`` voxels sampled evenly), ``np.percentile``'s linear method.
+
+    int16 values are counted instead of partitioned (one pass, no sort): the two order
+    statistics the percentile interpolates between are read off the cumulative counts.
+    """
+    sample = _tail_sample(values)
+    if sample.dtype != np.int16 or sample.size < 2:
+        return float(np.percentile(sample, LOW_TAIL_PERCENT))
+    q = LOW_TAIL_PERCENT / 100.0
+    rank = (sample.size - 1) * q  # NumPy's virtual index (linear method)
+    below = min(int(np.floor(rank)), sample.size - 2)
+    cum = np.cumsum(np.bincount(sample.view(np.uint16) ^ 0x8000, minlength=1 << 16))
+    a, b = (float(v) - 0x8000 for v in np.searchsorted(cum, [below + 1, below + 2]))
+    t = rank - below
+    return b - (b - a) * (1.0 - t) if t >= 0.5 else a + (b - a) * t
 
 
 def _scaled(path: Path, vol: VolumeData, max_bytes: int) -> np.ndarray:
@@ -134,8 +162,13 @@ def ct_volume(path: str | Path, vol: VolumeData, *, max_bytes: int = DEFAULT_MAX
                 LoadWarning("padding", f"{n_bad} non-finite voxels (NaN or inf) masked invalid")
             )
     values = hu if valid is None else hu[valid]
-    lo, hi = float(values.min()), float(values.max())
-    problem = hu_problem(lo, hi, low_tail(values))
+    if vol.value_range is not None and hu is vol.data:
+        lo, hi = vol.value_range
+    else:
+        lo, hi = float(values.min()), float(values.max())
+    problem = hu_problem(lo, hi)
+    if problem is None and not tail_below(values, MIN_HU_LOW_TAIL):
+        problem = hu_problem(lo, hi, low_tail(values))
     if problem is not None:
         warnings.append(
             LoadWarning(
@@ -156,7 +189,7 @@ def ct_volume(path: str | Path, vol: VolumeData, *, max_bytes: int = DEFAULT_MAX
         warnings.append(
             LoadWarning("single_slice", "one slice only: not a volume for the force path")
         )
-    scaled = vol.scale is not None
+    scaled = vol.scale is not None or vol.scaled
     info = SeriesInfo(
         series_uid=vol.content_uid
         if vol.content_uid is not None and hu is vol.data
@@ -245,7 +278,9 @@ def load_ct(
             if hint is None:
                 raise
             raise VolumeFileError(f"{exc}; the folder holds {hint}: give the file itself") from exc
-    vol = read_volume_file(path, max_bytes=max_bytes, error=VolumeFileError, kind=kind)
+    vol = read_volume_file(
+        path, max_bytes=max_bytes, error=VolumeFileError, kind=kind, identity=True
+    )
     volume = ct_volume(path, vol, max_bytes=max_bytes)
     if series_uid is not None:
         from ctdrill.imaging.dicom.identity import matches_series, series_label

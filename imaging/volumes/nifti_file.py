@@ -2,9 +2,9 @@
 
 The header is parsed by nibabel from its fixed-size block (extensions are skipped, never read:
 they may hold a DICOM header); the voxels are read or inflated into one array of the declared
-size (:mod:`.bounded`); int16 voxels stored unscaled are hashed into the volume's identity as
-they are read (:class:`.identity.VoxelDigest`). The file type comes from its content (gzip
-magic, ``sizeof_hdr`` and the magic string), not from its name.
+size (:mod:`.bounded`); for a CT, int16 voxels are made HU (an integer scale), measured and
+hashed into the volume's identity as they are read (:class:`.identity.HuStream`). The file
+type comes from its content (gzip magic, ``sizeof_hdr`` and the magic string), not its name.
 
 Geometry, in the file RAS and converted to LPS (x, y negated):
 
@@ -49,7 +49,7 @@ from ctdrill.imaging.volumes.grid import (
     check_grid,
     grid_distance_mm,
 )
-from ctdrill.imaging.volumes.identity import STREAMED_DTYPE, VoxelDigest
+from ctdrill.imaging.volumes.identity import HuStream, integer_scale
 from ctdrill.imaging.volumes.itk_header import check_itk_agrees
 from ctdrill.imaging.volumes.types import VolumeData, native
 from ctdrill.safeio import open_regular
@@ -215,7 +215,12 @@ def _text(value: Any) -> str:
 
 
 def read_nifti(
-    path: Path, *, max_bytes: int, error: ErrorType, refuse_ambiguous: bool = False
+    path: Path,
+    *,
+    max_bytes: int,
+    error: ErrorType,
+    refuse_ambiguous: bool = False,
+    identity: bool = False,
 ) -> VolumeData:
     """One NIfTI volume, its geometry exact (module docstring) and its size bounded.
 
@@ -226,6 +231,9 @@ def read_nifti(
     error : the exception type raised, naming the file and the field.
     refuse_ambiguous : refuse a qform and sform that disagree (segmentations) instead of
         using the sform with a warning (CT).
+    identity : int16 voxels are made HU (an integer scale applied, big-endian swapped),
+        measured and hashed into the volume's identity as they are read
+        (:class:`.identity.HuStream`): ``scaled``, ``value_range`` and ``content_uid`` set.
     """
     with open_regular(path, what="NIfTI file", error=error) as fh:
         hdr = _header(path, fh, error)
@@ -272,6 +280,10 @@ def read_nifti(
         where = str(path)
         check_available(fh, codec=codec, nbytes=nbytes, skip=int(offset), where=where, error=error)
         fh.seek(0)
+        prefix = None
+        if codec == "gzip":  # ITK reads the header as inflated here (:mod:`.itk_header`)
+            prefix = gunzip_prefix(fh, int(offset), where=where, error=error)
+            fh.seek(0)
         check_itk_agrees(
             fh,
             affine,
@@ -281,26 +293,37 @@ def read_nifti(
             where=where,
             error=error,
             gzip=codec == "gzip",
+            header_bytes=prefix,
         )
         fh.seek(0)
         data = allocate(shape_kji, dtype, where=where, error=error)
         uid = None
-        if dtype == STREAMED_DTYPE and scale is None:  # the stored bytes are the HU bytes
-            with VoxelDigest(shape_kji, affine) as digest:
+        value_range = None
+        scaled = False
+        whole = integer_scale(scale)
+        if identity and dtype.kind == "i" and dtype.itemsize == 2 and (whole or not scale):
+            with HuStream(data, affine, whole) as stream:
                 fill_array(
                     fh, data, codec=codec, skip=int(offset), where=where, error=error,
-                    on_chunk=digest.feed,
+                    on_chunk=stream.feed,
                 )  # fmt: skip
-                uid = digest.uid()
+                done = stream.finish()
+            data = data.view(data.dtype.newbyteorder("="))  # swapped as it was read
+            if done is not None:
+                data, uid, value_range = done
+                scaled, scale = scale is not None, None
         else:
             fill_array(fh, data, codec=codec, skip=int(offset), where=where, error=error)
+            data = native(data)
     return VolumeData(
         format="NIfTI-1" if int(hdr["sizeof_hdr"]) == NIFTI1_BYTES else "NIfTI-2",
-        data=native(data),
+        data=data,
         affine_lps=affine,
         scale=scale,
         tilt_deg=tilt,
         warnings=warnings,
         description=_text(hdr["descrip"]),
         content_uid=uid,
+        scaled=scaled,
+        value_range=None if value_range is None else (float(value_range[0]), float(value_range[1])),
     )

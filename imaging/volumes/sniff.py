@@ -107,6 +107,7 @@ def read_volume_file(
     refuse_ambiguous: bool = False,
     layers: bool = False,
     kind: str | None = None,
+    identity: bool = False,
 ) -> VolumeData:
     """A NIfTI, NRRD or MetaImage file's voxels and geometry (its format by content).
 
@@ -119,13 +120,19 @@ def read_volume_file(
         warned about (CT).
     layers : a NRRD list axis (a 3D Slicer segmentation's layers) is kept.
     kind : the format when already known (:func:`volume_format`).
+    identity : a CT's HU wanted: a NIfTI's int16 voxels are scaled (an integer scale), measured
+        and hashed into the volume's identity as they are read (``VolumeData.content_uid``).
     """
     p = Path(path)
     fmt = kind or volume_format(p, error=error, what="volume file")
     try:
         if fmt == "nifti":
             return read_nifti(
-                p, max_bytes=max_bytes, error=error, refuse_ambiguous=refuse_ambiguous
+                p,
+                max_bytes=max_bytes,
+                error=error,
+                refuse_ambiguous=refuse_ambiguous,
+                identity=identity,
             )
         if fmt == "nrrd":
             return read_nrrd(p, max_bytes=max_bytes, error=error, layers=layers)

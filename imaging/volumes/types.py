@@ -35,8 +35,11 @@ class VolumeData:
         the patient; outputs carry it only with ``--include-phi``.
     fields : the header's other key/value pairs (NRRD), for segment names; same privacy.
     content_uid : the volume's identity (:func:`.identity.content_uid` of ``data`` and
-        ``affine_lps``) when the reader hashed the voxels as it read them (stored int16, little
-        endian, unscaled: the stored bytes are the HU bytes), else None.
+        ``affine_lps``) when the reader hashed the voxels as it read them (a NIfTI's int16
+        voxels, :class:`.identity.HuStream`), else None.
+    scaled : ``data`` already holds the header's ``scl_slope``/``scl_inter`` applied (the
+        reader applied an integer scale as it read; ``scale`` is then None).
+    value_range : (min, max) of ``data`` when the reader measured it as it read, else None.
     """
 
     format: str
@@ -48,6 +51,8 @@ class VolumeData:
     description: str = ""
     fields: dict[str, str] = field(default_factory=dict)
     content_uid: str | None = None
+    scaled: bool = False
+    value_range: tuple[float, float] | None = None
 
     @property
     def shape_kji(self) -> tuple[int, int, int]:
