@@ -13,10 +13,14 @@ cache hot) by:
 
 NIfTI (issue 37: a NIfTI CT in at most :data:`NIFTI_GOAL_X` times nibabel's time) is also read
 at 512 x 512 x 300 (``.nii`` and ``.nii.gz``, 150 MiB of voxels) and from the real head CT of
-``../shared/data/vtk_headsq_quarter`` (64 x 64 x 93, gzip), when present. ``load_ct`` hashes
-int16 NIfTI voxels as they are read (a worker thread, :class:`~ctdrill.imaging.volumes.identity.
-VoxelDigest`), so the SHA-256 overlaps the read or the inflate instead of reading the voxels a
-second time.
+``../shared/data/vtk_headsq_quarter`` (64 x 64 x 93, gzip, ``scl_inter`` -1024), when present,
+timed both by the wall clock and by the process's CPU time (every thread), the two readers
+alternating. ``load_ct`` makes int16 NIfTI voxels HU, measures and hashes them chunk by chunk
+as they are read (:class:`~ctdrill.imaging.volumes.identity.HuStream`), so no voxel is read a
+second time; the SHA-256 runs in the reading thread while each 1 MiB chunk is in the cache, or
+in a worker beside the read when a core is to spare
+(:func:`~ctdrill.imaging.volumes.identity.core_to_spare`: the 1-minute load average under the
+cores less one half). nibabel's peer reads into a ``bytearray`` (``mmap=False``).
 
 Also measured: the peak resident memory of refusing a gzip bomb (a 64^3 header over a stream
 that inflates to 1 GiB), by ``load_ct`` and by pynrrd's own reader (which inflates everything
@@ -25,8 +29,10 @@ before checking the size).
 
 from __future__ import annotations
 
+import gc
 import os
 import tempfile
+import time
 import zlib
 from collections.abc import Callable
 from functools import partial
@@ -35,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.report import Section, headline_row, table, time_pair
+from bench.report import Section, Timing, headline_row, table, time_pair
 from ctdrill.imaging import load_ct
 
 ROWS = COLS = 512
@@ -155,11 +161,32 @@ def _bomb_peak_mib(folder: Path) -> dict[str, str]:
     return out
 
 
+def _wall_and_cpu(
+    fns: dict[str, Callable[[], object]], repeats: int
+) -> dict[str, tuple[Timing, Timing]]:
+    """(wall, CPU) timings of each of ``fns``, run round-robin after one warm-up each; CPU is
+    the process's (every thread: a worker's hashing counts)."""
+    for fn in fns.values():
+        fn()
+    wall: dict[str, list[float]] = {k: [] for k in fns}
+    cpu: dict[str, list[float]] = {k: [] for k in fns}
+    for _ in range(repeats):
+        for name, fn in fns.items():
+            gc.collect()
+            c0, t0 = time.process_time(), time.perf_counter()
+            fn()
+            wall[name].append(time.perf_counter() - t0)
+            cpu[name].append(time.process_time() - c0)
+    return {k: (Timing.from_samples(wall[k]), Timing.from_samples(cpu[k])) for k in fns}
+
+
 def _nifti_rows(
     tmp: Path, n: int, repeats: int
-) -> tuple[list[list[str]], list[str], list[tuple[str, float, float]]]:
+) -> tuple[list[list[str]], list[str], list[tuple[str, float, float, float]]]:
     """The NIfTI goal's rows: a 512 x 512 x ``n`` CT (.nii, .nii.gz) and the real head CT."""
     import nibabel
+
+    from ctdrill.imaging.volumes.identity import core_to_spare
 
     rng = np.random.default_rng(1)
     hu = rng.integers(-1000, 2000, size=(n, ROWS, COLS), dtype=np.int16)
@@ -179,10 +206,26 @@ def _nifti_rows(
         v = load_ct(path)
         same = np.array_equal(v.hu, np.asarray(peer()).transpose(2, 1, 0))
         notes.append(f"{name}: voxels identical to nibabel's: {same}")
-        ours, theirs = time_pair(partial(load_ct, path), peer, repeats=repeats)
+        spare = core_to_spare()
+        got = _wall_and_cpu({"ours": partial(load_ct, path), "nibabel": peer}, repeats)
+        (ours, ours_cpu), (theirs, theirs_cpu) = got["ours"], got["nibabel"]
         ratio = ours.median_s / theirs.median_s
-        ratios.append((name, ratio, ours.median_s))
-        rows.append([name, ours.fmt(), theirs.fmt(), f"{ratio:.2f}", f"<= {NIFTI_GOAL_X:g}"])
+        cpu_ratio = ours_cpu.median_s / theirs_cpu.median_s
+        where = "worker" if spare and core_to_spare() else "reading thread"
+        ratios.append((name, ratio, cpu_ratio, ours.median_s))
+        rows.append(
+            [
+                name,
+                ours.fmt(),
+                theirs.fmt(),
+                f"{ratio:.2f}",
+                ours_cpu.fmt(),
+                theirs_cpu.fmt(),
+                f"{cpu_ratio:.2f}",
+                where,
+                f"<= {NIFTI_GOAL_X:g}",
+            ]
+        )
     return rows, notes, ratios
 
 
@@ -239,12 +282,13 @@ def run(quick: bool) -> Section:
         )
         load = 0.5 * (load_before + os.getloadavg()[0])
         bomb = {} if quick else _bomb_peak_mib(Path(tmp))
-    for name, ratio, ours_s in nii_ratios:
+    for name, ratio, cpu_ratio, ours_s in nii_ratios:
         if ratio > NIFTI_GOAL_X:
             shortfalls.append(
                 f"NIfTI {name}: load_ct took {ratio:.2f} x nibabel's time ({ours_s * 1e3:.0f} ms; "
-                f"goal <= {NIFTI_GOAL_X:g} x) at load {load:.1f} on the 2 cores (the SHA-256 "
-                "of the voxels overlaps the read only when a core is free)"
+                f"goal <= {NIFTI_GOAL_X:g} x; CPU {cpu_ratio:.2f} x) at load {load:.1f} on the "
+                f"{os.cpu_count()} cores (the SHA-256 of the voxels, about 0.6 ms a MiB, is "
+                "hashed as they are read)"
             )
     headline.append(
         headline_row(
@@ -264,12 +308,27 @@ def run(quick: bool) -> Section:
         "",
         *[f"- {line}" for line in notes],
         "- load_ct's time includes the SHA-256 of the voxels (the volume's identity), hashed "
-        "as they are read for int16 NIfTI, after the read for the other formats.",
+        "as they are read for int16 NIfTI (made HU as they land), after the read for the "
+        "other formats.",
         "",
-        f"NIfTI against nibabel (issue 37; load average {load:.1f} on the 2 cores; "
-        "load_ct / nibabel, lower is better):",
+        f"NIfTI against nibabel (issue 37; load average {load:.1f} on the {os.cpu_count()} "
+        "cores; load_ct / nibabel, lower is better; the goal is on the wall clock, the CPU "
+        "ratio is what a busy machine converges to; where the SHA-256 ran):",
         "",
-        table(["file", "load_ct", "nibabel", "load_ct / nibabel", "goal"], nii_rows),
+        table(
+            [
+                "file",
+                "load_ct",
+                "nibabel",
+                "load_ct / nibabel",
+                "load_ct CPU",
+                "nibabel CPU",
+                "CPU ratio",
+                "hashed in",
+                "goal",
+            ],
+            nii_rows,
+        ),
         "",
         *[f"- {line}" for line in nii_notes],
     ]
