@@ -20,6 +20,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -152,6 +153,7 @@ def _profile_kernel(
 
 
 def _profile_numpy(
+    rows: np.ndarray,
     hu: np.ndarray,
     n_depth: np.ndarray,
     ring_w: np.ndarray,
@@ -166,7 +168,6 @@ def _profile_numpy(
     sums: np.ndarray,
     alt: np.ndarray,
     clipped: np.ndarray,
-    rows: np.ndarray,
 ) -> None:
     """:func:`_profile_kernel` for ``rows`` with NumPy: every sum is taken in the kernel's order
     (angles, then rings, one addition at a time), every product and polynomial the same, so
@@ -258,12 +259,13 @@ def build_profiles(
         gate_lo = float(calibration.gate_hu) - 0.5 * gate_w
         lo, hi = (float(v) for v in calibration.c_prime_range)
         _, inv_step, coefs = law_tables(calibration)
-        args = (np.ascontiguousarray(hu, dtype=np.float32), nd, w / n_a, alt_w / n_a)
-        args2 = (gate_lo, gate_w, lo, hi, float(AIR_HU), inv_step, coefs, sums, alt, clipped)
+        args: tuple[Any, ...] = (np.ascontiguousarray(hu, dtype=np.float32), nd, w / n_a)
+        args += (alt_w / n_a, gate_lo, gate_w, lo, hi, float(AIR_HU), inv_step, coefs)
+        args += (sums, alt, clipped)
         if PROFILE_KERNEL.ready():
-            run_spans(PROFILE_KERNEL, row_spans(todo), *args, *args2)
+            run_spans(PROFILE_KERNEL, row_spans(todo), *args)
         else:
-            _profile_numpy(*args, *args2, todo)
+            _profile_numpy(todo, *args)
     # layout of ``sums``: s_t, lip-mean HU, S0, then each harmonic's Sk
     return ProfileBatch(
         s0_n=sums[:, 2],
