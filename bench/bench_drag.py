@@ -10,9 +10,10 @@ opened by ``ctdrill.api``'s ``open_window`` and driven through ``QTest`` mouse e
 the new curves (its ``stopDepthMmChanged``, emitted by the paint that puts them on the screen).
 
 - **live** (today): mouse moves are coalesced to the latest; each previews the dragged plan:
-  its path is planned at once in a worker (one at a time, the latest next), its curves and
-  stop handed to the plots before the implant's check, and painted over the kept axes (a
-  pixmap) by the paint that shows them.
+  its curves and stop are computed at once in a worker (one at a time, the latest next) and
+  painted over the kept axes (a pixmap) by the paint that shows them; the implant's check,
+  the problems and the readout follow in a second worker (one at a time, the latest position
+  whose curves came), so the next curves never wait for them.
   *Latency*: from rest (nothing computing), a move, then the time until the plot is repainted
   with that move's curves; one move at a time.
   *Continuous drag*: a 60 Hz mouse (a move every 16 ms, a triangle wave of 2 px steps over
@@ -30,9 +31,9 @@ the new curves (its ``stopDepthMmChanged``, emitted by the paint that puts them 
   last). Latency: the release of a short
   drag, then the time until the plots show its curves.
 
-The breakdown (each median): the dragged plan's job in the worker (its curves, then the
-implant's check, the problems and the readout) with the CPU time its thread spent (the rest of
-the wall time is waiting for a core or the interpreter lock), the curves' part alone, the
+The breakdown (each median): the dragged plan's checks in their worker (the implant's check
+and the problems, after its curves) with the CPU time its thread spent (the rest of the wall
+time is waiting for a core or the interpreter lock), the curves in theirs, the
 force plot's paint with new curves on the UI thread (its CPU time), the dragged view's
 outline; and the UI thread's CPU time over the continuous drag per repaint, and the paints per
 mouse move of the drill view, the force plot, the other slices and the 3D view (an event
@@ -147,17 +148,17 @@ class _Probe:
         self.move_of: dict[int, int] = {}
         self.sent = 0
         restore: list[Callable[[], None]] = []
-        original = controller.compute_path_view
+        original = controller.completed_view
 
-        def timed_compute(*args: Any, **kw: Any) -> Any:
+        def timed_checks(*args: Any, **kw: Any) -> Any:
             t0, c0 = time.perf_counter(), time.thread_time()
             out = original(*args, **kw)
             self.compute.append(time.perf_counter() - t0)
             self.compute_cpu.append(time.thread_time() - c0)
             return out
 
-        controller.compute_path_view = timed_compute
-        restore.append(lambda: setattr(controller, "compute_path_view", original))
+        controller.completed_view = timed_checks
+        restore.append(lambda: setattr(controller, "completed_view", original))
         curves = results.path_curves
 
         def timed_curves(*args: Any, **kw: Any) -> Any:
@@ -288,7 +289,8 @@ def _measure(
     paints = _paint_counter(window)
 
     def at_rest() -> bool:
-        busy = ctl.live_runner.busy or ctl.readout_runner.busy or ctl.path_runner.busy
+        runners = (ctl.live_runner, ctl.check_runner, ctl.readout_runner, ctl.path_runner)
+        busy = any(r.busy for r in runners)
         return not busy and window.ui_steps.pending == 0
 
     try:
@@ -410,7 +412,7 @@ def _drag_case(
                     proc.kill()
                     proc.wait()
         parts = {
-            "path in the worker (curves, then checks)": Timing.from_samples(
+            "checks in the worker (implant, problems)": Timing.from_samples(
                 probe.compute or [np.nan]
             ),
             "its CPU time": Timing.from_samples(probe.compute_cpu or [np.nan]),
@@ -554,7 +556,7 @@ def run(quick: bool) -> Section:
         table(
             [
                 "case",
-                "path in the worker (curves, then checks)",
+                "checks in the worker (implant, problems)",
                 "its CPU time",
                 "curves in the worker",
                 "force plot painted (live), CPU",

@@ -7,12 +7,15 @@ a worker thread and hands the result to the document on the UI thread.
 
 The path is planned at once after an edit and for every position of a drag: one computation
 at a time, the latest plan next (``Runner.submit_latest``), so a fast drag never queues stale
-work and the plots follow the mouse. A dragged plan's job hands its curves and stop to the
-plots as soon as they are computed (``curves_ready``), then computes the implant's check, the
-plan's problems and the cross-section's readout
-(:func:`ctdrill.app.gui.readouts.implant_readout`, its walls on the full grid) for the
-banner and the readout: both follow every position the drag computes. Any other path result
-is followed by the readout in a runner of its own, so the plots never wait for it.
+work and the plots follow the mouse. A dragged plan is computed in two runners, each one job
+at a time with the latest next: its curves and stop (``live_runner``,
+:func:`~ctdrill.app.gui.results.curves_view`: a few milliseconds) go to the plots at once,
+and the next position's curves start at once; the implant's check, the plan's problems and
+the cross-section's readout (``check_runner``:
+:func:`~ctdrill.app.gui.results.completed_view`,
+:func:`ctdrill.app.gui.readouts.implant_readout`, its walls on the full grid) follow for the
+banner and the readout, for the latest position whose curves are drawn, so the plots never
+wait for them. Any other path result is followed by the readout in a runner of its own.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from ctdrill import jit
 from ctdrill.app.gui import compute
 from ctdrill.app.gui.document import Document
 from ctdrill.app.gui.readouts import ImplantReadout, implant_readout
-from ctdrill.app.gui.results import PathView, compute_path_view
+from ctdrill.app.gui.results import PathView, completed_view, compute_path_view, curves_view
 from ctdrill.app.gui.workers import Debouncer, Runner
 from ctdrill.app.search.candidates import SearchSpace
 from ctdrill.app.search.suggest import Suggestion, suggest
@@ -51,8 +54,6 @@ class Controller(QObject):
 
     loaded = Signal(object)
     failed = Signal(str, object, str)
-    #: A dragged plan's curves, from the worker (delivered queued on the UI thread).
-    curves_ready = Signal(object)
 
     def __init__(self, doc: Document, parent: QObject | None = None) -> None:
         super().__init__(parent)
@@ -62,14 +63,14 @@ class Controller(QObject):
         self.path_runner = Runner(self._path_done, self._path_failed, parent=self)
         self.surface_runner = Runner(doc.set_surface, self._fail("surface"), parent=self)
         self.suggest_runner = Runner(self._suggest_done, self._suggest_failed, parent=self)
-        self.live_runner = Runner(self._live_done, self._fail("path"), parent=self)
+        self.live_runner = Runner(self._curves_done, self._fail("path"), parent=self)
+        self.check_runner = Runner(self._live_done, self._fail("path"), parent=self)
         self.readout_runner = Runner(self._readout_done, self._fail("path"), parent=self)
         self.debounce = Debouncer(self.recompute, DEBOUNCE_MS, parent=self)
         self._computing: Plan | None = None
         self._live_for: Plan | None = None
         self._suggesting: Plan | None = None
         doc.live.plan_dragged.connect(self._dragged)
-        self.curves_ready.connect(self._curves_done)
         doc.path_changed.connect(self._read_out)
         doc.live.path_changed.connect(self._read_out)
         doc.suggestion_requested.connect(self.run_suggest)
@@ -106,7 +107,7 @@ class Controller(QObject):
             return
         if self.doc.path is not None and self.doc.path.plan is plan:
             return  # already computed for this trajectory (switching back to it)
-        if self.live_runner.busy and self._live_for is plan:
+        if (self.live_runner.busy or self.check_runner.busy) and self._live_for is plan:
             return  # a drag's last position: its computation is under way
         self._computing = plan
         hu = self.doc.hu_uncertainty
@@ -118,7 +119,8 @@ class Controller(QObject):
         self.debounce.set_interval(ms)
 
     def _dragged(self, plan: Plan | None) -> None:
-        """Plan the path of a dragged plan now (one at a time, the latest next)."""
+        """Plan the curves of a dragged plan now (one at a time, the latest next); its checks
+        follow (:meth:`_curves_done`)."""
         volume = self.doc.volume
         if plan is None or volume is None:
             return
@@ -126,17 +128,25 @@ class Controller(QObject):
         hu = self.doc.hu_uncertainty
         others = tuple(plan if p is self.doc.plan else p for p in self.doc.plans)
 
-        def job() -> tuple[PathView, ImplantReadout] | tuple[Plan, str]:
+        def curves() -> tuple[Plan, PathView | str | None, Any]:
             try:
-                view = compute_path_view(
-                    volume, plan, hu, plan_set=others, live=True, on_curves=self.curves_ready.emit
-                )
+                return plan, curves_view(volume, plan, hu, plan_set=others), checks
             except ValueError as exc:  # bad input (an axis leaving the scan): said, no curve
+                return plan, str(exc), checks
+
+        def checks(first: PathView | None) -> tuple[PathView, ImplantReadout] | tuple[Plan, str]:
+            try:
+                view = (
+                    compute_path_view(volume, plan, hu, plan_set=others, live=True)
+                    if first is None  # a drill sequence: in one stage
+                    else completed_view(volume, first, plan_set=others, live=True)
+                )
+            except ValueError as exc:
                 return plan, str(exc)
-            # the cross-section's readout with every position computed (it follows the drag)
+            # the cross-section's readout with every position checked (it follows the drag)
             return view, implant_readout(volume, plan, view, live=True)
 
-        self.live_runner.submit_latest(job)
+        self.live_runner.submit_latest(curves)
 
     def _read_out(self, view: PathView | None) -> None:
         """The readout of the plan a path result is for (after it: the plots come first)."""
@@ -155,9 +165,16 @@ class Controller(QObject):
     def _readout_done(self, result: tuple[Plan, ImplantReadout]) -> None:
         self.doc.live.set_readout(*result)
 
-    def _curves_done(self, view: PathView) -> None:
-        """A dragged plan's curves, before its checks: the plots show them at once."""
-        self.doc.live.offer_curves(view)
+    def _curves_done(self, result: tuple[Plan, PathView | str | None, Any]) -> None:
+        """A dragged plan's curves: the plots show them at once; its checks are computed
+        next (the latest plan whose curves came, one at a time)."""
+        plan, first, checks = result
+        if isinstance(first, str):
+            self.doc.live.fail(plan, first)
+            return
+        if first is not None:
+            self.doc.live.offer_curves(first)
+        self.check_runner.submit_latest(lambda: checks(first))
 
     def _live_done(self, result: tuple[PathView, ImplantReadout] | tuple[Plan, str]) -> None:
         view, extra = result
@@ -214,6 +231,7 @@ class Controller(QObject):
             self.load_runner,
             self.path_runner,
             self.live_runner,
+            self.check_runner,
             self.readout_runner,
             self.surface_runner,
             self.suggest_runner,

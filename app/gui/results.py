@@ -144,10 +144,7 @@ def compute_path_view(
     For a drill sequence the window shows and rehearses the **final** drill, cutting around
     the holes the drills before it leave at their stop depths (the export's last folder,
     :mod:`ctdrill.engine.sequence`); ``ctdrill rehearse`` runs every drill."""
-    # ``plan`` with the set's warnings; the view below stays the document's own ``plan``
-    own = next(
-        (w for p, w in zip(plan_set, with_set_warnings(plan_set), strict=True) if p is plan), plan
-    )
+    own = _own(plan, plan_set)
     cal = plan_calibration(own)
 
     # while dragging, the implant's walls on the drag's grid (the path then takes them)
@@ -157,11 +154,46 @@ def compute_path_view(
     if len(own.drills) > 1:
         view = path_view(plan, plan_sequence(volume, own, cal, implant=implant()).final, hu)
     elif on_curves is not None:  # the curves first, then the implant and the checks
-        view = path_view(plan, path_curves(volume, own.drilled(0), cal), hu)
-        on_curves(view)
-        view = replace(view, result=complete_path(volume, view.result, implant()))
+        first = curves_view(volume, plan, hu, plan_set=plan_set)
+        assert first is not None  # one drill
+        on_curves(first)
+        return completed_view(volume, first, plan_set=plan_set, live=live)
     else:  # to apex + tip
         view = path_view(plan, plan_path(volume, own.drilled(0), cal, implant=implant()), hu)
+    return checked(volume, view, live=live)
+
+
+def _own(plan: Plan, plan_set: Sequence[Plan]) -> Plan:
+    """``plan`` with the set's warnings (the view stays the document's own ``plan``)."""
+    return next(
+        (w for p, w in zip(plan_set, with_set_warnings(plan_set), strict=True) if p is plan), plan
+    )
+
+
+def curves_view(
+    volume: CTVolume,
+    plan: Plan,
+    hu: HuUncertainty | None = None,
+    *,
+    plan_set: Sequence[Plan] = (),
+) -> PathView | None:
+    """The first stage of :func:`compute_path_view`: the view of ``plan``'s curves and stop
+    (:func:`~ctdrill.engine.path.path_curves`), without the implant's check, warnings and
+    problems; None for a drill sequence (computed in one stage)."""
+    own = _own(plan, plan_set)
+    if len(own.drills) > 1:
+        return None
+    return path_view(plan, path_curves(volume, own.drilled(0), plan_calibration(own)), hu)
+
+
+def completed_view(
+    volume: CTVolume, first: PathView, *, plan_set: Sequence[Plan] = (), live: bool = False
+) -> PathView:
+    """The second stage: :func:`curves_view`'s ``first`` with the implant, the path's
+    warnings and the checks (the same curves object: what the plots show stays)."""
+    own = _own(first.plan, plan_set)
+    implant = implant_outcome(volume, own, **LIVE_WALLS) if live else None
+    view = replace(first, result=complete_path(volume, first.result, implant))
     return checked(volume, view, live=live)
 
 

@@ -1,16 +1,21 @@
 """A drag's path in two stages (issue 37): the curves and the stop first (``on_curves``), then
-the implant's check and the problems; every number the same as the one-stage result's."""
+the implant's check and the problems; every number the same as the one-stage result's; in the
+window the two stages run in runners of their own (the next curves never wait for checks)."""
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import numpy as np
+import pytest
+from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui.implant_drag import dragged_plan
 from ctdrill.app.gui.results import PathView, compute_path_view
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.plan.load import load_plan
+from ctdrill.imaging.plan.types import Plan
 
 ROOT = Path(__file__).resolve().parents[3]
 DEMO = ROOT / "assets" / "demo"
@@ -42,3 +47,52 @@ def test_the_curves_come_first_and_equal_the_whole_results() -> None:
     assert staged.implant.walls is not None and whole.implant.walls is not None
     assert staged.implant.walls.min_mm == whole.implant.walls.min_mm
     assert not staged.implant.coarse and not whole.implant.coarse  # the full grid
+
+
+def test_the_next_curves_do_not_wait_for_the_checks(
+    qtbot: QtBot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A drag's checks run in a runner of their own: while the first position's checks are
+    held, the next position's curves reach the document; the checks then follow for the
+    latest position whose curves came, and the release takes its result."""
+    from ctdrill.app.gui import controller as controller_module
+    from ctdrill.app.gui.controller import Controller
+    from ctdrill.app.gui.document import Document
+
+    volume = load_ct(str(DEMO / "ct"))
+    plan = load_plan(DEMO / "plan.json")
+    doc = Document()
+    doc.volume = volume
+    doc.set_plan(plan)
+    ctl = Controller(doc)
+    ctl.recompute()
+    qtbot.waitUntil(lambda: doc.path is not None and doc.path.plan is plan, timeout=30_000)
+    release = threading.Event()
+    checked: list[Plan] = []
+    original = controller_module.completed_view
+
+    def held(volume_: object, first: PathView, **kw: object) -> PathView:
+        checked.append(first.plan)
+        assert release.wait(30.0)
+        return original(volume_, first, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(controller_module, "completed_view", held)
+    a, b, c = (
+        dragged_plan(plan, "move", plan.target_lps, plan.target_lps + np.array([0, 0, dz]))
+        for dz in (-0.5, -1.0, -1.5)
+    )
+    assert doc.live.drag_to(a)
+    qtbot.waitUntil(lambda: checked == [a], timeout=30_000)  # a's checks held
+    assert doc.live.curves is not None and doc.live.curves.plan is a
+    assert doc.live.drag_to(b)
+    qtbot.waitUntil(lambda: doc.live.curves.plan is b, timeout=30_000)  # type: ignore[union-attr]
+    assert doc.live.drag_to(c)
+    qtbot.waitUntil(lambda: doc.live.curves.plan is c, timeout=30_000)  # type: ignore[union-attr]
+    assert checked == [a] and doc.live.path is None  # the checks still held
+    release.set()
+    qtbot.waitUntil(lambda: doc.live.path is not None and doc.live.path.plan is c, timeout=30_000)
+    assert checked == [a, c]  # b's checks skipped: c's curves came before a's checks ended
+    assert doc.live.path.curves is doc.live.curves.curves  # type: ignore[union-attr]
+    assert doc.live.end_drag(c, edit="move implant")
+    assert doc.path is not None and doc.path.plan is c
+    ctl.cancel()
