@@ -4,8 +4,10 @@ tight-loop floor reading the same samples, in one run."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import replace
@@ -85,6 +87,36 @@ def fresh_volume(volume: CTVolume) -> CTVolume:
         volume.info,
         slice_positions_mm=volume.slice_positions_mm,
     )
+
+
+def _pool_cpu_s() -> float:
+    """CPU time of ctdrill's worker threads (``ctdrill/jit.py``'s pool) so far, s."""
+    total = 0.0
+    for t in threading.enumerate():
+        if t.name.startswith("ctdrill-jit") and t.ident is not None:
+            with contextlib.suppress(OSError, ProcessLookupError):
+                total += time.clock_gettime(time.pthread_getcpuclockid(t.ident))
+    return total
+
+
+def cpu_loops(
+    fns: dict[str, Callable[[], object]], calls: dict[str, int], loops: int
+) -> tuple[dict[str, float], dict[str, float], dict[str, float]]:
+    """CPU time a call of each peer, as :func:`bench.bench_path.in_loops` times wall time: the
+    process's (every thread), the calling thread's and ctdrill's worker threads', ms."""
+    samples: dict[str, list[tuple[float, float, float]]] = {name: [] for name in fns}
+    for _ in range(loops):
+        for name, fn in fns.items():
+            p0, t0, w0 = time.process_time(), time.thread_time(), _pool_cpu_s()
+            for _ in range(calls[name]):
+                fn()
+            p1, t1, w1 = time.process_time(), time.thread_time(), _pool_cpu_s()
+            samples[name].append((p1 - p0, t1 - t0, w1 - w0))
+    out: tuple[dict[str, float], dict[str, float], dict[str, float]] = ({}, {}, {})
+    for name, v in samples.items():
+        for i, got in enumerate(out):
+            got[name] = float(np.median([x[i] for x in v])) / calls[name] * 1e3
+    return out
 
 
 def _same_walls(volume: CTVolume, plan: Plan) -> str:
@@ -221,13 +253,23 @@ def run(quick: bool) -> Section:
     path_fns: dict[str, Callable[[], object]] = {
         "implant": lambda: plan_path(volume, plan, cal),
         "full": path_full,
-        "numpy": _off(lambda: plan_path(volume, plan, cal)),
         "drill": lambda: plan_path(volume, drill_only, cal),
     }
-    path_calls = {"implant": 10, "full": 10, "numpy": 3, "drill": 10}
-    loops = in_loops(path_fns, path_calls, 3 if quick else 11)
-    # the process's CPU time a call (every thread), in the same kind of loops
-    cpu = in_loops(path_fns, path_calls, 3 if quick else 7, clock=time.process_time)
+    path_calls = {"implant": 10, "full": 10, "drill": 10}
+    # the NumPy peer in loops of its own, after the others: its large arrays wake OpenBLAS's
+    # worker thread, which then waits spinning for a while and would bill the next peer
+    numpy_fns: dict[str, Callable[[], object]] = {
+        "numpy": _off(lambda: plan_path(volume, plan, cal))
+    }
+    numpy_calls = {"numpy": 3}
+    n_loops, n_cpu = (3, 3) if quick else (11, 7)
+    loops = in_loops(path_fns, path_calls, n_loops)
+    loops |= in_loops(numpy_fns, numpy_calls, n_loops)
+    # the CPU time a call in the same kind of loops: the process's (every thread), the calling
+    # thread's, ctdrill's worker threads' (the walls' rays); the rest is other threads'
+    cpu, own, pool = cpu_loops(path_fns, path_calls, n_cpu)
+    for part, more in zip((cpu, own, pool), cpu_loops(numpy_fns, numpy_calls, n_cpu), strict=True):
+        part |= more
     load_after = _load()
 
     per_c = {k: v.median_s / n * 1e3 for k, v in t_sh.items()}
@@ -305,31 +347,26 @@ def run(quick: bool) -> Section:
         ],
         ["suggest, the NumPy shells and walls", t_sg["numpy"].fmt("s"), f"{sg_np:.2f}", "", ""],
     ]
+    path_cols = ["work", "ms a call", "CPU ms a call", "calling thread", "ctdrill's workers"]
+    path_cols += ["other threads", "/ compiled"]
+    other = {k: max(cpu[k] - own[k] - pool[k], 0.0) for k in cpu}
+    path_rows = (
+        ("implant", "plan_path with the implant, compiled walls"),
+        ("full", "plan_path with the implant, walls by the compiled full march"),
+        ("numpy", "plan_path with the implant, NumPy walls"),
+        ("drill", "plan_path without the implant (the drill only)"),
+    )
     rows_path = [
         [
-            "plan_path with the implant, compiled walls",
-            f"{loops['implant']:.2f}",
-            f"{cpu['implant']:.2f}",
-            "1",
-        ],
-        [
-            "plan_path with the implant, walls by the compiled full march",
-            f"{loops['full']:.2f}",
-            f"{cpu['full']:.2f}",
-            f"{loops['full'] / loops['implant']:.2f}",
-        ],
-        [
-            "plan_path with the implant, NumPy walls",
-            f"{loops['numpy']:.2f}",
-            f"{cpu['numpy']:.2f}",
-            f"{loops['numpy'] / loops['implant']:.1f}",
-        ],
-        [
-            "plan_path without the implant (the drill only)",
-            f"{loops['drill']:.2f}",
-            f"{cpu['drill']:.2f}",
-            f"{loops['drill'] / loops['implant']:.2f}",
-        ],
+            label,
+            f"{loops[key]:.2f}",
+            f"{cpu[key]:.2f}",
+            f"{own[key]:.2f}",
+            f"{pool[key]:.2f}",
+            f"{other[key]:.2f}",
+            f"{loops[key] / loops['implant']:.2f}",
+        ]
+        for key, label in path_rows
     ]
     thread_note = (
         "under this load the second thread waits for a core"
@@ -388,14 +425,28 @@ the safe-depth search) {s.evaluate_s:.2f} s, the candidates' surfaces and the sh
 **plan_path** with the implant, full-grid walls, time per call in loops of consecutive calls
 (as the window calls it while a plan is edited), median of the loops, ms; beside it the
 process's CPU time a call (all its threads) in the same kind of loops, which the other
-processes on the 2 shared cores inflate less than the wall time:
+processes on the 2 shared cores inflate less than the wall time, split by thread (medians of
+each, so the parts need not add up exactly): the calling thread, ctdrill's worker threads
+(``ctdrill/jit.py``'s pool: the walls' rays) and the other threads (OpenBLAS's worker, which
+waits spinning after NumPy's large products: the NumPy walls wake it). The NumPy walls are
+timed in loops of their own after the others, so that its spinning does not bill the next
+peer (the drill alone once showed twice its wall time in CPU on the idle machine).
 
-{table(["work", "ms a call", "CPU ms a call", "/ compiled"], rows_path)}
+{table(path_cols, rows_path)}
 
 Where the time goes in ``plan_path`` with the implant: of its {cpu["implant"]:.2f} ms of CPU a
 call, the drill's path takes {cpu["drill"]:.2f} ms, the walls' full march would add
 {cpu["full"] - cpu["implant"]:.2f} ms more; the walls alone take {w_ms * 1e3:.1f} ms a call on
-two threads, {t_w1["walls"].median_s * 1e3:.1f} ms on one ({thread_note}).
+two threads, {t_w1["walls"].median_s * 1e3:.1f} ms on one ({thread_note}). The second thread is
+the walls' own: ``plan_path`` starts the implant's rays on the worker thread
+(``start_plan_bone_walls``), computes the drill's path on the calling thread meanwhile, then
+both threads claim the rays still free, one walking them up and the other down until they meet
+(``ctdrill/claims.py``), so the CPU time above the wall time is the rays' second thread
+({pool["implant"]:.2f} ms a call; the other threads {other["implant"]:.2f} ms, the drill
+alone's {other["drill"]:.2f} ms). Each exit crossing's
+bisection reads its midpoints off the cell's cubic along the ray once its bracket lies inside
+one cell (``imaging/sampling/cell_cubic.py``, under the same guard as the extrapolated
+samples), and a ray that meets bone past the cap stops there.
 The walls' rays step over the CT's blocks of 4 x 4 x 4 cells whose corners all lie inside one
 class (soft, or bone-range), classed once per series as rays reach them
 (``imaging/sampling/hu_blocks.py``), and read the rest at extrapolated index coordinates:

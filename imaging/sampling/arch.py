@@ -187,8 +187,9 @@ class ArchCurve:
         (x0, y0), (x1, y1) = self._xy_list[seg], self._xy_list[seg + 1]
         return x0 + f * (x1 - x0), y0 + f * (y1 - y0)
 
-    def _g_one(self, x: float, y: float, s_mm: float) -> float:
-        """:meth:`_g` of one point at one arc position, on Python floats."""
+    def _tangent_one(self, s_mm: float) -> tuple[float, float]:
+        """:meth:`tangent_xy` at one arc position, on Python floats (the same IEEE
+        operations)."""
         half = 0.5 * self.window_mm
         if half == 0.0:
             cum = self._cum_list
@@ -199,8 +200,13 @@ class ArchCurve:
             (px, py), (qx, qy) = self._point_one(s_mm + half), self._point_one(s_mm - half)
             cx, cy = px - qx, py - qy
         norm = math.sqrt(cx * cx + cy * cy)
+        return cx / norm, cy / norm
+
+    def _g_one(self, x: float, y: float, s_mm: float) -> float:
+        """:meth:`_g` of one point at one arc position, on Python floats."""
+        tx, ty = self._tangent_one(s_mm)
         px, py = self._point_one(s_mm)
-        return (x - px) * (cx / norm) + (y - py) * (cy / norm)
+        return (x - px) * tx + (y - py) * ty
 
     def _bisect_one(
         self, xy: np.ndarray, a: float, b: float, ga: float
@@ -300,16 +306,41 @@ class ArchCurve:
             t_out[start + rows] = np.sum((sub - org) * nrm[:, :2], axis=1)
         return s_out, t_out
 
+    def arc_of_one(self, x: float, y: float) -> float | None:
+        """:meth:`project`'s arc position of the one point ``(x, y)`` (the same operations,
+        without the arrays' overhead); None where its normal foot lies beyond the ends."""
+        grid, g_pts, g_tan, g_nrm = self._root_grid
+        d = np.array([x, y]) - g_pts
+        g = np.sum(d * g_tan, axis=1)
+        g[np.abs(g) < _ZERO_MM] = 0.0
+        off = np.sum(d * g_nrm, axis=1)
+        lo_g, hi_g = g[:-1], g[1:]
+        bracket = ((lo_g <= 0.0) & (hi_g >= 0.0)) | ((lo_g >= 0.0) & (hi_g <= 0.0))
+        score = np.where(bracket, np.abs(0.5 * (off[:-1] + off[1:])), np.inf)
+        k = int(np.argmin(score))
+        if not np.isfinite(score[k]):
+            return None
+        a, b = float(grid[k]), float(grid[k + 1])
+        ga0 = self._g_one(x, y, a)
+        ga0 = 0.0 if abs(ga0) < _ZERO_MM else ga0
+        gb0 = self._g_one(x, y, b)
+        if ga0 == 0.0:
+            return a
+        if abs(gb0) < _ZERO_MM:
+            return b
+        lo, hi = self._bisect_one(np.array([x, y]), a, b, ga0)
+        return float(0.5 * (lo[0] + hi[0]))
+
     def buccal_normal_xy(self, s_mm: float) -> np.ndarray | None:
         """(2,) the unit normal at arc ``s_mm`` that points to the **buccal** side: away from
         the centroid of the arch (which lies on the concave, lingual side of any curved arch
         or arc of one); None where the arch is straight (its centroid on the normal line)."""
-        centroid = self._centroid_xy
-        _, _, normal = self.frame(np.array([s_mm]))
-        inward = float((centroid - self.point_xy(np.array([s_mm]))[0]) @ normal[0, :2])
+        tx, ty = self._tangent_one(s_mm)
+        normal = np.array([-ty, tx])  # frame()'s normal, ez x tangent
+        inward = float((self._centroid_xy - np.array(self._point_one(s_mm))) @ normal)
         if abs(inward) < STRAIGHT_MM:
             return None
-        out: np.ndarray = -normal[0, :2] if inward > 0.0 else normal[0, :2]
+        out: np.ndarray = -normal if inward > 0.0 else normal
         return out
 
     def min_radius_mm(self, step_mm: float = _ROOT_GRID_MM) -> float:
@@ -370,8 +401,9 @@ def buccal_normal_lps(
     through ``point_lps`` (:meth:`ArchCurve.buccal_normal_xy`); None when the point lies
     beyond the arch's ends or the arch is straight there."""
     curve = arch_curve(arch_lps, window_mm)
-    s, _ = curve.project(np.asarray(point_lps, dtype=np.float64).reshape(1, 3))
-    if not np.isfinite(s[0]):
+    point = np.asarray(point_lps, dtype=np.float64).reshape(3)
+    s = curve.arc_of_one(float(point[0]), float(point[1]))
+    if s is None or not math.isfinite(s):
         return None
-    xy = curve.buccal_normal_xy(float(s[0]))
+    xy = curve.buccal_normal_xy(s)
     return None if xy is None else np.array([xy[0], xy[1], 0.0])
