@@ -291,8 +291,15 @@ class CTVolume:
         batch = pts.shape[:-1]
         top_kji = self._top[::-1]
         with np.errstate(invalid="ignore", over="ignore"):  # non-finite points: outside
-            coords_kji = self._inv_lin[::-1] @ pts.reshape(-1, 3).T
-            coords_kji += self._inv_off[::-1, None]
+            # one product and sum at a time, in the compiled kernels' order (no BLAS: a
+            # matrix product may fuse or reorder them), so both read the same coordinates
+            flat = pts.reshape(-1, 3)
+            x, y, z = flat[:, 0], flat[:, 1], flat[:, 2]
+            m, off = self._inv_lin, self._inv_off
+            coords_kji = np.empty((3, flat.shape[0]))
+            for row, axis in enumerate((2, 1, 0)):
+                coords_kji[row] = m[axis, 0] * x + m[axis, 1] * y + m[axis, 2] * z
+                coords_kji[row] += off[axis]
             if self._remap_k:
                 coords_kji[0] = self._k_exact(coords_kji[0])
             inside = coords_kji[0] >= -_EDGE_TOL_VOX

@@ -141,11 +141,16 @@ def _envelope_numpy(
         k = np.rint(wall[exits] / step).astype(np.int64)
         a, b = t[k], t[np.minimum(k + 1, n_steps - 1)]
         oo, vv = origins_lps[exits], dirs_lps[exits]
-        while float(np.max(b - a)) > BISECT_TOL_MM:
-            mid = 0.5 * (a + b)
-            bone = is_bone_hu(volume.sample(oo + mid[:, None] * vv, outside_hu=np.nan))
-            a = np.where(bone, mid, a)
-            b = np.where(bone, b, mid)
+        # each ray halves its own bracket until it is within the tolerance (the compiled
+        # kernel's loop, ray by ray: the same midpoints, the same bits)
+        live = np.flatnonzero(b - a > BISECT_TOL_MM)
+        while live.size:
+            mid = 0.5 * (a[live] + b[live])
+            pts = oo[live] + mid[:, None] * vv[live]
+            bone = is_bone_hu(volume.sample(pts, outside_hu=np.nan))
+            a[live] = np.where(bone, mid, a[live])
+            b[live] = np.where(bone, b[live], mid)
+            live = live[b[live] - a[live] > BISECT_TOL_MM]
         wall[exits] = np.minimum(0.5 * (a + b), max_wall_mm)
     return wall, unknown, open_
 
