@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ctdrill.jit import Kernel, _pool, cpus, row_spans
+from ctdrill.jit import Kernel, _pool, cpus
 
 
 class Claimed:
@@ -36,7 +36,8 @@ class Claimed:
         self._args = args
         self.taken = np.zeros(n, dtype=np.uint8)
         threads = max(1, min(8, cpus())) if n >= min_rows else 1
-        self._spans = row_spans(np.arange(n), parts=max(1, (threads + 1) // 2)) if n else []
+        parts = min(max(1, (threads + 1) // 2), n)
+        self._spans = [(n * i // parts, n * (i + 1) // parts) for i in range(parts)]
         self._futures: list[Any] = []
         if threads > 1 and self._spans:
             pool, run, taken = _pool(), kernel._dispatch(), self.taken

@@ -48,6 +48,7 @@ chosen by measured cost against error (docs/plan.md, "Bone walls").
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -56,7 +57,7 @@ from typing import Any
 import numpy as np
 
 from ctdrill.imaging.misch import BONE_HU
-from ctdrill.imaging.plan.implants import ImplantPlacement, implant_placement
+from ctdrill.imaging.plan.implants import ImplantPlacement, ImplantSpec, implant_placement
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.arch import buccal_normal_lps
 from ctdrill.imaging.sampling.envelope import AIR_HU as AIR_HU
@@ -190,6 +191,18 @@ def start_plan_bone_walls(
     return start_bone_walls(volume, place, arch_lps=plan.arch_lps, **options)
 
 
+@functools.lru_cache(maxsize=64)
+def _body_depths(spec: ImplantSpec, depth_step_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """The depths below the platform the walls are read at (platform and apex included) and
+    the body's radius at each, mm (read-only; the spec's own, computed once)."""
+    n_d = max(2, math.ceil(spec.length_mm / depth_step_mm) + 1)
+    s = np.linspace(0.0, spec.length_mm, n_d)
+    r = np.array([spec.radius_at_mm(float(v)) for v in s])
+    s.flags.writeable = False
+    r.flags.writeable = False
+    return s, r
+
+
 def _frame(axis: np.ndarray, towards: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """Unit ``e1, e2`` perpendicular to ``axis``: ``e1`` along ``towards`` projected off the
     axis when it has a usable part, else along the world axis least aligned with ``axis``."""
@@ -258,9 +271,7 @@ def start_bone_walls(
     e1, e2 = _frame(axis, buccal)
     theta = 2.0 * np.pi * np.arange(n_angles) / n_angles
     dirs = np.cos(theta)[:, None] * e1 + np.sin(theta)[:, None] * e2  # (A, 3)
-    n_d = max(2, math.ceil(spec.length_mm / depth_step_mm) + 1)
-    s = np.linspace(0.0, spec.length_mm, n_d)  # below the platform
-    r = np.array([spec.radius_at_mm(float(v)) for v in s])
+    s, r = _body_depths(spec, float(depth_step_mm))
     surface = (
         placement.platform_lps + s[:, None, None] * axis + r[:, None, None] * dirs[None, :, :]
     )  # (D, A, 3)
@@ -350,12 +361,15 @@ def _perforation(
     axis)."""
     spec, axis = placement.spec, placement.axis_lps
     deep = s > PERFORATION_DEPTH_MM
+    flat = spec.apex == "flat" and spec.length_mm > PERFORATION_DEPTH_MM
+    if not flat and not outside[deep].any():
+        return None  # nothing exposed (what the arrays below would find)
     parts_p = [surface[deep].reshape(-1, 3)]
     parts_s = [np.repeat(s[deep], len(dirs))]
     parts_d = [np.tile(dirs, (int(deep.sum()), 1))]
     parts_x = [outside[deep].reshape(-1)]
     apex_r = spec.apex_diameter_mm / 2.0
-    if spec.apex == "flat" and spec.length_mm > PERFORATION_DEPTH_MM:
+    if flat:
         radii = apex_r * np.array([0.0, 1.0 / 3.0, 2.0 / 3.0])
         face = (placement.apex_lps + radii[:, None, None] * dirs[None, :, :]).reshape(-1, 3)
         along = np.broadcast_to(axis, face.shape)
