@@ -114,6 +114,7 @@ class SliceGrid(QWidget):
             canvas.centre_requested.connect(self.centre_on_drill)
             canvas.arch_edited.connect(self._arch_edit)
             self.runners[v] = Runner(partial(self._sliced, v), self._slice_failed, parent=self)
+            canvas.before_draw = partial(self._overlays_if_due, v)
         box = QVBoxLayout(self)
         box.setContentsMargins(0, 0, 0, 0)
         box.setSpacing(2)
@@ -332,6 +333,12 @@ class SliceGrid(QWidget):
             canvas = self.canvases[name]
             canvas.set_overlays(canvas.scene)
             canvas.draw_idle(next_step=True)  # this view whole before the next one starts
+
+    def _overlays_if_due(self, name: str) -> None:
+        """A queued draw of ``name`` runs: its overlays due go with it (drawn once)."""
+        if name in self._overlays_due:
+            self._overlays_due.discard(name)
+            self.canvases[name].set_overlays(self.canvases[name].scene)  # joins this draw
 
     def overlays_now(self, only: str | None = None) -> None:
         """Draw the overlays at once (on every canvas, or on ``only``)."""

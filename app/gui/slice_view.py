@@ -18,6 +18,7 @@ report changes. Controls (docs/slice_views.md):
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -97,6 +98,9 @@ class SliceCanvas(MapCanvas):
         self.on_plane_mm = SLAB_MM
         self._steps = steps
         self._draw_queued = False
+        #: Called by a queued draw right before it draws (the grid brings the overlays due
+        #: up to date, so a draw queued before a new path result shows it: one draw, not two).
+        self.before_draw: Callable[[], None] | None = None
         self.ax = fig.add_axes((0.0, 0.04, 1.0, 0.90))
         self.ax.set_facecolor("black")
         self.ax.set_axis_off()
@@ -144,6 +148,8 @@ class SliceCanvas(MapCanvas):
     def _draw_now(self) -> None:
         if not self._draw_queued:  # drawn already (queued twice: next, then at the end)
             return
+        if self.before_draw is not None:  # overlays that changed since the draw was queued
+            self.before_draw()
         self._draw_queued = False
         self.draw()
 

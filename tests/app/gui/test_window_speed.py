@@ -45,6 +45,30 @@ def test_overlay_requests_coalesce_into_one_step_per_canvas(window: MainWindow) 
     assert grid.canvases["axial"].scene is scene
 
 
+def test_a_draw_queued_before_new_overlays_draws_them_once(window: MainWindow) -> None:
+    grid = window.slice_grid
+    while window.ui_steps.pending:
+        window.ui_steps._step()
+    canvas = grid.canvases["coronal"]
+    drawn: list[int] = []
+    overlays: list[int] = []
+    draw, set_overlays = canvas.draw, canvas.set_overlays
+    canvas.draw = lambda: (drawn.append(1), draw())[1]  # type: ignore[method-assign]
+    canvas.set_overlays = lambda scene: (  # type: ignore[method-assign]
+        overlays.append(1),
+        set_overlays(scene),
+    )[1]
+    canvas.draw_idle()  # a draw queued (a new slice shown) ...
+    grid.draw_overlays()  # ... then new overlays (the path arrived) before it ran
+    while window.ui_steps.pending:
+        window.ui_steps._step()
+    assert drawn == [1] and overlays == [1]  # the queued draw showed them: one draw
+    canvas.draw_idle()
+    while window.ui_steps.pending:
+        window.ui_steps._step()
+    assert drawn == [1, 1] and overlays == [1]  # nothing due: drawn as it was
+
+
 def test_the_implant_list_is_rebuilt_only_when_it_changes(window: MainWindow) -> None:
     picker = window.plan_panel.implant
     specs = list(picker._specs)
