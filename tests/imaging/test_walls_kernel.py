@@ -2,8 +2,9 @@
 
 Both kernels read the same trilinear samples as :meth:`CTVolume.sample` (the same points, the
 same weights) and apply the same rules, so the flags agree exactly and the shell HU to float
-rounding of the index arithmetic (1e-9 HU); a wall agrees to the bisection's tolerance
-(``BISECT_TOL_MM``: both bisect the same crossing on the same samples). The volumes: the demo
+rounding of the index arithmetic (1e-9 HU); a wall agrees bit for bit (each ray bisected
+alike on the same samples: ``CTVolume.sample`` builds its index coordinates in the kernels'
+order). The lip rings' kernel gives the sampler's bits too. The volumes: the demo
 (int16), the demo as float32 with a tooth block (CT numbers >= 2000 HU and their trilinear
 edge), and an irregular stack (slices dropped: true slice positions remapped).
 """
@@ -24,11 +25,13 @@ from ctdrill.imaging.plan.load import load_plan
 from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.envelope import envelope_walls
 from ctdrill.imaging.sampling.envelope_kernel import ENVELOPE_KERNEL
+from ctdrill.imaging.sampling.lip import axis_basis
+from ctdrill.imaging.sampling.lip_batch import LIP_KERNEL, sample_lips
 from ctdrill.imaging.sampling.walls import plan_bone_walls, ray_step_mm
 from ctdrill.imaging.volume import CTVolume
 from tests.conftest import ASSETS
 
-KERNELS = (ENVELOPE_KERNEL, SHELL_KERNEL)
+KERNELS = (ENVELOPE_KERNEL, SHELL_KERNEL, LIP_KERNEL)
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -125,3 +128,34 @@ def test_shells_match_numpy(demo: tuple[CTVolume, Plan]) -> None:
         np.testing.assert_array_equal(got.likely_perforation, want.likely_perforation, name)
         np.testing.assert_array_equal(got.likely_thin_wall, want.likely_thin_wall, name)
         assert want.likely_perforation.any() and (~want.likely_thin_wall).any(), name
+
+
+def test_lip_rings_match_the_sampler_bit_for_bit(demo: tuple[CTVolume, Plan]) -> None:
+    """The lip kernel's float32 ring samples and outside counts are the per-trajectory
+    sampler's (its NumPy path), bit for bit: 60 axes partly outside the CT, on the three
+    volumes."""
+    volume, plan = demo
+    rng = np.random.default_rng(11)
+    n = 60
+    entries = plan.entry_lps + rng.normal(0.0, 6.0, (n, 3))
+    entries[:5] += 30.0  # partly outside the CT
+    axes = plan.direction + rng.normal(0.0, 0.4, (n, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    depth_len = rng.uniform(2.0, 14.0, n)
+    targets = entries + depth_len[:, None] * axes
+    d_max = 60
+    depth = np.tile(np.arange(d_max) * 0.2, (n, 1))
+    n_depths = np.minimum(d_max, np.floor(depth_len / 0.2).astype(np.int64) + 1)
+    bases = np.stack([axis_basis(e, t) for e, t in zip(entries, targets, strict=True)])
+    for name, vol in _volumes(volume, plan).items():
+        got = sample_lips(
+            vol, entries, targets, bases, depth, n_depths, plan.drill, n_rings=4, n_angles=24
+        )
+        with jit.switched_off([LIP_KERNEL]):
+            want = sample_lips(
+                vol, entries, targets, bases, depth, n_depths, plan.drill, n_rings=4, n_angles=24
+            )
+        for i in range(n):
+            m = int(n_depths[i])
+            assert np.array_equal(got[0][i, :m].view(np.uint32), want[0][i, :m].view(np.uint32))
+            assert np.array_equal(got[1][i, :m], want[1][i, :m]), name
