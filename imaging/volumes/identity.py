@@ -18,6 +18,7 @@ import hashlib
 import os
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
@@ -150,16 +151,28 @@ def integer_scale(scale: tuple[float, float] | None) -> tuple[int, int] | None:
     return int(slope), int(inter)
 
 
+@dataclass(frozen=True, eq=False)
+class StreamedHu:
+    """What :class:`HuStream` made: ``hu`` (k, j, i) int16 native, its identity ``uid``, its
+    ``value_range`` (min, max) and its ``sample`` (every ``sample_step``-th value, or None)."""
+
+    hu: np.ndarray
+    uid: str
+    value_range: tuple[int, int]
+    sample: np.ndarray | None
+
+
 class HuStream:
     """int16 stored voxels made HU, measured and hashed chunk by chunk as a reader fills them.
 
     :meth:`feed` is the reader's ``on_chunk``: each filled byte span of ``data`` (stored
     int16, either byte order) is taken whole voxels at a time; big-endian voxels are swapped
     in place, an integer ``scale`` (slope, intercept) is applied in place, the range kept and
-    the voxels fed to a :class:`VoxelDigest`. The first span whose HU would leave int16 stops
-    the scaling and hashing (the HU are then float32, made after the read):
-    :meth:`finish` undoes what was scaled and returns None, so the caller applies the scale
-    as for any other file.
+    the voxels fed to a :class:`VoxelDigest`; with ``sample_step`` every that many-th HU value
+    (flat C order, from the first) is kept too, taken while the span is in the cache. The
+    first span whose HU would leave int16 stops the scaling and hashing (the HU are then
+    float32, made after the read): :meth:`finish` undoes what was scaled and returns None, so
+    the caller applies the scale as for any other file.
 
     Parameters
     ----------
@@ -167,6 +180,7 @@ class HuStream:
     affine_lps : (4, 4) the volume's affine, hashed into the identity.
     scale : integer (slope, intercept), or None.
     threaded : as :class:`VoxelDigest`.
+    sample_step : keep ``hu.reshape(-1)[::sample_step]`` (0: none).
     """
 
     def __init__(
@@ -176,6 +190,7 @@ class HuStream:
         scale: tuple[int, int] | None,
         *,
         threaded: bool | None = None,
+        sample_step: int = 0,
     ) -> None:
         if data.dtype.kind != "i" or data.dtype.itemsize != 2 or not data.flags.c_contiguous:
             raise ValueError("HuStream needs a C-contiguous int16 array")
@@ -190,6 +205,8 @@ class HuStream:
         self._lo = int(_INT16.max)
         self._hi = int(_INT16.min)
         self._stopped = False
+        self._step = int(sample_step)
+        self._samples: list[np.ndarray] = []
 
     def feed(self, chunk: memoryview) -> None:
         """Take the whole voxels of the next filled span (``chunk``'s bytes count)."""
@@ -197,7 +214,7 @@ class HuStream:
         end = self._bytes // 2
         if end <= self._done:
             return
-        part = self._flat[self._done : end]
+        start, part = self._done, self._flat[self._done : end]
         self._done = end
         if self._swap:
             part.byteswap(inplace=True)
@@ -217,11 +234,13 @@ class HuStream:
         self._lo, self._hi = min(self._lo, lo), max(self._hi, hi)
         self._scaled = end
         self._digest.feed(part.data)
+        if self._step:
+            self._samples.append(part[-start % self._step :: self._step].copy())
 
-    def finish(self) -> tuple[np.ndarray, str, tuple[int, int]] | None:
-        """(the HU array (k, j, i) int16 native, its identity, (min, max) HU) once every
-        byte was fed; None when the HU leave int16 (the stored values are then back in the
-        array, in native order, for the caller to scale)."""
+    def finish(self) -> StreamedHu | None:
+        """The HU, their identity, range and sample once every byte was fed; None when the
+        HU leave int16 (the stored values are then back in the array, in native order, for
+        the caller to scale)."""
         data = self._flat.reshape(self._shape)
         if self._stopped:
             self._digest.settle()  # the worker reads no voxel the undo writes
@@ -230,7 +249,12 @@ class HuStream:
                 done = self._flat[: self._scaled]
                 done[...] = (done.astype(np.int64) - inter) // slope
             return None
-        return data, self._digest.uid(), (self._lo, self._hi)
+        return StreamedHu(
+            hu=data,
+            uid=self._digest.uid(),
+            value_range=(self._lo, self._hi),
+            sample=np.concatenate(self._samples) if self._step else None,
+        )
 
     def __enter__(self) -> HuStream:
         self._digest.__enter__()

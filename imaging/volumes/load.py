@@ -78,31 +78,38 @@ def hu_problem(lo: float, hi: float, low_tail: float | None = None) -> str | Non
     return None
 
 
+def tail_step(n_voxels: int) -> int:
+    """Every how many-th voxel (flat C order, from the first) the low tail samples: at most
+    ``_TAIL_SAMPLES`` of ``n_voxels``, evenly spaced."""
+    return max(1, int(n_voxels) // _TAIL_SAMPLES)
+
+
 def _tail_sample(values: np.ndarray) -> np.ndarray:
-    """At most ``_TAIL_SAMPLES`` of ``values`` (any shape), evenly spaced (a strided view)."""
+    """The low tail's sample of ``values`` (any shape): a strided view (:func:`tail_step`)."""
     flat = values.reshape(-1)
-    return flat[:: max(1, flat.size // _TAIL_SAMPLES)]
+    return flat[:: tail_step(flat.size)]
 
 
-def tail_below(values: np.ndarray, bound: float) -> bool:
+def tail_below(values: np.ndarray, bound: float, *, sample: np.ndarray | None = None) -> bool:
     """True when :func:`low_tail` of ``values`` is certainly below ``bound``: both order
     statistics it interpolates between are below it (one count, no sort); False when it
-    may not be (then compute it)."""
-    sample = _tail_sample(values)
+    may not be (then compute it). ``sample``: the sample when already taken."""
+    sample = _tail_sample(values) if sample is None else sample
     if sample.size < 2:
         return False
     below = int(np.floor((sample.size - 1) * (LOW_TAIL_PERCENT / 100.0)))
     return int(np.count_nonzero(sample < bound)) >= below + 2
 
 
-def low_tail(values: np.ndarray) -> float:
+def low_tail(values: np.ndarray, *, sample: np.ndarray | None = None) -> float:
     """The ``LOW_TAIL_PERCENT`` percentile of ``values`` (any shape; at most
-    ``_TAIL_SAMPLES`` voxels sampled evenly), ``np.percentile``'s linear method.
+    ``_TAIL_SAMPLES`` voxels sampled evenly, :func:`tail_step`), ``np.percentile``'s linear
+    method. ``sample``: the sample when already taken.
 
     int16 values are counted instead of partitioned (one pass, no sort): the two order
     statistics the percentile interpolates between are read off the cumulative counts.
     """
-    sample = _tail_sample(values)
+    sample = _tail_sample(values) if sample is None else sample
     if sample.dtype != np.int16 or sample.size < 2:
         return float(np.percentile(sample, LOW_TAIL_PERCENT))
     q = LOW_TAIL_PERCENT / 100.0
@@ -162,13 +169,15 @@ def ct_volume(path: str | Path, vol: VolumeData, *, max_bytes: int = DEFAULT_MAX
                 LoadWarning("padding", f"{n_bad} non-finite voxels (NaN or inf) masked invalid")
             )
     values = hu if valid is None else hu[valid]
-    if vol.value_range is not None and hu is vol.data:
+    sample = None
+    if vol.value_range is not None and hu is vol.data:  # measured as it was read
         lo, hi = vol.value_range
+        sample = vol.tail_sample
     else:
         lo, hi = float(values.min()), float(values.max())
     problem = hu_problem(lo, hi)
-    if problem is None and not tail_below(values, MIN_HU_LOW_TAIL):
-        problem = hu_problem(lo, hi, low_tail(values))
+    if problem is None and not tail_below(values, MIN_HU_LOW_TAIL, sample=sample):
+        problem = hu_problem(lo, hi, low_tail(values, sample=sample))
     if problem is not None:
         warnings.append(
             LoadWarning(

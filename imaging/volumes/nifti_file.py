@@ -232,8 +232,9 @@ def read_nifti(
     refuse_ambiguous : refuse a qform and sform that disagree (segmentations) instead of
         using the sform with a warning (CT).
     identity : int16 voxels are made HU (an integer scale applied, big-endian swapped),
-        measured and hashed into the volume's identity as they are read
-        (:class:`.identity.HuStream`): ``scaled``, ``value_range`` and ``content_uid`` set.
+        measured, sampled and hashed into the volume's identity as they are read
+        (:class:`.identity.HuStream`): ``scaled``, ``value_range``, ``tail_sample`` and
+        ``content_uid`` set.
     """
     with open_regular(path, what="NIfTI file", error=error) as fh:
         hdr = _header(path, fh, error)
@@ -299,10 +300,14 @@ def read_nifti(
         data = allocate(shape_kji, dtype, where=where, error=error)
         uid = None
         value_range = None
+        sample = None
         scaled = False
         whole = integer_scale(scale)
         if identity and dtype.kind == "i" and dtype.itemsize == 2 and (whole or not scale):
-            with HuStream(data, affine, whole) as stream:
+            from ctdrill.imaging.volumes.load import tail_step  # the HU rule's owner
+
+            step = tail_step(int(np.prod(shape_kji, dtype=np.int64)))
+            with HuStream(data, affine, whole, sample_step=step) as stream:
                 fill_array(
                     fh, data, codec=codec, skip=int(offset), where=where, error=error,
                     on_chunk=stream.feed,
@@ -310,7 +315,7 @@ def read_nifti(
                 done = stream.finish()
             data = data.view(data.dtype.newbyteorder("="))  # swapped as it was read
             if done is not None:
-                data, uid, value_range = done
+                data, uid, value_range, sample = done.hu, done.uid, done.value_range, done.sample
                 scaled, scale = scale is not None, None
         else:
             fill_array(fh, data, codec=codec, skip=int(offset), where=where, error=error)
@@ -326,4 +331,5 @@ def read_nifti(
         content_uid=uid,
         scaled=scaled,
         value_range=None if value_range is None else (float(value_range[0]), float(value_range[1])),
+        tail_sample=sample,
     )

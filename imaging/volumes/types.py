@@ -40,6 +40,8 @@ class VolumeData:
     scaled : ``data`` already holds the header's ``scl_slope``/``scl_inter`` applied (the
         reader applied an integer scale as it read; ``scale`` is then None).
     value_range : (min, max) of ``data`` when the reader measured it as it read, else None.
+    tail_sample : ``data.reshape(-1)[::load.tail_step(data.size)]`` when the reader took it
+        as it read, else None.
     """
 
     format: str
@@ -53,6 +55,7 @@ class VolumeData:
     content_uid: str | None = None
     scaled: bool = False
     value_range: tuple[float, float] | None = None
+    tail_sample: np.ndarray | None = None
 
     @property
     def shape_kji(self) -> tuple[int, int, int]:

@@ -19,7 +19,7 @@ import pytest
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.volumes import identity
 from ctdrill.imaging.volumes.identity import HuStream, content_uid
-from ctdrill.imaging.volumes.load import LOW_TAIL_PERCENT, low_tail, tail_below
+from ctdrill.imaging.volumes.load import LOW_TAIL_PERCENT, low_tail, tail_below, tail_step
 from ctdrill.imaging.volumes.sniff import read_volume_file
 from ctdrill.imaging.volumes.types import VolumeFileError
 from tests.imaging.volume_writers import write_nifti
@@ -80,6 +80,8 @@ def test_int16_made_hu_and_hashed_as_read_is_the_definition(
     assert vol.content_uid is not None and vol.scale is None and vol.data.dtype.isnative
     assert vol.scaled == (slope is not None)
     assert vol.value_range == (float(want.min()), float(want.max()))
+    assert vol.tail_sample is not None
+    np.testing.assert_array_equal(vol.tail_sample, want.reshape(-1)[:: tail_step(want.size)])
     v = load_ct(path)
     assert v.hu.dtype == np.int16
     np.testing.assert_array_equal(v.hu, want)
@@ -115,17 +117,18 @@ def test_spans_split_inside_a_voxel_are_joined() -> None:
     stored = np.arange(-40, 80, dtype=">i2").reshape(2, 6, 10)
     data = stored.copy()
     raw = memoryview(data.reshape(-1).view(np.uint8))
-    with HuStream(data, AFFINE, (3, -7), threaded=False) as stream:
+    with HuStream(data, AFFINE, (3, -7), threaded=False, sample_step=7) as stream:
         at, step = 0, 1
         while at < len(raw):
             stream.feed(raw[at : at + step])
             at, step = at + step, step % 3 + 1
         done = stream.finish()
     assert done is not None
-    hu, uid, (lo, hi) = done
     want = (stored.astype(np.int64) * 3 - 7).astype(np.int16)
-    np.testing.assert_array_equal(hu, want)
-    assert uid == _by_hand(want, AFFINE) and (lo, hi) == (want.min(), want.max())
+    np.testing.assert_array_equal(done.hu, want)
+    assert done.uid == _by_hand(want, AFFINE)
+    assert done.value_range == (want.min(), want.max()) and done.sample is not None
+    np.testing.assert_array_equal(done.sample, want.reshape(-1)[::7])
 
 
 def test_a_stream_fed_short_refuses_to_name_the_volume() -> None:
@@ -163,3 +166,22 @@ def test_itk_is_handed_no_file_that_stays(tmp_path: Path) -> None:
         load_ct(write_nifti(tmp_path / name, _stored()[:2], AFFINE))
     folder = Path(itk_header._link_folder())
     assert folder.is_dir() and list(folder.iterdir()) == []
+
+
+def test_grey_values_sampled_as_read_are_judged_as_after_the_read(tmp_path: Path) -> None:
+    # 2.1 M voxels (a sample of every 2nd, taken across 1 MiB chunks): grey values with air
+    # near 0 and a little noise below it: not HU, the low tail named as np.percentile gives it
+    from ctdrill.imaging.volumes.load import MIN_HU_LOW_TAIL, hu_problem
+
+    rng = np.random.default_rng(3)
+    grey = rng.integers(0, 4000, size=(32, 256, 256), dtype=np.int16)
+    grey.reshape(-1)[rng.choice(grey.size, 1500, replace=False)] = -30
+    v = load_ct(write_nifti(tmp_path / "grey.nii", grey, AFFINE))
+    tail = float(np.percentile(grey.reshape(-1)[:: tail_step(grey.size)], LOW_TAIL_PERCENT))
+    assert tail >= MIN_HU_LOW_TAIL and not v.info.is_hu
+    (w,) = [w for w in v.warnings if w.code == "not_hu"]
+    problem = hu_problem(-30.0, float(grey.max()), tail)
+    assert problem is not None and w.message.startswith(problem)
+    ct = grey.copy()
+    ct[:, :40] = -1000  # air: HU
+    assert load_ct(write_nifti(tmp_path / "ct.nii", ct, AFFINE)).info.is_hu
