@@ -6,18 +6,18 @@ here, where the file's values become a :class:`~ctdrill.imaging.volume.CTVolume`
 
 - **values**: the stored values with the header's scaling (NIfTI ``scl_slope``/``scl_inter``),
   int16 where that is exact, else float32; non-finite voxels are masked invalid (``padding``).
-- **HU or not** (these formats carry no unit for their values; :func:`hu_problem` owns the
-  rule): values that never go below 0 (no air at -1000 HU, no fat: grey values 0..4095,
-  unsigned CBCT grey levels, intensities scaled to 0..1) or that span less than
-  :data:`MIN_HU_SPAN` (normalised intensities) are not HU: warning ``not_hu`` with the hint to
-  map them (``--grey-to-hu``), and ``info.is_hu`` False (the force path refuses them until
-  mapped).
+- **HU or not** (these formats carry no unit for their values; :func:`.hu_values.hu_problem`
+  owns the rule): values that never go below 0 (no air at -1000 HU, no fat: grey values
+  0..4095, unsigned CBCT grey levels, intensities scaled to 0..1), that span less than
+  :data:`MIN_HU_SPAN` (normalised intensities) or whose low tail stays near 0 are not HU:
+  warning ``not_hu`` with the hint to map them (``--grey-to-hu``), and ``info.is_hu`` False
+  (the force path refuses them until mapped).
 - **identity**: ``info.series_uid`` is ``sha256:`` + the SHA-256 of the volume's content
-  (:func:`~.identity.content_uid`: its shape, its LPS affine and its HU voxels; hashed as
-  the voxels are read when the file stores them as the HU bytes, :class:`.identity.VoxelDigest`),
-  so the same volume read
-  from any of these formats, or written again with another compression, has one identity; as
-  for DICOM, outputs show it hashed once more (``series_uid``) unless ``--include-phi``.
+  (:func:`~.identity.content_uid`: its shape, its LPS affine and its HU voxels; for a NIfTI's
+  int16 voxels made HU and hashed as they are read, :class:`.identity.HuStream`), so the same
+  volume read from any of these formats, or written again with another compression, has one
+  identity; as for DICOM, outputs show it hashed once more (``series_uid``) unless
+  ``--include-phi``.
 - **privacy**: the header's free text (NIfTI ``descrip``, NRRD ``content``) becomes
   ``info.series_description``, which outputs carry only with ``--include-phi``; NRRD key/value
   fields are not kept.
@@ -36,89 +36,14 @@ from ctdrill.imaging.provenance import LoadWarning, SeriesInfo
 from ctdrill.imaging.resolution import coarse_voxels_warning, volume_sampling_mm
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.imaging.volumes.grid import TILT_REPORT_DEG
+from ctdrill.imaging.volumes.hu_values import LOW_TAIL_PERCENT as LOW_TAIL_PERCENT
+from ctdrill.imaging.volumes.hu_values import MIN_HU_LOW_TAIL, hu_problem, low_tail, tail_below
+from ctdrill.imaging.volumes.hu_values import MIN_HU_SPAN as MIN_HU_SPAN
 from ctdrill.imaging.volumes.identity import content_uid
 from ctdrill.imaging.volumes.sniff import read_volume_file, volume_format
 from ctdrill.imaging.volumes.types import DEFAULT_MAX_BYTES, VolumeData, VolumeFileError
 
-#: Values spanning less than this cannot be a CT in HU (air -1000 to bone hundreds).
-MIN_HU_SPAN = 100.0
-#: The low tail of a volume's values: this fraction of the voxels, %. A few padding or
-#: outlier voxels below 0 do not make grey values HU.
-LOW_TAIL_PERCENT = 0.1
-#: A low tail at or above this cannot be a CT in HU: no air (-1000) and no fat (about -100)
-#: in more than ``LOW_TAIL_PERCENT`` of the voxels; grey values whose air reads near 0.
-MIN_HU_LOW_TAIL = -50.0
-#: Voxels sampled (evenly) for the low tail.
-_TAIL_SAMPLES = 1 << 20
 _INT16 = np.iinfo(np.int16)
-
-
-def hu_problem(lo: float, hi: float, low_tail: float | None = None) -> str | None:
-    """Why values spanning ``lo..hi`` cannot be Hounsfield units, or None when they can be.
-
-    ``low_tail`` is the value below which lie ``LOW_TAIL_PERCENT`` % of the voxels (None:
-    ``lo``): at or above ``MIN_HU_LOW_TAIL`` the volume has no air and no fat, whatever a few
-    voxels below 0 say (grey values with air near 0, and noise or padding just below it).
-    """
-    if lo >= 0.0:
-        return (
-            f"values {lo:g}..{hi:g} never go below 0 (a CT in HU has air at -1000 and fat below "
-            "0): grey values, not HU"
-        )
-    if hi - lo < MIN_HU_SPAN:
-        return (
-            f"values {lo:g}..{hi:g} span less than {MIN_HU_SPAN:g}: normalised intensities, not HU"
-        )
-    if low_tail is not None and low_tail >= MIN_HU_LOW_TAIL:
-        return (
-            f"values {lo:g}..{hi:g}, but {100 - LOW_TAIL_PERCENT:g} % of the voxels are at or "
-            f"above {low_tail:g} (a CT in HU has air at -1000 and fat near -100): grey values "
-            "with air near 0, not HU"
-        )
-    return None
-
-
-def tail_step(n_voxels: int) -> int:
-    """Every how many-th voxel (flat C order, from the first) the low tail samples: at most
-    ``_TAIL_SAMPLES`` of ``n_voxels``, evenly spaced."""
-    return max(1, int(n_voxels) // _TAIL_SAMPLES)
-
-
-def _tail_sample(values: np.ndarray) -> np.ndarray:
-    """The low tail's sample of ``values`` (any shape): a strided view (:func:`tail_step`)."""
-    flat = values.reshape(-1)
-    return flat[:: tail_step(flat.size)]
-
-
-def tail_below(values: np.ndarray, bound: float, *, sample: np.ndarray | None = None) -> bool:
-    """True when :func:`low_tail` of ``values`` is certainly below ``bound``: both order
-    statistics it interpolates between are below it (one count, no sort); False when it
-    may not be (then compute it). ``sample``: the sample when already taken."""
-    sample = _tail_sample(values) if sample is None else sample
-    if sample.size < 2:
-        return False
-    below = int(np.floor((sample.size - 1) * (LOW_TAIL_PERCENT / 100.0)))
-    return int(np.count_nonzero(sample < bound)) >= below + 2
-
-
-def low_tail(values: np.ndarray, *, sample: np.ndarray | None = None) -> float:
-    """The ``LOW_TAIL_PERCENT`` percentile of ``values`` (any shape; at most
-    ``_TAIL_SAMPLES`` voxels sampled evenly, :func:`tail_step`), ``np.percentile``'s linear
-    method. ``sample``: the sample when already taken.
-
-    int16 values are counted instead of partitioned (one pass, no sort): the two order
-    statistics the percentile interpolates between are read off the cumulative counts.
-    """
-    sample = _tail_sample(values) if sample is None else sample
-    if sample.dtype != np.int16 or sample.size < 2:
-        return float(np.percentile(sample, LOW_TAIL_PERCENT))
-    q = LOW_TAIL_PERCENT / 100.0
-    rank = (sample.size - 1) * q  # NumPy's virtual index (linear method)
-    below = min(int(np.floor(rank)), sample.size - 2)
-    cum = np.cumsum(np.bincount(sample.view(np.uint16) ^ 0x8000, minlength=1 << 16))
-    a, b = (float(v) - 0x8000 for v in np.searchsorted(cum, [below + 1, below + 2]))
-    t = rank - below
-    return b - (b - a) * (1.0 - t) if t >= 0.5 else a + (b - a) * t
 
 
 def _scaled(path: Path, vol: VolumeData, max_bytes: int) -> np.ndarray:

@@ -49,6 +49,7 @@ from ctdrill.imaging.volumes.grid import (
     check_grid,
     grid_distance_mm,
 )
+from ctdrill.imaging.volumes.hu_values import tail_step
 from ctdrill.imaging.volumes.identity import HuStream, integer_scale
 from ctdrill.imaging.volumes.itk_header import check_itk_agrees
 from ctdrill.imaging.volumes.types import VolumeData, native
@@ -304,8 +305,6 @@ def read_nifti(
         scaled = False
         whole = integer_scale(scale)
         if identity and dtype.kind == "i" and dtype.itemsize == 2 and (whole or not scale):
-            from ctdrill.imaging.volumes.load import tail_step  # the HU rule's owner
-
             step = tail_step(int(np.prod(shape_kji, dtype=np.int64)))
             with HuStream(data, affine, whole, sample_step=step) as stream:
                 fill_array(

@@ -40,7 +40,7 @@ class VolumeData:
     scaled : ``data`` already holds the header's ``scl_slope``/``scl_inter`` applied (the
         reader applied an integer scale as it read; ``scale`` is then None).
     value_range : (min, max) of ``data`` when the reader measured it as it read, else None.
-    tail_sample : ``data.reshape(-1)[::load.tail_step(data.size)]`` when the reader took it
+    tail_sample : ``data.reshape(-1)[::hu_values.tail_step(data.size)]`` when the reader took it
         as it read, else None.
     """
 

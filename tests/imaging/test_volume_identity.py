@@ -18,8 +18,8 @@ import pytest
 
 from ctdrill.imaging import load_ct
 from ctdrill.imaging.volumes import identity
+from ctdrill.imaging.volumes.hu_values import LOW_TAIL_PERCENT, low_tail, tail_below, tail_step
 from ctdrill.imaging.volumes.identity import HuStream, content_uid
-from ctdrill.imaging.volumes.load import LOW_TAIL_PERCENT, low_tail, tail_below, tail_step
 from ctdrill.imaging.volumes.sniff import read_volume_file
 from ctdrill.imaging.volumes.types import VolumeFileError
 from tests.imaging.volume_writers import write_nifti
@@ -171,7 +171,7 @@ def test_itk_is_handed_no_file_that_stays(tmp_path: Path) -> None:
 def test_grey_values_sampled_as_read_are_judged_as_after_the_read(tmp_path: Path) -> None:
     # 2.1 M voxels (a sample of every 2nd, taken across 1 MiB chunks): grey values with air
     # near 0 and a little noise below it: not HU, the low tail named as np.percentile gives it
-    from ctdrill.imaging.volumes.load import MIN_HU_LOW_TAIL, hu_problem
+    from ctdrill.imaging.volumes.hu_values import MIN_HU_LOW_TAIL, hu_problem
 
     rng = np.random.default_rng(3)
     grey = rng.integers(0, 4000, size=(32, 256, 256), dtype=np.int16)
