@@ -260,6 +260,44 @@ def _paint_counter(window: Any) -> Any:
     return Counter()
 
 
+#: The UI thread's idle time before each timed wake-up, ms.
+WAKEUP_AFTER_MS = 3
+
+
+def ui_wakeups(switch_s: float, n: int = 200) -> Timing:
+    """How late a wake-up of the UI thread (a timer of :data:`WAKEUP_AFTER_MS`, the event loop
+    idle until then) comes while a worker thread runs Python, at the interpreter switch
+    interval ``switch_s``."""
+    import threading
+
+    from PySide6.QtCore import QEventLoop, QTimer
+
+    stop = threading.Event()
+
+    def spin() -> None:  # pure Python, as the path's glue and the checks are between kernels
+        x = 0
+        while not stop.is_set():
+            x += 1
+
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(switch_s)
+    worker = threading.Thread(target=spin, daemon=True)
+    worker.start()
+    late = []
+    try:
+        loop = QEventLoop()
+        for _ in range(n):
+            t0 = time.perf_counter()
+            QTimer.singleShot(WAKEUP_AFTER_MS, loop.quit)
+            loop.exec()
+            late.append(time.perf_counter() - t0 - WAKEUP_AFTER_MS / 1e3)
+    finally:
+        stop.set()
+        worker.join()
+        sys.setswitchinterval(old)
+    return Timing.from_samples(late)
+
+
 def _busy(n: int) -> list[subprocess.Popen[bytes]]:
     return [subprocess.Popen([sys.executable, "-c", "while 1: pass"]) for _ in range(n)]
 
@@ -461,6 +499,9 @@ def run(quick: bool) -> Section:
     results["demo"] = _drag_case(
         DEMO / "ct", DEMO / "plan.json", moves, legacy, rate_s, not quick, "demo"
     )
+    from ctdrill.app.gui.controller import UI_SWITCH_INTERVAL_S
+
+    wakeups = {s: ui_wakeups(s, 20 if quick else 200) for s in (0.005, UI_SWITCH_INTERVAL_S)}
     write_s = 0.0
     if not quick:
         with tempfile.TemporaryDirectory(prefix="ctdrill-bench-drag-big-") as tmp:
@@ -564,6 +605,14 @@ def run(quick: bool) -> Section:
             ],
             part_rows,
         ),
+        f"How late a wake-up of the UI thread (a {WAKEUP_AFTER_MS} ms timer, the event loop idle "
+        "until then) comes while a worker thread runs Python: "
+        + "; ".join(
+            f"{t.fmt('ms')} at a switch interval of {1e3 * s:g} ms"
+            + (" (Python's default)" if s == 0.005 else " (the window's, ``UI_SWITCH_INTERVAL_S``)")
+            for s, t in wakeups.items()
+        )
+        + f" (load {os.getloadavg()[0]:.1f}).",
         "Older chain, release to plots: "
         + "; ".join(f"{n} {r['older'].fmt('ms')}" for n, r in results.items())
         + ".",

@@ -20,6 +20,7 @@ wait for them. Any other path result is followed by the readout in a runner of i
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 from PySide6.QtCore import QObject, Signal
@@ -35,6 +36,13 @@ from ctdrill.app.search.suggest import Suggestion, suggest
 from ctdrill.engine.plans import plan_calibration
 from ctdrill.imaging.display import BONE_SURFACE_HU
 from ctdrill.imaging.plan.types import Plan
+
+#: The interpreter's switch interval in the window's process, s: a worker running Python
+#: (the path's glue between its compiled kernels, the checks) hands the interpreter lock to
+#: the UI thread within this. At Python's default, 5 ms, each wake-up of the UI thread (a
+#: mouse move, a timer, a paint, a worker's result) waited up to 5 ms behind a busy worker,
+#: and a drag's events queued behind them: 7-9 of 60 mouse moves a second were handled.
+UI_SWITCH_INTERVAL_S = 0.0005
 
 #: Delay between the last plan edit and the recomputation, ms: none (a computation at a
 #: time, latest plan next, replaces the wait).
@@ -57,6 +65,7 @@ class Controller(QObject):
 
     def __init__(self, doc: Document, parent: QObject | None = None) -> None:
         super().__init__(parent)
+        sys.setswitchinterval(min(sys.getswitchinterval(), UI_SWITCH_INTERVAL_S))
         self.doc = doc
         self.iso_hu = BONE_SURFACE_HU
         self.load_runner = Runner(self._loaded, self._fail("load"), parent=self)

@@ -4,6 +4,7 @@ window the two stages run in runners of their own (the next curves never wait fo
 
 from __future__ import annotations
 
+import sys
 import threading
 from pathlib import Path
 
@@ -65,6 +66,8 @@ def test_the_next_curves_do_not_wait_for_the_checks(
     doc.volume = volume
     doc.set_plan(plan)
     ctl = Controller(doc)
+    # a worker running Python yields the interpreter to the UI thread within 0.5 ms
+    assert sys.getswitchinterval() <= controller_module.UI_SWITCH_INTERVAL_S <= 0.001
     ctl.recompute()
     qtbot.waitUntil(lambda: doc.path is not None and doc.path.plan is plan, timeout=30_000)
     release = threading.Event()
