@@ -428,9 +428,10 @@ process's CPU time a call (all its threads) in the same kind of loops, which the
 processes on the 2 shared cores inflate less than the wall time, split by thread (medians of
 each, so the parts need not add up exactly): the calling thread, ctdrill's worker threads
 (``ctdrill/jit.py``'s pool: the walls' rays) and the other threads (OpenBLAS's worker, which
-waits spinning after NumPy's large products: the NumPy walls wake it). The NumPy walls are
-timed in loops of their own after the others, so that its spinning does not bill the next
-peer (the drill alone once showed twice its wall time in CPU on the idle machine).
+waits spinning for a while after a large matrix product: while ``CTVolume.sample`` built its
+index coordinates by one, the NumPy walls woke it and its spinning billed the next peer, the
+drill alone, with twice its wall time in CPU on the idle machine; the NumPy walls are timed
+in loops of their own after the others).
 
 {table(path_cols, rows_path)}
 
