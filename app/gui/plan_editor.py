@@ -2,8 +2,11 @@
 panoramic and the cross-section (:class:`~ctdrill.app.gui.map_canvas.MapCanvas` signals).
 
 - a grip drag (:mod:`ctdrill.app.gui.implant_drag`): every move previews the dragged plan
-  (``Document.live.drag_to``: its path is computed and the plots follow) and redraws the
-  canvas' ghost; the release makes one undo step (``Document.live.end_drag``);
+  (``Document.live.drag_to``: its path is computed and the plots follow); the canvas' ghost
+  is drawn for the position whose curves came, with them (``curves_changed``: the outline
+  and the force plot of one position in one screen update, not a window update per mouse
+  move; without curves, the position that has none); the release makes one undo step
+  (``Document.live.end_drag``);
 - a canal edit (:mod:`ctdrill.app.gui.canal_edit`): a traced point goes to the canal chosen in
   the trace settings (``Document.live.trace_canal``; empty: the canal of the side clicked), with
   the radius set there for a new canal; moving and deleting points; each one undo step;
@@ -12,6 +15,8 @@ panoramic and the cross-section (:class:`~ctdrill.app.gui.map_canvas.MapCanvas` 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ctdrill.app.gui import canal_edit, planning
@@ -19,6 +24,9 @@ from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.implant_drag import EDIT_NAMES, dragged_plan
 from ctdrill.app.gui.map_canvas import MapCanvas
 from ctdrill.imaging.plan.types import Plan
+
+if TYPE_CHECKING:
+    from ctdrill.app.gui.results import PathView
 
 
 class PlanEditor:
@@ -29,6 +37,10 @@ class PlanEditor:
         self._base: Plan | None = None  # the plan at the drag's press
         self._last: tuple[np.ndarray, Plan] | None = None  # the drag's last point and plan
         self._drag: object = None  # the drag's grip point (one object for a whole drag)
+        self._ghost_on: MapCanvas | None = None  # the canvas of the drag under way
+        live = ctx.doc.live
+        live.curves_changed.connect(self._ghost_of_curves)
+        live.path_changed.connect(self._ghost_without_path)
 
     def connect(self, canvas: MapCanvas) -> None:
         """Route ``canvas``' grip drags, canal edits and link clicks here."""
@@ -39,6 +51,17 @@ class PlanEditor:
         canvas.linked.connect(self.ctx.doc.live.set_crosshair)
         canvas.placed.connect(self.place)
         canvas.told.connect(self.ctx.doc.edit_refused.emit)
+
+    def _ghost_of_curves(self, view: PathView) -> None:
+        """A dragged position's curves came: its ghost, painted with them."""
+        if self._ghost_on is not None and self.ctx.doc.live.dragging:
+            self._ghost_on.show_ghost_of(view.plan)
+
+    def _ghost_without_path(self, view: PathView | None) -> None:
+        """A dragged position has no path (the plots say why): its ghost all the same."""
+        live = self.ctx.doc.live
+        if view is None and live.error and self._ghost_on is not None and live.plan is not None:
+            self._ghost_on.show_ghost_of(live.plan)
 
     def place(self, name: str, point_lps: np.ndarray) -> None:
         """A right-click placed ``name`` (``entry`` | ``target``) at ``point_lps``: the first
@@ -79,6 +102,7 @@ class PlanEditor:
         last = self._last
         if final:
             self._drag, self._base, self._last = None, None, None
+            self._ghost_on = None
         try:
             if last is not None and np.array_equal(last[0], now_lps):
                 plan = last[1]
@@ -93,7 +117,7 @@ class PlanEditor:
         if not final:
             self._last = (np.array(now_lps, dtype=np.float64), plan)
             if doc.live.drag_to(plan):
-                canvas.show_ghost_of(plan)
+                self._ghost_on = canvas  # its ghost comes with its curves
             return
         if np.array_equal(np.asarray(start_lps), np.asarray(now_lps)):
             doc.live.end_drag(None)  # pressed and released in place: nothing moved
