@@ -4,7 +4,8 @@ draw the same.
 
 Geometry is in the world frame (LPS, mm). The bone surface (:func:`bone_surface`, defined in
 :mod:`ctdrill.app.gui.surface`) is drawn as one actor or several pieces (``bone:<n>``) that keep
-their GPU buffers while the plan's actors (``plan_actors``) are rebuilt on every plan change.
+their GPU buffers while the plan's actors (``plan_actors``) are rebuilt on a plan change (those
+whose mesh and style are unchanged kept as they are).
 """
 
 from __future__ import annotations
