@@ -28,12 +28,12 @@ from typing import Protocol
 import numpy as np
 
 from ctdrill.imaging.plan.revolution import Meridian, drill_meridian
-from ctdrill.imaging.plan.segments_kernel import SEGMENTS_KERNEL, meridian_rows
+from ctdrill.imaging.plan.segments_kernel import SEGMENTS_KERNEL, meridian_rows, segments_numpy
 
 #: Accuracy of the segment minimisation, mm: golden-section steps continue until the bracket
 #: times the segment length (the Lipschitz bound of the distance) is below it.
 SEGMENT_TOL_MM = 1e-7
-_INV_PHI = (np.sqrt(5.0) - 1.0) / 2.0
+_INV_PHI = float((np.sqrt(5.0) - 1.0) / 2.0)
 #: Elements per temporary (depths x segments) array: bounds memory for any landmark size.
 _CHUNK_ELEMENTS = 1 << 18
 #: Segments per block of the coarse pruning pass (used above 16 blocks).
@@ -194,8 +194,10 @@ def segments_distance_mm(
     """Signed distance from the union of segments ``[a, b]`` to a solid at each depth.
 
     The minimum over the union is exact to :data:`SEGMENT_TOL_MM` (see :func:`_golden_min`).
-    The compiled kernel of :mod:`ctdrill.imaging.plan.segments_kernel` computes it when its
-    cache is present (the same algorithm point by point; this NumPy path is its reference).
+    For a solid with a meridian (the drill, an implant body) the compiled kernel of
+    :mod:`ctdrill.imaging.plan.segments_kernel` computes it when its cache is present, else its
+    NumPy twin with the same bits; other solids, and the tests' reference, take
+    :func:`golden_segments_distance_mm`.
     Segments that cannot hold the minimum are skipped exactly: the signed distance is
     1-Lipschitz in space, which bounds a segment's minimum from below by its values at the
     ends and the midpoint, and it is skipped when that bound exceeds a value already reached.
@@ -222,19 +224,34 @@ def segments_distance_mm(
         keep = _near_segments(a, b, x, solid)
         a, b = a[keep], b[keep]
     meridian = getattr(solid, "meridian", None)
-    if isinstance(meridian, Meridian) and SEGMENTS_KERNEL.ready():
-        # the same minimum, point by point (:mod:`ctdrill.imaging.plan.segments_kernel`)
-        SEGMENTS_KERNEL(
+    if isinstance(meridian, Meridian):
+        # point by point (:mod:`ctdrill.imaging.plan.segments_kernel`): compiled where loaded,
+        # else its NumPy twin, the same bits
+        args = (
             meridian_rows(meridian),
             np.ascontiguousarray(solid.entry_lps, dtype=np.float64),
             np.ascontiguousarray(solid.direction, dtype=np.float64),
             np.ascontiguousarray(a),
             np.ascontiguousarray(b),
-            np.ascontiguousarray(x),
-            SEGMENT_TOL_MM,
-            float(_INV_PHI),
-            best,
         )
+        if SEGMENTS_KERNEL.ready():
+            SEGMENTS_KERNEL(*args, np.ascontiguousarray(x), SEGMENT_TOL_MM, _INV_PHI, best)
+        else:
+            for lo in range(0, x.size, max(1, _CHUNK_ELEMENTS // len(a))):
+                part = x[lo : lo + max(1, _CHUNK_ELEMENTS // len(a))]
+                segments_numpy(*args, part, SEGMENT_TOL_MM, _INV_PHI, best[lo : lo + part.size])
+        return best
+    return golden_segments_distance_mm(a, b, x, solid)
+
+
+def golden_segments_distance_mm(
+    a: np.ndarray, b: np.ndarray, x: np.ndarray, solid: AxialSolid
+) -> np.ndarray:
+    """:func:`segments_distance_mm` by golden section on every segment at once (any
+    :class:`AxialSolid`; the reference the kernel and its twin are tested against: within
+    :data:`SEGMENT_TOL_MM`). ``a``, ``b`` (S, 3), ``x`` (D,) as there, float64."""
+    best = np.full(x.shape, np.inf)
+    if len(a) == 0 or x.size == 0:
         return best
     per = max(1, _CHUNK_ELEMENTS // x.size)
     half = 0.5 * np.linalg.norm(b - a, axis=-1)

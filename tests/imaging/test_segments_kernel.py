@@ -1,21 +1,32 @@
-"""The compiled segment minimisation (``segments_kernel``) against its NumPy path.
+"""The compiled segment minimisation (``segments_kernel``) against its NumPy twin, bit for bit
+(Hypothesis on adversarial segments and solids: a stop must not depend on whether its process
+loaded numba), and against the golden section on every segment at once
+(``golden_segments_distance_mm``, the independent reference).
 
 Both minimise the same convex distance on each segment by golden section and skip a segment
 by the same 1-Lipschitz bound; every value either returns is a distance it evaluated, within
-``SEGMENT_TOL_MM`` above the true minimum, so the two differ by at most ``SEGMENT_TOL_MM``
-(plus rounding of the axial coordinates, ~1e-13 mm at these sizes). Cases: the drill solid and
-every implant body of the library (tapered and parallel, flat and round apex), canals passing
-outside, grazing and crossing the solid (negative clearances), points, degenerate segments,
-and the demo plan's clearances through the landmarks' own ``clearance_mm``.
+``SEGMENT_TOL_MM`` above the true minimum, so the kernel and the reference differ by at most
+``SEGMENT_TOL_MM`` (plus rounding of the axial coordinates, ~1e-13 mm at these sizes).
+Cases: the drill solid and every implant body of the library (tapered and parallel, flat and
+round apex), canals passing outside, grazing and crossing the solid (negative clearances),
+points, degenerate segments, and the demo plan's clearances through the landmarks' own
+``clearance_mm``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ctdrill import jit
-from ctdrill.imaging.plan.distance import SEGMENT_TOL_MM, DrillSolid, segments_distance_mm
+from ctdrill.imaging.plan.distance import (
+    SEGMENT_TOL_MM,
+    DrillSolid,
+    golden_segments_distance_mm,
+    segments_distance_mm,
+)
 from ctdrill.imaging.plan.implant_safety import ImplantBody, implant_clearance
 from ctdrill.imaging.plan.implants import load_implant_library
 from ctdrill.imaging.plan.load import load_plan
@@ -34,9 +45,19 @@ def kernel() -> None:
 
 
 def _both(a: np.ndarray, b: np.ndarray, depth: np.ndarray, solid: object) -> tuple:
+    """The kernel's values, and the golden-section reference's; the NumPy twin's bit for bit
+    the kernel's."""
     got = segments_distance_mm(a, b, depth, solid)  # type: ignore[arg-type]
     with jit.switched_off((SEGMENTS_KERNEL,)):
-        ref = segments_distance_mm(a, b, depth, solid)  # type: ignore[arg-type]
+        twin = segments_distance_mm(a, b, depth, solid)  # type: ignore[arg-type]
+    assert np.array_equal(got.view(np.uint64), twin.view(np.uint64))
+    f64 = np.float64
+    ref = golden_segments_distance_mm(
+        np.asarray(a, f64).reshape(-1, 3),
+        np.asarray(b, f64).reshape(-1, 3),
+        depth,
+        solid,  # type: ignore[arg-type]
+    )
     return got, ref
 
 
@@ -95,7 +116,46 @@ def test_demo_plan_clearances_match_numpy() -> None:
     with jit.switched_off((SEGMENTS_KERNEL,)):
         ref = clearance_profile_mm(plan, depth_mm=depth)
         imp_ref = implant_clearance(plan)
-    assert np.all(np.abs(got - ref) <= TOL)
+    assert np.array_equal(got, ref)  # the twin's bits
     assert imp is not None and imp_ref is not None
-    assert np.all(np.abs(imp.clearance_mm - imp_ref.clearance_mm) <= TOL)
+    assert np.array_equal(imp.clearance_mm, imp_ref.clearance_mm)
     assert imp.binding == imp_ref.binding
+
+
+_LIBRARY = load_implant_library()
+_coord = st.sampled_from([0.0, -0.0, 1.0, -1.0, 0.5, 2.0, 1e-9, 1.75]) | st.floats(-8.0, 8.0)
+
+
+@st.composite
+def _cases(draw: st.DrawFn) -> tuple[object, np.ndarray, np.ndarray, np.ndarray]:
+    """Solids on exact or random axes; segments through the axis, on the surface, along
+    the axis, of zero length, shared ends; depths at the segments' own axial places."""
+    axis = np.array(draw(st.sampled_from([(0.0, 0.0, 1.0), (1.0, 0.0, 0.0), (0.3, -0.4, 0.8)])))
+    axis = axis / np.linalg.norm(axis)
+    entry = np.array([draw(_coord), draw(_coord), draw(_coord)])
+    kind = draw(st.integers(0, 3))
+    if kind == 0:
+        solid: object = DrillSolid(entry, axis, 1.0, 0.6)
+    elif kind == 1:
+        solid = DrillSolid(entry, axis, 1.75, 0.0)
+    else:
+        spec = _LIBRARY[draw(st.integers(0, len(_LIBRARY) - 1))]
+        solid = ImplantBody(entry, axis, spec, float(draw(st.sampled_from([8.0, 12.0]))))
+    n = draw(st.integers(1, 6))
+    pts = np.array([[draw(_coord) for _ in range(3)] for _ in range(n + 1)])
+    pts = entry + pts[:, 2:3] * 1.5 * axis + pts * draw(st.sampled_from([0.0, 0.3, 1.0]))
+    if draw(st.booleans()):
+        pts[1] = pts[0]  # a point
+    depth = np.array([draw(st.sampled_from([0.0, 4.0, 8.0, 12.0, 13.7])) for _ in range(3)])
+    depth[0] = float((pts[0] - entry) @ axis)  # the solid's end at a segment's end
+    return solid, pts[:-1], pts[1:], depth
+
+
+@settings(max_examples=200, deadline=None)
+@given(_cases())
+def test_the_numpy_twin_gives_the_kernels_bits(
+    case: tuple[object, np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    solid, a, b, depth = case
+    got, ref = _both(a, b, depth, solid)
+    assert np.all(np.abs(got - ref) <= TOL + 1e-9 * np.abs(ref)) or np.array_equal(got, ref)
