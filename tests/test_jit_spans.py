@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ctdrill import claims
+from ctdrill import claims, jit
 from ctdrill.jit import row_spans
 
 
@@ -64,7 +64,7 @@ class _Squares:
 
 def test_claimed_rows_are_each_computed_and_done(monkeypatch: pytest.MonkeyPatch) -> None:
     for cpus in (1, 2, 3, 8):
-        monkeypatch.setattr(claims, "cpus", lambda c=cpus: c)
+        monkeypatch.setattr(jit, "cpus", lambda c=cpus: c)
         k = _Squares(1000)
         job = claims.start_claimed(k, 1000, k.out)  # type: ignore[arg-type]
         job.join()
@@ -86,7 +86,7 @@ def test_a_walk_stops_at_a_row_another_thread_took() -> None:
 
 
 def test_a_cancelled_job_takes_no_more_rows(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(claims, "cpus", lambda: 1)  # nothing starts before join
+    monkeypatch.setattr(jit, "cpus", lambda: 1)  # nothing starts before join
     k = _Squares(50)
     job = claims.start_claimed(k, 50, k.out)  # type: ignore[arg-type]
     job.cancel()

@@ -46,7 +46,7 @@ from ctdrill.imaging.sampling.hu_blocks import (
 )
 from ctdrill.imaging.sampling.trilinear import (
     VOLUME_SIG,
-    at_index,
+    at_index_inside,
     trilinear,
 )
 from ctdrill.jit import Kernel, helper
@@ -77,7 +77,7 @@ def _fast(
         and ck <= top[2] - MARGIN_VOX
     ):
         return np.nan
-    h = at_index(vol, ck, cj, ci)
+    h = at_index_inside(vol, ck, cj, ci)  # MARGIN_VOX inside: the clamps do nothing
     if abs(h - bone_hu) < eps_hu or abs(h - air_hu) < eps_hu or abs(h - tooth_hu) < eps_hu:
         return np.nan
     return h
