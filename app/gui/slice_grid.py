@@ -27,6 +27,7 @@ from PySide6.QtWidgets import QGridLayout, QHBoxLayout, QLabel, QVBoxLayout, QWi
 
 from ctdrill.app.gui import planning
 from ctdrill.app.gui.document import ViewContext
+from ctdrill.app.gui.drag_sync import WithDrawnPosition
 from ctdrill.app.gui.implant_drag import site_lps
 from ctdrill.app.gui.plan_editor import PlanEditor
 from ctdrill.app.gui.slice_nav import (
@@ -94,6 +95,7 @@ class SliceGrid(QWidget):
         # the cursor's readout changes with every mouse move (a drag too): a line that repaints
         # itself only (a QLabel would re-lay out, and repaint, the whole window each time)
         self.readout = TextLine("")
+        self._cursor_follows = WithDrawnPosition(ctx.doc.live, self._cursor)  # one update
         for label in (self.wl_label, self.readout):
             label.setStyleSheet("font-family: monospace")
         wl_width = self.wl_label.fontMetrics().horizontalAdvance("W 99999 L -9999 ")
@@ -110,7 +112,7 @@ class SliceGrid(QWidget):
             self.editor.connect(canvas)
             canvas.paged.connect(partial(self.page, v))
             canvas.window_dragged.connect(self._window_dragged)
-            canvas.cursor_moved.connect(self._cursor)
+            canvas.cursor_moved.connect(self._cursor_follows)
             canvas.centre_requested.connect(self.centre_on_drill)
             canvas.arch_edited.connect(self._arch_edit)
             self.runners[v] = Runner(partial(self._sliced, v), self._slice_failed, parent=self)
