@@ -65,12 +65,14 @@ _NAMES = itertools.count()
 
 def _link_folder() -> str:
     """The private folder (mode 0700) this process hands ITK its files in, made on first
-    use and removed at exit (again if it was removed meanwhile)."""
+    use and removed at exit (made again if it was removed meanwhile). A forked worker uses
+    its parent's (every name carries the process id): it leaves without running exit
+    handlers, so a folder of its own would stay behind."""
     with _FOLDER_LOCK:
         folder = _FOLDER.get("path")
-        if folder is None or _FOLDER.get("pid") != str(os.getpid()) or not os.path.isdir(folder):
+        if folder is None or not os.path.isdir(folder):
             folder = tempfile.mkdtemp(prefix="ctdrill-itk-")
-            _FOLDER.update(path=folder, pid=str(os.getpid()))
+            _FOLDER["path"] = folder
             atexit.register(shutil.rmtree, folder, True)
         return folder
 

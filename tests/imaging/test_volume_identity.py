@@ -159,13 +159,31 @@ def test_the_low_tail_counted_is_numpys_percentile() -> None:
                 assert not tail_below(values, bound) or want < bound
 
 
-def test_itk_is_handed_no_file_that_stays(tmp_path: Path) -> None:
+def _load_in_child(path: str) -> None:
+    load_ct(path)
+
+
+def test_itk_is_handed_no_file_that_stays(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import multiprocessing
+    import tempfile
+
     from ctdrill.imaging.volumes import itk_header
 
     for name in ("ct.nii", "ct.nii.gz"):
         load_ct(write_nifti(tmp_path / name, _stored()[:2], AFFINE))
     folder = Path(itk_header._link_folder())
     assert folder.is_dir() and list(folder.iterdir()) == []
+    # a forked worker (which leaves without exit handlers) uses this folder, none of its own
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    child = multiprocessing.get_context("fork").Process(
+        target=_load_in_child, args=(str(tmp_path / "ct.nii.gz"),)
+    )
+    child.start()
+    child.join(60)
+    assert child.exitcode == 0
+    assert list((tmp_path / "tmp").iterdir()) == []
+    assert list(folder.iterdir()) == []
 
 
 def test_grey_values_sampled_as_read_are_judged_as_after_the_read(tmp_path: Path) -> None:
