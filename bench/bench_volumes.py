@@ -30,6 +30,7 @@ before checking the size).
 from __future__ import annotations
 
 import gc
+import gzip
 import os
 import tempfile
 import time
@@ -51,6 +52,9 @@ NIFTI_GOAL_X = 1.5
 LARGE_SLICES = 300
 ROOT = Path(__file__).resolve().parents[1]
 REAL_NII = ROOT.parent / "shared" / "data" / "vtk_headsq_quarter" / "headsq_quarter.nii.gz"
+#: The real head CT written again uncompressed: 0.7 MiB read in about a millisecond, so the
+#: ratio is the fixed costs of a load (the header checked by ctdrill and by ITK, the hash).
+UNCOMPRESSED = "real head CT, uncompressed copy (.nii)"
 
 
 def _affine() -> np.ndarray:
@@ -200,6 +204,9 @@ def _nifti_rows(
     del nimg, hu
     if REAL_NII.is_file():
         files["real head CT 64 x 64 x 93 .nii.gz"] = REAL_NII
+        raw = tmp / "headsq_quarter.nii"  # the same, uncompressed: the fixed costs alone
+        raw.write_bytes(gzip.decompress(REAL_NII.read_bytes()))
+        files[UNCOMPRESSED] = raw
     rows, notes, ratios = [], [], []
     for name, path in files.items():
         _, peer = _peer("nii", path)
@@ -212,7 +219,8 @@ def _nifti_rows(
         ratio = ours.median_s / theirs.median_s
         cpu_ratio = ours_cpu.median_s / theirs_cpu.median_s
         where = "worker" if spare and core_to_spare() else "reading thread"
-        ratios.append((name, ratio, cpu_ratio, ours.median_s))
+        if name != UNCOMPRESSED:
+            ratios.append((name, ratio, cpu_ratio, ours.median_s))
         rows.append(
             [
                 name,
@@ -223,7 +231,7 @@ def _nifti_rows(
                 theirs_cpu.fmt(),
                 f"{cpu_ratio:.2f}",
                 where,
-                f"<= {NIFTI_GOAL_X:g}",
+                f"<= {NIFTI_GOAL_X:g}" if name != UNCOMPRESSED else "(not a goal)",
             ]
         )
     return rows, notes, ratios
@@ -240,6 +248,7 @@ def run(quick: bool) -> Section:
     notes = []
     headline = []
     shortfalls = []
+    first_load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="ctdrill-bench-volumes-") as tmp:
         files = _write(Path(tmp), hu, affine)
         for name, path in files.items():
@@ -302,7 +311,8 @@ def run(quick: bool) -> Section:
     md = [
         __doc__.split("\n\n", 1)[1].strip() if __doc__ else "",
         "",
-        f"Volume: {COLS} x {ROWS} x {n} int16 ({n * ROWS * COLS * 2 / 2**20:.0f} MiB).",
+        f"Volume: {COLS} x {ROWS} x {n} int16 ({n * ROWS * COLS * 2 / 2**20:.0f} MiB); load "
+        f"average {0.5 * (first_load + load_before):.1f} on the {os.cpu_count()} cores.",
         "",
         table(["file", "size", "load_ct", "peer", "peer time", "peer / load_ct"], rows),
         "",
@@ -331,6 +341,9 @@ def run(quick: bool) -> Section:
         ),
         "",
         *[f"- {line}" for line in nii_notes],
+        f"- {UNCOMPRESSED}: not a goal row; 0.7 MiB is read in about a millisecond, so its "
+        "ratio is what every load costs beyond nibabel's: ctdrill's header checks, ITK's read "
+        "of the header (about 0.4 ms) and the SHA-256 (about 0.45 ms).",
     ]
     if bomb:
         md += ["", "Peak resident memory refusing a gzip bomb (64^3 header, 1 GiB inflated):", ""]
