@@ -14,16 +14,19 @@ and the next position's curves start at once; the implant's check, the plan's pr
 the cross-section's readout (``check_runner``:
 :func:`~ctdrill.app.gui.results.completed_view`,
 :func:`ctdrill.app.gui.readouts.implant_readout`, its walls on the full grid) follow for the
-banner and the readout, for the latest position whose curves are drawn, so the plots never
-wait for them. Any other path result is followed by the readout in a runner of its own.
+banner and the readout, for the latest position whose curves are drawn, at most every
+:data:`LIVE_CHECKS_EVERY_MS` during the drag (their Python holds the interpreter lock the UI
+thread and the next curves need) and at once at its end, so the plots never wait for them.
+Any other path result is followed by the readout in a runner of its own.
 """
 
 from __future__ import annotations
 
 import sys
+import time
 from typing import Any
 
-from PySide6.QtCore import QObject, Signal
+from PySide6.QtCore import QObject, QTimer, Signal
 
 from ctdrill import jit
 from ctdrill.app.gui import compute
@@ -43,6 +46,12 @@ from ctdrill.imaging.plan.types import Plan
 #: mouse move, a timer, a paint, a worker's result) waited up to 5 ms behind a busy worker,
 #: and a drag's events queued behind them: 7-9 of 60 mouse moves a second were handled.
 UI_SWITCH_INTERVAL_S = 0.0005
+
+#: Least time between the starts of a drag's checks, ms: the implant's check and the readout
+#: (tens of milliseconds of Python, holding the interpreter lock the UI thread and the next
+#: curves need) follow the drag ten times a second instead of back to back; the drag's end
+#: starts the last position's at once.
+LIVE_CHECKS_EVERY_MS = 100
 
 #: Delay between the last plan edit and the recomputation, ms: none (a computation at a
 #: time, latest plan next, replaces the wait).
@@ -74,12 +83,20 @@ class Controller(QObject):
         self.suggest_runner = Runner(self._suggest_done, self._suggest_failed, parent=self)
         self.live_runner = Runner(self._curves_done, self._fail("path"), parent=self)
         self.check_runner = Runner(self._live_done, self._fail("path"), parent=self)
+        #: A drag's checks waiting for their turn (:data:`LIVE_CHECKS_EVERY_MS`), and when
+        #: the last ones started (``time.monotonic``).
+        self._checks_due: Any = None
+        self._checks_at = -float("inf")
+        self._checks_timer = QTimer(self)
+        self._checks_timer.setSingleShot(True)
+        self._checks_timer.timeout.connect(self._start_checks)
         self.readout_runner = Runner(self._readout_done, self._fail("path"), parent=self)
         self.debounce = Debouncer(self.recompute, DEBOUNCE_MS, parent=self)
         self._computing: Plan | None = None
         self._live_for: Plan | None = None
         self._suggesting: Plan | None = None
         doc.live.plan_dragged.connect(self._dragged)
+        doc.live.plan_dragged.connect(self._drag_ended)
         doc.path_changed.connect(self._read_out)
         doc.live.path_changed.connect(self._read_out)
         doc.suggestion_requested.connect(self.run_suggest)
@@ -116,7 +133,8 @@ class Controller(QObject):
             return
         if self.doc.path is not None and self.doc.path.plan is plan:
             return  # already computed for this trajectory (switching back to it)
-        if (self.live_runner.busy or self.check_runner.busy) and self._live_for is plan:
+        live_busy = self.live_runner.busy or self.check_runner.busy or self._checks_due is not None
+        if live_busy and self._live_for is plan:
             return  # a drag's last position: its computation is under way
         self._computing = plan
         hu = self.doc.hu_uncertainty
@@ -183,7 +201,24 @@ class Controller(QObject):
             return
         if first is not None:
             self.doc.live.offer_curves(first)
-        self.check_runner.submit_latest(lambda: checks(first))
+        self._checks_due = lambda: checks(first)
+        wait_ms = LIVE_CHECKS_EVERY_MS - 1e3 * (time.monotonic() - self._checks_at)
+        if not self.doc.live.dragging or wait_ms <= 0:
+            self._start_checks()
+        elif not self._checks_timer.isActive():
+            self._checks_timer.start(int(wait_ms) + 1)
+
+    def _drag_ended(self, plan: Plan | None) -> None:
+        if plan is None:  # the last position's checks now
+            self._start_checks()
+
+    def _start_checks(self) -> None:
+        """Start the latest dragged position's checks (one at a time, the latest next)."""
+        self._checks_timer.stop()
+        job, self._checks_due = self._checks_due, None
+        if job is not None:
+            self._checks_at = time.monotonic()
+            self.check_runner.submit_latest(job)
 
     def _live_done(self, result: tuple[PathView, ImplantReadout] | tuple[Plan, str]) -> None:
         view, extra = result
