@@ -161,8 +161,9 @@ def _envelope_kernel(
         far_done = False
         k = 0  # the next sample the rule reads: the start of a segment (rend[k] its end)
         while k < n_steps:
-            # class the samples up to `edge` past this segment's end (a tooth's edge)
-            while filled <= k or filled < min(n_steps, rend[k] + edge + 1):
+            # class sample k (its segment), and for a bone-range segment the samples up to
+            # `edge` past its end (a tooth there shortens its bone); nothing else looks ahead
+            while filled <= k or (cls[k] == BONE and filled < min(n_steps, rend[k] + edge + 1)):
                 t = filled * step
                 if accel:
                     ci = ci0 + t * ei
