@@ -232,9 +232,10 @@ def run(quick: bool) -> Section:
         "the `scipy.linalg` package), then ctdrill's own modules and the work. On the NumPy "
         f"paths (`CTDRILL_NO_JIT=1`) the same export takes {no_jit_x:.2f} x: what a one-plan "
         "export would cost if it could skip numba, which needs every kernel it uses bit for "
-        "bit equal to its NumPy path (the profile, the lip and the walls' bisection are; the "
-        "landmark clearances' golden section and rows are not, and the walls' unknown flag "
-        "differs on a ray running exactly along a voxel face at the air threshold).",
+        "bit equal to its NumPy path (the profile, the lip rings, one solid's segment "
+        "minimisation and the walls' bisection are; the batched landmark clearances "
+        "(`clearance_kernel`) are not, and the walls' unknown flag differs on a ray running "
+        "exactly along a voxel face at the air threshold).",
         "",
         f"One-plan export (`ctdrill demo`, {wall.repeats} runs under `-X importtime`): wall "
         f"{wall.fmt('s')}, of which imports {imports.fmt('s')}, the interpreter's start "
