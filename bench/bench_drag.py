@@ -13,7 +13,9 @@ the new curves (its ``stopDepthMmChanged``, emitted by the paint that puts them 
   its curves and stop are computed at once in a worker (one at a time, the latest next) and
   painted over the kept axes (a pixmap) by the paint that shows them; the implant's check,
   the problems and the readout follow in a second worker (one at a time, the latest position
-  whose curves came), so the next curves never wait for them.
+  whose curves came, at most every 100 ms during the drag), so the next curves never wait for
+  them; the dragged outline and the cursor's readout are drawn with the curves of their
+  position (one window update a position).
   *Latency*: from rest (nothing computing), a move, then the time until the plot is repainted
   with that move's curves; one move at a time.
   *Continuous drag*: a 60 Hz mouse (a move every 16 ms, a triangle wave of 2 px steps over
@@ -37,8 +39,10 @@ time is waiting for a core or the interpreter lock), the curves in theirs, the
 force plot's paint with new curves on the UI thread (its CPU time), the dragged view's
 outline; and the UI thread's CPU time over the continuous drag per repaint, and the paints per
 mouse move of the drill view, the force plot, the other slices and the 3D view (an event
-filter on each: a move repaints only the views it changes). Under Xvfb with software OpenGL
-(Mesa llvmpipe) when run
+filter on each: a move repaints only the views it changes). Every update of this window is
+composited whole through Qt's RHI (the 3D view is an OpenGL widget), on the CPU under Xvfb:
+``perf`` on the UI thread during a 60 Hz drag put a quarter of its CPU time there
+(``QPlatformBackingStore::rhiFlush``). Under Xvfb with software OpenGL (Mesa llvmpipe) when run
 by ``make bench``; the 3D view and the slice contours catch up after the release.
 """
 
