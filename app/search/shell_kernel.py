@@ -6,7 +6,8 @@ construction of each point, trilinear as :meth:`~ctdrill.imaging.volume.CTVolume
 :func:`~ctdrill.imaging.sampling.trilinear.trilinear`) and applies the same rules to them (the
 shell HU with outside as air and a tooth as water; the perforation and thin-wall flags), in
 compiled code that releases the interpreter lock. The NumPy path stays the reference (tests
-hold the two equal to float rounding).
+hold the two equal to float rounding; the samples are ``CTVolume.sample``'s bits, trilinear
+with map_coordinates' weights).
 """
 
 from __future__ import annotations

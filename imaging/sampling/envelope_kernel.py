@@ -26,7 +26,8 @@ Each call walks a span of rays up or down, claiming each (``taken``,
 :func:`ctdrill.claims.start_claimed`), so two threads meet wherever the rays' costs put the middle.
 
 The kernel covers volumes without padding; a padded volume and a process without the compiled
-kernel take the NumPy path.
+kernel take the NumPy path. Its samples are ``CTVolume.sample``'s bits (``trilinear`` with
+map_coordinates' weights), so a sample exactly at a threshold is classed alike.
 """
 
 from __future__ import annotations

@@ -2,8 +2,9 @@
 
 :func:`sample_lips` returns, for ``N`` trajectories sharing one drill, exactly the float32 ring
 samples :func:`ctdrill.imaging.sampling.lip.sample_lip_rings` gives for each (the same ring
-points, built with the same floating-point operations, the same trilinear weights and
-summation order as ``scipy.ndimage.map_coordinates(order=1, mode="nearest")`` that
+points, built with the same floating-point operations, the same trilinear weights (``1 - t``,
+then 1 minus that) and summation order as ``scipy.ndimage.map_coordinates(order=1,
+mode="nearest")`` that
 :meth:`CTVolume.sample` uses, the same hull test and the same true slice positions for an
 irregular stack). The compiled kernel covers volumes without padding; a padded volume (whose
 sampler substitutes padding voxels) and a process without the compiled kernel use the
@@ -105,12 +106,12 @@ def _lip_kernel(
                     sk = math.floor(ck)
                     sj = math.floor(cj)
                     si = math.floor(ci)
-                    wk1 = ck - sk
-                    wj1 = cj - sj
-                    wi1 = ci - si
-                    wk0 = 1.0 - wk1
-                    wj0 = 1.0 - wj1
-                    wi0 = 1.0 - wi1
+                    wk0 = 1.0 - (ck - sk)  # scipy's weights: 1 - t, then 1 minus that (not t)
+                    wj0 = 1.0 - (cj - sj)
+                    wi0 = 1.0 - (ci - si)
+                    wk1 = 1.0 - wk0
+                    wj1 = 1.0 - wj0
+                    wi1 = 1.0 - wi0
                     # corner indices clamped as mode="nearest" does
                     k0 = min(max(sk, 0), n_k - 1)
                     k1 = min(max(sk + 1, 0), n_k - 1)

@@ -7,7 +7,8 @@ trilinear as :meth:`~ctdrill.imaging.volume.CTVolume.sample` through
 the first bone sample after a measured one below the threshold, then the bisection of every
 line in lockstep until the widest bracket is within the tolerance (the NumPy loop's stopping
 rule), in compiled code that releases the interpreter lock. Only an unpadded volume is read
-here (:func:`~ctdrill.imaging.sampling.trilinear.fits`); the NumPy path is the reference.
+here (:func:`~ctdrill.imaging.sampling.trilinear.fits`); the NumPy path is the reference (its
+samples are ``CTVolume.sample``'s bits: trilinear with map_coordinates' weights).
 """
 
 from __future__ import annotations

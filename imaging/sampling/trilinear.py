@@ -2,8 +2,14 @@
 
 :func:`trilinear` is :meth:`~ctdrill.imaging.volume.CTVolume.sample` (``order=1``) at one LPS
 point of a volume without padding: the same index arithmetic, hull test (within 1e-6 voxel of
-the voxel-centre hull) and true slice positions of an irregular stack, the weights and summation
-order of ``scipy.ndimage.map_coordinates(order=1, mode="nearest")``; NaN outside. The kernels
+the voxel-centre hull) and true slice positions of an irregular stack, the weights (``1 - t``,
+then 1 minus that, not ``t``) and summation order of
+``scipy.ndimage.map_coordinates(order=1, mode="nearest")``, so its bits are
+:meth:`~ctdrill.imaging.volume.CTVolume.sample`'s (an ulp apart, a sample exactly at a
+threshold was classed differently by the walls' kernel and their NumPy path); NaN outside.
+A kernel calling it must be recompiled when it changes (numba's disk cache of a kernel does not
+see a change in another module): a change here goes with a touch of every kernel module that
+imports it. The kernels
 of the bone walls (:mod:`~ctdrill.imaging.sampling.envelope_kernel`) and of suggest's shells
 (:mod:`ctdrill.app.search.shell_kernel`) read the CT through it.
 """
@@ -53,12 +59,12 @@ def at_index(
     sk = math.floor(ck)
     sj = math.floor(cj)
     si = math.floor(ci)
-    wk1 = ck - sk
-    wj1 = cj - sj
-    wi1 = ci - si
-    wk0 = 1.0 - wk1
-    wj0 = 1.0 - wj1
-    wi0 = 1.0 - wi1
+    wk0 = 1.0 - (ck - sk)  # scipy's weights: 1 - t, then 1 minus that (not t)
+    wj0 = 1.0 - (cj - sj)
+    wi0 = 1.0 - (ci - si)
+    wk1 = 1.0 - wk0
+    wj1 = 1.0 - wj0
+    wi1 = 1.0 - wi0
     k0 = min(max(sk, 0), n_k - 1)
     k1 = min(max(sk + 1, 0), n_k - 1)
     j0 = min(max(sj, 0), n_j - 1)
@@ -87,12 +93,12 @@ def at_index_inside(
     sk = math.floor(ck)
     sj = math.floor(cj)
     si = math.floor(ci)
-    wk1 = ck - sk
-    wj1 = cj - sj
-    wi1 = ci - si
-    wk0 = 1.0 - wk1
-    wj0 = 1.0 - wj1
-    wi0 = 1.0 - wi1
+    wk0 = 1.0 - (ck - sk)  # scipy's weights: 1 - t, then 1 minus that (not t)
+    wj0 = 1.0 - (cj - sj)
+    wi0 = 1.0 - (ci - si)
+    wk1 = 1.0 - wk0
+    wj1 = 1.0 - wj0
+    wi1 = 1.0 - wi0
     total = 0.0
     total += float(vol[sk, sj, si]) * wk0 * wj0 * wi0
     total += float(vol[sk, sj, si + 1]) * wk0 * wj0 * wi1
