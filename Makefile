@@ -62,12 +62,14 @@ test-blas: $(STAMP)
 warmup: $(STAMP_RUN)
 	$(PY) -m ctdrill.app.search.warmup
 
-## ruff, the warm-up, then mypy beside pytest: the serial suite keeps one of CI's 2 cores busy
-## and mypy (single-threaded, ~50 s of CPU from a cold cache) takes the other; its report is
-## printed after the tests and either failing fails the target.
+## ruff, the warm-up, then pytest on 2 workers (pytest-xdist, one a core on CI; the window
+## tests run one after another in one worker, tests/conftest.py) with mypy (single-threaded,
+## ~50 s of CPU from a cold cache) beside them; its report is printed after the tests and
+## either failing fails the target.
+PYTEST_WORKERS ?= 2
 test: sysdeps $(STAMP) lint warmup
 	bash scripts/typecheck.sh > $(VENV)/typecheck.log 2>&1 & tc=$$!; \
-	QT_QPA_PLATFORM=xcb xvfb-run -a -s "-screen 0 1600x1000x24" $(PY) -m pytest -q -p no:cacheprovider -m "not bench_smoke"; \
+	QT_QPA_PLATFORM=xcb xvfb-run -a -s "-screen 0 1600x1000x24" $(PY) -m pytest -q -p no:cacheprovider -m "not bench_smoke" -n $(PYTEST_WORKERS) --dist loadscope; \
 	rc=$$?; wait $$tc; trc=$$?; echo "mypy (bash scripts/typecheck.sh):"; cat $(VENV)/typecheck.log; \
 	[ $$rc -eq 0 ] && [ $$trc -eq 0 ]
 

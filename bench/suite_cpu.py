@@ -38,6 +38,7 @@ def _write(nodeid: str, self_s: float, child_s: float, wall_s: float) -> None:
     if not out:
         return
     row = {"id": nodeid, "self_s": self_s, "child_s": child_s, "wall_s": wall_s}
+    row["worker"] = os.environ.get("PYTEST_XDIST_WORKER", "")  # gw0, gw1 under pytest-xdist
     with open(out, "a", encoding="utf-8") as f:
         f.write(json.dumps(row) + "\n")
 

@@ -54,3 +54,26 @@ def _itk_agrees_on_every_volume_file() -> object:
     undo = install()
     yield
     undo()
+
+
+
+#: The window tests' folder: one work unit under ``-n 2 --dist loadscope`` (make test).
+GUI_TESTS = "tests/app/gui/"
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
+    """pytest-xdist's ``--dist loadscope`` (make test runs ``-n 2``) with the window tests as
+    one work unit: they run one after another in one worker, so two Qt event loops never
+    compete for the display and the cores, while the other worker takes the modules one at a
+    time (each module a unit, so its module-scoped fixtures are built once). Other ``--dist``
+    modes are xdist's own."""
+    if config.getvalue("dist") != "loadscope":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class WindowTestsTogether(LoadScopeScheduling):  # type: ignore[misc]
+        def _split_scope(self, nodeid: str) -> str:
+            return "gui" if nodeid.startswith(GUI_TESTS) else nodeid.split("::", 1)[0]
+
+    return WindowTestsTogether(config, log)

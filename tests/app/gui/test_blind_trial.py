@@ -78,7 +78,7 @@ def test_a_trainee_drills_a_blind_trial_with_the_mouse(
     trial = tmp_path / "trials" / "trial-01"
     window.resize(1280, 800)
     window.show()
-    qtbot.waitExposed(window)
+    qtbot.waitExposed(window, timeout=LOAD_TIMEOUT_MS)
     window.open_plan(trial / "plan.json")
     with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
         window.open_folder(trial / "ct")
@@ -178,7 +178,7 @@ def test_the_aids_fade_level_by_level(
 
     window.resize(1280, 800)
     window.show()
-    qtbot.waitExposed(window)
+    qtbot.waitExposed(window, timeout=LOAD_TIMEOUT_MS)
     open_case(qtbot, window, phantom_case)
     panel = window.rehearsal
     window.tabs.setCurrentWidget(panel)

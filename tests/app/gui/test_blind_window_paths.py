@@ -25,7 +25,7 @@ def test_a_trials_ct_opens_only_in_its_blind_trial(
     write_bone_quality(tmp_path / "trials", trials=2, seed=4, spacing_mm=1.0)
     one, two = tmp_path / "trials" / "trial-01", tmp_path / "trials" / "trial-02"
     window.show()
-    qtbot.waitExposed(window)
+    qtbot.waitExposed(window, timeout=LOAD_TIMEOUT_MS)
     with qtbot.waitSignal(window.load_failed, timeout=LOAD_TIMEOUT_MS) as refused:
         window.open_folder(one / "ct")  # no trial open: the views would show the bone
     assert "blind trial" in str(refused.args[0]) and window.doc.volume is None

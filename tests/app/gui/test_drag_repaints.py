@@ -73,19 +73,19 @@ def _tabbed(qtbot: QtBot, readout: QWidget) -> tuple[QTabWidget, QLabel]:
     qtbot.addWidget(tabs)
     tabs.resize(300, 160)
     tabs.show()
-    qtbot.waitExposed(tabs)
+    qtbot.waitExposed(tabs, timeout=LOAD_TIMEOUT_MS)
     return tabs, neighbour
 
 
 def test_a_new_readout_text_repaints_the_line_alone(qtbot: QtBot, counter: PaintCounter) -> None:
     line = TextLine("HU 100")
     tabs, neighbour = _tabbed(qtbot, line)
-    qtbot.waitUntil(lambda: counter.count(neighbour) > 0)
+    qtbot.waitUntil(lambda: counter.count(neighbour) > 0, timeout=LOAD_TIMEOUT_MS)
     height = line.height()
     counter.paints.clear()
     for k in range(5):
         line.setText(f"HU {k * 1000}  a longer readout at ({k}, {k}, {k}) mm" * (k + 1))
-        qtbot.waitUntil(lambda: counter.count(line) > 0)
+        qtbot.waitUntil(lambda: counter.count(line) > 0, timeout=LOAD_TIMEOUT_MS)
         QApplication.processEvents()
         assert counter.count(tabs) == 0 and counter.count(neighbour) == 0
         counter.paints.clear()
@@ -100,19 +100,19 @@ def test_a_wrapped_readout_asks_for_room_only_for_a_new_line_count(
 ) -> None:
     readout = SteadyLabel("tilt 1.0 deg, depth 2.0 mm")
     tabs, neighbour = _tabbed(qtbot, readout)
-    qtbot.waitUntil(lambda: counter.count(neighbour) > 0)
+    qtbot.waitUntil(lambda: counter.count(neighbour) > 0, timeout=LOAD_TIMEOUT_MS)
     one_line = readout.height()
     counter.paints.clear()
     for k in range(3):  # the same line count: the label alone repaints
         readout.setText(f"tilt {k}.5 deg, depth {k}.25 mm")
-        qtbot.waitUntil(lambda: counter.count(readout.label) > 0)
+        qtbot.waitUntil(lambda: counter.count(readout.label) > 0, timeout=LOAD_TIMEOUT_MS)
         QApplication.processEvents()
         assert counter.count(tabs) == 0 and counter.count(neighbour) == 0
         assert readout.height() == one_line
         counter.paints.clear()
     long = " ".join(f"figure {k}: {k}.0 mm" for k in range(30))  # more lines: more room
     readout.setText(long)
-    qtbot.waitUntil(lambda: readout.height() > 2 * one_line)
+    qtbot.waitUntil(lambda: readout.height() > 2 * one_line, timeout=LOAD_TIMEOUT_MS)
     assert readout.text() == long
     assert readout.label.height() == readout.height()
 
@@ -148,7 +148,8 @@ def test_a_drag_move_repaints_only_the_views_it_changes(
     for k in range(2, 2 + moves):
         with qtbot.waitSignal(plot.stopDepthMmChanged, timeout=LOAD_TIMEOUT_MS):
             qtbot.mouseMove(drill, QPoint(x, y + 2 * k))
-    qtbot.wait(50)
+    qtbot.waitUntil(lambda: counter.count(drill) >= 1, timeout=LOAD_TIMEOUT_MS)
+    qtbot.wait(50)  # room for any extra paint the upper bounds below must count
     plot.stopDepthMmChanged.disconnect(drawn.append)  # type: ignore[attr-defined]
     assert len(drawn) == moves
     assert 1 <= counter.count(drill) <= moves + 1

@@ -127,7 +127,9 @@ def test_a_click_links_the_views_and_a_new_implant_zooms_to_its_site(
     demo.plan_panel.trajectories.add.click()
     new = demo.doc.plan
     assert new is not None and new.name == "implant 1"  # the demo's own is named by its file
-    qtbot.waitUntil(lambda: not grid.runner.busy and demo.ui_steps.pending == 0)
+    qtbot.waitUntil(
+        lambda: not grid.runner.busy and demo.ui_steps.pending == 0, timeout=LOAD_TIMEOUT_MS
+    )
     site = site_lps(new)
     for name in ("view:axial", "view:coronal", "view:sagittal", "view:drill"):
         canvas = view(demo, name)

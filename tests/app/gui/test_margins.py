@@ -76,7 +76,7 @@ def test_a_plan_through_the_margin_shows_a_banner_and_marks_the_landmark(
     )
     assert "at its stop: 2.0 mm" in drills.toolTip()  # the margin stops the drill there
     assert "implant_violates_margin" in banner.text()  # type: ignore[attr-defined]
-    qtbot.waitUntil(lambda: f"margin:{CANAL}" in window.view3d.actors, timeout=5000)
+    qtbot.waitUntil(lambda: f"margin:{CANAL}" in window.view3d.actors, timeout=LOAD_TIMEOUT_MS)
     colour = window.view3d.actors[f"margin:{CANAL}"].GetProperty().GetColor()
     assert colour == pytest.approx(CLEARANCE_COLOURS["violated"], abs=1 / 255)
     canal_lines = [

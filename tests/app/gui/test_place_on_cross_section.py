@@ -101,9 +101,9 @@ def test_the_banner_keeps_its_height_and_scrolls(qtbot: QtBot, window: MainWindo
     assert isinstance(banner, Banner)
     text = "5 problems\n" + "\n".join(f"• problem {k}: " + "words " * 30 for k in range(5))
     banner.show_banner((text, "violation"))
-    qtbot.waitUntil(banner.isVisible)
+    qtbot.waitUntil(banner.isVisible, timeout=LOAD_TIMEOUT_MS)
     assert banner.height() == BANNER_PX and banner.text() == text
-    qtbot.waitUntil(lambda: banner.verticalScrollBar().maximum() > 0)
+    qtbot.waitUntil(lambda: banner.verticalScrollBar().maximum() > 0, timeout=LOAD_TIMEOUT_MS)
 
 
 @pytest.mark.slow  # a whole report in the background: ~10 s idle (make fuzz runs it)

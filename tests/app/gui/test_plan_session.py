@@ -63,7 +63,9 @@ def test_add_select_rename_remove_trajectories_and_undo_each(
     editor.selectAll()
     qtbot.keyClicks(editor, "35")
     qtbot.keyClick(editor, Qt.Key.Key_Return)
-    qtbot.waitUntil(lambda: window.plan is not None and window.plan.name == "35")
+    qtbot.waitUntil(
+        lambda: window.plan is not None and window.plan.name == "35", timeout=LOAD_TIMEOUT_MS
+    )
     assert tl.list.item(1).text().startswith("2. 35  (")
     rect = tl.list.visualItemRect(tl.list.item(1))  # a double-click opens the same editor
     qtbot.mouseClick(tl.list.viewport(), Qt.MouseButton.LeftButton, pos=rect.center())
@@ -71,7 +73,7 @@ def test_add_select_rename_remove_trajectories_and_undo_each(
     editors = [e for e in tl.list.findChildren(QLineEdit) if e.isVisible()]
     assert len(editors) == 1 and editors[0].text() == "35"
     qtbot.keyClick(editors[0], Qt.Key.Key_Escape)  # cancelled: the row's label comes back
-    qtbot.waitUntil(lambda: tl.list.item(1).text().startswith("2. 35  ("))
+    qtbot.waitUntil(lambda: tl.list.item(1).text().startswith("2. 35  ("), timeout=LOAD_TIMEOUT_MS)
     assert tl.rename_current("36")
     assert window.plan is not None and window.plan.name == "36"
     assert tl.list.item(1).text().startswith("2. 36  (")
@@ -107,7 +109,7 @@ def test_add_select_rename_remove_trajectories_and_undo_each(
     assert [p.name for p in doc.plans] == [first.name]
     assert window.plan is first
     window.activateWindow()
-    qtbot.waitUntil(lambda: QApplication.activeWindow() is window, timeout=5000)
+    qtbot.waitUntil(lambda: QApplication.activeWindow() is window, timeout=LOAD_TIMEOUT_MS)
     qtbot.keyClick(
         window.plan_panel.trajectories.list, Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier
     )

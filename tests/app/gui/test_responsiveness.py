@@ -59,7 +59,7 @@ def test_step_queue_runs_in_order_one_step_per_pass(qtbot: QtBot) -> None:
     for name in ("s1", "s2", "s3", "s4"):
         queue.push(step(name))
     assert queue.pending == 4
-    qtbot.waitUntil(lambda: queue.pending == 0 and "s4" in log, timeout=5000)
+    qtbot.waitUntil(lambda: queue.pending == 0 and "s4" in log, timeout=LOAD_TIMEOUT_MS)
     ticker.stop()
     assert [e for e in log if e != "t"] == ["s1", "s2", "s3", "s4"]
     assert _steps_apart(log, "s")
@@ -75,7 +75,7 @@ def test_step_queue_takes_steps_pushed_by_a_step(qtbot: QtBot) -> None:
 
     queue.push(first)
     queue.push(lambda: log.append("b"))
-    qtbot.waitUntil(lambda: len(log) == 3, timeout=5000)
+    qtbot.waitUntil(lambda: len(log) == 3, timeout=LOAD_TIMEOUT_MS)
     assert log == ["a", "b", "c"]
     assert queue.pending == 0
 

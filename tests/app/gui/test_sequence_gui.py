@@ -57,7 +57,7 @@ def test_the_drill_sequence_is_edited_in_the_window(
     assert window.view is not None and len(window.view.result.inner_holes) == 2
     assert window.undo_action.text() == "Undo change drill"
     box.setText("3 -> 2")  # narrowing: refused, the sequence shown again
-    with qtbot.waitSignal(window.doc.edit_refused) as refused:
+    with qtbot.waitSignal(window.doc.edit_refused, timeout=LOAD_TIMEOUT_MS) as refused:
         box.editingFinished.emit()
     assert "must be larger" in refused.args[0]
     assert box.text() == "2 -> 2.8 -> 3.5"

@@ -62,7 +62,9 @@ def test_a_single_slice_blocks_rehearsal_and_says_why(
     with qtbot.waitSignal(window.path_failed, timeout=LOAD_TIMEOUT_MS) as failed:
         window.open_folder(shared_data / "single_slice_ct")
     assert "single slice" in failed.args[0]
-    qtbot.waitUntil(lambda: "margin:left mandibular canal" in window.view3d.actors, timeout=5000)
+    qtbot.waitUntil(
+        lambda: "margin:left mandibular canal" in window.view3d.actors, timeout=LOAD_TIMEOUT_MS
+    )
     # The plan and the anatomy are still drawn; the plots say why there is no profile.
     assert "drill" in window.view3d.actors and "trajectory" in window.view3d.actors
     assert "no force profile" in window.plot_canvas.message
@@ -105,7 +107,7 @@ def test_the_series_tab_shows_every_warning_whole(
                 for row in range(box.count())
             )
 
-        qtbot.waitUntil(laid_out, timeout=10_000)  # the layout runs on the event loop
+        qtbot.waitUntil(laid_out, timeout=LOAD_TIMEOUT_MS)  # the layout runs on the event loop
         assert box.count() == len(warnings)
         view_w = box.viewport().width()
         for row in range(box.count()):

@@ -155,7 +155,7 @@ def test_window_level_drag_presets_and_hu_at_the_cursor(
     uv, off = canvas.image.to_plane_mm(p)
     assert abs(float(off)) < 1e-9
     qtbot.mouseMove(canvas, qt_point(canvas, uv))
-    qtbot.waitUntil(lambda: grid.readout.text().startswith("HU "), timeout=3000)
+    qtbot.waitUntil(lambda: grid.readout.text().startswith("HU "), timeout=LOAD_TIMEOUT_MS)
     text = grid.readout.text()
     hu, x, y, z = (float(text.split()[i]) for i in (1, 4, 6, 8))
     mm_per_px = abs(np.diff(canvas.ax.get_xlim())[0]) / canvas.ax.bbox.width

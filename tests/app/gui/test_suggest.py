@@ -139,7 +139,7 @@ def test_the_document_keeps_a_suggestion_only_for_its_plan(qtbot: QtBot) -> None
     s = suggest(vol, first, cal, SearchSpace(count=3))
     doc.set_suggestion(first, s)  # not asked for: dropped
     assert doc.suggestion is None
-    with qtbot.waitSignal(doc.suggestion_requested):
+    with qtbot.waitSignal(doc.suggestion_requested, timeout=LOAD_TIMEOUT_MS):
         assert doc.request_suggestion(SearchSpace(count=3))
     doc.set_suggestion(first, s)
     assert doc.suggestion is s and doc.suggest_status == ""

@@ -18,7 +18,7 @@ from ctdrill.app.gui.hand_control import HandControl
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.rehearsal import SIMULATOR
 from ctdrill.imaging.phantom.io import PhantomCase
-from tests.app.gui.helpers import open_case
+from tests.app.gui.helpers import LOAD_TIMEOUT_MS, open_case
 
 pytestmark = pytest.mark.gui  # a real window: run under a display (make test: Xvfb)
 
@@ -53,7 +53,7 @@ def test_the_hand_follows_the_mouse_the_wheel_and_the_keys(qtbot: QtBot) -> None
     qtbot.addWidget(hand)
     hand.resize(100, 300)
     hand.show()
-    qtbot.waitExposed(hand)
+    qtbot.waitExposed(hand, timeout=LOAD_TIMEOUT_MS)
     pushes: list[float] = []
     hand.push_changed.connect(pushes.append)
     px = 40.0 / (300 - 18 - 34)  # newtons per pixel of the bar
@@ -78,7 +78,7 @@ def test_the_hand_follows_the_mouse_the_wheel_and_the_keys(qtbot: QtBot) -> None
     assert hand.push_n == 0.0
     qtbot.keyClick(hand, Qt.Key.Key_Up)  # never below 0
     assert hand.push_n == 0.0 and pushes[-1] == 0.0
-    with qtbot.waitSignal(hand.retract_requested, timeout=1000):
+    with qtbot.waitSignal(hand.retract_requested, timeout=LOAD_TIMEOUT_MS):
         qtbot.keyClick(hand, Qt.Key.Key_R)
     assert hand.retracting
     assert len(pushes) >= 8 and all(0.0 <= p <= 78.0 for p in pushes)
