@@ -56,7 +56,6 @@ def _itk_agrees_on_every_volume_file() -> object:
     undo()
 
 
-
 #: The window tests' folder: one work unit under ``-n 2 --dist loadscope`` (make test).
 GUI_TESTS = "tests/app/gui/"
 
