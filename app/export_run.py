@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
+from ctdrill import jit
 from ctdrill.app.export import write_exports
 from ctdrill.app.sequence_export import sequence_files
 from ctdrill.engine.case import PreparedCase, prepare_case
@@ -75,7 +76,8 @@ def export_case(
     The written files.
     """
     case = prepare_case(dicom, plan_paths, settings, progress=progress)
-    written = write_case(case, out_dir, progress=progress, extra_files=extra_files)
+    with jit.job(len(case.plans)):  # what prepare_case chose (ctdrill.jit.job)
+        written = write_case(case, out_dir, progress=progress, extra_files=extra_files)
     if warn is not None:
         for plan in case.plans:
             for w in plan_warnings(plan):

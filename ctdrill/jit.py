@@ -18,10 +18,13 @@ numba itself is imported only when a kernel is first asked for (:meth:`Kernel.re
 import and its first cache load cost a fresh process 0.3-0.5 s of CPU, more than a one-plan
 export's whole work on the NumPy paths. Functions marked :func:`helper` stay plain Python
 until then and are compiled (and rebound in the modules of the kernels and helpers) when
-numba is loaded. Every job takes the kernels where their cache is present, a one-plan export
-too: some kernels (the landmark clearances' golden section) agree with their NumPy paths to
-their tolerance, not to the bit, and a trajectory's stop must not depend on the process
-computing it (a batch row in a worker, the same row in one process, the window).
+numba is loaded. Inside :func:`job` a job of fewer than :data:`COMPILED_MIN_TRAJECTORIES`
+trajectories (a one-plan export) does not load numba, unless it is loaded already: a
+trajectory's stop must not depend on the process computing it (a batch row in a worker, the
+same row in one process, the window), so every kernel such a job uses gives the compiled bits
+without numba, on its NumPy path (the same operations in the same order; tests hold each bit
+for bit, Hypothesis on adversarial inputs) or, the clearance rows' kernel
+(:attr:`Kernel.interpretable`), as its own Python function.
 
 numba's first cache load imports ``numba.np.arraymath``, which imports
 ``scipy.linalg.cython_blas`` to learn whether BLAS is there (``_HAVE_BLAS``); through the
@@ -90,6 +93,35 @@ def available() -> bool:
     return os.environ.get(NO_JIT_ENV, "") in ("", "0") and _numba() is not None
 
 
+#: A job of fewer trajectories than this (a one-plan export) does not load numba when it is
+#: not loaded yet: numba's import and first cache load cost a fresh process 0.3-0.5 s of CPU,
+#: more than the whole job's work. Every kernel such a job uses gives the compiled bits
+#: without it: on its NumPy path (the same operations in the same order, tests hold them bit
+#: for bit) or, an :attr:`Kernel.interpretable` kernel, as its own Python function.
+COMPILED_MIN_TRAJECTORIES = 2
+#: Trajectories of the job in progress (:func:`job`); ``None``: no job declared.
+_JOB: list[int | None] = [None]
+
+
+def worth_loading() -> bool:
+    """The kernels are worth numba's import here: no small :func:`job` is in progress, or
+    numba is loaded in this process already."""
+    n = _JOB[0]
+    return n is None or n >= COMPILED_MIN_TRAJECTORIES or sys.modules.get("numba") is not None
+
+
+@contextlib.contextmanager
+def job(trajectories: int) -> Iterator[None]:
+    """Within the block, a job of ``trajectories`` trajectories: below
+    :data:`COMPILED_MIN_TRAJECTORIES` numba is not loaded for it (the same bits)."""
+    saved = _JOB[0]
+    _JOB[0] = int(trajectories)
+    try:
+        yield
+    finally:
+        _JOB[0] = saved
+
+
 class Kernel:
     """A numba function compiled only by :func:`warm_up`, else loaded from the disk cache.
 
@@ -99,6 +131,10 @@ class Kernel:
     signatures : numba signature strings, e.g. ``"void(float64[:, ::1], int64)"``; calls must
         pass exactly these types (the caller converts).
     readonly : positions of the arguments passed as read-only arrays (e.g. a volume's voxels).
+    interpretable : in a small :func:`job` without numba, :meth:`usable` is True and a call
+        runs ``pyfunc`` itself in Python: the same IEEE operations in the same order, so the
+        compiled bits (only +, -, *, /, sqrt, comparisons and stable sorts; fast enough for
+        one trajectory). Its callers take :meth:`usable` instead of :meth:`ready`.
     """
 
     def __init__(
@@ -107,10 +143,12 @@ class Kernel:
         signatures: Sequence[str],
         *,
         readonly: Sequence[int] = (),
+        interpretable: bool = False,
     ) -> None:
         self.pyfunc = pyfunc
         self.signatures = tuple(signatures)
         self.readonly = tuple(readonly)
+        self.interpretable = interpretable
         self._dispatcher: Any = None
         self._ready: bool | None = None
         _KERNELS.append(self)
@@ -128,7 +166,10 @@ class Kernel:
         return self._dispatcher
 
     def ready(self) -> bool:
-        """True when every signature is loaded from the disk cache (never compiles)."""
+        """True when every signature is loaded from the disk cache (never compiles); False
+        without loading anything inside a small :func:`job`."""
+        if self._ready is None and not worth_loading():
+            return False
         if self._ready is None:
             with _NUMBA_LOCK:  # one load, also when a job and :func:`preload` ask at once
                 if self._ready is None:
@@ -180,11 +221,30 @@ class Kernel:
             fixed.append(arg)
         return tuple(fixed)
 
+    def interpreted(self) -> bool:
+        """A call runs ``pyfunc`` in Python: an :attr:`interpretable` kernel, not loaded, in a
+        small :func:`job`, where numba is installed and not switched off (so the bits are
+        those a loaded kernel gives; without numba every job takes the NumPy path)."""
+        return (
+            self.interpretable
+            and self._ready is None
+            and not worth_loading()
+            and os.environ.get(NO_JIT_ENV, "") in ("", "0")
+            and importlib.util.find_spec("numba") is not None
+        )
+
+    def usable(self) -> bool:
+        """:meth:`ready`, or :meth:`interpreted`: a call gives the compiled kernel's bits."""
+        return self.ready() or self.interpreted()
+
     def __call__(self, *args: Any) -> Any:
-        """Run the compiled kernel (only after :meth:`ready` returned True)."""
-        if not self.ready():
-            raise RuntimeError(f"kernel {self.name} is not compiled; run the warm-up")
-        return self._dispatch()(*self.fixed_args(args))
+        """Run the compiled kernel (after :meth:`ready` returned True), or ``pyfunc`` itself
+        where :meth:`interpreted`."""
+        if self.ready():
+            return self._dispatch()(*self.fixed_args(args))
+        if self.interpreted():
+            return self.pyfunc(*self.fixed_args(args))
+        raise RuntimeError(f"kernel {self.name} is not compiled; run the warm-up")
 
     def compile(self) -> None:
         """Compile every signature and save it in the disk cache (the warm-up's work)."""

@@ -15,6 +15,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from ctdrill import jit
 from ctdrill.engine.errors import ExportInputError
 from ctdrill.engine.grey import hu_sigma_uncertainty, hu_uncertainty, map_volume
 from ctdrill.engine.path import PathResult, plan_path
@@ -174,6 +175,13 @@ def prepare_case(
     check_settings(settings)
     hu_sigma_uncertainty(settings.hu_sigma)  # a bad --hu-sigma is refused before any load
     plans = list(with_set_warnings(load_plan_set(plan_paths)))
+    with jit.job(len(plans)):  # one plan: numba not loaded for it (ctdrill.jit, same bits)
+        return _prepare(dicom, plans, settings, progress)
+
+
+def _prepare(
+    dicom: Path, plans: list[Plan], settings: ExportSettings, progress: Progress | None
+) -> PreparedCase:
     per_file = Counter(plan.source for plan in plans)
     volume, grey_map = map_volume(load_ct(dicom, series_uid=settings.series), settings.grey)
     cache: dict[str, Calibration] = {}

@@ -98,7 +98,7 @@ class ClearanceField:
         dirs = np.zeros_like(entries)
         dirs[todo] = unit_directions(entries[todo], np.asarray(targets_lps)[todo])
         segments = None
-        if CLEARANCE_KERNEL.ready():
+        if CLEARANCE_KERNEL.usable():  # compiled, or its own Python in a small job
             segments = _kernel_segments(landmarks, radius_mm, tip_length_mm, entries, dirs, todo)
         return cls(landmarks, float(radius_mm), float(tip_length_mm), entries, dirs, segments)
 

@@ -1,9 +1,9 @@
 """A one-plan export as a fresh process imports only what it uses (start-up time, issue 37).
 
 ``ctdrill export`` of one plan imports no SciPy module of its own (the sampler gives
-``map_coordinates``' bits without ``scipy.ndimage``; numba's BLAS check gets
-``scipy.linalg.cython_blas`` without the ``scipy.linalg`` package, and every job takes the
-kernels: :mod:`ctdrill.jit`),
+``map_coordinates``' bits without ``scipy.ndimage``) and not numba (a one-plan job computes
+the kernels' bits without it: :mod:`ctdrill.jit`; a process that loads the kernels gets
+``scipy.linalg.cython_blas`` for numba's BLAS check without the ``scipy.linalg`` package),
 nor any GUI or 3D toolkit, nor matplotlib: ``force.png`` is drawn with Pillow
 (:mod:`ctdrill.app.raster_plot`).
 """
@@ -33,33 +33,63 @@ NOT_NEEDED_SCIPY = (
 )
 
 
-@pytest.mark.parametrize("plot", [True, False])
-def test_a_one_plan_export_imports_no_heavy_module_it_does_not_use(
-    tmp_path: Path, plot: bool
-) -> None:
-    argv = ["export", "--ct", str(DEMO / "ct"), "--plan", str(DEMO / "plan.json")]
-    argv += ["--out", str(tmp_path / "out")] + ([] if plot else ["--no-plot"])
-    code = (
-        "import json, sys\n"
-        "from ctdrill.app.cli import main\n"
-        f"code = main({argv!r})\n"
-        "names = sorted(sys.modules)\n"
-        "import scipy.linalg, scipy.linalg.cython_blas as blas\n"  # still importable, once
-        "assert scipy.linalg.cython_blas is blas\n"
-        "assert scipy.linalg.solve([[2.0]], [4.0]).tolist() == [2.0]\n"
-        "sys.stderr.write('\\n' + json.dumps([code, names]))\n"
-    )
+def _run(code: str) -> str:
     env = {k: v for k, v in os.environ.items() if k != "CTDRILL_NO_JIT"}
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
     )
-    exit_code, names = json.loads(out.stderr.splitlines()[-1])
-    assert exit_code == 0
-    assert (tmp_path / "out" / "summary.json").is_file()
-    assert (tmp_path / "out" / "force.png").is_file() == plot
-    assert "pydicom" in names  # the series was read in this process
-    assert sorted(n for n in names if n.split(".")[0] in NOT_NEEDED) == []
+    return out.stderr.splitlines()[-1]
+
+
+@pytest.mark.parametrize("plot", [True, False])
+def test_a_one_plan_export_imports_no_heavy_module_it_does_not_use(
+    tmp_path: Path, plot: bool
+) -> None:
+    """Not numba either (a one-plan job, :func:`ctdrill.jit.job`), and its files are byte for
+    byte those of the same export in a process that had loaded numba and its kernels."""
+    files = ("force.csv", "profile.csv", "summary.json") + (("force.png",) if plot else ())
+    outputs = []
+    for preload in (False, True):
+        out_dir = tmp_path / f"out{int(preload)}"
+        argv = ["export", "--ct", str(DEMO / "ct"), "--plan", str(DEMO / "plan.json")]
+        argv += ["--out", str(out_dir)] + ([] if plot else ["--no-plot"])
+        code = (
+            "import json, sys\n"
+            "from ctdrill import jit\n"
+            + ("from ctdrill.app.search.warmup import search_kernels\n" if preload else "")
+            + ("assert all(k.ready() for k in search_kernels())\n" if preload else "")
+            + "from ctdrill.app.cli import main\n"
+            f"code = main({argv!r})\n"
+            "sys.stderr.write('\\n' + json.dumps([code, sorted(sys.modules)]))\n"
+        )
+        exit_code, names = json.loads(_run(code))
+        assert exit_code == 0
+        assert (out_dir / "force.png").is_file() == plot
+        outputs.append({name: (out_dir / name).read_bytes() for name in files})
+        if preload:
+            assert "numba" in names
+            continue
+        assert "pydicom" in names  # the series was read in this process
+        assert sorted(n for n in names if n.split(".")[0] in NOT_NEEDED) == []
+        assert sorted(n for n in names if n.startswith(NOT_NEEDED_SCIPY)) == []
+        assert "numba" not in names and "scipy.linalg" not in names
+    assert outputs[0] == outputs[1]
+
+
+def test_loading_the_kernels_leaves_the_scipy_linalg_package_out() -> None:
+    """numba's BLAS check gets ``scipy.linalg.cython_blas`` alone; ``scipy.linalg`` imported
+    afterwards works and holds the same module."""
+    code = (
+        "import json, sys\n"
+        "from ctdrill.app.search.warmup import search_kernels\n"
+        "ready = all(k.ready() for k in search_kernels())\n"
+        "names = sorted(sys.modules)\n"
+        "import scipy.linalg, scipy.linalg.cython_blas as blas\n"
+        "assert scipy.linalg.cython_blas is blas\n"
+        "assert scipy.linalg.solve([[2.0]], [4.0]).tolist() == [2.0]\n"
+        "sys.stderr.write('\\n' + json.dumps([ready, names]))\n"
+    )
+    ready, names = json.loads(_run(code))
+    assert ready and "numba.np.arraymath" in names
     assert sorted(n for n in names if n.startswith(NOT_NEEDED_SCIPY)) == []
     assert "scipy.linalg" not in names and "scipy.linalg.cython_blas" not in names
-    if "numba" in names:  # the kernels were loaded: numba's BLAS check ran
-        assert "numba.np.arraymath" in names

@@ -372,3 +372,43 @@ def test_clearance_stops_after_the_first_broken_depth(
         last = int(np.argmax(broken[n])) if broken[n].any() else depth.shape[1] - 1
         assert np.array_equal(got[n, : last + 1], full[n, : last + 1])
         assert np.all(np.isnan(got[n, last + 1 :]))
+
+
+def test_a_one_plan_job_without_numba_gives_the_kernels_bits(
+    demo: tuple[CTVolume, Plan, Calibration], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A one-plan job in a process without numba (``jit.job``: every kernel's NumPy path, the
+    clearance rows' kernel run as its own Python) gives plan_path's arrays bit for bit as the
+    loaded kernels do: canal, point, mask and one-point canal landmarks, 12 random axes."""
+    volume, plan, cal = demo
+    mask = np.zeros(volume.hu.shape, dtype=bool)
+    mask[8:14, 55:62, 62:70] = True
+    landmarks = (
+        *plan.landmarks,
+        PointLandmark("apex", plan.target_lps + np.array([1.5, 0.5, -2.5]), margin_mm=1.0),
+        MaskLandmark("block", mask, margin_mm=1.5),
+        CanalLandmark("short", np.array([[30.0, 14.0, -40.0]]), radius_mm=0.5),
+    )
+    plan2 = replace(plan, landmarks=landmarks)
+    entries, targets = random_axes(plan2, 12, seed=4)
+    rows = [
+        replace(plan2, entry_lps=e, target_lps=t) for e, t in zip(entries, targets, strict=True)
+    ]
+    want = [plan_path(volume, p, cal) for p in rows]
+    monkeypatch.setattr(jit, "worth_loading", lambda: False)
+    for k in search_kernels():
+        monkeypatch.setattr(k, "_ready", None)
+    assert not any(k.ready() for k in search_kernels())
+    from ctdrill.imaging.plan.clearance_kernel import CLEARANCE_KERNEL
+
+    assert CLEARANCE_KERNEL.interpreted()
+    for p, w in zip(rows, want, strict=True):
+        g = plan_path(volume, p, cal)
+        for name in ("depth_mm", "clearance_mm", "margins_mm", "stop_clearance_mm"):
+            assert np.array_equal(getattr(g, name), getattr(w, name), equal_nan=True), name
+        for name in ("hu_mean", "s_t", "s0_n", "sk_n"):
+            assert np.array_equal(getattr(g.profile, name), getattr(w.profile, name)), name
+        assert g.stop_depth_mm == w.stop_depth_mm and g.stop_reason == w.stop_reason
+        assert g.max_safe_depth_mm == w.max_safe_depth_mm
+        assert g.plan_clearance_mm == w.plan_clearance_mm
+        assert g.binding_landmark == w.binding_landmark
