@@ -229,6 +229,10 @@ def near_part(polyline_lps: np.ndarray, plane: Plane, reach_mm: float) -> np.nda
     return np.array(kept).reshape(-1, 3)
 
 
+#: Consecutive polyline pieces measured together over their common grid window.
+PIECES_PER_WINDOW = 8
+
+
 @dataclass(frozen=True, eq=False)
 class TubeField:
     """Distance to a tube's centreline on an in-plane grid (for ``contour``/``contourf``)."""
@@ -246,7 +250,9 @@ def tube_field(
 
     Exact wherever it is at most ``reach_mm + 2 step_mm`` (so on both sides of every contour
     up to ``reach_mm``); elsewhere it holds that value, a lower bound. Each piece of the
-    polyline near the plane is measured only over the grid window it can reach."""
+    polyline near the plane is measured only over the grid window it can reach, a run of
+    ``PIECES_PER_WINDOW`` consecutive pieces over their common window (one vectorised call
+    each: a traced canal has tens of pieces, each a few ms of Python on its own)."""
     near = near_part(polyline_lps, plane, reach_mm)
     if len(near) == 0:
         return None
@@ -256,21 +262,20 @@ def tube_field(
     v = np.arange(lo[1], hi[1] + step_mm, step_mm)
     far = reach_mm + 2.0 * step_mm
     dist = np.full((len(v), len(u)), far)
-    pieces = (
-        [(near[0], near[0])] if len(near) == 1 else list(zip(near[0::2], near[1::2], strict=True))
-    )
-    for a, b in pieces:
-        ends = plane.to_uv(np.array([a, b]))
+    starts, ends = (near[:1], near[:1]) if len(near) == 1 else (near[0::2], near[1::2])
+    for g in range(0, len(starts), PIECES_PER_WINDOW):
+        a, b = starts[g : g + PIECES_PER_WINDOW], ends[g : g + PIECES_PER_WINDOW]
+        box = plane.to_uv(np.concatenate([a, b]))
         i0, j0 = (
-            np.searchsorted(u, ends[:, 0].min() - far),
-            np.searchsorted(v, ends[:, 1].min() - far),
+            np.searchsorted(u, box[:, 0].min() - far),
+            np.searchsorted(v, box[:, 1].min() - far),
         )
-        i1 = np.searchsorted(u, ends[:, 0].max() + far, side="right")
-        j1 = np.searchsorted(v, ends[:, 1].max() + far, side="right")
+        i1 = np.searchsorted(u, box[:, 0].max() + far, side="right")
+        j1 = np.searchsorted(v, box[:, 1].max() + far, side="right")
         if i0 >= i1 or j0 >= j1:
             continue
         grid = np.stack(np.meshgrid(u[i0:i1], v[j0:j1]), axis=-1)
-        d = segments_distance_mm(plane.to_lps(grid), a[None, :], b[None, :])
+        d = segments_distance_mm(plane.to_lps(grid), a, b)
         np.minimum(dist[j0:j1, i0:i1], d.reshape(grid.shape[:2]), out=dist[j0:j1, i0:i1])
     return TubeField(u_mm=u, v_mm=v, distance_mm=dist)
 
