@@ -66,10 +66,13 @@ def marked_text(view: PathView) -> str:
     return f" ({' and '.join(names)} {verb} marked red)"
 
 
-def banner_text(view: PathView | None, path_error: str, coarse: str = "") -> tuple[str, str] | None:
+def banner_text(
+    view: PathView | None, path_error: str, coarse: str = "", stop_mm: float | None = None
+) -> tuple[str, str] | None:
     """(text, kind) of the banner for a path result (or its failure), None: no banner.
     ``kind`` is ``violation`` (plan problems), ``unknown`` (no path) or ``coarse`` (only the
-    series' ``coarse_voxels``, the note ``coarse`` added to every banner)."""
+    series' ``coarse_voxels``, the note ``coarse`` added to every banner). ``stop_mm``: the
+    stop the plots show (a drag's newest curves, ahead of its checks), else the view's."""
     tail = f"\n{coarse}" if coarse else ""
     if view is None:
         if not path_error:
@@ -82,7 +85,8 @@ def banner_text(view: PathView | None, path_error: str, coarse: str = "") -> tup
     head = f"Unsafe plan {view.plan.name!r}{marked_text(view)}: {n} problem{'s' * (n > 1)}."
     if any(w.code == "plan_violates_margin" for w in problems):
         head += (
-            f" The drill stops at {view.curves.stop_depth_mm:.2f} mm; move the target to plan a "
+            f" The drill stops at {view.curves.stop_depth_mm if stop_mm is None else stop_mm:.2f}"
+            " mm; move the target to plan a "
             "safe path."
         )
     return f"{head}\n{problems_text(problems)}{tail}", "violation"
@@ -113,6 +117,7 @@ class Banner(QScrollArea):
         ctx.doc.plan_changed.connect(self._plan)
         ctx.doc.volume_changed.connect(lambda _v: self._plan(ctx.doc.plan))
         ctx.doc.live.plan_dragged.connect(self._dragged)
+        ctx.doc.live.curves_changed.connect(lambda _view: self._live_path(ctx.doc.live.path))
 
     def text(self) -> str:
         """The banner's text (count line, then the problems)."""
@@ -150,7 +155,8 @@ class Banner(QScrollArea):
         if self.frozen_px == 0:
             return  # hidden when the drag started: showing it would move the views
         if view is not None or live.error:
-            content = banner_text(view, live.error, self._coarse())
+            drawn = None if live.curves is None else live.curves.curves.stop_depth_mm
+            content = banner_text(view, live.error, self._coarse(), drawn)
             if content is None and self.frozen_px:
                 content = CLEAR_TEXT, "clear"
             self.show_banner(content)

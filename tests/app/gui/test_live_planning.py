@@ -76,6 +76,7 @@ def test_drag_on_the_drill_view_and_the_stop_follows_each_step(
     grabbed = drill.pixel_to_lps(*at(start).toTuple())  # type: ignore[attr-defined]
     qtbot.mousePress(drill, Qt.MouseButton.LeftButton, pos=at(start))
     followed = []
+    violations = 0
     for k in range(1, 21):  # 20 steps, 3 px each down the drill: the implant moves deeper
         pos = at((x, y + 3 * k))
         with qtbot.waitSignal(plot.stopDepthMmChanged, timeout=LOAD_TIMEOUT_MS):
@@ -97,7 +98,12 @@ def test_drag_on_the_drill_view_and_the_stop_follows_each_step(
         # the status bar says the dragged plan's stop, as the plot does (not the plan's own)
         assert demo.statusBar().currentMessage() == stop_title(plot.curves)  # type: ignore[attr-defined]
         assert f"stop at {expected:.2f} mm" in demo.statusBar().currentMessage()
+        banner = demo.views["banner"]
+        if banner.kind == "violation":  # type: ignore[attr-defined]
+            assert f"The drill stops at {expected:.2f} mm" in banner.text()  # type: ignore[attr-defined]
+            violations += 1
     assert followed[-1] < followed[0]  # deeper toward the canal: the margin stops it sooner
+    assert violations > 0  # the banner's stop is the plot's
     assert plot.blits > 0  # the curves were redrawn over the kept axes
     with qtbot.waitSignal(demo.path_updated, timeout=LOAD_TIMEOUT_MS):
         qtbot.mouseRelease(drill, Qt.MouseButton.LeftButton, pos=at((x, y + 60)))
