@@ -4,8 +4,8 @@ on matplotlib axes for ``ctdrill report``.
 What is drawn is decided once, by :func:`ctdrill.app.force_figure.force_figure`. ``force.png``
 is rasterised by :func:`ctdrill.app.raster_plot.render` (Pillow): a fresh ``ctdrill export``
 of one plan spent about 0.5 s of CPU importing matplotlib and building its figure, more than
-the whole export's work, while the raster renderer costs about 30 ms. The PNG is encoded by
-:func:`png_bytes` (one filter, fast zlib level) instead of Pillow's adaptive filtering.
+the whole export's work, while the raster renderer costs about 50 ms. The PNG is encoded by
+:func:`png_bytes` (one filter, zlib-ng's fastest level) instead of Pillow's adaptive filtering.
 :func:`draw_force_figure` draws the same figure on matplotlib axes (the report's curves page).
 """
 
@@ -76,10 +76,21 @@ def png_bytes(rgb: np.ndarray) -> bytes:
     raw[0, 1:] = rows[0]
     np.subtract(rows[1:], rows[:-1], out=raw[1:, 1:])
     header = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)  # 8 bit, RGB, deflate, no interlace
-    idat = zlib.compress(raw.tobytes(), PNG_COMPRESS_LEVEL)
+    idat = _deflate(raw.tobytes(), PNG_COMPRESS_LEVEL)
     return b"".join(
         [b"\x89PNG\r\n\x1a\n", _chunk(b"IHDR", header), _chunk(b"IDAT", idat), _chunk(b"IEND", b"")]
     )
+
+
+def _deflate(data: bytes, level: int) -> bytes:
+    """zlib-ng's deflate where installed (about 4 times as fast at level 1 on this canvas, a
+    file about 20 % larger), else zlib's: either is a valid zlib stream."""
+    try:
+        from zlib_ng import zlib_ng
+    except ImportError:  # pragma: no cover - zlib-ng is a dependency
+        return zlib.compress(data, level)
+    out: bytes = zlib_ng.compress(data, level)
+    return out
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:

@@ -43,7 +43,7 @@ def depth_grids(
     for i in np.asarray(rows, dtype=np.int64).tolist():
         n_dep[i] = depth_count(float(planned_mm[i]), step_mm)
     depth = np.full((n, int(n_dep.max()) if n else 0), np.nan)
-    for m in np.unique(n_dep[rows]).tolist():
+    for m in sorted(set(n_dep[rows].tolist())):  # np.unique would import numpy.ma
         same = rows[n_dep[rows] == m]
         step = planned_mm[same] / (m - 1)  # np.linspace(0, planned, m), row by row
         depth[same, :m] = np.arange(m, dtype=np.float64)[None, :] * step[:, None] + 0.0

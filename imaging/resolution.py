@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from ctdrill.imaging.provenance import LoadWarning
+from ctdrill.imaging.stack import median
 from ctdrill.imaging.volume import CTVolume
 
 #: A slice step or slice thickness above this is coarse, mm.
@@ -63,7 +64,7 @@ def grid_sampling_mm(
     absent or not positive)."""
     in_plane = float(np.linalg.norm(np.asarray(affine_lps)[:3, :2], axis=0).max())
     steps = np.abs(np.diff(np.asarray(slice_positions_mm, dtype=np.float64)))
-    step = float(np.median(steps)) if steps.size else None
+    step = median(steps) if steps.size else None
     thick = slice_thickness_mm
     return in_plane, step, None if thick is None or not thick > 0 else float(thick)
 

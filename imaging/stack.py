@@ -31,6 +31,21 @@ GAP_FACTOR = 1.5
 AFFINE_TOL_MM = 0.01
 
 
+def median(values: np.ndarray) -> float:
+    """``float(np.median(values))`` of a 1-D array, the same value (the middle element, or the
+    two middle ones' sum halved; NaN if any is NaN), without ``np.median``'s import of
+    ``numpy.ma`` (7-9 ms of a fresh export's start)."""
+    import numpy as np
+
+    v = np.sort(np.asarray(values, dtype=np.float64).reshape(-1))
+    if v.size == 0 or np.isnan(v[-1]):
+        return float("nan")
+    mid = v.size // 2
+    if v.size % 2:
+        return float(v[mid])
+    return float((v[mid - 1] + v[mid]) / 2.0)
+
+
 def _steps(positions_mm: np.ndarray) -> np.ndarray:
     import numpy as np
 
@@ -39,10 +54,9 @@ def _steps(positions_mm: np.ndarray) -> np.ndarray:
 
 def nominal_step_mm(positions_mm: np.ndarray) -> float:
     """Median slice step, mm (signed as the positions run; 0.0 for fewer than 2 slices)."""
-    import numpy as np
 
     steps = _steps(positions_mm)
-    return float(np.median(steps)) if steps.size else 0.0
+    return median(steps) if steps.size else 0.0
 
 
 def irregular_steps(positions_mm: np.ndarray) -> np.ndarray:
@@ -52,7 +66,7 @@ def irregular_steps(positions_mm: np.ndarray) -> np.ndarray:
     steps = _steps(positions_mm)
     if steps.size == 0:
         return np.zeros(0, dtype=bool)
-    med = float(np.median(steps))
+    med = median(steps)
     out: np.ndarray = np.abs(steps - med) > STEP_RTOL * abs(med)
     return out
 
@@ -64,7 +78,7 @@ def wide_steps(positions_mm: np.ndarray) -> np.ndarray:
     steps = _steps(positions_mm)
     if steps.size == 0:
         return np.zeros(0, dtype=bool)
-    med = float(np.median(steps))
+    med = median(steps)
     out: np.ndarray = np.abs(steps) > GAP_FACTOR * abs(med)
     return out
 

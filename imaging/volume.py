@@ -30,7 +30,7 @@ import numpy as np
 from ctdrill.hu import AIR_HU
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.provenance import WARNING_CODES, LoadWarning, SeriesInfo
-from ctdrill.imaging.stack import is_regular, piecewise_linear, wide_steps
+from ctdrill.imaging.stack import is_regular, median, piecewise_linear, wide_steps
 
 __all__ = ["WARNING_CODES", "CTVolume", "LoadWarning", "SeriesInfo"]
 
@@ -190,7 +190,7 @@ class CTVolume:
         steps = np.diff(self.slice_positions_mm)
         if steps.size == 0:
             return True
-        med = float(np.median(steps))
+        med = median(steps)
         return bool(np.all(np.abs(steps - med) <= rtol * abs(med)))
 
     @cached_property

@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from ctdrill.imaging.errors import ImagingInputError
+from ctdrill.imaging.stack import median
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.warning_codes import slice_spacing_codes
 
@@ -40,7 +41,7 @@ def resample_uniform_slices(volume: CTVolume, *, step_mm: float | None = None) -
     if pos.size < 2:
         raise ImagingInputError("resample_uniform_slices: one slice cannot be resampled")
     steps = np.diff(pos)
-    step = float(np.median(steps)) if step_mm is None else float(step_mm)
+    step = median(steps) if step_mm is None else float(step_mm)
     if not np.isfinite(step) or step <= 0:
         raise ImagingInputError(f"step_mm: {step_mm} must be a positive number of mm")
     n_new = int(np.floor((pos[-1] - pos[0]) / step + 1e-6)) + 1

@@ -288,7 +288,7 @@ def segments_numpy(
     di, gi = di[~short], gi[~short]
     if di.size:
         per_segment = np.zeros(n_s, dtype=np.int64)
-        for g in np.unique(gi).tolist():  # the kernel's count, with its libm calls
+        for g in np.flatnonzero(np.bincount(gi, minlength=n_s)).tolist():  # libm's, as the kernel
             per_segment[g] = math.ceil(math.log(tol / float(length[g])) / math.log(inv_phi))
         steps = per_segment[gi]
         xa, d0, d1, d2 = depth[di], e0[gi], e1[gi], e2[gi]
@@ -316,7 +316,7 @@ def segments_numpy(
         vals[di, gi] = _lesser(_lesser(_lesser(fa, fb)[di, gi], fc), fd)
     # the kernel's pass: a segment whose bound is below the best so far (it only falls, so
     # only the segments of the pairs above can pass)
-    for g in np.unique(np.nonzero(lower < best[:, None])[1]).tolist():
+    for g in np.flatnonzero((lower < best[:, None]).any(axis=0)).tolist():
         best = np.where(lower[:, g] < best, _lesser(best, vals[:, g]), best)
     out[:] = best
 
