@@ -90,8 +90,10 @@ def sample_index_points(vol: np.ndarray, coords_kji: np.ndarray, out: np.ndarray
     return True
 
 
-#: Points per block of :func:`sample_index_points_numpy` (bounds its temporaries to ~20 MB).
-NUMPY_BLOCK_POINTS = 1 << 18
+#: Points per block of :func:`sample_index_points_numpy`: its temporaries (~1.3 MB) stay in
+#: the CPU's cache; 227 000 points (a one-plan export's walls) took 16 ms of CPU in blocks of
+#: 2**14 against 24 ms in one block of 2**18 (each point's bits do not depend on the blocks).
+NUMPY_BLOCK_POINTS = 1 << 14
 
 
 def sample_index_points_numpy(vol: np.ndarray, coords_kji: np.ndarray, out: np.ndarray) -> None:
