@@ -25,8 +25,9 @@ import numpy as np
 from matplotlib.backend_bases import MouseEvent
 from matplotlib.figure import Figure
 from PySide6.QtCore import Qt, Signal
-from PySide6.QtGui import QKeyEvent, QWheelEvent
+from PySide6.QtGui import QKeyEvent, QPaintEvent, QWheelEvent
 
+from ctdrill.app.gui.canvas_text import POINT_IN, PaintedText, paint_texts
 from ctdrill.app.gui.map_canvas import MapCanvas, modifiers
 from ctdrill.app.gui.sections import revolved_section
 from ctdrill.app.gui.slice_nav import orientation_letters
@@ -55,7 +56,6 @@ _PAGE_KEYS = {
     Qt.Key.Key_PageDown: -1,
     Qt.Key.Key_Down: -1,
 }
-_TEXT: dict[str, Any] = {"color": "#e8e8e8", "fontsize": 9}
 #: Qt object names of the views (an outside script finds them by name).
 OBJECT_NAMES = {
     "axial": "view:axial",
@@ -104,15 +104,16 @@ class SliceCanvas(MapCanvas):
         self.ax = fig.add_axes((0.0, 0.04, 1.0, 0.90))
         self.ax.set_facecolor("black")
         self.ax.set_axis_off()
-        fig.text(0.01, 0.995, _TITLES.get(view, view), va="top", fontweight="bold", **_TEXT)
-        self._position = fig.text(0.01, 0.005, "", va="bottom", **_TEXT)
+        # the labels: painted by Qt over the canvas (canvas_text), never drawn by Agg
+        self._title = PaintedText(0.01, 0.995, _TITLES.get(view, view), va="top", bold=True)
+        self._position = PaintedText(0.01, 0.005, va="bottom")
         self._letters = {
-            "left": fig.text(0.01, 0.49, "", ha="left", va="center", **_TEXT),
-            "right": fig.text(0.99, 0.49, "", ha="right", va="center", **_TEXT),
-            "top": fig.text(0.5, 0.94, "", ha="center", va="bottom", **_TEXT),
-            "bottom": fig.text(0.5, 0.045, "", ha="center", va="bottom", **_TEXT),
+            "left": PaintedText(0.01, 0.49, ha="left", va="center"),
+            "right": PaintedText(0.99, 0.49, ha="right", va="center"),
+            "top": PaintedText(0.5, 0.94, ha="center", va="bottom"),
+            "bottom": PaintedText(0.5, 0.045, ha="center", va="bottom"),
         }
-        self._note = fig.text(0.5, 0.5, "", color="#c0c0c0", fontsize=9, ha="center", wrap=True)
+        self._note = PaintedText(0.5, 0.5, colour="#c0c0c0", ha="center", wrap=True)
         self.image: SliceImage | None = None
         self._im: Any = None
         self.scene = OverlayScene()
@@ -156,12 +157,20 @@ class SliceCanvas(MapCanvas):
     def set_note(self, text: str) -> None:
         """A line of text in the middle of the view (empty: none)."""
         self._note.set_text(text)
-        self.draw_idle()
+        self.update()
 
     def set_position_text(self, text: str) -> None:
         """The plane's position readout (bottom left)."""
         self._position.set_text(text)
-        self.draw_idle()
+        self.update()
+
+    def paintEvent(self, event: QPaintEvent) -> None:
+        """The canvas (and a dragged plan's outline), then the labels over it."""
+        super().paintEvent(event)
+        px_per_pt = float(self.figure.dpi) * POINT_IN / float(self.device_pixel_ratio)
+        paint_texts(
+            self, [self._title, self._position, *self._letters.values(), self._note], px_per_pt
+        )
 
     def position_text(self) -> str:
         """The plane's position readout as shown."""
