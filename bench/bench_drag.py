@@ -91,8 +91,10 @@ DEMO = ROOT / "assets" / "demo"
 #: beside two busy processes.
 GOAL_LATENCY_MS = 16.0
 GOAL_RATE_HZ = 20.0
-#: Mouse step per move, widget pixels (down the drill view: the implant goes deeper).
-STEP_PX = 2
+#: Mouse step per move down the drill view (the plan goes deeper), mm: the continuous drag's
+#: wave spans ``WAVE_STEPS * STEP_MM`` = 5 mm on every case, whatever the view's scale, so the
+#: dragged plans stay dental ones (not past the canal) on a large field of view too.
+STEP_MM = 0.25
 #: The continuous drag's triangle wave, in steps (up and back).
 WAVE_STEPS = 20
 #: The synthetic case's canal below the bone's top, mm: a dental path (entry 1 mm above the
@@ -306,6 +308,15 @@ def _busy(n: int) -> list[subprocess.Popen[bytes]]:
     return [subprocess.Popen([sys.executable, "-c", "while 1: pass"]) for _ in range(n)]
 
 
+def _step_px(drill: Any, plan: Any) -> int:
+    """Widget pixels of :data:`STEP_MM` along the drill on the drill view (its scale from the
+    plan's entry and target as drawn), at least 1."""
+    a = np.asarray(drill.lps_to_pixel(plan.entry_lps), dtype=float)
+    b = np.asarray(drill.lps_to_pixel(plan.target_lps), dtype=float)
+    depth_mm = float(np.linalg.norm(np.asarray(plan.target_lps) - np.asarray(plan.entry_lps)))
+    return max(1, round(STEP_MM * float(np.linalg.norm(b - a)) / depth_mm))
+
+
 def _measure(
     window: Any, probe: _Probe, moves: int, rate_s: float, shot: Path | None
 ) -> dict[str, Any]:
@@ -338,6 +349,7 @@ def _measure(
     try:
         grip = drill.lps_to_pixel(window.doc.plan.target_lps)
         x, y = round(grip[0]), round(grip[1])
+        step_px = _step_px(drill, window.doc.plan)
         QTest.mousePress(drill, left, none, QPoint(x, y))
         _wait(app, lambda: live.path is not None)  # the press previews the plan
         latency, latency_cpu = [], []
@@ -346,7 +358,7 @@ def _measure(
             m = len(probe.curves_cpu)
             probe.sent += 1
             t0, c0 = time.perf_counter(), time.thread_time()
-            QTest.mouseMove(drill, QPoint(x, y + STEP_PX * (k % WAVE_STEPS)))
+            QTest.mouseMove(drill, QPoint(x, y + step_px * (k % WAVE_STEPS)))
             if _wait_drawn(plot):
                 latency.append(drawn[-1][0] - t0)
                 # the UI thread's CPU from the move to the repaint, and the worker's curves
@@ -363,7 +375,7 @@ def _measure(
             step = k if k <= WAVE_STEPS else 2 * WAVE_STEPS - k
             probe.sent += 1
             sent_t[probe.sent] = time.perf_counter()
-            QTest.mouseMove(drill, QPoint(x, y + STEP_PX * step))
+            QTest.mouseMove(drill, QPoint(x, y + step_px * step))
 
         timer = QTimer()
         timer.setInterval(16)
@@ -472,7 +484,7 @@ def _drag_case(
             grip = None if plan is None else drill.lps_to_pixel(plan.target_lps)
             assert grip is not None
             x, y = round(grip[0]), round(grip[1])
-            dy = STEP_PX * (1 + k % 3)
+            dy = _step_px(drill, plan) * (1 + k % 3)
             QTest.mousePress(drill, left, none, QPoint(x, y))
             QTest.mouseMove(drill, QPoint(x, y + dy))
             n = len(drawn)
@@ -573,7 +585,8 @@ def run(quick: bool) -> Section:
             shots.append(r["shot"])
     notes = [
         __doc__.split("\n\n", 1)[1].strip() if __doc__ else "",
-        f"{moves} timed moves of {STEP_PX} px from rest, a {rate_s:g} s continuous drag, "
+        f"{moves} timed moves of {STEP_MM:g} mm (whole pixels of the drill view) from rest, "
+        f"a {rate_s:g} s continuous drag, "
         f"and {legacy} older-chain drags per case and load"
         + ("" if quick else f"; the synthetic series took {write_s:.0f} s to write (not timed)")
         + ". The load column is the machine's 1-minute load average at the end of the run (2 "
