@@ -55,15 +55,17 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Return the full ``ctdrill`` parser with every available subcommand."""
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """Return the full ``ctdrill`` parser with every available subcommand (``only``: with
+    that one alone, which parses its own command line the same; the others' modules are not
+    imported, 20-30 ms of a fresh ``ctdrill export``)."""
     parser = _Parser(
         prog="ctdrill",
         description="Rehearse a dental-implant osteotomy on the patient's own CT.",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
-    for name in COMMANDS:
+    for name in COMMANDS if only is None else (only,):
         try:
             module = importlib.import_module(f"ctdrill.app.commands.{command_module(name)}")
         except ModuleNotFoundError as exc:
@@ -85,7 +87,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     install()
     try:
-        args = build_parser().parse_args(argv)
+        words = sys.argv[1:] if argv is None else list(argv)
+        only = words[0] if words and words[0] in COMMANDS else None
+        args = build_parser(only).parse_args(words)
     except KeyboardInterrupt as exc:  # Ctrl-C while the command starts: no traceback either
         sys.stderr.write(f"error: interrupted ({signal_name(signum_of(exc))})\n")
         return exit_code_of(exc)

@@ -113,7 +113,11 @@ def _modules_imported_by(argv: list[str]) -> set[str]:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert "usage: ctdrill" in out.stdout
     names = set(json.loads(out.stderr))
-    assert "ctdrill.app.commands.inspect" in names  # the parser was built
+    # the parser was built: every command's for ``--help``, the command's own for ``CMD ...``
+    built = command_module(argv[0]) if argv[0] in COMMANDS else "inspect"
+    assert f"ctdrill.app.commands.{built}" in names
+    if argv[0] in COMMANDS and argv[0] != "inspect":
+        assert "ctdrill.app.commands.inspect" not in names  # only its own command's module
     return names
 
 
