@@ -30,7 +30,7 @@ COLOURS = {
     "clearance": "#207040",
     "stop": "#d02080",
     "planned": "#808080",
-    "margin": "#d02020",
+    "margin_line": "#d02020",
     "live": "#1060ff",
     "grid": "#d8d8d8",
     "text": "#202020",

@@ -155,9 +155,9 @@ def paint_axes(
         return
     y = float(f_clear.y_px(curves.margin_mm))
     if f_clear.y0 <= y <= f_clear.y1:
-        p.setPen(QPen(_colour("margin"), 1.0, Qt.PenStyle.DashLine))
+        p.setPen(QPen(_colour("margin_line"), 1.0, Qt.PenStyle.DashLine))
         p.drawLine(QPointF(f_clear.x0, y), QPointF(f_clear.x1, y))
-        p.setPen(_colour("margin"))
+        p.setPen(_colour("margin_line"))
         p.drawText(QPointF(f_clear.x0 + 3.0, y - 3.0), f"margin {curves.margin_mm:g} mm")
 
 

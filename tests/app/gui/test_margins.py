@@ -29,7 +29,7 @@ def margin_lines(win: MainWindow) -> list[float]:
     """Clearance (mm) of the dashed margin line on the clearance axis, read from the plot's
     pixels (to a pixel and a half of the axis)."""
     img, layout = painted(win.plot_canvas)
-    return horizontal_marks(img, layout.frames[2], "margin")
+    return horizontal_marks(img, layout.frames[2], "margin_line")
 
 
 def test_two_landmarks_the_plot_draws_the_binding_margin(

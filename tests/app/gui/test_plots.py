@@ -73,7 +73,7 @@ def test_stop_planned_and_margin_are_painted_where_they_are(qtbot: QtBot) -> Non
         x = round(float(layout.x_px(10.0)))
         column = img[int(f.y0) + 2 : int(f.y1) - 1, x - 1 : x + 2]
         assert np.all(column == rgb("planned"), axis=-1).any(axis=1).mean() > 0.3
-    margin = horizontal_marks(img, layout.frames[2], "margin")
+    margin = horizontal_marks(img, layout.frames[2], "margin_line")
     assert margin == [
         pytest.approx(2.5, abs=2.0 * (layout.frames[2].hi - layout.frames[2].lo) / 60)
     ]
