@@ -29,6 +29,7 @@ from ctdrill.app.gui import planning
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.drag_sync import WithDrawnPosition
 from ctdrill.app.gui.implant_drag import site_lps
+from ctdrill.app.gui.overlay_pacing import OverlayPacing
 from ctdrill.app.gui.plan_editor import PlanEditor
 from ctdrill.app.gui.slice_nav import (
     SliceStack,
@@ -117,6 +118,7 @@ class SliceGrid(QWidget):
             canvas.arch_edited.connect(self._arch_edit)
             self.runners[v] = Runner(partial(self._sliced, v), self._slice_failed, parent=self)
             canvas.before_draw = partial(self._overlays_if_due, v)
+        self.pacing = OverlayPacing(ctx, self.canvases, lambda v: self.draw_overlays(only=v), self)
         box = QVBoxLayout(self)
         box.setContentsMargins(0, 0, 0, 0)
         box.setSpacing(2)
@@ -232,7 +234,7 @@ class SliceGrid(QWidget):
                     self.canvases[view].show_slice(
                         image, level_hu=self.window_level[0], width_hu=self.window_level[1]
                     )
-                self.draw_overlays(only=view)
+                self.draw_overlays(only=view, draw=self.pacing.draws_now(view))
                 continue
             if self.runners[view].busy:  # one plane at a time per view: the latest one next
                 self._pending.add(view)
@@ -314,18 +316,17 @@ class SliceGrid(QWidget):
         self.reslice()
 
     # ------------------------------------------------------------------ overlays
-    def draw_overlays(self, only: str | None = None) -> None:
-        """Overlay the plan (or the points placed so far) on every canvas (or on ``only``).
-
-        The canvases hit-test the new scene at once; each one draws it in a step of its own
-        (the drawing steps' queue), so an edit (a canal click, an undo) returns at once, and
-        several requests before the step (the plan, then its path) draw once."""
+    def draw_overlays(self, only: str | None = None, *, draw: bool = True) -> None:
+        """Overlay the plan (or the points placed so far) on every canvas (or on ``only``):
+        each hit-tests the new scene at once and draws it in a step of its own (an edit returns
+        at once; the plan, then its path, before the step: one draw); with ``draw`` False it
+        only hit-tests it (its drawing waits for the path: ``OverlayPacing``)."""
         scene = self._scene()
         for name, canvas in self.canvases.items():
             if only is not None and name != only:
                 continue
             canvas.take_scene(scene)
-            if name not in self._overlays_due:
+            if draw and name not in self._overlays_due:
                 self._overlays_due.add(name)
                 self.ctx.steps.push(partial(self._overlay_step, name))
 

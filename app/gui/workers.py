@@ -160,6 +160,7 @@ class StepQueue(QObject):
     def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)
         self._steps: deque[Callable[[], None]] = deque()
+        self._held: set[object] = set()
         self._timer = QTimer(self)
         self._timer.setInterval(0)
         self._timer.timeout.connect(self._step)
@@ -175,8 +176,17 @@ class StepQueue(QObject):
 
     @property
     def pending(self) -> int:
-        """Number of steps not run yet."""
-        return len(self._steps)
+        """Number of steps not run yet, and of drawings held back (:meth:`hold`)."""
+        return len(self._steps) + len(self._held)
+
+    def hold(self, key: object) -> None:
+        """A drawing to be queued later (it waits for a result) counts as pending until
+        :meth:`release` (the window is not drawn before it)."""
+        self._held.add(key)
+
+    def release(self, key: object) -> None:
+        """The held drawing ``key`` was queued (or is no longer due)."""
+        self._held.discard(key)
 
     def _step(self) -> None:
         if not self._steps:

@@ -8,6 +8,8 @@ The times themselves (a canal click, the longest stall of a session) are measure
 from __future__ import annotations
 
 import numpy as np
+import pytest
+from pytestqt.qtbot import QtBot
 
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.sections import Plane, tube_field
@@ -95,3 +97,50 @@ def test_the_audio_library_is_loaded_aside_once() -> None:
     for t in loaders:
         t.join(timeout=60)
     assert not any(t.name == "ctdrill-audio" and t.is_alive() for t in threading.enumerate())
+
+
+def test_only_the_view_acted_on_draws_an_edit_before_its_path(
+    qtbot: QtBot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from types import SimpleNamespace
+
+    from PySide6.QtCore import QObject, QPoint, Qt, Signal
+    from PySide6.QtTest import QTest
+    from PySide6.QtWidgets import QWidget
+
+    from ctdrill.app.gui import overlay_pacing
+    from ctdrill.app.gui.overlay_pacing import OverlayPacing
+    from ctdrill.app.gui.workers import StepQueue
+
+    monkeypatch.setattr(overlay_pacing, "WAIT_FOR_PATH_MS", 60)  # a late path, sooner
+
+    class Doc(QObject):
+        path_changed = Signal(object)
+
+    doc = Doc()
+    doc.plan, doc.path, doc.path_error = object(), object(), ""  # type: ignore[attr-defined]
+    steps = StepQueue()
+    canvases = {name: QWidget() for name in ("axial", "coronal")}
+    for canvas in canvases.values():
+        qtbot.addWidget(canvas)
+        canvas.resize(50, 50)
+        canvas.show()
+    redraws: list[str] = []
+    ctx = SimpleNamespace(doc=doc, steps=steps)
+    pacing = OverlayPacing(ctx, canvases, redraws.append)  # type: ignore[arg-type]
+    assert pacing.draws_now("coronal")  # the path known: every view draws
+    QTest.mouseClick(canvases["axial"], Qt.MouseButton.LeftButton, pos=QPoint(10, 10))
+    assert pacing.acting == "axial"
+    doc.path = None  # type: ignore[attr-defined]  # an edit: its path on its way
+    assert pacing.draws_now("axial") and not pacing.draws_now("coronal")
+    assert steps.pending == 1  # the view waiting: the window is not drawn yet
+    qtbot.waitUntil(lambda: bool(redraws), timeout=2000)
+    assert redraws == ["coronal"] and steps.pending == 0  # late: drawn without it
+    assert not pacing.draws_now("coronal")
+    doc.path = object()  # type: ignore[attr-defined]
+    doc.path_changed.emit(doc.path)  # the path came (every view drew it) before the wait ended
+    assert steps.pending == 0
+    qtbot.wait(200)
+    assert redraws == ["coronal"]
+    doc.path, doc.path_error = None, "no path"  # type: ignore[attr-defined]  # failed
+    assert pacing.draws_now("coronal") and steps.pending == 0
