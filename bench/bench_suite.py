@@ -250,6 +250,13 @@ def run(quick: bool) -> Section:
         f"{pre_cpu:.0f} s before pytest + {idle_pytest:.0f} s = {idle_estimate:.0f} s, goal "
         f"{SUITE_GOAL_S:.0f} s (tests that wait on time-outs add to it).",
         "",
+        "make test's 2 workers: the window tests (`tests/app/gui`) are one work unit, run one "
+        "after another in one worker (the scheduler in `tests/conftest.py`), every other module "
+        "a unit of its own, given to whichever worker is free; every wait of a window test on "
+        "a condition allows 30 s (`LOAD_TIMEOUT_MS`). On a shared machine the workers get the "
+        "cores' share the other processes leave, so the wall ratio against the serial peer "
+        "follows the load of each run; the idle estimate reads CPU.",
+        "",
         f"BLAS peer module `{peer_args[0]}`: 2 OpenBLAS threads cost {ratio:.2f} x the CPU of one.",
         "",
         "Per directory, the 2-worker run (CPU and wall summed over each test's set-up, call and "
