@@ -154,8 +154,16 @@ def test_window_level_drag_presets_and_hu_at_the_cursor(
     p = vol.index_to_lps(np.array([i, j, k], dtype=float))
     uv, off = canvas.image.to_plane_mm(p)
     assert abs(float(off)) < 1e-9
-    qtbot.mouseMove(canvas, qt_point(canvas, uv))
-    qtbot.waitUntil(lambda: grid.readout.text().startswith("HU "), timeout=LOAD_TIMEOUT_MS)
+
+    def over_the_voxel() -> bool:
+        """The mouse moved (again) onto the voxel at the canvas' current layout: a late
+        layout under load moves the image after the point was computed."""
+        at = qt_point(canvas, canvas.image.to_plane_mm(p)[0] if canvas.image else uv)
+        qtbot.mouseMove(canvas, at + QPoint(1, 0))
+        qtbot.mouseMove(canvas, at)
+        return grid.readout.text().startswith("HU ")
+
+    qtbot.waitUntil(over_the_voxel, timeout=LOAD_TIMEOUT_MS)
     text = grid.readout.text()
     hu, x, y, z = (float(text.split()[i]) for i in (1, 4, 6, 8))
     mm_per_px = abs(np.diff(canvas.ax.get_xlim())[0]) / canvas.ax.bbox.width
