@@ -18,12 +18,12 @@ the new curves (its ``stopDepthMmChanged``, emitted by the paint that puts them 
   position (one window update a position).
   *Latency*: from rest (nothing computing), a move, then the time until the plot is repainted
   with that move's curves; one move at a time.
-  *Continuous drag*: a 60 Hz mouse (a move every 16 ms, a triangle wave of 2 px steps over
-  40 px) for a few seconds: repaints of the force plot per second, the moves Qt delivered per
-  second, and the **lag** of each repaint: the time since the mouse was at the position it
-  draws (median and 90th percentile). Each repaint's position is checked against the order of
-  the mouse (never an older one after a newer) and each computation against the latest
-  position when it started (``latest next``).
+  *Continuous drag*: a 60 Hz mouse (a move every 16 ms, a triangle wave of 0.25 mm steps
+  over 5 mm, in whole pixels of the drill view) for a few seconds: repaints of the force
+  plot per second, the moves Qt delivered per second, and the **lag** of each repaint: the
+  time since the mouse was at the position it draws (median and 90th percentile). Each
+  repaint's position is checked against the order of the mouse (never an older one after a
+  newer) and each computation against the latest position when it started (``latest next``).
   Both idle and beside two busy processes (``python -c 'while 1: pass'``, started here) that
   take the 2 cores' time.
 - **older chain** (:func:`older_chain`, the window before issue 27, rebuilt here from the
