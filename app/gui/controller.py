@@ -164,14 +164,14 @@ class Controller(QObject):
         def checks(first: PathView | None) -> tuple[PathView, ImplantReadout] | tuple[Plan, str]:
             try:
                 view = (
-                    compute_path_view(volume, plan, hu, plan_set=others, live=True)
+                    compute_path_view(volume, plan, hu, plan_set=others)
                     if first is None  # a drill sequence: in one stage
-                    else completed_view(volume, first, plan_set=others, live=True)
+                    else completed_view(volume, first)
                 )
             except ValueError as exc:
                 return plan, str(exc)
             # the cross-section's readout with every position checked (it follows the drag)
-            return view, implant_readout(volume, plan, view, live=True)
+            return view, implant_readout(volume, plan, view)
 
         self.live_runner.submit_latest(curves)
 
@@ -180,12 +180,11 @@ class Controller(QObject):
         volume = self.doc.volume
         if view is None or volume is None:
             return
-        live = self.doc.live.dragging
-        if live:
+        if self.doc.live.dragging:
             return  # a dragged plan's readout comes with its path (``_dragged``)
 
         def job() -> tuple[Plan, ImplantReadout]:
-            return view.plan, implant_readout(volume, view.plan, view, live=live)
+            return view.plan, implant_readout(volume, view.plan, view)
 
         self.readout_runner.submit_latest(job)
 

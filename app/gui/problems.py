@@ -39,59 +39,21 @@ from ctdrill.warning_codes import LoadWarning, banner_codes, words
 #: The plan problems the banner lists, in this order: the registry's ``banner`` codes
 #: (:func:`ctdrill.warning_codes.banner_codes`; their headings, ``words``).
 PROBLEM_CODES = banner_codes()
-#: The bone walls' grid while a trajectory is dragged (``plan_bone_walls`` options; a coarser
-#: grid is said with "~"): none, the full grid, since the walls' rays step over the CT's
-#: uniform blocks (issue 37: a few ms on the demo, docs/benchmarks.md).
-LIVE_WALLS: dict[str, float] = {}
-
-
-@dataclass(frozen=True, eq=False)
-class ImplantCheck(ImplantOutcome):
-    """The engine's implant outcome (:class:`~ctdrill.engine.implant.ImplantOutcome`: the body's
-    clearance, its bone walls, the CT's accuracy and the warnings as the outputs word them) as
-    the window keeps it.
-
-    Attributes
-    ----------
-    coarse : the walls were read on the drag's coarser grid (:data:`LIVE_WALLS`).
-    """
-
-    coarse: bool = False
 
 
 def implant_check(
     volume: CTVolume,
     plan: Plan,
     landmarks: tuple[Landmark, ...] | None = None,
-    *,
-    live: bool = False,
-) -> ImplantCheck | None:
+) -> ImplantOutcome | None:
     """The implant body of ``plan`` on ``volume`` (the engine's
-    :func:`~ctdrill.engine.implant.implant_outcome`): its clearance to ``landmarks`` (default
-    the plan's; masks bound to the CT grid), its bone walls (on :data:`LIVE_WALLS` when
-    ``live``) and their warnings; None without an implant."""
+    :func:`~ctdrill.engine.implant.implant_outcome`: its clearance to ``landmarks``, default
+    the plan's, masks bound to the CT grid; its bone walls on the full grid, also while it is
+    dragged; the CT's accuracy and the warnings as the outputs word them); None without an
+    implant."""
     if landmarks is not None:
         plan = replace(plan, landmarks=landmarks)
-    out = implant_outcome(volume, plan, **(LIVE_WALLS if live else {}))
-    return None if out is None else checked_implant(out, coarse=live_coarse(live))
-
-
-def live_coarse(live: bool) -> bool:
-    """The walls of a ``live`` (dragged) check are read on a coarser grid than the full one."""
-    return live and bool(LIVE_WALLS)
-
-
-def checked_implant(out: ImplantOutcome, *, coarse: bool = False) -> ImplantCheck:
-    """The engine's implant outcome as the window keeps it (``coarse``: walls read on
-    :data:`LIVE_WALLS`)."""
-    return ImplantCheck(
-        plan=out.plan,
-        clearance=out.clearance,
-        walls=out.walls,
-        accuracy_mm=out.accuracy_mm,
-        warnings=out.warnings,
-        coarse=coarse,
-    )
+    return implant_outcome(volume, plan)
 
 
 @dataclass(frozen=True, eq=False)

@@ -16,10 +16,8 @@ in words by the cross-section view (:func:`readout_text`).
   result's implant check (:func:`ctdrill.app.gui.problems.implant_check`, the one place
   these come from): the implant body's own clearance to the landmark with the least slack
   (without an implant the final drill's at the planned depth) and its bone walls (the
-  thinnest wall, buccal and lingual). While the implant is dragged the walls are read on
-  the drag's grid (:data:`~ctdrill.app.gui.problems.LIVE_WALLS`: the full grid; a coarser
-  one would be said with "~"). Lengths are written with the digits the
-  CT supports.
+  thinnest wall, buccal and lingual), on the full grid also while the implant is dragged.
+  Lengths are written with the digits the CT supports.
 """
 
 from __future__ import annotations
@@ -63,8 +61,7 @@ class ImplantReadout:
         name; ``canal_of`` what was measured (``implant body`` or ``drill at the planned
         depth``).
     wall_mm : the thinnest bone wall around the implant, mm (None: not known, ``wall_note``
-        says why); ``buccal_mm``, ``lingual_mm`` each side's; ``wall_coarse``: read on the
-        drag's coarser grid.
+        says why); ``buccal_mm``, ``lingual_mm`` each side's.
     accuracy_mm : what the CT lets these lengths claim, +- mm: they are written with the
         digits it supports (:func:`~ctdrill.imaging.resolution.format_clearance_mm`; 0:
         every digit).
@@ -82,7 +79,6 @@ class ImplantReadout:
     wall_note: str = ""
     buccal_mm: float | None = None
     lingual_mm: float | None = None
-    wall_coarse: bool = False
     accuracy_mm: float = 0.0
 
 
@@ -152,22 +148,20 @@ def crest_depth_mm(volume: CTVolume, plan: Plan) -> tuple[float | None, str]:
 
 
 def implant_safety(
-    volume: CTVolume, plan: Plan, view: PathView | None, *, live: bool = False
-) -> tuple[tuple[float, str, str] | None, BoneWalls | None, bool]:
+    volume: CTVolume, plan: Plan, view: PathView | None
+) -> tuple[tuple[float, str, str] | None, BoneWalls | None]:
     """The implant's distance to the landmarks and its bone walls.
 
-    Returns ``((clearance_mm, landmark name, what was measured) | None, walls | None,
-    coarse)``: from the implant check of the path result ``view`` when it was computed for
+    Returns ``((clearance_mm, landmark name, what was measured) | None, walls | None)``: from
+    the implant check of the path result ``view`` when it was computed for
     ``plan`` (:func:`~ctdrill.app.gui.problems.implant_check`, the one place these come
-    from), else that check computed here (walls on the drag's
-    :data:`~ctdrill.app.gui.problems.LIVE_WALLS` grid when ``live``); without an implant, the
-    final drill's clearance at the planned depth from ``view``. ``coarse``: the walls were
-    read on the coarser grid.
+    from), else that check computed here; without an implant, the final drill's clearance at
+    the planned depth from ``view``.
     """
     result = None if view is None or view.plan is not plan else view.result
     landmarks = plan.landmarks if result is None else result.landmarks  # masks on the grid
     own = None if view is None or result is None else view.implant
-    check = own if own is not None else implant_check(volume, plan, landmarks, live=live)
+    check = own if own is not None else implant_check(volume, plan, landmarks)
     canal = None
     body = None if check is None else check.clearance
     if body is not None:
@@ -177,18 +171,16 @@ def implant_safety(
         k = int(np.argmin(at_plan))
         canal = (float(at_plan[k]), result.landmarks[k].name, "drill at the planned depth")
     if check is None:
-        return canal, None, False
-    return canal, check.walls, check.coarse
+        return canal, None
+    return canal, check.walls
 
 
-def implant_readout(
-    volume: CTVolume, plan: Plan, view: PathView | None = None, *, live: bool = False
-) -> ImplantReadout:
+def implant_readout(volume: CTVolume, plan: Plan, view: PathView | None = None) -> ImplantReadout:
     """Every figure of the readout for ``plan`` on ``volume`` (``view``: its path result;
-    ``live``: during a drag, :func:`implant_safety`)."""
+    :func:`implant_safety`)."""
     tilt, bl, md = angulation_deg(plan, plan.arch_lps)
     crest, of = crest_depth_mm(volume, plan)
-    canal, walls, coarse = implant_safety(volume, plan, view, live=live)
+    canal, walls = implant_safety(volume, plan, view)
     note = "no implant" if walls is None else "the CT ends before bone does"
     return ImplantReadout(
         tilt_deg=tilt,
@@ -203,7 +195,6 @@ def implant_readout(
         wall_note=note,
         buccal_mm=None if walls is None else walls.buccal_mm,
         lingual_mm=None if walls is None else walls.lingual_mm,
-        wall_coarse=coarse,
         accuracy_mm=volume_clearance_accuracy_mm(volume),
     )
 
@@ -211,7 +202,7 @@ def implant_readout(
 def readout_text(r: ImplantReadout) -> str:
     """The readout in one line (``tilt 12.0° (B 8.0°, M 9.0°) · platform 0.8 mm below the
     crest · canal 3.40 mm ('left mandibular canal', implant body) · thinnest wall 1.20 mm
-    (B 1.20, Li 2.10)``; ``~`` marks walls read on the drag's coarser grid)."""
+    (B 1.20, Li 2.10)``)."""
     parts = [f"tilt {r.tilt_deg:.1f}°"]
     if r.buccolingual_deg is not None and r.mesiodistal_deg is not None:
         bl = "B" if r.buccolingual_deg >= 0 else "Li"
@@ -234,9 +225,8 @@ def readout_text(r: ImplantReadout) -> str:
     if r.wall_mm is None:
         parts.append(f"thinnest wall: unknown ({r.wall_note})")
     else:
-        about = "~" if r.wall_coarse else ""
-        wall = f"thinnest wall {about}{mm(r.wall_mm)} mm"
+        wall = f"thinnest wall {mm(r.wall_mm)} mm"
         if r.buccal_mm is not None and r.lingual_mm is not None:
-            wall += f" (B {about}{mm(r.buccal_mm)}, Li {about}{mm(r.lingual_mm)})"
+            wall += f" (B {mm(r.buccal_mm)}, Li {mm(r.lingual_mm)})"
         parts.append(wall)
     return " · ".join(parts)

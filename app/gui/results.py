@@ -12,11 +12,7 @@ import numpy as np
 
 from ctdrill.app.gui.plots import DepthCurves
 from ctdrill.app.gui.problems import (
-    LIVE_WALLS,
-    ImplantCheck,
     PlannedClearance,
-    checked_implant,
-    live_coarse,
     planned_clearance,
 )
 from ctdrill.engine.band import path_band
@@ -45,7 +41,7 @@ class PathView:
     result: PathResult
     curves: DepthCurves
     min_clearance_mm: np.ndarray | None  # (L,) per landmark along the stopped path
-    implant: ImplantCheck | None = None
+    implant: ImplantOutcome | None = None
     planned: PlannedClearance | None = None
     problems: tuple[LoadWarning, ...] = ()
 
@@ -126,15 +122,14 @@ def compute_path_view(
     hu: HuUncertainty | None = None,
     *,
     plan_set: Sequence[Plan] = (),
-    live: bool = False,
     on_curves: Callable[[PathView], None] | None = None,
 ) -> PathView:
     """Plan the path of ``plan`` through ``volume`` (the pipeline the CLI uses) for display;
     ``hu`` enters the force band. ``plan_set`` (every trajectory of the document, ``plan``
     among them) adds the warnings only the whole set shows (``implants_too_close``,
     :func:`~ctdrill.engine.path.with_set_warnings`), as ``ctdrill export`` reports them.
-    The view carries the plan's problems (:func:`checked`; ``live``: the implant's walls on
-    the drag's grid, :data:`~ctdrill.app.gui.problems.LIVE_WALLS`).
+    The view carries the plan's problems (:func:`checked`); the implant's walls are read on
+    the full grid, also while a trajectory is dragged.
 
     ``on_curves`` (a drag's progressive display) is called first with the view of the path's
     curves and stop (:func:`~ctdrill.engine.path.path_curves`: the same numbers as the whole
@@ -147,20 +142,16 @@ def compute_path_view(
     own = _own(plan, plan_set)
     cal = plan_calibration(own)
 
-    # while dragging, the implant's walls on the drag's grid (the path then takes them)
-    def implant() -> ImplantOutcome | None:
-        return implant_outcome(volume, own, **LIVE_WALLS) if live else None
-
     if len(own.drills) > 1:
-        view = path_view(plan, plan_sequence(volume, own, cal, implant=implant()).final, hu)
+        view = path_view(plan, plan_sequence(volume, own, cal).final, hu)
     elif on_curves is not None:  # the curves first, then the implant and the checks
         first = curves_view(volume, plan, hu, plan_set=plan_set)
         assert first is not None  # one drill
         on_curves(first)
-        return completed_view(volume, first, plan_set=plan_set, live=live)
+        return completed_view(volume, first)
     else:  # to apex + tip
-        view = path_view(plan, plan_path(volume, own.drilled(0), cal, implant=implant()), hu)
-    return checked(volume, view, live=live)
+        view = path_view(plan, plan_path(volume, own.drilled(0), cal), hu)
+    return checked(volume, view)
 
 
 def _own(plan: Plan, plan_set: Sequence[Plan]) -> Plan:
@@ -186,21 +177,18 @@ def curves_view(
     return path_view(plan, path_curves(volume, own.drilled(0), plan_calibration(own)), hu)
 
 
-def completed_view(
-    volume: CTVolume, first: PathView, *, plan_set: Sequence[Plan] = (), live: bool = False
-) -> PathView:
-    """The second stage: :func:`curves_view`'s ``first`` with the implant, the path's
-    warnings and the checks (the same curves object: what the plots show stays)."""
-    own = _own(first.plan, plan_set)
-    implant = implant_outcome(volume, own, **LIVE_WALLS) if live else None
-    view = replace(first, result=complete_path(volume, first.result, implant))
-    return checked(volume, view, live=live)
+def completed_view(volume: CTVolume, first: PathView) -> PathView:
+    """The second stage: :func:`curves_view`'s ``first`` (whose result's plan carries the
+    set's warnings) with the implant, the path's warnings and the checks (the same curves
+    object: what the plots show stays)."""
+    view = replace(first, result=complete_path(volume, first.result))
+    return checked(volume, view)
 
 
-def checked(volume: CTVolume, view: PathView, *, live: bool = False) -> PathView:
+def checked(volume: CTVolume, view: PathView) -> PathView:
     """``view`` with its implant check (the engine's outcome, ``PathResult.implant``, when the
-    path computed one; else :func:`~ctdrill.app.gui.problems.implant_check`, on the drag's
-    grid when ``live``), planned clearances and problems: the path's warnings
+    path computed one; else :func:`~ctdrill.app.gui.problems.implant_check`), planned
+    clearances and problems: the path's warnings
     of :data:`~ctdrill.app.gui.problems.PROBLEM_CODES`, the implant's, and every drill's
     margin at its drilled depth (a path computed to the apex rather than drilled to the apex
     plus the tip has its drill-margin warning replaced by the drilled one)."""
@@ -208,15 +196,10 @@ def checked(volume: CTVolume, view: PathView, *, live: bool = False) -> PathView
     with_lms = replace(plan, landmarks=result.landmarks)  # masks bound to the CT grid
     out = result.implant  # the engine's implant outcome (engine.implant.implant_outcome)
     if out is None and plan.implant is not None:
-        out = implant_outcome(volume, with_lms, **(LIVE_WALLS if live else {}))
+        out = implant_outcome(volume, with_lms)
     verdict = plan_verdict(volume, with_lms, path=result, implant=out)
-    check = (
-        None
-        if verdict.implant is None
-        else checked_implant(verdict.implant, coarse=live_coarse(live))
-    )
     planned = planned_clearance(verdict, volume_clearance_accuracy_mm(volume))
-    return replace(view, implant=check, planned=planned, problems=verdict.problems())
+    return replace(view, implant=verdict.implant, planned=planned, problems=verdict.problems())
 
 
 def drill_note(result: PathResult) -> str:

@@ -295,7 +295,7 @@ def test_a_fast_drag_is_coalesced_to_its_latest_position_once_per_pass(
     ghost_is_painted_at_its_grips(drill)
     # the cross-section's readout follows the drag: the dragged position's, before the release
     assert demo.doc.volume is not None
-    expected = implant_readout(demo.doc.volume, dragged, demo.doc.live.path, live=True)
+    expected = implant_readout(demo.doc.volume, dragged, demo.doc.live.path)
     qtbot.waitUntil(lambda: demo.doc.live.readout == expected, timeout=LOAD_TIMEOUT_MS)
     with qtbot.waitSignal(demo.path_updated, timeout=LOAD_TIMEOUT_MS):
         qtbot.mouseRelease(drill, Qt.MouseButton.LeftButton, pos=at((x, y + 15)))

@@ -13,6 +13,7 @@ from ctdrill.app.gui.banner import banner_text
 from ctdrill.app.gui.problems import (
     PROBLEM_CODES,
     VIOLATED_MARK,
+    implant_check,
     offending_implants,
     plan_problems,
     planned_cells,
@@ -177,25 +178,20 @@ def test_implant_colours_in_3d_and_on_the_slices() -> None:
     assert CURRENT_COLOUR != VIOLATED_COLOUR
 
 
-def test_a_drag_reads_the_full_grid_walls_and_the_path_takes_them(slab: CTVolume) -> None:
-    """While dragging the implant's walls are read once, on the full grid (no coarser one
-    since the walls' rays step over uniform blocks), and the path takes that outcome: the
-    same walls, clearances and problems as the release's, the check not marked coarse."""
+def test_the_path_takes_the_implants_full_grid_outcome(slab: CTVolume) -> None:
+    """A drill sequence's view carries the implant outcome its path computed (walls on the
+    full grid, as :func:`implant_check` reads them, during a drag as at the release)."""
     d = 5.0
     drills = (DrillSpec(diameter_mm=2.0, tip_length_mm=0.6), DrillSpec(3.2, 0.8))
     plan = vertical(landmarks=(canal(d, -4.0),)).with_drills(drills)
-    full = compute_path_view(slab, plan)
-    live = compute_path_view(slab, plan, live=True)
-    assert live.implant is not None and not live.implant.coarse
-    assert full.implant is not None and not full.implant.coarse
-    assert live.result.implant is not None
-    np.testing.assert_array_equal(live.result.implant.walls.wall_mm, full.implant.walls.wall_mm)
-    assert [w.code for w in live.problems] == [w.code for w in full.problems]
-    assert live.implant.clearance is not None and full.implant.clearance is not None
-    assert (
-        live.implant.clearance.binding_clearance_mm == full.implant.clearance.binding_clearance_mm
-    )
-    assert live.result.stop_depth_mm == full.result.stop_depth_mm
+    view = compute_path_view(slab, plan)
+    alone = implant_check(slab, plan, view.result.landmarks)
+    assert view.implant is not None and alone is not None
+    assert view.result.implant is view.implant  # the path's own outcome, not a second read
+    assert view.implant.walls is not None and alone.walls is not None
+    np.testing.assert_array_equal(view.implant.walls.wall_mm, alone.walls.wall_mm)
+    assert view.implant.clearance is not None and alone.clearance is not None
+    assert view.implant.clearance.binding_clearance_mm == alone.clearance.binding_clearance_mm
 
 
 def test_a_final_drill_that_does_not_suit_the_implant_is_a_banner_problem(slab: CTVolume) -> None:
