@@ -10,8 +10,11 @@ threshold was classed differently by the walls' kernel and their NumPy path); Na
 A kernel calling it must be recompiled when it changes (numba's disk cache of a kernel does not
 see a change in another module): a change here goes with a touch of every kernel module that
 imports it. The kernels
-of the bone walls (:mod:`~ctdrill.imaging.sampling.envelope_kernel`) and of suggest's shells
-(:mod:`ctdrill.app.search.shell_kernel`) read the CT through it.
+of the bone walls (:mod:`~ctdrill.imaging.sampling.envelope_kernel`), of the bone surface
+(:mod:`~ctdrill.imaging.sampling.surface_kernel`), of suggest's shells
+(:mod:`ctdrill.app.search.shell_kernel`) and of :meth:`~ctdrill.imaging.volume.CTVolume.sample`'s
+points (:mod:`~ctdrill.imaging.sampling.points_kernel`) read the CT through it; each cell's
+eight-term sum is :func:`cell_sum`'s.
 """
 
 from __future__ import annotations
@@ -50,27 +53,25 @@ VOLUME_SIG = "{vol}[:, :, ::1], float64[:, ::1], float64[::1], float64[::1], flo
 
 
 @helper
-def at_index(
-    vol: np.ndarray, ck: float, cj: float, ci: float
-) -> float:  # pragma: no cover - compiled; tested through trilinear
-    """The trilinear sample at index coordinates (k, j, i) inside the hull (within its
-    tolerance): ``map_coordinates(order=1, mode="nearest")``'s weights and summation order."""
-    n_k, n_j, n_i = vol.shape
-    sk = math.floor(ck)
-    sj = math.floor(cj)
-    si = math.floor(ci)
-    wk0 = 1.0 - (ck - sk)  # scipy's weights: 1 - t, then 1 minus that (not t)
-    wj0 = 1.0 - (cj - sj)
-    wi0 = 1.0 - (ci - si)
+def cell_sum(
+    vol: np.ndarray,
+    k0: int,
+    k1: int,
+    j0: int,
+    j1: int,
+    i0: int,
+    i1: int,
+    wk0: float,
+    wj0: float,
+    wi0: float,
+) -> float:  # pragma: no cover - compiled; tested through trilinear and the points kernel
+    """The eight-term sum of one cell: corners ``(k0|k1, j0|j1, i0|i1)`` with the near
+    weights ``wk0, wj0, wi0`` (the far ones 1 minus them), each term ``value * wk * wj * wi``,
+    added in ``map_coordinates(order=1)``'s corner order: the one place every compiled
+    trilinear read sums a cell."""
     wk1 = 1.0 - wk0
     wj1 = 1.0 - wj0
     wi1 = 1.0 - wi0
-    k0 = min(max(sk, 0), n_k - 1)
-    k1 = min(max(sk + 1, 0), n_k - 1)
-    j0 = min(max(sj, 0), n_j - 1)
-    j1 = min(max(sj + 1, 0), n_j - 1)
-    i0 = min(max(si, 0), n_i - 1)
-    i1 = min(max(si + 1, 0), n_i - 1)
     total = 0.0
     total += float(vol[k0, j0, i0]) * wk0 * wj0 * wi0
     total += float(vol[k0, j0, i1]) * wk0 * wj0 * wi1
@@ -84,31 +85,47 @@ def at_index(
 
 
 @helper
-def at_index_inside(
+def at_index(
     vol: np.ndarray, ck: float, cj: float, ci: float
-) -> float:  # pragma: no cover - compiled; tested through the walls' kernel
-    """:func:`at_index` at index coordinates strictly inside the hull (each ``>= 0`` and
-    below its axis's last index, so the cell's far corners exist): the same weights and
-    summation order without the clamps, which do nothing there."""
+) -> float:  # pragma: no cover - compiled; tested through trilinear
+    """The trilinear sample at index coordinates (k, j, i) inside the hull (within its
+    tolerance): ``map_coordinates(order=1, mode="nearest")``'s weights and summation order
+    (:func:`cell_sum`), indices beyond an edge on the edge."""
+    n_k, n_j, n_i = vol.shape
     sk = math.floor(ck)
     sj = math.floor(cj)
     si = math.floor(ci)
     wk0 = 1.0 - (ck - sk)  # scipy's weights: 1 - t, then 1 minus that (not t)
     wj0 = 1.0 - (cj - sj)
     wi0 = 1.0 - (ci - si)
-    wk1 = 1.0 - wk0
-    wj1 = 1.0 - wj0
-    wi1 = 1.0 - wi0
-    total = 0.0
-    total += float(vol[sk, sj, si]) * wk0 * wj0 * wi0
-    total += float(vol[sk, sj, si + 1]) * wk0 * wj0 * wi1
-    total += float(vol[sk, sj + 1, si]) * wk0 * wj1 * wi0
-    total += float(vol[sk, sj + 1, si + 1]) * wk0 * wj1 * wi1
-    total += float(vol[sk + 1, sj, si]) * wk1 * wj0 * wi0
-    total += float(vol[sk + 1, sj, si + 1]) * wk1 * wj0 * wi1
-    total += float(vol[sk + 1, sj + 1, si]) * wk1 * wj1 * wi0
-    total += float(vol[sk + 1, sj + 1, si + 1]) * wk1 * wj1 * wi1
-    return total
+    return cell_sum(
+        vol,
+        min(max(sk, 0), n_k - 1),
+        min(max(sk + 1, 0), n_k - 1),
+        min(max(sj, 0), n_j - 1),
+        min(max(sj + 1, 0), n_j - 1),
+        min(max(si, 0), n_i - 1),
+        min(max(si + 1, 0), n_i - 1),
+        wk0,
+        wj0,
+        wi0,
+    )
+
+
+@helper
+def at_index_inside(
+    vol: np.ndarray, ck: float, cj: float, ci: float
+) -> float:  # pragma: no cover - compiled; tested through the walls' kernel
+    """:func:`at_index` at index coordinates strictly inside the hull (each ``>= 0`` and
+    below its axis's last index, so the cell's far corners exist): the same weights and
+    :func:`cell_sum` without the clamps, which do nothing there."""
+    sk = math.floor(ck)
+    sj = math.floor(cj)
+    si = math.floor(ci)
+    wk0 = 1.0 - (ck - sk)  # scipy's weights: 1 - t, then 1 minus that (not t)
+    wj0 = 1.0 - (cj - sj)
+    wi0 = 1.0 - (ci - si)
+    return cell_sum(vol, sk, sk + 1, sj, sj + 1, si, si + 1, wk0, wj0, wi0)
 
 
 @helper
