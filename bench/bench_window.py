@@ -23,7 +23,8 @@ plan edit, the main area's page, the implant picker, the rehearsal's buttons) to
 return ("UI blocked"), to the window settled (no drawing step waiting, no worker busy), and the
 longest heartbeat gap from the action until settled (its "longest stall", with the slowest
 drawing step named); for the canal click also to the clicked view's first frame after it (the
-point drawn). A canal click is repeated (click, settle, undo, settle). Beside them, the CPU
+point drawn); for the rehearsal's stop until its end is reported too (the end message, the
+debrief). A canal click is repeated (click, settle, undo, settle). Beside them, the CPU
 time from the action until settled: the UI thread's (the bench's own polling of the event
 loop included) and the whole process's (the workers and the OpenGL rasteriser's threads too),
 which the load changes much less than the wall times.
@@ -163,15 +164,22 @@ def settled(window: Any) -> bool:
     )
 
 
-def wait_settled(app: Any, window: Any, timeout_s: float = 120.0) -> float:
-    """Serve events until :func:`settled` holds twice in a row; perf_counter() then."""
+def wait_settled(
+    app: Any, window: Any, timeout_s: float = 120.0, until: Callable[[], bool] | None = None
+) -> float:
+    """Serve events until :func:`settled` (and ``until()``, if given) holds twice in a row;
+    perf_counter() then."""
     end = time.perf_counter() + timeout_s
+
+    def calm() -> bool:
+        return settled(window) and (until is None or until())
+
     while time.perf_counter() < end:
         app.processEvents()
-        if settled(window):
+        if calm():
             t = time.perf_counter()
             app.processEvents()
-            if settled(window):
+            if calm():
                 return t
         time.sleep(0.0005)
     raise TimeoutError("the window did not settle")
@@ -221,7 +229,12 @@ def session(ct: Path, plan: Path, canal_repeats: int) -> dict[str, Any]:
     rows: list[dict[str, Any]] = []
 
     def action(
-        name: str, fn: Callable[[], None], *, watch_s: float = 0.0, shown_on: Any = None
+        name: str,
+        fn: Callable[[], None],
+        *,
+        watch_s: float = 0.0,
+        shown_on: Any = None,
+        until: Callable[[], bool] | None = None,
     ) -> dict[str, Any]:
         wait_settled(app, window)
         idle(app, 0.05)
@@ -235,7 +248,7 @@ def session(ct: Path, plan: Path, canal_repeats: int) -> dict[str, Any]:
         fn()
         returned = time.perf_counter()
         idle(app, watch_s)
-        done = wait_settled(app, window)
+        done = wait_settled(app, window, until=until)
         ui_cpu, proc_cpu = time.thread_time() - cpu0, time.process_time() - proc0
         if cid is not None:
             shown_on.mpl_disconnect(cid)
@@ -281,7 +294,8 @@ def session(ct: Path, plan: Path, canal_repeats: int) -> dict[str, Any]:
     action("implant pick", lambda: picker.pick(names[-1] if names else None))
     rehearsal = window.rehearsal
     action("rehearsal start (1 s watched)", rehearsal.connect_button.click, watch_s=1.0)
-    action("rehearsal stop", rehearsal.stop_button.click)
+    # the stop: until the run's end is reported (the end message, the debrief shown)
+    action("rehearsal stop", rehearsal.stop_button.click, until=rehearsal.end_reported)
     window.close()
     return {
         "open_s": t_open - t0,

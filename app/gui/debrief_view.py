@@ -4,7 +4,10 @@ the trainee record (the SQLite file ``ctdrill assess`` reads and writes).
 
 It observes the document's debrief (:meth:`ctdrill.app.gui.document.Document.set_debrief`,
 set by the rehearsal panel when a session ends); the work is headless
-(:mod:`ctdrill.app.gui.debrief`, :mod:`ctdrill.app.trainee`).
+(:mod:`ctdrill.app.gui.debrief`, :mod:`ctdrill.app.trainee`). The replay's figure is built
+when the page is on screen: a session that ends while the page is hidden (the usual case:
+the rehearsal's tab is in front) costs the UI thread its words, not the figure's layout and
+Agg draw (~100 ms of matplotlib); the page draws it when it is shown.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import numpy as np
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 from PySide6.QtCore import Qt
+from PySide6.QtGui import QShowEvent
 from PySide6.QtWidgets import (
     QCheckBox,
     QFileDialog,
@@ -51,6 +55,8 @@ class DebriefView(QWidget):
         self.debrief: Debrief | None = None
         self.expert: dict[str, np.ndarray] | None = None
         self._cursors: list[Any] = []
+        #: The replay's figure waits for the page to be shown (:meth:`showEvent`).
+        self.replay_due = False
         outer = QHBoxLayout(self)
         left = QVBoxLayout()
         outer.addLayout(left, 2)
@@ -142,9 +148,25 @@ class DebriefView(QWidget):
         self._scrubbed(self.scrub.value())
 
     def _redraw(self) -> None:
+        if not self.isVisible():  # a hidden page: built and drawn when it is shown
+            self.replay_due = True
+            return
+        self.replay_due = False
         axes = draw_replay(self.figure, self.debrief, cursor_s=0.0, expert=self.expert)
         self._cursors = [] if axes is None else [ax.lines[-1] for ax in axes]
         self.canvas.draw_idle()
+
+    def showEvent(self, event: QShowEvent) -> None:
+        """The page comes on screen: the replay waiting for it is built in the next drawing
+        step (laid out at the page's size, the cursor where the scrub is)."""
+        super().showEvent(event)
+        if self.replay_due:
+            self.ctx.steps.push(self._build_due)
+
+    def _build_due(self) -> None:
+        if self.replay_due and self.isVisible():
+            self._redraw()
+            self._scrubbed(self.scrub.value())
 
     def cursor_s(self) -> float:
         """The replay's time, s."""
@@ -160,6 +182,8 @@ class DebriefView(QWidget):
             return
         t = self.cursor_s()
         self.cursor_label.setText(d.cursor_text(d.index_at(t)))
+        if self.replay_due:  # the replay is built when the page is shown, cursor there
+            return
         for line in self._cursors:
             line.set_xdata([t, t])
         self.canvas.draw_idle()

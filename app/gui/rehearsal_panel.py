@@ -360,6 +360,10 @@ class RehearsalPanel(QWidget):
         if ended and self._reported is not run:
             self._ended(run, tel)
 
+    def end_reported(self) -> bool:
+        """No run, or the last run's end was reported (its message and debrief shown)."""
+        return self.run is None or self._reported is self.run
+
     def _stop_why(self, run: RehearsalRun) -> str:
         """Where the device stops the drill, and why (exam mode: its stop beyond the plan)."""
         if run.exam is not None:
