@@ -442,6 +442,10 @@ def _drag_case(
     if settle:  # the 3D view's finer surfaces are contoured in the background: after them
         _wait(app, lambda: bool(np.isfinite(window.view3d.settled_s)), timeout_s=600.0)
     _wait(app, lambda: window.ui_steps.pending == 0)
+    from ctdrill import jit
+
+    # the kernels load once the window has drawn the case (gui/first_draw.py): the drag after
+    _wait(app, lambda: not jit.deferred())
     from ctdrill.app.gui.plots_view import PlotsView
     from ctdrill.app.gui.slice_view import SliceCanvas
 

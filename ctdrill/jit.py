@@ -17,8 +17,11 @@ restores between runs).
 numba itself is imported only when a kernel is first asked for (:meth:`Kernel.ready`): its
 import and its first cache load cost a fresh process 0.3-0.5 s of CPU, more than a one-plan
 export's whole work on the NumPy paths. Functions marked :func:`helper` stay plain Python
-until then and are compiled (and rebound in the modules of the kernels and helpers) when
-numba is loaded. Inside :func:`job` a job of fewer than :data:`COMPILED_MIN_TRAJECTORIES`
+until a kernel is compiled (:meth:`Kernel.compile`, the warm-up), which compiles them and
+rebinds them in the modules of the kernels and helpers; a kernel loaded from the cache needs
+them not (its machine code holds them), so a kernel run as its own Python
+(:attr:`Kernel.interpretable`) calls plain Python helpers also while another thread loads
+numba. Inside :func:`job` a job of fewer than :data:`COMPILED_MIN_TRAJECTORIES`
 trajectories (a one-plan export) does not load numba, unless it is loaded already: a
 trajectory's stop must not depend on the process computing it (a batch row in a worker, the
 same row in one process, the window), so every kernel such a job uses gives the compiled bits
@@ -26,18 +29,18 @@ without numba, on its NumPy path (the same operations in the same order; tests h
 for bit, Hypothesis on adversarial inputs) or, the clearance rows' kernel
 (:attr:`Kernel.interpretable`), as its own Python function.
 
-numba's first cache load imports ``numba.np.arraymath``, which imports
-``scipy.linalg.cython_blas`` to learn whether BLAS is there (``_HAVE_BLAS``); through the
-``scipy.linalg`` package that cost about 0.15 s of CPU (SciPy's array-API layer). The first
-load gets that extension module itself, loaded from its file without the package
-(:func:`_cython_blas_alone`): numba finds the same BLAS, and ``scipy.linalg``, imported later,
-gets the same module.
+numba's first cache load would import the ``scipy.linalg`` package for its BLAS check; it gets
+the one extension module it needs alone (:func:`ctdrill.blas_alone.cython_blas_alone`).
+
+A process that must show something first (the window) calls :func:`defer`: until
+:func:`release` has loaded every kernel in a background thread, no caller loads numba, and
+each kernel not loaded yet gives its bits as in a small :func:`job` (NumPy path, or its own
+Python); each kernel is used compiled as soon as it is loaded.
 """
 
 from __future__ import annotations
 
 import contextlib
-import importlib.machinery
 import importlib.util
 import itertools
 import os
@@ -48,6 +51,8 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
+
+from ctdrill.blas_alone import cython_blas_alone
 
 #: Environment variable that switches every kernel off (NumPy paths only).
 NO_JIT_ENV = "CTDRILL_NO_JIT"
@@ -60,8 +65,7 @@ _NUMBA_LOCK = threading.RLock()
 
 
 def _numba() -> Any:
-    """The numba module, imported on first use (None when it does not import); every
-    :func:`helper` marked so far is compiled and rebound where kernels and helpers see it."""
+    """The numba module, imported on first use (None when it does not import)."""
     with _NUMBA_LOCK:
         if _NUMBA[0] is None:
             try:  # numba is a dependency, but a missing or broken one only costs speed
@@ -70,13 +74,18 @@ def _numba() -> Any:
                 _NUMBA[0] = False
                 return None
             _NUMBA[0] = numba
-            _bind_helpers(numba)
         return _NUMBA[0] or None
+
+
+#: The :func:`helper` functions are compiled and rebound (:func:`_bind_helpers`).
+_BOUND: list[bool] = [False]
 
 
 def _bind_helpers(numba: Any) -> None:
     """Replace each plain :func:`helper` by its compiled dispatcher in the globals of every
-    module that defines a kernel or a helper (where numba resolves the names it calls)."""
+    module that defines a kernel or a helper (where numba resolves the names it calls when it
+    compiles a kernel; a kernel loaded from the cache does not look them up)."""
+    _BOUND[0] = True
     plain = {id(f): f for f in _HELPERS}
     compiled = {id(f): numba.njit(nogil=True, error_model="numpy")(f) for f in _HELPERS}
     spaces = {id(f.__globals__): f.__globals__ for f in _HELPERS}
@@ -105,7 +114,9 @@ _JOB: list[int | None] = [None]
 
 def worth_loading() -> bool:
     """The kernels are worth numba's import here: no small :func:`job` is in progress, or
-    numba is loaded in this process already."""
+    numba is loaded in this process already; never while loading is deferred (:func:`defer`)."""
+    if _DEFERRED[0]:
+        return False
     n = _JOB[0]
     return n is None or n >= COMPILED_MIN_TRAJECTORIES or sys.modules.get("numba") is not None
 
@@ -165,10 +176,11 @@ class Kernel:
             self._dispatcher = numba.njit(cache=True, nogil=True, error_model="numpy")(self.pyfunc)
         return self._dispatcher
 
-    def ready(self) -> bool:
+    def ready(self, *, force: bool = False) -> bool:
         """True when every signature is loaded from the disk cache (never compiles); False
-        without loading anything inside a small :func:`job`."""
-        if self._ready is None and not worth_loading():
+        without loading anything inside a small :func:`job` or while loading is deferred
+        (:func:`defer`), unless ``force``."""
+        if self._ready is None and not force and not worth_loading():
             return False
         if self._ready is None:
             with _NUMBA_LOCK:  # one load, also when a job and :func:`preload` ask at once
@@ -191,7 +203,7 @@ class Kernel:
 
     def _load(self) -> bool:
         disp = self._dispatch()
-        with _NUMBA_LOCK, _cython_blas_alone():
+        with _NUMBA_LOCK, cython_blas_alone():
             return self._load_overloads(disp)
 
     def _load_overloads(self, disp: Any) -> bool:
@@ -249,65 +261,24 @@ class Kernel:
     def compile(self) -> None:
         """Compile every signature and save it in the disk cache (the warm-up's work)."""
         disp = self._dispatch()
+        with _NUMBA_LOCK:
+            if not _BOUND[0]:
+                _bind_helpers(_numba())
         disp._can_compile = True
         for sig in self._arg_types():
             disp.compile(sig)
         self._ready = None
 
 
-_BLAS_MODULE = "scipy.linalg.cython_blas"
-
-
-@contextlib.contextmanager
-def _cython_blas_alone() -> Iterator[None]:
-    """Within the block, ``scipy.linalg.cython_blas`` is imported (when ``scipy.linalg`` is
-    not yet) by loading its extension file alone, without running the ``scipy.linalg``
-    package; afterwards the name is dropped from ``sys.modules`` again, so a later
-    ``import scipy.linalg.cython_blas`` goes through the package (CPython hands it the same
-    module: an extension is initialised once per process)."""
-    if _BLAS_MODULE in sys.modules or "scipy.linalg" in sys.modules:
-        yield
-        return
-    loaded = False
-    try:
-        spec = importlib.util.find_spec("scipy")
-        folders = list(spec.submodule_search_locations or ()) if spec else []
-        for folder in folders:
-            for suffix in importlib.machinery.EXTENSION_SUFFIXES:
-                path = os.path.join(folder, "linalg", "cython_blas" + suffix)
-                if os.path.isfile(path):
-                    loader = importlib.machinery.ExtensionFileLoader(_BLAS_MODULE, path)
-                    bspec = importlib.util.spec_from_file_location(
-                        _BLAS_MODULE, path, loader=loader
-                    )
-                    assert bspec is not None
-                    module = importlib.util.module_from_spec(bspec)
-                    sys.modules[_BLAS_MODULE] = module
-                    loaded = True
-                    loader.exec_module(module)
-                    break
-            if loaded:
-                break
-    except Exception:  # pragma: no cover - numba then imports it through the package
-        if loaded:
-            sys.modules.pop(_BLAS_MODULE, None)
-        loaded = False
-    try:
-        yield
-    finally:
-        if loaded and "scipy.linalg" not in sys.modules:
-            sys.modules.pop(_BLAS_MODULE, None)
-
-
 def helper(pyfunc: Callable[..., Any]) -> Any:
     """A function the kernels call (compiled into them; plain Python until numba is loaded,
-    then compiled and rebound by :func:`_numba`)."""
+    then compiled and rebound by :func:`_bind_helpers` when a kernel is compiled)."""
     with _NUMBA_LOCK:
         numba = _NUMBA[0]
-        if numba is None:
+        if not _BOUND[0]:
             _HELPERS.append(pyfunc)
             return pyfunc
-    if numba is False:
+    if not numba:
         return pyfunc
     return numba.njit(nogil=True, error_model="numpy")(pyfunc)
 
@@ -333,21 +304,53 @@ def kernels() -> tuple[Kernel, ...]:
 
 def preload() -> None:
     """Load every kernel defined so far in a background thread (once per process), so the
-    first job that needs them (the window's first path) finds them loaded instead of paying
-    numba's first cache load (0.3-0.5 s of CPU) on its own time."""
+    first job that needs them does not pay numba's first cache load (0.3-0.5 s of CPU); while
+    loading is deferred (:func:`defer`), nothing until :func:`release`."""
+    if not _DEFERRED[0]:
+        release()
+
+
+def release() -> threading.Thread | None:
+    """Load every kernel defined so far in a background thread, deferred or not (the deferral
+    ends once they are loaded). Returns the thread (None: loading had begun already)."""
     with _NUMBA_LOCK:
         if _PRELOADING:
-            return
+            return None
         _PRELOADING.append(True)
 
     def load() -> None:
-        for k in kernels():
-            k.ready()
+        try:
+            for k in kernels():
+                k.ready(force=True)
+        finally:
+            _DEFERRED[0] = False  # kernels defined later load on first use, as before
 
-    threading.Thread(target=load, name="ctdrill-jit-preload", daemon=True).start()
+    thread = threading.Thread(target=load, name="ctdrill-jit-preload", daemon=True)
+    thread.start()
+    return thread
+
+
+def defer() -> None:
+    """Defer numba's import and the kernels' load to :func:`release` (a window draws first):
+    meanwhile no caller loads numba, and a kernel not loaded gives its bits without it, as in
+    a small :func:`job`. Nothing to defer once loading has begun."""
+    with _NUMBA_LOCK:
+        if not _PRELOADING and _NUMBA[0] is None:
+            _DEFERRED[0] = True
+
+
+def deferred() -> bool:
+    """Loading is deferred (:func:`defer`) and not finished yet."""
+    return _DEFERRED[0]
+
+
+def stop_deferring() -> None:
+    """End a deferral without loading anything (kernels load on first use again)."""
+    _DEFERRED[0] = False
 
 
 _PRELOADING: list[bool] = []
+_DEFERRED: list[bool] = [False]  # :func:`defer` until :func:`release` has loaded them
 
 
 def warm_up(kernels_: Sequence[Kernel] | None = None) -> list[str]:

@@ -33,6 +33,7 @@ from ctdrill.app.gui import compute
 from ctdrill.app.gui.blind import apply_aids, refuse_trial_ct
 from ctdrill.app.gui.controller import Controller
 from ctdrill.app.gui.document import Document, ViewContext
+from ctdrill.app.gui.first_draw import FirstDraw
 from ctdrill.app.gui.menus import build_menus, fill_recent
 from ctdrill.app.gui.plan_panel import PlanPanel
 from ctdrill.app.gui.plots_view import PlotsView
@@ -120,6 +121,8 @@ class MainWindow(QMainWindow):
         self.controller.loaded.connect(self._loaded)
         self.controller.failed.connect(self._stage_failed)
         self.recent_menu = build_menus(self)
+        #: numba and the kernels load once the first series is drawn (gui/first_draw.py).
+        self.first_draw = FirstDraw(self)
         self._status("Open a DICOM folder (File > Open, or drop it here).")
 
     def _lay_out(self) -> None:
@@ -410,6 +413,7 @@ class MainWindow(QMainWindow):
 
     def closeEvent(self, event: QCloseEvent) -> None:
         self.rehearsal.shutdown()
+        self.first_draw.close()
         self.controller.cancel()
         self.slice_grid.runner.cancel()
         QThreadPool.globalInstance().waitForDone(CLOSE_WAIT_MS)

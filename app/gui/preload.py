@@ -2,10 +2,12 @@
 
 Once PySide6 is imported, its feature hook (``shibokensupport.feature``) reads the source of
 every module imported after it, to see whether the module uses PySide6: about 1200 modules
-for the window, 0.2-0.3 s of CPU at start-up. The modules imported here (NumPy, SciPy's
-``ndimage``, matplotlib's figure, pyvista, pydicom, numba and ctdrill's own Qt-free modules of
-the window) are imported before it, so the hook never reads them. This module imports no Qt
-(a test checks).
+for the window, 0.2-0.3 s of CPU at start-up. The modules imported here (NumPy, matplotlib's
+figure, pyvista, pydicom and ctdrill's own Qt-free modules of the window) are imported before
+it, so the hook never reads them. This module imports no Qt (a test checks). Not numba: the
+window loads it after its first series is drawn (:mod:`ctdrill.app.gui.first_draw`); nor
+SciPy's ``ndimage``, which the window does not use (the samplers give ``map_coordinates``'
+bits without it).
 """
 
 from __future__ import annotations
@@ -15,8 +17,6 @@ import importlib
 #: The Qt-free modules the window imports, roots first (each pulls its own imports in).
 QT_FREE = (
     "numpy",
-    "scipy.ndimage",
-    "numba",
     "matplotlib.figure",
     "matplotlib.backends.backend_agg",
     "pyvista",

@@ -1,0 +1,80 @@
+"""The window draws its first series before numba is imported (app/gui/first_draw.py), then
+loads the kernels in the background; the path it drew is the one the loaded kernels give."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[3]
+
+CODE = """
+import json, sys
+from ctdrill.app.gui.preload import before_qt
+
+before_qt()
+from PySide6.QtCore import QSettings, QTimer
+
+from ctdrill import jit
+from ctdrill.app.gui import app as gui_app
+from ctdrill.app.gui.results import compute_path_view
+from ctdrill.imaging.plan.load import load_plan_set
+from tests.test_jit_defer import fingerprint
+
+settings = QSettings(sys.argv[1], QSettings.Format.IniFormat)
+app = gui_app.application()
+window = gui_app.make_window(settings)
+window.unattended, window.ask_series = True, False
+window.use_plans(load_plan_set(["assets/demo/plan.json"]), "plan")
+window.open_folder("assets/demo/ct")
+state = {}
+
+
+def drawn():
+    doc = window.doc
+    state["at drawn"] = {
+        "numba": "numba" in sys.modules,
+        "steps": window.ui_steps.pending,
+        "path": doc.path is not None and doc.path.plan is doc.plan,
+        "slices": len(window.slices),
+    }
+    state["first"] = fingerprint(doc.path)
+    loaded()
+
+
+def loaded():
+    if jit.deferred():
+        QTimer.singleShot(20, loaded)
+        return
+    doc = window.doc
+    state["ready"] = all(k.ready() for k in jit.kernels())
+    view = compute_path_view(doc.volume, doc.plan, doc.hu_uncertainty, plan_set=doc.plans)
+    state["same"] = fingerprint(view) == state.pop("first")
+    app.quit()
+
+
+window.first_draw.drawn.connect(drawn)
+QTimer.singleShot(120_000, app.quit)
+app.exec()
+window.close()
+print(json.dumps(state))
+"""
+
+
+def test_the_first_series_is_drawn_before_numba_loads_with_the_kernels_bits(
+    tmp_path: Path,
+) -> None:
+    out = subprocess.run(
+        [sys.executable, "-c", CODE, str(tmp_path / "settings.ini")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
+    state = json.loads(out.stdout.strip().splitlines()[-1])
+    assert state["at drawn"] == {"numba": False, "steps": 0, "path": True, "slices": 4}
+    assert state["ready"], "the warm-up's cache is missing: run make warmup"
+    assert state["same"]
