@@ -3,11 +3,12 @@
 Once PySide6 is imported, its feature hook (``shibokensupport.feature``) reads the source of
 every module imported after it, to see whether the module uses PySide6: about 1200 modules
 for the window, 0.2-0.3 s of CPU at start-up. The modules imported here (NumPy, matplotlib's
-figure, pyvista, pydicom and ctdrill's own Qt-free modules of the window) are imported before
+figure, pyvista and ctdrill's own Qt-free modules of the window) are imported before
 it, so the hook never reads them. This module imports no Qt (a test checks). Not numba: the
 window loads it after its first series is drawn (:mod:`ctdrill.app.gui.first_draw`); nor
 SciPy's ``ndimage``, which the window does not use (the samplers give ``map_coordinates``'
-bits without it).
+bits without it); nor pydicom, which an uncompressed series does not need (the fast header
+and pixel readers).
 """
 
 from __future__ import annotations
@@ -20,7 +21,6 @@ QT_FREE = (
     "matplotlib.figure",
     "matplotlib.backends.backend_agg",
     "pyvista",
-    "pydicom",
     "ctdrill.app.gui.compute",
     "ctdrill.app.gui.results",
     "ctdrill.app.gui.state.window",

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-_EXPLICIT_LE = "1.2.840.10008.1.2.1"
-_IMPLICIT_LE = "1.2.840.10008.1.2"
+from ctdrill.imaging.dicom.slice_header import IMPLICIT_VR_LITTLE_ENDIAN, NATIVE_SYNTAXES
+
 _LONG_VRS = frozenset(
     {b"OB", b"OW", b"OF", b"OD", b"OL", b"OV", b"UN", b"SQ", b"UC", b"UR", b"UT", b"SV", b"UV"}
 )
@@ -233,9 +233,9 @@ def _parse(buf: bytes, size: int) -> FastHeader | None:
         if tag == 0x00020010:
             ts = buf[start : start + length].decode("ascii").strip(" \x00")
         pos = start + length
-    if ts not in (_EXPLICIT_LE, _IMPLICIT_LE):
+    if ts not in NATIVE_SYNTAXES:
         return None
-    implicit = ts == _IMPLICIT_LE
+    implicit = ts == IMPLICIT_VR_LITTLE_ENDIAN
     raw: dict[int, tuple[str, bytes]] = {}
     offset: int | None = None
     pixel_length: int | None = None

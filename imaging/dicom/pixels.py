@@ -14,23 +14,30 @@ import struct
 import warnings
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from pydicom import dcmread
-from pydicom.dataset import Dataset, FileMetaDataset
-from pydicom.pixels import get_decoder
-from pydicom.uid import UID, ExplicitVRLittleEndian, ImplicitVRLittleEndian, RLELossless
 
 from ctdrill.imaging.dicom.discovery import SliceHeader
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.safeio import open_regular
 
-_NATIVE = (ExplicitVRLittleEndian, ImplicitVRLittleEndian)
+if TYPE_CHECKING:  # pydicom is imported only for compressed planes (0.2 s of a start-up)
+    from pydicom.dataset import Dataset
+
 _ITEM = 0xFFFEE000
 
 
 class PixelInputError(ImagingInputError):
     """Pixel data that cannot be read or decoded."""
+
+
+def get_decoder(uid: str) -> Any:
+    """pydicom's pixel decoder for the transfer syntax ``uid`` (pydicom is imported here, for
+    the first compressed plane)."""
+    from pydicom.pixels import get_decoder as pydicom_decoder
+
+    return pydicom_decoder(uid)
 
 
 def decoder_plugin_for(transfer_syntax: str) -> str:
@@ -40,6 +47,8 @@ def decoder_plugin_for(transfer_syntax: str) -> str:
     (pylibjpeg-libjpeg, pylibjpeg-openjpeg, pylibjpeg-rle); RLE falls back to pydicom's own
     decoder when pylibjpeg is missing.
     """
+    from pydicom.uid import UID
+
     uid = UID(transfer_syntax)
     try:
         compressed = uid.is_compressed
@@ -100,6 +109,10 @@ def fix_high_bits(arr: np.ndarray, h: SliceHeader) -> None:
 
 @lru_cache(maxsize=2)
 def _dataset(path: Path, transfer_syntax: str) -> Dataset:
+    from pydicom import dcmread
+    from pydicom.dataset import FileMetaDataset
+    from pydicom.uid import UID
+
     ds = dcmread(path, force=True)
     if getattr(ds, "file_meta", None) is None or "TransferSyntaxUID" not in ds.file_meta:
         meta = FileMetaDataset()
@@ -208,6 +221,8 @@ def read_stored(h: SliceHeader, out: np.ndarray | None = None) -> np.ndarray:
             plugin = decoder_plugin_for(h.transfer_syntax)
         except PixelInputError as exc:
             raise PixelInputError(f"{h.path}: {exc}") from exc
+        from pydicom.uid import UID, RLELossless
+
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

@@ -9,20 +9,19 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
-
-from pydicom.dataset import Dataset
-from pydicom.uid import ExplicitVRLittleEndian, ImplicitVRLittleEndian
+from typing import TYPE_CHECKING, Any
 
 from ctdrill.imaging.dicom.slice_header import (
     CT_SOP_CLASSES,
     LOSSY_SYNTAXES,
     MULTIFRAME_CT_SOP_CLASSES,
+    NATIVE_SYNTAXES,
     Skipped,
     SliceHeader,
 )
 
-_FAST_SYNTAXES = (ExplicitVRLittleEndian, ImplicitVRLittleEndian)
+if TYPE_CHECKING:  # pydicom is imported only where a file needs it (0.2 s of a start-up)
+    from pydicom.dataset import Dataset
 
 
 def _num(ds: Any, keyword: str, *, finite_only: bool = True) -> float | None:
@@ -114,7 +113,7 @@ def classify(
     n_frames = _int(ds, "NumberOfFrames", 1) or 1
     if n_frames < 1 or n_frames > max(1, size // 8):
         return Skipped(path, f"NumberOfFrames {n_frames} cannot fit in a {size}-byte file")
-    if ts not in _FAST_SYNTAXES:
+    if ts not in NATIVE_SYNTAXES:
         offset = length = None
     return _planes(path, ds, sop, ts, offset, length, size)
 

@@ -17,6 +17,12 @@ LEGACY_ENHANCED_CT_STORAGE = "1.2.840.10008.5.1.4.1.1.2.2"
 CT_SOP_CLASSES = (CT_IMAGE_STORAGE, ENHANCED_CT_STORAGE, LEGACY_ENHANCED_CT_STORAGE)
 MULTIFRAME_CT_SOP_CLASSES = (ENHANCED_CT_STORAGE, LEGACY_ENHANCED_CT_STORAGE)
 
+#: The uncompressed little-endian transfer syntaxes (the fast header reader's and the pixel
+#: reader's own: pydicom is imported only for the others).
+EXPLICIT_VR_LITTLE_ENDIAN = "1.2.840.10008.1.2.1"
+IMPLICIT_VR_LITTLE_ENDIAN = "1.2.840.10008.1.2"
+NATIVE_SYNTAXES = (EXPLICIT_VR_LITTLE_ENDIAN, IMPLICIT_VR_LITTLE_ENDIAN)
+
 #: Transfer syntaxes whose compression loses information.
 LOSSY_SYNTAXES = frozenset(
     {

@@ -1,5 +1,6 @@
 """The window draws its first series before numba is imported (app/gui/first_draw.py), then
-loads the kernels in the background; the path it drew is the one the loaded kernels give."""
+loads the kernels in the background; the path it drew is the one the loaded kernels give.
+pydicom is not imported either: the demo's uncompressed series needs only the fast readers."""
 
 from __future__ import annotations
 
@@ -36,6 +37,7 @@ def drawn():
     doc = window.doc
     state["at drawn"] = {
         "numba": "numba" in sys.modules,
+        "pydicom": "pydicom" in sys.modules,  # an uncompressed series: the fast readers
         "steps": window.ui_steps.pending,
         "path": doc.path is not None and doc.path.plan is doc.plan,
         "slices": len(window.slices),
@@ -75,6 +77,12 @@ def test_the_first_series_is_drawn_before_numba_loads_with_the_kernels_bits(
         check=True,
     )
     state = json.loads(out.stdout.strip().splitlines()[-1])
-    assert state["at drawn"] == {"numba": False, "steps": 0, "path": True, "slices": 4}
+    assert state["at drawn"] == {
+        "numba": False,
+        "pydicom": False,
+        "steps": 0,
+        "path": True,
+        "slices": 4,
+    }
     assert state["ready"], "the warm-up's cache is missing: run make warmup"
     assert state["same"]
