@@ -9,6 +9,7 @@ from pathlib import Path
 from PySide6.QtCore import QSettings, QTimer
 from PySide6.QtWidgets import QApplication
 
+from ctdrill.app.gui import feature_hook  # noqa: F401  (first: PySide6's hook made cheap)
 from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.screenshot import qimage_to_rgb, region_stats, widget_rect
 from ctdrill.imaging.plan.implants import ImplantSpec
