@@ -7,9 +7,9 @@ written with ``ctdrill.imaging.phantom.writer.write_series``. "Open to first fra
 window's own path: in a worker thread list the series, load it, contour the bone surface; on the UI
 thread then reslice the four views, plan the path (worker), build the scene and render. The peers
 are the same steps called headless one by one in the same run, so the breakdown shows where the
-time goes. The frame time is ``plotter.render()`` of the window's 3D view at its on-screen size,
-without and with 4x MSAA (the peer), on the software OpenGL of Xvfb (Mesa llvmpipe) when run
-by ``make bench``.
+time goes. The frame time is one render of the window's 3D view (on its render thread) at its
+on-screen size, without and with 4x MSAA (the peer), on the software OpenGL of Xvfb (Mesa
+llvmpipe) when run by ``make bench``.
 """
 
 from __future__ import annotations
@@ -178,12 +178,16 @@ def _measure(
             "four slices": _timed(lambda: compute.slice_views(volume, plan), repeats),
             "plan path": _timed(lambda: compute_path_view(volume, plan), repeats),
         }
-        plotter = window.view3d.plotter
-        frame = _timed(plotter.render, frame_repeats, warmup=2)
-        plotter.ren_win.SetMultiSamples(4)
-        frame_msaa = _timed(plotter.render, frame_repeats, warmup=2)
-        plotter.ren_win.SetMultiSamples(0)
-        size = tuple(plotter.window_size)
+        rt = window.view3d.rt  # each frame drawn on the view's render thread, waited for
+
+        def render() -> None:
+            rt.call(rt.render_once)
+
+        frame = _timed(render, frame_repeats, warmup=2)
+        rt.call(lambda stage: stage.window.SetMultiSamples(4))
+        frame_msaa = _timed(render, frame_repeats, warmup=2)
+        rt.call(lambda stage: stage.window.SetMultiSamples(0))
+        size = rt.call(lambda stage: tuple(stage.window.GetSize()))
         n_tri = 0 if window.view3d.surface is None else int(window.view3d.surface.n_cells)
     finally:
         window.close()

@@ -21,6 +21,7 @@ import functools
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy import ndimage
@@ -179,16 +180,23 @@ def _plain_contour_on_ui_thread(window: object) -> tuple[float, int]:
     assert isinstance(window, MainWindow)
     volume = window.doc.volume
     assert volume is not None
-    plotter = window.view3d.plotter
+    rt = window.view3d.rt  # the view's render thread: the UI thread waits for the frame
     t0 = time.perf_counter()
     nk, nj, ni = volume.hu.shape
     grid = pv.ImageData(dimensions=(ni, nj, nk))
     grid.point_data["hu"] = np.asarray(volume.hu, dtype=np.float32).ravel()
     surf = grid.contour([BONE_SURFACE_HU], scalars="hu", method="flying_edges")
-    actor = plotter.add_mesh(surf, color="white", smooth_shading=True, opacity=0.45, render=False)
-    plotter.render()
+
+    def draw(stage: Any) -> Any:
+        actor = stage.add_mesh(
+            surf, name="plain", color=(1.0, 1.0, 1.0), smooth_shading=True, opacity=0.45
+        )
+        rt.render_once(stage)
+        return actor
+
+    actor = rt.call(draw)
     dt = time.perf_counter() - t0
-    plotter.remove_actor(actor, render=True)
+    rt.call(lambda stage: (stage.remove_actor(actor), rt.render_once(stage)))
     return dt, int(surf.n_cells)
 
 
@@ -242,15 +250,15 @@ def _measure(ct_dir: Path, plan_path: Path, repeats: int, scratch: Path) -> dict
                     steps[name].append(_longest_steps())
                 finally:
                     compute.load_case = full_load
-            plotter = window.view3d.plotter
+            rt = window.view3d.rt  # frames drawn on the view's render thread, waited for
             frames = []
             for _ in range(5):
                 t0 = time.perf_counter()
-                plotter.render()
+                rt.call(rt.render_once)
                 frames.append(time.perf_counter() - t0)
             plain.append(_plain_contour_on_ui_thread(window))
         error = _error_mm(window)
-        size = tuple(plotter.window_size)
+        size = rt.call(lambda stage: tuple(stage.window.GetSize()))
     finally:
         compute.load_case = full_load
         window.close()

@@ -150,13 +150,15 @@ def _step_name(fn: Any) -> str:
 
 
 def settled(window: Any) -> bool:
-    """No drawing step waits and no worker runs."""
+    """No drawing step waits, no worker runs and the 3D view's latest frame is on the screen
+    (nothing sent to its render thread is still to draw)."""
     from PySide6.QtCore import QThreadPool
 
     c = window.controller
     runners = (c.load_runner, c.path_runner, c.surface_runner, c.readout_runner, c.live_runner)
     return (
         window.ui_steps.pending == 0
+        and not window.view3d.busy
         and not any(r.busy for r in runners)
         and not window.slice_grid.runner.busy
         and not c.debounce.pending

@@ -105,7 +105,9 @@ def open_window(
     view3d = window.view3d
     deadline = QDeadlineTimer(OPEN_TIMEOUT_MS)
     # every view drawn (the 3D view's bone surface is contoured after the slices and the
-    # path): the window is ready to be driven
-    while (window.ui_steps.pending or not view3d.surface_is_shown()) and not deadline.hasExpired():
+    # path; its frames come from its render thread): the window is ready to be driven
+    while (
+        window.ui_steps.pending or view3d.busy or not view3d.surface_is_shown()
+    ) and not deadline.hasExpired():
         loop.processEvents(QEventLoop.ProcessEventsFlag.WaitForMoreEvents, 50)
     return window

@@ -205,16 +205,17 @@ def scene_bounds(
     return (lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])
 
 
-def apply_camera(plotter: Any, pose: CameraPose) -> None:
-    """Put ``plotter``'s camera at ``pose`` (its view angle left at VTK's 30 degrees)."""
-    # Through the renderer: ``plotter.camera`` on a camera not yet set first resets it to
-    # pyvista's default and draws a whole frame (a second frame of the bone surface in the
-    # same UI step).
-    renderer = plotter.renderer
-    renderer.camera.view_angle = VIEW_ANGLE_DEG
-    renderer.camera_position = pose.as_pyvista()
-    renderer.camera.is_set = True
-    renderer.reset_camera_clipping_range()
+def apply_camera(stage: Any, pose: CameraPose) -> None:
+    """Put the camera of ``stage`` (a :class:`~ctdrill.app.gui.stage.Stage`) at ``pose``
+    (its view angle at VTK's 30 degrees), drawing no frame."""
+    renderer = stage.renderer
+    camera = renderer.GetActiveCamera()
+    camera.SetViewAngle(VIEW_ANGLE_DEG)
+    camera.SetPosition(*_tuple3(pose.position_lps))
+    camera.SetFocalPoint(*_tuple3(pose.focal_lps))
+    camera.SetViewUp(*_tuple3(pose.up))
+    camera.OrthogonalizeViewUp()
+    renderer.ResetCameraClippingRange()
 
 
 def orientation_cube() -> Any:
@@ -232,8 +233,9 @@ def orientation_cube() -> Any:
     return cube
 
 
-def add_orientation_marker(plotter: Any, *, size: float = 0.2) -> Any:
-    """Show :func:`orientation_cube` in the lower-left ``size`` fraction of the view."""
-    return plotter.add_orientation_widget(
-        orientation_cube(), interactive=False, viewport=(0.0, 0.0, size, size)
-    )
+def add_orientation_marker(stage: Any) -> Any:
+    """Show :func:`orientation_cube` in the lower-left corner of ``stage``'s view, turned with
+    the scene (a :class:`~ctdrill.app.gui.stage.Stage`)."""
+    cube = orientation_cube()
+    stage.set_marker(cube)
+    return cube

@@ -1,6 +1,6 @@
 """The 3D scene rendered off screen into an array (``ctdrill report``): the same scene and the same
-starting camera as the window's 3D view, with ``pyvista.Plotter(off_screen=True)``, which needs
-no display (it falls back from X to EGL; see DESIGN §6)."""
+starting camera as the window's 3D view, on a :class:`ctdrill.app.gui.stage.Stage` (an EGL render
+window: no display needed; see DESIGN §6)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,12 @@ from vtkmodules.vtkCommonCore import vtkLogger
 
 from ctdrill.app.gui.camera import apply_camera
 from ctdrill.app.gui.scene import SceneInput, build_scene, scene_camera
+from ctdrill.app.gui.stage import Stage
+
+#: MSAA samples of the report's image (pyvista's default, which the report was drawn with:
+#: smooth edges, and the translucent bone blended in drawing order rather than VTK's
+#: order-independent blending, which multisampling turns off).
+REPORT_MULTI_SAMPLES = 8
 
 
 def render_offscreen(
@@ -35,17 +41,17 @@ def render_offscreen(
     width, height = (int(size_px[0]), int(size_px[1]))
     if width < 16 or height < 16:
         raise ValueError(f"size_px: expected at least 16 x 16 pixels, got {size_px}")
-    # Without a display VTK tries X first and says so on stderr before falling back to EGL.
+    # Where EGL cannot be had VTK's default window may try X first and say so on stderr.
     cutoff = vtkLogger.GetCurrentVerbosityCutoff()
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
-    plotter = pv.Plotter(off_screen=True, window_size=[width, height])
+    stage = Stage((width, height), multi_samples=REPORT_MULTI_SAMPLES)
     try:
-        build_scene(plotter, scene_input, surface=surface, bone_opacity=bone_opacity)
+        build_scene(stage, scene_input, surface=surface, bone_opacity=bone_opacity)
         pose = scene_camera(scene_input, surface)
         if pose is not None:
-            apply_camera(plotter, pose)
-        img = plotter.screenshot(return_img=True)
+            apply_camera(stage, pose)
+        img = stage.screenshot()
     finally:
-        plotter.close()
+        stage.close()
         vtkLogger.SetStderrVerbosity(vtkLogger.ConvertToVerbosity(cutoff))
-    return np.ascontiguousarray(np.asarray(img)[..., :3], dtype=np.uint8)
+    return np.ascontiguousarray(img, dtype=np.uint8)

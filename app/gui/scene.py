@@ -1,6 +1,6 @@
-"""The 3D scene, built on any pyvista plotter (on screen: ``QtInteractor``; off screen:
-``pyvista.Plotter(off_screen=True)``), so the window, the screenshot, the report and the tests
-draw the same.
+"""The 3D scene, built on a :class:`ctdrill.app.gui.stage.Stage` (the window's on its render
+thread, the report's and the tests' on theirs), so the window, the screenshot, the report and
+the tests draw the same.
 
 Geometry is in the world frame (LPS, mm). The bone surface (:func:`bone_surface`, defined in
 :mod:`ctdrill.app.gui.surface`) is drawn as one actor or several pieces (``bone:<n>``) that keep
@@ -148,9 +148,7 @@ def clearance_state(clearance_mm: float | None, margin_mm: float, violated: bool
     return "violated"
 
 
-def add_bone(
-    plotter: Any, surface: pv.PolyData, *, name: str = "bone", opacity: float = 0.45
-) -> Any:
+def add_bone(stage: Any, surface: pv.PolyData, *, name: str = "bone", opacity: float = 0.45) -> Any:
     """Add ``surface`` (with its own ``Normals``: none are recomputed) as a bone actor without
     rendering; the GPU upload happens at the next render."""
     from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper
@@ -168,24 +166,25 @@ def add_bone(
     prop.SetAmbient(0.15)
     prop.SetDiffuse(0.75)
     prop.SetSpecular(0.15)
-    plotter.add_actor(actor, name=name, render=False, reset_camera=False)
+    stage.add_actor(actor, name=name)
     return actor
 
 
 def build_scene(
-    plotter: Any,
+    stage: Any,
     scene: SceneInput,
     *,
     surface: pv.PolyData | None = None,
     bone_opacity: float = 0.45,
     show_axes: bool = True,
 ) -> dict[str, Any]:
-    """Clear ``plotter`` and draw the bone surface, the orientation marker and
-    :func:`plan_actors` of ``scene``.
+    """Clear ``stage`` and draw the bone surface, the orientation marker and
+    :func:`plan_actors` of ``scene``, unlit (each colour flat, exactly as chosen: the report's
+    images, whose colours are read as the clearance states).
 
     Parameters
     ----------
-    plotter : a ``pyvista.Plotter`` or ``pyvistaqt.QtInteractor``; cleared first.
+    stage : a :class:`~ctdrill.app.gui.stage.Stage`; cleared first.
     scene : plan geometry and results.
     surface : the bone surface (``bone_surface``), computed once per volume and preset.
     bone_opacity : 0..1; translucent by default so the canal and the drill inside show.
@@ -194,14 +193,15 @@ def build_scene(
     -------
     Actors by name: ``bone`` and those of :func:`plan_actors`.
     """
-    plotter.clear()
-    plotter.set_background(color=BACKGROUND[0], top=BACKGROUND[1])
+    stage.clear()
+    stage.unlit()
+    stage.set_background(color=BACKGROUND[0], top=BACKGROUND[1])
     actors: dict[str, Any] = {}
     if surface is not None and surface.n_points > 0:
-        actors["bone"] = add_bone(plotter, surface, opacity=bone_opacity)
-    actors.update(plan_actors(plotter, scene))
+        actors["bone"] = add_bone(stage, surface, opacity=bone_opacity)
+    actors.update(plan_actors(stage, scene))
     if show_axes:
-        add_orientation_marker(plotter)
+        add_orientation_marker(stage)
     return actors
 
 
@@ -210,7 +210,7 @@ Kept = dict[str, tuple[tuple[Any, ...], Any]]
 
 
 def _mesh_actor(
-    plotter: Any,
+    stage: Any,
     kept: Kept | None,
     out: dict[str, Any],
     name: str,
@@ -228,12 +228,12 @@ def _mesh_actor(
     if old is not None and old[0] == key:
         out[name] = old[1]
         return
-    out[name] = plotter.add_mesh(render=False, mesh=mesh(), name=name, **style)
+    out[name] = stage.add_mesh(mesh(), name=name, **style)
     if kept is not None:
         kept[name] = (key, out[name])
 
 
-def plan_actors(plotter: Any, scene: SceneInput, kept: Kept | None = None) -> dict[str, Any]:
+def plan_actors(stage: Any, scene: SceneInput, kept: Kept | None = None) -> dict[str, Any]:
     """Add the plan's actors of ``scene`` (no render, nothing removed).
 
     ``kept``: the actors of the scene shown, with what each draws; one whose mesh and style
@@ -249,7 +249,7 @@ def plan_actors(plotter: Any, scene: SceneInput, kept: Kept | None = None) -> di
     """
     actors: dict[str, Any] = {}
     if scene.entry_lps is not None and scene.target_lps is not None:
-        _trajectory_actors(plotter, scene, scene.entry_lps, scene.target_lps, kept, actors)
+        _trajectory_actors(stage, scene, scene.entry_lps, scene.target_lps, kept, actors)
     for lm in scene.landmarks:
         if len(lm.points_lps) == 0:
             continue
@@ -264,15 +264,15 @@ def plan_actors(plotter: Any, scene: SceneInput, kept: Kept | None = None) -> di
 
         body, env = partial(mesh, 0), partial(mesh, 1)
         _mesh_actor(
-            plotter, kept, actors, f"landmark:{lm.name}", shape, body, color=LANDMARK_BODY_RGB
+            stage, kept, actors, f"landmark:{lm.name}", shape, body, color=LANDMARK_BODY_RGB
         )
         if not lm.cloud:  # a surface cloud has no envelope
             margin = f"margin:{lm.name}"
-            _mesh_actor(plotter, kept, actors, margin, shape, env, color=colour, opacity=0.3)
+            _mesh_actor(stage, kept, actors, margin, shape, env, color=colour, opacity=0.3)
     for i, imp in enumerate(scene.implants):
         body_of = (imp.platform_lps, imp.axis_lps, imp.s_mm, imp.r_mm)
         _mesh_actor(
-            plotter,
+            stage,
             kept,
             actors,
             f"implant:{i}",
@@ -284,7 +284,7 @@ def plan_actors(plotter: Any, scene: SceneInput, kept: Kept | None = None) -> di
         )
     for i, other in enumerate(scene.others):
         _mesh_actor(
-            plotter,
+            stage,
             kept,
             actors,
             f"other:{i}",
@@ -295,14 +295,14 @@ def plan_actors(plotter: Any, scene: SceneInput, kept: Kept | None = None) -> di
             color=OTHER_TRAJECTORY_COLOUR,
             opacity=0.7,
         )
-    actors.update(_candidate_actors(plotter, scene.candidates))
+    actors.update(_candidate_actors(stage, scene.candidates))
     if kept is not None:  # what is not drawn now is not kept
         for name in [n for n in kept if n not in actors]:
             del kept[name]
     return actors
 
 
-def _candidate_actors(plotter: Any, lines: Sequence[CandidateLine]) -> dict[str, Any]:
+def _candidate_actors(stage: Any, lines: Sequence[CandidateLine]) -> dict[str, Any]:
     """Suggested axes: a thin tube each (the adopted one thinner: the drill shows it) and
     their ranks at the targets."""
     actors: dict[str, Any] = {}
@@ -310,24 +310,20 @@ def _candidate_actors(plotter: Any, lines: Sequence[CandidateLine]) -> dict[str,
         colour = CANDIDATE_COLOURS[min(line.slot, len(CANDIDATE_COLOURS) - 1)]
         tube = pv.Line(line.entry_lps, line.target_lps).tube(radius=0.08 if line.adopted else 0.18)
         name = f"candidate:{line.rank}"
-        actors[name] = plotter.add_mesh(render=False, mesh=tube, color=colour, name=name)
+        actors[name] = stage.add_mesh(tube, color=colour, name=name)
     if lines:
-        actors["candidate-labels"] = plotter.add_point_labels(
+        actors["candidate-labels"] = stage.add_point_labels(
             np.array([line.target_lps for line in lines]),
             [str(line.rank) for line in lines],
             font_size=14,
-            text_color="white",
-            shape_opacity=0.0,
-            show_points=False,
-            always_visible=True,
-            render=False,
+            text_color=(1.0, 1.0, 1.0),
             name="candidate-labels",
         )
     return actors
 
 
 def _trajectory_actors(
-    plotter: Any,
+    stage: Any,
     scene: SceneInput,
     entry_lps: np.ndarray,
     target_lps: np.ndarray,
@@ -341,12 +337,12 @@ def _trajectory_actors(
     actors = {} if actors is None else actors
     axis = unit(target - entry)
     line = lambda: pv.Line(entry - axis * 10.0, target).tube(radius=0.15)  # noqa: E731
-    _mesh_actor(plotter, kept, actors, "trajectory", (entry, target), line, color=TRAJECTORY_COLOUR)
+    _mesh_actor(stage, kept, actors, "trajectory", (entry, target), line, color=TRAJECTORY_COLOUR)
     ball = lambda: pv.Sphere(radius=0.5, center=target)  # noqa: E731
-    _mesh_actor(plotter, kept, actors, "target", (target,), ball, color=TRAJECTORY_COLOUR)
+    _mesh_actor(stage, kept, actors, "target", (target,), ball, color=TRAJECTORY_COLOUR)
     size = (scene.diameter_mm, scene.tip_length_mm)
     _mesh_actor(
-        plotter,
+        stage,
         kept,
         actors,
         "drill",
@@ -361,7 +357,7 @@ def _trajectory_actors(
         stop = entry + axis * scene.stop_depth_mm
         radius = max(scene.diameter_mm / 2.0, 0.4) * 1.15
         _mesh_actor(
-            plotter,
+            stage,
             kept,
             actors,
             "stop",

@@ -141,30 +141,34 @@ def test_the_camera_looks_from_the_arch_side_it_is_given() -> None:
 
 
 def test_applying_a_pose_draws_no_frame() -> None:
-    """The pose is set on the renderer: no frame is drawn (pyvista's ``plotter.camera`` on an
-    unset camera resets it and renders the whole scene, a second frame in the UI step)."""
+    """The pose is set on the renderer: no frame is drawn (the frame is the render thread's
+    to draw, once for every change sent)."""
     import pyvista as pv
 
     from ctdrill.app.gui.camera import CameraPose, apply_camera
+    from ctdrill.app.gui.stage import Stage
 
-    plotter = pv.Plotter(off_screen=True, window_size=(64, 48))
-    plotter.add_mesh(pv.Sphere(radius=5.0))
-    plotter.show(auto_close=False)  # shown, as the window's view is before a surface comes
-    plotter.renderer.camera.is_set = False  # no pose yet
-    frames: list[int] = []
-    plotter.ren_win.AddObserver("StartEvent", lambda *_: frames.append(1))
-    pose = CameraPose(
-        position_lps=np.array([0.0, -80.0, 10.0]),
-        focal_lps=np.array([1.0, 2.0, 3.0]),
-        up=np.array([0.0, 0.0, 1.0]),
-    )
-    apply_camera(plotter, pose)
-    assert frames == []
-    camera = plotter.renderer.camera
-    assert np.allclose(camera.position, pose.position_lps)
-    assert np.allclose(camera.focal_point, pose.focal_lps)
-    assert np.allclose(camera.up, pose.up)
-    plotter.ren_win.Render()
-    assert frames == [1]  # the observer sees a frame when one is drawn
-    assert np.allclose(plotter.camera.position, pose.position_lps)  # kept: no reset on use
-    plotter.close()
+    stage = Stage((64, 48))
+    try:
+        stage.add_mesh(pv.Sphere(radius=5.0), name="ball")
+        stage.render()  # shown, as the window's view is before a surface comes
+        frames: list[int] = []
+        stage.window.AddObserver("StartEvent", lambda *_: frames.append(1))
+        pose = CameraPose(
+            position_lps=np.array([0.0, -80.0, 10.0]),
+            focal_lps=np.array([1.0, 2.0, 3.0]),
+            up=np.array([0.0, 0.0, 1.0]),
+        )
+        apply_camera(stage, pose)
+        assert frames == []
+        position, focal, up = (np.array(v) for v in stage.camera_position)
+        assert np.allclose(position, pose.position_lps)
+        assert np.allclose(focal, pose.focal_lps)
+        # the up vector made orthogonal to the view: in the plane of the pose's up and view
+        view = (pose.position_lps - pose.focal_lps) / pose.distance_mm
+        assert abs(up @ view) < 1e-9 and abs(np.cross(view, pose.up) @ up) < 1e-9
+        stage.render()
+        assert frames == [1]  # the observer sees a frame when one is drawn
+        assert np.allclose(stage.camera_position[0], pose.position_lps)  # kept: no reset
+    finally:
+        stage.close()

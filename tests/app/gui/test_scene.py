@@ -6,7 +6,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-import pyvista as pv
 
 from ctdrill.app.gui.camera import apply_camera
 from ctdrill.app.gui.meshes import drill_mesh, landmark_meshes
@@ -23,6 +22,7 @@ from ctdrill.app.gui.scene import (
     set_drill_depth,
 )
 from ctdrill.app.gui.screenshot import region_stats
+from ctdrill.app.gui.stage import Stage
 from tests.app.gui.phantom import BAR_SEMI_YZ, ORIGIN_LPS, SPACING_MM, phantom_volume
 
 
@@ -92,7 +92,7 @@ def test_off_screen_scene_draws_and_the_drill_moves() -> None:
     entry, target = np.array([0.0, 0.0, 12.0]), np.array([0.0, 0.0, 0.0])
     lm = LandmarkGeometry("canal", np.array([[-20.0, 0, -4], [20.0, 0, -4]]), 1.2, 2.0, 1.0)
     scene = SceneInput(entry, target, 2.0, 0.6, 9.0, (lm,))
-    plotter = pv.Plotter(off_screen=True, window_size=(400, 300))
+    plotter = Stage((400, 300))
     try:
         actors = build_scene(plotter, scene, surface=bone_surface(vol.hu, vol.affine_lps))
         assert {"bone", "trajectory", "drill", "stop", "landmark:canal", "margin:canal"} <= set(
@@ -105,7 +105,7 @@ def test_off_screen_scene_draws_and_the_drill_moves() -> None:
         set_drill_depth(actors, np.array([0.0, 0.0, -1.0]), 5.0)
         after = np.array(actors["drill"].GetBounds())
         assert after[4] == pytest.approx(before[4] - 5.0)
-        img = plotter.screenshot(return_img=True)
+        img = plotter.screenshot()
         assert region_stats(img).drawn
     finally:
         plotter.close()
@@ -115,7 +115,7 @@ def test_a_scene_without_a_trajectory_draws_the_anatomy_and_unknown_landmarks() 
     vol = phantom_volume()
     lm = LandmarkGeometry("canal", np.array([[-20.0, 0, -4], [20.0, 0, -4]]), 1.2, 2.0, None)
     scene = SceneInput(None, None, 0.0, 0.0, None, (lm,))
-    plotter = pv.Plotter(off_screen=True, window_size=(300, 200))
+    plotter = Stage((300, 200))
     try:
         actors = build_scene(plotter, scene, surface=bone_surface(vol.hu, vol.affine_lps))
         assert {"bone", "landmark:canal", "margin:canal"} <= set(actors)
@@ -131,7 +131,7 @@ def test_a_rebuild_keeps_the_unchanged_actors_and_redraws_the_changed() -> None:
     canal = np.array([[-20.0, 0, -4], [20.0, 0, -4]])
     lm = LandmarkGeometry("canal", canal, 1.2, 2.0, 3.5)
     scene = SceneInput(entry, target, 2.0, 0.6, 9.0, (lm,))
-    plotter = pv.Plotter(off_screen=True, window_size=(200, 150))
+    plotter = Stage((200, 150))
     try:
         kept: Kept = {}
         first = plan_actors(plotter, scene, kept)

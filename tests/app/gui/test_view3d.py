@@ -37,7 +37,7 @@ def _bone_cells(window: MainWindow) -> list[int]:
 
 
 def _camera(window: MainWindow) -> tuple[np.ndarray, np.ndarray]:
-    pos, focal, _up = window.view3d.plotter.camera_position
+    pos, focal, _up = window.view3d.camera_position
     return np.array(pos), np.array(focal)
 
 
