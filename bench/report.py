@@ -35,7 +35,6 @@ LIBRARIES = (
     "SimpleITK",
     "vtk",
     "pyvista",
-    "pyvistaqt",
     "PySide6_Essentials",
     "matplotlib",
     "pyserial",
