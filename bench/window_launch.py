@@ -59,7 +59,7 @@ def watch(gui_app: Any) -> None:
     make_window = gui_app.make_window
 
     def watched(*args: object, **kw: object) -> object:
-        window = make_window(*args, **kw)  # type: ignore[arg-type]
+        window = make_window(*args, **kw)
         marks["window shown"] = _since_launch()
         from PySide6.QtCore import QTimer
 
