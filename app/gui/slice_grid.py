@@ -25,12 +25,12 @@ import numpy as np
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QGridLayout, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
-from ctdrill.app.gui import planning
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.drag_sync import WithDrawnPosition
 from ctdrill.app.gui.implant_drag import site_lps
 from ctdrill.app.gui.overlay_pacing import OverlayPacing
 from ctdrill.app.gui.plan_editor import PlanEditor
+from ctdrill.app.gui.slice_edits import SliceEdits
 from ctdrill.app.gui.slice_nav import (
     SliceStack,
     cursor_text,
@@ -39,12 +39,13 @@ from ctdrill.app.gui.slice_nav import (
     slice_stack,
     window_text,
 )
+from ctdrill.app.gui.slice_overlays import tube_requests
 from ctdrill.app.gui.slice_scene import OverlayScene, overlay_scene
 from ctdrill.app.gui.slice_toolbar import SliceToolbar
-from ctdrill.app.gui.slice_tools import edit_arch
 from ctdrill.app.gui.slice_view import SliceCanvas
 from ctdrill.app.gui.slices import VIEWS, SliceImage, reslice, volume_center_lps
 from ctdrill.app.gui.text_line import TextLine
+from ctdrill.app.gui.tube_prefetch import TubePrefetch
 from ctdrill.app.gui.workers import Runner, RunnerGroup
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.display import WINDOW_PRESETS
@@ -61,7 +62,7 @@ ORTHO = ("axial", "coronal", "sagittal")
 SITE_FOV_MM = 40.0
 
 
-class SliceGrid(QWidget):
+class SliceGrid(SliceEdits, QWidget):
     """Four :class:`SliceCanvas` in a 2 x 2 grid, a toolbar and a readout line."""
 
     slices_updated = Signal()  # every canvas shows the latest planes
@@ -106,6 +107,7 @@ class SliceGrid(QWidget):
         grid.setContentsMargins(0, 0, 0, 0)
         grid.setSpacing(2)
         self.runners: dict[str, Runner] = {}
+        self.tubes = TubePrefetch(self)  # for the views waiting for a path
         for n, v in enumerate(VIEWS):
             canvas = self.canvases[v]
             grid.addWidget(canvas, n // 2, n % 2)
@@ -138,8 +140,8 @@ class SliceGrid(QWidget):
 
     @property
     def runner(self) -> RunnerGroup:
-        """Every view's runner, as one (``cancel``, ``busy``)."""
-        return RunnerGroup(self.runners)
+        """Every view's runner and the tubes' runner, as one (``cancel``, ``busy``)."""
+        return RunnerGroup({**self.runners, "tubes": self.tubes.runner})
 
     # ------------------------------------------------------------------ planes
     def _volume_changed(self, volume: CTVolume) -> None:
@@ -215,6 +217,7 @@ class SliceGrid(QWidget):
         volume = self.ctx.doc.volume
         if volume is None:
             return
+        scene: OverlayScene | None = None  # the plan's overlays, built once for every view
         for view in views:
             params = self.plane_params(view)
             if params is None:
@@ -234,7 +237,8 @@ class SliceGrid(QWidget):
                     self.canvases[view].show_slice(
                         image, level_hu=self.window_level[0], width_hu=self.window_level[1]
                     )
-                self.draw_overlays(only=view, draw=self.pacing.draws_now(view))
+                scene = self._scene() if scene is None else scene
+                self.draw_overlays(only=view, draw=self.pacing.draws_now(view), scene=scene)
                 continue
             if self.runners[view].busy:  # one plane at a time per view: the latest one next
                 self._pending.add(view)
@@ -316,12 +320,15 @@ class SliceGrid(QWidget):
         self.reslice()
 
     # ------------------------------------------------------------------ overlays
-    def draw_overlays(self, only: str | None = None, *, draw: bool = True) -> None:
-        """Overlay the plan (or the points placed so far) on every canvas (or on ``only``):
-        each hit-tests the new scene at once and draws it in a step of its own (an edit returns
-        at once; the plan, then its path, before the step: one draw); with ``draw`` False it
-        only hit-tests it (its drawing waits for the path: ``OverlayPacing``)."""
-        scene = self._scene()
+    def draw_overlays(
+        self, only: str | None = None, *, draw: bool = True, scene: OverlayScene | None = None
+    ) -> None:
+        """Overlay the plan (or the points placed so far; ``scene``: the document's, built
+        already) on every canvas (or on ``only``): each hit-tests the new scene at once and
+        draws it in a step of its own (an edit returns at once; the plan, then its path, before
+        the step: one draw); with ``draw`` False it only hit-tests it (its drawing waits for the
+        path: ``OverlayPacing``; its canal tubes meanwhile: ``TubePrefetch``)."""
+        scene = self._scene() if scene is None else scene
         for name, canvas in self.canvases.items():
             if only is not None and name != only:
                 continue
@@ -329,6 +336,8 @@ class SliceGrid(QWidget):
             if draw and name not in self._overlays_due:
                 self._overlays_due.add(name)
                 self.ctx.steps.push(partial(self._overlay_step, name))
+            elif not draw and canvas.image is not None:
+                self.tubes.fetch(tube_requests(canvas.image, scene))
 
     def _overlay_step(self, name: str) -> None:
         if name in self._overlays_due:
@@ -387,44 +396,3 @@ class SliceGrid(QWidget):
         level, width = self.window_level
         self.wl_label.setText(window_text(level, width))
         self.readout.setText(cursor or "move over a slice for the HU and position")
-
-    # ------------------------------------------------------------------ edits
-    def set_mode(self, mode: str) -> None:
-        """``navigate``, ``canal``, ``distance``, ``angle`` or ``arch`` on every canvas."""
-        for canvas in self.canvases.values():
-            canvas.mode = mode
-        self.toolbar.show_mode(mode)
-
-    def set_canal_mode(self, on: bool) -> None:
-        """Left clicks append canal points (True) or drag handles."""
-        self.set_mode("canal" if on else "navigate")
-
-    def _handle_moved(self, name: str, point_lps: np.ndarray) -> None:
-        doc = self.ctx.doc
-        try:
-            placed = planning.place_handle(doc.plan, doc.draft, name, point_lps)
-        except ValueError as exc:
-            doc.edit_refused.emit(f"error: {exc}")
-            self.draw_overlays()
-            return
-        if isinstance(placed, dict):
-            doc.set_draft_point(name, placed[name])
-        elif not doc.set_plan(placed):
-            self.draw_overlays()  # refused (locked): the handle goes back
-
-    def _arch_edit(self, op: str, index: int, point_lps: np.ndarray | None) -> None:
-        doc = self.ctx.doc
-        current = self.arch_draft if self.arch_draft is not None else doc.arch_lps
-        try:
-            points = edit_arch(current, op, index, point_lps)
-        except ValueError as exc:
-            doc.edit_refused.emit(f"error: {exc}")
-            return
-        if len(points) >= 2:
-            self.arch_draft = None
-            doc.set_arch(points)
-        else:  # one point (or none): held here until a second one makes an arch
-            self.arch_draft = points if len(points) else None
-            if doc.arch_lps is not None:
-                doc.set_arch(None)
-            self.draw_overlays()

@@ -11,7 +11,9 @@ where the plane cuts each solid (:mod:`ctdrill.app.gui.sections`), in in-plane m
 
 from __future__ import annotations
 
+import threading
 from collections import OrderedDict
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -42,30 +44,89 @@ HANDLE_COLOURS = {"entry": "#40e0ff", "target": "#ff6060", "platform": "#40e080"
 
 #: Tube fields kept (the latest first): a plan edit that leaves a canal and a view's plane
 #: as they were (a target moved, an undo, an implant picked) redraws it without recomputing.
+#: The views waiting for a path have theirs computed in a worker meanwhile
+#: (:func:`prefetch_tubes`), hence the lock.
 TUBE_CACHE_SIZE = 16
 _tubes: OrderedDict[bytes, TubeField | None] = OrderedDict()
+_tubes_lock = threading.Lock()
+
+
+@dataclass(frozen=True, eq=False)
+class TubeRequest:
+    """The arguments of one canal's :func:`~ctdrill.app.gui.sections.tube_field` on a view's
+    plane, and their cache key (by value)."""
+
+    plane: Plane
+    polyline_lps: np.ndarray
+    reach_mm: float
+    step_mm: float
+
+    @property
+    def key(self) -> bytes:
+        pts = np.ascontiguousarray(self.polyline_lps, dtype=np.float64)
+        plane = self.plane
+        return b"".join(
+            [
+                np.asarray(a, dtype=np.float64).tobytes()
+                for a in (plane.origin_lps, plane.u_lps, plane.v_lps, [self.reach_mm, self.step_mm])
+            ]
+            + [pts.tobytes()]
+        )
 
 
 def cached_tube_field(
     plane: Plane, polyline_lps: np.ndarray, reach_mm: float, step_mm: float
 ) -> TubeField | None:
     """:func:`~ctdrill.app.gui.sections.tube_field`, kept for the same arguments (by value)."""
-    pts = np.ascontiguousarray(polyline_lps, dtype=np.float64)
-    key = b"".join(
-        [
-            np.asarray(a, dtype=np.float64).tobytes()
-            for a in (plane.origin_lps, plane.u_lps, plane.v_lps, [reach_mm, step_mm])
-        ]
-        + [pts.tobytes()]
-    )
-    if key in _tubes:
+    return _tube(TubeRequest(plane, np.asarray(polyline_lps), reach_mm, step_mm))
+
+
+def _tube(request: TubeRequest) -> TubeField | None:
+    key = request.key
+    with _tubes_lock:
+        if key in _tubes:
+            _tubes.move_to_end(key)
+            return _tubes[key]
+    pts = np.ascontiguousarray(request.polyline_lps, dtype=np.float64)
+    field = tube_field(request.plane, pts, request.reach_mm, request.step_mm)
+    with _tubes_lock:
+        _tubes[key] = field
         _tubes.move_to_end(key)
-        return _tubes[key]
-    field = tube_field(plane, pts, reach_mm, step_mm)
-    _tubes[key] = field
-    while len(_tubes) > TUBE_CACHE_SIZE:
-        _tubes.popitem(last=False)
+        while len(_tubes) > TUBE_CACHE_SIZE:
+            _tubes.popitem(last=False)
     return field
+
+
+def tube_cached(request: TubeRequest) -> bool:
+    """``request``'s field is kept."""
+    with _tubes_lock:
+        return request.key in _tubes
+
+
+def prefetch_tubes(requests: list[TubeRequest]) -> int:
+    """Compute and keep the fields of ``requests`` not kept yet (a worker thread); returns how
+    many it computed."""
+    done = 0
+    for request in requests:
+        if not tube_cached(request):
+            _tube(request)
+            done += 1
+    return done
+
+
+def _tube_request(image: SliceImage, lm: LandmarkGeometry) -> TubeRequest | None:
+    """The tube field ``_draw_canal`` draws ``lm`` with on ``image`` (None: none, a point or
+    a cloud)."""
+    if len(lm.points_lps) < 2 or lm.cloud:
+        return None
+    step = float(np.clip(min(image.pixel_mm, lm.radius_mm / 4.0), 0.05, 1.0))
+    return TubeRequest(plane_of(image), lm.points_lps, lm.radius_mm + lm.margin_mm, step)
+
+
+def tube_requests(image: SliceImage, scene: OverlayScene) -> list[TubeRequest]:
+    """The tube fields drawing ``scene``'s canals on ``image`` needs."""
+    out = [_tube_request(image, lm) for lm in scene.landmarks]
+    return [r for r in out if r is not None]
 
 
 def plane_of(image: SliceImage) -> Plane:
@@ -81,8 +142,8 @@ def _draw_canal(ax: Any, image: SliceImage, lm: LandmarkGeometry) -> None:
         ax.plot(uv[:, 0], uv[:, 1], "o", color=colour, ms=3 if lm.cloud else 5, zorder=3)
         return
     ax.plot(uv[:, 0], uv[:, 1], "-" if near.any() else ":", color=colour, lw=0.8, zorder=3)
-    step = float(np.clip(min(image.pixel_mm, lm.radius_mm / 4.0), 0.05, 1.0))
-    field = cached_tube_field(plane_of(image), lm.points_lps, reach, step)
+    request = _tube_request(image, lm)
+    field = None if request is None else _tube(request)
     if field is None or field.distance_mm.min() > reach:
         return
     # the tube filled, the margin zone shaded, their outlines: contourpy's polygons and lines

@@ -2,11 +2,9 @@
 with its orientation letters, the plane's position, and the plan drawn over it
 (:mod:`ctdrill.app.gui.slice_overlays`).
 
-Drawing keeps the slice image as a background: an Agg draw renders the image once (while it,
-the view's limits and the canvas' size stay) and copies it; a draw that only the overlays need
-(a plan edit, its path, an undo) restores that copy and draws the overlays over it, in the order
-and with the renderer the full draw uses (the same pixels; :meth:`SliceCanvas.draw`). The
-image's resampling was half of each draw, 3-6 ms a view.
+Drawing keeps the slice image as a background: a draw that only the overlays need (a plan
+edit, its path, an undo) restores it and draws the overlays over it, the same pixels
+(:mod:`ctdrill.app.gui.kept_background`).
 
 The widget only draws and reports; the grid (:mod:`ctdrill.app.gui.slice_grid`) decides what a
 report changes. Controls (docs/slice_views.md):
@@ -25,17 +23,16 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
-from operator import attrgetter
 from typing import Any
 
 import numpy as np
-from matplotlib.backend_bases import DrawEvent, MouseEvent
+from matplotlib.backend_bases import MouseEvent
 from matplotlib.figure import Figure
-from matplotlib.image import AxesImage
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QKeyEvent, QPaintEvent, QWheelEvent
 
 from ctdrill.app.gui.canvas_text import POINT_IN, PaintedText, paint_texts
+from ctdrill.app.gui.kept_background import KeptBackground
 from ctdrill.app.gui.map_canvas import MapCanvas, modifiers
 from ctdrill.app.gui.sections import revolved_section
 from ctdrill.app.gui.slice_nav import orientation_letters
@@ -129,15 +126,8 @@ class SliceCanvas(MapCanvas):
         #: Field of view (mm, square) and its centre (in-plane mm); None: the whole image.
         self.fov_mm: float | None = None
         self.center_uv: np.ndarray | None = None
-        #: The image drawn alone (``copy_from_bbox``), what it was drawn for (the image's
-        #: version, the limits, the canvas' size), and the image's version (a new image or
-        #: window bumps it).
-        self._background: Any = None
-        self._background_key: tuple[Any, ...] | None = None
-        self._image_version = 0
-        #: Draws that restored the background (the overlays alone drawn), and full ones.
-        self.blits = 0
-        self.full_draws = 0
+        #: The image kept as the background of the overlays' draws.
+        self.kept = KeptBackground()
         self.mpl_connect("axes_leave_event", self._left)
 
     @property
@@ -172,76 +162,16 @@ class SliceCanvas(MapCanvas):
         self.draw()
 
     def draw(self) -> None:
-        """Agg-draw the view (and ask Qt to paint it): the image from the kept background
-        when it, the limits and the canvas' size are as it was drawn for, else drawn anew
-        (alone, then kept); then the overlays over it in ``Axes.draw``'s order (by zorder,
-        then as added); then ``draw_event``, as ``Figure.draw`` sends it."""
+        """Agg-draw the view, its image from the kept background when it still stands
+        (:class:`~ctdrill.app.gui.kept_background.KeptBackground`), and ask Qt to paint it."""
         if self._is_drawing:
-            return
-        overlays = self._overlay_artists()
-        if overlays is None:  # something the kept background cannot stand for: draw it all
-            self._background = None
-            self.full_draws += 1
-            super().draw()
             return
         self._is_drawing = True
         try:
-            self.renderer = renderer = self.get_renderer()
-            lock = getattr(self.figure, "_render_lock", contextlib.nullcontext())
-            with lock:  # as Figure.draw holds it
-                if self._background is not None and self._background_for() == self._background_key:
-                    self.restore_region(self._background)
-                    self.blits += 1
-                else:  # Figure.draw without the overlays (Axes.draw skips animated ones)
-                    renderer.clear()
-                    self.figure.patch.draw(renderer)
-                    for artist in overlays:
-                        artist.set_animated(True)
-                    try:
-                        self.ax.draw(renderer)
-                    finally:
-                        for artist in overlays:
-                            artist.set_animated(False)
-                    self._background = self.copy_from_bbox(self.figure.bbox)
-                    self._background_key = self._background_for()
-                    self.full_draws += 1
-                for artist in overlays:
-                    artist.draw(renderer)
-                self.figure.stale = False
-            self.callbacks.process("draw_event", DrawEvent("draw_event", self, renderer))
+            self.kept.draw(self, self.ax, self._im, super().draw)
         finally:
             self._is_drawing = False
         self.update()
-
-    def _background_for(self) -> tuple[Any, ...]:
-        """What the kept background was drawn for."""
-        return (
-            self._image_version,
-            self.get_width_height(physical=True),
-            self.figure.dpi,
-            tuple(self.ax.get_xlim()),
-            tuple(self.ax.get_ylim()),
-            tuple(self.ax.get_position().bounds),
-        )
-
-    def _overlay_artists(self) -> list[Any] | None:
-        """The artists over the image in the order ``Axes.draw`` draws them, or None when
-        the figure holds anything else a kept background would not stand for (no image
-        yet, another image, another axes, figure-level artists)."""
-        fig, ax, im = self.figure, self.ax, self._im
-        if im is None or fig.axes != [ax] or len(fig.get_children()) != 2:
-            return None
-        if fig.get_layout_engine() is not None or ax.get_axes_locator() is not None:
-            return None
-        kinds = (*ax.lines, *ax.patches, *ax.collections, *ax.texts, *ax.artists)
-        ids = {id(a) for a in kinds}
-        children = ax.get_children()
-        if any(isinstance(a, AxesImage) and a is not im for a in children):
-            return None
-        overlays = [a for a in children if id(a) in ids]
-        if any(a.zorder < im.zorder or a.get_animated() for a in overlays):
-            return None
-        return sorted(overlays, key=attrgetter("zorder"))
 
     def set_note(self, text: str) -> None:
         """A line of text in the middle of the view (empty: none)."""
@@ -277,7 +207,7 @@ class SliceCanvas(MapCanvas):
         for side, text in orientation_letters(image.u_lps, image.v_lps).items():
             self._letters[side].set_text(text)
         grey = window_to_uint8(image.hu, level_hu=level_hu, width_hu=width_hu)
-        self._image_version += 1  # the kept background is of the previous image
+        self.kept.image_version += 1  # the kept background is of the previous image
         if self._im is None:
             self._im = self.ax.imshow(
                 grey,

@@ -83,7 +83,7 @@ def test_overlays_over_the_kept_image_are_matplotlibs_full_draw(qtbot: QtBot) ->
     canvas.show_slice(_image(), level_hu=LEVEL, width_hu=WIDTH)
     canvas.set_overlays(_scene(0.0))
     first = _drawn(canvas)
-    assert (canvas.full_draws, canvas.blits, len(events)) == (1, 0, 1)
+    assert (canvas.kept.full_draws, canvas.kept.blits, len(events)) == (1, 0, 1)
     np.testing.assert_array_equal(first, _reference(canvas))
     # a plan edit, then its path: the overlays alone, over the kept image, both times exact
     for x_mm, violated in ((3.0, False), (3.0, True), (-4.5, False)):
@@ -91,7 +91,11 @@ def test_overlays_over_the_kept_image_are_matplotlibs_full_draw(qtbot: QtBot) ->
         blitted = _drawn(canvas)
         np.testing.assert_array_equal(blitted, _reference(canvas))
         assert not np.array_equal(blitted, first)
-    assert (canvas.full_draws, canvas.blits, len(events)) == (1, 3, 8)  # with the references
+    assert (canvas.kept.full_draws, canvas.kept.blits, len(events)) == (
+        1,
+        3,
+        8,
+    )  # with the references
     # a new image, a zoom, a new size: the image drawn anew (and kept again)
     canvas.show_slice(_image(0.7), level_hu=LEVEL, width_hu=WIDTH)
     np.testing.assert_array_equal(_drawn(canvas), _reference(canvas))
@@ -100,7 +104,7 @@ def test_overlays_over_the_kept_image_are_matplotlibs_full_draw(qtbot: QtBot) ->
     canvas.resize(380, 300)
     qtbot.waitUntil(lambda: canvas.get_width_height() == (380, 300), timeout=5000)
     np.testing.assert_array_equal(_drawn(canvas), _reference(canvas))
-    assert canvas.full_draws == 4
+    assert canvas.kept.full_draws == 4
     canvas.set_overlays(_scene(1.0))
     np.testing.assert_array_equal(_drawn(canvas), _reference(canvas))
-    assert canvas.full_draws == 4 and canvas.blits == 4
+    assert canvas.kept.full_draws == 4 and canvas.kept.blits == 4

@@ -34,6 +34,47 @@ def test_tube_fields_are_kept_by_value() -> None:
     assert not np.array_equal(other.distance_mm, first.distance_mm)
 
 
+def test_the_tubes_a_waiting_view_draws_are_computed_aside_and_drawn_from_the_cache(
+    qtbot: QtBot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import threading
+
+    from ctdrill.app.gui import slice_overlays
+    from ctdrill.app.gui.slice_overlays import prefetch_tubes, tube_cached, tube_requests
+    from ctdrill.app.gui.slice_view import SliceCanvas
+    from tests.app.gui.test_slice_blit import LEVEL, WIDTH, _image, _scene
+
+    canvas = SliceCanvas("axial")
+    qtbot.addWidget(canvas)
+    image = _image()
+    canvas.show_slice(image, level_hu=LEVEL, width_hu=WIDTH)
+    canvas.set_overlays(_scene(0.0))
+    scene = _scene(7.25)  # a canal point moved: a tube not kept yet
+    (request,) = tube_requests(image, scene)
+    assert not tube_cached(request)
+    done: list[int] = []
+    worker = threading.Thread(target=lambda: done.append(prefetch_tubes([request, request])))
+    worker.start()
+    worker.join(timeout=30)
+    assert done == [1] and tube_cached(request)
+    assert prefetch_tubes([request]) == 0  # kept: nothing computed again
+    fresh = tube_field(request.plane, request.polyline_lps, request.reach_mm, request.step_mm)
+
+    def refuse(*_args: object) -> None:
+        raise AssertionError("computed on the UI thread")
+
+    monkeypatch.setattr(slice_overlays, "tube_field", refuse)
+    canvas.set_overlays(scene)  # drawn from the cache
+    outlines = [c for c in canvas.ax.collections if getattr(c, "filled", None) is False]
+    assert outlines and fresh is not None
+    monkeypatch.undo()
+    field = slice_overlays.cached_tube_field(
+        request.plane, request.polyline_lps, request.reach_mm, request.step_mm
+    )
+    assert field is not None
+    np.testing.assert_array_equal(field.distance_mm, fresh.distance_mm)
+
+
 def test_overlay_requests_coalesce_into_one_step_per_canvas(window: MainWindow) -> None:
     grid = window.slice_grid
     before = window.ui_steps.pending
