@@ -108,3 +108,28 @@ def test_overlays_over_the_kept_image_are_matplotlibs_full_draw(qtbot: QtBot) ->
     canvas.set_overlays(_scene(1.0))
     np.testing.assert_array_equal(_drawn(canvas), _reference(canvas))
     assert canvas.kept.full_draws == 4 and canvas.kept.blits == 4
+
+
+@pytest.mark.parametrize("fmt", ["-", "--", ":", "o", "s", "x"])
+def test_overlay_lines_are_what_plot_draws(fmt: str) -> None:
+    from matplotlib.figure import Figure
+
+    from ctdrill.app.gui.slice_overlays import _line
+
+    def drawn(make: object) -> tuple[np.ndarray, str, object, object]:
+        fig = Figure(figsize=(2.0, 2.0), dpi=80)
+        FigureCanvasAgg(fig)
+        ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
+        ax.set_xlim(-1.0, 4.0)
+        ax.set_ylim(4.0, -1.0)
+        x, y = [0.0, 1.0, 2.5, 3.0], [0.5, 2.0, 1.0, 3.5]
+        style = {"color": "#ff9040", "lw": 1.4, "ms": 6, "mew": 1.5, "alpha": 0.8, "zorder": 4}
+        line = make(ax, x, y, fmt, **style)  # type: ignore[operator]
+        fig.canvas.draw()
+        buf = np.asarray(fig.canvas.buffer_rgba()).copy()
+        return buf, line.get_label(), line.get_linestyle(), line.get_marker()
+
+    plotted = drawn(lambda ax, x, y, f, **s: ax.plot(x, y, f, **s)[0])
+    made = drawn(_line)
+    np.testing.assert_array_equal(made[0], plotted[0])
+    assert made[1:] == plotted[1:]
