@@ -4,7 +4,7 @@ when the window and each of its views were first drawn, in seconds since the par
 this process, with the process's CPU time then.
 
 Usage: ``python -m bench.window_launch LAUNCH_EPOCH_S CT PLAN``. The window is watched from
-the moment the command line imports it (right after its Qt-free modules, :func:`before_qt`),
+the moment the command line has imported it (:func:`~ctdrill.app.gui.preload.import_window`),
 so the command line runs in its own order (the series read beside those imports).
 """
 
@@ -39,15 +39,15 @@ def main() -> int:
     from ctdrill.app.cli import main as cli_main
     from ctdrill.app.gui import preload
 
-    before_qt = preload.before_qt
+    import_window = preload.import_window
 
     def imports() -> None:  # the command line's own order: the window is watched from here
-        before_qt()
+        import_window()
         from ctdrill.app.gui import app as gui_app
 
         watch(gui_app)
 
-    preload.before_qt = imports
+    preload.import_window = imports
     code = cli_main(["gui", "--ct", ct, "--plan", plan, "--quit-after-s", "300"])
     marks["exit code"] = float(code)
     print(json.dumps(marks))

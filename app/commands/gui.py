@@ -137,9 +137,9 @@ def run(args: argparse.Namespace) -> int:
     problem = display_problem(os.environ)
     if problem is not None:
         raise AppInputError(f"ctdrill gui: {problem}; {NO_DISPLAY_HINT}")
-    from ctdrill.app.gui.preload import before_qt
+    from ctdrill.app.gui.preload import import_window
 
-    before_qt()  # the Qt-free modules first: PySide6's import hook then never reads them
+    import_window()  # the Qt-free modules first (PySide6's import hook), the collector paused
     from ctdrill.app.gui.app import run_gui  # Qt loads only when the window is really wanted
 
     return run_gui(

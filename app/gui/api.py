@@ -55,9 +55,9 @@ def open_window(
         The series did not load, or its path was not computed, within
         :data:`OPEN_TIMEOUT_MS`.
     """
-    from ctdrill.app.gui.preload import before_qt
+    from ctdrill.app.gui.preload import import_window
 
-    before_qt()  # the Qt-free modules first: PySide6's import hook then never reads them
+    import_window()  # the Qt-free modules first (PySide6's import hook), the collector paused
     from PySide6.QtCore import QDeadlineTimer, QEventLoop, QTimer
 
     from ctdrill.app.gui.app import make_window
