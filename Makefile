@@ -5,7 +5,9 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-dev
 STAMP_RUN := $(VENV)/.installed
-SYSTEM_PKGS := xvfb xauth libegl1 libgl1 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 \
+# libegl1 + libegl-mesa0 + libgl1-mesa-dri: the 3D view's render thread and the report draw in an
+# off-screen EGL window (Mesa's llvmpipe: no display, no GPU needed)
+SYSTEM_PKGS := xvfb xauth libegl1 libegl-mesa0 libgl1-mesa-dri libgl1 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 \
 	libxcb-keysyms1 libxcb-shape0 libxcb-xinerama0 libxcb-randr0 libxcb-render-util0 \
 	libxcb-image0 libxrender1 libfontconfig1 libdbus-1-3 dicom3tools libportaudio2 \
 	gcc libc6-dev

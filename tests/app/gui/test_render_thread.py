@@ -3,6 +3,8 @@ never renders, a burst of changes draws the last one, and closing stops the thre
 
 from __future__ import annotations
 
+import os
+import sys
 import threading
 import time
 from typing import Any
@@ -172,3 +174,36 @@ def test_the_window_draws_its_3d_frames_off_the_ui_thread_and_stops_the_thread_o
     assert set(renders) == {thread.ident}
     window.close()
     assert not thread.is_alive()
+
+
+def test_without_egl_the_view_falls_back_to_the_ui_thread(
+    qtbot: QtBot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from ctdrill.app.gui import stage as stage_module
+
+    monkeypatch.setattr(stage_module, "egl_render_window", lambda: None)
+    rt = RenderThread((64, 48))
+    try:
+        got = _frames(qtbot, rt)
+        rt.set_camera(FRONT)
+        rt.submit(_ball((0.0, 1.0, 0.0)))
+        _wait_idle(qtbot, rt, got)
+        assert not rt.threaded and rt.render_thread is None  # no EGL: the UI thread draws
+        assert rt.stage is not None and rt.stage.thread is threading.current_thread()
+        image = next(f.image for f in reversed(got) if f.image is not None)
+        assert tuple(qimage_to_rgb(image)[24, 32]) == (0, 255, 0)
+    finally:
+        rt.stop()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="per-thread nice is Linux's")
+def test_the_render_thread_yields_the_cpu_to_the_ui_thread(qtbot: QtBot) -> None:
+    from ctdrill.app.gui.render_thread import RENDER_NICE
+
+    rt = RenderThread((64, 48))
+    try:
+        nice = rt.call(lambda _st: os.getpriority(os.PRIO_PROCESS, threading.get_native_id()))
+        assert nice >= RENDER_NICE
+        assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) < RENDER_NICE
+    finally:
+        rt.stop()
