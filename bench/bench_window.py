@@ -225,9 +225,9 @@ def session(ct: Path, plan: Path, canal_repeats: int) -> dict[str, Any]:
 
     from ctdrill import jit
     from ctdrill.api import open_window
-    from ctdrill.app.gui.preload import before_qt
+    from ctdrill.app.gui.preload import import_window
 
-    before_qt()
+    import_window()  # as ``ctdrill gui`` does: the collector paused, then its imports frozen
     from ctdrill.app.gui.app import application  # every module of the window imported
 
     app = application()
