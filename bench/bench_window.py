@@ -8,9 +8,9 @@ of those are on the screen and no drawing step waits (the goal's moment); "3D se
 the finer surface the frame time affords has replaced the first one. The process's CPU time at
 "views drawn" is given beside it: on this shared machine the wall time grows with the load, the
 CPU time much less. Peer in the same run: a fresh process importing the window's libraries
-alone (PySide6's widgets, matplotlib's Qt canvas, pyvistaqt, pydicom, numba, SciPy's
-``ndimage``), the floor any window built on them pays before it shows. One untimed launch
-comes first (Python's bytecode of ctdrill written, as an installed wheel has it; the disk and
+alone (PySide6's widgets, matplotlib's Qt canvas, pyvista and VTK's OpenGL rendering, pydicom,
+numba, SciPy's ``ndimage``), the floor any window built on them pays before it shows. One
+untimed launch comes first (Python's bytecode of ctdrill written, as an installed wheel has it; the disk and
 numba caches warm).
 
 **In-process open.** ``ctdrill.api.open_window`` on the series, the window's modules imported
@@ -61,7 +61,8 @@ GOAL_STALL_S = 0.050
 HEARTBEAT_MS = 5
 LAUNCH_MARKS = ("window shown", "slices", "path", "3D surface", "views drawn", "3D settled")
 FLOOR_IMPORTS = (
-    "import PySide6.QtWidgets, matplotlib.backends.backend_qtagg, pyvistaqt, pydicom, numba, "
+    "import PySide6.QtWidgets, matplotlib.backends.backend_qtagg, pyvista, "
+    "vtkmodules.vtkRenderingOpenGL2, pydicom, numba, "
     "scipy.ndimage"
 )
 
