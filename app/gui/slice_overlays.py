@@ -83,19 +83,51 @@ def cached_tube_field(
 
 
 def _tube(request: TubeRequest) -> TubeField | None:
+    """The kept field of ``request``, else computed and kept; one being computed in another
+    thread (a prefetch) is waited for, not computed twice."""
     key = request.key
     with _tubes_lock:
         if key in _tubes:
             _tubes.move_to_end(key)
             return _tubes[key]
-    pts = np.ascontiguousarray(request.polyline_lps, dtype=np.float64)
-    field = tube_field(request.plane, pts, request.reach_mm, request.step_mm)
+        running = _computing.get(key)
+        if running is None:
+            _computing[key] = running = _Computing()
+            mine = True
+        else:
+            mine = False
+    if not mine:
+        running.done.wait()
+        return running.field if running.ok else _tube(request)  # it failed: here, again
+    try:
+        pts = np.ascontiguousarray(request.polyline_lps, dtype=np.float64)
+        field = tube_field(request.plane, pts, request.reach_mm, request.step_mm)
+    except BaseException:
+        with _tubes_lock:
+            del _computing[key]
+        running.done.set()
+        raise
+    running.field, running.ok = field, True
     with _tubes_lock:
         _tubes[key] = field
-        _tubes.move_to_end(key)
         while len(_tubes) > TUBE_CACHE_SIZE:
             _tubes.popitem(last=False)
+        del _computing[key]
+    running.done.set()
     return field
+
+
+class _Computing:
+    """A tube field under way in one thread (others wait for it)."""
+
+    def __init__(self) -> None:
+        self.done = threading.Event()
+        self.field: TubeField | None = None
+        self.ok = False
+
+
+#: Tube fields being computed, by key.
+_computing: dict[bytes, _Computing] = {}
 
 
 def tube_cached(request: TubeRequest) -> bool:

@@ -15,6 +15,9 @@ from ctdrill.app.gui.main_window import MainWindow
 from ctdrill.app.gui.sections import Plane, tube_field
 from ctdrill.app.gui.slice_overlays import cached_tube_field
 
+#: The views whose plane a canal click leaves where it is.
+ORTHO_VIEWS = ("axial", "coronal", "sagittal")
+
 
 def test_tube_fields_are_kept_by_value() -> None:
     plane = Plane(
@@ -185,3 +188,71 @@ def test_only_the_view_acted_on_draws_an_edit_before_its_path(
     assert redraws == ["coronal"]
     doc.path, doc.path_error = None, "no path"  # type: ignore[attr-defined]  # failed
     assert pacing.draws_now("coronal") and steps.pending == 0
+
+
+def test_a_canal_click_draws_the_waiting_views_once_with_tubes_computed_aside(
+    qtbot: QtBot, window: MainWindow, phantom_case: object, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The click's view draws at once, the others once with the path (their tubes asked of
+    the worker at the click, each tube computed once: a plane the trajectory view shares with
+    another shares its tube), every draw over the kept image."""
+    from PySide6.QtCore import QPoint, Qt
+
+    from ctdrill.app.gui import slice_overlays
+    from ctdrill.app.gui.slice_overlays import tube_requests
+    from tests.app.gui.helpers import open_case
+    from tests.app.gui.test_slice_navigation import settle
+
+    window.resize(1440, 900)
+    open_case(qtbot, window, phantom_case)  # type: ignore[arg-type]
+    settle(qtbot, window)
+    grid = window.slice_grid
+    grid.pacing._late.setInterval(60_000)  # a path late under load: still drawn once
+    qtbot.waitUntil(lambda: all(c.kept.full_draws for c in grid.canvases.values()), timeout=5000)
+
+    computed: list[bytes] = []  # the tubes computed (their keys), in any thread
+    compute = slice_overlays.tube_field
+
+    def watched(plane: Plane, pts: np.ndarray, reach: float, step: float) -> object:
+        computed.append(slice_overlays.TubeRequest(plane, pts, reach, step).key)
+        return compute(plane, pts, reach, step)
+
+    monkeypatch.setattr(slice_overlays, "tube_field", watched)
+    asked: list[bytes] = []  # the tubes asked of the worker
+    fetch = grid.tubes.fetch
+    monkeypatch.setattr(
+        grid.tubes,
+        "fetch",
+        lambda requests: (asked.extend(r.key for r in requests), fetch(requests)),
+    )
+    passes: dict[str, int] = dict.fromkeys(grid.canvases, 0)
+    for name, canvas in grid.canvases.items():
+        original = canvas.set_overlays
+
+        def counted(scene: object, name: str = name, original: object = original) -> None:
+            passes[name] += 1
+            original(scene)  # type: ignore[operator]
+
+        monkeypatch.setattr(canvas, "set_overlays", counted)
+    before = {v: (c.kept.full_draws, c.kept.blits) for v, c in grid.canvases.items()}
+    plan = window.plan
+    assert plan is not None
+    grid.set_canal_mode(True)
+    axial = grid.canvases["axial"]
+    px = axial.lps_to_pixel(plan.target_lps + np.array([2.0, 1.5, 0.0]))
+    assert px is not None
+    with qtbot.waitSignal(window.path_updated, timeout=30_000):
+        qtbot.mouseClick(axial, Qt.MouseButton.LeftButton, pos=QPoint(round(px[0]), round(px[1])))
+    settle(qtbot, window)
+    assert passes == {"axial": 2, "coronal": 1, "sagittal": 1, "trajectory": 1}
+    wanted = {
+        v: {r.key for r in tube_requests(c.image, c.scene)}  # type: ignore[arg-type]
+        for v, c in grid.canvases.items()
+    }
+    assert all(wanted.values())
+    waiting = set().union(*(wanted[v] for v in ("coronal", "sagittal", "trajectory")))
+    assert waiting <= set(asked)  # asked of the worker at the click, before the path
+    assert sorted(computed) == sorted(set().union(*wanted.values()))  # each computed once
+    after = {v: (c.kept.full_draws, c.kept.blits) for v, c in grid.canvases.items()}
+    assert all(after[v][0] == before[v][0] for v in ORTHO_VIEWS)  # the planes stayed
+    assert all(after[v][1] > before[v][1] for v in ORTHO_VIEWS)
