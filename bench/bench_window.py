@@ -10,8 +10,8 @@ the finer surface the frame time affords has replaced the first one. The process
 CPU time much less. Peer in the same run: a fresh process importing the window's libraries
 alone (PySide6's widgets, matplotlib's Qt canvas, pyvista and VTK's OpenGL rendering, pydicom,
 numba, SciPy's ``ndimage``), the floor any window built on them pays before it shows. One
-untimed launch comes first (Python's bytecode of ctdrill written, as an installed wheel has it; the disk and
-numba caches warm).
+untimed launch comes first (Python's bytecode of ctdrill written, as an installed wheel has it;
+the disk and numba caches warm).
 
 **In-process open.** ``ctdrill.api.open_window`` on the series, the window's modules imported
 before (its first window in the process: Qt's and OpenGL's first-use costs are in it), with the
