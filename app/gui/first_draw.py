@@ -43,6 +43,12 @@ class FirstDraw(QObject):
         self._fallback.setSingleShot(True)
         self._fallback.setInterval(RELEASE_AFTER_MS)
         self._fallback.timeout.connect(self._release)
+        #: The kernels load on the event loop's next pass after :attr:`drawn` (whatever else
+        #: waits for the views drawn runs first); a window closed before never loads them.
+        self._load = QTimer(self)
+        self._load.setSingleShot(True)
+        self._load.setInterval(0)
+        self._load.timeout.connect(jit.release)
         window.doc.volume_changed.connect(self._volume)
         window.slices_updated.connect(lambda: self._arrived("slices"))
         window.path_updated.connect(lambda: self._arrived("path"))
@@ -83,11 +89,13 @@ class FirstDraw(QObject):
         self.done = True
         self._fallback.stop()
         self.drawn.emit()
-        jit.release()
+        self._load.start()
 
     def close(self) -> None:
         """The window closes: nothing is deferred any more (nothing loaded for it either)."""
         self._fallback.stop()
-        if not self.done:
+        loading_due = self._load.isActive()
+        self._load.stop()
+        if not self.done or loading_due:
             self.done = True
             jit.stop_deferring()
