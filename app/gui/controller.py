@@ -54,7 +54,8 @@ UI_SWITCH_INTERVAL_S = 0.0005
 LIVE_CHECKS_EVERY_MS = 100
 
 #: Delay between the last plan edit and the recomputation, ms: none (a computation at a
-#: time, latest plan next, replaces the wait).
+#: time, latest plan next, replaces the wait; the worker starts once the edit's events are
+#: served, before its drawing steps: ``Debouncer``).
 DEBOUNCE_MS = 0
 
 

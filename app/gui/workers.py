@@ -13,7 +13,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
+from PySide6.QtCore import QCoreApplication, QEvent, QObject, QRunnable, QThreadPool, QTimer, Signal
 
 
 class JobSignals(QObject):
@@ -122,10 +122,14 @@ class Runner(QObject):
 
 
 class Debouncer(QObject):
-    """Call ``fn`` once, ``delay_ms`` after the last ``poke()``."""
+    """Call ``fn`` once, ``delay_ms`` after the last ``poke()``; at 0 ms, once the events
+    posted before it are served (a posted event, handled before the zero-interval timers of
+    the drawing steps queued with the edit: the computation starts before them, not after)."""
 
     def __init__(self, fn: Callable[[], None], delay_ms: int, parent: QObject | None = None):
         super().__init__(parent)
+        self._fn = fn
+        self._posted = False
         self._timer = QTimer(self)
         self._timer.setSingleShot(True)
         self._timer.setInterval(delay_ms)
@@ -133,7 +137,19 @@ class Debouncer(QObject):
 
     def poke(self) -> None:
         """(Re)start the delay."""
-        self._timer.start()
+        if self._timer.interval() > 0:
+            self._timer.start()
+        elif not self._posted:
+            self._posted = True
+            QCoreApplication.postEvent(self, QEvent(_FIRE))
+
+    def event(self, event: QEvent) -> bool:
+        if event.type() == _FIRE:
+            if self._posted:  # not cancelled meanwhile
+                self._posted = False
+                self._fn()
+            return True
+        return super().event(event)
 
     def set_interval(self, delay_ms: int) -> None:
         """Wait ``delay_ms`` after the last poke from now on."""
@@ -142,11 +158,16 @@ class Debouncer(QObject):
     def cancel(self) -> None:
         """Drop a scheduled call."""
         self._timer.stop()
+        self._posted = False
 
     @property
     def pending(self) -> bool:
         """True while a call is scheduled."""
-        return self._timer.isActive()
+        return self._timer.isActive() or self._posted
+
+
+#: The event a 0 ms :class:`Debouncer` posts to itself.
+_FIRE = QEvent.Type(QEvent.registerEventType())
 
 
 class StepQueue(QObject):

@@ -256,3 +256,30 @@ def test_a_canal_click_draws_the_waiting_views_once_with_tubes_computed_aside(
     after = {v: (c.kept.full_draws, c.kept.blits) for v, c in grid.canvases.items()}
     assert all(after[v][0] == before[v][0] for v in ORTHO_VIEWS)  # the planes stayed
     assert all(after[v][1] > before[v][1] for v in ORTHO_VIEWS)
+
+
+def test_an_edit_starts_its_path_before_the_drawing_steps_queued_with_it(qtbot: QtBot) -> None:
+    """A 0 ms debounce runs once the events posted before it are served: before the step
+    queue's zero-interval timer (the path's worker starts, then the views draw), once for
+    several pokes, not at all once cancelled."""
+    from ctdrill.app.gui.workers import Debouncer, StepQueue
+
+    order: list[str] = []
+    steps = StepQueue()
+    debounce = Debouncer(lambda: order.append("path"), 0)
+    steps.push(lambda: order.append("step"))  # an edit queues its drawing, then pokes
+    debounce.poke()
+    debounce.poke()
+    assert debounce.pending
+    qtbot.waitUntil(lambda: len(order) == 2, timeout=2000)
+    qtbot.wait(20)
+    assert order == ["path", "step"] and not debounce.pending
+    debounce.poke()
+    debounce.cancel()
+    assert not debounce.pending
+    qtbot.wait(20)
+    assert order == ["path", "step"]
+    debounce.set_interval(5)  # a real delay: the timer, as before
+    debounce.poke()
+    qtbot.waitUntil(lambda: len(order) == 3, timeout=2000)
+    assert order[-1] == "path"
