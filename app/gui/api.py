@@ -35,7 +35,8 @@ def open_window(
     settings: QSettings | None = None,
 ) -> MainWindow:
     """The shown main window with the series ``dicom`` loaded and its first computation
-    finished (the current trajectory's path planned and drawn, or refused with a message).
+    finished (the current trajectory's path planned and drawn, or refused with a message),
+    every view drawn and the compiled kernels loaded (numba loads after the first draw).
 
     Parameters
     ----------
@@ -60,6 +61,7 @@ def open_window(
     import_window()  # the Qt-free modules first (PySide6's import hook), the collector paused
     from PySide6.QtCore import QDeadlineTimer, QEventLoop, QTimer
 
+    from ctdrill import jit
     from ctdrill.app.gui.app import make_window
     from ctdrill.imaging.plan.implants import load_implant_library
     from ctdrill.imaging.plan.load import load_plan_set
@@ -105,9 +107,15 @@ def open_window(
     view3d = window.view3d
     deadline = QDeadlineTimer(OPEN_TIMEOUT_MS)
     # every view drawn (the 3D view's bone surface is contoured after the slices and the
-    # path; its frames come from its render thread): the window is ready to be driven
+    # path; its frames come from its render thread), then the compiled kernels loaded (in the
+    # background once the views are drawn, app/gui/first_draw.py): the window is ready to be
+    # driven, a drag computed by the kernels from its first move
     while (
-        window.ui_steps.pending or view3d.busy or not view3d.surface_is_shown()
+        window.ui_steps.pending
+        or view3d.busy
+        or not view3d.surface_is_shown()
+        or not window.first_draw.done
+        or jit.deferred()
     ) and not deadline.hasExpired():
         loop.processEvents(QEventLoop.ProcessEventsFlag.WaitForMoreEvents, 50)
     return window

@@ -91,3 +91,34 @@ def test_the_first_series_is_drawn_before_numba_loads_with_the_kernels_bits(
     assert state["same"]
     # the window's imports are frozen for the collector (preload.import_window), which runs
     assert state["imports"]["frozen"] > 100_000 and state["imports"]["collecting"]
+
+
+OPEN = """
+import json, sys
+from ctdrill import jit
+from ctdrill.api import open_window
+from PySide6.QtCore import QSettings
+
+window = open_window(
+    "assets/demo/ct", ["assets/demo/plan.json"],
+    settings=QSettings(sys.argv[1], QSettings.Format.IniFormat),
+)
+loaded = [k.name for k in jit.kernels() if k._ready]
+print(json.dumps({"deferred": jit.deferred(), "numba": "numba" in sys.modules, "n": len(loaded)}))
+window.close()
+"""
+
+
+def test_open_window_returns_with_the_kernels_loaded(tmp_path: Path) -> None:
+    """A script drives the window open_window returns with the compiled kernels (a drag from
+    its first move), though they load after the first draw."""
+    out = subprocess.run(
+        [sys.executable, "-c", OPEN, str(tmp_path / "settings.ini")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
+    state = json.loads(out.stdout.strip().splitlines()[-1])
+    assert state["deferred"] is False and state["numba"] and state["n"] > 0
