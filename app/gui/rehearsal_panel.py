@@ -38,7 +38,7 @@ from PySide6.QtWidgets import (
 
 from ctdrill.app.errors import AppInputError
 from ctdrill.app.exercise.trials import TrialCard, check_session_plan
-from ctdrill.app.gui.debrief import debrief_of
+from ctdrill.app.gui.debrief import Debrief, debrief_of
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.exercise_controls import ExerciseControls
 from ctdrill.app.gui.rehearsal import RehearsalRun, Telemetry
@@ -52,17 +52,16 @@ from ctdrill.app.gui.rehearsal_live import WARN_STYLE, LiveReadouts
 from ctdrill.app.gui.rehearsal_words import (
     IGTL_TIP,
     SOUND_TIP,
-    end_details,
-    end_message,
+    ended_texts,
     predicted_words,
+    stop_why,
     timing_text,
 )
 from ctdrill.app.gui.results import PathView, block_reason, stop_explanation
 from ctdrill.app.gui.sound import VibrationSound
+from ctdrill.app.gui.workers import Runner
 from ctdrill.app.igtl.frames import SLICER_PORT, parse_target
-from ctdrill.app.igtl.stream import stream_line
 from ctdrill.app.trainee.exam import plan_hash
-from ctdrill.app.trainee.words import assessment_line
 from ctdrill.engine.path import PathResult
 from ctdrill.haptics.profile_table import ProfileTable
 
@@ -91,6 +90,8 @@ class RehearsalPanel(QWidget):
         self.sound = VibrationSound()
         self._last_emit = (-1.0, float("nan"))  # (monotonic s, depth mm) of the last update
         self._reported: RehearsalRun | None = None  # the run whose end was reported
+        self._ending: RehearsalRun | None = None  # the run whose end is being reported
+        self.debrief_runner = Runner(self._report_end, self._debrief_failed, parent=self)
         content = QWidget()
         outer = QVBoxLayout(content)
         outer.setSizeConstraint(QLayout.SizeConstraint.SetMinimumSize)  # scroll, never squeeze
@@ -357,37 +358,36 @@ class RehearsalPanel(QWidget):
         warning = run.igtl_warning
         if warning is not None and not self.message.text().endswith(warning):
             self.message.setText(f"{self.message.text()}\nwarning: {warning}")
-        if ended and self._reported is not run:
+        if ended and self._ending is not run:
             self._ended(run, tel)
+
+    def _debrief_failed(self, exc: BaseException, _tb: str) -> None:
+        self.ctx.status(f"error: the session's debrief could not be made: {exc}")
+        if self._ending is not None:
+            self._report_end((self._ending, self._ending.latest(), None))
 
     def end_reported(self) -> bool:
         """No run, or the last run's end was reported (its message and debrief shown)."""
         return self.run is None or self._reported is self.run
 
-    def _stop_why(self, run: RehearsalRun) -> str:
-        """Where the device stops the drill, and why (exam mode: its stop beyond the plan)."""
-        if run.exam is not None:
-            return f"exam, no wall at the margin: the stop is at {run.table.stop_depth_mm:.2f} mm"
-        return "" if self.result is None else stop_explanation(self.result)
-
     def _ended(self, run: RehearsalRun, tel: Telemetry | None) -> None:
-        self._reported = run
+        """The run ended: its debrief (10-30 ms of Python) is made in a worker; the end is
+        reported with it (:meth:`_report_end`, then ``finished``)."""
+        self._ending = run  # the buttons as while it ran until then (no new run before it)
         self.timer.stop()
         self.sound.stop()
+        self.debrief_runner.submit(lambda: (run, tel, debrief_of(run)))
+
+    def _report_end(self, ended: tuple[RehearsalRun, Telemetry | None, Debrief | None]) -> None:
+        run, tel, debrief = ended
+        self._reported = run
         self._update_buttons()
-        text, details = end_message(run, tel), end_details(run, tel)
-        debrief = debrief_of(run)
-        if debrief is not None:
-            score = float(debrief.summary["assessment"]["score"])
-            text += f" Score {score:.0f} of 100: see the Debrief page."
-            details = "\n".join(t for t in (details, assessment_line(debrief.summary)) if t)
+        text, details = ended_texts(run, tel, debrief)
         self.message.setToolTip(details)
-        if run.igtl is not None:
-            text += f"\n{stream_line(run.igtl)}"
         self.message.setText(text)
         self.timing_label.setText(self.exercise.prediction() or timing_text(run))
         if run.session is not None and run.session.get("final_state") == "stopped":
-            self.auto_stop_label.setText(f"auto-stop: REACHED: {self._stop_why(run)}")
+            self.auto_stop_label.setText(f"auto-stop: REACHED: {stop_why(run, self.result)}")
             self.auto_stop_label.setStyleSheet(WARN_STYLE)
         self.ctx.doc.set_rehearsing(False)
         self._path_changed(self.ctx.doc.path)
@@ -400,7 +400,7 @@ class RehearsalPanel(QWidget):
         self.last = tel
         if self.run is None:
             return
-        self.live.show_telemetry(self.run, tel, self._stop_why(self.run), self.sound)
+        self.live.show_telemetry(self.run, tel, stop_why(self.run, self.result), self.sound)
         now = time.monotonic()
         last_t, last_depth = self._last_emit
         if now - last_t >= MIN_3D_UPDATE_S and tel.drill_mm != last_depth:
@@ -424,6 +424,7 @@ class RehearsalPanel(QWidget):
         """Stop any run, the poll timer and the sound (window closing)."""
         self.timer.stop()
         self.sound.stop()
+        self.debrief_runner.cancel()
         if self.run is not None and self.run.running:
             self.run.stop()
             self.run.join(timeout_s=2.0)

@@ -10,9 +10,14 @@ import math
 
 import numpy as np
 
+from ctdrill.app.gui.debrief import Debrief
 from ctdrill.app.gui.rehearsal import RehearsalRun, Telemetry
+from ctdrill.app.gui.results import stop_explanation
 from ctdrill.app.igtl.frames import SLICER_PORT
+from ctdrill.app.igtl.stream import stream_line
 from ctdrill.app.readout import LiveReadout, push_of, stop_timing
+from ctdrill.app.trainee.words import assessment_line
+from ctdrill.engine.path import PathResult
 from ctdrill.haptics.plant import COULOMB_N
 from ctdrill.haptics.predict import predict_push
 from ctdrill.haptics.profile_table import ProfileTable
@@ -159,3 +164,26 @@ def timing_text(run: RehearsalRun) -> str:
         return f"You reached the stop after {float(reached):.1f} s."
     ended_s = run.rows[-1][0] if run.rows else run.duration_s
     return stop_timing(run.table, push, reached, ended_s).message
+
+
+def ended_texts(
+    run: RehearsalRun, last: Telemetry | None, debrief: Debrief | None
+) -> tuple[str, str]:
+    """The panel's message and its tooltip once ``run`` ended (with its score when there is a
+    ``debrief``, and the OpenIGTLink stream's line)."""
+    text, details = end_message(run, last), end_details(run, last)
+    if debrief is not None:
+        score = float(debrief.summary["assessment"]["score"])
+        text += f" Score {score:.0f} of 100: see the Debrief page."
+        details = "\n".join(t for t in (details, assessment_line(debrief.summary)) if t)
+    if run.igtl is not None:
+        text += f"\n{stream_line(run.igtl)}"
+    return text, details
+
+
+def stop_why(run: RehearsalRun, result: PathResult | None) -> str:
+    """Where the device stops the drill, and why (exam mode: its stop beyond the plan;
+    ``result``: the path the run drills)."""
+    if run.exam is not None:
+        return f"exam, no wall at the margin: the stop is at {run.table.stop_depth_mm:.2f} mm"
+    return "" if result is None else stop_explanation(result)
