@@ -39,7 +39,7 @@ from ctdrill.imaging.plan.types import Plan
 from ctdrill.imaging.sampling.envelope import ENVELOPE_GAP_MM
 from ctdrill.imaging.sampling.envelope_kernel import ENVELOPE_KERNEL
 from ctdrill.imaging.sampling.envelope_march import full_march
-from ctdrill.imaging.sampling.trilinear import volume_args
+from ctdrill.imaging.sampling.kernel_args import volume_args
 from ctdrill.imaging.sampling.walls import (
     DEPTH_STEP_MM,
     MAX_WALL_MM,

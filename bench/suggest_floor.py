@@ -31,8 +31,8 @@ from ctdrill.app.search.shell import N_ANGLES, SHELL_MM, axis_frames, body_profi
 from ctdrill.app.search.suggest import Suggestion
 from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.sampling.envelope import BISECT_TOL_MM, ENVELOPE_GAP_MM
+from ctdrill.imaging.sampling.kernel_args import volume_args
 from ctdrill.imaging.sampling.surface import SURFACE_STEP_MM
-from ctdrill.imaging.sampling.trilinear import volume_args
 from ctdrill.imaging.sampling.walls import DEPTH_STEP_MM, MAX_WALL_MM, plan_bone_walls, ray_step_mm
 from ctdrill.imaging.volume import CTVolume
 

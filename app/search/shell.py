@@ -32,7 +32,7 @@ from ctdrill.hu import AIR_HU
 from ctdrill.imaging.misch import BONE_HU
 from ctdrill.imaging.plan.implants import implant_placement
 from ctdrill.imaging.plan.types import Plan
-from ctdrill.imaging.sampling.trilinear import fits, volume_args
+from ctdrill.imaging.sampling.kernel_args import fits, volume_args
 from ctdrill.imaging.sampling.walls import PERFORATION_DEPTH_MM
 from ctdrill.imaging.teeth import TOOTH_HU, is_tooth_hu
 from ctdrill.imaging.volume import CTVolume

@@ -15,7 +15,7 @@ from ctdrill.claims import start_claimed
 from ctdrill.imaging.misch import BONE_HU
 from ctdrill.imaging.sampling.envelope_kernel import ENVELOPE_KERNEL
 from ctdrill.imaging.sampling.hu_blocks import block_classes, hu_bound
-from ctdrill.imaging.sampling.trilinear import fits, volume_args
+from ctdrill.imaging.sampling.kernel_args import fits, volume_args
 from ctdrill.imaging.teeth import TOOTH_HU
 from ctdrill.imaging.volume import CTVolume
 

@@ -26,8 +26,8 @@ import numpy as np
 
 from ctdrill.imaging.errors import ImagingInputError
 from ctdrill.imaging.misch import BONE_HU
+from ctdrill.imaging.sampling.kernel_args import fits, volume_args
 from ctdrill.imaging.sampling.surface_kernel import SURFACE_KERNEL
-from ctdrill.imaging.sampling.trilinear import fits, volume_args
 from ctdrill.imaging.volume import CTVolume
 
 #: Sampling step along the lines, mm: a third of the finest voxel of dental CT (0.3 mm).

@@ -14,41 +14,21 @@ of the bone walls (:mod:`~ctdrill.imaging.sampling.envelope_kernel`), of the bon
 (:mod:`~ctdrill.imaging.sampling.surface_kernel`), of suggest's shells
 (:mod:`ctdrill.app.search.shell_kernel`) and of :meth:`~ctdrill.imaging.volume.CTVolume.sample`'s
 points (:mod:`~ctdrill.imaging.sampling.points_kernel`) read the CT through it; each cell's
-eight-term sum is :func:`cell_sum`'s.
+eight-term sum is :func:`cell_sum`'s. What a kernel passes for a volume is
+:mod:`~ctdrill.imaging.sampling.kernel_args`' (this module imports no volume: the volume's own
+points kernel reads through it).
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
-from ctdrill.imaging.volume import CTVolume
 from ctdrill.jit import helper
 
-
-def volume_args(volume: CTVolume) -> tuple[Any, ...]:
-    """The arguments :func:`trilinear` reads, in its order: voxels (int16 or float32),
-    inverse affine (3, 3) and offset (3,), the index hull's top (3,), the nominal slice
-    positions and whether they are remapped."""
-    return (
-        np.ascontiguousarray(volume.hu),
-        np.ascontiguousarray(volume._inv_lin),
-        np.ascontiguousarray(volume._inv_off),
-        np.ascontiguousarray(volume._top),
-        np.ascontiguousarray(volume._k_nominal, dtype=np.float64),
-        bool(volume._remap_k),
-    )
-
-
-def fits(volume: CTVolume) -> bool:
-    """A compiled kernel can read ``volume`` through :func:`trilinear`: no padding, int16 or
-    float32 voxels."""
-    return volume.valid is None and volume.hu.dtype in (np.int16, np.float32)
-
-
-#: The numba type string of :func:`volume_args` for voxels of type ``{vol}``.
+#: The numba type string of :func:`~ctdrill.imaging.sampling.kernel_args.volume_args`
+#: for voxels of type ``{vol}``.
 VOLUME_SIG = "{vol}[:, :, ::1], float64[:, ::1], float64[::1], float64[::1], float64[::1], boolean"
 
 
