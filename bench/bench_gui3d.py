@@ -7,12 +7,12 @@ last piece of the bone surface ("surface shown"): that time, and the longest the
 without serving a 10 ms heartbeat timer (the longest UI stall). ctdrill's path: in a worker the
 series is loaded and contoured at every voxel (``vtkFlyingEdges3D`` on VTK's thread backend,
 normals from the voxel gradient), the triangles cut into slab pieces of at most
-``PIECE_TRIANGLES``; on the UI thread one piece is added and drawn per event-loop pass. Peers in
-the same run and process: the earlier path (the same window with the coarse surface, strided to
-160 samples a side: every 4th slice and pixel), and a plain ``pyvista`` contour of the loaded
-volume at full resolution added with ``add_mesh(smooth_shading=True)`` and drawn on the UI
-thread in one step (its stall is that step). The frame time is one ``render()`` of the 3D view
-with the whole surface shown.
+``PIECE_TRIANGLES``, which the 3D view's render thread adds and draws (its frames reach the
+UI thread as images). Peers in the same run and process: the earlier path (the same window with
+the coarse surface, strided to 160 samples a side: every 4th slice and pixel), and a plain
+``pyvista`` contour of the loaded volume at full resolution, added with smooth shading and drawn
+while the UI thread waits, in one step (its stall is that step). The frame time is one render of
+the 3D view (on its render thread) with the whole surface shown.
 """
 
 from __future__ import annotations
