@@ -172,6 +172,16 @@ def test_the_window_draws_its_3d_frames_off_the_ui_thread_and_stops_the_thread_o
     assert after.distance_mm == pytest.approx(before.distance_mm)
     assert not np.allclose(after.position_lps, before.position_lps)
     assert set(renders) == {thread.ident}
+    # the frames follow the view's size, in device pixels
+    window.resize(window.width() - 120, window.height() - 60)
+    dpr = view.devicePixelRatioF()
+
+    def sized() -> bool:
+        image = view._image
+        size = (round(view.width() * dpr), round(view.height() * dpr))
+        return not view.busy and image is not None and (image.width(), image.height()) == size
+
+    qtbot.waitUntil(sized, timeout=LOAD_TIMEOUT_MS)
     window.close()
     assert not thread.is_alive()
 
