@@ -25,7 +25,7 @@ from ctdrill.app.gui.camera import (
     initial_camera,
     scene_bounds,
 )
-from ctdrill.app.gui.meshes import drill_mesh, implant_mesh, landmark_meshes, unit
+from ctdrill.app.gui.meshes import drill_mesh, implant_mesh, landmark_meshes, sphere_mesh, unit
 from ctdrill.app.gui.surface import bone_surface as bone_surface
 
 #: Colours (RGB 0..1) by clearance state.
@@ -338,7 +338,7 @@ def _trajectory_actors(
     axis = unit(target - entry)
     line = lambda: pv.Line(entry - axis * 10.0, target).tube(radius=0.15)  # noqa: E731
     _mesh_actor(stage, kept, actors, "trajectory", (entry, target), line, color=TRAJECTORY_COLOUR)
-    ball = lambda: pv.Sphere(radius=0.5, center=target)  # noqa: E731
+    ball = lambda: sphere_mesh(0.5, target)  # noqa: E731
     _mesh_actor(stage, kept, actors, "target", (target,), ball, color=TRAJECTORY_COLOUR)
     size = (scene.diameter_mm, scene.tip_length_mm)
     _mesh_actor(
@@ -362,7 +362,7 @@ def _trajectory_actors(
             actors,
             "stop",
             (stop, radius),
-            lambda: pv.Sphere(radius=radius, center=stop),
+            lambda: sphere_mesh(radius, stop),
             color=STOP_RGB,
             opacity=0.6,
         )

@@ -152,7 +152,9 @@ class View3D(FrameView):
                 self.show_scene(scene, refocus=self.refocus_next)
                 self.refocus_next = False
 
-        self.ctx.steps.push(build)  # the actors built and drawn on the render thread
+        self.ctx.steps.push(
+            build, first=True
+        )  # built and drawn on the render thread, sent before the slices redraw
 
     def _plans(self, plans: tuple[object, ...]) -> None:
         """Every trajectory removed: the anatomy alone (otherwise the current one's path

@@ -154,3 +154,23 @@ def test_a_rebuild_keeps_the_unchanged_actors_and_redraws_the_changed() -> None:
         assert not {"landmark:canal", "margin:canal"} & (set(gone) | set(kept))
     finally:
         plotter.close()
+
+
+def test_sphere_mesh_is_pyvistas_sphere() -> None:
+    """The cached unit sphere scaled and moved gives pyvista's ``Sphere`` of that radius and
+    centre: the same faces and normals, the points to float32 rounding."""
+    import pyvista as pv
+
+    from ctdrill.app.gui.meshes import sphere_mesh
+
+    for radius, centre in ((0.5, (1.0, -2.0, 30.0)), (1.15, (32.0, 10.0, -41.0))):
+        ours = sphere_mesh(radius, np.array(centre))
+        theirs = pv.Sphere(radius=radius, center=centre)
+        np.testing.assert_array_equal(ours.faces, theirs.faces)
+        np.testing.assert_allclose(ours.points, theirs.points, rtol=0, atol=4e-6 * 50.0)
+        np.testing.assert_allclose(
+            ours.point_data["Normals"], theirs.point_data["Normals"], rtol=0, atol=1e-6
+        )
+    first = sphere_mesh(1.0, np.zeros(3))
+    sphere_mesh(2.0, np.full(3, 5.0))  # another made from the same cached sphere
+    np.testing.assert_array_equal(sphere_mesh(1.0, np.zeros(3)).points, first.points)
