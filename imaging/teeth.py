@@ -69,16 +69,34 @@ def is_tooth_hu(hu: np.ndarray) -> np.ndarray:
     return out
 
 
+#: Slices of the CT compared with :data:`TOOTH_HU` at a time (no full-size mask).
+TOOTH_SLAB = 16
+
+
 def tooth_points_lps(volume: CTVolume) -> np.ndarray:
     """(N, 3) LPS centres of the volume's tooth voxels (padding excluded), computed once per
-    volume."""
+    volume, :data:`TOOTH_SLAB` slices at a time (a 640 x 640 x 480 CT: 0.2 s instead of
+    1 s and a 197 MB mask; int16 voxels are compared as int16, float32 ones as float32,
+    which classes every voxel as the float64 comparison does: the threshold is exact in
+    both)."""
     cached = _POINTS.get(volume)
     if cached is not None:
         return cached
-    mask = np.asarray(volume.hu) >= TOOTH_HU
-    if volume.valid is not None:
-        mask &= np.asarray(volume.valid)
-    k, j, i = np.nonzero(mask)
+    hu = np.asarray(volume.hu)
+    valid = None if volume.valid is None else np.asarray(volume.valid)
+    threshold = hu.dtype.type(TOOTH_HU) if hu.dtype in (np.int16, np.float32) else TOOTH_HU
+    found: list[tuple[np.ndarray, ...]] = []
+    for k0 in range(0, hu.shape[0], TOOTH_SLAB):
+        mask = hu[k0 : k0 + TOOTH_SLAB] >= threshold
+        if valid is not None:
+            mask &= valid[k0 : k0 + TOOTH_SLAB]
+        if mask.any():
+            k, j, i = np.nonzero(mask)
+            found.append((i, j, k + k0))
+    if found:
+        i, j, k = (np.concatenate(axis) for axis in zip(*found, strict=True))
+    else:
+        i = j = k = np.zeros(0, dtype=np.intp)
     ijk1 = np.stack([i, j, k, np.ones_like(i)]).astype(np.float64)
     pts = (np.asarray(volume.affine_lps) @ ijk1)[:3].T.copy()
     pts.flags.writeable = False

@@ -9,7 +9,8 @@ import pytest
 from ctdrill.engine.implant import implant_outcome
 from ctdrill.engine.implant_facts import crest_depth_mm
 from ctdrill.imaging.plan.types import Plan
-from ctdrill.imaging.teeth import TOOTH_HU, is_bone_hu, tooth_points_lps
+from ctdrill.imaging.provenance import SeriesInfo
+from ctdrill.imaging.teeth import TOOTH_HU, TOOTH_SLAB, is_bone_hu, tooth_points_lps
 from ctdrill.imaging.volume import CTVolume
 from tests.imaging.test_walls_envelope import OUTER, PARALLEL, SP, _jaw, _plan
 
@@ -67,3 +68,26 @@ def test_an_implant_in_a_tooth_is_refused_and_a_root_nearby_is_measured() -> Non
     assert "implant_near_tooth" not in far.codes
     assert implant_outcome(base, _plan()).tooth_mm is None  # type: ignore[union-attr]
     assert len(tooth_points_lps(base)) == 0
+
+
+@pytest.mark.parametrize("dtype", [np.int16, np.float32])
+def test_tooth_points_are_the_float64_rules_voxels_slab_by_slab(dtype: type) -> None:
+    """The tooth voxels found slab by slab, compared in the voxels' own type, are those of the
+    float64 comparison over the whole volume, in its order (values just below, at and above
+    the threshold, NaN, padding, a last slab shorter than the others)."""
+    rng = np.random.default_rng(7)
+    shape = (2 * TOOTH_SLAB + 5, 9, 11)
+    hu = (rng.random(shape) * 4000.0 - 1000.0).astype(dtype)
+    hu[0, 0, :3] = [TOOTH_HU - 1.0, TOOTH_HU, TOOTH_HU + 1.0]
+    if dtype == np.float32:
+        hu[1, 0, :3] = [np.nextafter(np.float32(TOOTH_HU), np.float32(0.0)), TOOTH_HU, np.nan]
+    affine = np.diag([0.3, 0.4, 0.5, 1.0])
+    affine[:3, 3] = [1.0, -2.0, 3.0]
+    for valid in (None, rng.random(shape) > 0.2):
+        volume = CTVolume(hu=hu, affine_lps=affine, valid=valid, info=SeriesInfo("1.2"))
+        mask = np.asarray(hu, dtype=np.float64) >= TOOTH_HU
+        if volume.valid is not None:
+            mask &= volume.valid
+        k, j, i = np.nonzero(mask)
+        expected = (affine @ np.stack([i, j, k, np.ones_like(i)]).astype(np.float64))[:3].T
+        np.testing.assert_array_equal(tooth_points_lps(volume), expected)
