@@ -56,6 +56,22 @@ def _itk_agrees_on_every_volume_file() -> object:
     undo()
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _ctrl_c_as_from_a_terminal() -> object:
+    """Ctrl-C reaches the tests as it reaches a command typed in a terminal: a suite started in
+    the background by a non-interactive shell (``make test &``) inherits SIGINT ignored, which
+    the processes the Ctrl-C tests start would keep (a command started under ``nohup`` rightly
+    ignores it), so Python's own handler is put back for the session."""
+    import signal
+
+    old = signal.getsignal(signal.SIGINT)
+    if old is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    if old is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, old)
+
+
 #: The window tests' folder: one work unit under ``-n 2 --dist loadscope`` (make test).
 GUI_TESTS = "tests/app/gui/"
 
