@@ -162,9 +162,16 @@ def test_a_trainee_drills_a_blind_trial_with_the_mouse(
     # a plan that is no trial, opened on the trial's CT, keeps the window blind
     window.open_plan(phantom_case.plan_path)
     assert window.blind_trial is not None and not window.pages.isVisible()
-    # on a CT that is no trial's, it shows everything again
-    with qtbot.waitSignal(window.path_updated, timeout=LOAD_TIMEOUT_MS):
-        window.open_folder(phantom_case.ct_dir)
+    # on a CT that is no trial's, it shows everything again (waited for until that CT is loaded
+    # and its path drawn: the path of the plan just opened on the trial's CT may come first)
+    trial_ct = window.doc.volume
+    window.open_folder(phantom_case.ct_dir)
+
+    def opened() -> bool:
+        doc = window.doc
+        return doc.volume is not trial_ct and doc.path is not None and doc.path.plan is doc.plan
+
+    qtbot.waitUntil(opened, timeout=LOAD_TIMEOUT_MS)
     window.open_plan(phantom_case.plan_path)
     assert window.windowTitle() == "ctdrill" and window.pages.isVisible()
     assert window.plot_canvas.isVisible()
