@@ -13,13 +13,13 @@ per-trajectory sampler itself.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ctdrill.hu import AIR_HU
 from ctdrill.imaging.plan.types import DrillSpec
+from ctdrill.imaging.sampling.kernel_args import volume_args
 from ctdrill.imaging.sampling.lip import ring_radii_mm, sample_lip_rings
+from ctdrill.imaging.sampling.trilinear import at_index
 from ctdrill.imaging.volume import CTVolume
 from ctdrill.jit import Kernel, row_spans, run_spans
 
@@ -48,7 +48,6 @@ def _lip_kernel(
     row_lo: int,
     row_hi: int,
 ) -> None:  # pragma: no cover - compiled by numba; tested against sample_lip_rings
-    n_k, n_j, n_i = vol.shape
     n_s = k_nominal.shape[0]
     tol = 1e-6
     offsets = np.empty((radii.shape[0], cos_t.shape[0], 3))
@@ -103,33 +102,7 @@ def _lip_kernel(
                         out[n, d, r, a] = outside_hu
                         outside[n, d] += 1
                         continue
-                    sk = math.floor(ck)
-                    sj = math.floor(cj)
-                    si = math.floor(ci)
-                    wk0 = 1.0 - (ck - sk)  # scipy's weights: 1 - t, then 1 minus that (not t)
-                    wj0 = 1.0 - (cj - sj)
-                    wi0 = 1.0 - (ci - si)
-                    wk1 = 1.0 - wk0
-                    wj1 = 1.0 - wj0
-                    wi1 = 1.0 - wi0
-                    # corner indices clamped as mode="nearest" does
-                    k0 = min(max(sk, 0), n_k - 1)
-                    k1 = min(max(sk + 1, 0), n_k - 1)
-                    j0 = min(max(sj, 0), n_j - 1)
-                    j1 = min(max(sj + 1, 0), n_j - 1)
-                    i0 = min(max(si, 0), n_i - 1)
-                    i1 = min(max(si + 1, 0), n_i - 1)
-                    # scipy's order: corners with i fastest, each (value * wk) * wj * wi
-                    total = 0.0
-                    total += float(vol[k0, j0, i0]) * wk0 * wj0 * wi0
-                    total += float(vol[k0, j0, i1]) * wk0 * wj0 * wi1
-                    total += float(vol[k0, j1, i0]) * wk0 * wj1 * wi0
-                    total += float(vol[k0, j1, i1]) * wk0 * wj1 * wi1
-                    total += float(vol[k1, j0, i0]) * wk1 * wj0 * wi0
-                    total += float(vol[k1, j0, i1]) * wk1 * wj0 * wi1
-                    total += float(vol[k1, j1, i0]) * wk1 * wj1 * wi0
-                    total += float(vol[k1, j1, i1]) * wk1 * wj1 * wi1
-                    out[n, d, r, a] = total
+                    out[n, d, r, a] = at_index(vol, ck, cj, ci)  # mode="nearest"'s bits
 
 
 _SIG = (
@@ -208,14 +181,7 @@ def sample_lips(
     radii = ring_radii_mm(drill.diameter_mm, n_rings)
     theta = 2.0 * np.pi * np.arange(n_angles, dtype=np.float64) / n_angles
     xi_off = tip_len * radii / radius  # the sampler's xi = depth - tip_len * r / R
-    args = (
-        np.ascontiguousarray(volume.hu),
-        np.ascontiguousarray(volume._inv_lin),
-        np.ascontiguousarray(volume._inv_off),
-        np.ascontiguousarray(volume._top),
-        np.ascontiguousarray(volume._k_nominal, dtype=np.float64),
-        bool(volume._remap_k),
-    )
+    args = volume_args(volume)
     ent = np.ascontiguousarray(entries_lps, dtype=np.float64)
     bas = np.ascontiguousarray(bases, dtype=np.float64)
     dep = np.ascontiguousarray(depth_mm, dtype=np.float64)

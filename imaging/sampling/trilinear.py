@@ -12,9 +12,11 @@ see a change in another module): a change here goes with a touch of every kernel
 imports it. The kernels
 of the bone walls (:mod:`~ctdrill.imaging.sampling.envelope_kernel`), of the bone surface
 (:mod:`~ctdrill.imaging.sampling.surface_kernel`), of suggest's shells
-(:mod:`ctdrill.app.search.shell_kernel`) and of :meth:`~ctdrill.imaging.volume.CTVolume.sample`'s
-points (:mod:`~ctdrill.imaging.sampling.points_kernel`) read the CT through it; each cell's
-eight-term sum is :func:`cell_sum`'s. What a kernel passes for a volume is
+(:mod:`ctdrill.app.search.shell_kernel`), of the drill's lip rings
+(:mod:`~ctdrill.imaging.sampling.lip_batch`) and of
+:meth:`~ctdrill.imaging.volume.CTVolume.sample`'s points
+(:mod:`~ctdrill.imaging.sampling.points_kernel`) read the CT through it; each cell's eight-term
+sum is :func:`cell_sum`'s. What a kernel passes for a volume is
 :mod:`~ctdrill.imaging.sampling.kernel_args`' (this module imports no volume: the volume's own
 points kernel reads through it).
 """
