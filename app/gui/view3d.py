@@ -142,19 +142,14 @@ class View3D(FrameView):
         doc = self.ctx.doc
         if view is None and not doc.path_error:
             return  # reset on a plan edit: the result follows
-        plan = doc.plan
-
-        def build() -> None:
-            if doc.plan is plan and doc.path is view:
-                lines = candidate_lines(doc.suggestion, doc.adopted)
-                views = [doc.cached_path(p) for p in doc.plans]
-                scene = plans_scene(doc.plans, doc.current, view, lines, views)
-                self.show_scene(scene, refocus=self.refocus_next)
-                self.refocus_next = False
-
-        self.ctx.steps.push(
-            build, first=True
-        )  # built and drawn on the render thread, sent before the slices redraw
+        # the scene is sent at once (well under a millisecond here): its actors are built and
+        # drawn on the render thread while the slices redraw, the frame being the longest
+        # part of a plan edit's answer (a drawing step would wait behind the window's paints)
+        lines = candidate_lines(doc.suggestion, doc.adopted)
+        views = [doc.cached_path(p) for p in doc.plans]
+        scene = plans_scene(doc.plans, doc.current, view, lines, views)
+        self.show_scene(scene, refocus=self.refocus_next)
+        self.refocus_next = False
 
     def _plans(self, plans: tuple[object, ...]) -> None:
         """Every trajectory removed: the anatomy alone (otherwise the current one's path
