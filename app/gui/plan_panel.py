@@ -58,6 +58,24 @@ COLUMN_TIPS = {
 CELL_SPIN_PX = 78
 
 
+#: Item data marking a clearance cell that waits for the path result ("unknown").
+_PENDING_ROLE = Qt.ItemDataRole.UserRole + 1
+
+
+def _show_value(box: QDoubleSpinBox, value: float) -> None:
+    """Show ``value`` in ``box`` unless it shows it already (a spin box repaints on every
+    ``setValue``, and the plan is shown again on every edit and path result)."""
+    if box.value() != box.valueFromText(box.textFromValue(value)):
+        box.setValue(value)
+
+
+def _show_text(edit: QLineEdit, text: str) -> None:
+    """Show ``text`` in ``edit`` unless it shows it already (a line edit repaints on every
+    ``setText``)."""
+    if edit.text() != text:
+        edit.setText(text)
+
+
 def _spin(lo: float, hi: float, step: float, decimals: int, suffix: str) -> QDoubleSpinBox:
     box = QDoubleSpinBox()
     box.setRange(lo, hi)
@@ -236,15 +254,15 @@ class PlanPanel(QWidget):
             self.body.setEnabled(not self.ctx.doc.rehearsing)
             for name, pt in (("entry", plan.entry_lps), ("target", plan.target_lps)):
                 for box, value in zip(self.point_boxes[name], pt, strict=True):
-                    box.setValue(float(value))
+                    _show_value(box, float(value))
             self.depth_label.setText(f"planned depth: {plan.planned_depth_mm:.2f} mm")
-            self.sequence.setText(planning.drills_text(plan))
+            _show_text(self.sequence, planning.drills_text(plan))
             self.implant.show_plan(plan)
-            self.site.setText("" if plan.site is None else str(plan.site))
-            self.diameter.setValue(plan.drill.diameter_mm)
-            self.tip_length.setValue(plan.drill.tip_length_mm)
-            self.feed.setValue(plan.feed_mm_s)
-            self.margin.setValue(plan.margin_mm)
+            _show_text(self.site, "" if plan.site is None else str(plan.site))
+            _show_value(self.diameter, plan.drill.diameter_mm)
+            _show_value(self.tip_length, plan.drill.tip_length_mm)
+            _show_value(self.feed, plan.feed_mm_s)
+            _show_value(self.margin, plan.margin_mm)
             self.calibration.setCurrentText(plan.calibration)
             key = tuple((lm.name, lm.kind) for lm in plan.landmarks)
             if key != self._rows_key:  # rebuild the rows only when the landmarks change
@@ -270,13 +288,17 @@ class PlanPanel(QWidget):
             for row, lm in enumerate(plan.landmarks):
                 cell = self.table.cellWidget(row, 2)
                 if isinstance(cell, QDoubleSpinBox):
-                    cell.setValue(plan.landmark_margin_mm(lm))
+                    _show_value(cell, plan.landmark_margin_mm(lm))
                 cell = self.table.cellWidget(row, 5)
                 if isinstance(cell, QDoubleSpinBox):
-                    cell.setValue(float(lm.radius_mm))
+                    _show_value(cell, float(lm.radius_mm))
                 for col in (3, 4):
+                    shown = self.table.item(row, col)
+                    if shown is not None and shown.data(_PENDING_ROLE) is True:
+                        continue  # "unknown" already
                     item = QTableWidgetItem("unknown")
                     item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
+                    item.setData(_PENDING_ROLE, True)
                     self.table.setItem(row, col, item)
         finally:
             self._updating = False
