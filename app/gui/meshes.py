@@ -3,6 +3,8 @@ tube and its margin envelope, and an implant body as a solid of revolution of it
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from functools import lru_cache
 from typing import Protocol
 
@@ -65,10 +67,40 @@ def drill_mesh(
     return out
 
 
+#: Landmark meshes each thread keeps (the latest made or used last): the 3D view makes a canal
+#: click's tubes while the click's path is planned (:meth:`ctdrill.app.gui.view3d.View3D.
+#: prefetch`) and draws them with the path result; an undo finds the previous ones.
+LANDMARK_MESHES_KEPT = 8
+_kept = threading.local()
+
+
 def landmark_meshes(landmark: DrawnLandmark) -> tuple[pv.PolyData, pv.PolyData | None]:
     """(body, margin envelope): the canal tube (or point sphere) and the tube grown by the
-    margin; a surface cloud (a mask landmark's) is drawn as points, without an envelope."""
+    margin; a surface cloud (a mask landmark's) is drawn as points, without an envelope.
+
+    The meshes of the last :data:`LANDMARK_MESHES_KEPT` geometries are kept per thread and
+    returned again (the same objects: read them, never change them)."""
     pts = np.atleast_2d(np.asarray(landmark.points_lps, dtype=np.float64))
+    key: tuple[object, ...] = (pts.shape, pts.tobytes(), float(landmark.radius_mm))
+    key += (float(landmark.margin_mm), bool(landmark.cloud))
+    kept: OrderedDict[tuple[object, ...], tuple[pv.PolyData, pv.PolyData | None]] | None
+    kept = getattr(_kept, "meshes", None)
+    if kept is None:
+        kept = _kept.meshes = OrderedDict()
+    hit = kept.get(key)
+    if hit is not None:
+        kept.move_to_end(key)
+        return hit
+    made = _landmark_meshes(pts, landmark)
+    kept[key] = made
+    while len(kept) > LANDMARK_MESHES_KEPT:
+        kept.popitem(last=False)
+    return made
+
+
+def _landmark_meshes(
+    pts: np.ndarray, landmark: DrawnLandmark
+) -> tuple[pv.PolyData, pv.PolyData | None]:
     outer = landmark.radius_mm + landmark.margin_mm
     if landmark.cloud:
         return pv.PolyData(pts), None

@@ -23,7 +23,8 @@ from PySide6.QtCore import Signal
 from ctdrill.app.gui.compute import volume_surface
 from ctdrill.app.gui.document import ViewContext
 from ctdrill.app.gui.frame_view import FrameView
-from ctdrill.app.gui.planning import scene_input
+from ctdrill.app.gui.meshes import landmark_meshes
+from ctdrill.app.gui.planning import landmark_geometries, scene_input
 from ctdrill.app.gui.results import PathView
 from ctdrill.app.gui.scene import BACKGROUND, SceneInput, scene_camera
 from ctdrill.app.gui.scene_plans import plans_scene
@@ -34,6 +35,8 @@ from ctdrill.app.gui.workers import Runner
 
 if TYPE_CHECKING:
     import pyvista as pv
+
+    from ctdrill.imaging.plan.types import Plan
 
 #: The longest a frame of the 3D view should take on its render thread, s (the pace at which
 #: the camera follows the mouse and a rehearsal's drill moves).
@@ -118,6 +121,7 @@ class View3D(FrameView):
         doc.live_depth_changed.connect(self.set_drill_depth)
         doc.suggestion_changed.connect(self._suggestion)
         doc.plans_changed.connect(self._plans)
+        doc.plan_changed.connect(self.prefetch)
 
     @property
     def actors(self) -> dict[str, Any]:
@@ -150,6 +154,20 @@ class View3D(FrameView):
         scene = plans_scene(doc.plans, doc.current, view, lines, views)
         self.show_scene(scene, refocus=self.refocus_next)
         self.refocus_next = False
+
+    def prefetch(self, plan: Plan | None) -> None:
+        """A plan edit (not a drag's move): its landmarks' tubes are made on the render thread
+        while its path is planned (:func:`~ctdrill.app.gui.meshes.landmark_meshes` keeps
+        them), so the path result's scene is drawn without making them then, when the
+        render thread would wait for the interpreter lock behind the slices' redraws."""
+        if plan is None or self.ctx.doc.live.dragging:
+            return
+
+        def make(_stage: Any) -> None:
+            for lm in landmark_geometries(plan):
+                landmark_meshes(lm)
+
+        self.rt.submit(make, key="prefetch", frame=False)
 
     def _plans(self, plans: tuple[object, ...]) -> None:
         """Every trajectory removed: the anatomy alone (otherwise the current one's path
