@@ -39,13 +39,11 @@ from ctdrill.app.gui.slice_nav import (
     slice_stack,
     window_text,
 )
-from ctdrill.app.gui.slice_overlays import tube_requests
 from ctdrill.app.gui.slice_scene import OverlayScene, overlay_scene
 from ctdrill.app.gui.slice_toolbar import SliceToolbar
 from ctdrill.app.gui.slice_view import SliceCanvas
 from ctdrill.app.gui.slices import VIEWS, SliceImage, reslice, volume_center_lps
 from ctdrill.app.gui.text_line import TextLine
-from ctdrill.app.gui.tube_prefetch import TubePrefetch
 from ctdrill.app.gui.workers import Runner, RunnerGroup
 from ctdrill.imaging import CTVolume
 from ctdrill.imaging.display import WINDOW_PRESETS
@@ -107,7 +105,6 @@ class SliceGrid(SliceEdits, QWidget):
         grid.setContentsMargins(0, 0, 0, 0)
         grid.setSpacing(2)
         self.runners: dict[str, Runner] = {}
-        self.tubes = TubePrefetch(self)  # for the views waiting for a path
         for n, v in enumerate(VIEWS):
             canvas = self.canvases[v]
             grid.addWidget(canvas, n // 2, n % 2)
@@ -140,8 +137,8 @@ class SliceGrid(SliceEdits, QWidget):
 
     @property
     def runner(self) -> RunnerGroup:
-        """Every view's runner and the tubes' runner, as one (``cancel``, ``busy``)."""
-        return RunnerGroup({**self.runners, "tubes": self.tubes.runner})
+        """Every view's runner, as one (``cancel``, ``busy``)."""
+        return RunnerGroup(dict(self.runners))
 
     # ------------------------------------------------------------------ planes
     def _volume_changed(self, volume: CTVolume) -> None:
@@ -327,7 +324,12 @@ class SliceGrid(SliceEdits, QWidget):
         already) on every canvas (or on ``only``): each hit-tests the new scene at once and
         draws it in a step of its own (an edit returns at once; the plan, then its path, before
         the step: one draw); with ``draw`` False it only hit-tests it (its drawing waits for the
-        path: ``OverlayPacing``; its canal tubes meanwhile: ``TubePrefetch``)."""
+        path: ``OverlayPacing``).
+
+        The canal tubes are computed where they are drawn (kept for the next draw): computed
+        in a worker while the path was planned, they slowed the path's worker and the UI
+        thread more than they saved (a canal click settled 5-12 ms later), each thread waiting
+        for the interpreter lock the others held."""
         scene = self._scene() if scene is None else scene
         for name, canvas in self.canvases.items():
             if only is not None and name != only:
@@ -336,8 +338,6 @@ class SliceGrid(SliceEdits, QWidget):
             if draw and name not in self._overlays_due:
                 self._overlays_due.add(name)
                 self.ctx.steps.push(partial(self._overlay_step, name))
-            elif not draw and canvas.image is not None:
-                self.tubes.fetch(tube_requests(canvas.image, scene))
 
     def _overlay_step(self, name: str) -> None:
         if name in self._overlays_due:

@@ -45,8 +45,7 @@ HANDLE_COLOURS = {"entry": "#40e0ff", "target": "#ff6060", "platform": "#40e080"
 
 #: Tube fields kept (the latest first): a plan edit that leaves a canal and a view's plane
 #: as they were (a target moved, an undo, an implant picked) redraws it without recomputing.
-#: The views waiting for a path have theirs computed in a worker meanwhile
-#: (:func:`prefetch_tubes`), hence the lock.
+#: Locked: :func:`cached_tube_field` may be called from any thread.
 TUBE_CACHE_SIZE = 16
 _tubes: OrderedDict[bytes, TubeField | None] = OrderedDict()
 _tubes_lock = threading.Lock()
@@ -83,68 +82,19 @@ def cached_tube_field(
 
 
 def _tube(request: TubeRequest) -> TubeField | None:
-    """The kept field of ``request``, else computed and kept; one being computed in another
-    thread (a prefetch) is waited for, not computed twice."""
+    """The kept field of ``request``, else computed and kept."""
     key = request.key
     with _tubes_lock:
         if key in _tubes:
             _tubes.move_to_end(key)
             return _tubes[key]
-        running = _computing.get(key)
-        if running is None:
-            _computing[key] = running = _Computing()
-            mine = True
-        else:
-            mine = False
-    if not mine:
-        running.done.wait()
-        return running.field if running.ok else _tube(request)  # it failed: here, again
-    try:
-        pts = np.ascontiguousarray(request.polyline_lps, dtype=np.float64)
-        field = tube_field(request.plane, pts, request.reach_mm, request.step_mm)
-    except BaseException:
-        with _tubes_lock:
-            del _computing[key]
-        running.done.set()
-        raise
-    running.field, running.ok = field, True
+    pts = np.ascontiguousarray(request.polyline_lps, dtype=np.float64)
+    field = tube_field(request.plane, pts, request.reach_mm, request.step_mm)
     with _tubes_lock:
         _tubes[key] = field
         while len(_tubes) > TUBE_CACHE_SIZE:
             _tubes.popitem(last=False)
-        del _computing[key]
-    running.done.set()
     return field
-
-
-class _Computing:
-    """A tube field under way in one thread (others wait for it)."""
-
-    def __init__(self) -> None:
-        self.done = threading.Event()
-        self.field: TubeField | None = None
-        self.ok = False
-
-
-#: Tube fields being computed, by key.
-_computing: dict[bytes, _Computing] = {}
-
-
-def tube_cached(request: TubeRequest) -> bool:
-    """``request``'s field is kept."""
-    with _tubes_lock:
-        return request.key in _tubes
-
-
-def prefetch_tubes(requests: list[TubeRequest]) -> int:
-    """Compute and keep the fields of ``requests`` not kept yet (a worker thread); returns how
-    many it computed."""
-    done = 0
-    for request in requests:
-        if not tube_cached(request):
-            _tube(request)
-            done += 1
-    return done
 
 
 def _tube_request(image: SliceImage, lm: LandmarkGeometry) -> TubeRequest | None:
@@ -154,12 +104,6 @@ def _tube_request(image: SliceImage, lm: LandmarkGeometry) -> TubeRequest | None
         return None
     step = float(np.clip(min(image.pixel_mm, lm.radius_mm / 4.0), 0.05, 1.0))
     return TubeRequest(plane_of(image), lm.points_lps, lm.radius_mm + lm.margin_mm, step)
-
-
-def tube_requests(image: SliceImage, scene: OverlayScene) -> list[TubeRequest]:
-    """The tube fields drawing ``scene``'s canals on ``image`` needs."""
-    out = [_tube_request(image, lm) for lm in scene.landmarks]
-    return [r for r in out if r is not None]
 
 
 #: A ``plot`` format string's line style and marker (the few the views use).

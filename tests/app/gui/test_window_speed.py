@@ -37,47 +37,6 @@ def test_tube_fields_are_kept_by_value() -> None:
     assert not np.array_equal(other.distance_mm, first.distance_mm)
 
 
-def test_the_tubes_a_waiting_view_draws_are_computed_aside_and_drawn_from_the_cache(
-    qtbot: QtBot, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    import threading
-
-    from ctdrill.app.gui import slice_overlays
-    from ctdrill.app.gui.slice_overlays import prefetch_tubes, tube_cached, tube_requests
-    from ctdrill.app.gui.slice_view import SliceCanvas
-    from tests.app.gui.test_slice_blit import LEVEL, WIDTH, _image, _scene
-
-    canvas = SliceCanvas("axial")
-    qtbot.addWidget(canvas)
-    image = _image()
-    canvas.show_slice(image, level_hu=LEVEL, width_hu=WIDTH)
-    canvas.set_overlays(_scene(0.0))
-    scene = _scene(7.25)  # a canal point moved: a tube not kept yet
-    (request,) = tube_requests(image, scene)
-    assert not tube_cached(request)
-    done: list[int] = []
-    worker = threading.Thread(target=lambda: done.append(prefetch_tubes([request, request])))
-    worker.start()
-    worker.join(timeout=30)
-    assert done == [1] and tube_cached(request)
-    assert prefetch_tubes([request]) == 0  # kept: nothing computed again
-    fresh = tube_field(request.plane, request.polyline_lps, request.reach_mm, request.step_mm)
-
-    def refuse(*_args: object) -> None:
-        raise AssertionError("computed on the UI thread")
-
-    monkeypatch.setattr(slice_overlays, "tube_field", refuse)
-    canvas.set_overlays(scene)  # drawn from the cache
-    outlines = [c for c in canvas.ax.collections if getattr(c, "filled", None) is False]
-    assert outlines and fresh is not None
-    monkeypatch.undo()
-    field = slice_overlays.cached_tube_field(
-        request.plane, request.polyline_lps, request.reach_mm, request.step_mm
-    )
-    assert field is not None
-    np.testing.assert_array_equal(field.distance_mm, fresh.distance_mm)
-
-
 def test_overlay_requests_coalesce_into_one_step_per_canvas(window: MainWindow) -> None:
     grid = window.slice_grid
     before = window.ui_steps.pending
@@ -157,6 +116,7 @@ def test_only_the_view_acted_on_draws_an_edit_before_its_path(
     from ctdrill.app.gui.workers import StepQueue
 
     monkeypatch.setattr(overlay_pacing, "WAIT_FOR_PATH_MS", 60)  # a late path, sooner
+    monkeypatch.setattr(overlay_pacing, "ACTING_WAIT_MS", 20)
 
     class Doc(QObject):
         path_changed = Signal(object)
@@ -176,30 +136,33 @@ def test_only_the_view_acted_on_draws_an_edit_before_its_path(
     QTest.mouseClick(canvases["axial"], Qt.MouseButton.LeftButton, pos=QPoint(10, 10))
     assert pacing.acting == "axial"
     doc.path = None  # type: ignore[attr-defined]  # an edit: its path on its way
-    assert pacing.draws_now("axial") and not pacing.draws_now("coronal")
-    assert steps.pending == 1  # the view waiting: the window is not drawn yet
-    qtbot.waitUntil(lambda: bool(redraws), timeout=2000)
-    assert redraws == ["coronal"] and steps.pending == 0  # late: drawn without it
-    assert not pacing.draws_now("coronal")
+    # every view waits for it; the one acted on the shorter while (feedback under the mouse)
+    assert not pacing.draws_now("axial") and not pacing.draws_now("coronal")
+    assert steps.pending == 2  # the views waiting: the window is not drawn yet
+    qtbot.waitUntil(lambda: len(redraws) == 2, timeout=2000)
+    assert redraws == ["axial", "coronal"] and steps.pending == 0  # late: drawn without it
+    # the path in time: the view acted on draws once, with it
+    redraws.clear()
+    assert not pacing.draws_now("axial") and not pacing.draws_now("coronal")
     doc.path = object()  # type: ignore[attr-defined]
     doc.path_changed.emit(doc.path)  # the path came (every view drew it) before the wait ended
     assert steps.pending == 0
     qtbot.wait(200)
-    assert redraws == ["coronal"]
+    assert redraws == []
     doc.path, doc.path_error = None, "no path"  # type: ignore[attr-defined]  # failed
     assert pacing.draws_now("coronal") and steps.pending == 0
 
 
-def test_a_canal_click_draws_the_waiting_views_once_with_tubes_computed_aside(
+def test_a_canal_click_draws_every_view_once_with_its_path_and_each_tube_once(
     qtbot: QtBot, window: MainWindow, phantom_case: object, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """The click's view draws at once, the others once with the path (their tubes asked of
-    the worker at the click, each tube computed once: a plane the trajectory view shares with
-    another shares its tube), every draw over the kept image."""
+    """Every view draws the click once, with its path (the click's view too, the path coming
+    within its wait), each tube computed once (a plane the trajectory view shares with another
+    shares its tube), every draw over the kept image."""
     from PySide6.QtCore import QPoint, Qt
 
     from ctdrill.app.gui import slice_overlays
-    from ctdrill.app.gui.slice_overlays import tube_requests
+    from ctdrill.app.gui.slice_overlays import _tube_request
     from tests.app.gui.helpers import open_case
     from tests.app.gui.test_slice_navigation import settle
 
@@ -208,6 +171,7 @@ def test_a_canal_click_draws_the_waiting_views_once_with_tubes_computed_aside(
     settle(qtbot, window)
     grid = window.slice_grid
     grid.pacing._late.setInterval(60_000)  # a path late under load: still drawn once
+    grid.pacing._acting_late.setInterval(60_000)
     qtbot.waitUntil(lambda: all(c.kept.full_draws for c in grid.canvases.values()), timeout=5000)
 
     computed: list[bytes] = []  # the tubes computed (their keys), in any thread
@@ -218,13 +182,6 @@ def test_a_canal_click_draws_the_waiting_views_once_with_tubes_computed_aside(
         return compute(plane, pts, reach, step)
 
     monkeypatch.setattr(slice_overlays, "tube_field", watched)
-    asked: list[bytes] = []  # the tubes asked of the worker
-    fetch = grid.tubes.fetch
-    monkeypatch.setattr(
-        grid.tubes,
-        "fetch",
-        lambda requests: (asked.extend(r.key for r in requests), fetch(requests)),
-    )
     passes: dict[str, int] = dict.fromkeys(grid.canvases, 0)
     for name, canvas in grid.canvases.items():
         original = canvas.set_overlays
@@ -244,14 +201,16 @@ def test_a_canal_click_draws_the_waiting_views_once_with_tubes_computed_aside(
     with qtbot.waitSignal(window.path_updated, timeout=30_000):
         qtbot.mouseClick(axial, Qt.MouseButton.LeftButton, pos=QPoint(round(px[0]), round(px[1])))
     settle(qtbot, window)
-    assert passes == {"axial": 2, "coronal": 1, "sagittal": 1, "trajectory": 1}
+    assert passes == {"axial": 1, "coronal": 1, "sagittal": 1, "trajectory": 1}
     wanted = {
-        v: {r.key for r in tube_requests(c.image, c.scene)}  # type: ignore[arg-type]
+        v: {
+            r.key
+            for lm in c.scene.landmarks  # type: ignore[union-attr]
+            if (r := _tube_request(c.image, lm)) is not None  # type: ignore[arg-type]
+        }
         for v, c in grid.canvases.items()
     }
     assert all(wanted.values())
-    waiting = set().union(*(wanted[v] for v in ("coronal", "sagittal", "trajectory")))
-    assert waiting <= set(asked)  # asked of the worker at the click, before the path
     assert sorted(computed) == sorted(set().union(*wanted.values()))  # each computed once
     after = {v: (c.kept.full_draws, c.kept.blits) for v, c in grid.canvases.items()}
     assert all(after[v][0] == before[v][0] for v in ORTHO_VIEWS)  # the planes stayed
