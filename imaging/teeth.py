@@ -20,6 +20,7 @@ it) reads as bone, so the distance to a root is an upper bound where the root is
 from __future__ import annotations
 
 import weakref
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -104,6 +105,84 @@ def tooth_points_lps(volume: CTVolume) -> np.ndarray:
     return pts
 
 
+#: Side of the cubic cells the tooth voxels are sorted into (:func:`tooth_cells`), mm.
+TOOTH_CELL_MM = 2.0
+#: Cells whose lower bound exceeds the best distance by less than this are still read, mm
+#: (the bounds' own rounding).
+_BOUND_SLACK_MM = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class ToothCells:
+    """The tooth voxels' centres sorted into cubes of :data:`TOOTH_CELL_MM`: the points of
+    non-empty cell ``c`` are ``points_lps[starts[c]:starts[c + 1]]``, within
+    ``half_diagonal_mm`` of ``centres_lps[c]``."""
+
+    points_lps: np.ndarray  # (N, 3), by cell
+    starts: np.ndarray  # (C + 1,)
+    centres_lps: np.ndarray  # (C, 3)
+    half_diagonal_mm: float
+
+
+_CELLS: weakref.WeakKeyDictionary[CTVolume, ToothCells] = weakref.WeakKeyDictionary()
+
+
+def tooth_cells(volume: CTVolume) -> ToothCells:
+    """:func:`tooth_points_lps` sorted into cells, computed once per volume."""
+    cached = _CELLS.get(volume)
+    if cached is not None:
+        return cached
+    pts = tooth_points_lps(volume)
+    half = 0.5 * np.sqrt(3.0) * TOOTH_CELL_MM
+    if len(pts) == 0:
+        cells = ToothCells(pts, np.zeros(1, dtype=np.intp), np.zeros((0, 3)), half)
+    else:
+        lo = pts.min(axis=0)
+        ijk = np.floor((pts - lo) / TOOTH_CELL_MM).astype(np.int64)
+        dims = ijk.max(axis=0) + 1
+        flat = ijk[:, 0] + dims[0] * (ijk[:, 1] + dims[1] * ijk[:, 2])
+        order = np.argsort(flat, kind="stable")
+        ids, first = np.unique(flat[order], return_index=True)
+        cell_ijk = np.stack([ids % dims[0], (ids // dims[0]) % dims[1], ids // (dims[0] * dims[1])])
+        sorted_pts = pts[order]
+        sorted_pts.flags.writeable = False
+        cells = ToothCells(
+            points_lps=sorted_pts,
+            starts=np.append(first, len(pts)).astype(np.intp),
+            centres_lps=lo + (cell_ijk.T + 0.5) * TOOTH_CELL_MM,
+            half_diagonal_mm=float(half),
+        )
+    _CELLS[volume] = cells
+    return cells
+
+
+def body_distances_mm(
+    points_lps: np.ndarray,
+    platform_lps: np.ndarray,
+    axis_lps: np.ndarray,
+    length_mm: float,
+    radius_at_mm: np.ndarray,
+) -> np.ndarray:
+    """(N,) distance from each point to an implant body (as :func:`tooth_distance_mm`; inf for
+    a point farther than :data:`NEIGHBOUR_MM` from its axis or beyond its ends). Each point's
+    value is computed from that point alone (no sum over points), so a subset gives the same
+    bits."""
+    a = np.asarray(axis_lps, dtype=np.float64)
+    rel = np.asarray(points_lps, dtype=np.float64) - np.asarray(platform_lps, dtype=np.float64)
+    s = rel[:, 0] * a[0] + rel[:, 1] * a[1] + rel[:, 2] * a[2]
+    s_clip = np.clip(s, 0.0, length_mm)
+    off = rel - s[:, None] * a
+    radial = np.sqrt(off[:, 0] * off[:, 0] + off[:, 1] * off[:, 1] + off[:, 2] * off[:, 2])
+    along = s - s_clip
+    r = np.asarray(radius_at_mm, dtype=np.float64)
+    radius = np.interp(s_clip, np.linspace(0.0, length_mm, len(r)), r)
+    out = np.sqrt(np.maximum(radial - radius, 0.0) ** 2 + along**2)
+    inside = (along == 0.0) & (radial < radius)
+    out = np.where(inside, radial - radius, out)
+    near = (radial <= NEIGHBOUR_MM) & (np.abs(along) <= NEIGHBOUR_MM)
+    return np.where(near, out, np.inf)
+
+
 def tooth_distance_mm(
     volume: CTVolume,
     platform_lps: np.ndarray,
@@ -114,22 +193,36 @@ def tooth_distance_mm(
     """The distance from an implant body (platform, unit axis, length; ``radius_at_mm`` (D,)
     its radius at D equal steps from the platform to the apex) to the nearest tooth voxel
     centre within :data:`NEIGHBOUR_MM` of its axis, mm (negative: a tooth voxel inside the
-    body); None when there is none."""
-    pts = tooth_points_lps(volume)
-    if len(pts) == 0:
+    body); None when there is none.
+
+    Only the cells (:func:`tooth_cells`) that may hold a nearer voxel are read, nearest
+    first: a cell's points are at least its centre's distance to the axis segment, less its
+    half diagonal and the body's largest radius, from the body. The answer is the minimum of
+    :func:`body_distances_mm` over every voxel, bit for bit (a CT with a million tooth or
+    metal voxels: a few cells instead of ~80 ms a check)."""
+    cells = tooth_cells(volume)
+    if len(cells.centres_lps) == 0:
         return None
-    rel = pts - np.asarray(platform_lps)
-    s = rel @ np.asarray(axis_lps)
-    s_clip = np.clip(s, 0.0, length_mm)
-    radial = np.linalg.norm(rel - s[:, None] * np.asarray(axis_lps), axis=1)
-    near = np.flatnonzero((radial <= NEIGHBOUR_MM) & (np.abs(s - s_clip) <= NEIGHBOUR_MM))
-    if near.size == 0:
+    a = np.asarray(axis_lps, dtype=np.float64)
+    p0 = np.asarray(platform_lps, dtype=np.float64)
+    rel = cells.centres_lps - p0
+    t = np.clip(rel @ a, 0.0, length_mm)
+    to_axis = np.linalg.norm(rel - t[:, None] * a, axis=1) - cells.half_diagonal_mm
+    # a neighbour lies within NEIGHBOUR_MM of the axis and of the body's ends
+    reach = np.flatnonzero(to_axis <= np.sqrt(2.0) * NEIGHBOUR_MM + _BOUND_SLACK_MM)
+    if reach.size == 0:
         return None
-    r = np.asarray(radius_at_mm, dtype=np.float64)
-    grid = np.linspace(0.0, length_mm, len(r))
-    radius = np.interp(s_clip[near], grid, r)
-    along = s[near] - s_clip[near]
-    out = np.sqrt(np.maximum(radial[near] - radius, 0.0) ** 2 + along**2)
-    inside = (along == 0.0) & (radial[near] < radius)
-    out = np.where(inside, radial[near] - radius, out)
-    return float(out.min())
+    bound = to_axis[reach] - float(np.max(radius_at_mm))
+    order = reach[np.argsort(bound, kind="stable")]
+    bound = np.sort(bound, kind="stable")
+    best, done, batch = np.inf, 0, 8
+    while done < len(order) and bound[done] <= best + _BOUND_SLACK_MM:
+        take = order[done : done + batch]
+        lo, hi = cells.starts[take], cells.starts[take + 1]
+        counts = hi - lo
+        index = np.repeat(lo - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
+        d = body_distances_mm(cells.points_lps[index], p0, a, length_mm, radius_at_mm)
+        best = min(best, float(d.min()))
+        done += len(take)
+        batch *= 2
+    return None if not np.isfinite(best) else best
