@@ -23,6 +23,11 @@ class JobSignals(QObject):
     failed = Signal(int, object, str)
 
 
+def _ran() -> None:
+    """What a job holds once it ran (its function released)."""
+    raise RuntimeError("this job has run")
+
+
 class Job(QRunnable):
     """Call ``fn()`` in the thread pool and emit its result."""
 
@@ -34,12 +39,18 @@ class Job(QRunnable):
         self.setAutoDelete(True)
 
     def run(self) -> None:  # runs in a pool thread
+        # the function (and what it holds: a volume, a plan) goes with the run: PySide keeps
+        # the started runnable referenced, and a closure kept with it held a whole CT after
+        # another series opened, until a full garbage collection found it
+        fn, self.fn = self.fn, _ran
         try:
             try:
-                result = self.fn()
+                result = fn()
             except Exception as exc:  # delivered to the UI, which decides what is bad input
+                del fn
                 self.signals.failed.emit(self.generation, exc, traceback.format_exc())
                 return
+            del fn
             self.signals.done.emit(self.generation, result)
         except RuntimeError:  # the receiver was destroyed (window closed): nobody to tell
             return
