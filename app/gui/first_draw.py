@@ -6,7 +6,8 @@ its first path, checks and readout run on the kernels' NumPy twins (the same bit
 kernel not loaded yet gives them as in a one-plan job, :mod:`ctdrill.jit`), and once every
 view shows the first series (slices, 3D surface, the path or its refusal, no drawing step
 left) the kernels load in a background thread (:func:`ctdrill.jit.release`); each is used
-compiled from then on (a drag, a search).
+compiled from then on (a drag, a search). Then what lives is frozen for the garbage collector
+(:func:`ctdrill.app.gui.preload.freeze_kernels`).
 """
 
 from __future__ import annotations
@@ -16,10 +17,13 @@ from typing import Any
 from PySide6.QtCore import QObject, QTimer, Signal
 
 from ctdrill import jit
+from ctdrill.app.gui.preload import freeze_kernels
 
 #: At the latest this long after the first series arrived, the kernels load even if a view
 #: never said it was drawn (a view that failed quietly), ms.
 RELEASE_AFTER_MS = 5000
+#: How often the window looks whether the kernels have loaded, ms.
+LOADED_POLL_MS = 100
 
 
 class FirstDraw(QObject):
@@ -48,7 +52,11 @@ class FirstDraw(QObject):
         self._load = QTimer(self)
         self._load.setSingleShot(True)
         self._load.setInterval(0)
-        self._load.timeout.connect(jit.release)
+        self._load.timeout.connect(self._load_kernels)
+        #: Polls for the kernels loaded, then freezes what lives (preload.freeze_kernels).
+        self._loaded = QTimer(self)
+        self._loaded.setInterval(LOADED_POLL_MS)
+        self._loaded.timeout.connect(self._kernels_loaded)
         window.doc.volume_changed.connect(self._volume)
         window.slices_updated.connect(lambda: self._arrived("slices"))
         window.path_updated.connect(lambda: self._arrived("path"))
@@ -91,9 +99,20 @@ class FirstDraw(QObject):
         self.drawn.emit()
         self._load.start()
 
+    def _load_kernels(self) -> None:
+        jit.release()
+        self._loaded.start()
+
+    def _kernels_loaded(self) -> None:
+        if jit.deferred():
+            return
+        self._loaded.stop()
+        freeze_kernels()
+
     def close(self) -> None:
         """The window closes: nothing is deferred any more (nothing loaded for it either)."""
         self._fallback.stop()
+        self._loaded.stop()
         loading_due = self._load.isActive()
         self._load.stop()
         if not self.done or loading_due:

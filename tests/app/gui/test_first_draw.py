@@ -56,6 +56,16 @@ def loaded():
     state["ready"] = all(k.ready() for k in jit.kernels())
     view = compute_path_view(doc.volume, doc.plan, doc.hu_uncertainty, plan_set=doc.plans)
     state["same"] = fingerprint(view) == state.pop("first")
+    frozen()
+
+
+def frozen():
+    from ctdrill.app.gui import preload
+
+    if not preload._KERNELS_FROZEN[0]:
+        QTimer.singleShot(20, frozen)
+        return
+    state["after kernels"] = {"frozen": gc.get_freeze_count(), "collecting": gc.isenabled()}
     app.quit()
 
 
@@ -91,6 +101,9 @@ def test_the_first_series_is_drawn_before_numba_loads_with_the_kernels_bits(
     assert state["same"]
     # the window's imports are frozen for the collector (preload.import_window), which runs
     assert state["imports"]["frozen"] > 100_000 and state["imports"]["collecting"]
+    # and once numba and the kernels loaded, what lives then (preload.freeze_kernels)
+    after = state["after kernels"]
+    assert after["frozen"] > state["imports"]["frozen"] + 50_000 and after["collecting"]
 
 
 OPEN = """

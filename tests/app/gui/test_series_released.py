@@ -47,3 +47,18 @@ def test_the_previous_series_is_released_when_another_opens(
         qtbot.waitUntil(lambda: old() is None, timeout=5000)  # without a collection
     finally:
         gc.enable()
+
+
+def test_the_kernels_freeze_comes_once_and_only_after_the_imports_froze(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from ctdrill.app.gui import preload
+
+    frozen: list[int] = []
+    monkeypatch.setattr(preload.gc, "freeze", lambda: frozen.append(1))
+    monkeypatch.setattr(preload, "_FROZE", [False])
+    monkeypatch.setattr(preload, "_KERNELS_FROZEN", [False])
+    assert not preload.freeze_kernels() and frozen == []  # a process that did not freeze them
+    preload._FROZE[0] = True
+    assert preload.freeze_kernels() and frozen == [1]
+    assert not preload.freeze_kernels() and frozen == [1]  # once a process
