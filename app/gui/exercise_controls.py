@@ -47,6 +47,8 @@ class Panel(Protocol):
 
     def update_exam_toggle(self) -> None: ...
 
+    def end_reported(self) -> bool: ...
+
 
 class ExerciseControls(QObject):
     """The panel's exercise state: the blind trial's card and the aid level (module docstring)."""
@@ -130,6 +132,12 @@ class ExerciseControls(QObject):
 
         from ctdrill.app.trainee.answers import answer_entries
 
+        if not self.panel.end_reported():  # its debrief is made in a worker (tens of ms)
+            self.answer_message.setText(
+                "The session just drilled is still being summarised: record your answer in a "
+                "moment."
+            )
+            return False
         debrief = self.panel.ctx.doc.debrief  # the last ended session's
         entry = getattr(debrief, "entry", None)
         if self.card is None or entry is None:

@@ -101,7 +101,14 @@ def test_a_trainee_drills_a_blind_trial_with_the_mouse(
     assert panel.hand.need_n is None
     window.grab().save(str(tmp_path / "blind-cutting.png"))
     qtbot.waitUntil(lambda: panel.run is not None and not panel.run.running, timeout=SESSION_MS)
-    qtbot.wait(100)
+    box = panel.exercise
+    qtbot.waitUntil(panel.end_reported, timeout=LOAD_TIMEOUT_MS)  # its debrief made (a worker)
+    # an answer given before then waits for it, and says so (not "drill the trial first")
+    panel.end_reported = lambda: False  # type: ignore[method-assign]
+    assert not box.record_answer()
+    assert "still being summarised" in box.answer_message.text()
+    del panel.end_reported
+    assert panel.end_reported()
     _assert_blind(window, trials[0].misch)  # and at the end (the debrief page stays hidden)
     window.grab().save(str(tmp_path / "blind-end.png"))
     files = panel.export(tmp_path / "export")
@@ -139,7 +146,6 @@ def test_a_trainee_drills_a_blind_trial_with_the_mouse(
             (named, trials[0].misch)
         ]
     # the window names the bone too: real clicks and keys into the answer box
-    box = panel.exercise
     assert box.answer_box.isVisible()
     wrong = next(c for c in TRIAL_CLASSES if c not in (trials[0].misch, named))
     box.answer.setFocus()
