@@ -3,8 +3,6 @@ never renders, a burst of changes draws the last one, and closing stops the thre
 
 from __future__ import annotations
 
-import os
-import sys
 import threading
 import time
 from typing import Any
@@ -202,18 +200,5 @@ def test_without_egl_the_view_falls_back_to_the_ui_thread(
         assert rt.stage is not None and rt.stage.thread is threading.current_thread()
         image = next(f.image for f in reversed(got) if f.image is not None)
         assert tuple(qimage_to_rgb(image)[24, 32]) == (0, 255, 0)
-    finally:
-        rt.stop()
-
-
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="per-thread nice is Linux's")
-def test_the_render_thread_yields_the_cpu_to_the_ui_thread(qtbot: QtBot) -> None:
-    from ctdrill.app.gui.render_thread import RENDER_NICE
-
-    rt = RenderThread((64, 48))
-    try:
-        nice = rt.call(lambda _st: os.getpriority(os.PRIO_PROCESS, threading.get_native_id()))
-        assert nice >= RENDER_NICE
-        assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) < RENDER_NICE
     finally:
         rt.stop()
