@@ -149,11 +149,16 @@ class View3D(FrameView):
         # the scene is sent at once (well under a millisecond here): its actors are built and
         # drawn on the render thread while the slices redraw, the frame being the longest
         # part of a plan edit's answer (a drawing step would wait behind the window's paints)
+        self.show_scene(self._plans_scene(view), refocus=self.refocus_next)
+        self.refocus_next = False
+
+    def _plans_scene(self, view: PathView | None) -> SceneInput:
+        """The document's trajectories with ``view`` (the current one's path result), the
+        suggested axes and the other trajectories' known results."""
+        doc = self.ctx.doc
         lines = candidate_lines(doc.suggestion, doc.adopted)
         views = [doc.cached_path(p) for p in doc.plans]
-        scene = plans_scene(doc.plans, doc.current, view, lines, views)
-        self.show_scene(scene, refocus=self.refocus_next)
-        self.refocus_next = False
+        return plans_scene(doc.plans, doc.current, view, lines, views)
 
     def prefetch(self, plan: Plan | None) -> None:
         """A plan edit (not a drag's move): its landmarks' tubes are made on the render thread
@@ -188,9 +193,7 @@ class View3D(FrameView):
 
         def build() -> None:
             if doc.plan is plan and doc.path is view:
-                lines = candidate_lines(doc.suggestion, doc.adopted)
-                views = [doc.cached_path(p) for p in doc.plans]
-                self.show_scene(plans_scene(doc.plans, doc.current, view, lines, views))
+                self.show_scene(self._plans_scene(view))
 
         self.ctx.steps.push(build)
 
