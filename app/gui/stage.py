@@ -88,10 +88,7 @@ class Stage:
     ) -> None:
         self.thread = threading.current_thread()
         if window is None:
-            window = egl_render_window()
-        if window is None:
-            window = vtkRenderWindow()
-            window.SetOffScreenRendering(1)
+            window = offscreen_window()
         self.window = window
         self.egl = window.GetClassName() == "vtkEGLRenderWindow"
         window.SetMultiSamples(int(multi_samples))
@@ -317,13 +314,20 @@ class Stage:
         self.window.Finalize()
 
 
-def _marker_window(egl: bool) -> Any:
-    """An off-screen render window for the cube, of the frame's kind, with a transparent
-    background (alpha kept) and no multisampling (as the frame's)."""
+def offscreen_window(egl: bool = True) -> Any:
+    """An off-screen render window: EGL's when ``egl`` and it can render
+    (:func:`egl_render_window`), else VTK's default one."""
     win = egl_render_window() if egl else None
     if win is None:
         win = vtkRenderWindow()
         win.SetOffScreenRendering(1)
+    return win
+
+
+def _marker_window(egl: bool) -> Any:
+    """An off-screen render window for the cube, of the frame's kind, with a transparent
+    background (alpha kept) and no multisampling (as the frame's)."""
+    win = offscreen_window(egl)
     win.SetMultiSamples(0)
     win.SetAlphaBitPlanes(1)
     return win
