@@ -32,8 +32,6 @@ TOOTH_HU = 2000.0
 #: Teeth farther than this from an implant's axis are not its neighbours, mm.
 NEIGHBOUR_MM = 25.0
 
-_POINTS: weakref.WeakKeyDictionary[CTVolume, np.ndarray] = weakref.WeakKeyDictionary()
-
 
 def is_bone_hu(hu: np.ndarray) -> np.ndarray:
     """Bone, not tooth: ``BONE_HU <= hu < TOOTH_HU`` (NaN: False)."""
@@ -75,14 +73,11 @@ TOOTH_SLAB = 16
 
 
 def tooth_points_lps(volume: CTVolume) -> np.ndarray:
-    """(N, 3) LPS centres of the volume's tooth voxels (padding excluded), computed once per
-    volume, :data:`TOOTH_SLAB` slices at a time (a 640 x 640 x 480 CT: 0.2 s instead of
+    """(N, 3) LPS centres of the volume's tooth voxels (padding excluded), in voxel order,
+    :data:`TOOTH_SLAB` slices at a time (a 640 x 640 x 480 CT: 0.2 s instead of
     1 s and a 197 MB mask; int16 voxels are compared as int16, float32 ones as float32,
     which classes every voxel as the float64 comparison does: the threshold is exact in
-    both)."""
-    cached = _POINTS.get(volume)
-    if cached is not None:
-        return cached
+    both). Not kept: :func:`tooth_cells` keeps them, sorted by cell."""
     hu = np.asarray(volume.hu)
     valid = None if volume.valid is None else np.asarray(volume.valid)
     threshold = hu.dtype.type(TOOTH_HU) if hu.dtype in (np.int16, np.float32) else TOOTH_HU
@@ -101,7 +96,6 @@ def tooth_points_lps(volume: CTVolume) -> np.ndarray:
     ijk1 = np.stack([i, j, k, np.ones_like(i)]).astype(np.float64)
     pts = (np.asarray(volume.affine_lps) @ ijk1)[:3].T.copy()
     pts.flags.writeable = False
-    _POINTS[volume] = pts
     return pts
 
 
@@ -198,8 +192,8 @@ def tooth_distance_mm(
     Only the cells (:func:`tooth_cells`) that may hold a nearer voxel are read, nearest
     first: a cell's points are at least its centre's distance to the axis segment, less its
     half diagonal and the body's largest radius, from the body. The answer is the minimum of
-    :func:`body_distances_mm` over every voxel, bit for bit (a CT with a million tooth or
-    metal voxels: a few cells instead of ~80 ms a check)."""
+    :func:`body_distances_mm` over every voxel, bit for bit (0.2 mm voxels, 851 k of them in
+    crowns: 2 ms a check instead of 55 ms)."""
     cells = tooth_cells(volume)
     if len(cells.centres_lps) == 0:
         return None
@@ -213,8 +207,8 @@ def tooth_distance_mm(
     if reach.size == 0:
         return None
     bound = to_axis[reach] - float(np.max(radius_at_mm))
-    order = reach[np.argsort(bound, kind="stable")]
-    bound = np.sort(bound, kind="stable")
+    rank = np.argsort(bound, kind="stable")
+    order, bound = reach[rank], bound[rank]
     best, done, batch = np.inf, 0, 8
     while done < len(order) and bound[done] <= best + _BOUND_SLACK_MM:
         take = order[done : done + batch]
