@@ -9,6 +9,7 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -78,18 +79,24 @@ print(json.dumps(state))
 """
 
 
-def test_the_first_series_is_drawn_before_numba_loads_with_the_kernels_bits(
-    tmp_path: Path,
-) -> None:
+def _run(code: str, tmp_path: Path) -> dict[str, Any]:
+    """Run ``code`` in a fresh Python with private settings; the JSON of its last line."""
     out = subprocess.run(
-        [sys.executable, "-c", CODE, str(tmp_path / "settings.ini")],
+        [sys.executable, "-c", code, str(tmp_path / "settings.ini")],
         cwd=ROOT,
         capture_output=True,
         text=True,
         timeout=300,
         check=True,
     )
-    state = json.loads(out.stdout.strip().splitlines()[-1])
+    state: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
+    return state
+
+
+def test_the_first_series_is_drawn_before_numba_loads_with_the_kernels_bits(
+    tmp_path: Path,
+) -> None:
+    state = _run(CODE, tmp_path)
     assert state["at drawn"] == {
         "numba": False,
         "pydicom": False,
@@ -125,13 +132,5 @@ window.close()
 def test_open_window_returns_with_the_kernels_loaded(tmp_path: Path) -> None:
     """A script drives the window open_window returns with the compiled kernels (a drag from
     its first move), though they load after the first draw."""
-    out = subprocess.run(
-        [sys.executable, "-c", OPEN, str(tmp_path / "settings.ini")],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=True,
-    )
-    state = json.loads(out.stdout.strip().splitlines()[-1])
+    state = _run(OPEN, tmp_path)
     assert state["deferred"] is False and state["numba"] and state["n"] > 0
